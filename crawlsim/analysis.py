@@ -1,0 +1,293 @@
+"""Run a sweeping process to its periodic regime and measure it (MODEL.md §4).
+
+The paper's Theorem th:attractor: from any admissible start, ``w(. + qT)`` converges in
+W^{1,2}(t0, t0+T) to a T-periodic solution, and the slip rates converge in L^2; for crawlers
+(Theorem th:speed) the average velocity v0 exists and does not depend on the start.
+
+`simulate` steps period by period until the Poincare step ``|w(t0+(q+1)T) - w(t0+qT)|`` is at
+most ``tolerance * max(|w|, scale)`` or ``max_periods`` is reached, then classifies the
+convergence:
+
+* **finite-time** from period q when the Poincare step falls to the tolerance in one jump, by a
+  factor of more than `FINITE_JUMP` (a geometric contraction that fast cannot be told from exact
+  periodicity in double precision); ``periodic_from`` is that q;
+* **asymptotic** otherwise, with the contraction rate fitted to the tail of the Poincare steps;
+* **not-converged** when ``max_periods`` ran out first.
+
+Each period is kept (on disk, not in memory) until the end, when its W^{1,2} and sup distances to
+the final period, and the L^2 distance of its slip rates, are computed.
+"""
+
+from __future__ import annotations
+
+import math
+import tempfile
+import time as _time
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from .model import SweepingProcess
+from .stepping import CatchUpStepper, PeriodRecord
+
+#: Relative Poincare steps below this are roundoff: a smaller tolerance is clamped to it.
+ROUNDOFF_FLOOR = 1e-13
+#: One-period drop of the Poincare step that counts as finite-time convergence.
+FINITE_JUMP = 1e-4
+#: Periods used to fit the contraction rate.
+RATE_WINDOW = 8
+
+
+@dataclass(frozen=True, eq=False)
+class ConvergenceHistory:
+    """Per-period measurements, one entry per simulated period q = 0, 1, ..."""
+
+    period: np.ndarray
+    displacement: np.ndarray  # y(t0+(q+1)T) - y(t0+qT); NaN for generic processes
+    velocity: np.ndarray  # displacement / T
+    poincare_step: np.ndarray  # |w(t0+(q+1)T) - w(t0+qT)|
+    w12_distance: np.ndarray  # W^{1,2}(period) distance of w to the final period
+    sup_distance: np.ndarray  # sup distance of w to the final period
+    slip_l2_distance: np.ndarray  # L^2 distance of the slip rates (multiplier rates) to the final period
+    dissipation: np.ndarray  # energy dissipated by friction in the period; NaN for generic
+
+
+@dataclass(frozen=True, eq=False)
+class LimitPeriod:
+    """The final period, taken as the periodic limit: times relative to its start."""
+
+    start: float
+    t: np.ndarray  # (G+1,) in [0, T]
+    w: np.ndarray  # (G+1, n)
+    multipliers: np.ndarray  # (G, m)
+    x: np.ndarray | None = None  # (G+1, N) positions in the running frame x - y(start) - v0 (t - start)
+    shape: np.ndarray | None = None  # (G+1, N-1) z = D x
+    stress: np.ndarray | None = None  # (G+1, N-1) sigma = K (L - z)
+    slip: np.ndarray | None = None  # (G, N) int8: +1 forward slip, -1 backward slip, 0 stick
+    slip_rate: np.ndarray | None = None  # (G, N) dx / dt on each step
+
+
+@dataclass(frozen=True, eq=False)
+class RunResult:
+    """Everything `simulate` measured. ``summary()`` is the JSON-ready part."""
+
+    name: str
+    period: float
+    steps_per_period: int
+    convergence: str  # "finite-time" | "asymptotic" | "not-converged"
+    periods: int
+    periodic_from: int | None
+    contraction_rate: float | None
+    v0: float | None
+    v0_error_estimate: float | None
+    displacement_per_period: float | None
+    dissipation_per_period: float | None
+    cost_of_transport: float | None
+    history: ConvergenceHistory
+    limit: LimitPeriod
+    clarabel_calls: int
+    wall_time: float
+    steps: int = field(default=0)
+
+    @property
+    def converged(self) -> bool:
+        return self.convergence != "not-converged"
+
+    def summary(self) -> dict:
+        keys = ("name", "v0", "v0_error_estimate", "displacement_per_period", "convergence",
+                "periodic_from", "contraction_rate", "periods", "steps_per_period",
+                "dissipation_per_period", "cost_of_transport", "clarabel_calls", "steps",
+                "wall_time")
+        out = {k: getattr(self, k) for k in keys}
+        out["final_poincare_step"] = float(self.history.poincare_step[-1])
+        return out
+
+
+class _PeriodSpill:
+    """Each period's w and multipliers, spilled to an anonymous temporary file.
+
+    The distances to the limit period need every period and the final one, which is known only at
+    the end; keeping them on disk keeps a long run's memory bounded.
+    """
+
+    def __init__(self):
+        self._file = tempfile.TemporaryFile()
+        self._shapes = None
+
+    def add(self, rec: PeriodRecord):
+        self._shapes = (rec.w.shape, rec.multipliers.shape)
+        rec.w.tofile(self._file)
+        rec.multipliers.tofile(self._file)
+
+    def periods(self):
+        (wshape, lshape) = self._shapes
+        nw, nl = math.prod(wshape), math.prod(lshape)
+        self._file.seek(0)
+        while True:
+            w = np.fromfile(self._file, count=nw)
+            if w.size < nw:
+                return
+            lam = np.fromfile(self._file, count=nl)
+            yield w.reshape(wshape), lam.reshape(lshape)
+
+    def close(self):
+        self._file.close()
+
+
+def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: float = 1e-12,
+             check_every_step: bool = False, sink=None, progress=None) -> RunResult:
+    """Step ``process`` to its periodic regime and analyse the run.
+
+    ``sink.add_period(record)`` receives every period as it is computed (the HDF5 writer streams
+    the trajectory); ``progress(q, poincare_step_relative)`` is called after every period.
+    """
+    began = _time.perf_counter()
+    stepper = CatchUpStepper(process, check_every_step=check_every_step)
+    T, G = process.period, process.steps
+    h = np.diff(process.times)
+    tol = max(float(tolerance), ROUNDOFF_FLOOR)
+    spill = _PeriodSpill()
+    disp, steps, rel_steps, diss = [], [], [], []
+    record = None
+    try:
+        for q in range(max_periods):
+            record = stepper.step_period()
+            spill.add(record)
+            if sink is not None:
+                sink.add_period(record)
+            step = float(np.linalg.norm(record.w[-1] - record.w[0]))
+            size = max(float(np.linalg.norm(record.w[-1])), process.scale)
+            steps.append(step)
+            rel_steps.append(step / size)
+            if process.is_crawler:
+                disp.append(float(np.mean(record.x[-1] - record.x[0])))
+                diss.append(float(np.sum(record.multipliers * process.friction[1:])))
+            if progress is not None:
+                progress(q, rel_steps[-1])
+            if rel_steps[-1] <= tol:
+                break
+        final = record
+        history_d = _distances(spill, final, h)
+    finally:
+        spill.close()
+
+    Q = len(steps) - 1
+    rel = np.array(rel_steps)
+    if rel[Q] > tol:
+        convergence, periodic_from = "not-converged", None
+    elif Q == 0 or rel[Q] < FINITE_JUMP * rel[Q - 1]:
+        convergence, periodic_from = "finite-time", Q
+    else:
+        convergence, periodic_from = "asymptotic", None
+    rate = None if convergence == "finite-time" else _contraction_rate(rel)
+
+    displacement = np.array(disp) if process.is_crawler else np.full(Q + 1, np.nan)
+    dissipation = np.array(diss) if process.is_crawler else np.full(Q + 1, np.nan)
+    history = ConvergenceHistory(
+        period=np.arange(Q + 1), displacement=displacement, velocity=displacement / T,
+        poincare_step=np.array(steps), dissipation=dissipation, **history_d)
+
+    v0 = err = d_final = diss_final = cot = None
+    if process.is_crawler:
+        d_final = float(displacement[-1])
+        v0 = d_final / T
+        diss_final = float(dissipation[-1])
+        # Roundoff of summing G slips, plus the geometric tail still to come when asymptotic.
+        err = G * np.finfo(float).eps * float(np.sum(np.abs(final.slips))) / process.blocks / T
+        if convergence != "finite-time" and Q >= 1:
+            dv = abs(displacement[-1] - displacement[-2]) / T
+            r = rate if rate is not None and rate < 1 else None
+            err += dv * r / (1 - r) if r is not None else dv
+        cot = diss_final / abs(d_final) if abs(d_final) > err * T * 10 + 1e-300 else None
+    return RunResult(
+        name=process.name, period=T, steps_per_period=G, convergence=convergence,
+        periods=Q + 1, periodic_from=periodic_from, contraction_rate=rate, v0=v0,
+        v0_error_estimate=err, displacement_per_period=d_final,
+        dissipation_per_period=diss_final, cost_of_transport=cot, history=history,
+        limit=limit_period(process, final, v0), clarabel_calls=stepper.projector.clarabel_calls,
+        wall_time=_time.perf_counter() - began, steps=(Q + 1) * G)
+
+
+def _distances(spill: _PeriodSpill, final: PeriodRecord, h: np.ndarray) -> dict:
+    """W^{1,2} and sup distances of w, and L^2 distance of the multiplier rates, to ``final``.
+
+    On the grid, with e = w_q - w_final: ||e||_{L2}^2 by the trapezoidal rule, ||e'||_{L2}^2 as
+    sum |e_{j+1} - e_j|^2 / h_j (e' is piecewise constant for the catch-up interpolant), and the
+    slip rates lambda_j / h_j are piecewise constant too.
+    """
+    w12, sup, slip = [], [], []
+    for w, lam in spill.periods():
+        e = w - final.w
+        e2 = np.sum(e * e, axis=1)
+        l2 = float(np.sum(h * (e2[1:] + e2[:-1]) / 2))
+        de = np.diff(e, axis=0)
+        h1 = float(np.sum(np.sum(de * de, axis=1) / h))
+        w12.append(math.sqrt(l2 + h1))
+        sup.append(float(np.sqrt(np.max(e2))))
+        dl = lam - final.multipliers
+        slip.append(math.sqrt(float(np.sum(np.sum(dl * dl, axis=1) / h))))
+    return dict(w12_distance=np.array(w12), sup_distance=np.array(sup),
+                slip_l2_distance=np.array(slip))
+
+
+def _contraction_rate(rel_steps: np.ndarray) -> float | None:
+    """Geometric rate of the Poincare steps: a least-squares fit of log(step) on the last periods.
+
+    Only steps above the roundoff floor carry information about the contraction.
+    """
+    tail = rel_steps[-RATE_WINDOW:]
+    q = np.arange(len(tail))
+    good = tail > ROUNDOFF_FLOOR / 10
+    if np.count_nonzero(good) < 2:
+        return None
+    slope = np.polyfit(q[good], np.log(tail[good]), 1)[0]
+    return float(math.exp(slope))
+
+
+def limit_period(process: SweepingProcess, final: PeriodRecord, v0: float | None) -> LimitPeriod:
+    """The final period in the running frame: ``xbar(t) = xbar_0 + v0 (t - t0) + p(t)``."""
+    t = process.times
+    if not process.is_crawler:
+        return LimitPeriod(final.start, t.copy(), final.w, final.multipliers)
+    k = 1.0 / np.diag(process.metric)
+    shape = -final.w / k
+    stress = final.w + process.stress_offset
+    y0 = float(np.mean(final.x[0]))
+    x_run = final.x - y0 - v0 * t[:, None]
+    dx = final.slips
+    eps = 1e-12 * max(float(np.max(np.abs(dx))), 1e-300)
+    slip = np.where(dx > eps, 1, np.where(dx < -eps, -1, 0)).astype(np.int8)
+    return LimitPeriod(final.start, t.copy(), final.w, final.multipliers, x=x_run, shape=shape,
+                       stress=stress, slip=slip, slip_rate=dx / np.diff(t)[:, None])
+
+
+def summary_text(result: RunResult, output: str | None = None) -> str:
+    """The short human summary printed by ``crawlsim run``."""
+    lines = [f"gait {result.name}: {result.periods} periods of {result.steps_per_period} steps"]
+    if result.v0 is not None:
+        lines.append(f"  v0                       {result.v0:.12g} "
+                     f"(± {result.v0_error_estimate:.1g} from the period iteration; "
+                     "time-step error not included)")
+    if result.convergence == "finite-time":
+        lines.append(f"  convergence              finite-time: periodic from period "
+                     f"{result.periodic_from}")
+    elif result.convergence == "asymptotic":
+        rate = "n/a" if result.contraction_rate is None else f"{result.contraction_rate:.4g}"
+        lines.append(f"  convergence              asymptotic, contraction rate {rate} per period")
+    else:
+        lines.append(f"  convergence              NOT converged: final Poincare step "
+                     f"{result.history.poincare_step[-1]:.3g}. Try increasing max_periods.")
+    if result.displacement_per_period is not None:
+        lines.append(f"  displacement per period  {result.displacement_per_period:.12g}")
+        lines.append(f"  dissipation per period   {result.dissipation_per_period:.12g}")
+        cot = "n/a (no net motion)" if result.cost_of_transport is None else \
+            f"{result.cost_of_transport:.6g}"
+        lines.append(f"  cost of transport        {cot}")
+    if output:
+        lines.append(f"  written                  {output}")
+    return "\n".join(lines)
+
+
+def as_dict(obj) -> dict:
+    """Dataclass of arrays to a plain dict (for writers)."""
+    return asdict(obj)

@@ -1,0 +1,34 @@
+"""The library entry points behind the command line: a Python user calls these too."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .analysis import RunResult, simulate
+from .gait import Gait, load_gait
+from .h5io import ResultsWriter
+from .model import compile_gait
+
+
+def run(gait: Gait | str | Path, *, output=None, save_every: int = 1,
+        check_every_step: bool = False, progress=None) -> RunResult:
+    """Simulate a gait to its periodic regime; write the HDF5 results file if ``output`` is given.
+
+    ``gait`` is a `Gait` or the path of a gait file. Its ``simulation`` settings (steps per period,
+    maximum periods, tolerance) are used as they are: change them with
+    `crawlsim.gait.with_simulation`.
+    """
+    if not isinstance(gait, Gait):
+        gait = load_gait(gait)
+    process = compile_gait(gait)
+    settings = gait.simulation
+    if output is None:
+        return simulate(process, max_periods=settings.max_periods,
+                        tolerance=settings.tolerance, check_every_step=check_every_step,
+                        progress=progress)
+    with ResultsWriter(output, process, save_every=save_every) as writer:
+        result = simulate(process, max_periods=settings.max_periods,
+                          tolerance=settings.tolerance, check_every_step=check_every_step,
+                          sink=writer, progress=progress)
+        writer.finish(result, gait.source_text)
+    return result

@@ -1,0 +1,158 @@
+"""The ``crawlsim`` command line. Each command parses, calls the library, prints.
+
+Exit codes: 0 converged, 3 not converged within max_periods (results still written),
+2 bad input (no traceback, no file written), 1 internal failure (a failed certificate included).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from contextlib import contextmanager
+from pathlib import Path
+
+import click
+
+from . import __version__, api
+from .analysis import summary_text
+from .errors import CrawlsimError, GaitError, ResultsFileError
+from .gait import load_gait, with_simulation
+
+EXIT_NOT_CONVERGED = 3
+
+
+class BadInput(click.ClickException):
+    """Bad input: exit code 2 and a one-line message."""
+
+    exit_code = 2
+
+    def show(self, file=None):
+        click.echo(f"Error: {self.format_message()}", err=True)
+
+
+class InternalFailure(click.ClickException):
+    exit_code = 1
+
+    def show(self, file=None):
+        click.echo(f"Error: {self.format_message()}", err=True)
+
+
+@contextmanager
+def library_errors():
+    """Library errors become click errors: bad input is exit 2, everything else exit 1."""
+    try:
+        yield
+    except (GaitError, ResultsFileError) as exc:
+        raise BadInput(str(exc)) from None
+    except CrawlsimError as exc:
+        raise InternalFailure(str(exc)) from None
+
+
+def _output_path(output, gait_file) -> Path:
+    out = Path(output) if output else Path.cwd() / (Path(gait_file).stem + ".h5")
+    if not out.resolve().parent.is_dir():
+        raise BadInput(f"--output {out}: the folder {out.resolve().parent} does not exist")
+    if out.is_dir():
+        raise BadInput(f"--output {out}: is a folder; give a file name such as run.h5")
+    return out
+
+
+def _json_default(value):
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def to_json(summary: dict) -> str:
+    clean = {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+             for k, v in summary.items()}
+    return json.dumps(clean, default=_json_default)
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="crawlsim")
+def main():
+    """Exact simulation of soft crawlers with dry friction.
+
+    \b
+    Examples:
+      crawlsim run gaits/peristalsis-4.yaml
+      crawlsim run gaits/inching-2.yaml --json -o inching.h5
+    """
+
+
+def simulation_options(f):
+    """Options that override the gait file's ``simulation`` mapping."""
+    f = click.option("--tolerance", type=click.FloatRange(min=0, min_open=True),
+                     help="Stop when the Poincare step is at most this, relative to |w| "
+                          "(default from the gait file, else 1e-12).")(f)
+    f = click.option("--max-periods", type=click.IntRange(min=1),
+                     help="Give up after this many periods (default 1000).")(f)
+    f = click.option("--steps-per-period", type=click.IntRange(min=1),
+                     help="Uniform catch-up steps per period; breakpoints are added "
+                          "(default 1000).")(f)
+    return f
+
+
+def load_with_overrides(gait_file, steps_per_period, max_periods, tolerance):
+    gait = load_gait(gait_file)
+    overrides = {k: v for k, v in dict(steps_per_period=steps_per_period,
+                                       max_periods=max_periods, tolerance=tolerance).items()
+                 if v is not None}
+    return with_simulation(gait, **overrides) if overrides else gait
+
+
+@contextmanager
+def period_progress(max_periods: int, enabled: bool):
+    """A tqdm bar over periods on stderr, only when stderr is a terminal."""
+    if not enabled or not sys.stderr.isatty():
+        yield None
+        return
+    from tqdm import tqdm
+
+    with tqdm(total=max_periods, unit="period", file=sys.stderr, leave=False) as bar:
+        def update(q, rel_step):
+            bar.update(1)
+            bar.set_postfix_str(f"Poincare step {rel_step:.2e}")
+        yield update
+
+
+@main.command()
+@click.argument("gait_file", type=click.Path(exists=True, dir_okay=False))
+@click.option("-o", "--output", type=click.Path(dir_okay=False),
+              help="HDF5 results file (default: <gait stem>.h5 in the current folder).")
+@simulation_options
+@click.option("--save-every", type=click.IntRange(min=1), default=1, show_default=True,
+              help="Write every K-th grid point of the trajectory (bounds the file size).")
+@click.option("--check-every-step", is_flag=True,
+              help="Run Clarabel at every step instead of the certified fast paths.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
+def run(gait_file, output, steps_per_period, max_periods, tolerance, save_every,
+        check_every_step, as_json):
+    """Simulate GAIT_FILE to its periodic regime; report v0 and write an HDF5 file.
+
+    \b
+    Examples:
+      crawlsim run gaits/peristalsis-4.yaml
+      crawlsim run gaits/peristalsis-4.yaml --steps-per-period 4000 -o fine.h5
+      crawlsim run gaits/inching-2.yaml --json | python -m json.tool
+    """
+    with library_errors():
+        gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance)
+        out = _output_path(output, gait_file)
+        with period_progress(gait.simulation.max_periods, not as_json) as progress:
+            result = api.run(gait, output=out, save_every=save_every,
+                             check_every_step=check_every_step, progress=progress)
+    if as_json:
+        summary = result.summary()
+        summary["output"] = str(out)
+        click.echo(to_json(summary))
+    else:
+        click.echo(summary_text(result, str(out)))
+    if not result.converged:
+        sys.exit(EXIT_NOT_CONVERGED)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

@@ -1,0 +1,171 @@
+"""The one module that reads and writes HDF5 results files.
+
+Layout (format_version 1; the README documents it):
+
+    /                       attrs: crawlsim_version, format_version, name, kind, v0, convergence,
+                                   periodic_from (-1 = null), contraction_rate (NaN = null),
+                                   v0_error_estimate, displacement_per_period,
+                                   dissipation_per_period, cost_of_transport, period,
+                                   steps_per_period, periods, save_every, gait_yaml, summary_json
+    /trajectory/t           (n,)        time of each saved grid point (a dimension scale)
+    /trajectory/w           (n, d)      state of the sweeping process
+    /trajectory/x           (n, N)      block positions                      [crawlers]
+    /trajectory/stress      (n, N-1)    link stresses, compression positive  [crawlers]
+    /trajectory/shape       (n, N-1)    z = D x                              [crawlers]
+    /convergence/*          (P,)        period, displacement, velocity, poincare_step,
+                                        w12_distance, sup_distance, slip_l2_distance, dissipation
+    /limit/*                            t, w, multipliers, x, shape, stress, slip, slip_rate
+
+Writes are atomic: everything goes to a temporary file in the destination's folder, renamed over
+the destination only when complete. A failed run leaves no file behind.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from . import __version__
+from .errors import ResultsFileError
+
+FORMAT_VERSION = 1
+
+
+class ResultsWriter:
+    """Streams a run's trajectory into a temporary HDF5 file; `finish` renames it into place.
+
+    Use as a context manager: leaving the block with an exception deletes the temporary file.
+    Only every ``save_every``-th grid point is written, and nothing is kept in memory.
+    """
+
+    def __init__(self, path, process, *, save_every: int = 1):
+        self.path = Path(path)
+        self.process = process
+        self.save_every = int(save_every)
+        self._count = 0  # global grid index of the next row to consider
+        folder = self.path.resolve().parent
+        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".tmp", dir=folder)
+        os.close(fd)
+        self._tmp = Path(tmp)
+        self.file = h5py.File(self._tmp, "w")
+        self._traj = self.file.create_group("trajectory")
+        self._sets = {}
+        self._columns = ["w"] + (["x", "stress", "shape"] if process.is_crawler else [])
+
+    def _append(self, name, rows):
+        rows = np.asarray(rows)
+        ds = self._sets.get(name)
+        if ds is None:
+            ds = self._traj.create_dataset(
+                name, shape=(0,) + rows.shape[1:], maxshape=(None,) + rows.shape[1:],
+                dtype=rows.dtype, chunks=(min(4096, max(len(rows), 1) * 4),) + rows.shape[1:])
+            self._sets[name] = ds
+        n = ds.shape[0]
+        ds.resize(n + len(rows), axis=0)
+        ds[n:] = rows
+
+    def add_period(self, record):
+        """Append the saved grid points of one period (its first point only for period 0)."""
+        p = self.process
+        first = 0 if record.index == 0 else 1
+        local = np.arange(first, p.steps + 1)
+        global_index = record.index * p.steps + local
+        sel = local[global_index % self.save_every == 0]
+        if sel.size == 0:
+            return
+        self._append("t", record.start + p.times[sel])
+        self._append("w", record.w[sel])
+        if p.is_crawler:
+            self._append("x", record.x[sel])
+            self._append("stress", record.w[sel] + p.stress_offset[sel])
+            self._append("shape", record.w[sel] * -np.diag(p.metric))
+
+    def finish(self, result, gait_yaml: str, kind: str = "crawler"):
+        """Write the analysis, close, and atomically rename into place."""
+        f = self.file
+        if "t" in self._sets:
+            t = self._sets["t"]
+            t.make_scale("t")
+            for name, ds in self._sets.items():
+                if name != "t":
+                    ds.dims[0].attach_scale(t)
+        conv = f.create_group("convergence")
+        h = result.history
+        for name in ("period", "displacement", "velocity", "poincare_step", "w12_distance",
+                     "sup_distance", "slip_l2_distance", "dissipation"):
+            conv.create_dataset(name, data=getattr(h, name))
+        lim = f.create_group("limit")
+        lim.attrs["start"] = result.limit.start
+        for name in ("t", "w", "multipliers", "x", "shape", "stress", "slip", "slip_rate"):
+            value = getattr(result.limit, name)
+            if value is not None:
+                lim.create_dataset(name, data=value)
+        a = f.attrs
+        a["crawlsim_version"] = __version__
+        a["format_version"] = FORMAT_VERSION
+        a["kind"] = kind
+        a["name"] = result.name
+        a["convergence"] = result.convergence
+        a["periodic_from"] = -1 if result.periodic_from is None else int(result.periodic_from)
+        for key in ("v0", "contraction_rate", "v0_error_estimate", "displacement_per_period",
+                    "dissipation_per_period", "cost_of_transport"):
+            value = getattr(result, key)
+            a[key] = np.nan if value is None else float(value)
+        a["period"] = result.period
+        a["steps_per_period"] = result.steps_per_period
+        a["periods"] = result.periods
+        a["save_every"] = self.save_every
+        a["gait_yaml"] = gait_yaml
+        a["summary_json"] = json.dumps(result.summary())
+        f.close()
+        os.replace(self._tmp, self.path)
+
+    def abort(self):
+        try:
+            self.file.close()
+        finally:
+            self._tmp.unlink(missing_ok=True)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        if exc_type is not None or self._tmp.exists():
+            self.abort()
+        return False
+
+
+def read_results(path) -> dict:
+    """Load a results file into plain dicts of arrays: ``{"attrs", "trajectory", "convergence",
+    "limit"}``. Raises `ResultsFileError` naming what is missing."""
+    path = Path(path)
+    if not path.exists():
+        raise ResultsFileError(f"{path}: no such results file")
+    try:
+        f = h5py.File(path, "r")
+    except OSError as exc:
+        raise ResultsFileError(f"{path}: not an HDF5 file ({exc})") from None
+    with f:
+        if "format_version" not in f.attrs:
+            raise ResultsFileError(f"{path}: not a crawlsim results file (no format_version "
+                                   "attribute)")
+        out = {"attrs": {k: _plain(v) for k, v in f.attrs.items()}}
+        for group in ("trajectory", "convergence", "limit"):
+            if group not in f:
+                raise ResultsFileError(f"{path}: missing group /{group}")
+            out[group] = {k: f[group][k][()] for k in f[group]}
+            out[group + "_attrs"] = {k: _plain(v) for k, v in f[group].attrs.items()}
+    return out
+
+
+def _plain(value):
+    if isinstance(value, bytes):
+        return value.decode()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value

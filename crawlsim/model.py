@@ -1,0 +1,131 @@
+"""Compile a validated gait into its shape-space polyhedral sweeping process (MODEL.md §1-2).
+
+For a crawler of N blocks with link stiffnesses K = diag(k_i), shape z = D x and stress
+sigma = K (L(t) - z), the variable w = -K z moves in
+
+    K(t) = { w : B w <= c(t) },   B = [D^T ; -D^T],
+    c(t) = [ mu^+(t) - D^T K L(t) ; mu^-(t) + D^T K L(t) ],
+
+and catch-up stepping projects in the metric M = K^{-1}. The 2N multipliers
+lambda = [lambda^+ ; lambda^-] of a step are the block slips: dx = lambda^+ - lambda^-
+(MODEL.md §3), so the slip map is S = [I, -I].
+
+Everything time-dependent is tabulated once on the period's grid, vectorised over all times.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .gait import Gait
+from .signals import evaluate_many
+
+#: Grid times closer than this (in cycles) to a breakpoint are merged into the breakpoint.
+GRID_MERGE = 1e-12
+
+
+@dataclass(frozen=True, eq=False)
+class SweepingProcess:
+    """A T-periodic polyhedral sweeping process ``w' in -N_{K(t)}(w)``, tabulated on one period.
+
+    The fields after ``initial`` describe a crawler and are ``None`` for a generic process.
+    """
+
+    name: str
+    period: float
+    normals: np.ndarray  # B (m, n)
+    metric: np.ndarray  # M (n, n): projections minimise 1/2 |w - w_trial|_M^2
+    times: np.ndarray  # (G+1,) one period's grid: times[0] = 0, times[-1] = period
+    offsets: np.ndarray  # c(t) on the grid (G+1, m)
+    initial: np.ndarray  # w(0) (n,)
+    slip_map: np.ndarray | None = None  # S (N, m): block increments dx = S lambda
+    initial_positions: np.ndarray | None = None  # x(0) (N,)
+    stress_offset: np.ndarray | None = None  # K L(t) on the grid (G+1, n): stress = w + K L
+    friction: np.ndarray | None = None  # [mu^+, mu^-] on the grid (G+1, m): dissipation weights
+    lengths: np.ndarray | None = None  # L(t) on the grid (G+1, N-1)
+
+    @property
+    def steps(self) -> int:
+        return len(self.times) - 1
+
+    @property
+    def is_crawler(self) -> bool:
+        return self.slip_map is not None
+
+    @property
+    def blocks(self) -> int:
+        return 0 if self.slip_map is None else self.slip_map.shape[0]
+
+    @property
+    def scale(self) -> float:
+        """A natural size of w and c, for relative tolerances."""
+        return float(max(np.max(np.abs(self.offsets)), np.max(np.abs(self.initial)), 1e-300))
+
+    def describe_active(self, index) -> str:
+        """Words for an active set: for crawlers, the set J of saturated blocks."""
+        index = np.asarray(index, dtype=int)
+        if not self.is_crawler:
+            return "active constraints {" + ", ".join(str(i) for i in index) + "}"
+        N = self.blocks
+        fwd = [int(i) + 1 for i in index if i < N]
+        bwd = [int(i) - N + 1 for i in index if i >= N]
+        return (f"J = {{{', '.join(map(str, sorted(fwd + bwd)))}}}: blocks "
+                f"{fwd or 'none'} at their forward friction limit, "
+                f"{bwd or 'none'} at their backward limit")
+
+
+def period_grid(steps_per_period: int, breakpoints) -> np.ndarray:
+    """One period's grid in cycles: ``steps_per_period`` uniform points plus every breakpoint.
+
+    A uniform point within `GRID_MERGE` of a breakpoint is replaced by the breakpoint, so a
+    jump of a `steps` signal is always exactly on the grid.
+    """
+    uniform = np.linspace(0.0, 1.0, steps_per_period + 1)
+    bp = np.asarray(breakpoints, dtype=float)
+    bp = bp[(bp > GRID_MERGE) & (bp < 1.0 - GRID_MERGE)]
+    if bp.size:
+        near = np.min(np.abs(uniform[:, None] - bp[None, :]), axis=1) <= GRID_MERGE
+        uniform = uniform[~near]
+    u = np.union1d(uniform, bp)
+    keep = np.concatenate([[True], np.diff(u) > GRID_MERGE])
+    u = u[keep]
+    u[0], u[-1] = 0.0, 1.0
+    return u
+
+
+def difference_matrix(blocks: int) -> np.ndarray:
+    """D, the (N-1) x N forward-difference matrix: z_i = x_{i+1} - x_i."""
+    return np.diff(np.eye(blocks), axis=0)
+
+
+def compile_gait(gait: Gait, steps_per_period: int | None = None) -> SweepingProcess:
+    """The shape-space sweeping process of a crawler gait on its time grid (MODEL.md §2)."""
+    G = steps_per_period or gait.simulation.steps_per_period
+    u = period_grid(G, gait.breakpoints())
+    N = gait.blocks
+    D = difference_matrix(N)
+    k = np.asarray(gait.stiffness, dtype=float)
+    L = evaluate_many(gait.links, u)  # (G+1, N-1)
+    mu_f = evaluate_many(gait.forward, u)  # (G+1, N)
+    mu_b = evaluate_many(gait.backward, u)
+    KL = L * k  # K L on the grid
+    DtKL = KL @ D  # rows are (D^T K L)^T
+    offsets = np.hstack([mu_f - DtKL, mu_b + DtKL])
+    x0 = np.asarray(gait.initial_positions, dtype=float)
+    w0 = -k * (D @ x0)
+    return SweepingProcess(
+        name=gait.name,
+        period=float(gait.period),
+        normals=np.vstack([D.T, -D.T]),
+        metric=np.diag(1.0 / k),
+        times=u * gait.period,
+        offsets=offsets,
+        initial=w0,
+        slip_map=np.hstack([np.eye(N), -np.eye(N)]),
+        initial_positions=x0,
+        stress_offset=KL,
+        friction=np.hstack([mu_f, mu_b]),
+        lengths=L,
+    )
