@@ -23,12 +23,12 @@ from __future__ import annotations
 import math
 import tempfile
 import time as _time
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from .model import SweepingProcess
-from .stepping import CatchUpStepper, PeriodRecord
+from .stepping import PeriodRecord, make_stepper
 
 #: Relative Poincare steps below this are roundoff: a smaller tolerance is clamped to it.
 ROUNDOFF_FLOOR = 1e-13
@@ -135,14 +135,16 @@ class _PeriodSpill:
 
 
 def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: float = 1e-12,
-             check_every_step: bool = False, sink=None, progress=None) -> RunResult:
+             integrator: str = "catch-up", check_every_step: bool = False, sink=None,
+             progress=None) -> RunResult:
     """Step ``process`` to its periodic regime and analyse the run.
 
     ``sink.add_period(record)`` receives every period as it is computed (the HDF5 writer streams
     the trajectory); ``progress(q, poincare_step_relative)`` is called after every period.
     """
     began = _time.perf_counter()
-    stepper = CatchUpStepper(process, check_every_step=check_every_step)
+    options = {"check_every_step": True} if check_every_step else {}
+    stepper = make_stepper(process, integrator, **options)
     T, G = process.period, process.steps
     h = np.diff(process.times)
     tol = max(float(tolerance), ROUNDOFF_FLOOR)
@@ -287,7 +289,3 @@ def summary_text(result: RunResult, output: str | None = None) -> str:
         lines.append(f"  written                  {output}")
     return "\n".join(lines)
 
-
-def as_dict(obj) -> dict:
-    """Dataclass of arrays to a plain dict (for writers)."""
-    return asdict(obj)

@@ -21,14 +21,12 @@ def run(gait: Gait | str | Path, *, output=None, save_every: int = 1,
     if not isinstance(gait, Gait):
         gait = load_gait(gait)
     process = compile_gait(gait)
-    settings = gait.simulation
+    s = gait.simulation
+    options = dict(max_periods=s.max_periods, tolerance=s.tolerance, integrator=s.integrator,
+                   check_every_step=check_every_step, progress=progress)
     if output is None:
-        return simulate(process, max_periods=settings.max_periods,
-                        tolerance=settings.tolerance, check_every_step=check_every_step,
-                        progress=progress)
+        return simulate(process, **options)
     with ResultsWriter(output, process, save_every=save_every) as writer:
-        result = simulate(process, max_periods=settings.max_periods,
-                          tolerance=settings.tolerance, check_every_step=check_every_step,
-                          sink=writer, progress=progress)
+        result = simulate(process, sink=writer, **options)
         writer.finish(result, gait.source_text)
     return result

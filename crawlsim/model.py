@@ -16,6 +16,7 @@ Everything time-dependent is tabulated once on the period's grid, vectorised ove
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -45,6 +46,10 @@ class SweepingProcess:
     stress_offset: np.ndarray | None = None  # K L(t) on the grid (G+1, n): stress = w + K L
     friction: np.ndarray | None = None  # [mu^+, mu^-] on the grid (G+1, m): dissipation weights
     lengths: np.ndarray | None = None  # L(t) on the grid (G+1, N-1)
+    # The closed form of c(t), for integrators that leave the grid (event-driven, plots):
+    offset_function: Callable[[np.ndarray], np.ndarray] | None = None  # t (k,) -> c(t) (k, m)
+    offset_rate: Callable[[np.ndarray], np.ndarray] | None = None  # t (k,) -> dc/dt (k, m)
+    breakpoints: np.ndarray | None = None  # times in [0, T) where c has a kink or a jump
 
     @property
     def steps(self) -> int:
@@ -113,6 +118,20 @@ def compile_gait(gait: Gait, steps_per_period: int | None = None) -> SweepingPro
     KL = L * k  # K L on the grid
     DtKL = KL @ D  # rows are (D^T K L)^T
     offsets = np.hstack([mu_f - DtKL, mu_b + DtKL])
+    T = float(gait.period)
+
+    def offset_function(t):
+        u = np.asarray(t, dtype=float) / T
+        DtKL_t = (evaluate_many(gait.links, u) * k) @ D
+        return np.hstack([evaluate_many(gait.forward, u) - DtKL_t,
+                          evaluate_many(gait.backward, u) + DtKL_t])
+
+    def offset_rate(t):
+        u = np.asarray(t, dtype=float) / T
+        DtKLdot = (_rates(gait.links, u) * k) @ D
+        return np.hstack([_rates(gait.forward, u) - DtKLdot,
+                          _rates(gait.backward, u) + DtKLdot]) / T
+
     x0 = np.asarray(gait.initial_positions, dtype=float)
     w0 = -k * (D @ x0)
     return SweepingProcess(
@@ -128,4 +147,12 @@ def compile_gait(gait: Gait, steps_per_period: int | None = None) -> SweepingPro
         stress_offset=KL,
         friction=np.hstack([mu_f, mu_b]),
         lengths=L,
+        offset_function=offset_function,
+        offset_rate=offset_rate,
+        breakpoints=np.asarray(gait.breakpoints(), dtype=float) * T,
     )
+
+
+def _rates(signals, u):
+    """d s / d u of each signal, shape (len(u), len(signals))."""
+    return np.column_stack([s.rate(u) for s in signals]) if signals else np.zeros((len(u), 0))

@@ -22,6 +22,7 @@ fast paths change nothing.
 
 from __future__ import annotations
 
+import importlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,6 +31,24 @@ from .model import SweepingProcess
 from .projection import ExactProjector
 
 _FIRST_BLOCK = 8
+
+#: Integrators by name, resolved lazily. Each is a class built as ``cls(process, **options)``
+#: with a ``step_period() -> PeriodRecord`` method and a ``projector`` attribute; tests are
+#: parametrized over this registry.
+STEPPERS = {
+    "catch-up": "crawlsim.stepping:CatchUpStepper",
+    "exact": "crawlsim.exact:EventStepper",
+}
+
+
+def make_stepper(process, integrator: str = "catch-up", **options):
+    """Build the stepper registered under ``integrator``."""
+    try:
+        module, name = STEPPERS[integrator].split(":")
+    except KeyError:
+        raise ValueError(f"unknown integrator {integrator!r}; expected one of "
+                         f"{', '.join(STEPPERS)}") from None
+    return getattr(importlib.import_module(module), name)(process, **options)
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,5 +1,7 @@
 """The ``crawlsim`` command line. Each command parses, calls the library, prints.
 
+One module per command; this one holds the group and the options and helpers they share.
+
 Exit codes: 0 converged, 3 not converged within max_periods (results still written),
 2 bad input (no traceback, no file written), 1 internal failure (a failed certificate included).
 """
@@ -14,10 +16,9 @@ from pathlib import Path
 
 import click
 
-from . import __version__, api
-from .analysis import summary_text
-from .errors import CrawlsimError, GaitError, ResultsFileError
-from .gait import load_gait, with_simulation
+from .. import __version__
+from ..errors import CrawlsimError, GaitError, ResultsFileError
+from ..gait import load_gait, with_simulation
 
 EXIT_NOT_CONVERGED = 3
 
@@ -118,41 +119,15 @@ def period_progress(max_periods: int, enabled: bool):
         yield update
 
 
-@main.command()
-@click.argument("gait_file", type=click.Path(exists=True, dir_okay=False))
-@click.option("-o", "--output", type=click.Path(dir_okay=False),
-              help="HDF5 results file (default: <gait stem>.h5 in the current folder).")
-@simulation_options
-@click.option("--save-every", type=click.IntRange(min=1), default=1, show_default=True,
-              help="Write every K-th grid point of the trajectory (bounds the file size).")
-@click.option("--check-every-step", is_flag=True,
-              help="Run Clarabel at every step instead of the certified fast paths.")
-@click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
-def run(gait_file, output, steps_per_period, max_periods, tolerance, save_every,
-        check_every_step, as_json):
-    """Simulate GAIT_FILE to its periodic regime; report v0 and write an HDF5 file.
 
-    \b
-    Examples:
-      crawlsim run gaits/peristalsis-4.yaml
-      crawlsim run gaits/peristalsis-4.yaml --steps-per-period 4000 -o fine.h5
-      crawlsim run gaits/inching-2.yaml --json | python -m json.tool
-    """
-    with library_errors():
-        gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance)
-        out = _output_path(output, gait_file)
-        with period_progress(gait.simulation.max_periods, not as_json) as progress:
-            result = api.run(gait, output=out, save_every=save_every,
-                             check_every_step=check_every_step, progress=progress)
-    if as_json:
-        summary = result.summary()
-        summary["output"] = str(out)
-        click.echo(to_json(summary))
-    else:
-        click.echo(summary_text(result, str(out)))
-    if not result.converged:
-        sys.exit(EXIT_NOT_CONVERGED)
+def _register():
+    from . import run  # noqa: F401  (each command module attaches itself to `main`)
+    for name in ("velocity", "merge", "plot"):
+        try:
+            __import__(f"{__name__}.{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name != f"{__name__}.{name}":
+                raise
 
 
-if __name__ == "__main__":  # pragma: no cover
-    main()
+_register()
