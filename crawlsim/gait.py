@@ -1,0 +1,454 @@
+"""Gait files: the YAML description of a crawler and its periodic actuation (MODEL.md §1).
+
+A gait is validated completely before anything is computed. jsonschema checks structure and
+types; the semantic checks that follow each refuse something the model cannot handle, and say
+why: non-positive friction (MODEL.md §1: mu > 0), an initial state outside the admissible set
+C(0) (MODEL.md §1), and friction coefficients that violate the uniqueness condition
+(MODEL.md §3), under which the model does not determine how the crawler moves.
+
+Documents are dispatched on their `kind` key (`_KINDS`), so another kind of gait (a generic
+sweeping process) can be added with its own schema and builder.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import difflib
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+import yaml
+
+from crawlsim.errors import GaitError
+from crawlsim.signals import (
+    JUMP_TOLERANCE,
+    SIGNAL_SCHEMA,
+    Signal,
+    check_finite,
+    check_schema,
+    evaluate_many,
+    parse_signal,
+    union_breakpoints,
+)
+
+ROUNDOFF = 1e-12
+"""Relative tolerance of the admissibility and uniqueness checks: roundoff, not a modelling slack."""
+
+MAX_UNIQUENESS_BLOCKS = 20
+"""Above this many blocks the 2^N subsets of the uniqueness condition are not enumerated."""
+
+_SUBSET_CHUNK_ENTRIES = 1 << 22
+
+
+@dataclass(frozen=True)
+class Simulation:
+    """Numerical settings of a run; none of them changes the model, only how it is stepped."""
+
+    steps_per_period: int = 1000
+    max_periods: int = 1000
+    tolerance: float = 1e-12
+    integrator: str = "catch-up"
+
+
+@dataclass(frozen=True, eq=False)
+class Gait:
+    """A validated crawler gait. Arrays are read-only; signals take cycles u = t / period."""
+
+    name: str
+    description: str
+    source: str
+    source_text: str
+    document: dict
+    blocks: int
+    period: float
+    stiffness: np.ndarray
+    links: tuple[Signal, ...]
+    forward: tuple[Signal, ...]
+    backward: tuple[Signal, ...]
+    initial_positions: np.ndarray
+    simulation: Simulation
+
+    def breakpoints(self) -> np.ndarray:
+        """Union of all signals' breakpoints, in cycles in [0, 1): the stepping grid needs them."""
+        return union_breakpoints([s.breakpoints() for s in self.links + self.forward + self.backward])
+
+    def lengths(self, t: np.ndarray) -> np.ndarray:
+        """Actuator lengths L(t) at times t, shape (len(t), N-1)."""
+        return evaluate_many(self.links, np.ravel(np.asarray(t, dtype=float)) / self.period)
+
+    def mu_plus(self, t: np.ndarray) -> np.ndarray:
+        """Forward friction coefficients mu^+(t) at times t, shape (len(t), N)."""
+        return evaluate_many(self.forward, np.ravel(np.asarray(t, dtype=float)) / self.period)
+
+    def mu_minus(self, t: np.ndarray) -> np.ndarray:
+        """Backward friction coefficients mu^-(t) at times t, shape (len(t), N)."""
+        return evaluate_many(self.backward, np.ravel(np.asarray(t, dtype=float)) / self.period)
+
+
+def _positive(what: str) -> dict:
+    return {"type": "number", "exclusiveMinimum": 0, "x-expected": f"a positive number ({what})"}
+
+
+def _count(what: str) -> dict:
+    return {"type": "integer", "minimum": 1, "x-expected": f"an integer >= 1 ({what})"}
+
+
+SIMULATION_SCHEMA: dict = {
+    "type": "object",
+    "x-expected": "a mapping of simulation settings",
+    "additionalProperties": False,
+    "properties": {
+        "steps_per_period": _count("time steps per period"),
+        "max_periods": _count("the most periods to simulate"),
+        "tolerance": _positive("the convergence tolerance"),
+        "integrator": {"enum": ["catch-up", "exact"]},
+    },
+}
+
+_FRICTION_MAPPING = {
+    "type": "object",
+    "x-expected": "a mapping {forward: mu+, backward: mu-}",
+    "required": ["forward", "backward"],
+    "additionalProperties": False,
+    "properties": {"forward": SIGNAL_SCHEMA, "backward": SIGNAL_SCHEMA},
+}
+
+CRAWLER_SCHEMA: dict = {
+    "$schema": "https://json-schema.org/draft/2020-12/schema",
+    "type": "object",
+    "x-expected": "a mapping (a gait document)",
+    "required": ["blocks", "period", "stiffness", "links", "friction"],
+    "additionalProperties": False,
+    "properties": {
+        "kind": {"enum": ["crawler"]},
+        "name": {"type": "string"},
+        "description": {"type": "string"},
+        "blocks": {"type": "integer", "minimum": 2, "x-expected": "an integer >= 2 (the number of blocks N)"},
+        "period": _positive("the period T of the gait"),
+        "stiffness": {
+            "type": ["number", "array"],
+            "x-expected": "a positive number or a list of N-1 positive numbers (spring stiffness k > 0)",
+            "exclusiveMinimum": 0,
+            "items": _positive("the spring stiffness k > 0 of one link"),
+        },
+        "links": {"type": "array", "x-expected": "a list of N-1 signals (actuator lengths)",
+                  "items": SIGNAL_SCHEMA},
+        "friction": {
+            **_FRICTION_MAPPING,
+            "type": ["object", "array"],
+            "x-expected": "a mapping {forward: mu+, backward: mu-} or a list of N such mappings",
+            "items": _FRICTION_MAPPING,
+        },
+        "initial": {
+            "type": "object",
+            "x-expected": "a mapping {positions: [...]}",
+            "required": ["positions"],
+            "additionalProperties": False,
+            "properties": {"positions": {"type": "array", "x-expected": "a list of N numbers",
+                                         "items": {"type": "number", "x-expected": "a number"}}},
+        },
+        "simulation": SIMULATION_SCHEMA,
+    },
+}
+"""JSON Schema (Draft 2020-12) of a crawler gait document."""
+
+
+class _Loader(yaml.SafeLoader):
+    """Safe YAML that also reads 1e-3 as a float (YAML 1.2) and refuses duplicate keys."""
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict:
+        seen: set = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=True)
+            if key in seen:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"duplicate key {key!r}", key_node.start_mark)
+            seen.add(key)
+        return super().construct_mapping(node, deep=deep)
+
+
+_Loader.yaml_implicit_resolvers = {k: list(v) for k, v in yaml.SafeLoader.yaml_implicit_resolvers.items()}
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
+    list("-+0123456789"),
+)
+
+
+def load_gait(path: str | Path) -> Gait:
+    """Read and validate a gait file; the name defaults to the file's stem."""
+    source = str(path)
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise GaitError(source, "", "no such gait file") from None
+    except (OSError, UnicodeDecodeError) as error:
+        raise GaitError(source, "", f"cannot read the gait file: {error}") from None
+    return parse_gait(text, source=source, default_name=Path(path).stem)
+
+
+def parse_gait(text: str, source: str = "<string>", default_name: str = "gait") -> Gait:
+    """Parse and validate gait YAML; syntax errors are reported with line and column."""
+    try:
+        document = yaml.load(text, Loader=_Loader)
+    except yaml.MarkedYAMLError as error:
+        mark = error.problem_mark
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        raise GaitError(source, "", f"YAML syntax error{where}: {error.problem}") from None
+    except yaml.YAMLError as error:
+        raise GaitError(source, "", f"YAML syntax error: {error}") from None
+    return gait_from_document(document, source, source_text=text, default_name=default_name)
+
+
+def _plain(value: Any) -> Any:
+    """A deep copy with numpy scalars and arrays turned into Python numbers and lists."""
+    if isinstance(value, np.ndarray):
+        return _plain(value.tolist())
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, dict):
+        return {key: _plain(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(item) for item in value]
+    return copy.deepcopy(value)
+
+
+def gait_from_document(doc: dict, source: str, source_text: str | None = None,
+                       default_name: str = "gait") -> Gait:
+    """Validate a parsed document (for instance one edited by a parameter sweep) into a Gait."""
+    if doc is None:
+        raise GaitError(source, "", "the document is empty; expected a gait mapping")
+    document = _plain(doc)
+    if not isinstance(document, dict):
+        raise GaitError(source, "", f"expected a gait mapping at the top level, got {type(document).__name__}")
+    kind = document.get("kind", "crawler")
+    if kind not in _KINDS:
+        close = difflib.get_close_matches(str(kind), list(_KINDS), n=1)
+        hint = f"; did you mean {close[0]!r}?" if close else ""
+        raise GaitError(source, "kind", f"expected one of {', '.join(map(repr, _KINDS))}, got {kind!r}{hint}")
+    schema, build = _KINDS[kind]
+    check_schema(document, schema, source)
+    check_finite(document, source)
+    if source_text is None:
+        source_text = yaml.safe_dump(document, sort_keys=False)
+    return build(document, source, source_text, default_name)
+
+
+def _readonly(array: np.ndarray) -> np.ndarray:
+    array.setflags(write=False)
+    return array
+
+
+def _count_error(source: str, keypath: str, expected: int, what: str, got: int) -> GaitError:
+    return GaitError(source, keypath, f"expected {expected} {what}, got {got}")
+
+
+def _friction_signals(document: dict, n: int, source: str) -> tuple[list, list, list[str]]:
+    """mu^+ and mu^- per block and, per block, the key path prefix to blame."""
+    friction = document["friction"]
+    if isinstance(friction, dict):
+        forward = parse_signal(friction["forward"], "friction.forward", source)
+        backward = parse_signal(friction["backward"], "friction.backward", source)
+        return [forward] * n, [backward] * n, ["friction"] * n
+    if len(friction) != n:
+        raise _count_error(source, "friction", n, "friction mappings (one per block)", len(friction))
+    paths = [f"friction[{j}]" for j in range(n)]
+    forward = [parse_signal(f["forward"], f"{p}.forward", source) for f, p in zip(friction, paths)]
+    backward = [parse_signal(f["backward"], f"{p}.backward", source) for f, p in zip(friction, paths)]
+    return forward, backward, paths
+
+
+def _check_friction_positive(signals: list[Signal], paths: list[str], direction: str,
+                             period: float, source: str) -> None:
+    for signal, path in zip(signals, paths):
+        value, at = signal.minimum()
+        if not value > 0:
+            raise GaitError(source, f"{path}.{direction}",
+                            f"friction must be positive (mu > 0: a block at rest must resist sliding "
+                            f"both ways, MODEL.md §1), but its minimum is {value:g} at t = {at:g} T"
+                            + (f" = {at * period:g}" if period != 1.0 else ""))
+
+
+def _build_crawler(document: dict, source: str, source_text: str, default_name: str) -> Gait:
+    n = int(document["blocks"])
+    period = float(document["period"])
+
+    stiffness = document["stiffness"]
+    if isinstance(stiffness, list):
+        if len(stiffness) != n - 1:
+            raise _count_error(source, "stiffness", n - 1, "stiffness values (one per link)", len(stiffness))
+        k = np.array(stiffness, dtype=float)
+    else:
+        k = np.full(n - 1, float(stiffness))
+
+    if len(document["links"]) != n - 1:
+        raise _count_error(source, "links", n - 1, "link signals (one per link, N-1)", len(document["links"]))
+    links = tuple(parse_signal(s, f"links[{i}]", source) for i, s in enumerate(document["links"]))
+
+    forward, backward, paths = _friction_signals(document, n, source)
+    _check_friction_positive(forward, paths, "forward", period, source)
+    _check_friction_positive(backward, paths, "backward", period, source)
+
+    simulation = Simulation(**{key: _SIMULATION_TYPES[key](value)
+                               for key, value in document.get("simulation", {}).items()})
+
+    if "initial" in document:
+        positions = np.array(document["initial"]["positions"], dtype=float)
+        if positions.shape != (n,):
+            raise _count_error(source, "initial.positions", n, "positions (one per block)", positions.size)
+    else:
+        lengths = evaluate_many(links, np.zeros(1))[0]
+        positions = np.concatenate([[0.0], np.cumsum(lengths)])
+
+    gait = Gait(
+        name=document.get("name", default_name),
+        description=document.get("description", ""),
+        source=source,
+        source_text=source_text,
+        document=document,
+        blocks=n,
+        period=period,
+        stiffness=_readonly(k),
+        links=links,
+        forward=tuple(forward),
+        backward=tuple(backward),
+        initial_positions=_readonly(positions),
+        simulation=simulation,
+    )
+    problem = admissibility_violation(gait, positions)
+    if problem is not None:
+        raise GaitError(source, "initial.positions", problem)
+    problem = uniqueness_violation(gait)
+    if problem is not None:
+        raise GaitError(source, "friction", problem)
+    return gait
+
+
+_SIMULATION_TYPES: dict[str, Callable[[Any], Any]] = {
+    "steps_per_period": int, "max_periods": int, "tolerance": float, "integrator": str}
+
+_KINDS: dict[str, tuple[dict, Callable[[dict, str, str, str], Any]]] = {
+    "crawler": (CRAWLER_SCHEMA, _build_crawler),
+}
+"""Gait kinds: the value of the document's `kind` key -> (schema, builder)."""
+
+
+def with_simulation(gait: Gait, **overrides: Any) -> Gait:
+    """A copy of `gait` with simulation settings replaced, validated like the file's.
+
+    The document's `simulation` section is updated too, so a sweep that edits the document
+    and rebuilds keeps the overrides; `source_text` stays the text that was read.
+    """
+    settings = {**dataclasses.asdict(gait.simulation), **_plain(overrides)}
+    check_schema(settings, SIMULATION_SCHEMA, gait.source, "simulation")
+    simulation = Simulation(**{key: _SIMULATION_TYPES[key](value) for key, value in settings.items()})
+    document = _plain(gait.document)
+    document["simulation"] = {**document.get("simulation", {}), **_plain(overrides)}
+    return dataclasses.replace(gait, simulation=simulation, document=document)
+
+
+def admissibility_violation(gait: Gait, positions: np.ndarray, t: float = 0.0) -> str | None:
+    """Why `positions` is not an admissible state at time t, or None if it is.
+
+    Admissible means the elastic force on every block is held by static friction,
+    -mu_j^-(t) <= f_j <= mu_j^+(t) with f = D^T sigma and sigma = K (L(t) - D x) (MODEL.md §1);
+    the sweeping process starts from a point of C(t).
+    """
+    x = np.asarray(positions, dtype=float)
+    if x.shape != (gait.blocks,):
+        return f"expected {gait.blocks} positions (one per block), got {x.size}"
+    lengths, mu_plus, mu_minus = gait.lengths([t])[0], gait.mu_plus([t])[0], gait.mu_minus([t])[0]
+    sigma = gait.stiffness * (lengths - np.diff(x))
+    force = np.zeros(gait.blocks)
+    force[1:] += sigma
+    force[:-1] -= sigma
+    over = force - mu_plus
+    under = -mu_minus - force
+    for j in range(gait.blocks):
+        if over[j] > ROUNDOFF * (1.0 + abs(mu_plus[j])):
+            return (f"block {j + 1} is not held by friction at t = {t:g}: its elastic force "
+                    f"f_{j + 1} = {force[j]:.6g} exceeds the forward friction limit "
+                    f"mu_{j + 1}^+ = {mu_plus[j]:.6g} by {over[j]:.6g}; an admissible initial state "
+                    "needs -mu^- <= f <= mu^+ on every block (MODEL.md §1)")
+        if under[j] > ROUNDOFF * (1.0 + abs(mu_minus[j])):
+            return (f"block {j + 1} is not held by friction at t = {t:g}: its elastic force "
+                    f"f_{j + 1} = {force[j]:.6g} is below the backward friction limit "
+                    f"-mu_{j + 1}^- = {-mu_minus[j]:.6g} by {under[j]:.6g}; an admissible initial "
+                    "state needs -mu^- <= f <= mu^+ on every block (MODEL.md §1)")
+    return None
+
+
+def _blocks_text(blocks: np.ndarray) -> str:
+    return "{" + ", ".join(str(int(j) + 1) for j in blocks) + "}"
+
+
+def uniqueness_violation(gait: Gait) -> str | None:
+    """Why the friction violates the uniqueness condition, or None if it holds.
+
+    For every subset J of blocks, g_J(t) = sum_{j in J} mu_j^+(t) - sum_{j not in J} mu_j^-(t)
+    must not vanish on an interval (MODEL.md §3; paper eq. (uniqueness)); otherwise the
+    multipliers of the projection, which are the slips, are not unique. Between the friction
+    breakpoints every coefficient is a trig polynomial of degree <= H plus a linear part, which
+    has at most 2H + 1 zeros on a piece unless it vanishes identically, so sampling 2H + 7
+    interior points per piece decides whether g_J vanishes on a sub-interval.
+
+    All 2^N subsets are enumerated for N <= MAX_UNIQUENESS_BLOCKS, vectorised in chunks as a
+    0/1 matrix times the sampled coefficients; larger crawlers are not checked (None).
+    """
+    n = gait.blocks
+    if n > MAX_UNIQUENESS_BLOCKS:
+        return None
+    friction = gait.forward + gait.backward
+    edges = union_breakpoints([s.breakpoints() for s in friction] + [np.zeros(1)])
+    edges = np.append(edges, 1.0)
+    degree = max(s.harmonics for s in friction)
+    per_piece = 2 * degree + 7
+    fractions = (np.arange(per_piece) + 1.0) / (per_piece + 1.0)
+    fractions = fractions + 0.3 * np.sin(7.0 * fractions) / (per_piece + 1.0)
+    pieces = len(edges) - 1
+    u = (edges[:-1, None] + np.diff(edges)[:, None] * fractions).ravel()
+
+    mu_plus = evaluate_many(gait.forward, u).T
+    mu_minus = evaluate_many(gait.backward, u).T
+    both = mu_plus + mu_minus
+    rest_total = mu_minus.sum(axis=0)
+    tolerance = ROUNDOFF * both.sum(axis=0)
+
+    bits = np.arange(n)
+    first = np.arange(pieces) * per_piece
+    chunk = max(1, _SUBSET_CHUNK_ENTRIES // (n + pieces))
+    for start in range(1, 2**n - 1, chunk):
+        codes = np.arange(start, min(start + chunk, 2**n - 1))
+        subsets = ((codes[:, None] >> bits) & 1).astype(float)
+        at_first = np.abs(subsets @ both[:, first] - rest_total[first]) <= tolerance[first]
+        for row, piece in zip(*np.nonzero(at_first)):
+            columns = slice(piece * per_piece, (piece + 1) * per_piece)
+            g = subsets[row] @ both[:, columns] - rest_total[columns]
+            if np.all(np.abs(g) <= tolerance[columns]):
+                return _uniqueness_message(gait, subsets[row], both, rest_total, tolerance,
+                                           edges, per_piece)
+    return None
+
+
+def _uniqueness_message(gait: Gait, subset: np.ndarray, both: np.ndarray, rest_total: np.ndarray,
+                        tolerance: np.ndarray, edges: np.ndarray, per_piece: int) -> str:
+    g = (subset @ both - rest_total).reshape(-1, per_piece)
+    vanishing = np.all(np.abs(g) <= tolerance.reshape(-1, per_piece), axis=1)
+    intervals: list[list[float]] = []
+    for piece in np.nonzero(vanishing)[0]:
+        lo, hi = edges[piece], edges[piece + 1]
+        if intervals and abs(intervals[-1][1] - lo) <= JUMP_TOLERANCE:
+            intervals[-1][1] = hi
+        else:
+            intervals.append([lo, hi])
+    where = " and ".join(f"[{lo * gait.period:g}, {hi * gait.period:g}]" for lo, hi in intervals)
+    inside = np.nonzero(subset)[0]
+    outside = np.nonzero(subset == 0)[0]
+    return (f"uniqueness condition violated: for J = {_blocks_text(inside)} (forward) and the rest "
+            f"{_blocks_text(outside)} (backward), sum mu+ over J - sum mu- over the rest = 0 for t in "
+            f"{where} (a whole interval): the model does not determine how the crawler moves "
+            "(MODEL.md §3, paper eq. (uniqueness)). Make the friction anisotropic or change a coefficient.")
