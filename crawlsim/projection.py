@@ -90,7 +90,10 @@ class ExactProjector:
         self.M_inv = np.linalg.inv(self.M)
         self._MinvBT = self.M_inv @ self.B.T
         gram_diag = np.einsum("ij,ji->i", self.B, self._MinvBT)
-        self.tol = Tolerances.for_scale(c_scale, float(np.max(gram_diag)), rtol)
+        self._gram_scale = float(np.max(gram_diag)) if self.m else 1.0
+        self._row_norm = float(np.max(np.sum(np.abs(self.B), axis=1))) if self.m else 1.0
+        self._c_scale = c_scale if c_scale > 0 else 1.0
+        self.tol = Tolerances.for_scale(self._c_scale, self._gram_scale, rtol)
         self.rtol = rtol
         self._describe = describe_active or (lambda idx: f"active constraints {_label(idx)}")
         self._cache: dict[tuple, ActiveSet] = {}
@@ -164,25 +167,40 @@ class ExactProjector:
         comp = float(np.max(np.abs(slack[active.index]))) if active.size else 0.0
         return primal, dual, comp
 
-    def is_certified(self, z, lam, c, active) -> bool:
+    def is_certified(self, z, lam, c, active, tol: Tolerances | None = None) -> bool:
+        tol = tol or self.tol
         primal, dual, comp = self.certificate(z, lam, c, active)
-        return primal <= self.tol.primal and dual <= self.tol.dual and comp <= self.tol.primal
+        return primal <= tol.primal and dual <= tol.dual and comp <= tol.primal
+
+    def tolerances_for(self, z_trial, c) -> Tolerances:
+        """Certificate tolerances for one call: roundoff of ``B z - c`` is relative to the
+        larger of |c| and |B| |z|, so a far-away trial point widens them proportionally."""
+        size = max(self._c_scale, float(np.max(np.abs(c), initial=0.0)),
+                   self._row_norm * float(np.max(np.abs(z_trial), initial=0.0)))
+        return Tolerances.for_scale(size, self._gram_scale, self.rtol)
 
     # -- the full projection ------------------------------------------------------------------
     def project(self, z_trial, c, *, time: float | None = None) -> Projection:
         """Certified projection of ``z_trial`` onto ``{B z <= c}``; Clarabel picks the active set.
 
         Clarabel's solution (accurate to ~1e-10) proposes the active set: the rows whose
-        multiplier is clearly positive. A short primal-dual refinement then fixes rows that sit
-        at the roundoff boundary (add the most violated row, drop the most negative multiplier),
-        every candidate being solved exactly and certified. ``time`` only labels messages.
+        multiplier dominates their slack (both in their natural scales), the usual
+        interior-point identification. A short primal-dual refinement then fixes rows at the
+        roundoff boundary (add the most violated row, drop the most negative multiplier, drop
+        the weakest row of a dependent set), every candidate being solved exactly and
+        certified. Finally a row left out but tight to roundoff whose normal depends on the
+        active ones means the multipliers are not unique (LICQ fails): that is an error.
+        ``time`` only labels messages.
         """
         z_trial = np.asarray(z_trial, dtype=float)
         c = np.asarray(c, dtype=float)
         _, lam_ip, slack_ip = self._clarabel(z_trial, c)
-        lam_floor = 1e-7 * max(float(np.max(lam_ip, initial=0.0)), self.tol.dual / self.rtol)
-        candidate = set(np.flatnonzero(lam_ip > lam_floor).tolist())
+        tol = self.tolerances_for(z_trial, c)
+        lam_ref, slack_ref = tol.dual / self.rtol, tol.primal / self.rtol
+        candidate = set(np.flatnonzero(
+            lam_ip / lam_ref > np.maximum(slack_ip, 0.0) / slack_ref).tolist())
         tried = set()
+        active = z = lam = None
         for _ in range(4 * self.m + 4):
             key = tuple(sorted(candidate))
             if key in tried:
@@ -190,26 +208,41 @@ class ExactProjector:
             tried.add(key)
             try:
                 active = self.active_set(key)
-            except _Dependent as dep:
-                raise CertificateError(self._licq_message(dep.index, time)) from None
+            except _Dependent:
+                candidate.discard(min(candidate, key=lambda i: lam_ip[i]))
+                continue
             z, lam = self.solve_on(active, z_trial, c)
             slack = self.B @ z - c
             worst_primal = int(np.argmax(slack))
             worst_dual = int(np.argmin(lam))
-            if lam[worst_dual] < -self.tol.dual:
+            if lam[worst_dual] < -tol.dual:
                 candidate.discard(worst_dual)
-            elif slack[worst_primal] > self.tol.primal:
+            elif slack[worst_primal] > tol.primal:
                 candidate.add(worst_primal)
-            elif self.is_certified(z, lam, c, active):
+            elif self.is_certified(z, lam, c, active, tol):
+                self._check_licq(active, slack, tol, time)
                 return Projection(z, lam, active, True)
             else:  # pragma: no cover - complementarity fails only with dependent normals
                 break
+        if active is None:
+            raise CertificateError(f"no independent active set found{self._at(time)} among "
+                                   f"{self._describe(sorted(tried)[-1])}")
         primal, dual, comp = self.certificate(z, lam, c, active)
         raise CertificateError(
             f"exact projection failed its certificate{self._at(time)}: primal violation "
-            f"{primal:.3g} (tolerance {self.tol.primal:.3g}), negative multiplier {dual:.3g} "
-            f"(tolerance {self.tol.dual:.3g}), complementarity {comp:.3g}; "
+            f"{primal:.3g} (tolerance {tol.primal:.3g}), negative multiplier {dual:.3g} "
+            f"(tolerance {tol.dual:.3g}), complementarity {comp:.3g}; "
             f"last active set: {self._describe(active.index)}")
+
+    def _check_licq(self, active, slack, tol, time):
+        """Refuse a point where a tight row left out of A depends on A's normals."""
+        for i in np.flatnonzero(np.abs(slack) <= tol.primal):
+            if i in active.index:
+                continue
+            try:
+                self.active_set(tuple(active.index) + (int(i),))
+            except _Dependent as dep:
+                raise CertificateError(self._licq_message(dep.index, time)) from None
 
     def _at(self, time):
         return "" if time is None else f" at t = {time:.12g}"

@@ -1,0 +1,168 @@
+"""`crawlsim run` through click's CliRunner: outputs, the HDF5 layout, exit codes, refusals."""
+
+import json
+import os
+
+import h5py
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from crawlsim import __version__
+from crawlsim.cli import main
+from crawlsim.h5io import read_results
+
+from .conftest import GAITS
+
+INCHING = """\
+blocks: 2
+period: 1.0
+stiffness: 10.0
+links:
+  - {kind: cosine, mean: 1.0, amplitude: 0.3}
+friction: {forward: 1.0, backward: 2.0}
+simulation: {steps_per_period: 100, max_periods: 20}
+"""
+
+
+@pytest.fixture
+def runner(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    return CliRunner()
+
+
+def write(tmp_path, text, name="gait.yaml"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_run_writes_default_file_and_summary(runner, tmp_path):
+    gait = write(tmp_path, INCHING, "inch.yaml")
+    result = runner.invoke(main, ["run", str(gait)])
+    assert result.exit_code == 0, result.output
+    assert "v0                       0.4" in result.output
+    assert "finite-time: periodic from period 1" in result.output
+    assert (tmp_path / "inch.h5").exists()
+
+
+def test_run_json_keys_and_values(runner, tmp_path):
+    gait = write(tmp_path, INCHING)
+    result = runner.invoke(main, ["run", str(gait), "--json", "-o", "out.h5"])
+    assert result.exit_code == 0
+    data = json.loads(result.output)
+    for key in ("name", "v0", "displacement_per_period", "convergence", "periodic_from",
+                "contraction_rate", "periods", "steps_per_period", "v0_error_estimate",
+                "dissipation_per_period", "output"):
+        assert key in data
+    assert data["v0"] == pytest.approx(0.4, abs=1e-13)
+    assert data["convergence"] == "finite-time" and data["periodic_from"] == 1
+    assert data["contraction_rate"] is None and data["steps_per_period"] == 100
+    assert data["output"].endswith("out.h5")
+
+
+def test_hdf5_layout_round_trips(runner, tmp_path):
+    gait = write(tmp_path, INCHING)
+    result = runner.invoke(main, ["run", str(gait), "-o", "r.h5", "--save-every", "3"])
+    assert result.exit_code == 0
+    with h5py.File(tmp_path / "r.h5") as f:
+        a = f.attrs
+        assert a["crawlsim_version"] == __version__ and a["format_version"] == 1
+        assert a["convergence"] == "finite-time" and a["periodic_from"] == 1
+        assert a["v0"] == pytest.approx(0.4, abs=1e-13)
+        assert a["gait_yaml"] == INCHING
+        t = f["trajectory/t"][()]
+        assert np.allclose(np.diff(t), 0.03)  # every third of 100 steps per period
+        assert f["trajectory/x"].shape == (len(t), 2)
+        assert f["trajectory/stress"].shape == (len(t), 1)
+        for name in ("period", "displacement", "poincare_step", "w12_distance"):
+            assert f[f"convergence/{name}"].shape == (2,)
+        assert f["limit/x"].shape == (101, 2) and f["limit/slip"].shape == (100, 2)
+        assert f["limit/stress"].shape == (101, 1)
+    data = read_results(tmp_path / "r.h5")
+    assert data["convergence"]["displacement"][-1] == pytest.approx(0.4, abs=1e-13)
+    # the stress of the trajectory is k (L - z) with z = x2 - x1
+    x, s, t = data["trajectory"]["x"], data["trajectory"]["stress"], data["trajectory"]["t"]
+    L = 1 + 0.3 * np.cos(2 * np.pi * t)
+    assert np.allclose(s[:, 0], 10 * (L - (x[:, 1] - x[:, 0])), atol=1e-12)
+
+
+def test_not_converged_exit_code_3_still_writes(runner, tmp_path):
+    text = """\
+blocks: 3
+period: 1.0
+stiffness: 10.0
+links: [{kind: cosine, mean: 1.0, amplitude: 0.12}, 1.0]
+friction: {forward: 1.0, backward: 1.5}
+simulation: {steps_per_period: 100}
+"""
+    gait = write(tmp_path, text)
+    result = runner.invoke(main, ["run", str(gait), "--max-periods", "3", "--json"])
+    assert result.exit_code == 3
+    assert json.loads(result.output)["convergence"] == "not-converged"
+    assert (tmp_path / "gait.h5").exists()
+
+
+def test_overrides_apply(runner, tmp_path):
+    gait = write(tmp_path, INCHING)
+    result = runner.invoke(main, ["run", str(gait), "--json", "--steps-per-period", "40",
+                                  "--tolerance", "1e-10"])
+    assert json.loads(result.output)["steps_per_period"] == 40
+
+
+BAD = [
+    ("blocks: 2\nperiod: 1.0\nstiffness: 10.0\nlinks: [1.0, 1.0]\n"
+     "friction: {forward: 1.0, backward: 2.0}\n", "links"),
+    (INCHING.replace("backward: 2.0", "backward: -2.0"), "friction.backward"),
+    (INCHING.replace("stiffness: 10.0", "stiffness: 0"), "stiffness"),
+    (INCHING.replace("period: 1.0", "period: -1"), "period"),
+    (INCHING.replace("backward: 2.0", "backwrad: 2.0"), "did you mean 'backward'"),
+    (INCHING.replace("{kind: cosine, mean: 1.0, amplitude: 0.3}",
+                     "{kind: piecewise-linear, times: [0, 0.5, 1], values: [1, 1.3, 1.1]}"),
+     "links[0]"),
+    (INCHING.replace("backward: 2.0", "backward: 1.0"), "uniqueness"),
+    (INCHING + "initial: {positions: [0.0, 2.0]}\n", "initial.positions"),
+    (INCHING.replace("friction: {forward: 1.0, backward: 2.0}",
+                     "friction: [{forward: 1.0, backward: 2.0}]"), "friction"),
+    ("blocks: [2\n", "line"),
+]
+
+
+@pytest.mark.parametrize("text,needle", BAD)
+def test_bad_input_exit_2_names_the_key_and_writes_nothing(runner, tmp_path, text, needle):
+    gait = write(tmp_path, text)
+    result = runner.invoke(main, ["run", str(gait), "-o", "out.h5"])
+    assert result.exit_code == 2, result.output
+    assert str(gait) in result.output
+    assert needle in result.output
+    assert "Traceback" not in result.output
+    assert sorted(os.listdir(tmp_path)) == ["gait.yaml"]
+
+
+def test_bad_command_line(runner, tmp_path):
+    gait = write(tmp_path, INCHING)
+    for args in (["run", "missing.yaml"], ["run", str(gait), "--steps-per-period", "0"],
+                 ["run", str(gait), "--tolerance", "-1"],
+                 ["run", str(gait), "-o", "no/such/folder/out.h5"]):
+        result = runner.invoke(main, args)
+        assert result.exit_code == 2, (args, result.output)
+        assert "Traceback" not in result.output
+    assert sorted(os.listdir(tmp_path)) == ["gait.yaml"]
+
+
+def test_every_example_gait_runs_from_the_cli(runner, tmp_path):
+    for path in sorted(GAITS.glob("*.yaml")):
+        result = runner.invoke(main, ["run", str(path), "--json", "--steps-per-period", "100",
+                                      "-o", f"{path.stem}.h5"])
+        assert result.exit_code == 0, (path, result.output)
+        assert np.isfinite(json.loads(result.output)["v0"])
+
+
+def test_python_dash_m_entry_point(tmp_path):
+    import subprocess
+    import sys
+
+    gait = write(tmp_path, INCHING)
+    out = subprocess.run([sys.executable, "-m", "crawlsim", "run", str(gait), "--json", "-o",
+                          str(tmp_path / "m.h5")], capture_output=True, text=True, check=True)
+    assert json.loads(out.stdout)["v0"] == pytest.approx(0.4, abs=1e-13)

@@ -1,0 +1,109 @@
+"""Catch-up stepping: the fast paths change nothing, every example gait runs, convergence facts."""
+
+import numpy as np
+import pytest
+
+from crawlsim.analysis import simulate
+from crawlsim.api import run
+from crawlsim.gait import load_gait, with_simulation
+from crawlsim.model import compile_gait, period_grid
+from crawlsim.stepping import CatchUpStepper
+
+from .conftest import GAITS, make_gait
+
+EXAMPLES = sorted(p for p in GAITS.glob("*.yaml"))
+
+
+@pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.stem)
+def test_fast_paths_agree_with_clarabel_at_every_step(path):
+    gait = with_simulation(load_gait(path), steps_per_period=200, max_periods=6)
+    process = compile_gait(gait)
+    fast = CatchUpStepper(process)
+    slow = CatchUpStepper(process, check_every_step=True)
+    for _ in range(3):
+        a, b = fast.step_period(), slow.step_period()
+        assert np.max(np.abs(a.x - b.x)) <= 1e-12
+        assert np.max(np.abs(a.w - b.w)) <= 1e-12 * process.scale
+        assert np.max(np.abs(a.multipliers - b.multipliers)) <= 1e-12
+    assert slow.projector.clarabel_calls == 3 * process.steps
+    assert fast.projector.clarabel_calls < slow.projector.clarabel_calls / 5
+
+
+@pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.stem)
+def test_every_example_gait_runs_and_converges(path):
+    gait = with_simulation(load_gait(path), steps_per_period=200)
+    res = run(gait)
+    assert res.converged
+    assert np.isfinite(res.v0)
+    # The limit period is periodic: its end state is its start state.
+    assert np.allclose(res.limit.w[-1], res.limit.w[0], atol=1e-10 * np.max(np.abs(res.limit.w)))
+    # Barycentre of the running frame returns to zero after one period.
+    assert abs(np.mean(res.limit.x[-1])) < 1e-10
+    # The distances to the limit period vanish at the final period.
+    assert res.history.w12_distance[-1] == 0 and res.history.slip_l2_distance[-1] == 0
+    # Dissipation is non-negative and equals sum mu |dx| of the limit period.
+    assert res.dissipation_per_period >= 0
+
+
+def test_stress_stays_admissible_and_slips_only_at_the_friction_limit():
+    gait = with_simulation(load_gait(GAITS / "smooth-friction-3.yaml"), steps_per_period=300)
+    process = compile_gait(gait)
+    res = simulate(process, max_periods=10)
+    N = process.blocks
+    stress = res.limit.stress
+    force = np.zeros((len(stress), N))
+    force[:, :-1] -= stress
+    force[:, 1:] += stress
+    mu = process.friction
+    tol = 1e-12 * process.scale
+    assert np.all(force <= mu[:, :N] + tol) and np.all(force >= -mu[:, N:] - tol)
+    slip = res.limit.slip
+    fwd, bwd = slip == 1, slip == -1
+    assert np.allclose(force[1:][fwd], mu[1:, :N][fwd], atol=1e-10)
+    assert np.allclose(force[1:][bwd], -mu[1:, N:][bwd], atol=1e-10)
+
+
+def _single_link(amplitude):
+    """Three blocks, only link 1 actuated: below the threshold of motion."""
+    return make_gait({
+        "blocks": 3, "period": 1.0, "stiffness": 10.0,
+        "links": [{"kind": "cosine", "mean": 1.0, "amplitude": amplitude}, 1.0],
+        "friction": {"forward": 1.0, "backward": 1.5},
+        "simulation": {"steps_per_period": 200, "max_periods": 200},
+    })
+
+
+def test_asymptotic_convergence_is_not_cut_short():
+    """A single actuated link settles only geometrically (MODEL.md §4). Exact projections keep
+    the decay going down to the tolerance, so the verdict is 'asymptotic' with a steady rate."""
+    res = run(_single_link(0.12))
+    assert res.convergence == "asymptotic"
+    steps = res.history.poincare_step
+    ratios = steps[3:] / steps[2:-1]
+    assert np.ptp(ratios) < 1e-3  # geometric all the way down to ~1e-12
+    assert res.contraction_rate == pytest.approx(ratios[-1], rel=1e-3)
+    assert res.history.poincare_step[-1] <= 1e-12 * np.max(np.abs(res.limit.w)) * 10
+    assert abs(res.v0) <= 10 * res.v0_error_estimate + 1e-14
+    w12 = res.history.w12_distance
+    assert np.all(np.diff(w12[2:]) < 0)  # W^{1,2} convergence of the periods
+
+
+def test_not_converged_is_reported():
+    gait = with_simulation(_single_link(0.12), max_periods=5)
+    res = run(gait)
+    assert res.convergence == "not-converged" and not res.converged
+    assert res.periods == 5
+
+
+def test_grid_contains_every_breakpoint():
+    u = period_grid(10, [0.05, 0.5, 1 / 3, 0.3 + 1e-14])
+    assert 0.05 in u and 0.5 in u and 1 / 3 in u
+    assert np.all(np.diff(u) > 0) and u[0] == 0 and u[-1] == 1
+    assert len(u) == 11 + 2  # 0.5 and 0.3 (merged) were already grid points
+
+
+def test_check_every_step_matches_on_asymptotic_gait():
+    gait = with_simulation(_single_link(0.12), max_periods=8)
+    a = simulate(compile_gait(gait), max_periods=8)
+    b = simulate(compile_gait(gait), max_periods=8, check_every_step=True)
+    assert np.max(np.abs(a.history.poincare_step - b.history.poincare_step)) < 1e-12
