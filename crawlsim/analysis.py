@@ -147,7 +147,7 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
     stepper = make_stepper(process, integrator, **options)
     T, G = process.period, process.steps
     h = np.diff(process.times)
-    tol = max(float(tolerance), ROUNDOFF_FLOOR)
+    tol = effective_tolerance(tolerance)
     spill = _PeriodSpill()
     disp, steps, rel_steps, diss = [], [], [], []
     record = None
@@ -157,10 +157,9 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
             spill.add(record)
             if sink is not None:
                 sink.add_period(record)
-            step = float(np.linalg.norm(record.w[-1] - record.w[0]))
-            size = max(float(np.linalg.norm(record.w[-1])), process.scale)
+            step, rel_step = poincare_step(process, record.w[0], record.w[-1])
             steps.append(step)
-            rel_steps.append(step / size)
+            rel_steps.append(rel_step)
             if process.is_crawler:
                 disp.append(float(np.mean(record.x[-1] - record.x[0])))
                 diss.append(float(np.sum(record.multipliers * process.friction[1:])))
@@ -175,12 +174,7 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
 
     Q = len(steps) - 1
     rel = np.array(rel_steps)
-    if rel[Q] > tol:
-        convergence, periodic_from = "not-converged", None
-    elif Q == 0 or rel[Q] < FINITE_JUMP * rel[Q - 1]:
-        convergence, periodic_from = "finite-time", Q
-    else:
-        convergence, periodic_from = "asymptotic", None
+    convergence, periodic_from = classify_convergence(rel, tol)
     rate = None if convergence == "finite-time" else _contraction_rate(rel)
 
     displacement = np.array(disp) if process.is_crawler else np.full(Q + 1, np.nan)
@@ -208,6 +202,32 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
         dissipation_per_period=diss_final, cost_of_transport=cot, history=history,
         limit=limit_period(process, final, v0), clarabel_calls=stepper.projector.clarabel_calls,
         wall_time=_time.perf_counter() - began, steps=(Q + 1) * G)
+
+
+def effective_tolerance(tolerance: float) -> float:
+    """The Poincare-step tolerance actually used: relative steps below roundoff are clamped."""
+    return max(float(tolerance), ROUNDOFF_FLOOR)
+
+
+def poincare_step(process: SweepingProcess, w_start, w_end) -> tuple[float, float]:
+    """The Poincare step ``|w(t0+(q+1)T) - w(t0+qT)|``, and relative to ``max(|w|, scale)``."""
+    step = float(np.linalg.norm(w_end - w_start))
+    size = max(float(np.linalg.norm(w_end)), process.scale)
+    return step, step / size
+
+
+def classify_convergence(rel_steps, tol: float) -> tuple[str, int | None]:
+    """(convergence, periodic_from) from the relative Poincare steps of periods 0..Q.
+
+    Finite-time when the last step reached ``tol`` in one jump by more than `FINITE_JUMP`,
+    asymptotic when it reached it gradually, not-converged when it did not reach it.
+    """
+    Q = len(rel_steps) - 1
+    if rel_steps[Q] > tol:
+        return "not-converged", None
+    if Q == 0 or rel_steps[Q] < FINITE_JUMP * rel_steps[Q - 1]:
+        return "finite-time", Q
+    return "asymptotic", None
 
 
 def _distances(spill: _PeriodSpill, final: PeriodRecord, h: np.ndarray) -> dict:

@@ -6,8 +6,12 @@ why: non-positive friction (MODEL.md §1: mu > 0), an initial state outside the 
 C(0) (MODEL.md §1), and friction coefficients that violate the uniqueness condition
 (MODEL.md §3), under which the model does not determine how the crawler moves.
 
-Documents are dispatched on their `kind` key (`_KINDS`), so another kind of gait (a generic
-sweeping process) can be added with its own schema and builder.
+Documents are dispatched on their `kind` key (`_KINDS`): `crawler` (the default) builds a `Gait`,
+`sweeping-process` a `ProcessSpec`, a generic polyhedral sweeping process of MODEL.md §5. A
+process is refused when its dimensions do not match, when C(t) is empty at a time the run steps
+on, when C(t) is unbounded (the paper's theorem needs a compact set; `allow_unbounded: true`
+accepts it), when the metric is not symmetric positive definite, or when the initial point is
+outside C(0).
 """
 
 from __future__ import annotations
@@ -21,12 +25,15 @@ from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
+import scipy.sparse as sp
 import yaml
+from scipy.optimize import linprog
 
 from crawlsim.errors import GaitError
 from crawlsim.signals import (
     JUMP_TOLERANCE,
     SIGNAL_SCHEMA,
+    Constant,
     Signal,
     check_finite,
     check_schema,
@@ -179,7 +186,7 @@ _Loader.add_implicit_resolver(
 )
 
 
-def load_gait(path: str | Path) -> Gait:
+def load_gait(path: str | Path) -> Gait | ProcessSpec:
     """Read and validate a gait file; the name defaults to the file's stem."""
     source = str(path)
     try:
@@ -191,7 +198,7 @@ def load_gait(path: str | Path) -> Gait:
     return parse_gait(text, source=source, default_name=Path(path).stem)
 
 
-def parse_gait(text: str, source: str = "<string>", default_name: str = "gait") -> Gait:
+def parse_gait(text: str, source: str = "<string>", default_name: str = "gait") -> Gait | ProcessSpec:
     """Parse and validate gait YAML; syntax errors are reported with line and column."""
     try:
         document = yaml.load(text, Loader=_Loader)
@@ -218,8 +225,9 @@ def _plain(value: Any) -> Any:
 
 
 def gait_from_document(doc: dict, source: str, source_text: str | None = None,
-                       default_name: str = "gait") -> Gait:
-    """Validate a parsed document (for instance one edited by a parameter sweep) into a Gait."""
+                       default_name: str = "gait") -> Gait | ProcessSpec:
+    """Validate a parsed document (for instance one edited by a parameter sweep) into a Gait,
+    or a ProcessSpec for ``kind: sweeping-process``."""
     if doc is None:
         raise GaitError(source, "", "the document is empty; expected a gait mapping")
     document = _plain(doc)
@@ -328,11 +336,246 @@ def _build_crawler(document: dict, source: str, source_text: str, default_name: 
     return gait
 
 
+@dataclass(frozen=True, eq=False)
+class ProcessSpec:
+    """A validated generic polyhedral sweeping process ``z' in -N_{C(t)}(z)`` (MODEL.md §5).
+
+    ``C(t) = { z in R^n : <b_i, z> <= c_i(t) }`` with constant normals b_i (the rows of
+    ``normals``) and T-periodic offsets c_i (signals of the cycle u = t / T), projected in the
+    metric ``metric``. Arrays are read-only.
+    """
+
+    name: str
+    description: str
+    source: str
+    source_text: str
+    document: dict
+    period: float
+    normals: np.ndarray  # B (m, n)
+    offsets: tuple[Signal, ...]  # c_i, m signals
+    metric: np.ndarray  # M (n, n), symmetric positive definite
+    initial: np.ndarray  # z(0) (n,), a point of C(0)
+    allow_unbounded: bool
+    simulation: Simulation
+
+    def breakpoints(self) -> np.ndarray:
+        """Union of the offsets' breakpoints, in cycles in [0, 1): the stepping grid needs them."""
+        return union_breakpoints([s.breakpoints() for s in self.offsets])
+
+    def offset_values(self, t: np.ndarray) -> np.ndarray:
+        """Offsets c(t) at times t, shape (len(t), m)."""
+        return evaluate_many(self.offsets, np.ravel(np.asarray(t, dtype=float)) / self.period)
+
+
+_MATRIX_ROW = {"type": "array", "minItems": 1, "x-expected": "a list of numbers (one row)",
+               "items": {"type": "number", "x-expected": "a number"}}
+
+PROCESS_SCHEMA: dict = {
+    "$schema": "https://json-schema.org/draft/2020-12/schema",
+    "type": "object",
+    "x-expected": "a mapping (a sweeping-process document)",
+    "required": ["kind", "period", "normals", "offsets", "initial"],
+    "additionalProperties": False,
+    "properties": {
+        "kind": {"enum": ["sweeping-process"]},
+        "name": {"type": "string"},
+        "description": {"type": "string"},
+        "period": _positive("the period T of the offsets"),
+        "normals": {"type": "array", "minItems": 1,
+                    "x-expected": "a list of m rows b_i, each a list of n numbers",
+                    "items": _MATRIX_ROW},
+        "offsets": {"type": "array", "minItems": 1,
+                    "x-expected": "a list of m signals c_i(t), one per row of normals",
+                    "items": SIGNAL_SCHEMA},
+        "metric": {"type": "array", "minItems": 1,
+                   "x-expected": "an n x n symmetric positive definite matrix (a list of rows)",
+                   "items": _MATRIX_ROW},
+        "initial": {**_MATRIX_ROW, "x-expected": "a list of n numbers (the initial point z(0))"},
+        "allow_unbounded": {"type": "boolean",
+                            "x-expected": "true or false (accept an unbounded C(t))"},
+        "simulation": SIMULATION_SCHEMA,
+    },
+}
+"""JSON Schema (Draft 2020-12) of a generic polyhedral sweeping-process document (MODEL.md §5)."""
+
+
+def _build_process(document: dict, source: str, source_text: str, default_name: str) -> ProcessSpec:
+    rows = document["normals"]
+    n = len(rows[0])
+    for i, row in enumerate(rows):
+        if len(row) != n:
+            raise GaitError(source, f"normals[{i}]",
+                            f"expected {n} numbers (the dimension n set by normals[0]), got {len(row)}")
+    B = np.array(rows, dtype=float)
+    m = len(rows)
+    for i in range(m):
+        if not np.any(B[i]):
+            raise GaitError(source, f"normals[{i}]",
+                            "expected a nonzero normal b_i: a zero row does not describe a face")
+    if len(document["offsets"]) != m:
+        raise _count_error(source, "offsets", m, "offset signals (one per row of normals)",
+                           len(document["offsets"]))
+    offsets = tuple(parse_signal(s, f"offsets[{i}]", source) for i, s in enumerate(document["offsets"]))
+
+    if "metric" in document:
+        metric = np.array(_square(document["metric"], n, source), dtype=float)
+        problem = _metric_violation(metric)
+        if problem is not None:
+            raise GaitError(source, "metric", problem)
+    else:
+        metric = np.eye(n)
+
+    initial = np.array(document["initial"], dtype=float)
+    if initial.shape != (n,):
+        raise _count_error(source, "initial", n, "coordinates (the dimension n of the normals)",
+                           initial.size)
+
+    simulation = Simulation(**{key: _SIMULATION_TYPES[key](value)
+                               for key, value in document.get("simulation", {}).items()})
+    spec = ProcessSpec(
+        name=document.get("name", default_name),
+        description=document.get("description", ""),
+        source=source,
+        source_text=source_text,
+        document=document,
+        period=float(document["period"]),
+        normals=_readonly(B),
+        offsets=offsets,
+        metric=_readonly(metric),
+        initial=_readonly(initial),
+        allow_unbounded=bool(document.get("allow_unbounded", False)),
+        simulation=simulation,
+    )
+    problem = emptiness_violation(spec)
+    if problem is not None:
+        raise GaitError(source, "offsets", problem)
+    direction = recession_direction(B)
+    if direction is not None and not spec.allow_unbounded:
+        raise GaitError(source, "normals",
+                        "C(t) is unbounded: it contains the ray z + s d, s >= 0, for d = "
+                        f"{_vector_text(direction)} (B d <= 0). The convergence theorem of the paper "
+                        "needs a compact C(t); add a face that closes it, or set "
+                        "'allow_unbounded: true' to run anyway")
+    problem = process_admissibility_violation(spec, initial)
+    if problem is not None:
+        raise GaitError(source, "initial", problem)
+    return spec
+
+
+def _square(rows: list, n: int, source: str) -> list:
+    if len(rows) != n:
+        raise _count_error(source, "metric", n, "rows (an n x n matrix, n from the normals)", len(rows))
+    for i, row in enumerate(rows):
+        if len(row) != n:
+            raise _count_error(source, f"metric[{i}]", n, "numbers (an n x n matrix)", len(row))
+    return rows
+
+
+def _metric_violation(metric: np.ndarray) -> str | None:
+    """Why ``metric`` cannot define the projections' norm |z|_M^2 = z^T M z, or None."""
+    scale = float(np.max(np.abs(metric)))
+    asymmetry = float(np.max(np.abs(metric - metric.T)))
+    if asymmetry > ROUNDOFF * scale:
+        i, j = np.unravel_index(int(np.argmax(np.abs(metric - metric.T))), metric.shape)
+        return (f"expected a symmetric matrix, but metric[{i}][{j}] = {metric[i, j]:g} and "
+                f"metric[{j}][{i}] = {metric[j, i]:g}")
+    eigenvalues = np.linalg.eigvalsh(metric)
+    if not eigenvalues[0] > ROUNDOFF * max(scale, 1e-300):
+        return (f"expected a positive definite matrix, but its smallest eigenvalue is "
+                f"{eigenvalues[0]:.6g}: |z|_M^2 = z^T M z must be a norm")
+    return None
+
+
+def _vector_text(v: np.ndarray) -> str:
+    return "(" + ", ".join(f"{x:.6g}" for x in v) + ")"
+
+
+def _check_times(spec: ProcessSpec) -> np.ndarray:
+    """Cycles at which C(t) must be checked nonempty to know it is nonempty at all grid times.
+
+    Between breakpoints piecewise-linear and step offsets are affine in t, and the set
+    {(t, z) : B z <= c(t)} is then convex, so C(t) is nonempty on a piece when it is nonempty at
+    the piece's ends: the breakpoints decide it for every t, not only on a grid. Smooth offsets
+    are checked on the uniform grid of ``steps_per_period`` as well (the grid the run steps on).
+    """
+    points = [np.zeros(1), spec.breakpoints()]
+    if any(s.is_smooth and not isinstance(s, Constant) for s in spec.offsets):
+        points.append(np.linspace(0.0, 1.0, spec.simulation.steps_per_period + 1)[:-1])
+    return np.unique(np.concatenate(points))
+
+
+def emptiness_violation(spec: ProcessSpec) -> str | None:
+    """Why C(t) is empty at some time the run will step on, or None if it never is.
+
+    One sparse LP (scipy's HiGHS) tests all check times at once: find z_k with B z_k <= c(t_k)
+    for every k. Only when it is infeasible are the times tested one by one, to name the first
+    empty one.
+    """
+    u = _check_times(spec)
+    c = evaluate_many(spec.offsets, u)  # (k, m)
+    B = spec.normals
+    k, (m, n) = len(u), B.shape
+    A = sp.kron(sp.identity(k, format="csr"), sp.csr_matrix(B), format="csr")
+    if _feasible(A, c.ravel(), k * n, spec.source):
+        return None
+    for j in range(k):
+        if not _feasible(sp.csr_matrix(B), c[j], n, spec.source):
+            t = u[j] * spec.period
+            return (f"C(t) = {{z : B z <= c(t)}} is empty at t = {t:.12g} (cycle {u[j]:.12g}): no "
+                    "point satisfies every constraint there. Check the offsets' signs: C(t) = "
+                    "{z : <b_i, z> <= c_i(t)}")
+    return None  # pragma: no cover - the joint LP and the per-time LPs agree
+
+
+def _feasible(A, b: np.ndarray, n: int, source: str) -> bool:
+    result = linprog(np.zeros(n), A_ub=A, b_ub=b, bounds=[(None, None)] * n, method="highs")
+    if result.status == 2:
+        return False
+    if result.status != 0:
+        raise GaitError(source, "offsets", f"cannot decide whether C(t) is empty: the LP solver "
+                        f"(HiGHS) stopped with: {result.message}")
+    return True
+
+
+def recession_direction(normals: np.ndarray) -> np.ndarray | None:
+    """A unit direction d != 0 with B d <= 0 (C(t) is then unbounded), or None if C(t) is bounded.
+
+    The recession cone of a nonempty polyhedron {B z <= c} is {d : B d <= 0}, whatever c is, so
+    one check decides every t. The cone is {0} exactly when no coordinate of d can be made
+    positive or negative within the box |d_k| <= 1: 2n small LPs.
+    """
+    m, n = normals.shape
+    for k in range(n):
+        for sign in (1.0, -1.0):
+            cost = np.zeros(n)
+            cost[k] = -sign
+            result = linprog(cost, A_ub=normals, b_ub=np.zeros(m), bounds=[(-1.0, 1.0)] * n,
+                             method="highs")
+            if result.status == 0 and -result.fun > 1e-9:
+                d = np.asarray(result.x)
+                return d / np.linalg.norm(d) + 0.0
+    return None
+
+
+def process_admissibility_violation(spec: ProcessSpec, point: np.ndarray, t: float = 0.0) -> str | None:
+    """Why ``point`` is not in C(t), naming the most violated constraint, or None if it is."""
+    c = spec.offset_values([t])[0]
+    slack = spec.normals @ np.asarray(point, dtype=float) - c
+    excess = slack - ROUNDOFF * (1.0 + np.abs(c) + np.abs(spec.normals) @ np.abs(point))
+    i = int(np.argmax(excess))
+    if excess[i] <= 0:
+        return None
+    return (f"the initial point {_vector_text(point)} is outside C({t:g}): constraint {i} "
+            f"(normals[{i}] . z <= offsets[{i}]) reads {slack[i] + c[i]:.12g} <= {c[i]:.12g}, "
+            f"violated by {slack[i]:.6g}; the sweeping process must start in C(0)")
+
+
 _SIMULATION_TYPES: dict[str, Callable[[Any], Any]] = {
     "steps_per_period": int, "max_periods": int, "tolerance": float, "integrator": str}
 
 _KINDS: dict[str, tuple[dict, Callable[[dict, str, str, str], Any]]] = {
     "crawler": (CRAWLER_SCHEMA, _build_crawler),
+    "sweeping-process": (PROCESS_SCHEMA, _build_process),
 }
 """Gait kinds: the value of the document's `kind` key -> (schema, builder)."""
 

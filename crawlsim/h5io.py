@@ -12,9 +12,16 @@ Layout (format_version 1; the README documents it):
     /trajectory/x           (n, N)      block positions                      [crawlers]
     /trajectory/stress      (n, N-1)    link stresses, compression positive  [crawlers]
     /trajectory/shape       (n, N-1)    z = D x                              [crawlers]
+    /trajectory/reaction    (n, m)      constraint reactions: the multipliers of the steps since
+                                        the previous saved point (0 at t = 0)  [generic processes]
     /convergence/*          (P,)        period, displacement, velocity, poincare_step,
                                         w12_distance, sup_distance, slip_l2_distance, dissipation
     /limit/*                            t, w, multipliers, x, shape, stress, slip, slip_rate
+    /limit/offsets          (G+1, m)    c(t) on the limit period's grid: K(t) = {w : B w <= c(t)}
+    /limit/lengths          (G+1, N-1)  actuator lengths L(t) on that grid       [crawlers]
+    /limit/friction         (G+1, 2N)   [mu^+, mu^-] on that grid               [crawlers]
+    /process/normals        (m, d)      B, the constant normals of K(t)
+    /process/metric         (d, d)      M, the metric of the projections (K^{-1} for crawlers)
 
 Writes are atomic: everything goes to a temporary file in the destination's folder, renamed over
 the destination only when complete. A failed run leaves no file behind.
@@ -56,6 +63,7 @@ class ResultsWriter:
         self._traj = self.file.create_group("trajectory")
         self._sets = {}
         self._columns = ["w"] + (["x", "stress", "shape"] if process.is_crawler else [])
+        self._reaction_carry = np.zeros(process.normals.shape[0])
 
     def _append(self, name, rows):
         rows = np.asarray(rows)
@@ -76,6 +84,7 @@ class ResultsWriter:
         local = np.arange(first, p.steps + 1)
         global_index = record.index * p.steps + local
         sel = local[global_index % self.save_every == 0]
+        reaction = None if p.is_crawler else self._reaction_rows(record.multipliers, sel)
         if sel.size == 0:
             return
         self._append("t", record.start + p.times[sel])
@@ -84,6 +93,29 @@ class ResultsWriter:
             self._append("x", record.x[sel])
             self._append("stress", record.w[sel] + p.stress_offset[sel])
             self._append("shape", record.w[sel] * -np.diag(p.metric))
+        if reaction is not None:
+            self._append("reaction", reaction)
+
+    def _reaction_rows(self, multipliers, sel):
+        """Reactions of the m constraints at the saved grid points ``sel`` of one period.
+
+        The multipliers of catch-up steps are the constraints' reaction impulses (MODEL.md §3).
+        Row s sums the multipliers of the steps since the previous saved point, so with
+        ``save_every = 1`` it is the multiplier of the step ending at t_s, and a larger
+        ``save_every`` loses nothing of the total.
+        """
+        rows = np.zeros((len(sel), multipliers.shape[1]))
+        ends = sel[sel > 0]  # grid point s ends step s - 1
+        if ends.size == 0:
+            self._reaction_carry = self._reaction_carry + multipliers.sum(axis=0)
+            return rows
+        starts = np.concatenate([[0], ends[:-1]])
+        sums = np.add.reduceat(multipliers, starts, axis=0)
+        sums[-1] = multipliers[starts[-1]:ends[-1]].sum(axis=0)
+        sums[0] += self._reaction_carry
+        rows[len(sel) - len(ends):] = sums
+        self._reaction_carry = multipliers[ends[-1]:].sum(axis=0)
+        return rows
 
     def finish(self, result, gait_yaml: str, kind: str = "crawler"):
         """Write the analysis, close, and atomically rename into place."""
@@ -105,6 +137,14 @@ class ResultsWriter:
             value = getattr(result.limit, name)
             if value is not None:
                 lim.create_dataset(name, data=value)
+        p = self.process
+        lim.create_dataset("offsets", data=p.offsets)
+        if p.is_crawler:
+            lim.create_dataset("lengths", data=p.lengths)
+            lim.create_dataset("friction", data=p.friction)
+        proc = f.create_group("process")
+        proc.create_dataset("normals", data=p.normals)
+        proc.create_dataset("metric", data=p.metric)
         a = f.attrs
         a["crawlsim_version"] = __version__
         a["format_version"] = FORMAT_VERSION
@@ -142,7 +182,8 @@ class ResultsWriter:
 
 def read_results(path) -> dict:
     """Load a results file into plain dicts of arrays: ``{"attrs", "trajectory", "convergence",
-    "limit"}``. Raises `ResultsFileError` naming what is missing."""
+    "limit"}``, plus ``"process"`` when the file has it. Raises `ResultsFileError` naming what is
+    missing."""
     path = Path(path)
     if not path.exists():
         raise ResultsFileError(f"{path}: no such results file")
@@ -160,6 +201,8 @@ def read_results(path) -> dict:
                 raise ResultsFileError(f"{path}: missing group /{group}")
             out[group] = {k: f[group][k][()] for k in f[group]}
             out[group + "_attrs"] = {k: _plain(v) for k, v in f[group].attrs.items()}
+        if "process" in f:
+            out["process"] = {k: f["process"][k][()] for k in f["process"]}
     return out
 
 

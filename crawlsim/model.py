@@ -10,6 +10,10 @@ and catch-up stepping projects in the metric M = K^{-1}. The 2N multipliers
 lambda = [lambda^+ ; lambda^-] of a step are the block slips: dx = lambda^+ - lambda^-
 (MODEL.md §3), so the slip map is S = [I, -I].
 
+A generic polyhedral sweeping process (MODEL.md §5, ``kind: sweeping-process``) compiles to the
+same `SweepingProcess` with its own B, c(t), M and z(0) and no crawler fields, so it is stepped,
+certified and analysed by the same code; `compile` dispatches on the kind.
+
 Everything time-dependent is tabulated once on the period's grid, vectorised over all times.
 """
 
@@ -20,7 +24,7 @@ from typing import Callable
 
 import numpy as np
 
-from .gait import Gait
+from .gait import Gait, ProcessSpec
 from .signals import evaluate_many
 
 #: Grid times closer than this (in cycles) to a breakpoint are merged into the breakpoint.
@@ -151,6 +155,42 @@ def compile_gait(gait: Gait, steps_per_period: int | None = None) -> SweepingPro
         offset_rate=offset_rate,
         breakpoints=np.asarray(gait.breakpoints(), dtype=float) * T,
     )
+
+
+def compile_process(spec: ProcessSpec, steps_per_period: int | None = None) -> SweepingProcess:
+    """The tabulated sweeping process ``z' in -N_{C(t)}(z)`` of a generic process file (MODEL.md §5).
+
+    No change of variables: w is z, B and M are the file's normals and metric, c(t) its offsets.
+    """
+    G = steps_per_period or spec.simulation.steps_per_period
+    u = period_grid(G, spec.breakpoints())
+    T = float(spec.period)
+
+    def offset_function(t):
+        return evaluate_many(spec.offsets, np.asarray(t, dtype=float) / T)
+
+    def offset_rate(t):
+        return _rates(spec.offsets, np.asarray(t, dtype=float) / T) / T
+
+    return SweepingProcess(
+        name=spec.name,
+        period=T,
+        normals=np.array(spec.normals, dtype=float),
+        metric=np.array(spec.metric, dtype=float),
+        times=u * T,
+        offsets=evaluate_many(spec.offsets, u),
+        initial=np.array(spec.initial, dtype=float),
+        offset_function=offset_function,
+        offset_rate=offset_rate,
+        breakpoints=np.asarray(spec.breakpoints(), dtype=float) * T,
+    )
+
+
+def compile(spec: Gait | ProcessSpec, steps_per_period: int | None = None) -> SweepingProcess:
+    """Compile a crawler gait or a generic process file, whichever ``spec`` is."""
+    if isinstance(spec, ProcessSpec):
+        return compile_process(spec, steps_per_period)
+    return compile_gait(spec, steps_per_period)
 
 
 def _rates(signals, u):

@@ -18,6 +18,7 @@ complementarity ``B_A z* = c_A``, all to roundoff. A certificate that fails is a
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import clarabel
@@ -83,7 +84,7 @@ class ExactProjector:
     """
 
     def __init__(self, normals, metric, c_scale: float, *, rtol: float = CERTIFICATE_RTOL,
-                 describe_active=None, persistent: bool = True):
+                 describe_active=None, persistent: bool = True, on_dependent: str = "raise"):
         self.B = np.ascontiguousarray(normals, dtype=float)
         self.M = np.ascontiguousarray(metric, dtype=float)
         self.m, self.n = self.B.shape
@@ -100,6 +101,14 @@ class ExactProjector:
         self._solver = None
         self._persistent = persistent  # False rebuilds the solver every call (benchmark baseline)
         self.clarabel_calls = 0
+        # "raise": LICQ failure is an error (crawlers: the slips are the multipliers, MODEL.md §3).
+        # "warn": a generic process keeps its unique point, certified on an independent subset of
+        # the active rows; each dependent set is warned about once (LicqWarning) and recorded in
+        # `licq_failures` as {row indices: (first time, occurrences)}.
+        if on_dependent not in ("raise", "warn"):
+            raise ValueError(f"on_dependent must be 'raise' or 'warn', got {on_dependent!r}")
+        self.on_dependent = on_dependent
+        self.licq_failures: dict[tuple, tuple] = {}
         self.empty = self.active_set(())
 
     # -- Clarabel, the authority on the active set ------------------------------------------
@@ -242,7 +251,22 @@ class ExactProjector:
             try:
                 self.active_set(tuple(active.index) + (int(i),))
             except _Dependent as dep:
-                raise CertificateError(self._licq_message(dep.index, time)) from None
+                if self.on_dependent == "raise":
+                    raise CertificateError(self._licq_message(dep.index, time)) from None
+                self._record_licq(dep.index, time)
+
+    def _record_licq(self, index, time):
+        key = tuple(int(i) for i in index)
+        first, count = self.licq_failures.get(key, (time, 0))
+        self.licq_failures[key] = (first, count + 1)
+        if count == 0:
+            warnings.warn(
+                f"LICQ fails{self._at(time)}: the normals of the tight constraints "
+                f"{_label(key)} are linearly dependent, so their multipliers (the reactions) are "
+                "not unique there. The projected point is unique and was certified on an "
+                "independent subset; the paper's theorem does not need LICQ. Later occurrences "
+                "of this set are counted in `licq_failures`, not repeated.",
+                LicqWarning, stacklevel=2)
 
     def _at(self, time):
         return "" if time is None else f" at t = {time:.12g}"
@@ -253,6 +277,10 @@ class ExactProjector:
                 "not unique and the model does not determine the motion (MODEL.md §3, the "
                 "uniqueness condition). Change the step count so that no grid time falls on this "
                 "instant, or change the friction coefficients.")
+
+
+class LicqWarning(UserWarning):
+    """The active normals of a generic process are dependent at some time (not an error there)."""
 
 
 class _Dependent(Exception):

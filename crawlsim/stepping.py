@@ -77,7 +77,8 @@ class CatchUpStepper:
         self.check_every_step = check_every_step
         self.projector = ExactProjector(
             process.normals, process.metric, process.scale,
-            describe_active=process.describe_active, persistent=persistent_solver)
+            describe_active=process.describe_active, persistent=persistent_solver,
+            on_dependent="raise" if process.is_crawler else "warn")
         self.w = np.array(process.initial, dtype=float)
         self.x = None if process.initial_positions is None else np.array(
             process.initial_positions, dtype=float)

@@ -22,8 +22,10 @@ from . import (EXIT_NOT_CONVERGED, _output_path, library_errors, load_with_overr
 @click.option("--check-every-step", is_flag=True,
               help="Run Clarabel at every step instead of the certified fast paths.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
+@click.option("--plot", is_flag=True,
+              help="Also draw the figures next to the results file (<stem>-<figure>.png).")
 def run(gait_file, output, steps_per_period, max_periods, tolerance, save_every,
-        check_every_step, as_json):
+        check_every_step, as_json, plot):
     """Simulate GAIT_FILE to its periodic regime; report v0 and write an HDF5 file.
 
     \b
@@ -38,12 +40,21 @@ def run(gait_file, output, steps_per_period, max_periods, tolerance, save_every,
         with period_progress(gait.simulation.max_periods, not as_json) as progress:
             result = api.run(gait, output=out, save_every=save_every,
                              check_every_step=check_every_step, progress=progress)
+        figures = []
+        if plot:
+            from ..plotting import plot_results
+
+            figures = [str(f) for f in plot_results(out, out.resolve().parent, fmt="png")]
     if as_json:
         summary = result.summary()
         summary["output"] = str(out)
+        if plot:
+            summary["figures"] = figures
         click.echo(to_json(summary))
     else:
         click.echo(summary_text(result, str(out)))
+        for figure in figures:
+            click.echo(f"  figure                   {figure}")
     if not result.converged:
         sys.exit(EXIT_NOT_CONVERGED)
 
