@@ -125,7 +125,9 @@ class CatchUpStepper:
         w = W[j]
         c = p.offsets[j + 1:end + 1]
         if A.size == 0:
-            ok = np.all(p.normals @ w <= c + tol.primal, axis=1)
+            # strictly inside: a row tight to roundoff goes to the full projection, which
+            # checks LICQ there
+            ok = np.all(p.normals @ w < c - tol.primal, axis=1)
             k = _prefix(ok)
             W[j + 1:j + 1 + k] = w
             return k
@@ -134,7 +136,11 @@ class CatchUpStepper:
         Z = w - residual @ A.response.T
         lam = np.diff(cumulative, axis=0, prepend=np.zeros((1, A.size)))
         slack = Z @ p.normals.T - c
-        ok = ((np.max(slack, axis=1) <= tol.primal)
+        inactive = np.ones(slack.shape[1], dtype=bool)
+        inactive[A.index] = False
+        # Rows outside A must be strictly feasible: one tight to roundoff is a degenerate
+        # contact, left to the full projection and its LICQ check.
+        ok = ((np.max(slack[:, inactive], axis=1, initial=-np.inf) < -tol.primal)
               & (np.min(lam, axis=1) >= -tol.dual)
               & (np.max(np.abs(slack[:, A.index]), axis=1) <= tol.primal))
         k = _prefix(ok)

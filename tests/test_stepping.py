@@ -107,3 +107,27 @@ def test_check_every_step_matches_on_asymptotic_gait():
     a = simulate(compile_gait(gait), max_periods=8)
     b = simulate(compile_gait(gait), max_periods=8, check_every_step=True)
     assert np.max(np.abs(a.history.poincare_step - b.history.poincare_step)) < 1e-12
+
+
+def _isolated_crossing_gait(steps):
+    """mu_1^+(t) - mu_2^-(t) = 0.5 cos(2 pi t) vanishes at the isolated instants t = 1/4, 3/4:
+    allowed by the uniqueness check. At t = 1/4 the link contracts at its fastest, the link is
+    in tension at sigma = -1 and both block 1 (forward) and block 2 (backward) are at their
+    friction limits: the two active normals are dependent and the slips are not determined."""
+    return make_gait({
+        "blocks": 2, "period": 1.0, "stiffness": 10.0,
+        "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3}],
+        "friction": [{"forward": {"kind": "cosine", "mean": 1.0, "amplitude": 0.5},
+                      "backward": 2.0},
+                     {"forward": 1.0, "backward": 1.0}],
+        "simulation": {"steps_per_period": steps, "max_periods": 5},
+    })
+
+
+def test_isolated_uniqueness_crossing_on_a_grid_time_fails_its_certificate():
+    from crawlsim.errors import CertificateError
+
+    with pytest.raises(CertificateError, match=r"t = 0\.25 .*J = \{1, 2\}"):
+        run(_isolated_crossing_gait(100))
+    # Off the grid the crossing is harmless: the gait runs.
+    assert run(_isolated_crossing_gait(101)).converged
