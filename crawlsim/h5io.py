@@ -22,6 +22,10 @@ Layout (format_version 1; the README documents it):
     /limit/friction         (G+1, 2N)   [mu^+, mu^-] on that grid               [crawlers]
     /process/normals        (m, d)      B, the constant normals of K(t)
     /process/metric         (d, d)      M, the metric of the projections (K^{-1} for crawlers)
+    /events/t               (E,)        event times of the exact integrator, every period, never
+                                        thinned by save_every (a dimension scale) [--integrator exact]
+    /events/w               (E, d)      state after each event (a closed form in between)
+    /events/x               (E, N)      block positions at the events        [exact, crawlers]
 
 Writes are atomic: everything goes to a temporary file in the destination's folder, renamed over
 the destination only when complete. A failed run leaves no file behind.
@@ -41,6 +45,15 @@ from . import __version__
 from .errors import ResultsFileError
 
 FORMAT_VERSION = 1
+
+
+def publish(tmp: Path, path: Path):
+    """Give a finished temporary file the usual permissions (mkstemp makes it 0600) and rename
+    it over ``path`` atomically."""
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o666 & ~umask)
+    os.replace(tmp, path)
 
 
 class ResultsWriter:
@@ -80,6 +93,8 @@ class ResultsWriter:
     def add_period(self, record):
         """Append the saved grid points of one period (its first point only for period 0)."""
         p = self.process
+        if getattr(record, "events", None) is not None:
+            self._append_events(record.events)
         first = 0 if record.index == 0 else 1
         local = np.arange(first, p.steps + 1)
         global_index = record.index * p.steps + local
@@ -95,6 +110,26 @@ class ResultsWriter:
             self._append("shape", record.w[sel] * -np.diag(p.metric))
         if reaction is not None:
             self._append("reaction", reaction)
+
+    def _append_events(self, events):
+        """Append one period's event trajectory ``(t, w, x)`` to /events (exact integrator)."""
+        group = self.file.require_group("events")
+        for name, rows in zip(("t", "w", "x"), events):
+            if rows is None:
+                continue
+            rows = np.asarray(rows, dtype=float)
+            if name not in group:
+                ds = group.create_dataset(name, shape=(0,) + rows.shape[1:],
+                                          maxshape=(None,) + rows.shape[1:], dtype=float,
+                                          chunks=(256,) + rows.shape[1:])
+                if name == "t":
+                    ds.make_scale("t")
+                else:
+                    ds.dims[0].attach_scale(group["t"])
+            ds = group[name]
+            n = ds.shape[0]
+            ds.resize(n + len(rows), axis=0)
+            ds[n:] = rows
 
     def _reaction_rows(self, multipliers, sel):
         """Reactions of the m constraints at the saved grid points ``sel`` of one period.
@@ -163,7 +198,7 @@ class ResultsWriter:
         a["gait_yaml"] = gait_yaml
         a["summary_json"] = json.dumps(result.summary())
         f.close()
-        os.replace(self._tmp, self.path)
+        publish(self._tmp, self.path)
 
     def abort(self):
         try:
@@ -203,6 +238,8 @@ def read_results(path) -> dict:
             out[group + "_attrs"] = {k: _plain(v) for k, v in f[group].attrs.items()}
         if "process" in f:
             out["process"] = {k: f["process"][k][()] for k in f["process"]}
+        if "events" in f:
+            out["events"] = {k: f["events"][k][()] for k in f["events"]}
     return out
 
 
@@ -212,3 +249,88 @@ def _plain(value):
     if isinstance(value, np.generic):
         return value.item()
     return value
+
+
+# --------------------------------------------------------------------------------------------
+# Sweep files (`crawlsim velocity --sweep ... -o OUT.h5`, `crawlsim merge`). Layout:
+#
+#     /                     attrs: crawlsim_version, format_version, kind = "sweep", gait_yaml
+#                                  (the base gait document), source, paths (JSON list of the
+#                                  swept paths, in grid order), shape, shard ("" or "I/N")
+#     /axes/<path>          (n_k,)  values of each swept path
+#     /results/<column>     (P,)    one entry per point, in grid order: each swept path, v0,
+#                                   displacement_per_period, convergence, periods, status,
+#                                   message; point (grid index), steps (catch-up steps simulated)
+
+def write_sweep(path, *, paths, axes, points, columns, gait_yaml, source, shard, steps) -> None:
+    """Write a sweep table atomically (temporary file in the same folder, then os.replace)."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp",
+                               dir=path.resolve().parent)
+    os.close(fd)
+    text = h5py.string_dtype()
+    try:
+        with h5py.File(tmp, "w") as f:
+            a = f.attrs
+            a["crawlsim_version"] = __version__
+            a["format_version"] = FORMAT_VERSION
+            a["kind"] = "sweep"
+            a["gait_yaml"] = gait_yaml
+            a["source"] = str(source)
+            a["paths"] = json.dumps(list(paths))
+            a["shape"] = np.array([len(v) for v in axes], dtype=np.int64)
+            a["shard"] = shard
+            g = f.create_group("axes")
+            for name, values in zip(paths, axes):
+                g.create_dataset(name, data=np.asarray(values))
+            r = f.create_group("results")
+            r.create_dataset("point", data=np.asarray(points, dtype=np.int64))
+            r.create_dataset("steps", data=np.asarray(steps, dtype=np.int64))
+            for name, values in columns.items():
+                values = np.asarray(values)
+                if values.dtype == object:
+                    r.create_dataset(name, data=values.astype(str).tolist(), dtype=text,
+                                     shape=values.shape)
+                else:
+                    r.create_dataset(name, data=values)
+        os.replace(tmp, path)
+    finally:
+        Path(tmp).unlink(missing_ok=True)
+
+
+def read_sweep(path) -> dict:
+    """A sweep file as ``{paths, axes, points, steps, columns, gait_yaml, source, shard}``.
+
+    Raises `ResultsFileError` naming what is missing when the file is not a sweep file.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise ResultsFileError(f"{path}: no such sweep file")
+    try:
+        f = h5py.File(path, "r")
+    except OSError as exc:
+        raise ResultsFileError(f"{path}: not an HDF5 file ({exc})") from None
+    with f:
+        if _plain(f.attrs.get("kind", "")) != "sweep":
+            raise ResultsFileError(f"{path}: not a crawlsim sweep file (attribute kind is not "
+                                   "'sweep')")
+        for group in ("axes", "results"):
+            if group not in f:
+                raise ResultsFileError(f"{path}: missing group /{group}")
+        paths = json.loads(_plain(f.attrs["paths"]))
+        missing = [p for p in paths if p not in f["axes"]]
+        if missing:
+            raise ResultsFileError(f"{path}: missing /axes/{missing[0]}")
+        results = f["results"]
+        columns = {}
+        for name in list(paths) + ["v0", "displacement_per_period", "convergence", "periods",
+                                   "status", "message", "point", "steps"]:
+            if name not in results:
+                raise ResultsFileError(f"{path}: missing /results/{name}")
+            ds = results[name]
+            columns[name] = (np.array(ds.asstr()[()], dtype=object)
+                             if h5py.check_string_dtype(ds.dtype) else ds[()])
+        return dict(paths=paths, axes=[f["axes"][p][()] for p in paths],
+                    points=columns.pop("point"), steps=columns.pop("steps"), columns=columns,
+                    gait_yaml=_plain(f.attrs["gait_yaml"]), source=_plain(f.attrs["source"]),
+                    shard=_plain(f.attrs["shard"]))

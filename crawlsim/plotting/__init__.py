@@ -1,0 +1,40 @@
+"""Figures of a crawlsim run, drawn from its results file alone (matplotlib, Agg backend).
+
+* `style` holds the one style of all figures (fonts, Okabe-Ito colours, labels, titles);
+* `figures` has one function per figure, each taking the dict of `crawlsim.h5io.read_results`
+  and returning a matplotlib `Figure`, plus `sweep_figure` for velocity sweeps;
+* `output.plot_results` reads a results file and writes its figures next to it.
+
+The names below are imported lazily (PEP 562), so that ``import crawlsim.plotting`` and the
+command line stay fast and never import matplotlib until a figure is drawn.
+"""
+
+from __future__ import annotations
+
+#: The figures of one run, in drawing order; ``--only`` takes one of these names.
+FIGURE_NAMES = ("motion", "gait-diagram", "convergence", "shape-space")
+#: Figures that need block positions, stresses and slips: crawler runs only.
+CRAWLER_FIGURES = ("motion", "gait-diagram")
+
+_LAZY = {
+    "plot_results": "output",
+    "available_figures": "output",
+    "draw_figure": "output",
+    "motion_figure": "figures",
+    "gait_figure": "figures",
+    "convergence_figure": "figures",
+    "shape_space_figure": "figures",
+    "sweep_figure": "figures",
+    "FIGURES": "figures",
+}
+
+__all__ = ["FIGURE_NAMES", "CRAWLER_FIGURES", *_LAZY]
+
+
+def __getattr__(name):
+    if name in _LAZY:
+        import importlib
+
+        module = importlib.import_module(f"{__name__}.{_LAZY[name]}")
+        return getattr(module, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

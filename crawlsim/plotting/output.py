@@ -1,0 +1,97 @@
+"""Draw the figures of a results file and write them next to it (``crawlsim plot``, ``--plot``).
+
+Every figure is drawn before any is written, and each file is written to a temporary name and
+renamed into place, so a figure that cannot be drawn leaves no file behind.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+from ..errors import ResultsFileError
+from ..h5io import read_results
+from . import CRAWLER_FIGURES, FIGURE_NAMES
+from .figures import FIGURES
+from .style import DPI, figure_style
+
+FORMATS = ("png", "pdf", "svg")
+
+
+def available_figures(results: dict) -> list[str]:
+    """The figures a file supports: all of them for crawler runs, the shape-space and
+    convergence figures for a generic sweeping process (no blocks, no velocity)."""
+    crawler = results["attrs"].get("kind", "crawler") == "crawler"
+    return [n for n in FIGURE_NAMES if crawler or n not in CRAWLER_FIGURES]
+
+
+def draw_figure(results: dict, name: str, *, coords=(0, 1)):
+    """The figure ``name`` (one of `FIGURE_NAMES`) of ``results``."""
+    if name not in FIGURES:
+        raise ValueError(f"unknown figure {name!r}; choose one of {', '.join(FIGURE_NAMES)}")
+    if name == "shape-space":
+        return FIGURES[name](results, coords=coords)
+    return FIGURES[name](results)
+
+
+def plot_results(path, out_dir=None, fmt: str = "png", only: str | None = None, *,
+                 coords=(0, 1)) -> list[Path]:
+    """Draw the figures of the results file ``path`` into ``out_dir`` (default: its folder) as
+    ``<stem>-<figure>.<fmt>``; return the paths written.
+
+    ``only`` draws one figure; otherwise every figure the file supports (`available_figures`).
+    ``coords`` is the 0-based pair of shape coordinates of the shape-space figure when the shape
+    space has more than two dimensions. A missing dataset raises `ResultsFileError` naming the
+    file and the dataset; nothing is written then.
+    """
+    path = Path(path)
+    if fmt not in FORMATS:
+        raise ValueError(f"format {fmt!r}: choose one of {', '.join(FORMATS)}")
+    results = read_results(path)
+    if only is not None and only not in FIGURE_NAMES:
+        raise ValueError(f"unknown figure {only!r}; choose one of {', '.join(FIGURE_NAMES)}")
+    names = [only] if only is not None else available_figures(results)
+    try:
+        drawn = {name: draw_figure(results, name, coords=coords) for name in names}
+    except ResultsFileError as exc:
+        raise ResultsFileError(f"{path}: {exc}") from None
+    folder = Path(out_dir) if out_dir is not None else path.resolve().parent
+    folder.mkdir(parents=True, exist_ok=True)
+    written = []
+    for name, fig in drawn.items():
+        target = folder / f"{path.stem}-{name}.{fmt}"
+        _save_atomically(fig, target, fmt)
+        written.append(target)
+    return written
+
+
+def _save_atomically(fig, target: Path, fmt: str) -> None:
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    os.close(fd)
+    os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; a figure is as readable as any file
+    try:
+        with figure_style():
+            fig.savefig(tmp, format=fmt, dpi=DPI, bbox_inches="tight",
+                        metadata=_metadata(fmt))
+        os.replace(tmp, target)
+    finally:
+        Path(tmp).unlink(missing_ok=True)
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def _metadata(fmt: str) -> dict:
+    """Reproducible files: no creation date in PDF and SVG, and crawlsim named as creator."""
+    from .. import __version__
+
+    creator = f"crawlsim {__version__}"
+    if fmt == "pdf":
+        return {"Creator": creator, "CreationDate": None}
+    if fmt == "svg":
+        return {"Creator": creator, "Date": None}
+    return {"Software": creator}
