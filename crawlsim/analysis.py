@@ -285,7 +285,8 @@ def limit_period(process: SweepingProcess, final: PeriodRecord, v0: float | None
 
 def summary_text(result: RunResult, output: str | None = None) -> str:
     """The short human summary printed by ``crawlsim run``."""
-    lines = [f"gait {result.name}: {result.periods} periods of {result.steps_per_period} steps"]
+    what = "gait" if result.v0 is not None else "process"  # a generic process has no v0
+    lines = [f"{what} {result.name}: {result.periods} periods of {result.steps_per_period} steps"]
     if result.v0 is not None:
         lines.append(f"  v0                       {result.v0:.12g} "
                      f"(± {result.v0_error_estimate:.1g} from the period iteration; "

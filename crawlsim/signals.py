@@ -469,10 +469,19 @@ def check_schema(instance: Any, schema: dict, source: str, keypath: str = "") ->
     An unknown key outranks a missing one at the same place: a misspelt key causes both, and
     only the unknown-key message can suggest the right spelling.
     """
-    errors = jsonschema.Draft202012Validator(schema).iter_errors(instance)
-    error = best_match(errors, key=_RELEVANCE)
+    validator = _VALIDATORS.get(id(schema))
+    if validator is None:
+        validator = _VALIDATORS[id(schema)] = jsonschema.Draft202012Validator(schema)
+    if validator.is_valid(instance):  # the common case; best_match is only for errors
+        return
+    error = best_match(validator.iter_errors(instance), key=_RELEVANCE)
     if error is not None:
         raise _schema_error(error, source, keypath)
+
+
+#: One validator per schema (the schemas are module constants): building one is costly, and
+#: sweeps validate thousands of documents.
+_VALIDATORS: dict[int, jsonschema.Draft202012Validator] = {}
 
 
 def check_finite(instance: Any, source: str, keypath: str = "") -> None:

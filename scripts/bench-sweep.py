@@ -1,0 +1,84 @@
+#!/usr/bin/env python
+"""Benchmark: gait-steps per second of a sweep against a loop of single `crawlsim velocity` runs.
+
+The sweep is 1,000 points of the four-block wave (gaits/peristalsis-4.yaml) at 400 steps per
+period, ``links.*.amplitude`` from 0.05 to 0.45, run with ``--jobs 2`` (validation of every point,
+worker start-up and batched stepping included: the wall time of `crawlsim.sweep.sweep`).
+
+The loop runs single `crawlsim velocity` computations in-process, as library calls (build and
+validate the point's gait, compile, `crawlsim.analysis.simulate`): the honest comparison, with
+no interpreter start-up per point. It runs every k-th point (``--loop-every``) and is compared
+per gait-step. "gait-steps" = periods actually simulated x steps per period, summed over points.
+
+    python scripts/bench-sweep.py [--repeat 3] [--points 1000] [--jobs 2] [--loop-every 10]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+from pathlib import Path
+
+from crawlsim import sweep as sweeps
+from crawlsim.analysis import simulate
+from crawlsim.gait import load_gait, with_simulation
+from crawlsim.model import compile_gait
+
+GAIT = Path(__file__).resolve().parents[1] / "gaits" / "peristalsis-4.yaml"
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--points", type=int, default=1000)
+    ap.add_argument("--steps", type=int, default=400)
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--loop-every", type=int, default=10)
+    ap.add_argument("--path", default="links.*.amplitude=0.05:0.45")
+    args = ap.parse_args()
+    gait = with_simulation(load_gait(GAIT), steps_per_period=args.steps)
+    axis = f"{args.path}:{args.points}"
+    grid = sweeps.make_grid(gait, [sweeps.parse_axis(axis)])
+
+    sweep_rates, loop_rates, walls = [], [], []
+    for rep in range(args.repeat):
+        began = time.perf_counter()
+        table = sweeps.sweep(gait, [axis], jobs=args.jobs)
+        wall = time.perf_counter() - began
+        steps = sum(r.steps for r in table.rows)
+        sweep_rates.append(steps / wall)
+        walls.append(wall)
+
+        began = time.perf_counter()
+        loop_steps = 0
+        for i in range(0, grid.size, args.loop_every):
+            point = grid.gait(i)
+            s = point.simulation
+            result = simulate(compile_gait(point), max_periods=s.max_periods,
+                              tolerance=s.tolerance)
+            assert abs(result.v0 - table.rows[i].v0) <= 1e-12
+            loop_steps += result.steps
+        loop_rates.append(loop_steps / (time.perf_counter() - began))
+        print(f"run {rep + 1}: sweep {steps} gait-steps in {wall:.3f} s = "
+              f"{sweep_rates[-1]:,.0f} gait-steps/s; loop of single runs "
+              f"{loop_rates[-1]:,.0f} gait-steps/s", flush=True)
+
+    counts = table.counts()
+    sweep_rate, loop_rate = statistics.median(sweep_rates), statistics.median(loop_rates)
+    print(f"\nsweep: {args.points} points of {GAIT.name}, {axis}, {args.steps} steps/period, "
+          f"--jobs {args.jobs}: {counts['ok']} ok, {counts['not-converged']} not converged, "
+          f"{counts['failed']} failed; {steps} gait-steps "
+          f"(mean {steps / args.points / args.steps:.2f} periods per point)")
+    print(f"median of {args.repeat} runs:")
+    print(f"  sweep (--jobs {args.jobs})                 {sweep_rate:>14,.0f} gait-steps/s "
+          f"(wall {statistics.median(walls):.3f} s)")
+    print(f"  loop of single runs (in-process)   {loop_rate:>14,.0f} gait-steps/s "
+          f"(every {args.loop_every}th point, extrapolated per gait-step)")
+    print(f"  ratio                              {sweep_rate / loop_rate:>14.1f} x")
+    print(f"bar: >= 1,000,000 gait-steps/s and >= 10x: "
+          f"{'met' if sweep_rate >= 1e6 and sweep_rate >= 10 * loop_rate else 'NOT met'}")
+
+
+if __name__ == "__main__":
+    main()

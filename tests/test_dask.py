@@ -1,0 +1,46 @@
+"""Sweeps on a real Dask distributed cluster (scheduler and two worker processes on 127.0.0.1)
+give the same table as a local run. CI installs the ``dask`` extra, so this is not skipped."""
+
+import distributed
+import pytest
+from click.testing import CliRunner
+
+from crawlsim import sweep as sweeps
+from crawlsim.cli import main
+from crawlsim.gait import load_gait, with_simulation
+from tests.test_sweep import P4, AMP, LAG
+
+
+@pytest.fixture(scope="module")
+def scheduler():
+    with distributed.LocalCluster(host="127.0.0.1", n_workers=2, threads_per_worker=1,
+                                  processes=True, dashboard_address=None) as cluster:
+        yield cluster.scheduler_address
+
+
+def test_dask_sweep_equals_local_run(scheduler):
+    gait = with_simulation(load_gait(P4), steps_per_period=40)
+    axes = ["links.*.amplitude=0.1:0.3:9", LAG]
+    local = sweeps.sweep(gait, axes)
+    remote = sweeps.sweep(gait, axes, scheduler=scheduler)
+    assert remote.to_csv() == local.to_csv()
+    assert remote.counts()["ok"] == 27
+
+
+def test_dask_cli_writes_the_local_file(scheduler, tmp_path):
+    run = CliRunner()
+    args = ["velocity", P4, "--steps-per-period", "40", "--sweep", AMP, "--sweep", LAG]
+    assert run.invoke(main, args + ["-o", str(tmp_path / "local.h5")]).exit_code == 0
+    r = run.invoke(main, args + ["--scheduler", scheduler, "-o", str(tmp_path / "dask.h5")])
+    assert r.exit_code == 0, r.output
+    assert (sweeps.read_table(tmp_path / "dask.h5").to_csv()
+            == sweeps.read_table(tmp_path / "local.h5").to_csv())
+
+
+def test_unreachable_scheduler_is_bad_input(tmp_path, monkeypatch):
+    monkeypatch.setattr(sweeps, "SCHEDULER_TIMEOUT", "1s")
+    r = CliRunner().invoke(main, ["velocity", P4, "--steps-per-period", "40", "--sweep", AMP,
+                                  "--scheduler", "tcp://127.0.0.1:1", "-o",
+                                  str(tmp_path / "x.csv")])
+    assert r.exit_code == 2 and "cannot reach the Dask scheduler" in r.output
+    assert not (tmp_path / "x.csv").exists()

@@ -1,0 +1,58 @@
+"""The batch scripts in scripts/ that need no cluster, run on small grids; the SLURM template
+is checked for syntax only (it needs sbatch)."""
+
+import csv
+import subprocess
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from crawlsim.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+SCRIPTS = ROOT / "scripts"
+
+
+def _v0(path, *options):
+    r = CliRunner().invoke(main, ["velocity", str(path), *options])
+    assert r.exit_code == 0, r.output
+    return float(r.output)
+
+
+def test_v0_folder(tmp_path):
+    """One row per gait file, each v0 equal to `crawlsim velocity` on that file."""
+    folder = tmp_path / "gaits"
+    folder.mkdir()
+    for name in ("inching-2.yaml", "peristalsis-3.yaml"):
+        (folder / name).write_text((ROOT / "gaits" / name).read_text())
+    (folder / "broken.yaml").write_text("blocks: 1\n")
+    out = tmp_path / "v0.csv"
+    subprocess.run(["bash", SCRIPTS / "v0-folder.sh", folder, out, "--steps-per-period", "80"],
+                   check=True, capture_output=True)
+    rows = list(csv.DictReader(out.open()))
+    assert [r["gait"] for r in rows] == ["broken", "inching-2", "peristalsis-3"]
+    assert rows[0]["status"] == "failed" and rows[0]["v0"] == ""
+    for row in rows[1:]:
+        assert row["status"] == "ok"
+        assert float(row["v0"]) == _v0(folder / f"{row['gait']}.yaml",
+                                       "--steps-per-period", "80")
+    assert float(rows[1]["v0"]) == pytest.approx(0.4, abs=1e-12)  # inching closed form
+
+
+def test_phase_lag_sweep(tmp_path):
+    """Signals are periodic in cycles, so a lag of a whole period is the gait with lag 0: v0
+    agrees at both ends of the sweep to roundoff. The table has the requested points and the
+    plot is written."""
+    subprocess.run(["bash", SCRIPTS / "phase-lag-sweep.sh", tmp_path / "lag", "5",
+                    "--steps-per-period", "60"], check=True, capture_output=True)
+    rows = list(csv.DictReader((tmp_path / "lag" / "phase-lag.csv").open()))
+    assert [float(r["links.1.phase"]) for r in rows] == [0.0, 0.25, 0.5, 0.75, 1.0]
+    assert all(r["status"] == "ok" for r in rows)
+    assert float(rows[0]["v0"]) == pytest.approx(float(rows[-1]["v0"]), abs=1e-12)
+    png = (tmp_path / "lag" / "phase-lag.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 5000
+
+
+def test_slurm_template_parses():
+    subprocess.run(["bash", "-n", SCRIPTS / "slurm-sweep.sh"], check=True)
