@@ -518,13 +518,32 @@ def emptiness_violation(spec: ProcessSpec) -> str | None:
     A = sp.kron(sp.identity(k, format="csr"), sp.csr_matrix(B), format="csr")
     if _feasible(A, c.ravel(), k * n, spec.source):
         return None
+    Bs = sp.csr_matrix(B)
     for j in range(k):
-        if not _feasible(sp.csr_matrix(B), c[j], n, spec.source):
-            t = u[j] * spec.period
-            return (f"C(t) = {{z : B z <= c(t)}} is empty at t = {t:.12g} (cycle {u[j]:.12g}): no "
-                    "point satisfies every constraint there. Check the offsets' signs: C(t) = "
-                    "{z : <b_i, z> <= c_i(t)}")
+        if not _feasible(Bs, c[j], n, spec.source):
+            where = f"at t = {u[j] * spec.period:.12g} (cycle {u[j]:.12g})"
+            if j > 0 and all(not s.is_smooth or isinstance(s, Constant) for s in spec.offsets):
+                first = _first_empty(spec, Bs, u[j - 1], u[j])
+                where = (f"for t just after about {first * spec.period:.6g} (cycle {first:.6g}; "
+                         f"to the LP's feasibility tolerance) and {where}")
+            return (f"C(t) = {{z : B z <= c(t)}} is empty {where}: no point satisfies every "
+                    "constraint there. Check the offsets' signs: C(t) = {z : <b_i, z> <= c_i(t)}")
     return None  # pragma: no cover - the joint LP and the per-time LPs agree
+
+
+def _first_empty(spec: ProcessSpec, B, feasible: float, empty: float) -> float:
+    """Bisect for the cycle where C(t) becomes empty between two breakpoints; the times where it
+    is nonempty form an interval there (the offsets are affine on the piece). HiGHS decides
+    feasibility to about 1e-7, so so is the answer."""
+    n = B.shape[1]
+    for _ in range(30):
+        middle = (feasible + empty) / 2
+        c = evaluate_many(spec.offsets, np.array([middle]))[0]
+        if _feasible(B, c, n, spec.source):
+            feasible = middle
+        else:
+            empty = middle
+    return feasible
 
 
 def _feasible(A, b: np.ndarray, n: int, source: str) -> bool:

@@ -274,8 +274,8 @@ class ExactProjector:
     def _licq_message(self, index, time):
         return (f"the active normals are linearly dependent{self._at(time)} "
                 f"({self._describe(index)}): LICQ fails there, so the multipliers (the slips) are "
-                "not unique and the model does not determine the motion (MODEL.md §3, the "
-                "uniqueness condition). Change the step count so that no grid time falls on this "
+                "not unique and the model does not determine the motion (the uniqueness "
+                "condition of the crawler model fails at this instant). Change the step count so that no grid time falls on this "
                 "instant, or change the friction coefficients.")
 
 

@@ -61,6 +61,9 @@ class PeriodRecord:
     multipliers: np.ndarray  # (G, m), lambda of each step
     x: np.ndarray | None  # (G+1, N) block positions (crawlers)
     clarabel_calls: int
+    # The exact trajectory at event times, (t, w, x), from event-driven integrators
+    # (`crawlsim.exact.EventTrajectory`); None for catch-up.
+    events: tuple | None = None
 
     @property
     def slips(self) -> np.ndarray | None:

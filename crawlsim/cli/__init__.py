@@ -19,6 +19,7 @@ import click
 from .. import __version__
 from ..errors import CrawlsimError, GaitError, ResultsFileError
 from ..gait import load_gait, with_simulation
+from ..stepping import STEPPERS
 
 EXIT_NOT_CONVERGED = 3
 
@@ -80,6 +81,7 @@ def main():
     Examples:
       crawlsim run gaits/peristalsis-4.yaml
       crawlsim run gaits/inching-2.yaml --json -o inching.h5
+      crawlsim run gaits/peristalsis-4.yaml --integrator exact
     """
 
 
@@ -92,14 +94,31 @@ def simulation_options(f):
                      help="Give up after this many periods (default 1000).")(f)
     f = click.option("--steps-per-period", type=click.IntRange(min=1),
                      help="Uniform catch-up steps per period; breakpoints are added "
-                          "(default 1000).")(f)
+                          "(default 1000). With --integrator exact, only the output grid.")(f)
+    f = click.option("--integrator", type=click.Choice(list(STEPPERS)), expose_value=False,
+                     callback=_remember_integrator,
+                     help="catch-up: first order in the step, robust for any gait. exact: "
+                          "event-driven, v0 to roundoff, fast for smooth or piecewise-linear "
+                          "gaits (default from the gait file, else catch-up).")(f)
     return f
 
 
-def load_with_overrides(gait_file, steps_per_period, max_periods, tolerance):
+def _remember_integrator(ctx, param, value):
+    """``--integrator`` is consumed by `load_with_overrides`, so commands need no parameter."""
+    if value is not None:
+        ctx.meta["crawlsim.integrator"] = value
+
+
+def load_with_overrides(gait_file, steps_per_period, max_periods, tolerance, integrator=None):
+    """The gait file with the command line's simulation options applied (``--integrator``
+    included, taken from the click context when not given)."""
+    if integrator is None:
+        ctx = click.get_current_context(silent=True)
+        integrator = None if ctx is None else ctx.meta.get("crawlsim.integrator")
     gait = load_gait(gait_file)
     overrides = {k: v for k, v in dict(steps_per_period=steps_per_period,
-                                       max_periods=max_periods, tolerance=tolerance).items()
+                                       max_periods=max_periods, tolerance=tolerance,
+                                       integrator=integrator).items()
                  if v is not None}
     return with_simulation(gait, **overrides) if overrides else gait
 
