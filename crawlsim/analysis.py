@@ -88,13 +88,15 @@ class RunResult:
     clarabel_calls: int
     wall_time: float
     steps: int = field(default=0)
+    integrator: str = "catch-up"
 
     @property
     def converged(self) -> bool:
         return self.convergence != "not-converged"
 
     def summary(self) -> dict:
-        keys = ("name", "v0", "v0_error_estimate", "displacement_per_period", "convergence",
+        keys = ("name", "integrator", "v0", "v0_error_estimate", "displacement_per_period",
+                "convergence",
                 "periodic_from", "contraction_rate", "periods", "steps_per_period",
                 "dissipation_per_period", "cost_of_transport", "clarabel_calls", "steps",
                 "wall_time")
@@ -201,7 +203,7 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
         v0_error_estimate=err, displacement_per_period=d_final,
         dissipation_per_period=diss_final, cost_of_transport=cot, history=history,
         limit=limit_period(process, final, v0), clarabel_calls=stepper.projector.clarabel_calls,
-        wall_time=_time.perf_counter() - began, steps=(Q + 1) * G)
+        wall_time=_time.perf_counter() - began, steps=(Q + 1) * G, integrator=integrator)
 
 
 def effective_tolerance(tolerance: float) -> float:
@@ -290,7 +292,8 @@ def summary_text(result: RunResult, output: str | None = None) -> str:
     if result.v0 is not None:
         lines.append(f"  v0                       {result.v0:.12g} "
                      f"(± {result.v0_error_estimate:.1g} from the period iteration; "
-                     "time-step error not included)")
+                     + ("exact integrator)" if result.integrator == "exact" else
+                        "catch-up time-step error not included: see --integrator exact)"))
     if result.convergence == "finite-time":
         lines.append(f"  convergence              finite-time: periodic from period "
                      f"{result.periodic_from}")

@@ -77,7 +77,7 @@ ZENO_EVENTS = 64
 #: ... within this fraction of the period.
 ZENO_WINDOW = 1e-9
 #: Relative tolerance on gaps (units of c) and multiplier rates for "tight" and "violated".
-EVENT_RTOL = 1e-12
+EVENT_RTOL = 1e-14
 #: How far ahead (fraction of T) the probe looks to decide degenerate rows at an event.
 PROBE = 1e-6
 #: Nodes of the Gauss-Legendre rule used for left limits of c at breakpoints.

@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import math
 import sys
+import warnings
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -81,8 +82,16 @@ def main():
     Examples:
       crawlsim run gaits/peristalsis-4.yaml
       crawlsim run gaits/inching-2.yaml --json -o inching.h5
-      crawlsim run gaits/peristalsis-4.yaml --integrator exact
+      crawlsim run gaits/peristalsis-4.yaml --integrator exact --plot
+      crawlsim velocity gaits/peristalsis-4.yaml --sweep 'links.*.amplitude=0.1:0.4:31'
+      crawlsim plot peristalsis-4.h5 --format pdf
     """
+    warnings.showwarning = _show_warning
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    """Warnings (LICQ failures of generic processes, for example) as one line on stderr."""
+    click.echo(f"Warning: {message}", err=True)
 
 
 def simulation_options(f):
@@ -138,15 +147,5 @@ def period_progress(max_periods: int, enabled: bool):
         yield update
 
 
-
-def _register():
-    from . import run  # noqa: F401  (each command module attaches itself to `main`)
-    for name in ("velocity", "merge", "plot"):
-        try:
-            __import__(f"{__name__}.{name}")
-        except ModuleNotFoundError as exc:
-            if exc.name != f"{__name__}.{name}":
-                raise
-
-
-_register()
+# Each command module attaches itself to `main`.
+from . import merge, plot, run, velocity  # noqa: E402,F401
