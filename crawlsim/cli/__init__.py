@@ -53,7 +53,7 @@ def library_errors():
 
 
 def _output_path(output, gait_file) -> Path:
-    out = Path(output) if output else Path.cwd() / (Path(gait_file).stem + ".h5")
+    out = Path(output) if output else Path(Path(gait_file).stem + ".h5")
     if not out.resolve().parent.is_dir():
         raise BadInput(f"--output {out}: the folder {out.resolve().parent} does not exist")
     if out.is_dir():
