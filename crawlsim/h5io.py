@@ -215,18 +215,22 @@ class ResultsWriter:
         return False
 
 
+def _open(path: Path, what: str) -> h5py.File:
+    """Open an HDF5 file for reading, or raise `ResultsFileError` saying why it can't be."""
+    if not path.exists():
+        raise ResultsFileError(f"{path}: no such {what}")
+    try:
+        return h5py.File(path, "r")
+    except OSError as exc:
+        raise ResultsFileError(f"{path}: not an HDF5 file ({exc})") from None
+
+
 def read_results(path) -> dict:
     """Load a results file into plain dicts of arrays: ``{"attrs", "trajectory", "convergence",
     "limit"}``, plus ``"process"`` when the file has it. Raises `ResultsFileError` naming what is
     missing."""
     path = Path(path)
-    if not path.exists():
-        raise ResultsFileError(f"{path}: no such results file")
-    try:
-        f = h5py.File(path, "r")
-    except OSError as exc:
-        raise ResultsFileError(f"{path}: not an HDF5 file ({exc})") from None
-    with f:
+    with _open(path, "results file") as f:
         if "format_version" not in f.attrs:
             raise ResultsFileError(f"{path}: not a crawlsim results file (no format_version "
                                    "attribute)")
@@ -304,13 +308,7 @@ def read_sweep(path) -> dict:
     Raises `ResultsFileError` naming what is missing when the file is not a sweep file.
     """
     path = Path(path)
-    if not path.exists():
-        raise ResultsFileError(f"{path}: no such sweep file")
-    try:
-        f = h5py.File(path, "r")
-    except OSError as exc:
-        raise ResultsFileError(f"{path}: not an HDF5 file ({exc})") from None
-    with f:
+    with _open(path, "sweep file") as f:
         if _plain(f.attrs.get("kind", "")) != "sweep":
             raise ResultsFileError(f"{path}: not a crawlsim sweep file (attribute kind is not "
                                    "'sweep')")
