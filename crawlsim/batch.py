@@ -1,17 +1,22 @@
-"""Batched catch-up stepping: many gaits of one block count in lockstep, vectorised over the batch.
+"""Batched catch-up stepping: many gaits of one block count, vectorised over the batch.
 
 Each gait b of the batch follows the catch-up scheme of `crawlsim.stepping` (MODEL.md §3),
 
     w_{j+1} = argmin { 1/2 |w - w_j|_M^2 : B w <= c(t_{j+1}) },
 
-on its own tabulated offsets, and all gaits advance step j together. On the active set A of a
-gait the step is the equality KKT solution
+on its own tabulated offsets, each gait at its own step j of its own period. On the active set A
+of a gait the step is the equality KKT solution
 
     lambda = G_A^{-1} (B_A w_j - c_A(t_{j+1})),   w_{j+1} = w_j - M^{-1} B_A^T lambda,
 
-which, with ``G_A^{-1}`` and the response ``R_A = M^{-1} B_A^T G_A^{-1}`` padded with zeros
-outside A to (m, m) and (n, m), is one batched matrix-vector product for every gait at once.
-Every step of every gait is certified as `crawlsim.projection.ExactProjector.is_certified`
+and since then ``B_A w_{j+1} = c_A(t_{j+1})``, the next k steps on A telescope (as
+`_reuse_block` of `crawlsim.stepping`):
+
+    w_{j+k} = w_j - R_A (B_A w_j - c_A(t_{j+k})),   R_A = M^{-1} B_A^T G_A^{-1}.
+
+With ``G_A^{-1}`` and ``R_A`` padded with zeros outside A to (m, m) and (n, m), a block of up to
+`BLOCK` steps of every gait is one batched product over (gait, step of the block). Every step of
+every gait is certified as `crawlsim.projection.ExactProjector.is_certified`
 certifies, with that gait's own tolerances: primal feasibility ``B w <= c``, the sign of the
 multipliers, and complementarity on A. A gait whose certificate fails gets a new active set,
 first by primal-dual active-set updates from the previous set (drop the most negative
@@ -20,10 +25,12 @@ multiplier, else add the most violated row, exactly the refinement of
 and certified like any step; when that does not settle, by the gait's own
 `ExactProjector.project` (Clarabel proposes the set, the KKT system is certified). A certified
 KKT point of this strictly convex problem *is* the projection, so a gait in a batch takes the
-same steps as in a single run, up to roundoff.
+same steps as in a single run, up to roundoff. A gait keeps the steps of a block before its
+first uncertified one (or before an inactive row tight to roundoff whose union with A has not
+been shown to satisfy LICQ) and takes that step alone, as above.
 
-The batch is refilled at period boundaries: a gait that has converged leaves, the next one in
-the queue enters at its own period 0 (continuous batching keeps the vectorised products full).
+A gait that has converged leaves at its period boundary and the next one in the queue enters at
+its own period 0 (continuous batching keeps the vectorised products full).
 
 The period loop, the Poincare step and the classification of convergence are those of
 `crawlsim.analysis.simulate` (`poincare_step`, `classify_convergence`, `effective_tolerance`).
@@ -45,6 +52,11 @@ from .projection import ExactProjector
 REFINE_ITERATIONS = 4
 #: Relative singular-value floor of the Gram matrix G_A: the LICQ test of `ExactProjector`.
 LICQ_FLOOR = 1e-10
+#: Steps telescoped per block on a fixed active set (`_Lockstep._block`).
+BLOCK = 32
+#: Largest m for which the active-set unions known to satisfy LICQ are tabulated densely
+#: (2^m flags per structure), so a block certifies a row tight to roundoff without a lookup.
+UNION_TABLE_ROWS = 16
 #: Gaits stepped together at most.
 DEFAULT_CAPACITY = 256
 
@@ -143,7 +155,7 @@ class _ActiveSets:
 
 
 class _Lockstep:
-    """One group: gaits with the same steps per period and the same m x n, stepped together."""
+    """One group: gaits with the same steps per period and the same m x n, batched together."""
 
     def __init__(self, processes: list[SweepingProcess], max_periods, tolerance, capacity,
                  progress):
@@ -161,6 +173,7 @@ class _Lockstep:
         self.structures: dict[bytes, tuple[int, ExactProjector]] = {}
         self.struct_of = np.zeros(len(processes), dtype=int)
         self.table = _ActiveSets(m, n)
+        self.licq_ok = np.zeros((0, 1 << m), dtype=bool) if m <= UNION_TABLE_ROWS else None
         self.rel_steps: list[list[float]] = [[] for _ in processes]
         self.displacements: list[list[float]] = [[] for _ in processes]
         self.results: list[BatchRun | None] = [None] * len(processes)
@@ -168,7 +181,7 @@ class _Lockstep:
 
     # -- admission of gaits ------------------------------------------------------------------
     def _admit(self, ids: list[int]):
-        """State arrays of the gaits ``ids``, appended to the batch at a period boundary."""
+        """State arrays of the gaits ``ids``, appended to the batch at their period 0."""
         rows = []
         for k in ids:
             p = self.processes[k]
@@ -180,9 +193,14 @@ class _Lockstep:
                 self.structures[key] = (len(self.structures), projector)
             self.struct_of[k] = self.structures[key][0]
             rows.append((projector, p))
+        if self.licq_ok is not None and len(self.licq_ok) < len(self.structures):
+            grow = len(self.structures) - len(self.licq_ok)
+            self.licq_ok = np.concatenate([self.licq_ok,
+                                           np.zeros((grow, self.licq_ok.shape[1]), dtype=bool)])
         new = dict(
             id=np.array(ids, dtype=int),
             period=np.zeros(len(ids), dtype=int),
+            j=np.zeros(len(ids), dtype=int),
             normals=np.stack([p.normals for _, p in rows]),
             minv_bt=np.stack([pr.M_inv @ p.normals.T for pr, p in rows]),
             offsets=np.stack([p.offsets for _, p in rows]),
@@ -190,6 +208,8 @@ class _Lockstep:
             tolp=np.array([pr.tol.primal for pr, _ in rows])[:, None],
             told=np.array([pr.tol.dual for pr, _ in rows])[:, None],
             w=np.stack([np.asarray(p.initial, dtype=float) for _, p in rows]),
+            w_start=np.stack([np.asarray(p.initial, dtype=float) for _, p in rows]),
+            lam_sum=np.zeros((len(ids), self.m)),
             mask=np.zeros((len(ids), self.m), dtype=bool),
             P=np.zeros((len(ids), self.m, self.m)),
             R=np.zeros((len(ids), self.n, self.m)),
@@ -220,62 +240,111 @@ class _Lockstep:
 
     # -- the run ------------------------------------------------------------------------------
     def run(self) -> list[BatchRun]:
+        """Telescoped blocks of steps, each gait at its own step of its own period.
+
+        On a fixed active set A, ``B_A w_{j+1} = c_A(t_{j+1})`` after every step, so the next
+        ``k`` steps are ``w_{j+k} = w_j - R_A (B_A w_j - c_A(t_{j+k}))`` (as `_reuse_block` of
+        `crawlsim.stepping`): one batched product over (gait, step of the block). Every step of
+        the block is certified; each gait keeps the steps before its first uncertified one (or
+        before an inactive row tight to roundoff) and takes that step exactly (`_exact_step`).
+        """
         queue = deque(range(len(self.processes)))
         self._admit([queue.popleft() for _ in range(min(self.capacity, len(queue)))])
         while len(self.s["id"]):
-            w_start = self.s["w"].copy()
-            lam_sum = np.zeros((len(w_start), self.m))
-            for j in range(self.G):
-                lam, keep = self._step(j)
-                if keep is not None:
-                    lam_sum, w_start = lam_sum[keep], w_start[keep]
-                lam_sum += lam
-                if not len(self.s["id"]):
-                    break
-            if len(self.s["id"]):
-                self._end_period(w_start, lam_sum)
+            stopped = self._block()
+            if stopped.size:
+                self._exact_step(stopped)
+            ended = np.flatnonzero(self.s["j"] == self.G)
+            if ended.size:
+                self._end_period(ended)
             room = self.capacity - len(self.s["id"])
             if room > 0 and queue:
                 self._admit([queue.popleft() for _ in range(min(room, len(queue)))])
         return self.results  # type: ignore[return-value]
 
-    def _step(self, j):
+    def _block(self) -> np.ndarray:
+        """Telescope up to BLOCK steps of every gait; positions stopped by an uncertified step."""
         s = self.s
+        nb, K = len(s["id"]), min(BLOCK, self.G)
+        rows = np.arange(nb)
+        j = s["j"].copy()
+        steps = j[:, None] + 1 + np.arange(K)
+        valid = steps <= self.G
+        C = s["offsets"][rows[:, None], np.minimum(steps, self.G)]
         w = s["w"]
-        c = s["offsets"][:, j + 1]
-        r = self._B(w) - c
-        lam = np.einsum("bkm,bm->bk", s["P"], r)
-        w_new = w - np.einsum("bnm,bm->bn", s["R"], r)
-        slack = self._B(w_new) - c
-        uncertified = self._uncertified(lam, slack, s["mask"], s["tolp"], s["told"])
-        bad = np.flatnonzero(uncertified)
-        degenerate = self._degenerate(slack, uncertified)
-        keep = None
-        if bad.size or degenerate.size:
-            failed = self._repair(bad, j, w, c, lam, w_new, slack, degenerate)
-            if failed:
-                keep = np.ones(len(w), dtype=bool)
-                keep[failed] = False
-                lam, w_new = lam[keep], w_new[keep]
-                self._keep(keep)
-        self.s["w"] = w_new
-        return lam, keep
+        r0 = self._B(w)[:, None, :] - C
+        W = w[:, None, :] - np.matmul(r0, s["R"].transpose(0, 2, 1))
+        if self.shared:
+            BW = W @ self.normals.T
+        else:
+            BW = np.matmul(W, s["normals"].transpose(0, 2, 1))
+        slack = BW - C
+        r = np.concatenate([r0[:, :1], BW[:, :-1] - C[:, 1:]], axis=1)
+        lam = np.matmul(r, s["P"].transpose(0, 2, 1))
+        tolp, told, mask = s["tolp"][:, :, None], s["told"][:, :, None], s["mask"][:, None, :]
+        bad = (slack > tolp) | (lam < -told) | (mask & (slack < -tolp))
+        near = ~mask & (slack >= -tolp)
+        tight = near.any(axis=2)
+        if self.licq_ok is not None and tight.any():
+            codes = (mask | near) @ self.table.weights
+            tight &= ~self.licq_ok[self.struct_of[s["id"]][:, None], codes]
+        bad = bad.any(axis=2) | tight | ~valid
+        accepted = np.where(bad.any(axis=1), bad.argmax(axis=1), K)
+        taken = np.arange(K)[None, :] < accepted[:, None]
+        s["lam_sum"] += np.einsum("bk,bkm->bm", taken, lam)
+        moved = accepted > 0
+        s["w"][moved] = W[rows[moved], accepted[moved] - 1]
+        s["j"] += accepted
+        return np.flatnonzero(s["j"] < np.minimum(j + K, self.G))
 
-    def _degenerate(self, slack, uncertified) -> np.ndarray:
+    def _exact_step(self, positions):
+        """One step of the gaits at ``positions``, each at its own step j: the batched step on
+        the current active set, certified, with the repairs of `_repair` where it fails."""
+        s = self.s
+        nb = len(s["id"])
+        w = s["w"]
+        c = np.zeros((nb, self.m))
+        c[positions] = s["offsets"][positions, s["j"][positions] + 1]
+        lam = np.zeros((nb, self.m))
+        w_new = w.copy()
+        slack = np.zeros((nb, self.m))
+        P, R = s["P"][positions], s["R"][positions]
+        r = self._B(w[positions], positions) - c[positions]
+        lam[positions] = np.einsum("bkm,bm->bk", P, r)
+        w_new[positions] = w[positions] - np.einsum("bnm,bm->bn", R, r)
+        slack[positions] = self._B(w_new[positions], positions) - c[positions]
+        uncertified = self._uncertified(lam[positions], slack[positions], s["mask"][positions],
+                                        s["tolp"][positions], s["told"][positions])
+        bad = positions[uncertified]
+        degenerate = self._degenerate(positions[~uncertified], slack)
+        failed = self._repair(bad, s["j"], w, c, lam, w_new, slack, degenerate)
+        s["lam_sum"][positions] += lam[positions]
+        s["w"][positions] = w_new[positions]
+        s["j"][positions] += 1
+        if failed:
+            keep = np.ones(nb, dtype=bool)
+            keep[failed] = False
+            self._keep(keep)
+
+    def _degenerate(self, positions, slack) -> np.ndarray:
         """Certified gaits at a point where LICQ fails: an inactive row on its boundary whose
         normal depends on the active ones (for crawlers: every block at a friction limit, the
         instant the uniqueness condition fails). Their multipliers are not unique, so the step
         goes to the full projection, which decides and reports it as a single run does.
         """
         s = self.s
-        near = (slack >= -s["tolp"]) & ~s["mask"]
-        candidates = np.flatnonzero(near.any(axis=1) & ~uncertified)
+        near = (slack[positions] >= -s["tolp"][positions]) & ~s["mask"][positions]
+        hit = near.any(axis=1)
+        candidates = positions[hit]
         if not candidates.size:
             return candidates
-        union = s["mask"][candidates] | near[candidates]
+        union = s["mask"][candidates] | near[hit]
         codes = self.table.code(union)
         entry = np.array([self.table.lookup(self.struct_of[k], code, row, self.projectors[k])
                           for k, code, row in zip(s["id"][candidates], codes, union)])
+        if self.licq_ok is not None:
+            known = entry >= 0
+            self.licq_ok[self.struct_of[s["id"][candidates[known]]], codes[known]] = True
         return candidates[entry < 0]
 
     def _repair(self, todo, j, w, c, lam, w_new, slack, degenerate) -> list[int]:
@@ -329,10 +398,11 @@ class _Lockstep:
             p, q = self.processes[k], int(s["period"][pos])
             try:
                 proj = self.projectors[k].project(w[pos], c[pos],
-                                                  time=q * p.period + p.times[j + 1])
+                                                  time=q * p.period + p.times[j[pos] + 1])
             except CrawlsimError as exc:
                 self.results[k] = BatchRun(p.name, "failed", None, None, None, q, None,
-                                           q * self.G + j, self.projectors[k].clarabel_calls,
+                                           q * self.G + int(j[pos]),
+                                           self.projectors[k].clarabel_calls,
                                            str(exc))
                 failed.append(int(pos))
                 if self.progress is not None:
@@ -348,29 +418,33 @@ class _Lockstep:
             lam[pos], w_new[pos] = proj.multipliers, proj.point
         return failed
 
-    def _end_period(self, w_start, lam_sum):
-        """Poincare step and displacement of the period just stepped; finish converged gaits.
+    def _end_period(self, positions):
+        """Poincare step and displacement of the period just stepped by the gaits at
+        ``positions``; finish the converged ones, start the next period of the others.
 
         The displacement is ``mean(S sum_j lambda_j)``: the multipliers are the slips (MODEL.md
         §3), so this is ``y(t0+(q+1)T) - y(t0+qT)``.
         """
         s = self.s
-        dx = np.einsum("bNm,bm->bN", s["slip"], lam_sum).mean(axis=1)
+        dx = np.einsum("bNm,bm->bN", s["slip"][positions], s["lam_sum"][positions]).mean(axis=1)
         keep = np.ones(len(s["id"]), dtype=bool)
-        for pos, k in enumerate(s["id"]):
+        for pos, d in zip(positions, dx):
+            k = s["id"][pos]
             p, q = self.processes[k], int(s["period"][pos])
-            _, rel = poincare_step(p, w_start[pos], s["w"][pos])
+            _, rel = poincare_step(p, s["w_start"][pos], s["w"][pos])
             self.rel_steps[k].append(rel)
-            self.displacements[k].append(float(dx[pos]))
+            self.displacements[k].append(float(d))
             if rel <= self.tol[k] or q + 1 >= self.max_periods[k]:
                 keep[pos] = False
                 convergence, periodic_from = classify_convergence(self.rel_steps[k], self.tol[k])
-                d = self.displacements[k][-1]
                 status = "not-converged" if convergence == "not-converged" else "ok"
                 self.results[k] = BatchRun(
-                    p.name, status, d / p.period, d, convergence, q + 1, periodic_from,
-                    (q + 1) * self.G, self.projectors[k].clarabel_calls)
-        s["period"] += 1
+                    p.name, status, float(d) / p.period, float(d), convergence, q + 1,
+                    periodic_from, (q + 1) * self.G, self.projectors[k].clarabel_calls)
+        s["period"][positions] += 1
+        s["j"][positions] = 0
+        s["w_start"][positions] = s["w"][positions]
+        s["lam_sum"][positions] = 0.0
         if not keep.all():
             self._keep(keep)
             if self.progress is not None:

@@ -27,7 +27,6 @@ from typing import Any, Callable
 import numpy as np
 import scipy.sparse as sp
 import yaml
-from scipy.optimize import linprog
 
 from crawlsim.errors import GaitError
 from crawlsim.signals import (
@@ -547,6 +546,8 @@ def _first_empty(spec: ProcessSpec, B, feasible: float, empty: float) -> float:
 
 
 def _feasible(A, b: np.ndarray, n: int, source: str) -> bool:
+    from scipy.optimize import linprog
+
     result = linprog(np.zeros(n), A_ub=A, b_ub=b, bounds=[(None, None)] * n, method="highs")
     if result.status == 2:
         return False
@@ -563,6 +564,8 @@ def recession_direction(normals: np.ndarray) -> np.ndarray | None:
     one check decides every t. The cone is {0} exactly when no coordinate of d can be made
     positive or negative within the box |d_k| <= 1: 2n small LPs.
     """
+    from scipy.optimize import linprog  # only process files need it: keeps imports light
+
     m, n = normals.shape
     for k in range(n):
         for sign in (1.0, -1.0):

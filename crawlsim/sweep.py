@@ -563,6 +563,8 @@ def _executor(jobs: int, scheduler: str | None):
         from concurrent.futures import ProcessPoolExecutor
 
         context = multiprocessing.get_context("forkserver" if os.name == "posix" else "spawn")
+        if os.name == "posix":
+            context.set_forkserver_preload(["crawlsim.sweep", "crawlsim.batch"])
         with ProcessPoolExecutor(jobs, mp_context=context) as ex:
             yield ex, jobs
     else:
