@@ -191,7 +191,7 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
         v0 = d_final / T
         diss_final = float(dissipation[-1])
         # Roundoff of summing G slips, plus the geometric tail still to come when asymptotic.
-        err = G * np.finfo(float).eps * float(np.sum(np.abs(final.slips))) / process.blocks / T
+        err = float(G * np.finfo(float).eps * np.sum(np.abs(final.slips)) / process.blocks / T)
         if convergence != "finite-time" and Q >= 1:
             dv = abs(displacement[-1] - displacement[-2]) / T
             r = rate if rate is not None and rate < 1 else None

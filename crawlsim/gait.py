@@ -513,7 +513,7 @@ def emptiness_violation(spec: ProcessSpec) -> str | None:
     u = _check_times(spec)
     c = evaluate_many(spec.offsets, u)  # (k, m)
     B = spec.normals
-    k, (m, n) = len(u), B.shape
+    k, n = len(u), B.shape[1]
     A = sp.kron(sp.identity(k, format="csr"), sp.csr_matrix(B), format="csr")
     if _feasible(A, c.ravel(), k * n, spec.source):
         return None

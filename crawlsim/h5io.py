@@ -34,26 +34,16 @@ the destination only when complete. A failed run leaves no file behind.
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from pathlib import Path
 
 import h5py
 import numpy as np
 
 from . import __version__
+from .atomic import atomic_path, publish, temporary_beside
 from .errors import ResultsFileError
 
 FORMAT_VERSION = 1
-
-
-def publish(tmp: Path, path: Path):
-    """Give a finished temporary file the usual permissions (mkstemp makes it 0600) and rename
-    it over ``path`` atomically."""
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(tmp, 0o666 & ~umask)
-    os.replace(tmp, path)
 
 
 class ResultsWriter:
@@ -68,10 +58,7 @@ class ResultsWriter:
         self.process = process
         self.save_every = int(save_every)
         self._count = 0  # global grid index of the next row to consider
-        folder = self.path.resolve().parent
-        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".tmp", dir=folder)
-        os.close(fd)
-        self._tmp = Path(tmp)
+        self._tmp = temporary_beside(self.path)
         self.file = h5py.File(self._tmp, "w")
         self._traj = self.file.create_group("trajectory")
         self._sets = {}
@@ -267,39 +254,31 @@ def _plain(value):
 #                                   message; point (grid index), steps (catch-up steps simulated)
 
 def write_sweep(path, *, paths, axes, points, columns, gait_yaml, source, shard, steps) -> None:
-    """Write a sweep table atomically (temporary file in the same folder, then os.replace)."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp",
-                               dir=path.resolve().parent)
-    os.close(fd)
+    """Write a sweep table atomically (`crawlsim.atomic`)."""
     text = h5py.string_dtype()
-    try:
-        with h5py.File(tmp, "w") as f:
-            a = f.attrs
-            a["crawlsim_version"] = __version__
-            a["format_version"] = FORMAT_VERSION
-            a["kind"] = "sweep"
-            a["gait_yaml"] = gait_yaml
-            a["source"] = str(source)
-            a["paths"] = json.dumps(list(paths))
-            a["shape"] = np.array([len(v) for v in axes], dtype=np.int64)
-            a["shard"] = shard
-            g = f.create_group("axes")
-            for name, values in zip(paths, axes):
-                g.create_dataset(name, data=np.asarray(values))
-            r = f.create_group("results")
-            r.create_dataset("point", data=np.asarray(points, dtype=np.int64))
-            r.create_dataset("steps", data=np.asarray(steps, dtype=np.int64))
-            for name, values in columns.items():
-                values = np.asarray(values)
-                if values.dtype == object:
-                    r.create_dataset(name, data=values.astype(str).tolist(), dtype=text,
-                                     shape=values.shape)
-                else:
-                    r.create_dataset(name, data=values)
-        os.replace(tmp, path)
-    finally:
-        Path(tmp).unlink(missing_ok=True)
+    with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
+        a = f.attrs
+        a["crawlsim_version"] = __version__
+        a["format_version"] = FORMAT_VERSION
+        a["kind"] = "sweep"
+        a["gait_yaml"] = gait_yaml
+        a["source"] = str(source)
+        a["paths"] = json.dumps(list(paths))
+        a["shape"] = np.array([len(v) for v in axes], dtype=np.int64)
+        a["shard"] = shard
+        g = f.create_group("axes")
+        for name, values in zip(paths, axes):
+            g.create_dataset(name, data=np.asarray(values))
+        r = f.create_group("results")
+        r.create_dataset("point", data=np.asarray(points, dtype=np.int64))
+        r.create_dataset("steps", data=np.asarray(steps, dtype=np.int64))
+        for name, values in columns.items():
+            values = np.asarray(values)
+            if values.dtype == object:
+                r.create_dataset(name, data=values.astype(str).tolist(), dtype=text,
+                                 shape=values.shape)
+            else:
+                r.create_dataset(name, data=values)
 
 
 def read_sweep(path) -> dict:

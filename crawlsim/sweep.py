@@ -27,7 +27,6 @@ import io
 import json
 import math
 import os
-import tempfile
 from concurrent.futures import FIRST_COMPLETED, wait
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -37,6 +36,7 @@ import numpy as np
 import yaml
 
 from .errors import CrawlsimError, GaitError
+from .atomic import atomic_path
 from .gait import Gait, gait_from_document
 
 #: Columns of a sweep table after the swept paths (CSV header, HDF5 /results datasets).
@@ -462,14 +462,8 @@ def write_table(table: SweepTable, output) -> None:
 
         h5io.write_sweep(output, **table_payload(table))
         return
-    fd, tmp = tempfile.mkstemp(prefix=f".{output.name}.", suffix=".tmp",
-                               dir=output.resolve().parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
-            f.write(table.to_csv())
-        os.replace(tmp, output)
-    finally:
-        Path(tmp).unlink(missing_ok=True)
+    with atomic_path(output) as tmp:
+        tmp.write_text(table.to_csv(), encoding="utf-8", newline="")
 
 
 def is_hdf5(path) -> bool:
@@ -680,7 +674,7 @@ def sweep(gait: Gait, axes, *, output=None, jobs: int = 1, shard=None,
 
 def plot_table(table: SweepTable, path, title: str | None = None) -> None:
     """v0 against one swept path, or a heat map over two, failed points marked (atomic PNG)."""
-    from .plotting import sweep_figure
+    from .plotting import save_figure, sweep_figure
 
     if len(table.paths) not in (1, 2):
         raise GaitError("--plot", "", f"a plot needs one or two swept paths, got "
@@ -689,14 +683,4 @@ def plot_table(table: SweepTable, path, title: str | None = None) -> None:
     failed = table.grid("status") == "failed"
     title = title or f"v0 of {Path(table.source).name}"
     fig = sweep_figure(axes, table.grid("v0"), failed, title)
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.resolve().parent)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, format=path.suffix.lstrip(".") or "png", dpi=150, bbox_inches="tight")
-        os.replace(tmp, path)
-    finally:
-        Path(tmp).unlink(missing_ok=True)
-        import matplotlib.pyplot as plt
-
-        plt.close(fig)
+    save_figure(fig, path)

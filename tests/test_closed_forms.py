@@ -29,9 +29,9 @@ import numpy as np
 import pytest
 
 from crawlsim.api import run
-from crawlsim.gait import with_simulation
+from crawlsim.gait import admissibility_violation, load_gait, with_simulation
 
-from .conftest import two_block
+from .conftest import GAITS, make_gait, two_block
 
 
 @pytest.mark.parametrize("amplitude,k,mu_plus,mu_minus", [
@@ -102,9 +102,6 @@ def test_two_blocks_are_periodic_from_period_one(seed):
 
 def test_rate_independence():
     """Rescaling the period leaves the displacement per period unchanged: v0 T is constant."""
-    from crawlsim.gait import load_gait
-    from .conftest import GAITS, make_gait
-
     base = load_gait(GAITS / "peristalsis-4.yaml")
     values = []
     for T in (0.25, 1.0, 7.0):
@@ -116,9 +113,6 @@ def test_rate_independence():
 
 def test_v0_does_not_depend_on_the_initial_state():
     """Theorem th:speed: v0 is the same from every admissible start."""
-    from crawlsim.gait import admissibility_violation, load_gait
-    from .conftest import GAITS
-
     gait = with_simulation(load_gait(GAITS / "peristalsis-4.yaml"), steps_per_period=300)
     rng = np.random.default_rng(1)
     v0s = []
@@ -130,6 +124,5 @@ def test_v0_does_not_depend_on_the_initial_state():
             starts.append(x)
     for x in starts:
         doc = dict(gait.document, initial={"positions": [float(v) for v in x]})
-        from .conftest import make_gait
         v0s.append(run(make_gait(doc)).v0)
     assert np.ptp(v0s) < 1e-12

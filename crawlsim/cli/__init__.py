@@ -26,7 +26,7 @@ EXIT_NOT_CONVERGED = 3
 
 
 class BadInput(click.ClickException):
-    """Bad input: exit code 2 and a one-line message."""
+    """Bad input: exit code 2 and a one-line message, no usage text."""
 
     exit_code = 2
 
@@ -34,11 +34,10 @@ class BadInput(click.ClickException):
         click.echo(f"Error: {self.format_message()}", err=True)
 
 
-class InternalFailure(click.ClickException):
-    exit_code = 1
+class InternalFailure(BadInput):
+    """An internal failure (a failed certificate, say): the same one line, exit code 1."""
 
-    def show(self, file=None):
-        click.echo(f"Error: {self.format_message()}", err=True)
+    exit_code = 1
 
 
 @contextmanager
@@ -61,16 +60,11 @@ def _output_path(output, gait_file) -> Path:
     return out
 
 
-def _json_default(value):
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
-
-
 def to_json(summary: dict) -> str:
+    """One JSON object; NaN and infinities (HDF5's stand-ins for null) become null."""
     clean = {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
              for k, v in summary.items()}
-    return json.dumps(clean, default=_json_default)
+    return json.dumps(clean)
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})

@@ -20,6 +20,7 @@ _LAZY = {
     "plot_results": "output",
     "available_figures": "output",
     "draw_figure": "output",
+    "save_figure": "output",
     "motion_figure": "figures",
     "gait_figure": "figures",
     "convergence_figure": "figures",

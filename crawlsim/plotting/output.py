@@ -6,10 +6,9 @@ renamed into place, so a figure that cannot be drawn leaves no file behind.
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
+from ..atomic import atomic_path
 from ..errors import ResultsFileError
 from ..h5io import read_results
 from . import CRAWLER_FIGURES, FIGURE_NAMES
@@ -61,28 +60,23 @@ def plot_results(path, out_dir=None, fmt: str = "png", only: str | None = None, 
     written = []
     for name, fig in drawn.items():
         target = folder / f"{path.stem}-{name}.{fmt}"
-        _save_atomically(fig, target, fmt)
+        save_figure(fig, target, fmt)
         written.append(target)
     return written
 
 
-def _save_atomically(fig, target: Path, fmt: str) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    os.close(fd)
-    os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; a figure is as readable as any file
+def save_figure(fig, target, fmt: str | None = None) -> Path:
+    """Save ``fig`` atomically in the shared style (`crawlsim.atomic`) and close it."""
+    import matplotlib.pyplot as plt
+
+    target = Path(target)
+    fmt = fmt or target.suffix.lstrip(".") or "png"
     try:
-        with figure_style():
-            fig.savefig(tmp, format=fmt, dpi=DPI, bbox_inches="tight",
-                        metadata=_metadata(fmt))
-        os.replace(tmp, target)
+        with atomic_path(target) as tmp, figure_style():
+            fig.savefig(tmp, format=fmt, dpi=DPI, bbox_inches="tight", metadata=_metadata(fmt))
     finally:
-        Path(tmp).unlink(missing_ok=True)
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
+        plt.close(fig)
+    return target
 
 
 def _metadata(fmt: str) -> dict:
