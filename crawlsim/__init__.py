@@ -13,7 +13,7 @@ The path from a gait file to an answer, one module per stage:
 
 __version__ = "0.1.0"
 
-from .api import run  # noqa: E402
-from .errors import CertificateError, CrawlsimError, GaitError  # noqa: E402
+from .api import run
+from .errors import CertificateError, CrawlsimError, GaitError
 
 __all__ = ["run", "CertificateError", "CrawlsimError", "GaitError", "__version__"]

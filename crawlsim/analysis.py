@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .model import SweepingProcess
+from .status import Convergence
 from .stepping import PeriodRecord, make_stepper
 
 #: Relative Poincare steps below this are roundoff: a smaller tolerance is clamped to it.
@@ -74,7 +75,7 @@ class RunResult:
     name: str
     period: float
     steps_per_period: int
-    convergence: str  # "finite-time" | "asymptotic" | "not-converged"
+    convergence: Convergence
     periods: int
     periodic_from: int | None
     contraction_rate: float | None
@@ -92,7 +93,7 @@ class RunResult:
 
     @property
     def converged(self) -> bool:
-        return self.convergence != "not-converged"
+        return self.convergence != Convergence.NOT_CONVERGED
 
     def summary(self) -> dict:
         keys = ("name", "integrator", "v0", "v0_error_estimate", "displacement_per_period",
@@ -163,12 +164,14 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
             steps.append(step)
             rel_steps.append(rel_step)
             if process.is_crawler:
+                assert record.x is not None and process.friction is not None
                 disp.append(float(np.mean(record.x[-1] - record.x[0])))
                 diss.append(float(np.sum(record.multipliers * process.friction[1:])))
             if progress is not None:
                 progress(q, rel_steps[-1])
             if rel_steps[-1] <= tol:
                 break
+        assert record is not None, "max_periods >= 1"
         final = record
         history_d = _distances(spill, final, h)
     finally:
@@ -177,7 +180,7 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
     Q = len(steps) - 1
     rel = np.array(rel_steps)
     convergence, periodic_from = classify_convergence(rel, tol)
-    rate = None if convergence == "finite-time" else _contraction_rate(rel)
+    rate = None if convergence == Convergence.FINITE_TIME else _contraction_rate(rel)
 
     displacement = np.array(disp) if process.is_crawler else np.full(Q + 1, np.nan)
     dissipation = np.array(diss) if process.is_crawler else np.full(Q + 1, np.nan)
@@ -192,7 +195,7 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
         diss_final = float(dissipation[-1])
         # Roundoff of summing G slips, plus the geometric tail still to come when asymptotic.
         err = float(G * np.finfo(float).eps * np.sum(np.abs(final.slips)) / process.blocks / T)
-        if convergence != "finite-time" and Q >= 1:
+        if convergence != Convergence.FINITE_TIME and Q >= 1:
             dv = abs(displacement[-1] - displacement[-2]) / T
             r = rate if rate is not None and rate < 1 else None
             err += dv * r / (1 - r) if r is not None else dv
@@ -218,7 +221,7 @@ def poincare_step(process: SweepingProcess, w_start, w_end) -> tuple[float, floa
     return step, step / size
 
 
-def classify_convergence(rel_steps, tol: float) -> tuple[str, int | None]:
+def classify_convergence(rel_steps, tol: float) -> tuple[Convergence, int | None]:
     """(convergence, periodic_from) from the relative Poincare steps of periods 0..Q.
 
     Finite-time when the last step reached ``tol`` in one jump by more than `FINITE_JUMP`,
@@ -226,10 +229,10 @@ def classify_convergence(rel_steps, tol: float) -> tuple[str, int | None]:
     """
     Q = len(rel_steps) - 1
     if rel_steps[Q] > tol:
-        return "not-converged", None
+        return Convergence.NOT_CONVERGED, None
     if Q == 0 or rel_steps[Q] < FINITE_JUMP * rel_steps[Q - 1]:
-        return "finite-time", Q
-    return "asymptotic", None
+        return Convergence.FINITE_TIME, Q
+    return Convergence.ASYMPTOTIC, None
 
 
 def _distances(spill: _PeriodSpill, final: PeriodRecord, h: np.ndarray) -> dict:
@@ -273,6 +276,7 @@ def limit_period(process: SweepingProcess, final: PeriodRecord, v0: float | None
     t = process.times
     if not process.is_crawler:
         return LimitPeriod(final.start, t.copy(), final.w, final.multipliers)
+    assert final.x is not None and final.slips is not None and v0 is not None
     k = 1.0 / np.diag(process.metric)
     shape = -final.w / k
     stress = final.w + process.stress_offset

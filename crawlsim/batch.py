@@ -47,6 +47,7 @@ from .analysis import classify_convergence, effective_tolerance, poincare_step
 from .errors import CrawlsimError
 from .model import SweepingProcess
 from .projection import ExactProjector
+from .status import Convergence, PointStatus
 
 #: Primal-dual active-set updates tried before a step goes to Clarabel.
 REFINE_ITERATIONS = 4
@@ -66,10 +67,10 @@ class BatchRun:
     """What a batched run measured for one gait: the v0 part of `crawlsim.analysis.RunResult`."""
 
     name: str
-    status: str  # "ok" | "not-converged" | "failed"
+    status: PointStatus
     v0: float | None
     displacement_per_period: float | None
-    convergence: str | None  # as RunResult.convergence; None when the run failed
+    convergence: Convergence | None  # as RunResult.convergence; None when the run failed
     periods: int
     periodic_from: int | None
     steps: int
@@ -101,6 +102,11 @@ def simulate_batch(processes, *, max_periods, tolerance, capacity: int = DEFAULT
         for i, run in zip(members, group.run()):
             out[i] = run
     return out  # type: ignore[return-value]
+
+
+def _slip_map(process: SweepingProcess) -> np.ndarray:
+    assert process.slip_map is not None, "batched stepping needs crawlers"
+    return process.slip_map
 
 
 class _ActiveSets:
@@ -169,7 +175,7 @@ class _Lockstep:
         self.m, self.n = m, n
         self.normals = processes[0].normals
         self.shared = all(np.array_equal(p.normals, self.normals) for p in processes)
-        self.projectors: list[ExactProjector | None] = [None] * len(processes)
+        self.projectors: dict[int, ExactProjector] = {}
         self.structures: dict[bytes, tuple[int, ExactProjector]] = {}
         self.struct_of = np.zeros(len(processes), dtype=int)
         self.table = _ActiveSets(m, n)
@@ -204,7 +210,7 @@ class _Lockstep:
             normals=np.stack([p.normals for _, p in rows]),
             minv_bt=np.stack([pr.M_inv @ p.normals.T for pr, p in rows]),
             offsets=np.stack([p.offsets for _, p in rows]),
-            slip=np.stack([p.slip_map for _, p in rows]),
+            slip=np.stack([_slip_map(p) for _, p in rows]),
             tolp=np.array([pr.tol.primal for pr, _ in rows])[:, None],
             told=np.array([pr.tol.dual for pr, _ in rows])[:, None],
             w=np.stack([np.asarray(p.initial, dtype=float) for _, p in rows]),
@@ -400,7 +406,7 @@ class _Lockstep:
                 proj = self.projectors[k].project(w[pos], c[pos],
                                                   time=q * p.period + p.times[j[pos] + 1])
             except CrawlsimError as exc:
-                self.results[k] = BatchRun(p.name, "failed", None, None, None, q, None,
+                self.results[k] = BatchRun(p.name, PointStatus.FAILED, None, None, None, q, None,
                                            q * self.G + int(j[pos]),
                                            self.projectors[k].clarabel_calls,
                                            str(exc))
@@ -437,7 +443,8 @@ class _Lockstep:
             if rel <= self.tol[k] or q + 1 >= self.max_periods[k]:
                 keep[pos] = False
                 convergence, periodic_from = classify_convergence(self.rel_steps[k], self.tol[k])
-                status = "not-converged" if convergence == "not-converged" else "ok"
+                status = (PointStatus.NOT_CONVERGED if convergence == Convergence.NOT_CONVERGED
+                          else PointStatus.OK)
                 self.results[k] = BatchRun(
                     p.name, status, float(d) / p.period, float(d), convergence, q + 1,
                     periodic_from, (q + 1) * self.G, self.projectors[k].clarabel_calls)

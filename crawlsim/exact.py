@@ -63,9 +63,9 @@ from typing import NamedTuple
 import numpy as np
 from scipy.optimize import brentq, minimize_scalar
 
-from .errors import CertificateError, CrawlsimError
+from .errors import CertificateError, EventError, LicqWarning
 from .model import GRID_MERGE, SweepingProcess
-from .projection import ActiveSet, ExactProjector, LicqWarning, _Dependent
+from .projection import ActiveSet, ExactProjector, _Dependent
 from .stepping import PeriodRecord
 
 #: Sampling cells per period used to bracket events before brentq refines them.
@@ -82,11 +82,6 @@ EVENT_RTOL = 1e-14
 PROBE = 1e-6
 #: Nodes of the Gauss-Legendre rule used for left limits of c at breakpoints.
 _GAUSS = np.polynomial.legendre.leggauss(8)
-
-
-class EventError(CrawlsimError):
-    """The event-driven integrator cannot go on: too many events, Zeno-like accumulation, or a
-    tangential contact whose active set cannot be decided."""
 
 
 class EventTrajectory(NamedTuple):
@@ -146,6 +141,8 @@ class EventStepper:
             raise EventError(f"{process.name}: the exact integrator needs the closed form of "
                              "c(t) (offset_function and offset_rate); use --integrator catch-up")
         self.process = process
+        self._offset = process.offset_function
+        self._offset_rate = process.offset_rate
         self.check_every_step = check_every_step
         self.max_events = int(max_events)
         self.zeno_events, self.zeno_window = int(zeno_events), float(zeno_window)
@@ -185,10 +182,10 @@ class EventStepper:
         stops = np.append(inner, T)
         is_break = np.append(np.ones(len(inner), bool), wraps)
         previous = np.concatenate([[0.0], stops[:-1]])
-        right = p.offset_function(stops)
-        right[-1] = p.offset_function(np.array([0.0]))[0]
+        right = self._offset(stops)
+        right[-1] = self._offset(np.array([0.0]))[0]
         left = right.copy()
-        rate_left = p.offset_rate(stops)
+        rate_left = self._offset_rate(stops)
         for i in np.flatnonzero(is_break):
             left[i], rate_left[i] = self._left_limit(stops[i], previous[i])
         jump = np.max(np.abs(left - right), axis=1) > EVENT_RTOL * p.scale
@@ -199,14 +196,13 @@ class EventStepper:
         """c(stop-) and c'(stop-): c is continuous on (previous, stop), so
         c(stop-) = c(s) + int_s^stop c' (8-point Gauss-Legendre on a short interval, exact for the
         piecewise-linear parts), and c'(stop-) by Richardson extrapolation of one-sided samples."""
-        p = self.process
         delta = min(1e-3 * self._T, 0.5 * (stop - previous))
         s = stop - delta
         nodes, weights = _GAUSS
         t = s + (nodes + 1) * delta / 2
-        c = p.offset_function(np.array([s]))[0] + (weights @ p.offset_rate(t)) * delta / 2
+        c = self._offset(np.array([s]))[0] + (weights @ self._offset_rate(t)) * delta / 2
         h = min(1e-9 * self._T, delta / 4)
-        r = p.offset_rate(np.array([stop - h, stop - 2 * h]))
+        r = self._offset_rate(np.array([stop - h, stop - 2 * h]))
         return c, 2 * r[0] - r[1]
 
     def _prepare_bracket_grid(self, cells):
@@ -214,8 +210,8 @@ class EventStepper:
         u = np.linspace(0.0, T, cells + 1)[1:-1]
         near = np.min(np.abs(u[:, None] - self.stops[None, :]), axis=1) <= 1e-12 * T
         self._bt = u[~near]
-        self._bc = p.offset_function(self._bt)
-        self._bcdot = p.offset_rate(self._bt)
+        self._bc = self._offset(self._bt)
+        self._bcdot = self._offset_rate(self._bt)
         both = np.vstack([np.abs(self._bcdot), np.abs(self._cdot_left)])
         self._rate_scale = max(float(np.max(both, initial=0.0)), p.scale / T)
 
@@ -225,13 +221,13 @@ class EventStepper:
         stop = self.stops[stop_index]
         if t >= stop - 1e-11 * self._T:
             return self._c_left[stop_index] - (stop - t) * self._cdot_left[stop_index]
-        return self.process.offset_function(np.array([t]))[0]
+        return self._offset(np.array([t]))[0]
 
     def _cdot(self, t, stop_index):
         stop = self.stops[stop_index]
         if t >= stop - 1e-11 * self._T:
             return self._cdot_left[stop_index]
-        return self.process.offset_rate(np.array([t]))[0]
+        return self._offset_rate(np.array([t]))[0]
 
     # -- one period -------------------------------------------------------------------------
     def step_period(self) -> PeriodRecord:
@@ -245,11 +241,11 @@ class EventStepper:
         W[0] = self.w
         j = 1
         ev_t, ev_w, ev_lam = [], [], []
-        recent = deque(maxlen=self.zeno_events)
+        recent: deque[float] = deque(maxlen=self.zeno_events)
         t, w, lam = 0.0, self.w.copy(), np.zeros(m)
         forced = np.zeros(0, dtype=int)
         stop_index = 0
-        c_now, cdot_now = self._c_right[-1], p.offset_rate(np.array([0.0]))[0]
+        c_now, cdot_now = self._c_right[-1], self._offset_rate(np.array([0.0]))[0]
         while True:
             ev_t.append(t)
             ev_w.append(w)
@@ -283,7 +279,7 @@ class EventStepper:
             if stop_index == len(self.stops) - 1:
                 break
             c_now = self._c_right[stop_index]
-            cdot_now = p.offset_rate(np.array([stop]))[0]
+            cdot_now = self._offset_rate(np.array([stop]))[0]
             stop_index += 1
         if j != G + 1:  # pragma: no cover - the grid ends at T, which is the last stop
             raise EventError(f"{p.name}: internal error, sampled {j} of {G + 1} grid times")
@@ -292,6 +288,7 @@ class EventStepper:
         self._certify(W, multipliers, start)
         X = x_events = None
         if self.x is not None:
+            assert p.slip_map is not None
             X = self.x + LAMC @ p.slip_map.T
             x_events = self.x + np.array(ev_lam) @ p.slip_map.T
             self.x = X[-1].copy()
@@ -424,7 +421,7 @@ class EventStepper:
             for i, r in zip(*np.nonzero(peak)):
                 g = f(r)
                 a, b = S[i], S[i + 2]
-                top = minimize_scalar(lambda t: -g(t), bounds=(a, b), method="bounded",
+                top = minimize_scalar(lambda t, g=g: -g(t), bounds=(a, b), method="bounded",
                                       options={"xatol": 1e-15 * self._T})
                 if -top.fun > 1.0:
                     candidates.append((self._root(g, a, float(top.x)), r))

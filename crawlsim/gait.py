@@ -20,9 +20,10 @@ import copy
 import dataclasses
 import difflib
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -254,13 +255,13 @@ def _count_error(source: str, keypath: str, expected: int, what: str, got: int) 
     return GaitError(source, keypath, f"expected {expected} {what}, got {got}")
 
 
-def _friction_signals(document: dict, n: int, source: str) -> tuple[list, list, list[str]]:
+def _friction_signals(document: dict, n: int, source: str) -> tuple[list[Signal], list[Signal], list[str]]:
     """mu^+ and mu^- per block and, per block, the key path prefix to blame."""
     friction = document["friction"]
     if isinstance(friction, dict):
-        forward = parse_signal(friction["forward"], "friction.forward", source)
-        backward = parse_signal(friction["backward"], "friction.backward", source)
-        return [forward] * n, [backward] * n, ["friction"] * n
+        shared_forward = parse_signal(friction["forward"], "friction.forward", source)
+        shared_backward = parse_signal(friction["backward"], "friction.backward", source)
+        return [shared_forward] * n, [shared_backward] * n, ["friction"] * n
     if len(friction) != n:
         raise _count_error(source, "friction", n, "friction mappings (one per block)", len(friction))
     paths = [f"friction[{j}]" for j in range(n)]
@@ -581,7 +582,7 @@ def recession_direction(normals: np.ndarray) -> np.ndarray | None:
 
 def process_admissibility_violation(spec: ProcessSpec, point: np.ndarray, t: float = 0.0) -> str | None:
     """Why ``point`` is not in C(t), naming the most violated constraint, or None if it is."""
-    c = spec.offset_values([t])[0]
+    c = spec.offset_values(np.array([t]))[0]
     slack = spec.normals @ np.asarray(point, dtype=float) - c
     excess = slack - ROUNDOFF * (1.0 + np.abs(c) + np.abs(spec.normals) @ np.abs(point))
     i = int(np.argmax(excess))
@@ -626,7 +627,8 @@ def admissibility_violation(gait: Gait, positions: np.ndarray, t: float = 0.0) -
     x = np.asarray(positions, dtype=float)
     if x.shape != (gait.blocks,):
         return f"expected {gait.blocks} positions (one per block), got {x.size}"
-    lengths, mu_plus, mu_minus = gait.lengths([t])[0], gait.mu_plus([t])[0], gait.mu_minus([t])[0]
+    at = np.array([t])
+    lengths, mu_plus, mu_minus = gait.lengths(at)[0], gait.mu_plus(at)[0], gait.mu_minus(at)[0]
     sigma = gait.stiffness * (lengths - np.diff(x))
     force = np.zeros(gait.blocks)
     force[1:] += sigma

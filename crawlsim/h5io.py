@@ -61,7 +61,7 @@ class ResultsWriter:
         self._tmp = temporary_beside(self.path)
         self.file = h5py.File(self._tmp, "w")
         self._traj = self.file.create_group("trajectory")
-        self._sets = {}
+        self._sets: dict[str, h5py.Dataset] = {}
         self._columns = ["w"] + (["x", "stress", "shape"] if process.is_crawler else [])
         self._reaction_carry = np.zeros(process.normals.shape[0])
 
@@ -172,7 +172,7 @@ class ResultsWriter:
         a["format_version"] = FORMAT_VERSION
         a["kind"] = kind
         a["name"] = result.name
-        a["convergence"] = result.convergence
+        a["convergence"] = str(result.convergence)
         a["periodic_from"] = -1 if result.periodic_from is None else int(result.periodic_from)
         for key in ("v0", "contraction_rate", "v0_error_estimate", "displacement_per_period",
                     "dissipation_per_period", "cost_of_transport"):

@@ -19,8 +19,8 @@ Everything time-dependent is tabulated once on the period's grid, vectorised ove
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 

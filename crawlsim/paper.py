@@ -40,8 +40,14 @@ import numpy as np
 
 from .analysis import RunResult
 from .api import run
-from .gait import (Gait, ProcessSpec, admissibility_violation, gait_from_document, load_gait,
-                   with_simulation)
+from .gait import (
+    Gait,
+    ProcessSpec,
+    admissibility_violation,
+    gait_from_document,
+    load_gait,
+    with_simulation,
+)
 from .model import compile
 from .stepping import STEPPERS, make_stepper
 
@@ -164,7 +170,7 @@ def edge_parameter(p: np.ndarray, edge: int, side: float = 1.0) -> tuple[float, 
     return s, float(np.dot(p - a, _NU[edge]))
 
 
-def phi(s: float) -> float:
+def phi(s):
     """The edge-to-edge map of Section 5.3."""
     return (1 - s) / 2
 
@@ -329,7 +335,7 @@ def triangle_edges(spec: ProcessSpec, periods: int, alpha: float, side: float = 
     for rec in records:
         for edge, third in enumerate((1 / 3, 2 / 3, 1.0)):
             j = int(np.argmin(np.abs(times - third * T)))
-            p = rec.w[j] + triangle_shift([third * T], alpha, T)[0]
+            p = rec.w[j] + triangle_shift(np.array([third * T]), alpha, T)[0]
             out.append(edge_parameter(p, edge, side))
     return np.array(out)
 
@@ -400,8 +406,9 @@ def admissible_starts(gait: Gait, count: int, seed: int = 5) -> list[np.ndarray]
     """The file's start and random admissible ones: stresses drawn inside C(0), kept when
     `admissibility_violation` accepts them."""
     rng = np.random.default_rng(seed)
-    L0 = gait.lengths([0.0])[0]
-    mu = min(float(gait.mu_plus([0.0]).min()), float(gait.mu_minus([0.0]).min()))
+    zero = np.zeros(1)
+    L0 = gait.lengths(zero)[0]
+    mu = min(float(gait.mu_plus(zero).min()), float(gait.mu_minus(zero).min()))
     starts = [np.asarray(gait.initial_positions, dtype=float)]
     while len(starts) < count:
         sigma = rng.uniform(-mu, mu, size=gait.blocks - 1)
@@ -438,7 +445,7 @@ def speed_checks(path: Path | None = None, count: int = 4, steps: int | None = N
     results = [run(_with(gait, initial={"positions": x.tolist()}))
                for x in admissible_starts(gait, count)]
     v0 = np.array([r.v0 for r in results])
-    bound = max(max(r.v0_error_estimate for r in results), ROUNDOFF_MATCH * np.max(np.abs(v0)))
+    bound = max(max(r.v0_error_estimate or 0.0 for r in results), ROUNDOFF_MATCH * np.max(np.abs(v0)))
     spread = float(np.ptp(v0))
     h = np.diff(results[0].limit.t)
     dw = [np.diff(r.limit.w, axis=0) for r in results]

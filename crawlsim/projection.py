@@ -25,7 +25,7 @@ import clarabel
 import numpy as np
 import scipy.sparse as sp
 
-from .errors import CertificateError
+from .errors import CertificateError, LicqWarning
 
 #: Relative tolerance of every certificate: a few thousand ulps of the problem's scale.
 CERTIFICATE_RTOL = 1e-14
@@ -275,12 +275,8 @@ class ExactProjector:
         return (f"the active normals are linearly dependent{self._at(time)} "
                 f"({self._describe(index)}): LICQ fails there, so the multipliers (the slips) are "
                 "not unique and the model does not determine the motion (the uniqueness "
-                "condition of the crawler model fails at this instant). Change the step count so that no grid time falls on this "
-                "instant, or change the friction coefficients.")
-
-
-class LicqWarning(UserWarning):
-    """The active normals of a generic process are dependent at some time (not an error there)."""
+                "condition of the crawler model fails at this instant). Change the step count so that no "
+                "grid time falls on this instant, or change the friction coefficients.")
 
 
 class _Dependent(Exception):

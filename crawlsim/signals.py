@@ -19,8 +19,9 @@ from __future__ import annotations
 
 import difflib
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, ClassVar, Sequence
+from typing import Any, ClassVar
 
 import jsonschema
 import numpy as np
@@ -287,7 +288,7 @@ class PiecewiseLinear(Signal):
 
     def minimum(self) -> tuple[float, float]:
         i = int(np.argmin(self.values))
-        return self.values[i], float(max(_wrap(np.array(self.times[i] + self.phase)), 0.0))
+        return self.values[i], max(float(_wrap(np.array(self.times[i] + self.phase))), 0.0)
 
 
 @dataclass(frozen=True)
@@ -331,7 +332,7 @@ class Steps(Signal):
 
     def minimum(self) -> tuple[float, float]:
         i = int(np.argmin(self.values))
-        return self.values[i], float(max(_wrap(np.array(self.times[i] + self.phase)), 0.0))
+        return self.values[i], max(float(_wrap(np.array(self.times[i] + self.phase))), 0.0)
 
 
 KINDS: dict[str, type[Signal]] = {cls.kind: cls for cls in (Cosine, Fourier, PiecewiseLinear, Steps)}
@@ -339,7 +340,7 @@ KINDS: dict[str, type[Signal]] = {cls.kind: cls for cls in (Cosine, Fourier, Pie
 
 _NUMBER = {"type": "number", "x-expected": "a number"}
 _NUMBERS = {"type": "array", "items": _NUMBER, "x-expected": "a list of numbers"}
-_KIND_SCHEMAS = {
+_KIND_SCHEMAS: dict[str, dict[str, Any]] = {
     "cosine": {"required": ["mean", "amplitude"],
                "properties": {"mean": _NUMBER, "amplitude": _NUMBER, "phase": _NUMBER}},
     "fourier": {"required": ["mean"],
@@ -452,7 +453,7 @@ def _schema_error(error: jsonschema.ValidationError, source: str, keypath: str) 
     expected = schema.get("x-expected")
     if expected is None and validator == "type":
         types = error.validator_value if isinstance(error.validator_value, list) else [error.validator_value]
-        expected = " or ".join(_TYPE_NAMES.get(t, t) for t in types)
+        expected = " or ".join(str(_TYPE_NAMES.get(t, t)) for t in types)
     if expected is None and validator in ("minimum", "exclusiveMinimum"):
         expected = f"a number {'>=' if validator == 'minimum' else '>'} {error.validator_value}"
     if expected is None:

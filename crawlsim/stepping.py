@@ -111,6 +111,7 @@ class CatchUpStepper:
             block = 2 * block if accepted == block else max(_FIRST_BLOCK, 2 * accepted)
         X = None
         if self.x is not None:
+            assert p.slip_map is not None
             X = np.empty((G + 1, len(self.x)))
             X[0] = self.x
             np.cumsum(LAM @ p.slip_map.T, axis=0, out=X[1:])

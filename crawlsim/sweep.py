@@ -31,13 +31,15 @@ from concurrent.futures import FIRST_COMPLETED, wait
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import yaml
 
-from .errors import CrawlsimError, GaitError
 from .atomic import atomic_path
+from .errors import CrawlsimError, GaitError
 from .gait import Gait, gait_from_document
+from .status import PointStatus
 
 #: Columns of a sweep table after the swept paths (CSV header, HDF5 /results datasets).
 RESULT_COLUMNS = ("v0", "displacement_per_period", "convergence", "periods", "status", "message")
@@ -108,11 +110,11 @@ def resolve_path(document: dict, axis: Axis, source: str) -> list[tuple]:
     Every key but the last must exist; the last may be absent from a mapping (an optional key
     such as a signal's ``phase``), in which case the schema decides whether it is allowed.
     """
-    found = [((), document)]
+    found: list[tuple[tuple, Any]] = [((), document)]
     keys = axis.keys
     for depth, key in enumerate(keys):
         last = depth == len(keys) - 1
-        nxt = []
+        nxt: list[tuple[tuple, Any]] = []
         for prefix, node in found:
             where = ".".join(str(k) for k in prefix) or "the document"
             if key == "*":
@@ -203,9 +205,11 @@ class SweepGrid:
 
     def gait(self, index: int) -> Gait:
         """Grid point ``index`` validated into a Gait (a GaitError names the point)."""
-        return gait_from_document(self.document(index), self.label(index),
+        gait = gait_from_document(self.document(index), self.label(index),
                                   source_text=self.base.source_text,
                                   default_name=self.base.name)
+        assert isinstance(gait, Gait)  # the base is a crawler, and sweeps keep the kind
+        return gait
 
     def fingerprint(self, shard) -> str:
         """Identity of a sweep: base document, axes and shard (journals from others are refused)."""
@@ -265,9 +269,12 @@ class PointResult:
     displacement_per_period: float | None
     convergence: str
     periods: int
-    status: str  # "ok" | "not-converged" | "failed"
+    status: PointStatus
     message: str = ""
     steps: int = 0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "status", PointStatus(self.status))
 
     def to_json(self) -> dict:
         return {k: getattr(self, k) for k in ("index", "v0", "displacement_per_period",
@@ -302,14 +309,14 @@ def evaluate(gaits, indices, *, capacity=None, progress=None) -> list[PointResul
             continue
         s = g.simulation
         try:
-            r = simulate(compile_gait(g), max_periods=s.max_periods, tolerance=s.tolerance,
-                         integrator=s.integrator)
+            run = simulate(compile_gait(g), max_periods=s.max_periods, tolerance=s.tolerance,
+                           integrator=s.integrator)
         except CrawlsimError as exc:
-            out[int(i)] = PointResult(int(i), None, None, "", 0, "failed", str(exc))
+            out[int(i)] = PointResult(int(i), None, None, "", 0, PointStatus.FAILED, str(exc))
         else:
-            out[int(i)] = PointResult(int(i), r.v0, r.displacement_per_period, r.convergence,
-                                      r.periods, "ok" if r.converged else "not-converged", "",
-                                      r.steps)
+            status = PointStatus.OK if run.converged else PointStatus.NOT_CONVERGED
+            out[int(i)] = PointResult(int(i), run.v0, run.displacement_per_period,
+                                      run.convergence, run.periods, status, "", run.steps)
         if progress is not None:
             progress(1)
     return [out[int(i)] for i in indices]
@@ -407,7 +414,7 @@ class SweepTable:
 
     def columns(self) -> dict[str, np.ndarray]:
         """Every column of the table (swept paths first), as arrays."""
-        cols = {p: c for p, c in zip(self.paths, self.coordinates())}
+        cols = dict(zip(self.paths, self.coordinates()))
         cols["v0"] = np.array([np.nan if r.v0 is None else r.v0 for r in self.rows], float)
         cols["displacement_per_period"] = np.array(
             [np.nan if r.displacement_per_period is None else r.displacement_per_period
@@ -419,7 +426,7 @@ class SweepTable:
         return cols
 
     def counts(self) -> dict[str, int]:
-        out = {"ok": 0, "not-converged": 0, "failed": 0}
+        out = {str(s): 0 for s in PointStatus}
         for r in self.rows:
             out[r.status] = out.get(r.status, 0) + 1
         return out
@@ -485,13 +492,13 @@ def read_table(path) -> SweepTable:
 
     data = h5io.read_sweep(path)
     cols = data["columns"]
-    rows = []
+    rows: list[PointResult] = []
     for n, point in enumerate(data["points"]):
         v0 = float(cols["v0"][n])
         d = float(cols["displacement_per_period"][n])
         rows.append(PointResult(int(point), None if math.isnan(v0) else v0,
                                 None if math.isnan(d) else d, str(cols["convergence"][n]),
-                                int(cols["periods"][n]), str(cols["status"][n]),
+                                int(cols["periods"][n]), PointStatus(str(cols["status"][n])),
                                 str(cols["message"][n]), int(data["steps"][n])))
     shard = parse_shard(data["shard"]) if data["shard"] else None
     return SweepTable(tuple(data["paths"]), tuple(data["axes"]), np.asarray(data["points"]),
@@ -568,7 +575,7 @@ def _executor(jobs: int, scheduler: str | None):
 def _workers(client) -> int:
     try:
         return max(1, sum(client.nthreads().values()))
-    except Exception:  # noqa: BLE001 - the count only sizes the chunks
+    except Exception:
         return 1
 
 
@@ -625,9 +632,8 @@ def run_sweep(grid: SweepGrid, *, jobs: int = 1, shard=None, scheduler: str | No
         finally:
             if journal is not None:
                 journal.close()
-    rows = tuple(finished[int(i)] for i in indices)
     return SweepTable(grid.paths, tuple(np.asarray(a.values) for a in grid.axes),
-                      np.asarray(indices), rows, grid.gait_yaml, grid.base.source,
+                      np.asarray(indices), tuple(finished[int(i)] for i in indices), grid.gait_yaml, grid.base.source,
                       shard, computed=len(todo))
 
 
@@ -666,7 +672,7 @@ def sweep(gait: Gait, axes, *, output=None, jobs: int = 1, shard=None,
     journal = Journal(journal_path(output), grid.fingerprint(shard)) if output else None
     table = run_sweep(grid, jobs=jobs, shard=shard, scheduler=scheduler, journal=journal,
                       progress=progress)
-    if output is not None:
+    if output is not None and journal is not None:
         write_table(table, output)
         journal.remove()
     return table

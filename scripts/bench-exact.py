@@ -94,7 +94,7 @@ def main():
     print("\ncatch-up      G          v0                    error         error*G    time")
     values, costs = [], []
     for G in steps:
-        result, seconds = timed(lambda: catch_up_v0(gait, G), 1 if G > 20000 else 3)
+        result, seconds = timed(lambda G=G: catch_up_v0(gait, G), 1 if G > 20000 else 3)
         error = result.v0 - v0
         values.append(result.v0)
         costs.append(seconds / (result.periods * G))

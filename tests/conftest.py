@@ -1,9 +1,23 @@
-"""Shared fixtures: the example gaits and small helpers to build gaits in tests."""
+"""Shared fixtures: the example gaits and small helpers to build gaits in tests.
 
+Hypothesis profiles: ``ci`` (the default) is derandomized, so the suite is the same on every
+machine and every run; ``explore`` draws fresh examples and more of them. Search with, say,
+``HYPOTHESIS_PROFILE=explore python -m pytest tests --hypothesis-seed=7``, and keep every
+counterexample found as an ``@example``.
+"""
+
+import os
 from pathlib import Path
 
 import pytest
 import yaml
+from hypothesis import HealthCheck, settings
+
+settings.register_profile("ci", derandomize=True, database=None, deadline=None,
+                          print_blob=True, suppress_health_check=[HealthCheck.too_slow])
+settings.register_profile("explore", derandomize=False, deadline=None, max_examples=400,
+                          suppress_health_check=[HealthCheck.too_slow])
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 from crawlsim.gait import parse_gait
 

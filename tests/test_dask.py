@@ -8,7 +8,7 @@ from click.testing import CliRunner
 from crawlsim import sweep as sweeps
 from crawlsim.cli import main
 from crawlsim.gait import load_gait, with_simulation
-from tests.test_sweep import P4, AMP, LAG
+from tests.test_sweep import AMP, LAG, P4
 
 
 @pytest.fixture(scope="module")

@@ -19,7 +19,6 @@ a slip of delta = 2A - (a + b)/k (when positive):
 """
 
 import math
-
 from pathlib import Path
 
 import numpy as np
@@ -31,13 +30,12 @@ from crawlsim import paper
 from crawlsim.analysis import simulate
 from crawlsim.api import run
 from crawlsim.cli import main
-from crawlsim.errors import GaitError
-from crawlsim.exact import EventError, EventStepper
+from crawlsim.errors import EventError, GaitError, LicqWarning
+from crawlsim.exact import EventStepper
 from crawlsim.gait import load_gait, parse_gait, with_simulation
 from crawlsim.h5io import read_results
 from crawlsim.model import SweepingProcess, compile_gait, period_grid
 from crawlsim.model import compile as compile_any
-from crawlsim.projection import LicqWarning
 from crawlsim.stepping import make_stepper
 
 from .conftest import GAITS, two_block

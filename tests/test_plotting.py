@@ -22,10 +22,17 @@ from crawlsim import api
 from crawlsim.cli import main
 from crawlsim.gait import load_gait, with_simulation
 from crawlsim.h5io import read_results
-from crawlsim.plotting import (FIGURE_NAMES, available_figures, convergence_figure, gait_figure,
-                               motion_figure, plot_results, shape_space_figure, sweep_figure)
-from crawlsim.plotting.figures import (block_forces, polygon, slip_runs, stress_bounds,
-                                       zero_floor)
+from crawlsim.plotting import (
+    FIGURE_NAMES,
+    available_figures,
+    convergence_figure,
+    gait_figure,
+    motion_figure,
+    plot_results,
+    shape_space_figure,
+    sweep_figure,
+)
+from crawlsim.plotting.figures import block_forces, polygon, slip_runs, stress_bounds, zero_floor
 from crawlsim.plotting.style import DIMENSIONLESS, SLIP_COLOURS
 
 GAITS = Path(__file__).resolve().parents[1] / "gaits"
@@ -441,7 +448,7 @@ def test_sweep_two_parameters_heatmap():
     assert ax.get_ylabel().startswith("links[0].amplitude")
     assert bar.get_ylabel() == f"average velocity $v_0$ {DIMENSIONLESS}"
     one_sign = sweep_figure({"a": a, "b": b}, np.abs(v0), np.zeros((3, 2), bool), "s")
-    assert [c for c in one_sign.axes[0].collections][0].get_cmap().name == "cividis"
+    assert list(one_sign.axes[0].collections)[0].get_cmap().name == "cividis"
 
 
 def test_sweep_bad_shapes():

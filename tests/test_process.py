@@ -14,12 +14,12 @@ from click.testing import CliRunner
 
 from crawlsim.api import run
 from crawlsim.cli import main
-from crawlsim.errors import CertificateError, GaitError
+from crawlsim.errors import CertificateError, GaitError, LicqWarning
 from crawlsim.gait import Gait, ProcessSpec, load_gait, parse_gait, recession_direction
 from crawlsim.h5io import read_results
 from crawlsim.model import compile, compile_gait, compile_process
 from crawlsim.paper import acute_angle_document
-from crawlsim.projection import ExactProjector, LicqWarning
+from crawlsim.projection import ExactProjector
 
 from .conftest import GAITS
 

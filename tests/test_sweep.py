@@ -2,7 +2,6 @@
 resume after an interruption, shards and merge, local worker processes, plots."""
 
 import json
-import os
 import signal
 import subprocess
 import sys

@@ -8,8 +8,16 @@ import click
 
 from .. import api
 from ..analysis import summary_text
-from . import (EXIT_NOT_CONVERGED, _output_path, library_errors, load_with_overrides, main,
-               period_progress, simulation_options, to_json)
+from . import (
+    EXIT_NOT_CONVERGED,
+    _output_path,
+    library_errors,
+    load_with_overrides,
+    main,
+    period_progress,
+    simulation_options,
+    to_json,
+)
 
 
 @main.command()

@@ -8,9 +8,17 @@ from pathlib import Path
 
 import click
 
-from .. import api, sweep as sweeps
-from . import (EXIT_NOT_CONVERGED, BadInput, library_errors, load_with_overrides, main,
-               simulation_options, to_json)
+from .. import api
+from .. import sweep as sweeps
+from . import (
+    EXIT_NOT_CONVERGED,
+    BadInput,
+    library_errors,
+    load_with_overrides,
+    main,
+    simulation_options,
+    to_json,
+)
 
 
 @contextmanager

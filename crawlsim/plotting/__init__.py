@@ -29,7 +29,8 @@ _LAZY = {
     "FIGURES": "figures",
 }
 
-__all__ = ["FIGURE_NAMES", "CRAWLER_FIGURES", *_LAZY]
+__all__ = ["CRAWLER_FIGURES", "FIGURES", "FIGURE_NAMES", "convergence_figure", "gait_figure", "motion_figure",
+           "plot_results", "save_figure", "shape_space_figure", "sweep_figure"]
 
 
 def __getattr__(name):

@@ -17,19 +17,29 @@ Quantities and their equations (MODEL.md):
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from matplotlib.colors import CenteredNorm, to_rgba
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Polygon
-from matplotlib.ticker import (FixedLocator, FuncFormatter, MaxNLocator,
-                               NullLocator)
+from matplotlib.ticker import FixedLocator, FuncFormatter, MaxNLocator, NullLocator
 from scipy.optimize import linprog
 from scipy.spatial import HalfspaceIntersection
 
 from ..errors import ResultsFileError
-from .style import (FAINT, REFERENCE, SLIP_COLOURS, SLIP_NAMES, colours, figure_style, label,
-                    new_figure, title)
+from .style import (
+    FAINT,
+    REFERENCE,
+    SLIP_COLOURS,
+    SLIP_NAMES,
+    colours,
+    figure_style,
+    label,
+    new_figure,
+    title,
+)
 
 #: How many instants of the limit period the shape-space figure draws K(t) at.
 SHAPE_SPACE_TIMES = 6
@@ -60,7 +70,7 @@ def _period(results: dict) -> float:
 # 1. Motion
 
 
-def motion_figure(results: dict) -> "Figure":
+def motion_figure(results: dict) -> Figure:
     """Block positions x_j(t) over the simulated time, the barycentre y(t) and the line of slope
     v0 through y at the start of the limit period, y(t0) + v0 (t - t0), with the limit period
     shaded. Line order: blocks 1..N, barycentre, v0 line."""
@@ -138,7 +148,7 @@ def block_forces(stress: np.ndarray) -> np.ndarray:
     return padded[:, :-1] - padded[:, 1:]
 
 
-def gait_figure(results: dict) -> "Figure":
+def gait_figure(results: dict) -> Figure:
     """The gait diagram of the limit period, four panels sharing the time axis t - t0:
 
     1. one band per block: stick, forward slip, backward slip on each step (``/limit/slip``);
@@ -257,13 +267,14 @@ def zero_floor(values) -> float:
     return 10.0 ** (np.floor(np.log10(positive.min())) - 1)
 
 
-def convergence_figure(results: dict) -> "Figure":
+def convergence_figure(results: dict) -> Figure:
     """Per period q, on a log axis: the Poincare step, the W^{1,2}(t0, t0+T) distance of period
     q to the limit period, and |v_q - v0| (MODEL.md §4).
 
     A log axis cannot show zero, and zeros are the point of finite-time convergence: values that
     are exactly 0 are drawn as open markers on the bottom of the axis, a decade below the smallest
-    positive value, whose tick is labelled 0 (`zero_floor`). Finite-time convergence is marked by a vertical line at ``periodic_from``;
+    positive value, whose tick is labelled 0 (`zero_floor`). Finite-time convergence is marked by a
+    vertical line at ``periodic_from``;
     asymptotic convergence by the geometric decay ``r^q`` of the fitted contraction rate r
     through the last positive Poincare step.
     """
@@ -321,7 +332,7 @@ def _zero_floor_axis(ax, floor: float, values) -> None:
     step = max(1, int(np.ceil((hi - lo) / 7)))
     hi = lo + step * int(np.ceil((hi - lo) / step))
     ax.set_ylim(10.0 ** lo, 10.0 ** hi)
-    ax.yaxis.set_major_locator(FixedLocator(10.0 ** np.arange(lo, hi + 1, step)))
+    ax.yaxis.set_major_locator(FixedLocator((10.0 ** np.arange(lo, hi + 1, step)).tolist()))
     ax.yaxis.set_minor_locator(NullLocator())
     ax.yaxis.set_major_formatter(FuncFormatter(
         lambda y, _: "0" if abs(np.log10(y) - lo) < 1e-6 else f"$10^{{{round(np.log10(y))}}}$"))
@@ -371,7 +382,7 @@ def section(normals: np.ndarray, offsets: np.ndarray, point: np.ndarray, coords)
     return normals[:, [i, j]], offsets - normals[:, others] @ np.asarray(point)[others]
 
 
-def shape_space_figure(results: dict, coords=(0, 1), times: int = SHAPE_SPACE_TIMES) -> "Figure":
+def shape_space_figure(results: dict, coords=(0, 1), times: int = SHAPE_SPACE_TIMES) -> Figure:
     """The moving set K(t) = {w : B w <= c(t)} at ``times`` equally spaced instants of the limit
     period, and the orbit of w(t): the periods before the limit faint, the limit cycle bold
     (the style of the paper's Section 5 figures).
@@ -483,7 +494,7 @@ def _shape_space_line(results, B, c, tl, wl, tt, wt, t0, crawler):
 # 5. Sweeps
 
 
-def sweep_figure(axes: dict, v0: np.ndarray, failed: np.ndarray, title: str) -> "Figure":
+def sweep_figure(axes: dict, v0: np.ndarray, failed: np.ndarray, title: str) -> Figure:
     """v0 over a sweep of one or two gait parameters, named by their dotted paths.
 
     ``axes`` maps each swept dotted path (``"friction.backward"``) to its values, in the order of
@@ -546,7 +557,7 @@ def sweep_figure(axes: dict, v0: np.ndarray, failed: np.ndarray, title: str) -> 
 
 
 #: The figures of one run, by the names of `crawlsim.plotting.FIGURE_NAMES`.
-FIGURES = {
+FIGURES: dict[str, Callable[..., Figure]] = {
     "motion": motion_figure,
     "gait-diagram": gait_figure,
     "convergence": convergence_figure,

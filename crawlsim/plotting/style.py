@@ -21,9 +21,9 @@ import matplotlib
 
 matplotlib.use("Agg")
 
-import numpy as np  # noqa: E402
-from matplotlib import cycler  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
+import numpy as np
+from matplotlib import cycler  # type: ignore[attr-defined]
+from matplotlib.figure import Figure
 
 #: Okabe-Ito palette, in the order that puts the most distinct colours first.
 OKABE_ITO = {

@@ -1,0 +1,30 @@
+"""The statuses crawlsim reports, as string enums: they compare equal to their values and are
+written as those values to JSON, CSV and HDF5."""
+
+from __future__ import annotations
+
+from enum import StrEnum
+
+
+class Convergence(StrEnum):
+    """How a run reached its periodic regime (MODEL.md §4)."""
+
+    FINITE_TIME = "finite-time"  # exactly periodic from some period on
+    ASYMPTOTIC = "asymptotic"  # geometric convergence only, with a contraction rate
+    NOT_CONVERGED = "not-converged"  # max_periods ran out first
+
+
+class PointStatus(StrEnum):
+    """The outcome of one point of a sweep (or of an optimisation)."""
+
+    OK = "ok"
+    NOT_CONVERGED = "not-converged"
+    INVALID = "invalid"  # the point's gait is refused (the message says why)
+    FAILED = "failed"  # the run stopped with an internal failure (the message says why)
+
+
+class Integrator(StrEnum):
+    """The integrators of `crawlsim.stepping.STEPPERS`."""
+
+    CATCH_UP = "catch-up"
+    EXACT = "exact"
