@@ -180,7 +180,7 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
     Q = len(steps) - 1
     rel = np.array(rel_steps)
     convergence, periodic_from = classify_convergence(rel, tol)
-    rate = None if convergence == Convergence.FINITE_TIME else _contraction_rate(rel)
+    rate = None if convergence == Convergence.FINITE_TIME else contraction_rate(rel)
 
     displacement = np.array(disp) if process.is_crawler else np.full(Q + 1, np.nan)
     dissipation = np.array(diss) if process.is_crawler else np.full(Q + 1, np.nan)
@@ -193,13 +193,9 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
         d_final = float(displacement[-1])
         v0 = d_final / T
         diss_final = float(dissipation[-1])
-        # Roundoff of summing G slips, plus the geometric tail still to come when asymptotic.
-        err = float(G * np.finfo(float).eps * np.sum(np.abs(final.slips)) / process.blocks / T)
-        if convergence != Convergence.FINITE_TIME and Q >= 1:
-            dv = abs(displacement[-1] - displacement[-2]) / T
-            r = rate if rate is not None and rate < 1 else None
-            err += dv * r / (1 - r) if r is not None else dv
-        cot = diss_final / abs(d_final) if abs(d_final) > err * T * 10 + 1e-300 else None
+        err = period_iteration_error(displacement, convergence, rate, G,
+                                     float(np.sum(np.abs(final.slips))) / process.blocks, T)
+        cot = cost_of_transport(diss_final, d_final, err, T)
     return RunResult(
         name=process.name, period=T, steps_per_period=G, convergence=convergence,
         periods=Q + 1, periodic_from=periodic_from, contraction_rate=rate, v0=v0,
@@ -207,6 +203,28 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
         dissipation_per_period=diss_final, cost_of_transport=cot, history=history,
         limit=limit_period(process, final, v0), clarabel_calls=stepper.projector.clarabel_calls,
         wall_time=_time.perf_counter() - began, steps=(Q + 1) * G, integrator=integrator)
+
+
+def period_iteration_error(displacements, convergence: Convergence, rate: float | None,
+                           steps_per_period: int, mean_abs_slip: float, period: float) -> float:
+    """Error bound of v0 from the period iteration: the roundoff of summing the period's slips
+    (``mean_abs_slip``: sum of |dx| over the period, averaged over the blocks), plus, when the
+    convergence is not finite-time, the geometric tail still to come."""
+    err = steps_per_period * np.finfo(float).eps * mean_abs_slip / period
+    if convergence != Convergence.FINITE_TIME and len(displacements) >= 2:
+        dv = abs(displacements[-1] - displacements[-2]) / period
+        r = rate if rate is not None and rate < 1 else None
+        err += dv * r / (1 - r) if r is not None else dv
+    return float(err)
+
+
+def cost_of_transport(dissipation: float, displacement: float, v0_error: float,
+                      period: float) -> float | None:
+    """Dissipation per distance travelled, or None when the net motion is not distinguishable
+    from zero (within ten times its error)."""
+    if abs(displacement) > 10 * v0_error * period + 1e-300:
+        return dissipation / abs(displacement)
+    return None
 
 
 def effective_tolerance(tolerance: float) -> float:
@@ -257,7 +275,7 @@ def _distances(spill: _PeriodSpill, final: PeriodRecord, h: np.ndarray) -> dict:
                 slip_l2_distance=np.array(slip))
 
 
-def _contraction_rate(rel_steps: np.ndarray) -> float | None:
+def contraction_rate(rel_steps: np.ndarray) -> float | None:
     """Geometric rate of the Poincare steps: a least-squares fit of log(step) on the last periods.
 
     Only steps above the roundoff floor carry information about the contraction.

@@ -43,7 +43,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .analysis import classify_convergence, effective_tolerance, poincare_step
+from .analysis import (
+    classify_convergence,
+    contraction_rate,
+    cost_of_transport,
+    effective_tolerance,
+    period_iteration_error,
+    poincare_step,
+)
 from .errors import CrawlsimError
 from .model import SweepingProcess
 from .projection import ExactProjector
@@ -76,6 +83,11 @@ class BatchRun:
     steps: int
     clarabel_calls: int
     message: str = ""
+    dissipation_per_period: float | None = None
+    v0_error_estimate: float | None = None
+    contraction_rate: float | None = None
+
+    cost_of_transport: float | None = None
 
 
 def simulate_batch(processes, *, max_periods, tolerance, capacity: int = DEFAULT_CAPACITY,
@@ -102,6 +114,11 @@ def simulate_batch(processes, *, max_periods, tolerance, capacity: int = DEFAULT
         for i, run in zip(members, group.run()):
             out[i] = run
     return out  # type: ignore[return-value]
+
+
+def _friction(process: SweepingProcess) -> np.ndarray:
+    assert process.friction is not None, "batched stepping needs crawlers"
+    return process.friction
 
 
 def _slip_map(process: SweepingProcess) -> np.ndarray:
@@ -216,6 +233,9 @@ class _Lockstep:
             w=np.stack([np.asarray(p.initial, dtype=float) for _, p in rows]),
             w_start=np.stack([np.asarray(p.initial, dtype=float) for _, p in rows]),
             lam_sum=np.zeros((len(ids), self.m)),
+            diss=np.zeros(len(ids)),
+            abs_slip=np.zeros(len(ids)),
+            friction=np.stack([_friction(p) for _, p in rows]),
             mask=np.zeros((len(ids), self.m), dtype=bool),
             P=np.zeros((len(ids), self.m, self.m)),
             R=np.zeros((len(ids), self.n, self.m)),
@@ -298,6 +318,9 @@ class _Lockstep:
         accepted = np.where(bad.any(axis=1), bad.argmax(axis=1), K)
         taken = np.arange(K)[None, :] < accepted[:, None]
         s["lam_sum"] += np.einsum("bk,bkm->bm", taken, lam)
+        F = s["friction"][rows[:, None], np.minimum(steps, self.G)]
+        s["diss"] += np.einsum("bk,bkm,bkm->b", taken, lam, F)
+        s["abs_slip"] += np.einsum("bk,bkm->b", taken, np.abs(lam))
         moved = accepted > 0
         s["w"][moved] = W[rows[moved], accepted[moved] - 1]
         s["j"] += accepted
@@ -325,6 +348,9 @@ class _Lockstep:
         degenerate = self._degenerate(positions[~uncertified], slack)
         failed = self._repair(bad, s["j"], w, c, lam, w_new, slack, degenerate)
         s["lam_sum"][positions] += lam[positions]
+        F = s["friction"][positions, s["j"][positions] + 1]
+        s["diss"][positions] += np.einsum("bm,bm->b", lam[positions], F)
+        s["abs_slip"][positions] += np.abs(lam[positions]).sum(axis=1)
         s["w"][positions] = w_new[positions]
         s["j"][positions] += 1
         if failed:
@@ -445,13 +471,22 @@ class _Lockstep:
                 convergence, periodic_from = classify_convergence(self.rel_steps[k], self.tol[k])
                 status = (PointStatus.NOT_CONVERGED if convergence == Convergence.NOT_CONVERGED
                           else PointStatus.OK)
+                rate = (None if convergence == Convergence.FINITE_TIME
+                        else contraction_rate(np.array(self.rel_steps[k])))
+                err = period_iteration_error(self.displacements[k], convergence, rate, self.G,
+                                             float(s["abs_slip"][pos]) / p.blocks, p.period)
+                diss = float(s["diss"][pos])
                 self.results[k] = BatchRun(
                     p.name, status, float(d) / p.period, float(d), convergence, q + 1,
-                    periodic_from, (q + 1) * self.G, self.projectors[k].clarabel_calls)
+                    periodic_from, (q + 1) * self.G, self.projectors[k].clarabel_calls,
+                    dissipation_per_period=diss, v0_error_estimate=err, contraction_rate=rate,
+                    cost_of_transport=cost_of_transport(diss, float(d), err, p.period))
         s["period"][positions] += 1
         s["j"][positions] = 0
         s["w_start"][positions] = s["w"][positions]
         s["lam_sum"][positions] = 0.0
+        s["diss"][positions] = 0.0
+        s["abs_slip"][positions] = 0.0
         if not keep.all():
             self._keep(keep)
             if self.progress is not None:

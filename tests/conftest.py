@@ -13,13 +13,14 @@ import pytest
 import yaml
 from hypothesis import HealthCheck, settings
 
+from crawlsim.gait import parse_gait
+
 settings.register_profile("ci", derandomize=True, database=None, deadline=None,
                           print_blob=True, suppress_health_check=[HealthCheck.too_slow])
 settings.register_profile("explore", derandomize=False, deadline=None, max_examples=400,
                           suppress_health_check=[HealthCheck.too_slow])
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
-from crawlsim.gait import parse_gait
 
 ROOT = Path(__file__).resolve().parents[1]
 GAITS = ROOT / "gaits"
