@@ -295,8 +295,8 @@ def limit_period(process: SweepingProcess, final: PeriodRecord, v0: float | None
     if not process.is_crawler:
         return LimitPeriod(final.start, t.copy(), final.w, final.multipliers)
     assert final.x is not None and final.slips is not None and v0 is not None
-    k = 1.0 / np.diag(process.metric)
-    shape = -final.w / k
+    assert process.stiffness is not None
+    shape = -final.w / process.stiffness
     stress = final.w + process.stress_offset
     y0 = float(np.mean(final.x[0]))
     x_run = final.x - y0 - v0 * t[:, None]

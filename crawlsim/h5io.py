@@ -63,7 +63,7 @@ class ResultsWriter:
         self._traj = self.file.create_group("trajectory")
         self._sets: dict[str, h5py.Dataset] = {}
         self._columns = ["w"] + (["x", "stress", "shape"] if process.is_crawler else [])
-        self._reaction_carry = np.zeros(process.normals.shape[0])
+        self._reaction_carry = np.zeros(process.polyhedron.m)
 
     def _append(self, name, rows):
         rows = np.asarray(rows)
@@ -94,7 +94,7 @@ class ResultsWriter:
         if p.is_crawler:
             self._append("x", record.x[sel])
             self._append("stress", record.w[sel] + p.stress_offset[sel])
-            self._append("shape", record.w[sel] * -np.diag(p.metric))
+            self._append("shape", -record.w[sel] / p.stiffness)
         if reaction is not None:
             self._append("reaction", reaction)
 

@@ -14,6 +14,8 @@ A generic polyhedral sweeping process (MODEL.md §5, ``kind: sweeping-process``)
 same `SweepingProcess` with its own B, c(t), M and z(0) and no crawler fields, so it is stepped,
 certified and analysed by the same code; `compile` dispatches on the kind.
 
+B and M live in the process's `crawlsim.kkt.Polyhedron`: for a crawler a `ChainPolyhedron`, which
+never forms anything of size N^2, so compiling, like stepping, costs O(N) per grid time.
 Everything time-dependent is tabulated once on the period's grid, vectorised over all times.
 """
 
@@ -25,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .gait import Gait, ProcessSpec
+from .kkt import ChainPolyhedron, DensePolyhedron, Polyhedron
 from .signals import evaluate_many
 
 #: Grid times closer than this (in cycles) to a breakpoint are merged into the breakpoint.
@@ -40,12 +43,11 @@ class SweepingProcess:
 
     name: str
     period: float
-    normals: np.ndarray  # B (m, n)
-    metric: np.ndarray  # M (n, n): projections minimise 1/2 |w - w_trial|_M^2
+    polyhedron: Polyhedron  # B and the metric M: projections minimise 1/2 |w - w_trial|_M^2
     times: np.ndarray  # (G+1,) one period's grid: times[0] = 0, times[-1] = period
     offsets: np.ndarray  # c(t) on the grid (G+1, m)
     initial: np.ndarray  # w(0) (n,)
-    slip_map: np.ndarray | None = None  # S (N, m): block increments dx = S lambda
+    stiffness: np.ndarray | None = None  # k (N-1,): crawlers, M = K^{-1}
     initial_positions: np.ndarray | None = None  # x(0) (N,)
     stress_offset: np.ndarray | None = None  # K L(t) on the grid (G+1, n): stress = w + K L
     friction: np.ndarray | None = None  # [mu^+, mu^-] on the grid (G+1, m): dissipation weights
@@ -61,16 +63,31 @@ class SweepingProcess:
 
     @property
     def is_crawler(self) -> bool:
-        return self.slip_map is not None
+        return self.stiffness is not None
 
     @property
     def blocks(self) -> int:
-        return 0 if self.slip_map is None else self.slip_map.shape[0]
+        return 0 if self.stiffness is None else len(self.stiffness) + 1
 
     @property
     def scale(self) -> float:
         """A natural size of w and c, for relative tolerances."""
-        return float(max(np.max(np.abs(self.offsets)), np.max(np.abs(self.initial)), 1e-300))
+        return self.polyhedron.c_scale
+
+    @property
+    def normals(self) -> np.ndarray:
+        """B as a dense (m, n) array (for files and figures; steps never form it)."""
+        return self.polyhedron.dense_normals()
+
+    @property
+    def metric(self) -> np.ndarray:
+        """M as a dense (n, n) array (for files and figures; steps never form it)."""
+        return self.polyhedron.dense_metric()
+
+    def slips(self, multipliers: np.ndarray) -> np.ndarray:
+        """Block increments dx = lambda^+ - lambda^- of multipliers (..., 2N) (MODEL.md §3)."""
+        N = self.blocks
+        return multipliers[..., :N] - multipliers[..., N:]
 
     def describe_active(self, index) -> str:
         """Words for an active set: for crawlers, the set J of saturated blocks."""
@@ -104,49 +121,46 @@ def period_grid(steps_per_period: int, breakpoints) -> np.ndarray:
     return u
 
 
-def difference_matrix(blocks: int) -> np.ndarray:
-    """D, the (N-1) x N forward-difference matrix: z_i = x_{i+1} - x_i."""
-    return np.diff(np.eye(blocks), axis=0)
+def _scale(offsets: np.ndarray, initial: np.ndarray) -> float:
+    """A natural size of w and c, the floor of every certificate tolerance."""
+    return float(max(np.max(np.abs(offsets)), np.max(np.abs(initial)), 1e-300))
 
 
 def compile_gait(gait: Gait, steps_per_period: int | None = None) -> SweepingProcess:
     """The shape-space sweeping process of a crawler gait on its time grid (MODEL.md §2)."""
     G = steps_per_period or gait.simulation.steps_per_period
     u = period_grid(G, gait.breakpoints())
-    N = gait.blocks
-    D = difference_matrix(N)
     k = np.asarray(gait.stiffness, dtype=float)
     L = evaluate_many(gait.links, u)  # (G+1, N-1)
     mu_f = evaluate_many(gait.forward, u)  # (G+1, N)
     mu_b = evaluate_many(gait.backward, u)
     KL = L * k  # K L on the grid
-    DtKL = KL @ D  # rows are (D^T K L)^T
+    DtKL = _forces(KL)  # D^T K L, O(N) per row
     offsets = np.hstack([mu_f - DtKL, mu_b + DtKL])
     T = float(gait.period)
 
     def offset_function(t):
         u = np.asarray(t, dtype=float) / T
-        DtKL_t = (evaluate_many(gait.links, u) * k) @ D
+        DtKL_t = _forces(evaluate_many(gait.links, u) * k)
         return np.hstack([evaluate_many(gait.forward, u) - DtKL_t,
                           evaluate_many(gait.backward, u) + DtKL_t])
 
     def offset_rate(t):
         u = np.asarray(t, dtype=float) / T
-        DtKLdot = (_rates(gait.links, u) * k) @ D
+        DtKLdot = _forces(_rates(gait.links, u) * k)
         return np.hstack([_rates(gait.forward, u) - DtKLdot,
                           _rates(gait.backward, u) + DtKLdot]) / T
 
     x0 = np.asarray(gait.initial_positions, dtype=float)
-    w0 = -k * (D @ x0)
+    w0 = -k * np.diff(x0)  # w = -K z, z = D x
     return SweepingProcess(
         name=gait.name,
         period=float(gait.period),
-        normals=np.vstack([D.T, -D.T]),
-        metric=np.diag(1.0 / k),
+        polyhedron=ChainPolyhedron(k, _scale(offsets, w0)),
         times=u * gait.period,
         offsets=offsets,
         initial=w0,
-        slip_map=np.hstack([np.eye(N), -np.eye(N)]),
+        stiffness=k,
         initial_positions=x0,
         stress_offset=KL,
         friction=np.hstack([mu_f, mu_b]),
@@ -172,14 +186,15 @@ def compile_process(spec: ProcessSpec, steps_per_period: int | None = None) -> S
     def offset_rate(t):
         return _rates(spec.offsets, np.asarray(t, dtype=float) / T) / T
 
+    offsets = evaluate_many(spec.offsets, u)
+    initial = np.array(spec.initial, dtype=float)
     return SweepingProcess(
         name=spec.name,
         period=T,
-        normals=np.array(spec.normals, dtype=float),
-        metric=np.array(spec.metric, dtype=float),
+        polyhedron=DensePolyhedron(spec.normals, spec.metric, _scale(offsets, initial)),
         times=u * T,
-        offsets=evaluate_many(spec.offsets, u),
-        initial=np.array(spec.initial, dtype=float),
+        offsets=offsets,
+        initial=initial,
         offset_function=offset_function,
         offset_rate=offset_rate,
         breakpoints=np.asarray(spec.breakpoints(), dtype=float) * T,
@@ -191,6 +206,13 @@ def compile(spec: Gait | ProcessSpec, steps_per_period: int | None = None) -> Sw
     if isinstance(spec, ProcessSpec):
         return compile_process(spec, steps_per_period)
     return compile_gait(spec, steps_per_period)
+
+
+def _forces(V: np.ndarray) -> np.ndarray:
+    """D^T v for rows v (..., N-1): (D^T v)_j = v_{j-1} - v_j, with v_{-1} = v_{N-1} = 0."""
+    padded = np.zeros(V.shape[:-1] + (V.shape[-1] + 2,))
+    padded[..., 1:-1] = V
+    return padded[..., :-1] - padded[..., 1:]
 
 
 def _rates(signals, u):

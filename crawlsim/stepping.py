@@ -2,19 +2,11 @@
 
     w_{j+1} = argmin { 1/2 |w - w_j|_M^2 : B w <= c(t_{j+1}) },   x_{j+1} = x_j + S lambda_{j+1}.
 
-Every step is an exact, certified projection (`crawlsim.projection`). Two fast paths are used,
-both with the same certificate as a full projection:
-
-* **elastic steps** (active set empty): the trial state is already admissible;
-* **reuse of the previous step's active set** A. With A fixed, ``B_A w_j = c_A(t_j)`` after
-  every step, so the steps telescope:
-
-      w_{j+k} = w_j - R_A (B_A w_j - c_A(t_{j+k})),
-      lambda_{j+1} + ... + lambda_{j+k} = G_A^{-1} (B_A w_j - c_A(t_{j+k})).
-
-  A block of steps is therefore computed with one matrix product and certified step by step
-  (primal feasibility, multiplier signs, complementarity). The first step whose certificate
-  fails is redone as a full projection, with Clarabel proposing the new active set.
+Every step is solved and certified by the KKT kernel (`crawlsim.kkt`). While the active set A
+does not change, runs of steps telescope (`kkt.Polyhedron.run`): one factorisation of G_A and
+one multi-right-hand-side solve for the whole run, certified step by step. The first step whose
+certificate fails is redone as a full projection (`crawlsim.projection.ExactProjector`): the
+kernel's cheap updates from A, and Clarabel only when they do not settle.
 
 ``check_every_step=True`` runs Clarabel at every step instead, so that a user can verify that the
 fast paths change nothing.
@@ -27,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .kkt import Dependent
 from .model import SweepingProcess
 from .projection import ExactProjector
 
@@ -78,20 +71,20 @@ class CatchUpStepper:
                  persistent_solver: bool = True):
         self.process = process
         self.check_every_step = check_every_step
+        self.polyhedron = process.polyhedron
         self.projector = ExactProjector(
-            process.normals, process.metric, process.scale,
-            describe_active=process.describe_active, persistent=persistent_solver,
-            on_dependent="raise" if process.is_crawler else "warn")
+            process.polyhedron, describe_active=process.describe_active,
+            persistent=persistent_solver, on_dependent="raise" if process.is_crawler else "warn")
         self.w = np.array(process.initial, dtype=float)
         self.x = None if process.initial_positions is None else np.array(
             process.initial_positions, dtype=float)
-        self.active = self.projector.empty
+        self.active = self.polyhedron.empty
         self.period_index = 0
 
     def step_period(self) -> PeriodRecord:
         """Advance by one period and return its record."""
         p = self.process
-        G, n, m = p.steps, len(self.w), p.normals.shape[0]
+        G, n, m = p.steps, len(self.w), p.polyhedron.m
         start = self.period_index * p.period
         W = np.empty((G + 1, n))
         LAM = np.zeros((G, m))
@@ -100,21 +93,31 @@ class CatchUpStepper:
         j, block = 0, _FIRST_BLOCK
         while j < G:
             if self.check_every_step:
-                self._full_step(j, W, LAM, start)
+                self._full_step(j, W, LAM, start, warm=False)
                 j += 1
                 continue
-            accepted = self._reuse_block(j, min(G, j + block), W, LAM)
-            j += accepted
-            if j < G and accepted < block:
-                self._full_step(j, W, LAM, start)
+            length = min(G - j, block)
+            run = self.polyhedron.run(self.active, W[j], p.offsets[j + 1:j + 1 + length])
+            k = run.accepted
+            W[j + 1:j + 1 + k] = run.w[:k]
+            LAM[j:j + k] = run.multipliers[:k]
+            j += k
+            if k < length:
+                if run.next_set is not None:
+                    try:
+                        self.active = self.polyhedron.factor(run.next_set)
+                    except Dependent:
+                        pass  # the full step starts from the old set, Clarabel decides
+                self._full_step(j, W, LAM, start, warm=True)
                 j += 1
-            block = 2 * block if accepted == block else max(_FIRST_BLOCK, 2 * accepted)
+                block = max(_FIRST_BLOCK, 2 * k)
+            else:
+                block *= 2
         X = None
         if self.x is not None:
-            assert p.slip_map is not None
             X = np.empty((G + 1, len(self.x)))
             X[0] = self.x
-            np.cumsum(LAM @ p.slip_map.T, axis=0, out=X[1:])
+            np.cumsum(p.slips(LAM), axis=0, out=X[1:])
             X[1:] += self.x
             self.x = X[-1].copy()
         self.w = W[-1].copy()
@@ -123,44 +126,11 @@ class CatchUpStepper:
         self.period_index += 1
         return record
 
-    def _reuse_block(self, j, end, W, LAM) -> int:
-        """Try steps j+1..end on the current active set; write and count the certified prefix."""
-        p, A, tol = self.process, self.active, self.projector.tol
-        w = W[j]
-        c = p.offsets[j + 1:end + 1]
-        if A.size == 0:
-            # strictly inside: a row tight to roundoff goes to the full projection, which
-            # checks LICQ there
-            ok = np.all(p.normals @ w < c - tol.primal, axis=1)
-            k = _prefix(ok)
-            W[j + 1:j + 1 + k] = w
-            return k
-        residual = (A.normals @ w) - c[:, A.index]  # (k, a): B_A w_j - c_A(t_{j+i})
-        cumulative = residual @ A.gram_inv.T  # sum of the multipliers up to each step
-        Z = w - residual @ A.response.T
-        lam = np.diff(cumulative, axis=0, prepend=np.zeros((1, A.size)))
-        slack = Z @ p.normals.T - c
-        inactive = np.ones(slack.shape[1], dtype=bool)
-        inactive[A.index] = False
-        # Rows outside A must be strictly feasible: one tight to roundoff is a degenerate
-        # contact, left to the full projection and its LICQ check.
-        ok = ((np.max(slack[:, inactive], axis=1, initial=-np.inf) < -tol.primal)
-              & (np.min(lam, axis=1) >= -tol.dual)
-              & (np.max(np.abs(slack[:, A.index]), axis=1) <= tol.primal))
-        k = _prefix(ok)
-        W[j + 1:j + 1 + k] = Z[:k]
-        LAM[j:j + k, A.index] = lam[:k]
-        return k
-
-    def _full_step(self, j, W, LAM, start):
+    def _full_step(self, j, W, LAM, start, *, warm: bool):
         p = self.process
-        proj = self.projector.project(W[j], p.offsets[j + 1], time=start + p.times[j + 1])
+        proj = self.projector.project(W[j], p.offsets[j + 1], time=start + p.times[j + 1],
+                                      warm=self.active if warm else None, verify=not warm)
         W[j + 1] = proj.point
         LAM[j] = proj.multipliers
         self.active = proj.active
 
-
-def _prefix(ok: np.ndarray) -> int:
-    """Length of the leading run of True."""
-    bad = np.flatnonzero(~ok)
-    return int(bad[0]) if bad.size else len(ok)

@@ -12,6 +12,7 @@ import pytest
 
 from crawlsim.analysis import simulate
 from crawlsim.batch import simulate_batch
+from crawlsim.errors import DegenerateModelError
 from crawlsim.gait import gait_from_document, load_gait, parse_gait, with_simulation
 from crawlsim.model import compile_gait
 
@@ -107,16 +108,18 @@ simulation: {steps_per_period: 100, max_periods: 20}
 """
 
 
-def test_instant_uniqueness_violation_fails_like_a_single_run():
+def test_instant_uniqueness_violation_is_refused_like_a_single_run():
     """mu1+ = 1 + 0.5 cos(2 pi t) equals mu2- = 1 at t = 1/4 while the link contracts: both
     blocks are at a friction limit, the active normals are dependent (LICQ fails; the paper's
-    uniqueness condition fails at that instant). With 100 steps t = 1/4 is a grid time and the
-    point fails with the projector's message; with 101 steps it is not, and the point runs."""
+    uniqueness condition fails at that instant) and the step's slips are unique only up to a
+    rigid translation. With 100 steps t = 1/4 is a grid time: the point is refused (invalid) with
+    the single run's message; with 101 steps it is not, and the point runs."""
     gaits = [with_simulation(parse_gait(LICQ_GAIT), steps_per_period=s) for s in (100, 101)]
     processes = [compile_gait(g) for g in gaits]
     on_grid, off_grid = simulate_batch(processes, max_periods=20, tolerance=1e-12)
-    assert on_grid.status == "failed" and on_grid.v0 is None
-    assert "linearly dependent at t = 0.25" in on_grid.message
-    with pytest.raises(Exception, match="linearly dependent at t = 0.25"):
+    assert on_grid.status == "invalid" and on_grid.v0 is None
+    assert "does not determine the motion at t = 0.25: J = {1, 2}" in on_grid.message
+    with pytest.raises(DegenerateModelError) as single:
         _single(processes[0], gaits[0])
+    assert str(single.value) == on_grid.message
     _assert_same(off_grid, _single(processes[1], gaits[1]))

@@ -14,7 +14,7 @@ from click.testing import CliRunner
 
 from crawlsim.api import run
 from crawlsim.cli import main
-from crawlsim.errors import CertificateError, GaitError, LicqWarning
+from crawlsim.errors import DegenerateModelError, GaitError, LicqWarning
 from crawlsim.gait import Gait, ProcessSpec, load_gait, parse_gait, recession_direction
 from crawlsim.h5io import read_results
 from crawlsim.model import compile, compile_gait, compile_process
@@ -42,7 +42,7 @@ def test_a_process_file_builds_a_process_spec_and_compiles_to_its_own_data():
     spec = load_gait(ACUTE)
     assert isinstance(spec, ProcessSpec) and spec.normals.shape == (3, 2)
     p = compile_process(spec, steps_per_period=7)
-    assert not p.is_crawler and p.slip_map is None and p.friction is None
+    assert not p.is_crawler and p.stiffness is None and p.friction is None
     assert 0.5 in p.times  # the kink of l(t) is a grid point although 7 is odd
     l2 = np.where(p.times <= 0.5, p.times, 1.0 - p.times)
     assert np.allclose(p.offsets, np.column_stack([l2, -l2, np.full_like(l2, 1.0)]),
@@ -194,21 +194,23 @@ def test_licq_failure_of_a_process_is_a_warning_with_its_time_and_the_point_is_r
 def test_the_projector_reduces_a_dependent_set_only_when_asked():
     B = np.array([[1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
     c = np.zeros(3)
-    with pytest.raises(CertificateError, match="linearly dependent"):
-        ExactProjector(B, np.eye(2), 1.0).project(np.array([1.0, 2.0]), c, time=0.25)
-    projector = ExactProjector(B, np.eye(2), 1.0, on_dependent="warn")
+    with pytest.raises(DegenerateModelError, match="linearly dependent"):
+        ExactProjector.dense(B, np.eye(2), 1.0).project(np.array([1.0, 2.0]), c, time=0.25)
+    projector = ExactProjector.dense(B, np.eye(2), 1.0, on_dependent="warn")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         proj = projector.project(np.array([1.0, 2.0]), c, time=0.25)
         projector.project(np.array([2.0, 1.0]), c, time=0.5)
     assert proj.point == pytest.approx([0.0, 0.0], abs=1e-15)
-    assert projector.is_certified(proj.point, proj.multipliers, c, proj.active)
+    poly = projector.polyhedron
+    _, _, slack, tol = poly.solve_on(proj.active, np.array([1.0, 2.0]), c)
+    assert poly.certify(slack, proj.multipliers, proj.active, tol).ok
     # M (z_trial - z) = B^T lambda with lambda >= 0: the reaction balances the push.
     assert B.T @ proj.multipliers == pytest.approx([1.0, 2.0], abs=1e-14)
     assert len([w for w in caught if issubclass(w.category, LicqWarning)]) == 1
     assert projector.licq_failures == {(0, 1, 2): (0.25, 2)}
     with pytest.raises(ValueError, match="on_dependent"):
-        ExactProjector(B, np.eye(2), 1.0, on_dependent="ignore")
+        ExactProjector.dense(B, np.eye(2), 1.0, on_dependent="ignore")
 
 
 @pytest.mark.parametrize("path", sorted((GAITS / "paper").glob("*.yaml")), ids=lambda p: p.stem)

@@ -135,19 +135,19 @@ def test_velocity_single_run_output_and_exit_codes():
 
 
 def test_failed_points_are_recorded_not_fatal(tmp_path):
-    """A point whose grid hits an instant of a uniqueness violation fails with its reason
-    (see tests/test_batch.py); the others run and the exit code is 0."""
+    """A point whose grid hits an instant of a uniqueness violation is refused with its reason
+    (status invalid, see tests/test_batch.py); the others run and the exit code is 0."""
     from tests.test_batch import LICQ_GAIT
 
     path = tmp_path / "licq.yaml"
     path.write_text(LICQ_GAIT)
     r = vel(path, "--sweep", "simulation.steps_per_period=100,101,102", "-o", tmp_path / "t.csv")
     assert r.exit_code == 0
-    assert "3 points: 1 failed, 0 not converged" in r.output
+    assert "3 points: 1 invalid, 0 failed, 0 not converged" in r.output
     rows = (tmp_path / "t.csv").read_text().splitlines()
     assert rows[0] == ("simulation.steps_per_period,v0,displacement_per_period,convergence,"
                        "periods,status,message")
-    assert rows[1].startswith("100,,,,0,failed,\"the active normals are linearly dependent")
+    assert rows[1].startswith("100,,,,0,invalid,\"the model does not determine the motion at t = 0.25")
     assert ",finite-time,2,ok," in rows[2] and ",finite-time,2,ok," in rows[3]
 
 

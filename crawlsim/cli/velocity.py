@@ -117,6 +117,7 @@ def velocity(gait_file, as_json, sweep_specs, output, jobs, shard, scheduler, pl
     if output is None:
         click.echo(table.to_csv(), nl=False)
     counts = table.counts()
-    if counts["failed"] or counts["not-converged"]:
-        click.echo(f"{len(table.rows)} points: {counts['failed']} failed, "
-                   f"{counts['not-converged']} not converged (see the status column)", err=True)
+    if counts["failed"] or counts["not-converged"] or counts["invalid"]:
+        click.echo(f"{len(table.rows)} points: {counts['invalid']} invalid, {counts['failed']} "
+                   f"failed, {counts['not-converged']} not converged (see the status column)",
+                   err=True)
