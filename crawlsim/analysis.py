@@ -37,6 +37,8 @@ ROUNDOFF_FLOOR = 1e-13
 FINITE_JUMP = 1e-4
 #: Periods used to fit the contraction rate.
 RATE_WINDOW = 8
+#: Relative Poincare steps above this carry at most ~1e-6 relative roundoff (eps / step).
+RATE_RELIABLE = 1e-10
 
 
 @dataclass(frozen=True, eq=False)
@@ -278,14 +280,21 @@ def _distances(spill: _PeriodSpill, final: PeriodRecord, h: np.ndarray) -> dict:
 def contraction_rate(rel_steps: np.ndarray) -> float | None:
     """Geometric rate of the Poincare steps: a least-squares fit of log(step) on the last periods.
 
-    Only steps above the roundoff floor carry information about the contraction.
+    A relative step s carries a roundoff of about eps / s relative to itself, so the fit uses
+    the last `RATE_WINDOW` steps above `RATE_RELIABLE` (each good to 1e-6 or better) when there
+    are at least three; otherwise every step above the roundoff floor.
     """
-    tail = rel_steps[-RATE_WINDOW:]
-    q = np.arange(len(tail))
-    good = tail > ROUNDOFF_FLOOR / 10
-    if np.count_nonzero(good) < 2:
+    steps = np.asarray(rel_steps, dtype=float)
+    q = np.arange(len(steps))
+    reliable = np.flatnonzero(steps > RATE_RELIABLE)[-RATE_WINDOW:]
+    if reliable.size >= 3 and reliable[-1] - reliable[0] == reliable.size - 1:
+        chosen = reliable
+    else:
+        tail = q[-RATE_WINDOW:]
+        chosen = tail[steps[tail] > ROUNDOFF_FLOOR / 10]
+    if chosen.size < 2:
         return None
-    slope = np.polyfit(q[good], np.log(tail[good]), 1)[0]
+    slope = np.polyfit(q[chosen], np.log(steps[chosen]), 1)[0]
     return float(math.exp(slope))
 
 

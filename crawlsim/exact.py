@@ -4,84 +4,76 @@ The sweeping process ``w' in -N_{K(t)}(w)`` in the metric M, with K(t) = {w : B 
 
     M w'(t) + B^T lambda(t) = 0,   lambda >= 0,   lambda_i (B w - c)_i = 0,
 
-the continuous-time limit of the catch-up KKT system M (w_{j+1} - w_j) + B^T lambda_j = 0, so
-lambda(t) is the *rate* of the catch-up multipliers: the slip rates (dx/dt = S lambda).
+the continuous-time limit of the catch-up KKT system, so lambda(t) is the *rate* of the catch-up
+multipliers: the slip rates (dx/dt = lambda^+ - lambda^-). Times are in cycles u = t / T here.
 
-**Between events** the active set A is fixed and B_A w(t) = c_A(t). Differentiating,
-B_A w' = -G_A lambda_A = c'_A, with G_A = B_A M^{-1} B_A^T, so
+**Between events** the active set A is fixed and B_A w(u) = c_A(u), so (telescoping, exact)
 
-    lambda_A(t) = -G_A^{-1} c'_A(t),
-    int_{ta}^{t} lambda_A = G_A^{-1} (c_A(ta) - c_A(t))            (telescoping: exact),
-    w(t) = w(ta) - R_A (B_A w(ta) - c_A(t)) = P_A^perp w(ta) + R_A c_A(t),
+    Lambda_A(u) = G_A^{-1} (B_A w_0 - c_A(u)),   w(u) = w_0 - M^{-1} B_A^T Lambda_A(u),
 
-with R_A = M^{-1} B_A^T G_A^{-1} (the same ``ActiveSet.response`` catch-up uses). The block
-displacements over any interval are therefore exact, whatever c is.
+Lambda_A the slips accumulated since the piece began, G_A = B_A M^{-1} B_A^T. On a piece of c
+(`crawlsim.offsets`: c(u) = phi(u) @ C_p in a basis of 1, u and harmonics), every gap
+(B w(u) - c(u))_i and every slip rate is itself such a combination, computed with one
+multi-right-hand-side solve of the KKT kernel (`crawlsim.kkt`), O(N) for a crawler.
 
-**Events** end a piece:
+**Events** end a piece: an inactive row's gap reaches 0 from below, or an active row's slip rate
+reaches 0 from above; and the breakpoints of c, where at a jump (a ``steps`` signal) the state
+is projected exactly onto K(t+) by the certified projector (its multipliers are instantaneous
+slips, booked to the grid interval ending at the jump since signals are right-continuous).
+Zeros are found in closed form where the basis allows it (1 and u: linear; 1 and one harmonic:
+``a + rho cos(theta - phi) = 0``), else by sampling with a curvature bound that rules out a
+crossing between samples, and brentq on the closed form. An event time is the zero crossing;
+it is exact to roundoff.
 
-* a *gap closes*: an inactive row's (B w(t) - c(t))_i reaches 0;
-* a *release*: an active multiplier lambda_i(t) reaches 0 (it would turn negative);
-* a *breakpoint* of c (``process.breakpoints``, and the period end T): at a kink only the rates
-  change; at a jump (a ``steps`` signal) the state is projected exactly onto K(t+), and that
-  projection's multipliers are real, instantaneous slips (they belong to the grid interval
-  ending at the jump, as in catch-up, because signals are right-continuous).
-
-At every event the new active set comes from the **velocity problem** (Moreau): the right
-derivative u = w'(t+) is the M-minimal-norm element of {u : B_A0 u <= c'_A0(t+)}, A0 the rows tight
-at w. Its multipliers are lambda(t+); the rows with a positive multiplier form the next A. It is
-solved by a certified `ExactProjector` on the rows A0 (Clarabel proposes, the equality KKT system
-decides). Rows where the velocity problem is degenerate (tight with a zero multiplier: a
-tangential contact, or a release) are decided to second order by a probe a short time ahead:
-a row that the probe finds violated is added (a gap) or dropped (a negative multiplier).
-
-**Locating events.** Every gap and multiplier is a closed form in t. They are sampled on a fixed
-grid (`BRACKET_CELLS` cells per period plus the breakpoints), and the first sign change is
-refined by `scipy.optimize.brentq` on the closed form to ~1e-15 T. For piecewise-linear c the
-functions are linear between breakpoints, so brentq's secant step is exact: events are exact to
-roundoff. For smooth c a gap can touch zero between two samples and come back; every discrete
-local extremum that comes within its curvature bound of zero is refined with a bounded scalar
-minimisation, so tangential contacts are not missed.
+**The next active set** at an event (or at a breakpoint) comes from Moreau's velocity problem:
+the right derivative v = w'(u+) is the M-minimal element of {v : B_T v <= c'_T(u+)}, T the rows
+tight at w; rows with a positive multiplier stay active, rows whose velocity opens a gap leave.
+Rows where that problem is degenerate (tight, zero multiplier: a tangential contact, or a
+release) are decided at the next order, by the same projection with c'' (the rows already
+decided active as equalities), and so on: on a piece w^(k) = R_A c_A^(k) and
+lambda^(k-1) = -G_A^{-1} c_A^(k), so the k-th order problem is exactly the velocity problem one
+level up. Rows still degenerate after `DECISION_ORDERS` orders stay tight without slipping
+(their gap and rate vanish identically, as for piecewise-linear offsets). Every such problem is
+solved by the kernel (Clarabel proposes only when its updates do not settle).
 
 **Robustness.** More than ``max_events`` events in one period, or `ZENO_EVENTS` events within
-`ZENO_WINDOW` T of each other (Zeno-like accumulation, or an active set that cannot be decided),
-stops the run with an `EventError` that names the time and the constraints involved.
+`ZENO_WINDOW` T of each other (a genuine Zeno accumulation), stops the run with an `EventError`
+naming the time and the constraints involved.
 
 The stepper reports each period on the process grid ``process.times``, like catch-up: w at the
 grid times, and in ``multipliers[j]`` the exact integral of lambda over [t_j, t_{j+1}] (plus any
-jump), so every analysis of `crawlsim.analysis` applies unchanged and v0 is exact. The grid only
-samples the solution; its accuracy does not depend on it. The exact trajectory at the event
-times is in ``PeriodRecord.events``.
+jump), so every analysis of `crawlsim.analysis` applies unchanged and v0 is exact. Every sampled
+state and slip integral is certified with the kernel's tolerance policy. The trajectory at the
+event times is in ``PeriodRecord.events``.
 """
 
 from __future__ import annotations
 
+import math
 import warnings
 from collections import deque
 from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
-from scipy.optimize import brentq, minimize_scalar
 
-from .errors import CertificateError, EventError, LicqWarning
-from .model import GRID_MERGE, SweepingProcess
-from .projection import ActiveSet, ExactProjector, _Dependent
+from .errors import CertificateError, DegenerateModelError, EventError, LicqWarning
+from .kkt import RTOL, ActiveSet, Dependent, Tolerance
+from .model import SweepingProcess
+from .offsets import TWO_PI
+from .projection import ExactProjector
 from .stepping import PeriodRecord
 
-#: Sampling cells per period used to bracket events before brentq refines them.
-BRACKET_CELLS = 1024
 #: Default bound on the number of events in one period.
-MAX_EVENTS = 10_000
+MAX_EVENTS = 100_000
 #: Zeno-like accumulation: this many consecutive events ...
 ZENO_EVENTS = 64
 #: ... within this fraction of the period.
 ZENO_WINDOW = 1e-9
-#: Relative tolerance on gaps (units of c) and multiplier rates for "tight" and "violated".
-EVENT_RTOL = 1e-14
-#: How far ahead (fraction of T) the probe looks to decide degenerate rows at an event.
-PROBE = 1e-6
-#: Nodes of the Gauss-Legendre rule used for left limits of c at breakpoints.
-_GAUSS = np.polynomial.legendre.leggauss(8)
+#: Orders of the velocity problem used to decide degenerate rows at an event.
+DECISION_ORDERS = 4
+#: Sampling cells per cycle and harmonic where no closed form gives the zeros.
+CELLS_PER_CYCLE = 64
 
 
 class EventTrajectory(NamedTuple):
@@ -98,31 +90,22 @@ class EventTrajectory(NamedTuple):
 
 @dataclass(frozen=True, eq=False)
 class _Piece:
-    """w(t) and int lambda on an interval with the active set A fixed (module docstring)."""
+    """w(u) and Lambda_A(u) on an interval with the active set A fixed (module docstring)."""
 
-    t0: float
-    w0: np.ndarray
-    lam0: np.ndarray  # cumulative multipliers since the period start, at t0 (m,)
+    u0: float
     active: ActiveSet
-    tight: np.ndarray  # rows tight at t0 (A0), sorted
+    base: np.ndarray  # (n,) w(u) = base + phi(u) @ Wc
+    Wc: np.ndarray  # (nb, n)
+    lam0: np.ndarray  # (a,) Lambda_A(u) = lam0 - phi(u) @ Y
+    Y: np.ndarray  # (nb, a)
 
-    def at(self, c):
-        """(w, cumulative multipliers) where c (..., m) is c at the wanted times."""
-        A = self.active
-        if A.size == 0:
-            shape = np.shape(c)[:-1]
-            return (np.broadcast_to(self.w0, shape + self.w0.shape).copy(),
-                    np.broadcast_to(self.lam0, shape + self.lam0.shape).copy())
-        residual = A.normals @ self.w0 - np.asarray(c)[..., A.index]
-        w = self.w0 - residual @ A.response.T
-        lam = np.broadcast_to(self.lam0, np.shape(c)).copy()
-        lam[..., A.index] += residual @ A.gram_inv.T
+    def at(self, phi: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
+        """(w, Lambda padded to m rows) at basis values phi (k, nb)."""
+        w = self.base + phi @ self.Wc
+        lam = np.zeros((len(phi), m))
+        if self.active.size:
+            lam[:, self.active.index] = self.lam0 - phi @ self.Y
         return w, lam
-
-    def rates(self, cdot):
-        """lambda_A(t) = -G_A^{-1} c'_A(t) for c'(..., m)."""
-        A = self.active
-        return -np.asarray(cdot)[..., A.index] @ A.gram_inv.T
 
 
 class EventStepper:
@@ -130,110 +113,54 @@ class EventStepper:
 
     Same interface as `crawlsim.stepping.CatchUpStepper`. ``check_every_step=True`` verifies the
     trajectory with Clarabel: every sampled state is projected onto K(t_j) and must be its own
-    projection. ``bracket_cells`` sets the event-bracketing grid, ``max_events`` the bound on
-    events per period, ``zeno_events`` and ``zeno_window`` (fraction of T) the accumulation test.
+    projection. ``max_events`` bounds the events per period, ``zeno_events`` and
+    ``zeno_window`` (fraction of T) set the accumulation test, ``cells_per_cycle`` the sampling
+    where zeros have no closed form.
     """
 
     def __init__(self, process: SweepingProcess, *, check_every_step: bool = False,
-                 bracket_cells: int = BRACKET_CELLS, max_events: int = MAX_EVENTS,
-                 zeno_events: int = ZENO_EVENTS, zeno_window: float = ZENO_WINDOW):
-        if process.offset_function is None or process.offset_rate is None:
+                 max_events: int = MAX_EVENTS, zeno_events: int = ZENO_EVENTS,
+                 zeno_window: float = ZENO_WINDOW, cells_per_cycle: int = CELLS_PER_CYCLE):
+        if process.offset_pieces is None:
             raise EventError(f"{process.name}: the exact integrator needs the closed form of "
-                             "c(t) (offset_function and offset_rate); use --integrator catch-up")
+                             "c(t) that gait and process files provide; use --integrator "
+                             "catch-up")
         self.process = process
-        self._offset = process.offset_function
-        self._offset_rate = process.offset_rate
+        self.poly = process.polyhedron
+        self.pieces = process.offset_pieces
+        self.basis = self.pieces.basis
         self.check_every_step = check_every_step
         self.max_events = int(max_events)
         self.zeno_events, self.zeno_window = int(zeno_events), float(zeno_window)
-        # Crawlers: dependent active normals make the slips undetermined, an error (MODEL.md
-        # §3); generic processes keep their unique point with a LicqWarning, as in catch-up.
-        self._on_dependent = "raise" if process.is_crawler else "warn"
-        self.projector = ExactProjector(process.normals, process.metric, process.scale,
-                                        describe_active=process.describe_active,
-                                        on_dependent=self._on_dependent)
-        self.B = self.projector.B
+        self.cells_per_cycle = int(cells_per_cycle)
+        # Crawlers: non-unique slips are a DegenerateModelError (MODEL.md §3); generic processes
+        # keep their unique point with a LicqWarning, as in catch-up.
+        self.projector = ExactProjector(self.poly, describe_active=process.describe_active,
+                                        on_dependent="raise" if process.is_crawler else "warn")
         self.w = np.array(process.initial, dtype=float)
         self.x = None if process.initial_positions is None else np.array(
             process.initial_positions, dtype=float)
+        self.active = self.poly.empty
         self.period_index = 0
-        self._velocity_projectors: dict[tuple, ExactProjector] = {}
-        T = process.period
-        self._T = T
-        self._prepare_stops()
-        self._prepare_bracket_grid(int(bracket_cells))
-        self.gap_tol = EVENT_RTOL * process.scale
-        gram_scale = float(np.max(np.einsum("ij,jk,ik->i", self.B, self.projector.M_inv, self.B)))
-        self.rate_tol = EVENT_RTOL * self._rate_scale / gram_scale
-
-    # -- per-period constants ---------------------------------------------------------------
-    def _prepare_stops(self):
-        """Breakpoints in (0, T) and T itself, with left limits of c, c' and the jumps of c."""
-        p, T = self.process, self._T
-        bp = np.asarray(p.breakpoints if p.breakpoints is not None else [], dtype=float)
-        bp = np.mod(bp, T)
-        wraps = bool(np.any((bp <= GRID_MERGE * T) | (bp >= T * (1 - GRID_MERGE))))
-        inner = np.unique(bp[(bp > GRID_MERGE * T) & (bp < T * (1 - GRID_MERGE))])
-        # Snap to the grid times the model put them on, so that grid and stops agree exactly.
-        for i, b in enumerate(inner):
-            j = int(np.argmin(np.abs(p.times - b)))
-            if abs(p.times[j] - b) <= 1e-12 * T:
-                inner[i] = p.times[j]
-        stops = np.append(inner, T)
-        is_break = np.append(np.ones(len(inner), bool), wraps)
-        previous = np.concatenate([[0.0], stops[:-1]])
-        right = self._offset(stops)
-        right[-1] = self._offset(np.array([0.0]))[0]
-        left = right.copy()
-        rate_left = self._offset_rate(stops)
-        for i in np.flatnonzero(is_break):
-            left[i], rate_left[i] = self._left_limit(stops[i], previous[i])
-        jump = np.max(np.abs(left - right), axis=1) > EVENT_RTOL * p.scale
-        self.stops, self._stop_is_break = stops, is_break
-        self._c_left, self._cdot_left, self._c_right, self._jump = left, rate_left, right, jump
-
-    def _left_limit(self, stop, previous):
-        """c(stop-) and c'(stop-): c is continuous on (previous, stop), so
-        c(stop-) = c(s) + int_s^stop c' (8-point Gauss-Legendre on a short interval, exact for the
-        piecewise-linear parts), and c'(stop-) by Richardson extrapolation of one-sided samples."""
-        delta = min(1e-3 * self._T, 0.5 * (stop - previous))
-        s = stop - delta
-        nodes, weights = _GAUSS
-        t = s + (nodes + 1) * delta / 2
-        c = self._offset(np.array([s]))[0] + (weights @ self._offset_rate(t)) * delta / 2
-        h = min(1e-9 * self._T, delta / 4)
-        r = self._offset_rate(np.array([stop - h, stop - 2 * h]))
-        return c, 2 * r[0] - r[1]
-
-    def _prepare_bracket_grid(self, cells):
-        p, T = self.process, self._T
-        u = np.linspace(0.0, T, cells + 1)[1:-1]
-        near = np.min(np.abs(u[:, None] - self.stops[None, :]), axis=1) <= 1e-12 * T
-        self._bt = u[~near]
-        self._bc = self._offset(self._bt)
-        self._bcdot = self._offset_rate(self._bt)
-        both = np.vstack([np.abs(self._bcdot), np.abs(self._cdot_left)])
-        self._rate_scale = max(float(np.max(both, initial=0.0)), p.scale / T)
-
-    # -- closed forms ---------------------------------------------------------------------
-    def _c(self, t, stop_index):
-        """c(t) on the current piece, which ends at stops[stop_index] (left limit there)."""
-        stop = self.stops[stop_index]
-        if t >= stop - 1e-11 * self._T:
-            return self._c_left[stop_index] - (stop - t) * self._cdot_left[stop_index]
-        return self._offset(np.array([t]))[0]
-
-    def _cdot(self, t, stop_index):
-        stop = self.stops[stop_index]
-        if t >= stop - 1e-11 * self._T:
-            return self._cdot_left[stop_index]
-        return self._offset_rate(np.array([t]))[0]
+        self._grid = process.cycles
+        edges = self.pieces.edges
+        self._edge_index = np.searchsorted(self._grid, edges)
+        if not np.array_equal(self._grid[self._edge_index], edges):  # pragma: no cover
+            raise EventError(f"{process.name}: internal error, breakpoints off the grid")
+        # c(edge-) and c(edge+) at every inner edge and at the end of the cycle (wrapping to 0)
+        P = self.pieces.pieces
+        self._jump = np.zeros(P + 1, dtype=bool)
+        for p in range(1, P + 1):
+            left = self.pieces.evaluate(edges[p], piece=p - 1)[0]
+            right = self.pieces.evaluate(edges[p] if p < P else 0.0, piece=p % P)[0]
+            self._jump[p] = np.max(np.abs(left - right)) > 100 * RTOL * self.poly.c_scale
 
     # -- one period -------------------------------------------------------------------------
     def step_period(self) -> PeriodRecord:
         """Advance by one period and return its record, sampled on ``process.times``."""
-        p, T = self.process, self._T
-        G, n, m = p.steps, p.normals.shape[1], p.normals.shape[0]
+        p, T = self.process, self.process.period
+        poly, pieces = self.poly, self.pieces
+        G, n, m = p.steps, poly.n, poly.m
         start = self.period_index * T
         calls0 = self.projector.clarabel_calls
         W = np.empty((G + 1, n))
@@ -242,224 +169,344 @@ class EventStepper:
         j = 1
         ev_t, ev_w, ev_lam = [], [], []
         recent: deque[float] = deque(maxlen=self.zeno_events)
-        t, w, lam = 0.0, self.w.copy(), np.zeros(m)
+        u, w, lam_cum = 0.0, self.w.copy(), np.zeros(m)
         forced = np.zeros(0, dtype=int)
-        stop_index = 0
-        c_now, cdot_now = self._c_right[-1], self._offset_rate(np.array([0.0]))[0]
+        piece_index = 0
+        edges = pieces.edges
         while True:
-            ev_t.append(t)
+            ev_t.append(u)
             ev_w.append(w)
-            ev_lam.append(lam)
-            self._guard(len(ev_t), recent, t, start, forced)
-            stop = self.stops[stop_index]
-            piece = self._start_piece(t, w, lam, c_now, cdot_now, forced, stop, stop_index,
-                                      start)
-            event = self._next_event(piece, stop_index)
-            if event is None:
-                t_e = stop
-                c_e = self._c_left[stop_index]
-            else:
-                t_e, forced = event
-                c_e = self._c(t_e, stop_index)
-            while j <= G and p.times[j] < t_e:
-                W[j], LAMC[j] = piece.at(p.offsets[j])
-                j += 1
-            w, lam = piece.at(c_e)
-            t = t_e
+            ev_lam.append(lam_cum)
+            self._guard(len(ev_t), recent, u, start, forced)
+            time = start + u * T
+            self.active = self._decide(u, w, piece_index, forced, time)
+            piece = self._piece(self.active, w, piece_index, u)
+            u_end = edges[piece_index + 1]
+            event = self._next_event(piece, piece_index, u, u_end)
+            u_e = u_end if event is None else event[0]
+            # sample the grid times in (u, u_e]
+            j_end = int(np.searchsorted(self._grid, u_e, side="right"))
+            if j_end > j:
+                phi = self.basis.values(self._grid[j:j_end])
+                Wg, Lg = piece.at(phi, m)
+                W[j:j_end] = Wg
+                LAMC[j:j_end] = lam_cum + Lg
+                self._certify_piece(Wg, LAMC[j - 1:j_end], piece, phi, piece_index, start + self._grid[j:j_end] * T)
+                j = j_end
+            w_e, lam_e = piece.at(self.basis.values(u_e), m)
+            w, lam_cum = w_e[0], lam_cum + lam_e[0]
+            u = u_e
             if event is not None:
-                c_now, cdot_now = c_e, self._cdot(t_e, stop_index)
+                forced = event[1]
                 continue
             forced = np.zeros(0, dtype=int)
-            if self._jump[stop_index]:
-                proj = self.projector.project(w, self._c_right[stop_index], time=start + stop)
-                w, lam = proj.point, lam + proj.multipliers
-            if j <= G and p.times[j] == stop:
-                W[j], LAMC[j] = w, lam
-                j += 1
-            if stop_index == len(self.stops) - 1:
+            edge = piece_index + 1
+            if self._jump[edge]:
+                target = pieces.evaluate(u if edge < pieces.pieces else 0.0,
+                                         piece=edge % pieces.pieces)[0]
+                proj = self.projector.project(w, target, time=start + u * T, warm=self.active)
+                w, lam_cum = proj.point, lam_cum + proj.multipliers
+                self.active = proj.active
+                je = self._edge_index[edge]
+                W[je], LAMC[je] = w, lam_cum
+            if edge == pieces.pieces:
                 break
-            c_now = self._c_right[stop_index]
-            cdot_now = self._offset_rate(np.array([stop]))[0]
-            stop_index += 1
-        if j != G + 1:  # pragma: no cover - the grid ends at T, which is the last stop
+            piece_index = edge
+        if j != G + 1:  # pragma: no cover - the grid ends at 1, the last edge
             raise EventError(f"{p.name}: internal error, sampled {j} of {G + 1} grid times")
 
         multipliers = np.diff(LAMC, axis=0)
-        self._certify(W, multipliers, start)
+        if self.check_every_step:
+            self._verify(W, start)
         X = x_events = None
         if self.x is not None:
-            assert p.slip_map is not None
-            X = self.x + LAMC @ p.slip_map.T
-            x_events = self.x + np.array(ev_lam) @ p.slip_map.T
+            X = self.x + p.slips(LAMC)
+            x_events = self.x + p.slips(np.array(ev_lam))
             self.x = X[-1].copy()
         self.w = W[-1].copy()
-        events = EventTrajectory(start + np.array(ev_t), np.array(ev_w), x_events)
+        events = EventTrajectory(start + np.array(ev_t) * T, np.array(ev_w), x_events)
         record = PeriodRecord(self.period_index, start, W, multipliers, X,
                               self.projector.clarabel_calls - calls0, events=events)
         self.period_index += 1
         return record
 
-    def _guard(self, count, recent, t, start, rows):
+    def _guard(self, count, recent, u, start, rows):
         """Stop on too many events in a period or on Zeno-like accumulation."""
         p = self.process
         if count > self.max_events:
             raise EventError(
                 f"{p.name}: more than {self.max_events} events in period {self.period_index} "
-                f"(at t = {start + t:.12g}); the active set keeps changing. Raise max_events, or "
-                "use --integrator catch-up")
-        recent.append(t)
-        if len(recent) == self.zeno_events and recent[-1] - recent[0] <= self.zeno_window * self._T:
+                f"(at t = {start + u * p.period:.12g}); the active set keeps changing. Raise "
+                "max_events, or use --integrator catch-up")
+        recent.append(u)
+        if len(recent) == self.zeno_events and recent[-1] - recent[0] <= self.zeno_window:
             raise EventError(
                 f"{p.name}: Zeno-like accumulation of events: {self.zeno_events} events within "
-                f"{recent[-1] - recent[0]:.3g} time units near t = {start + t:.15g} "
-                f"(last constraints involved: {p.describe_active(rows)}). The exact integrator "
-                "cannot pass this point; use --integrator catch-up")
+                f"{(recent[-1] - recent[0]) * p.period:.3g} time units near t = "
+                f"{start + u * p.period:.15g} (last constraints involved: "
+                f"{p.describe_active(rows)}). The exact integrator cannot pass this point; use "
+                "--integrator catch-up")
 
-    # -- an event: velocity problem and the next active set ---------------------------------
-    def _start_piece(self, t, w, lam, c, cdot, forced, stop, stop_index, start) -> _Piece:
-        """The piece from an event: A0 = rows tight at w (and the rows that just hit), A from
-        the velocity problem, then degenerate rows decided by the probe (module docstring)."""
-        h = self.B @ w - c
-        tight = np.union1d(np.flatnonzero(h >= -self.gap_tol), forced).astype(int)
-        A = self._velocity_active(tight, cdot, start + t)
-        probe = t + min(PROBE * self._T, 0.5 * (stop - t))
-        c_p, cdot_p = self._c(probe, stop_index), self._cdot(probe, stop_index)
-        for _ in range(2 * len(tight) + 2):
-            piece = _Piece(t, w, lam, self._active_set(A, start + t), tight)
-            w_p, _ = piece.at(c_p)
-            gap = (self.B @ w_p - c_p)[tight]
-            rate = piece.rates(cdot_p)
-            add = tight[(gap > self.gap_tol) & ~np.isin(tight, A)]
-            drop = A[rate < -self.rate_tol]
-            if add.size == 0 and drop.size == 0:
-                return piece
-            A = np.union1d(np.setdiff1d(A, drop), add).astype(int)
-        raise EventError(
-            f"{self.process.name}: a tangential contact at t = {start + t:.15g} could not be "
-            f"resolved ({self.process.describe_active(tight)} tight, no consistent active set); "
-            "use --integrator catch-up")
+    # -- an event: the next active set, order by order ----------------------------------------
+    def _decide(self, u: float, w: np.ndarray, piece_index: int, forced: np.ndarray,
+                time: float) -> ActiveSet:
+        """The active set on (u, u + eps) from the velocity problems (module docstring)."""
+        poly = self.poly
+        coef = self.pieces.coefficients(piece_index)
+        c0 = (self.basis.values(u) @ coef)[0]
+        slack = poly.apply(w) - c0
+        tol = poly._tolerance1(poly.empty, c0, w, np.zeros(0))
+        tight = np.union1d(np.flatnonzero(slack >= -tol.primal), forced).astype(int)
+        if not tight.size:
+            return poly.empty
+        if self.projector.on_dependent == "warn" and not poly.licq_verified(tight):
+            self.projector.record_licq(tight, time)  # generic processes: a warning, once
+        fixed = np.zeros(0, dtype=int)
+        candidates = tight
+        warm = np.intersect1d(self.active.index, tight)
+        for order in range(1, DECISION_ORDERS + 1):
+            ck = (self.basis.values(u, order) @ coef)[0]
+            c = np.full(poly.m, np.inf)
+            rows = np.union1d(fixed, candidates)
+            c[rows] = ck[rows]
+            step = self._velocity(c, np.union1d(fixed, np.intersect1d(warm, candidates)),
+                                  fixed, time)
+            nu = step.multipliers
+            opening = poly.apply(step.point) - ck
+            vtol = step.tolerance
+            positive = candidates[nu[candidates] > vtol.dual]
+            leaving = candidates[opening[candidates] < -vtol.primal]
+            fixed = np.union1d(fixed, positive)
+            candidates = np.setdiff1d(candidates, np.union1d(positive, leaving))
+            if not candidates.size:
+                break
+        try:
+            return poly.factor(fixed)
+        except Dependent:
+            raise DegenerateModelError("", "", self.projector.degenerate_message(fixed, time)) \
+                from None
 
-    def _velocity_active(self, tight, cdot, time):
-        """Rows with a positive multiplier in the velocity problem
-        min 1/2 |u|_M^2 s.t. B_A0 u <= c'_A0 (A0 = ``tight``), certified."""
-        if tight.size == 0:
-            return tight
-        key = tuple(tight.tolist())
-        vp = self._velocity_projectors.get(key)
-        if vp is None:
-            describe = self.process.describe_active
-            vp = ExactProjector(self.B[tight], self.process.metric, self._rate_scale,
-                                describe_active=lambda idx: describe(tight[np.asarray(idx, int)]),
-                                on_dependent=self._on_dependent)
-            self._velocity_projectors[key] = vp
-        calls, known = vp.clarabel_calls, set(vp.licq_failures)
+    def _velocity(self, c: np.ndarray, warm: np.ndarray, fixed: np.ndarray,
+                  time: float) -> _Velocity:
+        """argmin 1/2 |v|_M^2 over {B_fixed v = c_fixed, B_i v <= c_i (finite c_i)}: the
+        kernel's updates from ``warm``, Clarabel's proposal when they do not settle."""
+        poly = self.poly
+        zero = np.zeros(poly.n)
+        step = poly.refine(zero, c, warm, fixed=fixed)
+        if step is not None:
+            return _Velocity(step.point, step.multipliers, step.certificate.tolerance)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", LicqWarning)
-            sol = vp.project(np.zeros(self.B.shape[1]), cdot[tight], time=time)
-        self.projector.clarabel_calls += vp.clarabel_calls - calls  # one tally for `simulate`
-        for local in set(vp.licq_failures) - known:  # warn once, in the process's row numbers
-            self.projector._record_licq(tight[list(local)], time)
-        return tight[sol.multipliers > self.rate_tol]
+            proj = self.projector.project(zero, c, time=time, warm=warm, fixed=fixed)
+        _, _, _, tol = poly.solve_on(proj.active, zero, c)
+        return _Velocity(proj.point, proj.multipliers, tol)
 
-    def _active_set(self, A, time):
-        try:
-            return self.projector.active_set(A)
-        except _Dependent as dep:
-            raise CertificateError(self.projector._licq_message(dep.index, time)) from None
+    # -- a piece: w(u), Lambda(u), and the functions whose zeros are events ---------------------
+    def _piece(self, active: ActiveSet, w0: np.ndarray, piece_index: int, u0: float) -> _Piece:
+        poly = self.poly
+        coef = self.pieces.coefficients(piece_index)
+        nb = self.basis.size
+        if not active.size:
+            return _Piece(u0, active, w0.copy(), np.zeros((nb, poly.n)), np.zeros(0),
+                          np.zeros((nb, 0)))
+        idx = active.index
+        lam0 = active.solve(poly.apply(w0)[idx])
+        Y = active.solve(coef[:, idx])
+        pad = np.zeros(poly.m)
+        pad[idx] = lam0
+        base = w0 - poly.respond(pad)
+        padY = np.zeros((nb, poly.m))
+        padY[:, idx] = Y
+        return _Piece(u0, active, base, poly.respond(padY), lam0, Y)
 
-    # -- locating the next event ------------------------------------------------------------
-    def _next_event(self, piece: _Piece, stop_index):
-        """(time, rows newly tight) of the first event in (t0, stop), or None if there is none."""
-        stop = self.stops[stop_index]
-        t0 = piece.t0
-        probe = t0 + min(PROBE * self._T, 0.5 * (stop - t0))
-        lo, hi = np.searchsorted(self._bt, [probe, stop], side="right")
-        S = np.concatenate([[probe], self._bt[lo:hi], [stop]])
-        S = S[S <= stop]
-        C = np.vstack([self._c(probe, stop_index)[None], self._bc[lo:hi],
-                       self._c_left[stop_index][None]])[:len(S)]
-        Cd = np.vstack([self._cdot(probe, stop_index)[None], self._bcdot[lo:hi],
-                        self._cdot_left[stop_index][None]])[:len(S)]
-        A = piece.active
-        inactive = np.setdiff1d(np.arange(self.B.shape[0]), A.index)
-        Wt, _ = piece.at(C)
-        # Violation functions, scaled so that the tolerance is EVENT_RTOL: gaps, negative rates.
-        V = np.hstack([(Wt @ self.B[inactive].T - C[:, inactive]) / self.gap_tol,
-                       -piece.rates(Cd) / self.rate_tol])
-        rows = np.concatenate([inactive, A.index])
-        kinds = np.concatenate([np.zeros(len(inactive), int), np.ones(A.size, int)])
-
-        def f(r):
-            row, kind = rows[r], kinds[r]
-            if kind == 0:
-                def gap(t):
-                    c = self._c(t, stop_index)
-                    w, _ = piece.at(c)
-                    return (self.B[row] @ w - c[row]) / self.gap_tol
-                return gap
-            k = int(np.searchsorted(A.index, row))
-
-            def negative_rate(t):
-                return -piece.rates(self._cdot(t, stop_index))[k] / self.rate_tol
-            return negative_rate
-
-        candidates = []
-        bad = V > 1.0
-        first = int(np.argmax(np.any(bad, axis=1))) if np.any(bad) else len(S)
-        for r in np.flatnonzero(bad[first]) if first < len(S) else ():
-            left = S[first - 1] if first > 0 else t0
-            candidates.append((self._root(f(r), left, S[first]), r))
-        # Touch-and-go: a discrete local maximum of a violation function that may cross the
-        # tolerance between samples. Near a maximum the excess over the best sample is at most
-        # about |f''| h^2 / 8, and the second difference estimates |f''| h^2: 8x margin.
-        end = min(first, len(S) - 1)
-        if end >= 2:
-            Vs = V[:end + 1]
-            mid = Vs[1:-1]
-            second = np.abs(Vs[2:] - 2 * mid + Vs[:-2])
-            peak = (mid >= Vs[:-2]) & (mid >= Vs[2:]) & (mid + second > 1.0)
-            for i, r in zip(*np.nonzero(peak)):
-                g = f(r)
-                a, b = S[i], S[i + 2]
-                top = minimize_scalar(lambda t, g=g: -g(t), bounds=(a, b), method="bounded",
-                                      options={"xatol": 1e-15 * self._T})
-                if -top.fun > 1.0:
-                    candidates.append((self._root(g, a, float(top.x)), r))
-        if not candidates:
+    def _next_event(self, piece: _Piece, piece_index: int, u0: float, u1: float):
+        """(u, rows newly tight) of the first event in (u0, u1), or None if there is none."""
+        poly, basis = self.poly, self.basis
+        coef = self.pieces.coefficients(piece_index)
+        idx = piece.active.index
+        inactive = np.ones(poly.m, dtype=bool)
+        inactive[idx] = False
+        # gap(u) = phi(u) @ Gc, with the constant part in column 0
+        Gc = poly.apply(piece.Wc) - coef
+        Gc[0] += poly.apply(piece.base)
+        gaps = Gc[:, inactive]
+        w_size = float(np.max(np.abs(piece.base)) + np.sum(np.max(np.abs(piece.Wc), axis=1)))
+        c_size = float(np.max(np.sum(np.abs(coef), axis=0)))
+        size = max(poly.c_scale, c_size, poly.row_norm * w_size)
+        tol_gap = RTOL * size
+        rows = np.flatnonzero(inactive)
+        Z = gaps
+        tol = np.full(gaps.shape[1], tol_gap)
+        kinds = np.zeros(gaps.shape[1], dtype=bool)  # True: a release
+        if idx.size:
+            R = basis.derivative(piece.Y)  # -dLambda/du = phi(u) @ R
+            scale = float(np.max(np.sum(np.abs(R), axis=0)))
+            tol_rate = RTOL * max(scale, piece.active.inverse_norm * c_size * TWO_PI)
+            Z = np.hstack([gaps, R])
+            tol = np.concatenate([tol, np.full(R.shape[1], tol_rate)])
+            rows = np.concatenate([rows, idx])
+            kinds = np.concatenate([kinds, np.ones(R.shape[1], dtype=bool)])
+        if not Z.shape[1]:
             return None
-        t_e = min(tc for tc, _ in candidates)
-        hit = [rows[r] for tc, r in candidates
-               if kinds[r] == 0 and tc <= t_e + 1e-14 * self._T]
-        return t_e, np.array(sorted(hit), dtype=int)
+        crossing = self._crossings(Z, tol, u0, u1)
+        first = float(np.min(crossing))
+        if not first < u1:
+            return None
+        hit = rows[(~kinds) & (crossing <= first + 1e-13)]
+        return first, np.sort(hit)
 
-    def _root(self, g, a, b):
-        """First zero of g in [a, b] with g(b) > 0: brentq, or a itself if g(a) >= 0."""
-        ga = g(a)
-        if ga >= 0:
-            return a
-        return brentq(g, a, b, xtol=1e-15 * self._T, rtol=4 * np.finfo(float).eps)
+    # -- zeros -------------------------------------------------------------------------------
+    def _crossings(self, Z: np.ndarray, tol: np.ndarray, u0: float, u1: float) -> np.ndarray:
+        """For each column f = phi @ Z[:, r]: the first u in (u0, u1) where f crosses zero
+        upwards and goes on to exceed tol[r] (inf when it does not before u1)."""
+        b = self.basis
+        out = np.full(Z.shape[1], np.inf)
+        if b.size == 1:
+            return out  # constants: nothing happens inside a piece
+        if b.harmonics == 0:
+            return self._linear(Z, tol, u0, u1)
+        if b.harmonics == 1 and not b.linear:
+            lin = np.zeros_like(Z[0])
+            return self._harmonic(Z[0], lin, Z[1], Z[2], tol, u0, u1)
+        if b.harmonics == 1 and b.linear:
+            pure = Z[1] == 0.0  # no linear part in this function: closed form
+            out[pure] = self._harmonic(Z[0, pure], Z[1, pure], Z[2, pure], Z[3, pure],
+                                       tol[pure], u0, u1)
+            rest = np.flatnonzero(~pure)
+            if rest.size:
+                out[rest] = self._sampled(Z[:, rest], tol[rest], u0, u1)
+            return out
+        return self._sampled(Z, tol, u0, u1)
 
-    # -- certificate of the sampled period ---------------------------------------------------
-    def _certify(self, W, multipliers, start):
-        """Every sampled state is in K(t_j), every interval's slip integral is >= 0 (to
-        roundoff); with ``check_every_step`` Clarabel confirms each state is its own projection."""
-        p = self.process
-        slack = W @ self.B.T - p.offsets
-        worst = float(np.max(slack))
-        dual = float(-np.min(multipliers, initial=0.0))
-        tol_primal = 100 * self.projector.tol.primal
-        tol_dual = 100 * self.projector.tol.dual
-        if worst > tol_primal or dual > tol_dual:
-            j = int(np.argmax(np.max(slack, axis=1)))
+    @staticmethod
+    def _progress(zero: np.ndarray, over: np.ndarray, u0: float) -> np.ndarray:
+        """The event time: the zero crossing, unless roundoff puts it at u0 or before (a row
+        tight at the start): then the time it exceeds its tolerance, strictly after u0."""
+        return np.where(zero > u0, zero, over)
+
+    def _linear(self, Z, tol, u0, u1):
+        a, s = Z[0], Z[1]
+        out = np.full(Z.shape[1], np.inf)
+        up = s > 0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            zero = -a / s
+            over = (tol - a) / s
+        ok = up & (over < u1) & (over > u0)
+        out[ok] = self._progress(zero[ok], over[ok], u0)
+        return out
+
+    def _harmonic(self, a, lin, alpha, beta, tol, u0, u1):
+        """f(u) = a + alpha cos 2 pi u + beta sin 2 pi u = a + rho cos(theta - phi)."""
+        out = np.full(a.shape, np.inf)
+        rho = np.hypot(alpha, beta)
+        phase = np.arctan2(beta, alpha)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x_over = (tol - a) / rho
+            x_zero = -a / rho
+        can = (rho > 0) & (x_over < 1.0)
+        if not can.any():
+            return out
+        b_over = np.arccos(np.clip(x_over[can], -1.0, 1.0))
+        b_zero = np.arccos(np.clip(x_zero[can], -1.0, 1.0))
+        th0 = TWO_PI * u0
+        ph = phase[can]
+        # the arc where f > tol that ends at or after theta0: [ph - b_over, ph + b_over] + 2 pi k
+        k = np.ceil((th0 - (ph + b_over)) / TWO_PI)
+        start = ph - b_over + TWO_PI * k
+        inside = start <= th0
+        # inside the arc already (f > tol at u0, a decision just made it so): the next arc
+        k = np.where(inside, k + 1, k)
+        start = ph - b_over + TWO_PI * k
+        zero = ph - b_zero + TWO_PI * k
+        t = self._progress(zero / TWO_PI, start / TWO_PI, u0)
+        res = np.where(t < u1, t, np.inf)
+        out[can] = res
+        return out
+
+    def _sampled(self, Z, tol, u0, u1):
+        """Certified sampling: samples every 1/(64 H) cycle; between two samples f can exceed
+        its tolerance only if the larger sample plus h^2/8 max|f''| does (the linear
+        interpolant's error bound), so only such cells are refined (brentq, or a bounded
+        maximisation for a touch between samples)."""
+        from scipy.optimize import brentq, minimize_scalar
+
+        b = self.basis
+        out = np.full(Z.shape[1], np.inf)
+        cells = max(4, int(math.ceil((u1 - u0) * self.cells_per_cycle * max(b.harmonics, 1))))
+        s = np.linspace(u0, u1, cells + 1)
+        F = b.values(s) @ Z
+        h = (u1 - u0) / cells
+        bound = h * h / 8.0 * b.curvature_bound(Z)
+        suspect = np.maximum(F[:-1], F[1:]) + bound > tol
+        for r in np.flatnonzero(suspect.any(axis=0)):
+            z, t = Z[:, r], float(tol[r])
+
+            def f(x, z=z):
+                return float((b.values(x) @ z)[0])
+
+            for k in np.flatnonzero(suspect[:, r]):
+                left, right = float(s[k]), float(s[k + 1])
+                if F[k, r] > t:
+                    continue  # above its tolerance from the start of the cell: not a crossing
+                if F[k + 1, r] > t:
+                    top = right
+                else:
+                    res = minimize_scalar(lambda x, f=f: -f(x), bounds=(left, right),
+                                          method="bounded", options={"xatol": 1e-15})
+                    if -res.fun <= t:
+                        continue
+                    top = float(res.x)
+                over = brentq(lambda x, f=f, t=t: f(x) - t, left, top, xtol=1e-15)
+                below = np.flatnonzero(F[:k + 1, r] < 0.0)
+                zero = u0
+                if below.size:
+                    a = float(s[below[-1]])
+                    zero = brentq(f, a, over, xtol=1e-15) if f(a) < 0.0 < f(over) else a
+                out[r] = zero if zero > u0 else max(over, np.nextafter(u0, u1))
+                break
+        out[out >= u1] = np.inf
+        return out
+
+    # -- certificate of the sampled trajectory ---------------------------------------------------
+    def _certify_piece(self, Wg, LAMC, piece: _Piece, phi, piece_index, times):
+        """Every sampled state is in K(t_j) and the slip integrals between samples are >= 0,
+        to roundoff (the kernel's tolerance policy)."""
+        poly = self.poly
+        C = phi @ self.pieces.coefficients(piece_index)
+        slack = poly.apply(Wg) - C
+        lam = np.diff(LAMC, axis=0)
+        tol = poly.tolerance(piece.active, np.max(np.abs(C), axis=1),
+                             np.max(np.abs(Wg), axis=1), np.max(np.abs(LAMC[1:]), axis=1))
+        primal = np.max(slack, axis=1)
+        dual = -np.min(lam, axis=1, initial=0.0)
+        idx = piece.active.index
+        comp = np.max(np.abs(slack[:, idx]), axis=1, initial=0.0)
+        bad = (primal > tol.primal) | (dual > tol.dual) | (comp > tol.primal)
+        if bad.any():
+            i = int(np.argmax(bad))
             raise CertificateError(
-                f"{p.name}: the exact trajectory failed its certificate in period "
-                f"{self.period_index}: constraint violation {worst:.3g} (tolerance "
-                f"{tol_primal:.3g}) at t = {start + p.times[j]:.12g}, negative slip integral "
-                f"{dual:.3g} (tolerance {tol_dual:.3g})")
-        if self.check_every_step:
-            for j in range(len(W)):
-                proj = self.projector.project(W[j], p.offsets[j], time=start + p.times[j])
-                if np.max(np.abs(proj.point - W[j])) > tol_primal:
-                    raise CertificateError(
-                        f"{p.name}: Clarabel moves the exact state at t = "
-                        f"{start + p.times[j]:.12g} by {np.max(np.abs(proj.point - W[j])):.3g}")
+                f"{self.process.name}: the exact trajectory failed its certificate at t = "
+                f"{times[i]:.12g}: constraint violation {primal[i]:.3g}, negative slip "
+                f"integral {dual[i]:.3g} (tolerance {float(tol.primal[i]):.3g} / "
+                f"{float(tol.dual[i]):.3g}), complementarity {comp[i]:.3g}")
+
+    def _verify(self, W, start):
+        """``check_every_step``: Clarabel confirms every sampled state is its own projection."""
+        p = self.process
+        for j in range(len(W)):
+            proj = self.projector.project(W[j], p.offsets[j], time=start + p.times[j],
+                                          verify=True)
+            moved = float(np.max(np.abs(proj.point - W[j])))
+            tol = self.poly._tolerance1(proj.active, p.offsets[j], W[j], proj.multipliers)
+            if moved > 100 * tol.primal:
+                raise CertificateError(f"{p.name}: Clarabel moves the exact state at t = "
+                                       f"{start + p.times[j]:.12g} by {moved:.3g}")
+
+
+@dataclass(frozen=True, eq=False)
+class _Velocity:
+    """A velocity problem solved by the projector: point, multipliers, tolerance."""
+
+    point: np.ndarray
+    multipliers: np.ndarray
+    tolerance: Tolerance

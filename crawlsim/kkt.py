@@ -80,8 +80,8 @@ class Dependent(Exception):
 class Tolerance:
     """Absolute certificate tolerances: on B w - c (units of c) and on lambda."""
 
-    primal: float
-    dual: float
+    primal: Any  # a float, or an array of them for a run of steps
+    dual: Any
 
 
 @dataclass(frozen=True)
@@ -383,9 +383,13 @@ class Polyhedron:
         return Tolerance(RTOL * size, 2.0 * dual)
 
     def certify(self, slack: np.ndarray, lam: np.ndarray, active: ActiveSet,
-                tol: Tolerance) -> Certificate:
-        """The certificate of one step from its slack B w - c and multipliers."""
+                tol: Tolerance, fixed: np.ndarray | None = None) -> Certificate:
+        """The certificate of one step from its slack B w - c and multipliers. Rows ``fixed``
+        are equalities: their multipliers may have either sign."""
         comp = float(np.max(np.abs(slack[active.index]), initial=0.0))
+        if fixed is not None and len(fixed):
+            lam = lam.copy()
+            lam[fixed] = 0.0
         return Certificate(float(np.max(slack, initial=-np.inf)),
                            float(-np.min(lam, initial=0.0)), comp, tol)
 
@@ -398,16 +402,21 @@ class Polyhedron:
 
     # -- primal-dual active-set updates ------------------------------------------------------
     def refine(self, w_trial: np.ndarray, c: np.ndarray, start: ActiveSet | tuple | np.ndarray,
-               *, iterations: int = UPDATE_ITERATIONS, single: bool = False) -> Step | None:
+               *, iterations: int = UPDATE_ITERATIONS, single: bool = False,
+               fixed: np.ndarray | None = None) -> Step | None:
         """A certified step from the active set ``start``, by primal-dual active-set updates,
         or None when they do not settle (then Clarabel proposes a set).
 
         Each update drops the rows whose multiplier is negative beyond tolerance and adds the
         rows violated beyond tolerance (all at once; ``single=True`` moves only the worst row,
         the slower but more cautious variant). A certified KKT point of this strictly convex
-        problem *is* the projection, so how the set was found does not matter.
+        problem *is* the projection, so how the set was found does not matter. Rows ``fixed``
+        are equality constraints (always active, multipliers of either sign).
         """
         seen: set[tuple[int, ...]] = set()
+        if fixed is not None and len(fixed):
+            base = start.index if isinstance(start, ActiveSet) else np.asarray(start, dtype=int)
+            start = np.union1d(base, fixed)
         try:
             active = start if isinstance(start, ActiveSet) else self.factor(start)
         except Dependent:
@@ -418,10 +427,10 @@ class Polyhedron:
                 return None
             seen.add(key)
             w, lam, slack, tol = self.solve_on(active, w_trial, c)
-            cert = self.certify(slack, lam, active, tol)
+            cert = self.certify(slack, lam, active, tol, fixed)
             if cert.ok:
                 return Step(w, lam, active, cert)
-            index = self.update_set(active, lam, slack, tol, single=single)
+            index = self.update_set(active, lam, slack, tol, single=single, fixed=fixed)
             if index is None:
                 return None  # complementarity failed even after refinement
             try:
@@ -431,12 +440,14 @@ class Polyhedron:
         return None
 
     def update_set(self, active: ActiveSet, lam: np.ndarray, slack: np.ndarray, tol: Tolerance,
-                   *, single: bool = False) -> np.ndarray | None:
+                   *, single: bool = False, fixed: np.ndarray | None = None) -> np.ndarray | None:
         """The next active set of a primal-dual update: drop the rows whose multiplier is
-        negative beyond tolerance, add the rows violated beyond tolerance (``single``: only the
-        worst one); None when nothing is to change."""
+        negative beyond tolerance (never a ``fixed`` row), add the rows violated beyond
+        tolerance (``single``: only the worst one); None when nothing is to change."""
         idx = active.index
         drop = idx[lam[idx] < -tol.dual]
+        if fixed is not None and len(fixed):
+            drop = drop[~np.isin(drop, fixed)]
         violated = np.flatnonzero(slack > tol.primal)
         violated = violated[~np.isin(violated, idx)]
         if single:

@@ -21,13 +21,13 @@ Everything time-dependent is tabulated once on the period's grid, vectorised ove
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from .gait import Gait, ProcessSpec
 from .kkt import ChainPolyhedron, DensePolyhedron, Polyhedron
+from .offsets import PiecewiseOffsets
 from .signals import evaluate_many
 
 #: Grid times closer than this (in cycles) to a breakpoint are merged into the breakpoint.
@@ -52,10 +52,16 @@ class SweepingProcess:
     stress_offset: np.ndarray | None = None  # K L(t) on the grid (G+1, n): stress = w + K L
     friction: np.ndarray | None = None  # [mu^+, mu^-] on the grid (G+1, m): dissipation weights
     lengths: np.ndarray | None = None  # L(t) on the grid (G+1, N-1)
-    # The closed form of c(t), for integrators that leave the grid (event-driven, plots):
-    offset_function: Callable[[np.ndarray], np.ndarray] | None = None  # t (k,) -> c(t) (k, m)
-    offset_rate: Callable[[np.ndarray], np.ndarray] | None = None  # t (k,) -> dc/dt (k, m)
+    # The closed form of c(t) piece by piece, for integrators that leave the grid (exact):
+    offset_pieces: PiecewiseOffsets | None = None
     breakpoints: np.ndarray | None = None  # times in [0, T) where c has a kink or a jump
+
+    @property
+    def cycles(self) -> np.ndarray:
+        """The grid in cycles t / T, exactly as built (breakpoints are grid points)."""
+        return self._cycles if self._cycles is not None else self.times / self.period
+
+    _cycles: np.ndarray | None = None
 
     @property
     def steps(self) -> int:
@@ -126,6 +132,13 @@ def _scale(offsets: np.ndarray, initial: np.ndarray) -> float:
     return float(max(np.max(np.abs(offsets)), np.max(np.abs(initial)), 1e-300))
 
 
+def piece_edges(breakpoints) -> np.ndarray:
+    """Edges of the pieces of one cycle between breakpoints: exactly the grid's breakpoints."""
+    bp = np.asarray(breakpoints, dtype=float)
+    bp = np.unique(bp[(bp > GRID_MERGE) & (bp < 1.0 - GRID_MERGE)])
+    return np.concatenate([[0.0], bp, [1.0]])
+
+
 def compile_gait(gait: Gait, steps_per_period: int | None = None) -> SweepingProcess:
     """The shape-space sweeping process of a crawler gait on its time grid (MODEL.md §2)."""
     G = steps_per_period or gait.simulation.steps_per_period
@@ -138,19 +151,15 @@ def compile_gait(gait: Gait, steps_per_period: int | None = None) -> SweepingPro
     DtKL = _forces(KL)  # D^T K L, O(N) per row
     offsets = np.hstack([mu_f - DtKL, mu_b + DtKL])
     T = float(gait.period)
+    N = gait.blocks
 
-    def offset_function(t):
-        u = np.asarray(t, dtype=float) / T
-        DtKL_t = _forces(evaluate_many(gait.links, u) * k)
-        return np.hstack([evaluate_many(gait.forward, u) - DtKL_t,
-                          evaluate_many(gait.backward, u) + DtKL_t])
+    def combine(coef):
+        """c = [mu^+ - D^T K L; mu^- + D^T K L] from the signals' coefficients (nb, S)."""
+        DtKL_c = _forces(coef[:, :N - 1] * k)
+        return np.hstack([coef[:, N - 1:2 * N - 1] - DtKL_c, coef[:, 2 * N - 1:] + DtKL_c])
 
-    def offset_rate(t):
-        u = np.asarray(t, dtype=float) / T
-        DtKLdot = _forces(_rates(gait.links, u) * k)
-        return np.hstack([_rates(gait.forward, u) - DtKLdot,
-                          _rates(gait.backward, u) + DtKLdot]) / T
-
+    pieces = PiecewiseOffsets(gait.links + gait.forward + gait.backward, combine,
+                              piece_edges(gait.breakpoints()))
     x0 = np.asarray(gait.initial_positions, dtype=float)
     w0 = -k * np.diff(x0)  # w = -K z, z = D x
     return SweepingProcess(
@@ -165,9 +174,9 @@ def compile_gait(gait: Gait, steps_per_period: int | None = None) -> SweepingPro
         stress_offset=KL,
         friction=np.hstack([mu_f, mu_b]),
         lengths=L,
-        offset_function=offset_function,
-        offset_rate=offset_rate,
+        offset_pieces=pieces,
         breakpoints=np.asarray(gait.breakpoints(), dtype=float) * T,
+        _cycles=u,
     )
 
 
@@ -179,13 +188,6 @@ def compile_process(spec: ProcessSpec, steps_per_period: int | None = None) -> S
     G = steps_per_period or spec.simulation.steps_per_period
     u = period_grid(G, spec.breakpoints())
     T = float(spec.period)
-
-    def offset_function(t):
-        return evaluate_many(spec.offsets, np.asarray(t, dtype=float) / T)
-
-    def offset_rate(t):
-        return _rates(spec.offsets, np.asarray(t, dtype=float) / T) / T
-
     offsets = evaluate_many(spec.offsets, u)
     initial = np.array(spec.initial, dtype=float)
     return SweepingProcess(
@@ -195,9 +197,10 @@ def compile_process(spec: ProcessSpec, steps_per_period: int | None = None) -> S
         times=u * T,
         offsets=offsets,
         initial=initial,
-        offset_function=offset_function,
-        offset_rate=offset_rate,
+        offset_pieces=PiecewiseOffsets(spec.offsets, lambda coef: coef,
+                                       piece_edges(spec.breakpoints())),
         breakpoints=np.asarray(spec.breakpoints(), dtype=float) * T,
+        _cycles=u,
     )
 
 
@@ -215,6 +218,3 @@ def _forces(V: np.ndarray) -> np.ndarray:
     return padded[..., :-1] - padded[..., 1:]
 
 
-def _rates(signals, u):
-    """d s / d u of each signal, shape (len(u), len(signals))."""
-    return np.column_stack([s.rate(u) for s in signals]) if signals else np.zeros((len(u), 0))

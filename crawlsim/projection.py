@@ -125,24 +125,30 @@ class ExactProjector:
 
     # -- the projection ----------------------------------------------------------------------
     def project(self, w_trial, c, *, time: float | None = None,
-                warm: ActiveSet | None = None, verify: bool = False) -> Projection:
+                warm: ActiveSet | np.ndarray | None = None, verify: bool = False,
+                fixed: np.ndarray | None = None) -> Projection:
         """Certified projection of ``w_trial`` onto ``{B w <= c}`` (module docstring): an
         elastic step if the trial point is admissible, else the kernel's updates from ``warm``,
-        else Clarabel's proposal. ``verify=True`` always asks Clarabel (no shortcut).
-        ``time`` labels messages."""
+        else Clarabel's proposal. ``verify=True`` always asks Clarabel (no shortcut). Rows
+        ``fixed`` are equality constraints (the exact integrator's higher-order velocity
+        problems). ``time`` labels messages."""
         poly = self.polyhedron
         w_trial = np.asarray(w_trial, dtype=float)
         c = np.asarray(c, dtype=float)
-        if not verify and warm is None:
+        fixed = np.zeros(0, dtype=int) if fixed is None else np.asarray(fixed, dtype=int)
+        if not verify and warm is None and not fixed.size:
             # an elastic step (the trial point is admissible) needs no active set at all
             elastic = poly.refine(w_trial, c, poly.empty, iterations=1)
             if elastic is not None:
                 return self._finish(elastic, c, False, time)
         if warm is not None and not verify:
-            step = poly.refine(w_trial, c, warm)
+            step = poly.refine(w_trial, c, warm, fixed=fixed)
             if step is not None:
                 return self._finish(step, c, False, time)
-        lam_ip, slack_ip = self._clarabel(w_trial, c)
+        if fixed.size:
+            lam_ip, slack_ip = self._clarabel_mixed(w_trial, c, fixed)
+        else:
+            lam_ip, slack_ip = self._clarabel(w_trial, c)
         # interior-point identification: a row is proposed active when its multiplier dominates
         # its slack, each in its natural scale
         finite = np.isfinite(c)
@@ -150,10 +156,11 @@ class ExactProjector:
                      poly.row_norm * float(np.max(np.abs(w_trial), initial=0.0)))
         lam_ref = c_size / max(poly.row_norm * poly.response_norm, 1e-300)
         proposed = np.flatnonzero(finite & (lam_ip / lam_ref > np.maximum(slack_ip, 0.0) / c_size))
-        proposed = self._independent(proposed, lam_ip)
-        step = poly.refine(w_trial, c, proposed)
+        proposed = self._independent(np.union1d(proposed, fixed), lam_ip, fixed)
+        step = poly.refine(w_trial, c, proposed, fixed=fixed)
         if step is None:
-            step = poly.refine(w_trial, c, proposed, single=True, iterations=4 * self.m + 4)
+            step = poly.refine(w_trial, c, proposed, single=True, iterations=4 * self.m + 4,
+                               fixed=fixed)
         if step is None:
             last = self._last_attempt(w_trial, c, proposed)
             raise CertificateError(
@@ -161,14 +168,52 @@ class ExactProjector:
                 f"proposed by Clarabel: {self._describe(proposed)}")
         return self._finish(step, c, True, time)
 
-    def _independent(self, proposed: np.ndarray, lam_ip: np.ndarray) -> np.ndarray:
+    def _independent(self, proposed: np.ndarray, lam_ip: np.ndarray,
+                     fixed: np.ndarray) -> np.ndarray:
         """Clarabel's proposal reduced to independent rows: while LICQ fails, drop the row
         with the smallest interior-point multiplier (a dependent set has a representation
-        with non-negative multipliers on an independent subset, Caratheodory)."""
+        with non-negative multipliers on an independent subset, Caratheodory); equality rows
+        ``fixed`` stay."""
         rows = list(proposed)
         while rows and not self.polyhedron.licq(np.array(rows)):
-            rows.remove(min(rows, key=lambda i: lam_ip[i]))
+            free = [i for i in rows if i not in set(fixed.tolist())]
+            if not free:
+                break
+            rows.remove(min(free, key=lambda i: lam_ip[i]))
         return np.array(sorted(rows), dtype=int)
+
+    def _clarabel_mixed(self, w_trial, c, fixed: np.ndarray):
+        """Clarabel on the finite rows with the rows ``fixed`` as equalities (a one-off solver:
+        the cone structure changes with ``fixed``)."""
+        import clarabel
+        import scipy.sparse as sp
+
+        poly = self.polyhedron
+        finite = np.isfinite(c)
+        finite[fixed] = True
+        others = np.flatnonzero(finite & ~np.isin(np.arange(self.m), fixed))
+        order = np.concatenate([fixed, others])
+        P, A = poly.clarabel_matrices()
+        A = sp.csr_matrix(A)[order].tocsc()
+        settings = clarabel.DefaultSettings()
+        settings.verbose = False
+        settings.tol_gap_abs = settings.tol_gap_rel = 1e-10
+        settings.tol_feas = 1e-10
+        cones = [clarabel.ZeroConeT(len(fixed)), clarabel.NonnegativeConeT(len(others))]
+        solver = clarabel.DefaultSolver(P, -poly.metric_times(w_trial), A, c[order], cones,
+                                        settings)
+        solution = solver.solve()
+        self.clarabel_calls += 1
+        status = str(solution.status)
+        if status not in ("Solved", "AlmostSolved"):
+            raise CertificateError(f"Clarabel could not solve a velocity problem (status "
+                                   f"{status})")
+        lam = np.zeros(self.m)
+        slack = np.full(self.m, np.inf)
+        lam[order] = np.asarray(solution.z)
+        slack[order] = np.asarray(solution.s)
+        lam[fixed] = np.abs(lam[fixed]) + 1.0  # equalities: always proposed
+        return lam, slack
 
     def _last_attempt(self, w_trial, c, proposed) -> str:
         try:

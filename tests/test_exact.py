@@ -34,8 +34,8 @@ from crawlsim.errors import EventError, GaitError, LicqWarning
 from crawlsim.exact import EventStepper
 from crawlsim.gait import load_gait, parse_gait, with_simulation
 from crawlsim.h5io import read_results
-from crawlsim.model import SweepingProcess, compile_gait, period_grid
 from crawlsim.model import compile as compile_any
+from crawlsim.model import compile_gait
 from crawlsim.stepping import make_stepper
 
 from .conftest import GAITS, two_block
@@ -149,8 +149,8 @@ def test_every_example_gait_runs_exactly(path):
     assert fine.v0 == pytest.approx(res.v0, abs=1e-13)
     common = np.isin(fine.limit.t, res.limit.t)
     np.testing.assert_allclose(fine.limit.w[common], res.limit.w, atol=1e-13 * 10)
-    # The bracketing grid does not change the answer either.
-    coarse = EventStepper(compile_gait(gait, 50), bracket_cells=128)
+    # Nor does the sampling used where zeros have no closed form.
+    coarse = EventStepper(compile_gait(gait, 50), cells_per_cycle=8)
     for _ in range(res.periods):
         rec = coarse.step_period()
     assert np.mean(rec.x[-1] - rec.x[0]) / gait.period == pytest.approx(res.v0, abs=1e-13)
@@ -169,40 +169,35 @@ def test_clarabel_confirms_every_sampled_state():
 
 # -- generic processes: tangential and simultaneous contacts ---------------------------------
 
-def generic(normals, metric, offset, rate, initial, steps=16):
-    """A one-period process {w : B w <= c(t)} from closed forms (T = 1)."""
-    t = period_grid(steps, [])
-    return SweepingProcess(
-        name="test", period=1.0, normals=np.atleast_2d(normals), metric=np.atleast_2d(metric),
-        times=t, offsets=offset(t), initial=np.asarray(initial, float), offset_function=offset,
-        offset_rate=rate, breakpoints=np.empty(0))
+def generic(normals, metric, offsets, initial, steps=16):
+    """A one-period process {w : B w <= c(t)} from a process document (T = 1)."""
+    doc = {"kind": "sweeping-process", "name": "test", "period": 1.0,
+           "normals": np.atleast_2d(normals).tolist(), "metric": np.atleast_2d(metric).tolist(),
+           "offsets": offsets, "initial": list(initial), "allow_unbounded": True,
+           "simulation": {"steps_per_period": steps}}
+    return compile_any(parse_gait(yaml.safe_dump(doc), source="test.yaml"))
 
 
 def bump(depth, phase=0.3):
     """c(t) = 1/2 (1 + cos 2 pi (t - phase)) - depth: its minimum -depth is at t = phase + 1/2."""
-    def offset(t):
-        return (0.5 * (1 + np.cos(2 * np.pi * (np.asarray(t) - phase))) - depth)[:, None]
-
-    def rate(t):
-        return (-np.pi * np.sin(2 * np.pi * (np.asarray(t) - phase)))[:, None]
-    return offset, rate
+    return {"kind": "cosine", "mean": 0.5 - depth, "amplitude": 0.5, "phase": phase}
 
 
 def test_tangential_touch_moves_nothing():
-    """w <= c(t) with min c = 0 touched at t = 0.8 (between bracketing samples), w0 = 0: the
-    constraint touches w tangentially and lets go, so nothing moves and no event is reported."""
-    stepper = EventStepper(generic([[1.0]], [[1.0]], *bump(0.0), [0.0]))
+    """w <= c(t) with min c = 0 touched at t = 0.8, w0 = 0: the constraint touches w
+    tangentially and lets go, so nothing moves and no event is reported."""
+    stepper = EventStepper(generic([[1.0]], [[1.0]], [bump(0.0)], [0.0]))
     rec = stepper.step_period()
     assert np.all(rec.w == 0.0) and np.all(rec.multipliers == 0.0)
     np.testing.assert_array_equal(rec.events.t, [0.0])
 
 
 @pytest.mark.parametrize("depth", [1e-8, 1e-4])
-def test_shallow_contact_between_samples_is_found(depth):
-    """min c = -depth < 0 for a time ~ sqrt(depth) shorter than a bracketing cell: w is pushed to
-    -depth (the 1-D sweeping process gives w(t) = min(w0, min_{s<=t} c(s))), with total slip depth,
-    entered at the root of c and released at its minimum t = 0.8."""
-    stepper = EventStepper(generic([[1.0]], [[1.0]], *bump(depth), [0.0]))
+def test_shallow_contact_is_found(depth):
+    """min c = -depth < 0 for a time ~ sqrt(depth): w is pushed to -depth (the 1-D sweeping
+    process gives w(t) = min(w0, min_{s<=t} c(s))), with total slip depth, entered at the root of
+    c and released at its minimum t = 0.8."""
+    stepper = EventStepper(generic([[1.0]], [[1.0]], [bump(depth)], [0.0]))
     rec = stepper.step_period()
     assert rec.w[-1, 0] == pytest.approx(-depth, abs=1e-15)
     assert np.sum(rec.multipliers) == pytest.approx(depth, abs=1e-15)
@@ -215,19 +210,25 @@ def test_simultaneous_contacts_with_coupled_metric():
     instant; with both active w = c(t) and lambda = -G^{-1} c' = -M c' (G = M^{-1}), so both rows
     stay active together while c decreases and release together at its minimum. w(T) = (-d, -d)
     with d = 0.25, and the slip integrals are M (d, d) = (3d, 3d)."""
-    offset1, rate1 = bump(0.25)
-
-    def offset(t):
-        return np.hstack([offset1(t), offset1(t)])
-
-    def rate(t):
-        return np.hstack([rate1(t), rate1(t)])
     M = np.array([[2.0, 1.0], [1.0, 2.0]])
-    rec = EventStepper(generic(np.eye(2), M, offset, rate, [0.0, 0.0])).step_period()
+    rec = EventStepper(generic(np.eye(2), M, [bump(0.25), bump(0.25)], [0.0, 0.0])).step_period()
     np.testing.assert_allclose(rec.w[-1], [-0.25, -0.25], atol=1e-15)
     np.testing.assert_allclose(rec.multipliers.sum(axis=0), [0.75, 0.75], atol=1e-15)
     enter = 0.3 + 1 / 3  # c = 0 where cos 2 pi (t - 0.3) = -1/2
     np.testing.assert_allclose(rec.events.t, [0.0, enter, 0.8], atol=1e-14)
+
+
+def test_tangential_contact_of_a_fourier_offset_between_samples():
+    """c(t) = 1/4 + 1/4 cos 2 pi t + 1/8 cos 4 pi t (a fourier offset: no closed-form zeros,
+    found by sampling): its minimum over a period is at cos 2 pi t = -1/2, c = 1/4 - 1/8 - 1/16
+    = 1/16 > 0, so from w0 = 0 nothing ever moves; lowered by 1/16 + d it dips below 0 once and
+    w ends at -d, whatever the sampling."""
+    for d, cells in ((0.0, 64), (1e-6, 8), (1e-6, 64)):
+        offset = {"kind": "fourier", "mean": 0.25 - 1 / 16 - d, "cos": [0.25, 0.125]}
+        rec = EventStepper(generic([[1.0]], [[1.0]], [offset], [0.0], steps=10),
+                           cells_per_cycle=cells).step_period()
+        assert rec.w[-1, 0] == pytest.approx(-d, abs=1e-15)
+        assert np.sum(rec.multipliers) == pytest.approx(d, abs=1e-15)
 
 
 # -- the paper's Section 5 maps ---------------------------------------------------------------

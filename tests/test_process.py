@@ -48,8 +48,8 @@ def test_a_process_file_builds_a_process_spec_and_compiles_to_its_own_data():
     assert np.allclose(p.offsets, np.column_stack([l2, -l2, np.full_like(l2, 1.0)]),
                        atol=1e-15, rtol=0)
     assert np.array_equal(p.metric, np.eye(2)) and np.array_equal(p.initial, [0.1, 0.0])
-    assert np.allclose(p.offset_function(np.array([0.25, 0.75])), [[0.25, -0.25, 1], [0.25, -0.25, 1]])
-    assert np.allclose(p.offset_rate(np.array([0.25, 0.75])), [[1, -1, 0], [-1, 1, 0]])
+    assert np.allclose(p.offset_pieces.evaluate([0.25, 0.75]), [[0.25, -0.25, 1], [0.25, -0.25, 1]])
+    assert np.allclose(p.offset_pieces.evaluate([0.25, 0.75], order=1), [[1, -1, 0], [-1, 1, 0]])
     assert np.allclose(p.breakpoints, [0.0, 0.5])
 
 
