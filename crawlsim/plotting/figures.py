@@ -344,7 +344,7 @@ def convergence_figure(results: dict) -> Figure:
         for (name, value), colour, marker in zip(series.items(), colours(2), ["o", "s"]):
             shown = value if scale == "linear" else np.where(value > 0, value, np.nan)
             state.plot(q, shown, color=colour, marker=marker, markersize=5, linewidth=1.0,
-                       label=name)
+                       label=name, clip_on=False)
         rate = attrs.get("contraction_rate", np.nan)
         poincare = next(iter(series.values()))
         if finite:
@@ -388,6 +388,7 @@ def convergence_figure(results: dict) -> Figure:
                     label=f"${each}$, period $q$")
             ax.axhline(target, color=REFERENCE, linestyle=":", linewidth=1.2,
                        label=f"${symbol}$ = {_number(target)}")
+            ax.margins(y=0.15)
             ax.set_ylabel(what)
             _legend_right(ax)
         bottom = axs[-1, 0]
@@ -564,7 +565,8 @@ def shape_space_figure(results: dict, coords=(0, 1), times: int = SHAPE_SPACE_TI
             handles.append(patch)
             for k in members:
                 ax.plot(wl[k, i], wl[k, j], marker="o", markersize=5.5, color=colour,
-                        markeredgecolor="white", markeredgewidth=0.6, linestyle="none")
+                        markeredgecolor="white", markeredgewidth=0.6, linestyle="none",
+                        zorder=4)
         if np.count_nonzero(earlier) > 1 and np.ptp(wt[earlier][:, [i, j]], axis=0).max() > 0:
             handles += ax.plot(wt[earlier, i], wt[earlier, j], color=FAINT, linewidth=0.8,
                                alpha=0.9, label="earlier periods")
