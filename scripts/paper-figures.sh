@@ -12,9 +12,12 @@ trap 'rm -rf "$work"' EXIT
 mkdir -p "$out"
 
 # Starts far from the limit, as in the paper's figures: the angle from (0.1, 0) with alpha = 1
-# (gamma = 0.5), the triangle from (0.1, 0.05).
+# (gamma = 0.5), the triangle from (0.1, 0.05). 60 steps a period (both processes are exact on
+# any grid holding their breakpoints): the grid then holds the sixths and tenths of the period,
+# so the acute angle is drawn at tenths (t and T - t give the same set, so six distinct sets)
+# and the triangle at sixths.
 for name in acute-angle triangle; do
-  crawlsim run "$root/gaits/paper/$name.yaml" -o "$work/$name.h5" >/dev/null
+  crawlsim run "$root/gaits/paper/$name.yaml" -o "$work/$name.h5" --steps-per-period 60 >/dev/null
   crawlsim plot "$work/$name.h5" -o "$work" --only shape-space
   mv "$work/$name-shape-space.png" "$out/paper-$name.png"
 done

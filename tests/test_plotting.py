@@ -1,5 +1,5 @@
 """Figures: every figure of every example gait is drawn, and its content is checked against the
-results file and against closed forms of the crawler model (MODEL.md §1-2).
+results file and against closed forms of the crawler model (docs/model.md §1-2, §5).
 
 Runs use 200 steps a period: the figures' content is compared with the file they are drawn from,
 so the step size does not matter, and the closed forms below hold on any grid.
@@ -7,7 +7,9 @@ so the step size does not matter, and the closed forms below hold on any grid.
 
 from __future__ import annotations
 
+import json
 import shutil
+from fractions import Fraction
 from pathlib import Path
 
 import h5py
@@ -17,6 +19,7 @@ from click.testing import CliRunner
 from matplotlib.collections import PolyCollection, QuadMesh
 from matplotlib.colors import to_hex
 from matplotlib.patches import Polygon, Rectangle
+from matplotlib.text import Text
 
 from crawlsim import api
 from crawlsim.cli import main
@@ -32,8 +35,27 @@ from crawlsim.plotting import (
     shape_space_figure,
     sweep_figure,
 )
-from crawlsim.plotting.figures import block_forces, polygon, slip_runs, stress_bounds, zero_floor
-from crawlsim.plotting.style import DIMENSIONLESS, SLIP_COLOURS
+from crawlsim.plotting.figures import (
+    block_forces,
+    cell_edges,
+    is_geometric,
+    polygon,
+    shape_space_instants,
+    slip_runs,
+    stress_bounds,
+    swept_ticks,
+)
+from crawlsim.plotting.style import (
+    COLOUR_MAP,
+    PALETTE,
+    SLIP_COLOURS,
+    Units,
+    colours,
+    label,
+    path_dimension,
+    path_label,
+    units_of,
+)
 
 GAITS = Path(__file__).resolve().parents[1] / "gaits"
 GAIT_FILES = sorted(GAITS.rglob("*.yaml"))
@@ -61,15 +83,31 @@ def results_of(run_file, name):
     return read_results(run_file(name))
 
 
+def _all_texts(fig):
+    """Every piece of text a figure shows: axis labels, titles, legend entries, tick labels."""
+    for text in fig.findobj(Text):
+        if text.get_visible() and text.get_text():
+            yield text.get_text()
+
+
 def _all_labels(fig):
     for ax in fig.axes:
         yield ax.get_xlabel()
         yield ax.get_ylabel()
 
 
-def _check_labels(fig):
+def _check_labels(fig, units=None):
+    """No "(dimensionless)" anywhere; every time axis is t/T (or in the unit given), every
+    position x/ℓ (or in the length unit)."""
+    texts = list(_all_texts(fig))
+    assert not any("dimensionless" in s for s in texts), texts
     labels = [s for s in _all_labels(fig) if s]
-    assert labels and all(DIMENSIONLESS in s for s in labels), labels
+    assert labels
+    for s in labels:
+        if s.startswith("time"):
+            assert (f"({units.time})" in s) if units and units.time else s.endswith("/T$"), s
+        if s.startswith("position"):
+            assert (f"({units.length})" in s) if units and units.length else "/\\ell" in s, s
 
 
 # --------------------------------------------------------------------------------------------
@@ -99,7 +137,73 @@ def test_every_figure_of_every_gait(run_file, gait_file, tmp_path):
                                                         if fig._suptitle else ""]
         assert any(gait_file.stem in s for s in titles)
         _check_labels(fig)
+        for ax in fig.axes:
+            if ax.get_legend() is not None and name == "shape-space":
+                _legend_handles_visible(ax)
     assert not list(tmp_path.glob(".*.tmp"))
+
+
+# --------------------------------------------------------------------------------------------
+# Style: labels, units, palettes
+
+
+def test_labels_without_and_with_units():
+    """Without units a quantity is written over its scale (ℓ, F, and T for times, which are then
+    plotted in periods); with units, in them; indices and phases carry no unit."""
+    none = Units()
+    assert label("time", "t", "time", none) == "time $t/T$"
+    assert label("time in the limit period", "t - t_0", "time") == \
+        "time in the limit period $(t - t_0)/T$"
+    assert label("position", "x_j", "length", none) == "position $x_j/\\ell$"
+    assert label("stress", "\\sigma_i", "force") == "stress $\\sigma_i/F$"
+    assert label("stiffness", "k", "stiffness") == "stiffness $k\\ell/F$"
+    assert label("period index", "q") == "period index $q$"
+    assert label("phase", None, "cycles") == "phase (cycles)"
+    si = Units(length="m", time="s", force="N")
+    assert label("time", "t", "time", si) == "time $t$ (s)"
+    assert label("position", "x_j", "length", si) == "position $x_j$ (m)"
+    assert label("stiffness", "k", "stiffness", si) == "stiffness $k$ (N/m)"
+    assert label("average velocity", "v_0", "velocity", si) == "average velocity $v_0$ (m/s)"
+    # Some units given: the missing ones as scales.
+    assert label("stiffness", "k", "stiffness", Units(force="N")) == "stiffness $k$ (N/$\\ell$)"
+    assert path_dimension("links.*.amplitude") == "length"
+    assert path_dimension("friction.0.backward") == "force"
+    assert path_dimension("links.1.phase") == "cycles"
+    assert path_dimension("simulation.steps_per_period") is None
+    assert path_label("friction.backward", si) == "friction.backward (N)"
+    assert path_label("period", Units()) == "period"
+
+
+def test_units_from_results():
+    """``units_json`` first, else the ``units:`` block of the stored gait, else none; malformed
+    units never stop a figure."""
+    assert units_of({"attrs": {"units_json": '{"length": "mm", "time": "s"}'}}) == \
+        Units(length="mm", time="s")
+    assert units_of({"attrs": {"gait_yaml": "units: {force: N}\nblocks: 2\n"}}) == \
+        Units(force="N")
+    assert units_of({"gait_yaml": "units: {length: cm}\n"}) == Units(length="cm")
+    assert units_of({"attrs": {"units_json": "not json"}}) == Units()
+    assert units_of({"attrs": {"gait_yaml": "blocks: 2\n"}}) == Units()
+    assert Units.parse({"length": 3, "time": " "}) == Units()
+
+
+def test_palettes_are_disjoint():
+    """The slip colours are not series colours (vermilion was both backward slip and link 2), and
+    they differ in lightness, so they stay apart in greyscale: CIE L* of stick, forward and
+    backward at least 20 apart."""
+    slip = {to_hex(c) for c in SLIP_COLOURS.values()}
+    assert not slip & {to_hex(c) for c in PALETTE}
+    assert not slip & {to_hex(c) for c in colours(20)}
+    assert len(slip) == 3
+
+    def lightness(colour):
+        rgb = np.array([int(colour[k:k + 2], 16) / 255 for k in (1, 3, 5)])
+        linear = np.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4)
+        y = linear @ [0.2126, 0.7152, 0.0722]
+        return 116 * y ** (1 / 3) - 16 if y > 0.008856 else 903.3 * y
+
+    values = sorted(lightness(c) for c in slip)
+    assert min(np.diff(values)) >= 20, values
 
 
 # --------------------------------------------------------------------------------------------
@@ -115,19 +219,45 @@ def test_motion_lines_are_the_trajectory(run_file, name):
     (ax,) = fig.axes
     lines = ax.get_lines()
     assert len(lines) == N + 2
+    t0, T = r["limit_attrs"]["start"], r["attrs"]["period"]
     for j in range(N):
-        np.testing.assert_array_equal(lines[j].get_xdata(), t)
+        np.testing.assert_array_equal(lines[j].get_xdata(), t / T)
         np.testing.assert_array_equal(lines[j].get_ydata(), x[:, j])
     np.testing.assert_allclose(lines[N].get_ydata(), x.mean(axis=1), rtol=0, atol=1e-14)
     (xs, ys) = lines[N + 1].get_data()
     v0 = r["attrs"]["v0"]
-    assert (ys[1] - ys[0]) / (xs[1] - xs[0]) == pytest.approx(v0, abs=1e-12)
-    t0, T = r["limit_attrs"]["start"], r["attrs"]["period"]
+    # Time in periods: the slope in the figure is the displacement per period v0 T.
+    assert (ys[1] - ys[0]) / (xs[1] - xs[0]) == pytest.approx(v0 * T, abs=1e-12)
     y_t0 = np.interp(t0, t, x.mean(axis=1))
-    assert np.interp(t0, xs, ys) == pytest.approx(y_t0, abs=1e-12)
+    assert np.interp(t0 / T, xs, ys) == pytest.approx(y_t0, abs=1e-12)
     (span,) = ax.patches
-    assert (span.get_x(), span.get_x() + span.get_width()) == pytest.approx((t0, t0 + T))
-    assert ax.get_xlim() == (t[0], t[-1])
+    assert (span.get_x(), span.get_x() + span.get_width()) == pytest.approx((t0 / T, t0 / T + 1))
+    assert ax.get_xlim() == (t[0] / T, t[-1] / T)
+    assert ax.get_xlabel() == "time $t/T$" and ax.get_ylabel() == "position $x_j/\\ell$"
+
+
+def test_motion_in_the_files_units(run_file, tmp_path):
+    """A results file with ``units_json`` (length mm, time s) is drawn in seconds: the x data are
+    the file's times, not t/T, and the labels and the v0 legend carry the units."""
+    path = tmp_path / "units.h5"
+    shutil.copy(run_file("peristalsis-4"), path)
+    with h5py.File(path, "a") as f:
+        f.attrs["units_json"] = json.dumps({"length": "mm", "time": "s", "force": "N"})
+        f.attrs["period"] = 2.0  # a period of 2 s: t/T would halve the times
+    r = read_results(path)
+    assert units_of(r) == Units("mm", "s", "N")
+    ax = motion_figure(r).axes[0]
+    np.testing.assert_array_equal(ax.get_lines()[0].get_xdata(), r["trajectory"]["t"])
+    assert ax.get_xlabel() == "time $t$ (s)"
+    assert ax.get_ylabel() == "position $x_j$ (mm)"
+    assert f"{r['attrs']['v0']:.4g} mm/s" in ax.get_lines()[-1].get_label()
+    fig = gait_figure(r)
+    assert [a.get_ylabel() for a in fig.axes[1:]] == [
+        "length $L_i, z_i$ (mm)", "stress $\\sigma_i$ (N)", "force $f_j$ (N)"]
+    assert fig.axes[-1].get_xlabel() == "time in the limit period $t - t_0$ (s)"
+    _check_labels(fig, Units("mm", "s", "N"))
+    assert convergence_figure(r).axes[0].get_ylabel() == "distance $\\Delta w$ (N)"
+    assert shape_space_figure(r).axes[0].get_xlabel() == "shape coordinate $w_{1}$ (N)"
 
 
 def test_motion_inching_closed_form(run_file):
@@ -184,7 +314,8 @@ def test_gait_diagram_content(run_file, name):
     bands, lengths, stresses, forces = fig.axes
     assert "gait diagram" in fig._suptitle.get_text() and name in fig._suptitle.get_text()
 
-    # Bands: per block, the rectangles tile [0, T] and their colours are the slip states.
+    # Bands: per block, the rectangles tile the period, [0, 1] in (t - t0)/T, and their colours
+    # are the slip states.
     colour_state = {to_hex(c): s for s, c in SLIP_COLOURS.items()}
     rects = _band_rectangles(bands)
     assert len(rects) == sum(len(slip_runs(slip[:, j], t)) for j in range(N))
@@ -192,9 +323,9 @@ def test_gait_diagram_content(run_file, name):
         mine = sorted((r_ for r_ in rects if abs(r_.get_y() + r_.get_height() / 2 - j) < 1e-9),
                       key=lambda r_: r_.get_x())
         assert mine[0].get_x() == pytest.approx(0.0)
-        assert sum(r_.get_width() for r_ in mine) == pytest.approx(T)
+        assert sum(r_.get_width() for r_ in mine) == pytest.approx(1.0)
         for r_ in mine:
-            a, b = r_.get_x(), r_.get_x() + r_.get_width()
+            a, b = r_.get_x() * T, (r_.get_x() + r_.get_width()) * T
             steps = (t[:-1] >= a - 1e-12) & (t[1:] <= b + 1e-12)
             assert np.all(slip[steps, j] == colour_state[to_hex(r_.get_facecolor())])
     assert [tl.get_text() for tl in bands.get_yticklabels()] == [f"block {j + 1}"
@@ -206,7 +337,7 @@ def test_gait_diagram_content(run_file, name):
     for i in range(N - 1):
         np.testing.assert_array_equal(lines[i].get_ydata(), lim["lengths"][:, i])
         np.testing.assert_array_equal(lines[N - 1 + i].get_ydata(), lim["shape"][:, i])
-        np.testing.assert_array_equal(lines[i].get_xdata(), t)
+        np.testing.assert_array_equal(lines[i].get_xdata(), t / T)
 
     # Stresses: sigma_i and its two bounds per link, plus the zero line; within the bounds.
     lines = stresses.get_lines()
@@ -230,80 +361,93 @@ def test_gait_diagram_content(run_file, name):
     end = f[1:]
     np.testing.assert_allclose(end[slip == 1], plus[1:][slip == 1], atol=tol)
     np.testing.assert_allclose(end[slip == -1], -minus[1:][slip == -1], atol=tol)
-    assert forces.get_xlim() == (0.0, T)
+    assert forces.get_xlim() == (0.0, 1.0)
+    assert forces.get_xlabel() == "time in the limit period $(t - t_0)/T$"
+    assert stresses.get_ylabel() == "stress $\\sigma_i/F$"
+    # The slip bands use none of the series colours of the lines.
+    line_colours = {to_hex(l.get_color()) for a in (lengths, stresses, forces)
+                    for l in a.get_lines()}
+    assert not line_colours & {to_hex(c) for c in SLIP_COLOURS.values()}
 
 
 # --------------------------------------------------------------------------------------------
 # 3. Convergence
 
 
-def test_zero_floor():
-    """A decade below the smallest positive value, rounded down to a power of ten."""
-    assert zero_floor([np.array([0.0, 0.074, 3.0])]) == pytest.approx(1e-3)
-    assert zero_floor([np.array([0.0, 0.0])]) == 1e-16
+def _tick_texts(axis):
+    return [t.get_text() for t in axis.get_ticklabels() if t.get_text()]
 
 
 def test_convergence_finite_time(run_file):
-    """peristalsis-4 is periodic from period 1: Poincare step, W^{1,2} distance and |v_q - v0|
-    are 0 at q = 1, drawn on the floor of the log axis (tick "0"), with the finite-time line."""
+    """peristalsis-4 is periodic from period 1: the Poincare step and the W^{1,2} distance of
+    period 1 are exactly 0, drawn as 0 on a linear axis (no log axis, no "0" tick standing for a
+    floor), with the vertical line and the words "periodic from period 1". The lower panel is the
+    file's displacement per period, against v0 T."""
     r = results_of(run_file, "peristalsis-4")
-    conv = r["convergence"]
+    conv, T = r["convergence"], r["attrs"]["period"]
     fig = convergence_figure(r)
-    (ax,) = fig.axes
-    assert ax.get_yscale() == "log"
+    state, motion = fig.axes
+    assert state.get_yscale() == "linear" and state.get_ylim()[0] == 0.0
     assert r["attrs"]["periodic_from"] == 1
-    lines = ax.get_lines()
-    series = [conv["poincare_step"], conv["w12_distance"], np.abs(conv["velocity"] -
-                                                                 r["attrs"]["v0"])]
-    floor = zero_floor(series)
-    assert ax.get_ylim()[0] == pytest.approx(floor)
-    k = 0
-    for value in series:
-        ydata = lines[k].get_ydata()
-        np.testing.assert_array_equal(lines[k].get_xdata(), conv["period"])
-        np.testing.assert_array_equal(np.isnan(ydata), value == 0)
-        np.testing.assert_array_equal(ydata[value > 0], value[value > 0])
-        k += 1
-        if np.any(value == 0):
-            np.testing.assert_array_equal(lines[k].get_xdata(), conv["period"][value == 0])
-            np.testing.assert_allclose(lines[k].get_ydata(), floor)
-            k += 1
-    vline = lines[k]
+    poincare, w12, vline = state.get_lines()
+    for line, value in ((poincare, conv["poincare_step"]), (w12, conv["w12_distance"])):
+        np.testing.assert_array_equal(line.get_xdata(), conv["period"])
+        np.testing.assert_array_equal(line.get_ydata(), value)
+    assert conv["poincare_step"][1] == 0 and conv["w12_distance"][1] == 0
     np.testing.assert_array_equal(vline.get_xdata(), [1, 1])
     assert "periodic from period 1" in vline.get_label()
-    assert len(lines) == k + 1
-    ticks = {round(np.log10(y)): ax.yaxis.get_major_formatter()(y) for y in ax.get_yticks()}
-    assert ticks[round(np.log10(floor))] == "0"
-    assert ax.get_xlabel() == f"period index $q$ {DIMENSIONLESS}"
+    assert any(t.get_text().strip() == "periodic from period 1" for t in state.texts)
+    (d,) = [l for l in motion.get_lines() if l.get_label().startswith("$d_q$")]
+    (target,) = [l for l in motion.get_lines() if l.get_label().startswith("$v_0T$")]
+    np.testing.assert_array_equal(d.get_ydata(), conv["displacement"])
+    assert target.get_ydata()[0] == pytest.approx(r["attrs"]["v0"] * T)
+    assert motion.get_xlabel() == "period index $q$"
+    assert motion.get_ylabel() == "displacement $d_q/\\ell$"
+    assert state.get_ylabel() == "distance $\\Delta w/F$"
+    # Two periods: the axis holds them with a margin and ticks only at the periods.
+    assert [round(v) for v in motion.get_xticks() if -0.5 < v < 1.5] == [0, 1]
 
 
 def test_convergence_asymptotic_rate_line(run_file):
-    """An asymptotic run (synthetic history: Poincare steps 2^-q) shows the geometric decay of
-    the fitted rate, r^q through the last step, and no finite-time line."""
+    """An asymptotic run (synthetic history: Poincare steps 2^-q, the last distance 0 as always
+    against the last period) is drawn on a log axis: the geometric decay of the fitted rate, r^q
+    through the last step, no finite-time line, the exact 0 left out and no tick labelled 0."""
     r = results_of(run_file, "peristalsis-3")
     q = np.arange(12)
     step = 0.5 ** q
+    w12 = 3 * step
+    w12[-1] = 0.0
     r = {**r, "attrs": {**r["attrs"], "convergence": "asymptotic", "periodic_from": -1,
                         "contraction_rate": 0.5, "v0": 1.0},
-         "convergence": {"period": q, "poincare_step": step, "w12_distance": 3 * step,
-                         "velocity": 1.0 + step / 7}}
-    ax = convergence_figure(r).axes[0]
+         "convergence": {"period": q, "poincare_step": step, "w12_distance": w12,
+                         "displacement": 1.0 + step / 7}}
+    fig = convergence_figure(r)
+    ax = fig.axes[0]
+    assert ax.get_yscale() == "log"
     lines = ax.get_lines()
-    assert len(lines) == 4
+    assert len(lines) == 3
+    np.testing.assert_array_equal(lines[0].get_ydata(), step)
+    np.testing.assert_array_equal(np.isnan(lines[1].get_ydata()), w12 == 0)
     fitted = lines[-1]
     np.testing.assert_allclose(fitted.get_ydata(), step, rtol=1e-12)
     assert "0.5" in fitted.get_label()
-    np.testing.assert_allclose(lines[2].get_ydata(), step / 7, rtol=1e-9)
     assert "asymptotic" in ax.get_title()
+    fig.canvas.draw()
+    assert "0" not in _tick_texts(ax.yaxis)
+    np.testing.assert_allclose(fig.axes[1].get_lines()[0].get_ydata(), 1.0 + step / 7)
+    assert not any("periodic from" in l.get_label() for a in fig.axes for l in a.get_lines())
 
 
 def test_convergence_triangle_rate_one_eighth(run_file):
-    """The paper's triangle under wide movements (Section 5, MODEL.md §5) converges only
+    """The paper's triangle under wide movements (Section 5, docs/model.md §5) converges only
     asymptotically: one period is phi^3 with phi(z) = (1 - z)/2, a contraction by 1/8. The figure
     draws the fitted rate as a geometric line of ratio 1/8 and no finite-time line."""
     r = results_of(run_file, "paper/triangle")
     assert r["attrs"]["convergence"] == "asymptotic"
-    ax = convergence_figure(r).axes[0]
+    fig = convergence_figure(r)
+    assert len(fig.axes) == 1  # a process without a velocity: no displacement panel
+    ax = fig.axes[0]
+    assert ax.get_yscale() == "log" and ax.get_ylabel() == "distance $\\Delta z$"
     fitted = ax.get_lines()[-1]
     y = fitted.get_ydata()
     np.testing.assert_allclose(y[1:] / y[:-1], r["attrs"]["contraction_rate"], rtol=1e-12)
@@ -337,61 +481,135 @@ def test_polygon_of_a_square():
     assert _area(v) == pytest.approx(4.0)
 
 
+def _legend_handles_visible(ax):
+    """Every legend entry stands for an artist the reader can see: a patch with area, a line
+    with extent, or a marker."""
+    legend = ax.get_legend()
+    for text in legend.get_texts():
+        name = text.get_text()
+        drawn = [a for a in ax.get_children() if getattr(a, "get_label", lambda: None)() == name]
+        assert drawn, name
+        for artist in drawn:
+            if isinstance(artist, Polygon):
+                assert _area(artist.get_xy()[:-1]) > 0, name
+            elif hasattr(artist, "get_xydata"):
+                xy = np.asarray(artist.get_xydata(), dtype=float)
+                xy = xy[np.all(np.isfinite(xy), axis=1)]
+                assert len(xy), name
+                extent = np.ptp(xy, axis=0).max()
+                assert extent > 0 or artist.get_marker() not in (None, "None", ""), name
+
+
+def _distinct_polygons(polys):
+    """No polygon lies on top of another (same vertices): each one drawn is seen."""
+    for a in range(len(polys)):
+        for b in range(a):
+            va, vb = polys[a].get_xy()[:-1], polys[b].get_xy()[:-1]
+            assert va.shape != vb.shape or not np.allclose(va, vb, atol=1e-9), (a, b)
+
+
 def test_shape_space_three_blocks_hexagon(run_file):
     """peristalsis-3 (mu^+ = 1, mu^- = 1.5, k = 10). K(t) + K L(t) is the stress set C: with
     f_1 = -sigma_1, f_2 = sigma_1 - sigma_2, f_3 = sigma_2 the box [-1, 1.5] x [-1.5, 1] (area
     6.25) cut by -1.5 <= sigma_1 - sigma_2 <= 1, which removes corner triangles of legs 2 and 0.5:
-    area 6.25 - 2 - 0.125 = 4.125, at every time. The figure draws one polygon per instant, each
-    containing w at that instant, and the orbit lines are the file's w."""
+    area 6.25 - 2 - 0.125 = 4.125, at every time. The figure draws one polygon per instant of
+    `shape_space_instants` (200 steps a period: fifths of the period, labelled as fractions),
+    each containing w at its instants, and the orbit lines are the file's w."""
     r = results_of(run_file, "peristalsis-3")
     lim, B = r["limit"], r["process"]["normals"]
     fig = shape_space_figure(r)
     (ax,) = fig.axes
     polys = [p for p in ax.patches if isinstance(p, Polygon)]
-    assert len(polys) == 6
-    G = len(lim["t"]) - 1
-    instants = np.round(np.linspace(0, G, 7)[:-1]).astype(int)
-    markers = ax.get_lines()[:6]
-    for poly, k, marker in zip(polys, instants, markers):
+    groups = shape_space_instants(lim["t"], r["attrs"]["period"], lambda k: lim["offsets"][k])
+    assert [text for _, text in groups] == ["0", "1/5", "2/5", "3/5", "4/5"]
+    assert [p.get_label() for p in polys] == [text for _, text in groups]
+    lines = ax.get_lines()
+    for poly, (members, _) in zip(polys, groups):
         v = poly.get_xy()[:-1]
         assert _area(v) == pytest.approx(4.125, rel=1e-9)
-        assert np.all(v @ B.T <= lim["offsets"][k] + 1e-9)
-        sigma = v + 10.0 * lim["lengths"][k]
-        f = np.column_stack([-sigma[:, 0], sigma[:, 0] - sigma[:, 1], sigma[:, 1]])
-        assert np.all((f <= 1 + 1e-9) & (f >= -1.5 - 1e-9))
-        w = np.array([marker.get_xdata()[0], marker.get_ydata()[0]])
-        np.testing.assert_array_equal(w, lim["w"][k])
-        assert _inside(v, w)
-        assert np.all(B @ w <= lim["offsets"][k] + 1e-9)
-    names = [l.get_label() for l in ax.get_lines()]
-    assert names[6:] == ["earlier periods", "limit cycle", "start $w(0)$"]
-    earlier, limit, start = ax.get_lines()[6:]
+        for k in members:
+            assert np.all(v @ B.T <= lim["offsets"][k] + 1e-9)
+            sigma = v + 10.0 * lim["lengths"][k]
+            f = np.column_stack([-sigma[:, 0], sigma[:, 0] - sigma[:, 1], sigma[:, 1]])
+            assert np.all((f <= 1 + 1e-9) & (f >= -1.5 - 1e-9))
+            marker = lines.pop(0)
+            w = np.array([marker.get_xdata()[0], marker.get_ydata()[0]])
+            np.testing.assert_array_equal(w, lim["w"][k])
+            assert _inside(v, w)
+            assert np.all(B @ w <= lim["offsets"][k] + 1e-9)
+    _distinct_polygons(polys)
+    assert [l.get_label() for l in lines] == ["earlier periods", "limit cycle", "start $w(0)$"]
+    earlier, limit, start = lines
     np.testing.assert_array_equal(limit.get_xdata(), lim["w"][:, 0])
     np.testing.assert_array_equal(limit.get_ydata(), lim["w"][:, 1])
     assert limit.get_linewidth() > 2 * earlier.get_linewidth()
     t, w = r["trajectory"]["t"], r["trajectory"]["w"]
     np.testing.assert_array_equal(earlier.get_xdata(), w[t <= r["limit_attrs"]["start"] + 1e-9, 0])
-    assert ax.get_xlabel().startswith("shape coordinate $w_{1}")
+    assert ax.get_xlabel() == "shape coordinate $w_{1}/F$"
+    _legend_handles_visible(ax)
+
+
+def test_shape_space_acute_angle_every_polygon_seen(tmp_path):
+    """The paper's acute angle (Section 5.2, corrected l(t) = (0, t) on [0, T/2], (0, T - t) on
+    [T/2, T]) slides down and back up, so C(t) = C(T - t): at 60 steps a period the figure draws
+    tenths of the period, merging t and T - t, six distinct polygons whose lower edges z_2 = -l_2(t)
+    sit at 0, -0.1, ..., -0.5. The limit is the constant state (gamma, 0) = (1/2, 0), drawn as a
+    marker (a zero-length line would be a legend entry with nothing to see)."""
+    out = tmp_path / "acute.h5"
+    api.run(with_simulation(load_gait(GAITS / "paper/acute-angle.yaml"), steps_per_period=60),
+            output=out)
+    r = read_results(out)
+    ax = shape_space_figure(r).axes[0]
+    polys = [p for p in ax.patches if isinstance(p, Polygon)]
+    assert [p.get_label() for p in polys] == ["0", "1/10, 9/10", "1/5, 4/5", "3/10, 7/10",
+                                              "2/5, 3/5", "1/2"]
+    np.testing.assert_allclose([p.get_xy()[:, 1].min() for p in polys],
+                               -np.arange(6) / 10, atol=1e-12)
+    _distinct_polygons(polys)
+    (limit,) = [l for l in ax.get_lines() if l.get_label().startswith("limit")]
+    assert limit.get_label() == "limit (a constant state)" and limit.get_marker() == "o"
+    np.testing.assert_allclose(limit.get_xydata()[0], [0.5, 0.0], atol=1e-9)
+    assert ax.get_xlabel() == "shape coordinate $z_{1}$"
+    assert "C(t)" in ax.get_legend().get_title().get_text()
+    _legend_handles_visible(ax)
+
+
+def test_shape_space_instants():
+    """Instants at exact fractions of the period, sets that coincide merged: a set placed by
+    |sin 2 pi t| is at the same place at t, T/2 - t, T/2 + t and T - t: on a 64-step grid the
+    eighths are exact, with 3 distinct sets (0 and 1/2; 1/8, 3/8, 5/8, 7/8; 1/4 and 3/4); a
+    7-step grid (no division but 1 holds) falls back to the grid times, labelled by value."""
+    t = np.linspace(0.0, 1.0, 65)
+    key = np.abs(np.sin(2 * np.pi * t)).round(12)
+    groups = shape_space_instants(t, 1.0, lambda k: key[k:k + 1])
+    assert groups == [([0, 32], "0, 1/2"), ([8, 24, 40, 56], "1/8, 3/8, 5/8, 7/8"),
+                      ([16, 48], "1/4, 3/4")]
+    t = np.linspace(0.0, 2.0, 8)
+    groups = shape_space_instants(t, 2.0, lambda k: t[k:k + 1])
+    kept = [0, 1, 2, 4, 5, 6]  # round(linspace(0, 7, 7)), 3.5 rounding to even
+    assert groups == [([k], f"{k / 7:.4g}") for k in kept]
 
 
 def test_shape_space_sections_four_blocks(run_file):
     """peristalsis-4 has a 3-D shape space: each polygon is the section of K(t) through w(t) in
-    the chosen coordinates, so it contains the projected w(t), and every vertex completed with
-    the other coordinate of w(t) satisfies B w <= c(t)."""
+    the chosen coordinates, so it contains the projected w(t) at each of its instants, and every
+    vertex completed with the other coordinate of w(t) satisfies B w <= c(t)."""
     r = results_of(run_file, "peristalsis-4")
     lim, B = r["limit"], r["process"]["normals"]
-    G = len(lim["t"]) - 1
-    instants = np.round(np.linspace(0, G, 7)[:-1]).astype(int)
     ax = shape_space_figure(r, coords=(0, 2)).axes[0]
     assert "(1, 3) of 3" in ax.get_title()
-    assert ax.get_ylabel().startswith("shape coordinate $w_{3}")
+    assert ax.get_ylabel() == "shape coordinate $w_{3}/F$"
     polys = [p for p in ax.patches if isinstance(p, Polygon)]
-    assert len(polys) == 6
-    for poly, k in zip(polys, instants):
+    assert 2 <= len(polys) <= 6
+    G = len(lim["t"]) - 1  # a cosine gait: the grid is uniform, instant j/n is index G j/n
+    for poly in polys:
         v = poly.get_xy()[:-1]
-        full = np.column_stack([v[:, 0], np.full(len(v), lim["w"][k, 1]), v[:, 1]])
-        assert np.all(full @ B.T <= lim["offsets"][k] + 1e-9)
-        assert _inside(v, lim["w"][k, [0, 2]])
+        for text in poly.get_label().split(", "):
+            k = int(Fraction(text) * G)
+            full = np.column_stack([v[:, 0], np.full(len(v), lim["w"][k, 1]), v[:, 1]])
+            assert np.all(full @ B.T <= lim["offsets"][k] + 1e-9)
+            assert _inside(v, lim["w"][k, [0, 2]])
+    _distinct_polygons(polys)
     with pytest.raises(ValueError, match="between 1 and 3"):
         shape_space_figure(r, coords=(0, 3))
 
@@ -415,40 +633,127 @@ def test_shape_space_two_blocks_interval(run_file):
 
 
 def test_sweep_one_parameter():
+    """v0 at the swept points (the line breaks where there is none), failed and invalid points
+    marked on the parameter axis, a tick at every swept value."""
     values = np.linspace(1.0, 3.0, 5)
-    v0 = np.array([0.1, 0.2, np.nan, 0.4, 0.5])
-    failed = np.array([False, False, True, False, True])
-    fig = sweep_figure({"friction.backward": values}, v0, failed, "inching-2: v0 sweep")
+    v0 = np.array([0.1, 0.2, np.nan, 0.4, np.nan])
+    status = np.array(["ok", "ok", "failed", "not-converged", "invalid"], dtype=object)
+    fig = sweep_figure({"friction.backward": values}, v0, status, "inching-2: v0 sweep")
     (ax,) = fig.axes
-    curve, crosses = ax.get_lines()[:2]
-    np.testing.assert_array_equal(curve.get_xdata(), values[[0, 1, 3]])
-    np.testing.assert_array_equal(curve.get_ydata(), v0[[0, 1, 3]])
-    np.testing.assert_array_equal(crosses.get_xdata(), values[[2, 4]])
-    assert ax.get_xlabel() == f"friction.backward {DIMENSIONLESS}"
-    assert ax.get_ylabel() == f"average velocity $v_0$ {DIMENSIONLESS}"
+    curve = ax.get_lines()[0]
+    np.testing.assert_array_equal(curve.get_xdata(), values)
+    np.testing.assert_array_equal(curve.get_ydata(), v0)
+    marks = {l.get_label(): l for l in ax.get_lines()[1:]}
+    np.testing.assert_array_equal(marks["failed"].get_xdata(), [2.0])
+    np.testing.assert_array_equal(marks["invalid gait"].get_xdata(), [3.0])
+    np.testing.assert_array_equal(marks["not converged"].get_xydata(), [[2.5, 0.4]])
+    np.testing.assert_array_equal(ax.get_xticks(), values)
+    assert ax.get_xlabel() == "friction.backward ($F$)"
+    assert ax.get_ylabel() == "average velocity $v_0$"
     assert ax.get_title() == "inching-2: v0 sweep"
+    # Given the displacement per period (and no time unit), that is what is drawn: v0 T / l.
+    fig = sweep_figure({"links.1.phase": values}, v0, status == "failed", "t",
+                       displacement=2 * v0)
+    ax = fig.axes[0]
+    np.testing.assert_array_equal(ax.get_lines()[0].get_ydata(), np.where(
+        np.isin(status, ["ok", "not-converged"]), 2 * v0, np.nan))
+    assert ax.get_ylabel() == "displacement per period $v_0T/\\ell$"
+    assert ax.get_xlabel() == "links.1.phase (cycles)"
 
 
 def test_sweep_two_parameters_heatmap():
+    """Cells centred on the swept values, ticks at the swept values, the one colour map, the
+    contour v0 = 0 where v0 changes sign, hatched cells with a status marker where there is no
+    value, and the units on every axis."""
     a, b = np.array([1.0, 2.0, 3.0]), np.array([0.5, 1.0])
-    v0 = np.array([[0.1, -0.2], [0.3, 0.4], [0.5, 0.6]])
-    failed = np.zeros((3, 2), bool)
-    failed[1, 0] = True
-    fig = sweep_figure({"friction.backward": a, "links[0].amplitude": b}, v0, failed, "sweep")
+    v0 = np.array([[0.1, -0.2], [np.nan, 0.4], [0.5, np.nan]])
+    status = np.array([["ok", "ok"], ["failed", "ok"], ["ok", "invalid"]], dtype=object)
+    units = Units(length="mm", time="s", force="N")
+    fig = sweep_figure({"friction.backward": a, "links.0.amplitude": b}, v0, status, "sweep",
+                       units=units)
     ax, bar = fig.axes
     (mesh,) = [c for c in ax.collections if isinstance(c, QuadMesh)]
     data = np.ma.filled(mesh.get_array(), np.nan).reshape(2, 3)
-    expected = np.where(failed, np.nan, v0).T
-    np.testing.assert_array_equal(np.isnan(data), np.isnan(expected))
-    np.testing.assert_array_equal(data[~np.isnan(data)], expected[~np.isnan(expected)])
-    assert mesh.get_cmap().name == "PuOr_r" and mesh.norm.vcenter == 0
-    (cross,) = ax.get_lines()
-    assert (cross.get_xdata()[0], cross.get_ydata()[0]) == (2.0, 0.5)
-    assert ax.get_xlabel().startswith("friction.backward")
-    assert ax.get_ylabel().startswith("links[0].amplitude")
-    assert bar.get_ylabel() == f"average velocity $v_0$ {DIMENSIONLESS}"
-    one_sign = sweep_figure({"a": a, "b": b}, np.abs(v0), np.zeros((3, 2), bool), "s")
-    assert list(one_sign.axes[0].collections)[0].get_cmap().name == "cividis"
+    np.testing.assert_array_equal(np.isnan(data), np.isnan(v0.T))
+    np.testing.assert_array_equal(data[~np.isnan(data)], v0.T[~np.isnan(v0.T)])
+    assert mesh.get_cmap().name.startswith(COLOUR_MAP)
+    xe, ye = mesh.get_coordinates()[0, :, 0], mesh.get_coordinates()[:, 0, 1]
+    np.testing.assert_allclose((xe[1:] + xe[:-1]) / 2, a)
+    np.testing.assert_allclose((ye[1:] + ye[:-1]) / 2, b)
+    np.testing.assert_array_equal(ax.get_xticks(), a)
+    np.testing.assert_array_equal(ax.get_yticks(), b)
+    hatched = [p for p in ax.patches if isinstance(p, Rectangle) and p.get_hatch()]
+    assert sorted((p.get_x() + p.get_width() / 2, p.get_y() + p.get_height() / 2)
+                  for p in hatched) == [(2.0, 0.5), (3.0, 1.0)]
+    marks = {l.get_label(): l.get_xydata().tolist() for l in ax.get_lines()}
+    assert marks == {"failed": [[2.0, 0.5]], "invalid gait": [[3.0, 1.0]]}
+    assert len(ax.collections) == 2  # the mesh and the contour v0 = 0
+    assert ax.get_xlabel() == "friction.backward (N)"
+    assert ax.get_ylabel() == "links.0.amplitude (mm)"
+    assert bar.get_ylabel() == "average velocity $v_0$ (mm/s)"
+    one_sign = sweep_figure({"a": a, "b": b}, np.abs(np.nan_to_num(v0)), np.zeros((3, 2), bool),
+                            "s")
+    assert len(one_sign.axes[0].collections) == 1  # no contour when v0 keeps its sign
+
+
+def test_sweep_ticks_and_cells():
+    """Long axes keep a labelled tick on every k-th value (both ends when k allows), the others
+    minor; log-spaced values give a log axis with cells centred in log space."""
+    major, minor = swept_ticks(np.linspace(0, 1, 21))
+    np.testing.assert_allclose(major, np.linspace(0, 1, 6))
+    assert len(minor) == 15
+    major, minor = swept_ticks(np.arange(5.0))
+    np.testing.assert_array_equal(major, np.arange(5.0))
+    assert minor.size == 0
+    assert is_geometric(np.geomspace(0.1, 10, 9)) and not is_geometric(np.linspace(1, 9, 9))
+    np.testing.assert_allclose(cell_edges(np.array([1.0, 2.0, 4.0])), [0.5, 1.5, 3.0, 5.0])
+    edges = cell_edges(np.geomspace(1, 100, 3), log=True)
+    np.testing.assert_allclose(edges, np.sqrt(10) * np.array([0.1, 1, 10, 100]))
+    fig = sweep_figure({"stiffness": np.geomspace(1, 100, 3), "period": [1.0, 2.0]},
+                       np.ones((3, 2)), np.zeros((3, 2), bool), "log")
+    ax = fig.axes[0]
+    assert ax.get_xscale() == "log" and ax.get_yscale() == "linear"
+    np.testing.assert_allclose(ax.get_xticks(), [1, 10, 100])
+    assert ax.get_xlabel() == "stiffness ($F$/$\\ell$)" and ax.get_ylabel() == "period"
+
+
+def test_sweep_file_plot(tmp_path):
+    """`crawlsim plot` on a sweep file draws its one figure (the sweep of `crawlsim velocity`,
+    with its units when the gait file gives them): the heat map holds the file's values."""
+    from crawlsim.h5io import write_sweep
+
+    a, b = np.array([1.5, 2.0, 2.5]), np.array([5.0, 10.0])
+    v0 = np.array([0.1, 0.2, np.nan, 0.4, 0.5, 0.6])
+    status = np.array(["ok", "ok", "invalid", "ok", "ok", "not-converged"], dtype=object)
+    path = tmp_path / "grid.h5"
+    write_sweep(path, paths=["friction.backward", "stiffness"], axes=[a, b],
+                points=np.arange(6), columns={
+                    "friction.backward": np.repeat(a, 2), "stiffness": np.tile(b, 3), "v0": v0,
+                    "displacement_per_period": 2 * v0,
+                    "convergence": np.array(["finite-time"] * 6, dtype=object),
+                    "periods": np.full(6, 2), "status": status,
+                    "message": np.array([""] * 6, dtype=object)},
+                gait_yaml="name: wave\nunits: {length: mm, force: N}\n", source="wave.yaml",
+                shard="", steps=np.full(6, 10))
+    result = CliRunner().invoke(main, ["plot", str(path), "-o", str(tmp_path / "figs")])
+    assert result.exit_code == 0, result.output
+    (out,) = (tmp_path / "figs").iterdir()
+    assert out.name == "grid-sweep.png" and result.output.strip() == str(out)
+    from crawlsim.h5io import read_sweep
+    from crawlsim.plotting import sweep_data_figure
+
+    fig = sweep_data_figure(read_sweep(path))
+    ax, bar = fig.axes
+    (mesh,) = [c for c in ax.collections if isinstance(c, QuadMesh)]
+    data = np.ma.filled(mesh.get_array(), np.nan).reshape(2, 3)
+    expected = np.where(status == "invalid", np.nan, 2 * v0).reshape(3, 2).T
+    np.testing.assert_array_equal(data, expected)
+    assert bar.get_ylabel() == "displacement per period $v_0T$ (mm)"
+    assert ax.get_xlabel() == "friction.backward (N)"
+    assert ax.get_ylabel() == "stiffness (N/mm)"
+    assert ax.get_title() == "wave: average velocity over a sweep"
+    result = CliRunner().invoke(main, ["plot", str(path), "--only", "motion"])
+    assert result.exit_code == 2 and "sweep" in result.output
 
 
 def test_sweep_bad_shapes():

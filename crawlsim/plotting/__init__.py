@@ -1,9 +1,11 @@
 """Figures of a crawlsim run, drawn from its results file alone (matplotlib, Agg backend).
 
-* `style` holds the one style of all figures (fonts, Okabe-Ito colours, labels, titles);
+* `style` holds the one style of all figures (fonts, palettes, the colour map, labels with
+  units, titles);
 * `figures` has one function per figure, each taking the dict of `crawlsim.h5io.read_results`
-  and returning a matplotlib `Figure`, plus `sweep_figure` for velocity sweeps;
-* `output.plot_results` reads a results file and writes its figures next to it.
+  and returning a matplotlib `Figure`, plus `sweep_figure` and `sweep_data_figure` for velocity
+  sweeps;
+* `output.plot_results` reads a results or sweep file and writes its figures next to it.
 
 The names below are imported lazily (PEP 562), so that ``import crawlsim.plotting`` and the
 command line stay fast and never import matplotlib until a figure is drawn.
@@ -13,6 +15,8 @@ from __future__ import annotations
 
 #: The figures of one run, in drawing order; ``--only`` takes one of these names.
 FIGURE_NAMES = ("motion", "gait-diagram", "convergence", "shape-space")
+#: The one figure of a sweep file (``crawlsim plot SWEEP.h5``).
+SWEEP_FIGURE = "sweep"
 #: Figures that need block positions, stresses and slips: crawler runs only.
 CRAWLER_FIGURES = ("motion", "gait-diagram")
 
@@ -26,11 +30,13 @@ _LAZY = {
     "convergence_figure": "figures",
     "shape_space_figure": "figures",
     "sweep_figure": "figures",
+    "sweep_data_figure": "figures",
     "FIGURES": "figures",
 }
 
 __all__ = ["CRAWLER_FIGURES", "FIGURES", "FIGURE_NAMES", "convergence_figure", "gait_figure", "motion_figure",
-           "plot_results", "save_figure", "shape_space_figure", "sweep_figure"]
+           "SWEEP_FIGURE", "plot_results", "save_figure", "shape_space_figure", "sweep_data_figure",
+           "sweep_figure"]
 
 
 def __getattr__(name):

@@ -4,27 +4,33 @@ matplotlib `Figure` in the style of `crawlsim.plotting.style`.
 A figure that needs data the file lacks raises `ResultsFileError` naming the missing dataset
 (the command line turns it into exit code 2).
 
-Quantities and their equations (MODEL.md):
+Quantities and their equations (docs/model.md):
 
-* motion: block positions x_j(t), barycentre y = mean(x), and y(t0) + v0 (t - t0);
+* motion: block positions x_j(t), barycentre y = mean(x), and y(t0) + v0 (t - t0) (§4);
 * gait diagram: slip state of each block on each step of the limit period (``/limit/slip``), the
   actuator lengths L_i(t) against the link lengths z_i = x_{i+1} - x_i, the link stresses
   sigma_i = k_i (L_i - z_i) against their friction bounds, and the elastic force on each block
-  f = D^T sigma (f_j = sigma_{j-1} - sigma_j) against its friction limits [-mu_j^-, mu_j^+];
-* convergence: Poincare step, W^{1,2} distance to the limit period and |v_q - v0| per period q;
-* shape space: the moving polyhedron K(t) = {w : B w <= c(t)} and the orbit of w(t).
+  f = D^T sigma (f_j = sigma_{j-1} - sigma_j) against its friction limits [-mu_j^-, mu_j^+] (§1);
+* convergence: Poincare step and W^{1,2} distance to the last period, and the displacement of
+  each period q (§4);
+* shape space: the moving polyhedron K(t) = {w : B w <= c(t)} and the orbit of w(t) (§2, §5);
+* sweeps: v0 over one or two swept gait parameters.
+
+Times are drawn as t/T (in periods) unless the file gives a time unit, and every label comes
+from `crawlsim.plotting.style.label`, with the file's units when it has them.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from fractions import Fraction
 
 import numpy as np
-from matplotlib.colors import CenteredNorm, to_rgba
+from matplotlib.colors import to_rgba
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
-from matplotlib.patches import Patch, Polygon
-from matplotlib.ticker import FixedLocator, FuncFormatter, MaxNLocator, NullLocator
+from matplotlib.patches import Patch, Polygon, Rectangle
+from matplotlib.ticker import FixedLocator, MaxNLocator, NullFormatter, NullLocator
 from scipy.optimize import linprog
 from scipy.spatial import HalfspaceIntersection
 
@@ -34,15 +40,27 @@ from .style import (
     REFERENCE,
     SLIP_COLOURS,
     SLIP_NAMES,
+    STATUS_MARKERS,
+    Units,
+    colour_map,
     colours,
     figure_style,
     label,
     new_figure,
+    path_label,
+    time_axis,
     title,
+    units_of,
+    velocity_axis,
 )
 
-#: How many instants of the limit period the shape-space figure draws K(t) at.
+#: How many distinct sets K(t) the shape-space figure aims to draw over the limit period.
 SHAPE_SPACE_TIMES = 6
+#: Divisions of the period tried for the shape-space instants, most preferred first: the
+#: instants are the grid times j T / n, so their labels are exact fractions.
+NICE_DIVISIONS = (6, 8, 10, 12, 5, 4, 3, 2)
+#: A swept axis with more values than this gets a tick label on every k-th value only.
+MAX_TICK_LABELS = 9
 
 
 def _need(results: dict, figure: str, *paths: str) -> None:
@@ -66,6 +84,19 @@ def _period(results: dict) -> float:
     return float(results["attrs"]["period"])
 
 
+def _crawler(results: dict) -> bool:
+    return results["attrs"].get("kind", "crawler") == "crawler"
+
+
+def _legend_right(ax, **kwargs):
+    return ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0, **kwargs)
+
+
+def _number(value: float) -> str:
+    """A value for a legend or a tick: four significant digits, no trailing zeros."""
+    return f"{value:.4g}"
+
+
 # --------------------------------------------------------------------------------------------
 # 1. Motion
 
@@ -73,31 +104,45 @@ def _period(results: dict) -> float:
 def motion_figure(results: dict) -> Figure:
     """Block positions x_j(t) over the simulated time, the barycentre y(t) and the line of slope
     v0 through y at the start of the limit period, y(t0) + v0 (t - t0), with the limit period
-    shaded. Line order: blocks 1..N, barycentre, v0 line."""
+    shaded. Line order: blocks 1..N, barycentre, v0 line. Times are t/T, or t in the file's time
+    unit (`style.time_axis`); positions are the file's."""
     _need(results, "motion", "trajectory/t", "trajectory/x")
+    units = units_of(results)
     t = np.asarray(results["trajectory"]["t"], dtype=float)
     x = np.asarray(results["trajectory"]["x"], dtype=float)
     v0 = float(results["attrs"]["v0"])
     t0 = float(results["limit_attrs"].get("start", t[0]))
     T = _period(results)
+    factor, time_label = time_axis(units, T)
     N = x.shape[1]
     y = x.mean(axis=1)
+    per_period, _ = velocity_axis(units)
+    if per_period:
+        speed = (f"$v_0T$ = {_number(v0 * T)} {units.length}" if units.length
+                 else f"$v_0T/\\ell$ = {_number(v0 * T)}")
+    else:
+        length = units.length or r"$\ell$"
+        speed = f"$v_0$ = {_number(v0)} {length}/{units.time}"
     with figure_style():
         fig, axs = new_figure(height=3.4)
         ax = axs[0, 0]
         for j, colour in enumerate(colours(N)):
             shown = N <= 8 or j in (0, N - 1)
-            ax.plot(t, x[:, j], color=colour, label=f"block {j + 1}" if shown else None)
-        ax.plot(t, y, color=REFERENCE, linestyle="--", linewidth=1.2, label="barycentre $y$")
+            ax.plot(t * factor, x[:, j], color=colour, label=f"block {j + 1}" if shown else None)
+        ax.plot(t * factor, y, color=REFERENCE, linestyle="--", linewidth=1.2,
+                label="barycentre $y$")
         ends = np.array([t[0], t[-1]])
-        ax.plot(ends, np.interp(t0, t, y) + v0 * (ends - t0), color=REFERENCE, linestyle=":",
-                linewidth=1.2, label=f"slope $v_0$ = {v0:.4g}")
-        ax.axvspan(t0, t0 + T, color=FAINT, alpha=0.15, linewidth=0, label="limit period")
-        ax.set_xlim(t[0], t[-1])
-        ax.set_xlabel(label("time", "t"))
-        ax.set_ylabel(label("position", "x_j"))
+        ax.plot(ends * factor, np.interp(t0, t, y) + v0 * (ends - t0), color=REFERENCE,
+                linestyle=":", linewidth=1.2, label=f"slope {speed}")
+        ax.axvspan(t0 * factor, (t0 + T) * factor, color=FAINT, alpha=0.15, linewidth=0,
+                   label="limit period")
+        ax.set_xlim(t[0] * factor, t[-1] * factor)
+        if units.time is None and (t[-1] - t[0]) / T <= 12:
+            ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+        ax.set_xlabel(time_label)
+        ax.set_ylabel(label("position", "x_j", "length", units))
         ax.set_title(title(_name(results), "block positions"))
-        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
+        _legend_right(ax)
     return fig
 
 
@@ -149,9 +194,11 @@ def block_forces(stress: np.ndarray) -> np.ndarray:
 
 
 def gait_figure(results: dict) -> Figure:
-    """The gait diagram of the limit period, four panels sharing the time axis t - t0:
+    """The gait diagram of the limit period, four panels sharing the time axis (t - t0)/T
+    (or t - t0 in the file's time unit):
 
-    1. one band per block: stick, forward slip, backward slip on each step (``/limit/slip``);
+    1. one band per block: stick, forward slip, backward slip on each step (``/limit/slip``), in
+       the slip colours, which no line of the figure uses;
     2. actuator lengths L_i(t) (solid) and link lengths z_i(t) = x_{i+1} - x_i (dashed);
     3. link stresses sigma_i(t) (solid) with their friction bounds (dotted, `stress_bounds`);
     4. elastic force on each block f_j(t) = sigma_{j-1} - sigma_j (solid) with the friction
@@ -162,8 +209,12 @@ def gait_figure(results: dict) -> Figure:
     """
     _need(results, "gait diagram", "limit/t", "limit/slip", "limit/shape", "limit/stress",
           "limit/lengths", "limit/friction")
+    units = units_of(results)
     lim = results["limit"]
     t = np.asarray(lim["t"], dtype=float)
+    factor, time_label = time_axis(units, _period(results), symbol="t - t_0",
+                                   name="time in the limit period")
+    s = t * factor
     slip = np.asarray(lim["slip"])
     L = np.asarray(lim["lengths"], dtype=float)
     z = np.asarray(lim["shape"], dtype=float)
@@ -177,7 +228,7 @@ def gait_figure(results: dict) -> Figure:
         bands, lengths, stresses, forces = axs[:, 0]
 
         for j in range(N):
-            for state, a, b in slip_runs(slip[:, j], t):
+            for state, a, b in slip_runs(slip[:, j], s):
                 bands.barh(j, b - a, left=a, height=0.72, color=SLIP_COLOURS[state],
                            linewidth=0)
         bands.set_yticks(range(N), [f"block {j + 1}" for j in range(N)])
@@ -185,28 +236,28 @@ def gait_figure(results: dict) -> Figure:
         bands.grid(False)
         bands.tick_params(axis="y", length=0)
         bands.spines["left"].set_visible(False)
-        bands.legend(handles=[Patch(color=SLIP_COLOURS[s], label=SLIP_NAMES[s])
-                              for s in (0, 1, -1)],
+        bands.legend(handles=[Patch(facecolor=SLIP_COLOURS[s_], edgecolor="none",
+                                    label=SLIP_NAMES[s_]) for s_ in (0, 1, -1)],
                      loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=3, borderaxespad=0.2)
 
         for i, colour in enumerate(link_colours):
-            lengths.plot(t, L[:, i], color=colour, label=f"$L_{{{i + 1}}}$ actuator")
+            lengths.plot(s, L[:, i], color=colour, label=f"$L_{{{i + 1}}}$ actuator")
         for i, colour in enumerate(link_colours):
-            lengths.plot(t, z[:, i], color=colour, linestyle="--",
+            lengths.plot(s, z[:, i], color=colour, linestyle="--",
                          label=f"$z_{{{i + 1}}}$ link")
-        lengths.set_ylabel(label("length"))
+        lengths.set_ylabel(label("length", "L_i, z_i", "length", units))
         _legend_right(lengths, ncol=2)
 
         low, high = stress_bounds(friction)
         for i, colour in enumerate(link_colours):
-            stresses.plot(t, sigma[:, i], color=colour, label=f"$\\sigma_{{{i + 1}}}$")
-            stresses.plot(t, high[:, i], color=colour, linestyle=":", linewidth=1.0)
-            stresses.plot(t, low[:, i], color=colour, linestyle=":", linewidth=1.0)
+            stresses.plot(s, sigma[:, i], color=colour, label=f"$\\sigma_{{{i + 1}}}$")
+            stresses.plot(s, high[:, i], color=colour, linestyle=":", linewidth=1.0)
+            stresses.plot(s, low[:, i], color=colour, linestyle=":", linewidth=1.0)
         handles, names = stresses.get_legend_handles_labels()
         handles.append(Line2D([], [], color=FAINT, linestyle=":", linewidth=1.0))
         names.append("friction bounds")
         stresses.axhline(0.0, color=REFERENCE, linewidth=0.6)
-        stresses.set_ylabel(label("stress", "\\sigma_i"))
+        stresses.set_ylabel(label("stress", "\\sigma_i", "force", units))
         _legend_right(stresses, handles=handles, labels=names)
 
         f = block_forces(sigma)
@@ -214,26 +265,22 @@ def gait_figure(results: dict) -> Figure:
         shared = all(np.array_equal(plus[:, j], plus[:, 0]) and
                      np.array_equal(minus[:, j], minus[:, 0]) for j in range(N))
         for j, colour in enumerate(block_colours):
-            forces.plot(t, f[:, j], color=colour, label=f"$f_{{{j + 1}}}$")
+            forces.plot(s, f[:, j], color=colour, label=f"$f_{{{j + 1}}}$")
         for j, colour in enumerate([REFERENCE] if shared else block_colours):
-            forces.plot(t, plus[:, j], color=colour, linestyle=":", linewidth=1.0)
-            forces.plot(t, -minus[:, j], color=colour, linestyle=":", linewidth=1.0)
+            forces.plot(s, plus[:, j], color=colour, linestyle=":", linewidth=1.0)
+            forces.plot(s, -minus[:, j], color=colour, linestyle=":", linewidth=1.0)
         handles, names = forces.get_legend_handles_labels()
         handles.append(Line2D([], [], color=REFERENCE if shared else FAINT, linestyle=":",
                               linewidth=1.0))
         names.append("$\\mu^+$, $-\\mu^-$")
-        forces.set_ylabel(label("force", "f_j"))
+        forces.set_ylabel(label("force", "f_j", "force", units))
         _legend_right(forces, handles=handles, labels=names)
 
-        forces.set_xlim(t[0], t[-1])
-        forces.set_xlabel(label("time in the limit period", "t - t_0"))
+        forces.set_xlim(s[0], s[-1])
+        forces.set_xlabel(time_label)
         fig.suptitle(title(_name(results), "gait diagram over the limit period"))
         fig.align_ylabels(axs[:, 0])
     return fig
-
-
-def _legend_right(ax, **kwargs):
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0, **kwargs)
 
 
 # --------------------------------------------------------------------------------------------
@@ -241,101 +288,116 @@ def _legend_right(ax, **kwargs):
 
 
 def convergence_series(results: dict) -> dict[str, np.ndarray]:
-    """The per-period distances drawn on the log axis, keyed by their legend label.
-
-    |v_q - v0| is left out for processes without a velocity (NaN in the file).
-    """
+    """The per-period distances of the state panel, keyed by their legend label: the Poincare
+    step of period q and the W^{1,2}(t0, t0+T) distance of period q to the last period."""
     conv = results["convergence"]
     series = {
-        "Poincaré step $|w(t_0{+}(q{+}1)T) - w(t_0{+}qT)|$": conv["poincare_step"],
-        "$W^{1,2}$ distance to the limit period": conv["w12_distance"],
+        "Poincaré step": conv["poincare_step"],
+        "$W^{1,2}$ distance to\nthe last period": conv["w12_distance"],
     }
-    v0 = results["attrs"].get("v0", np.nan)
-    velocity = np.asarray(conv.get("velocity", []), dtype=float)
-    if velocity.size and np.isfinite(v0) and np.all(np.isfinite(velocity)):
-        series["$|v_q - v_0|$"] = np.abs(velocity - v0)
     return {k: np.asarray(v, dtype=float) for k, v in series.items()}
 
 
-def zero_floor(values) -> float:
-    """Where exact zeros are drawn on the log axis: a decade below the smallest positive value
-    (1e-16 when there is none), rounded down to a power of ten."""
-    positive = np.concatenate([np.ravel(v) for v in values])
-    positive = positive[np.isfinite(positive) & (positive > 0)]
-    if positive.size == 0:
-        return 1e-16
-    return 10.0 ** (np.floor(np.log10(positive.min())) - 1)
+def convergence_scale(results: dict) -> str:
+    """"linear" for a finite-time run (its distances drop to exactly 0, which a linear axis
+    shows as 0), "log" otherwise (a geometric decay is a straight line there)."""
+    positive = [v[v > 0] for v in convergence_series(results).values()]
+    finite = results["attrs"].get("convergence", "") == "finite-time"
+    return "linear" if finite or not any(p.size for p in positive) else "log"
 
 
 def convergence_figure(results: dict) -> Figure:
-    """Per period q, on a log axis: the Poincare step, the W^{1,2}(t0, t0+T) distance of period
-    q to the limit period, and |v_q - v0| (MODEL.md §4).
+    """How the run reached its limit period, per period q (docs/model.md §4).
 
-    A log axis cannot show zero, and zeros are the point of finite-time convergence: values that
-    are exactly 0 are drawn as open markers on the bottom of the axis, a decade below the smallest
-    positive value, whose tick is labelled 0 (`zero_floor`). Finite-time convergence is marked by a
-    vertical line at ``periodic_from``;
-    asymptotic convergence by the geometric decay ``r^q`` of the fitted contraction rate r
-    through the last positive Poincare step.
+    Top panel, the state: the Poincare step and the W^{1,2}(t0, t0+T) distance of period q to
+    the last period. A finite-time run is drawn on a linear axis, where its exact zeros are
+    zeros, with a vertical line and the words "periodic from period q"; an asymptotic run on a
+    log axis (exact zeros left out, no "0" tick), with the geometric decay r^q of the fitted
+    contraction rate r through the last positive Poincare step.
+
+    Bottom panel, crawlers only: the displacement of each period, y(t0+(q+1)T) - y(t0+qT), on a
+    linear axis against v0 T (or the velocity of each period against v0, when the file gives a
+    time unit), which shows the transient of the velocity even when it lasts one period.
     """
     _need(results, "convergence", "convergence/period", "convergence/poincare_step",
           "convergence/w12_distance")
+    units = units_of(results)
     conv, attrs = results["convergence"], results["attrs"]
     q = np.asarray(conv["period"], dtype=float)
     series = convergence_series(results)
-    floor = zero_floor(series.values())
-    markers = ["o", "s", "^"]
+    scale = convergence_scale(results)
+    crawler = _crawler(results)
+    v0 = attrs.get("v0", np.nan)
+    T = _period(results)
+    motion = crawler and v0 is not None and np.isfinite(v0) and "displacement" in conv
+    verdict = str(attrs.get("convergence", ""))
+    periodic_from = attrs.get("periodic_from", -1)
+    finite = verdict == "finite-time" and periodic_from is not None and periodic_from >= 0
     with figure_style():
-        fig, axs = new_figure(height=3.4)
-        ax = axs[0, 0]
-        ax.set_yscale("log")
-        for (name, value), colour, marker in zip(series.items(), colours(len(series)), markers):
-            ax.plot(q, np.where(value > 0, value, np.nan), color=colour, marker=marker,
-                    markersize=4, label=name)
-            zero = value == 0
-            if np.any(zero):
-                ax.plot(q[zero], np.full(np.count_nonzero(zero), floor), linestyle="none",
-                        marker=marker, markersize=6, markerfacecolor="white",
-                        markeredgecolor=colour, clip_on=False)
-        _zero_floor_axis(ax, floor, series.values())
-
-        verdict = attrs.get("convergence", "")
-        periodic_from = attrs.get("periodic_from", -1)
+        if motion:
+            fig, axs = new_figure(2, 1, height=4.8, sharex=True,
+                                  gridspec_kw={"height_ratios": [1.25, 1.0]})
+        else:
+            fig, axs = new_figure(height=3.4)
+        state = axs[0, 0]
+        state.set_yscale(scale)
+        for (name, value), colour, marker in zip(series.items(), colours(2), ["o", "s"]):
+            shown = value if scale == "linear" else np.where(value > 0, value, np.nan)
+            state.plot(q, shown, color=colour, marker=marker, markersize=5, linewidth=1.0,
+                       label=name, clip_on=False)
         rate = attrs.get("contraction_rate", np.nan)
         poincare = next(iter(series.values()))
-        if verdict == "finite-time" and periodic_from is not None and periodic_from >= 0:
-            ax.axvline(periodic_from, color=REFERENCE, linestyle="--", linewidth=1.0,
-                       label=f"periodic from period {periodic_from} (finite time)")
-        elif rate is not None and np.isfinite(rate) and np.any(poincare > 0):
+        if finite:
+            for ax in axs[:, 0]:
+                ax.axvline(periodic_from, color=REFERENCE, linestyle="--", linewidth=1.0,
+                           label=f"periodic from period {periodic_from}" if ax is state
+                           else None)
+            right = periodic_from >= q[-1] - 0.5 * (q[-1] - q[0])
+            state.text(periodic_from, 0.97, f" periodic from period {periodic_from} "
+                       if right else f" periodic from period {periodic_from}",
+                       transform=state.get_xaxis_transform(), ha="right" if right else "left",
+                       va="top", color=REFERENCE)
+            state.set_ylim(bottom=0.0)
+        elif (scale == "log" and rate is not None and np.isfinite(rate)
+              and np.any(poincare > 0)):
             last = np.flatnonzero(poincare > 0)[-1]
-            ax.plot(q, poincare[last] * rate ** (q - q[last]), color=REFERENCE, linestyle="--",
-                    linewidth=1.0, label=f"fitted contraction rate {rate:.3g} per period")
+            state.plot(q, poincare[last] * rate ** (q - q[last]), color=REFERENCE,
+                       linestyle="--", linewidth=1.0,
+                       label=f"fitted rate {rate:.3g}\nper period")
         if verdict == "not-converged":
-            ax.text(0.98, 0.95, "not converged", transform=ax.transAxes, ha="right", va="top",
-                    color=REFERENCE)
-        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
-        ax.set_xlabel(label("period index", "q"))
-        ax.set_ylabel(label("distance"))
-        ax.set_title(title(_name(results), f"convergence to the limit period ({verdict})"))
-        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.22), ncol=2, borderaxespad=0)
+            state.text(0.98, 0.95, "not converged", transform=state.transAxes, ha="right",
+                       va="top", color=REFERENCE)
+        if scale == "log":
+            state.yaxis.set_minor_formatter(NullFormatter())
+        state.set_ylabel(label("distance", "\\Delta w" if crawler else "\\Delta z",
+                               "force" if crawler else None, units))
+        state.set_title(title(_name(results), f"convergence to the limit period ({verdict})"))
+        _legend_right(state)
+
+        if motion:
+            ax = axs[1, 0]
+            displacement = np.asarray(conv["displacement"], dtype=float)
+            per_period, what = velocity_axis(units)
+            if per_period:
+                value, target, symbol, each = displacement, v0 * T, "v_0T", "d_q"
+                what = label("displacement", "d_q", "length", units)
+            else:
+                value, target, symbol, each = displacement / T, v0, "v_0", "v_q"
+                what = label("velocity", "v_q", "velocity", units)
+            ax.plot(q, value, color=colours(3)[2], marker="^", markersize=5, linewidth=1.0,
+                    label=f"${each}$, period $q$")
+            ax.axhline(target, color=REFERENCE, linestyle=":", linewidth=1.2,
+                       label=f"${symbol}$ = {_number(target)}")
+            ax.margins(y=0.15)
+            ax.set_ylabel(what)
+            _legend_right(ax)
+        bottom = axs[-1, 0]
+        bottom.xaxis.set_major_locator(MaxNLocator(integer=True))
+        if len(q) <= 3:
+            bottom.set_xlim(q[0] - 0.5, q[-1] + 0.5)
+        bottom.set_xlabel(label("period index", "q"))
+        fig.align_ylabels(axs[:, 0])
     return fig
-
-
-def _zero_floor_axis(ax, floor: float, values) -> None:
-    """Log axis from the zero floor up, one tick per decade (or every few decades), the floor's
-    tick labelled 0: the bottom spine is the line on which exact zeros sit."""
-    positive = np.concatenate([np.ravel(v) for v in values])
-    positive = positive[np.isfinite(positive) & (positive > 0)]
-    lo = int(round(np.log10(floor)))
-    hi = int(np.ceil(np.log10(positive.max()))) if positive.size else lo + 2
-    hi = max(hi, lo + 1)
-    step = max(1, int(np.ceil((hi - lo) / 7)))
-    hi = lo + step * int(np.ceil((hi - lo) / step))
-    ax.set_ylim(10.0 ** lo, 10.0 ** hi)
-    ax.yaxis.set_major_locator(FixedLocator((10.0 ** np.arange(lo, hi + 1, step)).tolist()))
-    ax.yaxis.set_minor_locator(NullLocator())
-    ax.yaxis.set_major_formatter(FuncFormatter(
-        lambda y, _: "0" if abs(np.log10(y) - lo) < 1e-6 else f"$10^{{{round(np.log10(y))}}}$"))
 
 
 # --------------------------------------------------------------------------------------------
@@ -382,10 +444,65 @@ def section(normals: np.ndarray, offsets: np.ndarray, point: np.ndarray, coords)
     return normals[:, [i, j]], offsets - normals[:, others] @ np.asarray(point)[others]
 
 
+def _fraction_text(value: Fraction) -> str:
+    return "0" if value == 0 else str(value)
+
+
+def shape_space_instants(t: np.ndarray, period: float, keys: Callable[[int], np.ndarray],
+                         target: int = SHAPE_SPACE_TIMES) -> list[tuple[list[int], str]]:
+    """The instants of the limit period at which the shape-space figure draws its sets.
+
+    Instants are grid times j T / n for a division n of `NICE_DIVISIONS` that the grid holds
+    exactly, so their labels are fractions (1/6, not 0.172). Instants whose drawn set is the same
+    (``keys(k)``, the offsets of the drawn half-planes, equal to roundoff) are merged into one
+    entry, labelled with all their times: a set that slides back and forth (the paper's acute
+    angle) is drawn once per position, never twice on top of itself. The division whose number of
+    distinct sets is nearest ``target`` without exceeding it wins (ties: the earlier in
+    `NICE_DIVISIONS`); more than ``target`` sets only when no division gives fewer. A grid
+    holding none of them (a prime steps_per_period, say) falls back to ``target`` grid times
+    spread over the period, labelled with their values.
+
+    Returns ``[(grid indices, label), ...]`` in time order.
+    """
+    t = np.asarray(t, dtype=float)
+    G = len(t) - 1
+    tol = 1e-9 * period
+
+    def groups(indices, labels):
+        out: list[tuple[list[int], list[str], np.ndarray]] = []
+        for k, text in zip(indices, labels):
+            key = np.asarray(keys(k), dtype=float)
+            scale = max(float(np.max(np.abs(key), initial=0.0)), 1.0)
+            for members, texts, ref in out:
+                if ref.shape == key.shape and np.max(np.abs(ref - key), initial=0.0) <= 1e-9 * scale:
+                    members.append(k)
+                    texts.append(text)
+                    break
+            else:
+                out.append(([k], [text], key))
+        return [(members, ", ".join(texts)) for members, texts, _ in out]
+
+    best = None
+    for n in NICE_DIVISIONS:
+        wanted = np.arange(n) * period / n
+        nearest = np.abs(t[None, :] - wanted[:, None]).argmin(axis=1)
+        if np.any(np.abs(t[nearest] - wanted) > tol) or len(set(nearest.tolist())) < n:
+            continue
+        found = groups(nearest.tolist(), [_fraction_text(Fraction(j, n)) for j in range(n)])
+        score = (len(found) > target, abs(len(found) - target))
+        if best is None or score < best[0]:
+            best = (score, found)
+    if best is not None:
+        return best[1]
+    indices = np.unique(np.round(np.linspace(0, G, target + 1)[:-1]).astype(int))
+    return groups(indices.tolist(), [_number(t[k] / period) for k in indices])
+
+
 def shape_space_figure(results: dict, coords=(0, 1), times: int = SHAPE_SPACE_TIMES) -> Figure:
-    """The moving set K(t) = {w : B w <= c(t)} at ``times`` equally spaced instants of the limit
-    period, and the orbit of w(t): the periods before the limit faint, the limit cycle bold
-    (the style of the paper's Section 5 figures).
+    """The moving set K(t) = {w : B w <= c(t)} at instants of the limit period
+    (`shape_space_instants`: about ``times`` distinct sets, at fractions of the period), and
+    the orbit of w(t): the periods before the limit faint, the limit cycle bold (the style of
+    the paper's Section 5 figures).
 
     * n = 2 (three blocks): K(t) is a polygon in the plane, drawn whole.
     * n > 2: the figure is drawn in the plane of the shape coordinates ``coords`` (0-based pair;
@@ -396,12 +513,15 @@ def shape_space_figure(results: dict, coords=(0, 1), times: int = SHAPE_SPACE_TI
       inside it, and the earlier periods folded onto it.
 
     For crawlers w = -K z (stiffness times shortening of the links), so K(t) is the set of
-    admissible stresses C(t) shifted by K L(t) (MODEL.md §2). Artists: one polygon patch and one
-    marker of w(t_k) per instant; lines for the earlier periods (when there are any), the limit
-    cycle and the start w(0).
+    admissible stresses C(t) shifted by K L(t) (docs/model.md §2); w has the unit of a force.
+    A generic process is drawn in the paper's notation, C(t) and z. Artists: one polygon patch
+    (in the legend, with its times) and one marker of w(t_k) per instant; lines for the earlier
+    periods (when they have any extent), the limit cycle (a marker when the limit is a constant
+    state) and the start w(0).
     """
     _need(results, "shape space", "trajectory/t", "trajectory/w", "limit/t", "limit/w",
           "limit/offsets", "process/normals")
+    units = units_of(results)
     B = np.asarray(results["process"]["normals"], dtype=float)
     lim = results["limit"]
     c = np.asarray(lim["offsets"], dtype=float)
@@ -409,50 +529,68 @@ def shape_space_figure(results: dict, coords=(0, 1), times: int = SHAPE_SPACE_TI
     tl = np.asarray(lim["t"], dtype=float)
     tt = np.asarray(results["trajectory"]["t"], dtype=float)
     wt = np.asarray(results["trajectory"]["w"], dtype=float)
-    t0 = float(results["limit_attrs"].get("start", tt[-1] - _period(results)))
+    T = _period(results)
+    t0 = float(results["limit_attrs"].get("start", tt[-1] - T))
     n = wl.shape[1]
-    crawler = results["attrs"].get("kind", "crawler") == "crawler"
+    crawler = _crawler(results)
     if n == 1:
-        return _shape_space_line(results, B, c, tl, wl, tt, wt, t0, crawler)
+        return _shape_space_line(results, B, c, tl, wl, tt, wt, t0, crawler, units)
     coords = tuple(int(k) for k in coords)
     if len(coords) != 2 or coords[0] == coords[1] or not all(0 <= k < n for k in coords):
         raise ValueError(f"shape coordinates {[k + 1 for k in coords]}: need two different "
                          f"coordinates between 1 and {n}")
     i, j = coords
-    G = len(tl) - 1
-    instants = np.unique(np.round(np.linspace(0, G, times + 1)[:-1]).astype(int))
-    span = np.ptp(np.vstack([wt[:, [i, j]], wl[:, [i, j]]]), axis=0).max()
+
+    def drawn(k):
+        return section(B, c[k], wl[k], coords) if n > 2 else (B, c[k])
+
+    instants = shape_space_instants(tl, T, lambda k: drawn(k)[1], times)
+    span = max(float(np.ptp(np.vstack([wt[:, [i, j]], wl[:, [i, j]]]), axis=0).max()), 1e-300)
     box = None
     if not crawler:
         middle = wl[:, [i, j]].mean(axis=0)
         half = 5 * max(span, 1.0)
         box = (middle - half, middle + half)
     earlier = tt <= t0 + 1e-12 * max(abs(t0), 1.0)
+    state, where = ("w", "K(t)") if crawler else ("z", "C(t)")
     with figure_style():
         fig, axs = new_figure(height=4.6)
         ax = axs[0, 0]
-        for k, colour in zip(instants, colours(len(instants))):
-            A, b = section(B, c[k], wl[k], coords) if n > 2 else (B, c[k])
-            ax.add_patch(Polygon(polygon(A, b, box), closed=True, linewidth=1.2,
-                                 facecolor=to_rgba(colour, 0.07), edgecolor=colour))
-            ax.plot(wl[k, i], wl[k, j], marker="o", markersize=6, color=colour,
-                    linestyle="none", label=f"$t - t_0$ = {tl[k]:.3g}")
-        if np.count_nonzero(earlier) > 1:
-            ax.plot(wt[earlier, i], wt[earlier, j], color=FAINT, linewidth=0.8, alpha=0.8,
-                    label="earlier periods")
-        ax.plot(wl[:, i], wl[:, j], color=REFERENCE, linewidth=2.2, label="limit cycle")
-        ax.plot(wt[0, i], wt[0, j], marker="x", markersize=7, color=REFERENCE,
-                linestyle="none", label="start $w(0)$")
+        handles = []
+        for (members, text), colour in zip(instants, colours(len(instants))):
+            A, b = drawn(members[0])
+            patch = Polygon(polygon(A, b, box), closed=True, linewidth=1.3,
+                            facecolor=to_rgba(colour, 0.07), edgecolor=colour, label=text)
+            ax.add_patch(patch)
+            handles.append(patch)
+            for k in members:
+                ax.plot(wl[k, i], wl[k, j], marker="o", markersize=5.5, color=colour,
+                        markeredgecolor="white", markeredgewidth=0.6, linestyle="none",
+                        zorder=4)
+        if np.count_nonzero(earlier) > 1 and np.ptp(wt[earlier][:, [i, j]], axis=0).max() > 0:
+            handles += ax.plot(wt[earlier, i], wt[earlier, j], color=FAINT, linewidth=0.8,
+                               alpha=0.9, label="earlier periods")
+        if np.ptp(wl[:, [i, j]], axis=0).max() <= 1e-9 * span:
+            handles += ax.plot(wl[0, i], wl[0, j], marker="o", markersize=8, color=REFERENCE,
+                               markerfacecolor="none", markeredgewidth=1.6, linestyle="none",
+                               label="limit (a constant state)")
+        else:
+            handles += ax.plot(wl[:, i], wl[:, j], color=REFERENCE, linewidth=2.2,
+                               label="limit cycle")
+        handles += ax.plot(wt[0, i], wt[0, j], marker="x", markersize=7, color=REFERENCE,
+                           linestyle="none", label=f"start ${state}(0)$")
         ax.autoscale_view()
         ax.set_aspect("equal", adjustable="datalim")
-        symbol = "w_{%d} = -k_{%d} z_{%d}" if crawler else "w_{%d}"
-        ax.set_xlabel(label("shape coordinate", symbol.replace("%d", str(i + 1))))
-        ax.set_ylabel(label("shape coordinate", symbol.replace("%d", str(j + 1))))
-        what = "$K(t)$ and the orbit of $w(t)$" if n == 2 else \
-            f"sections of $K(t)$ through $w(t)$, coordinates ({i + 1}, {j + 1}) of {n}"
+        dimension = "force" if crawler else None
+        ax.set_xlabel(label("shape coordinate", f"{state}_{{{i + 1}}}", dimension, units))
+        ax.set_ylabel(label("shape coordinate", f"{state}_{{{j + 1}}}", dimension, units))
+        what = (f"${where}$ and the orbit of ${state}(t)$" if n == 2 else
+                f"sections of $K(t)$ through $w(t)$, coordinates ({i + 1}, {j + 1}) of {n}")
+        if crawler:
+            what += ", $w = -Kz$"
         ax.set_title(title(_name(results), f"shape space: {what}"))
-        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0,
-                  title="$K(t)$ and $w(t)$ at")
+        ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0),
+                  borderaxespad=0, title=f"${where}$ at $(t - t_0)/T$ =")
     return fig
 
 
@@ -466,27 +604,33 @@ def interval(normals: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, np.n
     return low, high
 
 
-def _shape_space_line(results, B, c, tl, wl, tt, wt, t0, crawler):
+
+def _shape_space_line(results, B, c, tl, wl, tt, wt, t0, crawler, units):
     low, high = interval(B, c)
     T = _period(results)
+    factor, time_label = time_axis(units, T, symbol="t - t_0", name="time in the limit period")
     earlier = tt <= t0 + 1e-12 * max(abs(t0), 1.0)
+    state, where = ("w", "K(t)") if crawler else ("z", "C(t)")
+    band = colours(1)[0]
     with figure_style():
         fig, axs = new_figure(height=3.4)
         ax = axs[0, 0]
-        ax.fill_between(tl, low, high, color=colours(1)[0], alpha=0.15, linewidth=0,
-                        label="$K(t)$")
-        ax.plot(tl, high, color=colours(1)[0], linewidth=1.0)
-        ax.plot(tl, low, color=colours(1)[0], linewidth=1.0)
+        ax.fill_between(tl * factor, low, high, color=band, alpha=0.15, linewidth=0,
+                        label=f"${where}$")
+        ax.plot(tl * factor, high, color=band, linewidth=1.0)
+        ax.plot(tl * factor, low, color=band, linewidth=1.0)
         if np.count_nonzero(earlier) > 1:
             phase = tt[earlier] - np.floor((tt[earlier] - tt[0]) / T + 1e-9) * T - tt[0]
             folded = np.where(np.diff(phase, prepend=phase[0]) < 0, np.nan, wt[earlier, 0])
-            ax.plot(phase, folded, color=FAINT, linewidth=0.8, label="earlier periods")
-        ax.plot(tl, wl[:, 0], color=REFERENCE, linewidth=2.2, label="limit cycle")
-        ax.set_xlim(tl[0], tl[-1])
-        ax.set_xlabel(label("time in the period", "t - t_0"))
-        ax.set_ylabel(label("shape coordinate", "w_1 = -k_1 z_1" if crawler else "w_1"))
-        ax.set_title(title(_name(results), "shape space: the interval $K(t)$ and $w(t)$"))
-        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
+            ax.plot(phase * factor, folded, color=FAINT, linewidth=0.8, label="earlier periods")
+        ax.plot(tl * factor, wl[:, 0], color=REFERENCE, linewidth=2.2, label="limit cycle")
+        ax.set_xlim(tl[0] * factor, tl[-1] * factor)
+        ax.set_xlabel(time_label)
+        ax.set_ylabel(label("shape coordinate", f"{state}_1", "force" if crawler else None,
+                            units))
+        what = f"the interval ${where}$ and ${state}(t)$" + (", $w = -kz$" if crawler else "")
+        ax.set_title(title(_name(results), f"shape space: {what}"))
+        _legend_right(ax)
     return fig
 
 
@@ -494,66 +638,231 @@ def _shape_space_line(results, B, c, tl, wl, tt, wt, t0, crawler):
 # 5. Sweeps
 
 
-def sweep_figure(axes: dict, v0: np.ndarray, failed: np.ndarray, title: str) -> Figure:
+def is_geometric(values) -> bool:
+    """True for three or more positive values with a constant ratio other than 1 (a log-spaced
+    axis, ``PATH=log:LO:HI:NUM``): drawn on a log axis, cells centred in log space."""
+    v = np.asarray(values, dtype=float)
+    if v.size < 3 or np.any(v <= 0):
+        return False
+    ratios = v[1:] / v[:-1]
+    steps = np.diff(v)
+    uniform = np.allclose(steps, steps[0], rtol=1e-6, atol=0)
+    return bool(np.allclose(ratios, ratios[0], rtol=1e-6) and not uniform)
+
+
+def cell_edges(values, log: bool = False) -> np.ndarray:
+    """Edges of the heat-map cells of a swept axis: halfway between neighbouring values
+    (geometric means on a log axis), the outer cells as wide as their neighbours. Uniform
+    (or log-uniform) values sit at the centres of their cells."""
+    v = np.asarray(values, dtype=float)
+    if log:
+        return np.exp(cell_edges(np.log(v)))
+    if v.size == 1:
+        half = 0.5 * max(abs(v[0]), 1.0)
+        return np.array([v[0] - half, v[0] + half])
+    middle = (v[1:] + v[:-1]) / 2
+    return np.concatenate([[2 * v[0] - middle[0]], middle, [2 * v[-1] - middle[-1]]])
+
+
+def swept_ticks(values) -> tuple[np.ndarray, np.ndarray]:
+    """(major, minor) tick positions of a swept axis: every value is a tick; when there are
+    more than `MAX_TICK_LABELS`, only every k-th one (from the first, and the last too when a k
+    allows it) carries a label, and the others are minor ticks (up to 60; beyond that none)."""
+    v = np.asarray(values, dtype=float)
+    if v.size <= MAX_TICK_LABELS:
+        return v, np.array([])
+    k = int(np.ceil(v.size / MAX_TICK_LABELS))
+    ends = [m for m in range(k, 2 * k + 1) if (v.size - 1) % m == 0]
+    k = ends[0] if ends else k
+    major = v[::k]
+    minor = np.setdiff1d(v, major) if v.size <= 60 else np.array([])
+    return major, minor
+
+
+def _set_swept_ticks(axis, values, log: bool) -> None:
+    major, minor = swept_ticks(values)
+    axis.set_major_locator(FixedLocator(major.tolist()))
+    axis.set_minor_locator(FixedLocator(minor.tolist()) if minor.size else NullLocator())
+    axis.set_ticklabels([_number(v) for v in major])
+    axis.set_minor_formatter(NullFormatter())
+
+
+def _status_grid(status, shape) -> np.ndarray:
+    """Status strings on the grid: a bool array means True = failed, False = ok."""
+    status = np.asarray(status)
+    if status.dtype == bool:
+        status = np.where(status, "failed", "ok")
+    return np.asarray(status, dtype=object).reshape(shape).astype(str)
+
+
+def sweep_figure(axes: dict, v0, status, title: str, *, units: Units | None = None,
+                 displacement=None) -> Figure:
     """v0 over a sweep of one or two gait parameters, named by their dotted paths.
 
     ``axes`` maps each swept dotted path (``"friction.backward"``) to its values, in the order of
-    the dimensions of ``v0`` and ``failed`` (both of the grid's shape; ``failed`` is True where
-    the point did not give a v0).
+    the dimensions of ``v0`` (the grid's shape). ``status`` has the grid's shape too: the
+    statuses of the points (``ok``, ``not-converged``, ``failed``, ``invalid``; empty for points
+    a shard did not hold), or a bool array, True where the point failed. ``units`` labels the
+    axes (`style.path_label`). Without a time unit the figure draws the displacement per period
+    v0 T (``displacement``, of the grid's shape) when it is given, and v0 otherwise.
 
-    * one parameter: v0 against it, failed points as crosses on the parameter axis;
-    * two parameters: a heat map of v0 (first parameter across, second up) with a colour bar,
-      failed cells crossed. The colour map is cividis when v0 has one sign, and the diverging,
-      colourblind-safe PuOr centred on 0 when it changes sign.
+    * one parameter: the values at the swept points (markers, joined by a line that breaks at
+      points without a value); failed and invalid points marked on the parameter axis,
+      not-converged points circled; a tick at every swept value (thinned on long axes,
+      `swept_ticks`);
+    * two parameters: a heat map in the one colour map, each cell centred on its swept values
+      (first parameter across, second up), ticks at the swept values, a colour bar, the contour
+      v0 = 0 when v0 changes sign, and cells without a value hatched and marked by status.
+
+    A log-spaced axis (constant ratio, `is_geometric`) is drawn on a log scale.
     """
+    units = units or Units()
     names = list(axes)
     values = [np.asarray(axes[k], dtype=float) for k in names]
-    v0 = np.asarray(v0, dtype=float)
-    failed = np.asarray(failed, dtype=bool)
     grid = tuple(len(v) for v in values)
     if len(names) not in (1, 2):
         raise ValueError(f"sweep_figure draws one or two swept parameters, got {len(names)}: "
                          f"{', '.join(names)}")
-    if v0.shape != grid or failed.shape != grid:
-        raise ValueError(f"v0 {v0.shape} and failed {failed.shape} must have the grid's shape "
+    v0 = np.asarray(v0, dtype=float)
+    statuses = np.asarray(status)
+    if v0.shape != grid or statuses.shape != grid:
+        raise ValueError(f"v0 {v0.shape} and status {statuses.shape} must have the grid's shape "
                          f"{grid}")
-    good = ~failed & np.isfinite(v0)
+    statuses = _status_grid(statuses, grid)
+    per_period, value_label = velocity_axis(units)
+    if per_period and displacement is not None:
+        data = np.asarray(displacement, dtype=float).reshape(grid)
+    else:
+        data = v0
+        if per_period:
+            value_label = label("average velocity", "v_0")
+    data = np.where(np.isin(statuses, ["ok", "not-converged"]) & np.isfinite(data), data, np.nan)
+    logs = [is_geometric(v) for v in values]
     with figure_style():
-        fig, axs = new_figure(height=3.6 if len(names) == 1 else 4.2)
+        fig, axs = new_figure(height=3.6 if len(names) == 1 else 4.4)
         ax = axs[0, 0]
         if len(names) == 1:
-            x = values[0]
-            ax.plot(x[good], v0[good], color=colours(1)[0], marker="o", markersize=4,
-                    label="$v_0$")
-            if np.any(~good):
-                ax.plot(x[~good], np.zeros(np.count_nonzero(~good)), linestyle="none",
-                        marker="x", markersize=7, color=SLIP_COLOURS[-1], clip_on=False,
-                        transform=ax.get_xaxis_transform(), label="failed")
-            ax.axhline(0.0, color=REFERENCE, linewidth=0.6)
-            ax.set_xlabel(label(names[0]))
-            ax.set_ylabel(label("average velocity", "v_0"))
-            ax.legend(loc="best")
+            _sweep_line(ax, values[0], data, statuses, logs[0])
+            ax.set_xlabel(path_label(names[0], units))
+            ax.set_ylabel(value_label)
         else:
-            x, y = values
-            data = np.where(good, v0, np.nan).T
-            finite = data[np.isfinite(data)]
-            if finite.size and finite.min() < 0 < finite.max():
-                cmap, norm = "PuOr_r", CenteredNorm(0.0)
-            else:
-                cmap, norm = "cividis", None
-            mesh = ax.pcolormesh(x, y, data, cmap=cmap, norm=norm, shading="nearest")
-            bar = fig.colorbar(mesh, ax=ax)
-            bar.set_label(label("average velocity", "v_0"))
-            xi, yi = np.nonzero(~good)
-            if xi.size:
-                ax.plot(x[xi], y[yi], linestyle="none", marker="x", markersize=7,
-                        color=REFERENCE, label="failed")
-                ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.14), borderaxespad=0)
-            ax.set_xlabel(label(names[0]))
-            ax.set_ylabel(label(names[1]))
-            ax.grid(False)
+            _sweep_map(fig, ax, values, data, statuses, logs, value_label)
+            ax.set_xlabel(path_label(names[0], units))
+            ax.set_ylabel(path_label(names[1], units))
         ax.set_title(title)
     return fig
+
+
+def _status_handles(ax, statuses, where) -> list:
+    """Mark the points whose status is in `STATUS_MARKERS` at ``where(mask)`` -> (x, y, kwargs);
+    return the legend handles."""
+    handles = []
+    for status, (marker, name) in STATUS_MARKERS.items():
+        mask = statuses == status
+        if not np.any(mask):
+            continue
+        x, y, extra = where(mask)
+        style: dict[str, object] = dict(linestyle="none", marker=marker, color=REFERENCE,
+                                        label=name)
+        if marker == "o":
+            style.update(markerfacecolor="none", markersize=9, markeredgewidth=1.2)
+        else:
+            style.update(markersize=8, markeredgewidth=1.6)
+        handles += ax.plot(x, y, **style, **extra)
+    return handles
+
+
+def _sweep_line(ax, x, data, statuses, log):
+    ax.plot(x, data, color=colours(1)[0], marker="o", markersize=4.5, label="$v_0$")
+    if log:
+        ax.set_xscale("log")
+    ax.axhline(0.0, color=REFERENCE, linewidth=0.6)
+    handles = _status_handles(
+        ax, statuses,
+        lambda mask: (x[mask], data[mask], {}) if np.all(np.isfinite(data[mask])) else
+        (x[mask], np.zeros(np.count_nonzero(mask)),
+         {"transform": ax.get_xaxis_transform(), "clip_on": False}))
+    _set_swept_ticks(ax.xaxis, x, log)
+    pad = 0.04 * (np.log(x[-1] / x[0]) if log else x[-1] - x[0]) if x.size > 1 else 0.5
+    if log:
+        ax.set_xlim(x[0] * np.exp(-pad), x[-1] * np.exp(pad))
+    else:
+        ax.set_xlim(x[0] - pad, x[-1] + pad)
+    if handles:
+        ax.legend(loc="best")
+
+
+def _sweep_map(fig, ax, values, data, statuses, logs, value_label):
+    x, y = values
+    cmap = colour_map().with_extremes(bad="white")
+    mesh = ax.pcolormesh(cell_edges(x, logs[0]), cell_edges(y, logs[1]), data.T, cmap=cmap,
+                         shading="flat")
+    bar = fig.colorbar(mesh, ax=ax)
+    bar.set_label(value_label)
+    if logs[0]:
+        ax.set_xscale("log")
+    if logs[1]:
+        ax.set_yscale("log")
+    handles = []
+    empty = ~np.isfinite(data)
+    if np.any(empty):
+        xe, ye = cell_edges(x, logs[0]), cell_edges(y, logs[1])
+        for a, b in zip(*np.nonzero(empty)):
+            ax.add_patch(Rectangle((xe[a], ye[b]), xe[a + 1] - xe[a], ye[b + 1] - ye[b],
+                                   facecolor="white", edgecolor=FAINT, hatch="////",
+                                   linewidth=0.0, label="_no value"))
+        handles.append(Patch(facecolor="white", edgecolor=FAINT, hatch="////",
+                             label="no value"))
+    finite = data[np.isfinite(data)]
+    if finite.size and finite.min() < 0 < finite.max() and min(data.shape) >= 2:
+        ax.contour(x, y, data.T, levels=[0.0], colors=REFERENCE, linewidths=1.2)
+        handles.append(Line2D([], [], color=REFERENCE, linewidth=1.2, label="$v_0$ = 0"))
+        bar.ax.axhline(0.0, color=REFERENCE, linewidth=1.2)
+    handles += _status_handles(ax, statuses, lambda mask: (
+        x[np.nonzero(mask)[0]], y[np.nonzero(mask)[1]], {}))
+    _set_swept_ticks(ax.xaxis, x, logs[0])
+    _set_swept_ticks(ax.yaxis, y, logs[1])
+    ax.grid(False)
+    if handles:
+        ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.16),
+                  ncol=min(len(handles), 3), borderaxespad=0)
+
+
+def sweep_data_figure(data: dict, title: str | None = None) -> Figure:
+    """The sweep figure of a sweep file (`crawlsim.h5io.read_sweep`) or of a table
+    (`crawlsim.sweep.table_payload`): the columns are put back on the grid (points a shard did
+    not hold have no value and no status), the units come from the file (`style.units_of`)."""
+    paths = list(data["paths"])
+    shape = tuple(len(a) for a in data["axes"])
+    points = np.asarray(data["points"], dtype=int)
+    columns = data["columns"]
+
+    def on_grid(name, fill, dtype):
+        full = np.full(int(np.prod(shape)), fill, dtype=dtype)
+        full[points] = np.asarray(columns[name]).astype(dtype)
+        return full.reshape(shape)
+
+    v0 = on_grid("v0", np.nan, float)
+    displacement = on_grid("displacement_per_period", np.nan, float)
+    status = on_grid("status", "", object)
+    if title is None:
+        title = f"{_sweep_name(data)}: average velocity over a sweep"
+    return sweep_figure(dict(zip(paths, data["axes"])), v0, status, title,
+                        units=units_of(data), displacement=displacement)
+
+
+def _sweep_name(data: dict) -> str:
+    import yaml
+
+    try:
+        document = yaml.safe_load(data.get("gait_yaml") or "")
+    except yaml.YAMLError:
+        document = None
+    if isinstance(document, dict) and isinstance(document.get("name"), str):
+        return document["name"]
+    from pathlib import Path
+
+    return Path(str(data.get("source", "sweep"))).stem
 
 
 #: The figures of one run, by the names of `crawlsim.plotting.FIGURE_NAMES`.

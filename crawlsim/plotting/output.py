@@ -10,9 +10,9 @@ from pathlib import Path
 
 from ..atomic import atomic_path
 from ..errors import ResultsFileError
-from ..h5io import read_results
-from . import CRAWLER_FIGURES, FIGURE_NAMES
-from .figures import FIGURES
+from ..h5io import read_results, read_sweep
+from . import CRAWLER_FIGURES, FIGURE_NAMES, SWEEP_FIGURE
+from .figures import FIGURES, sweep_data_figure
 from .style import DPI, figure_style
 
 FORMATS = ("png", "pdf", "svg")
@@ -34,6 +34,20 @@ def draw_figure(results: dict, name: str, *, coords=(0, 1)):
     return FIGURES[name](results)
 
 
+def read_plottable(path: Path) -> tuple[str, dict]:
+    """("run", `read_results` dict) or ("sweep", `read_sweep` dict) for a results or sweep file.
+
+    A file that is neither raises the results reader's error, which says what is missing.
+    """
+    try:
+        return "run", read_results(path)
+    except ResultsFileError as exc:
+        try:
+            return "sweep", read_sweep(path)
+        except ResultsFileError:
+            raise exc from None
+
+
 def plot_results(path, out_dir=None, fmt: str = "png", only: str | None = None, *,
                  coords=(0, 1)) -> list[Path]:
     """Draw the figures of the results file ``path`` into ``out_dir`` (default: its folder) as
@@ -41,18 +55,25 @@ def plot_results(path, out_dir=None, fmt: str = "png", only: str | None = None, 
 
     ``only`` draws one figure; otherwise every figure the file supports (`available_figures`).
     ``coords`` is the 0-based pair of shape coordinates of the shape-space figure when the shape
-    space has more than two dimensions. A missing dataset raises `ResultsFileError` naming the
-    file and the dataset; nothing is written then.
+    space has more than two dimensions. A sweep file (``crawlsim velocity --sweep ... -o
+    OUT.h5``) gets its one figure, ``<stem>-sweep.<fmt>`` (`figures.sweep_data_figure`). A
+    missing dataset raises `ResultsFileError` naming the file and the dataset; nothing is
+    written then.
     """
     path = Path(path)
     if fmt not in FORMATS:
         raise ValueError(f"format {fmt!r}: choose one of {', '.join(FORMATS)}")
-    results = read_results(path)
-    if only is not None and only not in FIGURE_NAMES:
-        raise ValueError(f"unknown figure {only!r}; choose one of {', '.join(FIGURE_NAMES)}")
-    names = [only] if only is not None else available_figures(results)
+    kind, results = read_plottable(path)
+    choices = FIGURE_NAMES if kind == "run" else (SWEEP_FIGURE,)
+    if only is not None and only not in choices:
+        raise ValueError(f"unknown figure {only!r} for a {kind} file; choose one of "
+                         f"{', '.join(choices)}")
     try:
-        drawn = {name: draw_figure(results, name, coords=coords) for name in names}
+        if kind == "sweep":
+            drawn = {SWEEP_FIGURE: sweep_data_figure(results)}
+        else:
+            names = [only] if only is not None else available_figures(results)
+            drawn = {name: draw_figure(results, name, coords=coords) for name in names}
     except ResultsFileError as exc:
         raise ResultsFileError(f"{path}: {exc}") from None
     folder = Path(out_dir) if out_dir is not None else path.resolve().parent

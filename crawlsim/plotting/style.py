@@ -1,21 +1,36 @@
-"""The one style of every crawlsim figure: fonts, colours, labels and titles.
+"""The one style of every crawlsim figure: fonts, colours, axis labels and titles.
 
-Every figure of `crawlsim.plotting` (and the sweep figure of ``crawlsim velocity --plot``) is drawn
-inside `figure_style()` and labelled with `label()` and `title()`, so that a change here changes
-all of them.
+Every figure of `crawlsim.plotting` is drawn inside `figure_style()` and labelled with `label()`
+and `title()`, so that a change here changes all of them.
 
-Colours are the Okabe-Ito palette (Okabe & Ito, *Color Universal Design*, 2008), which stays
-distinguishable under the common forms of colour blindness; more than eight blocks or links fall
-back to the perceptually uniform, colourblind-safe ``cividis`` colour map. Slip states use three
-of its colours that also differ in lightness, so a greyscale print keeps them apart.
+Colours
+    * Series (one colour per block or link, per instant of the shape-space figure): the
+      Okabe-Ito palette (Okabe & Ito, *Color Universal Design*, 2008), which stays
+      distinguishable under the common forms of colour blindness. More than eight series fall
+      back to samples of the colour map.
+    * One colour map for every continuous colouring (heat maps, long series): ``cividis``
+      (Nuñez, Anderton & Renslow, PLoS ONE 13, 2018), perceptually uniform and built to look
+      the same to readers with and without a red-green deficiency.
+    * Slip states (stick, forward slip, backward slip) have their own three colours, none of
+      them a series colour, so a vermilion line is never also a slip band. They are taken from
+      the colour map and differ in lightness (about L* = 91, 13 and 66), so they stay apart
+      under colour blindness and in a greyscale print.
 
-crawlsim quantities carry no units (the gait file fixes the scales of length, force and time),
-so every axis says "(dimensionless)".
+Labels
+    A gait file may give its units (``units: {length: mm, time: s, force: N}``); results and
+    sweep files carry them as the root attribute ``units_json``. Where a unit is given, an axis
+    reads "position $x_j$ (mm)". Where it is not, the quantity is written over its scale:
+    ``x/ℓ`` for lengths (ℓ: the gait file's unit of length), ``σ/F`` for forces (F: its unit
+    of force) and ``t/T`` for times, measured in periods. Periods are the natural clock of a
+    rate-independent crawler: its positions depend on t/T only (docs/model.md §4). Indices
+    (period q, block j) and phases (in cycles) carry no unit.
 """
 
 from __future__ import annotations
 
+import json
 from contextlib import contextmanager
+from dataclasses import dataclass
 
 import matplotlib
 
@@ -23,6 +38,7 @@ matplotlib.use("Agg")
 
 import numpy as np
 from matplotlib import cycler  # type: ignore[attr-defined]
+from matplotlib.colors import to_hex
 from matplotlib.figure import Figure
 
 #: Okabe-Ito palette, in the order that puts the most distinct colours first.
@@ -39,15 +55,25 @@ OKABE_ITO = {
 PALETTE = [OKABE_ITO[k] for k in ("blue", "vermillion", "bluish green", "reddish purple",
                                   "orange", "sky blue", "black", "yellow")]
 
-#: Colours of the slip states, keyed by the int8 code of ``/limit/slip``.
-SLIP_COLOURS = {0: "#D9D9D9", 1: OKABE_ITO["blue"], -1: OKABE_ITO["vermillion"]}
+#: The one colour map of every continuous colouring.
+COLOUR_MAP = "cividis"
+
+#: Colours of the slip states, keyed by the int8 code of ``/limit/slip``: light grey for stick,
+#: and the dark and light-olive ends of the colour map for forward and backward slip.
+SLIP_COLOURS = {0: "#E6E6E6", 1: to_hex(matplotlib.colormaps[COLOUR_MAP](0.0)),
+                -1: to_hex(matplotlib.colormaps[COLOUR_MAP](0.7))}
 SLIP_NAMES = {0: "stick", 1: "forward slip", -1: "backward slip"}
 
 #: Reference lines (barycentre, limits, fitted rates) and faint context (early periods).
 REFERENCE = "#000000"
 FAINT = "#9E9E9E"
 
-DIMENSIONLESS = "(dimensionless)"
+#: Sweep points that gave no v0, and how they are marked (matplotlib marker, legend name).
+STATUS_MARKERS = {
+    "failed": ("x", "failed"),
+    "invalid": ("+", "invalid gait"),
+    "not-converged": ("o", "not converged"),
+}
 
 #: Width of a one-column figure of a two-column paper is about 3.5 in; ours are a little wider
 #: and saved at 150 dpi, which keeps the PNGs small and the text sharp.
@@ -56,7 +82,7 @@ DPI = 150
 
 RC = {
     "font.size": 10,
-    "axes.titlesize": 11,
+    "axes.titlesize": 10.5,
     "axes.labelsize": 10,
     "legend.fontsize": 8.5,
     "xtick.labelsize": 9,
@@ -69,6 +95,7 @@ RC = {
     "grid.linewidth": 0.6,
     "lines.linewidth": 1.6,
     "legend.frameon": False,
+    "image.cmap": COLOUR_MAP,
     "figure.dpi": DPI,
     "savefig.dpi": DPI,
     "savefig.bbox": "tight",
@@ -95,22 +122,209 @@ def new_figure(nrows: int = 1, ncols: int = 1, *, height: float = 4.0, **kwargs)
     return fig, axes
 
 
+def colour_map():
+    """The colour map of every continuous colouring (a copy, safe to modify)."""
+    return matplotlib.colormaps[COLOUR_MAP].copy()
+
+
 def colours(count: int) -> list:
-    """``count`` distinguishable colours: Okabe-Ito up to eight, cividis beyond."""
+    """``count`` distinguishable series colours: Okabe-Ito up to eight, the colour map beyond
+    (never exactly a slip colour: a sample that falls on one moves to the next entry of the
+    map)."""
     if count <= len(PALETTE):
         return PALETTE[:count]
-    cmap = matplotlib.colormaps["cividis"]
-    return [cmap(v) for v in np.linspace(0.0, 0.9, count)]
+    cmap = matplotlib.colormaps[COLOUR_MAP]
+    slip = set(SLIP_COLOURS.values())
+    out = []
+    for v in np.linspace(0.05, 0.95, count):
+        colour = to_hex(cmap(v))
+        out.append(to_hex(cmap(v + 1.0 / cmap.N)) if colour in slip else colour)
+    return out
 
 
-def label(name: str, symbol: str | None = None, unit: str | None = None) -> str:
-    """An axis label: name, symbol in mathtext, and unit, "(dimensionless)" by default.
+# --------------------------------------------------------------------------------------------
+# Units and labels
 
-    >>> label("time", "t")
-    'time $t$ (dimensionless)'
+
+@dataclass(frozen=True)
+class Units:
+    """The units a gait file gives (``units:``), each a string such as ``"mm"``, or None."""
+
+    length: str | None = None
+    time: str | None = None
+    force: str | None = None
+
+    @classmethod
+    def parse(cls, value) -> Units:
+        """From the ``units_json`` attribute (a JSON object), a mapping, or None.
+
+        Anything that is not a mapping of strings gives no units: a figure is never refused
+        for its labels.
+        """
+        if isinstance(value, (bytes, str)):
+            try:
+                value = json.loads(value)
+            except ValueError:
+                return cls()
+        if not isinstance(value, dict):
+            return cls()
+        return cls(**{k: str(value[k]) for k in ("length", "time", "force")
+                      if isinstance(value.get(k), str) and value[k].strip()})
+
+
+#: How a quantity's dimension is written when its units are not given: ℓ the gait file's unit
+#: of length, F its unit of force, T the period (times are measured in periods).
+SCALE_SYMBOLS = {"length": r"\ell", "force": "F", "time": "T"}
+
+#: Dimensions as (numerator, denominator) of base dimensions; "cycles" is a phase.
+DIMENSIONS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
+    "length": (("length",), ()),
+    "force": (("force",), ()),
+    "time": (("time",), ()),
+    "stiffness": (("force",), ("length",)),
+    "velocity": (("length",), ("time",)),
+}
+
+
+def units_of(data: dict) -> Units:
+    """The units of a results dict (`crawlsim.h5io.read_results`) or a sweep dict
+    (`crawlsim.h5io.read_sweep`): the ``units_json`` attribute when the file has it, else the
+    ``units:`` block of the stored gait document, else none."""
+    attrs = data.get("attrs") or {}
+    for holder in (attrs, data):
+        if holder.get("units_json"):
+            return Units.parse(holder["units_json"])
+    text = attrs.get("gait_yaml", data.get("gait_yaml"))
+    if isinstance(text, str) and "units" in text:
+        import yaml
+
+        try:
+            document = yaml.safe_load(text)
+        except yaml.YAMLError:
+            return Units()
+        if isinstance(document, dict):
+            return Units.parse(document.get("units"))
+    return Units()
+
+
+def unit_text(dimension: str, units: Units) -> str | None:
+    """The unit of ``dimension`` as given by ``units`` ("N/mm"), or None when a part is
+    missing."""
+    top, bottom = DIMENSIONS[dimension]
+    parts = [[getattr(units, d) for d in side] for side in (top, bottom)]
+    if any(p is None for side in parts for p in side):
+        return None
+    num = " ".join(parts[0]) or "1"
+    return num if not parts[1] else f"{num}/{' '.join(parts[1])}"
+
+
+def _scaled(symbol: str, dimension: str) -> str:
+    """``symbol`` made dimensionless by the scales of `SCALE_SYMBOLS`: x/ℓ, kℓ/F, t/T."""
+    top, bottom = DIMENSIONS[dimension]
+    if any(op in symbol for op in "+-=,"):
+        symbol = f"({symbol})"
+    times = "".join(SCALE_SYMBOLS[d] for d in bottom)
+    over = "".join(SCALE_SYMBOLS[d] for d in top)
+    return f"{symbol}{times}/{over}" if over else f"{symbol}{times}"
+
+
+def label(name: str, symbol: str | None = None, dimension: str | None = None,
+          units: Units | None = None) -> str:
+    """An axis label: name, symbol in mathtext, and unit.
+
+    ``dimension`` is None (a pure number or an index), ``"cycles"`` (a phase), or one of
+    `DIMENSIONS`. With the unit given: ``name $symbol$ (unit)``. Without it, the symbol over its
+    scale: ``position $x_j/\\ell$``, ``time $t/T$`` (the caller plots t/T then).
+
+    >>> label("time", "t", "time")
+    'time $t/T$'
+    >>> label("stress", "\\\\sigma_i", "force", Units(force="N"))
+    'stress $\\\\sigma_i$ (N)'
     """
-    text = name if symbol is None else f"{name} ${symbol}$"
-    return f"{text} {DIMENSIONLESS if unit is None else f'({unit})'}"
+    units = units or Units()
+    if dimension is None:
+        return name if symbol is None else f"{name} ${symbol}$"
+    if dimension == "cycles":
+        text = name if symbol is None else f"{name} ${symbol}$"
+        return f"{text} (cycles)"
+    unit = unit_text(dimension, units)
+    if unit is not None:
+        text = name if symbol is None else f"{name} ${symbol}$"
+        return f"{text} ({unit})"
+    if symbol is None:
+        # A name without a symbol: the scale in parentheses, as a unit.
+        top, bottom = DIMENSIONS[dimension]
+        mixed = [getattr(units, d) or f"${SCALE_SYMBOLS[d]}$" for d in top]
+        under = [getattr(units, d) or f"${SCALE_SYMBOLS[d]}$" for d in bottom]
+        return f"{name} ({' '.join(mixed)}{'/' + ' '.join(under) if under else ''})"
+    given = [d for side in DIMENSIONS[dimension] for d in side if getattr(units, d)]
+    if given:
+        # Some parts given, some not: the unit written with the scales of the missing parts.
+        top, bottom = DIMENSIONS[dimension]
+        num = " ".join(getattr(units, d) or f"${SCALE_SYMBOLS[d]}$" for d in top)
+        den = " ".join(getattr(units, d) or f"${SCALE_SYMBOLS[d]}$" for d in bottom)
+        return f"{name} ${symbol}$ ({num}{'/' + den if den else ''})"
+    return f"{name} ${_scaled(symbol, dimension)}$"
+
+
+def time_axis(units: Units, period: float, *, symbol: str = "t",
+              name: str = "time") -> tuple[float, str]:
+    """How a figure draws times: (factor, label). Times are plotted as ``factor * t``:
+    in the file's time unit when it is given (factor 1), else in periods, t/T (factor 1/T)."""
+    if units.time is not None:
+        return 1.0, label(name, symbol, "time", units)
+    return 1.0 / period, label(name, symbol, "time", units)
+
+
+def velocity_axis(units: Units, *, name: str = "average velocity") -> tuple[bool, str]:
+    """How a figure draws v0: (per_period, label). With a time unit, v0 itself ("mm/s");
+    without one, the displacement per period v0 T, a length."""
+    if units.time is not None:
+        return False, label(name, "v_0", "velocity", units)
+    return True, label("displacement per period", "v_0T", "length", units)
+
+
+#: Units of the swept gait parameters, by the keys of their dotted paths.
+_PATH_DIMENSIONS = {
+    "phase": "cycles", "times": "cycles", "stiffness": "stiffness", "period": "time",
+    "positions": "length",
+}
+
+
+def path_dimension(path: str) -> str | None:
+    """The dimension of a swept dotted path (``links.*.amplitude`` is a length,
+    ``friction.backward`` a force, ``links.1.phase`` a phase in cycles, ``simulation.*`` a pure
+    number)."""
+    keys = [k for k in path.split(".") if not (k == "*" or k.isdigit())]
+    if not keys or keys[0] in ("simulation", "normals", "offsets", "metric", "initial") and \
+            keys[-1] != "positions":
+        return None
+    if keys[-1] in _PATH_DIMENSIONS:
+        return _PATH_DIMENSIONS[keys[-1]]
+    if keys[0] == "links":
+        return "length"
+    if keys[0] == "friction":
+        return "force"
+    return None
+
+
+def path_label(path: str, units: Units) -> str:
+    """The axis label of a swept path: the path itself (so it can be pasted back into
+    ``--sweep``), then its unit."""
+    dimension = path_dimension(path)
+    if dimension is None:
+        return path
+    if dimension == "cycles":
+        return f"{path} (cycles)"
+    unit = unit_text(dimension, units)
+    if unit is not None:
+        return f"{path} ({unit})"
+    if dimension == "time":
+        return path  # a swept period, in the gait file's own time unit: nothing to divide by
+    top, bottom = DIMENSIONS[dimension]
+    num = " ".join(getattr(units, d) or f"${SCALE_SYMBOLS[d]}$" for d in top)
+    den = " ".join(getattr(units, d) or f"${SCALE_SYMBOLS[d]}$" for d in bottom)
+    return f"{path} ({num}{'/' + den if den else ''})"
 
 
 def title(gait: str, figure: str) -> str:
