@@ -319,7 +319,7 @@ class Polyhedron:
     # -- active sets ---------------------------------------------------------------------------
     def factor(self, index) -> ActiveSet:
         """The factored active set of the rows ``index`` (cached); `Dependent` if LICQ fails."""
-        key = tuple(sorted(int(i) for i in index))
+        key = tuple(np.sort(np.asarray(index, dtype=int)).tolist())
         cached = self._cache.get(key)
         if cached is None:
             idx = np.array(key, dtype=int)
@@ -363,7 +363,7 @@ class Polyhedron:
         w = w_trial - self.respond(lam)
         slack = self.apply(w) - c
         tol = self._tolerance1(active, c, w_trial, lam)
-        if np.max(np.abs(slack[idx])) > REFINE_FRACTION * tol.primal:
+        if np.abs(slack[idx]).max() > REFINE_FRACTION * tol.primal:
             # one step of iterative refinement on the certified residual: B_A w - c_A
             delta = np.zeros(self.m)
             delta[idx] = active.solve(slack[idx])
@@ -376,8 +376,8 @@ class Polyhedron:
         """`tolerance` for one step, in Python floats."""
         # rows with an infinite offset are ignored (velocity problems of the exact integrator)
         c_size = float(np.max(np.abs(c), initial=0.0, where=np.isfinite(c)))
-        lam_size = float(np.max(np.abs(lam), initial=0.0))
-        size = max(self.c_scale, c_size, self.row_norm * float(np.max(np.abs(w), initial=0.0)),
+        lam_size = float(np.abs(lam).max(initial=0.0))
+        size = max(self.c_scale, c_size, self.row_norm * float(np.abs(w).max(initial=0.0)),
                    self.row_norm * self.response_norm * lam_size)
         dual = RTOL * active.inverse_norm * (size + active.gram_norm * lam_size)
         return Tolerance(RTOL * size, 2.0 * dual)
@@ -386,12 +386,12 @@ class Polyhedron:
                 tol: Tolerance, fixed: np.ndarray | None = None) -> Certificate:
         """The certificate of one step from its slack B w - c and multipliers. Rows ``fixed``
         are equalities: their multipliers may have either sign."""
-        comp = float(np.max(np.abs(slack[active.index]), initial=0.0))
+        comp = float(np.abs(slack[active.index]).max(initial=0.0))
         if fixed is not None and len(fixed):
             lam = lam.copy()
             lam[fixed] = 0.0
-        return Certificate(float(np.max(slack, initial=-np.inf)),
-                           float(-np.min(lam, initial=0.0)), comp, tol)
+        return Certificate(float(slack.max(initial=-np.inf)), float(-lam.min(initial=0.0)),
+                           comp, tol)
 
     def tight_rows(self, slack: np.ndarray, active: ActiveSet, tol: Tolerance) -> np.ndarray:
         """Rows tight to roundoff at a certified point: the active ones and any inactive row
@@ -433,6 +433,11 @@ class Polyhedron:
             index = self.update_set(active, lam, slack, tol, single=single, fixed=fixed)
             if index is None:
                 return None  # complementarity failed even after refinement
+            if not single and not self.licq(index):
+                # adding every violated row at once made the set dependent: the worst only
+                index = self.update_set(active, lam, slack, tol, single=True, fixed=fixed)
+                if index is None:
+                    return None
             try:
                 active = self.factor(index)
             except Dependent:
@@ -444,21 +449,25 @@ class Polyhedron:
         """The next active set of a primal-dual update: drop the rows whose multiplier is
         negative beyond tolerance (never a ``fixed`` row), add the rows violated beyond
         tolerance (``single``: only the worst one); None when nothing is to change."""
-        idx = active.index
-        drop = idx[lam[idx] < -tol.dual]
+        member = np.zeros(self.m, dtype=bool)
+        member[active.index] = True
+        drop = member & (lam < -tol.dual)
         if fixed is not None and len(fixed):
-            drop = drop[~np.isin(drop, fixed)]
-        violated = np.flatnonzero(slack > tol.primal)
-        violated = violated[~np.isin(violated, idx)]
+            drop[fixed] = False
+        violated = ~member & (slack > tol.primal)
         if single:
-            if drop.size:
-                drop = drop[[int(np.argmin(lam[drop]))]]
-                violated = violated[:0]
-            elif violated.size:
-                violated = violated[[int(np.argmax(slack[violated]))]]
-        if drop.size == 0 and violated.size == 0:
+            if drop.any():
+                worst = int(np.argmin(np.where(drop, lam, np.inf)))
+                drop[:] = False
+                drop[worst] = True
+                violated[:] = False
+            elif violated.any():
+                worst = int(np.argmax(np.where(violated, slack, -np.inf)))
+                violated[:] = False
+                violated[worst] = True
+        if not drop.any() and not violated.any():
             return None
-        return np.union1d(np.setdiff1d(idx, drop), violated)
+        return np.flatnonzero((member & ~drop) | violated)
 
     # -- a telescoped run of steps on one active set -----------------------------------------
     def run(self, active: ActiveSet, w: np.ndarray, C: np.ndarray) -> Run:
@@ -469,8 +478,8 @@ class Polyhedron:
         k = len(C)
         if active.size == 0:
             slack = self.apply(w)[None, :] - C
-            tol = self.tolerance(active, np.max(np.abs(C), axis=1), np.max(np.abs(w)), 0.0)
-            primal = np.max(slack, axis=1)
+            tol = self.tolerance(active, np.abs(C).max(axis=1), np.abs(w).max(), 0.0)
+            primal = slack.max(axis=1)
             ok = primal <= tol.primal
             tight = slack >= -tol.primal[:, None]
             stop = self.tight_stop(tight, tight.any(axis=1))
@@ -492,19 +501,20 @@ class Polyhedron:
         LAMC[:, idx] = active.solve(R)
         W = w - self.respond(LAMC)
         slack = self.apply(W) - C
-        tol = self.tolerance(active, np.max(np.abs(C), axis=1), np.max(np.abs(W), axis=1),
-                             np.max(np.abs(LAMC), axis=1))
-        comp = np.max(np.abs(slack[:, idx]), axis=1)
+        tol = self.tolerance(active, np.abs(C).max(axis=1), np.abs(W).max(axis=1),
+                             np.abs(LAMC).max(axis=1))
+        comp = np.abs(slack[:, idx]).max(axis=1)
         if np.any(comp > REFINE_FRACTION * tol.primal):
             delta = np.zeros((k, self.m))
             delta[:, idx] = active.solve(slack[:, idx])
             LAMC += delta
             W -= self.respond(delta)
             slack = self.apply(W) - C
-            comp = np.max(np.abs(slack[:, idx]), axis=1)
-        LAM = np.diff(LAMC, axis=0, prepend=np.zeros((1, self.m)))
-        primal = np.max(slack, axis=1)
-        dual = -np.min(LAM[:, idx], axis=1)
+            comp = np.abs(slack[:, idx]).max(axis=1)
+        LAM = LAMC.copy()
+        LAM[1:] -= LAMC[:-1]
+        primal = slack.max(axis=1)
+        dual = -LAM[:, idx].min(axis=1)
         ok = (primal <= tol.primal) & (dual <= tol.dual) & (comp <= tol.primal)
         tight = slack >= -tol.primal[:, None]
         tight[:, idx] = False
@@ -574,10 +584,13 @@ class ChainPolyhedron(Polyhedron):
         W = np.asarray(W, dtype=float)
         N = self.blocks
         out = np.empty(W.shape[:-1] + (2 * N,))
-        np.negative(W[..., 0], out=out[..., 0])
-        np.subtract(W[..., :-1], W[..., 1:], out=out[..., 1:N - 1])
-        out[..., N - 1] = W[..., -1]
-        np.negative(out[..., :N], out=out[..., N:])
+        f = out[..., :N]
+        f[..., 0] = W[..., 0]
+        f[..., 1:N - 1] = W[..., 1:]
+        f[..., 1:N - 1] -= W[..., :-1]
+        f[..., N - 1] = -W[..., -1]
+        out[..., N:] = f  # rows N.. are -f; rows ..N are f = D^T w
+        np.negative(f, out=f)
         return out
 
     def respond(self, LAM):
@@ -819,7 +832,7 @@ def refine_chains(stiffness: np.ndarray, signs: np.ndarray, w: np.ndarray, c: np
         ok = runs.ok[:, 0] & ~runs.stop[:, 0]
         good = todo[ok]
         w_out[good], lam_out[good], done[good] = runs.w[ok, 0], runs.multipliers[ok, 0], True
-        bad = ~ok & ~runs.stop[:, 0]
+        bad = ~runs.ok[:, 0]  # certified with every block tight: the projector decides LICQ
         if not bad.any():
             break
         lam, slack = runs.multipliers[bad, 0], runs.slack[bad, 0]
@@ -827,8 +840,16 @@ def refine_chains(stiffness: np.ndarray, signs: np.ndarray, w: np.ndarray, c: np
         new = signs[todo[bad]]
         drop = ((lam[:, :N] < -told) & (new > 0)) | ((lam[:, N:] < -told) & (new < 0))
         new[drop] = 0.0
+        kept = new.copy()
         new[slack[:, :N] > tolp] = 1.0
         new[slack[:, N:] > tolp] = -1.0
+        # adding every violated row may saturate every block (LICQ fails): add the worst only
+        full = (new != 0).all(axis=1)
+        if full.any():
+            worst = np.argmax(slack[full], axis=1)
+            rows_full = np.flatnonzero(full)
+            new[full] = kept[full]
+            new[rows_full, worst % N] = np.where(worst < N, 1.0, -1.0)
         unchanged = (new == signs[todo[bad]]).all(axis=1)
         signs[todo[bad]] = new
         todo = todo[bad][~unchanged]

@@ -59,19 +59,29 @@ class Basis:
                 out[:, 1] = u
             elif order == 1:
                 out[:, 1] = 1.0
+        H = self.harmonics
+        if H:
+            w = TWO_PI * np.arange(1, H + 1)
+            angle = u[:, None] * w  # (k, H)
+            # d^k/du^k cos(w u) = w^k cos(w u + k pi/2), sin likewise
+            shift = order * (math.pi / 2)
+            scale = w ** order
+            h0 = self.first_harmonic
+            out[:, h0::2] = scale * np.cos(angle + shift)
+            out[:, h0 + 1::2] = scale * np.sin(angle + shift)
+        return out
+
+    def scalar(self, x: float, coef: np.ndarray) -> float:
+        """f(x) = phi(x) @ coef for one cycle x and one coefficient vector (no arrays)."""
+        total = float(coef[0])
+        if self.linear:
+            total += float(coef[1]) * x
         h0 = self.first_harmonic
         for h in range(1, self.harmonics + 1):
-            w = TWO_PI * h
-            angle = w * u
-            c, s = np.cos(angle), np.sin(angle)
-            # d^k/du^k cos(w u) = w^k cos(w u + k pi/2), sin likewise
-            k = order % 4
-            cos_k = (c, -s, -c, s)[k]
-            sin_k = (s, c, -s, -c)[k]
-            scale = w ** order
-            out[:, h0 + 2 * (h - 1)] = scale * cos_k
-            out[:, h0 + 2 * (h - 1) + 1] = scale * sin_k
-        return out
+            angle = TWO_PI * h * x
+            total += float(coef[h0 + 2 * h - 2]) * math.cos(angle) \
+                + float(coef[h0 + 2 * h - 1]) * math.sin(angle)
+        return total
 
     def derivative(self, coef: np.ndarray) -> np.ndarray:
         """Coefficients (nb, ...) of f' for f = phi @ coef."""

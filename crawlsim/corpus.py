@@ -1,0 +1,108 @@
+"""Seeded random valid gaits: the corpus that tests and `scripts/random-gait-corpus.py` run.
+
+Every gait of the corpus is a valid gait file document (it passes `crawlsim.gait` validation):
+N blocks with per-link stiffness (ratios up to ``stiffness_ratio``), actuated by signals of
+every kind (constant, cosine, fourier, piecewise-linear, steps), and friction per block or
+shared, constant, smoothly time-varying or switched by ``steps`` signals, with forward/backward
+ratios between ``1 / friction_ratio`` and ``friction_ratio``. The initial state is the default
+one (stress-free at t = 0), which is admissible. Seeds make the corpus reproducible.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .errors import GaitError
+from .gait import Gait, gait_from_document
+
+
+def _log_uniform(rng: np.random.Generator, lo: float, hi: float) -> float:
+    return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
+
+
+def _link_signal(rng: np.random.Generator, mean: float, amplitude: float) -> dict | float:
+    kind = rng.choice(["constant", "cosine", "cosine", "fourier", "piecewise-linear", "steps"])
+    phase = float(rng.uniform(0, 1))
+    if kind == "constant":
+        return mean
+    if kind == "cosine":
+        return {"kind": "cosine", "mean": mean, "amplitude": amplitude, "phase": phase}
+    if kind == "fourier":
+        h = int(rng.integers(1, 4))
+        scale = amplitude / h
+        return {"kind": "fourier", "mean": mean,
+                "cos": [float(v) for v in rng.uniform(-scale, scale, h)],
+                "sin": [float(v) for v in rng.uniform(-scale, scale, h)], "phase": phase}
+    if kind == "piecewise-linear":
+        knots = int(rng.integers(1, 4))
+        times = sorted(float(t) for t in rng.uniform(0.05, 0.95, knots))
+        values = [mean] + [mean + float(v) for v in rng.uniform(-amplitude, amplitude, knots)]
+        return {"kind": "piecewise-linear", "times": [0.0, *times, 1.0],
+                "values": [*values, mean], "phase": phase}
+    steps = int(rng.integers(2, 4))
+    times = [0.0, *sorted(float(t) for t in rng.uniform(0.05, 0.95, steps - 1))]
+    return {"kind": "steps", "times": times,
+            "values": [mean + float(v) for v in rng.uniform(-amplitude, amplitude, steps)],
+            "phase": phase}
+
+
+def _friction_signal(rng: np.random.Generator, level: float) -> dict | float:
+    kind = rng.choice(["constant", "constant", "cosine", "steps"])
+    if kind == "constant":
+        return level
+    if kind == "cosine":
+        return {"kind": "cosine", "mean": level, "amplitude": float(rng.uniform(0.1, 0.6)) * level,
+                "phase": float(rng.uniform(0, 1))}
+    steps = int(rng.integers(2, 4))
+    times = [0.0, *sorted(float(t) for t in rng.uniform(0.05, 0.95, steps - 1))]
+    return {"kind": "steps", "times": times,
+            "values": [level * _log_uniform(rng, 0.3, 3.0) for _ in range(steps)],
+            "phase": float(rng.uniform(0, 1))}
+
+
+def random_document(seed: int, *, blocks: tuple[int, int] = (2, 12),
+                    stiffness_ratio: float = 1e3, friction_ratio: float = 1e2,
+                    steps_per_period: int = 1000, max_periods: int = 300,
+                    tolerance: float = 1e-11) -> dict:
+    """A random gait document (not yet validated) from ``seed``."""
+    rng = np.random.default_rng(seed)
+    N = int(rng.integers(blocks[0], blocks[1] + 1))
+    k0 = _log_uniform(rng, 1.0, 100.0)
+    stiffness = [k0 * _log_uniform(rng, 1.0, stiffness_ratio) for _ in range(N - 1)]
+    mu0 = _log_uniform(rng, 0.2, 5.0)
+    amplitude = float(rng.uniform(0.05, 0.5))
+    links = [_link_signal(rng, 1.0, amplitude * float(rng.uniform(0.3, 1.0)))
+             for _ in range(N - 1)]
+    if rng.uniform() < 0.3:
+        friction: dict | list = {
+            "forward": _friction_signal(rng, mu0),
+            "backward": _friction_signal(rng, mu0 * _log_uniform(rng, 1 / friction_ratio,
+                                                                 friction_ratio))}
+    else:
+        friction = []
+        for _ in range(N):
+            level = mu0 * _log_uniform(rng, 0.3, 3.0)
+            friction.append({"forward": _friction_signal(rng, level),
+                             "backward": _friction_signal(
+                                 rng, level * _log_uniform(rng, 1 / friction_ratio,
+                                                           friction_ratio))})
+    return {"name": f"random-{seed}", "blocks": N, "period": _log_uniform(rng, 0.5, 5.0),
+            "stiffness": stiffness, "links": links, "friction": friction,
+            "simulation": {"steps_per_period": steps_per_period, "max_periods": max_periods,
+                           "tolerance": tolerance}}
+
+
+def random_gait(seed: int, **options) -> Gait:
+    """The first valid gait from seeds ``seed``, ``seed + 10**6``, ... (a random document is
+    occasionally refused, for instance by the uniqueness condition)."""
+    for attempt in range(100):
+        doc = random_document(seed + attempt * 10**6, **options)
+        try:
+            gait = gait_from_document(doc, f"random gait {seed}", default_name=doc["name"])
+        except GaitError:
+            continue
+        assert isinstance(gait, Gait)
+        return gait
+    raise RuntimeError(f"no valid random gait from seed {seed}")  # pragma: no cover

@@ -1,0 +1,192 @@
+"""The certified KKT kernel (crawlsim.kkt): structure, factorisations, certificates, runs.
+
+A projection w* = argmin 1/2 |w - w_trial|_M^2 s.t. B w <= c is characterised by its KKT
+conditions, M (w* - w_trial) + B^T lambda = 0, B w* <= c, lambda >= 0, lambda_i (B w* - c)_i = 0;
+the tests check them independently of the kernel, on crawler chains (N up to 40, stiffness
+ratios up to 1e6, friction ratios 1e-3 to 1e3) and on generic polytopes.
+"""
+
+import numpy as np
+import pytest
+from hypothesis import example, given, settings
+from hypothesis import strategies as st
+
+from crawlsim import kkt
+from crawlsim.kkt import ChainPolyhedron, DensePolyhedron
+from crawlsim.projection import ExactProjector
+
+EPS = np.finfo(float).eps
+
+
+def chain_problem(seed, blocks, stiffness_ratio, friction_ratio, push):
+    """A crawler's step: stiffnesses spread over ``stiffness_ratio``, friction limits mu+, mu-
+    with mu-/mu+ up to ``friction_ratio`` either way, actuator lengths L, and a trial state
+    pushed by ``push`` (in units of the friction force over the stiffness)."""
+    rng = np.random.default_rng(seed)
+    k = np.exp(rng.uniform(0, np.log(stiffness_ratio), blocks - 1))
+    mu_plus = np.exp(rng.uniform(-1, 1, blocks))
+    mu_minus = mu_plus * np.exp(rng.uniform(-np.log(friction_ratio), np.log(friction_ratio),
+                                            blocks))
+    L = 1.0 + 0.3 * rng.normal(size=blocks - 1)
+    poly = ChainPolyhedron(k, 1.0)
+    DtKL = poly.forces(k * L)
+    c = np.concatenate([mu_plus - DtKL, mu_minus + DtKL])
+    w_trial = -k * L + push * rng.normal(size=blocks - 1) * np.max(mu_plus)
+    return poly, c, w_trial
+
+
+def assert_kkt(poly, c, w_trial, step, rtol=1e-12):
+    """The KKT conditions, checked with the dense B and M (not the kernel's operators)."""
+    B, M = poly.dense_normals(), poly.dense_metric()
+    w, lam = step.point, step.multipliers
+    lam_scale = np.max(np.abs(lam), initial=0.0)
+    size = max(1.0, np.max(np.abs(c)), 2 * np.max(np.abs(w_trial)),
+               np.max(np.abs(B.T @ lam)))
+    slack = B @ w - c
+    assert np.max(slack) <= rtol * size
+    assert np.min(lam) >= -rtol * size * max(1.0, step.active.inverse_norm) - rtol * lam_scale
+    assert np.max(np.abs(slack[step.active.index]), initial=0.0) <= rtol * size
+    stationarity = M @ (w - w_trial) + B.T @ lam
+    assert np.max(np.abs(stationarity)) <= 1e3 * EPS * size * max(1.0, np.max(np.abs(M)))
+    inactive = np.setdiff1d(np.arange(poly.m), step.active.index)
+    assert np.all(lam[inactive] == 0.0)
+
+
+@pytest.mark.parametrize("shape", [(8,), (3, 8), (7, 8), (5, 4, 6), (2, 1)])
+def test_chain_operators_are_the_dense_matrices(shape):
+    """B w and M^{-1} B^T lambda of a chain equal the dense D^T, K D products, for any
+    leading shape (the batched runs and the basis coefficients use 2-D and 3-D arrays)."""
+    rng = np.random.default_rng(sum(shape))
+    k = rng.uniform(0.5, 5, shape[-1])
+    poly = ChainPolyhedron(k, 1.0)
+    W = rng.normal(size=shape)
+    LAM = rng.normal(size=shape[:-1] + (poly.m,))
+    B, Minv = poly.dense_normals(), np.linalg.inv(poly.dense_metric())
+    np.testing.assert_allclose(poly.apply(W), W @ B.T, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(poly.respond(LAM), LAM @ (Minv @ B.T).T, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(kkt.chain_apply(W), W @ B.T, rtol=0, atol=1e-14)
+
+
+@pytest.mark.parametrize("blocks", [3, 6, 7, 40, 200])
+def test_chain_factor_solves_and_bounds_the_inverse(blocks):
+    """An active set's solve equals the dense solve with G_A = B_A M^{-1} B_A^T (numpy LDL^T
+    for small sets, LAPACK dpttrf/dpttrs for large ones), and its inverse norm is exactly
+    ||G_A^{-1}||_inf (L_JJ is an M-matrix, so the norm is max(L_JJ^{-1} 1))."""
+    rng = np.random.default_rng(blocks)
+    k = np.exp(rng.uniform(0, np.log(1e4), blocks - 1))
+    poly = ChainPolyhedron(k, 1.0)
+    J = rng.choice(blocks, size=blocks - 1, replace=False)
+    index = np.where(rng.uniform(size=J.size) < 0.5, J, J + blocks)
+    A = poly.factor(index)
+    B = poly.dense_normals()[A.index]
+    G = B @ np.linalg.inv(poly.dense_metric()) @ B.T
+    R = rng.normal(size=(5, A.size))
+    x, ref = A.solve(R), np.linalg.solve(G, R.T).T
+    # forward error of a backward-stable solve: a few eps times the condition number
+    cond = A.inverse_norm * A.gram_norm
+    assert np.max(np.abs(x - ref)) <= 100 * EPS * cond * np.max(np.abs(ref))
+    assert A.inverse_norm == pytest.approx(np.max(np.sum(np.abs(np.linalg.inv(G)), axis=1)),
+                                           rel=1e-9)
+
+
+def test_chain_licq_is_not_every_block_and_not_both_limits():
+    poly = ChainPolyhedron(np.ones(3), 1.0)  # 4 blocks, rows 0..3 forward, 4..7 backward
+    assert poly.licq([0, 1, 6])
+    assert not poly.licq([0, 1, 2, 7])  # every block at a limit: L 1 = 0
+    assert not poly.licq([1, 5])  # block 1 at both limits: opposite normals
+    with pytest.raises(kkt.Dependent):
+        poly.factor([0, 1, 2, 7])
+
+
+@settings(max_examples=120, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), blocks=st.integers(2, 40),
+       stiffness_ratio=st.sampled_from([1.0, 1e2, 1e4, 1e6]),
+       friction_ratio=st.sampled_from([1.0, 10.0, 1e3]), push=st.sampled_from([0.1, 1.0, 10.0]))
+@example(seed=0, blocks=40, stiffness_ratio=1e6, friction_ratio=1e3, push=10.0)
+@example(seed=3, blocks=2, stiffness_ratio=1.0, friction_ratio=1.0, push=0.1)
+def test_chain_projection_satisfies_kkt_and_agrees_with_clarabel(seed, blocks, stiffness_ratio,
+                                                                 friction_ratio, push):
+    """A crawler's certified step meets the KKT conditions to roundoff and is the point
+    Clarabel's interior-point solution approaches (to its own 1e-10 accuracy)."""
+    poly, c, w_trial = chain_problem(seed, blocks, stiffness_ratio, friction_ratio, push)
+    projector = ExactProjector(poly)
+    proj = projector.project(w_trial, c)
+    step = kkt.Step(proj.point, proj.multipliers, proj.active, None)  # type: ignore[arg-type]
+    assert_kkt(poly, c, w_trial, step)
+    lam_ip, _ = projector._clarabel(w_trial, c)
+    w_ip = w_trial - poly.respond(lam_ip)
+    scale = max(1.0, np.max(np.abs(w_trial)))
+    assert np.max(np.abs(w_ip - proj.point)) <= 1e-6 * scale * max(1.0, stiffness_ratio) ** 0.5
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), blocks=st.integers(2, 12))
+def test_chain_and_dense_kernels_agree(seed, blocks):
+    """The same projection through the chain structure and through the dense code."""
+    poly, c, w_trial = chain_problem(seed, blocks, 1e3, 1e2, 1.0)
+    dense = DensePolyhedron(poly.dense_normals(), poly.dense_metric(), 1.0)
+    a = ExactProjector(poly).project(w_trial, c)
+    b = ExactProjector(dense).project(w_trial, c)
+    np.testing.assert_allclose(a.point, b.point, rtol=0, atol=1e-11 * max(1, np.max(np.abs(c))))
+    np.testing.assert_allclose(a.multipliers, b.multipliers, rtol=1e-8, atol=1e-11)
+
+
+def test_a_telescoped_run_is_the_steps_one_by_one():
+    """On a fixed active set, k steps at once (one solve, cumulative multipliers) equal k
+    single steps from each previous state, to roundoff."""
+    poly, c, w_trial = chain_problem(5, 8, 10.0, 10.0, 3.0)
+    proj = ExactProjector(poly).project(w_trial, c)
+    A = proj.active
+    # offsets moving slowly along the face: every step stays on A
+    C = c + np.outer(np.linspace(0, 1e-3, 6)[1:], np.ones(poly.m)) * 0.0
+    C[:, A.index] -= np.linspace(0, 1e-3, 6)[1:, None]
+    run = poly.run(A, proj.point, C)
+    assert run.accepted == len(C)
+    w = proj.point
+    for i in range(len(C)):
+        w_i, lam_i, _, _ = poly.solve_on(A, w, C[i])
+        np.testing.assert_allclose(run.w[i], w_i, rtol=0, atol=1e-13)
+        np.testing.assert_allclose(run.multipliers[i], lam_i, rtol=0, atol=1e-13)
+        w = w_i
+
+
+@pytest.mark.parametrize("blocks", [2, 5, 20])
+def test_batched_updates_agree_with_single_projections(blocks):
+    """`refine_chains` (vectorised primal-dual updates over a batch) certifies the same steps
+    as each gait's own projector, or leaves them to it."""
+    problems = [chain_problem(s, blocks, 1e2, 1e2, 2.0) for s in range(12)]
+    k = np.stack([p.stiffness for p, _, _ in problems])
+    c = np.stack([cc for _, cc, _ in problems])
+    w = np.stack([wt for _, _, wt in problems])
+    w_out, lam_out, signs, done = kkt.refine_chains(k, np.zeros((12, blocks)), w, c,
+                                                    np.ones(12))
+    assert done.sum() >= 10
+    for i in np.flatnonzero(done):
+        proj = ExactProjector(problems[i][0]).project(w[i], c[i])
+        np.testing.assert_allclose(w_out[i], proj.point, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(lam_out[i], proj.multipliers, rtol=0, atol=1e-11)
+
+
+def test_ldl_tridiagonal_solves_batches():
+    rng = np.random.default_rng(0)
+    d = rng.uniform(3, 5, (4, 7))
+    e = rng.uniform(-1, 1, (4, 6))
+    D, l = kkt.ldl_tridiagonal(d, e)
+    b = rng.normal(size=(4, 3, 7))
+    x = kkt.ldl_solve(D, l, b)
+    for i in range(4):
+        T = np.diag(d[i]) + np.diag(e[i], 1) + np.diag(e[i], -1)
+        np.testing.assert_allclose(x[i], np.linalg.solve(T, b[i].T).T, rtol=1e-12)
+
+
+def test_degenerate_slips_are_told_from_unique_ones():
+    """Every block tight: the slips are unique only up to a rigid translation s 1 keeping
+    every multiplier >= 0. Two blocks, block 1 at its forward limit with slip 1 and block 2
+    at its backward limit with multiplier 0.5: s in [-1, 0.5] (not unique). With both
+    multipliers 0 the interval is the point s = 0: unique."""
+    poly = ChainPolyhedron(np.ones(1), 1.0)
+    tol = kkt.Tolerance(1e-14, 1e-14)
+    step = kkt.Step(np.zeros(1), np.array([1.0, 0.0, 0.0, 0.5]), poly.factor([0]), None)  # type: ignore[arg-type]
+    assert poly.degenerate_slips(step, np.array([0, 3]), tol)
+    step = kkt.Step(np.zeros(1), np.array([0.0, 0.0, 0.0, 0.0]), poly.factor([0]), None)  # type: ignore[arg-type]
+    assert not poly.degenerate_slips(step, np.array([0, 3]), tol)
