@@ -30,8 +30,8 @@ UNITS_SCHEMA: dict[str, Any] = {
                   "{length: mm, time: s, force: N}",
     "additionalProperties": False,
     "properties": {base: {"type": "string", "minLength": 1, "pattern": r"\S",
-                          "x-expected": f"a unit name for {base} (a string, such as "
-                                        f"{example!r})"}
+                          "x-expected": f"a non-blank unit name for {base} (a string such "
+                                        f"as {example!r})"}
                    for base, example in zip(BASES, ("mm", "s", "N"))},
 }
 """JSON Schema of the ``units:`` block (unknown keys are refused like everywhere else)."""
@@ -82,7 +82,7 @@ class Units:
         """A unit string from base exponents, UDUNITS style: "N mm", "mm/s", "mm/s^(1/2)"."""
         numerator: list[str] = []
         denominator: list[str] = []
-        for base in BASES:
+        for base in ("force", "length", "time"):  # "N mm" for energy, as "N m" is written
             power = Fraction(exponents.get(base, 0))
             name = getattr(self, base)
             if power == 0 or name is None:
