@@ -44,6 +44,10 @@ _EXPORTS = {
     "InputError": "crawlsim.errors",
 }
 
+_SUBMODULES = {"analysis", "api", "atomic", "batch", "docpaths", "errors", "exact", "gait", "h5io",
+               "model", "paper", "projection", "provenance", "signals", "status", "stepping",
+               "sweep", "units"}
+
 __all__ = ["load_gait", "simulate", "sweep", "run", "SimulationResult", "Trajectory", "Gait",
            "ProcessSpec", "Units", "CertificateError", "CrawlsimError", "GaitError", "InputError",
            "__version__"]
@@ -54,8 +58,8 @@ def __getattr__(name: str) -> Any:
         value = getattr(importlib.import_module(_EXPORTS[name]), name)
         globals()[name] = value
         return value
-    if name == "sweep":
-        return importlib.import_module("crawlsim.sweep")  # made callable by _Package.__setattr__
+    if name in _SUBMODULES:  # crawlsim.api, crawlsim.h5io, ... without importing them first
+        return importlib.import_module(f"crawlsim.{name}")  # sweep: made callable on import
     raise AttributeError(f"module 'crawlsim' has no attribute {name!r}")
 
 

@@ -451,10 +451,11 @@ class ResultsWriter:
         a["name"] = result.name
         a["convergence"] = str(result.convergence)
         a["periodic_from"] = -1 if result.periodic_from is None else int(result.periodic_from)
+        summary = result.summary()
         for key in ("v0", "v0_error_estimate", "v0_error_period_iteration", "v0_error_time_step",
                     "contraction_rate", "displacement_per_period", "dissipation_per_period",
                     "cost_of_transport"):
-            value = result.summary().get(key, getattr(result, key, None))
+            value = summary.get(key, getattr(result, key, None))
             a[key] = np.nan if value is None else float(value)
         a["period"] = result.period
         a["steps_per_period"] = result.steps_per_period
@@ -465,7 +466,7 @@ class ResultsWriter:
             {key: units.of(q) for key, q in _ATTRIBUTE_QUANTITIES.items()})
         for key, value in provenance.attrs().items():
             a[key] = value
-        a["summary_json"] = json.dumps(_json_ready(result.summary()))
+        a["summary_json"] = json.dumps(_json_ready(summary))
 
     def abort(self) -> None:
         try:

@@ -17,6 +17,7 @@ Every results file (runs and sweeps; optimisations later, through the same funct
 
 from __future__ import annotations
 
+import functools
 import json
 import platform
 import shlex
@@ -54,6 +55,12 @@ def command_line() -> str:
 def versions() -> dict[str, str]:
     """Versions of crawlsim, Python and `LIBRARIES` ("unknown" for one not installed as a
     distribution)."""
+    return dict(_versions())
+
+
+@functools.cache
+def _versions() -> tuple[tuple[str, str], ...]:
+    """Looked up once per process (reading the distributions' metadata takes milliseconds)."""
     from . import __version__
 
     out = {"crawlsim": __version__, "python": platform.python_version()}
@@ -62,7 +69,7 @@ def versions() -> dict[str, str]:
             out[name] = metadata.version(name)
         except metadata.PackageNotFoundError:
             out[name] = "unknown"
-    return out
+    return tuple(out.items())
 
 
 def now() -> str:

@@ -211,7 +211,8 @@ def test_unit_composition():
 
 
 def test_quantities_of_swept_paths():
-    keys = crawlsim.docpaths.path_keys
+    from crawlsim.docpaths import path_keys as keys
+
     assert path_quantity("crawler", keys("links.*.amplitude")) == "length"
     assert path_quantity("crawler", keys("links.1.phase")) == "1"
     assert path_quantity("crawler", keys("friction.0.backward")) == "force"
