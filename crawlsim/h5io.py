@@ -689,9 +689,8 @@ def _write_sweep(f: h5py.File, paths: Sequence[str], axes: Sequence[Any], points
     a["integrator"] = integrator
     a["sweep_json"] = json.dumps([{"path": p, "name": n, "values": np.asarray(v).tolist()}
                                   for p, n, v in zip(paths, names, axes)])
-    a["command_line"] = provenance.command_line()
-    a["versions_json"] = json.dumps(provenance.versions())
-    a["created"] = provenance.now()
+    for key, value in provenance.session_attrs().items():
+        a[key] = value
 
     scales = _Scales()
     text = h5py.string_dtype()

@@ -76,6 +76,13 @@ def now() -> str:
     return datetime.now(UTC).isoformat(timespec="seconds")
 
 
+def session_attrs() -> dict[str, str]:
+    """The attributes every results file records whatever it holds (runs, sweeps, and later
+    optimisations): ``command_line``, ``versions_json`` and ``created``."""
+    return {"command_line": command_line(), "versions_json": json.dumps(versions()),
+            "created": now()}
+
+
 def python_call(function: str, *args: Any, **kwargs: Any) -> str:
     """``crawlsim.simulate('gaits/x.yaml', integrator='exact')``: a call as text, for
     `recording`. A gait is shown by its source."""

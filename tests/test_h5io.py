@@ -13,7 +13,6 @@ import pytest
 import yaml
 from click.testing import CliRunner
 
-import crawlsim
 from crawlsim.cli import main
 from crawlsim.errors import GaitError, ResultsFileError
 from crawlsim.h5io import FORMAT_VERSION, NOT_A_VARIABLE, axis_name, read_results, read_sweep
