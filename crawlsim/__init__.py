@@ -2,18 +2,88 @@
 
 The path from a gait file to an answer, one module per stage:
 
-    gait.py        YAML gait file -> validated `Gait`
-    model.py       `Gait` -> tabulated shape-space sweeping process (MODEL.md §2)
+    gait.py        YAML gait file -> validated `Gait` (docpaths.py: dotted paths into it)
+    model.py       `Gait` -> tabulated shape-space sweeping process (docs/model.md §2)
     projection.py  exact, certified projections (the only user of Clarabel)
     stepping.py    catch-up stepping, period by period
     analysis.py    convergence, v0, limit period
-    h5io.py        HDF5 results files
-    cli.py         the `crawlsim` command
+    h5io.py        HDF5 (netCDF-4) results files; provenance.py and units.py: what they record
+    api.py         the entry points for Python studies: load_gait, simulate, sweep
+    cli/           the `crawlsim` command
+
+The names below are imported on first use, so ``import crawlsim`` stays light (no numpy).
+
+``crawlsim.sweep`` is also the module `crawlsim/sweep.py`: the package makes that module
+callable, so ``crawlsim.sweep(gait, {...})`` runs `crawlsim.api.sweep` while
+``from crawlsim import sweep`` still gives the module (a type checker sees the module only:
+typed code calls `crawlsim.api.sweep`).
 """
+
+from __future__ import annotations
+
+import importlib
+import sys
+import types
+from typing import Any
 
 __version__ = "0.1.0"
 
-from .api import run
-from .errors import CertificateError, CrawlsimError, GaitError
+#: Public names -> the module that defines them.
+_EXPORTS = {
+    "load_gait": "crawlsim.api",
+    "simulate": "crawlsim.api",
+    "run": "crawlsim.api",
+    "SimulationResult": "crawlsim.api",
+    "Trajectory": "crawlsim.api",
+    "Gait": "crawlsim.gait",
+    "ProcessSpec": "crawlsim.gait",
+    "Units": "crawlsim.units",
+    "CertificateError": "crawlsim.errors",
+    "CrawlsimError": "crawlsim.errors",
+    "GaitError": "crawlsim.errors",
+    "InputError": "crawlsim.errors",
+}
 
-__all__ = ["run", "CertificateError", "CrawlsimError", "GaitError", "__version__"]
+_SUBMODULES = {"analysis", "api", "atomic", "batch", "docpaths", "errors", "exact", "gait", "h5io",
+               "model", "paper", "projection", "provenance", "signals", "status", "stepping",
+               "sweep", "units"}
+
+__all__ = ["load_gait", "simulate", "sweep", "run", "SimulationResult", "Trajectory", "Gait",
+           "ProcessSpec", "Units", "CertificateError", "CrawlsimError", "GaitError", "InputError",
+           "__version__"]
+
+
+def __getattr__(name: str) -> Any:
+    if name in _EXPORTS:
+        value = getattr(importlib.import_module(_EXPORTS[name]), name)
+        globals()[name] = value
+        return value
+    if name in _SUBMODULES:  # crawlsim.api, crawlsim.h5io, ... without importing them first
+        return importlib.import_module(f"crawlsim.{name}")  # sweep: made callable on import
+    raise AttributeError(f"module 'crawlsim' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
+
+class _CallableSweepModule(types.ModuleType):
+    """The module crawlsim.sweep, callable as `crawlsim.api.sweep`."""
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        from .api import sweep
+
+        return sweep(*args, **kwargs)
+
+
+class _Package(types.ModuleType):
+    """The package: importing the submodule ``sweep`` sets the attribute ``sweep`` here, and that
+    is where the module becomes callable (whatever imports it first)."""
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if name == "sweep" and type(value) is types.ModuleType:
+            value.__class__ = _CallableSweepModule
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package

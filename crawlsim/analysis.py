@@ -105,6 +105,10 @@ class RunResult:
                 "wall_time")
         out = {k: getattr(self, k) for k in keys}
         out["final_poincare_step"] = float(self.history.poincare_step[-1])
+        # The parts of v0_error_estimate (None where not estimated); results files store them too.
+        out["v0_error_period_iteration"] = getattr(self, "v0_error_period_iteration",
+                                                   self.v0_error_estimate)
+        out["v0_error_time_step"] = getattr(self, "v0_error_time_step", None)
         return out
 
 
@@ -319,10 +323,14 @@ def limit_period(process: SweepingProcess, final: PeriodRecord, v0: float | None
 def summary_text(result: RunResult, output: str | None = None) -> str:
     """The short human summary printed by ``crawlsim run``."""
     what = "gait" if result.v0 is not None else "process"  # a generic process has no v0
+    units = getattr(result, "units", None)  # the gait file's units (crawlsim.api results)
+
+    def unit(quantity: str) -> str:
+        return "" if units is None else units.suffix(quantity)
     lines = [f"{what} {result.name}: {result.periods} periods of {result.steps_per_period} steps"]
     if result.v0 is not None:
-        lines.append(f"  v0                       {result.v0:.12g} "
-                     f"(± {result.v0_error_estimate:.1g} from the period iteration; "
+        lines.append(f"  v0                       {result.v0:.12g}{unit('velocity')} "
+                     f"(± {result.v0_error_estimate:.1g}{unit('velocity')} from the period iteration; "
                      + ("exact integrator)" if result.integrator == "exact" else
                         "catch-up time-step error not included: see --integrator exact)"))
     if result.convergence == "finite-time":
@@ -335,10 +343,12 @@ def summary_text(result: RunResult, output: str | None = None) -> str:
         lines.append(f"  convergence              NOT converged: final Poincare step "
                      f"{result.history.poincare_step[-1]:.3g}. Try increasing max_periods.")
     if result.displacement_per_period is not None:
-        lines.append(f"  displacement per period  {result.displacement_per_period:.12g}")
-        lines.append(f"  dissipation per period   {result.dissipation_per_period:.12g}")
+        lines.append(f"  displacement per period  {result.displacement_per_period:.12g}"
+                     f"{unit('length')}")
+        lines.append(f"  dissipation per period   {result.dissipation_per_period:.12g}"
+                     f"{unit('dissipation')}")
         cot = "n/a (no net motion)" if result.cost_of_transport is None else \
-            f"{result.cost_of_transport:.6g}"
+            f"{result.cost_of_transport:.6g}{unit('force')}"
         lines.append(f"  cost of transport        {cot}")
     if output:
         lines.append(f"  written                  {output}")

@@ -1,33 +1,299 @@
-"""The library entry points behind the command line: a Python user calls these too."""
+"""The library entry points: the command line calls these, and so does a Python study.
+
+    import crawlsim
+    gait = crawlsim.load_gait("gaits/peristalsis-4.yaml")
+    result = crawlsim.simulate(gait.replace("links.*.amplitude", 0.2), integrator="exact")
+    result.v0, result.trajectory.x, result.to_xarray()
+    grid = crawlsim.sweep(gait, {"links.*.amplitude": [0.1, 0.2, 0.3]})   # an xarray.Dataset
+
+Every result records its provenance (`crawlsim.provenance`): the effective gait document, the
+integrator and its settings, the versions, and the call that made it.
+"""
 
 from __future__ import annotations
 
+import dataclasses
+import io
+import math
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, cast
 
-from .analysis import RunResult, simulate
-from .gait import Gait, ProcessSpec, load_gait
-from .h5io import ResultsWriter
+import numpy as np
+
+from . import provenance as _provenance
+from .analysis import RunResult
+from .analysis import simulate as _simulate_process
+from .errors import SweepSpecError
+from .gait import Gait, ProcessSpec, parse_gait, with_simulation
+from .gait import load_gait as _load_gait
+from .h5io import ResultsWriter, read_provenance, read_results
 from .model import compile
+from .units import Units
+
+if TYPE_CHECKING:
+    import xarray
+
+    from .sweep import SweepTable
+
+Spec = Gait | ProcessSpec
+Progress = Callable[[int, float], None]
+
+__all__ = ["Rerun", "SimulationResult", "Trajectory", "from_results", "load_gait", "run",
+           "simulate", "sweep"]
 
 
-def run(gait: Gait | ProcessSpec | str | Path, *, output=None, save_every: int = 1,
-        check_every_step: bool = False, progress=None) -> RunResult:
-    """Simulate a gait to its periodic regime; write the HDF5 results file if ``output`` is given.
+def load_gait(path: str | Path) -> Spec:
+    """Read and validate a gait file (or a ``kind: sweeping-process`` file) into an immutable
+    `Gait` (`ProcessSpec`); change it with ``gait.replace("links.*.amplitude", 0.2)``."""
+    return _load_gait(path)
+
+
+@dataclass(frozen=True, eq=False)
+class Trajectory:
+    """The run's trajectory at the saved grid times, as in the results file's /trajectory (and
+    /events for the exact integrator). Crawlers have x, stress and shape; generic processes have
+    reaction instead."""
+
+    t: np.ndarray
+    w: np.ndarray
+    x: np.ndarray | None = None
+    stress: np.ndarray | None = None
+    shape: np.ndarray | None = None
+    reaction: np.ndarray | None = None
+    events: Mapping[str, np.ndarray] | None = None  # t, w (and x): the exact integrator's events
+
+
+@dataclass(frozen=True, eq=False)
+class SimulationResult(RunResult):
+    """A `RunResult` with what a study needs besides: the trajectory (None when not kept), the
+    units of the gait file, the provenance, and the same data as an xarray tree
+    (`to_xarray`)."""
+
+    trajectory: Trajectory | None = None
+    units: Units = Units()
+    provenance: _provenance.Provenance | None = None
+    output: Path | None = None  # the results file written, if any
+    image: bytes = field(default=b"", repr=False)  # the results file, in memory
+
+    def summary(self) -> dict[str, Any]:
+        """The JSON-ready numbers of `RunResult.summary`, plus ``units`` (the gait file's
+        ``units:`` block, {} when dimensionless)."""
+        out: dict[str, Any] = super().summary()
+        out["units"] = self.units.to_json()
+        return out
+
+    def save(self, path: str | Path) -> Path:
+        """Write the results file this result holds (from `simulate`) to ``path``, atomically."""
+        from .atomic import atomic_path
+
+        if not self.image:
+            raise ValueError("this result holds no results file (crawlsim.api.run writes one "
+                             "with output=)")
+        with atomic_path(path) as tmp:
+            tmp.write_bytes(self.image)
+        return Path(path)
+
+    def to_xarray(self) -> xarray.DataTree:
+        """The results as an `xarray.DataTree` with the groups, names, dimensions and
+        attributes of the results file (it is read from the same bytes). Needs
+        ``pip install 'crawlsim[xarray]'``."""
+        xr = _xarray()
+        if self.image:
+            source: Any = io.BytesIO(self.image)
+        elif self.output is not None:
+            source = self.output
+        else:
+            raise ValueError("this result keeps no results file: use crawlsim.simulate, or "
+                             "crawlsim.api.run with output=")
+        with xr.open_datatree(source, engine="h5netcdf", decode_timedelta=False) as tree:
+            return cast("xarray.DataTree", tree.load())
+
+
+def _xarray() -> Any:
+    try:
+        import xarray
+    except ImportError:
+        raise ImportError("xarray is not installed: pip install 'crawlsim[xarray]'") from None
+    return xarray
+
+
+def _as_spec(gait: Spec | str | Path) -> Spec:
+    return gait if isinstance(gait, (Gait, ProcessSpec)) else _load_gait(gait)
+
+
+def _with_settings(spec: Spec, **overrides: Any) -> Spec:
+    """``spec`` with simulation settings replaced (validated), the None ones left alone."""
+    given = {k: v for k, v in overrides.items() if v is not None}
+    if not given:
+        return spec
+    # with_simulation rebuilds a frozen dataclass of either kind; it is annotated for Gait only
+    return cast(Spec, with_simulation(cast(Gait, spec), **given))
+
+
+def _extend(run: RunResult, **extra: Any) -> SimulationResult:
+    fields = {f.name: getattr(run, f.name) for f in dataclasses.fields(RunResult)}
+    return SimulationResult(**fields, **extra)
+
+
+def _execute(spec: Spec, target: Any, *, save_every: int, check_every_step: bool,
+             progress: Progress | None, keep_trajectory: bool) -> SimulationResult:
+    """Run ``spec`` with its settings, writing its results file into ``target``."""
+    process = compile(spec)
+    s = spec.simulation
+    record = _provenance.for_gait(spec, check_every_step=check_every_step)
+    kind = str(spec.document.get("kind", "crawler"))
+    with ResultsWriter(target, process, save_every=save_every, units=spec.units,
+                       trajectory=keep_trajectory) as writer:
+        run = _simulate_process(process, max_periods=s.max_periods, tolerance=s.tolerance,
+                                integrator=s.integrator, check_every_step=check_every_step,
+                                sink=writer, progress=progress)
+        result = _extend(run, units=spec.units, provenance=record)
+        writer.finish(result, record, kind=kind)
+    return result
+
+
+def run(gait: Spec | str | Path, *, output: str | Path | None = None, save_every: int = 1,
+        check_every_step: bool = False, progress: Progress | None = None) -> SimulationResult:
+    """Simulate a gait to its periodic regime; write the HDF5 results file if ``output`` is given
+    (the command line's ``crawlsim run``).
 
     ``gait`` is a `Gait`, a `ProcessSpec` (a generic sweeping process, whose run has no velocity:
-    v0 and the other crawler keys are None) or the path of either file. Its ``simulation`` settings (steps per period,
-    maximum periods, tolerance) are used as they are: change them with
-    `crawlsim.gait.with_simulation`.
+    v0 and the other crawler keys are None) or the path of either file. Its ``simulation``
+    settings are used as they are (`simulate` takes them as arguments). The file records the
+    command line of this process (``sys.argv``) unless a `crawlsim.provenance.recording` is
+    active. The result keeps no trajectory.
     """
-    if not isinstance(gait, (Gait, ProcessSpec)):
-        gait = load_gait(gait)
-    process = compile(gait)
-    s = gait.simulation
-    options = dict(max_periods=s.max_periods, tolerance=s.tolerance, integrator=s.integrator,
-                   check_every_step=check_every_step, progress=progress)
+    spec = _as_spec(gait)
     if output is None:
-        return simulate(process, **options)
-    with ResultsWriter(output, process, save_every=save_every) as writer:
-        result = simulate(process, sink=writer, **options)
-        writer.finish(result, gait.source_text, kind=gait.document.get("kind", "crawler"))
-    return result
+        s = spec.simulation
+        run_ = _simulate_process(compile(spec), max_periods=s.max_periods, tolerance=s.tolerance,
+                                 integrator=s.integrator, check_every_step=check_every_step,
+                                 progress=progress)
+        return _extend(run_, units=spec.units,
+                       provenance=_provenance.for_gait(spec, check_every_step=check_every_step))
+    result = _execute(spec, Path(output), save_every=save_every,
+                      check_every_step=check_every_step, progress=progress,
+                      keep_trajectory=True)
+    return dataclasses.replace(result, output=Path(output))
+
+
+def simulate(gait: Spec | str | Path, *, integrator: str | None = None,
+             steps_per_period: int | None = None, max_periods: int | None = None,
+             tolerance: float | None = None, keep_trajectory: bool = True,
+             save_every: int = 1, check_every_step: bool = False,
+             progress: Progress | None = None) -> SimulationResult:
+    """Simulate ``gait`` (a `Gait`, a `ProcessSpec` or a file) to its periodic regime.
+
+    The keyword settings override the gait's ``simulation`` block (None keeps it). The result is
+    a `RunResult` with, besides, ``trajectory`` (every ``save_every``-th grid point in memory;
+    None with ``keep_trajectory=False``, when nothing per step is kept beyond what the analysis
+    needs), ``units``, ``provenance`` and ``to_xarray()``; ``result.save(path)`` writes the
+    results file it holds.
+    """
+    call = _provenance.python_call(
+        "crawlsim.simulate", gait, integrator=integrator, steps_per_period=steps_per_period,
+        max_periods=max_periods, tolerance=tolerance,
+        keep_trajectory=None if keep_trajectory else False,
+        save_every=None if save_every == 1 else save_every,
+        check_every_step=check_every_step or None)
+    spec = _with_settings(_as_spec(gait), integrator=integrator,
+                          steps_per_period=steps_per_period, max_periods=max_periods,
+                          tolerance=tolerance)
+    buffer = io.BytesIO()
+    with _provenance.recording(call):
+        result = _execute(spec, buffer, save_every=save_every,
+                          check_every_step=check_every_step, progress=progress,
+                          keep_trajectory=keep_trajectory)
+    image = buffer.getvalue()
+    trajectory = _trajectory(image) if keep_trajectory else None
+    return dataclasses.replace(result, trajectory=trajectory, image=image)
+
+
+def _trajectory(image: bytes) -> Trajectory:
+    data = read_results(io.BytesIO(image))
+    t = data["trajectory"]
+    return Trajectory(t=t["t"], w=t["w"], x=t.get("x"), stress=t.get("stress"),
+                      shape=t.get("shape"), reaction=t.get("reaction"), events=data.get("events"))
+
+
+@dataclass(frozen=True)
+class Rerun:
+    """What ``crawlsim run --from RESULT.h5`` reruns: the effective gait of the file and the
+    integrator settings that are not in the gait document."""
+
+    gait: Spec
+    check_every_step: bool
+    save_every: int
+
+
+def from_results(path: str | Path) -> Rerun:
+    """The run recorded in a results file (format_version 2), ready to rerun: the effective
+    gait document (every override of the original command applied) and ``check_every_step``.
+    Rerunning it with `run` reproduces v0 bit for bit on the same versions
+    (``versions_json``)."""
+    info = read_provenance(path)
+    spec = parse_gait(info["gait_yaml"], source=f"{path} (gait_yaml)",
+                      default_name=str(info["name"]))
+    settings = info["integrator_settings"]
+    return Rerun(spec, bool(settings.get("check_every_step", False)), int(info["save_every"]))
+
+
+def sweep(gait: Spec | str | Path, axes: Mapping[str, Iterable[float]], *, jobs: int = 1,
+          integrator: str | None = None, steps_per_period: int | None = None,
+          max_periods: int | None = None, tolerance: float | None = None,
+          output: str | Path | None = None,
+          progress: Callable[[int], None] | None = None) -> xarray.Dataset | SweepTable:
+    """v0 over the Cartesian grid of ``axes`` (``{"links.*.amplitude": [0.1, 0.2], ...}``: the
+    dotted paths of ``--sweep``, in grid order, the last varying fastest).
+
+    Returns an `xarray.Dataset` on the grid, one dimension per swept path (named by
+    `crawlsim.h5io.axis_name`, ``links_all_amplitude``; the path in its ``path`` attribute):
+    v0, displacement_per_period, periods, steps, convergence and status (CF flags: see their
+    ``flag_meanings``) and message, with the provenance as attributes, exactly the ``/grid``
+    group of a sweep file. **Without xarray** (``pip install 'crawlsim[xarray]'``) it returns
+    the `crawlsim.sweep.SweepTable` instead. ``output`` also writes the sweep file (.h5) or CSV
+    table. Settings given override the gait's ``simulation`` block.
+    """
+    from . import h5io
+    from . import sweep as sweeps
+
+    spec = _with_settings(_as_spec(gait), integrator=integrator,
+                          steps_per_period=steps_per_period, max_periods=max_periods,
+                          tolerance=tolerance)
+    if not isinstance(spec, Gait):
+        raise SweepSpecError(spec.source, "", "sweeps run crawler gaits (kind: crawler), not "
+                                              "generic sweeping processes")
+    axis_list = [sweeps.Axis(path, _axis_values(path, values)) for path, values in axes.items()]
+    call = _provenance.python_call("crawlsim.sweep", gait, {a.path: list(a.values)
+                                                            for a in axis_list},
+                                   jobs=jobs if jobs != 1 else None, integrator=integrator,
+                                   steps_per_period=steps_per_period, max_periods=max_periods,
+                                   tolerance=tolerance, output=output)
+    with _provenance.recording(call):
+        table = sweeps.sweep(spec, axis_list, output=output, jobs=jobs, progress=progress)
+        try:
+            xr = _xarray()
+        except ImportError:
+            return table
+        buffer = io.BytesIO()
+        h5io.write_sweep(buffer, **sweeps.table_payload(table))
+    buffer.seek(0)
+    attrs = h5io.read_attrs(buffer)
+    buffer.seek(0)
+    with xr.open_dataset(buffer, engine="h5netcdf", group="grid",
+                         decode_timedelta=False) as ds:
+        grid = cast("xarray.Dataset", ds.load())
+    grid.attrs = {**attrs, **grid.attrs}
+    return grid
+
+
+def _axis_values(path: str, values: Iterable[float]) -> tuple[float, ...]:
+    """The values of one swept path as numbers (integers stay integers: ``blocks``)."""
+    array = np.asarray([] if isinstance(values, (str, bytes)) else list(values)).ravel()
+    items: list[Any] = array.tolist() if array.dtype.kind in "iuf" else []
+    if not items or not all(math.isfinite(v) for v in items):
+        raise SweepSpecError(f"crawlsim.sweep(..., {{{path!r}: ...}})", path,
+                             f"expected a non-empty list of finite numbers, got {values!r}")
+    return tuple(items)

@@ -41,6 +41,7 @@ from crawlsim.signals import (
     parse_signal,
     union_breakpoints,
 )
+from crawlsim.units import UNITS_SCHEMA, Units
 
 ROUNDOFF = 1e-12
 """Relative tolerance of the admissibility and uniqueness checks: roundoff, not a modelling slack."""
@@ -78,6 +79,18 @@ class Gait:
     backward: tuple[Signal, ...]
     initial_positions: np.ndarray
     simulation: Simulation
+    units: Units = Units()
+
+    def replace(self, *changes: Any) -> Gait:
+        """A new validated gait with values set at dotted paths, the syntax of ``--sweep``:
+        ``gait.replace("links.*.amplitude", 0.2)``, several pairs
+        ``gait.replace("period", 2.0, "links.1.phase", 0.25)`` or one mapping
+        ``gait.replace({"period": 2.0})`` (`crawlsim.docpaths`)."""
+        from crawlsim.docpaths import replaced
+
+        new = replaced(self, changes)
+        assert isinstance(new, Gait)  # a path cannot change the kind: `kind` is not a number
+        return new
 
     def breakpoints(self) -> np.ndarray:
         """Union of all signals' breakpoints, in cycles in [0, 1): the stepping grid needs them."""
@@ -159,6 +172,7 @@ CRAWLER_SCHEMA: dict = {
                                          "items": {"type": "number", "x-expected": "a number"}}},
         },
         "simulation": SIMULATION_SCHEMA,
+        "units": UNITS_SCHEMA,
     },
 }
 """JSON Schema (Draft 2020-12) of a crawler gait document."""
@@ -326,6 +340,7 @@ def _build_crawler(document: dict, source: str, source_text: str, default_name: 
         backward=tuple(backward),
         initial_positions=_readonly(positions),
         simulation=simulation,
+        units=Units.from_block(document.get("units")),
     )
     problem = admissibility_violation(gait, positions)
     if problem is not None:
@@ -357,6 +372,15 @@ class ProcessSpec:
     initial: np.ndarray  # z(0) (n,), a point of C(0)
     allow_unbounded: bool
     simulation: Simulation
+    units: Units = Units()
+
+    def replace(self, *changes: Any) -> ProcessSpec:
+        """A new validated process with values set at dotted paths (see `Gait.replace`)."""
+        from crawlsim.docpaths import replaced
+
+        new = replaced(self, changes)
+        assert isinstance(new, ProcessSpec)
+        return new
 
     def breakpoints(self) -> np.ndarray:
         """Union of the offsets' breakpoints, in cycles in [0, 1): the stepping grid needs them."""
@@ -394,6 +418,7 @@ PROCESS_SCHEMA: dict = {
         "allow_unbounded": {"type": "boolean",
                             "x-expected": "true or false (accept an unbounded C(t))"},
         "simulation": SIMULATION_SCHEMA,
+        "units": UNITS_SCHEMA,
     },
 }
 """JSON Schema (Draft 2020-12) of a generic polyhedral sweeping-process document (MODEL.md §5)."""
@@ -445,6 +470,7 @@ def _build_process(document: dict, source: str, source_text: str, default_name: 
         initial=_readonly(initial),
         allow_unbounded=bool(document.get("allow_unbounded", False)),
         simulation=simulation,
+        units=Units.from_block(document.get("units")),
     )
     problem = emptiness_violation(spec)
     if problem is not None:

@@ -1,40 +1,48 @@
-"""The one module that reads and writes HDF5 results files.
+"""The one module that reads and writes HDF5: run results files and sweep files.
 
-Layout (format_version 1; the README documents it):
+The files are netCDF-4 files (HDF5 with the netCDF conventions), written with h5py: every axis of
+every dataset is attached to a named dimension scale, and every dataset carries ``units`` (UDUNITS
+syntax, "1" when dimensionless) and ``long_name``; enumerations carry the CF ``flag_values`` and
+``flag_meanings``. So ``xarray.open_datatree(path, engine="h5netcdf")`` opens every group with named
+dimensions, and ``h5dump -H`` reads as documentation. The README's HDF5 section documents the
+layout; the tables below (`RUN_VARIABLES`, `SWEEP_VARIABLES`) are its single source in the code.
 
-    /                       attrs: crawlsim_version, format_version, name, kind, v0, convergence,
-                                   periodic_from (-1 = null), contraction_rate (NaN = null),
-                                   v0_error_estimate, displacement_per_period,
-                                   dissipation_per_period, cost_of_transport, period,
-                                   steps_per_period, periods, save_every, gait_yaml, summary_json
-    /trajectory/t           (n,)        time of each saved grid point (a dimension scale)
-    /trajectory/w           (n, d)      state of the sweeping process
-    /trajectory/x           (n, N)      block positions                      [crawlers]
-    /trajectory/stress      (n, N-1)    link stresses, compression positive  [crawlers]
-    /trajectory/shape       (n, N-1)    z = D x                              [crawlers]
-    /trajectory/reaction    (n, m)      constraint reactions: the multipliers of the steps since
-                                        the previous saved point (0 at t = 0)  [generic processes]
-    /convergence/*          (P,)        period, displacement, velocity, poincare_step,
-                                        w12_distance, sup_distance, slip_l2_distance, dissipation
-    /limit/*                            t, w, multipliers, x, shape, stress, slip, slip_rate
-    /limit/offsets          (G+1, m)    c(t) on the limit period's grid: K(t) = {w : B w <= c(t)}
-    /limit/lengths          (G+1, N-1)  actuator lengths L(t) on that grid       [crawlers]
-    /limit/friction         (G+1, 2N)   [mu^+, mu^-] on that grid               [crawlers]
-    /process/normals        (m, d)      B, the constant normals of K(t)
-    /process/metric         (d, d)      M, the metric of the projections (K^{-1} for crawlers)
-    /events/t               (E,)        event times of the exact integrator, every period, never
-                                        thinned by save_every (a dimension scale) [--integrator exact]
-    /events/w               (E, d)      state after each event (a closed form in between)
-    /events/x               (E, N)      block positions at the events        [exact, crawlers]
+Run files (format_version 2):
 
-Writes are atomic: everything goes to a temporary file in the destination's folder, renamed over
-the destination only when complete. A failed run leaves no file behind.
+    /                     attrs: the run's measurements (v0, ...), its provenance
+                                 (`crawlsim.provenance`: gait_yaml, command_line, versions_json,
+                                 ...) and units_json; coordinate variables shared by the groups:
+                                 block (N), link (N-1), state (n), state_column (n),
+                                 constraint (m) with constraint_block and constraint_limit
+    /trajectory/*         dimension time: t, w, x, stress, shape, reaction
+    /convergence/*        dimension period (its coordinate variable is /convergence/period)
+    /limit/*              dimensions limit_time (G+1 grid points) and step (the G steps)
+    /process/*            crawlers: stiffness (link); generic processes: normals
+                          (constraint, state), metric (state, state_column)
+    /events/*             dimension event_time                        [--integrator exact]
+
+A dimension without values of its own (time, event_time, limit_time) is a netCDF "dimension but
+not a variable"; the times are the variable ``t`` of the group, a coordinate of its variables.
+
+Sweep files (format_version 2): /grid holds v0 and the other numbers on the Cartesian grid, one
+dimension per swept path (named by `axis_name`, the path in the attribute ``path``); /results holds
+one entry per computed point, as in format 1.
+
+Readers accept format_version 1 (the layout before dimension scales, units and provenance) and 2;
+the dicts they return have the same keys for both, format 2 adding new keys only. Writes are
+atomic (`crawlsim.atomic`): a failed run leaves no file behind.
 """
 
 from __future__ import annotations
 
+import io
 import json
+import math
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, Literal
 
 import h5py
 import numpy as np
@@ -42,43 +50,274 @@ import numpy as np
 from . import __version__
 from .atomic import atomic_path, publish, temporary_beside
 from .errors import ResultsFileError
+from .kkt import ChainPolyhedron
+from .units import Units, path_quantity
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+#: Format versions the readers accept.
+READABLE_VERSIONS = (1, 2)
+
+#: netCDF-4 marks a dimension scale that is not a variable by this NAME (followed by its size).
+NOT_A_VARIABLE = b"This is a netCDF dimension but not a netCDF variable."
+
+SLIP_FLAGS = ((-1, "backward_slip"), (0, "stick"), (1, "forward_slip"))
+LIMIT_FLAGS = ((-1, "backward_limit"), (1, "forward_limit"))
+CONVERGENCE_FLAGS = ((-1, "none"), (0, "finite_time"), (1, "asymptotic"), (2, "not_converged"))
+STATUS_FLAGS = ((-1, "not_computed"), (0, "ok"), (1, "not_converged"), (2, "invalid"),
+                (3, "failed"))
+
+_RUN_COMMENT = (
+    "Results of one crawlsim run (docs/model.md §4). Times are absolute except /limit/t, which is "
+    "relative to the limit period's start (/limit attribute start). Float attributes are NaN "
+    "where a value does not apply or is unknown; periodic_from is -1 when the convergence is not "
+    "finite-time. Units: units_json (the gait file's units block; {} = dimensionless) and "
+    "attribute_units_json (units of the numeric attributes); every dataset has units and "
+    "long_name. gait_yaml is the effective gait document, every override applied: "
+    "crawlsim run --from THIS_FILE reruns it.")
+
+_SWEEP_COMMENT = (
+    "Results of a crawlsim parameter sweep. Point i of the grid is the gait document gait_yaml "
+    "with the swept values of i (the paths in attribute paths, their dimensions in axis_names; "
+    "C order, the last path varying fastest). /grid holds the numbers on the grid, /results one "
+    "entry per computed point. Units: units_json (the gait file's units block); every dataset "
+    "has units and long_name.")
 
 
+@dataclass(frozen=True)
+class Var:
+    """A dataset of the layout: its dimensions, description, the quantity its units follow
+    (a key of `crawlsim.units.QUANTITIES`, or a role resolved per kind by `_ROLES`), and the CF
+    flags of an enumeration."""
+
+    dims: tuple[str, ...]
+    long_name: str
+    quantity: str
+    flags: tuple[tuple[int, str], ...] = ()
+    comment: str = ""
+
+
+#: Quantities that depend on the kind of run: (crawler, generic sweeping process). A crawler's w
+#: is -K z, a force; a generic process's state z is taken as a length, with dimensionless
+#: normals and metric, so its multipliers (reactions) are lengths too.
+_ROLES = {
+    "state": ("force", "length"),
+    "multiplier": ("length", "length"),
+    "metric": ("compliance", "1"),
+}
+
+_W12_COMMENT = ("sqrt(int |e|^2 dt + int |e'|^2 dt) over one period, e = w - w_final: the two "
+                "terms scale as T and 1/T, so with physical units the number depends on the "
+                "time unit; units are those of w")
+
+ROOT_COORDINATES: dict[str, Var] = {
+    "block": Var(("block",), "block number j (blocks in order along the line; link i joins "
+                             "blocks i and i+1)", "1"),
+    "link": Var(("link",), "link number i (link i joins blocks i and i+1)", "1"),
+    "state": Var(("state",), "coordinate index of the state w of the sweeping process", "1"),
+    "state_column": Var(("state_column",), "column index of an n x n matrix over the state",
+                        "1"),
+    "constraint": Var(("constraint",), "row i of B w <= c(t), the constraints of K(t)", "1"),
+    "constraint_block": Var(("constraint",), "the block whose friction limit the constraint "
+                                             "is", "1"),
+    "constraint_limit": Var(("constraint",), "which friction limit of its block the "
+                                             "constraint is: forward (mu+) or backward (mu-)",
+                            "1", LIMIT_FLAGS),
+}
+
+RUN_VARIABLES: dict[str, dict[str, Var]] = {
+    "trajectory": {
+        "t": Var(("time",), "time of the saved grid point", "time"),
+        "w": Var(("time", "state"), "state w of the sweeping process (crawlers: w = -K z)",
+                 "state"),
+        "x": Var(("time", "block"), "block position", "length"),
+        "stress": Var(("time", "link"), "link stress sigma = K (L - z), compression positive",
+                      "force"),
+        "shape": Var(("time", "link"), "shape z = D x: link extension x_(i+1) - x_i", "length"),
+        "reaction": Var(("time", "constraint"), "constraint reaction: sum of the multipliers of "
+                                                "the steps since the previous saved point",
+                        "multiplier"),
+    },
+    "convergence": {
+        "period": Var(("period",), "period index q: t in [t0 + q T, t0 + (q+1) T]", "1"),
+        "displacement": Var(("period",), "barycentre displacement y(t0+(q+1)T) - y(t0+qT)",
+                            "length"),
+        "velocity": Var(("period",), "average velocity over the period: displacement / T",
+                        "velocity"),
+        "poincare_step": Var(("period",), "Poincare step |w(t0+(q+1)T) - w(t0+qT)|", "state"),
+        "w12_distance": Var(("period",), "W^{1,2} distance of w on period q to the final "
+                                         "period", "state", comment=_W12_COMMENT),
+        "sup_distance": Var(("period",), "sup distance of w on period q to the final period",
+                            "state"),
+        "slip_l2_distance": Var(("period",), "L^2 distance of the slip rates (multiplier "
+                                             "rates) on period q to the final period",
+                                "velocity_l2"),
+        "dissipation": Var(("period",), "energy dissipated by friction over period q: sum_j "
+                                        "mu_j^+ (dx_j)^+ + mu_j^- (dx_j)^-", "dissipation"),
+    },
+    "limit": {
+        "t": Var(("limit_time",), "time since the start of the limit period (attribute "
+                                  "start)", "time"),
+        "step": Var(("step",), "step s of the limit period, from t[s] to t[s+1]", "1"),
+        "w": Var(("limit_time", "state"), "state w on the limit period", "state"),
+        "multipliers": Var(("step", "constraint"), "multipliers of each step (crawlers: the "
+                                                   "forward and backward slips of the blocks, "
+                                                   "dx = lambda^+ - lambda^-)", "multiplier"),
+        "x": Var(("limit_time", "block"), "block position in the running frame "
+                                          "x - y(start) - v0 (t - start)", "length"),
+        "shape": Var(("limit_time", "link"), "shape z = D x", "length"),
+        "stress": Var(("limit_time", "link"), "link stress sigma = K (L - z), compression "
+                                              "positive", "force"),
+        "slip": Var(("step", "block"), "slip state of the block on the step", "1",
+                    SLIP_FLAGS),
+        "slip_rate": Var(("step", "block"), "slip rate dx/dt of the block on the step",
+                         "velocity"),
+        "offsets": Var(("limit_time", "constraint"), "offsets c(t) of K(t) = {w : B w <= c(t)}",
+                       "state"),
+        "lengths": Var(("limit_time", "link"), "actuator length L(t)", "length"),
+        "friction": Var(("limit_time", "constraint"), "friction coefficient of the constraint's "
+                                                      "limit: mu+ (forward) or mu- (backward), "
+                                                      "see constraint_limit", "force"),
+    },
+    "process": {
+        "stiffness": Var(("link",), "spring stiffness k of the link (crawlers: B = [D^T; -D^T] "
+                                    "and M = K^-1 follow from it and the block count)",
+                         "stiffness"),
+        "normals": Var(("constraint", "state"), "B, the constant normals of "
+                                                "K(t) = {w : B w <= c(t)}", "1"),
+        "metric": Var(("state", "state_column"), "M, the metric of the projections "
+                                                 "(crawlers: K^-1)", "metric"),
+    },
+    "events": {
+        "t": Var(("event_time",), "event time of the exact integrator (every period, never "
+                                  "thinned by save_every)", "time"),
+        "w": Var(("event_time", "state"), "state w just after the event (a closed form in "
+                                          "between)", "state"),
+        "x": Var(("event_time", "block"), "block position at the event", "length"),
+    },
+}
+
+#: Dimensions that are netCDF "dimensions but not variables": their values are the group's t.
+_TIME_DIMENSIONS = {"trajectory": "time", "limit": "limit_time", "events": "event_time"}
+
+#: Units of the numeric root attributes of a run file, by quantity.
+_ATTRIBUTE_QUANTITIES = {
+    "v0": "velocity", "v0_error_estimate": "velocity", "v0_error_period_iteration": "velocity",
+    "v0_error_time_step": "velocity", "displacement_per_period": "length",
+    "dissipation_per_period": "dissipation", "cost_of_transport": "force", "period": "time",
+    "contraction_rate": "1", "periodic_from": "1", "steps_per_period": "1", "periods": "1",
+    "save_every": "1",
+}
+
+
+# -- writing helpers --------------------------------------------------------------------------
+class _Scales:
+    """The dimension scales of one file, by name, with their netCDF dimension ids."""
+
+    def __init__(self) -> None:
+        self.scales: dict[str, h5py.Dataset] = {}
+
+    def _register(self, name: str, ds: h5py.Dataset) -> None:
+        ds.attrs["_Netcdf4Dimid"] = np.int32(len(self.scales))
+        self.scales[name] = ds
+
+    def coordinate(self, group: h5py.Group, name: str, data: Any) -> h5py.Dataset:
+        """A coordinate variable: a dataset named like its dimension, holding its values."""
+        ds = group.create_dataset(name, data=data, track_order=True)
+        ds.make_scale(name)
+        self._register(name, ds)
+        return ds
+
+    def dimension(self, group: h5py.Group, name: str, size: int, values: str) -> h5py.Dataset:
+        """A dimension without values of its own (netCDF: a dimension but not a variable, so no
+        storage is allocated); ``values`` names the variable that holds its values."""
+        ds = group.create_dataset(name, shape=(size,), dtype=">f4", track_order=True)
+        ds.make_scale(NOT_A_VARIABLE + b"%10d" % size)
+        ds.attrs["long_name"] = f"dimension {name}: its values are {values}"
+        ds.attrs["units"] = "1"
+        self._register(name, ds)
+        return ds
+
+    def attach(self, ds: h5py.Dataset, dims: Sequence[str]) -> None:
+        for axis, dim in enumerate(dims):
+            if self.scales[dim] != ds:
+                ds.dims[axis].attach_scale(self.scales[dim])
+
+
+def _describe(ds: h5py.Dataset, var: Var, unit: str, coordinates: str = "") -> None:
+    """The CF attributes of a dataset: units, long_name, flags, coordinates."""
+    ds.attrs["long_name"] = var.long_name
+    ds.attrs["units"] = unit
+    if var.flags:
+        ds.attrs["flag_values"] = np.array([v for v, _ in var.flags], dtype=ds.dtype)
+        ds.attrs["flag_meanings"] = " ".join(m for _, m in var.flags)
+    if var.comment:
+        ds.attrs["comment"] = var.comment
+    if coordinates:
+        ds.attrs["coordinates"] = coordinates
+
+
+def _unit(units: Units, quantity: str, crawler: bool) -> str:
+    if quantity in _ROLES:
+        quantity = _ROLES[quantity][0 if crawler else 1]
+    return units.of(quantity)
+
+
+def _target_file(target: Any) -> tuple[h5py.File, Path | None]:
+    """Open a results target: a path (a temporary file beside it, renamed at the end) or a
+    binary file object (an in-memory image: `io.BytesIO`)."""
+    if isinstance(target, io.IOBase):
+        return h5py.File(target, "w", track_order=True), None
+    tmp = temporary_beside(Path(target))
+    return h5py.File(tmp, "w", track_order=True), tmp
+
+
+# -- run files --------------------------------------------------------------------------------
 class ResultsWriter:
-    """Streams a run's trajectory into a temporary HDF5 file; `finish` renames it into place.
+    """Streams a run's trajectory into a results file; `finish` writes the rest and publishes.
 
+    ``target`` is a path (written to a temporary file beside it, renamed into place by `finish`)
+    or a binary file object such as `io.BytesIO` (an in-memory file: `crawlsim.api.simulate`).
     Use as a context manager: leaving the block with an exception deletes the temporary file.
-    Only every ``save_every``-th grid point is written, and nothing is kept in memory.
+    Only every ``save_every``-th grid point is written (none when ``trajectory`` is False), and
+    nothing is kept in memory.
     """
 
-    def __init__(self, path, process, *, save_every: int = 1):
-        self.path = Path(path)
+    def __init__(self, target: Any, process: Any, *, save_every: int = 1,
+                 units: Units | None = None, trajectory: bool = True):
+        self.path = None if isinstance(target, io.IOBase) else Path(target)
         self.process = process
         self.save_every = int(save_every)
-        self._count = 0  # global grid index of the next row to consider
-        self._tmp = temporary_beside(self.path)
-        self.file = h5py.File(self._tmp, "w")
-        self._traj = self.file.create_group("trajectory")
+        self.units = units or Units()
+        self.keep = bool(trajectory)
+        self.file, self._tmp = _target_file(target)
+        self._scales = _Scales()
+        self._traj = self.file.create_group("trajectory", track_order=True)
         self._sets: dict[str, h5py.Dataset] = {}
-        self._columns = ["w"] + (["x", "stress", "shape"] if process.is_crawler else [])
-        self._reaction_carry = np.zeros(process.polyhedron.m)
+        self._columns = ["t", "w"] + (["x", "stress", "shape"] if process.is_crawler
+                                      else ["reaction"])
+        m, n = process.polyhedron.m, process.polyhedron.n
+        self._reaction_carry = np.zeros(m)
+        widths = {"t": (), "w": (n,),
+                  "x": (process.blocks,), "stress": (process.blocks - 1,),
+                  "shape": (process.blocks - 1,), "reaction": (m,)}
+        for name in self._columns:
+            tail = widths[name]
+            rows = max(1, min(4096, (1 << 16) // max(1, math.prod(tail))))
+            self._sets[name] = self._traj.create_dataset(
+                name, shape=(0,) + tail, maxshape=(None,) + tail, dtype=float,
+                chunks=(rows,) + tail, track_order=True)
 
-    def _append(self, name, rows):
-        rows = np.asarray(rows)
-        ds = self._sets.get(name)
-        if ds is None:
-            ds = self._traj.create_dataset(
-                name, shape=(0,) + rows.shape[1:], maxshape=(None,) + rows.shape[1:],
-                dtype=rows.dtype, chunks=(min(4096, max(len(rows), 1) * 4),) + rows.shape[1:])
-            self._sets[name] = ds
+    def _append(self, name: str, rows: Any) -> None:
+        rows = np.asarray(rows, dtype=float)
+        ds = self._sets[name]
         n = ds.shape[0]
         ds.resize(n + len(rows), axis=0)
         ds[n:] = rows
 
-    def add_period(self, record):
+    def add_period(self, record: Any) -> None:
         """Append the saved grid points of one period (its first point only for period 0)."""
+        if not self.keep:
+            return
         p = self.process
         if getattr(record, "events", None) is not None:
             self._append_events(record.events)
@@ -98,7 +337,7 @@ class ResultsWriter:
         if reaction is not None:
             self._append("reaction", reaction)
 
-    def _append_events(self, events):
+    def _append_events(self, events: Any) -> None:
         """Append one period's event trajectory ``(t, w, x)`` to /events (exact integrator)."""
         group = self.file.require_group("events")
         for name, rows in zip(("t", "w", "x"), events):
@@ -106,23 +345,19 @@ class ResultsWriter:
                 continue
             rows = np.asarray(rows, dtype=float)
             if name not in group:
-                ds = group.create_dataset(name, shape=(0,) + rows.shape[1:],
-                                          maxshape=(None,) + rows.shape[1:], dtype=float,
-                                          chunks=(256,) + rows.shape[1:])
-                if name == "t":
-                    ds.make_scale("t")
-                else:
-                    ds.dims[0].attach_scale(group["t"])
+                group.create_dataset(name, shape=(0,) + rows.shape[1:],
+                                     maxshape=(None,) + rows.shape[1:], dtype=float,
+                                     chunks=(256,) + rows.shape[1:], track_order=True)
             ds = group[name]
             n = ds.shape[0]
             ds.resize(n + len(rows), axis=0)
             ds[n:] = rows
 
-    def _reaction_rows(self, multipliers, sel):
+    def _reaction_rows(self, multipliers: np.ndarray, sel: np.ndarray) -> np.ndarray:
         """Reactions of the m constraints at the saved grid points ``sel`` of one period.
 
-        The multipliers of catch-up steps are the constraints' reaction impulses (MODEL.md §3).
-        Row s sums the multipliers of the steps since the previous saved point, so with
+        The multipliers of catch-up steps are the constraints' reaction impulses (docs/model.md
+        §3). Row s sums the multipliers of the steps since the previous saved point, so with
         ``save_every = 1`` it is the multiplier of the step ending at t_s, and a larger
         ``save_every`` loses nothing of the total.
         """
@@ -139,69 +374,131 @@ class ResultsWriter:
         self._reaction_carry = multipliers[ends[-1]:].sum(axis=0)
         return rows
 
-    def finish(self, result, gait_yaml: str, kind: str = "crawler"):
-        """Write the analysis, close, and atomically rename into place."""
-        f = self.file
-        if "t" in self._sets:
-            t = self._sets["t"]
-            t.make_scale("t")
-            for name, ds in self._sets.items():
-                if name != "t":
-                    ds.dims[0].attach_scale(t)
-        conv = f.create_group("convergence")
-        h = result.history
-        for name in ("period", "displacement", "velocity", "poincare_step", "w12_distance",
-                     "sup_distance", "slip_l2_distance", "dissipation"):
-            conv.create_dataset(name, data=getattr(h, name))
-        lim = f.create_group("limit")
-        lim.attrs["start"] = result.limit.start
-        for name in ("t", "w", "multipliers", "x", "shape", "stress", "slip", "slip_rate"):
-            value = getattr(result.limit, name)
-            if value is not None:
-                lim.create_dataset(name, data=value)
-        p = self.process
-        lim.create_dataset("offsets", data=p.offsets)
+    def finish(self, result: Any, provenance: Any, kind: str = "crawler") -> None:
+        """Write the analysis, the coordinates, the attributes; close and publish."""
+        f, p, scales, units = self.file, self.process, self._scales, self.units
+        crawler = p.is_crawler
+        self._write_root_coordinates()
+        groups: dict[str, dict[str, Any]] = {
+            "trajectory": dict(self._sets),
+            "convergence": {name: getattr(result.history, name)
+                            for name in RUN_VARIABLES["convergence"]},
+            "limit": {name: getattr(result.limit, name) for name in
+                      ("t", "w", "multipliers", "x", "shape", "stress", "slip", "slip_rate")},
+            # a crawler's B and M are of size N^2 but follow from k: store k only
+            "process": ({"stiffness": p.stiffness} if crawler
+                        else {"normals": p.normals, "metric": p.metric}),
+        }
+        groups["limit"].update(step=np.arange(p.steps, dtype=np.int64), offsets=p.offsets)
+        if crawler:
+            groups["limit"].update(lengths=p.lengths, friction=p.friction)
+        if "events" in f:
+            groups["events"] = {name: f["events"][name] for name in f["events"]}
+        for gname, values in groups.items():
+            group = f.require_group(gname) if gname in f else f.create_group(gname,
+                                                                           track_order=True)
+            table = RUN_VARIABLES[gname]
+            time_dim = _TIME_DIMENSIONS.get(gname)
+            if time_dim is not None:
+                scales.dimension(group, time_dim, len(values["t"]), f"/{gname}/t")
+            if gname == "convergence":
+                scales.coordinate(group, "period", np.asarray(values.pop("period"),
+                                                              dtype=np.int64))
+                _describe(group["period"], table["period"], "1")
+            if gname == "limit":
+                scales.coordinate(group, "step", values.pop("step"))
+                _describe(group["step"], table["step"], "1")
+            for name, value in values.items():
+                if value is None:
+                    continue
+                ds = value if isinstance(value, h5py.Dataset) else group.create_dataset(
+                    name, data=value, track_order=True)
+                var = table[name]
+                scales.attach(ds, var.dims)
+                coords = "t" if time_dim is not None and name != "t" and var.dims[0] == time_dim \
+                    else ""
+                _describe(ds, var, _unit(units, var.quantity, crawler), coords)
+        f["limit"].attrs["start"] = result.limit.start
+        f["limit"].attrs["comment"] = ("the final period, taken as the periodic limit; t is "
+                                       "relative to its start (attribute start, absolute time)")
+        self._write_root_attributes(result, provenance, kind)
+        f.close()
+        if self._tmp is not None and self.path is not None:
+            publish(self._tmp, self.path)
+
+    def _write_root_coordinates(self) -> None:
+        p, f, scales = self.process, self.file, self._scales
+        n, m = p.polyhedron.n, p.polyhedron.m
+        values: dict[str, Any] = {"state": np.arange(n), "state_column": np.arange(n),
+                                  "constraint": np.arange(m)}
         if p.is_crawler:
-            lim.create_dataset("lengths", data=p.lengths)
-            lim.create_dataset("friction", data=p.friction)
-        proc = f.create_group("process")
-        proc.create_dataset("normals", data=p.normals)
-        proc.create_dataset("metric", data=p.metric)
-        a = f.attrs
+            N = p.blocks
+            values.update(block=np.arange(1, N + 1), link=np.arange(1, N))
+        for name in ("block", "link", "state", "state_column", "constraint"):
+            if name in values:
+                scales.coordinate(f, name, np.asarray(values[name], dtype=np.int64))
+                _describe(f[name], ROOT_COORDINATES[name], "1")
+        if p.is_crawler:
+            N = p.blocks
+            aux = {"constraint_block": np.tile(np.arange(1, N + 1), 2).astype(np.int64),
+                   "constraint_limit": np.repeat(np.array([1, -1], dtype=np.int8), N)}
+            for name, data in aux.items():
+                ds = f.create_dataset(name, data=data, track_order=True)
+                scales.attach(ds, ("constraint",))
+                _describe(ds, ROOT_COORDINATES[name], "1")
+            # xarray reads a global `coordinates` attribute as the root's auxiliary coordinates
+            f.attrs["coordinates"] = "constraint_block constraint_limit"
+
+    def _write_root_attributes(self, result: Any, provenance: Any, kind: str) -> None:
+        a, units = self.file.attrs, self.units
+        a["title"] = f"crawlsim run of {result.name}"
+        a["comment"] = _RUN_COMMENT
         a["crawlsim_version"] = __version__
         a["format_version"] = FORMAT_VERSION
         a["kind"] = kind
         a["name"] = result.name
         a["convergence"] = str(result.convergence)
         a["periodic_from"] = -1 if result.periodic_from is None else int(result.periodic_from)
-        for key in ("v0", "contraction_rate", "v0_error_estimate", "displacement_per_period",
-                    "dissipation_per_period", "cost_of_transport"):
-            value = getattr(result, key)
+        summary = result.summary()
+        for key in ("v0", "v0_error_estimate", "v0_error_period_iteration", "v0_error_time_step",
+                    "contraction_rate", "displacement_per_period", "dissipation_per_period",
+                    "cost_of_transport"):
+            value = summary.get(key, getattr(result, key, None))
             a[key] = np.nan if value is None else float(value)
         a["period"] = result.period
         a["steps_per_period"] = result.steps_per_period
         a["periods"] = result.periods
-        a["save_every"] = self.save_every
-        a["gait_yaml"] = gait_yaml
-        a["summary_json"] = json.dumps(result.summary())
-        f.close()
-        publish(self._tmp, self.path)
+        a["save_every"] = self.save_every if self.keep else 0
+        a["units_json"] = json.dumps(units.to_json())
+        a["attribute_units_json"] = json.dumps(
+            {key: units.of(q) for key, q in _ATTRIBUTE_QUANTITIES.items()})
+        for key, value in provenance.attrs().items():
+            a[key] = value
+        a["summary_json"] = json.dumps(_json_ready(summary))
 
-    def abort(self):
+    def abort(self) -> None:
         try:
             self.file.close()
         finally:
-            self._tmp.unlink(missing_ok=True)
+            if self._tmp is not None:
+                self._tmp.unlink(missing_ok=True)
 
-    def __enter__(self):
+    def __enter__(self) -> ResultsWriter:
         return self
 
-    def __exit__(self, exc_type, exc, tb):
-        if exc_type is not None or self._tmp.exists():
+    def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> Literal[False]:
+        if exc_type is not None or (self._tmp is not None and self._tmp.exists()):
             self.abort()
         return False
 
 
+def _json_ready(summary: Mapping[str, Any]) -> dict[str, Any]:
+    """NaN and infinities (not JSON) become null."""
+    return {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+            for k, v in summary.items()}
+
+
+# -- reading ----------------------------------------------------------------------------------
 def _open(path: Path, what: str) -> h5py.File:
     """Open an HDF5 file for reading, or raise `ResultsFileError` saying why it can't be."""
     if not path.exists():
@@ -212,29 +509,104 @@ def _open(path: Path, what: str) -> h5py.File:
         raise ResultsFileError(f"{path}: not an HDF5 file ({exc})") from None
 
 
-def read_results(path) -> dict:
-    """Load a results file into plain dicts of arrays: ``{"attrs", "trajectory", "convergence",
-    "limit"}``, plus ``"process"`` when the file has it. Raises `ResultsFileError` naming what is
-    missing."""
-    path = Path(path)
-    with _open(path, "results file") as f:
-        if "format_version" not in f.attrs:
-            raise ResultsFileError(f"{path}: not a crawlsim results file (no format_version "
-                                   "attribute)")
-        out = {"attrs": {k: _plain(v) for k, v in f.attrs.items()}}
-        for group in ("trajectory", "convergence", "limit"):
-            if group not in f:
-                raise ResultsFileError(f"{path}: missing group /{group}")
-            out[group] = {k: f[group][k][()] for k in f[group]}
-            out[group + "_attrs"] = {k: _plain(v) for k, v in f[group].attrs.items()}
-        if "process" in f:
-            out["process"] = {k: f["process"][k][()] for k in f["process"]}
-        if "events" in f:
-            out["events"] = {k: f["events"][k][()] for k in f["events"]}
+def _check_version(f: h5py.File, path: Any) -> int:
+    if "format_version" not in f.attrs:
+        raise ResultsFileError(f"{path}: not a crawlsim results file (no format_version "
+                               "attribute)")
+    version = int(_plain(f.attrs["format_version"]))
+    if version not in READABLE_VERSIONS:
+        raise ResultsFileError(f"{path}: format_version {version} was written by a newer crawlsim "
+                               f"({_plain(f.attrs.get('crawlsim_version', '?'))}); this crawlsim "
+                               f"({__version__}) reads format_version "
+                               f"{', '.join(map(str, READABLE_VERSIONS))}: upgrade crawlsim")
+    return version
+
+
+def _variables(group: h5py.Group) -> dict[str, np.ndarray]:
+    """The group's datasets, without the netCDF dimensions that are not variables."""
+    out = {}
+    for name, ds in group.items():
+        if not isinstance(ds, h5py.Dataset):
+            continue
+        name_attr = ds.attrs.get("NAME", b"")
+        if isinstance(name_attr, str):
+            name_attr = name_attr.encode()
+        if NOT_A_VARIABLE in bytes(name_attr):
+            continue
+        out[name] = ds[()]
     return out
 
 
-def _plain(value):
+def read_results(path: Any) -> dict[str, Any]:
+    """Load a results file (format_version 1 or 2) into plain dicts of arrays: ``{"attrs",
+    "trajectory", "convergence", "limit"}`` and the groups' attributes as ``"<group>_attrs"``,
+    plus ``"process"`` and ``"events"`` when the file has them. Format 2 adds
+    ``"coordinates"`` (the root coordinate variables: block, link, constraint, ...) and
+    ``/limit/step``. Raises `ResultsFileError` naming what is missing."""
+    source = path
+    if isinstance(path, io.IOBase):
+        f = h5py.File(path, "r")
+    else:
+        source = Path(path)
+        f = _open(source, "results file")
+    with f:
+        _check_version(f, source)
+        if _plain(f.attrs.get("kind", "")) == "sweep":
+            raise ResultsFileError(f"{source}: a sweep file, not a run's results file: read it "
+                                   "with crawlsim.sweep.read_table")
+        out: dict[str, Any] = {"attrs": {k: _plain(v) for k, v in f.attrs.items()}}
+        for group in ("trajectory", "convergence", "limit"):
+            if group not in f:
+                raise ResultsFileError(f"{source}: missing group /{group}")
+            out[group] = _variables(f[group])
+            out[group + "_attrs"] = {k: _plain(v) for k, v in f[group].attrs.items()}
+        for group in ("process", "events"):
+            if group in f:
+                out[group] = _variables(f[group])
+        process = out.get("process", {})
+        if "stiffness" in process and "normals" not in process:
+            chain = ChainPolyhedron(process["stiffness"], 1.0)
+            process.update(normals=chain.dense_normals(), metric=chain.dense_metric())
+        coordinates = _variables(f)
+        if coordinates:
+            out["coordinates"] = coordinates
+    return out
+
+
+def read_provenance(path: Any) -> dict[str, Any]:
+    """What a rerun needs from a run's results file: ``kind``, ``name``, ``gait_yaml`` (the
+    effective document), ``integrator_settings`` and ``save_every``.
+
+    Only format_version 2 files record the effective document and the integrator's settings; a
+    format_version 1 file, or a sweep file, is refused with a `ResultsFileError` saying so.
+    """
+    path = Path(path)
+    with _open(path, "results file") as f:
+        version = _check_version(f, path)
+        a = {k: _plain(v) for k, v in f.attrs.items()}
+    if a.get("kind") == "sweep":
+        raise ResultsFileError(f"{path}: a sweep file; --from reruns a run's results file (the "
+                               f"sweep's command line was: {a.get('command_line', 'not recorded')})")
+    if version < 2 or "integrator_json" not in a:
+        raise ResultsFileError(f"{path}: format_version {version} files do not record the "
+                               "command-line overrides or the integrator, so the run cannot be "
+                               "reproduced from it; rerun from the gait file (crawlsim run "
+                               "GAIT.yaml with the same options)")
+    return {"kind": a["kind"], "name": a["name"], "gait_yaml": a["gait_yaml"],
+            "integrator_settings": json.loads(a["integrator_json"]),
+            "save_every": int(a.get("save_every", 1)) or 1, "format_version": version}
+
+
+def read_attrs(path: Any) -> dict[str, Any]:
+    """The root attributes of a results or sweep file (a path or a file object)."""
+    if isinstance(path, io.IOBase):
+        with h5py.File(path, "r") as f:
+            return {k: _plain(v) for k, v in f.attrs.items()}
+    with _open(Path(path), "results file") as f:
+        return {k: _plain(v) for k, v in f.attrs.items()}
+
+
+def _plain(value: Any) -> Any:
     if isinstance(value, bytes):
         return value.decode()
     if isinstance(value, np.generic):
@@ -242,47 +614,163 @@ def _plain(value):
     return value
 
 
-# --------------------------------------------------------------------------------------------
-# Sweep files (`crawlsim velocity --sweep ... -o OUT.h5`, `crawlsim merge`). Layout:
-#
-#     /                     attrs: crawlsim_version, format_version, kind = "sweep", gait_yaml
-#                                  (the base gait document), source, paths (JSON list of the
-#                                  swept paths, in grid order), shape, shard ("" or "I/N")
-#     /axes/<path>          (n_k,)  values of each swept path
-#     /results/<column>     (P,)    one entry per point, in grid order: each swept path, v0,
-#                                   displacement_per_period, convergence, periods, status,
-#                                   message; point (grid index), steps (catch-up steps simulated)
+# -- sweep files ------------------------------------------------------------------------------
+#: /grid and /results variables of a sweep file besides the swept paths.
+SWEEP_VARIABLES: dict[str, Var] = {
+    "v0": Var(("point",), "asymptotic average velocity v0 (NaN where the point failed)",
+              "velocity"),
+    "displacement_per_period": Var(("point",), "barycentre displacement per period of the "
+                                               "limit period", "length"),
+    "convergence": Var(("point",), "how the point reached its periodic regime", "1",
+                       CONVERGENCE_FLAGS),
+    "periods": Var(("point",), "periods simulated", "1"),
+    "status": Var(("point",), "outcome of the point (message says why it failed)", "1",
+                  STATUS_FLAGS),
+    "message": Var(("point",), "the reason of a failure, else empty", "1"),
+    "point": Var(("point",), "grid index of the point (C order over the swept paths)", "1"),
+    "steps": Var(("point",), "catch-up steps simulated (periods x steps per period)", "1"),
+}
 
-def write_sweep(path, *, paths, axes, points, columns, gait_yaml, source, shard, steps) -> None:
+
+_WORDS = {"convergence": "finite-time, asymptotic or not-converged; empty when the point failed",
+          "status": "ok, not-converged, invalid or failed"}
+
+
+def axis_name(path: str, taken: Sequence[str] = ()) -> str:
+    """A netCDF- and Python-safe name for a swept path: ``links.*.amplitude`` ->
+    ``links_all_amplitude``, ``links.1.phase`` -> ``links_1_phase`` (the path itself is kept in
+    the attribute ``path``). Names already ``taken`` get a numeric suffix."""
+    name = re.sub(r"[^A-Za-z0-9_]", "_", path.replace("*", "all"))
+    if not name or not (name[0].isalpha()):
+        name = "p_" + name
+    base, k = name, 2
+    while name in taken or name in SWEEP_VARIABLES:
+        name, k = f"{base}_{k}", k + 1
+    return name
+
+
+def _flag_codes(values: Any, flags: tuple[tuple[int, str], ...]) -> np.ndarray:
+    """Strings (``finite-time``, ``not-converged``, "") as their CF flag codes; "" -> -1."""
+    code = {m: v for v, m in flags}
+    return np.array([code.get(str(s).replace("-", "_"), -1) if s else -1 for s in values],
+                    dtype=np.int8)
+
+
+def write_sweep(path: Any, *, paths: Sequence[str], axes: Sequence[Any], points: Any,
+                columns: Mapping[str, Any], gait_yaml: str, source: str, shard: str,
+                steps: Any) -> None:
     """Write a sweep table atomically (`crawlsim.atomic`)."""
+    if isinstance(path, io.IOBase):
+        with h5py.File(path, "w", track_order=True) as f:
+            _write_sweep(f, paths, axes, points, columns, gait_yaml, source, shard, steps)
+        return
+    with atomic_path(path) as tmp, h5py.File(tmp, "w", track_order=True) as f:
+        _write_sweep(f, paths, axes, points, columns, gait_yaml, source, shard, steps)
+
+
+def _write_sweep(f: h5py.File, paths: Sequence[str], axes: Sequence[Any], points: Any,
+                 columns: Mapping[str, Any], gait_yaml: str, source: str, shard: str,
+                 steps: Any) -> None:
+    import yaml
+
+    from . import provenance
+
+    document = yaml.safe_load(gait_yaml) or {}
+    kind = document.get("kind", "crawler")
+    units = Units.from_block(document.get("units"))
+    integrator = document.get("simulation", {}).get("integrator", "catch-up")
+    names: list[str] = []
+    for p in paths:
+        names.append(axis_name(p, names))
+    shape = tuple(len(v) for v in axes)
+    points = np.asarray(points, dtype=np.int64)
+
+    a = f.attrs
+    a["title"] = "crawlsim parameter sweep"
+    a["comment"] = _SWEEP_COMMENT
+    a["crawlsim_version"] = __version__
+    a["format_version"] = FORMAT_VERSION
+    a["kind"] = "sweep"
+    a["gait_yaml"] = gait_yaml
+    a["source"] = str(source)
+    a["paths"] = json.dumps(list(paths))
+    a["axis_names"] = json.dumps(names)
+    a["shape"] = np.array(shape, dtype=np.int64)
+    a["shard"] = shard
+    a["units_json"] = json.dumps(units.to_json())
+    a["integrator"] = integrator
+    a["sweep_json"] = json.dumps([{"path": p, "name": n, "values": np.asarray(v).tolist()}
+                                  for p, n, v in zip(paths, names, axes)])
+    for key, value in provenance.session_attrs().items():
+        a[key] = value
+
+    scales = _Scales()
     text = h5py.string_dtype()
-    with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
-        a = f.attrs
-        a["crawlsim_version"] = __version__
-        a["format_version"] = FORMAT_VERSION
-        a["kind"] = "sweep"
-        a["gait_yaml"] = gait_yaml
-        a["source"] = str(source)
-        a["paths"] = json.dumps(list(paths))
-        a["shape"] = np.array([len(v) for v in axes], dtype=np.int64)
-        a["shard"] = shard
-        g = f.create_group("axes")
-        for name, values in zip(paths, axes):
-            g.create_dataset(name, data=np.asarray(values))
-        r = f.create_group("results")
-        r.create_dataset("point", data=np.asarray(points, dtype=np.int64))
-        r.create_dataset("steps", data=np.asarray(steps, dtype=np.int64))
-        for name, values in columns.items():
-            values = np.asarray(values)
-            if values.dtype == object:
-                r.create_dataset(name, data=values.astype(str).tolist(), dtype=text,
-                                 shape=values.shape)
-            else:
-                r.create_dataset(name, data=values)
+
+    def axis_var(path: str) -> Var:
+        quantity = path_quantity(kind, tuple(int(k) if k.isdigit() else k
+                                             for k in path.split(".")))
+        return Var((), f"swept value of {path}", quantity)
+
+    grid = f.create_group("grid", track_order=True)
+    grid.attrs["comment"] = ("the sweep's numbers on the grid; points not computed (another "
+                             "shard's) are NaN, status not_computed")
+    for p, n, values in zip(paths, names, axes):
+        ds = scales.coordinate(grid, n, np.asarray(values))
+        _describe(ds, axis_var(p), units.of(axis_var(p).quantity))
+        ds.attrs["path"] = p
+    full = np.zeros(math.prod(shape), dtype=bool)
+    full[points] = True
+    for name in ("v0", "displacement_per_period", "convergence", "status", "periods", "steps"):
+        values = steps if name == "steps" else columns[name]
+        var = SWEEP_VARIABLES[name]
+        if var.flags:
+            data = np.full(full.size, -1, dtype=np.int8)
+            data[points] = _flag_codes(values, var.flags)
+        elif name in ("periods", "steps"):
+            data = np.zeros(full.size, dtype=np.int64)
+            data[points] = np.asarray(values, dtype=np.int64)
+        else:
+            data = np.full(full.size, np.nan)
+            data[points] = np.asarray(values, dtype=float)
+        ds = grid.create_dataset(name, data=data.reshape(shape), track_order=True)
+        scales.attach(ds, names)
+        _describe(ds, var, units.of(var.quantity))
+    messages = np.full(full.size, "", dtype=object)
+    messages[points] = np.asarray(columns["message"], dtype=object).astype(str)
+    ds = grid.create_dataset("message", data=messages.reshape(shape).tolist(), dtype=text,
+                             shape=shape, track_order=True)
+    scales.attach(ds, names)
+    _describe(ds, SWEEP_VARIABLES["message"], "1")
+
+    results = f.create_group("results", track_order=True)
+    results.attrs["comment"] = "one entry per computed point, in grid order"
+    ds = scales.coordinate(results, "point", points)
+    _describe(ds, SWEEP_VARIABLES["point"], "1")
+    for p, n in zip(paths, names):
+        ds = results.create_dataset(n, data=np.asarray(columns[p]), track_order=True)
+        scales.attach(ds, ("point",))
+        _describe(ds, axis_var(p), units.of(axis_var(p).quantity))
+        ds.attrs["path"] = p
+    for name, values in [(k, columns[k]) for k in ("v0", "displacement_per_period",
+                                                   "convergence", "periods", "status",
+                                                   "message")] + [("steps", steps)]:
+        values = np.asarray(values)
+        if values.dtype == object or values.dtype.kind in "US":
+            ds = results.create_dataset(name, data=values.astype(str).tolist(), dtype=text,
+                                        shape=values.shape, track_order=True)
+        else:
+            ds = results.create_dataset(name, data=values, track_order=True)
+        var = SWEEP_VARIABLES[name]
+        scales.attach(ds, ("point",))
+        # the table keeps the words (as in the CSV table); /grid has the CF flags
+        _describe(ds, Var(var.dims, var.long_name, var.quantity, comment=_WORDS.get(name, "")),
+                  units.of(var.quantity))
 
 
-def read_sweep(path) -> dict:
-    """A sweep file as ``{paths, axes, points, steps, columns, gait_yaml, source, shard}``.
+def read_sweep(path: Any) -> dict[str, Any]:
+    """A sweep file (format_version 1 or 2) as ``{paths, axes, points, steps, columns,
+    gait_yaml, source, shard}``; format 2 adds ``attrs`` (every root attribute).
 
     Raises `ResultsFileError` naming what is missing when the file is not a sweep file.
     """
@@ -291,23 +779,32 @@ def read_sweep(path) -> dict:
         if _plain(f.attrs.get("kind", "")) != "sweep":
             raise ResultsFileError(f"{path}: not a crawlsim sweep file (attribute kind is not "
                                    "'sweep')")
-        for group in ("axes", "results"):
+        version = _check_version(f, path)
+        paths = json.loads(_plain(f.attrs["paths"]))
+        if version == 1:
+            names, axes_group = list(paths), "axes"
+        else:
+            names, axes_group = json.loads(_plain(f.attrs["axis_names"])), "grid"
+        for group in (axes_group, "results"):
             if group not in f:
                 raise ResultsFileError(f"{path}: missing group /{group}")
-        paths = json.loads(_plain(f.attrs["paths"]))
-        missing = [p for p in paths if p not in f["axes"]]
+        missing = [n for n in names if n not in f[axes_group]]
         if missing:
-            raise ResultsFileError(f"{path}: missing /axes/{missing[0]}")
+            raise ResultsFileError(f"{path}: missing /{axes_group}/{missing[0]}")
         results = f["results"]
         columns = {}
-        for name in list(paths) + ["v0", "displacement_per_period", "convergence", "periods",
-                                   "status", "message", "point", "steps"]:
+        for name, key in [*zip(names, paths)] + [(c, c) for c in (
+                "v0", "displacement_per_period", "convergence", "periods", "status", "message",
+                "point", "steps")]:
             if name not in results:
                 raise ResultsFileError(f"{path}: missing /results/{name}")
             ds = results[name]
-            columns[name] = (np.array(ds.asstr()[()], dtype=object)
-                             if h5py.check_string_dtype(ds.dtype) else ds[()])
-        return dict(paths=paths, axes=[f["axes"][p][()] for p in paths],
-                    points=columns.pop("point"), steps=columns.pop("steps"), columns=columns,
-                    gait_yaml=_plain(f.attrs["gait_yaml"]), source=_plain(f.attrs["source"]),
-                    shard=_plain(f.attrs["shard"]))
+            columns[key] = (np.array(ds.asstr()[()], dtype=object)
+                            if h5py.check_string_dtype(ds.dtype) else ds[()])
+        out = dict(paths=paths, axes=[f[axes_group][n][()] for n in names],
+                   points=columns.pop("point"), steps=columns.pop("steps"), columns=columns,
+                   gait_yaml=_plain(f.attrs["gait_yaml"]), source=_plain(f.attrs["source"]),
+                   shard=_plain(f.attrs["shard"]))
+        if version >= 2:
+            out["attrs"] = {k: _plain(v) for k, v in f.attrs.items()}
+        return out

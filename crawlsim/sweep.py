@@ -31,12 +31,12 @@ from concurrent.futures import FIRST_COMPLETED, wait
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import yaml
 
 from .atomic import atomic_path
+from .docpaths import path_keys, resolve_path, set_value
 from .errors import CrawlsimError, GaitError
 from .gait import Gait, gait_from_document
 from .status import PointStatus
@@ -60,7 +60,7 @@ class Axis:
 
     @property
     def keys(self) -> tuple:
-        return tuple(int(p) if p.isdigit() else p for p in self.path.split("."))
+        return path_keys(self.path)
 
 
 def parse_axis(text: str) -> Axis:
@@ -104,60 +104,6 @@ def _number(text: str):
         return float(text)
 
 
-def resolve_path(document: dict, axis: Axis, source: str) -> list[tuple]:
-    """The concrete key tuples ``axis.path`` names in ``document`` (``*`` expanded).
-
-    Every key but the last must exist; the last may be absent from a mapping (an optional key
-    such as a signal's ``phase``), in which case the schema decides whether it is allowed.
-    """
-    found: list[tuple[tuple, Any]] = [((), document)]
-    keys = axis.keys
-    for depth, key in enumerate(keys):
-        last = depth == len(keys) - 1
-        nxt: list[tuple[tuple, Any]] = []
-        for prefix, node in found:
-            where = ".".join(str(k) for k in prefix) or "the document"
-            if key == "*":
-                if not isinstance(node, list):
-                    raise GaitError(source, axis.path, f"'*' needs a list, but {where} is "
-                                                       f"{_kind(node)}")
-                nxt.extend((prefix + (i,), item) for i, item in enumerate(node))
-            elif isinstance(node, list):
-                if not isinstance(key, int):
-                    hint = (f"; use {'.'.join(map(str, prefix))}.*.{key} or an index 0.."
-                            f"{len(node) - 1}")
-                    raise GaitError(source, axis.path,
-                                    f"{where} is a list, so the key {key!r} must be an index "
-                                    f"or '*'{hint}")
-                if not 0 <= key < len(node):
-                    raise GaitError(source, axis.path, f"index {key} is out of range: {where} "
-                                                       f"has {len(node)} elements (0..{len(node) - 1})")
-                nxt.append((prefix + (key,), node[key]))
-            elif isinstance(node, dict):
-                if str(key) not in node and not last:
-                    raise GaitError(source, axis.path, f"{where} has no key {str(key)!r} "
-                                                       f"(keys: {', '.join(map(str, node))})")
-                nxt.append((prefix + (str(key),), node.get(str(key))))
-            else:
-                raise GaitError(source, axis.path, f"{where} is {_kind(node)}, it has no key "
-                                                   f"{key!r}")
-        found = nxt
-    for prefix, node in found:
-        if isinstance(node, (dict, list)):
-            raise GaitError(source, axis.path, f"{'.'.join(map(str, prefix))} is "
-                                               f"{_kind(node)}, not a number: sweep a number "
-                                               "inside it")
-    return [prefix for prefix, _ in found]
-
-
-def _kind(node) -> str:
-    if isinstance(node, dict):
-        return "a mapping"
-    if isinstance(node, list):
-        return "a list"
-    return f"the value {node!r}"
-
-
 @dataclass(frozen=True, eq=False)
 class SweepGrid:
     """A base gait and its axes: the Cartesian grid of edited gait documents."""
@@ -191,11 +137,7 @@ class SweepGrid:
         doc = copy.deepcopy(self.base.document)
         for targets, value in zip(self.targets, self.values(index)):
             for keys in targets:
-                node = doc
-                for key in keys[:-1]:
-                    node = node[key]
-                old = node.get(keys[-1]) if isinstance(node, dict) else node[keys[-1]]
-                node[keys[-1]] = _typed(value, old)
+                set_value(doc, keys, value)
         return doc
 
     def label(self, index: int) -> str:
@@ -223,13 +165,6 @@ class SweepGrid:
             return np.arange(self.size)
         i, n = shard
         return np.arange(i - 1, self.size, n)
-
-
-def _typed(value, old):
-    """An integral value replacing an integer stays an integer (``blocks``, ``steps_per_period``)."""
-    if isinstance(old, int) and not isinstance(old, bool) and float(value).is_integer():
-        return int(value)
-    return value
 
 
 def make_grid(base: Gait, axes) -> SweepGrid:

@@ -67,10 +67,10 @@ def test_hdf5_layout_round_trips(runner, tmp_path):
     assert result.exit_code == 0
     with h5py.File(tmp_path / "r.h5") as f:
         a = f.attrs
-        assert a["crawlsim_version"] == __version__ and a["format_version"] == 1
+        assert a["crawlsim_version"] == __version__ and a["format_version"] == 2
         assert a["convergence"] == "finite-time" and a["periodic_from"] == 1
         assert a["v0"] == pytest.approx(0.4, abs=1e-13)
-        assert a["gait_yaml"] == INCHING
+        assert a["gait_file_text"] == INCHING  # the text as read; gait_yaml is the effective one
         t = f["trajectory/t"][()]
         assert np.allclose(np.diff(t), 0.03)  # every third of 100 steps per period
         assert f["trajectory/x"].shape == (len(t), 2)

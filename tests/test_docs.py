@@ -53,7 +53,7 @@ def test_anchor_rule():
 @pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(ROOT)))
 def test_links_resolve(page):
     found = links(page)
-    assert found or page.name == "model.md"
+    assert found or page.name in ("model.md", "study.md")  # pages without links
     for target in found:
         if re.match(r"^[a-z]+:", target):
             continue  # an external address: not checked here

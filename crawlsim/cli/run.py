@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 import click
 
 from .. import api
 from ..analysis import summary_text
+from ..gait import with_simulation
 from . import (
     EXIT_NOT_CONVERGED,
+    BadInput,
     _output_path,
     library_errors,
     load_with_overrides,
@@ -21,18 +24,25 @@ from . import (
 
 
 @main.command()
-@click.argument("gait_file", type=click.Path(exists=True, dir_okay=False))
+@click.argument("gait_file", required=False, type=click.Path(exists=True, dir_okay=False))
+@click.option("--from", "from_results", type=click.Path(exists=True, dir_okay=False),
+              metavar="RESULT.h5",
+              help="Rerun the run recorded in a results file: its effective gait document "
+                   "and integrator settings (v0 is reproduced bit for bit); options given "
+                   "override them. Instead of GAIT_FILE.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False),
-              help="HDF5 results file (default: <gait stem>.h5 in the current folder).")
+              help="HDF5 results file (default: <gait stem>.h5 in the current folder; "
+                   "<results stem>-rerun.h5 with --from).")
 @simulation_options
-@click.option("--save-every", type=click.IntRange(min=1), default=1, show_default=True,
-              help="Write every K-th grid point of the trajectory (bounds the file size).")
+@click.option("--save-every", type=click.IntRange(min=1),
+              help="Write every K-th grid point of the trajectory (bounds the file size). "
+                   "[default: 1; with --from, the file's]")
 @click.option("--check-every-step", is_flag=True,
               help="Run Clarabel at every step instead of the certified fast paths.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 @click.option("--plot", is_flag=True,
               help="Also draw the figures next to the results file (<stem>-<figure>.png).")
-def run(gait_file, output, steps_per_period, max_periods, tolerance, save_every,
+def run(gait_file, from_results, output, steps_per_period, max_periods, tolerance, save_every,
         check_every_step, as_json, plot):
     """Simulate GAIT_FILE to its periodic regime; report v0 and write an HDF5 file.
 
@@ -41,10 +51,20 @@ def run(gait_file, output, steps_per_period, max_periods, tolerance, save_every,
       crawlsim run gaits/peristalsis-4.yaml
       crawlsim run gaits/peristalsis-4.yaml --steps-per-period 4000 -o fine.h5
       crawlsim run gaits/inching-2.yaml --json | python -m json.tool
+      crawlsim run --from peristalsis-4.h5 -o again.h5
     """
+    if (gait_file is None) == (from_results is None):
+        raise BadInput("give a gait file or --from RESULT.h5 (one of the two)")
     with library_errors():
-        gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance)
-        out = _output_path(output, gait_file)
+        if from_results is not None:
+            gait, check_every_step, save_every = _rerun(from_results, steps_per_period,
+                                                        max_periods, tolerance,
+                                                        check_every_step, save_every)
+            out = _output_path(output, Path(from_results).stem + "-rerun")
+        else:
+            gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance)
+            out = _output_path(output, gait_file)
+            save_every = save_every or 1
         with period_progress(gait.simulation.max_periods, not as_json) as progress:
             result = api.run(gait, output=out, save_every=save_every,
                              check_every_step=check_every_step, progress=progress)
@@ -65,4 +85,17 @@ def run(gait_file, output, steps_per_period, max_periods, tolerance, save_every,
             click.echo(f"  figure                   {figure}")
     if not result.converged:
         sys.exit(EXIT_NOT_CONVERGED)
+
+
+def _rerun(path, steps_per_period, max_periods, tolerance, check_every_step, save_every):
+    """The gait and settings recorded in ``path``, with the options given on top."""
+    recorded = api.from_results(path)
+    ctx = click.get_current_context(silent=True)
+    integrator = None if ctx is None else ctx.meta.get("crawlsim.integrator")
+    overrides = {k: v for k, v in dict(steps_per_period=steps_per_period, max_periods=max_periods,
+                                       tolerance=tolerance, integrator=integrator).items()
+                 if v is not None}
+    gait = with_simulation(recorded.gait, **overrides) if overrides else recorded.gait
+    return (gait, check_every_step or recorded.check_every_step,
+            save_every or recorded.save_every)
 
