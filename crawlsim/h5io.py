@@ -247,13 +247,20 @@ def _plain(value):
 #
 #     /                     attrs: crawlsim_version, format_version, kind = "sweep", gait_yaml
 #                                  (the base gait document), source, paths (JSON list of the
-#                                  swept paths, in grid order), shape, shard ("" or "I/N")
+#                                  swept paths, in grid order), shape, shard ("" or "I/N"),
+#                                  dimensions (JSON list: the grid dimension of each path;
+#                                  linked paths share one; absent: each path its own)
 #     /axes/<path>          (n_k,)  values of each swept path
 #     /results/<column>     (P,)    one entry per point, in grid order: each swept path, v0,
-#                                   displacement_per_period, convergence, periods, status,
-#                                   message; point (grid index), steps (catch-up steps simulated)
+#                                   v0_error_estimate, displacement_per_period,
+#                                   dissipation_per_period, cost_of_transport, convergence,
+#                                   periods, integrator, status, message; point (grid index),
+#                                   steps (catch-up steps simulated). Files of crawlsim 0.1 lack
+#                                   v0_error_estimate, dissipation_per_period, cost_of_transport
+#                                   and integrator.
 
-def write_sweep(path, *, paths, axes, points, columns, gait_yaml, source, shard, steps) -> None:
+def write_sweep(path, *, paths, axes, points, columns, gait_yaml, source, shard, steps,
+                dimensions=None) -> None:
     """Write a sweep table atomically (`crawlsim.atomic`)."""
     text = h5py.string_dtype()
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
@@ -266,6 +273,8 @@ def write_sweep(path, *, paths, axes, points, columns, gait_yaml, source, shard,
         a["paths"] = json.dumps(list(paths))
         a["shape"] = np.array([len(v) for v in axes], dtype=np.int64)
         a["shard"] = shard
+        if dimensions is not None:
+            a["dimensions"] = json.dumps([int(d) for d in dimensions])
         g = f.create_group("axes")
         for name, values in zip(paths, axes):
             g.create_dataset(name, data=np.asarray(values))
@@ -307,7 +316,123 @@ def read_sweep(path) -> dict:
             ds = results[name]
             columns[name] = (np.array(ds.asstr()[()], dtype=object)
                              if h5py.check_string_dtype(ds.dtype) else ds[()])
+        for name in results:  # later columns (v0_error_estimate, ...), when the file has them
+            if name not in columns:
+                ds = results[name]
+                columns[name] = (np.array(ds.asstr()[()], dtype=object)
+                                 if h5py.check_string_dtype(ds.dtype) else ds[()])
+        dimensions = (json.loads(_plain(f.attrs["dimensions"])) if "dimensions" in f.attrs
+                      else None)
         return dict(paths=paths, axes=[f["axes"][p][()] for p in paths],
                     points=columns.pop("point"), steps=columns.pop("steps"), columns=columns,
                     gait_yaml=_plain(f.attrs["gait_yaml"]), source=_plain(f.attrs["source"]),
-                    shard=_plain(f.attrs["shard"]))
+                    shard=_plain(f.attrs["shard"]), dimensions=dimensions)
+
+
+# --------------------------------------------------------------------------------------------
+# A summary of any results file (`crawlsim info`).
+
+#: Root attributes that `describe` reports under their own names (the others, provenance
+#: included, are listed under "attributes" when they are short).
+_DESCRIBED = {"crawlsim_version", "format_version", "kind", "name", "convergence",
+              "periodic_from", "v0", "contraction_rate", "v0_error_estimate",
+              "displacement_per_period", "dissipation_per_period", "cost_of_transport",
+              "period", "steps_per_period", "periods", "save_every", "gait_yaml",
+              "summary_json", "source", "paths", "shape", "shard", "dimensions", "integrator"}
+
+
+def describe(path) -> dict:
+    """What a results file holds, without reading its trajectories: ``file_kind`` (``run`` or
+    ``sweep``), the identity and outcome of the run or the grid and the counts of statuses of the
+    sweep, and the other short root attributes (provenance). Raises `ResultsFileError` for a file
+    that is not a crawlsim results file."""
+    path = Path(path)
+    with _open(path, "results file") as f:
+        attrs = {k: _plain(v) for k, v in f.attrs.items()}
+        if "format_version" not in attrs:
+            raise ResultsFileError(f"{path}: not a crawlsim results file (no format_version "
+                                   "attribute)")
+        other = {k: v for k, v in attrs.items()
+                 if k not in _DESCRIBED and (not isinstance(v, str) or len(v) <= 200)
+                 and np.ndim(v) == 0}
+        if "provenance" in f:
+            other.update({k: _plain(v) for k, v in f["provenance"].attrs.items()})
+        out = {"file": str(path), "crawlsim_version": attrs.get("crawlsim_version"),
+               "format_version": attrs.get("format_version"), "attributes": other}
+        if attrs.get("kind") == "sweep":
+            out.update(_describe_sweep(path, f, attrs))
+        else:
+            out.update(_describe_run(path, f, attrs))
+    return out
+
+
+def _number(value):
+    """NaN and -1 (null in the attributes) become None."""
+    if value is None or (isinstance(value, float) and not np.isfinite(value)):
+        return None
+    return value
+
+
+def _describe_run(path: Path, f, attrs: dict) -> dict:
+    try:
+        summary = json.loads(attrs.get("summary_json", "{}"))
+    except json.JSONDecodeError:
+        summary = {}
+    periodic_from = attrs.get("periodic_from", -1)
+    return {
+        "file_kind": "run", "kind": attrs.get("kind", "crawler"), "name": attrs.get("name"),
+        "integrator": attrs.get("integrator", summary.get("integrator")),
+        "v0": _number(attrs.get("v0")), "v0_error_estimate": _number(attrs.get("v0_error_estimate")),
+        "convergence": attrs.get("convergence"),
+        "periodic_from": None if periodic_from is None or periodic_from < 0 else periodic_from,
+        "contraction_rate": _number(attrs.get("contraction_rate")),
+        "periods": attrs.get("periods"), "steps_per_period": attrs.get("steps_per_period"),
+        "period": attrs.get("period"),
+        "displacement_per_period": _number(attrs.get("displacement_per_period")),
+        "dissipation_per_period": _number(attrs.get("dissipation_per_period")),
+        "cost_of_transport": _number(attrs.get("cost_of_transport")),
+        "final_poincare_step": summary.get("final_poincare_step"),
+    }
+
+
+def _describe_sweep(path: Path, f, attrs: dict) -> dict:
+    if "results" not in f or "status" not in f["results"]:
+        raise ResultsFileError(f"{path}: missing /results/status")
+    results = f["results"]
+    paths = json.loads(attrs.get("paths", "[]"))
+    dims = json.loads(attrs["dimensions"]) if "dimensions" in attrs else list(range(len(paths)))
+    grouped: dict[int, list[str]] = {}
+    for p, d in zip(paths, dims):
+        grouped.setdefault(int(d), []).append(p)
+    values = {p: f["axes"][p][()] for p in paths if "axes" in f and p in f["axes"]}
+    grid = [{"paths": grouped[d], "values": len(values.get(grouped[d][0], ())),
+             "min": _number(float(np.min(values[grouped[d][0]]))) if grouped[d][0] in values
+             else None,
+             "max": _number(float(np.max(values[grouped[d][0]]))) if grouped[d][0] in values
+             else None} for d in sorted(grouped)]
+    status = [str(s) for s in results["status"].asstr()[()]]
+    counts: dict[str, int] = {}
+    for s in status:
+        counts[s] = counts.get(s, 0) + 1
+    v0 = results["v0"][()] if "v0" in results else np.array([])
+    ok = np.array([s == "ok" for s in status], dtype=bool)
+    good = v0[ok & np.isfinite(v0)] if v0.size == ok.size else np.array([])
+    integrators = (sorted({str(s) for s in results["integrator"].asstr()[()]} - {""})
+                   if "integrator" in results else [])
+    import yaml
+
+    try:
+        document = yaml.safe_load(attrs.get("gait_yaml", "")) or {}
+    except yaml.YAMLError:
+        document = {}
+    name = document.get("name") if isinstance(document, dict) else None
+    return {
+        "file_kind": "sweep", "kind": "sweep",
+        "name": name or Path(str(attrs.get("source", path))).stem,
+        "source": attrs.get("source"),
+        "shard": attrs.get("shard") or None, "grid": grid,
+        "points": len(status), "statuses": counts,
+        "integrator": ", ".join(integrators) or None,
+        "v0_min": float(good.min()) if good.size else None,
+        "v0_max": float(good.max()) if good.size else None,
+    }
