@@ -6,7 +6,6 @@ from pathlib import Path
 
 from .analysis import RunResult, simulate
 from .gait import Gait, ProcessSpec, load_gait
-from .h5io import ResultsWriter
 from .model import compile
 
 
@@ -27,6 +26,8 @@ def run(gait: Gait | ProcessSpec | str | Path, *, output=None, save_every: int =
                    check_every_step=check_every_step, progress=progress)
     if output is None:
         return simulate(process, **options)
+    from .h5io import ResultsWriter  # h5py only when a file is written
+
     with ResultsWriter(output, process, save_every=save_every) as writer:
         result = simulate(process, sink=writer, **options)
         writer.finish(result, gait.source_text, kind=gait.document.get("kind", "crawler"))

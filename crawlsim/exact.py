@@ -61,7 +61,6 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
-from scipy.optimize import brentq, minimize_scalar
 
 from .errors import CertificateError, EventError, LicqWarning
 from .model import GRID_MERGE, SweepingProcess
@@ -421,6 +420,8 @@ class EventStepper:
             for i, r in zip(*np.nonzero(peak)):
                 g = f(r)
                 a, b = S[i], S[i + 2]
+                from scipy.optimize import minimize_scalar  # ~0.4 s to import: only when used
+
                 top = minimize_scalar(lambda t, g=g: -g(t), bounds=(a, b), method="bounded",
                                       options={"xatol": 1e-15 * self._T})
                 if -top.fun > 1.0:
@@ -437,6 +438,8 @@ class EventStepper:
         ga = g(a)
         if ga >= 0:
             return a
+        from scipy.optimize import brentq  # ~0.4 s to import: only when an event is refined
+
         return brentq(g, a, b, xtol=1e-15 * self._T, rtol=4 * np.finfo(float).eps)
 
     # -- certificate of the sampled period ---------------------------------------------------
