@@ -13,10 +13,9 @@ imports beyond the baseline (``python -X importtime``), the usual suspects when 
 
 Bytecode: an installed package has its ``.pyc`` files (pip compiles them), so the commands run
 with bytecode caching on (``PYTHONDONTWRITEBYTECODE`` removed from their environment; the warm-up
-run writes ``__pycache__``, which git ignores). ``--no-bytecode`` measures a checkout that
-compiles crawlsim's sources on every start instead.
+run writes crawlsim's ``__pycache__``, which git ignores), as numpy and the others have theirs.
 
-    python scripts/bench-startup.py [--repeat 15] [--no-bytecode]
+    python scripts/bench-startup.py [--repeat 15]
 """
 
 from __future__ import annotations
@@ -69,13 +68,8 @@ def imported(argv: list[str]) -> set[str]:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=15, help="runs of each command (median)")
-    ap.add_argument("--no-bytecode", action="store_true",
-                    help="compile crawlsim's sources at every start (no __pycache__)")
     args = ap.parse_args()
-    if args.no_bytecode:
-        ENV["PYTHONDONTWRITEBYTECODE"] = "1"
-    else:
-        ENV.pop("PYTHONDONTWRITEBYTECODE", None)
+    ENV.pop("PYTHONDONTWRITEBYTECODE", None)
     crawlsim = crawlsim_command()
     commands = {
         "python -c pass": [sys.executable, "-c", "pass"],
@@ -95,9 +89,8 @@ def main() -> int:
             times[name].append(wall(argv))
     median = {name: statistics.median(t) for name, t in times.items()}
 
-    cache = "off" if args.no_bytecode else "on"
-    print(f"start-up, median of {args.repeat} runs each (wall time of a fresh process; "
-          f"bytecode cache {cache}):")
+    print(f"start-up, median of {args.repeat} runs each (wall time of a fresh process, "
+          "bytecode cached):")
     for name, t in median.items():
         print(f"  {name:<58} {t * 1e3:8.1f} ms")
     base, needed = median["python -c pass"], median[f"python -c '{NEEDED}'"]
