@@ -78,14 +78,22 @@ def test_resumed_points_count_as_done_but_not_in_the_rate():
 
 def test_heartbeat_writes_while_a_unit_is_slow():
     """A unit that takes longer than the interval (one long period) still gets log lines: the
-    heartbeat thread checks the clock between updates."""
-    clock, out = Clock(), io.StringIO()
+    heartbeat thread checks the clock between updates. The fake clock says a second has passed;
+    the test waits for the thread's write, not for time."""
+    import threading
+
+    written = threading.Event()
+
+    class Stream(io.StringIO):
+        def write(self, text):
+            n = super().write(text)
+            written.set()
+            return n
+
+    clock, out = Clock(), Stream()
     p = Progress("run", "period", None, mode="log", stream=out, interval=1e-3, clock=clock)
     clock.now += 1.0
-    for _ in range(1000):  # wait for the thread without sleeping in the test's own logic
-        if out.getvalue():
-            break
-        p._stop.wait(0.01)
+    assert written.wait(30)
     p.close()
     assert out.getvalue().startswith("run: 0 periods, 0 periods/s, elapsed 0:00:01")
 
