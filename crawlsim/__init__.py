@@ -44,9 +44,9 @@ _EXPORTS = {
     "InputError": "crawlsim.errors",
 }
 
-_SUBMODULES = {"analysis", "api", "atomic", "batch", "docpaths", "errors", "exact", "gait", "h5io",
-               "model", "paper", "projection", "provenance", "signals", "status", "stepping",
-               "sweep", "units"}
+_SUBMODULES = {"analysis", "api", "atomic", "batch", "corpus", "docpaths", "errors", "exact",
+               "gait", "h5io", "kkt", "model", "offsets", "paper", "projection", "provenance",
+               "signals", "status", "stepping", "sweep", "units"}
 
 __all__ = ["load_gait", "simulate", "sweep", "run", "SimulationResult", "Trajectory", "Gait",
            "ProcessSpec", "Units", "CertificateError", "CrawlsimError", "GaitError", "InputError",

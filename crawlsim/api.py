@@ -28,7 +28,6 @@ from .analysis import simulate as _simulate_process
 from .errors import SweepSpecError
 from .gait import Gait, ProcessSpec, parse_gait, with_simulation
 from .gait import load_gait as _load_gait
-from .h5io import ResultsWriter, read_provenance, read_results
 from .model import compile
 from .units import Units
 
@@ -140,6 +139,8 @@ def _extend(run: RunResult, **extra: Any) -> SimulationResult:
 def _execute(spec: Spec, target: Any, *, save_every: int, check_every_step: bool,
              progress: Progress | None, keep_trajectory: bool) -> SimulationResult:
     """Run ``spec`` with its settings, writing its results file into ``target``."""
+    from .h5io import ResultsWriter  # h5py only when a results file is written
+
     process = compile(spec)
     s = spec.simulation
     record = _provenance.for_gait(spec, check_every_step=check_every_step)
@@ -212,6 +213,8 @@ def simulate(gait: Spec | str | Path, *, integrator: str | None = None,
 
 
 def _trajectory(image: bytes) -> Trajectory:
+    from .h5io import read_results
+
     data = read_results(io.BytesIO(image))
     t = data["trajectory"]
     return Trajectory(t=t["t"], w=t["w"], x=t.get("x"), stress=t.get("stress"),
@@ -233,6 +236,8 @@ def from_results(path: str | Path) -> Rerun:
     gait document (every override of the original command applied) and ``check_every_step``.
     Rerunning it with `run` reproduces v0 bit for bit on the same versions
     (``versions_json``)."""
+    from .h5io import read_provenance
+
     info = read_provenance(path)
     spec = parse_gait(info["gait_yaml"], source=f"{path} (gait_yaml)",
                       default_name=str(info["name"]))

@@ -629,7 +629,15 @@ SWEEP_VARIABLES: dict[str, Var] = {
     "message": Var(("point",), "the reason of a failure, else empty", "1"),
     "point": Var(("point",), "grid index of the point (C order over the swept paths)", "1"),
     "steps": Var(("point",), "catch-up steps simulated (periods x steps per period)", "1"),
+    "v0_error_estimate": Var(("point",), "error bound of v0", "velocity"),
+    "dissipation_per_period": Var(("point",), "energy dissipated by friction in the limit "
+                                              "period", "dissipation"),
+    "cost_of_transport": Var(("point",), "dissipation per distance travelled (NaN without net "
+                                         "motion)", "force"),
+    "integrator": Var(("point",), "integrator of the point: catch-up or exact", "1"),
 }
+#: Numeric columns written on the grid when a table has them (files of crawlsim 0.1 do not).
+_OPTIONAL_GRID = ("v0_error_estimate", "dissipation_per_period", "cost_of_transport")
 
 
 _WORDS = {"convergence": "finite-time, asymptotic or not-converged; empty when the point failed",
@@ -658,19 +666,21 @@ def _flag_codes(values: Any, flags: tuple[tuple[int, str], ...]) -> np.ndarray:
 
 def write_sweep(path: Any, *, paths: Sequence[str], axes: Sequence[Any], points: Any,
                 columns: Mapping[str, Any], gait_yaml: str, source: str, shard: str,
-                steps: Any) -> None:
-    """Write a sweep table atomically (`crawlsim.atomic`)."""
+                steps: Any, dimensions: Sequence[int] | None = None) -> None:
+    """Write a sweep table atomically (`crawlsim.atomic`). ``dimensions`` gives the grid
+    dimension of each swept path (linked paths share one; default: each path its own)."""
+    dims = list(range(len(paths))) if dimensions is None else [int(d) for d in dimensions]
     if isinstance(path, io.IOBase):
         with h5py.File(path, "w", track_order=True) as f:
-            _write_sweep(f, paths, axes, points, columns, gait_yaml, source, shard, steps)
+            _write_sweep(f, paths, axes, points, columns, gait_yaml, source, shard, steps, dims)
         return
     with atomic_path(path) as tmp, h5py.File(tmp, "w", track_order=True) as f:
-        _write_sweep(f, paths, axes, points, columns, gait_yaml, source, shard, steps)
+        _write_sweep(f, paths, axes, points, columns, gait_yaml, source, shard, steps, dims)
 
 
 def _write_sweep(f: h5py.File, paths: Sequence[str], axes: Sequence[Any], points: Any,
                  columns: Mapping[str, Any], gait_yaml: str, source: str, shard: str,
-                 steps: Any) -> None:
+                 steps: Any, dims: Sequence[int]) -> None:
     import yaml
 
     from . import provenance
@@ -682,7 +692,12 @@ def _write_sweep(f: h5py.File, paths: Sequence[str], axes: Sequence[Any], points
     names: list[str] = []
     for p in paths:
         names.append(axis_name(p, names))
-    shape = tuple(len(v) for v in axes)
+    # one grid dimension per distinct entry of dims, named after its first path; linked paths
+    # are auxiliary coordinates along it
+    first = {d: i for i, d in reversed(list(enumerate(dims)))}
+    order = sorted(first, key=lambda d: first[d])
+    dim_names = [names[first[d]] for d in order]
+    shape = tuple(len(axes[first[d]]) for d in order)
     points = np.asarray(points, dtype=np.int64)
 
     a = f.attrs
@@ -697,6 +712,7 @@ def _write_sweep(f: h5py.File, paths: Sequence[str], axes: Sequence[Any], points
     a["axis_names"] = json.dumps(names)
     a["shape"] = np.array(shape, dtype=np.int64)
     a["shard"] = shard
+    a["dimensions"] = json.dumps([order.index(d) for d in dims])
     a["units_json"] = json.dumps(units.to_json())
     a["integrator"] = integrator
     a["sweep_json"] = json.dumps([{"path": p, "name": n, "values": np.asarray(v).tolist()}
@@ -715,13 +731,19 @@ def _write_sweep(f: h5py.File, paths: Sequence[str], axes: Sequence[Any], points
     grid = f.create_group("grid", track_order=True)
     grid.attrs["comment"] = ("the sweep's numbers on the grid; points not computed (another "
                              "shard's) are NaN, status not_computed")
-    for p, n, values in zip(paths, names, axes):
-        ds = scales.coordinate(grid, n, np.asarray(values))
+    for p, n, values, d in zip(paths, names, axes, dims):
+        if n in dim_names:
+            ds = scales.coordinate(grid, n, np.asarray(values))
+        else:  # a path linked to another: a coordinate along that path's dimension
+            ds = grid.create_dataset(n, data=np.asarray(values), track_order=True)
+            scales.attach(ds, (names[first[d]],))
         _describe(ds, axis_var(p), units.of(axis_var(p).quantity))
         ds.attrs["path"] = p
     full = np.zeros(math.prod(shape), dtype=bool)
     full[points] = True
-    for name in ("v0", "displacement_per_period", "convergence", "status", "periods", "steps"):
+    gridded = ["v0", "displacement_per_period", "convergence", "status", "periods", "steps"]
+    gridded += [c for c in _OPTIONAL_GRID if c in columns]
+    for name in gridded:
         values = steps if name == "steps" else columns[name]
         var = SWEEP_VARIABLES[name]
         if var.flags:
@@ -734,13 +756,13 @@ def _write_sweep(f: h5py.File, paths: Sequence[str], axes: Sequence[Any], points
             data = np.full(full.size, np.nan)
             data[points] = np.asarray(values, dtype=float)
         ds = grid.create_dataset(name, data=data.reshape(shape), track_order=True)
-        scales.attach(ds, names)
+        scales.attach(ds, dim_names)
         _describe(ds, var, units.of(var.quantity))
     messages = np.full(full.size, "", dtype=object)
     messages[points] = np.asarray(columns["message"], dtype=object).astype(str)
     ds = grid.create_dataset("message", data=messages.reshape(shape).tolist(), dtype=text,
                              shape=shape, track_order=True)
-    scales.attach(ds, names)
+    scales.attach(ds, dim_names)
     _describe(ds, SWEEP_VARIABLES["message"], "1")
 
     results = f.create_group("results", track_order=True)
@@ -752,9 +774,9 @@ def _write_sweep(f: h5py.File, paths: Sequence[str], axes: Sequence[Any], points
         scales.attach(ds, ("point",))
         _describe(ds, axis_var(p), units.of(axis_var(p).quantity))
         ds.attrs["path"] = p
-    for name, values in [(k, columns[k]) for k in ("v0", "displacement_per_period",
-                                                   "convergence", "periods", "status",
-                                                   "message")] + [("steps", steps)]:
+    table = ["v0", "displacement_per_period", "convergence", "periods", "status", "message"]
+    table += [c for c in (*_OPTIONAL_GRID, "integrator") if c in columns]
+    for name, values in [(k, columns[k]) for k in table] + [("steps", steps)]:
         values = np.asarray(values)
         if values.dtype == object or values.dtype.kind in "US":
             ds = results.create_dataset(name, data=values.astype(str).tolist(), dtype=text,
@@ -801,10 +823,131 @@ def read_sweep(path: Any) -> dict[str, Any]:
             ds = results[name]
             columns[key] = (np.array(ds.asstr()[()], dtype=object)
                             if h5py.check_string_dtype(ds.dtype) else ds[()])
+        for name in results:  # later columns (v0_error_estimate, ...), when the file has them
+            if name not in columns and name not in names:
+                ds = results[name]
+                columns[name] = (np.array(ds.asstr()[()], dtype=object)
+                                 if h5py.check_string_dtype(ds.dtype) else ds[()])
+        dimensions = (json.loads(_plain(f.attrs["dimensions"])) if "dimensions" in f.attrs
+                      else None)
         out = dict(paths=paths, axes=[f[axes_group][n][()] for n in names],
                    points=columns.pop("point"), steps=columns.pop("steps"), columns=columns,
                    gait_yaml=_plain(f.attrs["gait_yaml"]), source=_plain(f.attrs["source"]),
-                   shard=_plain(f.attrs["shard"]))
+                   shard=_plain(f.attrs["shard"]), dimensions=dimensions)
         if version >= 2:
             out["attrs"] = {k: _plain(v) for k, v in f.attrs.items()}
         return out
+
+
+# --------------------------------------------------------------------------------------------
+# A summary of any results file (`crawlsim info`).
+
+#: Root attributes that `describe` reports under their own names (the others, provenance
+#: included, are listed under "attributes" when they are short).
+_DESCRIBED = {"crawlsim_version", "format_version", "kind", "name", "convergence",
+              "periodic_from", "v0", "contraction_rate", "v0_error_estimate",
+              "displacement_per_period", "dissipation_per_period", "cost_of_transport",
+              "period", "steps_per_period", "periods", "save_every", "gait_yaml",
+              "summary_json", "source", "paths", "shape", "shard", "dimensions", "integrator"}
+
+
+def describe(path: Any) -> dict[str, Any]:
+    """What a results file holds, without reading its trajectories: ``file_kind`` (``run`` or
+    ``sweep``), the identity and outcome of the run or the grid and the counts of statuses of the
+    sweep, and the other short root attributes (provenance). Raises `ResultsFileError` for a file
+    that is not a crawlsim results file."""
+    path = Path(path)
+    with _open(path, "results file") as f:
+        attrs = {k: _plain(v) for k, v in f.attrs.items()}
+        if "format_version" not in attrs:
+            raise ResultsFileError(f"{path}: not a crawlsim results file (no format_version "
+                                   "attribute)")
+        other = {k: v for k, v in attrs.items()
+                 if k not in _DESCRIBED and (not isinstance(v, str) or len(v) <= 200)
+                 and np.ndim(v) == 0}
+        if "provenance" in f:
+            other.update({k: _plain(v) for k, v in f["provenance"].attrs.items()})
+        out = {"file": str(path), "crawlsim_version": attrs.get("crawlsim_version"),
+               "format_version": attrs.get("format_version"), "attributes": other}
+        if attrs.get("kind") == "sweep":
+            out.update(_describe_sweep(path, f, attrs))
+        else:
+            out.update(_describe_run(path, f, attrs))
+    return out
+
+
+def _number(value: Any) -> Any:
+    """NaN and -1 (null in the attributes) become None."""
+    if value is None or (isinstance(value, float) and not np.isfinite(value)):
+        return None
+    return value
+
+
+def _describe_run(path: Path, f: h5py.File, attrs: dict[str, Any]) -> dict[str, Any]:
+    try:
+        summary = json.loads(attrs.get("summary_json", "{}"))
+    except json.JSONDecodeError:
+        summary = {}
+    periodic_from = attrs.get("periodic_from", -1)
+    return {
+        "file_kind": "run", "kind": attrs.get("kind", "crawler"), "name": attrs.get("name"),
+        "integrator": attrs.get("integrator", summary.get("integrator")),
+        "v0": _number(attrs.get("v0")), "v0_error_estimate": _number(attrs.get("v0_error_estimate")),
+        "convergence": attrs.get("convergence"),
+        "periodic_from": None if periodic_from is None or periodic_from < 0 else periodic_from,
+        "contraction_rate": _number(attrs.get("contraction_rate")),
+        "periods": attrs.get("periods"), "steps_per_period": attrs.get("steps_per_period"),
+        "period": attrs.get("period"),
+        "displacement_per_period": _number(attrs.get("displacement_per_period")),
+        "dissipation_per_period": _number(attrs.get("dissipation_per_period")),
+        "cost_of_transport": _number(attrs.get("cost_of_transport")),
+        "final_poincare_step": summary.get("final_poincare_step"),
+    }
+
+
+def _describe_sweep(path: Path, f: h5py.File, attrs: dict[str, Any]) -> dict[str, Any]:
+    if "results" not in f or "status" not in f["results"]:
+        raise ResultsFileError(f"{path}: missing /results/status")
+    results = f["results"]
+    paths = json.loads(attrs.get("paths", "[]"))
+    dims = json.loads(attrs["dimensions"]) if "dimensions" in attrs else list(range(len(paths)))
+    grouped: dict[int, list[str]] = {}
+    for p, d in zip(paths, dims):
+        grouped.setdefault(int(d), []).append(p)
+    if "axis_names" in attrs:  # format 2: the values are the coordinates of /grid
+        names = json.loads(attrs["axis_names"])
+        values = {p: f["grid"][n][()] for p, n in zip(paths, names)
+                  if "grid" in f and n in f["grid"]}
+    else:
+        values = {p: f["axes"][p][()] for p in paths if "axes" in f and p in f["axes"]}
+    grid = [{"paths": grouped[d], "values": len(values.get(grouped[d][0], ())),
+             "min": _number(float(np.min(values[grouped[d][0]]))) if grouped[d][0] in values
+             else None,
+             "max": _number(float(np.max(values[grouped[d][0]]))) if grouped[d][0] in values
+             else None} for d in sorted(grouped)]
+    status = [str(s) for s in results["status"].asstr()[()]]
+    counts: dict[str, int] = {}
+    for s in status:
+        counts[s] = counts.get(s, 0) + 1
+    v0 = results["v0"][()] if "v0" in results else np.array([])
+    ok = np.array([s == "ok" for s in status], dtype=bool)
+    good = v0[ok & np.isfinite(v0)] if v0.size == ok.size else np.array([])
+    integrators = (sorted({str(s) for s in results["integrator"].asstr()[()]} - {""})
+                   if "integrator" in results else [])
+    import yaml
+
+    try:
+        document = yaml.safe_load(attrs.get("gait_yaml", "")) or {}
+    except yaml.YAMLError:
+        document = {}
+    name = document.get("name") if isinstance(document, dict) else None
+    return {
+        "file_kind": "sweep", "kind": "sweep",
+        "name": name or Path(str(attrs.get("source", path))).stem,
+        "source": attrs.get("source"),
+        "shard": attrs.get("shard") or None, "grid": grid,
+        "points": len(status), "statuses": counts,
+        "integrator": ", ".join(integrators) or None,
+        "v0_min": float(good.min()) if good.size else None,
+        "v0_max": float(good.max()) if good.size else None,
+    }

@@ -6,7 +6,10 @@
 #
 # Each task runs
 #   crawlsim velocity $GAIT $SWEEP --shard $SLURM_ARRAY_TASK_ID/$SHARDS -o $OUT/part-$ID.h5
-# and resumes by itself if it is requeued (the shard's journal keeps finished points).
+# and resumes by itself if it is requeued: on SLURM's SIGTERM (time limit, preemption) crawlsim
+# flushes the shard's journal of finished points and exits 143, and the rerun reads it back.
+# Each task's log ($OUT/part-ID.log) gets a progress line (points done, rate, ETA) every
+# $PROGRESS seconds.
 set -euo pipefail
 GAIT=${GAIT:-gaits/peristalsis-4.yaml}
 SWEEP=${SWEEP:-"--sweep links.*.amplitude=0.05:0.45:200 --sweep links.1.phase=0:1:200"}
@@ -15,6 +18,7 @@ OUT=${OUT:-sweep-out}
 CPUS=${CPUS:-4}
 TIME=${TIME:-01:00:00}
 OPTIONS=${OPTIONS:-"--steps-per-period 400"}
+export CRAWLSIM_PROGRESS_INTERVAL=${PROGRESS:-60}
 
 mkdir -p "$OUT"
 array=$(sbatch --parsable --job-name=crawlsim-sweep --array="1-$SHARDS" \

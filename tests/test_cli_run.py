@@ -166,3 +166,63 @@ def test_python_dash_m_entry_point(tmp_path):
     out = subprocess.run([sys.executable, "-m", "crawlsim", "run", str(gait), "--json", "-o",
                           str(tmp_path / "m.h5")], capture_output=True, text=True, check=True)
     assert json.loads(out.stdout)["v0"] == pytest.approx(0.4, abs=1e-13)
+
+
+def test_run_refuses_stdout_for_hdf5(runner, tmp_path):
+    gait = write(tmp_path, INCHING)
+    result = runner.invoke(main, ["run", str(gait), "-o", "-"])
+    assert result.exit_code == 2 and "Traceback" not in result.output
+    assert "cannot be streamed to stdout" in result.output and "--json" in result.output
+    assert sorted(os.listdir(tmp_path)) == ["gait.yaml"]
+
+
+def test_info_summarises_a_run(runner, tmp_path):
+    """`crawlsim info` reports what the file's attributes say (the closed-form v0 0.4 of the
+    inching gait, finite-time from period 1), text and JSON alike, without the trajectory."""
+    gait = write(tmp_path, INCHING, "inch.yaml")
+    assert runner.invoke(main, ["run", str(gait), "-o", "r.h5"]).exit_code == 0
+    text = runner.invoke(main, ["info", "r.h5"])
+    assert text.exit_code == 0, text.output
+    lines = text.output.splitlines()
+    assert lines[0] == "r.h5: run of gait inch"
+    assert "  integrator               catch-up" in lines
+    assert any(line.startswith("  v0                       0.4") for line in lines)
+    assert "  convergence              finite-time: periodic from period 1" in lines
+    assert "  periods                  2 of 100 steps (period 1)" in lines
+    assert f"  written by               crawlsim {__version__} (format 2)" in lines
+    data = json.loads(runner.invoke(main, ["info", "r.h5", "--json"]).output)
+    attrs = read_results(tmp_path / "r.h5")["attrs"]
+    assert data["file_kind"] == "run" and data["kind"] == "crawler" and data["name"] == "inch"
+    assert data["v0"] == attrs["v0"] == pytest.approx(0.4, abs=1e-13)
+    assert data["v0_error_estimate"] == attrs["v0_error_estimate"]
+    assert data["convergence"] == "finite-time" and data["periodic_from"] == 1
+    assert data["contraction_rate"] is None and data["periods"] == 2
+
+
+def test_info_summarises_a_sweep(runner, tmp_path):
+    gait = write(tmp_path, INCHING, "inch.yaml")
+    r = runner.invoke(main, ["velocity", str(gait), "--sweep", "friction.backward=[0.5,1,2]",
+                             "--sweep", "period=1,2", "--link", "links.0.amplitude=0.3,0.2",
+                             "-o", "s.h5"])
+    assert r.exit_code == 0, r.output
+    text = runner.invoke(main, ["info", "s.h5"]).output.splitlines()
+    assert text[0] == f"s.h5: sweep of gait inch, from {gait}"
+    assert "  dimension 1              friction.backward: 3 values in [0.5, 2]" in text
+    assert "  dimension 2              period with links.0.amplitude: 2 values in [1, 2]" in text
+    assert "  points                   6: 2 invalid, 4 ok" in text
+    data = json.loads(runner.invoke(main, ["info", "s.h5", "--json"]).output)
+    assert data["file_kind"] == "sweep" and data["statuses"] == {"ok": 4, "invalid": 2}
+    assert data["integrator"] == "catch-up" and data["shard"] is None
+    # v0 of the ok points: backward 0.5 moves backward, 2 forward (tests/test_sweep.py)
+    assert data["v0_min"] == pytest.approx(-(0.6 - 2 * 0.5 / 10), abs=1e-12)
+    assert data["v0_max"] == pytest.approx(0.6 - 0.2, abs=1e-12)
+
+
+def test_info_refuses_what_is_not_a_results_file(runner, tmp_path):
+    (tmp_path / "notes.h5").write_text("not HDF5")
+    with h5py.File(tmp_path / "other.h5", "w") as f:
+        f["x"] = [1, 2]
+    for name, text in (("notes.h5", "not an HDF5 file"), ("other.h5", "not a crawlsim results"),
+                       ("missing.h5", "no such results file")):
+        r = runner.invoke(main, ["info", name])
+        assert r.exit_code == 2 and text in r.output and "Traceback" not in r.output, name

@@ -278,7 +278,9 @@ def test_v2_readers_keep_the_v1_keys(files):
                                          "convergence", "periods", "status", "message"}
     assert set(new_sweep["columns"]) == {"links.*.amplitude", "period", "v0",
                                          "displacement_per_period", "convergence", "periods",
-                                         "status", "message"}
+                                         "status", "message", "v0_error_estimate",
+                                         "dissipation_per_period", "cost_of_transport",
+                                         "integrator"}
 
 
 def test_format_1_files_still_read_and_plot(tmp_path):

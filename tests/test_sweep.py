@@ -1,7 +1,13 @@
-"""Parameter sweeps: grid specs, validation before work, agreement with single runs, outputs,
-resume after an interruption, shards and merge, local worker processes, plots."""
+"""Parameter sweeps: grid specs (linear, log-spaced, lists, linked paths), bad paths refused
+before work, invalid and failed points recorded, agreement with single runs and closed forms,
+outputs, the time-based journal and resume after an interruption (Ctrl-C exits 130), shards
+and merge, local worker processes, plots."""
 
+import csv
+import io
 import json
+import os
+import re
 import signal
 import subprocess
 import sys
@@ -16,7 +22,7 @@ from click.testing import CliRunner
 
 from crawlsim import sweep as sweeps
 from crawlsim.cli import main
-from crawlsim.errors import GaitError
+from crawlsim.errors import GaitError, InputError
 from crawlsim.gait import load_gait, with_simulation
 
 GAITS = Path(__file__).resolve().parents[1] / "gaits"
@@ -45,11 +51,28 @@ def test_axis_specs():
     np.testing.assert_allclose(a.values, [0.1, 0.15, 0.2, 0.25, 0.3], rtol=0, atol=1e-15)
     assert a.values[0] == 0.1 and a.values[-1] == 0.3  # inclusive ends, exactly
     assert sweeps.parse_axis("period=1,2.5, 3").values == (1, 2.5, 3)
+    assert sweeps.parse_axis("period=[1,2.5, 3]").values == (1, 2.5, 3)
+    assert sweeps.parse_axis("period=[0.5]").values == (0.5,)
     assert sweeps.parse_axis("period=2:2:1").values == (2.0,)
     for bad in ("period", "period=", "=1,2", "period=1:2", "period=1:2:x", "period=0:1:0",
-                "period=a,b", "period=1,nan", "links..phase=1"):
-        with pytest.raises(GaitError):
+                "period=a,b", "period=1,nan", "links..phase=1", "period=[1,2", "period=[]",
+                "period=1,2]", "period=log:0:1:3", "period=log:-1:1:3", "period=log:1:2",
+                "period=log:1:2:0", "period=log:1:inf:3"):
+        with pytest.raises(InputError, match="--sweep"):
             sweeps.parse_axis(bad)
+    with pytest.raises(InputError, match="--link period=1:2"):
+        sweeps.parse_axis("period=1:2", "--link")
+
+
+def test_log_spaced_axis_is_geometric_with_exact_ends():
+    """log:LO:HI:NUM: consecutive ratios all equal (HI/LO)^(1/(NUM-1)), ends as written."""
+    a = sweeps.parse_axis("stiffness=log:5:50:10")
+    v = np.array(a.values)
+    assert len(v) == 10 and v[0] == 5 and v[-1] == 50
+    np.testing.assert_allclose(v[1:] / v[:-1], 10 ** (1 / 9), rtol=1e-14, atol=0)
+    assert sweeps.parse_axis("period=log:1e-2:1e2:5").values == pytest.approx(
+        (0.01, 0.1, 1, 10, 100), rel=1e-15)
+    assert sweeps.parse_axis("period=log:3:3:1").values == (3.0,)
 
 
 def test_paths_expand_and_refuse():
@@ -89,17 +112,113 @@ def test_grid_order_is_c_order_and_points_are_edited_documents():
     assert isinstance(steps.document(1)["simulation"]["steps_per_period"], int)
 
 
+def test_linked_paths_vary_together():
+    """A linked group is one grid dimension: value k of every path goes with index k."""
+    grid = sweeps.make_grid(base(), [("links.0.phase=0:0.5:3", "links.1.phase=[0.3,0.6,0.9]"),
+                                     "period=1,2"])
+    assert grid.shape == (3, 2) and grid.size == 6 and grid.dims == (0, 0, 1)
+    assert grid.values(0) == (0.0, 0.3, 1) and grid.values(5) == (0.5, 0.9, 2)
+    doc = grid.document(3)  # dimension indices (1, 1)
+    assert [l["phase"] for l in doc["links"]][:2] == [0.25, 0.6] and doc["period"] == 2
+    with pytest.raises(InputError, match="--link links.1.phase: links.1.phase: has 2 values, "
+                                         "but the path it is linked to .links.0.phase. has 3"):
+        sweeps.make_grid(base(), [("links.0.phase=0:0.5:3", "links.1.phase=0,1")])
+    with pytest.raises(GaitError, match="which --link links.*.phase sets too"):
+        sweeps.make_grid(base(), [("period=1,2", "links.*.phase=0,1"), "links.1.phase=0"])
+    assert grid.fingerprint(None) != sweeps.make_grid(
+        base(), ["links.0.phase=0:0.5:3", "links.1.phase=[0.3,0.6,0.9]", "period=1,2"]
+    ).fingerprint(None)
+
+
+def test_linked_phase_shift_is_a_time_shift():
+    """Shifting the phase of every link by the same s is the same gait started s periods later:
+    with constant friction, v0 does not depend on the initial state (the paper's Theorem), and
+    a shift by whole steps of the grid (s = 10/40) moves the grid with it, so v0 agrees to
+    roundoff along the linked axis. Unlinked, the same two paths make a 3 x 3 grid whose
+    off-diagonal points are other gaits."""
+    p3 = GAITS / "peristalsis-3.yaml"
+    linked = vel(p3, *FAST, "--sweep", "links.0.phase=0:0.5:3", "--link",
+                 "links.1.phase=[0.3333333333333333,0.5833333333333333,0.8333333333333333]")
+    assert linked.exit_code == 0, linked.output
+    rows = list(csv.DictReader(io.StringIO(linked.output)))
+    assert [float(r["links.0.phase"]) for r in rows] == [0.0, 0.25, 0.5]
+    v0 = [float(r["v0"]) for r in rows]
+    assert max(v0) - min(v0) <= 1e-12 and abs(v0[0]) > 0.01
+    crossed = vel(p3, *FAST, "--sweep", "links.0.phase=0:0.5:3", "--sweep",
+                  "links.1.phase=[0.3333333333333333,0.5833333333333333,0.8333333333333333]")
+    cells = list(csv.DictReader(io.StringIO(crossed.output)))
+    assert len(cells) == 9 and abs(float(cells[1]["v0"]) - v0[0]) > 1e-6
+    first = vel(p3, *FAST, "--link", "links.1.phase=0,1", "--sweep", "links.0.phase=0,1")
+    assert first.exit_code == 2 and "give a --sweep PATH=SPEC first" in first.output
+
+
 @pytest.mark.parametrize("spec, text", [
     ("links.*.amplitud=0.1", "unknown key 'amplitud'; did you mean 'amplitude'"),
-    ("friction.backward=0,1", "friction.backward=0: friction.backward: friction must be positive"),
     ("links.9.phase=0", "index 9 is out of range"),
+    ("friction.backward=0,-1", "no point of the grid is a valid gait: all 4 are refused"),
 ])
-def test_invalid_grid_is_refused_before_any_work(tmp_path, spec, text):
+def test_bad_paths_and_grids_without_a_valid_point_are_refused_before_any_work(tmp_path, spec,
+                                                                               text):
     out = tmp_path / "out.csv"
     r = vel(P4, *FAST, "--sweep", "period=1,2", "--sweep", spec, "-o", out)
     assert r.exit_code == 2
     assert text in r.output and "Traceback" not in r.output
     assert list(tmp_path.iterdir()) == []  # no table, no journal
+
+
+INCHING_FAST = """\
+name: inching-fast
+blocks: 2
+period: 1.0
+stiffness: 10.0
+links:
+  - {kind: cosine, mean: 1.0, amplitude: 0.3}
+friction: {forward: 1.0, backward: 2.0}
+simulation: {steps_per_period: 20, max_periods: 20}
+"""
+
+
+def inching_v0(backward, k, amplitude=0.3, period=1.0):
+    """v0 of the two-block inching gait, L = 1 + A cos(2 pi t / T), forward friction 1.
+
+    The stress sigma = k (L - z) moves the front block forward at sigma = mu^+ = 1 and the rear
+    block at sigma = -1; backward at sigma = -b (front) and b (rear). With b > 1 only forward
+    slips happen: each period the link extends by 2A against the front block and contracts by
+    2A against the rear one, less the elastic play 2 mu^+ / k each way, so the displacement is
+    2A - 2/k (tests/test_closed_forms.py). With b < 1 only backward slips happen, and by the
+    mirror x -> -x (which swaps mu^+ and mu^-) the displacement is -(2A - 2b/k). The grid has
+    the extremes of L (t = 0, T/2 with an even number of steps), so this holds on the grid.
+    """
+    sign, mu = (1, 1.0) if backward > 1 else (-1, backward)
+    return sign * (2 * amplitude - 2 * mu / k) / period
+
+
+def test_300_point_sweep_with_10_invalid_points(tmp_path):
+    """30 backward frictions (one of them 1.0 = the forward friction: the uniqueness condition
+    fails) x 10 log-spaced stiffnesses: the 10 points of friction 1.0 are recorded as invalid
+    with the reason, the 290 others run, and each v0 is the closed form (`inching_v0`)."""
+    gait = tmp_path / "inching.yaml"
+    gait.write_text(INCHING_FAST)
+    backward = [round(0.5 + 0.1 * i, 10) for i in range(30)]  # 0.5 .. 3.4, with 1.0
+    assert backward.count(1.0) == 1
+    out = tmp_path / "s.h5"
+    r = vel(gait, "--sweep", f"friction.backward=[{','.join(map(str, backward))}]",
+            "--sweep", "stiffness=log:5:50:10", "-o", out)
+    assert r.exit_code == 0, r.output
+    assert "300 points: 290 ok, 10 invalid, 0 failed, 0 not converged" in r.output
+    table = sweeps.read_table(out)
+    counts = table.counts()
+    assert counts["ok"] == 290 and counts["invalid"] == 10 and len(table.rows) == 300
+    b, k = table.coordinates()
+    for bi, ki, row in zip(b, k, table.rows):
+        if bi == 1.0:
+            assert row.status == "invalid" and row.v0 is None
+            assert "uniqueness" in row.message and "friction.backward=1.0, " in row.message
+        else:
+            assert row.status == "ok" and row.integrator == "catch-up"
+            assert row.v0 == pytest.approx(inching_v0(bi, ki), abs=1e-12)
+            assert row.convergence == "finite-time"
+    assert not sweeps.journal_path(out).exists()
 
 
 # -- agreement with single runs ----------------------------------------------------------------
@@ -129,9 +248,11 @@ def test_velocity_single_run_output_and_exit_codes():
     assert repr(s["v0"]) == r.output.strip()  # full precision
     slow = vel(GAITS / "peristalsis-4.yaml", "--steps-per-period", "40", "--sweep",
                "links.*.amplitude=0.1", "--max-periods", "2")
-    assert slow.exit_code == 0 and ",not-converged,2,not-converged," in slow.output
+    assert slow.exit_code == 0 and ",not-converged,2,catch-up,not-converged," in slow.output
     assert vel(P4, "--steps-per-period", "40", "--max-periods", "1",
                "--tolerance", "1e-15").exit_code == 3
+    dash = vel(P4, *FAST, "-o", "-")  # stdout, as without -o
+    assert dash.exit_code == 0 and dash.stdout == r.stdout
 
 
 def test_failed_points_are_recorded_not_fatal(tmp_path):
@@ -143,26 +264,72 @@ def test_failed_points_are_recorded_not_fatal(tmp_path):
     path.write_text(LICQ_GAIT)
     r = vel(path, "--sweep", "simulation.steps_per_period=100,101,102", "-o", tmp_path / "t.csv")
     assert r.exit_code == 0
-    assert "3 points: 1 invalid, 0 failed, 0 not converged" in r.output
+    assert "3 points: 2 ok, 1 invalid, 0 failed, 0 not converged" in r.output
     rows = (tmp_path / "t.csv").read_text().splitlines()
-    assert rows[0] == ("simulation.steps_per_period,v0,displacement_per_period,convergence,"
-                       "periods,status,message")
-    assert rows[1].startswith("100,,,,0,invalid,\"the model does not determine the motion at t = 0.25")
-    assert ",finite-time,2,ok," in rows[2] and ",finite-time,2,ok," in rows[3]
+    assert rows[0] == ("simulation.steps_per_period,v0,v0_error_estimate,displacement_per_period,"
+                       "dissipation_per_period,cost_of_transport,convergence,periods,integrator,"
+                       "status,message")
+    assert rows[1].startswith("100,,,,,,,0,catch-up,invalid,\"the model does not determine the "
+                              "motion at t = 0.25")
+    assert ",finite-time,2,catch-up,ok," in rows[2] and ",finite-time,2,catch-up,ok," in rows[3]
+
+
+def test_a_point_that_raises_does_not_sink_its_batch(monkeypatch):
+    """A batch that raises is rerun point by point; the point that raises again is recorded as
+    failed (an unexpected exception, named) and its neighbours keep their values."""
+    import crawlsim.batch as batch
+
+    gait = base()
+    reference = sweeps.sweep(gait, [AMP])
+    original = batch.simulate_batch
+
+    def flaky(processes, **options):
+        if any(abs(p.lengths[0, 0] - (1 + 0.2)) < 1e-12 for p in processes):
+            raise FloatingPointError("boom")
+        return original(processes, **options)
+
+    monkeypatch.setattr(batch, "simulate_batch", flaky)
+    table = sweeps.sweep(gait, [AMP])
+    assert [r.status for r in table.rows] == ["ok", "ok", "failed", "ok", "ok"]
+    assert table.rows[2].message == "FloatingPointError: boom"
+    for i in (0, 1, 3, 4):
+        assert table.rows[i].v0 == reference.rows[i].v0
+
+
+def test_more_columns_agree_with_single_runs():
+    """dissipation_per_period, cost_of_transport, v0_error_estimate and the integrator of each
+    point equal those of a single run of its gait (`crawlsim.api.run`), for either
+    integrator."""
+    from crawlsim import api
+
+    for integrator in ("catch-up", "exact"):
+        gait = with_simulation(load_gait(P4), steps_per_period=40, integrator=integrator)
+        table = sweeps.sweep(gait, ["links.*.amplitude=0.2,0.3"])
+        grid = sweeps.make_grid(gait, ["links.*.amplitude=0.2,0.3"])
+        for i, row in enumerate(table.rows):
+            single = api.run(grid.gait(i))
+            assert row.integrator == integrator == single.integrator
+            for name in ("dissipation_per_period", "cost_of_transport", "v0_error_estimate"):
+                assert getattr(row, name) == pytest.approx(getattr(single, name), rel=1e-9,
+                                                           abs=1e-15), name
+            assert row.dissipation_per_period > 0
 
 
 # -- outputs ------------------------------------------------------------------------------------
 def test_csv_and_hdf5_hold_the_same_table(tmp_path):
     assert vel(P4, *FAST, "--sweep", AMP, "--sweep", LAG, "-o", tmp_path / "s.csv").exit_code == 0
     assert vel(P4, *FAST, "--sweep", AMP, "--sweep", LAG, "-o", tmp_path / "s.h5").exit_code == 0
-    stdout = vel(P4, *FAST, "--sweep", AMP, "--sweep", LAG).output
+    stdout = vel(P4, *FAST, "--sweep", AMP, "--sweep", LAG).stdout
+    dash = vel(P4, *FAST, "--sweep", AMP, "--sweep", LAG, "-o", "-").stdout
     csv_text = (tmp_path / "s.csv").read_text()
-    assert stdout == csv_text
+    assert stdout == csv_text == dash
+    assert not (tmp_path / "-").exists() and not Path("-").exists()
     table = sweeps.read_table(tmp_path / "s.h5")
     assert table.to_csv() == csv_text
     with h5py.File(tmp_path / "s.h5") as f:
         assert f.attrs["kind"] == "sweep"
         assert json.loads(f.attrs["paths"]) == ["links.*.amplitude", "links.1.phase"]
+        assert json.loads(f.attrs["dimensions"]) == [0, 1]
         assert yaml.safe_load(f.attrs["gait_yaml"])["simulation"]["steps_per_period"] == 40
         np.testing.assert_array_equal(f["grid/links_1_phase"][()], [0.2, 0.33, 0.4])
         assert f["grid/links_1_phase"].attrs["path"] == "links.1.phase"
@@ -171,15 +338,85 @@ def test_csv_and_hdf5_hold_the_same_table(tmp_path):
                                       np.repeat([0.1, 0.15, 0.2, 0.25, 0.3], 3))
         np.testing.assert_array_equal(f["grid/v0"][()].ravel(), f["results/v0"][()])
         assert list(f["results/status"].asstr()[()]) == ["ok"] * 15
+        assert list(f["results/integrator"].asstr()[()]) == ["catch-up"] * 15
+        for name in ("dissipation_per_period", "cost_of_transport", "v0_error_estimate"):
+            assert np.all(np.isfinite(f[f"results/{name}"][()])), name
     data = np.genfromtxt(tmp_path / "s.csv", delimiter=",", names=True, dtype=None,
                          encoding="utf-8")
     np.testing.assert_array_equal(data["v0"], table.columns()["v0"])  # repr round-trips
+    np.testing.assert_array_equal(data["cost_of_transport"], table.columns()["cost_of_transport"])
+
+
+def test_linked_sweep_round_trips_through_hdf5_and_merge(tmp_path):
+    args = [P4, *FAST, "--sweep", "links.1.phase=0.2:0.4:4", "--link",
+            "links.2.phase=0.5:0.7:4", "--sweep", "period=1,2"]
+    assert vel(*args, "-o", tmp_path / "full.h5").exit_code == 0
+    full = sweeps.read_table(tmp_path / "full.h5")
+    assert full.dimensions == (0, 0, 1) and full.shape == (4, 2) and len(full.rows) == 8
+    assert full.dimension_paths() == [["links.1.phase", "links.2.phase"], ["period"]]
+    phase1, phase2, period = full.coordinates()
+    np.testing.assert_allclose(phase2 - phase1, 0.3, atol=1e-15)  # linked: always 0.3 apart
+    for i in (1, 2):
+        assert vel(*args, "--shard", f"{i}/2", "-o", tmp_path / f"p{i}.h5").exit_code == 0
+    merged = cli("merge", tmp_path / "p1.h5", tmp_path / "p2.h5", "-o", "-")
+    assert merged.exit_code == 0 and merged.stdout == full.to_csv()
+
+
+def test_older_sweep_files_are_read(tmp_path):
+    """A sweep file of crawlsim 0.1 (no dimensions attribute, no v0_error_estimate,
+    dissipation_per_period, cost_of_transport or integrator) reads with those missing."""
+    out = tmp_path / "old.h5"
+    assert vel(P4, *FAST, "--sweep", AMP, "-o", out).exit_code == 0
+    new = sweeps.read_table(out)
+    with h5py.File(out, "a") as f:
+        del f.attrs["dimensions"]
+        for name in sweeps.LATER_COLUMNS:
+            del f[f"results/{name}"]
+    old = sweeps.read_table(out)
+    assert old.dimensions == (0,) and [r.v0 for r in old.rows] == [r.v0 for r in new.rows]
+    assert all(r.integrator == "" and r.dissipation_per_period is None for r in old.rows)
+    header, first = old.to_csv().splitlines()[:2]
+    fields = dict(zip(header.split(","), first.split(",")))
+    assert fields["status"] == "ok" and fields["v0"] == repr(new.rows[0].v0)
+    for name in sweeps.LATER_COLUMNS:
+        assert fields[name] == "", name
 
 
 def test_jobs_give_the_same_table(tmp_path):
     one = sweeps.sweep(base(), [AMP, LAG])
     two = sweeps.sweep(base(), [AMP, LAG], jobs=2)
     assert two.to_csv() == one.to_csv()
+
+
+def test_workers_report_every_point(tmp_path):
+    """With --jobs 2 the progress moves point by point (each worker reports a finished point at
+    once), including invalid points, and adds up to the grid."""
+    calls = []
+    table = sweeps.sweep(base(), ["friction.backward=[0,2,2.5,3.5]", AMP], jobs=2,
+                         progress=calls.append)
+    assert sum(calls) == 20 and max(calls) <= sweeps.MIN_CHUNK and len(calls) >= 8
+    assert table.counts() == {"ok": 15, "not-converged": 0, "invalid": 5, "failed": 0}
+
+
+def test_chunks_grow_with_the_measured_rate_and_shrink_at_the_end():
+    """Tasks start at MIN_CHUNK points (progress and the journal move at once), then take about
+    TASK_SECONDS at the measured rate (capped at MAX_CHUNK); the last ones split what is left
+    among the workers."""
+    chunker = sweeps._Chunker(np.arange(1000), workers=2)
+    sizes = [len(chunker.take())]
+    assert sizes == [sweeps.MIN_CHUNK]
+    chunker.record(8, 8 / 20.0)  # 20 points per second
+    sizes.append(len(chunker.take()))
+    assert sizes[-1] == round(20 * sweeps.TASK_SECONDS)
+    chunker.record(1000, 0.1)  # very fast now: capped
+    sizes.append(len(chunker.take()))
+    assert sizes[-1] == sweeps.MAX_CHUNK
+    while (chunk := chunker.take()) is not None:
+        left = 1000 - sum(sizes)
+        assert len(chunk) == min(max(sweeps.MIN_CHUNK, min(sweeps.MAX_CHUNK, -(-left // 2))),
+                                 left)
+        sizes.append(len(chunk))
+    assert sum(sizes) == 1000 and sizes[-1] <= sweeps.MIN_CHUNK
 
 
 def test_shards_merge_into_the_unsharded_file(tmp_path):
@@ -207,39 +444,142 @@ def test_shards_merge_into_the_unsharded_file(tmp_path):
         for name in names:
             if isinstance(a[name], h5py.Dataset):
                 assert np.array_equal(a[name][()], b[name][()]), name
+    csv_merge = cli("merge", *parts, "-o", tmp_path / "merged.csv")
+    assert csv_merge.exit_code == 0
+    assert (tmp_path / "merged.csv").read_text() == sweeps.read_table(full).to_csv()
     missing = cli("merge", *parts[:3], "-o", tmp_path / "bad.h5")
     assert missing.exit_code == 2 and "missing [4]" in missing.output
     assert not (tmp_path / "bad.h5").exists()
     assert cli("merge", full, "-o", tmp_path / "bad.h5").exit_code == 2
+    assert cli("merge", *parts, "-o", tmp_path / "bad.txt").exit_code == 2
     assert vel(P4, *FAST, "--sweep", AMP, "--shard", "1/2").exit_code == 2
     assert vel(P4, *FAST, "--sweep", AMP, "--shard", "3/2", "-o", tmp_path / "x.h5").exit_code == 2
 
 
-# -- resume ---------------------------------------------------------------------------------------
+# -- the journal and resume -----------------------------------------------------------------------
+def test_journal_flushes_on_a_clock_not_per_chunk(tmp_path):
+    """The first rows reach the file at once; later ones (flushed and fsynced) only once the
+    interval has passed since the last flush, and at close; a reader sees every flushed row."""
+    now = [0.0]
+    journal = sweeps.Journal(tmp_path / "j", "fp", interval=3.0, clock=lambda: now[0])
+    rows = [sweeps.PointResult(i, "ok", v0=0.1 * i, periods=2) for i in range(5)]
+    assert not journal.path.exists()
+    journal.append(rows[:1])
+    assert sorted(journal.load()) == [0]
+    journal.append(rows[1:2])
+    now[0] = 2.9
+    journal.append(rows[2:3])
+    assert sorted(journal.load()) == [0]
+    now[0] = 3.0
+    journal.append(rows[3:4])
+    assert sorted(journal.load()) == [0, 1, 2, 3]
+    now[0] = 4.0
+    journal.append(rows[4:])
+    assert sorted(journal.load()) == [0, 1, 2, 3]
+    journal.close()
+    assert journal.load() == {r.index: r for r in rows}
+    # a torn last line (a kill mid-write) is skipped; a journal of an older crawlsim (rows
+    # without the later columns) is read with them missing
+    with open(journal.path, "a") as f:
+        f.write(json.dumps({"index": 7, "v0": 1.0, "displacement_per_period": 1.0,
+                            "convergence": "finite-time", "periods": 2, "status": "ok",
+                            "message": "", "steps": 80}) + "\n" + '{"index": 9, "v0"')
+    loaded = journal.load()
+    assert sorted(loaded) == [0, 1, 2, 3, 4, 7] and loaded[7].integrator == ""
+
+
 def test_interrupted_sweep_resumes_without_recomputing(tmp_path):
-    """Stop after the first of two chunks (test hook): the journal keeps its points; the rerun
-    simulates only the others and writes the same file as an uninterrupted run."""
-    axes = ["links.*.amplitude=0.1:0.3:8", "links.1.phase=0.2:0.45:5"]  # 40 points, 2 chunks
+    """Interrupt (KeyboardInterrupt from inside the stepping, as Ctrl-C) after 20 points: the
+    journal keeps every point whose batch finished, equal to an uninterrupted run's rows; the
+    rerun simulates only the others and writes the same file."""
+    axes = ["links.*.amplitude=0.1:0.3:8", "links.1.phase=0.2:0.45:5"]  # 40 points
     gait = base()
     reference = sweeps.sweep(gait, axes)
     out = tmp_path / "s.csv"
-    grid = sweeps.make_grid(gait, [sweeps.parse_axis(a) for a in axes])
-    journal = sweeps.Journal(sweeps.journal_path(out), grid.fingerprint(None))
-    with pytest.raises(KeyboardInterrupt):
-        sweeps.run_sweep(grid, journal=journal, fail_after=1)
+    count = [0]
+
+    def interrupt(k):
+        count[0] += k
+        if count[0] >= 20:
+            raise KeyboardInterrupt
+
+    with pytest.raises(sweeps.SweepInterrupted) as stopped:
+        sweeps.sweep(gait, axes, output=out, progress=interrupt)
     assert not out.exists()
-    kept = journal.load()
-    assert 0 < len(kept) < 40
-    for index, row in kept.items():
+    kept = sweeps.Journal(sweeps.journal_path(out), "").path.read_text().count("\n") - 1
+    grid = sweeps.make_grid(gait, axes)
+    rows = sweeps.Journal(sweeps.journal_path(out), grid.fingerprint(None)).load()
+    assert stopped.value.done == len(rows) == kept and 0 < kept < 20
+    assert stopped.value.total == 40 and stopped.value.journal == sweeps.journal_path(out)
+    for index, row in rows.items():
         assert row == reference.rows[index]
-    resumed = sweeps.sweep(gait, axes, output=out)
-    assert resumed.computed == 40 - len(kept)
+    resumed_rows = []
+    resumed = sweeps.sweep(gait, axes, output=out,
+                           on_rows=lambda r, resumed: resumed and resumed_rows.extend(r))
+    assert resumed.computed == 40 - kept and len(resumed_rows) == kept
     assert out.read_text() == reference.to_csv()
     assert not sweeps.journal_path(out).exists()
     other = sweeps.Journal(sweeps.journal_path(out), "another sweep")
     sweeps.journal_path(out).write_text(json.dumps({"fingerprint": "x"}) + "\n")
     with pytest.raises(GaitError, match="belongs to a different sweep"):
         other.load()
+
+
+SWEEP_ARGS = [sys.executable, "-m", "crawlsim", "velocity", P4, "--steps-per-period", "40",
+              "--sweep", "links.*.amplitude=0.1:0.3:20", "--sweep", "links.1.phase=0.2:0.45:20"]
+
+
+def _start(out, *extra):
+    """A sweep process whose progress lines (stderr is a pipe: log mode) come every 0.05 s."""
+    env = {**os.environ, "CRAWLSIM_PROGRESS_INTERVAL": "0.05"}
+    return subprocess.Popen(SWEEP_ARGS + ["-o", str(out), *extra], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=env)
+
+
+def _wait_for_points(proc, at_least):
+    """Read progress lines until one reports ``at_least`` points done; the lines read."""
+    lines = []
+    for line in proc.stderr:
+        lines.append(line)
+        m = re.match(r"velocity: (\d+)/400 points", line)
+        if m and int(m.group(1)) >= at_least:
+            return lines
+    raise AssertionError(f"the sweep ended before {at_least} points: {lines}")
+
+
+@pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_interrupt_exits_130_and_the_rerun_resumes(tmp_path, sig, code):
+    """Ctrl-C (SIGINT) exits 130 and SIGTERM (a batch system's stop) 143; either way every
+    finished point is in the journal, the message says how many, and the rerun of the same
+    command reads them back (--verbose says so), computes the rest and writes the table a
+    fresh run writes."""
+    out = tmp_path / "s.h5"
+    journal = sweeps.journal_path(out)
+    proc = _start(out)
+    seen = _wait_for_points(proc, 16)
+    proc.send_signal(sig)
+    rest = proc.stderr.read()
+    assert proc.wait(30) == code, seen + [rest]
+    m = re.search(r"Interrupted: (\d+) of 400 points finished, kept in (\S+); run the same "
+                  r"command again to resume", rest)
+    assert m, rest
+    assert "Traceback" not in rest and not out.exists()
+    kept = int(m.group(1))
+    # progress counts points as they finish inside a batch; a batch's rows are kept when it
+    # ends, so at least the first batch (MIN_CHUNK points) is in the journal
+    assert sweeps.MIN_CHUNK <= kept < 400 and m.group(2) == f"{journal}"
+    assert journal.read_text().count("\n") - 1 == kept
+    if sig != signal.SIGINT:
+        return
+    again = _start(out, "--verbose")
+    stdout, stderr = again.communicate(timeout=120)
+    assert again.returncode == 0, stderr
+    assert f"resuming: {kept} of 400 points read from {journal}" in stderr
+    assert not journal.exists()
+    fresh = sweeps.sweep(base(), [SWEEP_ARGS[-3], SWEEP_ARGS[-1]])
+    table = sweeps.read_table(out)
+    assert [r.status for r in table.rows] == [r.status for r in fresh.rows]
+    np.testing.assert_allclose(table.columns()["v0"], fresh.columns()["v0"], rtol=0, atol=1e-12)
 
 
 def test_killed_process_resumes(tmp_path):
@@ -282,5 +622,41 @@ def test_plot_one_and_two_paths(tmp_path):
         assert image[..., :3].std() > 0.05  # not blank
     r = vel(P4, *FAST, "--sweep", AMP, "--sweep", LAG, "--sweep", "period=1,2", "--plot",
             tmp_path / "three.png")
-    assert r.exit_code == 2 and "one or two swept paths" in r.output
+    assert r.exit_code == 2 and "one or two swept dimensions" in r.output
     assert not (tmp_path / "three.png").exists()
+
+
+def test_crawlsim_plot_draws_sweep_files(tmp_path):
+    """`crawlsim plot SWEEP.h5` dispatches on the file's kind: <stem>-sweep.<fmt> with v0 over
+    one dimension (linked paths count once) or a heat map over two, the points without a v0
+    (invalid and failed) marked; 3-D sweeps, shards and --only are refused (exit 2)."""
+    import matplotlib.image as mpimg
+
+    one = tmp_path / "one.h5"
+    assert vel(P4, *FAST, "--sweep", "friction.backward=[0.5,1,2,3,4]", "--link",
+               "friction.forward=[0.5,1,1,1,1]", "-o", one).exit_code == 0
+    table = sweeps.read_table(one)
+    axes, v0, missing = sweeps.sweep_figure_data(table)
+    assert list(axes) == ["friction.backward"] and v0.shape == (5,)
+    # backward 1 = forward 1 and backward 3 (= 3 x forward 1 on 4 blocks) break uniqueness;
+    # backward 0.5 = forward 0.5 too
+    np.testing.assert_array_equal(missing, [True, True, False, True, False])
+    assert np.all(np.isnan(v0[missing])) and np.all(np.isfinite(v0[~missing]))
+    r = cli("plot", one, "-o", tmp_path / "fig")
+    assert r.exit_code == 0, r.output
+    image = mpimg.imread(tmp_path / "fig" / "one-sweep.png")
+    assert image.shape[0] > 200 and image[..., :3].std() > 0.05
+    two = tmp_path / "two.h5"
+    assert vel(P4, *FAST, "--sweep", AMP, "--sweep", LAG, "-o", two).exit_code == 0
+    r = cli("plot", two, "--format", "svg")
+    assert r.exit_code == 0 and (tmp_path / "two-sweep.svg").read_text().startswith("<?xml")
+    assert cli("plot", two, "--only", "motion").exit_code == 2
+    three = tmp_path / "three.h5"
+    assert vel(P4, *FAST, "--sweep", AMP, "--sweep", LAG, "--sweep", "period=1,2", "-o",
+               three).exit_code == 0
+    r = cli("plot", three)
+    assert r.exit_code == 2 and "this sweep has 3" in r.output
+    part = tmp_path / "part.h5"
+    assert vel(P4, *FAST, "--sweep", AMP, "--shard", "1/2", "-o", part).exit_code == 0
+    assert cli("plot", part).exit_code == 2
+    assert sorted(p.name for p in tmp_path.glob("*.png")) == []

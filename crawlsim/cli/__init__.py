@@ -2,15 +2,21 @@
 
 One module per command; this one holds the group and the options and helpers they share.
 
+Start-up is part of the interface (shell loops call ``crawlsim velocity`` thousands of times):
+this package and every command module import only click and crawlsim's light modules (errors,
+statuses, progress) at the top; numpy, scipy, Clarabel, h5py, jsonschema and matplotlib are
+imported inside the commands that need them. ``tests/test_imports.py`` guards this.
+
 Exit codes: 0 converged, 3 not converged within max_periods (results still written),
-2 bad input (no traceback, no file written), 1 internal failure (a failed certificate included).
+2 bad input (no traceback, no file written), 1 internal failure (a failed certificate included),
+130 interrupted (Ctrl-C) and 143 terminated (SIGTERM), with a sweep's finished points kept.
 """
 
 from __future__ import annotations
 
 import json
 import math
-import sys
+import signal
 import warnings
 from contextlib import contextmanager
 from pathlib import Path
@@ -18,11 +24,20 @@ from pathlib import Path
 import click
 
 from .. import __version__
-from ..errors import CrawlsimError, GaitError, ResultsFileError
-from ..gait import load_gait, with_simulation
-from ..stepping import STEPPERS
+from ..errors import CrawlsimError, InputError
+from ..status import Integrator
 
 EXIT_NOT_CONVERGED = 3
+#: 128 + the signal number, as shells report a process ended by a signal.
+EXIT_INTERRUPTED = 128 + signal.SIGINT
+EXIT_TERMINATED = 128 + signal.SIGTERM
+
+#: The defaults of the gait file's ``simulation`` mapping (`crawlsim.gait.Simulation`), for the
+#: help texts; tests/test_cli_help.py checks that they agree.
+DEFAULT_STEPS_PER_PERIOD = 1000
+DEFAULT_MAX_PERIODS = 1000
+DEFAULT_TOLERANCE = 1e-12
+DEFAULT_INTEGRATOR = Integrator.CATCH_UP
 
 
 class BadInput(click.ClickException):
@@ -45,10 +60,82 @@ def library_errors():
     """Library errors become click errors: bad input is exit 2, everything else exit 1."""
     try:
         yield
-    except (GaitError, ResultsFileError) as exc:
+    except InputError as exc:
         raise BadInput(str(exc)) from None
     except CrawlsimError as exc:
         raise InternalFailure(str(exc)) from None
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (a batch system ending a job), raised like Ctrl-C so that the same clean-up runs:
+    temporary files removed, a sweep's journal flushed."""
+
+
+def _terminate(signum, frame):
+    raise Terminated()
+
+
+#: The command modules (``crawlsim.cli.<name>``, each attaching its command to `main`). Only
+#: the invoked one is imported (``--help`` imports them all, for their one-line help).
+COMMANDS = ("info", "merge", "plot", "run", "velocity")
+
+
+class CrawlsimGroup(click.Group):
+    """The command group. Commands load on demand (`COMMANDS`); Ctrl-C exits 130 and SIGTERM
+    143, after the commands' clean-up, with one line on stderr instead of click's "Aborted!" and
+    exit code 1."""
+
+    def list_commands(self, ctx):
+        return sorted(set(self.commands) | set(COMMANDS))
+
+    def get_command(self, ctx, cmd_name):
+        if cmd_name not in self.commands and cmd_name in COMMANDS:
+            import importlib
+
+            importlib.import_module(f"{__name__}.{cmd_name}")
+        return self.commands.get(cmd_name)
+
+    def invoke(self, ctx):
+        previous = None
+        try:
+            previous = signal.signal(signal.SIGTERM, _terminate)
+        except ValueError:  # not the main thread: leave signals alone
+            pass
+        try:
+            return super().invoke(ctx)
+        except Terminated:
+            click.echo("Terminated.", err=True)
+            raise click.exceptions.Exit(EXIT_TERMINATED) from None
+        except KeyboardInterrupt:
+            click.echo("Interrupted.", err=True)
+            raise click.exceptions.Exit(EXIT_INTERRUPTED) from None
+        finally:
+            if previous is not None:
+                signal.signal(signal.SIGTERM, previous)
+
+
+def interrupt_exit(exc: BaseException) -> click.exceptions.Exit:
+    """The exit of an interrupted command (after it said what was kept)."""
+    terminated = isinstance(exc, Terminated) or isinstance(exc.__context__, Terminated)
+    return click.exceptions.Exit(EXIT_TERMINATED if terminated else EXIT_INTERRUPTED)
+
+
+class OrderedCommand(click.Command):
+    """A command that records the order of its options on the command line in
+    ``ctx.meta["crawlsim.option_order"]`` (click keeps the values of each option, not how
+    different options interleave): ``--link`` joins the ``--sweep`` before it."""
+
+    def make_parser(self, ctx):
+        parser = super().make_parser(ctx)
+        parse = parser.parse_args
+
+        def parse_args(args):
+            opts, largs, order = parse(args)
+            ctx.meta["crawlsim.option_order"] = [getattr(p, "name", None) for p in order]
+            return opts, largs, order
+
+        parser.parse_args = parse_args
+        return parser
 
 
 def _output_path(output, gait_file) -> Path:
@@ -67,18 +154,25 @@ def to_json(summary: dict) -> str:
     return json.dumps(clean)
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+_COMPLETION = """\b
+Shell completion (bash; zsh and fish alike with zsh_source, fish_source):
+  eval "$(_CRAWLSIM_COMPLETE=bash_source crawlsim)"   # in ~/.bashrc
+"""
+
+
+@click.group(cls=CrawlsimGroup, context_settings={"help_option_names": ["-h", "--help"]},
+             epilog=_COMPLETION)
 @click.version_option(__version__, prog_name="crawlsim")
 def main():
     """Exact simulation of soft crawlers with dry friction.
 
     \b
     Examples:
-      crawlsim run gaits/peristalsis-4.yaml
+      crawlsim run gaits/peristalsis-4.yaml --integrator exact
       crawlsim run gaits/inching-2.yaml --json -o inching.h5
-      crawlsim run gaits/peristalsis-4.yaml --integrator exact --plot
-      crawlsim velocity gaits/peristalsis-4.yaml --sweep 'links.*.amplitude=0.1:0.4:31'
-      crawlsim plot peristalsis-4.h5 --format pdf
+      crawlsim velocity gaits/peristalsis-4.yaml --sweep 'links.*.amplitude=0.1:0.4:7'
+      crawlsim info inching.h5
+      crawlsim plot inching.h5 --only motion --format pdf
     """
     warnings.showwarning = _show_warning
 
@@ -92,18 +186,37 @@ def simulation_options(f):
     """Options that override the gait file's ``simulation`` mapping."""
     f = click.option("--tolerance", type=click.FloatRange(min=0, min_open=True),
                      help="Stop when the Poincare step is at most this, relative to |w| "
-                          "(default from the gait file, else 1e-12).")(f)
+                          f"(default: the gait file's value, else {DEFAULT_TOLERANCE:g}).")(f)
     f = click.option("--max-periods", type=click.IntRange(min=1),
-                     help="Give up after this many periods (default 1000).")(f)
+                     help="Give up after this many periods (default: the gait file's value, "
+                          f"else {DEFAULT_MAX_PERIODS}).")(f)
     f = click.option("--steps-per-period", type=click.IntRange(min=1),
-                     help="Uniform catch-up steps per period; breakpoints are added "
-                          "(default 1000). With --integrator exact, only the output grid.")(f)
-    f = click.option("--integrator", type=click.Choice(list(STEPPERS)), expose_value=False,
-                     callback=_remember_integrator,
+                     help="Uniform catch-up steps per period; breakpoints are added (default: "
+                          f"the gait file's value, else {DEFAULT_STEPS_PER_PERIOD}). With "
+                          "--integrator exact, only the output grid.")(f)
+    f = click.option("--integrator", type=click.Choice([str(i) for i in Integrator]),
+                     expose_value=False, callback=_remember_integrator,
                      help="catch-up: first order in the step, robust for any gait. exact: "
                           "event-driven, v0 to roundoff, fast for smooth or piecewise-linear "
-                          "gaits (default from the gait file, else catch-up).")(f)
+                          f"gaits (default: the gait file's value, else {DEFAULT_INTEGRATOR}).")(f)
     return f
+
+
+def feedback_options(f):
+    """``--quiet`` and ``--verbose``: how much goes to stderr besides errors and warnings."""
+    f = click.option("-v", "--verbose", is_flag=True,
+                     help="More detail on stderr: every period's Poincare step, every invalid "
+                          "or failed sweep point with its reason, resumed points.")(f)
+    f = click.option("-q", "--quiet", is_flag=True,
+                     help="No progress on stderr (warnings and errors are still printed). "
+                          "Progress is a bar on a terminal, else a line every 10 s "
+                          "(CRAWLSIM_PROGRESS_INTERVAL).")(f)
+    return f
+
+
+def check_feedback(quiet: bool, verbose: bool) -> None:
+    if quiet and verbose:
+        raise BadInput("--quiet and --verbose: choose one")
 
 
 def _remember_integrator(ctx, param, value):
@@ -115,6 +228,8 @@ def _remember_integrator(ctx, param, value):
 def load_with_overrides(gait_file, steps_per_period, max_periods, tolerance, integrator=None):
     """The gait file with the command line's simulation options applied (``--integrator``
     included, taken from the click context when not given)."""
+    from ..gait import load_gait, with_simulation
+
     if integrator is None:
         ctx = click.get_current_context(silent=True)
         integrator = None if ctx is None else ctx.meta.get("crawlsim.integrator")
@@ -126,20 +241,11 @@ def load_with_overrides(gait_file, steps_per_period, max_periods, tolerance, int
     return with_simulation(gait, **overrides) if overrides else gait
 
 
-@contextmanager
-def period_progress(max_periods: int, enabled: bool):
-    """A tqdm bar over periods on stderr, only when stderr is a terminal."""
-    if not enabled or not sys.stderr.isatty():
-        yield None
-        return
-    from tqdm import tqdm
+def run_progress(gait, quiet: bool, verbose: bool):
+    """Progress over the periods of one run of ``gait`` (`progress.RunProgress`)."""
+    from .progress import RunProgress, choose_mode
 
-    with tqdm(total=max_periods, unit="period", file=sys.stderr, leave=False) as bar:
-        def update(q, rel_step):
-            bar.update(1)
-            bar.set_postfix_str(f"Poincare step {rel_step:.2e}")
-        yield update
+    s = gait.simulation
+    return RunProgress(gait.name, s.tolerance, s.max_periods, mode=choose_mode(quiet),
+                       verbose=verbose)
 
-
-# Each command module attaches itself to `main`.
-from . import merge, plot, run, velocity  # noqa: E402,F401

@@ -2,16 +2,17 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import click
 
-from .. import sweep as sweeps
 from . import BadInput, library_errors, main
 
 
 @main.command()
 @click.argument("parts", nargs=-1, required=True, type=click.Path(dir_okay=False))
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
-              help="The merged sweep file (HDF5).")
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, allow_dash=True),
+              help="The merged sweep: OUT.h5 (HDF5), OUT.csv, or - for CSV on stdout.")
 def merge(parts, output):
     """Join the shard files PART... of one sweep (written with --shard I/N) into OUTPUT.
 
@@ -19,12 +20,21 @@ def merge(parts, output):
     given exactly once.
 
     \b
-    Example:
+    Examples:
+      for i in 1 2; do crawlsim velocity gaits/inching-2.yaml --sweep 'period=1:3:9' \\
+          --shard $i/2 -o part-$i.h5; done
       crawlsim merge part-*.h5 -o sweep.h5
+      crawlsim merge part-*.h5 -o - | wc -l
     """
-    if not sweeps.is_hdf5(output):
-        raise BadInput(f"--output {output}: the merged sweep is HDF5; name it OUT.h5")
+    from .. import sweep as sweeps
+
+    if output != "-" and Path(output).suffix.lower() not in (".h5", ".hdf5", ".csv"):
+        raise BadInput(f"--output {output}: name the merged sweep OUT.h5 (HDF5) or OUT.csv, or "
+                       "give - for CSV on stdout")
     with library_errors():
         table = sweeps.merge_tables(sweeps.read_table(p) for p in parts)
+        if output == "-":
+            click.echo(table.to_csv(), nl=False)
+            return
         sweeps.write_table(table, output)
     click.echo(f"{len(table.rows)} points from {len(parts)} shards written to {output}")

@@ -1,6 +1,8 @@
-"""``crawlsim plot``: draw the figures of a results file."""
+"""``crawlsim plot``: draw the figures of a results file (a run or a sweep)."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import click
 
@@ -27,7 +29,7 @@ def _coords(ctx, param, value):
                    "missing).")
 @click.option("--format", "fmt", type=click.Choice(["png", "pdf", "svg"]), default="png",
               show_default=True, help="Image format.")
-@click.option("--only", type=click.Choice(FIGURE_NAMES), help="Draw this figure only.")
+@click.option("--only", type=click.Choice(FIGURE_NAMES), help="Draw this figure only (runs).")
 @click.option("--coords", default="1,2", show_default=True, callback=_coords,
               help="Shape coordinates i,j of the shape-space figure when there are more than "
                    "two (four or more blocks): it shows sections of K(t) in that plane.")
@@ -35,25 +37,60 @@ def plot(results_file, output_dir, fmt, only, coords):
     """Draw the figures of RESULTS_FILE as <stem>-<figure>.<format>.
 
     \b
-    Figures: motion (block positions, barycentre, slope v0), gait-diagram (slip bands, lengths,
-    stresses and block forces against the friction limits over the limit period), convergence
-    (Poincare step, W^{1,2} distance, |v_q - v0| per period), shape-space (K(t) and the orbit
-    of w(t)).
+    Figures of a run (crawlsim run): motion (block positions, barycentre, slope v0),
+    gait-diagram (slip bands, lengths, stresses and block forces against the friction limits
+    over the limit period), convergence (Poincare step, W^{1,2} distance, |v_q - v0| per
+    period), shape-space (K(t) and the orbit of w(t)).
+    The figure of a sweep file (crawlsim velocity --sweep ... -o SWEEP.h5, crawlsim merge):
+    <stem>-sweep, v0 against the swept value for one swept dimension, a heat map over two,
+    points without a v0 (invalid or failed) marked.
 
     \b
     Examples:
-      crawlsim plot peristalsis-4.h5
-      crawlsim plot run.h5 -o figures --format pdf
-      crawlsim plot peristalsis-4.h5 --only shape-space --coords 1,3
+      crawlsim run gaits/peristalsis-4.yaml && crawlsim plot peristalsis-4.h5
+      crawlsim plot peristalsis-4.h5 --only shape-space --coords 1,3 -o figures --format pdf
+      crawlsim velocity gaits/inching-2.yaml --sweep 'friction.backward=0.5:3:11' \\
+          -o sweep.h5 && crawlsim plot sweep.h5
     """
-    from ..plotting import plot_results
+    from ..h5io import describe
 
     with library_errors():
-        try:
-            written = plot_results(results_file, output_dir, fmt=fmt, only=only, coords=coords)
-        except ValueError as exc:
-            if isinstance(exc, CrawlsimError):
-                raise
-            raise BadInput(f"{results_file}: {exc}") from None
+        kind = describe(results_file)["file_kind"]
+        if kind == "sweep":
+            written = [_plot_sweep(results_file, output_dir, fmt, only)]
+        else:
+            written = _plot_run(results_file, output_dir, fmt, only, coords)
     for path in written:
         click.echo(str(path))
+
+
+def _plot_run(results_file, output_dir, fmt, only, coords):
+    from ..plotting import plot_results
+
+    try:
+        return plot_results(results_file, output_dir, fmt=fmt, only=only, coords=coords)
+    except ValueError as exc:
+        if isinstance(exc, CrawlsimError):
+            raise
+        raise BadInput(f"{results_file}: {exc}") from None
+
+
+def _plot_sweep(results_file, output_dir, fmt, only) -> Path:
+    from .. import sweep as sweeps
+
+    if only is not None:
+        raise BadInput(f"--only {only}: {results_file} is a sweep file, whose one figure is "
+                       "the sweep; --only chooses among the figures of a run")
+    table = sweeps.read_table(results_file)
+    if len(table.dimension_paths()) not in (1, 2):
+        raise BadInput(f"{results_file}: a sweep figure shows one or two swept dimensions, "
+                       f"this sweep has {len(table.dimension_paths())}")
+    if table.shard is not None:
+        raise BadInput(f"{results_file}: is shard {table.shard[0]}/{table.shard[1]} of a "
+                       "sweep; plot the file `crawlsim merge` writes from all the shards")
+    path = Path(results_file)
+    folder = Path(output_dir) if output_dir is not None else path.resolve().parent
+    folder.mkdir(parents=True, exist_ok=True)
+    target = folder / f"{path.stem}-sweep.{fmt}"
+    sweeps.plot_table(table, target)
+    return target

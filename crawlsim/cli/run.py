@@ -7,17 +7,16 @@ from pathlib import Path
 
 import click
 
-from .. import api
-from ..analysis import summary_text
-from ..gait import with_simulation
 from . import (
     EXIT_NOT_CONVERGED,
     BadInput,
     _output_path,
+    check_feedback,
+    feedback_options,
     library_errors,
     load_with_overrides,
     main,
-    period_progress,
+    run_progress,
     simulation_options,
     to_json,
 )
@@ -30,9 +29,10 @@ from . import (
               help="Rerun the run recorded in a results file: its effective gait document "
                    "and integrator settings (v0 is reproduced bit for bit); options given "
                    "override them. Instead of GAIT_FILE.")
-@click.option("-o", "--output", type=click.Path(dir_okay=False),
+@click.option("-o", "--output", type=click.Path(dir_okay=False, allow_dash=True),
               help="HDF5 results file (default: <gait stem>.h5 in the current folder; "
-                   "<results stem>-rerun.h5 with --from).")
+                   "<results stem>-rerun.h5 with --from). HDF5 cannot stream, so not '-': "
+                   "use --json for a summary on stdout.")
 @simulation_options
 @click.option("--save-every", type=click.IntRange(min=1),
               help="Write every K-th grid point of the trajectory (bounds the file size). "
@@ -42,19 +42,32 @@ from . import (
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 @click.option("--plot", is_flag=True,
               help="Also draw the figures next to the results file (<stem>-<figure>.png).")
+@feedback_options
 def run(gait_file, from_results, output, steps_per_period, max_periods, tolerance, save_every,
-        check_every_step, as_json, plot):
+        check_every_step, as_json, plot, quiet, verbose):
     """Simulate GAIT_FILE to its periodic regime; report v0 and write an HDF5 file.
+
+    Progress goes to stderr: a bar on a terminal, whose total is the number of periods
+    estimated from the contraction of the Poincare steps; elsewhere a line every 10 s.
 
     \b
     Examples:
       crawlsim run gaits/peristalsis-4.yaml
-      crawlsim run gaits/peristalsis-4.yaml --steps-per-period 4000 -o fine.h5
+      crawlsim run gaits/peristalsis-4.yaml --integrator exact -o exact.h5
       crawlsim run gaits/inching-2.yaml --json | python -m json.tool
-      crawlsim run --from peristalsis-4.h5 -o again.h5
+      crawlsim run gaits/inching-2.yaml --max-periods 500 --quiet -o inching.h5
+      crawlsim run --from inching.h5 -o again.h5
     """
+    check_feedback(quiet, verbose)
     if (gait_file is None) == (from_results is None):
         raise BadInput("give a gait file or --from RESULT.h5 (one of the two)")
+    if output == "-":
+        raise BadInput("--output -: the results of a run are an HDF5 file, which cannot be "
+                       "streamed to stdout; give a file name (-o run.h5), and --json prints "
+                       "the summary on stdout")
+    from .. import api
+    from ..analysis import summary_text
+
     with library_errors():
         if from_results is not None:
             gait, check_every_step, save_every = _rerun(from_results, steps_per_period,
@@ -65,7 +78,7 @@ def run(gait_file, from_results, output, steps_per_period, max_periods, toleranc
             gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance)
             out = _output_path(output, gait_file)
             save_every = save_every or 1
-        with period_progress(gait.simulation.max_periods, not as_json) as progress:
+        with run_progress(gait, quiet, verbose) as progress:
             result = api.run(gait, output=out, save_every=save_every,
                              check_every_step=check_every_step, progress=progress)
         figures = []
@@ -89,6 +102,9 @@ def run(gait_file, from_results, output, steps_per_period, max_periods, toleranc
 
 def _rerun(path, steps_per_period, max_periods, tolerance, check_every_step, save_every):
     """The gait and settings recorded in ``path``, with the options given on top."""
+    from .. import api
+    from ..gait import with_simulation
+
     recorded = api.from_results(path)
     ctx = click.get_current_context(silent=True)
     integrator = None if ctx is None else ctx.meta.get("crawlsim.integrator")
@@ -98,4 +114,3 @@ def _rerun(path, steps_per_period, max_periods, tolerance, check_every_step, sav
     gait = with_simulation(recorded.gait, **overrides) if overrides else recorded.gait
     return (gait, check_every_step or recorded.check_every_step,
             save_every or recorded.save_every)
-

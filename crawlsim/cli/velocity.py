@@ -3,39 +3,32 @@
 from __future__ import annotations
 
 import sys
-from contextlib import contextmanager
 from pathlib import Path
 
 import click
 
-from .. import api
-from .. import sweep as sweeps
 from . import (
     EXIT_NOT_CONVERGED,
     BadInput,
+    OrderedCommand,
+    check_feedback,
+    feedback_options,
+    interrupt_exit,
     library_errors,
     load_with_overrides,
     main,
+    run_progress,
     simulation_options,
     to_json,
 )
-
-
-@contextmanager
-def _point_progress(total: int):
-    """A tqdm bar over sweep points on stderr, only when stderr is a terminal."""
-    if not sys.stderr.isatty():
-        yield None
-        return
-    from tqdm import tqdm
-
-    with tqdm(total=total, unit="point", file=sys.stderr, leave=False) as bar:
-        yield bar.update
+from .progress import Progress, choose_mode
 
 
 def _shard(ctx, param, value):
     if value is None:
         return None
+    from .. import sweep as sweeps
+
     with library_errors():
         return sweeps.parse_shard(value)
 
@@ -46,16 +39,39 @@ def _folder_of(path, option):
                        "exist")
 
 
-@main.command()
+def _dimensions(sweep_specs, link_specs) -> list[list[str]]:
+    """The grid dimensions: each ``--sweep`` with the ``--link`` options that follow it."""
+    ctx = click.get_current_context()
+    order = ctx.meta.get("crawlsim.option_order", [])
+    sweeps_left, links_left = iter(sweep_specs), iter(link_specs)
+    groups: list[list[str]] = []
+    for name in order:
+        if name == "sweep_specs":
+            groups.append([next(sweeps_left)])
+        elif name == "link_specs":
+            spec = next(links_left)
+            if not groups:
+                raise BadInput(f"--link {spec}: a linked path varies with the --sweep before "
+                               "it; give a --sweep PATH=SPEC first")
+            groups[-1].append(spec)
+    return groups
+
+
+@main.command(cls=OrderedCommand)
 @click.argument("gait_file", type=click.Path(exists=True, dir_okay=False))
 @click.option("--json", "as_json", is_flag=True,
               help="Print the run's JSON summary instead of v0 alone (single gait only).")
 @click.option("--sweep", "sweep_specs", multiple=True, metavar="PATH=SPEC",
-              help="Sweep a dotted path of the gait document over START:STOP:NUM (inclusive) "
-                   "or a comma list a,b,c. Repeat for a Cartesian grid.")
-@click.option("-o", "--output", type=click.Path(dir_okay=False),
-              help="Write the table to OUT.csv or OUT.h5 (default: CSV on stdout).")
-@click.option("--jobs", type=click.IntRange(min=1), default=1, show_default=True,
+              help="Sweep a dotted path of the gait document over SPEC: START:STOP:NUM "
+                   "(inclusive), log:LO:HI:NUM (log-spaced, inclusive), or a list [a,b,c] "
+                   "(or a,b,c). Repeat for a Cartesian grid, the last varying fastest.")
+@click.option("--link", "link_specs", multiple=True, metavar="PATH=SPEC",
+              help="Vary PATH together with the --sweep before it (same number of values): "
+                   "value k of each goes with value k of the other; no new grid dimension.")
+@click.option("-o", "--output", type=click.Path(dir_okay=False, allow_dash=True),
+              help="Write the table to OUT.csv or OUT.h5; - or no -o: CSV on stdout (v0, or "
+                   "JSON with --json, without --sweep).")
+@click.option("-j", "--jobs", type=click.IntRange(min=1), default=1, show_default=True,
               help="Local worker processes.")
 @click.option("--shard", callback=_shard, metavar="I/N",
               help="Compute only the I-th of N disjoint parts of the grid (1 <= I <= N); "
@@ -64,60 +80,110 @@ def _folder_of(path, option):
               help="Run on an existing Dask cluster (tcp://host:8786); needs "
                    "pip install 'crawlsim[dask]'.")
 @click.option("--plot", "plot_file", type=click.Path(dir_okay=False),
-              help="Draw v0 against one swept path, or a heat map over two (PNG).")
+              help="Draw v0 against one swept dimension, or a heat map over two (PNG); "
+                   "`crawlsim plot OUT.h5` draws it from a sweep file later.")
 @simulation_options
-def velocity(gait_file, as_json, sweep_specs, output, jobs, shard, scheduler, plot_file,
-             steps_per_period, max_periods, tolerance):
+@feedback_options
+def velocity(gait_file, as_json, sweep_specs, link_specs, output, jobs, shard, scheduler,
+             plot_file, steps_per_period, max_periods, tolerance, quiet, verbose):
     """Print v0 of GAIT_FILE, or sweep gait parameters and tabulate v0.
 
     Without --sweep, prints v0 alone on one line (exit code 3 if the run did not converge).
-    With --sweep, writes one row per grid point: the swept values, v0,
-    displacement_per_period, convergence, periods, status (ok, not-converged, failed) and
-    message. Points that fail or do not converge are recorded in the status column and the
-    exit code stays 0. An interrupted sweep with -o resumes when rerun.
+    With --sweep, writes one row per grid point: the swept values, v0, v0_error_estimate,
+    displacement_per_period, dissipation_per_period, cost_of_transport, convergence, periods,
+    integrator, status (ok, not-converged, invalid, failed) and message. A point whose gait is
+    invalid or whose run fails is recorded with its reason, the others run, and the exit code
+    stays 0; a bad path, or a grid with no valid point, is refused (exit code 2). With -o,
+    finished points are kept in OUT.journal: an interrupted sweep (Ctrl-C: exit code 130)
+    resumes when the same command is run again.
 
     \b
     Examples:
       crawlsim velocity gaits/peristalsis-4.yaml
       crawlsim velocity gaits/inching-2.yaml --json
-      crawlsim velocity gaits/peristalsis-4.yaml --sweep 'links.*.amplitude=0.1:0.4:31'
-      crawlsim velocity gaits/peristalsis-3.yaml --sweep links.1.phase=0:1:41 \\
-          --sweep friction.backward=1.5,2.5,3.5 -o lag.h5 --jobs 2 --plot lag.png
-      crawlsim velocity gaits/peristalsis-4.yaml --sweep period=0.5:2:16 \\
-          --shard 3/8 -o part-3.h5 && crawlsim merge part-*.h5 -o all.h5
+      crawlsim velocity gaits/peristalsis-4.yaml --sweep 'links.*.amplitude=0.1:0.4:7' \\
+          --steps-per-period 100
+      crawlsim velocity gaits/peristalsis-3.yaml --sweep links.1.phase=0:1:11 \\
+          --sweep 'friction.backward=[1.5,2.5,3.5]' -o lag.h5 -j 2 --plot lag.png \\
+          --steps-per-period 100
+      crawlsim velocity gaits/inching-2.yaml --sweep stiffness=log:5:50:9 -o - | cut -d, -f1,2
+      crawlsim velocity gaits/peristalsis-3.yaml --sweep links.0.phase=0:0.5:6 \\
+          --link links.1.phase=0:1:6 --steps-per-period 100
+      for i in 1 2 3; do crawlsim velocity gaits/inching-2.yaml --sweep period=0.5:2:16 \\
+          --shard $i/3 -o part-$i.h5; done && crawlsim merge part-*.h5 -o all.h5
     """
+    check_feedback(quiet, verbose)
+    if output == "-":
+        output = None  # stdout is where the table (or v0) goes without -o
     _folder_of(output, "--output")
     _folder_of(plot_file, "--plot")
     with library_errors():
+        groups = _dimensions(sweep_specs, link_specs)
         gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance)
-        if not sweep_specs:
+        if not groups:
             if shard or plot_file:
                 raise BadInput("--shard and --plot need at least one --sweep PATH=SPEC")
             if output is None:
-                result = api.run(gait)
+                from .. import api
+
+                with run_progress(gait, quiet, verbose) as progress:
+                    result = api.run(gait, progress=progress)
                 click.echo(to_json(result.summary()) if as_json else repr(result.v0))
                 if not result.converged:
                     sys.exit(EXIT_NOT_CONVERGED)
                 return
-        if as_json and sweep_specs:
+        if as_json and groups:
             raise BadInput("--json prints one run's summary; with --sweep the table is CSV or "
                            "HDF5 (-o)")
         if plot_file and shard:
             raise BadInput("--plot needs the whole grid: plot after `crawlsim merge`")
-        axes = [sweeps.parse_axis(s) for s in sweep_specs]
-        if plot_file and len(axes) not in (1, 2):
-            raise BadInput(f"--plot draws one or two swept paths, got {len(axes)}")
-        grid = sweeps.make_grid(gait, axes)
-        total = len(grid.indices(shard))
-        with _point_progress(total) as progress:
-            table = sweeps.sweep(gait, axes, output=output, jobs=jobs, shard=shard,
-                                 scheduler=scheduler, progress=progress)
+        if plot_file and len(groups) not in (1, 2):
+            raise BadInput(f"--plot draws one or two swept dimensions, got {len(groups)}")
+        table = _sweep(gait, groups, output, jobs, shard, scheduler, quiet, verbose)
         if plot_file:
+            from .. import sweep as sweeps
+
             sweeps.plot_table(table, plot_file)
     if output is None:
         click.echo(table.to_csv(), nl=False)
     counts = table.counts()
-    if counts["failed"] or counts["not-converged"] or counts["invalid"]:
-        click.echo(f"{len(table.rows)} points: {counts['invalid']} invalid, {counts['failed']} "
-                   f"failed, {counts['not-converged']} not converged (see the status column)",
+    if len(table.rows) != counts["ok"]:
+        click.echo(f"{len(table.rows)} points: {counts['ok']} ok, {counts['invalid']} invalid, "
+                   f"{counts['failed']} failed, {counts['not-converged']} not converged (see "
+                   "the status and message columns)", err=True)
+
+
+def _sweep(gait, groups, output, jobs, shard, scheduler, quiet, verbose):
+    """Run the sweep with progress on stderr; an interrupt says what was kept, then exits 130."""
+    from .. import sweep as sweeps
+
+    grid = sweeps.make_grid(gait, groups)
+    total = len(grid.indices(shard))
+    bar = Progress("velocity", "point", total, mode=choose_mode(quiet))
+
+    def on_rows(rows, resumed):
+        if resumed:
+            bar.skip(len(rows))
+            if verbose:
+                bar.message(f"resuming: {len(rows)} of {total} points read from "
+                            f"{sweeps.journal_path(output)}")
+        elif verbose:
+            for r in rows:
+                if r.status in ("invalid", "failed"):
+                    bar.message(f"point {r.index} {r.status}: {r.message}")
+
+    try:
+        table = sweeps.sweep(gait, groups, output=output, jobs=jobs, shard=shard,
+                             scheduler=scheduler, progress=bar.update, on_rows=on_rows)
+    except sweeps.SweepInterrupted as exc:
+        bar.close()
+        where = (f"kept in {exc.journal}; run the same command again to resume"
+                 if exc.journal is not None else "not kept (no -o)")
+        click.echo(f"Interrupted: {exc.done} of {exc.total} points finished, {where}.",
                    err=True)
+        raise interrupt_exit(exc) from None
+    except BaseException:
+        bar.close()
+        raise
+    bar.close(complete=True)
+    return table

@@ -1,0 +1,81 @@
+"""``crawlsim info``: what a results file holds, run or sweep, in a few lines."""
+
+from __future__ import annotations
+
+import click
+
+from . import library_errors, main, to_json
+
+
+def _g(value, digits: int = 12) -> str:
+    return "n/a" if value is None else f"{value:.{digits}g}"
+
+
+def summary_lines(d: dict) -> list[str]:
+    """The text of ``crawlsim info`` for `crawlsim.h5io.describe`'s dict."""
+    lines = []
+    if d["file_kind"] == "run":
+        what = "gait" if d["kind"] == "crawler" else d["kind"]
+        lines.append(f"{d['file']}: run of {what} {d['name']}")
+        lines.append(f"  integrator               {d['integrator'] or 'n/a'}")
+        if d["v0"] is not None:
+            lines.append(f"  v0                       {_g(d['v0'])} "
+                         f"(± {_g(d['v0_error_estimate'], 1)} from the period iteration)")
+        conv = d["convergence"]
+        if conv == "finite-time":
+            conv += f": periodic from period {d['periodic_from']}"
+        elif conv == "asymptotic":
+            conv += f", contraction rate {_g(d['contraction_rate'], 4)} per period"
+        lines.append(f"  convergence              {conv}")
+        lines.append(f"  periods                  {d['periods']} of {d['steps_per_period']} "
+                     f"steps (period {_g(d['period'])})")
+        if d["displacement_per_period"] is not None:
+            lines.append(f"  displacement per period  {_g(d['displacement_per_period'])}")
+            lines.append(f"  dissipation per period   {_g(d['dissipation_per_period'])}")
+            lines.append(f"  cost of transport        {_g(d['cost_of_transport'], 6)}")
+    else:
+        shard = f" (shard {d['shard']})" if d["shard"] else ""
+        lines.append(f"{d['file']}: sweep of gait {d['name']}{shard}, from {d['source']}")
+        for n, dim in enumerate(d["grid"], 1):
+            paths = " with ".join(dim["paths"])
+            lines.append(f"  dimension {n}              {paths}: {dim['values']} values in "
+                         f"[{_g(dim['min'])}, {_g(dim['max'])}]")
+        counts = ", ".join(f"{v} {k}" for k, v in sorted(d["statuses"].items()))
+        lines.append(f"  points                   {d['points']}: {counts}")
+        lines.append(f"  integrator               {d['integrator'] or 'n/a (older file)'}")
+        if d["v0_min"] is not None:
+            lines.append(f"  v0 of the ok points      {_g(d['v0_min'])} to {_g(d['v0_max'])}")
+    lines.append(f"  written by               crawlsim {d['crawlsim_version']} (format "
+                 f"{d['format_version']})")
+    for key, value in sorted(d["attributes"].items()):
+        lines.append(f"  {key:<24} {value}")
+    return lines
+
+
+@main.command()
+@click.argument("results_file", type=click.Path(dir_okay=False))
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
+def info(results_file, as_json):
+    """Summarise a results file, of a run or of a sweep.
+
+    RESULTS_FILE is written by crawlsim run, or by crawlsim velocity --sweep ... -o OUT.h5 and
+    crawlsim merge. A file that is not a crawlsim results file is refused (exit code 2).
+
+    For a run: gait, integrator, v0 and its error, convergence, periods. For a sweep: the grid,
+    the counts of statuses, the range of v0. Both: the crawlsim version that wrote the file and
+    its other attributes (provenance).
+
+    \b
+    Examples:
+      crawlsim run gaits/inching-2.yaml -o inching.h5 && crawlsim info inching.h5
+      crawlsim info inching.h5 --json
+    """
+    from ..h5io import describe
+
+    with library_errors():
+        d = describe(results_file)
+    if as_json:
+        click.echo(to_json({k: v for k, v in d.items() if k != "attributes"}
+                           | {"attributes": {k: str(v) for k, v in d["attributes"].items()}}))
+    else:
+        click.echo("\n".join(summary_lines(d)))

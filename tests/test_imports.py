@@ -1,0 +1,86 @@
+"""The import graph of the command line: start-up is part of the interface (shell loops call
+`crawlsim velocity` thousands of times; `crawlsim --help` and completion must answer at once).
+
+Each check runs a fresh interpreter and lists the modules loaded after the command. The timing
+itself is a benchmark (scripts/bench-startup.py), never a test.
+"""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+GAIT = ROOT / "gaits" / "inching-2.yaml"
+HEAVY = ("numpy", "scipy", "h5py", "jsonschema", "matplotlib", "yaml", "tqdm", "clarabel")
+
+DRIVER = """\
+import json, sys
+args, out = json.loads(sys.argv[1]), sys.argv[2]
+if args is None:
+    import crawlsim, crawlsim.cli
+else:
+    from crawlsim.cli import main
+    try:
+        main(args, prog_name="crawlsim")
+    except SystemExit:
+        pass
+with open(out, "w") as f:
+    json.dump(sorted(sys.modules), f)
+"""
+
+
+def modules_after(args, tmp_path) -> set[str]:
+    """The modules a fresh interpreter holds after ``crawlsim ARGS`` (None: after importing
+    crawlsim and crawlsim.cli only)."""
+    out = tmp_path / "modules.json"
+    subprocess.run([sys.executable, "-c", DRIVER, json.dumps(args), str(out)], check=True,
+                   cwd=tmp_path, capture_output=True)
+    return set(json.loads(out.read_text()))
+
+
+def loaded(modules: set[str], name: str) -> bool:
+    return name in modules or any(m.startswith(name + ".") for m in modules)
+
+
+@pytest.mark.parametrize("args", [None, ["--version"], ["--help"], ["velocity", "--help"],
+                                  ["run", "--help"], ["info", "--help"], ["plot", "--help"]])
+def test_import_and_help_load_no_numerical_module(args, tmp_path):
+    modules = modules_after(args, tmp_path)
+    assert not [m for m in HEAVY if loaded(modules, m)]
+
+
+def test_only_the_invoked_command_module_is_imported(tmp_path):
+    modules = modules_after(["velocity", "--help"], tmp_path)
+    assert "crawlsim.cli.velocity" in modules
+    assert not {"crawlsim.cli.run", "crawlsim.cli.plot", "crawlsim.cli.info",
+                "crawlsim.cli.merge"} & modules
+    every = modules_after(["--help"], tmp_path)  # the listing needs each command's help line
+    assert {"crawlsim.cli.run", "crawlsim.cli.velocity", "crawlsim.cli.info"} <= every
+
+
+@pytest.mark.parametrize("integrator", ["catch-up", "exact"])
+def test_velocity_loads_what_it_needs_and_no_more(integrator, tmp_path):
+    """v0 of a gait needs numpy, YAML, the schema validation and the KKT kernel; not h5py
+    (nothing is written), matplotlib, tqdm (stderr is not a terminal), Dask or the sweep
+    machinery. Clarabel is loaded only when the kernel's own updates do not settle a step (the
+    two-block gait never needs it), and scipy.optimize not at all: the exact integrator's events
+    of a cosine gait have closed forms."""
+    modules = modules_after(["velocity", str(GAIT), "--integrator", integrator], tmp_path)
+    for name in ("numpy", "yaml", "crawlsim.projection", "crawlsim.kkt"):
+        assert loaded(modules, name), name
+    for name in ("h5py", "matplotlib", "tqdm", "distributed", "dask", "crawlsim.sweep",
+                 "crawlsim.batch", "crawlsim.h5io", "crawlsim.plotting.figures", "clarabel",
+                 "scipy.optimize"):
+        assert not loaded(modules, name), name
+
+
+def test_run_and_info_load_no_plotting(tmp_path):
+    modules = modules_after(["run", str(GAIT), "-o", str(tmp_path / "r.h5")], tmp_path)
+    assert loaded(modules, "h5py") and not loaded(modules, "matplotlib")
+    modules = modules_after(["info", str(tmp_path / "r.h5")], tmp_path)
+    assert loaded(modules, "h5py")
+    for name in ("matplotlib", "scipy", "jsonschema", "clarabel"):
+        assert not loaded(modules, name), name
