@@ -173,6 +173,7 @@ class EventStepper:
         forced = np.zeros(0, dtype=int)
         piece_index = 0
         edges = pieces.edges
+        carried = 0.0  # the largest slip roundoff of the pieces since the last sampled point
         while True:
             ev_t.append(u)
             ev_w.append(w)
@@ -191,8 +192,11 @@ class EventStepper:
                 Wg, Lg = piece.at(phi, m)
                 W[j:j_end] = Wg
                 LAMC[j:j_end] = lam_cum + Lg
-                self._certify_piece(Wg, LAMC[j - 1:j_end], piece, phi, piece_index, start + self._grid[j:j_end] * T)
+                carried = self._certify_piece(Wg, LAMC[j - 1:j_end], piece, phi, piece_index,
+                                              start + self._grid[j:j_end] * T, carried)
                 j = j_end
+            else:  # the grid interval spans this piece: its roundoff enters the next sample
+                carried = max(carried, self._dual_scale(piece, piece_index))
             w_e, lam_e = piece.at(self.basis.values(u_e), m)
             w, lam_cum = w_e[0], lam_cum + lam_e[0]
             u = u_e
@@ -328,10 +332,10 @@ class EventStepper:
         Gc = poly.apply(piece.Wc) - coef
         Gc[0] += poly.apply(piece.base)
         gaps = Gc[:, inactive]
-        w_size = float(np.max(np.abs(piece.base)) + np.sum(np.max(np.abs(piece.Wc), axis=1)))
         c_size = float(np.max(np.sum(np.abs(coef), axis=0)))
-        size = max(poly.c_scale, c_size, poly.row_norm * w_size)
-        tol_gap = RTOL * size
+        # half the smallest primal tolerance the certificate of a sample can have: a gap that
+        # would fail the certificate is always an event first
+        tol_gap = 0.5 * RTOL * poly.c_scale
         rows = np.flatnonzero(inactive)
         Z = gaps
         tol = np.full(gaps.shape[1], tol_gap)
@@ -466,9 +470,22 @@ class EventStepper:
         return out
 
     # -- certificate of the sampled trajectory ---------------------------------------------------
-    def _certify_piece(self, Wg, LAMC, piece: _Piece, phi, piece_index, times):
+    def _dual_scale(self, piece: _Piece, piece_index: int) -> float:
+        """The roundoff of the slips a piece adds: the kernel's dual tolerance for its active
+        set, at the size of its offsets and state."""
+        if not piece.active.size:
+            return 0.0
+        coef = self.pieces.coefficients(piece_index)
+        c_size = float(np.max(np.sum(np.abs(coef), axis=0)))
+        w_size = float(np.max(np.abs(piece.base)) + np.sum(np.max(np.abs(piece.Wc), axis=1)))
+        lam_size = float(np.max(np.abs(piece.lam0)) + np.sum(np.max(np.abs(piece.Y), axis=1)))
+        return float(self.poly.tolerance(piece.active, c_size, w_size, lam_size).dual)
+
+    def _certify_piece(self, Wg, LAMC, piece: _Piece, phi, piece_index, times,
+                       carried: float) -> float:
         """Every sampled state is in K(t_j) and the slip integrals between samples are >= 0,
-        to roundoff (the kernel's tolerance policy)."""
+        to roundoff (the kernel's tolerance policy). A grid interval that began on earlier
+        pieces carries their roundoff (``carried``); returns this piece's, for the next one."""
         poly = self.poly
         C = phi @ self.pieces.coefficients(piece_index)
         slack = poly.apply(Wg) - C
@@ -477,8 +494,12 @@ class EventStepper:
                              np.max(np.abs(Wg), axis=1), np.max(np.abs(LAMC[1:]), axis=1))
         primal = np.max(slack, axis=1)
         dual = -np.min(lam, axis=1, initial=0.0)
-        # slip integrals are differences of cumulative slips, which carry their own roundoff
-        dual_tol = np.maximum(tol.dual, 4 * RTOL * np.max(np.abs(LAMC), axis=1)[1:])
+        # slip integrals are differences of cumulative slips, which carry their own roundoff,
+        # and the first one also that of the pieces since the previous sample
+        own = self._dual_scale(piece, piece_index)
+        dual_tol = np.maximum(np.maximum(tol.dual, own),
+                              4 * RTOL * np.max(np.abs(LAMC), axis=1)[1:])
+        dual_tol[0] = max(dual_tol[0], carried)
         idx = piece.active.index
         comp = np.max(np.abs(slack[:, idx]), axis=1, initial=0.0)
         bad = (primal > tol.primal) | (dual > dual_tol) | (comp > tol.primal)
@@ -489,6 +510,7 @@ class EventStepper:
                 f"{times[i]:.12g}: constraint violation {primal[i]:.3g}, negative slip "
                 f"integral {dual[i]:.3g} (tolerance {float(tol.primal[i]):.3g} / "
                 f"{float(dual_tol[i]):.3g}), complementarity {comp[i]:.3g}")
+        return own
 
     def _verify(self, W, start):
         """``check_every_step``: Clarabel confirms every sampled state is its own projection."""

@@ -438,10 +438,49 @@ class Polyhedron:
                 index = self.update_set(active, lam, slack, tol, single=True, fixed=fixed)
                 if index is None:
                     return None
+            if not self.licq(index):
+                index = self.exchange(active, lam, slack, fixed)
+                if index is None:
+                    return None
             try:
                 active = self.factor(index)
             except Dependent:
                 return None
+        return None
+
+    def exchange(self, active: ActiveSet, lam: np.ndarray, slack: np.ndarray,
+                 fixed: np.ndarray | None = None) -> np.ndarray | None:
+        """The most violated row r enters although its normal depends on the active ones: the
+        dual step of Goldfarb and Idnani. With z the dependency (B_{A+r}^T z = 0, z_r > 0),
+        the multipliers lambda + t z stay non-negative until the active row j with z_j < 0 and
+        the smallest lambda_j / |z_j| reaches zero; j leaves, r enters (None if no row can)."""
+        idx = active.index
+        inactive = np.ones(self.m, dtype=bool)
+        inactive[idx] = False
+        r = int(np.argmax(np.where(inactive, slack, -np.inf)))
+        z = self.dependency(np.append(idx, r))
+        if z is None:
+            return None
+        z = z if z[-1] > 0 else -z
+        zA = z[:-1]
+        leaving = zA < 0
+        if fixed is not None and len(fixed):
+            leaving &= ~np.isin(idx, fixed)
+        if not leaving.any():
+            return None
+        ratio = np.where(leaving, np.maximum(lam[idx], 0.0) / np.where(leaving, -zA, 1.0),
+                         np.inf)
+        j = int(np.argmin(ratio))
+        return np.sort(np.append(np.delete(idx, j), r))
+
+    def dependency(self, index: np.ndarray) -> np.ndarray | None:
+        """A nonzero z with B_index^T z = 0, in the order of ``index`` (None if independent)."""
+        B = self.dense_normals()[index] if self.m * self.n <= 4_000_000 else None
+        if B is None:
+            return None
+        _, s, vt = np.linalg.svd(B.T)
+        if len(index) > len(s) or s[-1] <= GENERIC_RCOND * s[0]:
+            return vt[-1]
         return None
 
     def update_set(self, active: ActiveSet, lam: np.ndarray, slack: np.ndarray, tol: Tolerance,
@@ -605,6 +644,20 @@ class ChainPolyhedron(Polyhedron):
 
     def _factor(self, index):
         return _ChainSet(self, index)
+
+    def dependency(self, index):
+        """Every block saturated: B^T lambda = D (lambda^+ - lambda^-) vanishes for slips
+        dx = 1, that is lambda = S 1 (the signs of the rows)."""
+        index = np.asarray(index, dtype=int)
+        if self.licq(index):
+            return None
+        blocks = index % self.blocks
+        if len(np.unique(blocks)) < len(blocks):  # a block at both limits: opposite normals
+            z = np.zeros(len(index))
+            dup = blocks == blocks[-1]
+            z[dup] = 1.0
+            return z
+        return np.where(index < self.blocks, 1.0, -1.0)
 
     def tight_stop(self, tight, any_inactive):
         """LICQ of a chain's tight rows fails only with every block tight (module docstring)."""

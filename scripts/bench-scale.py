@@ -1,0 +1,139 @@
+#!/usr/bin/env python3
+"""How the cost of a step and of an event grows with the number of blocks N.
+
+The retrograde cosine wave of N blocks (link i: L_i = 1 + 0.3 cos 2 pi (t/T - i/(N-1)),
+k = 10, friction forward 1.0 / backward 2.13), for N = 4, 16, 64, 128, 256 and 1024, in one run:
+
+* catch-up: microseconds per step at 400 steps per period (median over periods 1..P of a run,
+  after a first period), and at 1000 steps per period for the ratio below;
+* exact: milliseconds per period and events per period (median over periods 1..P);
+* exact / catch-up time per period at 1000 steps per period;
+* |v0(exact) - v0(catch-up)| at 400 steps per period against the first-order bound 1/400;
+* peak memory of each run (tracemalloc: numpy's allocations included);
+* the fitted exponent of cost against N between N = 64 and 1024 (least squares on log-log),
+  and the N = 128 / N = 4 ratio of catch-up steps per second.
+
+    python scripts/bench-scale.py [--periods 5] [--sizes 4,16,64,128,256,1024]
+
+A 1000-block run of 20 periods at 400 steps per period is timed at the end (``--big``), through
+the same library call as ``crawlsim run`` with an HDF5 file, which is then drawn by
+``crawlsim plot``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+import tracemalloc
+from pathlib import Path
+
+import numpy as np
+
+from crawlsim.gait import gait_from_document
+from crawlsim.model import compile_gait
+from crawlsim.stepping import make_stepper
+
+
+def wave_document(N: int, steps: int, periods: int = 1000) -> dict:
+    return {"name": f"wave-{N}", "blocks": N, "period": 1.0, "stiffness": 10.0,
+            "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": i / (N - 1)}
+                      for i in range(N - 1)],
+            "friction": {"forward": 1.0, "backward": 2.13},
+            "simulation": {"steps_per_period": steps, "max_periods": periods}}
+
+
+def measure(N: int, integrator: str, steps: int, periods: int):
+    """(seconds per period (median of periods 1..), events per period, v0, peak bytes)."""
+    gait = gait_from_document(wave_document(N, steps), f"wave-{N}")
+    tracemalloc.start()
+    process = compile_gait(gait)
+    stepper = make_stepper(process, integrator)
+    record = stepper.step_period()
+    times, events, v0 = [], [], []
+    for _ in range(periods):
+        began = time.perf_counter()
+        record = stepper.step_period()
+        times.append(time.perf_counter() - began)
+        if record.events is not None:
+            events.append(len(record.events.t))
+        v0.append(float(np.mean(record.x[-1] - record.x[0])) / process.period)
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    return statistics.median(times), (statistics.median(events) if events else None), v0[-1], peak
+
+
+def exponent(sizes, costs, lo=64, hi=1024) -> float:
+    pick = [(n, c) for n, c in zip(sizes, costs) if lo <= n <= hi]
+    if len(pick) < 2:
+        return float("nan")
+    n, c = np.array(pick).T
+    return float(np.polyfit(np.log(n), np.log(c), 1)[0])
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--periods", type=int, default=5)
+    parser.add_argument("--sizes", default="4,16,64,128,256,1024")
+    parser.add_argument("--big", action="store_true",
+                        help="also time the 1000-block, 20-period run with its results file")
+    args = parser.parse_args()
+    sizes = [int(s) for s in args.sizes.split(",")]
+    rows = []
+    print(f"{'N':>5} {'catch-up us/step':>17} {'exact ms/period':>16} {'events/period':>14} "
+          f"{'exact/catch-up @1000':>21} {'|dv0|*400':>10} {'peak MB':>8}")
+    for N in sizes:
+        cu, _, v_cu, mem_cu = measure(N, "catch-up", 400, args.periods)
+        ex, ev, v_ex, mem_ex = measure(N, "exact", 400, args.periods)
+        cu1000, _, _, _ = measure(N, "catch-up", 1000, args.periods)
+        ex1000, _, _, _ = measure(N, "exact", 1000, args.periods)
+        rows.append((N, cu / 400 * 1e6, ex * 1e3, ev, ex1000 / cu1000, abs(v_ex - v_cu) * 400,
+                     max(mem_cu, mem_ex) / 2**20))
+        r = rows[-1]
+        print(f"{r[0]:>5} {r[1]:>17.2f} {r[2]:>16.2f} {r[3]:>14.0f} {r[4]:>21.2f} {r[5]:>10.3g} "
+              f"{r[6]:>8.1f}", flush=True)
+    Ns = [r[0] for r in rows]
+    print()
+    print(f"fitted exponent of cost in N, N = 64..1024: catch-up "
+          f"{exponent(Ns, [r[1] for r in rows]):.2f}, exact "
+          f"{exponent(Ns, [r[2] for r in rows]):.2f} (bar: <= 1.2)")
+    by_n = {r[0]: r for r in rows}
+    if 4 in by_n and 128 in by_n:
+        print(f"catch-up steps per second, N = 128 / N = 4: {by_n[4][1] / by_n[128][1]:.3f} "
+              "(bar: >= 0.1)")
+    for n in (64, 256):
+        if n in by_n:
+            print(f"N = {n}: |v0 exact - v0 catch-up| x 400 = {by_n[n][5]:.3g} (bar: <= 1); "
+                  f"exact / catch-up at 1000 steps per period = {by_n[n][4]:.2f} (bar: <= 3)")
+    if args.big:
+        big()
+    return 0
+
+
+def big() -> None:
+    """The 1000-block run of 20 periods at 400 steps per period, file written and plotted."""
+    from crawlsim import api
+
+    doc = wave_document(1000, 400, periods=20)
+    doc["simulation"]["tolerance"] = 1e-300  # run all 20 periods
+    gait = gait_from_document(doc, "wave-1000")
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "wave-1000.h5"
+        began = time.perf_counter()
+        result = api.run(gait, output=out)
+        seconds = time.perf_counter() - began
+        size = out.stat().st_size / 2**20
+        began = time.perf_counter()
+        plot = subprocess.run([sys.executable, "-m", "crawlsim", "plot", str(out), "-o", tmp],
+                              capture_output=True, text=True)
+        plot_seconds = time.perf_counter() - began
+    print(f"\n1000 blocks, 20 periods x 400 steps, catch-up with its results file: {seconds:.1f} s "
+          f"(bar: < 60 s), file {size:.1f} MB, v0 {result.v0:.6g}; crawlsim plot: exit "
+          f"{plot.returncode} in {plot_seconds:.1f} s ({len(plot.stdout.split())} figures)")
+
+
+if __name__ == "__main__":
+    sys.exit(main())
