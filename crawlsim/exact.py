@@ -118,6 +118,9 @@ class EventStepper:
     where zeros have no closed form.
     """
 
+    #: A period must start in K(0) (`crawlsim.limit` projects a Newton candidate first).
+    needs_admissible_start = True
+
     def __init__(self, process: SweepingProcess, *, check_every_step: bool = False,
                  max_events: int = MAX_EVENTS, zeno_events: int = ZENO_EVENTS,
                  zeno_window: float = ZENO_WINDOW, cells_per_cycle: int = CELLS_PER_CYCLE):
@@ -142,6 +145,7 @@ class EventStepper:
             process.initial_positions, dtype=float)
         self.active = self.poly.empty
         self.period_index = 0
+        self._visited: list = []
         self._grid = process.cycles
         edges = self.pieces.edges
         self._edge_index = np.searchsorted(self._grid, edges)
@@ -154,6 +158,17 @@ class EventStepper:
             left = self.pieces.evaluate(edges[p], piece=p - 1)[0]
             right = self.pieces.evaluate(edges[p] if p < P else 0.0, piece=p % P)[0]
             self._jump[p] = np.max(np.abs(left - right)) > 100 * RTOL * self.poly.c_scale
+
+    def reset(self, w: np.ndarray, x: np.ndarray | None = None) -> None:
+        """Start the next period from the state ``w`` (positions ``x``, default zero), which
+        must lie in K(0) (the solver of `crawlsim.limit` projects it first)."""
+        self.w = np.array(w, dtype=float)
+        if self.x is not None:
+            self.x = np.zeros_like(self.x) if x is None else np.array(x, dtype=float)
+
+    def _visit(self, active) -> None:
+        if active.size and (not self._visited or self._visited[-1] is not active):
+            self._visited.append(active)
 
     # -- one period -------------------------------------------------------------------------
     def step_period(self) -> PeriodRecord:
@@ -174,6 +189,7 @@ class EventStepper:
         piece_index = 0
         edges = pieces.edges
         carried = 0.0  # the largest slip roundoff of the pieces since the last sampled point
+        self._visited = []
         while True:
             ev_t.append(u)
             ev_w.append(w)
@@ -181,6 +197,7 @@ class EventStepper:
             self._guard(len(ev_t), recent, u, start, forced)
             time = start + u * T
             self.active = self._decide(u, w, piece_index, forced, time)
+            self._visit(self.active)
             piece = self._piece(self.active, w, piece_index, u)
             u_end = edges[piece_index + 1]
             event = self._next_event(piece, piece_index, u, u_end)
@@ -211,6 +228,7 @@ class EventStepper:
                 proj = self.projector.project(w, target, time=start + u * T, warm=self.active)
                 w, lam_cum = proj.point, lam_cum + proj.multipliers
                 self.active = proj.active
+                self._visit(proj.active)
                 je = self._edge_index[edge]
                 W[je], LAMC[je] = w, lam_cum
             if edge == pieces.pieces:
@@ -230,7 +248,8 @@ class EventStepper:
         self.w = W[-1].copy()
         events = EventTrajectory(start + np.array(ev_t) * T, np.array(ev_w), x_events)
         record = PeriodRecord(self.period_index, start, W, multipliers, X,
-                              self.projector.clarabel_calls - calls0, events=events)
+                              self.projector.clarabel_calls - calls0, events=events,
+                              visited=tuple(self._visited))
         self.period_index += 1
         return record
 

@@ -57,6 +57,10 @@ class PeriodRecord:
     # The exact trajectory at event times, (t, w, x), from event-driven integrators
     # (`crawlsim.exact.EventTrajectory`); None for catch-up.
     events: tuple | None = None
+    # The active sets the period visited, in order (consecutive repeats and empty sets left
+    # out): the period map is affine near this start, with Jacobian the product of their
+    # projectors I - R_A B_A (`crawlsim.limit`).
+    visited: tuple = ()
 
     @property
     def slips(self) -> np.ndarray | None:
@@ -80,6 +84,18 @@ class CatchUpStepper:
             process.initial_positions, dtype=float)
         self.active = self.polyhedron.empty
         self.period_index = 0
+        self._visited: list = []
+
+    def reset(self, w: np.ndarray, x: np.ndarray | None = None) -> None:
+        """Start the next period from the state ``w`` (positions ``x``, default zero: only
+        their increments matter to the analysis), keeping the active set as a warm start."""
+        self.w = np.array(w, dtype=float)
+        if self.x is not None:
+            self.x = np.zeros_like(self.x) if x is None else np.array(x, dtype=float)
+
+    def _visit(self, active) -> None:
+        if active.size and (not self._visited or self._visited[-1] is not active):
+            self._visited.append(active)
 
     def step_period(self) -> PeriodRecord:
         """Advance by one period and return its record."""
@@ -90,6 +106,7 @@ class CatchUpStepper:
         LAM = np.zeros((G, m))
         W[0] = self.w
         calls0 = self.projector.clarabel_calls
+        self._visited = []
         j, block = 0, _FIRST_BLOCK
         while j < G:
             if self.check_every_step:
@@ -99,6 +116,8 @@ class CatchUpStepper:
             length = min(G - j, block)
             run = self.polyhedron.run(self.active, W[j], p.offsets[j + 1:j + 1 + length])
             k = run.accepted
+            if k:
+                self._visit(self.active)
             W[j + 1:j + 1 + k] = run.w[:k]
             LAM[j:j + k] = run.multipliers[:k]
             j += k
@@ -122,7 +141,8 @@ class CatchUpStepper:
             self.x = X[-1].copy()
         self.w = W[-1].copy()
         record = PeriodRecord(self.period_index, start, W, LAM, X,
-                              self.projector.clarabel_calls - calls0)
+                              self.projector.clarabel_calls - calls0,
+                              visited=tuple(self._visited))
         self.period_index += 1
         return record
 
@@ -133,4 +153,5 @@ class CatchUpStepper:
         W[j + 1] = proj.point
         LAM[j] = proj.multipliers
         self.active = proj.active
+        self._visit(proj.active)
 
