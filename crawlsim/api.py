@@ -29,5 +29,6 @@ def run(gait: Gait | ProcessSpec | str | Path, *, output=None, save_every: int =
         return simulate(process, **options)
     with ResultsWriter(output, process, save_every=save_every) as writer:
         result = simulate(process, sink=writer, **options)
-        writer.finish(result, gait.source_text, kind=gait.document.get("kind", "crawler"))
+        writer.finish(result, gait.source_text, kind=gait.document.get("kind", "crawler"),
+                      unchecked_uniqueness=getattr(gait, "uniqueness_unchecked", False))
     return result

@@ -6,7 +6,9 @@ Layout (format_version 1; the README documents it):
                                    periodic_from (-1 = null), contraction_rate (NaN = null),
                                    v0_error_estimate, displacement_per_period,
                                    dissipation_per_period, cost_of_transport, period,
-                                   steps_per_period, periods, save_every, gait_yaml, summary_json
+                                   steps_per_period, periods, save_every, gait_yaml, summary_json,
+                                   unchecked_uniqueness (1: the gait opted out of an exact
+                                   uniqueness check it was beyond; 0 otherwise)
     /trajectory/t           (n,)        time of each saved grid point (a dimension scale)
     /trajectory/w           (n, d)      state of the sweeping process
     /trajectory/x           (n, N)      block positions                      [crawlers]
@@ -40,7 +42,7 @@ import h5py
 import numpy as np
 
 from . import __version__
-from .atomic import atomic_path, publish, temporary_beside
+from .atomic import atomic_path, discard, publish, temporary_beside
 from .errors import ResultsFileError
 
 FORMAT_VERSION = 1
@@ -139,8 +141,11 @@ class ResultsWriter:
         self._reaction_carry = multipliers[ends[-1]:].sum(axis=0)
         return rows
 
-    def finish(self, result, gait_yaml: str, kind: str = "crawler"):
-        """Write the analysis, close, and atomically rename into place."""
+    def finish(self, result, gait_yaml: str, kind: str = "crawler", unchecked_uniqueness: bool = False):
+        """Write the analysis, close, and atomically rename into place.
+
+        ``unchecked_uniqueness`` records (as the root attribute of that name, 0 or 1) that the
+        gait opted out of an exact check of the uniqueness condition it was beyond."""
         f = self.file
         if "t" in self._sets:
             t = self._sets["t"]
@@ -184,6 +189,7 @@ class ResultsWriter:
         a["save_every"] = self.save_every
         a["gait_yaml"] = gait_yaml
         a["summary_json"] = json.dumps(result.summary())
+        a["unchecked_uniqueness"] = int(bool(unchecked_uniqueness))
         f.close()
         publish(self._tmp, self.path)
 
@@ -191,7 +197,7 @@ class ResultsWriter:
         try:
             self.file.close()
         finally:
-            self._tmp.unlink(missing_ok=True)
+            discard(self._tmp)
 
     def __enter__(self):
         return self

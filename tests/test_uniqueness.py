@@ -17,8 +17,8 @@ from hypothesis import strategies as st
 
 from crawlsim.errors import GaitError
 from crawlsim.gait import gait_from_document
-from crawlsim.signals import Constant, Cosine, Steps
-from crawlsim.uniqueness import TOLERANCE, UniquenessUndecidable, find_violation
+from crawlsim.signals import Constant, Cosine
+from crawlsim.uniqueness import UniquenessUndecidable, find_violation
 
 
 def wave(n, forward=1.0, backward=2.0, **simulation):

@@ -18,9 +18,10 @@ from pathlib import Path
 import click
 
 from .. import __version__
-from ..errors import CrawlsimError, GaitError, ResultsFileError
+from ..errors import CrawlsimError, InputError
 from ..gait import load_gait, with_simulation
 from ..stepping import STEPPERS
+from .guards import FiniteFloatRange
 
 EXIT_NOT_CONVERGED = 3
 
@@ -45,19 +46,19 @@ def library_errors():
     """Library errors become click errors: bad input is exit 2, everything else exit 1."""
     try:
         yield
-    except (GaitError, ResultsFileError) as exc:
+    except InputError as exc:
         raise BadInput(str(exc)) from None
     except CrawlsimError as exc:
         raise InternalFailure(str(exc)) from None
 
 
-def _output_path(output, gait_file) -> Path:
+def _output_path(output, gait_file, force: bool = False) -> Path:
+    """The results file of a run, refused (`crawlsim.outputs.check_target`) when it may not be
+    replaced."""
+    from ..outputs import RUN, check_target
+
     out = Path(output) if output else Path(Path(gait_file).stem + ".h5")
-    if not out.resolve().parent.is_dir():
-        raise BadInput(f"--output {out}: the folder {out.resolve().parent} does not exist")
-    if out.is_dir():
-        raise BadInput(f"--output {out}: is a folder; give a file name such as run.h5")
-    return out
+    return check_target(out, RUN, inputs=[gait_file], force=force)
 
 
 def to_json(summary: dict) -> str:
@@ -90,7 +91,7 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
 
 def simulation_options(f):
     """Options that override the gait file's ``simulation`` mapping."""
-    f = click.option("--tolerance", type=click.FloatRange(min=0, min_open=True),
+    f = click.option("--tolerance", type=FiniteFloatRange(min=0, min_open=True),
                      help="Stop when the Poincare step is at most this, relative to |w| "
                           "(default from the gait file, else 1e-12).")(f)
     f = click.option("--max-periods", type=click.IntRange(min=1),
@@ -142,4 +143,4 @@ def period_progress(max_periods: int, enabled: bool):
 
 
 # Each command module attaches itself to `main`.
-from . import merge, plot, run, velocity  # noqa: E402,F401
+from . import merge, plot, run, validate, velocity  # noqa: E402,F401

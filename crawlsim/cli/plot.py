@@ -7,6 +7,7 @@ import click
 from ..errors import CrawlsimError
 from ..plotting import FIGURE_NAMES
 from . import BadInput, library_errors, main
+from .guards import force_option
 
 
 def _coords(ctx, param, value):
@@ -31,7 +32,8 @@ def _coords(ctx, param, value):
 @click.option("--coords", default="1,2", show_default=True, callback=_coords,
               help="Shape coordinates i,j of the shape-space figure when there are more than "
                    "two (four or more blocks): it shows sections of K(t) in that plane.")
-def plot(results_file, output_dir, fmt, only, coords):
+@force_option
+def plot(results_file, output_dir, fmt, only, coords, force):
     """Draw the figures of RESULTS_FILE as <stem>-<figure>.<format>.
 
     \b
@@ -46,9 +48,17 @@ def plot(results_file, output_dir, fmt, only, coords):
       crawlsim plot run.h5 -o figures --format pdf
       crawlsim plot peristalsis-4.h5 --only shape-space --coords 1,3
     """
+    from pathlib import Path
+
+    from ..outputs import FIGURE, check_target
     from ..plotting import plot_results
 
     with library_errors():
+        folder = Path(output_dir) if output_dir else Path(results_file).parent
+        if folder.is_dir():
+            for name in [only] if only else FIGURE_NAMES:
+                check_target(folder / f"{Path(results_file).stem}-{name}.{fmt}", FIGURE,
+                             inputs=[results_file], force=force, option="--output-dir")
         try:
             written = plot_results(results_file, output_dir, fmt=fmt, only=only, coords=coords)
         except ValueError as exc:

@@ -18,6 +18,7 @@ from . import (
     simulation_options,
     to_json,
 )
+from .guards import check_memory, force_option, max_memory_option, warn_unchecked
 
 
 @main.command()
@@ -32,8 +33,10 @@ from . import (
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 @click.option("--plot", is_flag=True,
               help="Also draw the figures next to the results file (<stem>-<figure>.png).")
+@max_memory_option
+@force_option
 def run(gait_file, output, steps_per_period, max_periods, tolerance, save_every,
-        check_every_step, as_json, plot):
+        check_every_step, as_json, plot, max_memory, force):
     """Simulate GAIT_FILE to its periodic regime; report v0 and write an HDF5 file.
 
     \b
@@ -44,7 +47,16 @@ def run(gait_file, output, steps_per_period, max_periods, tolerance, save_every,
     """
     with library_errors():
         gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance)
-        out = _output_path(output, gait_file)
+        check_memory(gait, max_memory, save_every=save_every)
+        out = _output_path(output, gait_file, force)
+        if plot:
+            from ..outputs import FIGURE, check_target
+            from ..plotting import FIGURE_NAMES
+
+            for name in FIGURE_NAMES:
+                check_target(out.parent / f"{out.stem}-{name}.png", FIGURE, inputs=[gait_file],
+                             force=force, option="--plot")
+        warn_unchecked(gait)
         with period_progress(gait.simulation.max_periods, not as_json) as progress:
             result = api.run(gait, output=out, save_every=save_every,
                              check_every_step=check_every_step, progress=progress)

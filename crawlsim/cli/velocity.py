@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import sys
 from contextlib import contextmanager
-from pathlib import Path
 
 import click
 
@@ -19,6 +18,7 @@ from . import (
     simulation_options,
     to_json,
 )
+from .guards import check_memory, force_option, max_memory_option, warn_unchecked
 
 
 @contextmanager
@@ -40,10 +40,34 @@ def _shard(ctx, param, value):
         return sweeps.parse_shard(value)
 
 
-def _folder_of(path, option):
-    if path is not None and not Path(path).resolve().parent.is_dir():
-        raise BadInput(f"{option} {path}: the folder {Path(path).resolve().parent} does not "
-                       "exist")
+def _check_sweep_memory(gait, axes, points, jobs, scheduler, max_memory):
+    """The largest point of the grid (most blocks, most steps), in a batch as large as the
+    sweep's chunks, once per local worker."""
+    largest = {}
+    for axis in axes:
+        if axis.path in ("blocks", "simulation.steps_per_period"):
+            largest[axis.path] = int(max(axis.values))
+    batch = min(points, sweeps.MAX_CHUNK)
+    check_memory(gait, max_memory, batch=batch,
+                 steps_per_period=largest.get("simulation.steps_per_period"),
+                 blocks=largest.get("blocks"),
+                 what=f"this sweep ({'one worker' if scheduler else f'{jobs} worker(s)'} with "
+                      f"batches of {batch} points)")
+    if not scheduler and jobs > 1:
+        from ..resources import default_limit, gait_memory
+
+        limit = default_limit() if max_memory is None else max_memory
+        each = gait_memory(gait, batch=batch, blocks=largest.get("blocks"),
+                           steps_per_period=largest.get("simulation.steps_per_period"))
+        if jobs * each.total > limit:
+            from ..errors import ResourceError
+            from ..resources import format_size
+
+            raise ResourceError(gait.source, "", f"{jobs} local workers would need about "
+                                                 f"{format_size(jobs * each.total)} together "
+                                                 f"({each.describe()} each), more than the memory "
+                                                 f"limit of {format_size(limit)} (--max-memory); "
+                                                 "use fewer --jobs")
 
 
 @main.command()
@@ -66,8 +90,10 @@ def _folder_of(path, option):
 @click.option("--plot", "plot_file", type=click.Path(dir_okay=False),
               help="Draw v0 against one swept path, or a heat map over two (PNG).")
 @simulation_options
+@max_memory_option
+@force_option
 def velocity(gait_file, as_json, sweep_specs, output, jobs, shard, scheduler, plot_file,
-             steps_per_period, max_periods, tolerance):
+             steps_per_period, max_periods, tolerance, max_memory, force):
     """Print v0 of GAIT_FILE, or sweep gait parameters and tabulate v0.
 
     Without --sweep, prints v0 alone on one line (exit code 3 if the run did not converge).
@@ -86,14 +112,19 @@ def velocity(gait_file, as_json, sweep_specs, output, jobs, shard, scheduler, pl
       crawlsim velocity gaits/peristalsis-4.yaml --sweep period=0.5:2:16 \\
           --shard 3/8 -o part-3.h5 && crawlsim merge part-*.h5 -o all.h5
     """
-    _folder_of(output, "--output")
-    _folder_of(plot_file, "--plot")
     with library_errors():
+        from ..outputs import FIGURE, SWEEP, check_target
+
+        for path, kind, option in ((output, SWEEP, "--output"), (plot_file, FIGURE, "--plot")):
+            if path is not None:
+                check_target(path, kind, inputs=[gait_file], force=force, option=option)
         gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance)
+        warn_unchecked(gait)
         if not sweep_specs:
             if shard or plot_file:
                 raise BadInput("--shard and --plot need at least one --sweep PATH=SPEC")
             if output is None:
+                check_memory(gait, max_memory)
                 result = api.run(gait)
                 click.echo(to_json(result.summary()) if as_json else repr(result.v0))
                 if not result.converged:
@@ -109,6 +140,7 @@ def velocity(gait_file, as_json, sweep_specs, output, jobs, shard, scheduler, pl
             raise BadInput(f"--plot draws one or two swept paths, got {len(axes)}")
         grid = sweeps.make_grid(gait, axes)
         total = len(grid.indices(shard))
+        _check_sweep_memory(gait, axes, total, jobs, scheduler, max_memory)
         with _point_progress(total) as progress:
             table = sweeps.sweep(gait, axes, output=output, jobs=jobs, shard=shard,
                                  scheduler=scheduler, progress=progress)
