@@ -15,7 +15,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from tests.test_hostile import corpus, run_hostile, run_limited  # noqa: E402
+from tests.test_hostile import corpus, run_hostile, run_limited
 
 VALID = """\
 blocks: 2
