@@ -151,7 +151,8 @@ def _execute(spec: Spec, target: Any, *, save_every: int, check_every_step: bool
                                 integrator=s.integrator, check_every_step=check_every_step,
                                 sink=writer, progress=progress)
         result = _extend(run, units=spec.units, provenance=record)
-        writer.finish(result, record, kind=kind)
+        writer.finish(result, record, kind=kind,
+                      unchecked_uniqueness=getattr(spec, "uniqueness_unchecked", False))
     return result
 
 

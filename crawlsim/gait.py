@@ -1,13 +1,19 @@
-"""Gait files: the YAML description of a crawler and its periodic actuation (MODEL.md §1).
+"""Gait files: the YAML description of a crawler and its periodic actuation (docs/model.md §1).
 
-A gait is validated completely before anything is computed. jsonschema checks structure and
-types; the semantic checks that follow each refuse something the model cannot handle, and say
-why: non-positive friction (MODEL.md §1: mu > 0), an initial state outside the admissible set
-C(0) (MODEL.md §1), and friction coefficients that violate the uniqueness condition
-(MODEL.md §3), under which the model does not determine how the crawler moves.
+A gait is validated completely before anything is computed. The file is read safely
+(`crawlsim.yamlsafe`: a size limit, bounded YAML); jsonschema checks structure, types and
+bounds (the schemas state every bound and why); the semantic checks that follow each refuse
+something the model cannot handle, and say why: non-positive friction (docs/model.md §1:
+mu > 0), stiffness ratios too wide for a certified step in double precision, an initial state
+outside the admissible set C(0) (docs/model.md §1), and friction coefficients that violate the
+uniqueness condition (docs/model.md §3; decided exactly by `crawlsim.uniqueness`), under which
+the model does not determine how the crawler moves.
+
+`validation_errors` lists every error of a file instead of stopping at the first
+(``crawlsim validate``).
 
 Documents are dispatched on their `kind` key (`_KINDS`): `crawler` (the default) builds a `Gait`,
-`sweeping-process` a `ProcessSpec`, a generic polyhedral sweeping process of MODEL.md §5. A
+`sweeping-process` a `ProcessSpec`, a generic polyhedral sweeping process of docs/model.md §5. A
 process is refused when its dimensions do not match, when C(t) is empty at a time the run steps
 on, when C(t) is unbounded (the paper's theorem needs a compact set; `allow_unbounded: true`
 accepts it), when the metric is not symmetric positive definite, or when the initial point is
@@ -19,7 +25,6 @@ from __future__ import annotations
 import copy
 import dataclasses
 import difflib
-import re
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,25 +36,25 @@ import yaml
 
 from crawlsim.errors import GaitError
 from crawlsim.signals import (
-    JUMP_TOLERANCE,
+    LARGEST,
     SIGNAL_SCHEMA,
     Constant,
     Signal,
     check_finite,
     check_schema,
     evaluate_many,
+    finite_errors,
     parse_signal,
+    schema_errors,
     union_breakpoints,
+    without_signals,
 )
+from crawlsim.uniqueness import UniquenessUndecidable, find_violation
 from crawlsim.units import UNITS_SCHEMA, Units
+from crawlsim.yamlsafe import load_yaml, read_limited
 
 ROUNDOFF = 1e-12
-"""Relative tolerance of the admissibility and uniqueness checks: roundoff, not a modelling slack."""
-
-MAX_UNIQUENESS_BLOCKS = 20
-"""Above this many blocks the 2^N subsets of the uniqueness condition are not enumerated."""
-
-_SUBSET_CHUNK_ENTRIES = 1 << 22
+"""Relative tolerance of the admissibility checks: roundoff, not a modelling slack."""
 
 
 @dataclass(frozen=True)
@@ -60,6 +65,7 @@ class Simulation:
     max_periods: int = 1000
     tolerance: float = 1e-12
     integrator: str = "catch-up"
+    unchecked_uniqueness: bool = False  # run even where uniqueness is beyond an exact check
 
 
 @dataclass(frozen=True, eq=False)
@@ -80,6 +86,9 @@ class Gait:
     initial_positions: np.ndarray
     simulation: Simulation
     units: Units = Units()
+    #: True when the uniqueness condition could not be checked exactly and the file opted in
+    #: (``simulation: {unchecked_uniqueness: true}``); runs warn and record it.
+    uniqueness_unchecked: bool = False
 
     def replace(self, *changes: Any) -> Gait:
         """A new validated gait with values set at dotted paths, the syntax of ``--sweep``:
@@ -109,12 +118,42 @@ class Gait:
         return evaluate_many(self.backward, np.ravel(np.asarray(t, dtype=float)) / self.period)
 
 
-def _positive(what: str) -> dict:
-    return {"type": "number", "exclusiveMinimum": 0, "x-expected": f"a positive number ({what})"}
+MAX_BLOCKS = 100_000
+"""Most blocks in a crawler. A step costs O(N) once the kernel uses the crawler's structure, but
+every period tabulates (steps per period) x 2N numbers; the memory estimate decides the rest."""
+
+MAX_STEPS_PER_PERIOD = 100_000_000
+"""Most uniform steps per period: a period's grid alone is then 0.8 GB per tabulated column."""
+
+MAX_PERIODS = 1_000_000
+"""Most periods of one run. With the largest step count, max_periods x steps_per_period stays
+below 2^52 / 16, so every time of a run resolves its step."""
+
+MIN_PERIOD, MAX_PERIOD = 1e-9, 1e9
+"""Bounds of the period T. The model is rate-independent (docs/model.md §4): T only rescales
+time, so these lose nothing, and within them every time of a run (up to max_periods x T) and
+every rate (up to amplitude x 2 pi x harmonics / T) is far from overflow and resolves a step."""
+
+STIFFNESS_CONDITION_LIMIT = 1e12
+"""Largest estimated condition number (k_max / k_min) N^2 of the active-set Gram matrices
+G_A = B_A K B_A^T. Beyond it an exact step cannot be certified in double precision: the
+multipliers (the slips) would carry errors far above the certificates' roundoff tolerance."""
 
 
-def _count(what: str) -> dict:
-    return {"type": "integer", "minimum": 1, "x-expected": f"an integer >= 1 ({what})"}
+def _positive(what: str, description: str = "") -> dict:
+    return {"type": "number", "exclusiveMinimum": 0, "maximum": LARGEST,
+            "x-expected": f"a positive number ({what})",
+            **({"description": description} if description else {})}
+
+
+def _count(what: str, most: int, description: str) -> dict:
+    return {"type": "integer", "minimum": 1, "maximum": most,
+            "x-expected": f"an integer from 1 to {most:,} ({what})", "description": description}
+
+
+def _list(most: int, what: str, items: Any) -> dict:
+    # maxItems before items: a refused huge list is refused before its items are validated
+    return {"type": "array", "maxItems": most, "x-expected": what, "items": items}
 
 
 SIMULATION_SCHEMA: dict = {
@@ -122,10 +161,20 @@ SIMULATION_SCHEMA: dict = {
     "x-expected": "a mapping of simulation settings",
     "additionalProperties": False,
     "properties": {
-        "steps_per_period": _count("time steps per period"),
-        "max_periods": _count("the most periods to simulate"),
-        "tolerance": _positive("the convergence tolerance"),
+        "steps_per_period": _count("time steps per period", MAX_STEPS_PER_PERIOD,
+                                   "Uniform catch-up steps per period (the breakpoints are added). "
+                                   "Memory grows with it; the run estimates it before starting."),
+        "max_periods": _count("the most periods to simulate", MAX_PERIODS,
+                              "Give up after this many periods."),
+        "tolerance": _positive("the convergence tolerance",
+                               "Stop when the Poincare step is at most this, relative to |w|."),
         "integrator": {"enum": ["catch-up", "exact"]},
+        "unchecked_uniqueness": {
+            "type": "boolean", "x-expected": "true or false",
+            "description": "Run a crawler whose friction is beyond an exact check of the uniqueness "
+                           "condition (docs/model.md §3) instead of refusing it. The condition is "
+                           "still checked where it can be; the run warns and its results file "
+                           "records unchecked_uniqueness = 1."},
     },
 }
 
@@ -147,20 +196,31 @@ CRAWLER_SCHEMA: dict = {
         "kind": {"enum": ["crawler"]},
         "name": {"type": "string"},
         "description": {"type": "string"},
-        "blocks": {"type": "integer", "minimum": 2, "x-expected": "an integer >= 2 (the number of blocks N)"},
-        "period": _positive("the period T of the gait"),
+        "blocks": {"type": "integer", "minimum": 2, "maximum": MAX_BLOCKS,
+                   "x-expected": f"an integer from 2 to {MAX_BLOCKS:,} (the number of blocks N)",
+                   "description": "N, the number of blocks."},
+        "period": {**_positive("the period T of the gait"), "minimum": MIN_PERIOD,
+                   "maximum": MAX_PERIOD,
+                   "x-expected": f"a positive number from {MIN_PERIOD:g} to {MAX_PERIOD:g} (the period T)",
+                   "description": "T, the period of the gait. The model is rate-independent, so T "
+                                  "only rescales time; within [1e-9, 1e9] every time and rate of "
+                                  "a run is representable to a step's resolution."},
         "stiffness": {
             "type": ["number", "array"],
             "x-expected": "a positive number or a list of N-1 positive numbers (spring stiffness k > 0)",
             "exclusiveMinimum": 0,
+            "maximum": LARGEST,
+            "maxItems": MAX_BLOCKS - 1,
             "items": _positive("the spring stiffness k > 0 of one link"),
+            "description": "k, one value for every link or one per link. The ratio k_max / k_min "
+                           "times N^2 estimates the conditioning of a step and must stay below 1e12.",
         },
-        "links": {"type": "array", "x-expected": "a list of N-1 signals (actuator lengths)",
-                  "items": SIGNAL_SCHEMA},
+        "links": _list(MAX_BLOCKS - 1, "a list of N-1 signals (actuator lengths)", SIGNAL_SCHEMA),
         "friction": {
             **_FRICTION_MAPPING,
             "type": ["object", "array"],
             "x-expected": "a mapping {forward: mu+, backward: mu-} or a list of N such mappings",
+            "maxItems": MAX_BLOCKS,
             "items": _FRICTION_MAPPING,
         },
         "initial": {
@@ -168,8 +228,8 @@ CRAWLER_SCHEMA: dict = {
             "x-expected": "a mapping {positions: [...]}",
             "required": ["positions"],
             "additionalProperties": False,
-            "properties": {"positions": {"type": "array", "x-expected": "a list of N numbers",
-                                         "items": {"type": "number", "x-expected": "a number"}}},
+            "properties": {"positions": _list(MAX_BLOCKS, "a list of N numbers",
+                                              {"type": "number", "x-expected": "a number"})},
         },
         "simulation": SIMULATION_SCHEMA,
         "units": UNITS_SCHEMA,
@@ -178,50 +238,19 @@ CRAWLER_SCHEMA: dict = {
 """JSON Schema (Draft 2020-12) of a crawler gait document."""
 
 
-class _Loader(yaml.SafeLoader):
-    """Safe YAML that also reads 1e-3 as a float (YAML 1.2) and refuses duplicate keys."""
-
-    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict:
-        seen: set = set()
-        for key_node, _ in node.value:
-            key = self.construct_object(key_node, deep=True)
-            if key in seen:
-                raise yaml.constructor.ConstructorError(
-                    None, None, f"duplicate key {key!r}", key_node.start_mark)
-            seen.add(key)
-        return super().construct_mapping(node, deep=deep)
-
-
-_Loader.yaml_implicit_resolvers = {k: list(v) for k, v in yaml.SafeLoader.yaml_implicit_resolvers.items()}
-_Loader.add_implicit_resolver(
-    "tag:yaml.org,2002:float",
-    re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
-    list("-+0123456789"),
-)
-
-
 def load_gait(path: str | Path) -> Gait | ProcessSpec:
-    """Read and validate a gait file; the name defaults to the file's stem."""
-    source = str(path)
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise GaitError(source, "", "no such gait file") from None
-    except (OSError, UnicodeDecodeError) as error:
-        raise GaitError(source, "", f"cannot read the gait file: {error}") from None
-    return parse_gait(text, source=source, default_name=Path(path).stem)
+    """Read and validate a gait file; the name defaults to the file's stem.
+
+    The file is read by `crawlsim.yamlsafe`: at most `MAX_GAIT_BYTES`, devices refused, YAML
+    depth and alias expansion bounded.
+    """
+    text = read_limited(path)
+    return parse_gait(text, source=str(path), default_name=Path(path).stem)
 
 
 def parse_gait(text: str, source: str = "<string>", default_name: str = "gait") -> Gait | ProcessSpec:
     """Parse and validate gait YAML; syntax errors are reported with line and column."""
-    try:
-        document = yaml.load(text, Loader=_Loader)
-    except yaml.MarkedYAMLError as error:
-        mark = error.problem_mark
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        raise GaitError(source, "", f"YAML syntax error{where}: {error.problem}") from None
-    except yaml.YAMLError as error:
-        raise GaitError(source, "", f"YAML syntax error: {error}") from None
+    document = load_yaml(text, source)
     return gait_from_document(document, source, source_text=text, default_name=default_name)
 
 
@@ -234,14 +263,17 @@ def _plain(value: Any) -> Any:
     if isinstance(value, dict):
         return {key: _plain(item) for key, item in value.items()}
     if isinstance(value, (list, tuple)):
+        if all(type(item) in _SCALARS for item in value):
+            return list(value)  # a list of numbers (the common long list) needs no deeper copy
         return [_plain(item) for item in value]
     return copy.deepcopy(value)
 
 
-def gait_from_document(doc: dict, source: str, source_text: str | None = None,
-                       default_name: str = "gait") -> Gait | ProcessSpec:
-    """Validate a parsed document (for instance one edited by a parameter sweep) into a Gait,
-    or a ProcessSpec for ``kind: sweeping-process``."""
+_SCALARS = frozenset({float, int, str, bool, type(None)})
+
+
+def _prepare(doc: Any, source: str) -> tuple[dict, dict, Callable[..., Any]]:
+    """A plain copy of the document, and its kind's schema and builder."""
     if doc is None:
         raise GaitError(source, "", "the document is empty; expected a gait mapping")
     document = _plain(doc)
@@ -253,11 +285,132 @@ def gait_from_document(doc: dict, source: str, source_text: str | None = None,
         hint = f"; did you mean {close[0]!r}?" if close else ""
         raise GaitError(source, "kind", f"expected one of {', '.join(map(repr, _KINDS))}, got {kind!r}{hint}")
     schema, build = _KINDS[kind]
-    check_schema(document, schema, source)
+    return document, schema, build
+
+
+def _structure(schema: dict) -> dict:
+    """The schema with every signal accepted as is: signals are validated one by one (and only
+    once each) by `parse_signal`, which keeps a document of 10^5 links fast to check."""
+    skeleton = _SKELETONS.get(id(schema))
+    if skeleton is None:
+        skeleton = _SKELETONS[id(schema)] = without_signals(schema)
+    return skeleton
+
+
+_SKELETONS: dict[int, dict] = {}
+
+
+def gait_from_document(doc: dict, source: str, source_text: str | None = None,
+                       default_name: str = "gait") -> Gait | ProcessSpec:
+    """Validate a parsed document (for instance one edited by a parameter sweep) into a Gait,
+    or a ProcessSpec for ``kind: sweeping-process``."""
+    document, schema, build = _prepare(doc, source)
     check_finite(document, source)
+    check_schema(document, _structure(schema), source)
     if source_text is None:
         source_text = yaml.safe_dump(document, sort_keys=False)
-    return build(document, source, source_text, default_name)
+    return build(document, source, source_text, default_name, _Errors())
+
+
+def validation_errors(path: str | Path) -> list[GaitError]:
+    """Every error of a gait file, in document order (empty when the file is valid).
+
+    Structure, types and bounds are all listed (jsonschema's iter_errors, and every signal
+    checked on its own); the semantic checks then run as far as the structure allows, each
+    check that can run on its own listing its error.
+    """
+    source = str(path)
+    try:
+        text = read_limited(path)
+        document = load_yaml(text, source)
+    except GaitError as error:
+        return [error]
+    return document_errors(document, source, text, Path(path).stem)
+
+
+def document_errors(doc: Any, source: str, source_text: str | None = None,
+                    default_name: str = "gait") -> list[GaitError]:
+    """Every error of a parsed document (see `validation_errors`)."""
+    try:
+        document, schema, build = _prepare(doc, source)
+    except GaitError as error:
+        return [error]
+    errors = finite_errors(document, source)
+    reported = {e.keypath for e in errors}
+    errors += [e for e in schema_errors(document, _structure(schema), source)
+               if e.keypath not in reported]
+    for keypath, value in _signal_slots(document):
+        found = [e for e in schema_errors(value, SIGNAL_SCHEMA, source, keypath)
+                 if e.keypath not in reported]
+        if not found and not any(e.keypath.startswith(keypath) for e in errors):
+            try:
+                parse_signal(value, keypath, source)
+            except GaitError as error:
+                found = [error]
+        errors += found
+    if errors:
+        return _distinct(errors)
+    collected = _Errors(collect=True)
+    try:
+        build(document, source, source_text or yaml.safe_dump(document, sort_keys=False),
+              default_name, collected)
+    except GaitError as error:  # a check whose failure stops the others
+        collected.found.append(error)
+    return _distinct(collected.found)
+
+
+def _distinct(errors: list[GaitError]) -> list[GaitError]:
+    seen: set[str] = set()
+    out = []
+    for error in errors:
+        if str(error) not in seen:
+            seen.add(str(error))
+            out.append(error)
+    return out
+
+
+def _signal_slots(document: dict):
+    """(key path, value) of every place a signal goes, where the structure around it is right."""
+    def items(key):
+        value = document.get(key)
+        return enumerate(value) if isinstance(value, list) else ()
+
+    if document.get("kind", "crawler") == "sweeping-process":
+        for i, value in items("offsets"):
+            yield f"offsets[{i}]", value
+        return
+    for i, value in items("links"):
+        yield f"links[{i}]", value
+    friction = document.get("friction")
+    entries = [("friction", friction)] if isinstance(friction, dict) else [
+        (f"friction[{j}]", f) for j, f in items("friction")]
+    for path, entry in entries:
+        if isinstance(entry, dict):
+            for direction in ("forward", "backward"):
+                if direction in entry:
+                    yield f"{path}.{direction}", entry[direction]
+
+
+class _Errors:
+    """Where a builder's checks report: by default the first error is raised; with
+    ``collect=True`` each is recorded and the checks that do not depend on it go on."""
+
+    def __init__(self, collect: bool = False):
+        self.collect = collect
+        self.found: list[GaitError] = []
+
+    def add(self, error: GaitError) -> None:
+        if not self.collect:
+            raise error
+        self.found.append(error)
+
+    def attempt(self, check: Callable[..., Any], *args: Any) -> Any:
+        """``check(*args)``, or None after reporting its GaitError."""
+        try:
+            return check(*args)
+        except GaitError as error:
+            self.add(error)
+            return None
 
 
 def _readonly(array: np.ndarray) -> np.ndarray:
@@ -269,63 +422,130 @@ def _count_error(source: str, keypath: str, expected: int, what: str, got: int) 
     return GaitError(source, keypath, f"expected {expected} {what}, got {got}")
 
 
-def _friction_signals(document: dict, n: int, source: str) -> tuple[list[Signal], list[Signal], list[str]]:
+def _signals(values: list, keypath: str, source: str, errors: _Errors) -> list[Signal] | None:
+    """Each value parsed as a signal at ``keypath[i]``; None if any is invalid (each reported)."""
+    parsed = [errors.attempt(parse_signal, value, f"{keypath}[{i}]", source)
+              for i, value in enumerate(values)]
+    return None if any(p is None for p in parsed) else parsed
+
+
+def _friction_signals(document: dict, n: int, source: str, errors: _Errors
+                      ) -> tuple[list[Signal], list[Signal], list[str]] | None:
     """mu^+ and mu^- per block and, per block, the key path prefix to blame."""
     friction = document["friction"]
     if isinstance(friction, dict):
-        shared_forward = parse_signal(friction["forward"], "friction.forward", source)
-        shared_backward = parse_signal(friction["backward"], "friction.backward", source)
+        shared_forward = errors.attempt(parse_signal, friction["forward"], "friction.forward", source)
+        shared_backward = errors.attempt(parse_signal, friction["backward"], "friction.backward", source)
+        if shared_forward is None or shared_backward is None:
+            return None
         return [shared_forward] * n, [shared_backward] * n, ["friction"] * n
     if len(friction) != n:
-        raise _count_error(source, "friction", n, "friction mappings (one per block)", len(friction))
+        errors.add(_count_error(source, "friction", n, "friction mappings (one per block)", len(friction)))
+        return None
     paths = [f"friction[{j}]" for j in range(n)]
-    forward = [parse_signal(f["forward"], f"{p}.forward", source) for f, p in zip(friction, paths)]
-    backward = [parse_signal(f["backward"], f"{p}.backward", source) for f, p in zip(friction, paths)]
+    forward = [errors.attempt(parse_signal, f["forward"], f"{p}.forward", source)
+               for f, p in zip(friction, paths)]
+    backward = [errors.attempt(parse_signal, f["backward"], f"{p}.backward", source)
+                for f, p in zip(friction, paths)]
+    if any(s is None for s in forward + backward):
+        return None
     return forward, backward, paths
 
 
 def _check_friction_positive(signals: list[Signal], paths: list[str], direction: str,
-                             period: float, source: str) -> None:
+                             period: float, source: str, errors: _Errors) -> bool:
+    minima: dict[Signal, tuple[float, float]] = {}
+    checked: set[tuple[Signal, str]] = set()
+    ok = True
     for signal, path in zip(signals, paths):
-        value, at = signal.minimum()
+        if (signal, path) in checked:  # shared friction: one signal, one key path
+            continue
+        checked.add((signal, path))
+        if signal not in minima:
+            minima[signal] = signal.minimum()
+        value, at = minima[signal]
         if not value > 0:
-            raise GaitError(source, f"{path}.{direction}",
-                            f"friction must be positive (mu > 0: a block at rest must resist sliding "
-                            f"both ways, MODEL.md §1), but its minimum is {value:g} at t = {at:g} T"
-                            + (f" = {at * period:g}" if period != 1.0 else ""))
+            ok = False
+            errors.add(GaitError(source, f"{path}.{direction}",
+                                 f"friction must be positive (mu > 0: a block at rest must resist "
+                                 f"sliding both ways, docs/model.md §1), but its minimum is {value:g} "
+                                 f"at t = {at:g} T" + (f" = {at * period:g}" if period != 1.0 else "")))
+    return ok
 
 
-def _build_crawler(document: dict, source: str, source_text: str, default_name: str) -> Gait:
-    n = int(document["blocks"])
-    period = float(document["period"])
+def stiffness_condition(stiffness: np.ndarray) -> float:
+    """Estimated condition number (k_max / k_min) N^2 of the active-set Gram matrices.
 
+    G_A = B_A K B_A^T with B = [D^T; -D^T]: its eigenvalues lie between k_min times those of
+    B_A B_A^T and k_max times them, and those of D D^T (the path Laplacian of N blocks) span
+    4 sin^2(pi/2N) ~ (pi/N)^2 to 4, so cond(G_A) <= (k_max / k_min) (2N/pi)^2 < (k_max/k_min) N^2.
+    """
+    k = np.asarray(stiffness, dtype=float)
+    return float(np.max(k) / np.min(k)) * float(len(k) + 1) ** 2
+
+
+def _check_stiffness(k: np.ndarray, source: str) -> None:
+    estimate = stiffness_condition(k)
+    if estimate > STIFFNESS_CONDITION_LIMIT:
+        ratio = float(np.max(k) / np.min(k))
+        raise GaitError(source, "stiffness",
+                        f"the stiffness ratio k_max / k_min = {ratio:.3g} is too wide for "
+                        f"N = {len(k) + 1} blocks: a step's Gram matrices would have an estimated "
+                        f"condition number (k_max / k_min) N^2 = {estimate:.3g}, above the "
+                        f"{STIFFNESS_CONDITION_LIMIT:g} at which a step can still be certified in "
+                        "double precision (docs/model.md §3). Narrow the range of the stiffnesses "
+                        "(only their ratio matters for conditioning).")
+
+
+def _stiffness(document: dict, n: int, source: str) -> np.ndarray:
     stiffness = document["stiffness"]
     if isinstance(stiffness, list):
         if len(stiffness) != n - 1:
             raise _count_error(source, "stiffness", n - 1, "stiffness values (one per link)", len(stiffness))
-        k = np.array(stiffness, dtype=float)
-    else:
-        k = np.full(n - 1, float(stiffness))
+        return np.array(stiffness, dtype=float)
+    return np.full(n - 1, float(stiffness))
 
+
+def _build_crawler(document: dict, source: str, source_text: str, default_name: str,
+                   errors: _Errors) -> Gait | None:
+    n = int(document["blocks"])
+    period = float(document["period"])
+
+    k = errors.attempt(_stiffness, document, n, source)
+    links = None
     if len(document["links"]) != n - 1:
-        raise _count_error(source, "links", n - 1, "link signals (one per link, N-1)", len(document["links"]))
-    links = tuple(parse_signal(s, f"links[{i}]", source) for i, s in enumerate(document["links"]))
+        errors.add(_count_error(source, "links", n - 1, "link signals (one per link, N-1)",
+                                len(document["links"])))
+    else:
+        parsed = _signals(document["links"], "links", source, errors)
+        links = None if parsed is None else tuple(parsed)
 
-    forward, backward, paths = _friction_signals(document, n, source)
-    _check_friction_positive(forward, paths, "forward", period, source)
-    _check_friction_positive(backward, paths, "backward", period, source)
+    friction = _friction_signals(document, n, source, errors)
+    positive = friction is not None
+    if friction is not None:
+        forward, backward, paths = friction
+        positive &= _check_friction_positive(forward, paths, "forward", period, source, errors)
+        positive &= _check_friction_positive(backward, paths, "backward", period, source, errors)
+    if k is not None:
+        errors.attempt(_check_stiffness, k, source)
 
     simulation = Simulation(**{key: _SIMULATION_TYPES[key](value)
                                for key, value in document.get("simulation", {}).items()})
 
+    positions = None
     if "initial" in document:
-        positions = np.array(document["initial"]["positions"], dtype=float)
-        if positions.shape != (n,):
-            raise _count_error(source, "initial.positions", n, "positions (one per block)", positions.size)
-    else:
+        given = np.array(document["initial"]["positions"], dtype=float)
+        if given.shape != (n,):
+            errors.add(_count_error(source, "initial.positions", n, "positions (one per block)", given.size))
+        else:
+            positions = given
+    elif links is not None:
         lengths = evaluate_many(links, np.zeros(1))[0]
         positions = np.concatenate([[0.0], np.cumsum(lengths)])
 
+    if errors.found or k is None or links is None or friction is None or positions is None:
+        return None
+    forward, backward, _ = friction
     gait = Gait(
         name=document.get("name", default_name),
         description=document.get("description", ""),
@@ -344,11 +564,24 @@ def _build_crawler(document: dict, source: str, source_text: str, default_name: 
     )
     problem = admissibility_violation(gait, positions)
     if problem is not None:
-        raise GaitError(source, "initial.positions", problem)
-    problem = uniqueness_violation(gait)
-    if problem is not None:
-        raise GaitError(source, "friction", problem)
-    return gait
+        errors.add(GaitError(source, "initial.positions", problem))
+    if not positive:
+        return None
+    try:
+        violation = find_violation(gait.forward, gait.backward)
+    except UniquenessUndecidable as why:
+        if simulation.unchecked_uniqueness:
+            return dataclasses.replace(gait, uniqueness_unchecked=True)
+        errors.add(GaitError(source, "friction",
+                             f"the uniqueness condition (docs/model.md §3) is beyond an exact check "
+                             f"for this friction: {why}. To run it anyway, unchecked, add "
+                             "'unchecked_uniqueness: true' under 'simulation' (the run then warns "
+                             "and its results file records unchecked_uniqueness = 1)"))
+        return None
+    if violation is not None:
+        errors.add(GaitError(source, "friction", violation.message(period)))
+        return None
+    return None if errors.found else gait
 
 
 @dataclass(frozen=True, eq=False)
@@ -391,7 +624,14 @@ class ProcessSpec:
         return evaluate_many(self.offsets, np.ravel(np.asarray(t, dtype=float)) / self.period)
 
 
-_MATRIX_ROW = {"type": "array", "minItems": 1, "x-expected": "a list of numbers (one row)",
+MAX_PROCESS_DIMENSION = 1000
+"""Largest dimension n of a generic process (its metric alone is n^2 numbers)."""
+
+MAX_PROCESS_FACES = 10_000
+"""Most faces (rows of the normals) of a generic process."""
+
+_MATRIX_ROW = {"type": "array", "minItems": 1, "maxItems": MAX_PROCESS_DIMENSION,
+               "x-expected": "a list of numbers (one row)",
                "items": {"type": "number", "x-expected": "a number"}}
 
 PROCESS_SCHEMA: dict = {
@@ -404,14 +644,16 @@ PROCESS_SCHEMA: dict = {
         "kind": {"enum": ["sweeping-process"]},
         "name": {"type": "string"},
         "description": {"type": "string"},
-        "period": _positive("the period T of the offsets"),
-        "normals": {"type": "array", "minItems": 1,
+        "period": CRAWLER_SCHEMA["properties"]["period"],
+        "normals": {"type": "array", "minItems": 1, "maxItems": MAX_PROCESS_FACES,
                     "x-expected": "a list of m rows b_i, each a list of n numbers",
+                    "description": f"B: at most {MAX_PROCESS_FACES:,} rows of at most "
+                                   f"{MAX_PROCESS_DIMENSION:,} numbers.",
                     "items": _MATRIX_ROW},
-        "offsets": {"type": "array", "minItems": 1,
+        "offsets": {"type": "array", "minItems": 1, "maxItems": MAX_PROCESS_FACES,
                     "x-expected": "a list of m signals c_i(t), one per row of normals",
                     "items": SIGNAL_SCHEMA},
-        "metric": {"type": "array", "minItems": 1,
+        "metric": {"type": "array", "minItems": 1, "maxItems": MAX_PROCESS_DIMENSION,
                    "x-expected": "an n x n symmetric positive definite matrix (a list of rows)",
                    "items": _MATRIX_ROW},
         "initial": {**_MATRIX_ROW, "x-expected": "a list of n numbers (the initial point z(0))"},
@@ -421,10 +663,11 @@ PROCESS_SCHEMA: dict = {
         "units": UNITS_SCHEMA,
     },
 }
-"""JSON Schema (Draft 2020-12) of a generic polyhedral sweeping-process document (MODEL.md §5)."""
+"""JSON Schema (Draft 2020-12) of a generic polyhedral sweeping-process document (docs/model.md §5)."""
 
 
-def _build_process(document: dict, source: str, source_text: str, default_name: str) -> ProcessSpec:
+def _build_process(document: dict, source: str, source_text: str, default_name: str,
+                   errors: _Errors) -> ProcessSpec:
     rows = document["normals"]
     n = len(rows[0])
     for i, row in enumerate(rows):
@@ -620,9 +863,10 @@ def process_admissibility_violation(spec: ProcessSpec, point: np.ndarray, t: flo
 
 
 _SIMULATION_TYPES: dict[str, Callable[[Any], Any]] = {
-    "steps_per_period": int, "max_periods": int, "tolerance": float, "integrator": str}
+    "steps_per_period": int, "max_periods": int, "tolerance": float, "integrator": str,
+    "unchecked_uniqueness": bool}
 
-_KINDS: dict[str, tuple[dict, Callable[[dict, str, str, str], Any]]] = {
+_KINDS: dict[str, tuple[dict, Callable[..., Any]]] = {
     "crawler": (CRAWLER_SCHEMA, _build_crawler),
     "sweeping-process": (PROCESS_SCHEMA, _build_process),
 }
@@ -675,73 +919,14 @@ def admissibility_violation(gait: Gait, positions: np.ndarray, t: float = 0.0) -
     return None
 
 
-def _blocks_text(blocks: np.ndarray) -> str:
-    return "{" + ", ".join(str(int(j) + 1) for j in blocks) + "}"
-
-
 def uniqueness_violation(gait: Gait) -> str | None:
     """Why the friction violates the uniqueness condition, or None if it holds.
 
-    For every subset J of blocks, g_J(t) = sum_{j in J} mu_j^+(t) - sum_{j not in J} mu_j^-(t)
-    must not vanish on an interval (MODEL.md §3; paper eq. (uniqueness)); otherwise the
-    multipliers of the projection, which are the slips, are not unique. Between the friction
-    breakpoints every coefficient is a trig polynomial of degree <= H plus a linear part, which
-    has at most 2H + 1 zeros on a piece unless it vanishes identically, so sampling 2H + 7
-    interior points per piece decides whether g_J vanishes on a sub-interval.
-
-    All 2^N subsets are enumerated for N <= MAX_UNIQUENESS_BLOCKS, vectorised in chunks as a
-    0/1 matrix times the sampled coefficients; larger crawlers are not checked (None).
+    For every subset J of blocks (all and none included), g_J(t) = sum_{j in J} mu_j^+(t) -
+    sum_{j not in J} mu_j^-(t) must not vanish on an interval (docs/model.md §3; paper eq.
+    (uniqueness)); otherwise the multipliers of the projection, which are the slips, are not
+    unique. Decided exactly for any N by `crawlsim.uniqueness.find_violation`, which raises
+    `crawlsim.uniqueness.UniquenessUndecidable` where the friction is beyond its bounds.
     """
-    n = gait.blocks
-    if n > MAX_UNIQUENESS_BLOCKS:
-        return None
-    friction = gait.forward + gait.backward
-    edges = union_breakpoints([s.breakpoints() for s in friction] + [np.zeros(1)])
-    edges = np.append(edges, 1.0)
-    degree = max(s.harmonics for s in friction)
-    per_piece = 2 * degree + 7
-    fractions = (np.arange(per_piece) + 1.0) / (per_piece + 1.0)
-    fractions = fractions + 0.3 * np.sin(7.0 * fractions) / (per_piece + 1.0)
-    pieces = len(edges) - 1
-    u = (edges[:-1, None] + np.diff(edges)[:, None] * fractions).ravel()
-
-    mu_plus = evaluate_many(gait.forward, u).T
-    mu_minus = evaluate_many(gait.backward, u).T
-    both = mu_plus + mu_minus
-    rest_total = mu_minus.sum(axis=0)
-    tolerance = ROUNDOFF * both.sum(axis=0)
-
-    bits = np.arange(n)
-    first = np.arange(pieces) * per_piece
-    chunk = max(1, _SUBSET_CHUNK_ENTRIES // (n + pieces))
-    for start in range(1, 2**n - 1, chunk):
-        codes = np.arange(start, min(start + chunk, 2**n - 1))
-        subsets = ((codes[:, None] >> bits) & 1).astype(float)
-        at_first = np.abs(subsets @ both[:, first] - rest_total[first]) <= tolerance[first]
-        for row, piece in zip(*np.nonzero(at_first)):
-            columns = slice(piece * per_piece, (piece + 1) * per_piece)
-            g = subsets[row] @ both[:, columns] - rest_total[columns]
-            if np.all(np.abs(g) <= tolerance[columns]):
-                return _uniqueness_message(gait, subsets[row], both, rest_total, tolerance,
-                                           edges, per_piece)
-    return None
-
-
-def _uniqueness_message(gait: Gait, subset: np.ndarray, both: np.ndarray, rest_total: np.ndarray,
-                        tolerance: np.ndarray, edges: np.ndarray, per_piece: int) -> str:
-    g = (subset @ both - rest_total).reshape(-1, per_piece)
-    vanishing = np.all(np.abs(g) <= tolerance.reshape(-1, per_piece), axis=1)
-    intervals: list[list[float]] = []
-    for piece in np.nonzero(vanishing)[0]:
-        lo, hi = edges[piece], edges[piece + 1]
-        if intervals and abs(intervals[-1][1] - lo) <= JUMP_TOLERANCE:
-            intervals[-1][1] = hi
-        else:
-            intervals.append([lo, hi])
-    where = " and ".join(f"[{lo * gait.period:g}, {hi * gait.period:g}]" for lo, hi in intervals)
-    inside = np.nonzero(subset)[0]
-    outside = np.nonzero(subset == 0)[0]
-    return (f"uniqueness condition violated: for J = {_blocks_text(inside)} (forward) and the rest "
-            f"{_blocks_text(outside)} (backward), sum mu+ over J - sum mu- over the rest = 0 for t in "
-            f"{where} (a whole interval): the model does not determine how the crawler moves "
-            "(MODEL.md §3, paper eq. (uniqueness)). Make the friction anisotropic or change a coefficient.")
+    violation = find_violation(gait.forward, gait.backward)
+    return None if violation is None else violation.message(gait.period)

@@ -48,7 +48,7 @@ import h5py
 import numpy as np
 
 from . import __version__
-from .atomic import atomic_path, publish, temporary_beside
+from .atomic import atomic_path, discard, publish, temporary_beside
 from .errors import ResultsFileError
 from .kkt import ChainPolyhedron
 from .units import Units, path_quantity
@@ -374,8 +374,12 @@ class ResultsWriter:
         self._reaction_carry = multipliers[ends[-1]:].sum(axis=0)
         return rows
 
-    def finish(self, result: Any, provenance: Any, kind: str = "crawler") -> None:
-        """Write the analysis, the coordinates, the attributes; close and publish."""
+    def finish(self, result: Any, provenance: Any, kind: str = "crawler",
+               unchecked_uniqueness: bool = False) -> None:
+        """Write the analysis, the coordinates, the attributes; close and publish.
+
+        ``unchecked_uniqueness`` records (the root attribute of that name, 0 or 1) that the
+        gait opted out of an exact check of the uniqueness condition it was beyond."""
         f, p, scales, units = self.file, self.process, self._scales, self.units
         crawler = p.is_crawler
         self._write_root_coordinates()
@@ -422,6 +426,7 @@ class ResultsWriter:
         f["limit"].attrs["comment"] = ("the final period, taken as the periodic limit; t is "
                                        "relative to its start (attribute start, absolute time)")
         self._write_root_attributes(result, provenance, kind)
+        f.attrs["unchecked_uniqueness"] = int(bool(unchecked_uniqueness))
         f.close()
         if self._tmp is not None and self.path is not None:
             publish(self._tmp, self.path)
@@ -481,7 +486,7 @@ class ResultsWriter:
             self.file.close()
         finally:
             if self._tmp is not None:
-                self._tmp.unlink(missing_ok=True)
+                discard(self._tmp)
 
     def __enter__(self) -> ResultsWriter:
         return self

@@ -18,6 +18,7 @@ path style (`links[0].amplitude`).
 from __future__ import annotations
 
 import difflib
+import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -40,9 +41,36 @@ jump makes step signals right-continuous in practice, not only in exact arithmet
 MINIMUM_GRID = 4096
 """Samples per cycle used to locate the minimum of a smooth signal before refining it."""
 
+LARGEST = 1e100
+"""Largest magnitude of any number in a gait document. The model multiplies a few of them
+(stiffness x length x blocks, squared in the projections' norms); within 1e100 none of these
+products overflows a double, and no physical quantity in any unit system comes near it."""
+
+MAX_PHASE = 1e6
+"""Largest |phase|, in cycles. A phase shifts by whole cycles without effect, and a double of
+magnitude 2^52 or more holds no fraction of a cycle at all (``phase: 1e308`` is a whole number of
+cycles): a phase this large is a slip (degrees or radians typed as cycles), not a gait."""
+
+MAX_HARMONICS = 1000
+"""Most coefficients in a Fourier signal's ``cos`` or ``sin`` list."""
+
+MAX_KNOTS = 10000
+"""Most knots (times) in a piecewise-linear or steps signal: each is a breakpoint that the
+stepping grid must contain, so they cost memory in every period."""
+
+_CHUNK_ENTRIES = 1 << 18
+"""Fourier signals are evaluated on chunks of this many (time, harmonic) pairs: their memory is
+bounded whatever the number of times asked for."""
+
 
 def _cycles(u: Any) -> np.ndarray:
     return np.asarray(u, dtype=float)
+
+
+def _reduced(phase: float) -> float:
+    """The phase modulo one cycle, keeping its sign. fmod is exact in floating point, so this
+    loses nothing, while ``u - phase`` for a phase of many cycles would lose the low bits of u."""
+    return math.fmod(float(phase), 1.0)
 
 
 def _wrap(v: np.ndarray) -> np.ndarray:
@@ -146,8 +174,9 @@ class Cosine(Signal):
     harmonics: ClassVar[int] = 1
 
     def __post_init__(self) -> None:
-        for name in ("mean", "amplitude", "phase"):
+        for name in ("mean", "amplitude"):
             object.__setattr__(self, name, float(getattr(self, name)))
+        object.__setattr__(self, "phase", _reduced(self.phase))
 
     def _angle(self, u: np.ndarray) -> np.ndarray:
         return 2.0 * np.pi * np.mod(_cycles(u) - self.phase, 1.0)
@@ -183,7 +212,7 @@ class Fourier(Signal):
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "mean", float(self.mean))
-        object.__setattr__(self, "phase", float(self.phase))
+        object.__setattr__(self, "phase", _reduced(self.phase))
         object.__setattr__(self, "cos", tuple(float(c) for c in self.cos))
         object.__setattr__(self, "sin", tuple(float(c) for c in self.sin))
 
@@ -201,13 +230,28 @@ class Fourier(Signal):
         angle = 2.0 * np.pi * np.mod(_cycles(u) - self.phase, 1.0)[..., None] * n
         return np.cos(angle), np.sin(angle), a, b, n
 
+    def _chunked(self, u: np.ndarray, part) -> np.ndarray:
+        u = _cycles(u)
+        flat = np.ravel(u)
+        step = max(1, _CHUNK_ENTRIES // max(1, self.harmonics))
+        if flat.size <= step:
+            return part(u)
+        out = np.empty(flat.size)
+        for start in range(0, flat.size, step):
+            out[start:start + step] = part(flat[start:start + step])
+        return out.reshape(u.shape)
+
     def __call__(self, u: np.ndarray) -> np.ndarray:
-        c, s, a, b, _ = self._terms(u)
-        return self.mean + c @ a + s @ b
+        def part(v):
+            c, s, a, b, _ = self._terms(v)
+            return self.mean + c @ a + s @ b
+        return self._chunked(u, part)
 
     def rate(self, u: np.ndarray) -> np.ndarray:
-        c, s, a, b, n = self._terms(u)
-        return 2.0 * np.pi * (c @ (n * b) - s @ (n * a))
+        def part(v):
+            c, s, a, b, n = self._terms(v)
+            return 2.0 * np.pi * (c @ (n * b) - s @ (n * a))
+        return self._chunked(u, part)
 
     def to_dict(self) -> dict:
         return {"kind": self.kind, "mean": self.mean, "cos": list(self.cos), "sin": list(self.sin),
@@ -254,7 +298,7 @@ class PiecewiseLinear(Signal):
     def __post_init__(self) -> None:
         object.__setattr__(self, "times", tuple(float(t) for t in self.times))
         object.__setattr__(self, "values", tuple(float(v) for v in self.values))
-        object.__setattr__(self, "phase", float(self.phase))
+        object.__setattr__(self, "phase", _reduced(self.phase))
         if len(self.times) < 2:
             raise GaitError("signal", "times", "expected at least two knots (times 0 and 1)")
         _check_knots(self.times, self.values, last_time_allowed=True)
@@ -309,7 +353,7 @@ class Steps(Signal):
     def __post_init__(self) -> None:
         object.__setattr__(self, "times", tuple(float(t) for t in self.times))
         object.__setattr__(self, "values", tuple(float(v) for v in self.values))
-        object.__setattr__(self, "phase", float(self.phase))
+        object.__setattr__(self, "phase", _reduced(self.phase))
         if len(self.times) < 1:
             raise GaitError("signal", "times", "expected at least one step (at time 0)")
         _check_knots(self.times, self.values, last_time_allowed=False)
@@ -338,23 +382,40 @@ class Steps(Signal):
 KINDS: dict[str, type[Signal]] = {cls.kind: cls for cls in (Cosine, Fourier, PiecewiseLinear, Steps)}
 """Signal kinds written as a mapping with 'kind' (constants are plain numbers)."""
 
-_NUMBER = {"type": "number", "x-expected": "a number"}
+_NUMBER = {"type": "number", "minimum": -LARGEST, "maximum": LARGEST, "x-expected": "a number",
+           "description": "A finite number of magnitude at most 1e100 (every number of a gait is: "
+                          "within it no product the model forms overflows a double)."}
 _NUMBERS = {"type": "array", "items": _NUMBER, "x-expected": "a list of numbers"}
+_PHASE = {"type": "number", "minimum": -MAX_PHASE, "maximum": MAX_PHASE,
+          "x-expected": f"a phase in cycles, at most {MAX_PHASE:g} in magnitude",
+          "description": "Shift in cycles: s(t) = profile(t/T - phase). Whole cycles change nothing; "
+                         "|phase| <= 1e6, since a double that large holds almost no fraction of a "
+                         "cycle (from 2^52 on, none)."}
+# maxItems before items: a refused huge list is refused before its items are validated
+_COEFFICIENTS = {"type": "array", "maxItems": MAX_HARMONICS, **_NUMBERS,
+                 "description": f"Fourier coefficients of harmonics 1, 2, ...; at most {MAX_HARMONICS}."}
+_KNOTS = {"type": "array", "maxItems": MAX_KNOTS, **_NUMBERS,
+          "description": f"At most {MAX_KNOTS} knots: each is a breakpoint the stepping grid must contain."}
 _KIND_SCHEMAS: dict[str, dict[str, Any]] = {
     "cosine": {"required": ["mean", "amplitude"],
-               "properties": {"mean": _NUMBER, "amplitude": _NUMBER, "phase": _NUMBER}},
+               "properties": {"mean": _NUMBER, "amplitude": _NUMBER, "phase": _PHASE}},
     "fourier": {"required": ["mean"],
-                "properties": {"mean": _NUMBER, "cos": _NUMBERS, "sin": _NUMBERS, "phase": _NUMBER}},
+                "properties": {"mean": _NUMBER, "cos": _COEFFICIENTS, "sin": _COEFFICIENTS,
+                               "phase": _PHASE}},
     "piecewise-linear": {"required": ["times", "values"],
-                         "properties": {"times": {**_NUMBERS, "minItems": 2}, "values": _NUMBERS,
-                                        "phase": _NUMBER}},
+                         "properties": {"times": {"minItems": 2, **_KNOTS}, "values": _KNOTS,
+                                        "phase": _PHASE}},
     "steps": {"required": ["times", "values"],
-              "properties": {"times": {**_NUMBERS, "minItems": 1}, "values": _NUMBERS, "phase": _NUMBER}},
+              "properties": {"times": {"minItems": 1, **_KNOTS}, "values": _KNOTS, "phase": _PHASE}},
 }
 
 SIGNAL_SCHEMA: dict = {
     "type": ["number", "object"],
     "x-expected": "a number or a signal mapping with 'kind'",
+    "description": "A T-periodic signal of the cycle u = t/T: a constant (a plain number) or a "
+                   "mapping with 'kind' (cosine, fourier, piecewise-linear, steps).",
+    "minimum": -LARGEST,
+    "maximum": LARGEST,
     "if": {"type": "object"},
     "then": {
         "required": ["kind"],
@@ -369,11 +430,21 @@ SIGNAL_SCHEMA: dict = {
 }
 """JSON Schema (Draft 2020-12) of one signal; `x-expected` phrases the error message."""
 
+#: Signals already found valid, by their repr: a crawler of 10^5 blocks repeats a few signals
+#: 10^5 times, and validating one costs ~0.1 ms.
+_VALID_SIGNALS: set[str] = set()
+_VALID_SIGNALS_MAX = 1 << 16
+
 
 def parse_signal(value: Any, keypath: str, source: str) -> Signal:
     """Build a signal from its YAML form, raising GaitError naming `keypath` in `source`."""
-    check_schema(value, SIGNAL_SCHEMA, source, keypath)
     check_finite(value, source, keypath)
+    key = repr(value)
+    if key not in _VALID_SIGNALS:
+        check_schema(value, SIGNAL_SCHEMA, source, keypath)
+        if len(_VALID_SIGNALS) >= _VALID_SIGNALS_MAX:
+            _VALID_SIGNALS.clear()
+        _VALID_SIGNALS.add(key)
     if not isinstance(value, dict):
         return Constant(value)
     fields = {key: item for key, item in value.items() if key != "kind"}
@@ -388,7 +459,11 @@ def evaluate_many(signals: Sequence[Signal], u: np.ndarray) -> np.ndarray:
     u = np.ravel(_cycles(u))
     if not signals:
         return np.empty((u.size, 0))
-    return np.column_stack([signal(u) for signal in signals])
+    # each distinct signal once: a crawler of 10^5 blocks shares one or two friction signals
+    index: dict[Signal, int] = {}
+    columns = [index.setdefault(signal, len(index)) for signal in signals]
+    values = np.column_stack([signal(u) for signal in index])
+    return values if len(index) == len(columns) else values[:, columns]
 
 
 def join_keypath(base: str, *parts: str | int) -> str:
@@ -409,6 +484,8 @@ def _describe(instance: Any) -> str:
         return f"a boolean ({str(instance).lower()})"
     if instance is None:
         return "nothing (null)"
+    if isinstance(instance, int) and abs(instance) > LARGEST:
+        return f"an integer of {instance.bit_length()} bits"
     if isinstance(instance, (int, float)):
         return f"the number {instance!r}"
     if isinstance(instance, str):
@@ -450,6 +527,10 @@ def _schema_error(error: jsonschema.ValidationError, source: str, keypath: str) 
     if validator == "minItems":
         return GaitError(source, path, f"expected at least {error.validator_value} entries, "
                          f"got {len(instance)}")
+    if validator == "maxItems":
+        what = f" ({schema['x-expected']})" if "x-expected" in schema else ""
+        return GaitError(source, path, f"expected at most {error.validator_value:,} entries{what}, "
+                         f"got {len(instance):,}")
     expected = schema.get("x-expected")
     if expected is None and validator == "type":
         types = error.validator_value if isinstance(error.validator_value, list) else [error.validator_value]
@@ -463,6 +544,18 @@ def _schema_error(error: jsonschema.ValidationError, source: str, keypath: str) 
 
 _RELEVANCE = by_relevance(strong={"additionalProperties"})
 
+_BEST_OF = 64
+"""Errors weighed by relevance to pick the one reported. Finding more errors means validating
+the rest of the document, which for a huge list (refused by its maxItems, checked first) would
+cost seconds."""
+
+
+def _validator(schema: dict) -> jsonschema.Draft202012Validator:
+    validator = _VALIDATORS.get(id(schema))
+    if validator is None:
+        validator = _VALIDATORS[id(schema)] = jsonschema.Draft202012Validator(schema)
+    return validator
+
 
 def check_schema(instance: Any, schema: dict, source: str, keypath: str = "") -> None:
     """Validate against a Draft 2020-12 schema; raise the most relevant error as a GaitError.
@@ -470,14 +563,53 @@ def check_schema(instance: Any, schema: dict, source: str, keypath: str = "") ->
     An unknown key outranks a missing one at the same place: a misspelt key causes both, and
     only the unknown-key message can suggest the right spelling.
     """
-    validator = _VALIDATORS.get(id(schema))
-    if validator is None:
-        validator = _VALIDATORS[id(schema)] = jsonschema.Draft202012Validator(schema)
-    if validator.is_valid(instance):  # the common case; best_match is only for errors
+    errors = _validator(schema).iter_errors(instance)
+    first = next(errors, None)  # the common case: None, valid
+    if first is None:
         return
-    error = best_match(validator.iter_errors(instance), key=_RELEVANCE)
-    if error is not None:
-        raise _schema_error(error, source, keypath)
+    if first.validator == "maxItems":  # a list over its bound: its items are not worth checking
+        raise _schema_error(first, source, keypath)
+    error = best_match(itertools.chain([first], itertools.islice(errors, _BEST_OF - 1)),
+                       key=_RELEVANCE)
+    raise _schema_error(error if error is not None else first, source, keypath)
+
+
+def schema_errors(instance: Any, schema: dict, source: str, keypath: str = "") -> list[GaitError]:
+    """Every error of ``instance`` against ``schema`` (for `crawlsim validate`), in document
+    order; an if/then branch reports its own errors rather than the failed branch."""
+    out: list[GaitError] = []
+    seen: set[str] = set()
+    for error in _validator(schema).iter_errors(instance):
+        for leaf in _leaves(error):
+            found = _schema_error(leaf, source, keypath)
+            if str(found) not in seen:
+                seen.add(str(found))
+                out.append(found)
+    return out
+
+
+def _leaves(error: jsonschema.ValidationError):
+    if error.context:
+        for sub in error.context:
+            yield from _leaves(sub)
+    else:
+        yield error
+
+
+def without_signals(schema: Any, signal: dict | None = None) -> Any:
+    """A copy of ``schema`` that accepts anything where a signal goes (`SIGNAL_SCHEMA`).
+
+    A document's structure is validated with it, then each signal on its own (`parse_signal`,
+    which remembers valid signals): a crawler of 10^5 blocks repeats a few signals 10^5 times.
+    """
+    signal = SIGNAL_SCHEMA if signal is None else signal
+    if schema is signal:
+        return True
+    if isinstance(schema, dict):
+        return {key: without_signals(value, signal) for key, value in schema.items()}
+    if isinstance(schema, list):
+        return [without_signals(value, signal) for value in schema]
+    return schema
 
 
 #: One validator per schema (the schemas are module constants): building one is costly, and
@@ -486,12 +618,47 @@ _VALIDATORS: dict[int, jsonschema.Draft202012Validator] = {}
 
 
 def check_finite(instance: Any, source: str, keypath: str = "") -> None:
-    """Refuse inf and nan anywhere in a document: no physical quantity of the model is infinite."""
-    if isinstance(instance, float) and not math.isfinite(instance):
-        raise GaitError(source, keypath, f"expected a finite number, got {instance!r}")
+    """Refuse inf, nan and magnitudes above `LARGEST` anywhere in a document: no quantity of the
+    model is infinite, and products of larger ones overflow."""
+    problem = _number_problem(instance)
+    if problem is not None:
+        raise GaitError(source, keypath, problem)
     if isinstance(instance, dict):
         for key, item in instance.items():
             check_finite(item, source, join_keypath(keypath, str(key)))
     elif isinstance(instance, list):
+        if all(type(item) is float or type(item) is int for item in instance):
+            # a list of numbers (the common long list): one pass without a call per entry
+            bad = next((i for i, item in enumerate(instance)
+                        if not -LARGEST <= item <= LARGEST), None)  # nan compares false too
+            if bad is not None:
+                check_finite(instance[bad], source, join_keypath(keypath, bad))
+            return
         for index, item in enumerate(instance):
             check_finite(item, source, join_keypath(keypath, index))
+
+
+def finite_errors(instance: Any, source: str, keypath: str = "") -> list[GaitError]:
+    """Every number `check_finite` refuses, as errors (for `crawlsim validate`)."""
+    problem = _number_problem(instance)
+    if problem is not None:
+        return [GaitError(source, keypath, problem)]
+    out: list[GaitError] = []
+    if isinstance(instance, dict):
+        for key, item in instance.items():
+            out += finite_errors(item, source, join_keypath(keypath, str(key)))
+    elif isinstance(instance, list):
+        for index, item in enumerate(instance):
+            out += finite_errors(item, source, join_keypath(keypath, index))
+    return out
+
+
+def _number_problem(value: Any) -> str | None:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    if isinstance(value, float) and not math.isfinite(value):
+        return f"expected a finite number, got {value!r}"
+    if abs(value) > LARGEST:
+        return (f"expected a number of magnitude at most {LARGEST:g}, got {_describe(value)}: "
+                "products of such numbers overflow (see the schema's descriptions)")
+    return None

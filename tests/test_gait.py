@@ -273,3 +273,92 @@ def test_uniqueness_twenty_blocks():
 def test_unknown_gait_kind():
     error = refused(EXAMPLE.replace("kind: crawler", "kind: crawlr"))
     assert error.keypath == "kind" and "did you mean 'crawler'?" in error.message
+
+
+def test_stiffness_ratios_too_wide_to_certify_are_refused_with_the_reason():
+    """(k_max / k_min) N^2 bounds the condition number of the Gram matrices B_A K B_A^T."""
+    error = refused(EXAMPLE.replace("stiffness: 10.0", "stiffness: [1e-8, 1e8, 1]"))
+    assert error.keypath == "stiffness"
+    assert "k_max / k_min = 1e+16" in error.message and "(k_max / k_min) N^2 = 1.6e+17" in error.message
+    assert "above the 1e+12" in error.message and "uniqueness" not in error.message
+
+
+def test_stiffness_ratio_1e6_with_40_blocks_is_accepted():
+    n = 40
+    doc = {"blocks": n, "period": 1.0, "stiffness": [10.0 ** (6 * i / (n - 2)) for i in range(n - 1)],
+           "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.2, "phase": i / n} for i in range(n - 1)],
+           "friction": {"forward": 1.0, "backward": 2.5}}
+    gait = gait_from_document(doc, "doc")
+    assert gait.stiffness.max() / gait.stiffness.min() == pytest.approx(1e6)
+
+
+@pytest.mark.parametrize("old, new, keypath, phrase", [
+    ("blocks: 4", "blocks: 1e308", "blocks", "magnitude at most 1e+100"),
+    ("blocks: 4", "blocks: 100001", "blocks", "an integer from 2 to 100,000"),
+    ("period: 1.0", "period: 1e10", "period", "from 1e-09 to 1e+09"),
+    ("period: 1.0", "period: 1e-12", "period", "from 1e-09 to 1e+09"),
+    ("phase: 0.5}", "phase: 2e6}", "links[2].phase", "at most 1e+06 in magnitude"),
+    ("mean: 1.0, amplitude: 0.3, phase: 0.0", "mean: 1e101, amplitude: 0.3", "links[0].mean",
+     "magnitude at most 1e+100"),
+    ("steps_per_period: 1000,", "steps_per_period: 1000000000,", "simulation.steps_per_period",
+     "from 1 to 100,000,000"),
+    ("max_periods: 1000,", "max_periods: 10000000,", "simulation.max_periods", "from 1 to 1,000,000"),
+])
+def test_bounds_are_refused_naming_the_key(old, new, keypath, phrase):
+    error = refused(EXAMPLE.replace(old, new))
+    assert error.keypath == keypath and phrase in error.message
+
+
+def test_list_bounds_are_checked_before_the_items():
+    coefficients = ", ".join(["0"] * 1001)
+    error = refused(EXAMPLE.replace("{kind: cosine, mean: 1.0, amplitude: 0.3, phase: 0.0}",
+                                    f"{{kind: fourier, mean: 1.0, cos: [{coefficients}]}}"))
+    assert error.keypath == "links[0].cos"
+    assert "expected at most 1,000 entries" in error.message and "got 1,001" in error.message
+
+
+@pytest.mark.parametrize("text, phrase", [
+    ("a: " + "[" * 40 + "]" * 40, "nesting deeper than 32 levels"),
+    ("a: &a [*a]", "recursive alias *a"),
+    ("a: &a [1, 1, 1, 1, 1, 1, 1, 1, 1, 1]\n" + "".join(
+        f"{x}: &{x} [" + ", ".join([f"*{p}"] * 10) + "]\n" for p, x in zip("abcdef", "bcdefg")),
+     "more than 2,000,000 values once its aliases are expanded"),
+    ("blocks: " + "9" * 4400, "4300 digits"),
+])
+def test_yaml_refused_before_it_is_built(text, phrase):
+    error = refused(text)
+    assert error.keypath == "" and phrase in error.message
+
+
+def test_aliases_that_expand_moderately_are_fine():
+    """Sharing one signal across links is what anchors are for."""
+    text = EXAMPLE.replace("links:\n  - {kind: cosine, mean: 1.0, amplitude: 0.3, phase: 0.0}\n"
+                           "  - {kind: cosine, mean: 1.0, amplitude: 0.3, phase: 0.25}\n"
+                           "  - {kind: cosine, mean: 1.0, amplitude: 0.3, phase: 0.5}\n",
+                           "links: [&w {kind: cosine, mean: 1.0, amplitude: 0.3}, *w, *w]\n")
+    text = text.replace("initial: {positions: [0.0, 1.3, 2.3, 3.0]}\n", "")
+    gait = parse_gait(text)
+    assert gait.links[0] == gait.links[2] == Cosine(mean=1.0, amplitude=0.3)
+
+
+def test_gait_files_are_read_with_a_size_limit(tmp_path):
+    import os
+
+    from crawlsim.yamlsafe import read_limited
+
+    big = tmp_path / "big.yaml"
+    big.write_text("# " + "x" * 100 + "\n")
+    with pytest.raises(GaitError, match="larger than 50 bytes"):
+        read_limited(big, limit=50)
+    assert read_limited(big, limit=103) == "# " + "x" * 100 + "\n"
+    for special, phrase in (("/dev/zero", "is a device"), (str(tmp_path), "is a folder")):
+        with pytest.raises(GaitError, match=phrase):
+            load_gait(special)
+    fifo = tmp_path / "fifo.yaml"
+    os.mkfifo(fifo)
+    with pytest.raises(GaitError, match="the document is empty"):  # no writer: end of file
+        load_gait(fifo)
+    binary = tmp_path / "binary.yaml"
+    binary.write_bytes(b"blocks: \xff\xfe\n")
+    with pytest.raises(GaitError, match="is not UTF-8 text"):
+        load_gait(binary)

@@ -142,3 +142,41 @@ def test_invalid_signals(value, keypath, phrase):
     assert info.value.source == "g.yaml"
     assert info.value.keypath == keypath
     assert phrase in info.value.message
+
+
+def test_phase_is_reduced_exactly_to_one_cycle():
+    """Whole cycles change nothing, and fmod is exact: phase 1000.25 is the signal of phase
+    0.25, evaluated without the low bits that u - 1000.25 would lose."""
+    far = parse({"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": 1000.25})
+    near = parse({"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": 0.25})
+    assert far == near and far.phase == 0.25
+    steps = parse({"kind": "steps", "times": [0, 0.5], "values": [1, 2], "phase": -3.75})
+    assert steps.phase == -0.75
+    np.testing.assert_allclose(steps.breakpoints(), [0.25, 0.75])
+
+
+def test_fourier_evaluated_in_chunks_agrees_with_one_pass():
+    """Many harmonics times many times are evaluated in bounded chunks: same values."""
+    rng = np.random.default_rng(0)
+    s = Fourier(mean=0.5, cos=tuple(rng.normal(size=300)), sin=tuple(rng.normal(size=200)), phase=0.1)
+    u = np.linspace(0.0, 1.0, 5001)
+    v = (u - 0.1)[:, None] * np.arange(1, 301)
+    a = np.asarray(s.cos)
+    b = np.concatenate([s.sin, np.zeros(100)])
+    expected = 0.5 + np.cos(2 * np.pi * v) @ a + np.sin(2 * np.pi * v) @ b
+    np.testing.assert_allclose(s(u), expected, atol=1e-10)
+    np.testing.assert_allclose(s(u[:5000].reshape(50, 100)), expected[:5000].reshape(50, 100),
+                               atol=1e-10)  # shapes are kept
+
+
+@pytest.mark.parametrize("value, phrase", [
+    (1e101, "magnitude at most 1e+100"),
+    ({"kind": "cosine", "mean": 1.0, "amplitude": -2e100}, "magnitude at most 1e+100"),
+    ({"kind": "cosine", "mean": 1.0, "amplitude": 1.0, "phase": 1e7}, "at most 1e+06 in magnitude"),
+    ({"kind": "steps", "times": list(np.linspace(0, 0.99, 10001)), "values": [1.0] * 10001},
+     "expected at most 10,000 entries"),
+])
+def test_signal_bounds(value, phrase):
+    with pytest.raises(GaitError) as info:
+        parse(value)
+    assert phrase in info.value.message

@@ -26,6 +26,7 @@ import click
 from .. import __version__
 from ..errors import CrawlsimError, InputError
 from ..status import Integrator
+from .guards import FiniteFloatRange
 
 EXIT_NOT_CONVERGED = 3
 #: 128 + the signal number, as shells report a process ended by a signal.
@@ -77,7 +78,7 @@ def _terminate(signum, frame):
 
 #: The command modules (``crawlsim.cli.<name>``, each attaching its command to `main`). Only
 #: the invoked one is imported (``--help`` imports them all, for their one-line help).
-COMMANDS = ("info", "merge", "plot", "run", "velocity")
+COMMANDS = ("info", "merge", "plot", "run", "validate", "velocity")
 
 
 class CrawlsimGroup(click.Group):
@@ -138,13 +139,13 @@ class OrderedCommand(click.Command):
         return parser
 
 
-def _output_path(output, gait_file) -> Path:
+def _output_path(output, gait_file, force: bool = False, inputs=None) -> Path:
+    """The results file of a run, refused (`crawlsim.outputs.check_target`) when it may not be
+    replaced; ``inputs`` are the files the run reads (never replaced, default the gait file)."""
+    from ..outputs import RUN, check_target
+
     out = Path(output) if output else Path(Path(gait_file).stem + ".h5")
-    if not out.resolve().parent.is_dir():
-        raise BadInput(f"--output {out}: the folder {out.resolve().parent} does not exist")
-    if out.is_dir():
-        raise BadInput(f"--output {out}: is a folder; give a file name such as run.h5")
-    return out
+    return check_target(out, RUN, inputs=[gait_file] if inputs is None else inputs, force=force)
 
 
 def to_json(summary: dict) -> str:
@@ -184,7 +185,7 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
 
 def simulation_options(f):
     """Options that override the gait file's ``simulation`` mapping."""
-    f = click.option("--tolerance", type=click.FloatRange(min=0, min_open=True),
+    f = click.option("--tolerance", type=FiniteFloatRange(min=0, min_open=True),
                      help="Stop when the Poincare step is at most this, relative to |w| "
                           f"(default: the gait file's value, else {DEFAULT_TOLERANCE:g}).")(f)
     f = click.option("--max-periods", type=click.IntRange(min=1),

@@ -7,13 +7,15 @@ from pathlib import Path
 import click
 
 from . import BadInput, library_errors, main
+from .guards import force_option
 
 
 @main.command()
 @click.argument("parts", nargs=-1, required=True, type=click.Path(dir_okay=False))
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, allow_dash=True),
               help="The merged sweep: OUT.h5 (HDF5), OUT.csv, or - for CSV on stdout.")
-def merge(parts, output):
+@force_option
+def merge(parts, output, force):
     """Join the shard files PART... of one sweep (written with --shard I/N) into OUTPUT.
 
     The result is the file an unsharded run of the same sweep writes. Every shard 1..N must be
@@ -32,6 +34,10 @@ def merge(parts, output):
         raise BadInput(f"--output {output}: name the merged sweep OUT.h5 (HDF5) or OUT.csv, or "
                        "give - for CSV on stdout")
     with library_errors():
+        if output != "-":
+            from ..outputs import SWEEP, check_target
+
+            check_target(output, SWEEP, inputs=parts, force=force)
         table = sweeps.merge_tables(sweeps.read_table(p) for p in parts)
         if output == "-":
             click.echo(table.to_csv(), nl=False)

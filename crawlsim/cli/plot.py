@@ -9,6 +9,7 @@ import click
 from ..errors import CrawlsimError
 from ..plotting import FIGURE_NAMES
 from . import BadInput, library_errors, main
+from .guards import force_option
 
 
 def _coords(ctx, param, value):
@@ -33,7 +34,8 @@ def _coords(ctx, param, value):
 @click.option("--coords", default="1,2", show_default=True, callback=_coords,
               help="Shape coordinates i,j of the shape-space figure when there are more than "
                    "two (four or more blocks): it shows sections of K(t) in that plane.")
-def plot(results_file, output_dir, fmt, only, coords):
+@force_option
+def plot(results_file, output_dir, fmt, only, coords, force):
     """Draw the figures of RESULTS_FILE as <stem>-<figure>.<format>.
 
     \b
@@ -56,12 +58,26 @@ def plot(results_file, output_dir, fmt, only, coords):
 
     with library_errors():
         kind = describe(results_file)["file_kind"]
+        _check_targets(results_file, output_dir, fmt, only, kind, force)
         if kind == "sweep":
             written = [_plot_sweep(results_file, output_dir, fmt, only)]
         else:
             written = _plot_run(results_file, output_dir, fmt, only, coords)
     for path in written:
         click.echo(str(path))
+
+
+def _check_targets(results_file, output_dir, fmt, only, kind, force) -> None:
+    """Refuse figure files that may not be replaced (`crawlsim.outputs.check_target`)."""
+    from ..outputs import FIGURE, check_target
+
+    folder = Path(output_dir) if output_dir else Path(results_file).parent
+    if not folder.is_dir():
+        return  # created by plot_results: nothing in it to protect
+    names = ["sweep"] if kind == "sweep" else ([only] if only else FIGURE_NAMES)
+    for name in names:
+        check_target(folder / f"{Path(results_file).stem}-{name}.{fmt}", FIGURE,
+                     inputs=[results_file], force=force, option="--output-dir")
 
 
 def _plot_run(results_file, output_dir, fmt, only, coords):

@@ -20,6 +20,7 @@ from . import (
     simulation_options,
     to_json,
 )
+from .guards import check_memory, force_option, max_memory_option, warn_unchecked
 
 
 @main.command()
@@ -42,9 +43,11 @@ from . import (
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 @click.option("--plot", is_flag=True,
               help="Also draw the figures next to the results file (<stem>-<figure>.png).")
+@max_memory_option
+@force_option
 @feedback_options
 def run(gait_file, from_results, output, steps_per_period, max_periods, tolerance, save_every,
-        check_every_step, as_json, plot, quiet, verbose):
+        check_every_step, as_json, plot, max_memory, force, quiet, verbose):
     """Simulate GAIT_FILE to its periodic regime; report v0 and write an HDF5 file.
 
     Progress goes to stderr: a bar on a terminal, whose total is the number of periods
@@ -73,11 +76,21 @@ def run(gait_file, from_results, output, steps_per_period, max_periods, toleranc
             gait, check_every_step, save_every = _rerun(from_results, steps_per_period,
                                                         max_periods, tolerance,
                                                         check_every_step, save_every)
-            out = _output_path(output, Path(from_results).stem + "-rerun")
+            out = _output_path(output, Path(from_results).stem + "-rerun", force,
+                               inputs=[from_results])
         else:
             gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance)
-            out = _output_path(output, gait_file)
+            out = _output_path(output, gait_file, force)
             save_every = save_every or 1
+        check_memory(gait, max_memory, save_every=save_every)
+        if plot:
+            from ..outputs import FIGURE, check_target
+            from ..plotting import FIGURE_NAMES
+
+            for name in FIGURE_NAMES:
+                check_target(out.parent / f"{out.stem}-{name}.png", FIGURE,
+                             inputs=[gait_file or from_results], force=force, option="--plot")
+        warn_unchecked(gait)
         with run_progress(gait, quiet, verbose) as progress:
             result = api.run(gait, output=out, save_every=save_every,
                              check_every_step=check_every_step, progress=progress)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import click
 
@@ -21,6 +20,7 @@ from . import (
     simulation_options,
     to_json,
 )
+from .guards import check_memory, force_option, max_memory_option, warn_unchecked
 from .progress import Progress, choose_mode
 
 
@@ -33,10 +33,38 @@ def _shard(ctx, param, value):
         return sweeps.parse_shard(value)
 
 
-def _folder_of(path, option):
-    if path is not None and not Path(path).resolve().parent.is_dir():
-        raise BadInput(f"{option} {path}: the folder {Path(path).resolve().parent} does not "
-                       "exist")
+def _check_sweep_memory(gait, groups, points, jobs, scheduler, max_memory):
+    """The largest point of the grid (most blocks, most steps), in a batch as large as the
+    sweep's chunks, once per local worker."""
+    from .. import sweep as sweeps
+
+    largest = {}
+    for group in groups:
+        for spec in group:
+            axis = sweeps.parse_axis(spec)
+            if axis.path in ("blocks", "simulation.steps_per_period"):
+                largest[axis.path] = int(max(axis.values))
+    batch = min(points, sweeps.MAX_CHUNK)
+    check_memory(gait, max_memory, batch=batch,
+                 steps_per_period=largest.get("simulation.steps_per_period"),
+                 blocks=largest.get("blocks"),
+                 what=f"this sweep ({'one worker' if scheduler else f'{jobs} worker(s)'} with "
+                      f"batches of {batch} points)")
+    if not scheduler and jobs > 1:
+        from ..resources import default_limit, gait_memory
+
+        limit = default_limit() if max_memory is None else max_memory
+        each = gait_memory(gait, batch=batch, blocks=largest.get("blocks"),
+                           steps_per_period=largest.get("simulation.steps_per_period"))
+        if jobs * each.total > limit:
+            from ..errors import ResourceError
+            from ..resources import format_size
+
+            raise ResourceError(gait.source, "", f"{jobs} local workers would need about "
+                                                 f"{format_size(jobs * each.total)} together "
+                                                 f"({each.describe()} each), more than the memory "
+                                                 f"limit of {format_size(limit)} (--max-memory); "
+                                                 "use fewer --jobs")
 
 
 def _dimensions(sweep_specs, link_specs) -> list[list[str]]:
@@ -83,9 +111,12 @@ def _dimensions(sweep_specs, link_specs) -> list[list[str]]:
               help="Draw v0 against one swept dimension, or a heat map over two (PNG); "
                    "`crawlsim plot OUT.h5` draws it from a sweep file later.")
 @simulation_options
+@max_memory_option
+@force_option
 @feedback_options
 def velocity(gait_file, as_json, sweep_specs, link_specs, output, jobs, shard, scheduler,
-             plot_file, steps_per_period, max_periods, tolerance, quiet, verbose):
+             plot_file, steps_per_period, max_periods, tolerance, max_memory, force, quiet,
+             verbose):
     """Print v0 of GAIT_FILE, or sweep gait parameters and tabulate v0.
 
     Without --sweep, prints v0 alone on one line (exit code 3 if the run did not converge).
@@ -115,17 +146,22 @@ def velocity(gait_file, as_json, sweep_specs, link_specs, output, jobs, shard, s
     check_feedback(quiet, verbose)
     if output == "-":
         output = None  # stdout is where the table (or v0) goes without -o
-    _folder_of(output, "--output")
-    _folder_of(plot_file, "--plot")
     with library_errors():
+        from ..outputs import FIGURE, SWEEP, check_target
+
+        for path, kind, option in ((output, SWEEP, "--output"), (plot_file, FIGURE, "--plot")):
+            if path is not None:
+                check_target(path, kind, inputs=[gait_file], force=force, option=option)
         groups = _dimensions(sweep_specs, link_specs)
         gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance)
+        warn_unchecked(gait)
         if not groups:
             if shard or plot_file:
                 raise BadInput("--shard and --plot need at least one --sweep PATH=SPEC")
             if output is None:
                 from .. import api
 
+                check_memory(gait, max_memory)
                 with run_progress(gait, quiet, verbose) as progress:
                     result = api.run(gait, progress=progress)
                 click.echo(to_json(result.summary()) if as_json else repr(result.v0))
@@ -139,6 +175,10 @@ def velocity(gait_file, as_json, sweep_specs, link_specs, output, jobs, shard, s
             raise BadInput("--plot needs the whole grid: plot after `crawlsim merge`")
         if plot_file and len(groups) not in (1, 2):
             raise BadInput(f"--plot draws one or two swept dimensions, got {len(groups)}")
+        from .. import sweep as sweeps
+
+        points = len(sweeps.make_grid(gait, groups).indices(shard))
+        _check_sweep_memory(gait, groups, points, jobs, scheduler, max_memory)
         table = _sweep(gait, groups, output, jobs, shard, scheduler, quiet, verbose)
         if plot_file:
             from .. import sweep as sweeps

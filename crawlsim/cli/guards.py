@@ -1,0 +1,72 @@
+"""Options and checks the commands share to refuse bad requests before any work starts:
+finite numbers, the memory limit, and the output targets they may replace (``--force``).
+
+Each check calls a library function (`crawlsim.resources`, `crawlsim.outputs`) so that a Python
+user gets the same refusals; here they only become options.
+"""
+
+from __future__ import annotations
+
+import math
+
+import click
+
+
+class FiniteFloatRange(click.FloatRange):
+    """A float option that refuses inf and nan: no setting of a run is infinite, and nan passes
+    every range comparison unnoticed (``--tolerance nan`` would never stop a run)."""
+
+    name = "finite float"
+
+    def convert(self, value, param, ctx):
+        number = super().convert(value, param, ctx)
+        if not math.isfinite(number):
+            self.fail(f"{value!r} is not a finite number.", param, ctx)
+        return number
+
+
+def _size(ctx, param, value):
+    if value is None:
+        return None
+    from ..resources import parse_size
+
+    try:
+        return parse_size(value)
+    except ValueError as exc:
+        raise click.BadParameter(str(exc)) from None
+
+
+def max_memory_option(f):
+    """``--max-memory SIZE``: the estimated peak memory a run may need."""
+    return click.option(
+        "--max-memory", callback=_size, metavar="SIZE",
+        help="Refuse a run whose memory, estimated before it starts, exceeds SIZE (4GiB, 500MB, "
+             "2G). Default: the smaller of 8 GiB and half the memory available.")(f)
+
+
+def force_option(f):
+    """``--force``: replace an output that is not a crawlsim output of the same kind."""
+    return click.option(
+        "--force", is_flag=True,
+        help="Replace an existing output file even if it is not a crawlsim output of the same "
+             "kind (never the input file, nor a device or FIFO).")(f)
+
+
+def check_memory(gait, max_memory, *, save_every: int = 1, batch: int = 1,
+                 steps_per_period=None, blocks=None, what: str = "this run") -> None:
+    """Refuse (ResourceError, exit 2) a gait whose run would not fit in ``max_memory`` bytes
+    (None: the default limit)."""
+    from ..resources import check_memory as check
+    from ..resources import default_limit, gait_memory
+
+    estimate = gait_memory(gait, save_every=save_every, batch=batch,
+                           steps_per_period=steps_per_period, blocks=blocks)
+    check(estimate, default_limit() if max_memory is None else max_memory, gait.source, what)
+
+
+def warn_unchecked(gait) -> None:
+    """Say on stderr that the gait runs without an exact uniqueness check (it opted in)."""
+    if getattr(gait, "uniqueness_unchecked", False):
+        click.echo(f"Warning: {gait.source}: the uniqueness condition (docs/model.md §3) is beyond "
+                   "an exact check for this friction and was not checked (simulation: "
+                   "unchecked_uniqueness: true); the results file records it", err=True)

@@ -1,0 +1,154 @@
+"""Memory estimated before a run (crawlsim.resources) and the --max-memory refusal.
+
+The estimate must bound the peak memory a run really allocates: measured here with
+tracemalloc (which sees numpy's allocations; Clarabel's own are outside the Python heap and
+small) on crawlers of several shapes, with both integrators, and on a sweep batch.
+"""
+
+import resource
+import subprocess
+import sys
+import tracemalloc
+
+import pytest
+from click.testing import CliRunner
+
+from crawlsim import api
+from crawlsim import sweep as sweeps
+from crawlsim.cli import main
+from crawlsim.errors import ResourceError
+from crawlsim.gait import gait_from_document
+from crawlsim.resources import (
+    DEFAULT_CAP,
+    check_memory,
+    default_limit,
+    format_size,
+    gait_memory,
+    parse_size,
+    run_memory,
+)
+
+
+def crawler(n, steps, periods=4, integrator="catch-up"):
+    return gait_from_document({
+        "blocks": n, "period": 1.0, "stiffness": 10.0,
+        "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": (0.37 * i) % 1}
+                  for i in range(n - 1)],
+        "friction": {"forward": 1.0, "backward": 2.5 + 1e-3 * n},
+        "simulation": {"steps_per_period": steps, "max_periods": periods, "integrator": integrator},
+    }, "memory.yaml")
+
+
+def peak_of(action):
+    tracemalloc.start()
+    try:
+        action()
+        return tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
+@pytest.fixture(scope="module", autouse=True)
+def warm(tmp_path_factory):
+    """Import everything a run uses before measuring, so imports are not counted."""
+    folder = tmp_path_factory.mktemp("warm")
+    api.run(crawler(3, 20, 2, "exact"), output=folder / "w.h5")
+    sweeps.sweep(crawler(3, 20, 2), ["period=1,2"])
+
+
+@pytest.mark.parametrize("n, steps, integrator", [
+    (2, 1000, "catch-up"), (4, 20000, "catch-up"), (50, 200, "catch-up"), (200, 20, "catch-up"),
+    (4, 2000, "exact"), (10, 200, "exact"),
+])
+def test_estimate_bounds_the_measured_peak_of_a_run(n, steps, integrator, tmp_path):
+    gait = crawler(n, steps, integrator=integrator)
+    measured = peak_of(lambda: api.run(gait, output=tmp_path / "r.h5", save_every=3))
+    estimate = gait_memory(gait, save_every=3)
+    assert measured <= estimate.total, (measured, estimate)
+    assert estimate.total <= 40 * max(measured, 1 << 20)  # an upper bound, not a wild one
+
+
+def test_estimate_bounds_the_measured_peak_of_a_sweep_batch():
+    gait = crawler(4, 500, periods=6)
+    points = 64
+    measured = peak_of(lambda: sweeps.sweep(gait, [f"period=0.5:2:{points}"]))
+    assert measured <= gait_memory(gait, batch=points).total
+
+
+def test_estimate_grows_as_the_arrays_do():
+    """(G+1) x N tables and dense N^2 matrices: doubling G doubles the per-period part, doubling
+    N quadruples the dense part."""
+    small, long_, wide = run_memory(10, 1000), run_memory(10, 2000), run_memory(20, 1000)
+    assert dict(long_.parts)["tabulated offsets c(t)"] == 2 * dict(small.parts)["tabulated offsets c(t)"]
+    dense = "dense N^2 matrices of the projector"
+    assert dict(wide.parts)[dense] == 4 * dict(small.parts)[dense]
+    assert run_memory(10, 1001, integrator="exact").total > small.total
+    assert run_memory(10, 1001, batch=100).total > small.total
+
+
+@pytest.mark.parametrize("text, size", [
+    ("4GiB", 4 << 30), ("500MB", 500_000_000), ("2G", 2 << 30), ("1.5 MiB", 3 << 19),
+    ("1000000", 1_000_000), ("64k", 65536), ("3kb", 3000),
+])
+def test_parse_size(text, size):
+    assert parse_size(text) == size
+
+
+@pytest.mark.parametrize("text", ["", "lots", "-1GB", "4 GiBs", "0", "1e3MB", "inf"])
+def test_parse_size_refuses(text):
+    with pytest.raises(ValueError):
+        parse_size(text)
+
+
+def test_check_memory_names_estimate_and_limit():
+    estimate = run_memory(10_000, 11)
+    with pytest.raises(ResourceError) as info:
+        check_memory(estimate, 500 << 20, "big.yaml")
+    message = str(info.value)
+    assert message.startswith("big.yaml: this run would need about")
+    assert "dense N^2 matrices of the projector" in message
+    assert f"more than the memory limit of {format_size(500 << 20)}" in message
+
+
+def test_default_limit_is_capped_and_follows_the_address_space_limit():
+    assert 0 < default_limit() <= DEFAULT_CAP
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_AS, (600 << 20, 600 << 20))
+
+    code = "from crawlsim.resources import default_limit; print(default_limit())"
+    out = subprocess.run([sys.executable, "-c", code], preexec_fn=limit, capture_output=True,
+                         text=True, check=True)
+    assert 0 < int(out.stdout) <= 300 << 20  # half the headroom under 600 MB at most
+
+
+def test_max_memory_option(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "g.yaml").write_text(
+        "blocks: 3\nperiod: 1.0\nstiffness: 10.0\nlinks: [{kind: cosine, mean: 1.0, amplitude: 0.3}, 1.0]\n"
+        "friction: {forward: 1.0, backward: 2.5}\nsimulation: {steps_per_period: 100000}\n")
+    runner = CliRunner()
+    for args in (["run", "g.yaml", "--max-memory", "10MB"], ["velocity", "g.yaml", "--max-memory", "10MB"],
+                 ["velocity", "g.yaml", "--sweep", "period=1,2", "--max-memory", "10MB"],
+                 ["velocity", "g.yaml", "--sweep", "simulation.steps_per_period=10,10000000",
+                  "--max-memory", "1GiB"]):
+        result = runner.invoke(main, args)
+        assert result.exit_code == 2, (args, result.output)
+        assert "g.yaml: this" in result.output and "more than the memory limit" in result.output
+    assert not (tmp_path / "g.h5").exists()
+    result = runner.invoke(main, ["run", "g.yaml", "--max-memory", "lots"])
+    assert result.exit_code == 2 and "expected a size such as 4GiB" in result.output
+    result = runner.invoke(main, ["velocity", "g.yaml", "--max-memory", "2GiB",
+                                  "--steps-per-period", "100", "--max-periods", "5"])
+    assert result.exit_code in (0, 3), result.output
+
+
+@pytest.mark.parametrize("option", ["--tolerance"])
+@pytest.mark.parametrize("value", ["inf", "nan", "-inf", "1e999"])
+def test_float_options_refuse_non_finite_values(option, value, tmp_path):
+    (tmp_path / "g.yaml").write_text(
+        "blocks: 2\nperiod: 1.0\nstiffness: 10.0\nlinks: [1.0]\nfriction: {forward: 1.0, backward: 2.0}\n")
+    for command in ("run", "velocity"):
+        result = CliRunner().invoke(main, [command, str(tmp_path / "g.yaml"), option, value])
+        assert result.exit_code == 2, result.output
+        assert "Traceback" not in result.output
