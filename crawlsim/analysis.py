@@ -4,18 +4,31 @@ The paper's Theorem th:attractor: from any admissible start, ``w(. + qT)`` conve
 W^{1,2}(t0, t0+T) to a T-periodic solution, and the slip rates converge in L^2; for crawlers
 (Theorem th:speed) the average velocity v0 exists and does not depend on the start.
 
-`simulate` steps period by period until the Poincare step ``|w(t0+(q+1)T) - w(t0+qT)|`` is at
-most ``tolerance * max(|w|, scale)`` or ``max_periods`` is reached, then classifies the
-convergence:
+`simulate` steps the true iterates period by period from the initial state: the history of
+Poincare steps ``|w(t0+(q+1)T) - w(t0+qT)|``, displacements and distances to the limit period.
+How the limit itself is found is ``limit``:
+
+* ``"iterate"``: the iterates run until the Poincare step is at most
+  ``tolerance * max(|w|, scale)`` (or ``max_periods``); the last period is the limit;
+* ``"newton"`` (the default): after `crawlsim.limit.PLAIN_PERIODS` plain periods (gaits that are
+  periodic after a period or two stop there, at no extra cost), the periodic-limit solver of
+  `crawlsim.limit` finds the limit directly and verifies it by one plain period; the history
+  then goes on only until the iterates reach that verified limit (to the tolerance), or
+  ``max_periods``; with ``history=False`` (v0 alone: `crawlsim velocity`, sweeps) it stops at
+  the verified limit.
+
+The convergence is classified from the true iterates:
 
 * **finite-time** from period q when the Poincare step falls to the tolerance in one jump, by a
   factor of more than `FINITE_JUMP` (a geometric contraction that fast cannot be told from exact
   periodicity in double precision); ``periodic_from`` is that q;
-* **asymptotic** otherwise, with the contraction rate fitted to the tail of the Poincare steps;
-* **not-converged** when ``max_periods`` ran out first.
+* **asymptotic** otherwise, with the contraction rate fitted to the tail of the Poincare steps
+  (with the solver, also the rate read from the Jacobian at the limit, ``jacobian_rate``);
+* **not-converged** when ``max_periods`` ran out before the limit was found.
 
-Each period is kept (on disk, not in memory) until the end, when its W^{1,2} and sup distances to
-the final period, and the L^2 distance of its slip rates, are computed.
+The distances of each period to the limit period (W^{1,2}, sup, and the L^2 distance of the
+slip rates) are computed as soon as the limit is known; before that, periods wait on disk, so a
+long run's memory stays bounded.
 """
 
 from __future__ import annotations
@@ -30,6 +43,9 @@ import numpy as np
 from .model import SweepingProcess
 from .status import Convergence
 from .stepping import PeriodRecord, make_stepper
+
+#: How the periodic limit is found: the solver of `crawlsim.limit`, or plain iteration.
+LIMIT_METHODS = ("newton", "iterate")
 
 #: Relative Poincare steps below this are roundoff: a smaller tolerance is clamped to it.
 ROUNDOFF_FLOOR = 1e-13
@@ -92,23 +108,31 @@ class RunResult:
     wall_time: float
     steps: int = field(default=0)
     integrator: str = "catch-up"
+    # The periodic-limit solver: how the limit was found ("newton" or "iterate"), its accepted
+    # Newton steps, the periods it simulated (the verifying one included), its relative Poincare
+    # steps, and the contraction rate read from the Jacobian at the limit.
+    limit_method: str = "iterate"
+    limit_newton_steps: int = 0
+    limit_periods: int = 0
+    limit_residuals: np.ndarray | None = None
+    jacobian_rate: float | None = None
+    v0_error_period_iteration: float | None = None
+    v0_error_time_step: float | None = None
 
     @property
     def converged(self) -> bool:
         return self.convergence != Convergence.NOT_CONVERGED
 
     def summary(self) -> dict:
-        keys = ("name", "integrator", "v0", "v0_error_estimate", "displacement_per_period",
-                "convergence",
-                "periodic_from", "contraction_rate", "periods", "steps_per_period",
-                "dissipation_per_period", "cost_of_transport", "clarabel_calls", "steps",
-                "wall_time")
+        keys = ("name", "integrator", "v0", "v0_error_estimate", "v0_error_period_iteration",
+                "v0_error_time_step", "displacement_per_period", "convergence",
+                "periodic_from", "contraction_rate", "jacobian_rate", "periods",
+                "steps_per_period", "dissipation_per_period", "cost_of_transport",
+                "limit_method", "limit_newton_steps", "limit_periods", "clarabel_calls",
+                "steps", "wall_time")
         out = {k: getattr(self, k) for k in keys}
+        out["convergence"] = str(self.convergence)
         out["final_poincare_step"] = float(self.history.poincare_step[-1])
-        # The parts of v0_error_estimate (None where not estimated); results files store them too.
-        out["v0_error_period_iteration"] = getattr(self, "v0_error_period_iteration",
-                                                   self.v0_error_estimate)
-        out["v0_error_time_step"] = getattr(self, "v0_error_time_step", None)
         return out
 
 
@@ -145,70 +169,218 @@ class _PeriodSpill:
 
 def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: float = 1e-12,
              integrator: str = "catch-up", check_every_step: bool = False, sink=None,
-             progress=None) -> RunResult:
-    """Step ``process`` to its periodic regime and analyse the run.
+             progress=None, limit: str = "newton", history: bool = True,
+             time_step_error: bool = False) -> RunResult:
+    """Step ``process`` to its periodic regime and analyse the run (module docstring).
 
-    ``sink.add_period(record)`` receives every period as it is computed (the HDF5 writer streams
-    the trajectory); ``progress(q, poincare_step_relative)`` is called after every period.
+    ``sink.add_period(record)`` receives every period of the history as it is computed (the
+    HDF5 writer streams the trajectory); ``progress(q, poincare_step_relative)`` is called after
+    every period of the history.
+
+    v0 carries an error estimate that bounds its true error, in two parts: the period iteration
+    (roundoff of the period's slips, the tail still to come, or the residual of the verified
+    limit) and the time step. The exact integrator has no time-step error; for catch-up it is
+    measured (``time_step_error``) against the exact integrator's v0 for the same gait
+    (`time_step_reference`), and left None where that cannot run.
     """
+    from .limit import PLAIN_PERIODS, solve_limit
+
+    if limit not in LIMIT_METHODS:
+        raise ValueError(f"limit must be one of {', '.join(LIMIT_METHODS)}, got {limit!r}")
     began = _time.perf_counter()
     options = {"check_every_step": True} if check_every_step else {}
     stepper = make_stepper(process, integrator, **options)
-    T, G = process.period, process.steps
-    h = np.diff(process.times)
     tol = effective_tolerance(tolerance)
-    spill = _PeriodSpill()
-    disp, steps, rel_steps, diss = [], [], [], []
-    record = None
+    log = _History(process)
+    final: PeriodRecord | None = None  # the limit period
+    solution = None
     try:
-        for q in range(max_periods):
-            record = stepper.step_period()
-            spill.add(record)
-            if sink is not None:
-                sink.add_period(record)
-            step, rel_step = poincare_step(process, record.w[0], record.w[-1])
-            steps.append(step)
-            rel_steps.append(rel_step)
-            if process.is_crawler:
-                assert record.x is not None and process.friction is not None
-                disp.append(float(np.mean(record.x[-1] - record.x[0])))
-                diss.append(float(np.sum(record.multipliers * process.friction[1:])))
-            if progress is not None:
-                progress(q, rel_steps[-1])
-            if rel_steps[-1] <= tol:
+        # the true iterates; with the solver, only a few before it takes over
+        budget = max_periods if limit == "iterate" else min(max_periods, PLAIN_PERIODS)
+        while len(log) < budget:
+            record = log.add(stepper.step_period(), sink, progress)
+            if log.rel_steps[-1] <= tol:
+                final = record
                 break
-        assert record is not None, "max_periods >= 1"
-        final = record
-        history_d = _distances(spill, final, h)
+        if final is None and limit == "newton" and len(log) < max_periods:
+            solver = make_stepper(process, integrator, **options)
+            solution = solve_limit(process, solver, tolerance=tol, start=stepper.w,
+                                   max_periods=max_periods - len(log), plain=0)
+            if solution.converged:
+                final = solution.record
+                log.set_limit(final)
+                # the history goes on until the iterates reach the verified limit
+                while history and len(log) < max_periods and not log.reached(tol):
+                    log.add(stepper.step_period(), sink, progress)
+            else:  # the solver's periods count against max_periods: the history stops
+                solution = None
+        if final is None:  # plain iteration to the end (limit="iterate", or a solver failure)
+            while len(log) < max_periods:
+                record = log.add(stepper.step_period(), sink, progress)
+                if log.rel_steps[-1] <= tol:
+                    final = record
+                    break
+            if final is None:
+                final = log.last
+        assert final is not None, "max_periods >= 1"
+        log.set_limit(final)
+        distances = log.distances()
     finally:
-        spill.close()
+        log.close()
 
-    Q = len(steps) - 1
-    rel = np.array(rel_steps)
+    T, G = process.period, process.steps
+    rel = np.array(log.rel_steps)
     convergence, periodic_from = classify_convergence(rel, tol)
+    if solution is not None and convergence == Convergence.NOT_CONVERGED:
+        # the limit is verified; the iterates approach it geometrically but had not reached it
+        convergence = Convergence.ASYMPTOTIC
     rate = None if convergence == Convergence.FINITE_TIME else contraction_rate(rel)
-
-    displacement = np.array(disp) if process.is_crawler else np.full(Q + 1, np.nan)
-    dissipation = np.array(diss) if process.is_crawler else np.full(Q + 1, np.nan)
-    history = ConvergenceHistory(
+    Q = len(log) - 1
+    displacement = np.array(log.displacements) if process.is_crawler else np.full(Q + 1, np.nan)
+    dissipation = np.array(log.dissipations) if process.is_crawler else np.full(Q + 1, np.nan)
+    hist = ConvergenceHistory(
         period=np.arange(Q + 1), displacement=displacement, velocity=displacement / T,
-        poincare_step=np.array(steps), dissipation=dissipation, **history_d)
+        poincare_step=np.array(log.steps), dissipation=dissipation, **distances)
 
-    v0 = err = d_final = diss_final = cot = None
+    v0: float | None = None
+    err: float | None = None
+    d_final = diss_final = cot = None
     if process.is_crawler:
-        d_final = float(displacement[-1])
+        assert final.x is not None and final.slips is not None and process.friction is not None
+        d_final = float(np.mean(final.x[-1] - final.x[0]))
         v0 = d_final / T
-        diss_final = float(dissipation[-1])
-        err = period_iteration_error(displacement, convergence, rate, G,
-                                     float(np.sum(np.abs(final.slips))) / process.blocks, T)
+        diss_final = float(np.sum(final.multipliers * process.friction[1:]))
+        roundoff = float(np.sum(np.abs(final.slips))) / process.blocks
+        if solution is not None:
+            # the verified period is periodic to its residual |P(w) - w|: a shape mismatch of
+            # |F| / k_min (a length) bounds the displacement's
+            F = float(np.max(np.abs(final.w[-1] - final.w[0])))
+            assert process.stiffness is not None
+            err = float((G * np.finfo(float).eps * roundoff
+                         + F / float(np.min(process.stiffness))) / T)
+        else:
+            err = period_iteration_error(displacement, convergence, rate, G, roundoff, T)
+    err_step: float | None = None
+    if v0 is not None:
+        if integrator == "exact":
+            err_step = 0.0
+        elif time_step_error:
+            reference = time_step_reference(process, max_periods=max_periods, tolerance=tolerance)
+            if reference is not None and reference.v0 is not None:
+                err_step = abs(v0 - reference.v0) + (reference.v0_error_estimate or 0.0)
+    err_pi = err
+    if err is not None and err_step is not None:
+        err = err + err_step
+    if process.is_crawler and d_final is not None and diss_final is not None and err is not None:
         cot = cost_of_transport(diss_final, d_final, err, T)
+    simulated = len(log) + (solution.periods if solution is not None else 0)
     return RunResult(
         name=process.name, period=T, steps_per_period=G, convergence=convergence,
         periods=Q + 1, periodic_from=periodic_from, contraction_rate=rate, v0=v0,
         v0_error_estimate=err, displacement_per_period=d_final,
-        dissipation_per_period=diss_final, cost_of_transport=cot, history=history,
-        limit=limit_period(process, final, v0), clarabel_calls=stepper.projector.clarabel_calls,
-        wall_time=_time.perf_counter() - began, steps=(Q + 1) * G, integrator=integrator)
+        dissipation_per_period=diss_final, cost_of_transport=cot, history=hist,
+        limit=limit_period(process, final, v0),
+        clarabel_calls=stepper.projector.clarabel_calls + (
+            solver.projector.clarabel_calls if solution is not None else 0),
+        wall_time=_time.perf_counter() - began, steps=simulated * G, integrator=integrator,
+        limit_method="newton" if solution is not None else "iterate",
+        limit_newton_steps=solution.newton_steps if solution is not None else 0,
+        limit_periods=solution.periods if solution is not None else 0,
+        limit_residuals=solution.residuals if solution is not None else None,
+        jacobian_rate=solution.jacobian_rate if solution is not None else None,
+        v0_error_period_iteration=err_pi, v0_error_time_step=err_step)
+
+
+def time_step_reference(process: SweepingProcess, *, max_periods: int,
+                        tolerance: float) -> RunResult | None:
+    """The exact integrator's v0 for ``process`` (periodic-limit solver, no history): the
+    reference a catch-up v0's time-step error is measured against; None where the exact
+    integrator cannot run (no closed form of c(t), or it stops with an error)."""
+    from .errors import CrawlsimError
+
+    if process.offset_pieces is None:
+        return None
+    try:
+        return simulate(process, max_periods=max_periods, tolerance=tolerance,
+                        integrator="exact", limit="newton", history=False,
+                        time_step_error=False)
+    except CrawlsimError:
+        return None
+
+
+class _History:
+    """The true iterates of a run: per-period measurements, and each period's w and multipliers
+    until the limit period is known (spilled to disk), then their distances to it."""
+
+    def __init__(self, process: SweepingProcess):
+        self.process = process
+        self.h = np.diff(process.times)
+        self.steps: list[float] = []
+        self.rel_steps: list[float] = []
+        self.displacements: list[float] = []
+        self.dissipations: list[float] = []
+        self.last: PeriodRecord | None = None
+        self._spill: _PeriodSpill | None = _PeriodSpill()
+        self._limit: PeriodRecord | None = None
+        self._distances: dict[str, list[float]] = {"w12_distance": [], "sup_distance": [],
+                                                   "slip_l2_distance": []}
+        self._reached = False
+
+    def __len__(self) -> int:
+        return len(self.steps)
+
+    def add(self, record: PeriodRecord, sink, progress) -> PeriodRecord:
+        p = self.process
+        if sink is not None:
+            sink.add_period(record)
+        step, rel = poincare_step(p, record.w[0], record.w[-1])
+        self.steps.append(step)
+        self.rel_steps.append(rel)
+        if p.is_crawler:
+            assert record.x is not None and p.friction is not None
+            self.displacements.append(float(np.mean(record.x[-1] - record.x[0])))
+            self.dissipations.append(float(np.sum(record.multipliers * p.friction[1:])))
+        if self._limit is None:
+            assert self._spill is not None
+            self._spill.add(record)
+        else:
+            self._measure(record.w, record.multipliers)
+        self.last = record
+        if progress is not None:
+            progress(len(self.steps) - 1, rel)
+        return record
+
+    def set_limit(self, limit: PeriodRecord) -> None:
+        """From now on periods are measured against ``limit``; the spilled ones are, now."""
+        if self._limit is not None and limit is self._limit:
+            return
+        self._limit = limit
+        self._distances = {k: [] for k in self._distances}
+        if self._spill is not None:
+            for w, lam in self._spill.periods():
+                self._measure(w, lam)
+            self._spill.close()
+            self._spill = None
+
+    def _measure(self, w: np.ndarray, lam: np.ndarray) -> None:
+        assert self._limit is not None
+        d = _period_distances(w, lam, self._limit, self.h)
+        for key, value in d.items():
+            self._distances[key].append(value)
+        scale = max(float(np.linalg.norm(self._limit.w[0])), self.process.scale)
+        self._last_gap = float(np.linalg.norm(w[-1] - self._limit.w[0])) / scale
+
+    def reached(self, tol: float) -> bool:
+        """Whether the last iterate's end state is within ``tol`` of the limit's start."""
+        return bool(self.steps) and getattr(self, "_last_gap", np.inf) <= tol
+
+    def distances(self) -> dict:
+        return {k: np.array(v) for k, v in self._distances.items()}
+
+    def close(self) -> None:
+        if self._spill is not None:
+            self._spill.close()
+            self._spill = None
 
 
 def period_iteration_error(displacements, convergence: Convergence, rate: float | None,
@@ -259,26 +431,23 @@ def classify_convergence(rel_steps, tol: float) -> tuple[Convergence, int | None
     return Convergence.ASYMPTOTIC, None
 
 
-def _distances(spill: _PeriodSpill, final: PeriodRecord, h: np.ndarray) -> dict:
-    """W^{1,2} and sup distances of w, and L^2 distance of the multiplier rates, to ``final``.
+def _period_distances(w: np.ndarray, lam: np.ndarray, final: PeriodRecord,
+                      h: np.ndarray) -> dict[str, float]:
+    """W^{1,2} and sup distances of one period's w, and the L^2 distance of its multiplier
+    rates, to the limit period ``final``.
 
     On the grid, with e = w_q - w_final: ||e||_{L2}^2 by the trapezoidal rule, ||e'||_{L2}^2 as
     sum |e_{j+1} - e_j|^2 / h_j (e' is piecewise constant for the catch-up interpolant), and the
     slip rates lambda_j / h_j are piecewise constant too.
     """
-    w12, sup, slip = [], [], []
-    for w, lam in spill.periods():
-        e = w - final.w
-        e2 = np.sum(e * e, axis=1)
-        l2 = float(np.sum(h * (e2[1:] + e2[:-1]) / 2))
-        de = np.diff(e, axis=0)
-        h1 = float(np.sum(np.sum(de * de, axis=1) / h))
-        w12.append(math.sqrt(l2 + h1))
-        sup.append(float(np.sqrt(np.max(e2))))
-        dl = lam - final.multipliers
-        slip.append(math.sqrt(float(np.sum(np.sum(dl * dl, axis=1) / h))))
-    return dict(w12_distance=np.array(w12), sup_distance=np.array(sup),
-                slip_l2_distance=np.array(slip))
+    e = w - final.w
+    e2 = np.sum(e * e, axis=1)
+    l2 = float(np.sum(h * (e2[1:] + e2[:-1]) / 2))
+    de = np.diff(e, axis=0)
+    h1 = float(np.sum(np.sum(de * de, axis=1) / h))
+    dl = lam - final.multipliers
+    return {"w12_distance": math.sqrt(l2 + h1), "sup_distance": float(np.sqrt(np.max(e2))),
+            "slip_l2_distance": math.sqrt(float(np.sum(np.sum(dl * dl, axis=1) / h)))}
 
 
 def contraction_rate(rel_steps: np.ndarray) -> float | None:

@@ -149,7 +149,8 @@ def _execute(spec: Spec, target: Any, *, save_every: int, check_every_step: bool
                        trajectory=keep_trajectory) as writer:
         run = _simulate_process(process, max_periods=s.max_periods, tolerance=s.tolerance,
                                 integrator=s.integrator, check_every_step=check_every_step,
-                                sink=writer, progress=progress)
+                                sink=writer, progress=progress, limit=s.limit,
+                                time_step_error=True)
         result = _extend(run, units=spec.units, provenance=record)
         writer.finish(result, record, kind=kind,
                       unchecked_uniqueness=getattr(spec, "uniqueness_unchecked", False))
@@ -157,7 +158,8 @@ def _execute(spec: Spec, target: Any, *, save_every: int, check_every_step: bool
 
 
 def run(gait: Spec | str | Path, *, output: str | Path | None = None, save_every: int = 1,
-        check_every_step: bool = False, progress: Progress | None = None) -> SimulationResult:
+        check_every_step: bool = False, progress: Progress | None = None,
+        history: bool = True) -> SimulationResult:
     """Simulate a gait to its periodic regime; write the HDF5 results file if ``output`` is given
     (the command line's ``crawlsim run``).
 
@@ -165,14 +167,16 @@ def run(gait: Spec | str | Path, *, output: str | Path | None = None, save_every
     v0 and the other crawler keys are None) or the path of either file. Its ``simulation``
     settings are used as they are (`simulate` takes them as arguments). The file records the
     command line of this process (``sys.argv``) unless a `crawlsim.provenance.recording` is
-    active. The result keeps no trajectory.
+    active. The result keeps no trajectory. ``history=False`` (without ``output``: v0 alone)
+    stops at the verified periodic limit instead of following the iterates to it.
     """
     spec = _as_spec(gait)
     if output is None:
         s = spec.simulation
         run_ = _simulate_process(compile(spec), max_periods=s.max_periods, tolerance=s.tolerance,
                                  integrator=s.integrator, check_every_step=check_every_step,
-                                 progress=progress)
+                                 progress=progress, limit=s.limit, history=history,
+                                 time_step_error=True)
         return _extend(run_, units=spec.units,
                        provenance=_provenance.for_gait(spec, check_every_step=check_every_step))
     result = _execute(spec, Path(output), save_every=save_every,

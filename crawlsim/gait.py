@@ -64,7 +64,8 @@ class Simulation:
     steps_per_period: int = 1000
     max_periods: int = 1000
     tolerance: float = 1e-12
-    integrator: str = "catch-up"
+    integrator: str = "exact"
+    limit: str = "newton"  # how the periodic limit is found (crawlsim.limit), or "iterate"
     unchecked_uniqueness: bool = False  # run even where uniqueness is beyond an exact check
 
 
@@ -168,7 +169,13 @@ SIMULATION_SCHEMA: dict = {
                               "Give up after this many periods."),
         "tolerance": _positive("the convergence tolerance",
                                "Stop when the Poincare step is at most this, relative to |w|."),
-        "integrator": {"enum": ["catch-up", "exact"]},
+        "integrator": {"enum": ["exact", "catch-up"],
+                       "description": "exact: event-driven, v0 to roundoff (the default). "
+                                      "catch-up: the paper's time discretisation, first order in "
+                                      "the step."},
+        "limit": {"enum": ["newton", "iterate"],
+                  "description": "How the periodic limit is found: newton, the periodic-limit "
+                                 "solver (the default), or iterate, plain period after period."},
         "unchecked_uniqueness": {
             "type": "boolean", "x-expected": "true or false",
             "description": "Run a crawler whose friction is beyond an exact check of the uniqueness "
@@ -864,6 +871,7 @@ def process_admissibility_violation(spec: ProcessSpec, point: np.ndarray, t: flo
 
 _SIMULATION_TYPES: dict[str, Callable[[Any], Any]] = {
     "steps_per_period": int, "max_periods": int, "tolerance": float, "integrator": str,
+    "limit": str,
     "unchecked_uniqueness": bool}
 
 _KINDS: dict[str, tuple[dict, Callable[..., Any]]] = {

@@ -640,6 +640,9 @@ SWEEP_VARIABLES: dict[str, Var] = {
     "cost_of_transport": Var(("point",), "dissipation per distance travelled (NaN without net "
                                          "motion)", "force"),
     "integrator": Var(("point",), "integrator of the point: catch-up or exact", "1"),
+    "limit": Var(("point",), "how the periodic limit was found: newton (periodic-limit "
+                             "solver) or iterate (plain periods)", "1"),
+    "newton_steps": Var(("point",), "Newton iterations of the periodic-limit solver", "1"),
 }
 #: Numeric columns written on the grid when a table has them (files of crawlsim 0.1 do not).
 _OPTIONAL_GRID = ("v0_error_estimate", "dissipation_per_period", "cost_of_transport")
@@ -780,7 +783,8 @@ def _write_sweep(f: h5py.File, paths: Sequence[str], axes: Sequence[Any], points
         _describe(ds, axis_var(p), units.of(axis_var(p).quantity))
         ds.attrs["path"] = p
     table = ["v0", "displacement_per_period", "convergence", "periods", "status", "message"]
-    table += [c for c in (*_OPTIONAL_GRID, "integrator") if c in columns]
+    table += [c for c in (*_OPTIONAL_GRID, "integrator", "limit", "newton_steps")
+              if c in columns]
     for name, values in [(k, columns[k]) for k in table] + [("steps", steps)]:
         values = np.asarray(values)
         if values.dtype == object or values.dtype.kind in "US":

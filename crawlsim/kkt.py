@@ -66,6 +66,8 @@ GENERIC_RCOND = 1e-10
 REFINE_FRACTION = 0.25
 #: Primal-dual active-set updates tried before a step is handed to Clarabel.
 UPDATE_ITERATIONS = 12
+#: Numbers the cache of factored active sets may hold (about 32 MB); it is emptied when full.
+CACHE_NUMBERS = 1 << 22
 
 
 class Dependent(Exception):
@@ -277,6 +279,7 @@ class Polyhedron:
 
     def __init__(self) -> None:
         self._cache: dict[tuple[int, ...], ActiveSet] = {}
+        self._cached_numbers = 0
         self._licq_ok: set[tuple[int, ...]] = set()
         self.empty: ActiveSet = _EmptySet()
         self._cache[()] = self.empty
@@ -297,8 +300,24 @@ class Polyhedron:
     def _factor(self, index: np.ndarray) -> ActiveSet:
         raise NotImplementedError
 
+    def _numbers(self, size: int) -> int:
+        """Numbers a factored active set of ``size`` rows keeps (chains: O(size))."""
+        return 6 * size + 8
+
     def metric_times(self, w: np.ndarray) -> np.ndarray:
         """M w."""
+        raise NotImplementedError
+
+    def metric_solve(self, v: np.ndarray) -> np.ndarray:
+        """M^{-1} v."""
+        raise NotImplementedError
+
+    def metric_root(self, v: np.ndarray) -> np.ndarray:
+        """L^T v with M = L L^T (|v|_M = |L^T v|), for states (..., n)."""
+        raise NotImplementedError
+
+    def metric_root_transpose(self, v: np.ndarray) -> np.ndarray:
+        """L v (the adjoint of `metric_root`)."""
         raise NotImplementedError
 
     def dense_normals(self) -> np.ndarray:
@@ -326,9 +345,12 @@ class Polyhedron:
             if not self.licq(idx):
                 raise Dependent(idx)
             cached = self._factor(idx)
-            if len(self._cache) > 4096:  # long runs visit many sets; keep memory bounded
+            # long runs visit many sets: keep the cache's memory bounded
+            self._cached_numbers += self._numbers(len(idx))
+            if self._cached_numbers > CACHE_NUMBERS:
                 self._cache.clear()
                 self._cache[()] = self.empty
+                self._cached_numbers = self._numbers(len(idx))
             self._cache[key] = cached
         return cached
 
@@ -680,6 +702,15 @@ class ChainPolyhedron(Polyhedron):
     def metric_times(self, w):
         return np.asarray(w, dtype=float) / self.stiffness
 
+    def metric_solve(self, v):
+        return np.asarray(v, dtype=float) * self.stiffness
+
+    def metric_root(self, v):
+        return np.asarray(v, dtype=float) / np.sqrt(self.stiffness)
+
+    def metric_root_transpose(self, v):
+        return np.asarray(v, dtype=float) / np.sqrt(self.stiffness)
+
     def dense_normals(self):
         N = self.blocks
         D = np.diff(np.eye(N), axis=0)
@@ -739,8 +770,29 @@ class DensePolyhedron(Polyhedron):
     def _factor(self, index):
         return _DenseSet(self, index)
 
+    def _numbers(self, size: int) -> int:
+        return size * size + 8
+
     def metric_times(self, w):
         return np.asarray(w, dtype=float) @ self.metric.T
+
+    def metric_solve(self, v):
+        return np.asarray(v, dtype=float) @ self.metric_inv.T
+
+    def metric_root(self, v):
+        return np.asarray(v, dtype=float) @ self._root  # rows v -> (L^T v)^T = v^T L
+
+    def metric_root_transpose(self, v):
+        return np.asarray(v, dtype=float) @ self._root.T
+
+    @property
+    def _root(self) -> np.ndarray:
+        """L with M = L L^T (Cholesky)."""
+        cached = getattr(self, "_root_cache", None)
+        if cached is None:
+            cached = np.linalg.cholesky(self.metric)
+            self._root_cache = cached
+        return cached
 
     def dense_normals(self):
         return self.normals

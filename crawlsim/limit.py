@@ -42,6 +42,9 @@ from .stepping import PeriodRecord
 PLAIN_PERIODS = 2
 #: Eigenvalues of J within this distance of 1 belong to the family of periodic solutions.
 UNIT_EIGENVALUE = 1e-8
+#: Up to this many state variables J is formed densely; beyond, the Newton step is solved
+#: matrix-free (LSMR with products by J and J^T, O(K N) each).
+DENSE_JACOBIAN = 400
 
 
 @dataclass(frozen=True, eq=False)
@@ -70,6 +73,26 @@ def jacobian(poly: Polyhedron, visited) -> np.ndarray:
     return X.T
 
 
+def apply_jacobian(poly: Polyhedron, visited, V: np.ndarray) -> np.ndarray:
+    """J v for the rows v of V (k, n): each visited projector in turn."""
+    X = np.array(V, dtype=float)
+    for A in visited:
+        lam = np.zeros(X.shape[:-1] + (poly.m,))
+        lam[..., A.index] = A.solve(poly.apply(X)[..., A.index])
+        X = X - poly.respond(lam)
+    return X
+
+
+def apply_jacobian_transpose(poly: Polyhedron, visited, V: np.ndarray) -> np.ndarray:
+    """J^T v for the rows v of V: P_A^T = I - B_A^T G_A^{-1} B_A M^{-1}, in reverse order."""
+    X = np.array(V, dtype=float)
+    for A in reversed(visited):
+        lam = np.zeros(X.shape[:-1] + (poly.m,))
+        lam[..., A.index] = A.solve(poly.apply(poly.metric_solve(X))[..., A.index])
+        X = X - poly.metric_times(poly.respond(lam))  # B^T lambda = M (M^{-1} B^T lambda)
+    return X
+
+
 def subdominant_rate(J: np.ndarray) -> float:
     """The largest |eigenvalue| of J below 1 (eigenvalues at 1: the family of fixed points)."""
     moduli = np.abs(np.linalg.eigvals(J))
@@ -77,19 +100,28 @@ def subdominant_rate(J: np.ndarray) -> float:
     return float(np.max(below)) if below.size else 0.0
 
 
-def metric_root(poly: Polyhedron) -> np.ndarray:
-    """L^T with M = L L^T, so that |v|_M = |L^T v| (dense, n x n)."""
-    M = poly.dense_metric()
-    return np.linalg.cholesky(M).T
+def newton_step(poly: Polyhedron, visited, F: np.ndarray) -> np.ndarray:
+    """The minimal-norm least-squares solution of (J - I) d = -F in the metric M: dense
+    ``lstsq`` up to `DENSE_JACOBIAN` state variables, matrix-free LSMR beyond."""
+    n = len(F)
+    rhs = -poly.metric_root(F)
+    if n <= DENSE_JACOBIAN:
+        J = jacobian(poly, visited)
+        A = poly.metric_root((J - np.eye(n)).T).T  # L^T (J - I)
+        d, *_ = np.linalg.lstsq(A, rhs, rcond=None)
+        return d
+    from scipy.sparse.linalg import LinearOperator, lsmr
 
+    def matvec(x):
+        x = np.ravel(x)
+        return poly.metric_root(apply_jacobian(poly, visited, x) - x)
 
-def newton_step(poly: Polyhedron, J: np.ndarray, F: np.ndarray,
-                root: np.ndarray | None = None) -> np.ndarray:
-    """The minimal-norm least-squares solution of (J - I) d = -F in the metric M."""
-    L = metric_root(poly) if root is None else root
-    A = L @ (J - np.eye(len(F)))
-    d, *_ = np.linalg.lstsq(A, -(L @ F), rcond=None)
-    return d
+    def rmatvec(y):
+        y = poly.metric_root_transpose(np.ravel(y))
+        return apply_jacobian_transpose(poly, visited, y) - y
+
+    op = LinearOperator((n, n), matvec=matvec, rmatvec=rmatvec, dtype=float)
+    return lsmr(op, rhs, atol=1e-15, btol=1e-15, maxiter=20 * n)[0]
 
 
 def relative_step(process: SweepingProcess, w_start: np.ndarray, w_end: np.ndarray) -> float:
@@ -106,7 +138,6 @@ def solve_limit(process: SweepingProcess, stepper, *, tolerance: float, max_peri
     periods; ``method="iterate"`` takes plain iterations only (the reference)."""
     poly = process.polyhedron
     exact = getattr(stepper, "needs_admissible_start", False)
-    root = metric_root(poly) if method == "newton" else None
 
     def period(w: np.ndarray) -> PeriodRecord:
         stepper.reset(w)
@@ -121,8 +152,7 @@ def solve_limit(process: SweepingProcess, stepper, *, tolerance: float, max_peri
         F = record.w[-1] - w
         candidate = None
         if method == "newton" and periods >= plain:
-            J = jacobian(poly, record.visited)
-            d = newton_step(poly, J, F, root)
+            d = newton_step(poly, record.visited, F)
             candidate = w + d
             if exact:
                 candidate = _admissible(stepper, candidate)
@@ -143,7 +173,7 @@ def solve_limit(process: SweepingProcess, stepper, *, tolerance: float, max_peri
         periods += 1
         residuals.append(relative_step(process, w, record.w[-1]))
     converged = residuals[-1] <= tolerance
-    if converged and method == "newton" and record.visited is not None:
+    if converged and method == "newton" and poly.n <= DENSE_JACOBIAN:
         rate = subdominant_rate(jacobian(poly, record.visited))
     return LimitSolution(converged, w, record, "newton" if used_newton else "iterate",
                          newton_steps, periods, np.array(residuals), rate)

@@ -1,7 +1,7 @@
 """Memory a run needs, estimated before anything big is allocated, and the limit it must fit in.
 
-A gait file can ask for more than a machine has: 10^4 blocks make the current projector's dense
-N^2 matrices gigabytes, and 10^7 steps per period make every tabulated column 80 MB. Rather
+A gait file can ask for more than a machine has: 10^7 steps per period make every tabulated
+column 80 MB, and a generic process of many faces has dense matrices of size n m. Rather
 than fail half-way with a MemoryError (or be killed), a run is refused up front with a
 `ResourceError` (exit code 2) naming the estimate, what dominates it, and the limit.
 
@@ -11,16 +11,17 @@ blocks; every entry a double):
 * the process tabulated on one period's grid: offsets c(t) (G+1) x 2N, friction (G+1) x 2N,
   lengths L(t) and stress offsets K L(t) (G+1) x (N-1) each;
 * one period of stepping: states w (G+1) x (N-1), multipliers G x 2N, positions (G+1) x N;
-* the dense matrices of the current model and projector: normals 2N x (N-1), metric and its
-  inverse (N-1)^2, D and the slip map, and the cache of active sets with their Gram inverses,
-  together about `DENSE_SQUARES` N^2;
+* for a crawler, the KKT kernel's structures are O(N) (`crawlsim.kkt.ChainPolyhedron`): the
+  cache of factored active sets is bounded (`crawlsim.kkt.CACHE_NUMBERS`), and the periodic-limit
+  solver's dense Jacobian (N-1)^2 is used only up to `crawlsim.limit.DENSE_JACOBIAN` links;
+* for a generic process, its dense normals, metric and the cache of active sets, about
+  `DENSE_SQUARES` n^2;
 * temporaries (blocks of telescoped steps, the analysis of the limit period, the HDF5 rows):
   `TEMPORARIES` times the per-period arrays, more for the event-driven integrator;
 
 plus `BASE_BYTES` for the interpreter's own working set. A sweep holds the tabulated process
 of every gait of a batch besides. The constants are calibrated against tracemalloc's peak
-(tests/test_resources.py asserts the estimate bounds it); when the kernel stores O(N)
-structures instead of dense matrices, `DENSE_SQUARES` shrinks accordingly.
+(tests/test_resources.py asserts the estimate bounds it).
 
 The default limit is the smaller of `DEFAULT_CAP` and `DEFAULT_FRACTION` of the memory
 available: MemAvailable of /proc/meminfo, the headroom under RLIMIT_AS, and the headroom under
@@ -60,13 +61,18 @@ class MemoryEstimate:
 
 
 def run_memory(blocks: int, grid_points: int, *, save_every: int = 1,
-               integrator: str = "catch-up", batch: int = 1) -> MemoryEstimate:
+               integrator: str = "catch-up", batch: int = 1,
+               dense: bool = False) -> MemoryEstimate:
     """Estimated peak memory of simulating a crawler of ``blocks`` blocks on a period grid of
     ``grid_points`` points (G + 1: the steps per period plus the breakpoints, plus one).
 
     ``batch`` > 1 is a sweep that steps that many gaits together (each keeps its tabulated
-    process); ``save_every`` thins the rows written to the results file.
+    process); ``save_every`` thins the rows written to the results file; ``dense`` counts the
+    dense matrices of a generic process.
     """
+    from .kkt import CACHE_NUMBERS
+    from .limit import DENSE_JACOBIAN
+
     n, p = int(blocks), int(grid_points)
     tabulated = [
         ("tabulated offsets c(t)", p * 2 * n),
@@ -81,9 +87,16 @@ def run_memory(blocks: int, grid_points: int, *, save_every: int = 1,
     ]
     factor = TEMPORARIES_EXACT if integrator == "exact" else TEMPORARIES
     parts = [(name, int(BYTES * size * factor)) for name, size in tabulated + period]
-    parts.append(("dense N^2 matrices of the projector", BYTES * DENSE_SQUARES * n * n))
+    if dense:
+        parts.append(("dense matrices of the projector", BYTES * DENSE_SQUARES * n * n))
+    else:
+        # a set per step at most, until the cache's bound
+        parts.append(("the cache of factored active sets",
+                      BYTES * min(CACHE_NUMBERS, 2 * p * (6 * n + 8))))
+        if n - 1 <= DENSE_JACOBIAN:
+            parts.append(("the periodic-limit solver's Jacobian", BYTES * 4 * (n - 1) ** 2))
     if batch > 1:
-        per_gait = sum(size for _, size in tabulated) + 9 * n * n
+        per_gait = sum(size for _, size in tabulated) + 12 * n
         parts.append((f"the tabulated processes of a batch of {batch}", BYTES * batch * per_gait))
     parts.append(("the interpreter's working set", BASE_BYTES))
     parts.sort(key=lambda part: -part[1])
@@ -96,7 +109,7 @@ def process_memory(dimension: int, faces: int, grid_points: int, *, save_every: 
     variables: a crawler of N blocks has 2N faces in N - 1 variables, so the same arrays are
     counted with N the larger of n + 1 and m / 2."""
     return run_memory(max(dimension + 1, (faces + 1) // 2), grid_points, save_every=save_every,
-                      integrator=integrator)
+                      integrator=integrator, dense=True)
 
 
 def gait_memory(gait, *, save_every: int = 1, batch: int = 1, steps_per_period: int | None = None,

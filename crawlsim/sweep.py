@@ -55,10 +55,13 @@ from .status import PointStatus
 #: Columns of a sweep table after the swept paths (CSV header, HDF5 /results datasets).
 RESULT_COLUMNS = ("v0", "v0_error_estimate", "displacement_per_period",
                   "dissipation_per_period", "cost_of_transport", "convergence", "periods",
-                  "integrator", "status", "message")
+                  "integrator", "limit", "newton_steps", "status", "message")
 #: Result columns that files written before crawlsim 0.2 lack (read back as missing values).
 LATER_COLUMNS = ("v0_error_estimate", "dissipation_per_period", "cost_of_transport",
-                 "integrator")
+                 "integrator", "limit", "newton_steps")
+#: Periods a catch-up point is iterated in the vectorised batch before the periodic-limit
+#: solver takes over (finite-time crawlers and fast contractions finish within them).
+BATCH_PLAIN_PERIODS = 8
 #: Points per task handed to a worker: a task is one batch. Small tasks keep progress and the
 #: journal moving; large ones fill the vectorised batch (throughput about doubles from 16 to
 #: 256 points). Task sizes adapt between the two to take about `TASK_SECONDS` each.
@@ -328,6 +331,8 @@ class PointResult:
     integrator: str = ""
     message: str = ""
     steps: int = 0
+    limit: str = ""
+    newton_steps: int = 0
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "status", PointStatus(self.status))
@@ -343,7 +348,7 @@ class PointResult:
 
 _POINT_FIELDS = ("index", "status", "v0", "v0_error_estimate", "displacement_per_period",
                  "dissipation_per_period", "cost_of_transport", "convergence", "periods",
-                 "integrator", "message", "steps")
+                 "integrator", "message", "steps", "limit", "newton_steps")
 
 
 def _failure(index: int, exc: BaseException) -> PointResult:
@@ -401,44 +406,51 @@ def evaluate(gaits, indices, *, capacity=None, progress=None) -> list[PointResul
         (batch if g.simulation.integrator == "catch-up" else single).append((i, process, g))
 
     def batched(members, progress):
-        runs = simulate_batch([p for _, p, _ in members],
-                              max_periods=[g.simulation.max_periods for _, _, g in members],
-                              tolerance=[g.simulation.tolerance for _, _, g in members],
-                              capacity=capacity or DEFAULT_CAPACITY, progress=progress)
-        for (i, _, _), r in zip(members, runs):
+        newton = [g.simulation.limit == "newton" for _, _, g in members]
+        runs = simulate_batch(
+            [p for _, p, _ in members],
+            max_periods=[min(g.simulation.max_periods, BATCH_PLAIN_PERIODS) if n
+                         else g.simulation.max_periods for (_, _, g), n in zip(members, newton)],
+            tolerance=[g.simulation.tolerance for _, _, g in members],
+            capacity=capacity or DEFAULT_CAPACITY, progress=None)
+        for (i, p, g), r, n in zip(members, runs, newton):
+            if n and r.status == PointStatus.NOT_CONVERGED \
+                    and g.simulation.max_periods > BATCH_PLAIN_PERIODS:
+                single.append((i, p, g))  # the periodic-limit solver finishes it
+                continue
             out[i] = PointResult(
                 i, r.status, v0=r.v0, v0_error_estimate=r.v0_error_estimate,
                 displacement_per_period=r.displacement_per_period,
                 dissipation_per_period=r.dissipation_per_period,
                 cost_of_transport=r.cost_of_transport, convergence=str(r.convergence or ""),
-                periods=r.periods, integrator="catch-up", message=r.message, steps=r.steps)
+                periods=r.periods, integrator="catch-up", message=r.message, steps=r.steps,
+                limit="iterate")
+            if progress is not None:
+                progress(1)
 
     if batch:
-        reported = [0]
-
-        def counted(k):
-            reported[0] += k
-            if progress is not None:
-                progress(k)
         try:
-            batched(batch, counted)
+            batched(batch, progress)
         except Exception as exc:  # one bad point must not sink its batch
             if isinstance(exc, MemoryError):
                 raise
-            for n, member in enumerate(batch):
+            done = set(out) | {i for i, _, _ in single}
+            for member in batch:
+                if member[0] in done:
+                    continue
                 try:
-                    batched([member], None)
+                    batched([member], progress)
                 except Exception as one:
                     if isinstance(one, MemoryError):
                         raise
                     out[member[0]] = _failure(member[0], one)
-                if progress is not None and n >= reported[0]:
-                    progress(1)
+                    if progress is not None:
+                        progress(1)
     for i, process, g in single:
         s = g.simulation
         try:
             run = simulate(process, max_periods=s.max_periods, tolerance=s.tolerance,
-                           integrator=s.integrator)
+                           integrator=s.integrator, limit=s.limit, history=False)
         except Exception as exc:
             if isinstance(exc, MemoryError):
                 raise
@@ -450,7 +462,8 @@ def evaluate(gaits, indices, *, capacity=None, progress=None) -> list[PointResul
                 displacement_per_period=run.displacement_per_period,
                 dissipation_per_period=run.dissipation_per_period,
                 cost_of_transport=run.cost_of_transport, convergence=str(run.convergence),
-                periods=run.periods, integrator=run.integrator, steps=run.steps)
+                periods=run.periods + run.limit_periods, integrator=run.integrator,
+                steps=run.steps, limit=run.limit_method, newton_steps=run.limit_newton_steps)
         if progress is not None:
             progress(1)
     return [out[int(i)] for i in indices]
@@ -583,9 +596,9 @@ class SweepTable:
         cols = dict(zip(self.paths, self.coordinates()))
         for name in RESULT_COLUMNS:
             values = [getattr(r, name) for r in self.rows]
-            if name == "periods":
+            if name in ("periods", "newton_steps"):
                 cols[name] = np.array(values, dtype=np.int64)
-            elif name in ("convergence", "integrator", "status", "message"):
+            elif name in ("convergence", "integrator", "limit", "status", "message"):
                 cols[name] = np.array([str(v) for v in values], dtype=object)
             else:
                 cols[name] = np.array([np.nan if v is None else v for v in values], float)
@@ -676,7 +689,9 @@ def read_table(path) -> SweepTable:
             cost_of_transport=number("cost_of_transport", n),
             convergence=str(cols["convergence"][n]), periods=int(cols["periods"][n]),
             integrator=str(cols["integrator"][n]) if "integrator" in cols else "",
-            message=str(cols["message"][n]), steps=int(data["steps"][n])))
+            message=str(cols["message"][n]), steps=int(data["steps"][n]),
+            limit=str(cols["limit"][n]) if "limit" in cols else "",
+            newton_steps=int(cols["newton_steps"][n]) if "newton_steps" in cols else 0))
     shard = parse_shard(data["shard"]) if data["shard"] else None
     dims = data.get("dimensions")
     return SweepTable(tuple(data["paths"]), tuple(data["axes"]), np.asarray(data["points"]),

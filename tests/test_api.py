@@ -76,7 +76,7 @@ def test_simulate_keeps_the_trajectory_and_matches_the_closed_form():
     """Two-block inching (tests/test_closed_forms.py): v0 = 2A - (mu_1^+ + mu_2^+)/k, exact on a
     grid holding t = 0 and T/2; the trajectory's stress is k (L - (x_2 - x_1))."""
     gait = crawlsim.load_gait(INCHING).replace("links.0.amplitude", 0.25)
-    r = crawlsim.simulate(gait, steps_per_period=40, save_every=2)
+    r = crawlsim.simulate(gait, integrator="catch-up", steps_per_period=40, save_every=2)
     assert r.v0 == pytest.approx(2 * 0.25 - 2 / 10, abs=1e-13)
     assert r.steps_per_period == 40 and r.integrator == "catch-up"
     tr = r.trajectory

@@ -22,7 +22,7 @@ STEPS = 120
 
 def _single(process, gait):
     s = gait.simulation
-    return simulate(process, max_periods=s.max_periods, tolerance=s.tolerance)
+    return simulate(process, max_periods=s.max_periods, tolerance=s.tolerance, limit="iterate")
 
 
 def _assert_same(run, single):

@@ -185,7 +185,7 @@ def test_info_summarises_a_run(runner, tmp_path):
     assert text.exit_code == 0, text.output
     lines = text.output.splitlines()
     assert lines[0] == "r.h5: run of gait inch"
-    assert "  integrator               catch-up" in lines
+    assert "  integrator               exact" in lines  # the default
     assert any(line.startswith("  v0                       0.4") for line in lines)
     assert "  convergence              finite-time: periodic from period 1" in lines
     assert "  periods                  2 of 100 steps (period 1)" in lines
@@ -212,7 +212,7 @@ def test_info_summarises_a_sweep(runner, tmp_path):
     assert "  points                   6: 2 invalid, 4 ok" in text
     data = json.loads(runner.invoke(main, ["info", "s.h5", "--json"]).output)
     assert data["file_kind"] == "sweep" and data["statuses"] == {"ok": 4, "invalid": 2}
-    assert data["integrator"] == "catch-up" and data["shard"] is None
+    assert data["integrator"] == "exact" and data["shard"] is None
     # v0 of the ok points: backward 0.5 moves backward, 2 forward (tests/test_sweep.py)
     assert data["v0_min"] == pytest.approx(-(0.6 - 2 * 0.5 / 10), abs=1e-12)
     assert data["v0_max"] == pytest.approx(0.6 - 0.2, abs=1e-12)

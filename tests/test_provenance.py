@@ -74,7 +74,7 @@ def test_rerun_from_results_reproduces_the_run_bit_for_bit(tmp_path, case):
     settings = json.loads(a["attrs"]["integrator_json"])
     assert settings["check_every_step"] == ("--check-every-step" in options)
     assert settings["integrator"] == a["attrs"]["integrator"] == simulation.get(
-        "integrator", "catch-up")
+        "integrator", "exact")  # the default integrator
 
 
 def test_rerun_options_override_the_recorded_ones(tmp_path):

@@ -76,12 +76,15 @@ def test_estimate_bounds_the_measured_peak_of_a_sweep_batch():
 
 
 def test_estimate_grows_as_the_arrays_do():
-    """(G+1) x N tables and dense N^2 matrices: doubling G doubles the per-period part, doubling
-    N quadruples the dense part."""
+    """(G+1) x N tables, and the dense n^2 matrices of a generic process: doubling G doubles
+    the per-period part, doubling the dimension quadruples the dense part. A crawler has no
+    N^2 part (the chain kernel is O(N))."""
     small, long_, wide = run_memory(10, 1000), run_memory(10, 2000), run_memory(20, 1000)
     assert dict(long_.parts)["tabulated offsets c(t)"] == 2 * dict(small.parts)["tabulated offsets c(t)"]
-    dense = "dense N^2 matrices of the projector"
-    assert dict(wide.parts)[dense] == 4 * dict(small.parts)[dense]
+    dense = "dense matrices of the projector"
+    assert dense not in dict(small.parts)
+    generic, twice = run_memory(10, 1000, dense=True), run_memory(20, 1000, dense=True)
+    assert dict(twice.parts)[dense] == 4 * dict(generic.parts)[dense]
     assert run_memory(10, 1001, integrator="exact").total > small.total
     assert run_memory(10, 1001, batch=100).total > small.total
 
@@ -101,12 +104,12 @@ def test_parse_size_refuses(text):
 
 
 def test_check_memory_names_estimate_and_limit():
-    estimate = run_memory(10_000, 11)
+    estimate = run_memory(100_000, 1001)
     with pytest.raises(ResourceError) as info:
         check_memory(estimate, 500 << 20, "big.yaml")
     message = str(info.value)
     assert message.startswith("big.yaml: this run would need about")
-    assert "dense N^2 matrices of the projector" in message
+    assert "tabulated offsets c(t)" in message
     assert f"more than the memory limit of {format_size(500 << 20)}" in message
 
 

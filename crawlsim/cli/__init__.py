@@ -38,7 +38,8 @@ EXIT_TERMINATED = 128 + signal.SIGTERM
 DEFAULT_STEPS_PER_PERIOD = 1000
 DEFAULT_MAX_PERIODS = 1000
 DEFAULT_TOLERANCE = 1e-12
-DEFAULT_INTEGRATOR = Integrator.CATCH_UP
+DEFAULT_INTEGRATOR = Integrator.EXACT
+DEFAULT_LIMIT = "newton"
 
 
 class BadInput(click.ClickException):
@@ -197,9 +198,16 @@ def simulation_options(f):
                           "--integrator exact, only the output grid.")(f)
     f = click.option("--integrator", type=click.Choice([str(i) for i in Integrator]),
                      expose_value=False, callback=_remember_integrator,
-                     help="catch-up: first order in the step, robust for any gait. exact: "
-                          "event-driven, v0 to roundoff, fast for smooth or piecewise-linear "
-                          f"gaits (default: the gait file's value, else {DEFAULT_INTEGRATOR}).")(f)
+                     help="exact: event-driven, v0 to roundoff. catch-up: the paper's time "
+                          "discretisation, first order in the step (its time-step error is "
+                          "measured against exact) (default: the gait file's value, else "
+                          f"{DEFAULT_INTEGRATOR}).")(f)
+    f = click.option("--limit", type=click.Choice(["newton", "iterate"]), expose_value=False,
+                     callback=_remember_limit,
+                     help="How the periodic limit is found: newton, the periodic-limit solver "
+                          "(a few periods even when the iterates converge slowly), or iterate, "
+                          "period after period (default: the gait file's value, else "
+                          f"{DEFAULT_LIMIT}).")(f)
     return f
 
 
@@ -226,18 +234,25 @@ def _remember_integrator(ctx, param, value):
         ctx.meta["crawlsim.integrator"] = value
 
 
+def _remember_limit(ctx, param, value):
+    """``--limit``, consumed by `load_with_overrides` like ``--integrator``."""
+    if value is not None:
+        ctx.meta["crawlsim.limit"] = value
+
+
 def load_with_overrides(gait_file, steps_per_period, max_periods, tolerance, integrator=None):
     """The gait file with the command line's simulation options applied (``--integrator``
     included, taken from the click context when not given)."""
     from ..gait import load_gait, with_simulation
 
+    ctx = click.get_current_context(silent=True)
     if integrator is None:
-        ctx = click.get_current_context(silent=True)
         integrator = None if ctx is None else ctx.meta.get("crawlsim.integrator")
+    limit = None if ctx is None else ctx.meta.get("crawlsim.limit")
     gait = load_gait(gait_file)
     overrides = {k: v for k, v in dict(steps_per_period=steps_per_period,
                                        max_periods=max_periods, tolerance=tolerance,
-                                       integrator=integrator).items()
+                                       integrator=integrator, limit=limit).items()
                  if v is not None}
     return with_simulation(gait, **overrides) if overrides else gait
 

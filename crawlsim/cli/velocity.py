@@ -163,7 +163,7 @@ def velocity(gait_file, as_json, sweep_specs, link_specs, output, jobs, shard, s
 
                 check_memory(gait, max_memory)
                 with run_progress(gait, quiet, verbose) as progress:
-                    result = api.run(gait, progress=progress)
+                    result = api.run(gait, progress=progress, history=False)
                 click.echo(to_json(result.summary()) if as_json else repr(result.v0))
                 if not result.converged:
                     sys.exit(EXIT_NOT_CONVERGED)
