@@ -642,7 +642,8 @@ SWEEP_VARIABLES: dict[str, Var] = {
     "integrator": Var(("point",), "integrator of the point: catch-up or exact", "1"),
     "limit": Var(("point",), "how the periodic limit was found: newton (periodic-limit "
                              "solver) or iterate (plain periods)", "1"),
-    "newton_steps": Var(("point",), "Newton iterations of the periodic-limit solver", "1"),
+    "newton_steps": Var(("point",), "Newton iterations of the periodic-limit solver (-1: the "
+                                    "point did not run)", "1"),
 }
 #: Numeric columns written on the grid when a table has them (files of crawlsim 0.1 do not).
 _OPTIONAL_GRID = ("v0_error_estimate", "dissipation_per_period", "cost_of_transport")

@@ -332,7 +332,7 @@ class PointResult:
     message: str = ""
     steps: int = 0
     limit: str = ""
-    newton_steps: int = 0
+    newton_steps: int | None = None  # None: not computed (a failed point, an older file)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "status", PointStatus(self.status))
@@ -380,7 +380,15 @@ def run_points(grid: SweepGrid, indices, *, capacity=None, progress=None) -> lis
 
 
 def evaluate(gaits, indices, *, capacity=None, progress=None) -> list[PointResult]:
-    """v0 of validated gaits: catch-up gaits through the batched stepper, ``exact`` one by one.
+    """v0 of validated gaits: ``exact`` ones one by one (periodic-limit solver, no history),
+    catch-up ones through the batched stepper, for at most `BATCH_PLAIN_PERIODS` periods when
+    the gait's limit method is ``newton`` (the periodic-limit solver then finishes those that
+    have not converged, one by one).
+
+    A row's ``v0_error_estimate`` bounds the true error of its v0. Catch-up rows leave it
+    missing: their time-step error is not measured in a sweep (a single run measures it against
+    the exact integrator, which would double a sweep's cost); the exact integrator, the
+    default, has none.
 
     One point never stops the others: a gait that cannot be compiled, or a batch that raises,
     is retried point by point, and each point that still raises is recorded (``invalid`` for an
@@ -419,12 +427,12 @@ def evaluate(gaits, indices, *, capacity=None, progress=None) -> list[PointResul
                 single.append((i, p, g))  # the periodic-limit solver finishes it
                 continue
             out[i] = PointResult(
-                i, r.status, v0=r.v0, v0_error_estimate=r.v0_error_estimate,
+                i, r.status, v0=r.v0, v0_error_estimate=None,  # time-step error unmeasured
                 displacement_per_period=r.displacement_per_period,
                 dissipation_per_period=r.dissipation_per_period,
                 cost_of_transport=r.cost_of_transport, convergence=str(r.convergence or ""),
                 periods=r.periods, integrator="catch-up", message=r.message, steps=r.steps,
-                limit="iterate")
+                **({"limit": "iterate", "newton_steps": 0} if r.v0 is not None else {}))
             if progress is not None:
                 progress(1)
 
@@ -458,7 +466,8 @@ def evaluate(gaits, indices, *, capacity=None, progress=None) -> list[PointResul
         else:
             status = PointStatus.OK if run.converged else PointStatus.NOT_CONVERGED
             out[i] = PointResult(
-                i, status, v0=run.v0, v0_error_estimate=run.v0_error_estimate,
+                i, status, v0=run.v0,
+                v0_error_estimate=run.v0_error_estimate if run.integrator == "exact" else None,
                 displacement_per_period=run.displacement_per_period,
                 dissipation_per_period=run.dissipation_per_period,
                 cost_of_transport=run.cost_of_transport, convergence=str(run.convergence),
@@ -596,8 +605,10 @@ class SweepTable:
         cols = dict(zip(self.paths, self.coordinates()))
         for name in RESULT_COLUMNS:
             values = [getattr(r, name) for r in self.rows]
-            if name in ("periods", "newton_steps"):
+            if name == "periods":
                 cols[name] = np.array(values, dtype=np.int64)
+            elif name == "newton_steps":  # -1: not computed
+                cols[name] = np.array([-1 if v is None else v for v in values], dtype=np.int64)
             elif name in ("convergence", "integrator", "limit", "status", "message"):
                 cols[name] = np.array([str(v) for v in values], dtype=object)
             else:
@@ -691,7 +702,8 @@ def read_table(path) -> SweepTable:
             integrator=str(cols["integrator"][n]) if "integrator" in cols else "",
             message=str(cols["message"][n]), steps=int(data["steps"][n]),
             limit=str(cols["limit"][n]) if "limit" in cols else "",
-            newton_steps=int(cols["newton_steps"][n]) if "newton_steps" in cols else 0))
+            newton_steps=(int(cols["newton_steps"][n])
+                          if "newton_steps" in cols and cols["newton_steps"][n] >= 0 else None)))
     shard = parse_shard(data["shard"]) if data["shard"] else None
     dims = data.get("dimensions")
     return SweepTable(tuple(data["paths"]), tuple(data["axes"]), np.asarray(data["points"]),
