@@ -159,14 +159,16 @@ def _search(problem, method, out, jobs, scheduler, quiet, verbose):
 
     budget = method.budget(problem)
     bar = Progress("optimize", "point", budget, mode=choose_mode(quiet))
-    objective = "front" if problem.pareto else problem.objective.quantity
+    runs = 2 + method.front_points if problem.pareto else 1
 
     def report(batch):
+        run = f"run {batch.run + 1}/{runs}: " if problem.pareto else ""
         if batch.feasible:
-            bar.set_note(f"best {objective if not problem.pareto else 'of run ' + str(batch.run)}"
-                         f" {batch.best:.10g}")
+            what = ("v0" if batch.run == 0 else "cost_of_transport") if problem.pareto else \
+                problem.objective.quantity
+            bar.set_note(f"{run}best {what} {batch.best:.10g}")
         else:
-            bar.set_note("no feasible point yet")
+            bar.set_note(f"{run}no feasible point yet")
         if verbose:
             bar.message(f"batch {batch.batch} (run {batch.run}, {batch.stage}): "
                         f"{batch.evaluations} points, best "
@@ -213,7 +215,9 @@ def _text(result, summary, out, write_best) -> str:
                  f"{stages['global']} global, {stages['polish']} polish"
                  + (f"; {bad}" if bad else ""))
     if problem.pareto:
-        lines.append(f"  {'front':<24} {len(result.front)} points, {len(result.chosen)} chosen")
+        chosen = [p for p in summary["front"] if p["chosen"]]
+        lines.append(f"  {'front':<24} {len(result.front)} points, {len(chosen)} of them "
+                     "optima of the runs:")
         for point in summary["front"]:
             if point["chosen"]:
                 values = ", ".join(f"{p}={point[p]:.6g}" for p in problem.paths)
