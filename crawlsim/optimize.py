@@ -67,6 +67,7 @@ from .sweep import (
     Journal,
     PointResult,
     SweepInterrupted,
+    WorkerPool,
     check_some_point_runs,
     make_grid,
     run_points,
@@ -131,6 +132,7 @@ class Free:
     path: str
     lo: float
     hi: float
+    spec: str = dataclasses.field(default="", compare=False)  # the option as given
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.lo) and math.isfinite(self.hi)):
@@ -146,7 +148,7 @@ class Free:
 
     @property
     def text(self) -> str:
-        return f"{self.path}={self.lo!r}:{self.hi!r}"
+        return self.spec or f"{self.path}={self.lo!r}:{self.hi!r}"
 
     def value(self, u: float) -> float:
         """The parameter at ``u`` in [0, 1], both bounds reached exactly."""
@@ -183,7 +185,7 @@ def parse_free(text: str) -> Free:
     if lo > hi:
         raise SweepSpecError(f"--free {text}", path, f"bounds reversed: LO = {lo!r} > HI = "
                                                      f"{hi!r}; give LO:HI with LO < HI")
-    return Free(path, lo, hi)
+    return Free(path, lo, hi, text.strip())
 
 
 @dataclass(frozen=True)
@@ -720,6 +722,7 @@ class _Evaluator:
         self.history: list[Batch] = []
         self.done = journal.load() if journal is not None else {}
         self.computed = 0
+        self.pool: WorkerPool | None = None  # local workers kept for every batch (optimize)
 
     @property
     def remaining(self) -> int:
@@ -771,7 +774,7 @@ class _Evaluator:
         try:
             table = run_sweep(grid, jobs=self.jobs, scheduler=self.scheduler,
                               journal=cast(Journal, window), progress=self.progress,
-                              on_rows=self._skipped)
+                              on_rows=self._skipped, pool=self.pool)
         except SweepInterrupted:
             raise OptimizationInterrupted(self._finished(),
                                           None if self.journal is None else self.journal.path
@@ -871,8 +874,10 @@ class _Search:
         if self.init is None and share < 2 * method.population(n):
             popsize = max(1, share // (2 * n))  # a small budget: a small population
         population = max(5, popsize * n) if self.init is None else len(self.init)
-        if share < 2 * population:
-            return  # not even two generations: the polish gets everything
+        if share < 2 * population:  # not even two generations: the polish starts at the centre
+            self.evaluate(np.array([problem.values([0.5] * n)]), Stage.INITIAL)
+            self.stop = "budget too small for differential evolution"
+            return
         stage = [Stage.INITIAL]
 
         def constraint(X):
@@ -996,11 +1001,20 @@ def optimize(problem: Problem, method: Method | None = None, *, output: Path | s
     ev = _Evaluator(problem, budget, jobs=jobs, scheduler=scheduler, journal=book,
                     progress=progress, report=report)
     try:
+        if jobs > 1 and not scheduler:
+            ev.pool = WorkerPool(jobs)
         if problem.pareto:
             runs = _pareto(ev, problem, method)
         else:
             runs = [_Search(ev, method, 0, problem.objective, problem.constraints, budget,
                             (method.seed, 0)).solve()]
+    except BaseException:
+        if ev.pool is not None:
+            ev.pool.stop()
+        raise
+    else:
+        if ev.pool is not None:
+            ev.pool.close()
     finally:
         if book is not None:
             book.close()
