@@ -273,6 +273,16 @@ def test_pareto_front_is_the_non_dominated_set_of_the_evaluated_points(tmp_path)
     data = h5io.read_optimization(tmp_path / "front.h5")
     assert data["front"]["evaluation"].tolist() == list(result.front)
     assert data["front"]["chosen"].sum() >= 1
+    # the figure draws the file's front and marks its chosen points
+    from crawlsim.plotting import pareto_figure
+
+    ax = pareto_figure(data).axes[0]
+    lines = {line.get_label(): line for line in ax.get_lines()}
+    drawn = lines[f"Pareto front ({len(result.front)} points)"]
+    assert drawn.get_xdata().tolist() == [p.v0 for p in front]
+    assert drawn.get_ydata().tolist() == [p.cost_of_transport for p in front]
+    chosen = lines["chosen gait (optimum of a run)"]
+    assert len(chosen.get_xdata()) == data["front"]["chosen"].sum()
 
 
 # -- resume, the file, the figures --------------------------------------------------------------

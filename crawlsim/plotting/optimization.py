@@ -68,7 +68,7 @@ def objective_figure(data: dict) -> Figure:
             ax.step(n, hv, where="post", color=blue, label="hypervolume of the front so far")
             runs = np.asarray(hist["run"])
             starts = [0, *np.flatnonzero(np.diff(runs)) + 1]
-            objectives = list(data["runs"]["objective"])
+            labels = _run_labels(data["runs"])
             for k, s in enumerate(starts):
                 first = n[s] - _batch_size(hist, s)
                 ax.axvline(first, color=FAINT, linewidth=0.8, linestyle="--")
@@ -76,9 +76,8 @@ def objective_figure(data: dict) -> Figure:
                         va="top", ha="left", color=REFERENCE, fontsize=8)
             ax.set_ylabel("hypervolume (v0 × cost of transport)")
             what = "Pareto front of v0 against cost of transport: convergence"
-            runs_text = "; ".join(f"{k + 1}: {o}" for k, o in enumerate(objectives))
-            ax.text(0.0, -0.22, "runs " + runs_text, transform=ax.transAxes, fontsize=7.5,
-                    color=REFERENCE, va="top", wrap=True)
+            ax.text(0.0, -0.2, "runs: " + "; ".join(labels), transform=ax.transAxes,
+                    fontsize=7.5, color=REFERENCE, va="top", wrap=True)
         else:
             quantity = str(attrs.get("objective_quantity", "v0"))
             values = np.asarray(evals[quantity], dtype=float)
@@ -106,6 +105,18 @@ def objective_figure(data: dict) -> Figure:
         ax.set_title(title(name, what))
         ax.legend(loc="lower right" if not pareto else "lower right")
     return fig
+
+
+def _run_labels(runs: dict) -> list[str]:
+    """``1 max v0``, ``2 min cost``, ``3 min cost, v0 >= 0.08``: the runs of a Pareto front."""
+    out = []
+    for k, (objective, eps) in enumerate(zip(runs["objective"], runs["epsilon"]), 1):
+        sense, _, quantity = str(objective).partition(" ")
+        text = f"{k} {sense[:3]} {'v0' if quantity == 'v0' else 'cost'}"
+        if np.isfinite(eps):
+            text += f" at v0 ≥ {eps:.3g}"
+        out.append(text)
+    return out
 
 
 def _batch_size(hist: dict, i: int) -> float:
