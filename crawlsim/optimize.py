@@ -882,7 +882,8 @@ class _Search:
 
         def constraint(X):
             evaluations = self.evaluate(np.atleast_2d(X.T), stage[0])
-            stage[0] = Stage.GENERATION
+            if len(evaluations) > 1:  # SciPy first probes one point of the first population
+                stage[0] = Stage.GENERATION
             return np.array([self._violations(e) for e in evaluations]).T
 
         def energy(X):

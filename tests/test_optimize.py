@@ -355,3 +355,17 @@ def test_the_results_file_layout_and_its_figures(tmp_path):
     assert refused.exit_code == 2 and "pareto-front" in refused.output
     rerun = cli("run", "--from", out)
     assert rerun.exit_code == 2 and "--write-best" in rerun.output
+
+
+def test_a_dask_cluster_gives_the_same_result():
+    """Each generation goes to the cluster through the sweep engine; the search is the same,
+    point for point (CI installs the dask extra)."""
+    distributed = pytest.importorskip("distributed")
+    problem = lags_problem()
+    method = opt.Method(seed=4, max_evaluations=30)
+    local = opt.optimize(problem, method)
+    with distributed.LocalCluster(host="127.0.0.1", n_workers=2, threads_per_worker=1,
+                                  processes=True, dashboard_address=None) as cluster:
+        remote = opt.optimize(problem, method, scheduler=cluster.scheduler_address)
+    assert [e.x for e in remote.evaluations] == [e.x for e in local.evaluations]
+    assert [e.row.v0 for e in remote.evaluations] == [e.row.v0 for e in local.evaluations]

@@ -9,6 +9,7 @@ import click
 
 from . import (
     BadInput,
+    Terminated,
     _output_path,
     check_feedback,
     feedback_options,
@@ -65,7 +66,7 @@ def _folder_of(path, option):
                    "finished points while it runs: rerun the same command to resume.")
 @click.option("--write-best", type=click.Path(dir_okay=False), metavar="BEST.yaml",
               help="Write the best gait as a gait file (crawlsim run reproduces its v0).")
-@click.option("--seed", type=int, default=0, show_default=True,
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
               help="Seed of the search: the same seed gives the same result.")
 @click.option("--max-evaluations", type=click.IntRange(min=1),
               help="Budget of simulated points [default: 150 (n + 1) for n free parameters; "
@@ -183,7 +184,10 @@ def _search(problem, method, out, jobs, scheduler, quiet, verbose):
         where = (f"kept in {exc.journal}; run the same command again to resume"
                  if exc.journal is not None else "not kept")
         click.echo(f"Interrupted: {exc.done} points finished, {where}.", err=True)
-        raise interrupt_exit(exc) from None
+        cause: BaseException | None = exc
+        while cause is not None and not isinstance(cause, Terminated):
+            cause = cause.__context__  # SIGTERM is two exceptions down (the sweep's, then ours)
+        raise interrupt_exit(cause or exc) from None
     except BaseException:
         bar.close()
         raise
