@@ -1,4 +1,5 @@
-"""The one module that reads and writes HDF5: run results files and sweep files.
+"""The one module that reads and writes HDF5: run results files, sweep files and optimisation
+files.
 
 The files are netCDF-4 files (HDF5 with the netCDF conventions), written with h5py: every axis of
 every dataset is attached to a named dimension scale, and every dataset carries ``units`` (UDUNITS
@@ -27,6 +28,11 @@ not a variable"; the times are the variable ``t`` of the group, a coordinate of 
 Sweep files (format_version 2): /grid holds v0 and the other numbers on the Cartesian grid, one
 dimension per swept path (named by `axis_name`, the path in the attribute ``path``); /results holds
 one entry per computed point, as in format 1.
+
+Optimisation files (format_version 2, kind "optimization", `write_optimization`): /evaluations
+holds every evaluated point (dimension evaluation) with the sweep table's columns and where it came
+from, /history the best value per batch, /runs the single-objective runs, /front the Pareto front
+(`OPTIMIZATION_VARIABLES`).
 
 Readers accept format_version 1 (the layout before dimension scales, units and provenance) and 2;
 the dicts they return have the same keys for both, format 2 adding new keys only. Writes are
@@ -559,6 +565,9 @@ def read_results(path: Any) -> dict[str, Any]:
         if _plain(f.attrs.get("kind", "")) == "sweep":
             raise ResultsFileError(f"{source}: a sweep file, not a run's results file: read it "
                                    "with crawlsim.sweep.read_table")
+        if _plain(f.attrs.get("kind", "")) == "optimization":
+            raise ResultsFileError(f"{source}: an optimisation file, not a run's results file: "
+                                   "read it with crawlsim.h5io.read_optimization")
         out: dict[str, Any] = {"attrs": {k: _plain(v) for k, v in f.attrs.items()}}
         for group in ("trajectory", "convergence", "limit"):
             if group not in f:
@@ -589,6 +598,11 @@ def read_provenance(path: Any) -> dict[str, Any]:
     with _open(path, "results file") as f:
         version = _check_version(f, path)
         a = {k: _plain(v) for k, v in f.attrs.items()}
+    if a.get("kind") == "optimization":
+        raise ResultsFileError(f"{path}: an optimisation file; --from reruns a run's results "
+                               "file. Write the best gait with crawlsim optimize --write-best "
+                               "BEST.yaml and run that (its command line was: "
+                               f"{a.get('command_line', 'not recorded')})")
     if a.get("kind") == "sweep":
         raise ResultsFileError(f"{path}: a sweep file; --from reruns a run's results file (the "
                                f"sweep's command line was: {a.get('command_line', 'not recorded')})")
@@ -861,6 +875,14 @@ _DESCRIBED = {"crawlsim_version", "format_version", "kind", "name", "convergence
               "summary_json", "source", "paths", "shape", "shard", "dimensions", "integrator"}
 
 
+#: Root attributes of an optimisation file that `describe` reports under its own keys (or that
+#: repeat them).
+_OPTIMIZATION_DESCRIBED = {"objective", "constraints_json", "free_json", "seed", "evaluations",
+                           "max_evaluations", "best_json", "best_feasible", "best_value",
+                           "best_v0", "best_cost_of_transport", "axis_names", "title",
+                           "objective_quantity", "objective_sense", "gait_file"}
+
+
 def describe(path: Any) -> dict[str, Any]:
     """What a results file holds, without reading its trajectories: ``file_kind`` (``run`` or
     ``sweep``), the identity and outcome of the run or the grid and the counts of statuses of the
@@ -872,8 +894,10 @@ def describe(path: Any) -> dict[str, Any]:
         if "format_version" not in attrs:
             raise ResultsFileError(f"{path}: not a crawlsim results file (no format_version "
                                    "attribute)")
+        described = _DESCRIBED | (_OPTIMIZATION_DESCRIBED if attrs.get("kind") == "optimization"
+                                  else set())
         other = {k: v for k, v in attrs.items()
-                 if k not in _DESCRIBED and (not isinstance(v, str) or len(v) <= 200)
+                 if k not in described and (not isinstance(v, str) or len(v) <= 200)
                  and np.ndim(v) == 0}
         if "provenance" in f:
             other.update({k: _plain(v) for k, v in f["provenance"].attrs.items()})
@@ -881,6 +905,8 @@ def describe(path: Any) -> dict[str, Any]:
                "format_version": attrs.get("format_version"), "attributes": other}
         if attrs.get("kind") == "sweep":
             out.update(_describe_sweep(path, f, attrs))
+        elif attrs.get("kind") == "optimization":
+            out.update(_describe_optimization(path, f, attrs))
         else:
             out.update(_describe_run(path, f, attrs))
     return out
@@ -960,4 +986,325 @@ def _describe_sweep(path: Path, f: h5py.File, attrs: dict[str, Any]) -> dict[str
         "integrator": ", ".join(integrators) or None,
         "v0_min": float(good.min()) if good.size else None,
         "v0_max": float(good.max()) if good.size else None,
+    }
+
+
+# --------------------------------------------------------------------------------------------
+# Optimisation files (format_version 2): crawlsim optimize.
+
+_OPTIMIZATION_COMMENT = (
+    "Results of crawlsim optimize. Evaluation i is the gait document gait_yaml with the free "
+    "parameters (attribute free_json; /evaluations/<name>, the path in attribute path) set to "
+    "its values; /evaluations holds every evaluated point in evaluation order with the columns "
+    "of a sweep table, /history the best value of each run after every batch, /runs the "
+    "single-objective runs (one, or the ends and epsilon-constraint runs of a Pareto front), "
+    "/front the non-dominated points of v0 against cost_of_transport (--pareto). Units: "
+    "units_json; every dataset has units and long_name.")
+
+#: Units of the optimisable quantities (`crawlsim.optimize.QUANTITIES`).
+OBJECTIVE_QUANTITIES = {"v0": "velocity", "cost_of_transport": "force",
+                        "dissipation_per_period": "dissipation",
+                        "displacement_per_period": "length"}
+
+STAGE_FLAGS = ((0, "initial"), (1, "generation"), (2, "polish"))
+
+OPTIMIZATION_VARIABLES: dict[str, dict[str, Var]] = {
+    "evaluations": {
+        "evaluation": Var(("evaluation",), "evaluation number, in the order the points were "
+                                           "simulated", "1"),
+        "run": Var(("evaluation",), "the run that asked for the point (see /runs)", "1"),
+        "stage": Var(("evaluation",), "what asked for the point: the first population of its "
+                                      "run, a generation of differential evolution, or a poll "
+                                      "of the pattern search", "1", STAGE_FLAGS),
+        "batch": Var(("evaluation",), "the batch the point was simulated in (see /history)",
+                     "1"),
+        "feasible": Var(("evaluation",), "1 when the point runs and satisfies the constraints "
+                                         "of its run, else 0", "1"),
+        "constraint_violation": Var(("evaluation",), "total violation of the constraints of "
+                                                     "its run (0 when satisfied, inf when the "
+                                                     "point does not run)", "1"),
+    },
+    "history": {
+        "batch": Var(("batch",), "batch number (a generation, or a poll of the pattern "
+                                 "search)", "1"),
+        "run": Var(("batch",), "the run of the batch (see /runs)", "1"),
+        "stage": Var(("batch",), "what the batch was", "1", STAGE_FLAGS),
+        "evaluations": Var(("batch",), "points simulated so far, all runs", "1"),
+        "best": Var(("batch",), "best value of the run's objective so far (NaN while no point "
+                                "of the run is feasible)", "objective"),
+        "best_evaluation": Var(("batch",), "evaluation number of the run's best point so far "
+                                           "(-1 before any)", "1"),
+        "feasible": Var(("batch",), "1 when the run's best point so far is feasible", "1"),
+        "step": Var(("batch",), "step of the pattern search after the batch, in units of the "
+                                "box width (NaN for differential evolution)", "1"),
+        "hypervolume": Var(("batch",), "area dominated by the Pareto front of the points "
+                                       "evaluated so far, from the nadir of the final front "
+                                       "(--pareto)", "dissipation_rate"),
+    },
+    "runs": {
+        "run": Var(("run",), "run number", "1"),
+        "objective": Var(("run",), "objective of the run", "1"),
+        "constraints": Var(("run",), "constraints of the run, comma separated", "1"),
+        "epsilon": Var(("run",), "lower bound on v0 of an epsilon-constraint run (NaN "
+                                 "otherwise)", "velocity"),
+        "best_evaluation": Var(("run",), "evaluation number of the run's optimum", "1"),
+        "feasible": Var(("run",), "1 when the run's optimum satisfies its constraints", "1"),
+        "evaluations": Var(("run",), "points simulated for the run", "1"),
+        "stop": Var(("run",), "why the run stopped", "1"),
+    },
+    "front": {
+        "front_point": Var(("front_point",), "point of the Pareto front, by increasing v0",
+                           "1"),
+        "evaluation": Var(("front_point",), "evaluation number of the point", "1"),
+        "v0": Var(("front_point",), "asymptotic average velocity v0", "velocity"),
+        "cost_of_transport": Var(("front_point",), "cost of transport", "force"),
+        "chosen": Var(("front_point",), "1 for the optimum of a run (an end of the front or an "
+                                        "epsilon-constraint point)", "1"),
+    },
+}
+
+
+def write_optimization(path: Any, result: Any) -> None:
+    """Write a `crawlsim.optimize.OptimizationResult` atomically (`crawlsim.atomic`); ``path``
+    may be a binary file object (an in-memory image)."""
+    if isinstance(path, io.IOBase):
+        with h5py.File(path, "w", track_order=True) as f:
+            _write_optimization(f, result)
+        return
+    with atomic_path(path) as tmp, h5py.File(tmp, "w", track_order=True) as f:
+        _write_optimization(f, result)
+
+
+def _write_optimization(f: h5py.File, result: Any) -> None:
+    from . import provenance
+
+    problem, method = result.problem, result.method
+    base = problem.base
+    document = base.document
+    units = Units.from_block(document.get("units"))
+    objective = problem.objective
+    names: list[str] = []
+    for p in problem.paths:
+        names.append(axis_name(p, [*names, *OPTIMIZATION_VARIABLES["evaluations"]]))
+    best = result.evaluations[result.best]
+
+    a = f.attrs
+    a["title"] = f"crawlsim optimisation of {base.name}"
+    a["comment"] = _OPTIMIZATION_COMMENT
+    a["crawlsim_version"] = __version__
+    a["format_version"] = FORMAT_VERSION
+    a["kind"] = "optimization"
+    a["name"] = base.name
+    a["source"] = str(base.source)
+    a["gait_yaml"] = provenance.effective_yaml(document)
+    a["gait_file"] = str(base.source)
+    a["gait_file_text"] = str(base.source_text)
+    a["integrator"] = base.simulation.integrator
+    a["integrator_json"] = json.dumps({"integrator": base.simulation.integrator,
+                                       "steps_per_period": base.simulation.steps_per_period,
+                                       "max_periods": base.simulation.max_periods,
+                                       "tolerance": base.simulation.tolerance})
+    a["paths"] = json.dumps(list(problem.paths))
+    a["axis_names"] = json.dumps(names)
+    a["free_json"] = json.dumps([{"path": fr.path, "name": n, "lo": fr.lo, "hi": fr.hi}
+                                 for fr, n in zip(problem.free, names)])
+    a["objective"] = "pareto v0 cost_of_transport" if problem.pareto else objective.text
+    a["objective_quantity"] = objective.quantity
+    a["objective_sense"] = str(objective.sense)
+    a["constraints_json"] = json.dumps([c.text for c in problem.constraints])
+    a["pareto"] = np.int8(problem.pareto)
+    a["method"] = method.name
+    a["method_json"] = json.dumps(method.settings())
+    a["seed"] = int(method.seed)
+    a["max_evaluations"] = int(result.budget)
+    a["evaluations"] = len(result.evaluations)
+    a["best_evaluation"] = int(best.index)
+    a["best_feasible"] = np.int8(result.feasible)
+    a["best_value"] = float(result.value)
+    a["best_json"] = json.dumps(result.best_values)
+    for key in ("v0", "cost_of_transport", "dissipation_per_period", "displacement_per_period"):
+        value = getattr(best.row, key)
+        a[f"best_{key}"] = np.nan if value is None else float(value)
+    a["wall_time"] = float(result.wall_time)
+    a["units_json"] = json.dumps(units.to_json())
+    for key, value in provenance.session_attrs().items():
+        a[key] = value
+
+    scales = _Scales()
+    text = h5py.string_dtype()
+    objective_unit = units.of(OBJECTIVE_QUANTITIES[objective.quantity])
+
+    def unit_of(var: Var) -> str:
+        if var.quantity == "objective":
+            return "1" if problem.pareto else objective_unit
+        if var.quantity == "dissipation_rate":  # v0 times a cost of transport
+            from fractions import Fraction
+
+            return units.compose({"force": Fraction(1), "length": Fraction(1),
+                                  "time": Fraction(-1)})
+        return units.of(var.quantity)
+
+    def column(group: h5py.Group, name: str, values: Any, var: Var, dim: str) -> None:
+        values = np.asarray(values)
+        if values.dtype == object or values.dtype.kind in "US":
+            ds = group.create_dataset(name, data=values.astype(str).tolist(), dtype=text,
+                                      shape=values.shape, track_order=True)
+        else:
+            ds = group.create_dataset(name, data=values, track_order=True)
+        scales.attach(ds, (dim,))
+        _describe(ds, Var((dim,), var.long_name, var.quantity, var.flags, var.comment),
+                  unit_of(var))
+
+    def free_column(group: h5py.Group, name: str, path: str, values: Any, dim: str) -> None:
+        quantity = path_quantity("crawler", tuple(int(k) if k.isdigit() else k
+                                                  for k in path.split(".")))
+        ds = group.create_dataset(name, data=np.asarray(values, dtype=float), track_order=True)
+        scales.attach(ds, (dim,))
+        _describe(ds, Var((dim,), f"free parameter {path}", quantity), units.of(quantity))
+        ds.attrs["path"] = path
+
+    # /evaluations: the sweep table's columns, then where each point came from
+    evals = result.evaluations
+    table = OPTIMIZATION_VARIABLES["evaluations"]
+    group = f.create_group("evaluations", track_order=True)
+    group.attrs["comment"] = "every evaluated point, in evaluation order"
+    ds = scales.coordinate(group, "evaluation", np.arange(len(evals), dtype=np.int64))
+    _describe(ds, table["evaluation"], "1")
+    for a_, (name, path) in enumerate(zip(names, problem.paths)):
+        free_column(group, name, path, [e.x[a_] for e in evals], "evaluation")
+    for name in ("v0", "v0_error_estimate", "displacement_per_period", "dissipation_per_period",
+                 "cost_of_transport"):
+        column(group, name, np.array([np.nan if getattr(e.row, name) is None
+                                      else getattr(e.row, name) for e in evals], dtype=float),
+               SWEEP_VARIABLES[name], "evaluation")
+    for name in ("convergence", "status", "message", "integrator"):
+        var = SWEEP_VARIABLES[name]
+        column(group, name, np.array([str(getattr(e.row, name)) for e in evals], dtype=object),
+               Var(var.dims, var.long_name, var.quantity, comment=_WORDS.get(name, "")),
+               "evaluation")
+    column(group, "periods", np.array([e.row.periods for e in evals], dtype=np.int64),
+           SWEEP_VARIABLES["periods"], "evaluation")
+    column(group, "steps", np.array([e.row.steps for e in evals], dtype=np.int64),
+           SWEEP_VARIABLES["steps"], "evaluation")
+    stage_code = {m: v for v, m in STAGE_FLAGS}
+    column(group, "run", np.array([e.run for e in evals], dtype=np.int64), table["run"],
+           "evaluation")
+    column(group, "stage", np.array([stage_code[str(e.stage)] for e in evals], dtype=np.int8),
+           table["stage"], "evaluation")
+    column(group, "batch", np.array([e.batch for e in evals], dtype=np.int64), table["batch"],
+           "evaluation")
+    feasible, violation = result.feasibility()
+    column(group, "feasible", np.asarray(feasible, dtype=np.int8), table["feasible"],
+           "evaluation")
+    column(group, "constraint_violation", np.asarray(violation, dtype=float),
+           table["constraint_violation"], "evaluation")
+
+    # /history: one entry per batch
+    hist = result.history
+    table = OPTIMIZATION_VARIABLES["history"]
+    group = f.create_group("history", track_order=True)
+    group.attrs["comment"] = ("the best value of each run after every batch; the runs' "
+                              "objectives are in /runs")
+    ds = scales.coordinate(group, "batch", np.array([b.batch for b in hist], dtype=np.int64))
+    _describe(ds, table["batch"], "1")
+    columns_: dict[str, Any] = {
+        "run": np.array([b.run for b in hist], dtype=np.int64),
+        "stage": np.array([stage_code[str(b.stage)] for b in hist], dtype=np.int8),
+        "evaluations": np.array([b.evaluations for b in hist], dtype=np.int64),
+        "best": np.array([b.best for b in hist], dtype=float),
+        "best_evaluation": np.array([b.best_index for b in hist], dtype=np.int64),
+        "feasible": np.array([b.feasible for b in hist], dtype=np.int8),
+        "step": np.array([b.step for b in hist], dtype=float),
+    }
+    if problem.pareto:
+        columns_["hypervolume"] = np.array([b.hypervolume for b in hist], dtype=float)
+    for name, values in columns_.items():
+        column(group, name, values, table[name], "batch")
+
+    # /runs
+    runs = result.runs
+    table = OPTIMIZATION_VARIABLES["runs"]
+    group = f.create_group("runs", track_order=True)
+    ds = scales.coordinate(group, "run", np.array([r.index for r in runs], dtype=np.int64))
+    _describe(ds, table["run"], "1")
+    for name, values in {
+        "objective": np.array([r.objective.text for r in runs], dtype=object),
+        "constraints": np.array([", ".join(c.text for c in r.constraints) for r in runs],
+                                dtype=object),
+        "epsilon": np.array([r.epsilon for r in runs], dtype=float),
+        "best_evaluation": np.array([r.best for r in runs], dtype=np.int64),
+        "feasible": np.array([r.feasible for r in runs], dtype=np.int8),
+        "evaluations": np.array([r.evaluations for r in runs], dtype=np.int64),
+        "stop": np.array([r.stop for r in runs], dtype=object),
+    }.items():
+        column(group, name, values, table[name], "run")
+
+    # /front (--pareto)
+    if problem.pareto:
+        table = OPTIMIZATION_VARIABLES["front"]
+        group = f.create_group("front", track_order=True)
+        front = list(result.front)
+        ds = scales.coordinate(group, "front_point", np.arange(len(front), dtype=np.int64))
+        _describe(ds, table["front_point"], "1")
+        column(group, "evaluation", np.array(front, dtype=np.int64), table["evaluation"],
+               "front_point")
+        for a_, (name, path) in enumerate(zip(names, problem.paths)):
+            free_column(group, name, path, [evals[i].x[a_] for i in front], "front_point")
+        column(group, "v0", np.array([evals[i].row.v0 for i in front], dtype=float),
+               table["v0"], "front_point")
+        column(group, "cost_of_transport",
+               np.array([evals[i].row.cost_of_transport for i in front], dtype=float),
+               table["cost_of_transport"], "front_point")
+        chosen = set(result.chosen)
+        column(group, "chosen", np.array([i in chosen for i in front], dtype=np.int8),
+               table["chosen"], "front_point")
+
+
+def read_optimization(path: Any) -> dict[str, Any]:
+    """An optimisation file as ``{attrs, free, evaluations, history, runs, front}`` (front
+    only with --pareto), each group a dict of arrays (strings as Python str). Raises
+    `ResultsFileError` naming what is missing when the file is not an optimisation file."""
+    if isinstance(path, io.IOBase):
+        f = h5py.File(path, "r")
+        source: Any = "<memory>"
+    else:
+        source = Path(path)
+        f = _open(source, "optimisation file")
+    with f:
+        _check_version(f, source)
+        if _plain(f.attrs.get("kind", "")) != "optimization":
+            raise ResultsFileError(f"{source}: not a crawlsim optimisation file (attribute kind "
+                                   "is not 'optimization')")
+        out: dict[str, Any] = {"attrs": {k: _plain(v) for k, v in f.attrs.items()}}
+        for group in ("evaluations", "history", "runs", "front"):
+            if group not in f:
+                if group == "front":
+                    continue
+                raise ResultsFileError(f"{source}: missing group /{group}")
+            out[group] = {name: (np.array(ds.asstr()[()], dtype=object)
+                                 if h5py.check_string_dtype(ds.dtype) else ds[()])
+                          for name, ds in f[group].items() if isinstance(ds, h5py.Dataset)}
+        out["free"] = json.loads(out["attrs"].get("free_json", "[]"))
+    return out
+
+
+def _describe_optimization(path: Path, f: h5py.File, attrs: dict[str, Any]) -> dict[str, Any]:
+    if "evaluations" not in f or "status" not in f["evaluations"]:
+        raise ResultsFileError(f"{path}: missing /evaluations/status")
+    status = [str(s) for s in f["evaluations"]["status"].asstr()[()]]
+    counts: dict[str, int] = {}
+    for s in status:
+        counts[s] = counts.get(s, 0) + 1
+    return {
+        "file_kind": "optimization", "kind": "optimization", "name": attrs.get("name"),
+        "source": attrs.get("source"), "objective": attrs.get("objective"),
+        "constraints": json.loads(attrs.get("constraints_json", "[]")),
+        "free": json.loads(attrs.get("free_json", "[]")),
+        "integrator": attrs.get("integrator"), "seed": attrs.get("seed"),
+        "evaluations": len(status), "max_evaluations": attrs.get("max_evaluations"),
+        "statuses": counts, "best": json.loads(attrs.get("best_json", "{}")),
+        "best_feasible": bool(attrs.get("best_feasible", 0)),
+        "best_value": _number(attrs.get("best_value")), "v0": _number(attrs.get("best_v0")),
+        "cost_of_transport": _number(attrs.get("best_cost_of_transport")),
+        "front_points": int(f["front"]["front_point"].shape[0]) if "front" in f else None,
     }

@@ -861,6 +861,93 @@ def _run_pool(grid, todo, jobs, collect, progress) -> None:
         queue.put(None)  # after every worker's last report: the relay drains them all
 
 
+def _pool_grid_task(grid, indices):
+    """A task of a `WorkerPool`, which serves several grids: the grid comes with the task."""
+    queue = _WORKER["queue"]
+    began = time.perf_counter()
+    rows = run_points(grid, indices, progress=None if queue is None else queue.put)
+    return rows, time.perf_counter() - began
+
+
+class WorkerPool:
+    """``jobs`` local worker processes kept for several sweeps, for a caller that runs many
+    small ones (an optimisation runs one per generation of its search: starting a pool for each,
+    about a second, would cost more than the workers save). Use as a context manager and pass
+    it to `run_sweep` as ``pool``; each task carries its grid. Progress reports from the workers
+    go to the ``progress`` of the sweep that is running."""
+
+    def __init__(self, jobs: int):
+        import multiprocessing
+        import threading
+        from concurrent.futures import ProcessPoolExecutor
+
+        self.jobs = int(jobs)
+        context = multiprocessing.get_context("forkserver" if os.name == "posix" else "spawn")
+        if os.name == "posix":
+            context.set_forkserver_preload(["crawlsim.sweep", "crawlsim.batch"])
+        self.progress: Callable[[int], None] | None = None
+        self._queue = context.SimpleQueue()
+        self._relay = threading.Thread(target=_relay, args=(self._queue, self._report),
+                                       name="crawlsim-relay", daemon=True)
+        self._relay.start()
+        self.executor = ProcessPoolExecutor(self.jobs, mp_context=context,
+                                            initializer=_init_worker,
+                                            initargs=(None, self._queue))
+
+    def _report(self, k: int) -> None:
+        if self.progress is not None:
+            self.progress(k)
+
+    def stop(self) -> None:
+        """End the workers now (an interrupt, a failure)."""
+        _stop_pool(self.executor, {})
+        self._queue.put(None)
+
+    def close(self) -> None:
+        self.executor.shutdown(wait=True)
+        self._queue.put(None)
+        self._relay.join(5)
+
+    def __enter__(self) -> WorkerPool:
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is not None:
+            self.stop()
+        else:
+            self.close()
+
+
+def _run_shared_pool(grid, todo, pool: WorkerPool, collect, progress) -> None:
+    """`_run_pool` on a `WorkerPool` that outlives this sweep."""
+    from concurrent.futures import FIRST_COMPLETED, wait
+
+    chunker = _Chunker(todo, pool.jobs)
+    pool.progress = progress
+    pending: dict = {}
+    try:
+        for _ in range(2 * pool.jobs):
+            chunk = chunker.take()
+            if chunk is None:
+                break
+            pending[pool.executor.submit(_pool_grid_task, grid, chunk)] = chunk
+        while pending:
+            ready, _ = wait(list(pending), return_when=FIRST_COMPLETED)
+            for fut in ready:
+                chunk = pending.pop(fut)
+                rows, seconds = fut.result()
+                chunker.record(len(chunk), seconds)
+                collect(rows)
+                nxt = chunker.take()
+                if nxt is not None:
+                    pending[pool.executor.submit(_pool_grid_task, grid, nxt)] = nxt
+    except BaseException:
+        for fut in pending:
+            fut.cancel()
+        pool.stop()
+        raise
+
+
 def _stop_pool(ex, pending) -> None:
     """Cancel what has not started and end the workers now (an interrupt, a failure)."""
     for fut in pending:
@@ -938,14 +1025,16 @@ class SweepInterrupted(KeyboardInterrupt):
 
 
 def run_sweep(grid: SweepGrid, *, jobs: int = 1, shard=None, scheduler: str | None = None,
-              journal: Journal | None = None, progress=None, on_rows=None) -> SweepTable:
+              journal: Journal | None = None, progress=None, on_rows=None,
+              pool: WorkerPool | None = None) -> SweepTable:
     """Evaluate the grid (or one shard of it) and return its table, in grid order.
 
     ``journal`` (see `Journal`) keeps finished points across interruptions and skips them on a
     rerun. ``progress(k)`` is called as k more points finish (from a helper thread with local
     workers); ``on_rows(rows, resumed)`` receives the rows read from the journal
     (``resumed=True``) and then every batch of finished rows. An interrupt (KeyboardInterrupt)
-    becomes `SweepInterrupted` once the journal holds every finished point.
+    becomes `SweepInterrupted` once the journal holds every finished point. ``pool`` (a
+    `WorkerPool`, instead of ``jobs``) runs the points on workers that outlive this sweep.
     """
     check_some_point_runs(grid)
     indices = grid.indices(shard)
@@ -966,6 +1055,8 @@ def run_sweep(grid: SweepGrid, *, jobs: int = 1, shard=None, scheduler: str | No
     try:
         if scheduler:
             _run_dask(grid, todo, scheduler, collect, progress)
+        elif pool is not None and len(todo) > MIN_CHUNK:
+            _run_shared_pool(grid, todo, pool, collect, progress)
         elif jobs > 1 and len(todo) > MIN_CHUNK:
             _run_pool(grid, todo, jobs, collect, progress)
         else:

@@ -537,7 +537,8 @@ def test_interrupted_sweep_resumes_without_recomputing(tmp_path):
 
 # catch-up: the batched stepper makes 400 points quick (these tests are about interrupts)
 SWEEP_ARGS = [sys.executable, "-m", "crawlsim", "velocity", P4, "--steps-per-period", "40",
-              "--integrator", "catch-up", "--sweep", "links.*.amplitude=0.1:0.3:20", "--sweep", "links.1.phase=0.2:0.45:20"]
+              "--integrator", "catch-up", "--sweep", "links.*.amplitude=0.1:0.3:20",
+              "--sweep", "links.1.phase=0.2:0.45:20"]
 
 
 def _start(out, *extra):
@@ -598,7 +599,8 @@ def test_killed_process_resumes(tmp_path):
     """SIGKILL a sweep process once its journal holds finished points; the rerun of the same
     command completes the table, equal to an uninterrupted run's."""
     args = [sys.executable, "-m", "crawlsim", "velocity", P4, "--steps-per-period", "40",
-            "--integrator", "catch-up", "--sweep", "links.*.amplitude=0.1:0.3:30", "--sweep", "links.1.phase=0.2:0.45:20"]
+            "--integrator", "catch-up", "--sweep", "links.*.amplitude=0.1:0.3:30",
+            "--sweep", "links.1.phase=0.2:0.45:20"]
     out = tmp_path / "s.h5"
     journal = sweeps.journal_path(out)
     proc = subprocess.Popen(args + ["-o", str(out)], stdout=subprocess.DEVNULL,

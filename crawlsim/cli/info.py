@@ -33,6 +33,23 @@ def summary_lines(d: dict) -> list[str]:
             lines.append(f"  displacement per period  {_g(d['displacement_per_period'])}")
             lines.append(f"  dissipation per period   {_g(d['dissipation_per_period'])}")
             lines.append(f"  cost of transport        {_g(d['cost_of_transport'], 6)}")
+    elif d["file_kind"] == "optimization":
+        lines.append(f"{d['file']}: optimisation of gait {d['name']}, from {d['source']}: "
+                     f"{d['objective']}")
+        for c in d["constraints"]:
+            lines.append(f"  subject to               {c}")
+        for free in d["free"]:
+            lines.append(f"  free                     {free['path']} in [{_g(free['lo'])}, "
+                         f"{_g(free['hi'])}]: best {_g(d['best'].get(free['path']))}")
+        lines.append(f"  best v0                  {_g(d['v0'])} (cost of transport "
+                     f"{_g(d['cost_of_transport'], 6)})"
+                     + ("" if d["best_feasible"] else ", infeasible"))
+        counts = ", ".join(f"{v} {k}" for k, v in sorted(d["statuses"].items()))
+        lines.append(f"  evaluations              {d['evaluations']} of {d['max_evaluations']} "
+                     f"allowed: {counts}")
+        if d["front_points"] is not None:
+            lines.append(f"  Pareto front             {d['front_points']} points")
+        lines.append(f"  integrator, seed         {d['integrator']}, {d['seed']}")
     else:
         shard = f" (shard {d['shard']})" if d["shard"] else ""
         lines.append(f"{d['file']}: sweep of gait {d['name']}{shard}, from {d['source']}")
@@ -56,7 +73,7 @@ def summary_lines(d: dict) -> list[str]:
 @click.argument("results_file", type=click.Path(dir_okay=False))
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 def info(results_file, as_json):
-    """Summarise a results file, of a run or of a sweep.
+    """Summarise a results file, of a run, a sweep or an optimisation.
 
     RESULTS_FILE is written by crawlsim run, or by crawlsim velocity --sweep ... -o OUT.h5 and
     crawlsim merge. A file that is not a crawlsim results file is refused (exit code 2).

@@ -1,4 +1,4 @@
-"""``crawlsim plot``: draw the figures of a results file (a run or a sweep)."""
+"""``crawlsim plot``: draw the figures of a results file (a run, a sweep or an optimisation)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from ..errors import CrawlsimError
-from ..plotting import FIGURE_NAMES
+from ..plotting import FIGURE_NAMES, OPTIMIZATION_FIGURES
 from . import BadInput, library_errors, main
 from .guards import force_option
 
@@ -30,7 +30,8 @@ def _coords(ctx, param, value):
                    "missing).")
 @click.option("--format", "fmt", type=click.Choice(["png", "pdf", "svg"]), default="png",
               show_default=True, help="Image format.")
-@click.option("--only", type=click.Choice(FIGURE_NAMES), help="Draw this figure only (runs).")
+@click.option("--only", type=click.Choice(FIGURE_NAMES + OPTIMIZATION_FIGURES),
+              help="Draw this figure only (runs, optimisations).")
 @click.option("--coords", default="1,2", show_default=True, callback=_coords,
               help="Shape coordinates i,j of the shape-space figure when there are more than "
                    "two (four or more blocks): it shows sections of K(t) in that plane.")
@@ -46,6 +47,9 @@ def plot(results_file, output_dir, fmt, only, coords, force):
     The figure of a sweep file (crawlsim velocity --sweep ... -o SWEEP.h5, crawlsim merge):
     <stem>-sweep, v0 against the swept value for one swept dimension, a heat map over two,
     points without a v0 (invalid or failed) marked.
+    The figures of an optimisation file (crawlsim optimize): <stem>-objective, the best value
+    against the points simulated; with --pareto, <stem>-pareto-front, the cost of transport
+    against v0 with the front and the chosen gaits marked.
 
     \b
     Examples:
@@ -61,6 +65,8 @@ def plot(results_file, output_dir, fmt, only, coords, force):
         _check_targets(results_file, output_dir, fmt, only, kind, force)
         if kind == "sweep":
             written = [_plot_sweep(results_file, output_dir, fmt, only)]
+        elif kind == "optimization":
+            written = _plot_optimization(results_file, output_dir, fmt, only)
         else:
             written = _plot_run(results_file, output_dir, fmt, only, coords)
     for path in written:
@@ -74,10 +80,26 @@ def _check_targets(results_file, output_dir, fmt, only, kind, force) -> None:
     folder = Path(output_dir) if output_dir else Path(results_file).parent
     if not folder.is_dir():
         return  # created by plot_results: nothing in it to protect
-    names = ["sweep"] if kind == "sweep" else ([only] if only else FIGURE_NAMES)
+    every = {"sweep": ["sweep"], "optimization": list(OPTIMIZATION_FIGURES)}.get(kind,
+                                                                                 FIGURE_NAMES)
+    names = [only] if only and only in every else every
     for name in names:
         check_target(folder / f"{Path(results_file).stem}-{name}.{fmt}", FIGURE,
                      inputs=[results_file], force=force, option="--output-dir")
+
+
+def _plot_optimization(results_file, output_dir, fmt, only):
+    from ..plotting import plot_results
+
+    if only is not None and only not in OPTIMIZATION_FIGURES:
+        raise BadInput(f"--only {only}: {results_file} is an optimisation file, whose figures "
+                       f"are {', '.join(OPTIMIZATION_FIGURES)}")
+    try:
+        return plot_results(results_file, output_dir, fmt=fmt, only=only)
+    except ValueError as exc:
+        if isinstance(exc, CrawlsimError):
+            raise
+        raise BadInput(f"{results_file}: {exc}") from None
 
 
 def _plot_run(results_file, output_dir, fmt, only, coords):

@@ -5,6 +5,7 @@
 * `figures` has one function per figure, each taking the dict of `crawlsim.h5io.read_results`
   and returning a matplotlib `Figure`, plus `sweep_figure` and `sweep_data_figure` for velocity
   sweeps;
+* `optimization` has the figures of an optimisation file (`objective_figure`, `pareto_figure`);
 * `output.plot_results` reads a results or sweep file and writes its figures next to it.
 
 The names below are imported lazily (PEP 562), so that ``import crawlsim.plotting`` and the
@@ -17,6 +18,9 @@ from __future__ import annotations
 FIGURE_NAMES = ("motion", "gait-diagram", "convergence", "shape-space")
 #: The one figure of a sweep file (``crawlsim plot SWEEP.h5``).
 SWEEP_FIGURE = "sweep"
+#: The figures of an optimisation file (``crawlsim plot OPT.h5``): the convergence of the
+#: objective, and with --pareto the front.
+OPTIMIZATION_FIGURES = ("objective", "pareto-front")
 #: Figures that need block positions, stresses and slips: crawler runs only.
 CRAWLER_FIGURES = ("motion", "gait-diagram")
 
@@ -32,9 +36,12 @@ _LAZY = {
     "sweep_figure": "figures",
     "sweep_data_figure": "figures",
     "FIGURES": "figures",
+    "objective_figure": "optimization",
+    "pareto_figure": "optimization",
 }
 
-__all__ = ["CRAWLER_FIGURES", "FIGURES", "FIGURE_NAMES", "convergence_figure", "gait_figure", "motion_figure",
+__all__ = ["CRAWLER_FIGURES", "FIGURES", "FIGURE_NAMES", "OPTIMIZATION_FIGURES", "objective_figure",
+           "pareto_figure", "convergence_figure", "gait_figure", "motion_figure",
            "SWEEP_FIGURE", "plot_results", "save_figure", "shape_space_figure", "sweep_data_figure",
            "sweep_figure"]
 

@@ -10,8 +10,8 @@ from pathlib import Path
 
 from ..atomic import atomic_path
 from ..errors import ResultsFileError
-from ..h5io import read_results, read_sweep
-from . import CRAWLER_FIGURES, FIGURE_NAMES, SWEEP_FIGURE
+from ..h5io import read_attrs, read_optimization, read_results, read_sweep
+from . import CRAWLER_FIGURES, FIGURE_NAMES, OPTIMIZATION_FIGURES, SWEEP_FIGURE
 from .figures import FIGURES, sweep_data_figure
 from .style import DPI, figure_style
 
@@ -35,10 +35,17 @@ def draw_figure(results: dict, name: str, *, coords=(0, 1)):
 
 
 def read_plottable(path: Path) -> tuple[str, dict]:
-    """("run", `read_results` dict) or ("sweep", `read_sweep` dict) for a results or sweep file.
+    """("run", `read_results` dict), ("sweep", `read_sweep` dict) or ("optimization",
+    `read_optimization` dict) for a results, sweep or optimisation file.
 
-    A file that is neither raises the results reader's error, which says what is missing.
+    A file that is none of them raises the results reader's error, which says what is missing.
     """
+    try:
+        kind = read_attrs(path).get("kind")
+    except ResultsFileError:
+        kind = None
+    if kind == "optimization":
+        return "optimization", read_optimization(path)
     try:
         return "run", read_results(path)
     except ResultsFileError as exc:
@@ -56,7 +63,9 @@ def plot_results(path, out_dir=None, fmt: str = "png", only: str | None = None, 
     ``only`` draws one figure; otherwise every figure the file supports (`available_figures`).
     ``coords`` is the 0-based pair of shape coordinates of the shape-space figure when the shape
     space has more than two dimensions. A sweep file (``crawlsim velocity --sweep ... -o
-    OUT.h5``) gets its one figure, ``<stem>-sweep.<fmt>`` (`figures.sweep_data_figure`). A
+    OUT.h5``) gets its one figure, ``<stem>-sweep.<fmt>`` (`figures.sweep_data_figure`); an
+    optimisation file (``crawlsim optimize``) ``<stem>-objective.<fmt>`` and, with --pareto,
+    ``<stem>-pareto-front.<fmt>`` (`crawlsim.plotting.optimization`). A
     missing dataset raises `ResultsFileError` naming the file and the dataset; nothing is
     written then.
     """
@@ -64,13 +73,20 @@ def plot_results(path, out_dir=None, fmt: str = "png", only: str | None = None, 
     if fmt not in FORMATS:
         raise ValueError(f"format {fmt!r}: choose one of {', '.join(FORMATS)}")
     kind, results = read_plottable(path)
-    choices = FIGURE_NAMES if kind == "run" else (SWEEP_FIGURE,)
+    choices = {"run": FIGURE_NAMES, "sweep": (SWEEP_FIGURE,),
+               "optimization": optimization_figures(results)}[kind]
     if only is not None and only not in choices:
-        raise ValueError(f"unknown figure {only!r} for a {kind} file; choose one of "
+        article = "an" if kind[0] in "aeiou" else "a"
+        raise ValueError(f"unknown figure {only!r} for {article} {kind} file; choose one of "
                          f"{', '.join(choices)}")
     try:
         if kind == "sweep":
             drawn = {SWEEP_FIGURE: sweep_data_figure(results)}
+        elif kind == "optimization":
+            from .optimization import OPTIMIZATION_FIGURE_FUNCTIONS
+
+            drawn = {name: OPTIMIZATION_FIGURE_FUNCTIONS[name](results)
+                     for name in ([only] if only is not None else choices)}
         else:
             names = [only] if only is not None else available_figures(results)
             drawn = {name: draw_figure(results, name, coords=coords) for name in names}
@@ -84,6 +100,12 @@ def plot_results(path, out_dir=None, fmt: str = "png", only: str | None = None, 
         save_figure(fig, target, fmt)
         written.append(target)
     return written
+
+
+def optimization_figures(data: dict) -> tuple[str, ...]:
+    """The figures an optimisation file supports: the objective's convergence, and the front
+    when it was written with --pareto."""
+    return OPTIMIZATION_FIGURES if "front" in data else OPTIMIZATION_FIGURES[:1]
 
 
 def save_figure(fig, target, fmt: str | None = None) -> Path:
