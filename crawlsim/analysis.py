@@ -118,6 +118,24 @@ class RunResult:
     jacobian_rate: float | None = None
     v0_error_period_iteration: float | None = None
     v0_error_time_step: float | None = None
+    # The dissipation's error: the period iteration's share (v0's relative one) plus, for
+    # catch-up, its measured time-step error (None where that is not measured).
+    dissipation_error_estimate: float | None = None
+
+    @property
+    def displacement_error_estimate(self) -> float | None:
+        return None if self.v0_error_estimate is None else self.v0_error_estimate * self.period
+
+    @property
+    def cost_of_transport_error_estimate(self) -> float | None:
+        """First-order propagation of the dissipation's and displacement's errors through
+        their quotient (|d(D/d)| <= dD/|d| + D dd/d^2), widened by 1 % for the second-order
+        term, which is below that wherever the cost of transport is printed at all."""
+        cot, d = self.cost_of_transport, self.displacement_per_period
+        dD, dd = self.dissipation_error_estimate, self.displacement_error_estimate
+        if cot is None or d is None or dD is None or dd is None or d == 0:
+            return None
+        return 1.01 * (dD / abs(d) + cot * dd / abs(d))
 
     @property
     def converged(self) -> bool:
@@ -125,7 +143,8 @@ class RunResult:
 
     def summary(self) -> dict:
         keys = ("name", "integrator", "v0", "v0_error_estimate", "v0_error_period_iteration",
-                "v0_error_time_step", "displacement_per_period", "convergence",
+                "v0_error_time_step", "displacement_per_period", "dissipation_error_estimate",
+                "convergence",
                 "periodic_from", "contraction_rate", "jacobian_rate", "periods",
                 "steps_per_period", "dissipation_per_period", "cost_of_transport",
                 "limit_method", "limit_newton_steps", "limit_periods", "clarabel_calls",
@@ -261,14 +280,21 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
         else:
             err = period_iteration_error(displacement, convergence, rate, G, roundoff, T)
     err_step: float | None = None
+    diss_step: float | None = None
     if v0 is not None:
         if integrator == "exact":
-            err_step = 0.0
+            err_step = diss_step = 0.0
         elif time_step_error:
             reference = time_step_reference(process, max_periods=max_periods, tolerance=tolerance)
             if reference is not None and reference.v0 is not None:
                 err_step = abs(v0 - reference.v0) + (reference.v0_error_estimate or 0.0)
+                assert diss_final is not None and reference.dissipation_per_period is not None
+                diss_step = abs(diss_final - reference.dissipation_per_period) + (
+                    reference.dissipation_error_estimate or 0.0)
     err_pi = err
+    diss_err: float | None = None
+    if diss_final is not None and err_pi is not None and diss_step is not None and v0:
+        diss_err = abs(diss_final) * err_pi / abs(v0) + diss_step
     if err is not None and err_step is not None:
         err = err + err_step
     if process.is_crawler and d_final is not None and diss_final is not None and err is not None:
@@ -288,7 +314,8 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
         limit_periods=solution.periods if solution is not None else 0,
         limit_residuals=solution.residuals if solution is not None else None,
         jacobian_rate=solution.jacobian_rate if solution is not None else None,
-        v0_error_period_iteration=err_pi, v0_error_time_step=err_step)
+        v0_error_period_iteration=err_pi, v0_error_time_step=err_step,
+        dissipation_error_estimate=diss_err)
 
 
 def time_step_reference(process: SweepingProcess, *, max_periods: int,
@@ -489,8 +516,25 @@ def limit_period(process: SweepingProcess, final: PeriodRecord, v0: float | None
                        stress=stress, slip=slip, slip_rate=dx / np.diff(t)[:, None])
 
 
+def _error_parts(result: RunResult) -> str:
+    """Where v0's error estimate comes from, after ``v0 ± estimate``."""
+    if result.v0_error_estimate is None:
+        return " (no error estimate)"
+    if result.integrator == "exact":
+        return " (period iteration; the exact integrator has no time-step error)"
+    step = result.v0_error_time_step
+    if step is None:
+        return (" (period iteration only: the catch-up time-step error could not be measured "
+                "against the exact integrator)")
+    return (f" (time step {step:.1g}, measured against the exact integrator; period iteration "
+            f"{result.v0_error_period_iteration:.1g})")
+
+
 def summary_text(result: RunResult, output: str | None = None) -> str:
-    """The short human summary printed by ``crawlsim run``."""
+    """The short human summary printed by ``crawlsim run``: each number with only the digits
+    its error estimate supports (`crawlsim.digits`); ``--json`` keeps full precision."""
+    from .digits import with_error
+
     what = "gait" if result.v0 is not None else "process"  # a generic process has no v0
     units = getattr(result, "units", None)  # the gait file's units (crawlsim.api results)
 
@@ -498,10 +542,9 @@ def summary_text(result: RunResult, output: str | None = None) -> str:
         return "" if units is None else units.suffix(quantity)
     lines = [f"{what} {result.name}: {result.periods} periods of {result.steps_per_period} steps"]
     if result.v0 is not None:
-        lines.append(f"  v0                       {result.v0:.12g}{unit('velocity')} "
-                     f"(± {result.v0_error_estimate:.1g}{unit('velocity')} from the period iteration; "
-                     + ("exact integrator)" if result.integrator == "exact" else
-                        "catch-up time-step error not included: see --integrator exact)"))
+        lines.append(f"  v0                       "
+                     f"{with_error(result.v0, result.v0_error_estimate, unit('velocity'))}"
+                     f"{_error_parts(result)}")
     if result.convergence == "finite-time":
         lines.append(f"  convergence              finite-time: periodic from period "
                      f"{result.periodic_from}")
@@ -512,12 +555,15 @@ def summary_text(result: RunResult, output: str | None = None) -> str:
         lines.append(f"  convergence              NOT converged: final Poincare step "
                      f"{result.history.poincare_step[-1]:.3g}. Try increasing max_periods.")
     if result.displacement_per_period is not None:
-        lines.append(f"  displacement per period  {result.displacement_per_period:.12g}"
-                     f"{unit('length')}")
-        lines.append(f"  dissipation per period   {result.dissipation_per_period:.12g}"
-                     f"{unit('dissipation')}")
-        cot = "n/a (no net motion)" if result.cost_of_transport is None else \
-            f"{result.cost_of_transport:.6g}{unit('force')}"
+        assert result.dissipation_per_period is not None
+        lines.append(f"  displacement per period  "
+                     + with_error(result.displacement_per_period,
+                                  result.displacement_error_estimate, unit('length')))
+        lines.append(f"  dissipation per period   "
+                     + with_error(result.dissipation_per_period,
+                                  result.dissipation_error_estimate, unit('dissipation')))
+        cot = "n/a (no net motion)" if result.cost_of_transport is None else with_error(
+            result.cost_of_transport, result.cost_of_transport_error_estimate, unit('force'))
         lines.append(f"  cost of transport        {cot}")
     if output:
         lines.append(f"  written                  {output}")

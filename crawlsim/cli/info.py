@@ -19,8 +19,9 @@ def summary_lines(d: dict) -> list[str]:
         lines.append(f"{d['file']}: run of {what} {d['name']}")
         lines.append(f"  integrator               {d['integrator'] or 'n/a'}")
         if d["v0"] is not None:
-            lines.append(f"  v0                       {_g(d['v0'])} "
-                         f"(± {_g(d['v0_error_estimate'], 1)} from the period iteration)")
+            from ..digits import with_error
+
+            lines.append(f"  v0                       {with_error(d['v0'], d['v0_error_estimate'])}")
         conv = d["convergence"]
         if conv == "finite-time":
             conv += f": periodic from period {d['periodic_from']}"

@@ -119,10 +119,12 @@ def velocity(gait_file, as_json, sweep_specs, link_specs, output, jobs, shard, s
              verbose):
     """Print v0 of GAIT_FILE, or sweep gait parameters and tabulate v0.
 
-    Without --sweep, prints v0 alone on one line (exit code 3 if the run did not converge).
-    With --sweep, writes one row per grid point: the swept values, v0, v0_error_estimate,
+    Without --sweep, prints v0 alone on one line, with the digits its error estimate supports
+    (--json: full precision and the estimate; exit code 3 if the run did not converge). With
+    --sweep, writes one row per grid point: the swept values, v0, v0_error_estimate,
     displacement_per_period, dissipation_per_period, cost_of_transport, convergence, periods,
-    integrator, status (ok, not-converged, invalid, failed) and message. A point whose gait is
+    integrator, limit (newton or iterate), newton_steps, status (ok, not-converged, invalid,
+    failed) and message. A point whose gait is
     invalid or whose run fails is recorded with its reason, the others run, and the exit code
     stays 0; a bad path, or a grid with no valid point, is refused (exit code 2). With -o,
     finished points are kept in OUT.journal: an interrupted sweep (Ctrl-C: exit code 130)
@@ -164,7 +166,12 @@ def velocity(gait_file, as_json, sweep_specs, link_specs, output, jobs, shard, s
                 check_memory(gait, max_memory)
                 with run_progress(gait, quiet, verbose) as progress:
                     result = api.run(gait, progress=progress, history=False)
-                click.echo(to_json(result.summary()) if as_json else repr(result.v0))
+                if as_json:
+                    click.echo(to_json(result.summary()))
+                else:  # the digits its error estimate supports (--json: full precision)
+                    from ..digits import supported
+
+                    click.echo(supported(result.v0, result.v0_error_estimate)[0])
                 if not result.converged:
                     sys.exit(EXIT_NOT_CONVERGED)
                 return
