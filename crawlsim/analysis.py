@@ -556,10 +556,10 @@ def summary_text(result: RunResult, output: str | None = None) -> str:
                      f"{result.history.poincare_step[-1]:.3g}. Try increasing max_periods.")
     if result.displacement_per_period is not None:
         assert result.dissipation_per_period is not None
-        lines.append(f"  displacement per period  "
+        lines.append("  displacement per period  "
                      + with_error(result.displacement_per_period,
                                   result.displacement_error_estimate, unit('length')))
-        lines.append(f"  dissipation per period   "
+        lines.append("  dissipation per period   "
                      + with_error(result.dissipation_per_period,
                                   result.dissipation_error_estimate, unit('dissipation')))
         cot = "n/a (no net motion)" if result.cost_of_transport is None else with_error(

@@ -21,8 +21,8 @@ from crawlsim.analysis import simulate
 from crawlsim.cli import main
 from crawlsim.corpus import random_document
 from crawlsim.digits import supported, with_error
-from crawlsim.gait import gait_from_document, load_gait, with_simulation
 from crawlsim.errors import GaitError
+from crawlsim.gait import gait_from_document, load_gait, with_simulation
 from crawlsim.model import compile_gait
 
 GAITS = Path(__file__).resolve().parent.parent / "gaits"

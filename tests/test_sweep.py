@@ -21,8 +21,8 @@ import yaml
 from click.testing import CliRunner
 
 from crawlsim import sweep as sweeps
-from crawlsim.digits import supported
 from crawlsim.cli import main
+from crawlsim.digits import supported
 from crawlsim.errors import GaitError, InputError
 from crawlsim.gait import load_gait, with_simulation
 
