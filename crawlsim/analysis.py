@@ -1,4 +1,4 @@
-"""Run a sweeping process to its periodic regime and measure it (MODEL.md §4).
+"""Run a sweeping process to its periodic regime and measure it (docs/model.md §4).
 
 The paper's Theorem th:attractor: from any admissible start, ``w(. + qT)`` converges in
 W^{1,2}(t0, t0+T) to a T-periodic solution, and the slip rates converge in L^2; for crawlers

@@ -1,6 +1,6 @@
 """Batched catch-up stepping: many crawlers of one block count, vectorised over the batch.
 
-Each gait b of the batch follows the catch-up scheme of `crawlsim.stepping` (MODEL.md §3),
+Each gait b of the batch follows the catch-up scheme of `crawlsim.stepping` (docs/model.md §3),
 
     w_{j+1} = argmin { 1/2 |w - w_j|_M^2 : B w <= c(t_{j+1}) },
 
@@ -259,7 +259,7 @@ class _Lockstep:
         ``positions``; finish the converged ones, start the next period of the others.
 
         The displacement is ``mean(lambda^+ - lambda^-)`` summed over the period: the
-        multipliers are the slips (MODEL.md §3), so this is ``y(t0+(q+1)T) - y(t0+qT)``.
+        multipliers are the slips (docs/model.md §3), so this is ``y(t0+(q+1)T) - y(t0+qT)``.
         """
         s = self.s
         N = self.N

@@ -1,4 +1,4 @@
-"""Exact, event-driven integration of a polyhedral sweeping process (MODEL.md §2-3).
+"""Exact, event-driven integration of a polyhedral sweeping process (docs/model.md §2-3).
 
 The sweeping process ``w' in -N_{K(t)}(w)`` in the metric M, with K(t) = {w : B w <= c(t)}, reads
 
@@ -136,7 +136,7 @@ class EventStepper:
         self.max_events = int(max_events)
         self.zeno_events, self.zeno_window = int(zeno_events), float(zeno_window)
         self.cells_per_cycle = int(cells_per_cycle)
-        # Crawlers: non-unique slips are a DegenerateModelError (MODEL.md §3); generic processes
+        # Crawlers: non-unique slips are a DegenerateModelError (docs/model.md §3); generic processes
         # keep their unique point with a LicqWarning, as in catch-up.
         self.projector = ExactProjector(self.poly, describe_active=process.describe_active,
                                         on_dependent="raise" if process.is_crawler else "warn")

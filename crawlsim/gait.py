@@ -593,7 +593,7 @@ def _build_crawler(document: dict, source: str, source_text: str, default_name: 
 
 @dataclass(frozen=True, eq=False)
 class ProcessSpec:
-    """A validated generic polyhedral sweeping process ``z' in -N_{C(t)}(z)`` (MODEL.md §5).
+    """A validated generic polyhedral sweeping process ``z' in -N_{C(t)}(z)`` (docs/model.md §5).
 
     ``C(t) = { z in R^n : <b_i, z> <= c_i(t) }`` with constant normals b_i (the rows of
     ``normals``) and T-periodic offsets c_i (signals of the cycle u = t / T), projected in the
@@ -899,7 +899,7 @@ def admissibility_violation(gait: Gait, positions: np.ndarray, t: float = 0.0) -
     """Why `positions` is not an admissible state at time t, or None if it is.
 
     Admissible means the elastic force on every block is held by static friction,
-    -mu_j^-(t) <= f_j <= mu_j^+(t) with f = D^T sigma and sigma = K (L(t) - D x) (MODEL.md §1);
+    -mu_j^-(t) <= f_j <= mu_j^+(t) with f = D^T sigma and sigma = K (L(t) - D x) (docs/model.md §1);
     the sweeping process starts from a point of C(t).
     """
     x = np.asarray(positions, dtype=float)
@@ -918,12 +918,12 @@ def admissibility_violation(gait: Gait, positions: np.ndarray, t: float = 0.0) -
             return (f"block {j + 1} is not held by friction at t = {t:g}: its elastic force "
                     f"f_{j + 1} = {force[j]:.6g} exceeds the forward friction limit "
                     f"mu_{j + 1}^+ = {mu_plus[j]:.6g} by {over[j]:.6g}; an admissible initial state "
-                    "needs -mu^- <= f <= mu^+ on every block (MODEL.md §1)")
+                    "needs -mu^- <= f <= mu^+ on every block (docs/model.md §1)")
         if under[j] > ROUNDOFF * (1.0 + abs(mu_minus[j])):
             return (f"block {j + 1} is not held by friction at t = {t:g}: its elastic force "
                     f"f_{j + 1} = {force[j]:.6g} is below the backward friction limit "
                     f"-mu_{j + 1}^- = {-mu_minus[j]:.6g} by {under[j]:.6g}; an admissible initial "
-                    "state needs -mu^- <= f <= mu^+ on every block (MODEL.md §1)")
+                    "state needs -mu^- <= f <= mu^+ on every block (docs/model.md §1)")
     return None
 
 

@@ -1,4 +1,4 @@
-"""Compile a validated gait into its shape-space polyhedral sweeping process (MODEL.md §1-2).
+"""Compile a validated gait into its shape-space polyhedral sweeping process (docs/model.md §1-2).
 
 For a crawler of N blocks with link stiffnesses K = diag(k_i), shape z = D x and stress
 sigma = K (L(t) - z), the variable w = -K z moves in
@@ -8,9 +8,9 @@ sigma = K (L(t) - z), the variable w = -K z moves in
 
 and catch-up stepping projects in the metric M = K^{-1}. The 2N multipliers
 lambda = [lambda^+ ; lambda^-] of a step are the block slips: dx = lambda^+ - lambda^-
-(MODEL.md §3), so the slip map is S = [I, -I].
+(docs/model.md §3), so the slip map is S = [I, -I].
 
-A generic polyhedral sweeping process (MODEL.md §5, ``kind: sweeping-process``) compiles to the
+A generic polyhedral sweeping process (docs/model.md §5, ``kind: sweeping-process``) compiles to the
 same `SweepingProcess` with its own B, c(t), M and z(0) and no crawler fields, so it is stepped,
 certified and analysed by the same code; `compile` dispatches on the kind.
 
@@ -91,7 +91,7 @@ class SweepingProcess:
         return self.polyhedron.dense_metric()
 
     def slips(self, multipliers: np.ndarray) -> np.ndarray:
-        """Block increments dx = lambda^+ - lambda^- of multipliers (..., 2N) (MODEL.md §3)."""
+        """Block increments dx = lambda^+ - lambda^- of multipliers (..., 2N) (docs/model.md §3)."""
         N = self.blocks
         return multipliers[..., :N] - multipliers[..., N:]
 
@@ -140,7 +140,7 @@ def piece_edges(breakpoints) -> np.ndarray:
 
 
 def compile_gait(gait: Gait, steps_per_period: int | None = None) -> SweepingProcess:
-    """The shape-space sweeping process of a crawler gait on its time grid (MODEL.md §2)."""
+    """The shape-space sweeping process of a crawler gait on its time grid (docs/model.md §2)."""
     G = steps_per_period or gait.simulation.steps_per_period
     u = period_grid(G, gait.breakpoints())
     k = np.asarray(gait.stiffness, dtype=float)
@@ -181,7 +181,7 @@ def compile_gait(gait: Gait, steps_per_period: int | None = None) -> SweepingPro
 
 
 def compile_process(spec: ProcessSpec, steps_per_period: int | None = None) -> SweepingProcess:
-    """The tabulated sweeping process ``z' in -N_{C(t)}(z)`` of a generic process file (MODEL.md §5).
+    """The tabulated sweeping process ``z' in -N_{C(t)}(z)`` of a generic process file (docs/model.md §5).
 
     No change of variables: w is z, B and M are the file's normals and metric, c(t) its offsets.
     """

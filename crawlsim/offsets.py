@@ -1,4 +1,4 @@
-"""The offsets c(t) of a sweeping process in closed form, piece by piece (MODEL.md §2).
+"""The offsets c(t) of a sweeping process in closed form, piece by piece (docs/model.md §2).
 
 Every signal of a gait file is, between the breakpoints of all its signals, a linear combination
 of the functions of one basis of the cycle u = t / T in [0, 1),

@@ -1,13 +1,13 @@
 """Reproduce the paper's convergence results with crawlsim: each claim, what was measured, pass/fail.
 
-The claims (paper = ``seed/000_a40b6c39854f5de2.txt``, MODEL.md §4-5):
+The claims (the paper of Colombo, Gidoni & Vilches; docs/model.md §4-5):
 
 * **Theorem th:1dim / Corollary cor:cell.** Every solution of a sweeping process on a periodic
   n-cell (a product of intervals) is T-periodic on [T, oo), whatever its start; Theorem th:1dim
   applied to a two-block crawler says the same of its motion.
 * **Acute angle (Section 5.2, ex:small).** With C(t) = C0 - l(t), C0 = {0 <= z2 <= alpha z1,
-  z1 <= beta}, the corrected l(t) = (0, t) on [0, T/2] and (0, T - t) on [T/2, T] (MODEL.md
-  Slip 2), and alpha gamma = T/2, the Poincare map on the edge z2 = 0 is
+  z1 <= beta}, the corrected l(t) = (0, t) on [0, T/2] and (0, T - t) on [T/2, T] (docs/model.md,
+  Correction 2), and alpha gamma = T/2, the Poincare map on the edge z2 = 0 is
   ``z1 -> (alpha^2 gamma + z1) / (alpha^2 + 1)`` for z1 < gamma and the identity for
   z1 >= gamma. It contracts by 1/(1 + alpha^2), so the convergence is only asymptotic.
 * **Triangle (Section 5.3, ex:large).** C(t) = PQR - F(t), with F the primitive of
@@ -82,7 +82,7 @@ class Check:
 def acute_angle_document(alpha: float = 1.0, period: float = 1.0, start: float = 0.1,
                          beta: float | None = None, steps: int = 64,
                          max_periods: int = 400) -> dict:
-    """The process of Section 5.2 with the corrected l(t) (MODEL.md Slip 2).
+    """The process of Section 5.2 with the corrected l(t) (docs/model.md, Correction 2).
 
     C0 = {0 <= z2 <= alpha z1, z1 <= beta} has rows b = (0, -1), (-alpha, 1), (1, 0) with
     offsets (0, 0, beta). z in C0 - l(t) iff z + l(t) in C0 iff <b_i, z> <= c0_i - <b_i, l(t)>,

@@ -2,12 +2,12 @@
 
 Time inside a signal is measured in cycles, u = t / T, so every signal has period 1 whatever
 the gait's period T. This keeps the gait description independent of T, which is what
-rate-independence promises (MODEL.md §4: rescaling T leaves the displacement per period
+rate-independence promises (docs/model.md §4: rescaling T leaves the displacement per period
 unchanged).
 
 Every kind accepts a `phase` in cycles, s(t) = profile(t/T - phase). Non-smooth kinds
 (piecewise-linear, steps) report their kinks and jumps as breakpoints, because the stepping grid
-must contain them (MODEL.md §4, "Breakpoints") and because the uniqueness check of
+must contain them (docs/model.md §4, "Breakpoints") and because the uniqueness check of
 `crawlsim.gait` relies on every signal being analytic between breakpoints.
 
 The validation helpers at the end (`check_schema`, `check_finite`, `join_keypath`) are shared
@@ -117,7 +117,7 @@ class Signal:
     def minimum(self) -> tuple[float, float]:
         """(min value, a cycle in [0, 1) where it is attained).
 
-        Used to prove friction positive (MODEL.md §1: mu > 0). Smooth kinds are sampled on a
+        Used to prove friction positive (docs/model.md §1: mu > 0). Smooth kinds are sampled on a
         fine grid, then the best sample is refined by golden-section search inside its cell.
         """
         grid = np.arange(MINIMUM_GRID) / MINIMUM_GRID

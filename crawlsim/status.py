@@ -7,7 +7,7 @@ from enum import StrEnum
 
 
 class Convergence(StrEnum):
-    """How a run reached its periodic regime (MODEL.md §4)."""
+    """How a run reached its periodic regime (docs/model.md §4)."""
 
     FINITE_TIME = "finite-time"  # exactly periodic from some period on
     ASYMPTOTIC = "asymptotic"  # geometric convergence only, with a contraction rate

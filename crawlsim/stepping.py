@@ -1,4 +1,4 @@
-"""Catch-up stepping of a tabulated sweeping process, one period at a time (MODEL.md §3).
+"""Catch-up stepping of a tabulated sweeping process, one period at a time (docs/model.md §3).
 
     w_{j+1} = argmin { 1/2 |w - w_j|_M^2 : B w <= c(t_{j+1}) },   x_{j+1} = x_j + S lambda_{j+1}.
 

@@ -104,7 +104,7 @@ def test_two_block_below_threshold():
 
 # (gait, catch-up steps per period, fitted order range, envelope). Measured against the exact v0:
 # catch-up is first order, with an irregular constant on the smooth gaits (|error| G wanders in
-# 0.002..0.3 from one G to the next, as MODEL.md warns), so the order is fitted by least squares
+# 0.002..0.3 from one G to the next, as docs/model.md warns), so the order is fitted by least squares
 # over eight step counts spanning a factor 128, and every error must lie in the first-order
 # envelope. anchoring-2 is first order with a constant error 1.2 h (odd G): at each friction jump
 # catch-up assigns one step's slip to the wrong block. inching-2 is second order at odd G (its
@@ -236,7 +236,7 @@ def test_tangential_contact_of_a_fourier_offset_between_samples():
 @pytest.mark.parametrize("alpha", [0.5, 1.0, 2.0])
 @pytest.mark.parametrize("fraction", [0.0, 0.4, 0.9, 1.5])
 def test_acute_angle_poincare_map_iterate_by_iterate(alpha, fraction):
-    """Paper Section 5.2 (corrected l(t), MODEL.md Slip 2): on the edge z2 = 0 the Poincare map
+    """Paper Section 5.2 (corrected l(t), docs/model.md, Correction 2): on the edge z2 = 0 the Poincare map
     is z1 -> (alpha^2 gamma + z1)/(alpha^2 + 1) for z1 < gamma = T/(2 alpha), the identity
     beyond; exact integration reproduces every iterate."""
     gamma = 1 / (2 * alpha)

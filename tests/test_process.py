@@ -1,4 +1,4 @@
-"""Generic polyhedral sweeping processes (``kind: sweeping-process``, MODEL.md §5): validation,
+"""Generic polyhedral sweeping processes (``kind: sweeping-process``, docs/model.md §5): validation,
 compilation, the shared engine, the results file and LICQ warnings."""
 
 import json
@@ -37,7 +37,7 @@ def acute(**changes) -> dict:
 
 
 def test_a_process_file_builds_a_process_spec_and_compiles_to_its_own_data():
-    """C(t) = C0 - l(t): offsets (l2, -l2, beta) with l2 = t on [0, T/2], T - t after (Slip 2);
+    """C(t) = C0 - l(t): offsets (l2, -l2, beta) with l2 = t on [0, T/2], T - t after (docs/model.md, Correction 2);
     alpha = 1, T = 1, beta = 1."""
     spec = load_gait(ACUTE)
     assert isinstance(spec, ProcessSpec) and spec.normals.shape == (3, 2)

@@ -74,7 +74,7 @@ def _single_link(amplitude):
 
 
 def test_asymptotic_convergence_is_not_cut_short():
-    """A single actuated link settles only geometrically (MODEL.md §4). Exact projections keep
+    """A single actuated link settles only geometrically (docs/model.md §4). Exact projections keep
     the decay going down to the tolerance, so the verdict is 'asymptotic' with a steady rate."""
     res = run(_single_link(0.12))
     assert res.convergence == "asymptotic"

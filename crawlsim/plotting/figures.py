@@ -186,7 +186,7 @@ def stress_bounds(friction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def block_forces(stress: np.ndarray) -> np.ndarray:
-    """Net elastic force on each block, f = D^T sigma: f_j = sigma_{j-1} - sigma_j (MODEL.md §1),
+    """Net elastic force on each block, f = D^T sigma: f_j = sigma_{j-1} - sigma_j (docs/model.md §1),
     with sigma_0 = sigma_N = 0. Shape (G+1, N)."""
     stress = np.asarray(stress, dtype=float)
     padded = np.pad(stress, ((0, 0), (1, 1)))
