@@ -17,7 +17,10 @@ M. Once the period visits the active sets of the limit, the affine map is exact 
 lands on a fixed point (to roundoff).
 
 The safeguard: a Newton candidate is accepted only if its own Poincare step |P(w) - w| is
-smaller; otherwise the solver takes a plain iteration w <- P(w). It starts with ``plain``
+smaller. The affine model holds on the current piece of the map only, and where J has an
+eigenvalue close to 1 the full step can leave that piece by far (a random 7-block gait: |d| 50
+times |F|); the step is then shortened (`BACKTRACK`), and if no fraction of it helps the solver
+takes a plain iteration w <- P(w). It starts with ``plain``
 plain periods, so gaits that are periodic after a period or two (finite-time convergence) pay
 nothing extra. The limit is *verified* by the last plain period of the solver, from the accepted
 point: its Poincare step is at the tolerance (roundoff by default), and v0 and the limit period
@@ -45,6 +48,8 @@ UNIT_EIGENVALUE = 1e-8
 #: Up to this many state variables J is formed densely; beyond, the Newton step is solved
 #: matrix-free (LSMR with products by J and J^T, O(K N) each).
 DENSE_JACOBIAN = 400
+#: Fractions of the Newton step tried in turn until one decreases the Poincare step.
+BACKTRACK = (1.0, 0.25, 0.0625)
 
 
 @dataclass(frozen=True, eq=False)
@@ -150,21 +155,28 @@ def solve_limit(process: SweepingProcess, stepper, *, tolerance: float, max_peri
     used_newton = False
     while residuals[-1] > tolerance and periods < max_periods:
         F = record.w[-1] - w
-        candidate = None
+        current = residuals[-1]
+        accepted = False
         if method == "newton" and periods >= plain:
             d = newton_step(poly, record.visited, F)
-            candidate = w + d
-            if exact:
-                candidate = _admissible(stepper, candidate)
-        if candidate is not None:
-            trial = period(candidate)
-            periods += 1
-            r = relative_step(process, candidate, trial.w[-1])
-            residuals.append(r)
-            if r < residuals[-2]:
-                w, record = candidate, trial
-                newton_steps += 1
-                used_newton = True
+            # backtracking: the affine model holds on the current piece of the map only; a
+            # full step that leaves it is shortened (a period per trial, as a plain iteration)
+            for scale in BACKTRACK:
+                candidate = w + scale * d
+                if exact:
+                    candidate = _admissible(stepper, candidate)
+                trial = period(candidate)
+                periods += 1
+                r = relative_step(process, candidate, trial.w[-1])
+                residuals.append(r)
+                if r < current:
+                    w, record = candidate, trial
+                    newton_steps += 1
+                    used_newton = accepted = True
+                    break
+                if periods >= max_periods:
+                    break
+            if accepted:
                 continue
             if periods >= max_periods:
                 break
