@@ -35,7 +35,7 @@ def run_one(gait, integrator: str, steps: int) -> dict:
     began = time.perf_counter()
     try:
         r = simulate(process, max_periods=gait.simulation.max_periods,
-                     tolerance=gait.simulation.tolerance, integrator=integrator)
+                     tolerance=gait.simulation.tolerance, integrator=integrator, history=False)
     except InputError as exc:
         return {"exit": 2, "message": str(exc), "time": time.perf_counter() - began}
     except CrawlsimError as exc:
