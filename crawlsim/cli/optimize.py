@@ -232,11 +232,3 @@ def _text(result, summary, out, write_best) -> str:
     if write_best is not None:
         lines.append(f"  {'best gait':<24} {write_best}")
     return "\n".join(lines)
-
-
-# --integrator's help of the shared options names catch-up as the default; here it is exact
-for _param in optimize.params:
-    if _param.name == "integrator":
-        _param.help = ("catch-up: first order in the step. exact: event-driven, v0 to roundoff, "
-                       "so the objective is deterministic (default: the gait file's value, else "
-                       "exact).")
