@@ -180,7 +180,7 @@ def test_units_in_json_and_summary_text(tmp_path):
     assert json.loads(r.output)["units"] == UNITS_GAIT["units"]
     r = cli("run", tmp_path / "u.yaml", "-o", tmp_path / "u.h5")
     v0_line = next(line for line in r.output.splitlines() if line.strip().startswith("v0"))
-    assert re.search(r"v0\s+[-0-9.e]+ mm/s \(", v0_line), v0_line
+    assert re.search(r"v0\s+[-0-9.e]+ mm/s ± [0-9.e-]+ mm/s \(", v0_line), v0_line
     assert "dissipation per period" in r.output and " N mm" in r.output
     r = cli("run", GAITS / "inching-2.yaml", "--steps-per-period", "20", "--json", "-o",
             tmp_path / "i.h5")
