@@ -345,13 +345,16 @@ def _trig_minimum(mean: float, a: np.ndarray, b: np.ndarray) -> float:
     # derivative coefficients: n (b_n cos n v - a_n sin n v) = sum_n c_n z^n + conj(c_n) z^-n,
     # c_n = n (b_n + i a_n) / 2
     c = n * (b + 1j * a) / 2.0
-    poly = np.zeros(2 * H + 1, dtype=complex)  # z^H * derivative, ascending powers 0..2H
-    poly[H + n] = c
-    poly[H - n] = np.conj(c)
     candidates: list[np.ndarray] = [np.linspace(0.0, TWO_PI, 8 * H + 1)]
-    if np.any(poly != 0):
-        nz = np.flatnonzero(np.abs(poly) > 0)
-        roots = np.roots(poly[nz[0]:nz[-1] + 1][::-1])
+    # harmonics below roundoff of the largest only make the companion matrix singular: the
+    # critical points are those of the rest, polished below on the whole derivative
+    big = np.flatnonzero(np.abs(c) > 1e-13 * np.max(np.abs(c), initial=0.0))
+    if big.size:
+        K = int(n[big[-1]])
+        poly = np.zeros(2 * K + 1, dtype=complex)  # z^K * derivative, ascending powers 0..2K
+        poly[K + n[:K]] = c[:K]
+        poly[K - n[:K]] = np.conj(c[:K])
+        roots = np.roots(poly[::-1])
         v = np.angle(roots)
         for _ in range(3):  # Newton on the derivative
             d1 = -np.sin(n * v[:, None]) @ (n * a) + np.cos(n * v[:, None]) @ (n * b)
