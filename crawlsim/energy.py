@@ -136,21 +136,21 @@ class EnergyLedger:
 
 
 # -- closed-form integrals -----------------------------------------------------------------------
-def _cos_integral(nu: np.ndarray, m: float, delta: float) -> np.ndarray:
+def _cos_integral(nu: np.ndarray, m: np.ndarray, delta: np.ndarray) -> np.ndarray:
     """int_{m-delta}^{m+delta} cos(nu u) du = cos(nu m) 2 sin(nu delta)/nu (2 delta at nu = 0)."""
     with np.errstate(divide="ignore", invalid="ignore"):
         c = np.where(nu == 0.0, 2.0 * delta, 2.0 * np.sin(nu * delta) / nu)
     return np.cos(nu * m) * c
 
 
-def _sin_integral(nu: np.ndarray, m: float, delta: float) -> np.ndarray:
+def _sin_integral(nu: np.ndarray, m: np.ndarray, delta: np.ndarray) -> np.ndarray:
     """int_{m-delta}^{m+delta} sin(nu u) du = sin(nu m) 2 sin(nu delta)/nu (0 at nu = 0)."""
     with np.errstate(divide="ignore", invalid="ignore"):
         c = np.where(nu == 0.0, 2.0 * delta, 2.0 * np.sin(nu * delta) / nu)
     return np.sin(nu * m) * c
 
 
-def _s_sin(omega: np.ndarray, delta: float) -> np.ndarray:
+def _s_sin(omega: np.ndarray, delta: np.ndarray) -> np.ndarray:
     """int_{-delta}^{delta} s sin(omega s) ds = 2 (sin x - x cos x)/omega^2, x = omega delta;
     for small x the series 2 delta^2 x (1/3 - x^2/30 + x^4/840 - x^6/45360)."""
     x = omega * delta
@@ -161,8 +161,9 @@ def _s_sin(omega: np.ndarray, delta: float) -> np.ndarray:
     return np.where(np.abs(x) < _SERIES, series, closed)
 
 
-def gram(basis: Basis, a: float, b: float) -> np.ndarray:
-    """P[k, l] = int_a^b phi_k(u) phi_l(u) du for the basis of `crawlsim.offsets`, in closed form.
+def gram(basis: Basis, a, b) -> np.ndarray:
+    """P[k, l] = int_a^b phi_k(u) phi_l(u) du for the basis of `crawlsim.offsets`, in closed form:
+    (nb, nb) for scalars a, b, (K, nb, nb) for arrays of K intervals.
 
     With m = (a + b)/2, delta = (b - a)/2 and u = m + s: ``int 1 = 2 delta``, ``int u = 2 delta
     m``, ``int u^2 = 2 delta m^2 + 2 delta^3/3``; ``cos(w u) = cos w m cos w s - sin w m sin w s``
@@ -173,43 +174,42 @@ def gram(basis: Basis, a: float, b: float) -> np.ndarray:
     term free of cancellation for short pieces: each entry is correct to a few ulps of the
     integrand's size times the piece length.
     """
+    scalar = np.ndim(a) == 0
+    a = np.atleast_1d(np.asarray(a, dtype=float))
+    b = np.atleast_1d(np.asarray(b, dtype=float))
     m, delta = 0.5 * (a + b), 0.5 * (b - a)
-    nb = basis.size
-    P = np.zeros((nb, nb))
-    P[0, 0] = 2.0 * delta
+    nb, K = basis.size, a.size
+    P = np.zeros((K, nb, nb))
+    P[:, 0, 0] = 2.0 * delta
     lin = 1 if basis.linear else None
     if lin is not None:
-        P[0, lin] = P[lin, 0] = 2.0 * delta * m
-        P[lin, lin] = 2.0 * delta * m * m + 2.0 * delta ** 3 / 3.0
+        P[:, 0, lin] = P[:, lin, 0] = 2.0 * delta * m
+        P[:, lin, lin] = 2.0 * delta * m * m + 2.0 * delta ** 3 / 3.0
     H = basis.harmonics
-    if not H:
-        return P
-    h0 = basis.first_harmonic
-    w = TWO_PI * np.arange(1, H + 1)
-    ci = h0 + 2 * np.arange(H)  # columns of cos(w_h u)
-    si = ci + 1
-    C = _cos_integral(w, m, delta)  # int cos w u
-    S = _sin_integral(w, m, delta)  # int sin w u
-    P[0, ci] = P[ci, 0] = C
-    P[0, si] = P[si, 0] = S
-    if lin is not None:
-        cw = 2.0 * np.sin(w * delta) / w
-        ss = _s_sin(w, delta)
-        uc = m * np.cos(w * m) * cw - np.sin(w * m) * ss
-        us = m * np.sin(w * m) * cw + np.cos(w * m) * ss
-        P[lin, ci] = P[ci, lin] = uc
-        P[lin, si] = P[si, lin] = us
-    diff = w[:, None] - w[None, :]  # (H, H): alpha - beta
-    total = w[:, None] + w[None, :]
-    cc = 0.5 * (_cos_integral(diff, m, delta) + _cos_integral(total, m, delta))
-    sn = 0.5 * (_cos_integral(diff, m, delta) - _cos_integral(total, m, delta))
-    # cos(alpha u) sin(beta u) = (sin((alpha + beta) u) - sin((alpha - beta) u)) / 2
-    cs = 0.5 * (_sin_integral(total, m, delta) - _sin_integral(diff, m, delta))
-    P[np.ix_(ci, ci)] = cc
-    P[np.ix_(si, si)] = sn
-    P[np.ix_(ci, si)] = cs
-    P[np.ix_(si, ci)] = cs.T
-    return P
+    if H:
+        h0 = basis.first_harmonic
+        w = TWO_PI * np.arange(1, H + 1)
+        ci = h0 + 2 * np.arange(H)  # columns of cos(w_h u)
+        si = ci + 1
+        m1, d1 = m[:, None], delta[:, None]  # (K, 1) against (H,)
+        P[:, 0, ci] = P[:, ci, 0] = _cos_integral(w, m1, d1)
+        P[:, 0, si] = P[:, si, 0] = _sin_integral(w, m1, d1)
+        if lin is not None:
+            cw = 2.0 * np.sin(w * d1) / w
+            ss = _s_sin(w, d1)
+            P[:, lin, ci] = P[:, ci, lin] = m1 * np.cos(w * m1) * cw - np.sin(w * m1) * ss
+            P[:, lin, si] = P[:, si, lin] = m1 * np.sin(w * m1) * cw + np.cos(w * m1) * ss
+        m2, d2 = m[:, None, None], delta[:, None, None]  # (K, 1, 1) against (H, H)
+        diff = w[:, None] - w[None, :]  # alpha - beta
+        total = w[:, None] + w[None, :]
+        cd, ct = _cos_integral(diff, m2, d2), _cos_integral(total, m2, d2)
+        # cos(alpha u) sin(beta u) = (sin((alpha + beta) u) - sin((alpha - beta) u)) / 2
+        cs = 0.5 * (_sin_integral(total, m2, d2) - _sin_integral(diff, m2, d2))
+        P[:, ci[:, None], ci[None, :]] = 0.5 * (cd + ct)
+        P[:, si[:, None], si[None, :]] = 0.5 * (cd - ct)
+        P[:, ci[:, None], si[None, :]] = cs
+        P[:, si[:, None], ci[None, :]] = np.swapaxes(cs, 1, 2)
+    return P[0] if scalar else P
 
 
 def elastic_energy(stress: np.ndarray, stiffness: np.ndarray) -> float:
@@ -224,7 +224,12 @@ def _identity(coef: np.ndarray) -> np.ndarray:
 # -- the exact integrator's ledger ---------------------------------------------------------------
 class ExactLedger:
     """Accumulates `PeriodEnergy` over the pieces and jumps of one exact period (module
-    docstring); `crawlsim.exact.EventStepper` feeds it."""
+    docstring); `crawlsim.exact.EventStepper` feeds it.
+
+    A piece contributes ``sum(P * G)`` with P its Gram matrix and ``G = Sc @ Lc'^T`` (work) or
+    ``-Mc_A @ Y'^T`` (dissipation), both (nb, nb): pieces keep only these, and the Gram matrices
+    of all pieces are formed at once at the end of the period.
+    """
 
     def __init__(self, process: SweepingProcess):
         pieces = process.offset_pieces
@@ -236,14 +241,26 @@ class ExactLedger:
         # the signals themselves (links, then mu^+ and mu^- in the order of the rows of B),
         # in the basis and on the pieces of c(t)
         self.signals = PiecewiseOffsets(pieces.signals, _identity, pieces.edges)
-        self._terms: dict[str, list[float]] = {"work": [], "dissipation": [], "jump_loss": []}
+        # per piece of c: L, K L, dL/du and mu coefficients (a period revisits every piece)
+        self._cache: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
+        self.start()
 
     def start(self) -> None:
-        self._terms = {key: [] for key in self._terms}
+        self._bounds: list[tuple[float, float]] = []
+        self._products: list[np.ndarray] = []  # (2, nb, nb): work, dissipation
+        self._jumps: dict[str, list[float]] = {"work": [], "dissipation": [], "jump_loss": []}
 
-    def _split(self, p: int) -> tuple[np.ndarray, np.ndarray]:
-        coef = self.signals.coefficients(p)
-        return coef[:, :self.N - 1], coef[:, self.N - 1:]
+    def _split(self, p: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(Lc, K Lc, Lc', Mc) of piece p."""
+        cached = self._cache.get(p)
+        if cached is None:
+            coef = self.signals.coefficients(p)
+            Lc = coef[:, :self.N - 1]
+            cached = (Lc, Lc * self.k, self.basis.derivative(Lc), coef[:, self.N - 1:])
+            if len(self._cache) > 256:
+                self._cache.clear()
+            self._cache[p] = cached
+        return cached
 
     def piece(self, p: int, u0: float, u1: float, base: np.ndarray, Wc: np.ndarray,
               active: np.ndarray, Y: np.ndarray) -> None:
@@ -251,17 +268,17 @@ class ExactLedger:
         active rows Lambda(u) = lam0 - phi(u) @ Y."""
         if not u1 > u0:
             return
-        Lc, Mc = self._split(p)
-        P = gram(self.basis, u0, u1)
-        Sc = Wc + Lc * self.k
+        _, KLc, dLc, Mc = self._split(p)
+        Sc = Wc + KLc
         Sc[0] = Sc[0] + base
-        self._terms["work"].append(float(np.sum(Sc * (P @ self.basis.derivative(Lc)))))
-        if active.size:
-            dY = self.basis.derivative(Y)
-            self._terms["dissipation"].append(-float(np.sum(Mc[:, active] * (P @ dY))))
+        G = np.empty((2,) + (self.basis.size,) * 2)
+        G[0] = Sc @ dLc.T
+        G[1] = -(Mc[:, active] @ self.basis.derivative(Y).T) if active.size else 0.0
+        self._bounds.append((u0, u1))
+        self._products.append(G)
 
     def _signals_at(self, u: float, p: int) -> tuple[np.ndarray, np.ndarray]:
-        Lc, Mc = self._split(p)
+        Lc, _, _, Mc = self._split(p)
         phi = self.basis.values(u)[0]
         return phi @ Lc, phi @ Mc
 
@@ -274,17 +291,23 @@ class ExactLedger:
         L_after, mu_after = self._signals_at(u if p_before + 1 < self.pieces else 0.0, p_after)
         dL = L_after - L_before
         sigma = w_before + self.k * L_before
-        self._terms["work"].append(float(np.sum((sigma + 0.5 * self.k * dL) * dL)))
-        self._terms["dissipation"].append(float(multipliers @ mu_after))
+        self._jumps["work"].append(float(np.sum((sigma + 0.5 * self.k * dL) * dL)))
+        self._jumps["dissipation"].append(float(multipliers @ mu_after))
         dw = w_after - w_before
-        self._terms["jump_loss"].append(float(np.sum(dw * dw / (2.0 * self.k))))
+        self._jumps["jump_loss"].append(float(np.sum(dw * dw / (2.0 * self.k))))
 
     def finish(self, w_start: np.ndarray, w_end: np.ndarray) -> PeriodEnergy:
         """The period's ledger; both ends are at u = 0 of the cycle (L(1) = L(0))."""
+        work, dissipation = list(self._jumps["work"]), list(self._jumps["dissipation"])
+        if self._bounds:
+            bounds = np.array(self._bounds)
+            P = gram(self.basis, bounds[:, 0], bounds[:, 1])  # (K, nb, nb)
+            terms = np.einsum("kab,kjab->jk", P, np.array(self._products))
+            work.extend(terms[0].tolist())
+            dissipation.extend(terms[1].tolist())
         L0, _ = self._signals_at(0.0, 0)
         return PeriodEnergy(
-            math.fsum(self._terms["work"]), math.fsum(self._terms["dissipation"]),
-            math.fsum(self._terms["jump_loss"]),
+            math.fsum(work), math.fsum(dissipation), math.fsum(self._jumps["jump_loss"]),
             elastic_energy(w_start + self.k * L0, self.k),
             elastic_energy(w_end + self.k * L0, self.k))
 
