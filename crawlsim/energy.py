@@ -68,6 +68,11 @@ consistent discrete ledger is therefore
 and ``W_h = D_h + J_h + E^G - E^0`` holds exactly for the scheme (each step is the jump identity
 above). Away from jumps ``Delta z = O(h)``, so J_h is the scheme's numerical dissipation, first
 order in h, and converges to the jump losses; W_h and D_h converge to W and D at first order.
+(The right-endpoint sum ``sum_n sigma^{n+1} . Delta L^n`` balances too, with
+``sum_n |sigma^{n+1} - sigma^n|^2_{K^-1} / 2`` in place of J_h, by ``|a|^2/2 - |b|^2/2 = <a, a -
+b> - |a - b|^2/2``; but at a jump of an actuator length that term also holds the elastic work of
+the jump, so it does not converge to the jump loss. The predictor form splits work and loss as
+the exact integrator does.)
 
 **The bound on the cost of transport.** Over a period of the periodic regime every block moves by
 the period displacement d. A block that ends d > 0 ahead slipped forward by at least d, each

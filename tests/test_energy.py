@@ -367,3 +367,34 @@ def test_generic_process_has_no_ledger():
 
 def test_gait_files_exist():
     assert len(CRAWLERS) == 6 and all(Path(p).exists() for p in CRAWLERS)
+
+
+@pytest.mark.parametrize("integrator", ["exact", "catch-up"])
+@pytest.mark.parametrize("k, a, p, q", [(10.0, 0.5, 1.0, 1.0), (8.0, 0.6, 1.3, 0.7)])
+def test_actuator_jumps_closed_form(integrator, k, a, p, q):
+    """A link that jumps: L = 1 on [0, T/2), 1 + a on [T/2, T); front forward friction p, rear
+    forward friction q, backward 3 (never reached). sigma sits at -q before the jump up (the rear
+    block's forward limit); the jump moves the actuator with the blocks held, so sigma^tr =
+    k a - q, and the actuator works E(sigma^tr) - E(-q) = ((k a - q)^2 - q^2)/(2k). Beyond p
+    the front slips at once by s = a - (p + q)/k (k a > p + q), at friction p: friction work
+    p s, jump loss k s^2/2. The jump down at T mirrors it (sigma^tr = p - k a, work
+    ((k a - p)^2 - p^2)/(2k), the rear slips by s at friction q). Hence
+
+        d = s,   W = k a^2 - a (p + q),   D = (p + q) s,   J = k s^2,
+
+    and W = D + J. Nothing moves between the jumps, so catch-up, whose steps are exactly such
+    jumps, gives the same numbers; every block slips forward only, at constant friction, so the
+    efficiency is 1.
+    """
+    gait = make_gait({"blocks": 2, "period": 1.0, "stiffness": k,
+                      "links": [{"kind": "steps", "times": [0.0, 0.5], "values": [1.0, 1.0 + a]}],
+                      "friction": [{"forward": q, "backward": 3.0},
+                                   {"forward": p, "backward": 3.0}],
+                      "simulation": {"steps_per_period": 50, "max_periods": 10}})
+    run = _run(gait, integrator)
+    s = a - (p + q) / k
+    assert run.displacement_per_period == pytest.approx(s, rel=1e-13)
+    assert run.actuator_work_per_period == pytest.approx(k * a * a - a * (p + q), rel=1e-13)
+    assert run.dissipation_per_period == pytest.approx((p + q) * s, rel=1e-13)
+    assert run.jump_loss_per_period == pytest.approx(k * s * s, rel=1e-12)
+    assert run.efficiency == pytest.approx(1.0, rel=1e-12)
