@@ -9,7 +9,6 @@ energy; in the periodic regime E is periodic and W = D + J.
 
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,7 +18,7 @@ from hypothesis import strategies as st
 from scipy.integrate import quad
 
 from crawlsim import energy
-from crawlsim.analysis import simulate
+from crawlsim.analysis import simulate, summary_text
 from crawlsim.api import run as api_run
 from crawlsim.errors import InputError
 from crawlsim.gait import load_gait
@@ -70,7 +69,7 @@ def test_every_exact_period_balances_with_the_change_of_elastic_energy(path):
         assert e is not None
         assert abs(e.residual - e.energy_change) <= 1e-12 * e.scale
         changes.append(abs(e.energy_change))
-    assert changes[0] > 1e-3 * changes[0] + 1e-6  # the first period is a transient
+    assert changes[0] > 1e-6  # the first period is a transient: the check is not 0 = 0
 
 
 @pytest.mark.parametrize("path", CRAWLERS, ids=lambda p: p.stem)
@@ -331,8 +330,6 @@ def test_ledger_in_the_summary_and_the_results_file(tmp_path):
     the results file (with units and long_name) and its root attributes, unchanged."""
     import h5py
 
-    from crawlsim.analysis import summary_text
-
     out = tmp_path / "jump.h5"
     run = api_run(jump_gait(), output=out)
     summary = json.loads(json.dumps(run.summary()))
@@ -358,15 +355,21 @@ def test_ledger_in_the_summary_and_the_results_file(tmp_path):
 
 
 def test_generic_process_has_no_ledger():
+    """A generic sweeping process has no actuators or friction: every ledger key is null."""
     spec = load_gait(GAITS / "paper" / "cell-3.yaml")
     run = simulate(compile_any(spec), max_periods=5, integrator="exact")
-    assert run.actuator_work_per_period is None and run.efficiency is None
-    assert "actuator work" not in json.dumps(run.summary()) or \
-        run.summary()["actuator_work_per_period"] is None
+    summary = run.summary()
+    for key in ("actuator_work_per_period", "jump_loss_per_period", "energy_balance_residual",
+                "cost_of_transport_bound", "efficiency"):
+        assert summary[key] is None
+    assert "actuator work" not in summary_text(run)
 
 
-def test_gait_files_exist():
-    assert len(CRAWLERS) == 6 and all(Path(p).exists() for p in CRAWLERS)
+def test_the_balance_covers_every_example_crawler():
+    """The parametrized balance tests see every crawler gait shipped, steps friction included."""
+    assert {p.stem for p in CRAWLERS} >= {"anchoring-2", "inching-2", "peristalsis-3",
+                                          "peristalsis-4", "smooth-friction-3",
+                                          "speed-peristalsis-4"}
 
 
 @pytest.mark.parametrize("integrator", ["exact", "catch-up"])
