@@ -278,10 +278,14 @@ def random_gaits(draw):
               "phase": draw(st.floats(0.0, 1.0))} for _ in range(N - 1)]
 
     def friction():
-        kind = draw(st.sampled_from(["constant", "cosine", "steps"]))
+        kind = draw(st.sampled_from(["constant", "cosine", "steps", "fourier"]))
         mean = draw(st.floats(0.5, 2.5))
         if kind == "constant":
             return mean
+        if kind == "fourier":  # |cos| + |sin| coefficients < 0.9 mean: positive friction
+            return {"kind": "fourier", "mean": mean,
+                    "cos": [draw(st.floats(-0.3, 0.3)) * mean for _ in range(2)],
+                    "sin": [draw(st.floats(-0.3, 0.3)) * mean]}
         if kind == "cosine":
             return {"kind": "cosine", "mean": mean, "amplitude": draw(st.floats(0.0, 0.45)) * mean,
                     "phase": draw(st.floats(0.0, 1.0))}
@@ -305,8 +309,8 @@ def random_gaits(draw):
                         "backward": 2.0}],
           "simulation": {"steps_per_period": 64, "max_periods": 200}})
 def test_balance_and_bound_on_random_gaits(doc):
-    """Random two- and three-block gaits with constant, cosine and steps friction: the balance
-    W = D + J holds in the periodic regime and the efficiency is at most 1."""
+    """Random two- and three-block gaits with constant, cosine, steps and Fourier friction: the
+    balance W = D + J holds in the periodic regime and the efficiency is at most 1."""
     try:
         gait = make_gait(doc)
         run = _run(gait, history=False)
