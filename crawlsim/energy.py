@@ -53,8 +53,8 @@ the exact derivative maps of the basis, and ``P[k, l] = int_{u0}^{u1} phi_k phi_
 matrix of the basis on the piece, in closed form (`gram`). The two are computed independently
 (D from the friction signals and the slip rates, W from the stresses and the actuators), so
 their balance checks the trajectory: the active rows sit at their friction limits. The
-integrals are exact up to roundoff: no quadrature, only the closed forms of ``int u^a``,
-``int u^a cos``, ``int u^a sin`` (a <= 2) and of products of harmonics.
+integrals are exact up to roundoff: no quadrature, only the closed forms of ``int u^a``
+(a <= 2), ``int u^a cos``, ``int u^a sin`` (a <= 1) and of products of harmonics.
 
 **Catch-up** (`crawlsim.stepping`) moves on the grid by the elastic predictor (actuators to
 ``L^{n+1}``, blocks held: ``sigma^tr = sigma^n + K (L^{n+1} - L^n)``) and the friction corrector
