@@ -40,6 +40,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .energy import ledger as energy_ledger
+from .energy import period_dissipation
 from .model import SweepingProcess
 from .status import Convergence
 from .stepping import PeriodRecord, make_stepper
@@ -55,6 +57,9 @@ FINITE_JUMP = 1e-4
 RATE_WINDOW = 8
 #: Relative Poincare steps above this carry at most ~1e-6 relative roundoff (eps / step).
 RATE_RELIABLE = 1e-10
+#: The energy ledger's entries of the summary (`crawlsim.energy`).
+ENERGY_KEYS = ("actuator_work_per_period", "jump_loss_per_period", "energy_balance_residual",
+               "cost_of_transport_bound", "efficiency")
 
 
 @dataclass(frozen=True, eq=False)
@@ -121,6 +126,14 @@ class RunResult:
     # The dissipation's error: the period iteration's share (v0's relative one) plus, for
     # catch-up, its measured time-step error (None where that is not measured).
     dissipation_error_estimate: float | None = None
+    # The energy ledger of the limit period (`crawlsim.energy`; None for generic processes):
+    # actuator work, jump losses, the balance residual W - D - J, the least cost of transport
+    # for this friction and direction, and the efficiency bound / cost_of_transport.
+    actuator_work_per_period: float | None = None
+    jump_loss_per_period: float | None = None
+    energy_balance_residual: float | None = None
+    cost_of_transport_bound: float | None = None
+    efficiency: float | None = None
 
     @property
     def displacement_error_estimate(self) -> float | None:
@@ -148,7 +161,7 @@ class RunResult:
                 "periodic_from", "contraction_rate", "jacobian_rate", "periods",
                 "steps_per_period", "dissipation_per_period", "cost_of_transport",
                 "limit_method", "limit_newton_steps", "limit_periods", "clarabel_calls",
-                "steps", "wall_time")
+                "steps", "wall_time") + ENERGY_KEYS
         out = {k: getattr(self, k) for k in keys}
         out["convergence"] = str(self.convergence)
         out["final_poincare_step"] = float(self.history.poincare_step[-1])
@@ -268,7 +281,7 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
         assert final.x is not None and final.slips is not None and process.friction is not None
         d_final = float(np.mean(final.x[-1] - final.x[0]))
         v0 = d_final / T
-        diss_final = float(np.sum(final.multipliers * process.friction[1:]))
+        diss_final = period_dissipation(process, final)
         roundoff = float(np.sum(np.abs(final.slips))) / process.blocks
         if solution is not None:
             # the verified period is periodic to its residual |P(w) - w|: a shape mismatch of
@@ -299,6 +312,13 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
         err = err + err_step
     if process.is_crawler and d_final is not None and diss_final is not None and err is not None:
         cot = cost_of_transport(diss_final, d_final, err, T)
+    ledger = energy_ledger(process, final, d_final, cot) if d_final is not None else None
+    energy_fields = {} if ledger is None else {
+        "actuator_work_per_period": ledger.actuator_work_per_period,
+        "jump_loss_per_period": ledger.jump_loss_per_period,
+        "energy_balance_residual": ledger.energy_balance_residual,
+        "cost_of_transport_bound": ledger.cost_of_transport_bound,
+        "efficiency": ledger.efficiency}
     simulated = len(log) + (solution.periods if solution is not None else 0)
     return RunResult(
         name=process.name, period=T, steps_per_period=G, convergence=convergence,
@@ -315,7 +335,7 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
         limit_residuals=solution.residuals if solution is not None else None,
         jacobian_rate=solution.jacobian_rate if solution is not None else None,
         v0_error_period_iteration=err_pi, v0_error_time_step=err_step,
-        dissipation_error_estimate=diss_err)
+        dissipation_error_estimate=diss_err, **energy_fields)
 
 
 def time_step_reference(process: SweepingProcess, *, max_periods: int,
@@ -366,7 +386,7 @@ class _History:
         if p.is_crawler:
             assert record.x is not None and p.friction is not None
             self.displacements.append(float(np.mean(record.x[-1] - record.x[0])))
-            self.dissipations.append(float(np.sum(record.multipliers * p.friction[1:])))
+            self.dissipations.append(period_dissipation(p, record))
         if self._limit is None:
             assert self._spill is not None
             self._spill.add(record)
@@ -565,7 +585,37 @@ def summary_text(result: RunResult, output: str | None = None) -> str:
         cot = "n/a (no net motion)" if result.cost_of_transport is None else with_error(
             result.cost_of_transport, result.cost_of_transport_error_estimate, unit('force'))
         lines.append(f"  cost of transport        {cot}")
+        lines.extend(energy_lines(result, unit))
     if output:
         lines.append(f"  written                  {output}")
     return "\n".join(lines)
 
+
+
+def energy_lines(result: RunResult, unit) -> list[str]:
+    """The energy ledger's lines of the summary (`crawlsim.energy`)."""
+    if result.actuator_work_per_period is None:
+        return []
+    from .digits import with_error
+
+    work = result.actuator_work_per_period
+    loss = result.jump_loss_per_period or 0.0
+    residual = result.energy_balance_residual or 0.0
+    relative = abs(residual) / max(abs(work), 1e-300)
+    # W = D + J: the work is as accurate as the dissipation, and for catch-up its jump losses
+    # J_h hold the scheme's own numerical loss (first order in the step) besides the true one
+    err = result.dissipation_error_estimate
+    if err is not None and result.integrator != "exact":
+        err += abs(loss)
+    lines = [f"  actuator work per period {with_error(work, err, unit('dissipation'))}",
+             f"  jump losses per period   {loss:.3g}{unit('dissipation')}",
+             f"  energy balance residual  {residual:.3g}{unit('dissipation')} (work - dissipation"
+             f" - jump losses; {relative:.1g} relative)"]
+    if result.cost_of_transport_bound is not None:
+        cot_err = result.cost_of_transport_error_estimate
+        eff = "n/a" if result.efficiency is None or result.cost_of_transport is None else (
+            with_error(result.efficiency, None if cot_err is None else
+                       1.01 * result.efficiency * cot_err / result.cost_of_transport))
+        lines.append(f"  cost of transport bound  {result.cost_of_transport_bound:.12g}"
+                     f"{unit('force')} (efficiency {eff})")
+    return lines

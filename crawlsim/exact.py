@@ -57,6 +57,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .energy import ExactLedger
 from .errors import CertificateError, DegenerateModelError, EventError, LicqWarning
 from .kkt import RTOL, ActiveSet, Dependent, Tolerance
 from .model import SweepingProcess
@@ -146,6 +147,8 @@ class EventStepper:
         self.active = self.poly.empty
         self.period_index = 0
         self._visited: list = []
+        # the period's energy ledger, integrated exactly on the pieces (crawlers)
+        self._ledger = ExactLedger(process) if process.is_crawler else None
         self._grid = process.cycles
         edges = self.pieces.edges
         self._edge_index = np.searchsorted(self._grid, edges)
@@ -190,6 +193,9 @@ class EventStepper:
         edges = pieces.edges
         carried = 0.0  # the largest slip roundoff of the pieces since the last sampled point
         self._visited = []
+        ledger = self._ledger
+        if ledger is not None:
+            ledger.start()
         while True:
             ev_t.append(u)
             ev_w.append(w)
@@ -202,6 +208,9 @@ class EventStepper:
             u_end = edges[piece_index + 1]
             event = self._next_event(piece, piece_index, u, u_end)
             u_e = u_end if event is None else event[0]
+            if ledger is not None:
+                ledger.piece(piece_index, u, u_e, piece.base, piece.Wc, piece.active.index,
+                             piece.Y)
             # sample the grid times in (u, u_e]
             j_end = int(np.searchsorted(self._grid, u_e, side="right"))
             if j_end > j:
@@ -226,6 +235,8 @@ class EventStepper:
                 target = pieces.evaluate(u if edge < pieces.pieces else 0.0,
                                          piece=edge % pieces.pieces)[0]
                 proj = self.projector.project(w, target, time=start + u * T, warm=self.active)
+                if ledger is not None:
+                    ledger.jump(piece_index, u, w, proj.point, proj.multipliers)
                 w, lam_cum = proj.point, lam_cum + proj.multipliers
                 self.active = proj.active
                 self._visit(proj.active)
@@ -249,7 +260,8 @@ class EventStepper:
         events = EventTrajectory(start + np.array(ev_t) * T, np.array(ev_w), x_events)
         record = PeriodRecord(self.period_index, start, W, multipliers, X,
                               self.projector.clarabel_calls - calls0, events=events,
-                              visited=tuple(self._visited))
+                              visited=tuple(self._visited),
+                              energy=None if ledger is None else ledger.finish(W[0], W[-1]))
         self.period_index += 1
         return record
 

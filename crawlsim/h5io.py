@@ -21,6 +21,8 @@ Run files (format_version 2):
     /process/*            crawlers: stiffness (link); generic processes: normals
                           (constraint, state), metric (state, state_column)
     /events/*             dimension event_time                        [--integrator exact]
+    /energy/*             crawlers: scalars, the energy ledger of the limit period
+                          (`crawlsim.energy`)
 
 A dimension without values of its own (time, event_time, limit_time) is a netCDF "dimension but
 not a variable"; the times are the variable ``t`` of the group, a coordinate of its variables.
@@ -193,6 +195,20 @@ RUN_VARIABLES: dict[str, dict[str, Var]] = {
         "metric": Var(("state", "state_column"), "M, the metric of the projections "
                                                  "(crawlers: K^-1)", "metric"),
     },
+    "energy": {
+        "actuator_work": Var((), "work done by the actuators on the body over the limit period, "
+                                 "sum_i oint sigma_i dL_i", "dissipation"),
+        "dissipation": Var((), "energy dissipated by friction over the limit period (slips at "
+                               "jumps at the friction limits after the switch)", "dissipation"),
+        "jump_loss": Var((), "elastic energy released at jumps beyond friction work over the "
+                             "limit period, sum_i k_i (Delta z_i)^2 / 2", "dissipation"),
+        "balance_residual": Var((), "actuator_work - dissipation - jump_loss: zero in the "
+                                    "periodic regime, up to roundoff", "dissipation"),
+        "cost_of_transport_bound": Var((), "least cost of transport of the friction in the "
+                                           "direction of motion: sum_j min_t mu_j^+ (d > 0) or "
+                                           "sum_j min_t mu_j^- (d < 0)", "force"),
+        "efficiency": Var((), "cost_of_transport_bound / cost_of_transport, at most 1", "1"),
+    },
     "events": {
         "t": Var(("event_time",), "event time of the exact integrator (every period, never "
                                   "thinned by save_every)", "time"),
@@ -201,6 +217,11 @@ RUN_VARIABLES: dict[str, dict[str, Var]] = {
         "x": Var(("event_time", "block"), "block position at the event", "length"),
     },
 }
+
+#: The /energy datasets and the RunResult fields they hold.
+_ENERGY = {"actuator_work": "actuator_work_per_period", "dissipation": "dissipation_per_period",
+           "jump_loss": "jump_loss_per_period", "balance_residual": "energy_balance_residual",
+           "cost_of_transport_bound": "cost_of_transport_bound", "efficiency": "efficiency"}
 
 #: Dimensions that are netCDF "dimensions but not variables": their values are the group's t.
 _TIME_DIMENSIONS = {"trajectory": "time", "limit": "limit_time", "events": "event_time"}
@@ -211,7 +232,9 @@ _ATTRIBUTE_QUANTITIES = {
     "v0_error_time_step": "velocity", "displacement_per_period": "length",
     "dissipation_per_period": "dissipation", "cost_of_transport": "force", "period": "time",
     "contraction_rate": "1", "periodic_from": "1", "steps_per_period": "1", "periods": "1",
-    "save_every": "1",
+    "save_every": "1", "actuator_work_per_period": "dissipation",
+    "jump_loss_per_period": "dissipation", "energy_balance_residual": "dissipation",
+    "cost_of_transport_bound": "force", "efficiency": "1",
 }
 
 
@@ -404,6 +427,8 @@ class ResultsWriter:
             groups["limit"].update(lengths=p.lengths, friction=p.friction)
         if "events" in f:
             groups["events"] = {name: f["events"][name] for name in f["events"]}
+        if crawler and getattr(result, "actuator_work_per_period", None) is not None:
+            groups["energy"] = {name: getattr(result, attr) for name, attr in _ENERGY.items()}
         for gname, values in groups.items():
             group = f.require_group(gname) if gname in f else f.create_group(gname,
                                                                            track_order=True)
@@ -473,7 +498,8 @@ class ResultsWriter:
         summary = result.summary()
         for key in ("v0", "v0_error_estimate", "v0_error_period_iteration", "v0_error_time_step",
                     "contraction_rate", "displacement_per_period", "dissipation_per_period",
-                    "cost_of_transport"):
+                    "cost_of_transport", "actuator_work_per_period", "jump_loss_per_period",
+                    "energy_balance_residual", "cost_of_transport_bound", "efficiency"):
             value = summary.get(key, getattr(result, key, None))
             a[key] = np.nan if value is None else float(value)
         a["period"] = result.period
@@ -551,7 +577,7 @@ def _variables(group: h5py.Group) -> dict[str, np.ndarray]:
 def read_results(path: Any) -> dict[str, Any]:
     """Load a results file (format_version 1 or 2) into plain dicts of arrays: ``{"attrs",
     "trajectory", "convergence", "limit"}`` and the groups' attributes as ``"<group>_attrs"``,
-    plus ``"process"`` and ``"events"`` when the file has them. Format 2 adds
+    plus ``"process"``, ``"events"`` and ``"energy"`` when the file has them. Format 2 adds
     ``"coordinates"`` (the root coordinate variables: block, link, constraint, ...) and
     ``/limit/step``. Raises `ResultsFileError` naming what is missing."""
     source = path
@@ -574,7 +600,7 @@ def read_results(path: Any) -> dict[str, Any]:
                 raise ResultsFileError(f"{source}: missing group /{group}")
             out[group] = _variables(f[group])
             out[group + "_attrs"] = {k: _plain(v) for k, v in f[group].attrs.items()}
-        for group in ("process", "events"):
+        for group in ("process", "events", "energy"):
             if group in f:
                 out[group] = _variables(f[group])
         process = out.get("process", {})

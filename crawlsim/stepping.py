@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import importlib
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -61,6 +62,9 @@ class PeriodRecord:
     # out): the period map is affine near this start, with Jacobian the product of their
     # projectors I - R_A B_A (`crawlsim.limit`).
     visited: tuple = ()
+    # The period's energy ledger integrated exactly on the event-driven integrator's pieces
+    # (`crawlsim.energy.PeriodEnergy`); None for catch-up, whose ledger follows from the grid.
+    energy: Any = None
 
     @property
     def slips(self) -> np.ndarray | None:

@@ -269,7 +269,8 @@ def test_v2_readers_keep_the_v1_keys(files):
         if isinstance(value, dict) and key != "attrs":
             assert set(value) <= set(new[key]), key
     assert set(new["limit"]) - set(old["limit"]) == {"step"}
-    assert set(new) - set(old) <= {"coordinates", "events"}  # events: the exact integrator
+    # events: the exact integrator; energy: the energy ledger of crawlers
+    assert set(new) - set(old) <= {"coordinates", "events", "energy"}
     assert set(old["attrs"]) <= set(new["attrs"])
     assert new["attrs"]["format_version"] == FORMAT_VERSION == 2
     old_sweep, new_sweep = read_sweep(DATA / "v1-sweep.h5"), read_sweep(files["sweep"])
@@ -280,7 +281,7 @@ def test_v2_readers_keep_the_v1_keys(files):
                                          "displacement_per_period", "convergence", "periods",
                                          "status", "message", "v0_error_estimate",
                                          "dissipation_per_period", "cost_of_transport",
-                                         "integrator"}
+                                         "integrator", "limit", "newton_steps"}
 
 
 def test_format_1_files_still_read_and_plot(tmp_path):
