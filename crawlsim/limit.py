@@ -20,7 +20,10 @@ The safeguard: a Newton candidate is accepted only if its own Poincare step |P(w
 smaller. The affine model holds on the current piece of the map only, and where J has an
 eigenvalue close to 1 the full step can leave that piece by far (a random 7-block gait: |d| 50
 times |F|); the step is then shortened (`BACKTRACK`), and if no fraction of it helps the solver
-takes a plain iteration w <- P(w). It starts with ``plain``
+takes a plain iteration w <- P(w). Where the Jacobian from the visited active sets is not the
+map's (no fraction of a Newton step helps), the solver tries Anderson's extrapolation
+from the last accepted periods instead (a secant method that needs no Jacobian), under the same
+rule, and returns to Newton once that fails. It starts with ``plain``
 plain periods, so gaits that are periodic after a period or two (finite-time convergence) pay
 nothing extra. The limit is *verified* by the last plain period of the solver, from the accepted
 point: its Poincare step is at the tolerance (roundoff by default), and v0 and the limit period
@@ -50,6 +53,8 @@ UNIT_EIGENVALUE = 1e-8
 DENSE_JACOBIAN = 400
 #: Fractions of the Newton step tried in turn until one decreases the Poincare step.
 BACKTRACK = (1.0, 0.25, 0.0625)
+#: Pairs (w, P(w)) that Anderson's extrapolation combines after a failed Newton step.
+ANDERSON_DEPTH = 5
 
 
 @dataclass(frozen=True, eq=False)
@@ -153,30 +158,45 @@ def solve_limit(process: SweepingProcess, stepper, *, tolerance: float, max_peri
     residuals = [relative_step(process, w, record.w[-1])]
     periods, newton_steps, rate = 1, 0, None
     used_newton = False
+    history: list[tuple[np.ndarray, np.ndarray]] = [(w, record.w[-1])]  # (w, P(w)) accepted
+    anderson = False  # the last Newton step failed: try Anderson's step instead
+
+    def attempt(candidate: np.ndarray) -> bool:
+        nonlocal w, record, periods
+        if exact:
+            candidate = _admissible(stepper, candidate)
+        trial = period(candidate)
+        periods += 1
+        r = relative_step(process, candidate, trial.w[-1])
+        residuals.append(r)
+        if r < current:
+            w, record = candidate, trial
+            history.append((w, record.w[-1]))
+            return True
+        return False
+
     while residuals[-1] > tolerance and periods < max_periods:
         F = record.w[-1] - w
         current = residuals[-1]
         accepted = False
         if method == "newton" and periods >= plain:
-            d = newton_step(poly, record.visited, F)
-            # backtracking: the affine model holds on the current piece of the map only; a
-            # full step that leaves it is shortened (a period per trial, as a plain iteration)
-            for scale in BACKTRACK:
-                candidate = w + scale * d
-                if exact:
-                    candidate = _admissible(stepper, candidate)
-                trial = period(candidate)
-                periods += 1
-                r = relative_step(process, candidate, trial.w[-1])
-                residuals.append(r)
-                if r < current:
-                    w, record = candidate, trial
-                    newton_steps += 1
-                    used_newton = accepted = True
-                    break
-                if periods >= max_periods:
-                    break
+            if anderson and len(history) > 2:
+                accepted = attempt(anderson_step(history))
+                anderson = accepted
+            else:
+                d = newton_step(poly, record.visited, F)
+                # backtracking: the affine model holds on the current piece of the map only; a
+                # full step that leaves it is shortened (a period per trial, as a plain step)
+                for scale in BACKTRACK:
+                    if periods >= max_periods:
+                        break
+                    if attempt(w + scale * d):
+                        accepted = True
+                        break
+                anderson = not accepted
             if accepted:
+                newton_steps += 1
+                used_newton = True
                 continue
             if periods >= max_periods:
                 break
@@ -184,11 +204,25 @@ def solve_limit(process: SweepingProcess, stepper, *, tolerance: float, max_peri
         record = period(w)
         periods += 1
         residuals.append(relative_step(process, w, record.w[-1]))
+        history.append((w, record.w[-1]))
     converged = residuals[-1] <= tolerance
     if converged and method == "newton" and poly.n <= DENSE_JACOBIAN:
         rate = subdominant_rate(jacobian(poly, record.visited))
     return LimitSolution(converged, w, record, "newton" if used_newton else "iterate",
                          newton_steps, periods, np.array(residuals), rate)
+
+
+def anderson_step(history, depth: int = ANDERSON_DEPTH) -> np.ndarray:
+    """Anderson's extrapolation (type II) from the last ``depth`` + 1 pairs (w, P(w)): the
+    combination of the P(w) whose residuals F = P(w) - w combine to the least |F| (a secant
+    method on F that needs no Jacobian)."""
+    pairs = history[-(depth + 1):]
+    W = np.array([np.ravel(w) for w, _ in pairs])
+    G = np.array([np.ravel(g) for _, g in pairs])
+    F = G - W
+    dF, dG = np.diff(F, axis=0).T, np.diff(G, axis=0).T
+    gamma = np.linalg.lstsq(dF, F[-1], rcond=None)[0]
+    return (G[-1] - dG @ gamma).reshape(np.shape(pairs[-1][0]))
 
 
 def _admissible(stepper, w: np.ndarray) -> np.ndarray:
