@@ -15,7 +15,12 @@ Bytecode: an installed package has its ``.pyc`` files (pip compiles them), so th
 with bytecode caching on (``PYTHONDONTWRITEBYTECODE`` removed from their environment; the warm-up
 run writes crawlsim's ``__pycache__``, which git ignores), as numpy and the others have theirs.
 
-    python scripts/bench-startup.py [--repeat 15]
+Run it with the interpreter of a regular install (``pip install .`` in a fresh virtual
+environment), what users run: an editable install adds its own import hook to every start-up
+(pathlib, importlib machinery), which the installed package does not pay.
+
+    python -m venv /tmp/inst && /tmp/inst/bin/pip install . &&
+        /tmp/inst/bin/python scripts/bench-startup.py [--repeat 15]
 """
 
 from __future__ import annotations
