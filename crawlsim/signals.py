@@ -595,6 +595,8 @@ def check_schema(instance: Any, schema: dict, source: str, keypath: str = "") ->
 def schema_errors(instance: Any, schema: dict, source: str, keypath: str = "") -> list[GaitError]:
     """Every error of ``instance`` against ``schema`` (for `crawlsim validate`), in document
     order; an if/then branch reports its own errors rather than the failed branch."""
+    if _fast_check(schema)(instance):
+        return []  # valid: no need for jsonschema (`check_schema`)
     out: list[GaitError] = []
     seen: set[str] = set()
     for error in _validator(schema).iter_errors(instance):

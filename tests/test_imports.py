@@ -93,6 +93,11 @@ def test_velocity_reads_no_distribution_metadata(tmp_path):
     assert out.splitlines()[-1] == "LOOKUPS 0"
 
 
+def test_validate_of_a_valid_gait_loads_no_jsonschema(tmp_path):
+    modules = modules_after(["validate", str(GAIT)], tmp_path)
+    assert loaded(modules, "crawlsim.gait") and not loaded(modules, "jsonschema")
+
+
 def test_an_invalid_gait_loads_jsonschema_for_its_message(tmp_path):
     """jsonschema, the reference validator, phrases the error of a refused gait."""
     bad = tmp_path / "bad.yaml"
