@@ -24,7 +24,10 @@ from __future__ import annotations
 import importlib
 import sys
 import types
-from typing import Any
+
+TYPE_CHECKING = False  # typing itself is not imported: `crawlsim --version` needs none of it
+if TYPE_CHECKING:
+    from typing import Any
 
 __version__ = "0.1.0"
 

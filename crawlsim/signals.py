@@ -22,13 +22,15 @@ import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
-import jsonschema
 import numpy as np
-from jsonschema.exceptions import best_match, by_relevance
 
 from crawlsim.errors import GaitError
+from crawlsim.schemacheck import Check, compile_schema
+
+if TYPE_CHECKING:
+    import jsonschema
 
 JUMP_TOLERANCE = 1e-12
 """Cycles within which a time counts as sitting on a jump or kink.
@@ -542,8 +544,6 @@ def _schema_error(error: jsonschema.ValidationError, source: str, keypath: str) 
     return GaitError(source, path, f"expected {expected}, got {_describe(instance)}")
 
 
-_RELEVANCE = by_relevance(strong={"additionalProperties"})
-
 _BEST_OF = 64
 """Errors weighed by relevance to pick the one reported. Finding more errors means validating
 the rest of the document, which for a huge list (refused by its maxItems, checked first) would
@@ -553,8 +553,17 @@ cost seconds."""
 def _validator(schema: dict) -> jsonschema.Draft202012Validator:
     validator = _VALIDATORS.get(id(schema))
     if validator is None:
+        import jsonschema  # only for a document the compiled check refuses (`_fast_check`)
+
         validator = _VALIDATORS[id(schema)] = jsonschema.Draft202012Validator(schema)
     return validator
+
+
+def _fast_check(schema: dict) -> Check:
+    check = _FAST_CHECKS.get(id(schema))
+    if check is None:
+        check = _FAST_CHECKS[id(schema)] = compile_schema(schema)
+    return check
 
 
 def check_schema(instance: Any, schema: dict, source: str, keypath: str = "") -> None:
@@ -562,21 +571,32 @@ def check_schema(instance: Any, schema: dict, source: str, keypath: str = "") ->
 
     An unknown key outranks a missing one at the same place: a misspelt key causes both, and
     only the unknown-key message can suggest the right spelling.
+
+    A valid document (the common case) is accepted by the compiled check of
+    `crawlsim.schemacheck` without importing jsonschema; jsonschema, the reference, decides
+    every document that check refuses and finds its error.
     """
+    if _fast_check(schema)(instance):
+        return
+    from jsonschema.exceptions import best_match, by_relevance
+
     errors = _validator(schema).iter_errors(instance)
-    first = next(errors, None)  # the common case: None, valid
-    if first is None:
+    first = next(errors, None)
+    if first is None:  # the compiled check is stricter than jsonschema: never, by its tests
         return
     if first.validator == "maxItems":  # a list over its bound: its items are not worth checking
         raise _schema_error(first, source, keypath)
+    relevance = by_relevance(strong={"additionalProperties"})
     error = best_match(itertools.chain([first], itertools.islice(errors, _BEST_OF - 1)),
-                       key=_RELEVANCE)
+                       key=relevance)
     raise _schema_error(error if error is not None else first, source, keypath)
 
 
 def schema_errors(instance: Any, schema: dict, source: str, keypath: str = "") -> list[GaitError]:
     """Every error of ``instance`` against ``schema`` (for `crawlsim validate`), in document
     order; an if/then branch reports its own errors rather than the failed branch."""
+    if _fast_check(schema)(instance):
+        return []  # valid: no need for jsonschema (`check_schema`)
     out: list[GaitError] = []
     seen: set[str] = set()
     for error in _validator(schema).iter_errors(instance):
@@ -615,6 +635,7 @@ def without_signals(schema: Any, signal: dict | None = None) -> Any:
 #: One validator per schema (the schemas are module constants): building one is costly, and
 #: sweeps validate thousands of documents.
 _VALIDATORS: dict[int, jsonschema.Draft202012Validator] = {}
+_FAST_CHECKS: dict[int, Check] = {}
 
 
 def check_finite(instance: Any, source: str, keypath: str = "") -> None:

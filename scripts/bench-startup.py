@@ -7,15 +7,21 @@
   ``python -c "import numpy, scipy.sparse, clarabel, yaml"`` (bar: at most 1.3x).
 
 Each command is a fresh process (wall time of `subprocess.run`); the commands are run in turns
-(round-robin) so that a change of the machine's load affects them alike, and the median of
-``--repeat`` runs is reported. The last table lists the heavy modules each velocity command
-imports beyond the baseline (``python -X importtime``), the usual suspects when a ratio grows.
+(round-robin, each round starting one command later) so that a change of the machine's load
+affects them alike, and the median of ``--repeat`` runs is reported. The last table lists the
+heavy modules each velocity command imports beyond the baseline (``python -X importtime``), the
+usual suspects when a ratio grows.
 
 Bytecode: an installed package has its ``.pyc`` files (pip compiles them), so the commands run
 with bytecode caching on (``PYTHONDONTWRITEBYTECODE`` removed from their environment; the warm-up
 run writes crawlsim's ``__pycache__``, which git ignores), as numpy and the others have theirs.
 
-    python scripts/bench-startup.py [--repeat 15]
+Run it with the interpreter of a regular install (``pip install .`` in a fresh virtual
+environment), what users run: an editable install adds its own import hook to every start-up
+(pathlib, importlib machinery), which the installed package does not pay.
+
+    python -m venv /tmp/inst && /tmp/inst/bin/pip install . &&
+        /tmp/inst/bin/python scripts/bench-startup.py [--repeat 15]
 """
 
 from __future__ import annotations
@@ -84,9 +90,12 @@ def main() -> int:
     for argv in commands.values():  # warm the file cache and the .pyc files
         wall(argv)
     times: dict[str, list[float]] = {name: [] for name in commands}
-    for _ in range(args.repeat):
-        for name, argv in commands.items():
-            times[name].append(wall(argv))
+    names = list(commands)
+    for round_ in range(args.repeat):
+        # each round starts one command later: a process run right after another pays for its
+        # predecessor's exit (measured: up to 10%), and rotating spreads that over all commands
+        for name in names[round_ % len(names):] + names[:round_ % len(names)]:
+            times[name].append(wall(commands[name]))
     median = {name: statistics.median(t) for name, t in times.items()}
 
     print(f"start-up, median of {args.repeat} runs each (wall time of a fresh process, "

@@ -67,14 +67,69 @@ def test_velocity_loads_what_it_needs_and_no_more(integrator, tmp_path):
     (nothing is written), matplotlib, tqdm (stderr is not a terminal), Dask or the sweep
     machinery. Clarabel is loaded only when the kernel's own updates do not settle a step (the
     two-block gait never needs it), and scipy.optimize not at all: the exact integrator's events
-    of a cosine gait have closed forms."""
+    of a cosine gait have closed forms. jsonschema is not loaded for a valid gait (the compiled
+    check of `crawlsim.schemacheck` accepts it)."""
     modules = modules_after(["velocity", str(GAIT), "--integrator", integrator], tmp_path)
     for name in ("numpy", "yaml", "crawlsim.projection", "crawlsim.kkt"):
         assert loaded(modules, name), name
     for name in ("h5py", "matplotlib", "tqdm", "distributed", "dask", "crawlsim.sweep",
                  "crawlsim.batch", "crawlsim.h5io", "crawlsim.plotting.figures", "clarabel",
-                 "scipy.optimize"):
+                 "scipy.optimize", "jsonschema"):
         assert not loaded(modules, name), name
+
+
+def test_velocity_reads_no_distribution_metadata(tmp_path):
+    """The library versions (`crawlsim.provenance.versions`, 20-30 ms of metadata reading) are
+    recorded in results files; printing v0 does not look them up, ``--json`` (whose summary
+    holds no versions) neither."""
+    code = ("import sys\nfrom crawlsim.cli import main\n"
+            "for extra in ([], ['--json']):\n"
+            "    try:\n        main(['velocity', sys.argv[1], *extra], prog_name='crawlsim')\n"
+            "    except SystemExit:\n        pass\n"
+            "from crawlsim.provenance import _versions\n"
+            "info = _versions.cache_info()\nprint('LOOKUPS', info.hits + info.misses)")
+    out = subprocess.run([sys.executable, "-c", code, str(GAIT)], capture_output=True,
+                         text=True, check=True, cwd=tmp_path).stdout
+    assert out.splitlines()[-1] == "LOOKUPS 0"
+
+
+def test_validate_of_a_valid_gait_loads_no_jsonschema(tmp_path):
+    modules = modules_after(["validate", str(GAIT)], tmp_path)
+    assert loaded(modules, "crawlsim.gait") and not loaded(modules, "jsonschema")
+
+
+def test_an_invalid_gait_loads_jsonschema_for_its_message(tmp_path):
+    """jsonschema, the reference validator, phrases the error of a refused gait."""
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(GAIT.read_text() + "\nsimulaton: {}\n")
+    modules = modules_after(["velocity", str(bad)], tmp_path)
+    assert loaded(modules, "jsonschema")
+
+
+def test_version_of_the_console_script_loads_no_click(tmp_path):
+    """``crawlsim --version`` (the console script, `crawlsim.console`) answers before importing
+    click, with click's own answer."""
+    code = ("import sys, json; sys.argv = ['crawlsim', '--version']\n"
+            "from crawlsim.console import main\n"
+            "try:\n    main()\nexcept SystemExit as e:\n    code = e.code\n"
+            "print(json.dumps([code, sorted(sys.modules)]))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, cwd=tmp_path).stdout
+    first, last = out.splitlines()[0], out.splitlines()[-1]
+    code_, modules = json.loads(last)
+    assert code_ == 0 and not loaded(set(modules), "click")
+    assert not [m for m in HEAVY if loaded(set(modules), m)]
+    via_click = subprocess.run([sys.executable, "-m", "crawlsim", "--version"], cwd=tmp_path,
+                               capture_output=True, text=True, check=True).stdout
+    assert first == via_click.strip()
+
+
+def test_console_script_passes_everything_else_to_the_command_group(tmp_path):
+    code = ("import sys; sys.argv = ['crawlsim', 'validate', sys.argv[1]]\n"
+            "from crawlsim.console import main\nmain()")
+    done = subprocess.run([sys.executable, "-c", code, str(GAIT)], capture_output=True,
+                          text=True, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
 
 
 def test_run_and_info_load_no_plotting(tmp_path):

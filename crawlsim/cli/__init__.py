@@ -14,12 +14,11 @@ Exit codes: 0 converged, 3 not converged within max_periods (results still writt
 
 from __future__ import annotations
 
-import json
 import math
 import signal
 import warnings
 from contextlib import contextmanager
-from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
@@ -27,6 +26,9 @@ from .. import __version__
 from ..errors import CrawlsimError, InputError
 from ..status import Integrator
 from .guards import FiniteFloatRange
+
+if TYPE_CHECKING:  # json and pathlib are imported where used: `crawlsim --help` needs neither
+    from pathlib import Path
 
 EXIT_NOT_CONVERGED = 3
 #: 128 + the signal number, as shells report a process ended by a signal.
@@ -143,6 +145,8 @@ class OrderedCommand(click.Command):
 def _output_path(output, gait_file, force: bool = False, inputs=None) -> Path:
     """The results file of a run, refused (`crawlsim.outputs.check_target`) when it may not be
     replaced; ``inputs`` are the files the run reads (never replaced, default the gait file)."""
+    from pathlib import Path
+
     from ..outputs import RUN, check_target
 
     out = Path(output) if output else Path(Path(gait_file).stem + ".h5")
@@ -151,6 +155,8 @@ def _output_path(output, gait_file, force: bool = False, inputs=None) -> Path:
 
 def to_json(summary: dict) -> str:
     """One JSON object; NaN and infinities (HDF5's stand-ins for null) become null."""
+    import json
+
     clean = {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
              for k, v in summary.items()}
     return json.dumps(clean)

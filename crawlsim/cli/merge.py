@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import click
 
 from . import BadInput, library_errors, main
@@ -28,6 +26,8 @@ def merge(parts, output, force):
       crawlsim merge part-*.h5 -o sweep.h5
       crawlsim merge part-*.h5 -o - | wc -l
     """
+    from pathlib import Path
+
     from .. import sweep as sweeps
 
     if output != "-" and Path(output).suffix.lower() not in (".h5", ".hdf5", ".csv"):

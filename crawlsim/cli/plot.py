@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 
@@ -10,6 +10,9 @@ from ..errors import CrawlsimError
 from ..plotting import FIGURE_NAMES, OPTIMIZATION_FIGURES
 from . import BadInput, library_errors, main
 from .guards import force_option
+
+if TYPE_CHECKING:  # pathlib is imported where used: `crawlsim --help` needs none of it
+    from pathlib import Path
 
 
 def _coords(ctx, param, value):
@@ -75,6 +78,8 @@ def plot(results_file, output_dir, fmt, only, coords, force):
 
 def _check_targets(results_file, output_dir, fmt, only, kind, force) -> None:
     """Refuse figure files that may not be replaced (`crawlsim.outputs.check_target`)."""
+    from pathlib import Path
+
     from ..outputs import FIGURE, check_target
 
     folder = Path(output_dir) if output_dir else Path(results_file).parent
@@ -114,6 +119,8 @@ def _plot_run(results_file, output_dir, fmt, only, coords):
 
 
 def _plot_sweep(results_file, output_dir, fmt, only) -> Path:
+    from pathlib import Path
+
     from .. import sweep as sweeps
 
     if only is not None:

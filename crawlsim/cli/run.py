@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import click
 
@@ -68,6 +67,8 @@ def run(gait_file, from_results, output, steps_per_period, max_periods, toleranc
         raise BadInput("--output -: the results of a run are an HDF5 file, which cannot be "
                        "streamed to stdout; give a file name (-o run.h5), and --json prints "
                        "the summary on stdout")
+    from pathlib import Path
+
     from .. import api
     from ..analysis import summary_text
 
