@@ -61,8 +61,10 @@ from crawlsim.plotting.style import (
     units_of,
 )
 
+from .conftest import SOLVER_GAITS
+
 GAITS = Path(__file__).resolve().parents[1] / "gaits"
-GAIT_FILES = sorted(GAITS.rglob("*.yaml"))
+GAIT_FILES = sorted(p for p in GAITS.rglob("*.yaml") if p.stem not in SOLVER_GAITS)
 STEPS = 200
 
 
@@ -75,7 +77,8 @@ def run_file(tmp_path_factory):
     def get(name: str, integrator: str | None = None) -> Path:
         """``integrator`` None: the gait file's (by default exact)."""
         if (name, integrator) not in cache:
-            out = folder / f"{Path(name).name}-{integrator or 'default'}.h5"
+            stem = Path(name).name if integrator is None else f"{Path(name).name}-{integrator}"
+            out = folder / f"{stem}.h5"
             gait = with_simulation(load_gait(GAITS / f"{name}.yaml"), steps_per_period=STEPS)
             if integrator is not None:
                 gait = with_simulation(gait, integrator=integrator)
