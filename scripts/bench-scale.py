@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """How the cost of a step and of an event grows with the number of blocks N.
 
-The retrograde cosine wave of N blocks (link i: L_i = 1 + 0.3 cos 2 pi (t/T - i/(N-1)),
-k = 10, friction forward 1.0 / backward 2.13), for N = 4, 16, 64, 128, 256 and 1024, in one run:
+The cosine wave of N blocks (link i: L_i = 1 + 0.3 cos 2 pi (t/T - phase_i), k = 10, friction
+forward 1.0 / backward 2.13; phase_i = i/(N-1), or i/10 with ``--wave segments``, see `WAVES`),
+for N = 4, 16, 64, 128, 256 and 1024, in one run:
 
 * catch-up: microseconds per step at 400 steps per period (median over periods 1..P of a run,
   after a first period), and at 1000 steps per period for the ratio below;
@@ -15,6 +16,7 @@ k = 10, friction forward 1.0 / backward 2.13), for N = 4, 16, 64, 128, 256 and 1
   and the N = 128 / N = 4 ratio of catch-up steps per second.
 
     python scripts/bench-scale.py [--periods 5] [--repeats 3] [--sizes 4,16,64,128,256,1024]
+                                  [--wave issue|segments] [--big]
 
 Each time is the median over ``--repeats`` runs of the median over their periods. A 1000-block
 run of 20 periods at 400 steps per period is timed at the end (``--big``), with each integrator,
@@ -39,19 +41,31 @@ from crawlsim.gait import gait_from_document
 from crawlsim.model import compile_gait
 from crawlsim.stepping import make_stepper
 
+#: The waves the benchmark runs (``--wave``): the issue's, one wave over the whole body (link i at
+#: phase i/(N-1)), and an earthworm-like one ten links long (link i at phase i/10, as in
+#: gaits/earthworm-100.yaml). Over a long body the first changes little from one link to the
+#: next: the elastic forces on inner blocks, k times differences of neighbouring lengths, stay
+#: far below their friction, so only the blocks near the ends slip and v0 tends to 0 as N grows.
+#: The second moves every block at any N, so its cost is that of a crawler that crawls.
+WAVES = ("issue", "segments")
 
-def wave_document(N: int, steps: int, periods: int = 1000) -> dict:
+
+def wave_document(N: int, steps: int, periods: int = 1000, wave: str = "issue") -> dict:
+    def phase(i: int) -> float:
+        return i / (N - 1) if wave == "issue" else (i / 10) % 1
+
     return {"name": f"wave-{N}", "blocks": N, "period": 1.0, "stiffness": 10.0,
-            "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": i / (N - 1)}
+            "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": phase(i)}
                       for i in range(N - 1)],
             "friction": {"forward": 1.0, "backward": 2.13},
             "simulation": {"steps_per_period": steps, "max_periods": periods}}
 
 
-def measure(N: int, integrator: str, steps: int, periods: int, repeats: int = 1):
+def measure(N: int, integrator: str, steps: int, periods: int, repeats: int = 1,
+            wave: str = "issue"):
     """(seconds per period, events per period, v0): medians over the periods after the first of
     ``repeats`` fresh runs (the first period leaves the arbitrary initial state)."""
-    gait = gait_from_document(wave_document(N, steps), f"wave-{N}")
+    gait = gait_from_document(wave_document(N, steps, wave=wave), f"wave-{N}")
     process = compile_gait(gait)
     times, events, v0 = [], [], []
     for _ in range(repeats):
@@ -67,9 +81,9 @@ def measure(N: int, integrator: str, steps: int, periods: int, repeats: int = 1)
     return statistics.median(times), (statistics.median(events) if events else None), v0[-1]
 
 
-def peak_memory(N: int, integrator: str, steps: int) -> int:
+def peak_memory(N: int, integrator: str, steps: int, wave: str = "issue") -> int:
     """Peak bytes allocated while compiling the gait and stepping two periods (tracemalloc)."""
-    gait = gait_from_document(wave_document(N, steps), f"wave-{N}")
+    gait = gait_from_document(wave_document(N, steps, wave=wave), f"wave-{N}")
     tracemalloc.start()
     try:
         stepper = make_stepper(compile_gait(gait), integrator)
@@ -94,19 +108,34 @@ def main() -> int:
     parser.add_argument("--repeats", type=int, default=1,
                         help="fresh runs per measurement; times are medians over all of them")
     parser.add_argument("--sizes", default="4,16,64,128,256,1024")
+    parser.add_argument("--wave", choices=WAVES, default="issue",
+                        help="issue: phase i/(N-1) (one wave over the body); segments: phase "
+                             "i/10 (a wave ten links long, every block slips)")
     parser.add_argument("--big", action="store_true",
                         help="also time the 1000-block, 20-period run with its results file")
     args = parser.parse_args()
-    sizes = [int(s) for s in args.sizes.split(",")]
+    sizes = [int(s) for s in args.sizes.split(",") if s]  # --sizes "" --big: the big run alone
+    if sizes:
+        table(sizes, args.periods, args.repeats, args.wave)
+    if args.big:
+        for integrator in ("exact", "catch-up"):
+            big(integrator, args.wave)
+    return 0
+
+
+def table(sizes: list[int], periods: int, repeats: int, wave: str) -> None:
+    """The per-N table, the fitted exponents and the bars of the issue."""
     rows = []
+    print(f"wave: {wave}; medians of {repeats} run(s) x {periods} periods")
     print(f"{'N':>5} {'catch-up us/step':>17} {'exact ms/period':>16} {'events/period':>14} "
           f"{'exact/catch-up @1000':>21} {'|dv0|*400':>10} {'peak MB':>8}")
     for N in sizes:
-        cu, _, v_cu = measure(N, "catch-up", 400, args.periods, args.repeats)
-        ex, ev, v_ex = measure(N, "exact", 400, args.periods, args.repeats)
-        cu1000, _, _ = measure(N, "catch-up", 1000, args.periods, args.repeats)
-        ex1000, _, _ = measure(N, "exact", 1000, args.periods, args.repeats)
-        mem_cu, mem_ex = peak_memory(N, "catch-up", 400), peak_memory(N, "exact", 400)
+        cu, _, v_cu = measure(N, "catch-up", 400, periods, repeats, wave)
+        ex, ev, v_ex = measure(N, "exact", 400, periods, repeats, wave)
+        cu1000, _, _ = measure(N, "catch-up", 1000, periods, repeats, wave)
+        ex1000, _, _ = measure(N, "exact", 1000, periods, repeats, wave)
+        mem_cu = peak_memory(N, "catch-up", 400, wave)
+        mem_ex = peak_memory(N, "exact", 400, wave)
         rows.append((N, cu / 400 * 1e6, ex * 1e3, ev, ex1000 / cu1000, abs(v_ex - v_cu) * 400,
                      max(mem_cu, mem_ex) / 2**20))
         r = rows[-1]
@@ -125,17 +154,13 @@ def main() -> int:
         if n in by_n:
             print(f"N = {n}: |v0 exact - v0 catch-up| x 400 = {by_n[n][5]:.3g} (bar: <= 1); "
                   f"exact / catch-up at 1000 steps per period = {by_n[n][4]:.2f} (bar: <= 3)")
-    if args.big:
-        for integrator in ("exact", "catch-up"):
-            big(integrator)
-    return 0
 
 
-def big(integrator: str) -> None:
+def big(integrator: str, wave: str) -> None:
     """The 1000-block run of 20 periods at 400 steps per period, file written and plotted."""
     from crawlsim import api
 
-    doc = wave_document(1000, 400, periods=20)
+    doc = wave_document(1000, 400, periods=20, wave=wave)
     # Run all 20 periods, following the iterates as `crawlsim run` does when it writes a file.
     doc["simulation"].update(tolerance=1e-300, integrator=integrator)
     gait = gait_from_document(doc, "wave-1000")
@@ -149,7 +174,7 @@ def big(integrator: str) -> None:
         plot = subprocess.run([sys.executable, "-m", "crawlsim", "plot", str(out), "-o", tmp],
                               capture_output=True, text=True)
         plot_seconds = time.perf_counter() - began
-    print(f"\n1000 blocks, 20 periods x 400 steps, {integrator} with its results file: "
+    print(f"\n1000 blocks ({wave} wave), 20 periods x 400 steps, {integrator} with its results file: "
           f"{seconds:.1f} s (bar: < 60 s), file {size:.1f} MB, v0 {result.v0:.6g}; "
           f"crawlsim plot: exit {plot.returncode} in {plot_seconds:.1f} s "
           f"({len(plot.stdout.split())} figures)", flush=True)
