@@ -7,6 +7,7 @@ so the step size does not matter, and the closed forms below hold on any grid.
 
 from __future__ import annotations
 
+import copy
 import json
 import shutil
 from fractions import Fraction
@@ -20,6 +21,7 @@ from matplotlib.collections import PolyCollection, QuadMesh
 from matplotlib.colors import to_hex
 from matplotlib.patches import Polygon, Rectangle
 from matplotlib.text import Text
+from scipy.optimize import linprog
 
 from crawlsim import api
 from crawlsim.cli import main
@@ -43,6 +45,7 @@ from crawlsim.plotting.figures import (
     cell_edges,
     is_geometric,
     polygon,
+    section,
     shape_space_instants,
     shown_series,
     slip_runs,
@@ -697,6 +700,29 @@ def test_shape_space_sections_four_blocks(run_file):
     _distinct_polygons(polys)
     with pytest.raises(ValueError, match="between 1 and 3"):
         shape_space_figure(r, coords=(0, 3))
+
+
+def test_shape_space_section_without_interior(run_file):
+    """A state on a face of K(t) that maximises w_2 (a vertex or an edge: no row of
+    B = [D^T; -D^T] of four blocks has the normal e_2) cuts K(t) in the plane of w_1, w_3 in a
+    segment or a point. Such a section has no polygon: its instants get their markers and a
+    legend entry that says so, instead of the figure failing (long crawlers meet this often)."""
+    r = copy.deepcopy(results_of(run_file, "peristalsis-4"))
+    lim, B = r["limit"], r["process"]["normals"]
+    extreme = []
+    for c in lim["offsets"]:
+        res = linprog([0.0, -1.0, 0.0], A_ub=B, b_ub=c, bounds=[(None, None)] * 3,
+                      method="highs")
+        assert res.status == 0
+        extreme.append(res.x)
+    lim["w"] = np.array(extreme)
+    ax = shape_space_figure(r, coords=(0, 2)).axes[0]
+    assert not [p for p in ax.patches if isinstance(p, Polygon)]
+    labels = ax.get_legend_handles_labels()[1]
+    flagged = [s for s in labels if s.endswith("(section without interior)")]
+    assert 2 <= len(flagged) <= 6
+    with pytest.raises(ValueError, match="empty interior"):
+        polygon(*section(B, lim["offsets"][0], lim["w"][0], (0, 2)))
 
 
 def test_shape_space_two_blocks_interval(run_file):

@@ -553,7 +553,9 @@ def shape_space_figure(results: dict, coords=(0, 1), times: int = SHAPE_SPACE_TI
     * n > 2: the figure is drawn in the plane of the shape coordinates ``coords`` (0-based pair;
       ``crawlsim plot --coords`` takes them 1-based): each polygon is the *section* of K(t)
       through w(t) parallel to that plane, which contains w(t) and shows the constraints active
-      in those two directions; the orbit is projected onto the plane.
+      in those two directions; the orbit is projected onto the plane. A section without interior
+      (w(t) on a vertex or an edge of K(t) extreme in the other coordinates) is drawn as its
+      marker alone, its legend entry saying so.
     * n = 1 (two blocks): K(t) is an interval, drawn as a band over the limit period with w(t)
       inside it, and the earlier periods folded onto it.
 
@@ -604,10 +606,21 @@ def shape_space_figure(results: dict, coords=(0, 1), times: int = SHAPE_SPACE_TI
         handles = []
         for (members, text), colour in zip(instants, colours(len(instants))):
             A, b = drawn(members[0])
-            patch = Polygon(polygon(A, b, box), closed=True, linewidth=1.3,
-                            facecolor=to_rgba(colour, 0.07), edgecolor=colour, label=text)
-            ax.add_patch(patch)
-            handles.append(patch)
+            try:
+                vertices = polygon(A, b, box)
+            except ValueError:
+                if n == 2:
+                    raise
+                # w(t) on a face of K(t) that is extreme in the other coordinates (a vertex or
+                # an edge, common for long crawlers with many blocks at their friction limits):
+                # the section through it is a segment or a point, with no polygon to draw.
+                handles += ax.plot([], [], marker="o", markersize=5.5, color=colour,
+                                   linestyle="none", label=f"{text} (section without interior)")
+            else:
+                patch = Polygon(vertices, closed=True, linewidth=1.3,
+                                facecolor=to_rgba(colour, 0.07), edgecolor=colour, label=text)
+                ax.add_patch(patch)
+                handles.append(patch)
             for k in members:
                 ax.plot(wl[k, i], wl[k, j], marker="o", markersize=5.5, color=colour,
                         markeredgecolor="white", markeredgewidth=0.6, linestyle="none",
