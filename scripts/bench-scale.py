@@ -16,7 +16,7 @@ for N = 4, 16, 64, 128, 256 and 1024, in one run:
   and the N = 128 / N = 4 ratio of catch-up steps per second.
 
     python scripts/bench-scale.py [--periods 5] [--repeats 3] [--sizes 4,16,64,128,256,1024]
-                                  [--wave issue|segments] [--big]
+                                  [--wave body|segments] [--big] [--limit newton|iterate]
 
 Each time is the median over ``--repeats`` runs of the median over their periods. A 1000-block
 run of 20 periods at 400 steps per period is timed at the end (``--big``), with each integrator,
@@ -41,18 +41,19 @@ from crawlsim.gait import gait_from_document
 from crawlsim.model import compile_gait
 from crawlsim.stepping import make_stepper
 
-#: The waves the benchmark runs (``--wave``): the issue's, one wave over the whole body (link i at
-#: phase i/(N-1)), and an earthworm-like one ten links long (link i at phase i/10, as in
+#: The waves the benchmark runs (``--wave``): ``body``, one wave over the whole body (link i at
+#: phase i/(N-1), the workload the scaling work was specified on), and ``segments``, an
+#: earthworm-like one ten links long (link i at phase i/10, as in
 #: gaits/earthworm-100.yaml). Over a long body the first changes little from one link to the
 #: next: the elastic forces on inner blocks, k times differences of neighbouring lengths, stay
 #: far below their friction, so only the blocks near the ends slip and v0 tends to 0 as N grows.
 #: The second moves every block at any N, so its cost is that of a crawler that crawls.
-WAVES = ("issue", "segments")
+WAVES = ("body", "segments")
 
 
-def wave_document(N: int, steps: int, periods: int = 1000, wave: str = "issue") -> dict:
+def wave_document(N: int, steps: int, periods: int = 1000, wave: str = "body") -> dict:
     def phase(i: int) -> float:
-        return i / (N - 1) if wave == "issue" else (i / 10) % 1
+        return i / (N - 1) if wave == "body" else (i / 10) % 1
 
     return {"name": f"wave-{N}", "blocks": N, "period": 1.0, "stiffness": 10.0,
             "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": phase(i)}
@@ -62,7 +63,7 @@ def wave_document(N: int, steps: int, periods: int = 1000, wave: str = "issue") 
 
 
 def measure(N: int, integrator: str, steps: int, periods: int, repeats: int = 1,
-            wave: str = "issue"):
+            wave: str = "body"):
     """(seconds per period, events per period, v0): medians over the periods after the first of
     ``repeats`` fresh runs (the first period leaves the arbitrary initial state)."""
     gait = gait_from_document(wave_document(N, steps, wave=wave), f"wave-{N}")
@@ -81,7 +82,7 @@ def measure(N: int, integrator: str, steps: int, periods: int, repeats: int = 1,
     return statistics.median(times), (statistics.median(events) if events else None), v0[-1]
 
 
-def peak_memory(N: int, integrator: str, steps: int, wave: str = "issue") -> int:
+def peak_memory(N: int, integrator: str, steps: int, wave: str = "body") -> int:
     """Peak bytes allocated while compiling the gait and stepping two periods (tracemalloc)."""
     gait = gait_from_document(wave_document(N, steps, wave=wave), f"wave-{N}")
     tracemalloc.start()
@@ -108,8 +109,8 @@ def main() -> int:
     parser.add_argument("--repeats", type=int, default=1,
                         help="fresh runs per measurement; times are medians over all of them")
     parser.add_argument("--sizes", default="4,16,64,128,256,1024")
-    parser.add_argument("--wave", choices=WAVES, default="issue",
-                        help="issue: phase i/(N-1) (one wave over the body); segments: phase "
+    parser.add_argument("--wave", choices=WAVES, default="body",
+                        help="body: phase i/(N-1) (one wave over the body); segments: phase "
                              "i/10 (a wave ten links long, every block slips)")
     parser.add_argument("--big", action="store_true",
                         help="also time the 1000-block, 20-period run with its results file")
@@ -126,7 +127,7 @@ def main() -> int:
 
 
 def table(sizes: list[int], periods: int, repeats: int, wave: str) -> None:
-    """The per-N table, the fitted exponents and the bars of the issue."""
+    """The per-N table, the fitted exponents and the bars of the scaling work."""
     rows = []
     print(f"wave: {wave}; medians of {repeats} run(s) x {periods} periods")
     print(f"{'N':>5} {'catch-up us/step':>17} {'exact ms/period':>16} {'events/period':>14} "
