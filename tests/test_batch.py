@@ -5,8 +5,6 @@ stepped in a batch must take the same steps as in a single run up to roundoff: v
 1e-12, and the period count and the convergence verdict are the same.
 """
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -16,7 +14,9 @@ from crawlsim.errors import DegenerateModelError
 from crawlsim.gait import gait_from_document, load_gait, parse_gait, with_simulation
 from crawlsim.model import compile_gait
 
-GAITS = sorted(Path(__file__).resolve().parents[1].glob("gaits/*.yaml"))
+from .conftest import iterated_examples
+
+GAITS = iterated_examples()
 STEPS = 120
 
 

@@ -12,7 +12,7 @@ from crawlsim import __version__
 from crawlsim.cli import main
 from crawlsim.h5io import read_results
 
-from .conftest import GAITS
+from .conftest import iterated_examples
 
 INCHING = """\
 blocks: 2
@@ -151,7 +151,7 @@ def test_bad_command_line(runner, tmp_path):
 
 
 def test_every_example_gait_runs_from_the_cli(runner, tmp_path):
-    for path in sorted(GAITS.glob("*.yaml")):
+    for path in iterated_examples():
         result = runner.invoke(main, ["run", str(path), "--json", "--steps-per-period", "100",
                                       "-o", f"{path.stem}.h5"])
         assert result.exit_code == 0, (path, result.output)

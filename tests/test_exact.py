@@ -38,7 +38,7 @@ from crawlsim.model import compile as compile_any
 from crawlsim.model import compile_gait
 from crawlsim.stepping import make_stepper
 
-from .conftest import GAITS, two_block
+from .conftest import GAITS, iterated_examples, two_block
 
 
 def exact(gait, steps=None, **options):
@@ -139,7 +139,7 @@ def test_catch_up_converges_to_the_exact_v0(name, steps, slope, bound):
     assert np.all(np.abs(error) <= bound * (h / gait.period) ** order)
 
 
-@pytest.mark.parametrize("path", sorted(GAITS.glob("*.yaml")), ids=lambda p: p.stem)
+@pytest.mark.parametrize("path", iterated_examples(), ids=lambda p: p.stem)
 def test_every_example_gait_runs_exactly(path):
     gait = load_gait(path)
     res = exact(gait, steps=50)

@@ -7,6 +7,7 @@ so the step size does not matter, and the closed forms below hold on any grid.
 
 from __future__ import annotations
 
+import copy
 import json
 import shutil
 from fractions import Fraction
@@ -20,10 +21,11 @@ from matplotlib.collections import PolyCollection, QuadMesh
 from matplotlib.colors import to_hex
 from matplotlib.patches import Polygon, Rectangle
 from matplotlib.text import Text
+from scipy.optimize import linprog
 
 from crawlsim import api
 from crawlsim.cli import main
-from crawlsim.gait import load_gait, with_simulation
+from crawlsim.gait import gait_from_document, load_gait, with_simulation
 from crawlsim.h5io import read_results
 from crawlsim.plotting import (
     FIGURE_NAMES,
@@ -36,11 +38,16 @@ from crawlsim.plotting import (
     sweep_figure,
 )
 from crawlsim.plotting.figures import (
+    MAX_BAND_LABELS,
+    MAX_MOTION_BLOCKS,
+    MAX_SERIES,
     block_forces,
     cell_edges,
     is_geometric,
     polygon,
+    section,
     shape_space_instants,
+    shown_series,
     slip_runs,
     stress_bounds,
     swept_ticks,
@@ -57,8 +64,10 @@ from crawlsim.plotting.style import (
     units_of,
 )
 
+from .conftest import SOLVER_GAITS
+
 GAITS = Path(__file__).resolve().parents[1] / "gaits"
-GAIT_FILES = sorted(GAITS.rglob("*.yaml"))
+GAIT_FILES = sorted(p for p in GAITS.rglob("*.yaml") if p.stem not in SOLVER_GAITS)
 STEPS = 200
 
 
@@ -68,13 +77,17 @@ def run_file(tmp_path_factory):
     folder = tmp_path_factory.mktemp("runs")
     cache = {}
 
-    def get(name: str) -> Path:
-        if name not in cache:
-            out = folder / f"{Path(name).name}.h5"
-            api.run(with_simulation(load_gait(GAITS / f"{name}.yaml"), steps_per_period=STEPS),
-                    output=out)
-            cache[name] = out
-        return cache[name]
+    def get(name: str, integrator: str | None = None) -> Path:
+        """``integrator`` None: the gait file's (by default exact)."""
+        if (name, integrator) not in cache:
+            stem = Path(name).name if integrator is None else f"{Path(name).name}-{integrator}"
+            out = folder / f"{stem}.h5"
+            gait = with_simulation(load_gait(GAITS / f"{name}.yaml"), steps_per_period=STEPS)
+            if integrator is not None:
+                gait = with_simulation(gait, integrator=integrator)
+            api.run(gait, output=out)
+            cache[name, integrator] = out
+        return cache[name, integrator]
 
     return get
 
@@ -277,6 +290,75 @@ def test_motion_inching_closed_form(run_file):
 # 2. Gait diagram
 
 
+@pytest.mark.parametrize("count", [1, 2, 7, 8, 9, 40, 999])
+def test_shown_series_are_evenly_spaced_and_keep_both_ends(count):
+    shown = shown_series(count, MAX_SERIES)
+    if count <= MAX_SERIES:
+        np.testing.assert_array_equal(shown, np.arange(count))
+        return
+    assert len(shown) == MAX_SERIES and shown[0] == 0 and shown[-1] == count - 1
+    gaps = np.diff(shown)
+    assert np.all(gaps > 0) and gaps.max() - gaps.min() <= 1
+
+
+def wave_file(tmp_path, N: int, steps: int = 40) -> Path:
+    """A results file of the retrograde cosine wave of N blocks (catch-up, a few periods)."""
+    doc = {"name": f"wave-{N}", "blocks": N, "period": 1.0, "stiffness": 10.0,
+           "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": -i / 10 % 1}
+                     for i in range(N - 1)],
+           # 1:2.5 keeps the uniqueness condition at every N (|J| = 2.5 (N - |J|) has no
+           # integer solution for the N used here, 12 and 41).
+           "friction": {"forward": 1.0, "backward": 2.5},
+           "simulation": {"steps_per_period": steps, "max_periods": 3, "integrator": "catch-up"}}
+    out = tmp_path / f"wave-{N}.h5"
+    api.run(gait_from_document(doc, f"wave-{N}"), output=out)
+    return out
+
+
+def test_many_blocks_are_drawn_thinned_and_the_slip_pattern_whole(tmp_path):
+    """Beyond MAX_SERIES links the line panels draw MAX_SERIES evenly spaced links and blocks
+    (the file's own series, named in the legend, whose title says how many of how many), the slip
+    panel is still one cell per block and step, and the figure stops growing with N."""
+    N = 41
+    r = read_results(wave_file(tmp_path, N))
+    lim = r["limit"]
+    fig = gait_figure(r)
+    bands, lengths, stresses, forces = fig.axes
+    (mesh,) = bands.collections
+    np.testing.assert_array_equal(np.asarray(mesh.get_array()).reshape(N, -1), lim["slip"].T)
+    links, blocks = shown_series(N - 1, MAX_SERIES), shown_series(N, MAX_SERIES)
+    lines = lengths.get_lines()
+    assert len(lines) == 2 * MAX_SERIES
+    for k, i in enumerate(links):
+        np.testing.assert_array_equal(lines[k].get_ydata(), lim["lengths"][:, i])
+        np.testing.assert_array_equal(lines[MAX_SERIES + k].get_ydata(), lim["shape"][:, i])
+        assert lines[k].get_label() == f"$L_{{{i + 1}}}$ actuator"
+    assert lengths.get_legend().get_title().get_text() == f"{MAX_SERIES} of {N - 1} links"
+    lines = stresses.get_lines()
+    assert len(lines) == 3 * MAX_SERIES + 1
+    for k, i in enumerate(links):
+        np.testing.assert_array_equal(lines[3 * k].get_ydata(), lim["stress"][:, i])
+    lines = forces.get_lines()
+    assert len(lines) == MAX_SERIES + 2  # one shared pair of friction limits
+    f = block_forces(lim["stress"])
+    for k, j in enumerate(blocks):
+        np.testing.assert_array_equal(lines[k].get_ydata(), f[:, j])
+    assert forces.get_legend().get_title().get_text() == f"{MAX_SERIES} of {N} blocks"
+    ticks = [int(tl.get_text()) for tl in bands.get_yticklabels()]
+    assert ticks[0] == 1 and ticks[-1] == N and len(ticks) == 6
+    np.testing.assert_array_equal(bands.get_yticks(), np.array(ticks) - 1)
+    small = gait_figure(read_results(wave_file(tmp_path, MAX_BAND_LABELS)))
+    assert fig.get_size_inches()[1] == small.get_size_inches()[1]
+
+    motion = motion_figure(r).axes[0]
+    drawn = shown_series(N, MAX_MOTION_BLOCKS)
+    lines = motion.get_lines()
+    assert len(lines) == len(drawn) + 2
+    for k, j in enumerate(drawn):
+        np.testing.assert_array_equal(lines[k].get_ydata(), r["trajectory"]["x"][:, j])
+    assert motion.get_legend().get_title().get_text() == f"{MAX_MOTION_BLOCKS} of {N} blocks"
+
+
 def test_slip_runs_tile_the_period():
     t = np.array([0.0, 0.1, 0.3, 0.6, 1.0])
     runs = slip_runs(np.array([0, 1, 1, -1], dtype=np.int8), t)
@@ -299,13 +381,11 @@ def test_block_forces_are_d_transpose_sigma():
     assert block_forces(sigma).sum() == pytest.approx(0.0)
 
 
-def _band_rectangles(ax):
-    return [p for p in ax.patches if isinstance(p, Rectangle)]
-
-
+@pytest.mark.parametrize("integrator", ["exact", "catch-up"])
 @pytest.mark.parametrize("name", ["peristalsis-4", "smooth-friction-3", "anchoring-2"])
-def test_gait_diagram_content(run_file, name):
-    r = results_of(run_file, name)
+def test_gait_diagram_content(run_file, name, integrator):
+    r = read_results(run_file(name, integrator))
+    assert r["attrs"]["integrator"] == integrator
     lim = r["limit"]
     t, slip = lim["t"], lim["slip"]
     N = slip.shape[1]
@@ -314,20 +394,17 @@ def test_gait_diagram_content(run_file, name):
     bands, lengths, stresses, forces = fig.axes
     assert "gait diagram" in fig._suptitle.get_text() and name in fig._suptitle.get_text()
 
-    # Bands: per block, the rectangles tile the period, [0, 1] in (t - t0)/T, and their colours
-    # are the slip states.
-    colour_state = {to_hex(c): s for s, c in SLIP_COLOURS.items()}
-    rects = _band_rectangles(bands)
-    assert len(rects) == sum(len(slip_runs(slip[:, j], t)) for j in range(N))
-    for j in range(N):
-        mine = sorted((r_ for r_ in rects if abs(r_.get_y() + r_.get_height() / 2 - j) < 1e-9),
-                      key=lambda r_: r_.get_x())
-        assert mine[0].get_x() == pytest.approx(0.0)
-        assert sum(r_.get_width() for r_ in mine) == pytest.approx(1.0)
-        for r_ in mine:
-            a, b = r_.get_x() * T, (r_.get_x() + r_.get_width()) * T
-            steps = (t[:-1] >= a - 1e-12) & (t[1:] <= b + 1e-12)
-            assert np.all(slip[steps, j] == colour_state[to_hex(r_.get_facecolor())])
+    # Bands: one cell per block and step, the cells of each block tile the period, [0, 1] in
+    # (t - t0)/T, on the steps of the file, and their colours are the slip states.
+    (mesh,) = bands.collections
+    corners = mesh.get_coordinates()
+    assert corners.shape == (N + 1, len(t), 2)
+    np.testing.assert_array_equal(corners[0, :, 0], t / T)
+    np.testing.assert_array_equal(corners[:, 0, 1], np.arange(N + 1) - 0.5)
+    np.testing.assert_array_equal(np.asarray(mesh.get_array()).reshape(N, -1), slip.T)
+    for state, colour in SLIP_COLOURS.items():
+        assert to_hex(mesh.cmap(mesh.norm(state))) == to_hex(colour)
+    assert mesh.get_rasterized()
     assert [tl.get_text() for tl in bands.get_yticklabels()] == [f"block {j + 1}"
                                                                 for j in range(N)]
 
@@ -348,8 +425,11 @@ def test_gait_diagram_content(run_file, name):
     for i in range(N - 1):
         np.testing.assert_array_equal(lines[3 * i].get_ydata(), lim["stress"][:, i])
 
-    # Forces: f = D^T sigma, admissible (-mu^- <= f <= mu^+), and on the friction limit at the end
-    # of every slipping step, with the sign of the slip (the catch-up step ends on the face).
+    # Forces: f = D^T sigma, admissible (-mu^- <= f <= mu^+), and on the friction limit, with the
+    # sign of the slip, wherever the block is slipping. A catch-up step is a projection, so by
+    # complementarity a block that slipped over a step ends it on its face (docs/model.md §3).
+    # The exact integrator follows the motion within the step: a block may stop before the step
+    # ends, so only the grid points inside a run of slipping steps are surely on the face.
     lines = forces.get_lines()
     plus, minus = lim["friction"][:, :N], lim["friction"][:, N:]
     shared = np.all(plus == plus[:, :1]) and np.all(minus == minus[:, :1])
@@ -359,8 +439,16 @@ def test_gait_diagram_content(run_file, name):
     tol = 1e-9 * max(np.max(np.abs(f)), 1.0)
     assert np.all(f <= plus + tol) and np.all(f >= -minus - tol)
     end = f[1:]
-    np.testing.assert_allclose(end[slip == 1], plus[1:][slip == 1], atol=tol)
-    np.testing.assert_allclose(end[slip == -1], -minus[1:][slip == -1], atol=tol)
+    if integrator == "catch-up":
+        forward, backward = slip == 1, slip == -1
+    else:
+        forward = np.zeros_like(slip, dtype=bool)
+        backward = np.zeros_like(slip, dtype=bool)
+        forward[:-1] = (slip[:-1] == 1) & (slip[1:] == 1)
+        backward[:-1] = (slip[:-1] == -1) & (slip[1:] == -1)
+    assert np.any(forward)
+    np.testing.assert_allclose(end[forward], plus[1:][forward], atol=tol)
+    np.testing.assert_allclose(end[backward], -minus[1:][backward], atol=tol)
     assert forces.get_xlim() == (0.0, 1.0)
     assert forces.get_xlabel() == "time in the limit period $(t - t_0)/T$"
     assert stresses.get_ylabel() == "stress $\\sigma_i/F$"
@@ -612,6 +700,29 @@ def test_shape_space_sections_four_blocks(run_file):
     _distinct_polygons(polys)
     with pytest.raises(ValueError, match="between 1 and 3"):
         shape_space_figure(r, coords=(0, 3))
+
+
+def test_shape_space_section_without_interior(run_file):
+    """A state on a face of K(t) that maximises w_2 (a vertex or an edge: no row of
+    B = [D^T; -D^T] of four blocks has the normal e_2) cuts K(t) in the plane of w_1, w_3 in a
+    segment or a point. Such a section has no polygon: its instants get their markers and a
+    legend entry that says so, instead of the figure failing (long crawlers meet this often)."""
+    r = copy.deepcopy(results_of(run_file, "peristalsis-4"))
+    lim, B = r["limit"], r["process"]["normals"]
+    extreme = []
+    for c in lim["offsets"]:
+        res = linprog([0.0, -1.0, 0.0], A_ub=B, b_ub=c, bounds=[(None, None)] * 3,
+                      method="highs")
+        assert res.status == 0
+        extreme.append(res.x)
+    lim["w"] = np.array(extreme)
+    ax = shape_space_figure(r, coords=(0, 2)).axes[0]
+    assert not [p for p in ax.patches if isinstance(p, Polygon)]
+    labels = ax.get_legend_handles_labels()[1]
+    flagged = [s for s in labels if s.endswith("(section without interior)")]
+    assert 2 <= len(flagged) <= 6
+    with pytest.raises(ValueError, match="empty interior"):
+        polygon(*section(B, lim["offsets"][0], lim["w"][0], (0, 2)))
 
 
 def test_shape_space_two_blocks_interval(run_file):

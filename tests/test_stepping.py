@@ -9,9 +9,9 @@ from crawlsim.gait import load_gait, with_simulation
 from crawlsim.model import compile_gait, period_grid
 from crawlsim.stepping import CatchUpStepper
 
-from .conftest import GAITS, make_gait
+from .conftest import GAITS, iterated_examples, make_gait
 
-EXAMPLES = sorted(p for p in GAITS.glob("*.yaml"))
+EXAMPLES = iterated_examples()
 
 
 @pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.stem)

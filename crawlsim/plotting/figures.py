@@ -26,11 +26,16 @@ from collections.abc import Callable
 from fractions import Fraction
 
 import numpy as np
-from matplotlib.colors import to_rgba
+from matplotlib.colors import BoundaryNorm, ListedColormap, to_rgba
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Polygon, Rectangle
-from matplotlib.ticker import FixedLocator, MaxNLocator, NullFormatter, NullLocator
+from matplotlib.ticker import (
+    FixedLocator,
+    MaxNLocator,
+    NullFormatter,
+    NullLocator,
+)
 from scipy.optimize import linprog
 from scipy.spatial import HalfspaceIntersection
 
@@ -61,6 +66,15 @@ SHAPE_SPACE_TIMES = 6
 NICE_DIVISIONS = (6, 8, 10, 12, 5, 4, 3, 2)
 #: A swept axis with more values than this gets a tick label on every k-th value only.
 MAX_TICK_LABELS = 9
+#: The line panels of the gait diagram draw at most this many links (blocks), evenly spaced,
+#: first and last included: beyond it lines are no longer told apart, and a thousand-block
+#: crawler would cost minutes and a gigabyte to draw (`shown_series`).
+MAX_SERIES = 8
+#: The motion figure draws at most this many blocks (evenly spaced, first and last included).
+MAX_MOTION_BLOCKS = 32
+#: Up to this many blocks, the slip bands of the gait diagram are labelled "block j" one by one
+#: and grow with N; beyond it the panel keeps this height and gets thinned block numbers.
+MAX_BAND_LABELS = 12
 
 
 def _need(results: dict, figure: str, *paths: str) -> None:
@@ -97,6 +111,19 @@ def _number(value: float) -> str:
     return f"{value:.4g}"
 
 
+def shown_series(count: int, limit: int) -> np.ndarray:
+    """The 0-based indices of the series drawn out of ``count``: all of them up to ``limit``,
+    else ``limit`` evenly spaced ones, the first and the last included."""
+    if count <= limit:
+        return np.arange(count)
+    return np.unique(np.round(np.linspace(0, count - 1, limit)).astype(int))
+
+
+def _shown_title(shown: np.ndarray, count: int, what: str) -> str | None:
+    """The legend title of a thinned panel ("8 of 999 links"), None when all are drawn."""
+    return None if len(shown) == count else f"{len(shown)} of {count} {what}"
+
+
 # --------------------------------------------------------------------------------------------
 # 1. Motion
 
@@ -105,7 +132,8 @@ def motion_figure(results: dict) -> Figure:
     """Block positions x_j(t) over the simulated time, the barycentre y(t) and the line of slope
     v0 through y at the start of the limit period, y(t0) + v0 (t - t0), with the limit period
     shaded. Line order: blocks 1..N, barycentre, v0 line. Times are t/T, or t in the file's time
-    unit (`style.time_axis`); positions are the file's."""
+    unit (`style.time_axis`); positions are the file's. Beyond `MAX_MOTION_BLOCKS` blocks, that
+    many evenly spaced blocks are drawn (`shown_series`), which the legend title says."""
     _need(results, "motion", "trajectory/t", "trajectory/x")
     units = units_of(results)
     t = np.asarray(results["trajectory"]["t"], dtype=float)
@@ -126,7 +154,8 @@ def motion_figure(results: dict) -> Figure:
     with figure_style():
         fig, axs = new_figure(height=3.4)
         ax = axs[0, 0]
-        for j, colour in enumerate(colours(N)):
+        drawn = shown_series(N, MAX_MOTION_BLOCKS)
+        for j, colour in zip(drawn, colours(len(drawn))):
             shown = N <= 8 or j in (0, N - 1)
             ax.plot(t * factor, x[:, j], color=colour, label=f"block {j + 1}" if shown else None)
         ax.plot(t * factor, y, color=REFERENCE, linestyle="--", linewidth=1.2,
@@ -142,7 +171,7 @@ def motion_figure(results: dict) -> Figure:
         ax.set_xlabel(time_label)
         ax.set_ylabel(label("position", "x_j", "length", units))
         ax.set_title(title(_name(results), "block positions"))
-        _legend_right(ax)
+        _legend_right(ax, title=_shown_title(drawn, N, "blocks"))
     return fig
 
 
@@ -206,6 +235,11 @@ def gait_figure(results: dict) -> Figure:
        sticks while -mu_j^- < f_j < mu_j^+ and slips forward (backward) only on the upper (lower)
        limit, which is where the bands of panel 1 change colour. Blocks sharing the same limits
        get one black pair of dotted lines.
+
+    Panel 1 is one image of N x G cells, whatever N. Beyond `MAX_SERIES` links (blocks), panels
+    2-4 draw that many evenly spaced ones (`shown_series`), named in their legends, whose titles
+    say how many of how many are drawn; beyond `MAX_BAND_LABELS` blocks, panel 1 stops growing
+    and numbers its blocks on a thinned axis.
     """
     _need(results, "gait diagram", "limit/t", "limit/slip", "limit/shape", "limit/stress",
           "limit/lengths", "limit/friction")
@@ -221,18 +255,28 @@ def gait_figure(results: dict) -> Figure:
     sigma = np.asarray(lim["stress"], dtype=float)
     friction = np.asarray(lim["friction"], dtype=float)
     N = slip.shape[1]
-    block_colours, link_colours = colours(N), colours(N - 1)
+    links, blocks = shown_series(N - 1, MAX_SERIES), shown_series(N, MAX_SERIES)
+    link_colours, block_colours = colours(len(links)), colours(len(blocks))
+    rows = min(N, MAX_BAND_LABELS)
     with figure_style():
-        fig, axs = new_figure(4, 1, height=1.0 + 0.3 * N + 5.4, sharex=True,
-                              gridspec_kw={"height_ratios": [0.2 * N + 0.1, 1.0, 1.0, 1.0]})
+        fig, axs = new_figure(4, 1, height=1.0 + 0.3 * rows + 5.4, sharex=True,
+                              gridspec_kw={"height_ratios": [0.2 * rows + 0.1, 1.0, 1.0, 1.0]})
         bands, lengths, stresses, forces = axs[:, 0]
 
-        for j in range(N):
-            for state, a, b in slip_runs(slip[:, j], s):
-                bands.barh(j, b - a, left=a, height=0.72, color=SLIP_COLOURS[state],
-                           linewidth=0)
-        bands.set_yticks(range(N), [f"block {j + 1}" for j in range(N)])
-        bands.set_ylim(-0.6, N - 0.4)
+        # One cell per block and step, coloured by its slip state: an image (rasterized in
+        # vector formats), so its cost is that of G x N pixels, not of G x N patches.
+        states = (-1, 0, 1)
+        bands.pcolormesh(s, np.arange(N + 1) - 0.5, slip.T.astype(float),
+                         cmap=ListedColormap([SLIP_COLOURS[k] for k in states]),
+                         norm=BoundaryNorm([-1.5, -0.5, 0.5, 1.5], len(states)), shading="flat",
+                         rasterized=True)
+        if N <= MAX_BAND_LABELS:
+            bands.set_yticks(range(N), [f"block {j + 1}" for j in range(N)])
+        else:
+            ticks = shown_series(N, 6)
+            bands.set_yticks(ticks, [str(j + 1) for j in ticks])
+            bands.set_ylabel("block $j$")
+        bands.set_ylim(-0.5, N - 0.5)
         bands.grid(False)
         bands.tick_params(axis="y", length=0)
         bands.spines["left"].set_visible(False)
@@ -240,16 +284,17 @@ def gait_figure(results: dict) -> Figure:
                                     label=SLIP_NAMES[s_]) for s_ in (0, 1, -1)],
                      loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=3, borderaxespad=0.2)
 
-        for i, colour in enumerate(link_colours):
+        links_title = _shown_title(links, N - 1, "links")
+        for i, colour in zip(links, link_colours):
             lengths.plot(s, L[:, i], color=colour, label=f"$L_{{{i + 1}}}$ actuator")
-        for i, colour in enumerate(link_colours):
+        for i, colour in zip(links, link_colours):
             lengths.plot(s, z[:, i], color=colour, linestyle="--",
                          label=f"$z_{{{i + 1}}}$ link")
         lengths.set_ylabel(label("length", "L_i, z_i", "length", units))
-        _legend_right(lengths, ncol=2)
+        _legend_right(lengths, ncol=2, title=links_title)
 
         low, high = stress_bounds(friction)
-        for i, colour in enumerate(link_colours):
+        for i, colour in zip(links, link_colours):
             stresses.plot(s, sigma[:, i], color=colour, label=f"$\\sigma_{{{i + 1}}}$")
             stresses.plot(s, high[:, i], color=colour, linestyle=":", linewidth=1.0)
             stresses.plot(s, low[:, i], color=colour, linestyle=":", linewidth=1.0)
@@ -258,15 +303,14 @@ def gait_figure(results: dict) -> Figure:
         names.append("friction bounds")
         stresses.axhline(0.0, color=REFERENCE, linewidth=0.6)
         stresses.set_ylabel(label("stress", "\\sigma_i", "force", units))
-        _legend_right(stresses, handles=handles, labels=names)
+        _legend_right(stresses, handles=handles, labels=names, title=links_title)
 
         f = block_forces(sigma)
         plus, minus = friction[:, :N], friction[:, N:]
-        shared = all(np.array_equal(plus[:, j], plus[:, 0]) and
-                     np.array_equal(minus[:, j], minus[:, 0]) for j in range(N))
-        for j, colour in enumerate(block_colours):
+        shared = bool(np.all(plus == plus[:, :1]) and np.all(minus == minus[:, :1]))
+        for j, colour in zip(blocks, block_colours):
             forces.plot(s, f[:, j], color=colour, label=f"$f_{{{j + 1}}}$")
-        for j, colour in enumerate([REFERENCE] if shared else block_colours):
+        for j, colour in ([(0, REFERENCE)] if shared else zip(blocks, block_colours)):
             forces.plot(s, plus[:, j], color=colour, linestyle=":", linewidth=1.0)
             forces.plot(s, -minus[:, j], color=colour, linestyle=":", linewidth=1.0)
         handles, names = forces.get_legend_handles_labels()
@@ -274,7 +318,8 @@ def gait_figure(results: dict) -> Figure:
                               linewidth=1.0))
         names.append("$\\mu^+$, $-\\mu^-$")
         forces.set_ylabel(label("force", "f_j", "force", units))
-        _legend_right(forces, handles=handles, labels=names)
+        _legend_right(forces, handles=handles, labels=names,
+                      title=_shown_title(blocks, N, "blocks"))
 
         forces.set_xlim(s[0], s[-1])
         forces.set_xlabel(time_label)
@@ -508,7 +553,9 @@ def shape_space_figure(results: dict, coords=(0, 1), times: int = SHAPE_SPACE_TI
     * n > 2: the figure is drawn in the plane of the shape coordinates ``coords`` (0-based pair;
       ``crawlsim plot --coords`` takes them 1-based): each polygon is the *section* of K(t)
       through w(t) parallel to that plane, which contains w(t) and shows the constraints active
-      in those two directions; the orbit is projected onto the plane.
+      in those two directions; the orbit is projected onto the plane. A section without interior
+      (w(t) on a vertex or an edge of K(t) extreme in the other coordinates) is drawn as its
+      marker alone, its legend entry saying so.
     * n = 1 (two blocks): K(t) is an interval, drawn as a band over the limit period with w(t)
       inside it, and the earlier periods folded onto it.
 
@@ -559,10 +606,21 @@ def shape_space_figure(results: dict, coords=(0, 1), times: int = SHAPE_SPACE_TI
         handles = []
         for (members, text), colour in zip(instants, colours(len(instants))):
             A, b = drawn(members[0])
-            patch = Polygon(polygon(A, b, box), closed=True, linewidth=1.3,
-                            facecolor=to_rgba(colour, 0.07), edgecolor=colour, label=text)
-            ax.add_patch(patch)
-            handles.append(patch)
+            try:
+                vertices = polygon(A, b, box)
+            except ValueError:
+                if n == 2:
+                    raise
+                # w(t) on a face of K(t) that is extreme in the other coordinates (a vertex or
+                # an edge, common for long crawlers with many blocks at their friction limits):
+                # the section through it is a segment or a point, with no polygon to draw.
+                handles += ax.plot([], [], marker="o", markersize=5.5, color=colour,
+                                   linestyle="none", label=f"{text} (section without interior)")
+            else:
+                patch = Polygon(vertices, closed=True, linewidth=1.3,
+                                facecolor=to_rgba(colour, 0.07), edgecolor=colour, label=text)
+                ax.add_patch(patch)
+                handles.append(patch)
             for k in members:
                 ax.plot(wl[k, i], wl[k, j], marker="o", markersize=5.5, color=colour,
                         markeredgecolor="white", markeredgewidth=0.6, linestyle="none",
