@@ -190,6 +190,7 @@ class EventStepper:
         edges = pieces.edges
         carried = 0.0  # the largest slip roundoff of the pieces since the last sampled point
         self._visited = []
+        transitions = []
         while True:
             ev_t.append(u)
             ev_w.append(w)
@@ -198,6 +199,7 @@ class EventStepper:
             time = start + u * T
             self.active = self._decide(u, w, piece_index, forced, time)
             self._visit(self.active)
+            transitions.append((u, piece_index, self.active, False))
             piece = self._piece(self.active, w, piece_index, u)
             u_end = edges[piece_index + 1]
             event = self._next_event(piece, piece_index, u, u_end)
@@ -229,6 +231,7 @@ class EventStepper:
                 w, lam_cum = proj.point, lam_cum + proj.multipliers
                 self.active = proj.active
                 self._visit(proj.active)
+                transitions.append((u, edge % pieces.pieces, proj.active, True))
                 je = self._edge_index[edge]
                 W[je], LAMC[je] = w, lam_cum
             if edge == pieces.pieces:
@@ -249,7 +252,7 @@ class EventStepper:
         events = EventTrajectory(start + np.array(ev_t) * T, np.array(ev_w), x_events)
         record = PeriodRecord(self.period_index, start, W, multipliers, X,
                               self.projector.clarabel_calls - calls0, events=events,
-                              visited=tuple(self._visited))
+                              visited=tuple(self._visited), transitions=tuple(transitions))
         self.period_index += 1
         return record
 

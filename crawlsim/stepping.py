@@ -61,6 +61,11 @@ class PeriodRecord:
     # out): the period map is affine near this start, with Jacobian the product of their
     # projectors I - R_A B_A (`crawlsim.limit`).
     visited: tuple = ()
+    # Event-driven integrators: every decision of the active set, in order, as (u, piece, A,
+    # jump): the cycle u, the piece of c(t) after it, the set A on the following interval (empty
+    # sets included), and whether it is the projection at a jump of c. `crawlsim.limit` adds
+    # the saltation of the events whose time depends on the start to the Jacobian.
+    transitions: tuple = ()
 
     @property
     def slips(self) -> np.ndarray | None:
