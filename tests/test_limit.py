@@ -327,3 +327,27 @@ def test_rejected_candidates_back_off_and_cost_at_most_log2_periods(monkeypatch)
     np.testing.assert_array_equal(gaps, 2 ** np.arange(len(gaps)))
     assert bad.periods - plain.periods == len(rejected) <= np.log2(plain.periods) + 1
     np.testing.assert_allclose(bad.w, plain.w, rtol=0, atol=1e-13 * np.max(np.abs(plain.w)))
+
+
+def test_matrix_free_products_and_step_match_the_dense_jacobian(monkeypatch):
+    """Above `DENSE_JACOBIAN` unknowns the Newton step is solved by LSMR with products by J and
+    J^T factor by factor: on a small exact-flow period (projectors and saltations) they are
+    J v and J^T v of the dense J, and the LSMR step is the dense minimal-norm step."""
+    import crawlsim.limit as limit_module
+    from crawlsim.limit import apply_jacobian, apply_jacobian_transpose, factors, newton_step
+
+    process = process_of(wave_document(10, steps=100))
+    stepper = make_stepper(process, "exact")
+    for _ in range(3):
+        record = stepper.step_period()
+    fs = factors(process, record)
+    poly = process.polyhedron
+    J = jacobian(poly, fs)
+    V = np.random.default_rng(1).standard_normal((4, poly.n))
+    np.testing.assert_allclose(apply_jacobian(poly, fs, V), V @ J.T, atol=1e-13)
+    np.testing.assert_allclose(apply_jacobian_transpose(poly, fs, V), V @ J, atol=1e-13)
+    F = record.w[-1] - record.w[0]
+    dense = newton_step(poly, fs, F)
+    monkeypatch.setattr(limit_module, "DENSE_JACOBIAN", 0)
+    np.testing.assert_allclose(newton_step(poly, fs, F), dense, rtol=1e-8,
+                               atol=1e-10 * np.max(np.abs(dense)))

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import click
 
-from ..limit import how_found
 from . import library_errors, main, to_json
 
 
@@ -28,6 +27,8 @@ def summary_lines(d: dict) -> list[str]:
         elif conv == "asymptotic":
             conv += f", contraction rate {_g(d['contraction_rate'], 4)} per period"
         lines.append(f"  convergence              {conv}")
+        from ..limit import how_found  # lazily: the command's start-up stays light
+
         found = how_found(d.get("limit_method"), d.get("limit_newton_steps"),
                           d.get("limit_periods"), d.get("jacobian_rate"))
         lines.append(f"  limit found by           {found}")
