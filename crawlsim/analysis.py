@@ -120,6 +120,7 @@ class RunResult:
     limit_newton_steps: int = 0
     limit_periods: int = 0
     limit_residuals: np.ndarray | None = None
+    limit_kinds: np.ndarray | None = None  # per solver period: crawlsim.limit.PLAIN, NEWTON, REJECTED
     jacobian_rate: float | None = None
     v0_error_period_iteration: float | None = None
     v0_error_time_step: float | None = None
@@ -236,7 +237,8 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
                 break
         if final is None and limit == "newton" and len(log) < max_periods:
             solver = make_stepper(process, integrator, **options)
-            solution = solve_limit(process, solver, tolerance=tol, start=stepper.w,
+            # the last true iterate is the solver's first period: not simulated twice
+            solution = solve_limit(process, solver, tolerance=tol, first=log.last,
                                    max_periods=max_periods - len(log), plain=0)
             if solution.converged:
                 final = solution.record
@@ -333,6 +335,7 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
         limit_newton_steps=solution.newton_steps if solution is not None else 0,
         limit_periods=solution.periods if solution is not None else 0,
         limit_residuals=solution.residuals if solution is not None else None,
+        limit_kinds=solution.kinds if solution is not None else None,
         jacobian_rate=solution.jacobian_rate if solution is not None else None,
         v0_error_period_iteration=err_pi, v0_error_time_step=err_step,
         dissipation_error_estimate=diss_err, **energy_fields)
@@ -574,6 +577,11 @@ def summary_text(result: RunResult, output: str | None = None) -> str:
     else:
         lines.append(f"  convergence              NOT converged: final Poincare step "
                      f"{result.history.poincare_step[-1]:.3g}. Try increasing max_periods.")
+    from .limit import how_found
+
+    found = how_found(result.limit_method, result.limit_newton_steps, result.limit_periods,
+                      result.jacobian_rate)
+    lines.append(f"  limit found by           {found}")
     if result.displacement_per_period is not None:
         assert result.dissipation_per_period is not None
         lines.append("  displacement per period  "

@@ -196,6 +196,7 @@ class EventStepper:
         ledger = self._ledger
         if ledger is not None:
             ledger.start()
+        transitions = []
         while True:
             ev_t.append(u)
             ev_w.append(w)
@@ -204,6 +205,7 @@ class EventStepper:
             time = start + u * T
             self.active = self._decide(u, w, piece_index, forced, time)
             self._visit(self.active)
+            transitions.append((u, piece_index, self.active, False))
             piece = self._piece(self.active, w, piece_index, u)
             u_end = edges[piece_index + 1]
             event = self._next_event(piece, piece_index, u, u_end)
@@ -240,6 +242,7 @@ class EventStepper:
                 w, lam_cum = proj.point, lam_cum + proj.multipliers
                 self.active = proj.active
                 self._visit(proj.active)
+                transitions.append((u, edge % pieces.pieces, proj.active, True))
                 je = self._edge_index[edge]
                 W[je], LAMC[je] = w, lam_cum
             if edge == pieces.pieces:
@@ -260,7 +263,7 @@ class EventStepper:
         events = EventTrajectory(start + np.array(ev_t) * T, np.array(ev_w), x_events)
         record = PeriodRecord(self.period_index, start, W, multipliers, X,
                               self.projector.clarabel_calls - calls0, events=events,
-                              visited=tuple(self._visited),
+                              visited=tuple(self._visited), transitions=tuple(transitions),
                               energy=None if ledger is None else ledger.finish(W[0], W[-1]))
         self.period_index += 1
         return record

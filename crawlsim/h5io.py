@@ -18,6 +18,9 @@ Run files (format_version 2):
     /trajectory/*         dimension time: t, w, x, stress, shape, reaction
     /convergence/*        dimension period (its coordinate variable is /convergence/period)
     /limit/*              dimensions limit_time (G+1 grid points) and step (the G steps)
+    /limit/solver/*       how the limit was found (`crawlsim.limit`): attributes method,
+                          newton_steps, periods, jacobian_rate, contraction_rate; dimension
+                          solver_period (each period the solver simulated)
     /process/*            crawlers: stiffness (link); generic processes: normals
                           (constraint, state), metric (state, state_column)
     /events/*             dimension event_time                        [--integrator exact]
@@ -71,6 +74,7 @@ NOT_A_VARIABLE = b"This is a netCDF dimension but not a netCDF variable."
 SLIP_FLAGS = ((-1, "backward_slip"), (0, "stick"), (1, "forward_slip"))
 LIMIT_FLAGS = ((-1, "backward_limit"), (1, "forward_limit"))
 CONVERGENCE_FLAGS = ((-1, "none"), (0, "finite_time"), (1, "asymptotic"), (2, "not_converged"))
+SOLVER_PERIOD_FLAGS = ((-1, "rejected_newton"), (0, "plain"), (1, "newton"))
 STATUS_FLAGS = ((-1, "not_computed"), (0, "ok"), (1, "not_converged"), (2, "invalid"),
                 (3, "failed"))
 
@@ -222,6 +226,19 @@ RUN_VARIABLES: dict[str, dict[str, Var]] = {
 _ENERGY = {"actuator_work": "actuator_work_per_period", "dissipation": "dissipation_per_period",
            "jump_loss": "jump_loss_per_period", "balance_residual": "energy_balance_residual",
            "cost_of_transport_bound": "cost_of_transport_bound", "efficiency": "efficiency"}
+#: /limit/solver: the periodic-limit solver's periods (`crawlsim.limit.solve_limit`).
+SOLVER_VARIABLES: dict[str, Var] = {
+    "solver_period": Var(("solver_period",), "period simulated by the periodic-limit solver, "
+                                             "in order (after the plain periods of "
+                                             "/convergence it started from)", "1"),
+    "residual": Var(("solver_period",), "relative Poincare step |P(w) - w| / max(|P(w)|, "
+                                        "scale of c) of the period: the residual |F| of the "
+                                        "fixed-point equation at its start", "1"),
+    "kind": Var(("solver_period",), "what the period was: a plain iteration, an accepted "
+                                    "Newton step, or a Newton candidate rejected by the "
+                                    "safeguard (its residual did not decrease)", "1",
+                SOLVER_PERIOD_FLAGS),
+}
 
 #: Dimensions that are netCDF "dimensions but not variables": their values are the group's t.
 _TIME_DIMENSIONS = {"trajectory": "time", "limit": "limit_time", "events": "event_time"}
@@ -456,11 +473,49 @@ class ResultsWriter:
         f["limit"].attrs["start"] = result.limit.start
         f["limit"].attrs["comment"] = ("the final period, taken as the periodic limit; t is "
                                        "relative to its start (attribute start, absolute time)")
+        self._write_solver(result)
         self._write_root_attributes(result, provenance, kind)
         f.attrs["unchecked_uniqueness"] = int(bool(unchecked_uniqueness))
         f.close()
         if self._tmp is not None and self.path is not None:
             publish(self._tmp, self.path)
+
+    def _write_solver(self, result: Any) -> None:
+        """/limit/solver: how the limit was found (docs/model.md §4). With ``method`` newton the
+        periodic-limit solver found and verified it in ``periods`` periods of its own, listed
+        along solver_period; with ``iterate`` the true iterates of /convergence reached it and
+        solver_period is empty. jacobian_rate (the Jacobian's subdominant spectral radius at
+        the limit) and contraction_rate (fitted to the true iterates) should agree."""
+        group = self.file["limit"].create_group("solver", track_order=True)
+        residuals = getattr(result, "limit_residuals", None)
+        kinds = getattr(result, "limit_kinds", None)
+        residuals = np.zeros(0) if residuals is None else np.asarray(residuals, dtype=float)
+        kinds = (np.zeros(len(residuals), dtype=np.int8) if kinds is None
+                 else np.asarray(kinds, dtype=np.int8))
+        ds = self._scales.coordinate(group, "solver_period",
+                                     np.arange(len(residuals), dtype=np.int64))
+        _describe(ds, SOLVER_VARIABLES["solver_period"], "1")
+        for name, data in (("residual", residuals), ("kind", kinds)):
+            ds = group.create_dataset(name, data=data, track_order=True)
+            self._scales.attach(ds, ("solver_period",))
+            _describe(ds, SOLVER_VARIABLES[name], "1")
+        a = group.attrs
+        a["method"] = str(getattr(result, "limit_method", "iterate"))
+        a["newton_steps"] = int(getattr(result, "limit_newton_steps", 0))
+        a["periods"] = int(getattr(result, "limit_periods", 0))
+        for key in ("jacobian_rate", "contraction_rate"):
+            value = getattr(result, key, None)
+            a[key] = np.nan if value is None else float(value)
+        a["comment"] = (
+            "how the periodic limit was found. method newton: the periodic-limit solver "
+            "(safeguarded semismooth Newton on F(w) = P(w) - w, P the period map, Jacobian from "
+            "the active sets the period visited) found it from the last state of /convergence "
+            "and verified it by a plain period, in `periods` periods (solver_period), "
+            "`newton_steps` of them accepted Newton steps; method iterate: the periods of "
+            "/convergence reached it themselves (solver_period empty). jacobian_rate: the "
+            "largest |eigenvalue| below 1 of the Jacobian at the limit (NaN when not formed); "
+            "contraction_rate: fitted to the Poincare steps of /convergence (NaN for "
+            "finite-time convergence)")
 
     def _write_root_coordinates(self) -> None:
         p, f, scales = self.process, self.file, self._scales
@@ -579,7 +634,9 @@ def read_results(path: Any) -> dict[str, Any]:
     "trajectory", "convergence", "limit"}`` and the groups' attributes as ``"<group>_attrs"``,
     plus ``"process"``, ``"events"`` and ``"energy"`` when the file has them. Format 2 adds
     ``"coordinates"`` (the root coordinate variables: block, link, constraint, ...) and
-    ``/limit/step``. Raises `ResultsFileError` naming what is missing."""
+    ``/limit/step``; files that record the periodic-limit solver add ``"limit_solver"`` and
+    ``"limit_solver_attrs"`` (``/limit/solver``). Raises `ResultsFileError` naming what is
+    missing."""
     source = path
     if isinstance(path, io.IOBase):
         f = h5py.File(path, "r")
@@ -603,6 +660,9 @@ def read_results(path: Any) -> dict[str, Any]:
         for group in ("process", "events", "energy"):
             if group in f:
                 out[group] = _variables(f[group])
+        if "solver" in f["limit"]:  # files since the periodic-limit solver
+            out["limit_solver"] = _variables(f["limit"]["solver"])
+            out["limit_solver_attrs"] = {k: _plain(v) for k, v in f["limit"]["solver"].attrs.items()}
         process = out.get("process", {})
         if "stiffness" in process and "normals" not in process:
             chain = ChainPolyhedron(process["stiffness"], 1.0)
@@ -951,6 +1011,8 @@ def _describe_run(path: Path, f: h5py.File, attrs: dict[str, Any]) -> dict[str, 
     except json.JSONDecodeError:
         summary = {}
     periodic_from = attrs.get("periodic_from", -1)
+    solver = ({k: _plain(v) for k, v in f["limit"]["solver"].attrs.items()}
+              if "limit" in f and "solver" in f["limit"] else {})
     return {
         "file_kind": "run", "kind": attrs.get("kind", "crawler"), "name": attrs.get("name"),
         "integrator": attrs.get("integrator", summary.get("integrator")),
@@ -964,6 +1026,10 @@ def _describe_run(path: Path, f: h5py.File, attrs: dict[str, Any]) -> dict[str, 
         "dissipation_per_period": _number(attrs.get("dissipation_per_period")),
         "cost_of_transport": _number(attrs.get("cost_of_transport")),
         "final_poincare_step": summary.get("final_poincare_step"),
+        "limit_method": solver.get("method", summary.get("limit_method")),
+        "limit_newton_steps": solver.get("newton_steps", summary.get("limit_newton_steps")),
+        "limit_periods": solver.get("periods", summary.get("limit_periods")),
+        "jacobian_rate": _number(solver.get("jacobian_rate", summary.get("jacobian_rate"))),
     }
 
 

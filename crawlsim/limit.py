@@ -9,7 +9,11 @@ projectors,
 
     J = P_{A_K} ... P_{A_1},   P_A = I - R_A B_A,   R_A = M^{-1} B_A^T G_A^{-1},
 
-(a step on A is w -> P_A w + R_A c_A, and P_A P_A = P_A), so a fixed point of P solves the
+(a step on A is w -> P_A w + R_A c_A, and P_A P_A = P_A). For the exact flow the same product
+holds at events where a friction limit is reached (entries) or released (exits), but not where
+one is reached while another is released: the time of such a swap moves with the start, and
+its factor is the saltation `Saltation` (from ``PeriodRecord.transitions``; without it Newton
+converges only linearly, sometimes slower than plain iteration). So a fixed point of P solves the
 semismooth equation F(w) = P(w) - w = 0, and Newton's step solves (J - I) d = -F. The fixed
 points may form a family (Theorem th:speed: every periodic solution has the same derivative),
 so J - I may be singular: the step is the least-squares solution of minimal norm, in the metric
@@ -17,13 +21,8 @@ M. Once the period visits the active sets of the limit, the affine map is exact 
 lands on a fixed point (to roundoff).
 
 The safeguard: a Newton candidate is accepted only if its own Poincare step |P(w) - w| is
-smaller. The affine model holds on the current piece of the map only, and where J has an
-eigenvalue close to 1 the full step can leave that piece by far (a random 7-block gait: |d| 50
-times |F|); the step is then shortened (`BACKTRACK`), and if no fraction of it helps the solver
-takes a plain iteration w <- P(w). Where the Jacobian from the visited active sets is not the
-map's (no fraction of a Newton step helps), the solver tries Anderson's extrapolation
-from the last accepted periods instead (a secant method that needs no Jacobian), under the same
-rule, and returns to Newton once that fails. It starts with ``plain``
+smaller; otherwise the solver takes plain iterations w <- P(w), 1, 2, 4, ... after the first,
+second, third ... rejection, before it tries Newton again. It starts with ``plain``
 plain periods, so gaits that are periodic after a period or two (finite-time convergence) pay
 nothing extra. The limit is *verified* by the last plain period of the solver, from the accepted
 point: its Poincare step is at the tolerance (roundoff by default), and v0 and the limit period
@@ -31,7 +30,12 @@ are taken from that period.
 
 The Jacobian at the limit also gives a contraction rate: the largest modulus of its eigenvalues
 other than those equal to 1 (the directions of the family of periodic solutions), the local
-rate of the plain iteration near the limit.
+rate of the plain iteration near the limit. The limit often lies on a kink of P (the acute
+angle: the edge map is the identity beyond the fixed point; a crawler that sticks in its limit
+period: every nearby state is periodic), where the Jacobian of the limit period itself is the
+piece on the far side. The rate is therefore read from the Jacobian of the last accepted Newton
+step, the piece through which the iterates approach (the limit period's own when no Newton step
+was taken).
 """
 
 from __future__ import annotations
@@ -48,13 +52,12 @@ from .stepping import PeriodRecord
 PLAIN_PERIODS = 2
 #: Eigenvalues of J within this distance of 1 belong to the family of periodic solutions.
 UNIT_EIGENVALUE = 1e-8
+#: What each period simulated by the solver was (`LimitSolution.kinds`): a plain iteration
+#: from the previous accepted point, an accepted Newton candidate, or a rejected one.
+PLAIN, NEWTON, REJECTED = 0, 1, -1
 #: Up to this many state variables J is formed densely; beyond, the Newton step is solved
 #: matrix-free (LSMR with products by J and J^T, O(K N) each).
 DENSE_JACOBIAN = 400
-#: Fractions of the Newton step tried in turn until one decreases the Poincare step.
-BACKTRACK = (1.0, 0.25, 0.0625)
-#: Pairs (w, P(w)) that Anderson's extrapolation combines after a failed Newton step.
-ANDERSON_DEPTH = 5
 
 
 @dataclass(frozen=True, eq=False)
@@ -68,25 +71,88 @@ class LimitSolution:
     newton_steps: int  # accepted Newton steps
     periods: int  # periods simulated by the solver, the verifying one included
     residuals: np.ndarray  # relative Poincare step of each period simulated
+    kinds: np.ndarray  # int8, what each of those periods was: PLAIN, NEWTON or REJECTED
     jacobian_rate: float | None  # subdominant spectral radius of J at the limit
 
 
+@dataclass(frozen=True, eq=False)
+class Saltation:
+    """The Jacobian factor of an event of the exact flow whose time depends on the start: row
+    i enters the active set while others leave (a swap A -> A', A not in A').
+
+    Before the event the flow runs on A with velocity v_b = R_A c_A'(u), after it on A' with
+    v_a = R_A' c_A''(u); a perturbation delta (in null B_A) moves the time at which row i is
+    hit by d u = -<b_i, delta> / (<b_i, v_b> - c_i'(u)), and so the state after the event by
+    S delta = delta + (v_b - v_a) d u: S = I - (v_b - v_a) b_i^T / (<b_i, v_b> - c_i'). For an
+    entry alone (A in A') S delta = P_A' delta, and an exit alone (A' in A) leaves delta alone,
+    so only swaps need S; catch-up has no such factor (its step times are fixed).
+    """
+
+    row: int
+    jump: np.ndarray  # v_b - v_a
+    rate: float  # <b_i, v_b> - c_i'(u)
+
+
+def factors(process: SweepingProcess, record: PeriodRecord) -> list:
+    """The Jacobian of the period map from ``record``'s start, as the factors applied in turn:
+    the projectors P_A of the visited sets (`crawlsim.kkt.ActiveSet`), and, for event-driven
+    integrators (``record.transitions``), the `Saltation` of every swap event."""
+    if not record.transitions:
+        return list(record.visited)
+    poly, pieces = process.polyhedron, process.offset_pieces
+    assert pieces is not None, "event-driven integrators need the closed form of c(t)"
+    out: list = []
+    before = poly.empty
+    for u, piece, A, jump in record.transitions:
+        if jump:  # the projection at a jump of c: a catch-up step
+            if A.size:
+                out.append(A)
+            before = A
+            continue
+        old, new = set(before.index.tolist()), set(A.index.tolist())
+        entering = new - old
+        if entering and not old <= new and len(entering) == 1:
+            i = entering.pop()
+            dc = pieces.evaluate(u, order=1, piece=piece)[0]
+            v_b, v_a = _velocity(poly, before, dc), _velocity(poly, A, dc)
+            rate = float(poly.apply(v_b)[i] - dc[i])
+            if abs(rate) > 1e-12 * max(float(np.max(np.abs(dc))), 1e-300):
+                out.append(Saltation(i, v_b - v_a, rate))
+        if entering:
+            out.append(A)  # entries: P_A' (after S, a no-op but for roundoff)
+        before = A
+    return out
+
+
+def _velocity(poly: Polyhedron, A, dc: np.ndarray) -> np.ndarray:
+    """R_A c_A': the velocity of the exact flow on the faces A (zero off every face)."""
+    if not A.size:
+        return np.zeros(poly.n)
+    lam = np.zeros(poly.m)
+    lam[A.index] = A.solve(dc[A.index])
+    return poly.respond(lam)
+
+
+def _row_vector(poly: Polyhedron, i: int, n: int) -> np.ndarray:
+    """b_i as a vector of R^n: B^T e_i = M (M^{-1} B^T e_i)."""
+    e = np.zeros(poly.m)
+    e[i] = 1.0
+    return poly.metric_times(poly.respond(e)).reshape(n)
+
+
 def jacobian(poly: Polyhedron, visited) -> np.ndarray:
-    """J = P_{A_K} ... P_{A_1} as a dense (n, n) matrix, O(K n N) for a crawler."""
-    n = poly.n
-    X = np.eye(n)  # rows: the images of the basis vectors, transformed in turn
-    for A in visited:
-        idx = A.index
-        lam = np.zeros((n, poly.m))
-        lam[:, idx] = A.solve(poly.apply(X)[:, idx])
-        X = X - poly.respond(lam)
-    return X.T
+    """J, the product of the factors ``visited`` (active sets, `Saltation`), as a dense (n, n)
+    matrix, O(K n N) for a crawler."""
+    return apply_jacobian(poly, visited, np.eye(poly.n)).T
 
 
 def apply_jacobian(poly: Polyhedron, visited, V: np.ndarray) -> np.ndarray:
-    """J v for the rows v of V (k, n): each visited projector in turn."""
+    """J v for the rows v of V (k, n): each factor in turn."""
     X = np.array(V, dtype=float)
     for A in visited:
+        if isinstance(A, Saltation):
+            X = X - np.multiply.outer(poly.apply(X)[..., A.row] / A.rate, A.jump)
+            continue
         lam = np.zeros(X.shape[:-1] + (poly.m,))
         lam[..., A.index] = A.solve(poly.apply(X)[..., A.index])
         X = X - poly.respond(lam)
@@ -94,9 +160,14 @@ def apply_jacobian(poly: Polyhedron, visited, V: np.ndarray) -> np.ndarray:
 
 
 def apply_jacobian_transpose(poly: Polyhedron, visited, V: np.ndarray) -> np.ndarray:
-    """J^T v for the rows v of V: P_A^T = I - B_A^T G_A^{-1} B_A M^{-1}, in reverse order."""
+    """J^T v for the rows v of V: P_A^T = I - B_A^T G_A^{-1} B_A M^{-1} and
+    S^T = I - b_i (v_b - v_a)^T / rate, in reverse order."""
     X = np.array(V, dtype=float)
     for A in reversed(visited):
+        if isinstance(A, Saltation):
+            b = _row_vector(poly, A.row, poly.n)
+            X = X - np.multiply.outer(X @ A.jump / A.rate, b)
+            continue
         lam = np.zeros(X.shape[:-1] + (poly.m,))
         lam[..., A.index] = A.solve(poly.apply(poly.metric_solve(X))[..., A.index])
         X = X - poly.metric_times(poly.respond(lam))  # B^T lambda = M (M^{-1} B^T lambda)
@@ -142,10 +213,15 @@ def relative_step(process: SweepingProcess, w_start: np.ndarray, w_end: np.ndarr
 
 def solve_limit(process: SweepingProcess, stepper, *, tolerance: float, max_periods: int,
                 start: np.ndarray | None = None, plain: int = PLAIN_PERIODS,
-                method: str = "newton") -> LimitSolution:
+                method: str = "newton", first: PeriodRecord | None = None) -> LimitSolution:
     """Find the periodic limit of ``process`` from ``start`` (default: the stepper's state)
     with ``stepper`` (a `crawlsim.stepping` integrator), simulating at most ``max_periods``
-    periods; ``method="iterate"`` takes plain iterations only (the reference)."""
+    periods; ``method="iterate"`` takes plain iterations only (the reference). The exact
+    integrator starts from K(0): a ``start`` outside is projected onto it first.
+
+    ``first``, a period already simulated (the last true iterate of a run), is the solver's
+    first period from its start ``first.w[0]``, at no cost: it is neither simulated again nor
+    counted in ``periods`` (its residual is the first of ``residuals``)."""
     poly = process.polyhedron
     exact = getattr(stepper, "needs_admissible_start", False)
 
@@ -153,76 +229,73 @@ def solve_limit(process: SweepingProcess, stepper, *, tolerance: float, max_peri
         stepper.reset(w)
         return stepper.step_period()
 
-    w = np.array(stepper.w if start is None else start, dtype=float)
-    record = period(w)
+    if first is not None:
+        w, record, periods = np.array(first.w[0], dtype=float), first, 0
+    else:
+        w = np.array(stepper.w if start is None else start, dtype=float)
+        if exact and start is not None:
+            w = _admissible(stepper, w)
+        record, periods = period(w), 1
     residuals = [relative_step(process, w, record.w[-1])]
-    periods, newton_steps, rate = 1, 0, None
+    kinds = [PLAIN]
+    newton_steps, rate = 0, None
+    approach = None  # the active sets of the last accepted Newton step's Jacobian
+    rejected = wait = 0  # candidates rejected so far; plain periods before the next one
     used_newton = False
-    history: list[tuple[np.ndarray, np.ndarray]] = [(w, record.w[-1])]  # (w, P(w)) accepted
-    anderson = False  # the last Newton step failed: try Anderson's step instead
-
-    def attempt(candidate: np.ndarray) -> bool:
-        nonlocal w, record, periods
-        if exact:
-            candidate = _admissible(stepper, candidate)
-        trial = period(candidate)
-        periods += 1
-        r = relative_step(process, candidate, trial.w[-1])
-        residuals.append(r)
-        if r < current:
-            w, record = candidate, trial
-            history.append((w, record.w[-1]))
-            return True
-        return False
-
     while residuals[-1] > tolerance and periods < max_periods:
         F = record.w[-1] - w
-        current = residuals[-1]
-        accepted = False
-        if method == "newton" and periods >= plain:
-            if anderson and len(history) > 2:
-                accepted = attempt(anderson_step(history))
-                anderson = accepted
-            else:
-                d = newton_step(poly, record.visited, F)
-                # backtracking: the affine model holds on the current piece of the map only; a
-                # full step that leaves it is shortened (a period per trial, as a plain step)
-                for scale in BACKTRACK:
-                    if periods >= max_periods:
-                        break
-                    if attempt(w + scale * d):
-                        accepted = True
-                        break
-                anderson = not accepted
-            if accepted:
+        candidate = None
+        if method == "newton" and periods >= plain and wait == 0:
+            base = factors(process, record)
+            d = newton_step(poly, base, F)
+            candidate = w + d
+            if exact:
+                candidate = _admissible(stepper, candidate)
+        if candidate is not None:
+            trial = period(candidate)
+            periods += 1
+            r = relative_step(process, candidate, trial.w[-1])
+            residuals.append(r)
+            if r < residuals[-2]:
+                w, record = candidate, trial
                 newton_steps += 1
                 used_newton = True
+                approach = base
+                kinds.append(NEWTON)
                 continue
+            kinds.append(REJECTED)
+            # back off: 1, 2, 4, ... plain periods before the next candidate, so that a
+            # solver whose candidates keep failing costs at most log2 more periods than plain
+            # iteration
+            wait = 2 ** rejected
+            rejected += 1
             if periods >= max_periods:
                 break
+        wait = max(wait - 1, 0)
         w = record.w[-1].copy()  # plain iteration
         record = period(w)
         periods += 1
         residuals.append(relative_step(process, w, record.w[-1]))
-        history.append((w, record.w[-1]))
+        kinds.append(PLAIN)
     converged = residuals[-1] <= tolerance
     if converged and method == "newton" and poly.n <= DENSE_JACOBIAN:
-        rate = subdominant_rate(jacobian(poly, record.visited))
+        rate = subdominant_rate(jacobian(poly, factors(process, record) if approach is None
+                                         else approach))
     return LimitSolution(converged, w, record, "newton" if used_newton else "iterate",
-                         newton_steps, periods, np.array(residuals), rate)
+                         newton_steps, periods, np.array(residuals),
+                         np.array(kinds, dtype=np.int8), rate)
 
 
-def anderson_step(history, depth: int = ANDERSON_DEPTH) -> np.ndarray:
-    """Anderson's extrapolation (type II) from the last ``depth`` + 1 pairs (w, P(w)): the
-    combination of the P(w) whose residuals F = P(w) - w combine to the least |F| (a secant
-    method on F that needs no Jacobian)."""
-    pairs = history[-(depth + 1):]
-    W = np.array([np.ravel(w) for w, _ in pairs])
-    G = np.array([np.ravel(g) for _, g in pairs])
-    F = G - W
-    dF, dG = np.diff(F, axis=0).T, np.diff(G, axis=0).T
-    gamma = np.linalg.lstsq(dF, F[-1], rcond=None)[0]
-    return (G[-1] - dG @ gamma).reshape(np.shape(pairs[-1][0]))
+def how_found(method: str | None, newton_steps: int | None, periods: int | None,
+              jacobian_rate: float | None = None) -> str:
+    """One line saying how a run's limit was found (``crawlsim run`` and ``crawlsim info``)."""
+    if method == "newton":
+        rate = "" if jacobian_rate is None else f", Jacobian rate {jacobian_rate:.4g}"
+        return (f"Newton on the period map: {newton_steps} Newton steps in {periods} "
+                f"periods, verified by a plain period{rate}")
+    if method == "iterate":
+        return "plain iteration of the periods"
+    return "n/a (older file)"
 
 
 def _admissible(stepper, w: np.ndarray) -> np.ndarray:

@@ -65,6 +65,11 @@ class PeriodRecord:
     # The period's energy ledger integrated exactly on the event-driven integrator's pieces
     # (`crawlsim.energy.PeriodEnergy`); None for catch-up, whose ledger follows from the grid.
     energy: Any = None
+    # Event-driven integrators: every decision of the active set, in order, as (u, piece, A,
+    # jump): the cycle u, the piece of c(t) after it, the set A on the following interval (empty
+    # sets included), and whether it is the projection at a jump of c. `crawlsim.limit` adds
+    # the saltation of the events whose time depends on the start to the Jacobian.
+    transitions: tuple = ()
 
     @property
     def slips(self) -> np.ndarray | None:

@@ -61,7 +61,7 @@ LATER_COLUMNS = ("v0_error_estimate", "dissipation_per_period", "cost_of_transpo
                  "integrator", "limit", "newton_steps")
 #: Periods a catch-up point is iterated in the vectorised batch before the periodic-limit
 #: solver takes over (finite-time crawlers and fast contractions finish within them).
-BATCH_PLAIN_PERIODS = 8
+BATCH_PLAIN_PERIODS = 2
 #: Points per task handed to a worker: a task is one batch. Small tasks keep progress and the
 #: journal moving; large ones fill the vectorised batch (throughput about doubles from 16 to
 #: 256 points). Task sizes adapt between the two to take about `TASK_SECONDS` each.

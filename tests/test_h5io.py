@@ -269,8 +269,10 @@ def test_v2_readers_keep_the_v1_keys(files):
         if isinstance(value, dict) and key != "attrs":
             assert set(value) <= set(new[key]), key
     assert set(new["limit"]) - set(old["limit"]) == {"step"}
-    # events: the exact integrator; energy: the energy ledger of crawlers
-    assert set(new) - set(old) <= {"coordinates", "events", "energy"}
+    # events: the exact integrator; energy: the energy ledger of crawlers; limit_solver:
+    # /limit/solver, how the limit was found
+    assert set(new) - set(old) <= {"coordinates", "events", "energy", "limit_solver",
+                                   "limit_solver_attrs"}
     assert set(old["attrs"]) <= set(new["attrs"])
     assert new["attrs"]["format_version"] == FORMAT_VERSION == 2
     old_sweep, new_sweep = read_sweep(DATA / "v1-sweep.h5"), read_sweep(files["sweep"])

@@ -28,6 +28,11 @@ def summary_lines(d: dict) -> list[str]:
         elif conv == "asymptotic":
             conv += f", contraction rate {_g(d['contraction_rate'], 4)} per period"
         lines.append(f"  convergence              {conv}")
+        from ..limit import how_found  # lazily: the command's start-up stays light
+
+        found = how_found(d.get("limit_method"), d.get("limit_newton_steps"),
+                          d.get("limit_periods"), d.get("jacobian_rate"))
+        lines.append(f"  limit found by           {found}")
         lines.append(f"  periods                  {d['periods']} of {d['steps_per_period']} "
                      f"steps (period {_g(d['period'])})")
         if d["displacement_per_period"] is not None:
