@@ -577,7 +577,7 @@ def summary_text(result: RunResult, output: str | None = None) -> str:
     else:
         lines.append(f"  convergence              NOT converged: final Poincare step "
                      f"{result.history.poincare_step[-1]:.3g}. Try increasing max_periods.")
-    from .limit import how_found
+    from .digits import how_found
 
     found = how_found(result.limit_method, result.limit_newton_steps, result.limit_periods,
                       result.jacobian_rate)

@@ -1,4 +1,5 @@
-"""Printing a value with only the digits its error estimate supports.
+"""Printing a value with only the digits its error estimate supports (and the one line saying
+how a run's periodic limit was found, for the summaries: no numerical module is imported).
 
 A summary that prints ``0.370883735228`` for a v0 whose error is 3e-4 invites a reader to copy
 nine wrong digits. `supported` rounds the value at the leading digit of its error estimate and
@@ -38,3 +39,15 @@ def with_error(value: float, error: float | None, unit: str = "") -> str:
     """``value ± error`` with the supported digits (`supported`), each with its unit suffix."""
     text, bound = supported(value, error)
     return f"{text}{unit}" if bound is None else f"{text}{unit} ± {bound}{unit}"
+
+
+def how_found(method: str | None, newton_steps: int | None, periods: int | None,
+              jacobian_rate: float | None = None) -> str:
+    """One line saying how a run's limit was found (``crawlsim run`` and ``crawlsim info``)."""
+    if method == "newton":
+        rate = "" if jacobian_rate is None else f", Jacobian rate {jacobian_rate:.4g}"
+        return (f"Newton on the period map: {newton_steps} Newton steps in {periods} "
+                f"periods, verified by a plain period{rate}")
+    if method == "iterate":
+        return "plain iteration of the periods"
+    return "n/a (older file)"

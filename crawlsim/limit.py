@@ -44,6 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .digits import how_found  # noqa: F401 - re-exported: where the solver's words belong
 from .kkt import Dependent, Polyhedron
 from .model import SweepingProcess
 from .stepping import PeriodRecord
@@ -284,18 +285,6 @@ def solve_limit(process: SweepingProcess, stepper, *, tolerance: float, max_peri
     return LimitSolution(converged, w, record, "newton" if used_newton else "iterate",
                          newton_steps, periods, np.array(residuals),
                          np.array(kinds, dtype=np.int8), rate)
-
-
-def how_found(method: str | None, newton_steps: int | None, periods: int | None,
-              jacobian_rate: float | None = None) -> str:
-    """One line saying how a run's limit was found (``crawlsim run`` and ``crawlsim info``)."""
-    if method == "newton":
-        rate = "" if jacobian_rate is None else f", Jacobian rate {jacobian_rate:.4g}"
-        return (f"Newton on the period map: {newton_steps} Newton steps in {periods} "
-                f"periods, verified by a plain period{rate}")
-    if method == "iterate":
-        return "plain iteration of the periods"
-    return "n/a (older file)"
 
 
 def _admissible(stepper, w: np.ndarray) -> np.ndarray:

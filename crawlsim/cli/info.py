@@ -28,7 +28,7 @@ def summary_lines(d: dict) -> list[str]:
         elif conv == "asymptotic":
             conv += f", contraction rate {_g(d['contraction_rate'], 4)} per period"
         lines.append(f"  convergence              {conv}")
-        from ..limit import how_found  # lazily: the command's start-up stays light
+        from ..digits import how_found
 
         found = how_found(d.get("limit_method"), d.get("limit_newton_steps"),
                           d.get("limit_periods"), d.get("jacobian_rate"))
