@@ -6,6 +6,7 @@ itself is a benchmark (scripts/bench-startup.py), never a test.
 """
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -122,6 +123,32 @@ def test_version_of_the_console_script_loads_no_click(tmp_path):
     via_click = subprocess.run([sys.executable, "-m", "crawlsim", "--version"], cwd=tmp_path,
                                capture_output=True, text=True, check=True).stdout
     assert first == via_click.strip()
+
+
+def test_help_of_the_console_script_is_clicks_and_loads_no_click(tmp_path):
+    """``crawlsim --help`` (the console script) prints the stored text, byte for byte what click
+    renders at 80 columns, without importing click; narrower, click renders it itself."""
+    from click.testing import CliRunner
+
+    from crawlsim._help import TEXT
+    from crawlsim.cli import main as cli
+
+    rendered = CliRunner().invoke(cli, ["--help"], prog_name="crawlsim", terminal_width=78)
+    assert rendered.exit_code == 0
+    assert TEXT == rendered.output, (
+        "crawlsim/_help.py is stale: its TEXT must be\n" + rendered.output)
+    code = ("import sys, json; sys.argv = ['crawlsim', '--help']\n"
+            "from crawlsim.console import main\n"
+            "try:\n    main()\nexcept SystemExit as e:\n    code = e.code\n"
+            "print(json.dumps([code, sorted(sys.modules)]))")
+    for columns, stored in (("120", True), ("80", True), ("60", False)):
+        done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                              check=True, cwd=tmp_path, env={**os.environ, "COLUMNS": columns})
+        *text, last = done.stdout.splitlines(keepends=True)
+        code_, modules = json.loads(last)
+        assert code_ == 0 and loaded(set(modules), "click") != stored, columns
+        if stored:
+            assert "".join(text) == TEXT
 
 
 def test_console_script_passes_everything_else_to_the_command_group(tmp_path):
