@@ -24,7 +24,15 @@ from crawlsim.analysis import simulate
 from crawlsim.cli import main
 from crawlsim.gait import gait_from_document
 from crawlsim.h5io import read_results
-from crawlsim.limit import NEWTON, PLAIN, REJECTED, jacobian, solve_limit, subdominant_rate
+from crawlsim.limit import (
+    BACKTRACK,
+    NEWTON,
+    PLAIN,
+    REJECTED,
+    jacobian,
+    solve_limit,
+    subdominant_rate,
+)
 from crawlsim.model import compile as compile_gait
 from crawlsim.paper import acute_angle_document
 from crawlsim.stepping import make_stepper
@@ -310,8 +318,9 @@ def test_jacobian_matches_central_differences_of_the_period_map(integrator):
 def test_rejected_candidates_back_off_and_cost_at_most_log2_periods(monkeypatch):
     """The safeguard with a Newton step that is always wrong (twice the distance, the wrong
     way: its candidate's Poincare step is larger, so every candidate is rejected). The solver
-    then waits 1, 2, 4, ... plain periods after each rejection, so it still finds the limit of
-    plain iteration, with at most log2(periods) + 1 extra periods."""
+    then waits 1, 2, 4, ... plain periods after each rejected attempt (the full step and the
+    shortened one), so it still finds the limit of plain iteration, with at most
+    len(BACKTRACK) (log2(periods) + 1) extra periods."""
     import crawlsim.limit as limit_module
 
     monkeypatch.setattr(limit_module, "newton_step", lambda poly, factors, F: -2.0 * F)
@@ -322,10 +331,15 @@ def test_rejected_candidates_back_off_and_cost_at_most_log2_periods(monkeypatch)
                       max_periods=500, plain=0)
     assert bad.converged and bad.newton_steps == 0 and bad.method == "iterate"
     rejected = np.flatnonzero(bad.kinds == REJECTED)
-    # the plain periods between two rejections: 1, 2, 4, ...
-    gaps = np.diff(rejected) - 1
+    # each attempt is the full step and the shortened one (`BACKTRACK`), both rejected; the
+    # plain periods between two attempts: 1, 2, 4, ...
+    attempts = rejected[::len(BACKTRACK)]
+    assert len(rejected) % len(BACKTRACK) == 0
+    np.testing.assert_array_equal(np.diff(rejected.reshape(-1, len(BACKTRACK)), axis=1), 1)
+    gaps = np.diff(attempts) - len(BACKTRACK)
     np.testing.assert_array_equal(gaps, 2 ** np.arange(len(gaps)))
-    assert bad.periods - plain.periods == len(rejected) <= np.log2(plain.periods) + 1
+    assert bad.periods - plain.periods == len(rejected)
+    assert len(attempts) <= np.log2(plain.periods) + 1
     np.testing.assert_allclose(bad.w, plain.w, rtol=0, atol=1e-13 * np.max(np.abs(plain.w)))
 
 
