@@ -46,8 +46,10 @@ def how_found(method: str | None, newton_steps: int | None, periods: int | None,
     """One line saying how a run's limit was found (``crawlsim run`` and ``crawlsim info``)."""
     if method == "newton":
         rate = "" if jacobian_rate is None else f", Jacobian rate {jacobian_rate:.4g}"
-        return (f"Newton on the period map: {newton_steps} Newton steps in {periods} "
-                f"periods, verified by a plain period{rate}")
+        steps = f"{newton_steps} Newton step{'' if newton_steps == 1 else 's'}"
+        simulated = f"{periods} period{'' if periods == 1 else 's'}"
+        return (f"Newton on the period map: {steps} in {simulated}, "
+                f"verified by a plain period{rate}")
     if method == "iterate":
         return "plain iteration of the periods"
     return "n/a (older file)"

@@ -63,7 +63,7 @@ from .kkt import RTOL, ActiveSet, Dependent, Tolerance
 from .model import SweepingProcess
 from .offsets import TWO_PI
 from .projection import ExactProjector
-from .stepping import PeriodRecord
+from .stepping import PeriodRecord, Transition, TransitionCause
 
 #: Default bound on the number of events in one period.
 MAX_EVENTS = 100_000
@@ -189,6 +189,7 @@ class EventStepper:
         recent: deque[float] = deque(maxlen=self.zeno_events)
         u, w, lam_cum = 0.0, self.w.copy(), np.zeros(m)
         forced = np.zeros(0, dtype=int)
+        cause: TransitionCause = "edge"
         piece_index = 0
         edges = pieces.edges
         carried = 0.0  # the largest slip roundoff of the pieces since the last sampled point
@@ -205,7 +206,7 @@ class EventStepper:
             time = start + u * T
             self.active = self._decide(u, w, piece_index, forced, time)
             self._visit(self.active)
-            transitions.append((u, piece_index, self.active, False))
+            transitions.append(Transition(u, piece_index, self.active, cause, forced))
             piece = self._piece(self.active, w, piece_index, u)
             u_end = edges[piece_index + 1]
             event = self._next_event(piece, piece_index, u, u_end)
@@ -230,8 +231,10 @@ class EventStepper:
             u = u_e
             if event is not None:
                 forced = event[1]
+                cause = "hit" if forced.size else "release"
                 continue
             forced = np.zeros(0, dtype=int)
+            cause = "edge"
             edge = piece_index + 1
             if self._jump[edge]:
                 target = pieces.evaluate(u if edge < pieces.pieces else 0.0,
@@ -242,7 +245,8 @@ class EventStepper:
                 w, lam_cum = proj.point, lam_cum + proj.multipliers
                 self.active = proj.active
                 self._visit(proj.active)
-                transitions.append((u, edge % pieces.pieces, proj.active, True))
+                transitions.append(Transition(u, edge % pieces.pieces, proj.active, "jump",
+                                              forced))
                 je = self._edge_index[edge]
                 W[je], LAMC[je] = w, lam_cum
             if edge == pieces.pieces:

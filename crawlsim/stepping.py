@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import importlib
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal, NamedTuple
 
 import numpy as np
 
@@ -45,6 +45,23 @@ def make_stepper(process, integrator: str = "catch-up", **options):
     return getattr(importlib.import_module(module), name)(process, **options)
 
 
+#: Why an event-driven integrator decided its active set anew (`Transition.cause`): the start
+#: of the period or a piece of c(t) (a fixed time), a multiplier reaching zero (a release:
+#: its time depends on c only), a gap reaching zero (a hit: its time moves with the start),
+#: or the projection at a jump of c.
+TransitionCause = Literal["edge", "release", "hit", "jump"]
+
+
+class Transition(NamedTuple):
+    """One decision of the active set by an event-driven integrator (`PeriodRecord`)."""
+
+    u: float  # the cycle, in [0, 1]
+    piece: int  # the piece of c(t) after it
+    active: Any  # the set A on the following interval (`crawlsim.kkt.ActiveSet`; may be empty)
+    cause: TransitionCause
+    hit: np.ndarray  # the rows whose gap reached zero (cause "hit"; empty otherwise)
+
+
 @dataclass(frozen=True, eq=False)
 class PeriodRecord:
     """One period of catch-up stepping on the grid of ``process.times`` shifted by ``start``."""
@@ -65,11 +82,10 @@ class PeriodRecord:
     # The period's energy ledger integrated exactly on the event-driven integrator's pieces
     # (`crawlsim.energy.PeriodEnergy`); None for catch-up, whose ledger follows from the grid.
     energy: Any = None
-    # Event-driven integrators: every decision of the active set, in order, as (u, piece, A,
-    # jump): the cycle u, the piece of c(t) after it, the set A on the following interval (empty
-    # sets included), and whether it is the projection at a jump of c. `crawlsim.limit` adds
-    # the saltation of the events whose time depends on the start to the Jacobian.
-    transitions: tuple = ()
+    # Event-driven integrators: every decision of the active set, in order (`Transition`).
+    # `crawlsim.limit` adds the saltation of the events whose time depends on the start (the
+    # hits) to the Jacobian.
+    transitions: tuple[Transition, ...] = ()
 
     @property
     def slips(self) -> np.ndarray | None:

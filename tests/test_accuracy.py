@@ -20,7 +20,7 @@ from click.testing import CliRunner
 from crawlsim.analysis import simulate
 from crawlsim.cli import main
 from crawlsim.corpus import random_document
-from crawlsim.digits import supported, with_error
+from crawlsim.digits import how_found, supported, with_error
 from crawlsim.errors import GaitError
 from crawlsim.gait import gait_from_document, load_gait, with_simulation
 from crawlsim.model import compile_gait
@@ -116,3 +116,15 @@ def test_supported_digits(value, error, text, bound):
     assert abs(float(text) - value) + error <= float(bound)
     assert with_error(value, None) == f"{value:.12g}"
     assert with_error(0.0, 0.0) == "0 ± 0"
+
+
+@pytest.mark.parametrize("steps, periods, text", [
+    (1, 1, "1 Newton step in 1 period"),
+    (3, 5, "3 Newton steps in 5 periods"),
+    (0, 2, "0 Newton steps in 2 periods"),
+])
+def test_how_found_counts(steps, periods, text):
+    """The summary line names the counts in English: singular for one, plural otherwise."""
+    line = how_found("newton", steps, periods, 0.125)
+    assert line == f"Newton on the period map: {text}, verified by a plain period, Jacobian rate 0.125"
+    assert how_found("iterate", None, None) == "plain iteration of the periods"
