@@ -76,6 +76,7 @@ class ExactProjector:
         self._solver = None
         self._persistent = persistent  # False rebuilds the solver every call (benchmark baseline)
         self.clarabel_calls = 0
+        self.clarabel_status = ""  # the status of the last Clarabel call (its proposal is certified)
         self.licq_failures: dict[tuple, tuple] = {}
 
     @classmethod
@@ -114,14 +115,16 @@ class ExactProjector:
             self._solver.update(q=q, b=b)
         solution = self._solver.solve()
         self.clarabel_calls += 1
-        status = str(solution.status)
-        if status not in ("Solved", "AlmostSolved"):
+        self.clarabel_status = status = str(solution.status)
+        lam, slack = np.asarray(solution.z), np.asarray(solution.s)
+        # Clarabel only proposes the active set, which the kernel then certifies: an iterate
+        # stopped early (MaxIterations on a badly scaled set) is still a proposal worth trying
+        if "Infeasible" in status or not (np.isfinite(lam).all() and np.isfinite(slack).all()):
             raise CertificateError(
                 f"Clarabel could not solve the projection (status {status}); the set may be "
                 "empty at this time")
-        lam = np.asarray(solution.z)
         lam[~finite] = 0.0
-        return lam, np.asarray(solution.s)
+        return lam, slack
 
     # -- the projection ----------------------------------------------------------------------
     def project(self, w_trial, c, *, time: float | None = None,
@@ -165,7 +168,8 @@ class ExactProjector:
             last = self._last_attempt(w_trial, c, proposed)
             raise CertificateError(
                 f"exact projection failed its certificate{_at(time)}: {last}; active set "
-                f"proposed by Clarabel: {self._describe(proposed)}")
+                f"proposed by Clarabel (status {self.clarabel_status}): "
+                f"{self._describe(proposed)}")
         return self._finish(step, c, True, time)
 
     def _independent(self, proposed: np.ndarray, lam_ip: np.ndarray,
