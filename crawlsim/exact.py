@@ -63,7 +63,7 @@ from .kkt import RTOL, ActiveSet, Dependent, Tolerance
 from .model import SweepingProcess
 from .offsets import TWO_PI
 from .projection import ExactProjector
-from .stepping import PeriodRecord, Transition, TransitionCause
+from .stepping import PeriodRecord, PeriodStepper, Transition, TransitionCause
 
 #: Default bound on the number of events in one period.
 MAX_EVENTS = 100_000
@@ -109,7 +109,7 @@ class _Piece:
         return w, lam
 
 
-class EventStepper:
+class EventStepper(PeriodStepper):
     """Exact event-driven stepping of a `SweepingProcess`, period by period (module docstring).
 
     Same interface as `crawlsim.stepping.CatchUpStepper`. ``check_every_step=True`` verifies the
@@ -161,17 +161,6 @@ class EventStepper:
             left = self.pieces.evaluate(edges[p], piece=p - 1)[0]
             right = self.pieces.evaluate(edges[p] if p < P else 0.0, piece=p % P)[0]
             self._jump[p] = np.max(np.abs(left - right)) > 100 * RTOL * self.poly.c_scale
-
-    def reset(self, w: np.ndarray, x: np.ndarray | None = None) -> None:
-        """Start the next period from the state ``w`` (positions ``x``, default zero), which
-        must lie in K(0) (the solver of `crawlsim.limit` projects it first)."""
-        self.w = np.array(w, dtype=float)
-        if self.x is not None:
-            self.x = np.zeros_like(self.x) if x is None else np.array(x, dtype=float)
-
-    def _visit(self, active) -> None:
-        if active.size and (not self._visited or self._visited[-1] is not active):
-            self._visited.append(active)
 
     # -- one period -------------------------------------------------------------------------
     def step_period(self) -> PeriodRecord:

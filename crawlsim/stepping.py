@@ -93,7 +93,28 @@ class PeriodRecord:
         return None if self.x is None else np.diff(self.x, axis=0)
 
 
-class CatchUpStepper:
+class PeriodStepper:
+    """What every integrator of `STEPPERS` shares: restarting a period from a given state, and
+    the record of the active sets a period visits (`PeriodRecord.visited`)."""
+
+    w: np.ndarray
+    x: np.ndarray | None
+    _visited: list
+
+    def reset(self, w: np.ndarray, x: np.ndarray | None = None) -> None:
+        """Start the next period from the state ``w`` (positions ``x``, default zero: only
+        their increments matter to the analysis), keeping the active set as a warm start.
+        The exact integrator needs ``w`` in K(0) (`crawlsim.limit` projects it first)."""
+        self.w = np.array(w, dtype=float)
+        if self.x is not None:
+            self.x = np.zeros_like(self.x) if x is None else np.array(x, dtype=float)
+
+    def _visit(self, active) -> None:
+        if active.size and (not self._visited or self._visited[-1] is not active):
+            self._visited.append(active)
+
+
+class CatchUpStepper(PeriodStepper):
     """Steps a `SweepingProcess` period by period from its initial state."""
 
     def __init__(self, process: SweepingProcess, *, check_every_step: bool = False,
@@ -110,17 +131,6 @@ class CatchUpStepper:
         self.active = self.polyhedron.empty
         self.period_index = 0
         self._visited: list = []
-
-    def reset(self, w: np.ndarray, x: np.ndarray | None = None) -> None:
-        """Start the next period from the state ``w`` (positions ``x``, default zero: only
-        their increments matter to the analysis), keeping the active set as a warm start."""
-        self.w = np.array(w, dtype=float)
-        if self.x is not None:
-            self.x = np.zeros_like(self.x) if x is None else np.array(x, dtype=float)
-
-    def _visit(self, active) -> None:
-        if active.size and (not self._visited or self._visited[-1] is not active):
-            self._visited.append(active)
 
     def step_period(self) -> PeriodRecord:
         """Advance by one period and return its record."""
