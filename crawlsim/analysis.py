@@ -36,7 +36,7 @@ from __future__ import annotations
 import math
 import tempfile
 import time as _time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -44,7 +44,7 @@ from .energy import ledger as energy_ledger
 from .energy import period_dissipation
 from .model import SweepingProcess
 from .status import Convergence
-from .stepping import PeriodRecord, make_stepper
+from .stepping import PeriodRecord, make_stepper, positions_of
 
 #: How the periodic limit is found: the solver of `crawlsim.limit`, or plain iteration.
 LIMIT_METHODS = ("newton", "iterate")
@@ -261,6 +261,9 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
         distances = log.distances()
     finally:
         log.close()
+    if solution is not None:
+        assert log.last is not None
+        final = following(process, final, log.last)
 
     T, G = process.period, process.steps
     rel = np.array(log.rel_steps)
@@ -519,6 +522,19 @@ def contraction_rate(rel_steps: np.ndarray) -> float | None:
         return None
     slope = np.polyfit(q[chosen], np.log(steps[chosen]), 1)[0]
     return float(math.exp(slope))
+
+
+def following(process: SweepingProcess, limit: PeriodRecord, last: PeriodRecord) -> PeriodRecord:
+    """The solver's verified period ``limit`` placed as the period after the history's ``last``:
+    it starts when that period ends, its blocks at the positions of its shape (``limit.w[0]``)
+    around the run's barycentre then. The history stops once the iterates reach the limit to the
+    tolerance, so the run continues into it there; a history cut short by ``max_periods`` only
+    approaches it, and the period is where the run would be if it had reached it."""
+    if limit.x is None or last.x is None:
+        return replace(limit, index=last.index + 1, start=last.start + process.period)
+    x0 = positions_of(process, limit.w[0], float(np.mean(last.x[-1])))
+    x = limit.x - limit.x[0] + x0
+    return replace(limit, index=last.index + 1, start=last.start + process.period, x=x)
 
 
 def limit_period(process: SweepingProcess, final: PeriodRecord, v0: float | None) -> LimitPeriod:

@@ -93,21 +93,31 @@ class PeriodRecord:
         return None if self.x is None else np.diff(self.x, axis=0)
 
 
+def positions_of(process, w: np.ndarray, barycentre: float) -> np.ndarray:
+    """Block positions of a crawler in the state ``w`` with the given barycentre: the shape is
+    z = D x = -K^{-1} w (docs/model.md §2), so x_i = x_1 + z_1 + ... + z_{i-1}."""
+    x = np.concatenate([[0.0], np.cumsum(-np.asarray(w, dtype=float) / process.stiffness)])
+    return x - np.mean(x) + barycentre
+
+
 class PeriodStepper:
     """What every integrator of `STEPPERS` shares: restarting a period from a given state, and
     the record of the active sets a period visits (`PeriodRecord.visited`)."""
 
+    process: SweepingProcess
     w: np.ndarray
     x: np.ndarray | None
     _visited: list
 
     def reset(self, w: np.ndarray, x: np.ndarray | None = None) -> None:
-        """Start the next period from the state ``w`` (positions ``x``, default zero: only
-        their increments matter to the analysis), keeping the active set as a warm start.
-        The exact integrator needs ``w`` in K(0) (`crawlsim.limit` projects it first)."""
+        """Start the next period from the state ``w`` (positions ``x``; by default the
+        positions of the shape of ``w``, `positions_of`, at the current barycentre), keeping
+        the active set as a warm start. The exact integrator needs ``w`` in K(0)
+        (`crawlsim.limit` projects it first)."""
         self.w = np.array(w, dtype=float)
         if self.x is not None:
-            self.x = np.zeros_like(self.x) if x is None else np.array(x, dtype=float)
+            self.x = positions_of(self.process, self.w, float(np.mean(self.x))) if x is None \
+                else np.array(x, dtype=float)
 
     def _visit(self, active) -> None:
         if active.size and (not self._visited or self._visited[-1] is not active):

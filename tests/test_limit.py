@@ -278,6 +278,37 @@ def test_plain_iteration_is_recorded_as_such(tmp_path):
 
 
 @pytest.mark.parametrize("integrator", INTEGRATORS)
+@pytest.mark.parametrize("max_periods", [2000, 10])
+def test_limit_period_found_by_newton_continues_the_run(tmp_path, integrator, max_periods):
+    """The limit period that Newton found is written as the period after the history: it starts
+    when the trajectory ends (attribute start = periods * T), its positions have the shape of its
+    state (z = D x, so diff(/limit/x) == /limit/shape, to the roundoff of summing 20 slips of
+    order 1: 1e-12), and they continue the trajectory: x_run + y(start) equals the last
+    positions of the run, to the 1e-12 relative tolerance at which the history reached the
+    limit (with max_periods 2000; cut at 10 periods the history only approaches it, and the
+    barycentre alone is continued)."""
+    import yaml
+
+    gait = tmp_path / "square-7.yaml"
+    gait.write_text(yaml.safe_dump(square_document(7, max_periods=max_periods)))
+    out = tmp_path / "square-7.h5"
+    r = CliRunner().invoke(main, ["run", str(gait), "-o", str(out), "--integrator", integrator])
+    assert r.exit_code == 0, r.output
+    data = read_results(out)
+    assert data["limit_solver_attrs"]["method"] == "newton"
+    lim, T = data["limit"], data["attrs"]["period"]
+    t, x = data["trajectory"]["t"], data["trajectory"]["x"]
+    assert data["attrs"]["periods"] == (88 if max_periods == 2000 else max_periods)
+    assert data["limit_attrs"]["start"] == pytest.approx(data["attrs"]["periods"] * T)
+    assert t[-1] == pytest.approx(data["limit_attrs"]["start"])
+    np.testing.assert_allclose(np.diff(lim["x"], axis=1), lim["shape"], rtol=0, atol=1e-12)
+    y = x[-1].mean()
+    assert lim["x"][0].mean() == pytest.approx(0.0, abs=1e-12)
+    if max_periods == 2000:
+        np.testing.assert_allclose(lim["x"][0] + y, x[-1], rtol=0, atol=1e-11)
+
+
+@pytest.mark.parametrize("integrator", INTEGRATORS)
 def test_jacobian_matches_central_differences_of_the_period_map(integrator):
     """At the limit of the 10-block wave the period map is differentiable, and J (the
     projectors of the visited sets, and for the exact flow the saltation of each event where a

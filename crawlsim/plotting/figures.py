@@ -131,7 +131,7 @@ def _shown_title(shown: np.ndarray, count: int, what: str) -> str | None:
 def motion_figure(results: dict) -> Figure:
     """Block positions x_j(t) over the simulated time, the barycentre y(t) and the line of slope
     v0 through y at the start of the limit period, y(t0) + v0 (t - t0), with the limit period
-    shaded. Line order: blocks 1..N, barycentre, v0 line. Times are t/T, or t in the file's time
+    shaded (after the trajectory when the periodic-limit solver found it). Line order: blocks 1..N, barycentre, v0 line. Times are t/T, or t in the file's time
     unit (`style.time_axis`); positions are the file's. Beyond `MAX_MOTION_BLOCKS` blocks, that
     many evenly spaced blocks are drawn (`shown_series`), which the legend title says."""
     _need(results, "motion", "trajectory/t", "trajectory/x")
@@ -160,13 +160,14 @@ def motion_figure(results: dict) -> Figure:
             ax.plot(t * factor, x[:, j], color=colour, label=f"block {j + 1}" if shown else None)
         ax.plot(t * factor, y, color=REFERENCE, linestyle="--", linewidth=1.2,
                 label="barycentre $y$")
-        ends = np.array([t[0], t[-1]])
+        # a limit found by the solver is the period after the history (`analysis.following`)
+        ends = np.array([t[0], max(t[-1], t0 + T)])
         ax.plot(ends * factor, np.interp(t0, t, y) + v0 * (ends - t0), color=REFERENCE,
                 linestyle=":", linewidth=1.2, label=f"slope {speed}")
         ax.axvspan(t0 * factor, (t0 + T) * factor, color=FAINT, alpha=0.15, linewidth=0,
                    label="limit period")
-        ax.set_xlim(t[0] * factor, t[-1] * factor)
-        if units.time is None and (t[-1] - t[0]) / T <= 12:
+        ax.set_xlim(ends[0] * factor, ends[1] * factor)
+        if units.time is None and (ends[1] - ends[0]) / T <= 12:
             ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.set_xlabel(time_label)
         ax.set_ylabel(label("position", "x_j", "length", units))
