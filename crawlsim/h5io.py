@@ -793,11 +793,16 @@ def _write_sweep(f: h5py.File, paths: Sequence[str], axes: Sequence[Any], points
     import yaml
 
     from . import provenance
+    from .gait import Simulation
 
     document = yaml.safe_load(gait_yaml) or {}
     kind = document.get("kind", "crawler")
     units = Units.from_block(document.get("units"))
-    integrator = document.get("simulation", {}).get("integrator", "catch-up")
+    # the integrator the rows ran (a shard or a grid of invalid points has none: the document's,
+    # with the default of `crawlsim.gait.Simulation`); several, comma-separated, if they differ
+    used = sorted({str(s) for s in columns.get("integrator", ())} - {""})
+    simulation = document.get("simulation") if isinstance(document.get("simulation"), dict) else {}
+    integrator = ",".join(used) if used else str(simulation.get("integrator", Simulation.integrator))
     names: list[str] = []
     for p in paths:
         names.append(axis_name(p, names))

@@ -160,6 +160,10 @@ def test_sweep_returns_a_dataset_on_the_grid():
             assert float(grid.v0[i, j]) == pytest.approx(single.v0, abs=1e-12)
     assert grid.attrs["command_line"].startswith("crawlsim.sweep(")
     assert "steps_per_period: 80" in grid.attrs["gait_yaml"]
+    assert grid.attrs["integrator"] == "exact"  # the integrator every point ran
+    catch_up = crawlsim.sweep(gait, {"links.*.amplitude": amplitudes}, steps_per_period=80,
+                              integrator="catch-up")
+    assert catch_up.attrs["integrator"] == "catch-up"
 
 
 def test_sweep_without_xarray_returns_the_table(monkeypatch, tmp_path):

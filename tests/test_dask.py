@@ -2,6 +2,7 @@
 give the same table as a local run. CI installs the ``dask`` extra, so this is not skipped."""
 
 import distributed
+import h5py
 import pytest
 from click.testing import CliRunner
 
@@ -51,6 +52,8 @@ def test_dask_cli_writes_the_local_file(scheduler, tmp_path):
     assert r.exit_code == 0, r.output
     assert (sweeps.read_table(tmp_path / "dask.h5").to_csv()
             == sweeps.read_table(tmp_path / "local.h5").to_csv())
+    with h5py.File(tmp_path / "dask.h5") as f:
+        assert f.attrs["integrator"] == "exact"  # what the rows ran
 
 
 def test_unreachable_scheduler_is_bad_input(tmp_path, monkeypatch):

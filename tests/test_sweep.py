@@ -341,6 +341,7 @@ def test_csv_and_hdf5_hold_the_same_table(tmp_path):
     assert table.to_csv() == csv_text
     with h5py.File(tmp_path / "s.h5") as f:
         assert f.attrs["kind"] == "sweep"
+        assert f.attrs["integrator"] == "exact"  # what the rows ran, the gait's default
         assert json.loads(f.attrs["paths"]) == ["links.*.amplitude", "links.1.phase"]
         assert json.loads(f.attrs["dimensions"]) == [0, 1]
         assert yaml.safe_load(f.attrs["gait_yaml"])["simulation"]["steps_per_period"] == 40
@@ -446,6 +447,7 @@ def test_shards_merge_into_the_unsharded_file(tmp_path):
     r = cli("merge", *reversed(parts), "-o", merged)
     assert r.exit_code == 0, r.output
     with h5py.File(full) as a, h5py.File(merged) as b:
+        assert a.attrs["integrator"] == b.attrs["integrator"] == "exact"
         assert dict(a.attrs) .keys() == dict(b.attrs).keys()
         for key in set(a.attrs) - {"created", "command_line"}:  # provenance of each command
             assert np.array_equal(a.attrs[key], b.attrs[key]), key
