@@ -126,3 +126,28 @@ def test_v0_does_not_depend_on_the_initial_state():
         doc = dict(gait.document, initial={"positions": [float(v) for v in x]})
         v0s.append(run(make_gait(doc)).v0)
     assert np.ptp(v0s) < 1e-12
+
+
+@pytest.mark.parametrize("steps,coefficient", [(1000, -1.6), (500, -1.6), (999, -1.2),
+                                               (101, -1.2)])
+def test_anchoring_catch_up_error_depends_on_the_parity_of_the_step_count(steps, coefficient):
+    """gaits/anchoring-2.yaml: catch-up's v0 is 0.3 + coefficient * h (h = T / steps, T = 1),
+    coefficient -1.6 for an even step count and -1.2 for an odd one.
+
+    Derivation. The link extends at rate 0.8 on [0, 1/2) and contracts at 0.8 on [1/2, 1); at
+    t = 1/2 and t = 1 the friction of the two blocks swaps (2 <-> 0.5). In the periodic regime
+    the stress is held at +0.5 by block 2 slipping forward at the end of the extension and at
+    -0.5 by block 1 slipping forward at the end of the contraction (v0 = 0.3 exactly). Catch-up
+    projects the step that ends at a switching time onto K at that time, with the friction
+    already swapped: the link's stroke 0.8 h_s over that step (length h_s) is taken by the other
+    block, which slips backward by 0.8 h_s instead of the block ahead forward by 0.8 h_s; the
+    barycentre moves 0.8 h_s less, and the state at the end of the step is the same. So the error
+    per period is -0.8 (h_a + h_b) over the two steps ending at t = 1/2 and t = 1. For an even
+    step count both are uniform steps h: -1.6 h. For an odd one t = 1/2 is inserted in the
+    middle of a uniform step (`crawlsim.model.period_grid`), whose first half, h / 2, ends at
+    the switch: -0.8 (h / 2 + h) = -1.2 h. Tolerance 1e-9 on the coefficient: v0's roundoff,
+    1e-13, over h >= 1e-3."""
+    gait = with_simulation(load_gait(GAITS / "anchoring-2.yaml"), integrator="catch-up",
+                           steps_per_period=steps)
+    res = run(gait)
+    assert (res.v0 - 0.3) * steps == pytest.approx(coefficient, abs=1e-9)
