@@ -124,6 +124,9 @@ class RunResult:
     jacobian_rate: float | None = None
     v0_error_period_iteration: float | None = None
     v0_error_time_step: float | None = None
+    # Why v0 has no error estimate although it has a value (v0_error_estimate None): a catch-up
+    # run whose time-step error could not be measured against the exact integrator
+    v0_error_reason: str | None = None
     # The dissipation's error: the period iteration's share (v0's relative one) plus, for
     # catch-up, its measured time-step error (None where that is not measured).
     dissipation_error_estimate: float | None = None
@@ -157,7 +160,7 @@ class RunResult:
 
     def summary(self) -> dict:
         keys = ("name", "integrator", "v0", "v0_error_estimate", "v0_error_period_iteration",
-                "v0_error_time_step", "displacement_per_period", "dissipation_error_estimate",
+                "v0_error_time_step", "v0_error_reason", "displacement_per_period", "dissipation_error_estimate",
                 "convergence",
                 "periodic_from", "contraction_rate", "jacobian_rate", "periods",
                 "steps_per_period", "dissipation_per_period", "cost_of_transport",
@@ -299,6 +302,7 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
             err = period_iteration_error(displacement, convergence, rate, G, roundoff, T)
     err_step: float | None = None
     diss_step: float | None = None
+    err_reason: str | None = None
     if v0 is not None:
         if integrator == "exact":
             err_step = diss_step = 0.0
@@ -309,6 +313,12 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
                 assert diss_final is not None and reference.dissipation_per_period is not None
                 diss_step = abs(diss_final - reference.dissipation_per_period) + (
                     reference.dissipation_error_estimate or 0.0)
+            else:  # the period iteration's part alone bounds nothing: catch-up is O(h)
+                reason = ("the exact integrator needs a closed form of c(t), which this gait "
+                          "has not" if process.offset_pieces is None
+                          else "the exact integrator's reference run failed")
+                err_reason = ("no error estimate: the catch-up time-step error could not be "
+                              f"measured; {reason}")
     err_pi = err
     diss_err: float | None = None
     if diss_final is not None and err_pi is not None and diss_step is not None and v0:
@@ -328,7 +338,7 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
     return RunResult(
         name=process.name, period=T, steps_per_period=G, convergence=convergence,
         periods=Q + 1, periodic_from=periodic_from, contraction_rate=rate, v0=v0,
-        v0_error_estimate=err, displacement_per_period=d_final,
+        v0_error_estimate=None if err_reason else err, displacement_per_period=d_final,
         dissipation_per_period=diss_final, cost_of_transport=cot, history=hist,
         limit=limit_period(process, final, v0),
         clarabel_calls=stepper.projector.clarabel_calls + (
@@ -340,7 +350,7 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
         limit_residuals=solution.residuals if solution is not None else None,
         limit_kinds=solution.kinds if solution is not None else None,
         jacobian_rate=solution.jacobian_rate if solution is not None else None,
-        v0_error_period_iteration=err_pi, v0_error_time_step=err_step,
+        v0_error_period_iteration=err_pi, v0_error_time_step=err_step, v0_error_reason=err_reason,
         dissipation_error_estimate=diss_err, **energy_fields)
 
 
@@ -558,13 +568,12 @@ def limit_period(process: SweepingProcess, final: PeriodRecord, v0: float | None
 def _error_parts(result: RunResult) -> str:
     """Where v0's error estimate comes from, after ``v0 ± estimate``."""
     if result.v0_error_estimate is None:
-        return " (no error estimate)"
+        return f" ({result.v0_error_reason or 'no error estimate'})"
     if result.integrator == "exact":
         return " (period iteration; the exact integrator has no time-step error)"
     step = result.v0_error_time_step
     if step is None:
-        return (" (period iteration only: the catch-up time-step error could not be measured "
-                "against the exact integrator)")
+        return " (period iteration only)"
     return (f" (time step {step:.1g}, measured against the exact integrator; period iteration "
             f"{result.v0_error_period_iteration:.1g})")
 

@@ -77,6 +77,42 @@ def test_anchoring_closed_form(tmp_path):
     assert abs(v0 - 0.3) <= err < 1e-12
 
 
+def test_catch_up_without_its_exact_reference_claims_no_bound(tmp_path, monkeypatch):
+    """When the exact reference run fails, catch-up's time-step error (first order in the step)
+    is unknown, so v0 has no error estimate: --json gives v0_error_estimate null and
+    v0_error_reason says why, and the text prints v0 without ± and with the same reason. The
+    period iteration's part, which bounds only the iteration, is still reported as such."""
+    import json
+
+    from crawlsim.errors import EventError
+    from crawlsim.exact import EventStepper
+
+    def fail(self):
+        raise EventError("forced failure of the exact reference run")
+
+    monkeypatch.setattr(EventStepper, "step_period", fail)
+    gait = GAITS / "inching-2.yaml"
+    runner = CliRunner()
+    r = runner.invoke(main, ["run", str(gait), "--integrator", "catch-up", "--json",
+                             "-o", str(tmp_path / "j.h5")])
+    assert r.exit_code == 0, r.output
+    summary = json.loads(r.stdout)
+    assert summary["integrator"] == "catch-up" and summary["v0"] is not None
+    assert summary["v0_error_estimate"] is None and summary["v0_error_time_step"] is None
+    assert "could not be measured" in summary["v0_error_reason"]
+    assert summary["v0_error_period_iteration"] > 0
+    text = runner.invoke(main, ["run", str(gait), "--integrator", "catch-up",
+                                "-o", str(tmp_path / "t.h5")])
+    assert text.exit_code == 0, text.output
+    (line,) = [ln for ln in text.output.splitlines() if ln.startswith("  v0 ")]
+    assert "±" not in line and summary["v0_error_reason"] in line
+    monkeypatch.undo()
+    ok = json.loads(runner.invoke(main, ["run", str(gait), "--integrator", "catch-up", "--json",
+                                         "-o", str(tmp_path / "ok.h5")]).stdout)
+    assert ok["v0_error_reason"] is None and ok["v0_error_time_step"] is not None
+    assert ok["v0_error_estimate"] >= ok["v0_error_time_step"]
+
+
 def random_gaits(count: int = 20):
     """The first `count` random documents that are valid gaits (seeds 0, 1, ...), small N."""
     seed = 0
