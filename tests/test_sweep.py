@@ -261,6 +261,23 @@ def test_velocity_single_run_output_and_exit_codes():
     assert dash.exit_code == 0 and dash.stdout == r.stdout
 
 
+@pytest.mark.parametrize("extra", [[], ["--json"], ["--sweep", "period=1,2"],
+                                   ["--sweep", "period=1,2", "-o", "OUT"]])
+def test_velocity_of_a_sweeping_process_is_refused(tmp_path, extra):
+    """A sweeping process (kind: sweeping-process) has no velocity: exit code 2, one line naming
+    the file and pointing to `crawlsim run`, no traceback, no file written, with or without a
+    sweep."""
+    triangle = GAITS / "paper" / "triangle.yaml"
+    out = tmp_path / "t.csv"
+    r = CliRunner().invoke(main, ["velocity", str(triangle),
+                                  *[str(out) if a == "OUT" else a for a in extra]])
+    assert r.exit_code == 2, r.output
+    assert "Traceback" not in r.output and len(r.output.strip().splitlines()) == 1
+    assert str(triangle) in r.output and "no velocity" in r.output
+    assert f"crawlsim run {triangle}" in r.output
+    assert not out.exists() and not sweeps.journal_path(out).exists()
+
+
 def test_failed_points_are_recorded_not_fatal(tmp_path):
     """A point whose grid hits an instant of a uniqueness violation is refused with its reason
     (status invalid, see tests/test_batch.py); the others run and the exit code is 0."""

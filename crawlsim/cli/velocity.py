@@ -120,7 +120,9 @@ def velocity(gait_file, as_json, sweep_specs, link_specs, output, jobs, shard, s
     """Print v0 of GAIT_FILE, or sweep gait parameters and tabulate v0.
 
     Without --sweep, prints v0 alone on one line, with the digits its error estimate supports
-    (--json: full precision and the estimate; exit code 3 if the run did not converge). With
+    (--json: full precision and the estimate; exit code 3 if the run did not converge). A
+    sweeping process (kind: sweeping-process) has no velocity and is refused (exit code 2;
+    crawlsim run runs it). With
     --sweep, writes one row per grid point: the swept values, v0, v0_error_estimate,
     displacement_per_period, dissipation_per_period, cost_of_transport, convergence, periods,
     integrator, limit (newton or iterate), newton_steps, status (ok, not-converged, invalid,
@@ -156,6 +158,9 @@ def velocity(gait_file, as_json, sweep_specs, link_specs, output, jobs, shard, s
                 check_target(path, kind, inputs=[gait_file], force=force, option=option)
         groups = _dimensions(sweep_specs, link_specs)
         gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance)
+        from ..sweep import need_crawler
+
+        need_crawler(gait)
         warn_unchecked(gait)
         if not groups:
             if shard or plot_file:
