@@ -801,7 +801,9 @@ def _write_sweep(f: h5py.File, paths: Sequence[str], axes: Sequence[Any], points
     # the integrator the rows ran (a shard or a grid of invalid points has none: the document's,
     # with the default of `crawlsim.gait.Simulation`); several, comma-separated, if they differ
     used = sorted({str(s) for s in columns.get("integrator", ())} - {""})
-    simulation = document.get("simulation") if isinstance(document.get("simulation"), dict) else {}
+    simulation = document.get("simulation")
+    if not isinstance(simulation, dict):
+        simulation = {}
     integrator = ",".join(used) if used else str(simulation.get("integrator", Simulation.integrator))
     names: list[str] = []
     for p in paths:

@@ -94,6 +94,8 @@ BUDGET_PER_DIMENSION = 150
 POLISH_SHARE = 0.3
 #: First step of the pattern search, in units of the box width.
 POLISH_STEP = 0.05
+#: How the stop reason of a run that ran out of its budget begins (`Run.out_of_budget`).
+BUDGET_SPENT = "budget spent"
 #: The pattern search stops when its step falls below this, in units of the box width.
 POLISH_XTOL = 1e-6
 #: Interior points of a Pareto front (epsilon-constraint runs) besides its two ends.
@@ -500,6 +502,12 @@ class Run:
         extra = [c.text for c in self.constraints]
         return self.objective.text + (" subject to " + ", ".join(extra) if extra else "")
 
+    @property
+    def out_of_budget(self) -> bool:
+        """The run stopped because its share of the budget ran out, not because it converged
+        (`_Search`): its optimum may still improve with more evaluations."""
+        return self.stop.startswith(BUDGET_SPENT)
+
 
 @dataclass(frozen=True, eq=False)
 class OptimizationResult:
@@ -584,7 +592,10 @@ class OptimizationResult:
         from .provenance import command_line, effective_yaml
 
         e = self.evaluations[self.best if index is None else index]
-        head = [f"# written by crawlsim optimize: {self.runs[e.run].text}",
+        what = self.runs[e.run].text
+        if self.problem.pareto and e.index == self.best:
+            what = f"the fastest gait of the Pareto front (found by {what})"
+        head = [f"# written by crawlsim optimize: {what}",
                 f"# from {self.problem.base.source}, evaluation {e.index} of "
                 f"{len(self.evaluations)}, seed {self.method.seed}",
                 f"# v0 = {e.row.v0!r}, cost_of_transport = {e.row.cost_of_transport!r}",
@@ -609,6 +620,8 @@ class OptimizationResult:
             "evaluations": len(self.evaluations), "budget": self.budget,
             "computed": self.computed, "stages": self.stage_counts(), "statuses": self.counts(),
             "method": self.method.name, "seed": self.method.seed,
+            "runs": [{"run": r.text, "best_evaluation": r.best, "evaluations": r.evaluations,
+                      "stop": r.stop, "out_of_budget": r.out_of_budget} for r in self.runs],
             "wall_time": self.wall_time,
         }
         if self.problem.pareto:
@@ -852,10 +865,12 @@ class _Search:
         try:
             self._global(n)
             self._polish(n)
-        except _Budget:
-            self.stop = self.stop or "budget spent"
+        except _Budget:  # the polish (or the one point of a tiny budget) was cut short
+            before = "" if not self.stop or self.stop.startswith(BUDGET_SPENT) else \
+                f" (differential evolution: {self.stop})"
+            self.stop = f"{BUDGET_SPENT} in the polish{before}" if self.stop else BUDGET_SPENT
         if self.best < 0:
-            self.stop = "budget spent before the first point"
+            self.stop = BUDGET_SPENT + " before the first point"
         return Run(self.run, self.objective, self.constraints, self.best,
                    self.best_rank[0] == 0,
                    sum(1 for e in self.ev.evaluations[self.start:] if e.run == self.run),
@@ -895,19 +910,25 @@ class _Search:
             return self.left() < population  # the next generation would not fit
 
         init: Any = method.init if self.init is None else self.init
+        maxiter = share // population - 1
         try:
             result = differential_evolution(
                 energy, [(f.lo, f.hi) for f in problem.free], strategy=method.strategy,
-                maxiter=share // population - 1,
+                maxiter=maxiter,
                 popsize=popsize,
                 tol=method.tol, atol=0, mutation=method.mutation,
                 recombination=method.recombination, rng=self.rng, callback=callback,
                 polish=False, init=init, updating="deferred", vectorized=True,
                 constraints=NonlinearConstraint(constraint, -np.inf, 0.0))
         except _Budget:
-            self.stop = "budget spent"
+            self.stop = BUDGET_SPENT
             return
-        self.stop = str(result.message)
+        # its generations are the run's budget: stopping at maxiter, or at the callback's "the
+        # next generation would not fit", is running out of it, not convergence
+        if not result.success and (result.nit >= maxiter or self.left() < population):
+            self.stop = f"{BUDGET_SPENT} in differential evolution ({result.nit} generations)"
+        else:
+            self.stop = str(result.message)
 
     def _violations(self, e: Evaluation) -> list[float]:
         """The constraints SciPy sees, satisfied at <= 0: "the point runs and has a value of the
@@ -1028,6 +1049,8 @@ def optimize(problem: Problem, method: Method | None = None, *, output: Path | s
     good = [r for r in runs if r.feasible]
     if good:
         best, ok = good[0].best, True
+        if problem.pareto:  # the fastest gait evaluated, whichever run found it
+            best = fastest(evaluations, problem.constraints)
     else:  # the least infeasible point of the first run, for the record
         best, ok = max(runs[0].best, 0), False
     result = OptimizationResult(problem, method, budget, evaluations, history, tuple(runs), best,
@@ -1090,6 +1113,16 @@ def _pareto(ev: _Evaluator, problem: Problem, method: Method) -> list[Run]:
                       init=init).solve()
         runs.append(dataclasses.replace(run, epsilon=float(eps)))
     return runs
+
+
+def fastest(evaluations: Sequence[Evaluation], constraints: Sequence[Constraint]) -> int:
+    """The evaluation of largest v0 among those that run and satisfy the constraints (of equal
+    v0, the cheaper): the fast end of the Pareto front. The run that maximises v0 need not find
+    it; an epsilon-constraint run may evaluate a faster point."""
+    ok = [e for e in evaluations if feasible(e.row, Objective(), constraints)]
+    cot = [math.inf if e.row.cost_of_transport is None else e.row.cost_of_transport for e in ok]
+    k = max(range(len(ok)), key=lambda i: (ok[i].row.v0, -cot[i]))
+    return ok[k].index
 
 
 def _seed_population(ev: _Evaluator, problem: Problem, size: int,

@@ -227,6 +227,13 @@ def _text(result, summary, out, write_best) -> str:
                 values = ", ".join(f"{p}={point[p]:.6g}" for p in problem.paths)
                 lines.append(f"    v0 {point['v0']:.6g}  cost_of_transport "
                              f"{point['cost_of_transport']:.6g}  ({values})")
+    # a run stopped by its budget is not converged: its optimum may improve with a larger one
+    spent = [(k, r) for k, r in enumerate(result.runs, 1) if r.out_of_budget]
+    if spent:
+        lines.append(f"  {'out of budget':<24} {len(spent)} of {len(result.runs)} run"
+                     f"{'s' if len(result.runs) > 1 else ''} (--max-evaluations):")
+        for k, run in spent:
+            lines.append(f"    run {k}, {run.text}: {run.stop}")
     lines.append(f"  {'wall time':<24} {result.wall_time:.3g} s")
     lines.append(f"  {'results':<24} {out}")
     if write_best is not None:

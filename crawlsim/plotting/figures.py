@@ -131,8 +131,9 @@ def _shown_title(shown: np.ndarray, count: int, what: str) -> str | None:
 def motion_figure(results: dict) -> Figure:
     """Block positions x_j(t) over the simulated time, the barycentre y(t) and the line of slope
     v0 through y at the start of the limit period, y(t0) + v0 (t - t0), with the limit period
-    shaded (after the trajectory when the periodic-limit solver found it). Line order: blocks 1..N, barycentre, v0 line. Times are t/T, or t in the file's time
-    unit (`style.time_axis`); positions are the file's. Beyond `MAX_MOTION_BLOCKS` blocks, that
+    shaded (after the trajectory when the periodic-limit solver found it). Line order: blocks
+    1..N, barycentre, v0 line. Times are t/T, or t in the file's time unit
+    (`style.time_axis`); positions are the file's. Beyond `MAX_MOTION_BLOCKS` blocks, that
     many evenly spaced blocks are drawn (`shown_series`), which the legend title says."""
     _need(results, "motion", "trajectory/t", "trajectory/x")
     units = units_of(results)
