@@ -591,6 +591,15 @@ def _build_crawler(document: dict, source: str, source_text: str, default_name: 
     return None if errors.found else gait
 
 
+def need_crawler(spec, command: str = "crawlsim velocity") -> None:
+    """v0 is the velocity of a crawler: a generic sweeping process (docs/model.md §5) has none,
+    and is refused with the command that does run it."""
+    if not isinstance(spec, Gait):
+        raise GaitError(spec.source, "kind", f"a sweeping process has no velocity v0: "
+                        f"{command} needs a crawler gait (kind: crawler); `crawlsim run "
+                        f"{spec.source}` finds the process's periodic limit")
+
+
 @dataclass(frozen=True, eq=False)
 class ProcessSpec:
     """A validated generic polyhedral sweeping process ``z' in -N_{C(t)}(z)`` (docs/model.md §5).

@@ -49,7 +49,7 @@ import yaml
 from .atomic import atomic_path
 from .docpaths import path_keys, resolve_path, set_value
 from .errors import CrawlsimError, GaitError, InputError, SweepSpecError
-from .gait import Gait, gait_from_document
+from .gait import Gait, gait_from_document, need_crawler
 from .status import PointStatus
 
 #: Columns of a sweep table after the swept paths (CSV header, HDF5 /results datasets).
@@ -253,20 +253,11 @@ def _group(item) -> tuple[Axis, ...]:
                  for k, a in enumerate(items))
 
 
-def need_crawler(spec, command: str = "crawlsim velocity") -> None:
-    """v0 is the velocity of a crawler: a generic sweeping process (docs/model.md §5) has none,
-    and is refused with the command that does run it."""
-    if not isinstance(spec, Gait):
-        raise GaitError(spec.source, "kind", f"a sweeping process has no velocity v0: "
-                        f"{command} needs a crawler gait (kind: crawler); `crawlsim run "
-                        f"{spec.source}` finds the process's periodic limit")
-
-
 def make_grid(base: Gait, axes) -> SweepGrid:
     """The grid of ``base`` over ``axes``: each item is one dimension, an `Axis` (or its
     ``PATH=SPEC`` text) or a sequence of them that vary together (linked paths, the same
     number of values each). Every path is checked against the base document; overlapping or
-    repeated paths are refused, and so is a base that is not a crawler (`need_crawler`)."""
+    repeated paths are refused, and so is a base that is not a crawler (`crawlsim.gait.need_crawler`)."""
     need_crawler(base, "a sweep of v0")
     groups = [_group(item) for item in axes]
     flat: list[Axis] = []

@@ -158,7 +158,7 @@ def velocity(gait_file, as_json, sweep_specs, link_specs, output, jobs, shard, s
                 check_target(path, kind, inputs=[gait_file], force=force, option=option)
         groups = _dimensions(sweep_specs, link_specs)
         gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance)
-        from ..sweep import need_crawler
+        from ..gait import need_crawler
 
         need_crawler(gait)
         warn_unchecked(gait)
