@@ -582,6 +582,19 @@ def _error_parts(result: RunResult) -> str:
             f"{result.v0_error_period_iteration:.1g})")
 
 
+def not_converged_message(result: RunResult, max_periods: int, tolerance: float,
+                          limit: str) -> str:
+    """The one line on stderr of a run that ended without a verified limit (exit code 3): why,
+    and what to change."""
+    step = float(result.history.poincare_step[-1]) if len(result.history.poincare_step) else math.nan
+    advice = "raise max_periods (--max-periods)"
+    if limit == "iterate":
+        advice += " or let the periodic-limit solver find the limit (--limit newton)"
+    return (f"Not converged: max_periods = {max_periods} periods ran out before the limit was "
+            f"found (final Poincare step {step:.3g}, tolerance {tolerance:.3g} relative); "
+            f"{advice}. The numbers printed are those of the last period.")
+
+
 def summary_text(result: RunResult, output: str | None = None) -> str:
     """The short human summary printed by ``crawlsim run``: each number with only the digits
     its error estimate supports (`crawlsim.digits`); ``--json`` keeps full precision."""

@@ -250,12 +250,25 @@ def test_not_converged_within_max_periods_exits_3(tmp_path):
         r = CliRunner().invoke(main, ["run", str(gait), "--max-periods", "3", "--limit", limit,
                                       "-o", str(out)])
         assert r.exit_code == 3, r.output
-        assert "NOT converged" in r.output
+        assert "NOT converged" in r.stdout
+        assert_says_why(r.stderr, limit)
         data = read_results(out)
         assert data["attrs"]["convergence"] == "not-converged"
         assert data["limit_solver_attrs"]["method"] == "iterate"  # no verified limit
-    r = CliRunner().invoke(main, ["velocity", str(gait), "--max-periods", "3"])
-    assert r.exit_code == 3, r.output
+        for extra in ([], ["--json"]):
+            r = CliRunner().invoke(main, ["velocity", str(gait), "--max-periods", "3",
+                                          "--limit", limit, *extra])
+            assert r.exit_code == 3, r.output
+            assert_says_why(r.stderr, limit)
+
+
+def assert_says_why(stderr, limit):
+    """One line on stderr: the reason (max_periods ran out) and what to change."""
+    lines = [line for line in stderr.splitlines() if line.strip()]
+    assert len(lines) == 1, stderr
+    assert "max_periods = 3" in lines[0] and "--max-periods" in lines[0], lines[0]
+    assert ("--limit newton" in lines[0]) == (limit == "iterate"), lines[0]
+    assert "Traceback" not in stderr
 
 
 def test_results_file_records_the_solver(tmp_path):
