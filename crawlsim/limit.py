@@ -314,7 +314,7 @@ def solve_limit(process: SweepingProcess, stepper, *, tolerance: float, max_peri
         periods += 1
         residuals.append(relative_step(process, w, record.w[-1]))
         kinds.append(PLAIN)
-    converged = True
+    converged = residuals[-1] <= tolerance
     if converged and method == "newton" and poly.n <= DENSE_JACOBIAN:
         rate = subdominant_rate(jacobian(poly, factors(process, record) if approach is None
                                          else approach))
