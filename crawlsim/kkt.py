@@ -597,7 +597,7 @@ class Polyhedron:
         """Steps (rows of the tight masks (k, m)) whose tight set, with an inactive row tight to
         roundoff, is not known to satisfy LICQ: the run stops there and the full step decides.
         A tight set once verified by `licq_verified` is known from then on."""
-        return np.zeros(np.shape(any_inactive), dtype=bool)
+        out = np.array(any_inactive, dtype=bool, copy=True)
         for i in np.flatnonzero(out):
             out[i] = tuple(np.flatnonzero(tight[i]).tolist()) not in self._licq_ok
         return out

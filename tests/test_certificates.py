@@ -299,3 +299,20 @@ def test_refinement_certifies_slightly_wrong_chain_solves(error):
     lam[proj.active.index] = scaled.solve(poly.apply(w)[proj.active.index] - c[proj.active.index])
     first = poly.apply(w - poly.respond(lam)) - c
     assert np.max(np.abs(first[proj.active.index])) > tol.primal
+
+
+def test_a_run_stops_where_a_dependent_set_of_rows_becomes_tight():
+    """`Polyhedron.run` of a generic process: the square corner {z1 <= c0, z2 <= c1} (active)
+    with the redundant face z1 + z2 <= c2 through it at the third step only (c2 = c0 + c1).
+    There the tight normals are dependent (LICQ fails): the run must stop so that the full step
+    decides (a `LicqWarning` for a generic process, the uniqueness check for a crawler), not
+    run through it; the steps before it are accepted."""
+    poly = DensePolyhedron(np.array([[1.0, 0.0], [0.0, 1.0], [1.0, 1.0]]), np.eye(2), 1.0)
+    A = poly.factor([0, 1])
+    C = np.array([[0.5, 0.5, 1.5], [0.4, 0.4, 1.2], [0.3, 0.3, 0.6], [0.2, 0.2, 0.9]])
+    run = poly.run(A, np.array([1.0, 1.0]), C)
+    assert run.accepted == 2 and run.degenerate and run.failed is None
+    np.testing.assert_allclose(run.w[:2], [[0.5, 0.5], [0.4, 0.4]], atol=1e-15)
+    # with the redundant face slack at every step, the whole run is accepted
+    C[2, 2] = 0.7
+    assert poly.run(A, np.array([1.0, 1.0]), C).accepted == 4
