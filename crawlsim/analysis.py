@@ -13,9 +13,10 @@ How the limit itself is found is ``limit``:
 * ``"newton"`` (the default): after `crawlsim.limit.PLAIN_PERIODS` plain periods (gaits that are
   periodic after a period or two stop there, at no extra cost), the periodic-limit solver of
   `crawlsim.limit` finds the limit directly and verifies it by one plain period; the history
-  then goes on only until the iterates reach that verified limit (to the tolerance), or
-  ``max_periods``; with ``history=False`` (v0 alone: `crawlsim velocity`, sweeps) it stops at
-  the verified limit.
+  then goes on only until the iterates reach that verified limit (to the tolerance), become
+  periodic themselves (their Poincare step at the tolerance: on another member of a family of
+  periodic solutions, which is then the limit), or ``max_periods``; with ``history=False`` (v0
+  alone: `crawlsim velocity`, sweeps) it stops at the verified limit.
 
 The convergence is classified from the true iterates:
 
@@ -27,8 +28,8 @@ The convergence is classified from the true iterates:
 * **not-converged** when ``max_periods`` ran out before the limit was found.
 
 The distances of each period to the limit period (W^{1,2}, sup, and the L^2 distance of the
-slip rates) are computed as soon as the limit is known; before that, periods wait on disk, so a
-long run's memory stays bounded.
+slip rates) are computed at the end, against the limit the run settled on; until then the
+periods wait on disk, so a long run's memory stays bounded.
 """
 
 from __future__ import annotations
@@ -230,6 +231,7 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
     log = _History(process)
     final: PeriodRecord | None = None  # the limit period
     solution = None
+    solver_cost = (0, 0)  # periods simulated and Clarabel calls made by the limit solver
     try:
         # the true iterates; with the solver, only a few before it takes over
         budget = max_periods if limit == "iterate" else min(max_periods, PLAIN_PERIODS)
@@ -243,12 +245,20 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
             # the last true iterate is the solver's first period: not simulated twice
             solution = solve_limit(process, solver, tolerance=tol, first=log.last,
                                    max_periods=max_periods - len(log), plain=0)
+            solver_cost = (solution.periods, solver.projector.clarabel_calls)
             if solution.converged:
                 final = solution.record
                 log.set_limit(final)
-                # the history goes on until the iterates reach the verified limit
+                # the history goes on until the iterates reach the verified limit, or are
+                # periodic themselves (a Poincare step of 0 is convergence): where the periodic
+                # solutions form a family (Theorem th:speed: they differ by constants of the
+                # directions no active set ever sees), the iterates may settle on another member
+                # than the solver's, and would never reach it. Their own is then the limit.
                 while history and len(log) < max_periods and not log.reached(tol):
-                    log.add(stepper.step_period(), sink, progress)
+                    record = log.add(stepper.step_period(), sink, progress)
+                    if _settled_elsewhere(log, tol):
+                        final, solution = record, None
+                        break
             else:  # the solver's periods count against max_periods: the history stops
                 solution = None
         if final is None:  # plain iteration to the end (limit="iterate", or a solver failure)
@@ -334,15 +344,14 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
         "energy_balance_residual": ledger.energy_balance_residual,
         "cost_of_transport_bound": ledger.cost_of_transport_bound,
         "efficiency": ledger.efficiency}
-    simulated = len(log) + (solution.periods if solution is not None else 0)
+    simulated = len(log) + solver_cost[0]
     return RunResult(
         name=process.name, period=T, steps_per_period=G, convergence=convergence,
         periods=Q + 1, periodic_from=periodic_from, contraction_rate=rate, v0=v0,
         v0_error_estimate=None if err_reason else err, displacement_per_period=d_final,
         dissipation_per_period=diss_final, cost_of_transport=cot, history=hist,
         limit=limit_period(process, final, v0),
-        clarabel_calls=stepper.projector.clarabel_calls + (
-            solver.projector.clarabel_calls if solution is not None else 0),
+        clarabel_calls=stepper.projector.clarabel_calls + solver_cost[1],
         wall_time=_time.perf_counter() - began, steps=simulated * G, integrator=integrator,
         limit_method="newton" if solution is not None else "iterate",
         limit_newton_steps=solution.newton_steps if solution is not None else 0,
@@ -373,7 +382,9 @@ def time_step_reference(process: SweepingProcess, *, max_periods: int,
 
 class _History:
     """The true iterates of a run: per-period measurements, and each period's w and multipliers
-    until the limit period is known (spilled to disk), then their distances to it."""
+    (spilled to disk) for their distances to the limit period, measured at the end against the
+    limit the run settles on (the solver's, or the iterates' own if they become periodic on
+    another member of a family of periodic solutions)."""
 
     def __init__(self, process: SweepingProcess):
         self.process = process
@@ -385,9 +396,7 @@ class _History:
         self.last: PeriodRecord | None = None
         self._spill: _PeriodSpill | None = _PeriodSpill()
         self._limit: PeriodRecord | None = None
-        self._distances: dict[str, list[float]] = {"w12_distance": [], "sup_distance": [],
-                                                   "slip_l2_distance": []}
-        self._reached = False
+        self._last_gap = np.inf
 
     def __len__(self) -> int:
         return len(self.steps)
@@ -403,47 +412,67 @@ class _History:
             assert record.x is not None and p.friction is not None
             self.displacements.append(float(np.mean(record.x[-1] - record.x[0])))
             self.dissipations.append(period_dissipation(p, record))
-        if self._limit is None:
-            assert self._spill is not None
-            self._spill.add(record)
-        else:
-            self._measure(record.w, record.multipliers)
+        assert self._spill is not None
+        self._spill.add(record)
         self.last = record
+        self._gap()
         if progress is not None:
             progress(len(self.steps) - 1, rel)
         return record
 
     def set_limit(self, limit: PeriodRecord) -> None:
-        """From now on periods are measured against ``limit``; the spilled ones are, now."""
-        if self._limit is not None and limit is self._limit:
-            return
+        """The limit period the distances are measured against (`distances`)."""
         self._limit = limit
-        self._distances = {k: [] for k in self._distances}
-        if self._spill is not None:
-            for w, lam in self._spill.periods():
-                self._measure(w, lam)
-            self._spill.close()
-            self._spill = None
+        self._gap()
 
-    def _measure(self, w: np.ndarray, lam: np.ndarray) -> None:
-        assert self._limit is not None
-        d = _period_distances(w, lam, self._limit, self.h)
-        for key, value in d.items():
-            self._distances[key].append(value)
+    def _gap(self) -> None:
+        if self._limit is None or self.last is None:
+            return
         scale = max(float(np.linalg.norm(self._limit.w[0])), self.process.scale)
-        self._last_gap = float(np.linalg.norm(w[-1] - self._limit.w[0])) / scale
+        self._last_gap = float(np.linalg.norm(self.last.w[-1] - self._limit.w[0])) / scale
 
     def reached(self, tol: float) -> bool:
         """Whether the last iterate's end state is within ``tol`` of the limit's start."""
-        return bool(self.steps) and getattr(self, "_last_gap", np.inf) <= tol
+        return bool(self.steps) and self._last_gap <= tol
+
+    @property
+    def gap(self) -> float:
+        """The last iterate's relative distance to the limit's start (inf before a limit)."""
+        return self._last_gap
 
     def distances(self) -> dict:
-        return {k: np.array(v) for k, v in self._distances.items()}
+        """The distances of every period to the limit period (W^{1,2}, sup, slip rates)."""
+        out: dict[str, list[float]] = {"w12_distance": [], "sup_distance": [],
+                                       "slip_l2_distance": []}
+        assert self._limit is not None and self._spill is not None
+        for w, lam in self._spill.periods():
+            for key, value in _period_distances(w, lam, self._limit, self.h).items():
+                out[key].append(value)
+        return {k: np.array(v) for k, v in out.items()}
 
     def close(self) -> None:
         if self._spill is not None:
             self._spill.close()
             self._spill = None
+
+
+def _settled_elsewhere(log: _History, tol: float) -> bool:
+    """Whether the iterates are periodic to ``tol`` yet cannot reach the solver's limit: the
+    way they still have to go, at most the geometric tail ``step r / (1 - r)`` of their Poincare
+    steps (none after a step of 0, a finite-time convergence), is shorter than their distance
+    to it. An iterate that merely approaches the solver's limit slowly (``r`` near 1) has its
+    tail at least as long as that distance, and goes on."""
+    step = log.rel_steps[-1]
+    if step > tol or log.reached(tol):
+        return False
+    if step == 0.0:
+        travel = 0.0
+    else:
+        rate = contraction_rate(np.array(log.rel_steps))
+        if rate is None or not rate < 1.0:
+            return False
+        travel = step * rate / (1.0 - rate)
+    return log.gap > tol + 2.0 * travel
 
 
 def period_iteration_error(displacements, convergence: Convergence, rate: float | None,
@@ -576,6 +605,19 @@ def _error_parts(result: RunResult) -> str:
         return " (period iteration only)"
     return (f" (time step {step:.1g}, measured against the exact integrator; period iteration "
             f"{result.v0_error_period_iteration:.1g})")
+
+
+def not_converged_message(result: RunResult, max_periods: int, tolerance: float,
+                          limit: str) -> str:
+    """The one line on stderr of a run that ended without a verified limit (exit code 3): why,
+    and what to change."""
+    step = float(result.history.poincare_step[-1]) if len(result.history.poincare_step) else math.nan
+    advice = "raise max_periods (--max-periods)"
+    if limit == "iterate":
+        advice += " or let the periodic-limit solver find the limit (--limit newton)"
+    return (f"Not converged: max_periods = {max_periods} periods ran out before the limit was "
+            f"found (final Poincare step {step:.3g}, tolerance {tolerance:.3g} relative); "
+            f"{advice}. The numbers printed are those of the last period.")
 
 
 def summary_text(result: RunResult, output: str | None = None) -> str:

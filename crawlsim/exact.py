@@ -229,6 +229,7 @@ class EventStepper(PeriodStepper):
                 target = pieces.evaluate(u if edge < pieces.pieces else 0.0,
                                          piece=edge % pieces.pieces)[0]
                 proj = self.projector.project(w, target, time=start + u * T, warm=self.active)
+                self._certify_jump(w, target, proj, start + u * T)
                 if ledger is not None:
                     ledger.jump(piece_index, u, w, proj.point, proj.multipliers)
                 w, lam_cum = proj.point, lam_cum + proj.multipliers
@@ -538,6 +539,17 @@ class EventStepper(PeriodStepper):
                 f"integral {dual[i]:.3g} (tolerance {float(tol.primal[i]):.3g} / "
                 f"{float(dual_tol[i]):.3g}), complementarity {comp[i]:.3g}")
         return own
+
+    def _certify_jump(self, w: np.ndarray, c: np.ndarray, proj, time: float) -> None:
+        """The state after a jump of c is written to the grid as it is: it must be the certified
+        projection of the state before it onto K(t+) (feasible, slips >= 0, complementary)."""
+        poly = self.poly
+        slack = poly.apply(proj.point) - c
+        tol = poly._tolerance1(proj.active, c, w, proj.multipliers)
+        cert = poly.certify(slack, proj.multipliers, proj.active, tol)
+        if not cert.ok:
+            raise CertificateError(f"{self.process.name}: the projection at the jump of c at "
+                                   f"t = {time:.12g} failed its certificate: {cert}")
 
     def _verify(self, W, start):
         """``check_every_step``: Clarabel confirms every sampled state is its own projection."""

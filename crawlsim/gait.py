@@ -39,6 +39,8 @@ from crawlsim.signals import (
     LARGEST,
     SIGNAL_SCHEMA,
     Constant,
+    Cosine,
+    Fourier,
     Signal,
     check_finite,
     check_schema,
@@ -134,6 +136,15 @@ MIN_PERIOD, MAX_PERIOD = 1e-9, 1e9
 """Bounds of the period T. The model is rate-independent (docs/model.md §4): T only rescales
 time, so these lose nothing, and within them every time of a run (up to max_periods x T) and
 every rate (up to amplitude x 2 pi x harmonics / T) is far from overflow and resolves a step."""
+
+STRESS_SCALE_LIMIT = 1e10
+"""Largest stress scale max_i k_i |L_i| / min_j mu_j of a crawler (`stress_scale`). The offsets
+c = [mu+ - D^T K L; mu- + D^T K L] hold the friction next to elastic forces that many times
+larger, so in double precision (and under certificate tolerances of 1e-14 of |c|) the friction
+is resolved only to about 1e-14 times this ratio of itself: at 1e12 the decisions of which block
+slips err by a quarter of the friction, and v0 by many times its estimate (a two-block inching
+gait, v0 = 0.6 - 2/k: 19x its estimate at k = 1e12; a Clarabel failure at 1e18). Up to 1e10
+both integrators give the closed form to roundoff (tests/test_certificates.py)."""
 
 STIFFNESS_CONDITION_LIMIT = 1e12
 """Largest estimated condition number (k_max / k_min) N^2 of the active-set Gram matrices
@@ -504,6 +515,46 @@ def _check_stiffness(k: np.ndarray, source: str) -> None:
                         "(only their ratio matters for conditioning).")
 
 
+def _largest(signal: Signal) -> float:
+    """A bound of max_t |s(t)| from the signal's coefficients (its mean and amplitudes, or its
+    knot values)."""
+    if isinstance(signal, Constant):
+        return abs(signal.value)
+    if isinstance(signal, Cosine):
+        return abs(signal.mean) + abs(signal.amplitude)
+    if isinstance(signal, Fourier):
+        return abs(signal.mean) + float(np.sum(np.abs(signal.cos)) + np.sum(np.abs(signal.sin)))
+    values = getattr(signal, "values", None)
+    return float(np.max(np.abs(values))) if values is not None else float("inf")
+
+
+def stress_scale(gait: Gait) -> float:
+    """max_i k_i max(|L_i(t)|, |z_i(0)|) / min_j min_t min(mu+_j(t), mu-_j(t)): how many times
+    the largest elastic force of the offsets exceeds the smallest friction (`STRESS_SCALE_LIMIT`).
+    Dimensionless: a change of units leaves it alone."""
+    k = np.asarray(gait.stiffness, dtype=float)
+    lengths = np.array([_largest(s) for s in gait.links])
+    z0 = np.abs(np.diff(np.asarray(gait.initial_positions, dtype=float)))
+    force = float(np.max(k * np.maximum(lengths, z0)))
+    friction = min(s.minimum()[0] for s in (*gait.forward, *gait.backward))
+    return force / friction if friction > 0 else float("inf")
+
+
+def _check_stress_scale(gait: Gait, source: str) -> None:
+    ratio = stress_scale(gait)
+    if ratio > STRESS_SCALE_LIMIT:
+        k = np.asarray(gait.stiffness, dtype=float)
+        raise GaitError(source, "stiffness",
+                        f"the links are too stiff for this friction: the largest elastic force "
+                        f"k L is {ratio:.3g} times the smallest friction, above the "
+                        f"{STRESS_SCALE_LIMIT:g} that crawlsim supports. In double precision the "
+                        f"friction would be resolved only to about {1e-14 * ratio:.1g} of itself, "
+                        "so which blocks slip, and v0, could be wrong beyond their error "
+                        "estimate. Lower the stiffness (here up to "
+                        f"{float(np.max(k)) * STRESS_SCALE_LIMIT / ratio:.3g}), or raise the "
+                        "friction (the ratio does not depend on the units)")
+
+
 def _stiffness(document: dict, n: int, source: str) -> np.ndarray:
     stiffness = document["stiffness"]
     if isinstance(stiffness, list):
@@ -578,7 +629,9 @@ def _build_crawler(document: dict, source: str, source_text: str, default_name: 
         violation = find_violation(gait.forward, gait.backward)
     except UniquenessUndecidable as why:
         if simulation.unchecked_uniqueness:
-            return dataclasses.replace(gait, uniqueness_unchecked=True)
+            if not errors.found:
+                errors.attempt(_check_stress_scale, gait, source)
+            return None if errors.found else dataclasses.replace(gait, uniqueness_unchecked=True)
         errors.add(GaitError(source, "friction",
                              f"the uniqueness condition (docs/model.md §3) is beyond an exact check "
                              f"for this friction: {why}. To run it anyway, unchecked, add "
@@ -588,6 +641,8 @@ def _build_crawler(document: dict, source: str, source_text: str, default_name: 
     if violation is not None:
         errors.add(GaitError(source, "friction", violation.message(period)))
         return None
+    if not errors.found:  # stiffness and friction each valid: their ratio (`stress_scale`)
+        errors.attempt(_check_stress_scale, gait, source)
     return None if errors.found else gait
 
 

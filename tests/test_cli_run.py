@@ -101,7 +101,10 @@ simulation: {steps_per_period: 100}
     # Newton step lands on this gait's limit)
     result = runner.invoke(main, ["run", str(gait), "--max-periods", "2", "--json"])
     assert result.exit_code == 3
-    assert json.loads(result.output)["convergence"] == "not-converged"
+    assert json.loads(result.stdout)["convergence"] == "not-converged"
+    # the reason and what to change, in one line on stderr (the JSON on stdout stays parseable)
+    assert len(result.stderr.strip().splitlines()) == 1, result.stderr
+    assert "max_periods = 2" in result.stderr and "--max-periods" in result.stderr
     assert (tmp_path / "gait.h5").exists()
 
 

@@ -151,3 +151,55 @@ def test_anchoring_catch_up_error_depends_on_the_parity_of_the_step_count(steps,
                            steps_per_period=steps)
     res = run(gait)
     assert (res.v0 - 0.3) * steps == pytest.approx(coefficient, abs=1e-9)
+
+
+#: The largest stiffness crawlsim accepts for two_block(0.3, k) with friction 1 / 2: the
+#: stress scale k max|L| / min mu = 1.3 k at most `STRESS_SCALE_LIMIT`.
+def _largest_stiffness():
+    from crawlsim.gait import STRESS_SCALE_LIMIT
+
+    return STRESS_SCALE_LIMIT / 1.3
+
+
+@pytest.mark.parametrize("integrator", ["exact", "catch-up"])
+@pytest.mark.parametrize("k", [1e1, 1e3, 1e5, 1e7, 1e8, 1e9, "largest"])
+def test_stiff_crawler_closed_form_up_to_the_largest_accepted_stiffness(k, integrator):
+    """Issue 19, item 7. The moving gait of the module docstring, v0 = 2A - 2 mu+ / k
+    (A = 0.3, mu+ = 1: 0.6 - 2/k), at stiffnesses up to the largest one accepted: v0 is
+    within its printed estimate of the closed form (before the limit on the stress scale, k =
+    1e12 gave 19 times the estimate and k = 1e18 a Clarabel failure)."""
+    k = _largest_stiffness() * (1 - 1e-12) if k == "largest" else k
+    gait = two_block(0.3, k, {"forward": 1.0, "backward": 2.0}, steps=100,
+                     simulation={"steps_per_period": 100, "max_periods": 20,
+                                 "integrator": integrator})
+    res = run(gait)
+    assert res.converged
+    closed = 0.6 - 2.0 / k
+    assert abs(res.v0 - closed) <= res.v0_error_estimate, (res.v0, closed, res.v0_error_estimate)
+    assert abs(res.v0 - closed) <= 1e-13
+
+
+@pytest.mark.parametrize("factor", [1.01, 1e2, 1e4, 1e8, 1e90])
+def test_stiffer_crawlers_are_refused_with_the_reason(factor, tmp_path):
+    """Beyond the largest stiffness: exit code 2, naming the key, the ratio and the largest
+    stiffness these lengths and friction allow; nothing is computed or written."""
+    from click.testing import CliRunner
+
+    from crawlsim.cli import main
+
+    k = _largest_stiffness() * factor
+    path = tmp_path / "stiff.yaml"
+    path.write_text(f"blocks: 2\nperiod: 1.0\nstiffness: {k!r}\n"
+                    "links: [{kind: cosine, mean: 1.0, amplitude: 0.3}]\n"
+                    "friction: {forward: 1.0, backward: 2.0}\n")
+    for args in (["run", str(path), "-o", str(tmp_path / "out.h5")],
+                 ["velocity", str(path)], ["validate", str(path)]):
+        r = CliRunner().invoke(main, args)
+        assert r.exit_code == 2, r.output
+        assert "Traceback" not in r.output
+        # run and velocity: one line on stderr; validate lists each file's errors on stdout
+        message = (r.stdout if args[0] == "validate" else r.stderr).strip()
+        assert len(message.splitlines()) == 1, message
+        assert f"{path}: stiffness: " in message and "too stiff for this friction" in message
+        assert "up to 7.69e+09" in message
+    assert not (tmp_path / "out.h5").exists()

