@@ -35,6 +35,7 @@ def test_v0_folder(tmp_path):
     assert rows[0]["status"] == "failed" and rows[0]["v0"] == ""
     for row in rows[1:]:
         assert row["status"] == "ok"
+        # the script runs `crawlsim velocity` on this machine: the same printed digits
         assert float(row["v0"]) == _v0(folder / f"{row['gait']}.yaml",
                                        "--steps-per-period", "80")
     assert float(rows[1]["v0"]) == pytest.approx(0.4, abs=1e-12)  # inching closed form
