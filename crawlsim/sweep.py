@@ -72,6 +72,10 @@ TASK_SECONDS = 2.0
 JOURNAL_SECONDS = 3.0
 #: How long to wait for a Dask scheduler before giving up (exit code 2).
 SCHEDULER_TIMEOUT = "20s"
+#: Most values of one axis (START:STOP:NUM, log:LO:HI:NUM), and most points of a grid. At the fastest, some 10^3 points a
+#: second, a million points take hours; the values are made before anything is checked, so a
+#: mistyped NUM must not allocate gigabytes.
+MAX_AXIS_POINTS = 1_000_000
 
 
 # -- axes and the grid ------------------------------------------------------------------------
@@ -133,6 +137,9 @@ def _range(spec: str, source: str, path: str, form: str) -> tuple[float, float, 
                                            f"{spec!r}") from None
     if num < 1:
         raise SweepSpecError(source, path, f"NUM must be at least 1, got {num}")
+    if num > MAX_AXIS_POINTS:
+        raise SweepSpecError(source, path, f"NUM must be at most {MAX_AXIS_POINTS:,}, got {num:,}; "
+                                           "a sweep that large would not finish: sweep fewer points")
     if not (math.isfinite(start) and math.isfinite(stop)):
         raise SweepSpecError(source, path, f"values must be finite numbers, got {spec!r}")
     return start, stop, num
@@ -169,6 +176,10 @@ class SweepGrid:
     def __post_init__(self) -> None:
         if not self.dims:
             object.__setattr__(self, "dims", tuple(range(len(self.axes))))
+        if self.size > MAX_AXIS_POINTS:
+            raise SweepSpecError("--sweep", "", f"the grid has {self.size:,} points (the product of "
+                                                f"its axes), more than {MAX_AXIS_POINTS:,}; a sweep "
+                                                "that large would not finish: sweep fewer points")
 
     @property
     def shape(self) -> tuple[int, ...]:
@@ -960,6 +971,25 @@ def _stop_pool(ex, pending) -> None:
         process.join(5)
 
 
+def check_scheduler(address: str) -> None:
+    """Refuse (`SweepSpecError`, exit code 2), before anything is computed, a ``--scheduler``
+    that is not the address of a Dask scheduler (SCHEME://HOST:PORT or HOST:PORT) or when Dask
+    is not installed."""
+    source = f"--scheduler {address}"
+    try:
+        from distributed.comm.addressing import get_address_host_port
+    except ImportError:
+        raise SweepSpecError(source, "", "Dask is not installed: pip install 'crawlsim[dask]'") from None
+    try:
+        host, port = get_address_host_port(address)
+        valid = bool(host) and 0 < int(port) < 65536
+    except (ValueError, TypeError):
+        valid = False
+    if not valid:
+        raise SweepSpecError(source, "", "expected the address of a Dask scheduler, "
+                                         "SCHEME://HOST:PORT such as tcp://127.0.0.1:8786")
+
+
 def _run_dask(grid, todo, scheduler, collect, progress) -> None:
     """Tasks on a Dask cluster, two in flight per worker thread, collected as each finishes
     (`distributed.as_completed`): progress and the journal move with every task."""
@@ -968,6 +998,7 @@ def _run_dask(grid, todo, scheduler, collect, progress) -> None:
     except ImportError:
         raise SweepSpecError("--scheduler", "", "Dask is not installed: pip install "
                                                 "'crawlsim[dask]'") from None
+    check_scheduler(scheduler)
     try:
         client = Client(scheduler, timeout=SCHEDULER_TIMEOUT)
     except OSError as exc:
