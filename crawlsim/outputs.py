@@ -61,7 +61,8 @@ def check_target(path, kind: str, *, inputs: Iterable = (), force: bool = False,
         for given in inputs:  # another output of the command, not written yet
             if os.path.abspath(target) == os.path.abspath(given):
                 raise OutputError(source, "", f"is the input file {given}: refusing to replace "
-                                              "it, even with --force; choose another output name")
+                                              "it, even with --force; choose another output "
+                                              "name") from None
         return target
     except OSError as error:
         raise OutputError(source, "", f"cannot inspect the target: {error.strerror}") from None

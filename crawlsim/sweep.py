@@ -72,9 +72,9 @@ TASK_SECONDS = 2.0
 JOURNAL_SECONDS = 3.0
 #: How long to wait for a Dask scheduler before giving up (exit code 2).
 SCHEDULER_TIMEOUT = "20s"
-#: Most values of one axis (START:STOP:NUM, log:LO:HI:NUM), and most points of a grid. At the fastest, some 10^3 points a
-#: second, a million points take hours; the values are made before anything is checked, so a
-#: mistyped NUM must not allocate gigabytes.
+#: Most values of one axis (START:STOP:NUM, log:LO:HI:NUM), and most points of a grid. At the
+#: fastest, some 10^3 points a second, a million points take hours; the values are made before
+#: anything is checked, so a mistyped NUM must not allocate gigabytes.
 MAX_AXIS_POINTS = 1_000_000
 
 
