@@ -212,7 +212,7 @@ try:  # libyaml parses and composes about ten times faster than pure Python
 except ImportError:  # pragma: no cover - PyYAML built without libyaml
     from yaml.composer import Composer
 
-    _Parser = _PythonParser  # type: ignore[misc,assignment]
+    _Parser = _PythonParser  # type: ignore[misc,assignment,unused-ignore]
 
     class _Loader(Reader, Scanner, Parser, Composer, _Constructor, _Resolver):  # type: ignore[no-redef]
         def __init__(self, stream: str) -> None:
