@@ -37,6 +37,7 @@ import io
 import json
 import math
 import os
+import stat
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -46,9 +47,9 @@ from typing import Any
 import numpy as np
 import yaml
 
-from .atomic import atomic_path
+from .atomic import DISK_ERRORS, atomic_path, disk_error
 from .docpaths import path_keys, resolve_path, set_value
-from .errors import CrawlsimError, GaitError, InputError, SweepSpecError
+from .errors import CrawlsimError, GaitError, InputError, OutputError, SweepSpecError
 from .gait import Gait, gait_from_document
 from .status import PointStatus
 
@@ -510,8 +511,25 @@ class Journal:
         self._buffer: list[PointResult] = []
         self._last: float | None = None  # time of the last flush
 
+    def _check_regular(self) -> None:
+        """Refuse a journal path that is not a regular file (a FIFO would block the sweep
+        forever, a device swallow its points): `OutputError`, exit code 2."""
+        try:
+            mode = os.stat(self.path).st_mode
+        except FileNotFoundError:
+            return
+        except OSError as error:
+            raise OutputError(str(self.path), "", f"cannot inspect the journal: {error.strerror}") from None
+        if not stat.S_ISREG(mode):
+            from .outputs import special_kind
+
+            raise OutputError(str(self.path), "", f"is {special_kind(mode)}, not a regular file: "
+                                                  "the journal of a sweep must be a regular file; "
+                                                  "remove it, or choose another output name")
+
     def load(self) -> dict[int, PointResult]:
         """Finished points of an earlier run of the same sweep ({} when there is none)."""
+        self._check_regular()
         if not self.path.exists():
             return {}
         done = {}
@@ -543,15 +561,34 @@ class Journal:
         if not self._buffer:
             return
         self._last = self.clock()
-        if self._file is None:
-            new = not self.path.exists() or self.path.stat().st_size == 0
-            self._file = open(self.path, "a", encoding="utf-8")
-            if new:
-                self._file.write(json.dumps({"fingerprint": self.fingerprint}) + "\n")
         rows, self._buffer = self._buffer, []
-        self._file.write("".join(json.dumps(r.to_json()) + "\n" for r in rows))
-        self._file.flush()
-        os.fsync(self._file.fileno())
+        try:
+            if self._file is None:
+                self._check_regular()
+                new = not self.path.exists() or self.path.stat().st_size == 0
+                self._file = open(self.path, "a", encoding="utf-8")
+                if new:
+                    self._file.write(json.dumps({"fingerprint": self.fingerprint}) + "\n")
+            self._file.write("".join(json.dumps(r.to_json()) + "\n" for r in rows))
+            self._file.flush()
+            os.fsync(self._file.fileno())
+        except OSError as error:
+            self._abandon()
+            if error.errno in DISK_ERRORS:
+                raise disk_error(self.path, error, "the sweep stopped; the journal keeps the "
+                                                   "points written before") from None
+            raise
+
+    def _abandon(self) -> None:
+        """Forget the file after a failed write (its buffered text cannot be written either; a
+        torn last line is ignored on reading)."""
+        self._buffer = []
+        if self._file is not None:
+            try:
+                self._file.close()
+            except OSError:
+                pass
+            self._file = None
 
     def close(self) -> None:
         try:
@@ -1067,9 +1104,9 @@ def run_sweep(grid: SweepGrid, *, jobs: int = 1, shard=None, scheduler: str | No
     becomes `SweepInterrupted` once the journal holds every finished point. ``pool`` (a
     `WorkerPool`, instead of ``jobs``) runs the points on workers that outlive this sweep.
     """
+    done = journal.load() if journal is not None else {}  # refuses a FIFO before any work
     check_some_point_runs(grid)
     indices = grid.indices(shard)
-    done = journal.load() if journal is not None else {}
     todo = np.array([i for i in indices if int(i) not in done], dtype=np.int64)
     finished = dict(done)
     if done and on_rows is not None:
