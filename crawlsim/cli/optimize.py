@@ -129,6 +129,9 @@ def optimize(gait_file, free_specs, maximize, minimize, constraints, pareto, fro
         cons = [opt.parse_constraint(text) for text in constraints]
         gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance,
                                    _integrator(gait_file))
+        from ..resources import check_signal_work, gait_signal_work
+
+        check_signal_work(gait_signal_work(gait), gait.source)  # before any evaluation
         problem = opt.make_problem(gait, free, objective=objective, constraints=cons,
                                    pareto=pareto)
         method = opt.Method(seed=seed, max_evaluations=max_evaluations,
