@@ -136,10 +136,6 @@ def _split(line: str) -> tuple[list[str], list[float]]:
     return texts, numbers
 
 
-def _label(line: str) -> str:
-    return _split(line)[0][0].strip()
-
-
 @dataclass
 class Roundoff:
     """One output's bound on its roundoff residuals: the estimate ``bound`` of the quantity of
