@@ -13,11 +13,18 @@ A reader never sees a half-written file, and a failed write leaves nothing behin
 * the rename never replaces a special file (a device such as /dev/null, a FIFO, a socket): the
   target is checked again just before it (`crawlsim.outputs` refuses them up front).
 
-Folder problems (missing, read-only) are `OutputError` naming the folder.
+Folder problems (missing, read-only) are `OutputError` naming the folder, and so is a full disk
+(or quota, or an I/O error) while writing: ``no space left on device: PATH``, the temporary file
+removed, exit code 2. HDF5 files are written through `GuardedFile`: libhdf5, after a failed
+write, keeps failing on every flush and close and can crash the interpreter on the way out; the
+guard records the first failure, raises it, and drops every later write (the file is discarded
+anyway), so the file closes cleanly.
 """
 
 from __future__ import annotations
 
+import errno
+import io
 import os
 import re
 import signal
@@ -125,16 +132,86 @@ def publish(tmp: Path, target: Path) -> None:
     _forget(Path(tmp))
 
 
+#: Errors of a write that say the disk (not the request) is at fault.
+DISK_ERRORS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EIO})
+
+
+def disk_error(target, error: OSError, outcome: str = "not written") -> OutputError:
+    """``no space left on device: PATH`` (or the disk's other complaint) as an `OutputError`."""
+    reason = error.strerror or os.strerror(error.errno or errno.EIO)
+    return OutputError("", "", f"{reason[:1].lower()}{reason[1:]}: {target} ({outcome})")
+
+
 @contextmanager
 def atomic_path(target) -> Iterator[Path]:
     """Yield a temporary path to write; on success it replaces ``target``, on error (or
-    KeyboardInterrupt, or SIGTERM) it is removed."""
+    KeyboardInterrupt, or SIGTERM) it is removed. A full disk is `disk_error`."""
     tmp = temporary_beside(Path(target))
     try:
-        yield tmp
-        publish(tmp, Path(target))
+        try:
+            yield tmp
+            publish(tmp, Path(target))
+        except OSError as error:
+            if error.errno in DISK_ERRORS:
+                raise disk_error(target, error) from None
+            raise
     finally:
         discard(tmp)
+
+
+class GuardedFile(io.FileIO):
+    """A file for libhdf5 (h5py's file-object driver) that never reports a failed write to it:
+    the first failure (a full disk) is recorded in `error`, and it and every later write,
+    truncation or flush are dropped (the file will be discarded). libhdf5 told of a failed write
+    keeps failing on every flush and close, prints errors from finalizers, and can crash the
+    interpreter on the way out; the writer checks `error` instead (`check`) and stops."""
+
+    error: OSError | None = None
+
+    def write(self, data) -> int:
+        if self.error is None:
+            try:
+                return self._write(data)
+            except OSError as error:
+                self.error = error
+        return len(memoryview(data))
+
+    def _write(self, data) -> int:
+        return super().write(data)
+
+    def truncate(self, size=None) -> int:
+        if self.error is None:
+            try:
+                return super().truncate(size)
+            except OSError as error:
+                self.error = error
+        return 0 if size is None else size
+
+    def flush(self) -> None:
+        if self.error is None:
+            super().flush()
+
+    def check(self) -> None:
+        """Raise the recorded failure, if any."""
+        if self.error is not None:
+            raise self.error
+
+
+@contextmanager
+def guarded(tmp: Path) -> Iterator[GuardedFile]:
+    """`GuardedFile` open on ``tmp``; its recorded failure is raised (as itself, the OSError)
+    whatever the writer raised on top of it, or if the writer swallowed it."""
+    raw = GuardedFile(tmp, "w+")
+    try:
+        yield raw
+    except BaseException:
+        if raw.error is not None:
+            raise raw.error from None
+        raise
+    finally:
+        raw.close()
+    if raw.error is not None:
+        raise raw.error
 
 
 def _register(path: Path) -> None:

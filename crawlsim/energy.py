@@ -372,7 +372,10 @@ def _trig_minimum(mean: float, a: np.ndarray, b: np.ndarray) -> float:
 
     # derivative coefficients: n (b_n cos n v - a_n sin n v) = sum_n c_n z^n + conj(c_n) z^-n,
     # c_n = n (b_n + i a_n) / 2
-    c = n * (b + 1j * a) / 2.0
+    # (scaled by the largest coefficient, which moves no critical point: subnormal coefficients
+    # would overflow the companion matrix)
+    size = float(np.max(np.abs(np.concatenate([a, b])), initial=0.0)) or 1.0
+    c = n * (b / size + 1j * a / size) / 2.0
     candidates: list[np.ndarray] = [np.linspace(0.0, TWO_PI, 8 * H + 1)]
     # harmonics below roundoff of the largest only make the companion matrix singular: the
     # critical points are those of the rest, polished below on the whole derivative

@@ -50,7 +50,8 @@ import io
 import json
 import math
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -59,7 +60,16 @@ import h5py
 import numpy as np
 
 from . import __version__
-from .atomic import atomic_path, discard, publish, temporary_beside
+from .atomic import (
+    DISK_ERRORS,
+    GuardedFile,
+    atomic_path,
+    discard,
+    disk_error,
+    guarded,
+    publish,
+    temporary_beside,
+)
 from .errors import ResultsFileError
 from .kkt import ChainPolyhedron
 from .units import Units, path_quantity
@@ -308,13 +318,26 @@ def _unit(units: Units, quantity: str, crawler: bool) -> str:
     return units.of(quantity)
 
 
-def _target_file(target: Any) -> tuple[h5py.File, Path | None]:
-    """Open a results target: a path (a temporary file beside it, renamed at the end) or a
-    binary file object (an in-memory image: `io.BytesIO`)."""
+def _target_file(target: Any) -> tuple[h5py.File, Path | None, GuardedFile | None]:
+    """Open a results target: a path (a temporary file beside it, written through
+    `crawlsim.atomic.GuardedFile` and renamed at the end) or a binary file object (an in-memory
+    image: `io.BytesIO`)."""
     if isinstance(target, io.IOBase):
-        return h5py.File(target, "w", track_order=True), None
+        return h5py.File(target, "w", track_order=True), None, None
     tmp = temporary_beside(Path(target))
-    return h5py.File(tmp, "w", track_order=True), tmp
+    try:
+        raw = GuardedFile(tmp, "w+")
+        return h5py.File(raw, "w", track_order=True), tmp, raw
+    except BaseException:
+        discard(tmp)
+        raise
+
+
+@contextmanager
+def _atomic_h5(path: Any) -> Iterator[h5py.File]:
+    """A new HDF5 file written atomically (`crawlsim.atomic`), a full disk an `OutputError`."""
+    with atomic_path(path) as tmp, guarded(tmp) as raw, h5py.File(raw, "w", track_order=True) as f:
+        yield f
 
 
 # -- run files --------------------------------------------------------------------------------
@@ -335,7 +358,7 @@ class ResultsWriter:
         self.save_every = int(save_every)
         self.units = units or Units()
         self.keep = bool(trajectory)
-        self.file, self._tmp = _target_file(target)
+        self.file, self._tmp, self._raw = _target_file(target)
         self._scales = _Scales()
         self._traj = self.file.create_group("trajectory", track_order=True)
         self._sets: dict[str, h5py.Dataset] = {}
@@ -354,6 +377,8 @@ class ResultsWriter:
                 chunks=(rows,) + tail, track_order=True)
 
     def _append(self, name: str, rows: Any) -> None:
+        if self._raw is not None:
+            self._raw.check()  # a full disk stops the run at its next write
         rows = np.asarray(rows, dtype=float)
         ds = self._sets[name]
         n = ds.shape[0]
@@ -477,6 +502,10 @@ class ResultsWriter:
         self._write_root_attributes(result, provenance, kind)
         f.attrs["unchecked_uniqueness"] = int(bool(unchecked_uniqueness))
         f.close()
+        if self._raw is not None:
+            self._raw.close()
+            if self._raw.error is not None:
+                raise self._raw.error  # written over by libhdf5's own error, or swallowed
         if self._tmp is not None and self.path is not None:
             publish(self._tmp, self.path)
 
@@ -570,8 +599,10 @@ class ResultsWriter:
 
     def abort(self) -> None:
         try:
-            self.file.close()
+            self.file.close()  # after a failed write, GuardedFile drops what libhdf5 flushes
         finally:
+            if self._raw is not None:
+                self._raw.close()
             if self._tmp is not None:
                 discard(self._tmp)
 
@@ -581,6 +612,11 @@ class ResultsWriter:
     def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> Literal[False]:
         if exc_type is not None or (self._tmp is not None and self._tmp.exists()):
             self.abort()
+        error = None if self._raw is None else self._raw.error
+        if error is not None and error.errno in DISK_ERRORS and exc_type is not KeyboardInterrupt:
+            raise disk_error(self.path, error) from None
+        if error is not None and exc_type is None:
+            raise error
         return False
 
 
@@ -783,7 +819,7 @@ def write_sweep(path: Any, *, paths: Sequence[str], axes: Sequence[Any], points:
         with h5py.File(path, "w", track_order=True) as f:
             _write_sweep(f, paths, axes, points, columns, gait_yaml, source, shard, steps, dims)
         return
-    with atomic_path(path) as tmp, h5py.File(tmp, "w", track_order=True) as f:
+    with _atomic_h5(path) as f:
         _write_sweep(f, paths, axes, points, columns, gait_yaml, source, shard, steps, dims)
 
 
@@ -1170,7 +1206,7 @@ def write_optimization(path: Any, result: Any) -> None:
         with h5py.File(path, "w", track_order=True) as f:
             _write_optimization(f, result)
         return
-    with atomic_path(path) as tmp, h5py.File(tmp, "w", track_order=True) as f:
+    with _atomic_h5(path) as f:
         _write_optimization(f, result)
 
 

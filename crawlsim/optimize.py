@@ -393,6 +393,10 @@ def _check_some_point_is_valid(problem: Problem) -> None:
 
 
 # -- the method -------------------------------------------------------------------------------
+MAX_SEED = 2**63 - 1
+"""Largest seed: the results file stores it as an HDF5 64-bit integer."""
+
+
 @dataclass(frozen=True)
 class Method:
     """The settings of the search (the module docstring says why each is what it is)."""
@@ -411,6 +415,10 @@ class Method:
     front_points: int = FRONT_POINTS
 
     def __post_init__(self) -> None:
+        if not 0 <= self.seed <= MAX_SEED:
+            raise SweepSpecError("--seed", "", f"expected an integer from 0 to 2**63 - 1 (the "
+                                               f"results file stores it as a 64-bit integer), "
+                                               f"got {self.seed}")
         if self.max_evaluations is not None and self.max_evaluations < 1:
             raise SweepSpecError("--max-evaluations", "", f"expected a positive number, got "
                                                           f"{self.max_evaluations}")

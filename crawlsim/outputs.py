@@ -13,6 +13,8 @@ exit code 2) a target that is:
   writes over a crawlsim run results file (HDF5 with a ``format_version`` attribute), a sweep
   over a sweep file (HDF5 of kind ``sweep``, or a CSV whose header is a sweep table's), a
   figure over an image of the same format. An empty file holds nothing and may be replaced.
+  A gait file (``optimize --write-best``) is YAML text, which says nothing of its origin: it
+  replaces an existing file unless that is an input of the command.
 
 Reading what a file is costs at most a few bytes and, for HDF5, its root attributes.
 """
@@ -27,9 +29,9 @@ from pathlib import Path
 
 from .errors import OutputError
 
-RUN, SWEEP, FIGURE = "run", "sweep", "figure"
+RUN, SWEEP, FIGURE, GAIT = "run", "sweep", "figure", "gait"
 _WHAT = {RUN: "crawlsim run results file (HDF5)", SWEEP: "crawlsim sweep table (CSV or HDF5)",
-         FIGURE: "figure"}
+         FIGURE: "figure", GAIT: "gait file"}
 _HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 _IMAGES = {b"\x89PNG\r\n\x1a\n": "png", b"%PDF-": "pdf"}
 #: Columns every crawlsim sweep table has (CSV header), whatever else it holds.
@@ -43,16 +45,25 @@ def check_target(path, kind: str, *, inputs: Iterable = (), force: bool = False,
     target = Path(path)
     source = f"{option} {path}"
     folder = Path(os.path.abspath(target)).parent
-    if not folder.exists():
-        raise OutputError(source, "", f"the folder {folder} does not exist")
-    if not folder.is_dir():
+    # the folder as the system will resolve it: ``nosuchdir/../x.h5`` is x.h5 to abspath, but
+    # opening it fails when nosuchdir is missing (".." follows the folder before it)
+    given = Path(os.getcwd(), target).parent
+    if not folder.exists() or not given.exists():
+        missing = folder if not folder.exists() else _first_missing(given)
+        raise OutputError(source, "", f"the folder {missing} does not exist")
+    if not folder.is_dir() or not given.is_dir():
         raise OutputError(source, "", f"{folder} is not a folder")
     if not os.access(folder, os.W_OK | os.X_OK):
         raise OutputError(source, "", f"the folder {folder} is not writable")
     try:
         info = os.stat(target)
-    except FileNotFoundError:
-        return target  # nothing there (or a dangling symbolic link, which holds no data)
+    except FileNotFoundError:  # nothing there (or a dangling symbolic link, which holds no data)
+        for given in inputs:  # another output of the command, not written yet
+            if os.path.abspath(target) == os.path.abspath(given):
+                raise OutputError(source, "", f"is the input file {given}: refusing to replace "
+                                              "it, even with --force; choose another output "
+                                              "name") from None
+        return target
     except OSError as error:
         raise OutputError(source, "", f"cannot inspect the target: {error.strerror}") from None
     if stat.S_ISDIR(info.st_mode):
@@ -68,7 +79,7 @@ def check_target(path, kind: str, *, inputs: Iterable = (), force: bool = False,
         if same:
             raise OutputError(source, "", f"is the input file {given}: refusing to replace it, "
                                           "even with --force; choose another output name")
-    if force or info.st_size == 0:
+    if force or info.st_size == 0 or kind == GAIT:
         return target
     found = classify(target)
     if found != (FIGURE + ":" + _suffix(target) if kind == FIGURE else kind):
@@ -76,6 +87,16 @@ def check_target(path, kind: str, *, inputs: Iterable = (), force: bool = False,
                                       "refusing to replace it. Choose another name, remove it, "
                                       "or pass --force to replace it")
     return target
+
+
+def _first_missing(folder: Path) -> Path:
+    """The first folder of ``folder``'s path (not normalised) that does not exist."""
+    part = Path(folder.anchor)
+    for name in folder.parts[1:]:
+        part = part / name
+        if not part.exists():
+            return part
+    return folder
 
 
 def special_kind(mode: int) -> str:

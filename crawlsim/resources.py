@@ -26,6 +26,16 @@ of every gait of a batch besides. The constants are calibrated against tracemall
 The default limit is the smaller of `DEFAULT_CAP` and `DEFAULT_FRACTION` of the memory
 available: MemAvailable of /proc/meminfo, the headroom under RLIMIT_AS, and the headroom under
 a cgroup's memory.max, whichever is least.
+
+Time is bounded the same way where it can be predicted: the cost of evaluating the signals
+(`signal_work`). The exact integrator finds each event of a Fourier gait by certified sampling,
+`crawlsim.exact.CELLS_PER_CYCLE` samples per cycle of the highest harmonic H, each sample
+evaluating the 2H + 1 basis functions and the m = 2N gap and rate functions: a cost of order
+H^2 (TRIG_COST + m) per event search (catch-up runs the exact integrator for its reference too).
+The estimate counts `SEARCHES_PER_PERIOD` searches a period, the fewest a moving gait has, so
+it is a lower bound (a gait of many events a period, a wave of many blocks, takes longer and is
+not refused for it); a gait whose two first periods would cost more than `MAX_SIGNAL_WORK` even
+so is refused up front with a `ResourceError` naming the signal.
 """
 
 from __future__ import annotations
@@ -198,3 +208,77 @@ def _read(path: str) -> str | None:
     except (OSError, UnicodeDecodeError):
         return None
 
+
+
+#: Cost of one cos or sin in the units of `signal_work` (a multiply-add of numpy's matrix
+#: product is 1; numpy's cos of an array element costs about 100 of them).
+TRIG_COST = 100
+#: Event searches a period at the fewest: a link that moves starts and stops slipping, forward
+#: and backward.
+SEARCHES_PER_PERIOD = 4
+#: The largest `signal_work` of a run's first two periods (the fewest any run computes).
+#: Measured (numpy 2.4, one core): a search of a 2-block gait with a Fourier link of 1000
+#: harmonics, 1.3e10, takes 20 s, so 5e10 is a bit more than a minute, at the fewest events.
+MAX_SIGNAL_WORK = 5e10
+
+
+@dataclass(frozen=True)
+class SignalWork:
+    """The estimated cost of a gait's signals (`signal_work`) and what sets it."""
+
+    per_period: float  # the event searches of one period
+    tabulation: float  # the signals on the output grid, once a run
+    harmonics: int
+    faces: int
+    key: str  # the signal with the most harmonics ("links[0]", "friction", ...)
+
+    @property
+    def run(self) -> float:
+        """The two periods every run computes at least, and the tabulation."""
+        return 2.0 * self.per_period + self.tabulation
+
+
+def signal_work(harmonics: int, faces: int, grid_points: int, key: str = "") -> SignalWork:
+    """The cost, in multiply-adds (a cos or sin counting `TRIG_COST`), of the signals of a
+    gait whose largest number of harmonics is ``harmonics``, with ``faces`` constraints (2N for
+    N blocks) on a grid of ``grid_points`` points a period. Signals of at most one harmonic
+    (constants, piecewise-linear signals, cosines) have closed-form events: only their
+    tabulation counts."""
+    from .exact import CELLS_PER_CYCLE
+
+    h, m = int(harmonics), int(faces)
+    per_sample = (2 * h + 1) * (TRIG_COST + m)
+    per_period = 0.0 if h <= 1 else float(SEARCHES_PER_PERIOD) * CELLS_PER_CYCLE * h * per_sample
+    return SignalWork(per_period, float(grid_points) * per_sample, h, m, key)
+
+
+def gait_signal_work(gait, *, steps_per_period: int | None = None) -> SignalWork:
+    """`signal_work` of a validated `Gait` or `ProcessSpec` with its simulation settings."""
+    steps = steps_per_period or gait.simulation.steps_per_period
+    points = steps + len(gait.breakpoints()) + 1
+    if hasattr(gait, "normals"):
+        named = [(f"offsets[{i}]", s) for i, s in enumerate(gait.offsets)]
+        faces = gait.normals.shape[0]
+    else:
+        named = [(f"links[{i}]", s) for i, s in enumerate(gait.links)]
+        named += [("friction", s) for s in gait.forward + gait.backward]
+        faces = 2 * gait.blocks
+    key, most = "", 0
+    for name, signal in named:
+        if signal.harmonics > most:
+            key, most = name, signal.harmonics
+    return signal_work(most, faces, points, key)
+
+
+def check_signal_work(work: SignalWork, source: str) -> None:
+    """Refuse with a `ResourceError` a gait whose signals would cost more than
+    `MAX_SIGNAL_WORK` in its first two periods (a run that would not finish in reasonable
+    time)."""
+    if work.run <= MAX_SIGNAL_WORK:
+        return
+    raise ResourceError(source, work.key, (
+        f"a signal of {work.harmonics:,} harmonics with {work.faces // 2:,} blocks would cost "
+        f"at least {work.run:.1g} operations over the two periods a run needs (events are found "
+        f"by sampling every cycle of the highest harmonic), more than crawlsim runs "
+        f"({MAX_SIGNAL_WORK:.0e}, about a minute): use fewer harmonics (the cost grows as their "
+        "square), fewer blocks or steps per period, or a piecewise-linear signal"))

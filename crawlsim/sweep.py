@@ -37,6 +37,7 @@ import io
 import json
 import math
 import os
+import stat
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -46,9 +47,9 @@ from typing import Any
 import numpy as np
 import yaml
 
-from .atomic import atomic_path
+from .atomic import DISK_ERRORS, atomic_path, disk_error
 from .docpaths import path_keys, resolve_path, set_value
-from .errors import CrawlsimError, GaitError, InputError, SweepSpecError
+from .errors import CrawlsimError, GaitError, InputError, OutputError, SweepSpecError
 from .gait import Gait, gait_from_document, need_crawler
 from .status import PointStatus
 
@@ -72,6 +73,10 @@ TASK_SECONDS = 2.0
 JOURNAL_SECONDS = 3.0
 #: How long to wait for a Dask scheduler before giving up (exit code 2).
 SCHEDULER_TIMEOUT = "20s"
+#: Most values of one axis (START:STOP:NUM, log:LO:HI:NUM), and most points of a grid. At the
+#: fastest, some 10^3 points a second, a million points take hours; the values are made before
+#: anything is checked, so a mistyped NUM must not allocate gigabytes.
+MAX_AXIS_POINTS = 1_000_000
 
 
 # -- axes and the grid ------------------------------------------------------------------------
@@ -133,6 +138,9 @@ def _range(spec: str, source: str, path: str, form: str) -> tuple[float, float, 
                                            f"{spec!r}") from None
     if num < 1:
         raise SweepSpecError(source, path, f"NUM must be at least 1, got {num}")
+    if num > MAX_AXIS_POINTS:
+        raise SweepSpecError(source, path, f"NUM must be at most {MAX_AXIS_POINTS:,}, got {num:,}; "
+                                           "a sweep that large would not finish: sweep fewer points")
     if not (math.isfinite(start) and math.isfinite(stop)):
         raise SweepSpecError(source, path, f"values must be finite numbers, got {spec!r}")
     return start, stop, num
@@ -169,6 +177,10 @@ class SweepGrid:
     def __post_init__(self) -> None:
         if not self.dims:
             object.__setattr__(self, "dims", tuple(range(len(self.axes))))
+        if self.size > MAX_AXIS_POINTS:
+            raise SweepSpecError("--sweep", "", f"the grid has {self.size:,} points (the product of "
+                                                f"its axes), more than {MAX_AXIS_POINTS:,}; a sweep "
+                                                "that large would not finish: sweep fewer points")
 
     @property
     def shape(self) -> tuple[int, ...]:
@@ -500,8 +512,25 @@ class Journal:
         self._buffer: list[PointResult] = []
         self._last: float | None = None  # time of the last flush
 
+    def _check_regular(self) -> None:
+        """Refuse a journal path that is not a regular file (a FIFO would block the sweep
+        forever, a device swallow its points): `OutputError`, exit code 2."""
+        try:
+            mode = os.stat(self.path).st_mode
+        except FileNotFoundError:
+            return
+        except OSError as error:
+            raise OutputError(str(self.path), "", f"cannot inspect the journal: {error.strerror}") from None
+        if not stat.S_ISREG(mode):
+            from .outputs import special_kind
+
+            raise OutputError(str(self.path), "", f"is {special_kind(mode)}, not a regular file: "
+                                                  "the journal of a sweep must be a regular file; "
+                                                  "remove it, or choose another output name")
+
     def load(self) -> dict[int, PointResult]:
         """Finished points of an earlier run of the same sweep ({} when there is none)."""
+        self._check_regular()
         if not self.path.exists():
             return {}
         done = {}
@@ -533,15 +562,34 @@ class Journal:
         if not self._buffer:
             return
         self._last = self.clock()
-        if self._file is None:
-            new = not self.path.exists() or self.path.stat().st_size == 0
-            self._file = open(self.path, "a", encoding="utf-8")
-            if new:
-                self._file.write(json.dumps({"fingerprint": self.fingerprint}) + "\n")
         rows, self._buffer = self._buffer, []
-        self._file.write("".join(json.dumps(r.to_json()) + "\n" for r in rows))
-        self._file.flush()
-        os.fsync(self._file.fileno())
+        try:
+            if self._file is None:
+                self._check_regular()
+                new = not self.path.exists() or self.path.stat().st_size == 0
+                self._file = open(self.path, "a", encoding="utf-8")
+                if new:
+                    self._file.write(json.dumps({"fingerprint": self.fingerprint}) + "\n")
+            self._file.write("".join(json.dumps(r.to_json()) + "\n" for r in rows))
+            self._file.flush()
+            os.fsync(self._file.fileno())
+        except OSError as error:
+            self._abandon()
+            if error.errno in DISK_ERRORS:
+                raise disk_error(self.path, error, "the sweep stopped; the journal keeps the "
+                                                   "points written before") from None
+            raise
+
+    def _abandon(self) -> None:
+        """Forget the file after a failed write (its buffered text cannot be written either; a
+        torn last line is ignored on reading)."""
+        self._buffer = []
+        if self._file is not None:
+            try:
+                self._file.close()
+            except OSError:
+                pass
+            self._file = None
 
     def close(self) -> None:
         try:
@@ -961,6 +1009,25 @@ def _stop_pool(ex, pending) -> None:
         process.join(5)
 
 
+def check_scheduler(address: str) -> None:
+    """Refuse (`SweepSpecError`, exit code 2), before anything is computed, a ``--scheduler``
+    that is not the address of a Dask scheduler (SCHEME://HOST:PORT or HOST:PORT) or when Dask
+    is not installed."""
+    source = f"--scheduler {address}"
+    try:
+        from distributed.comm.addressing import get_address_host_port
+    except ImportError:
+        raise SweepSpecError(source, "", "Dask is not installed: pip install 'crawlsim[dask]'") from None
+    try:
+        host, port = get_address_host_port(address)
+        valid = bool(host) and 0 < int(port) < 65536
+    except (ValueError, TypeError):
+        valid = False
+    if not valid:
+        raise SweepSpecError(source, "", "expected the address of a Dask scheduler, "
+                                         "SCHEME://HOST:PORT such as tcp://127.0.0.1:8786")
+
+
 def _run_dask(grid, todo, scheduler, collect, progress) -> None:
     """Tasks on a Dask cluster, two in flight per worker thread, collected as each finishes
     (`distributed.as_completed`): progress and the journal move with every task."""
@@ -969,6 +1036,7 @@ def _run_dask(grid, todo, scheduler, collect, progress) -> None:
     except ImportError:
         raise SweepSpecError("--scheduler", "", "Dask is not installed: pip install "
                                                 "'crawlsim[dask]'") from None
+    check_scheduler(scheduler)
     try:
         client = Client(scheduler, timeout=SCHEDULER_TIMEOUT)
     except OSError as exc:
@@ -1037,9 +1105,9 @@ def run_sweep(grid: SweepGrid, *, jobs: int = 1, shard=None, scheduler: str | No
     becomes `SweepInterrupted` once the journal holds every finished point. ``pool`` (a
     `WorkerPool`, instead of ``jobs``) runs the points on workers that outlive this sweep.
     """
+    done = journal.load() if journal is not None else {}  # refuses a FIFO before any work
     check_some_point_runs(grid)
     indices = grid.indices(shard)
-    done = journal.load() if journal is not None else {}
     todo = np.array([i for i in indices if int(i) not in done], dtype=np.int64)
     finished = dict(done)
     if done and on_rows is not None:

@@ -35,7 +35,10 @@ from yaml.events import (
     SequenceStartEvent,
 )
 from yaml.nodes import MappingNode, ScalarNode
+from yaml.parser import Parser
+from yaml.reader import Reader
 from yaml.resolver import Resolver
+from yaml.scanner import Scanner
 
 from .errors import GaitError
 
@@ -47,6 +50,9 @@ seconds per MiB, so the limit also bounds the time spent reading."""
 MAX_DEPTH = 32
 """Deepest nesting of YAML collections. A gait needs 5 (friction list, mapping, signal, times);
 deeper documents are refused before Python's recursion limit is reached."""
+
+MAX_INT_DIGITS = 4300
+"""Longest integer literal read (Python's own limit on converting text to int)."""
 
 MAX_NODES = 2_000_000
 """Most YAML nodes (keys, values, list items) a document may hold once every alias is expanded.
@@ -63,8 +69,31 @@ def _guard(text: str) -> None:
     One pass over the events (no node is built): the open collections are a stack of counters,
     an anchor records the expanded size of what it names when that is complete, and an alias
     adds that size to its collection. An alias to an anchor still open is a recursive alias.
+
+    libyaml's scanner reads ahead of the events and, from PyYAML 6.0.3, refuses deep nesting
+    itself (its own limit and wording) before this guard sees the 33rd level. A document libyaml
+    refuses is therefore read again by PyYAML's pure-Python parser, which reads no further than
+    it must: crawlsim's own refusal (`MAX_DEPTH`) speaks when it applies, libyaml's error
+    otherwise.
     """
-    parser = _Parser(text)
+    try:
+        _guard_events(text, _Parser)
+    except _Refused:
+        raise
+    except yaml.YAMLError:
+        if _Parser is _PythonParser:
+            raise
+        try:
+            _guard_events(text, _PythonParser)
+        except _Refused:
+            raise
+        except (yaml.YAMLError, RecursionError):
+            pass
+        raise
+
+
+def _guard_events(text: str, parser_class: Any) -> None:
+    parser = parser_class(text)
     stack: list[list[Any]] = []  # [anchor, expanded size] of each open collection
     sizes: dict[str, int] = {}
     open_anchors: set[str] = set()
@@ -121,6 +150,18 @@ class _Constructor(SafeConstructor):
                 raise ConstructorError(None, None, f"duplicate key {key!r}", key_node.start_mark)
         return super().construct_mapping(node, deep=deep)
 
+    def construct_yaml_int(self, node: ScalarNode) -> int:
+        """An integer of at most `MAX_INT_DIGITS` digits (Python refuses to convert longer ones;
+        no number of a gait needs more than a few)."""
+        digits = sum(c.isalnum() for c in str(node.value))
+        if digits > MAX_INT_DIGITS:
+            raise _Refused(None, None, f"an integer of {digits:,} digits; at most "
+                                       f"{MAX_INT_DIGITS:,} are read", node.start_mark)
+        return super().construct_yaml_int(node)
+
+
+_Constructor.add_constructor("tag:yaml.org,2002:int", _Constructor.construct_yaml_int)
+
 
 class _Resolver(Resolver):
     """YAML 1.1 resolution, plus YAML 1.2 floats without a dot (``1e-3``).
@@ -147,6 +188,19 @@ _Resolver.add_implicit_resolver(
     list("-+0123456789"),
 )
 
+class _PythonParser(Reader, Scanner, Parser):
+    """PyYAML's pure-Python event parser (no nesting limit of its own, reads only as far as it
+    must)."""
+
+    def __init__(self, stream: str) -> None:
+        Reader.__init__(self, stream)
+        Scanner.__init__(self)
+        Parser.__init__(self)
+
+    def dispose(self) -> None:
+        pass
+
+
 try:  # libyaml parses and composes about ten times faster than pure Python
     from yaml._yaml import CParser as _Parser  # type: ignore[import-not-found,unused-ignore]
 
@@ -157,18 +211,8 @@ try:  # libyaml parses and composes about ten times faster than pure Python
             _Resolver.__init__(self)
 except ImportError:  # pragma: no cover - PyYAML built without libyaml
     from yaml.composer import Composer
-    from yaml.parser import Parser
-    from yaml.reader import Reader
-    from yaml.scanner import Scanner
 
-    class _Parser(Reader, Scanner, Parser):  # type: ignore[no-redef]
-        def __init__(self, stream: str) -> None:
-            Reader.__init__(self, stream)
-            Scanner.__init__(self)
-            Parser.__init__(self)
-
-        def dispose(self) -> None:
-            pass
+    _Parser = _PythonParser  # type: ignore[misc,assignment,unused-ignore]
 
     class _Loader(Reader, Scanner, Parser, Composer, _Constructor, _Resolver):  # type: ignore[no-redef]
         def __init__(self, stream: str) -> None:

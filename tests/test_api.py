@@ -96,6 +96,7 @@ def test_keeping_the_trajectory_changes_no_number():
     gait = crawlsim.load_gait(P4)
     kept = crawlsim.simulate(gait, steps_per_period=100)
     lean = crawlsim.simulate(gait, steps_per_period=100, keep_trajectory=False)
+    # one computation with and without keeping the trajectory, on one machine: bit for bit
     assert lean.trajectory is None and kept.v0 == lean.v0
     np.testing.assert_array_equal(kept.history.poincare_step, lean.history.poincare_step)
     np.testing.assert_array_equal(kept.limit.x, lean.limit.x)

@@ -323,7 +323,7 @@ def test_list_bounds_are_checked_before_the_items():
     ("a: &a [1, 1, 1, 1, 1, 1, 1, 1, 1, 1]\n" + "".join(
         f"{x}: &{x} [" + ", ".join([f"*{p}"] * 10) + "]\n" for p, x in zip("abcdef", "bcdefg")),
      "more than 2,000,000 values once its aliases are expanded"),
-    ("blocks: " + "9" * 4400, "4300 digits"),
+    ("blocks: " + "9" * 4400, "an integer of 4,400 digits; at most 4,300 are read"),
 ])
 def test_yaml_refused_before_it_is_built(text, phrase):
     error = refused(text)

@@ -106,7 +106,7 @@ def test_optimize_matches_the_grid_maximum_with_a_fifth_of_its_evaluations(lag_g
     assert result.value >= grid_max - 1e-4
     assert all(0.0 <= x <= 1.0 for x in result.best_point.x)
     # the best point is the best of all evaluated points, and the history ends there
-    assert result.value == max(e.row.v0 for e in result.evaluations if e.runs)
+    assert result.value == max(e.row.v0 for e in result.evaluations if e.runs)  # the same floats
     best = [b.best for b in result.history]
     assert best[-1] == result.value and all(np.diff(best) >= 0)  # maximised: never decreases
     assert result.stage_counts()["polish"] > 0 and result.stage_counts()["global"] > 0
@@ -154,7 +154,7 @@ def test_the_same_seed_gives_the_same_result_with_one_or_two_jobs():
     first = opt.optimize(problem, method)
     again = opt.optimize(problem, method)
     pooled = opt.optimize(problem, method, jobs=2)
-    for other in (again, pooled):
+    for other in (again, pooled):  # reproducibility on one machine: bit for bit is the point
         assert other.best_point.x == first.best_point.x
         assert other.best_point.row.v0 == first.best_point.row.v0
         assert other.value == first.value
@@ -337,7 +337,7 @@ def test_an_interrupted_optimisation_resumes_from_its_journal(tmp_path):
     resumed = opt.optimize(problem, method, output=out)
     assert resumed.computed == len(resumed.evaluations) - stopped.value.done
     assert [e.x for e in resumed.evaluations] == [e.x for e in whole.evaluations]
-    assert resumed.best_point.row.v0 == whole.best_point.row.v0
+    assert resumed.best_point.row.v0 == whole.best_point.row.v0  # one machine: bit for bit
     assert out.exists() and not sweeps.journal_path(out).exists()
     # another optimisation refuses the journal of this one
     count[0] = 0
@@ -400,4 +400,5 @@ def test_a_dask_cluster_gives_the_same_result():
                                   processes=True, dashboard_address=None) as cluster:
         remote = opt.optimize(problem, method, scheduler=cluster.scheduler_address)
     assert [e.x for e in remote.evaluations] == [e.x for e in local.evaluations]
+    # workers on this machine run the same code on the same input: bit for bit is the point
     assert [e.row.v0 for e in remote.evaluations] == [e.row.v0 for e in local.evaluations]

@@ -53,6 +53,7 @@ def test_rerun_from_results_reproduces_the_run_bit_for_bit(tmp_path, case):
     a, b = read_results(first), read_results(again)
     if case != "process":
         assert np.isfinite(a["attrs"]["v0"])
+        # the same computation rerun on this machine: bit for bit is the point (reproducibility)
         assert a["attrs"]["v0"] == b["attrs"]["v0"]
     for group in ("convergence", "limit", "trajectory"):
         for name, value in a[group].items():
@@ -146,7 +147,7 @@ def test_the_api_records_the_call_and_its_result_reruns_from_the_cli(tmp_path):
     assert [link["amplitude"] for link in document["links"]] == [0.25, 0.25]
     r = cli("run", "--from", saved, "--json", "-o", tmp_path / "again.h5")
     assert r.exit_code == 0, r.output
-    assert json.loads(r.output)["v0"] == result.v0
+    assert json.loads(r.output)["v0"] == result.v0  # a rerun on this machine: bit for bit
 
 
 def test_sweep_files_record_the_base_document_specs_and_versions(tmp_path):

@@ -162,3 +162,93 @@ def test_float_options_refuse_non_finite_values(option, value, tmp_path):
         result = CliRunner().invoke(main, [command, str(tmp_path / "g.yaml"), option, value])
         assert result.exit_code == 2, result.output
         assert "Traceback" not in result.output
+
+
+# -- time: the cost of the signals (issue 19, item 12) ----------------------------------------
+def fourier_gait(blocks, harmonics, integrator="exact"):
+    """Every link a Fourier series of ``harmonics`` equal cosine terms (amplitude 0.3 in all)."""
+    link = {"kind": "fourier", "mean": 1.0, "cos": [0.3 / harmonics] * harmonics}
+    return {"blocks": blocks, "period": 1.0, "stiffness": 10.0, "links": [link] * (blocks - 1),
+            "friction": {"forward": 1.0, "backward": 2.5},
+            "simulation": {"integrator": integrator}}
+
+
+def test_signal_work_grows_with_harmonics_and_blocks():
+    """The estimate is of order H^2 (TRIG_COST + 2N) a period: doubling H multiplies it by about
+    4 (exactly 2 (4H + 1) / (2H + 1)); signals of at most one harmonic (closed-form events) cost
+    only their tabulation."""
+    from crawlsim.resources import TRIG_COST, signal_work
+
+    one, two = signal_work(100, 4, 1001), signal_work(200, 4, 1001)
+    assert two.per_period / one.per_period == pytest.approx(2 * 401 / 201)
+    more = signal_work(100, 80, 1001)
+    assert more.per_period / one.per_period == pytest.approx((TRIG_COST + 80) / (TRIG_COST + 4))
+    assert signal_work(1, 2000, 1001).per_period == 0.0
+    assert signal_work(1, 2000, 1001).tabulation == 1001 * 3 * (TRIG_COST + 2000)
+
+
+@pytest.mark.parametrize("blocks, integrator", [(2, "exact"), (2, "catch-up"), (40, "exact")])
+def test_a_gait_whose_signals_would_not_finish_is_refused_before_it_runs(tmp_path, monkeypatch,
+                                                                         blocks, integrator):
+    """The issue's gaits: 2 blocks with a Fourier link of 1000 harmonics ran for over a minute
+    with either integrator, 40 such blocks finished no period in 2 minutes. Both are refused by
+    the estimate (exit 2, the signal's key, how to reduce the cost) before anything runs: the
+    simulation and the sweep fail this test if they start."""
+    import yaml
+
+    from crawlsim.gait import load_gait
+    from crawlsim.resources import MAX_SIGNAL_WORK, gait_signal_work
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "f.yaml").write_text(yaml.safe_dump(fourier_gait(blocks, 1000, integrator)))
+    assert gait_signal_work(load_gait(tmp_path / "f.yaml")).run > MAX_SIGNAL_WORK
+
+    def computed(*args, **kwargs):
+        raise AssertionError("the run started")
+
+    import crawlsim.optimize
+
+    monkeypatch.setattr(api, "run", computed)
+    monkeypatch.setattr(sweeps, "run_sweep", computed)
+    monkeypatch.setattr(crawlsim.optimize, "optimize", computed)
+    for args in (["run", "f.yaml"], ["velocity", "f.yaml"],
+                 ["velocity", "f.yaml", "--sweep", "period=1,2", "-o", "s.csv"],
+                 ["optimize", "f.yaml", "--free", "period=1:2", "--max-evaluations", "2"]):
+        result = CliRunner().invoke(main, args)
+        assert result.exit_code == 2, result.output
+        message = result.output.strip()
+        assert len(message.splitlines()) == 1 and "Traceback" not in message
+        assert "f.yaml: links[0]: a signal of 1,000 harmonics" in message
+        assert "use fewer harmonics" in message
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["f.yaml"]
+
+
+def test_gaits_of_few_harmonics_are_not_refused():
+    """A Fourier link of 50 harmonics on 2 blocks, and 1000 blocks of cosine links (closed-form
+    events; the README's large crawler), are within the estimate."""
+    from crawlsim.resources import MAX_SIGNAL_WORK, gait_signal_work
+
+    small = gait_from_document(fourier_gait(2, 50), "small.yaml")
+    assert gait_signal_work(small).run < MAX_SIGNAL_WORK / 100
+    assert gait_signal_work(crawler(1000, 1000)).run < MAX_SIGNAL_WORK / 100
+
+
+def test_a_journal_that_is_not_a_regular_file_is_refused(tmp_path):
+    """OUT.journal a FIFO: the sweep opened it and waited for a reader forever. Now exit 2
+    before any point runs (in a subprocess with a time limit, so that a regression fails
+    instead of hanging the suite)."""
+    import os
+
+    gait = tmp_path / "g.yaml"
+    gait.write_text("blocks: 2\nperiod: 1.0\nstiffness: 10.0\nlinks: [{kind: cosine, mean: 1.0, "
+                    "amplitude: 0.3}]\nfriction: {forward: 1.0, backward: 2.5}\n")
+    os.mkfifo(tmp_path / "s.csv.journal")
+    done = subprocess.run([sys.executable, "-m", "crawlsim", "velocity", str(gait), "--sweep",
+                           "period=1,2", "-o", str(tmp_path / "s.csv")],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2, done.stderr
+    assert "Traceback" not in done.stderr
+    assert done.stderr.strip() == (f"Error: {tmp_path / 's.csv.journal'}: is a FIFO (named pipe), "
+                                   "not a regular file: the journal of a sweep must be a regular "
+                                   "file; remove it, or choose another output name")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["g.yaml", "s.csv.journal"]

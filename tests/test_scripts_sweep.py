@@ -39,6 +39,7 @@ def test_v0_folder(tmp_path):
     assert "skipped" in done.stderr and "triangle.yaml" in done.stderr
     for row in rows[1:3]:
         assert row["status"] == "ok"
+        # the script runs `crawlsim velocity` on this machine: the same printed digits
         assert float(row["v0"]) == _v0(folder / f"{row['gait']}.yaml",
                                        "--steps-per-period", "80")
     assert float(rows[1]["v0"]) == pytest.approx(0.4, abs=1e-12)  # inching closed form

@@ -248,8 +248,9 @@ def test_velocity_single_run_output_and_exit_codes():
     assert r.exit_code == 0 and len(r.output.splitlines()) == 1
     v0 = float(r.output)
     s = json.loads(vel(P4, *FAST, "--json").output)
-    assert s["v0"] == v0 and s["convergence"] in ("finite-time", "asymptotic")
-    # the digits its error estimate supports; --json has the full precision
+    assert s["convergence"] in ("finite-time", "asymptotic")
+    # the digits its error estimate supports (the printed v0 is the JSON's rounded to them, so
+    # not equal to it bit for bit); --json has the full precision
     assert r.output.strip() == supported(s["v0"], s["v0_error_estimate"])[0]
     assert abs(v0 - s["v0"]) <= s["v0_error_estimate"]
     slow = vel(GAITS / "peristalsis-4.yaml", "--steps-per-period", "40", "--sweep",

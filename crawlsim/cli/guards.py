@@ -55,13 +55,16 @@ def force_option(f):
 def check_memory(gait, max_memory, *, save_every: int = 1, batch: int = 1,
                  steps_per_period=None, blocks=None, what: str = "this run") -> None:
     """Refuse (ResourceError, exit 2) a gait whose run would not fit in ``max_memory`` bytes
-    (None: the default limit)."""
+    (None: the default limit), or whose signals would take too long (`resources.signal_work`)."""
     from ..resources import check_memory as check
-    from ..resources import default_limit, gait_memory
+    from ..resources import check_signal_work, default_limit, gait_memory, gait_signal_work
 
     estimate = gait_memory(gait, save_every=save_every, batch=batch,
                            steps_per_period=steps_per_period, blocks=blocks)
     check(estimate, default_limit() if max_memory is None else max_memory, gait.source, what)
+    # and the time its signals would take (fewer blocks at a sweep point cost less; more
+    # steps per period only add the tabulation)
+    check_signal_work(gait_signal_work(gait, steps_per_period=steps_per_period), gait.source)
 
 
 def warn_unchecked(gait) -> None:

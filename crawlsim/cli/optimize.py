@@ -36,12 +36,6 @@ def _objective(maximize, minimize):
     return None
 
 
-def _folder_of(path, option):
-    if path is not None and not Path(path).resolve().parent.is_dir():
-        raise BadInput(f"{option} {path}: the folder {Path(path).resolve().parent} does not "
-                       "exist")
-
-
 @main.command()
 @click.argument("gait_file", type=click.Path(exists=True, dir_okay=False))
 @click.option("--free", "free_specs", multiple=True, metavar="PATH=LO:HI",
@@ -115,17 +109,29 @@ def optimize(gait_file, free_specs, maximize, minimize, constraints, pareto, fro
         raise BadInput("--output -: the results of an optimisation are an HDF5 file, which "
                        "cannot be streamed to stdout; give a file name (-o opt.h5), and --json "
                        "prints the answer on stdout")
-    _folder_of(write_best, "--write-best")
     with library_errors():
-        out = _output_path(output, Path(gait_file).stem + "-optimize")
+        if scheduler is not None:
+            from ..sweep import check_scheduler
+
+            check_scheduler(scheduler)
+        opt.Method(seed=seed)  # refuses a seed the results file cannot hold, before any work
+        out = _output_path(output, Path(gait_file).stem + "-optimize", inputs=[gait_file])
         if out.suffix.lower() not in (".h5", ".hdf5"):
             raise BadInput(f"--output {out}: an optimisation is written to HDF5: give a name "
                            "ending in .h5")
+        if write_best is not None:
+            from ..outputs import GAIT, check_target
+
+            # never the gait file optimised (nor the results file): refused like every output
+            check_target(write_best, GAIT, inputs=[gait_file, out], option="--write-best")
         objective = _objective(maximize, minimize)
         free = [opt.parse_free(spec) for spec in free_specs]
         cons = [opt.parse_constraint(text) for text in constraints]
         gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance,
                                    _integrator(gait_file))
+        from ..resources import check_signal_work, gait_signal_work
+
+        check_signal_work(gait_signal_work(gait), gait.source)  # before any evaluation
         problem = opt.make_problem(gait, free, objective=objective, constraints=cons,
                                    pareto=pareto)
         method = opt.Method(seed=seed, max_evaluations=max_evaluations,

@@ -21,6 +21,10 @@ from . import (
 )
 from .guards import check_memory, force_option, max_memory_option, warn_unchecked
 
+#: Largest ``--save-every``: grid points are counted in int64 (a run has at most 10^8 steps per
+#: period, so any larger value saves only each period's first point anyway).
+MAX_SAVE_EVERY = 2**62
+
 
 @main.command()
 @click.argument("gait_file", required=False, type=click.Path(exists=True, dir_okay=False))
@@ -83,6 +87,9 @@ def run(gait_file, from_results, output, steps_per_period, max_periods, toleranc
             gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance)
             out = _output_path(output, gait_file, force)
             save_every = save_every or 1
+        if save_every > MAX_SAVE_EVERY:
+            raise BadInput(f"--save-every {save_every}: expected a number of steps from 1 to "
+                           f"{MAX_SAVE_EVERY:,} (the grid points are counted in 64-bit integers)")
         check_memory(gait, max_memory, save_every=save_every)
         if plot:
             from ..outputs import FIGURE, check_target

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 
 import click
@@ -152,6 +153,14 @@ def velocity(gait_file, as_json, sweep_specs, link_specs, output, jobs, shard, s
         output = None  # stdout is where the table (or v0) goes without -o
     with library_errors():
         from ..outputs import FIGURE, SWEEP, check_target
+
+        if scheduler is not None:
+            from ..sweep import check_scheduler
+
+            check_scheduler(scheduler)
+        if output is not None and plot_file is not None and \
+                os.path.abspath(output) == os.path.abspath(plot_file):
+            raise BadInput(f"--plot {plot_file}: is also the --output file; give two names")
 
         for path, kind, option in ((output, SWEEP, "--output"), (plot_file, FIGURE, "--plot")):
             if path is not None:
