@@ -1,0 +1,162 @@
+"""The compiled kernel (`crawlsim.kernel`): the certified catch-up step of a crawler chain.
+
+What must hold:
+
+* it is the same scheme as `crawlsim.kkt` (the telescoped runs that generic processes keep): a
+  certified KKT point of a strictly convex problem is unique, so both paths take the same steps
+  to roundoff, and v0 agrees to 1e-12 on every example crawler;
+* one source: the compiled functions and the same functions run as Python
+  (``NUMBA_DISABLE_JIT=1``, in a subprocess) give the same bits on fixed inputs (the kernel is
+  plain IEEE arithmetic in a fixed order; numba does not contract or reassociate without
+  fastmath);
+* a step whose numbers are wrong is never accepted: it raises `CertificateError`, naming the
+  time and the rows;
+* a cold cache is announced with one line on stderr, a warm one is not.
+"""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from crawlsim import kkt
+from crawlsim.errors import CertificateError
+from crawlsim.gait import load_gait
+from crawlsim.kernel import catchup, chain
+from crawlsim.model import compile_gait
+from crawlsim.stepping import CatchUpStepper
+
+ROOT = Path(__file__).resolve().parents[1]
+CRAWLERS = sorted(p for p in [*ROOT.glob("gaits/*.yaml"), *ROOT.glob("gaits/paper/*.yaml")]
+                  if "sweeping-process" not in p.read_text())
+#: Few periods of short chains: the same steps run as Python in the subprocess.
+BITWISE = ("inching-2", "peristalsis-4", "smooth-friction-3", "anchoring-2")
+
+
+def test_kernel_constants_are_the_kkt_policy():
+    assert (chain.RTOL, chain.REFINE_FRACTION, chain.UPDATE_ITERATIONS) == (
+        kkt.RTOL, kkt.REFINE_FRACTION, kkt.UPDATE_ITERATIONS)
+
+
+@pytest.mark.parametrize("path", CRAWLERS, ids=lambda p: p.stem)
+def test_kernel_steps_are_the_kkt_steps(path):
+    """Three periods from the file's initial state with the kernel and with the telescoped
+    runs of `crawlsim.kkt`: states, slips and v0 of each period agree to roundoff (1e-12
+    relative to the sizes involved), and the periods visit the same active sets."""
+    process = compile_gait(load_gait(path))
+    fast, slow = CatchUpStepper(process), CatchUpStepper(process, kernel=False)
+    assert fast._kernel is not None
+    for _ in range(3):
+        a, b = fast.step_period(), slow.step_period()
+        scale = max(1.0, float(np.max(np.abs(b.w))))
+        assert np.max(np.abs(a.w - b.w)) <= 1e-12 * scale
+        assert np.max(np.abs(a.x - b.x)) <= 1e-12 * max(1.0, float(np.max(np.abs(b.x))))
+        v_a = float(np.mean(a.x[-1] - a.x[0])) / process.period
+        v_b = float(np.mean(b.x[-1] - b.x[0])) / process.period
+        assert abs(v_a - v_b) <= 1e-12
+        assert [A.index.tolist() for A in a.visited] == [A.index.tolist() for A in b.visited]
+
+
+RUN_PERIODS = """\
+import json, sys
+import numpy as np
+from crawlsim.gait import load_gait
+from crawlsim.model import compile_gait
+from crawlsim.stepping import CatchUpStepper
+out = {}
+for path in json.loads(sys.argv[1]):
+    stepper = CatchUpStepper(compile_gait(load_gait(path)))
+    records = [stepper.step_period() for _ in range(2)]
+    out[path] = [[r.w.tobytes().hex(), r.multipliers.tobytes().hex()] for r in records]
+with open(sys.argv[2], "w") as f:
+    json.dump(out, f)
+"""
+
+
+def _periods(paths, out: Path, disable_jit: bool) -> dict:
+    env = dict(os.environ)
+    env.pop("NUMBA_DISABLE_JIT", None)
+    if disable_jit:
+        env["NUMBA_DISABLE_JIT"] = "1"
+    subprocess.run([sys.executable, "-c", RUN_PERIODS, json.dumps(paths), str(out)], check=True,
+                   env=env, capture_output=True, timeout=600)
+    return json.loads(out.read_text())
+
+
+def test_compiled_and_python_kernels_agree_bit_for_bit(tmp_path):
+    paths = [str(ROOT / "gaits" / f"{name}.yaml") for name in BITWISE]
+    compiled = _periods(paths, tmp_path / "compiled.json", disable_jit=False)
+    python = _periods(paths, tmp_path / "python.json", disable_jit=True)
+    for path in paths:
+        assert compiled[path] == python[path], path
+
+
+def _corrupted(scale: float) -> CatchUpStepper:
+    """peristalsis-4 after one period, about to step its second on the set of that period's
+    first step (learnt from a twin stepper), whose factor the kernel keeps, scaled by
+    ``scale`` behind its back: a value the compiled code receives."""
+    process = compile_gait(load_gait(ROOT / "gaits" / "peristalsis-4.yaml"))
+    twin, stepper = CatchUpStepper(process), CatchUpStepper(process)
+    twin.step_period()
+    stepper.step_period()
+    rows = np.flatnonzero(twin.step_period().multipliers[0] > 0)
+    assert rows.size
+    stepper.active = process.polyhedron.factor(rows)
+    kernel = stepper._kernel
+    assert kernel is not None
+    kernel.load(stepper.active)
+    kernel.factored[:] = kernel.signs
+    kernel.norms[:] = chain.factor(kernel.k, kernel.signs, kernel.D, kernel.l)
+    kernel.D *= scale
+    return stepper
+
+
+def test_corrupted_factor_raises_certificate_error():
+    """With the pivots off by 1e-3 relative, the first step solves the wrong system; one step
+    of iterative refinement leaves about (1e-3)^2 = 1e-6 of the residual, far above the 1e-14
+    relative of the certificate, and the set is right (no multiplier of the wrong sign, no
+    violated row), so no update applies: the step fails with its time and rows. (Switching
+    off the certificate, or the refinement's trigger, lets the wrong step through.)"""
+    stepper = _corrupted(1.0 + 1e-3)
+    with pytest.raises(CertificateError, match=r"failed its certificate at t = 1\.001: .*"
+                                               r"complementarity .*worst row 2 \(J = \{3\}"):
+        stepper.step_period()
+
+
+def test_refinement_repairs_a_small_corruption():
+    """The control: pivots off by 1e-9 leave (1e-9)^2 after one refinement, below roundoff, and
+    the period is certified and equals the uncorrupted one to roundoff."""
+    process = compile_gait(load_gait(ROOT / "gaits" / "peristalsis-4.yaml"))
+    clean = CatchUpStepper(process)
+    clean.step_period()
+    expected = clean.step_period()
+    got = _corrupted(1.0 + 1e-9).step_period()
+    assert np.max(np.abs(got.w - expected.w)) <= 1e-12
+
+
+ANNOUNCE = """\
+from crawlsim.kernel import catchup
+catchup.announce_compilation()
+catchup.announce_compilation()
+"""
+
+
+def test_cold_cache_is_announced_once(tmp_path):
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "empty"))
+    env.pop("NUMBA_DISABLE_JIT", None)
+    run = subprocess.run([sys.executable, "-c", ANNOUNCE], env=env, capture_output=True,
+                         text=True, timeout=120)
+    assert run.returncode == 0
+    assert run.stderr.count("compiling the kernel once") == 1
+
+
+def test_warm_cache_is_not_announced():
+    """After a run in this process the cache holds the entry point (or the JIT is disabled):
+    nothing to announce."""
+    process = compile_gait(load_gait(ROOT / "gaits" / "inching-2.yaml"))
+    CatchUpStepper(process).step_period()
+    assert not catchup.cache_is_cold()
