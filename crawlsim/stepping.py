@@ -21,6 +21,7 @@ processes), for comparison.
 from __future__ import annotations
 
 import importlib
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Literal, NamedTuple
 
@@ -85,7 +86,7 @@ class PeriodRecord:
     # The active sets the period visited, in order (consecutive repeats and empty sets left
     # out): the period map is affine near this start, with Jacobian the product of their
     # projectors I - R_A B_A (`crawlsim.limit`).
-    visited: tuple = ()
+    visited: Sequence = ()
     # The period's energy ledger integrated exactly on the event-driven integrator's pieces
     # (`crawlsim.energy.PeriodEnergy`); None for catch-up, whose ledger follows from the grid.
     energy: Any = None
@@ -139,6 +140,7 @@ class CatchUpStepper(PeriodStepper):
         self.period_index = 0
         self._visited: list = []
         self._kernel = None
+        self._lazy_visited: Sequence | None = None  # the kernel's record (`VisitedSets`)
         if kernel and not check_every_step and process.is_crawler:
             from .kernel.catchup import ChainKernel
 
@@ -155,6 +157,7 @@ class CatchUpStepper(PeriodStepper):
         W[0] = self.w
         calls0 = self.projector.clarabel_calls
         self._visited = []
+        self._lazy_visited = None
         j, block = 0, _FIRST_BLOCK
         if self._kernel is not None:
             self._kernel_period(W, LAM, start)
@@ -193,7 +196,8 @@ class CatchUpStepper(PeriodStepper):
         self.w = W[-1].copy()
         record = PeriodRecord(self.period_index, start, W, LAM, X,
                               self.projector.clarabel_calls - calls0,
-                              visited=tuple(self._visited))
+                              visited=(tuple(self._visited) if self._lazy_visited is None
+                                       else self._lazy_visited))
         self.period_index += 1
         return record
 
@@ -220,7 +224,7 @@ class CatchUpStepper(PeriodStepper):
             kernel.load(self.active)
             j += 1
         self.active = kernel.active(self.active)
-        self._visited = catchup.visited(self.polyhedron, S)
+        self._lazy_visited = catchup.VisitedSets(self.polyhedron, S)
 
     def _full_step(self, j, W, LAM, start, *, warm: bool):
         p = self.process

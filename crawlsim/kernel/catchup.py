@@ -7,7 +7,7 @@ sets as `crawlsim.kkt.ActiveSet` (for the periodic-limit solver), a failed certi
 from __future__ import annotations
 
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -16,7 +16,7 @@ from . import chain
 
 #: What the first compilation costs (measured with an empty cache on a 2-core machine; printed
 #: so that a first run does not look hung).
-COLD_SECONDS = 10
+COLD_SECONDS = 20
 _announced = False
 
 
@@ -104,22 +104,37 @@ class ChainKernel:
                 f"{describe(rows_of(self.signs))}")
 
 
-def visited(polyhedron: Polyhedron, S: np.ndarray) -> list[ActiveSet]:
-    """The non-empty active sets of a period's steps S (G, N), in order, consecutive repeats
-    left out (`crawlsim.stepping.PeriodRecord.visited`)."""
-    if not len(S):
-        return []
-    starts = np.concatenate([[0], np.flatnonzero(np.any(S[1:] != S[:-1], axis=1)) + 1])
-    out: list[ActiveSet] = []
-    for s in starts:
-        if not S[s].any():
-            continue
-        try:
-            A = polyhedron.factor(rows_of(S[s]))
-        except Dependent:  # pragma: no cover - the kernel's sets are independent
-            continue
-        if not out or out[-1] is not A:
-            out.append(A)
-    return out
+class VisitedSets(Sequence):
+    """The non-empty active sets of a period's steps, in order, consecutive repeats left out
+    (`crawlsim.stepping.PeriodRecord.visited`), factored by `crawlsim.kkt` only when the
+    periodic-limit solver asks for them: most periods never need them."""
 
+    def __init__(self, polyhedron: Polyhedron, S: np.ndarray):
+        self._polyhedron = polyhedron
+        if len(S):
+            starts = np.concatenate([[0], np.flatnonzero(np.any(S[1:] != S[:-1], axis=1)) + 1])
+            self._sets = S[starts]
+        else:
+            self._sets = S
+        self._factored: list[ActiveSet] | None = None
 
+    def _list(self) -> list[ActiveSet]:
+        if self._factored is None:
+            out: list[ActiveSet] = []
+            for signs in self._sets:
+                if not signs.any():
+                    continue
+                try:
+                    A = self._polyhedron.factor(rows_of(signs))
+                except Dependent:  # pragma: no cover - the kernel's sets are independent
+                    continue
+                if not out or out[-1] is not A:
+                    out.append(A)
+            self._factored = out
+        return self._factored
+
+    def __len__(self) -> int:
+        return len(self._list())
+
+    def __getitem__(self, i):
+        return self._list()[i]
