@@ -319,6 +319,11 @@ class EventStepper(PeriodStepper):
                   time: float) -> _Velocity:
         """argmin 1/2 |v|_M^2 over {B_fixed v = c_fixed, B_i v <= c_i (finite c_i)}: the
         kernel's updates from ``warm``, Clarabel's proposal when they do not settle."""
+        from .kernel.catchup import velocity  # crawlers: the compiled, certified step
+
+        found = velocity(self.poly, c, warm, fixed)
+        if found is not None:
+            return _Velocity(found[0], found[1], Tolerance(found[2], found[3]))
         poly = self.poly
         zero = np.zeros(poly.n)
         step = poly.refine(zero, c, warm, fixed=fixed)

@@ -25,6 +25,7 @@ import pytest
 
 from crawlsim import kkt
 from crawlsim.errors import CertificateError
+from crawlsim.exact import EventStepper
 from crawlsim.gait import load_gait
 from crawlsim.kernel import catchup, chain
 from crawlsim.model import compile_gait
@@ -59,6 +60,36 @@ def test_kernel_steps_are_the_kkt_steps(path):
         v_b = float(np.mean(b.x[-1] - b.x[0])) / process.period
         assert abs(v_a - v_b) <= 1e-12
         assert [A.index.tolist() for A in a.visited] == [A.index.tolist() for A in b.visited]
+
+
+@pytest.mark.parametrize("path", CRAWLERS, ids=lambda p: p.stem)
+def test_exact_velocity_problems_in_the_kernel_change_nothing(path, monkeypatch):
+    """The exact integrator's velocity problems (Moreau's, and the higher orders with the rows
+    already decided as equalities) solved and certified by the compiled kernel, or by
+    `crawlsim.kkt` (the kernel switched off): the same certified KKT points, so the same
+    decisions, events and states, to roundoff, and v0 of each period to 1e-12."""
+    process = compile_gait(load_gait(path))
+    calls = []
+    fast_velocity = catchup.velocity
+
+    def counted(*args):
+        found = fast_velocity(*args)
+        calls.append(found is not None)
+        return found
+
+    monkeypatch.setattr(catchup, "velocity", counted)
+    fast = EventStepper(process)
+    fast_records = [fast.step_period() for _ in range(2)]
+    monkeypatch.setattr(catchup, "velocity", lambda *args: None)
+    slow = EventStepper(process)
+    for a in fast_records:
+        b = slow.step_period()
+        assert np.max(np.abs(a.w - b.w)) <= 1e-12 * max(1.0, float(np.max(np.abs(b.w))))
+        v_a = float(np.mean(a.x[-1] - a.x[0])) / process.period
+        v_b = float(np.mean(b.x[-1] - b.x[0])) / process.period
+        assert abs(v_a - v_b) <= 1e-12
+        assert len(a.events.t) == len(b.events.t)
+    assert any(calls)  # the kernel did decide (events with tight rows happen on every gait)
 
 
 RUN_PERIODS = """\

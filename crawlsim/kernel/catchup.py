@@ -138,3 +138,33 @@ class VisitedSets(Sequence):
 
     def __getitem__(self, i):
         return self._list()[i]
+
+
+def velocity(polyhedron: Polyhedron, c: np.ndarray, warm: np.ndarray,
+             fixed: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float] | None:
+    """The exact integrator's velocity problem argmin 1/2 |v|_M^2 over {B_fixed v = c_fixed,
+    B_i v <= c_i (finite c_i)} of a crawler, certified in the compiled kernel from the rows
+    ``warm`` (`chain.project`): (v, lambda, tol_p, tol_d), or None when the kernel does not
+    settle it (the caller's Python path decides, as before)."""
+    if not isinstance(polyhedron, ChainPolyhedron):
+        return None
+    N = polyhedron.blocks
+    rows = np.zeros(2 * N, dtype=np.bool_)
+    rows[warm] = True
+    rows[fixed] = True
+    if not chain.independent(rows, N):
+        return None
+    signs = np.zeros(N, dtype=np.int8)
+    signs[rows[:N]] = 1
+    signs[rows[N:]] = -1
+    mask = np.zeros(2 * N, dtype=np.bool_)
+    mask[fixed] = True
+    w = np.empty(N - 1)
+    lam = np.empty(2 * N)
+    report = np.zeros(6)
+    status = chain.project(np.ascontiguousarray(polyhedron.stiffness, dtype=float),
+                           float(polyhedron.c_scale), np.zeros(N - 1),
+                           np.ascontiguousarray(c, dtype=float), signs, mask, w, lam, report)
+    if status != chain.DONE:
+        return None
+    return w, lam, float(report[chain.REPORT_TOLP]), float(report[chain.REPORT_TOLD])

@@ -135,15 +135,16 @@ def complementarity(signs, slack):
 
 
 @njit(cache=True)
-def certificate(signs, lam, slack):
-    """(primal, dual, complementarity): max(B w - c), max(0, -min lambda), max |(B w - c)_A|."""
+def certificate(signs, lam, slack, fixed):
+    """(primal, dual, complementarity): max(B w - c), max(0, -min lambda) over the rows not
+    ``fixed`` (equalities: multipliers of either sign), max |(B w - c)_A|."""
     primal = -np.inf
     for i in range(slack.shape[0]):
         if slack[i] > primal:
             primal = slack[i]
     dual = 0.0
     for i in range(lam.shape[0]):
-        if -lam[i] > dual:
+        if -lam[i] > dual and not fixed[i]:
             dual = -lam[i]
     return primal, dual, complementarity(signs, slack)
 
@@ -168,8 +169,8 @@ def on_set(k, kmax, c_scale, w_trial, c, signs, D, l, inverse, gram, dx, w, lam,
         solve(D, l, dx)
     state(k, w_trial, dx, signs, w, lam, slack, c, f)
     c_size = 0.0
-    for i in range(c.shape[0]):
-        if abs(c[i]) > c_size:
+    for i in range(c.shape[0]):  # rows with an infinite offset are ignored (velocity problems)
+        if abs(c[i]) > c_size and abs(c[i]) < np.inf:
             c_size = abs(c[i])
     w_size = 0.0
     for i in range(w_trial.shape[0]):
@@ -210,11 +211,11 @@ def independent(rows, N):
 
 
 @njit(cache=True)
-def update(signs, lam, slack, tol_p, tol_d, new):
+def update(signs, lam, slack, tol_p, tol_d, new, fixed):
     """The next set of a primal-dual update into ``new`` (`crawlsim.kkt.Polyhedron.update_set`,
-    then `exchange` where the set would fail LICQ). Returns 0 with a new set, 1 when nothing is
-    to change (the certificate failed on its own numbers), 2 when no independent update
-    exists (the Python projector decides)."""
+    then `exchange` where the set would fail LICQ); rows ``fixed`` never leave. Returns 0 with a
+    new set, 1 when nothing is to change (the certificate failed on its own numbers), 2 when
+    no independent update exists (the Python projector decides)."""
     N = signs.shape[0]
     rows = np.zeros(2 * N, dtype=np.bool_)
     member = np.zeros(2 * N, dtype=np.bool_)
@@ -226,7 +227,7 @@ def update(signs, lam, slack, tol_p, tol_d, new):
     worst_add, worst_slack = -1, -np.inf
     for r in range(2 * N):
         if member[r]:
-            if lam[r] < -tol_d:
+            if lam[r] < -tol_d and not fixed[r]:
                 change = True
                 if lam[r] < worst_lam:
                     worst_lam, worst_drop = lam[r], r
@@ -262,7 +263,7 @@ def update(signs, lam, slack, tol_p, tol_d, new):
             sign_r = 1 if r < N else -1
             leave, smallest = -1, np.inf
             for q in range(2 * N):
-                if member[q] and (1 if q < N else -1) != sign_r:
+                if member[q] and not fixed[q] and (1 if q < N else -1) != sign_r:
                     ratio = max(lam[q], 0.0)
                     if ratio < smallest:
                         smallest, leave = ratio, q
@@ -274,6 +275,61 @@ def update(signs, lam, slack, tol_p, tol_d, new):
     for i in range(N):
         new[i] = 1 if rows[i] else (-1 if rows[N + i] else 0)
     return 0
+
+
+@njit(cache=True)
+def settle(k, kmax, c_scale, w_trial, c, signs, factored, D, l, norms, fixed, dx, w, lam, slack,
+           f, res, new, seen, report):
+    """One certified projection of ``w_trial`` onto {B w <= c} (rows ``fixed`` as equalities)
+    from the set ``signs``, by primal-dual updates (`crawlsim.kkt.Polyhedron.refine`): DONE
+    with w, lam, slack and the set in place, HANDOFF when the updates cycle, run out or find
+    no independent set, FAILED when the certificate fails with nothing to change (``report``).
+    Returns (status, tol_p); the tolerances are also left in report[REPORT_TOLP:REPORT_TOLD+1]."""
+    for it in range(UPDATE_ITERATIONS):
+        for q in range(it):  # a set seen before: the updates cycle
+            if np.array_equal(seen[q], signs):
+                return HANDOFF, 0.0
+        seen[it] = signs
+        if not np.array_equal(factored, signs):
+            norms[0], norms[1] = factor(k, signs, D, l)
+            factored[:] = signs
+        tol_p, tol_d = on_set(k, kmax, c_scale, w_trial, c, signs, D, l, norms[0], norms[1],
+                              dx, w, lam, slack, f, res)
+        primal, dual, comp = certificate(signs, lam, slack, fixed)
+        report[REPORT_TOLP], report[REPORT_TOLD] = tol_p, tol_d
+        if primal <= tol_p and dual <= tol_d and comp <= tol_p:
+            return DONE, tol_p
+        outcome = update(signs, lam, slack, tol_p, tol_d, new, fixed)
+        if outcome == 1:
+            report[REPORT_PRIMAL], report[REPORT_DUAL], report[REPORT_COMP] = primal, dual, comp
+            report[REPORT_ROW] = worst_row(signs, lam, slack)
+            return FAILED, tol_p
+        if outcome == 2:
+            return HANDOFF, tol_p
+        signs[:] = new
+    return HANDOFF, 0.0
+
+
+@njit(cache=True)
+def project(k, c_scale, w_trial, c, signs, fixed, w, lam, report):
+    """One certified projection (`settle`) for the exact integrator's velocity problems:
+    w_trial = 0, c infinite on the rows to ignore, ``fixed`` the rows held with equality.
+    Returns the status; w, lam, signs and report[REPORT_TOLP], report[REPORT_TOLD] hold the
+    step when it is DONE."""
+    N = signs.shape[0]
+    kmax = 0.0
+    for i in range(k.shape[0]):
+        if k[i] > kmax:
+            kmax = k[i]
+    factored = np.full(N, 2, dtype=np.int8)
+    D = np.empty(N)
+    l = np.empty(max(N - 1, 0))
+    norms = np.zeros(2)
+    status, _ = settle(k, kmax, c_scale, w_trial, c, signs, factored, D, l, norms, fixed,
+                       np.empty(N), w, lam, np.empty(2 * N), np.empty(N), np.empty(N),
+                       np.empty(N, dtype=np.int8), np.empty((UPDATE_ITERATIONS, N), dtype=np.int8),
+                       report)
+    return status
 
 
 @njit(cache=True)
@@ -296,36 +352,14 @@ def catch_up(k, c_scale, C, W, LAM, S, signs, factored, D, l, norms, j0, report)
     w = np.empty(N - 1)
     new = np.empty(N, dtype=np.int8)
     seen = np.empty((UPDATE_ITERATIONS, N), dtype=np.int8)
+    fixed = np.zeros(2 * N, dtype=np.bool_)
     for j in range(j0, G):
         c = C[j + 1]
         w_trial = W[j]
-        settled = False
-        for it in range(UPDATE_ITERATIONS):
-            for q in range(it):  # a set seen before: the updates cycle
-                if np.array_equal(seen[q], signs):
-                    return HANDOFF, j
-            seen[it] = signs
-            if not np.array_equal(factored, signs):
-                norms[0], norms[1] = factor(k, signs, D, l)
-                factored[:] = signs
-            tol_p, tol_d = on_set(k, kmax, c_scale, w_trial, c, signs, D, l, norms[0],
-                                  norms[1], dx, w, lam, slack, f, res)
-            primal, dual, comp = certificate(signs, lam, slack)
-            if primal <= tol_p and dual <= tol_d and comp <= tol_p:
-                settled = True
-                break
-            outcome = update(signs, lam, slack, tol_p, tol_d, new)
-            if outcome == 1:
-                report[REPORT_PRIMAL], report[REPORT_DUAL], report[REPORT_COMP] = (
-                    primal, dual, comp)
-                report[REPORT_TOLP], report[REPORT_TOLD] = tol_p, tol_d
-                report[REPORT_ROW] = worst_row(signs, lam, slack)
-                return FAILED, j
-            if outcome == 2:
-                return HANDOFF, j
-            signs[:] = new
-        if not settled:
-            return HANDOFF, j
+        status, tol_p = settle(k, kmax, c_scale, w_trial, c, signs, factored, D, l, norms, fixed,
+                               dx, w, lam, slack, f, res, new, seen, report)
+        if status != DONE:
+            return status, j
         # every block tight to roundoff with an inactive row among them: LICQ may fail and the
         # slips may not be unique; the Python projector decides (crawlsim.projection)
         all_tight = True
