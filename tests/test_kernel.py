@@ -99,10 +99,13 @@ from crawlsim.gait import load_gait
 from crawlsim.model import compile_gait
 from crawlsim.stepping import CatchUpStepper
 out = {}
+from crawlsim.exact import EventStepper
 for path in json.loads(sys.argv[1]):
-    stepper = CatchUpStepper(compile_gait(load_gait(path)))
-    records = [stepper.step_period() for _ in range(2)]
-    out[path] = [[r.w.tobytes().hex(), r.multipliers.tobytes().hex()] for r in records]
+    process = compile_gait(load_gait(path))
+    for stepper in (CatchUpStepper(process), EventStepper(process)):
+        records = [stepper.step_period() for _ in range(2)]
+        out[f"{path} {type(stepper).__name__}"] = [
+            [r.w.tobytes().hex(), r.multipliers.tobytes().hex()] for r in records]
 with open(sys.argv[2], "w") as f:
     json.dump(out, f)
 """
@@ -119,11 +122,14 @@ def _periods(paths, out: Path, disable_jit: bool) -> dict:
 
 
 def test_compiled_and_python_kernels_agree_bit_for_bit(tmp_path):
+    """Two periods of catch-up and of the exact integrator (the velocity problems and the
+    closed-form events run in the kernel) on four gaits."""
     paths = [str(ROOT / "gaits" / f"{name}.yaml") for name in BITWISE]
     compiled = _periods(paths, tmp_path / "compiled.json", disable_jit=False)
     python = _periods(paths, tmp_path / "python.json", disable_jit=True)
-    for path in paths:
-        assert compiled[path] == python[path], path
+    assert compiled.keys() == python.keys() and len(compiled) == 2 * len(paths)
+    for key in compiled:
+        assert compiled[key] == python[key], key
 
 
 def _corrupted(scale: float) -> CatchUpStepper:
@@ -191,3 +197,38 @@ def test_warm_cache_is_not_announced():
     process = compile_gait(load_gait(ROOT / "gaits" / "inching-2.yaml"))
     CatchUpStepper(process).step_period()
     assert not catchup.cache_is_cold()
+
+
+def test_linear_crossing_closed_form():
+    """f = a + s u: the zero is -a/s when it lies after u0; a row tight at u0 (roundoff puts
+    its zero at or before u0) gets the time it exceeds its tolerance, (tol - a)/s; a falling
+    or late one gets none."""
+    from crawlsim.kernel.events import linear_crossings
+
+    a = np.array([-1.0, 0.0, 1.0, -3.0])
+    s = np.array([2.0, 2.0, -1.0, 2.0])
+    tol = np.full(4, 1e-14)
+    out = np.empty(4)
+    linear_crossings(a, s, tol, 0.0, 1.0, out)
+    assert out[0] == 0.5 and out[1] == 0.5e-14
+    assert np.isinf(out[2]) and np.isinf(out[3])  # falling; crossing at 1.5, after u1
+
+
+def test_harmonic_crossing_closed_form():
+    """f = cos 2 pi u - 1/2 rises through 0 where cos theta = 1/2 on its way up, theta =
+    2 pi - pi/3: u = 5/6 (from u0 = 0.3, when f < 0). From u0 = 0.9, inside the arc where
+    f > 0 already, the next upward crossing is a period later, 1 + 5/6, beyond u1 = 1.5. With
+    a phase, f = cos 2 pi (u - 1/4) - 1/2 = sin 2 pi u - 1/2 (alpha = 0, beta = 1) rises
+    through 0 at u = 1/12."""
+    from crawlsim.kernel.events import harmonic_crossings
+
+    out = np.empty(1)
+    harmonic_crossings(np.array([-0.5]), np.array([1.0]), np.array([0.0]),
+                       np.array([1e-14]), 0.3, 1.0, out)
+    assert out[0] == pytest.approx(5 / 6, abs=1e-14)
+    harmonic_crossings(np.array([-0.5]), np.array([1.0]), np.array([0.0]),
+                       np.array([1e-14]), 0.9, 1.5, out)
+    assert np.isinf(out[0])
+    harmonic_crossings(np.array([-0.5]), np.array([0.0]), np.array([1.0]),
+                       np.array([1e-14]), 0.0, 1.0, out)
+    assert out[0] == pytest.approx(1 / 12, abs=1e-14)
