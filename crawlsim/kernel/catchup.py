@@ -16,28 +16,36 @@ from . import chain
 
 #: What the first compilation costs (measured with an empty cache on a 2-core machine; printed
 #: so that a first run does not look hung).
-COLD_SECONDS = 20
-_announced = False
+COLD_SECONDS = 25
+_announced: set[str] = set()
 
 
-def cache_is_cold() -> bool:
-    """Whether numba has no cached machine code of the kernel's entry point for this source
-    (its index file is missing or stale). False when the JIT is disabled or the cache cannot be
-    inspected: then nothing is announced."""
+def _entries(integrator: str) -> tuple:
+    """The compiled entry point an integrator calls first (the exact integrator's closed
+    forms are small and compile with it only when its gait needs them)."""
+    return (chain.catch_up,) if integrator == "catch-up" else (chain.project,)
+
+
+def cache_is_cold(integrator: str = "catch-up") -> bool:
+    """Whether numba has no cached machine code of one of the kernel's entry points that
+    ``integrator`` calls, for this source (an index file missing or stale). False when the JIT
+    is disabled or the cache cannot be inspected: then nothing is announced."""
     try:
-        index = chain.catch_up._cache._cache_file._load_index()  # type: ignore[attr-defined]
+        return any(not entry._cache._cache_file._load_index()
+                   for entry in _entries(integrator))
     except Exception:
         return False
-    return not index
 
 
-def announce_compilation() -> None:
-    """One line on stderr before the kernel is compiled for the first time in this cache."""
-    global _announced
-    if not _announced and cache_is_cold():
-        print(f"crawlsim: compiling the kernel once, ~{COLD_SECONDS} s", file=sys.stderr,
-              flush=True)
-    _announced = True
+def announce_compilation(integrator: str = "catch-up") -> None:
+    """One line on stderr (at most one per process) before the kernel is compiled for the
+    first time in this cache."""
+    if integrator not in _announced:
+        if cache_is_cold(integrator) and "printed" not in _announced:
+            print(f"crawlsim: compiling the kernel once, ~{COLD_SECONDS} s", file=sys.stderr,
+                  flush=True)
+            _announced.add("printed")
+        _announced.add(integrator)
 
 
 def signs_of(active: ActiveSet, blocks: int) -> np.ndarray:
@@ -148,6 +156,7 @@ def velocity(polyhedron: Polyhedron, c: np.ndarray, warm: np.ndarray,
     settle it (the caller's Python path decides, as before)."""
     if not isinstance(polyhedron, ChainPolyhedron):
         return None
+    announce_compilation("exact")
     N = polyhedron.blocks
     rows = np.zeros(2 * N, dtype=np.bool_)
     rows[warm] = True
