@@ -278,6 +278,16 @@ def update(signs, lam, slack, tol_p, tol_d, new, fixed):
 
 
 @njit(cache=True)
+def same(a, b):
+    """a == b for two sets of signs, without the temporary array of np.array_equal (a step at
+    N = 4 costs about as much as that allocation)."""
+    for i in range(a.shape[0]):
+        if a[i] != b[i]:
+            return False
+    return True
+
+
+@njit(cache=True)
 def settle(k, kmax, c_scale, w_trial, c, signs, factored, D, l, norms, fixed, dx, w, lam, slack,
            f, res, new, seen, report):
     """One certified projection of ``w_trial`` onto {B w <= c} (rows ``fixed`` as equalities)
@@ -287,10 +297,10 @@ def settle(k, kmax, c_scale, w_trial, c, signs, factored, D, l, norms, fixed, dx
     Returns (status, tol_p); the tolerances are also left in report[REPORT_TOLP:REPORT_TOLD+1]."""
     for it in range(UPDATE_ITERATIONS):
         for q in range(it):  # a set seen before: the updates cycle
-            if np.array_equal(seen[q], signs):
+            if same(seen[q], signs):
                 return HANDOFF, 0.0
         seen[it] = signs
-        if not np.array_equal(factored, signs):
+        if not same(factored, signs):
             norms[0], norms[1] = factor(k, signs, D, l)
             factored[:] = signs
         tol_p, tol_d = on_set(k, kmax, c_scale, w_trial, c, signs, D, l, norms[0], norms[1],
