@@ -412,12 +412,6 @@ class EventStepper(PeriodStepper):
             return out
         return self._sampled(Z, tol, u0, u1)
 
-    @staticmethod
-    def _progress(zero: np.ndarray, over: np.ndarray, u0: float) -> np.ndarray:
-        """The event time: the zero crossing, unless roundoff puts it at u0 or before (a row
-        tight at the start): then the time it exceeds its tolerance, strictly after u0."""
-        return np.where(zero > u0, zero, over)
-
     def _linear(self, Z, tol, u0, u1):
         from .kernel.events import linear_crossings  # compiled closed form
 
