@@ -74,7 +74,18 @@ class SimulationResult(RunResult):
     units: Units = Units()
     provenance: _provenance.Provenance | None = None
     output: Path | None = None  # the results file written, if any
-    image: bytes = field(default=b"", repr=False)  # the results file, in memory
+    # the results file in memory (`image`): bytes, or what writes them when first asked for
+    _image: bytes | Callable[[], bytes] = field(default=b"", repr=False)
+
+    @property
+    def image(self) -> bytes:
+        """The results file, in memory (`simulate`: written when first asked for, by `save`,
+        `to_xarray` or here; b"" for `run`)."""
+        image = self._image
+        if callable(image):
+            image = image()
+            object.__setattr__(self, "_image", image)
+        return image
 
     def summary(self) -> dict[str, Any]:
         """The JSON-ready numbers of `RunResult.summary`, plus ``units`` (the gait file's
@@ -207,23 +218,39 @@ def simulate(gait: Spec | str | Path, *, integrator: str | None = None,
     spec = _with_settings(_as_spec(gait), integrator=integrator,
                           steps_per_period=steps_per_period, max_periods=max_periods,
                           tolerance=tolerance)
-    buffer = io.BytesIO()
     with _provenance.recording(call):
-        result = _execute(spec, buffer, save_every=save_every,
-                          check_every_step=check_every_step, progress=progress,
-                          keep_trajectory=keep_trajectory)
-    image = buffer.getvalue()
-    trajectory = _trajectory(image) if keep_trajectory else None
-    return dataclasses.replace(result, trajectory=trajectory, image=image)
+        return _in_memory(spec, save_every=save_every, check_every_step=check_every_step,
+                          progress=progress, keep_trajectory=keep_trajectory)
 
 
-def _trajectory(image: bytes) -> Trajectory:
-    from .h5io import read_results
+def _in_memory(spec: Spec, *, save_every: int, check_every_step: bool,
+               progress: Progress | None, keep_trajectory: bool) -> SimulationResult:
+    """Run ``spec`` keeping the rows of its results file in memory (`h5io.RowsRecorder`):
+    the trajectory comes from them, and the file is written only if it is asked for."""
+    from .h5io import RowsRecorder
 
-    data = read_results(io.BytesIO(image))
-    t = data["trajectory"]
-    return Trajectory(t=t["t"], w=t["w"], x=t.get("x"), stress=t.get("stress"),
-                      shape=t.get("shape"), reaction=t.get("reaction"), events=data.get("events"))
+    process = compile(spec)
+    s = spec.simulation
+    record = _provenance.for_gait(spec, check_every_step=check_every_step)
+    recorder = RowsRecorder(process, save_every=save_every, trajectory=keep_trajectory)
+    run = _simulate_process(process, max_periods=s.max_periods, tolerance=s.tolerance,
+                            integrator=s.integrator, check_every_step=check_every_step,
+                            sink=recorder, progress=progress, limit=s.limit,
+                            time_step_error=True)
+    result = _extend(run, units=spec.units, provenance=record)
+    trajectory = None
+    if keep_trajectory:
+        t = recorder.trajectory()
+        trajectory = Trajectory(t=t["t"], w=t["w"], x=t.get("x"), stress=t.get("stress"),
+                                shape=t.get("shape"), reaction=t.get("reaction"),
+                                events=recorder.events())
+
+    def image() -> bytes:
+        return recorder.image(result, record, units=spec.units,
+                              kind=str(spec.document.get("kind", "crawler")),
+                              unchecked_uniqueness=getattr(spec, "uniqueness_unchecked", False))
+
+    return dataclasses.replace(result, trajectory=trajectory, _image=image)
 
 
 @dataclass(frozen=True)

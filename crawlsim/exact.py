@@ -320,6 +320,11 @@ class EventStepper(PeriodStepper):
                   time: float) -> _Velocity:
         """argmin 1/2 |v|_M^2 over {B_fixed v = c_fixed, B_i v <= c_i (finite c_i)}: the
         kernel's updates from ``warm``, Clarabel's proposal when they do not settle."""
+        from .kernel.catchup import velocity  # crawlers: the compiled, certified step
+
+        found = velocity(self.poly, c, warm, fixed)
+        if found is not None:
+            return _Velocity(found[0], found[1], Tolerance(found[2], found[3]))
         poly = self.poly
         zero = np.zeros(poly.n)
         step = poly.refine(zero, c, warm, fixed=fixed)
@@ -408,49 +413,23 @@ class EventStepper(PeriodStepper):
             return out
         return self._sampled(Z, tol, u0, u1)
 
-    @staticmethod
-    def _progress(zero: np.ndarray, over: np.ndarray, u0: float) -> np.ndarray:
-        """The event time: the zero crossing, unless roundoff puts it at u0 or before (a row
-        tight at the start): then the time it exceeds its tolerance, strictly after u0."""
-        return np.where(zero > u0, zero, over)
-
     def _linear(self, Z, tol, u0, u1):
-        a, s = Z[0], Z[1]
-        out = np.full(Z.shape[1], np.inf)
-        up = s > 0
-        with np.errstate(divide="ignore", invalid="ignore"):
-            zero = -a / s
-            over = (tol - a) / s
-        ok = up & (over < u1) & (over > u0)
-        out[ok] = self._progress(zero[ok], over[ok], u0)
+        from .kernel.events import linear_crossings  # compiled closed form
+
+        out = np.empty(Z.shape[1])
+        linear_crossings(np.ascontiguousarray(Z[0], dtype=float),
+                         np.ascontiguousarray(Z[1], dtype=float),
+                         np.ascontiguousarray(tol, dtype=float), float(u0), float(u1), out)
         return out
 
     def _harmonic(self, a, lin, alpha, beta, tol, u0, u1):
-        """f(u) = a + alpha cos 2 pi u + beta sin 2 pi u = a + rho cos(theta - phi)."""
-        out = np.full(a.shape, np.inf)
-        rho = np.hypot(alpha, beta)
-        phase = np.arctan2(beta, alpha)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            x_over = (tol - a) / rho
-            x_zero = -a / rho
-        can = (rho > 0) & (x_over < 1.0)
-        if not can.any():
-            return out
-        b_over = np.arccos(np.clip(x_over[can], -1.0, 1.0))
-        b_zero = np.arccos(np.clip(x_zero[can], -1.0, 1.0))
-        th0 = TWO_PI * u0
-        ph = phase[can]
-        # the arc where f > tol that ends at or after theta0: [ph - b_over, ph + b_over] + 2 pi k
-        k = np.ceil((th0 - (ph + b_over)) / TWO_PI)
-        start = ph - b_over + TWO_PI * k
-        inside = start <= th0
-        # inside the arc already (f > tol at u0, a decision just made it so): the next arc
-        k = np.where(inside, k + 1, k)
-        start = ph - b_over + TWO_PI * k
-        zero = ph - b_zero + TWO_PI * k
-        t = self._progress(zero / TWO_PI, start / TWO_PI, u0)
-        res = np.where(t < u1, t, np.inf)
-        out[can] = res
+        """f(u) = a + alpha cos 2 pi u + beta sin 2 pi u = a + rho cos(theta - phi)
+        (`crawlsim.kernel.events.harmonic_crossings`, compiled)."""
+        from .kernel.events import harmonic_crossings
+
+        out = np.empty(np.shape(a))
+        harmonic_crossings(*(np.ascontiguousarray(v, dtype=float) for v in (a, alpha, beta, tol)),
+                           float(u0), float(u1), out)
         return out
 
     def _sampled(self, Z, tol, u0, u1):

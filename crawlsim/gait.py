@@ -31,7 +31,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import scipy.sparse as sp
 import yaml
 
 from crawlsim.errors import GaitError
@@ -851,6 +850,8 @@ def emptiness_violation(spec: ProcessSpec) -> str | None:
     for every k. Only when it is infeasible are the times tested one by one, to name the first
     empty one.
     """
+    import scipy.sparse as sp  # process files only: `crawlsim validate` of gaits loads no scipy
+
     u = _check_times(spec)
     c = evaluate_many(spec.offsets, u)  # (k, m)
     B = spec.normals

@@ -341,6 +341,105 @@ def _atomic_h5(path: Any) -> Iterator[h5py.File]:
 
 
 # -- run files --------------------------------------------------------------------------------
+def period_rows(process: Any, record: Any, save_every: int,
+                carry: np.ndarray) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """The /trajectory rows of one period's saved grid points (its first point only for period
+    0), and the reaction carried to the next period (generic processes)."""
+    p = process
+    first = 0 if record.index == 0 else 1
+    local = np.arange(first, p.steps + 1)
+    global_index = record.index * p.steps + local
+    sel = local[global_index % save_every == 0]
+    reaction = None
+    if not p.is_crawler:
+        reaction, carry = _reaction_rows(record.multipliers, sel, carry)
+    if sel.size == 0:
+        return {}, carry
+    rows = {"t": record.start + p.times[sel], "w": record.w[sel]}
+    if p.is_crawler:
+        rows.update(x=record.x[sel], stress=record.w[sel] + p.stress_offset[sel],
+                    shape=-record.w[sel] / p.stiffness)
+    if reaction is not None:
+        rows["reaction"] = reaction
+    return rows, carry
+
+
+def _reaction_rows(multipliers: np.ndarray, sel: np.ndarray,
+                   carry: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Reactions of the m constraints at the saved grid points ``sel`` of one period, and the
+    carry to the next.
+
+    The multipliers of catch-up steps are the constraints' reaction impulses (docs/model.md
+    §3). Row s sums the multipliers of the steps since the previous saved point, so with
+    ``save_every = 1`` it is the multiplier of the step ending at t_s, and a larger
+    ``save_every`` loses nothing of the total.
+    """
+    rows = np.zeros((len(sel), multipliers.shape[1]))
+    ends = sel[sel > 0]  # grid point s ends step s - 1
+    if ends.size == 0:
+        return rows, carry + multipliers.sum(axis=0)
+    starts = np.concatenate([[0], ends[:-1]])
+    sums = np.add.reduceat(multipliers, starts, axis=0)
+    sums[-1] = multipliers[starts[-1]:ends[-1]].sum(axis=0)
+    sums[0] += carry
+    rows[len(sel) - len(ends):] = sums
+    return rows, multipliers[ends[-1]:].sum(axis=0)
+
+
+class RowsRecorder:
+    """The in-memory twin of `ResultsWriter` (`crawlsim.api.simulate`): it keeps the rows a
+    results file would hold and writes the file only when `image` is asked for, so a result
+    nobody saves costs no HDF5."""
+
+    def __init__(self, process: Any, *, save_every: int = 1, trajectory: bool = True):
+        self.process = process
+        self.save_every = int(save_every)
+        self.keep = bool(trajectory)
+        self._rows: dict[str, list[np.ndarray]] = {}
+        self._events: dict[str, list[np.ndarray]] = {}
+        self._carry = np.zeros(process.polyhedron.m)
+
+    def add_period(self, record: Any) -> None:
+        if not self.keep:
+            return
+        events = getattr(record, "events", None)
+        if events is not None:
+            for name, rows in zip(("t", "w", "x"), events):
+                if rows is not None:
+                    self._events.setdefault(name, []).append(np.asarray(rows, dtype=float))
+        rows, self._carry = period_rows(self.process, record, self.save_every, self._carry)
+        for name, values in rows.items():
+            self._rows.setdefault(name, []).append(np.asarray(values, dtype=float))
+
+    def trajectory(self) -> dict[str, np.ndarray]:
+        """The /trajectory variables, as `read_results` would give them."""
+        p = self.process
+        n = p.polyhedron.n
+        widths = {"t": (), "w": (n,)}
+        widths.update({"x": (p.blocks,), "stress": (n,), "shape": (n,)} if p.is_crawler
+                      else {"reaction": (p.polyhedron.m,)})
+        return {name: (np.concatenate(self._rows[name]) if name in self._rows
+                       else np.zeros((0,) + tail)) for name, tail in widths.items()}
+
+    def events(self) -> dict[str, np.ndarray] | None:
+        return {name: np.concatenate(rows) for name, rows in self._events.items()} or None
+
+    def image(self, result: Any, provenance: Any, *, units: Units | None = None,
+              kind: str = "crawler", unchecked_uniqueness: bool = False) -> bytes:
+        """The results file of the run, written now into memory."""
+        buffer = io.BytesIO()
+        with ResultsWriter(buffer, self.process, save_every=self.save_every, units=units,
+                           trajectory=self.keep) as writer:
+            events = self.events()
+            if events is not None:
+                writer._append_events(tuple(events.get(name) for name in ("t", "w", "x")))
+            for name, rows in self._rows.items():
+                writer._append(name, np.concatenate(rows))
+            writer.finish(result, provenance, kind=kind,
+                          unchecked_uniqueness=unchecked_uniqueness)
+        return buffer.getvalue()
+
+
 class ResultsWriter:
     """Streams a run's trajectory into a results file; `finish` writes the rest and publishes.
 
@@ -389,24 +488,12 @@ class ResultsWriter:
         """Append the saved grid points of one period (its first point only for period 0)."""
         if not self.keep:
             return
-        p = self.process
         if getattr(record, "events", None) is not None:
             self._append_events(record.events)
-        first = 0 if record.index == 0 else 1
-        local = np.arange(first, p.steps + 1)
-        global_index = record.index * p.steps + local
-        sel = local[global_index % self.save_every == 0]
-        reaction = None if p.is_crawler else self._reaction_rows(record.multipliers, sel)
-        if sel.size == 0:
-            return
-        self._append("t", record.start + p.times[sel])
-        self._append("w", record.w[sel])
-        if p.is_crawler:
-            self._append("x", record.x[sel])
-            self._append("stress", record.w[sel] + p.stress_offset[sel])
-            self._append("shape", -record.w[sel] / p.stiffness)
-        if reaction is not None:
-            self._append("reaction", reaction)
+        rows, self._reaction_carry = period_rows(self.process, record, self.save_every,
+                                                 self._reaction_carry)
+        for name, values in rows.items():
+            self._append(name, values)
 
     def _append_events(self, events: Any) -> None:
         """Append one period's event trajectory ``(t, w, x)`` to /events (exact integrator)."""
@@ -423,27 +510,6 @@ class ResultsWriter:
             n = ds.shape[0]
             ds.resize(n + len(rows), axis=0)
             ds[n:] = rows
-
-    def _reaction_rows(self, multipliers: np.ndarray, sel: np.ndarray) -> np.ndarray:
-        """Reactions of the m constraints at the saved grid points ``sel`` of one period.
-
-        The multipliers of catch-up steps are the constraints' reaction impulses (docs/model.md
-        §3). Row s sums the multipliers of the steps since the previous saved point, so with
-        ``save_every = 1`` it is the multiplier of the step ending at t_s, and a larger
-        ``save_every`` loses nothing of the total.
-        """
-        rows = np.zeros((len(sel), multipliers.shape[1]))
-        ends = sel[sel > 0]  # grid point s ends step s - 1
-        if ends.size == 0:
-            self._reaction_carry = self._reaction_carry + multipliers.sum(axis=0)
-            return rows
-        starts = np.concatenate([[0], ends[:-1]])
-        sums = np.add.reduceat(multipliers, starts, axis=0)
-        sums[-1] = multipliers[starts[-1]:ends[-1]].sum(axis=0)
-        sums[0] += self._reaction_carry
-        rows[len(sel) - len(ends):] = sums
-        self._reaction_carry = multipliers[ends[-1]:].sum(axis=0)
-        return rows
 
     def finish(self, result: Any, provenance: Any, kind: str = "crawler",
                unchecked_uniqueness: bool = False) -> None:

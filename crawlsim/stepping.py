@@ -10,16 +10,24 @@ kernel's cheap updates from A, and Clarabel only when they do not settle.
 
 ``check_every_step=True`` runs Clarabel at every step instead, so that a user can verify that the
 fast paths change nothing.
+
+A crawler's steps run in the compiled kernel (`crawlsim.kernel`): the same step, certificate and
+updates, one step at a time in machine code; a step whose updates do not settle is handed to the
+projector as above, and a certificate that fails with no update left is a `CertificateError`.
+``kernel=False`` keeps a crawler on the telescoped runs of `crawlsim.kkt` (the path of generic
+processes), for comparison.
 """
 
 from __future__ import annotations
 
 import importlib
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Literal, NamedTuple
 
 import numpy as np
 
+from .errors import CertificateError
 from .kkt import Dependent
 from .model import SweepingProcess
 from .projection import ExactProjector
@@ -78,7 +86,7 @@ class PeriodRecord:
     # The active sets the period visited, in order (consecutive repeats and empty sets left
     # out): the period map is affine near this start, with Jacobian the product of their
     # projectors I - R_A B_A (`crawlsim.limit`).
-    visited: tuple = ()
+    visited: Sequence = ()
     # The period's energy ledger integrated exactly on the event-driven integrator's pieces
     # (`crawlsim.energy.PeriodEnergy`); None for catch-up, whose ledger follows from the grid.
     energy: Any = None
@@ -128,7 +136,7 @@ class CatchUpStepper(PeriodStepper):
     """Steps a `SweepingProcess` period by period from its initial state."""
 
     def __init__(self, process: SweepingProcess, *, check_every_step: bool = False,
-                 persistent_solver: bool = True):
+                 persistent_solver: bool = True, kernel: bool = True):
         self.process = process
         self.check_every_step = check_every_step
         self.polyhedron = process.polyhedron
@@ -141,6 +149,13 @@ class CatchUpStepper(PeriodStepper):
         self.active = self.polyhedron.empty
         self.period_index = 0
         self._visited: list = []
+        self._kernel = None
+        self._lazy_visited: Sequence | None = None  # the kernel's record (`VisitedSets`)
+        if kernel and not check_every_step and process.is_crawler:
+            from .kernel.catchup import ChainKernel
+
+            self._kernel = ChainKernel(self.polyhedron)
+            self._offsets = np.ascontiguousarray(process.offsets, dtype=float)
 
     def step_period(self) -> PeriodRecord:
         """Advance by one period and return its record."""
@@ -152,7 +167,11 @@ class CatchUpStepper(PeriodStepper):
         W[0] = self.w
         calls0 = self.projector.clarabel_calls
         self._visited = []
+        self._lazy_visited = None
         j, block = 0, _FIRST_BLOCK
+        if self._kernel is not None:
+            self._kernel_period(W, LAM, start)
+            j = G
         while j < G:
             if self.check_every_step:
                 self._full_step(j, W, LAM, start, warm=False)
@@ -187,9 +206,35 @@ class CatchUpStepper(PeriodStepper):
         self.w = W[-1].copy()
         record = PeriodRecord(self.period_index, start, W, LAM, X,
                               self.projector.clarabel_calls - calls0,
-                              visited=tuple(self._visited))
+                              visited=(tuple(self._visited) if self._lazy_visited is None
+                                       else self._lazy_visited))
         self.period_index += 1
         return record
+
+    def _kernel_period(self, W, LAM, start) -> None:
+        """The period's steps in the compiled kernel; the steps it hands over go to the
+        projector (`_full_step`), warm from the kernel's current set."""
+        from .kernel import catchup
+
+        kernel, p = self._kernel, self.process
+        assert kernel is not None
+        S = np.zeros((len(LAM), p.blocks), dtype=np.int8)
+        kernel.load(self.active)
+        j = 0
+        while True:
+            status, j = kernel.run(self._offsets, W, LAM, S, j)
+            if status == catchup.chain.DONE:
+                break
+            if status == catchup.chain.FAILED:
+                raise CertificateError(kernel.failure(p.name, start + p.times[j + 1],
+                                                      p.describe_active))
+            self.active = kernel.active(self.active)
+            self._full_step(j, W, LAM, start, warm=True)
+            S[j] = catchup.signs_of(self.active, p.blocks)
+            kernel.load(self.active)
+            j += 1
+        self.active = kernel.active(self.active)
+        self._lazy_visited = catchup.VisitedSets(self.polyhedron, S)
 
     def _full_step(self, j, W, LAM, start, *, warm: bool):
         p = self.process

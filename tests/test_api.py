@@ -104,6 +104,38 @@ def test_keeping_the_trajectory_changes_no_number():
     assert cli.v0 == kept.v0
 
 
+@pytest.mark.parametrize("path, save_every, integrator", [
+    (GAITS / "smooth-friction-3.yaml", 1, "exact"),  # /events
+    (GAITS / "paper" / "triangle.yaml", 3, "catch-up"),  # reactions summed over 3 steps
+])
+def test_simulate_writes_no_hdf5_until_asked(monkeypatch, path, save_every, integrator):
+    """`simulate` keeps its results in memory: no HDF5 file is opened while it runs, and the
+    file written later, when `image` is asked for, holds exactly the trajectory (and events)
+    the result already has."""
+    import h5py
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("simulate opened an HDF5 file")
+
+    opened = h5py.File
+    monkeypatch.setattr(h5py, "File", refuse)
+    result = crawlsim.simulate(path, steps_per_period=60, integrator=integrator,
+                               save_every=save_every)
+    monkeypatch.setattr(h5py, "File", opened)
+    data = read_results(io.BytesIO(result.image))
+    t = result.trajectory
+    for name in ("t", "w", "x", "stress", "shape", "reaction"):
+        mine = getattr(t, name)
+        assert (mine is None) == (name not in data["trajectory"]), name
+        if mine is not None:
+            np.testing.assert_array_equal(mine, data["trajectory"][name])
+    assert (t.events is None) == ("events" not in data)
+    if t.events is not None:
+        for name, values in t.events.items():
+            np.testing.assert_array_equal(values, data["events"][name])
+    assert data["attrs"]["command_line"].startswith("crawlsim.simulate(")
+
+
 def test_to_xarray_is_the_results_file(tmp_path):
     """The tree of a result and the tree of the file the CLI writes for the same run have the
     same groups, variables, dimensions and values."""

@@ -99,6 +99,16 @@ def test_validate_of_a_valid_gait_loads_no_jsonschema(tmp_path):
     assert loaded(modules, "crawlsim.gait") and not loaded(modules, "jsonschema")
 
 
+def test_validate_of_crawler_gaits_loads_neither_scipy_nor_the_kernel(tmp_path):
+    """Checking a crawler's gait file (structure, friction, admissible start, uniqueness) is
+    numpy's work: scipy (its LPs check generic process files only), numba and the compiled
+    kernel are for running."""
+    modules = modules_after(["validate", str(GAIT), str(ROOT / "gaits" / "earthworm-100.yaml")],
+                            tmp_path)
+    for name in ("scipy", "numba", "crawlsim.kernel", "crawlsim.kkt", "clarabel", "h5py"):
+        assert not loaded(modules, name), name
+
+
 def test_an_invalid_gait_loads_jsonschema_for_its_message(tmp_path):
     """jsonschema, the reference validator, phrases the error of a refused gait."""
     bad = tmp_path / "bad.yaml"

@@ -1,0 +1,179 @@
+"""The driver of the compiled catch-up step (`crawlsim.kernel.chain`): it owns the kernel's
+arrays between periods, calls it, and turns what it reports into crawlsim's terms: the active
+sets as `crawlsim.kkt.ActiveSet` (for the periodic-limit solver), a failed certificate as a
+`CertificateError` naming the time and the rows.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from ..kkt import ActiveSet, ChainPolyhedron, Dependent, Polyhedron
+from . import chain
+
+#: What the first compilation costs (measured with an empty cache on a 2-core machine; printed
+#: so that a first run does not look hung).
+COLD_SECONDS = 25
+_announced: set[str] = set()
+
+
+def _entries(integrator: str) -> tuple:
+    """The compiled entry point an integrator calls first (the exact integrator's closed
+    forms are small and compile with it only when its gait needs them)."""
+    return (chain.catch_up,) if integrator == "catch-up" else (chain.project,)
+
+
+def cache_is_cold(integrator: str = "catch-up") -> bool:
+    """Whether numba has no cached machine code of one of the kernel's entry points that
+    ``integrator`` calls, for this source (an index file missing or stale). False when the JIT
+    is disabled or the cache cannot be inspected: then nothing is announced."""
+    try:
+        return any(not entry._cache._cache_file._load_index()
+                   for entry in _entries(integrator))
+    except Exception:
+        return False
+
+
+def announce_compilation(integrator: str = "catch-up") -> None:
+    """One line on stderr (at most one per process) before the kernel is compiled for the
+    first time in this cache."""
+    if integrator not in _announced:
+        if cache_is_cold(integrator) and "printed" not in _announced:
+            print(f"crawlsim: compiling the kernel once, ~{COLD_SECONDS} s", file=sys.stderr,
+                  flush=True)
+            _announced.add("printed")
+        _announced.add(integrator)
+
+
+def signs_of(active: ActiveSet, blocks: int) -> np.ndarray:
+    """The kernel's form of an active set of a chain: +1 forward limit, -1 backward, 0 free."""
+    signs = np.zeros(blocks, dtype=np.int8)
+    idx = active.index
+    signs[idx[idx < blocks]] = 1
+    signs[idx[idx >= blocks] - blocks] = -1
+    return signs
+
+
+def rows_of(signs: np.ndarray) -> np.ndarray:
+    """The sorted row indices of the set ``signs``."""
+    N = len(signs)
+    return np.concatenate([np.flatnonzero(signs > 0), N + np.flatnonzero(signs < 0)])
+
+
+class ChainKernel:
+    """The compiled catch-up stepping of one crawler: the current active set and its factor
+    carry over from step to step and period to period."""
+
+    def __init__(self, polyhedron: Polyhedron):
+        if not isinstance(polyhedron, ChainPolyhedron):
+            raise TypeError("the compiled kernel steps crawler chains only")
+        self.polyhedron = polyhedron
+        N = polyhedron.blocks
+        self.k = np.ascontiguousarray(polyhedron.stiffness, dtype=float)
+        self.c_scale = float(polyhedron.c_scale)
+        self.signs = np.zeros(N, dtype=np.int8)
+        self.factored = np.full(N, 2, dtype=np.int8)  # no set: the first call factors
+        self.D = np.empty(N)
+        self.l = np.empty(max(N - 1, 0))
+        self.norms = np.zeros(2)
+        self.report = np.zeros(6)
+        announce_compilation()
+
+    def load(self, active: ActiveSet) -> None:
+        self.signs[:] = signs_of(active, len(self.signs))
+
+    def active(self, fallback: ActiveSet) -> ActiveSet:
+        """The current set, factored by `crawlsim.kkt` (cached there), or ``fallback``."""
+        try:
+            return self.polyhedron.factor(rows_of(self.signs))
+        except Dependent:
+            return fallback
+
+    def run(self, C: np.ndarray, W: np.ndarray, LAM: np.ndarray, S: np.ndarray,
+            j0: int) -> tuple[int, int]:
+        """Steps j0, j0+1, ... until the period ends or a step needs the projector
+        (`chain.catch_up`)."""
+        status, j = chain.catch_up(self.k, self.c_scale, C, W, LAM, S, self.signs, self.factored,
+                                   self.D, self.l, self.norms, j0, self.report)
+        return int(status), int(j)
+
+    def failure(self, name: str, when: float, describe: Callable[[np.ndarray], str]) -> str:
+        """The message of a step whose certificate failed with no update left (FAILED)."""
+        r = self.report
+        row = int(r[chain.REPORT_ROW])
+        return (f"{name}: the catch-up step failed its certificate at t = {when:.12g}: primal "
+                f"violation {r[chain.REPORT_PRIMAL]:.3g}, negative multiplier "
+                f"{r[chain.REPORT_DUAL]:.3g}, complementarity {r[chain.REPORT_COMP]:.3g} "
+                f"(tolerances {r[chain.REPORT_TOLP]:.3g} / {r[chain.REPORT_TOLD]:.3g}); worst "
+                f"row {row} ({describe(np.array([row]))}), active set "
+                f"{describe(rows_of(self.signs))}")
+
+
+class VisitedSets(Sequence):
+    """The non-empty active sets of a period's steps, in order, consecutive repeats left out
+    (`crawlsim.stepping.PeriodRecord.visited`), factored by `crawlsim.kkt` only when the
+    periodic-limit solver asks for them: most periods never need them."""
+
+    def __init__(self, polyhedron: Polyhedron, S: np.ndarray):
+        self._polyhedron = polyhedron
+        if len(S):
+            starts = np.concatenate([[0], np.flatnonzero(np.any(S[1:] != S[:-1], axis=1)) + 1])
+            self._sets = S[starts]
+        else:
+            self._sets = S
+        self._factored: list[ActiveSet] | None = None
+
+    def _list(self) -> list[ActiveSet]:
+        if self._factored is None:
+            out: list[ActiveSet] = []
+            for signs in self._sets:
+                if not signs.any():
+                    continue
+                try:
+                    A = self._polyhedron.factor(rows_of(signs))
+                except Dependent:  # pragma: no cover - the kernel's sets are independent
+                    continue
+                if not out or out[-1] is not A:
+                    out.append(A)
+            self._factored = out
+        return self._factored
+
+    def __len__(self) -> int:
+        return len(self._list())
+
+    def __getitem__(self, i):
+        return self._list()[i]
+
+
+def velocity(polyhedron: Polyhedron, c: np.ndarray, warm: np.ndarray,
+             fixed: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float] | None:
+    """The exact integrator's velocity problem argmin 1/2 |v|_M^2 over {B_fixed v = c_fixed,
+    B_i v <= c_i (finite c_i)} of a crawler, certified in the compiled kernel from the rows
+    ``warm`` (`chain.project`): (v, lambda, tol_p, tol_d), or None when the kernel does not
+    settle it (the caller's Python path decides, as before)."""
+    if not isinstance(polyhedron, ChainPolyhedron):
+        return None
+    announce_compilation("exact")
+    N = polyhedron.blocks
+    rows = np.zeros(2 * N, dtype=np.bool_)
+    rows[warm] = True
+    rows[fixed] = True
+    if not chain.independent(rows, N):
+        return None
+    signs = np.zeros(N, dtype=np.int8)
+    signs[rows[:N]] = 1
+    signs[rows[N:]] = -1
+    mask = np.zeros(2 * N, dtype=np.bool_)
+    mask[fixed] = True
+    w = np.empty(N - 1)
+    lam = np.empty(2 * N)
+    report = np.zeros(6)
+    status = chain.project(np.ascontiguousarray(polyhedron.stiffness, dtype=float),
+                           float(polyhedron.c_scale), np.zeros(N - 1),
+                           np.ascontiguousarray(c, dtype=float), signs, mask, w, lam, report)
+    if status != chain.DONE:
+        return None
+    return w, lam, float(report[chain.REPORT_TOLP]), float(report[chain.REPORT_TOLD])

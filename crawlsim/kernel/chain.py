@@ -1,0 +1,406 @@
+"""The compiled, certified catch-up step of a crawler chain (docs/model.md §3).
+
+One step projects the trial state w_j onto K(t_{j+1}) = {w : B w <= c} in the metric M = K^{-1},
+with B = [D^T; -D^T] (`crawlsim.kkt.ChainPolyhedron`). On the saturated blocks J, with signs
+s_i = +1 (forward limit, row i) or -1 (backward limit, row N + i), the KKT system is
+
+    L_JJ dx_J = f_J - f*_J,   f = D^T w_j,   f*_i = c_i (s_i = +1) or -c_{N+i} (s_i = -1),
+
+L = D^T K D the chain's tridiagonal stiffness Laplacian, and the step is
+w_{j+1} = w_j - K D dx, multipliers lambda_i = dx_i (s_i = +1), lambda_{N+i} = -dx_i (s_i = -1).
+The system is padded to all N blocks (identity rows on free blocks, no coupling across them) and
+factored by LDL^T in O(N) (the Thomas recurrence), refactored only when J changes.
+
+Every step is certified with the tolerance policy of `crawlsim.kkt.Polyhedron.solve_on` and
+`certify` (one policy for every integrator): primal feasibility max(B w - c) <= tol_p, the sign
+of the multipliers -min(lambda) <= tol_d and complementarity max |(B w - c)_J| <= tol_p, where
+
+    size  = max(c_scale, |c|, ||B|| |w_j|, ||B|| ||K D|| |lambda|),   ||B|| = 2, ||K D|| = 2 max k,
+    tol_p = RTOL size,   tol_d = 2 RTOL ||L_JJ^{-1}|| (size + ||L_JJ|| |lambda|),
+
+with ||L_JJ^{-1}||_inf = max(L_JJ^{-1} 1) exactly (an M-matrix). A complementarity residual above
+a quarter of tol_p gets one step of iterative refinement. An uncertified step moves its active
+set by the primal-dual updates of `crawlsim.kkt.Polyhedron.refine` (drop the rows with negative
+multipliers, add the violated rows; the worst one alone, or the exchange of Goldfarb and Idnani,
+where all at once would saturate every block). A certified KKT point of this strictly convex
+problem is the projection, so the steps agree with `crawlsim.kkt` to roundoff.
+
+Everything here is a function of plain arrays and scalars, compiled by numba; with
+``NUMBA_DISABLE_JIT=1`` the same source runs as Python.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+#: The tolerance constants of `crawlsim.kkt` (repeated: the compiled code sees literals only;
+#: tests/test_kernel.py checks they agree).
+RTOL = 1e-14
+REFINE_FRACTION = 0.25
+UPDATE_ITERATIONS = 12
+
+#: What `catch_up` returns: every step done; step j handed to the Python projector (the
+#: updates did not settle, or the step is certified with every block tight, where LICQ and the
+#: uniqueness of the slips are decided there); step j failed its certificate with no update
+#: left to try (the report array says how).
+DONE, HANDOFF, FAILED = 0, 1, 2
+#: Entries of the report array of a FAILED step.
+REPORT_PRIMAL, REPORT_DUAL, REPORT_COMP, REPORT_TOLP, REPORT_TOLD, REPORT_ROW = range(6)
+
+
+@njit(cache=True)
+def factor(k, signs, D, l):
+    """LDL^T of the padded L~ (diagonal L_ii on saturated blocks, 1 on free ones; off-diagonal
+    -k_i where blocks i and i+1 are both saturated) into the pivots D and unit subdiagonal l.
+    Returns (||L_JJ^{-1}||_inf, ||L_JJ||_inf)."""
+    N = signs.shape[0]
+    gram = 0.0
+    for i in range(N):
+        if signs[i] != 0:
+            d = (k[i - 1] if i > 0 else 0.0) + (k[i] if i < N - 1 else 0.0)
+            D[i] = d
+            if 2.0 * d > gram:
+                gram = 2.0 * d
+        else:
+            D[i] = 1.0
+    for i in range(1, N):
+        e = -k[i - 1] if (signs[i - 1] != 0 and signs[i] != 0) else 0.0
+        l[i - 1] = e / D[i - 1]
+        D[i] -= l[i - 1] * e
+    # L_JJ is an M-matrix: its inverse is non-negative, ||L_JJ^{-1}||_inf = max(L_JJ^{-1} 1)
+    y = np.empty(N)
+    for i in range(N):
+        y[i] = 1.0 if signs[i] != 0 else 0.0
+    solve(D, l, y)
+    inverse = 0.0
+    for i in range(N):
+        if signs[i] != 0 and y[i] > inverse:
+            inverse = y[i]
+    return inverse, gram
+
+
+@njit(cache=True)
+def solve(D, l, y):
+    """y <- L~^{-1} y in place with the LDL^T factor (D, l)."""
+    N = y.shape[0]
+    for i in range(1, N):
+        y[i] -= l[i - 1] * y[i - 1]
+    for i in range(N):
+        y[i] /= D[i]
+    for i in range(N - 2, -1, -1):
+        y[i] -= l[i] * y[i + 1]
+
+
+@njit(cache=True)
+def forces(w, f):
+    """f = D^T w: f_i = w_{i-1} - w_i with w_{-1} = w_{N-1} = 0."""
+    N = f.shape[0]
+    f[0] = -w[0]
+    for i in range(1, N - 1):
+        f[i] = w[i - 1] - w[i]
+    f[N - 1] = w[N - 2]
+
+
+@njit(cache=True)
+def state(k, w_trial, dx, signs, w, lam, slack, c, f):
+    """From the slips dx (0 on free blocks): the point w = w_trial - K D dx, the multipliers
+    lambda (2N) and the slack B w - c."""
+    N = signs.shape[0]
+    for i in range(N - 1):
+        w[i] = w_trial[i] - (dx[i + 1] - dx[i]) * k[i]
+    for i in range(N):
+        lam[i] = dx[i] if signs[i] > 0 else 0.0
+        lam[N + i] = -dx[i] if signs[i] < 0 else 0.0
+    forces(w, f)
+    for i in range(N):
+        slack[i] = f[i] - c[i]
+        slack[N + i] = -f[i] - c[N + i]
+
+
+@njit(cache=True)
+def complementarity(signs, slack):
+    N = signs.shape[0]
+    comp = 0.0
+    for i in range(N):
+        if signs[i] > 0:
+            r = abs(slack[i])
+        elif signs[i] < 0:
+            r = abs(slack[N + i])
+        else:
+            continue
+        if r > comp:
+            comp = r
+    return comp
+
+
+@njit(cache=True)
+def certificate(signs, lam, slack, fixed):
+    """(primal, dual, complementarity): max(B w - c), max(0, -min lambda) over the rows not
+    ``fixed`` (equalities: multipliers of either sign), max |(B w - c)_A|."""
+    primal = -np.inf
+    for i in range(slack.shape[0]):
+        if slack[i] > primal:
+            primal = slack[i]
+    dual = 0.0
+    for i in range(lam.shape[0]):
+        if -lam[i] > dual and not fixed[i]:
+            dual = -lam[i]
+    return primal, dual, complementarity(signs, slack)
+
+
+@njit(cache=True)
+def on_set(k, kmax, c_scale, w_trial, c, signs, D, l, inverse, gram, dx, w, lam, slack, f, res):
+    """The equality KKT system on the factored set ``signs``, with one step of iterative
+    refinement when its complementarity residual asks for it. Returns (tol_p, tol_d)."""
+    N = signs.shape[0]
+    forces(w_trial, f)
+    active = False
+    for i in range(N):
+        if signs[i] > 0:
+            dx[i] = f[i] - c[i]
+            active = True
+        elif signs[i] < 0:
+            dx[i] = f[i] + c[N + i]
+            active = True
+        else:
+            dx[i] = 0.0
+    if active:
+        solve(D, l, dx)
+    state(k, w_trial, dx, signs, w, lam, slack, c, f)
+    c_size = 0.0
+    for i in range(c.shape[0]):  # rows with an infinite offset are ignored (velocity problems)
+        if abs(c[i]) > c_size and abs(c[i]) < np.inf:
+            c_size = abs(c[i])
+    w_size = 0.0
+    for i in range(w_trial.shape[0]):
+        if abs(w_trial[i]) > w_size:
+            w_size = abs(w_trial[i])
+    lam_size = 0.0
+    for i in range(lam.shape[0]):
+        if abs(lam[i]) > lam_size:
+            lam_size = abs(lam[i])
+    size = max(max(c_scale, c_size), max(2.0 * w_size, 4.0 * kmax * lam_size))
+    tol_p = RTOL * size
+    tol_d = 2.0 * RTOL * inverse * (size + gram * lam_size)
+    if active and complementarity(signs, slack) > REFINE_FRACTION * tol_p:
+        for i in range(N):
+            if signs[i] > 0:
+                res[i] = slack[i]
+            elif signs[i] < 0:
+                res[i] = -slack[N + i]
+            else:
+                res[i] = 0.0
+        solve(D, l, res)
+        for i in range(N):
+            dx[i] += res[i]
+        state(k, w_trial, dx, signs, w, lam, slack, c, f)
+    return tol_p, tol_d
+
+
+@njit(cache=True)
+def independent(rows, N):
+    """LICQ of the rows (a mask of 2N) of a chain: no block at both limits, not every block."""
+    count = 0
+    for i in range(N):
+        if rows[i] and rows[N + i]:
+            return False
+        if rows[i] or rows[N + i]:
+            count += 1
+    return count < N
+
+
+@njit(cache=True)
+def update(signs, lam, slack, tol_p, tol_d, new, fixed):
+    """The next set of a primal-dual update into ``new`` (`crawlsim.kkt.Polyhedron.update_set`,
+    then `exchange` where the set would fail LICQ); rows ``fixed`` never leave. Returns 0 with a
+    new set, 1 when nothing is to change (the certificate failed on its own numbers), 2 when
+    no independent update exists (the Python projector decides)."""
+    N = signs.shape[0]
+    rows = np.zeros(2 * N, dtype=np.bool_)
+    member = np.zeros(2 * N, dtype=np.bool_)
+    for i in range(N):
+        member[i] = signs[i] > 0
+        member[N + i] = signs[i] < 0
+    change = False
+    worst_drop, worst_lam = -1, np.inf
+    worst_add, worst_slack = -1, -np.inf
+    for r in range(2 * N):
+        if member[r]:
+            if lam[r] < -tol_d and not fixed[r]:
+                change = True
+                if lam[r] < worst_lam:
+                    worst_lam, worst_drop = lam[r], r
+            else:
+                rows[r] = True
+        elif slack[r] > tol_p:
+            rows[r] = True
+            change = True
+            if slack[r] > worst_slack:
+                worst_slack, worst_add = slack[r], r
+    if not change:
+        return 1
+    if not independent(rows, N):
+        # all at once would make the set dependent: the worst row alone
+        rows[:] = member
+        if worst_drop >= 0:
+            rows[worst_drop] = False
+        else:
+            rows[worst_add] = True
+        if not independent(rows, N):
+            # the exchange: the entering row r depends on the active ones only when every block
+            # would be saturated (a block at both limits has no leaving row); along the
+            # dependency z = S 1 (signs of the rows, z_r > 0) the active row of the opposite
+            # sign with the smallest multiplier leaves
+            r = -1
+            best = -np.inf
+            for q in range(2 * N):
+                if not member[q] and slack[q] > best:
+                    best, r = slack[q], q
+            block = r % N
+            if member[block] or member[N + block]:
+                return 2
+            sign_r = 1 if r < N else -1
+            leave, smallest = -1, np.inf
+            for q in range(2 * N):
+                if member[q] and not fixed[q] and (1 if q < N else -1) != sign_r:
+                    ratio = max(lam[q], 0.0)
+                    if ratio < smallest:
+                        smallest, leave = ratio, q
+            if leave < 0:
+                return 2
+            rows[:] = member
+            rows[leave] = False
+            rows[r] = True
+    for i in range(N):
+        new[i] = 1 if rows[i] else (-1 if rows[N + i] else 0)
+    return 0
+
+
+@njit(cache=True)
+def same(a, b):
+    """a == b for two sets of signs, without the temporary array of np.array_equal (a step at
+    N = 4 costs about as much as that allocation)."""
+    for i in range(a.shape[0]):
+        if a[i] != b[i]:
+            return False
+    return True
+
+
+@njit(cache=True)
+def settle(k, kmax, c_scale, w_trial, c, signs, factored, D, l, norms, fixed, dx, w, lam, slack,
+           f, res, new, seen, report):
+    """One certified projection of ``w_trial`` onto {B w <= c} (rows ``fixed`` as equalities)
+    from the set ``signs``, by primal-dual updates (`crawlsim.kkt.Polyhedron.refine`): DONE
+    with w, lam, slack and the set in place, HANDOFF when the updates cycle, run out or find
+    no independent set, FAILED when the certificate fails with nothing to change (``report``).
+    Returns (status, tol_p); the tolerances are also left in report[REPORT_TOLP:REPORT_TOLD+1]."""
+    for it in range(UPDATE_ITERATIONS):
+        for q in range(it):  # a set seen before: the updates cycle
+            if same(seen[q], signs):
+                return HANDOFF, 0.0
+        seen[it] = signs
+        if not same(factored, signs):
+            norms[0], norms[1] = factor(k, signs, D, l)
+            factored[:] = signs
+        tol_p, tol_d = on_set(k, kmax, c_scale, w_trial, c, signs, D, l, norms[0], norms[1],
+                              dx, w, lam, slack, f, res)
+        primal, dual, comp = certificate(signs, lam, slack, fixed)
+        report[REPORT_TOLP], report[REPORT_TOLD] = tol_p, tol_d
+        if primal <= tol_p and dual <= tol_d and comp <= tol_p:
+            return DONE, tol_p
+        outcome = update(signs, lam, slack, tol_p, tol_d, new, fixed)
+        if outcome == 1:
+            report[REPORT_PRIMAL], report[REPORT_DUAL], report[REPORT_COMP] = primal, dual, comp
+            report[REPORT_ROW] = worst_row(signs, lam, slack)
+            return FAILED, tol_p
+        if outcome == 2:
+            return HANDOFF, tol_p
+        signs[:] = new
+    return HANDOFF, 0.0
+
+
+@njit(cache=True)
+def project(k, c_scale, w_trial, c, signs, fixed, w, lam, report):
+    """One certified projection (`settle`) for the exact integrator's velocity problems:
+    w_trial = 0, c infinite on the rows to ignore, ``fixed`` the rows held with equality.
+    Returns the status; w, lam, signs and report[REPORT_TOLP], report[REPORT_TOLD] hold the
+    step when it is DONE."""
+    N = signs.shape[0]
+    kmax = 0.0
+    for i in range(k.shape[0]):
+        if k[i] > kmax:
+            kmax = k[i]
+    factored = np.full(N, 2, dtype=np.int8)
+    D = np.empty(N)
+    l = np.empty(max(N - 1, 0))
+    norms = np.zeros(2)
+    status, _ = settle(k, kmax, c_scale, w_trial, c, signs, factored, D, l, norms, fixed,
+                       np.empty(N), w, lam, np.empty(2 * N), np.empty(N), np.empty(N),
+                       np.empty(N, dtype=np.int8), np.empty((UPDATE_ITERATIONS, N), dtype=np.int8),
+                       report)
+    return status
+
+
+@njit(cache=True)
+def catch_up(k, c_scale, C, W, LAM, S, signs, factored, D, l, norms, j0, report):
+    """Catch-up steps j = j0, j0+1, ... of a period: W[j+1] and LAM[j] from W[j] and C[j+1],
+    each certified; S[j] the set it settled on. ``signs`` (the current set) and ``factored``,
+    ``D``, ``l``, ``norms`` (its factor and (||L_JJ^{-1}||, ||L_JJ||)) carry over between calls.
+    Returns (status, j): DONE with j = G, else the step to hand over or that failed."""
+    N = signs.shape[0]
+    G = LAM.shape[0]
+    kmax = 0.0
+    for i in range(k.shape[0]):
+        if k[i] > kmax:
+            kmax = k[i]
+    dx = np.empty(N)
+    f = np.empty(N)
+    res = np.empty(N)
+    lam = np.empty(2 * N)
+    slack = np.empty(2 * N)
+    w = np.empty(N - 1)
+    new = np.empty(N, dtype=np.int8)
+    seen = np.empty((UPDATE_ITERATIONS, N), dtype=np.int8)
+    fixed = np.zeros(2 * N, dtype=np.bool_)
+    for j in range(j0, G):
+        c = C[j + 1]
+        w_trial = W[j]
+        status, tol_p = settle(k, kmax, c_scale, w_trial, c, signs, factored, D, l, norms, fixed,
+                               dx, w, lam, slack, f, res, new, seen, report)
+        if status != DONE:
+            return status, j
+        # every block tight to roundoff with an inactive row among them: LICQ may fail and the
+        # slips may not be unique; the Python projector decides (crawlsim.projection)
+        all_tight = True
+        inactive_tight = False
+        for i in range(N):
+            up = signs[i] > 0 or slack[i] >= -tol_p
+            down = signs[i] < 0 or slack[N + i] >= -tol_p
+            if not (up or down):
+                all_tight = False
+                break
+            if (signs[i] <= 0 and slack[i] >= -tol_p) or (signs[i] >= 0 and slack[N + i] >= -tol_p):
+                inactive_tight = True
+        if all_tight and inactive_tight:
+            return HANDOFF, j
+        W[j + 1] = w
+        LAM[j] = lam
+        S[j] = signs
+    return DONE, G
+
+
+@njit(cache=True)
+def worst_row(signs, lam, slack):
+    """The row that violates its certificate most, relative to nothing: the largest slack, or
+    the most negative multiplier, or the active row with the largest residual."""
+    N = signs.shape[0]
+    row, worst = 0, -np.inf
+    for r in range(2 * N):
+        active = (r < N and signs[r] > 0) or (r >= N and signs[r - N] < 0)
+        v = abs(slack[r]) if active else slack[r]
+        if v > worst:
+            worst, row = v, r
+        if -lam[r] > worst:
+            worst, row = -lam[r], r
+    return row

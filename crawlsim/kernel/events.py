@@ -1,0 +1,66 @@
+"""The compiled closed forms of the exact integrator's next event (`crawlsim.exact`).
+
+On a piece, every gap of an inactive row and every slip rate of an active one is a combination
+f(u) = phi(u) @ z of the offsets' basis. An event is the first u in (u0, u1) where some f
+crosses zero upwards and goes on to exceed its tolerance; where roundoff puts the crossing at
+u0 or before (a row tight at the start), the time it exceeds its tolerance, strictly after u0.
+
+* linear, f(u) = a + s u: the zero -a / s, and (tol - a) / s above the tolerance;
+* one harmonic, f(u) = a + alpha cos 2 pi u + beta sin 2 pi u = a + rho cos(theta - phi): the
+  arc where f > tol is [phi - b, phi + b] + 2 pi k with cos b = (tol - a) / rho, the first one
+  that ends at or after theta0 = 2 pi u0 (the next one if theta0 is inside it already), and its
+  zero crossing phi - b0 + 2 pi k with cos b0 = -a / rho.
+
+Element-wise loops over plain arrays; with ``NUMBA_DISABLE_JIT=1`` they run as Python. The
+functions are those that give the same bits compiled and as Python: math.acos and math.atan2
+(the C library's in both; numpy's own arccos and arctan2 differ from it in the last ulp) and
+np.hypot (numba's math.hypot differs from the C library's).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+TWO_PI = 2.0 * math.pi
+
+
+@njit(cache=True)
+def linear_crossings(a, s, tol, u0, u1, out):
+    """Event times of f = a + s u into ``out`` (inf where there is none before u1)."""
+    for r in range(a.shape[0]):
+        out[r] = np.inf
+        if not s[r] > 0:
+            continue
+        over = (tol[r] - a[r]) / s[r]
+        if over < u1 and over > u0:
+            zero = -a[r] / s[r]
+            out[r] = zero if zero > u0 else over
+
+
+@njit(cache=True)
+def harmonic_crossings(a, alpha, beta, tol, u0, u1, out):
+    """Event times of f = a + alpha cos 2 pi u + beta sin 2 pi u into ``out``."""
+    th0 = TWO_PI * u0
+    for r in range(a.shape[0]):
+        out[r] = np.inf
+        rho = np.hypot(alpha[r], beta[r])
+        if not rho > 0:
+            continue
+        x_over = (tol[r] - a[r]) / rho
+        if not x_over < 1.0:
+            continue
+        x_zero = -a[r] / rho
+        b_over = math.acos(min(max(x_over, -1.0), 1.0))
+        b_zero = math.acos(min(max(x_zero, -1.0), 1.0))
+        ph = math.atan2(beta[r], alpha[r])
+        k = math.ceil((th0 - (ph + b_over)) / TWO_PI)
+        start = ph - b_over + TWO_PI * k
+        if start <= th0:  # inside the arc already: the next one
+            k = k + 1
+            start = ph - b_over + TWO_PI * k
+        zero = ph - b_zero + TWO_PI * k
+        t = zero / TWO_PI if zero / TWO_PI > u0 else start / TWO_PI
+        out[r] = t if t < u1 else np.inf

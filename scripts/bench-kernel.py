@@ -1,0 +1,201 @@
+#!/usr/bin/env python3
+"""The bar of the compiled kernel: crawlsim's certified steps against a compact compiled step.
+
+The reference (`reference_period` below) is the catch-up step of the chain as plainly as it can
+be written: a numba loop that, at every step, factors the padded tridiagonal system of the
+current active set (the Thomas algorithm), solves it, and moves the set (drop the blocks whose
+slip has the wrong sign, add the violated limits) until none is left, with no certificate,
+tolerance policy, refinement, fallback or record. It follows crawlsim's trajectory to roundoff
+(the script prints the largest difference of the states).
+
+Printed, for the ``--wave segments`` and ``--wave body`` gaits of scripts/bench-scale.py at 1000
+steps per period and N = 4, 16, 64, 256, 1024, each a median over ``--repeats`` interleaved
+runs of ``--periods`` periods (after one period from the initial state, and after compiling):
+
+* catch-up: crawlsim's certified step (`crawlsim.stepping.CatchUpStepper.step_period`, per
+  step) / the reference step (bar: <= 5);
+* exact: one period of the exact integrator / one period of the reference (bar: <= 3).
+
+    python scripts/bench-kernel.py [--sizes 4,16,64,256,1024] [--waves segments,body]
+                                   [--periods 3] [--repeats 3] [--sweep]
+
+``--sweep`` also times the exact 1-D sweep of the bar (120 points, -j 1) and divides the figure
+measured before the compiled kernel by it (bar: >= 30):
+
+    crawlsim velocity gaits/peristalsis-4.yaml --sweep 'links.1.phase=0:1:120' -j 1 -o OUT.csv
+
+Before the kernel (commit 3423cad, 2-core machine shared with other jobs): 3.29, 3.21, 3.04 s,
+median 3.21 s (37 points/s). The catch-up step on the segments wave at 1000 steps per period was
+then 3.09, 10.1 and 24.2 us at N = 4, 16 and 64 (median of 3 runs of 3 periods, the in-process
+timer of scripts/bench-scale.py).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from numba import njit
+
+from crawlsim.gait import gait_from_document
+from crawlsim.model import compile_gait
+from crawlsim.stepping import make_stepper
+
+ROOT = Path(__file__).resolve().parents[1]
+SWEEP_BEFORE = 3.21  # seconds, median of the three runs in the docstring
+
+
+def _bench_scale():
+    spec = importlib.util.spec_from_file_location("bench_scale", ROOT / "scripts" / "bench-scale.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@njit(cache=True)
+def reference_period(k, C, w0, signs, W):
+    """Catch-up steps w_j -> w_{j+1} onto {B w <= C[j+1]} (crawlsim.kkt's chain), the active
+    set of each step found from the previous one; W (G+1, N-1) receives the states."""
+    N = signs.shape[0]
+    G = C.shape[0] - 1
+    D = np.empty(N)
+    y = np.empty(N)
+    f = np.empty(N)
+    W[0] = w0
+    for j in range(G):
+        w = W[j]
+        c = C[j + 1]
+        f[0] = -w[0]
+        for i in range(1, N - 1):
+            f[i] = w[i - 1] - w[i]
+        f[N - 1] = w[N - 2]
+        for _ in range(4 * N + 4):
+            # Thomas algorithm on the padded system of the saturated blocks
+            for i in range(N):
+                s = signs[i]
+                D[i] = ((k[i - 1] if i > 0 else 0.0) + (k[i] if i < N - 1 else 0.0)) if s else 1.0
+                y[i] = (f[i] - c[i] if s > 0 else f[i] + c[N + i]) if s else 0.0
+            for i in range(1, N):
+                e = -k[i - 1] if (signs[i - 1] != 0 and signs[i] != 0) else 0.0
+                li = e / D[i - 1]
+                D[i] -= li * e
+                y[i] -= li * y[i - 1]
+            y[N - 1] /= D[N - 1]
+            for i in range(N - 2, -1, -1):
+                e = -k[i] if (signs[i] != 0 and signs[i + 1] != 0) else 0.0
+                y[i] = (y[i] - e * y[i + 1]) / D[i]
+            changed = False
+            for i in range(N):
+                s = signs[i]
+                if s and s * y[i] < -1e-13:  # a slip against its limit: release
+                    signs[i] = 0
+                    changed = True
+            if not changed:
+                prev = 0.0
+                for i in range(N):
+                    nxt = y[i + 1] if i < N - 1 else 0.0
+                    fi = f[i] - (k[i - 1] * (y[i] - prev) if i > 0 else 0.0) \
+                        + (k[i] * (nxt - y[i]) if i < N - 1 else 0.0)
+                    prev = y[i]
+                    if signs[i] == 0:
+                        if fi - c[i] > 1e-13:
+                            signs[i] = 1
+                            changed = True
+                        elif -fi - c[N + i] > 1e-13:
+                            signs[i] = -1
+                            changed = True
+            if not changed:
+                break
+        for i in range(N - 1):
+            W[j + 1, i] = w[i] - (y[i + 1] - y[i]) * k[i]
+    return W
+
+
+def _process(N: int, wave: str):
+    scale = _bench_scale()
+    doc = scale.wave_document(N, 1000, wave=wave)
+    return compile_gait(gait_from_document(doc, f"wave-{N}"))
+
+
+def measure(N: int, wave: str, periods: int, repeats: int):
+    """(reference s/period, catch-up s/period, exact s/period, max |w - w_reference|)."""
+    process = _process(N, wave)
+    k = np.ascontiguousarray(process.polyhedron.stiffness)
+    C = np.ascontiguousarray(process.offsets)
+    G = process.steps
+    catch_up = make_stepper(process, "catch-up")
+    exact = make_stepper(process, "exact")
+    catch_up.step_period()
+    exact.step_period()
+    ref_w = catch_up.w.copy()
+    signs = np.zeros(N, dtype=np.int8)
+    W = np.empty((G + 1, N - 1))
+    reference_period(k, C, ref_w, signs, W)  # warm: settles the set at the period start
+    ref, cu, ex = [], [], []
+    diff = 0.0
+    for _ in range(repeats):
+        for _ in range(periods):
+            start = catch_up.w.copy()
+            began = time.perf_counter()
+            record = catch_up.step_period()
+            cu.append(time.perf_counter() - began)
+            began = time.perf_counter()
+            reference_period(k, C, start, signs, W)
+            ref.append(time.perf_counter() - began)
+            diff = max(diff, float(np.max(np.abs(W - record.w))))
+            began = time.perf_counter()
+            exact.step_period()
+            ex.append(time.perf_counter() - began)
+    return statistics.median(ref), statistics.median(cu), statistics.median(ex), diff
+
+
+def sweep(repeats: int) -> float:
+    times = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for i in range(repeats):
+            out = Path(tmp) / f"sweep{i}.csv"
+            began = time.perf_counter()
+            subprocess.run([sys.executable, "-m", "crawlsim", "velocity",
+                            str(ROOT / "gaits" / "peristalsis-4.yaml"), "--sweep",
+                            "links.1.phase=0:1:120", "-j", "1", "-o", str(out)], check=True,
+                           capture_output=True)
+            times.append(time.perf_counter() - began)
+    return statistics.median(times)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sizes", default="4,16,64,256,1024")
+    parser.add_argument("--waves", default="segments,body")
+    parser.add_argument("--periods", type=int, default=3)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--sweep", action="store_true")
+    args = parser.parse_args()
+    sizes = [int(s) for s in args.sizes.split(",") if s]
+    print(f"1000 steps per period; medians of {args.repeats} x {args.periods} interleaved periods")
+    print(f"{'wave':>9} {'N':>5} {'reference us/step':>18} {'catch-up us/step':>17} "
+          f"{'catch-up/ref':>13} {'exact ms/period':>16} {'exact/ref period':>17} "
+          f"{'max|dw|':>9}")
+    for wave in args.waves.split(","):
+        for N in sizes:
+            ref, cu, ex, diff = measure(N, wave, args.periods, args.repeats)
+            print(f"{wave:>9} {N:>5} {ref / 1000 * 1e6:>18.3f} {cu / 1000 * 1e6:>17.3f} "
+                  f"{cu / ref:>13.1f} {ex * 1e3:>16.2f} {ex / ref:>17.1f} {diff:>9.2g}",
+                  flush=True)
+    print("bars: catch-up/ref <= 5, exact/ref period <= 3")
+    if args.sweep:
+        t = sweep(args.repeats)
+        print(f"exact sweep of 120 points, -j 1: {t:.2f} s; before the kernel {SWEEP_BEFORE} s: "
+              f"{SWEEP_BEFORE / t:.2f}x faster (bar: >= 30)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

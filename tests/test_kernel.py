@@ -1,0 +1,234 @@
+"""The compiled kernel (`crawlsim.kernel`): the certified catch-up step of a crawler chain.
+
+What must hold:
+
+* it is the same scheme as `crawlsim.kkt` (the telescoped runs that generic processes keep): a
+  certified KKT point of a strictly convex problem is unique, so both paths take the same steps
+  to roundoff, and v0 agrees to 1e-12 on every example crawler;
+* one source: the compiled functions and the same functions run as Python
+  (``NUMBA_DISABLE_JIT=1``, in a subprocess) give the same bits on fixed inputs (the kernel is
+  plain IEEE arithmetic in a fixed order; numba does not contract or reassociate without
+  fastmath);
+* a step whose numbers are wrong is never accepted: it raises `CertificateError`, naming the
+  time and the rows;
+* a cold cache is announced with one line on stderr, a warm one is not.
+"""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from crawlsim import kkt
+from crawlsim.errors import CertificateError
+from crawlsim.exact import EventStepper
+from crawlsim.gait import load_gait
+from crawlsim.kernel import catchup, chain
+from crawlsim.model import compile_gait
+from crawlsim.stepping import CatchUpStepper
+
+ROOT = Path(__file__).resolve().parents[1]
+CRAWLERS = sorted(p for p in [*ROOT.glob("gaits/*.yaml"), *ROOT.glob("gaits/paper/*.yaml")]
+                  if "sweeping-process" not in p.read_text())
+#: Few periods of short chains: the same steps run as Python in the subprocess.
+BITWISE = ("inching-2", "peristalsis-4", "smooth-friction-3", "anchoring-2")
+
+
+def test_kernel_constants_are_the_kkt_policy():
+    assert (chain.RTOL, chain.REFINE_FRACTION, chain.UPDATE_ITERATIONS) == (
+        kkt.RTOL, kkt.REFINE_FRACTION, kkt.UPDATE_ITERATIONS)
+
+
+@pytest.mark.parametrize("path", CRAWLERS, ids=lambda p: p.stem)
+def test_kernel_steps_are_the_kkt_steps(path):
+    """Three periods from the file's initial state with the kernel and with the telescoped
+    runs of `crawlsim.kkt`: states, slips and v0 of each period agree to roundoff (1e-12
+    relative to the sizes involved), and the periods visit the same active sets."""
+    process = compile_gait(load_gait(path))
+    fast, slow = CatchUpStepper(process), CatchUpStepper(process, kernel=False)
+    assert fast._kernel is not None
+    for _ in range(3):
+        a, b = fast.step_period(), slow.step_period()
+        scale = max(1.0, float(np.max(np.abs(b.w))))
+        assert np.max(np.abs(a.w - b.w)) <= 1e-12 * scale
+        assert np.max(np.abs(a.x - b.x)) <= 1e-12 * max(1.0, float(np.max(np.abs(b.x))))
+        v_a = float(np.mean(a.x[-1] - a.x[0])) / process.period
+        v_b = float(np.mean(b.x[-1] - b.x[0])) / process.period
+        assert abs(v_a - v_b) <= 1e-12
+        assert [A.index.tolist() for A in a.visited] == [A.index.tolist() for A in b.visited]
+
+
+@pytest.mark.parametrize("path", CRAWLERS, ids=lambda p: p.stem)
+def test_exact_velocity_problems_in_the_kernel_change_nothing(path, monkeypatch):
+    """The exact integrator's velocity problems (Moreau's, and the higher orders with the rows
+    already decided as equalities) solved and certified by the compiled kernel, or by
+    `crawlsim.kkt` (the kernel switched off): the same certified KKT points, so the same
+    decisions, events and states, to roundoff, and v0 of each period to 1e-12."""
+    process = compile_gait(load_gait(path))
+    calls = []
+    fast_velocity = catchup.velocity
+
+    def counted(*args):
+        found = fast_velocity(*args)
+        calls.append(found is not None)
+        return found
+
+    monkeypatch.setattr(catchup, "velocity", counted)
+    fast = EventStepper(process)
+    fast_records = [fast.step_period() for _ in range(2)]
+    monkeypatch.setattr(catchup, "velocity", lambda *args: None)
+    slow = EventStepper(process)
+    for a in fast_records:
+        b = slow.step_period()
+        assert np.max(np.abs(a.w - b.w)) <= 1e-12 * max(1.0, float(np.max(np.abs(b.w))))
+        v_a = float(np.mean(a.x[-1] - a.x[0])) / process.period
+        v_b = float(np.mean(b.x[-1] - b.x[0])) / process.period
+        assert abs(v_a - v_b) <= 1e-12
+        assert len(a.events.t) == len(b.events.t)
+    assert any(calls)  # the kernel did decide (events with tight rows happen on every gait)
+
+
+RUN_PERIODS = """\
+import json, sys
+import numpy as np
+from crawlsim.gait import load_gait
+from crawlsim.model import compile_gait
+from crawlsim.stepping import CatchUpStepper
+out = {}
+from crawlsim.exact import EventStepper
+for path in json.loads(sys.argv[1]):
+    process = compile_gait(load_gait(path))
+    for stepper in (CatchUpStepper(process), EventStepper(process)):
+        records = [stepper.step_period() for _ in range(2)]
+        out[f"{path} {type(stepper).__name__}"] = [
+            [r.w.tobytes().hex(), r.multipliers.tobytes().hex()] for r in records]
+with open(sys.argv[2], "w") as f:
+    json.dump(out, f)
+"""
+
+
+def _periods(paths, out: Path, disable_jit: bool) -> dict:
+    env = dict(os.environ)
+    env.pop("NUMBA_DISABLE_JIT", None)
+    if disable_jit:
+        env["NUMBA_DISABLE_JIT"] = "1"
+    subprocess.run([sys.executable, "-c", RUN_PERIODS, json.dumps(paths), str(out)], check=True,
+                   env=env, capture_output=True, timeout=600)
+    return json.loads(out.read_text())
+
+
+def test_compiled_and_python_kernels_agree_bit_for_bit(tmp_path):
+    """Two periods of catch-up and of the exact integrator (the velocity problems and the
+    closed-form events run in the kernel) on four gaits."""
+    paths = [str(ROOT / "gaits" / f"{name}.yaml") for name in BITWISE]
+    compiled = _periods(paths, tmp_path / "compiled.json", disable_jit=False)
+    python = _periods(paths, tmp_path / "python.json", disable_jit=True)
+    assert compiled.keys() == python.keys() and len(compiled) == 2 * len(paths)
+    for key in compiled:
+        assert compiled[key] == python[key], key
+
+
+def _corrupted(scale: float) -> CatchUpStepper:
+    """peristalsis-4 after one period, about to step its second on the set of that period's
+    first step (learnt from a twin stepper), whose factor the kernel keeps, scaled by
+    ``scale`` behind its back: a value the compiled code receives."""
+    process = compile_gait(load_gait(ROOT / "gaits" / "peristalsis-4.yaml"))
+    twin, stepper = CatchUpStepper(process), CatchUpStepper(process)
+    twin.step_period()
+    stepper.step_period()
+    rows = np.flatnonzero(twin.step_period().multipliers[0] > 0)
+    assert rows.size
+    stepper.active = process.polyhedron.factor(rows)
+    kernel = stepper._kernel
+    assert kernel is not None
+    kernel.load(stepper.active)
+    kernel.factored[:] = kernel.signs
+    kernel.norms[:] = chain.factor(kernel.k, kernel.signs, kernel.D, kernel.l)
+    kernel.D *= scale
+    return stepper
+
+
+def test_corrupted_factor_raises_certificate_error():
+    """With the pivots off by 1e-3 relative, the first step solves the wrong system; one step
+    of iterative refinement leaves about (1e-3)^2 = 1e-6 of the residual, far above the 1e-14
+    relative of the certificate, and the set is right (no multiplier of the wrong sign, no
+    violated row), so no update applies: the step fails with its time and rows. (Switching
+    off the certificate, or the refinement's trigger, lets the wrong step through.)"""
+    stepper = _corrupted(1.0 + 1e-3)
+    with pytest.raises(CertificateError, match=r"failed its certificate at t = 1\.001: .*"
+                                               r"complementarity .*worst row 2 \(J = \{3\}"):
+        stepper.step_period()
+
+
+def test_refinement_repairs_a_small_corruption():
+    """The control: pivots off by 1e-9 leave (1e-9)^2 after one refinement, below roundoff, and
+    the period is certified and equals the uncorrupted one to roundoff."""
+    process = compile_gait(load_gait(ROOT / "gaits" / "peristalsis-4.yaml"))
+    clean = CatchUpStepper(process)
+    clean.step_period()
+    expected = clean.step_period()
+    got = _corrupted(1.0 + 1e-9).step_period()
+    assert np.max(np.abs(got.w - expected.w)) <= 1e-12
+
+
+ANNOUNCE = """\
+from crawlsim.kernel import catchup
+catchup.announce_compilation()
+catchup.announce_compilation()
+"""
+
+
+def test_cold_cache_is_announced_once(tmp_path):
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "empty"))
+    env.pop("NUMBA_DISABLE_JIT", None)
+    run = subprocess.run([sys.executable, "-c", ANNOUNCE], env=env, capture_output=True,
+                         text=True, timeout=120)
+    assert run.returncode == 0
+    assert run.stderr.count("compiling the kernel once") == 1
+
+
+def test_warm_cache_is_not_announced():
+    """After a run in this process the cache holds the entry point (or the JIT is disabled):
+    nothing to announce."""
+    process = compile_gait(load_gait(ROOT / "gaits" / "inching-2.yaml"))
+    CatchUpStepper(process).step_period()
+    assert not catchup.cache_is_cold()
+
+
+def test_linear_crossing_closed_form():
+    """f = a + s u: the zero is -a/s when it lies after u0; a row tight at u0 (roundoff puts
+    its zero at or before u0) gets the time it exceeds its tolerance, (tol - a)/s; a falling
+    or late one gets none."""
+    from crawlsim.kernel.events import linear_crossings
+
+    a = np.array([-1.0, 0.0, 1.0, -3.0])
+    s = np.array([2.0, 2.0, -1.0, 2.0])
+    tol = np.full(4, 1e-14)
+    out = np.empty(4)
+    linear_crossings(a, s, tol, 0.0, 1.0, out)
+    assert out[0] == 0.5 and out[1] == 0.5e-14
+    assert np.isinf(out[2]) and np.isinf(out[3])  # falling; crossing at 1.5, after u1
+
+
+def test_harmonic_crossing_closed_form():
+    """f = cos 2 pi u - 1/2 rises through 0 where cos theta = 1/2 on its way up, theta =
+    2 pi - pi/3: u = 5/6 (from u0 = 0.3, when f < 0). From u0 = 0.9, inside the arc where
+    f > 0 already, the next upward crossing is a period later, 1 + 5/6, beyond u1 = 1.5. With
+    a phase, f = cos 2 pi (u - 1/4) - 1/2 = sin 2 pi u - 1/2 (alpha = 0, beta = 1) rises
+    through 0 at u = 1/12."""
+    from crawlsim.kernel.events import harmonic_crossings
+
+    out = np.empty(1)
+    harmonic_crossings(np.array([-0.5]), np.array([1.0]), np.array([0.0]),
+                       np.array([1e-14]), 0.3, 1.0, out)
+    assert out[0] == pytest.approx(5 / 6, abs=1e-14)
+    harmonic_crossings(np.array([-0.5]), np.array([1.0]), np.array([0.0]),
+                       np.array([1e-14]), 0.9, 1.5, out)
+    assert np.isinf(out[0])
+    harmonic_crossings(np.array([-0.5]), np.array([0.0]), np.array([1.0]),
+                       np.array([1e-14]), 0.0, 1.0, out)
+    assert out[0] == pytest.approx(1 / 12, abs=1e-14)
