@@ -1,0 +1,259 @@
+"""The stall force and the steepest climbable slope (docs/model.md §6).
+
+v0 as a function of a load is only piecewise smooth: it can reach 0 smoothly (the stroke no
+longer exceeds the elastic range), stay identically 0 on an interval of loads, and jump across 0
+where the shifted thresholds violate the uniqueness condition. So the stall load is defined, and
+found, as the boundary of the set of loads at which the crawler still moves its way:
+
+    s* = sup { s : sign(v0(s')) = sign(v0(s0)) and v0(s') != 0 for all s' between s0 and s },
+
+varying the load from the gait's value s0 in the direction that opposes the motion. A scan in
+steps of `SCAN_STEPS`-ths of the load's natural range brackets the first load where the crawler
+stops moving its way (or where the body can no longer hold, or the gait is refused); bisection
+on the same predicate then shrinks the bracket to `RELATIVE_WIDTH` of the range. The predicate
+is a sign, so bisection converges whatever v0 does inside the bracket: a smooth zero, a jump, or
+an interval of v0 = 0 all leave a boundary point. The cause is read off the final bracket's
+moving side: v0 within `SMOOTH` of its starting size there is a smooth zero, otherwise a jump,
+and for a jump the subset J whose shifted uniqueness sum (docs/model.md §3, §6) vanishes at the
+stall load is named.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass, field
+from enum import StrEnum
+from typing import Any
+
+import numpy as np
+
+from .errors import CertificateError, GaitError, InputError
+from .gait import Gait
+from .signals import evaluate_many
+
+SCAN_STEPS = 64
+"""Scan steps across the load's natural range (the total friction, or 90 degrees)."""
+
+RELATIVE_WIDTH = 1e-9
+"""The final bracket's width relative to the natural range. Within about 1e-11 of a load where the
+shifted uniqueness condition fails the active normals are nearly dependent, and a step's
+certificate can fail at roundoff (`CertificateError`); such a load counts as not moving, which
+moves the boundary by no more than that distance."""
+
+SMOOTH = 1e-6
+"""A v0 below this fraction of |v0(s0)| on the moving side of the final bracket is a smooth zero."""
+
+
+class StallCause(StrEnum):
+    """Why v0 stops having its sign at the stall load."""
+
+    SMOOTH_ZERO = "smooth-zero"  # v0 reaches 0 continuously
+    JUMP = "jump"  # v0 jumps across 0 (or to 0) where the shifted uniqueness condition fails
+    HOLD = "hold"  # the body can no longer hold its loads before v0 reaches 0 (docs/model.md §6)
+
+
+@dataclass(frozen=True)
+class StallResult:
+    """The stall load and how it was found."""
+
+    quantity: str  # "force" or "slope"
+    path: str  # the document path varied
+    value: float  # the stall load (force, or degrees)
+    bracket: tuple[float, float]  # moving side, stopped side
+    cause: StallCause
+    v0_start: float  # v0 at the gait's own load
+    v0_moving: float  # v0 at the bracket's moving side
+    v0_stopped: float | None  # v0 at the stopped side (None where the gait is refused)
+    start: float  # the gait's own load
+    evaluations: int
+    subset: tuple[int, ...] | None = None  # J (1-based blocks) of a jump, when one is found
+    reason: str | None = None  # the refusal at the stopped side, if any
+    unit: str = ""
+
+    @property
+    def error_estimate(self) -> float:
+        """Half the bracket: the stall load is within it of ``value``."""
+        return abs(self.bracket[1] - self.bracket[0]) / 2
+
+    def summary(self) -> dict[str, Any]:
+        return {"quantity": self.quantity, "path": self.path, "stall": self.value,
+                "error_estimate": self.error_estimate, "bracket": list(self.bracket),
+                "cause": str(self.cause), "start": self.start, "v0_start": self.v0_start,
+                "v0_moving_side": self.v0_moving, "v0_stopped_side": self.v0_stopped,
+                "subset": None if self.subset is None else list(self.subset),
+                "reason": self.reason, "unit": self.unit, "evaluations": self.evaluations}
+
+
+@dataclass
+class _Probe:
+    gait: Gait
+    path: str
+    evaluations: int = 0
+    cache: dict[float, tuple[float | None, str | None, bool]] = field(default_factory=dict)
+
+    def __call__(self, s: float) -> tuple[float | None, str | None, bool]:
+        """(v0, refusal reason, refused because the body cannot hold) at load s."""
+        if s in self.cache:
+            return self.cache[s]
+        from .api import run
+
+        self.evaluations += 1
+        try:
+            gait = self.gait.replace(self.path, float(s))
+        except GaitError as error:
+            out: tuple[float | None, str | None, bool] = (
+                None, str(error), "too large for any quasistatic motion" in str(error))
+        else:
+            try:
+                result = run(gait, history=False)
+            except CertificateError as error:  # at roundoff of a uniqueness failure (RELATIVE_WIDTH)
+                out = (None, str(error), False)
+                self.cache[s] = out
+                return out
+            if not result.converged:
+                raise InputError(self.gait.source, self.path,
+                                 f"the run at {self.path} = {s:.12g} did not converge within "
+                                 f"max_periods; raise --max-periods")
+            out = (result.v0, None, False)
+        self.cache[s] = out
+        return out
+
+
+def _natural_range(gait: Gait, quantity: str) -> float:
+    if quantity == "slope":
+        return 90.0
+    zero = np.zeros(1)
+    return float(np.sum(gait.mu_plus(zero)) + np.sum(gait.mu_minus(zero))) / 2
+
+
+def stall(gait: Gait | str, *, force: str | None = None, slope: bool = False) -> StallResult:
+    """The stall force (``force=PATH``, a number in the ``loads:`` block such as
+    ``"loads.force.0"``) or the steepest slope the gait still climbs (``slope=True``, varying
+    ``loads.slope.angle``, in degrees), with its bracket and cause (module docstring)."""
+    from .api import _as_spec
+
+    spec = _as_spec(gait)
+    if not isinstance(spec, Gait):
+        raise InputError(spec.source, "kind", "stall needs a crawler gait, not a sweeping process")
+    if (force is None) == (not slope):
+        raise InputError(spec.source, "", "give exactly one of force=PATH and slope=True")
+    if slope:
+        if spec.loads is None or spec.loads.weights is None:
+            raise InputError(spec.source, "loads.slope",
+                             "the slope search needs the blocks' weights: add "
+                             "'loads: {slope: {angle: 0.0, weight: W}}' to the gait")
+        path, quantity = "loads.slope.angle", "slope"
+    else:
+        assert force is not None
+        path, quantity = force, "force"
+        if not path.startswith("loads.force"):
+            raise InputError(spec.source, path, "expected a path into loads.force, such as "
+                                                "loads.force.0 (the force on block 1) or "
+                                                "loads.force (one force on every block)")
+        from .docpaths import resolve_path
+
+        found = resolve_path(spec.document, path, spec.source)
+        if len(found) != 1:
+            raise InputError(spec.source, path, "expected a path to one number (no '*')")
+    from .docpaths import resolve_path
+
+    keys = resolve_path(spec.document, path, spec.source)[0]
+    node: Any = spec.document
+    for key in keys:
+        node = node[key]
+    if not isinstance(node, (int, float)) or isinstance(node, bool):
+        raise InputError(spec.source, path, f"expected a number at {path}, got {node!r}: the "
+                                            "stall search varies a constant load")
+    s0 = float(node)
+    probe = _Probe(spec, path)
+    v_start, why, _ = probe(s0)
+    if v_start is None:  # pragma: no cover - the gait itself was validated
+        raise InputError(spec.source, path, why or "refused")
+    scale = _natural_range(spec, quantity)
+    tolerance_v = 1e-9 * abs(v_start)
+    if not abs(v_start) > 1e-12 * max(scale, 1.0):
+        raise InputError(spec.source, path, f"the gait does not move at {path} = {s0:g} (v0 = "
+                                            f"{v_start:.3g}): there is no motion to stall")
+    sign = math.copysign(1.0, v_start)
+    # a forward force helps forward motion; a steeper slope hinders climbing
+    direction = -sign if quantity == "force" else sign
+
+    def moving(s: float) -> bool:
+        v, _, _ = probe(s)
+        return v is not None and v * sign > tolerance_v
+
+    step = scale / SCAN_STEPS
+    lo, hi = s0, None
+    limit = 90.0 if quantity == "slope" else math.inf
+    for k in itertools.count(1):
+        s = s0 + direction * k * step
+        if abs(s) >= limit:
+            s = direction * (limit - 1e-9)
+            if not moving(s):
+                hi = s
+            break
+        if not moving(s):
+            hi = s
+            break
+        lo = s
+        if k > 100 * SCAN_STEPS:  # pragma: no cover - the body cannot hold past the friction
+            break
+    if hi is None:
+        raise InputError(spec.source, path, f"the gait still moves at {path} = {lo:.12g}, the "
+                                            "end of the range searched: no stall load found")
+    width = RELATIVE_WIDTH * scale
+    while abs(hi - lo) > width:
+        middle = 0.5 * (lo + hi)
+        if middle in (lo, hi):
+            break
+        if moving(middle):
+            lo = middle
+        else:
+            hi = middle
+    v_lo, _, _ = probe(lo)
+    v_hi, reason, no_hold = probe(hi)
+    assert v_lo is not None
+    subset = None
+    value = 0.5 * (lo + hi)
+    if no_hold:
+        cause = StallCause.HOLD
+    elif abs(v_lo) <= SMOOTH * abs(v_start):
+        cause = StallCause.SMOOTH_ZERO
+        # v0 is smooth here: the predicate stopped where |v0| fell to its tolerance, so the zero
+        # is the secant root through lo and a point farther back on the moving side
+        back = lo - direction * max(1e3 * abs(hi - lo), 1e-6 * scale)
+        v_back, _, _ = probe(back)
+        if v_back is not None and v_back * sign > abs(v_lo) and v_back != v_lo:
+            root = lo - v_lo * (lo - back) / (v_lo - v_back)
+            if abs(root - lo) <= 1e3 * abs(hi - lo):
+                value = root
+                hi = lo + 2 * (root - lo) if abs(root - lo) > abs(hi - lo) / 2 else hi
+    else:
+        cause = StallCause.JUMP
+        subset = _vanishing_subset(spec.replace(path, lo))
+    unit = "degree" if quantity == "slope" else spec.units.suffix("force").strip()
+    return StallResult(quantity, path, value, (lo, hi), cause, v_start, v_lo, v_hi,
+                       s0, probe.evaluations, subset, reason, unit)
+
+
+def _vanishing_subset(gait: Gait) -> tuple[int, ...] | None:
+    """The subset J whose shifted uniqueness sum g~_J is nearest to 0 over the cycle's samples
+    (docs/model.md §3, §6); None for more than 16 blocks or when none is near 0."""
+    N = gait.blocks
+    if N > 16:
+        return None
+    plus, minus = gait.thresholds()
+    u = np.linspace(0.0, 1.0, 33)[:-1]
+    a, b = evaluate_many(plus, u), evaluate_many(minus, u)  # (samples, N)
+    scale = float(np.max(np.sum(np.abs(a) + np.abs(b), axis=1)))
+    best, best_value = None, math.inf
+    for mask in range(2 ** N):
+        inside = np.array([(mask >> j) & 1 for j in range(N)], dtype=bool)
+        g = a[:, inside].sum(axis=1) - b[:, ~inside].sum(axis=1)
+        value = float(np.min(np.abs(g)))
+        if value < best_value:
+            best, best_value = inside, value
+    if best is None or best_value > 1e-6 * scale:
+        return None
+    return tuple(int(j) + 1 for j in np.nonzero(best)[0])
