@@ -57,6 +57,7 @@ class SweepingProcess:
     load: np.ndarray | None = None
     friction_scale: float = 1.0  # cos(angle): the signals' mu scaled to the slope's friction
     load_constant: np.ndarray | None = None  # -W sin(angle) (N,): F~ = F(t) + load_constant
+    slope_angle: float | None = None  # degrees, None without a slope
     # The closed form of c(t) piece by piece, for integrators that leave the grid (exact):
     offset_pieces: PiecewiseOffsets | None = None
     breakpoints: np.ndarray | None = None  # times in [0, T) where c has a kink or a jump
@@ -198,6 +199,7 @@ def compile_gait(gait: Gait, steps_per_period: int | None = None) -> SweepingPro
         load=load,
         friction_scale=scale,
         load_constant=constant,
+        slope_angle=None if loads is None or loads.weights is None else float(loads.angle),
         offset_pieces=pieces,
         breakpoints=np.asarray(gait.breakpoints(), dtype=float) * T,
         _cycles=u,

@@ -19,6 +19,7 @@ when e = c (every block slips one way); with W = D + J + W_load and J = 0 for a 
 
 import csv
 import io
+import json
 import math
 
 import numpy as np
@@ -288,3 +289,42 @@ def test_replace_reaches_the_loads():
     towed = gait.replace("loads.force.0", -0.5)
     assert run(towed, history=False).v0 == pytest.approx(0.35, abs=1e-12)
     np.testing.assert_array_equal(towed.loads.total(np.zeros(1))[0], [-0.5, 0.0])
+
+
+def test_run_file_records_the_loads(tmp_path):
+    """The run file holds the loads' share of the thresholds on the limit period, the load work
+    (also a root attribute) and the slope angle in degrees; the effective document (gait_yaml)
+    holds the loads: block."""
+    import h5py
+
+    gait = make_gait(two_block_doc(loads={"force": [-0.5, 0.0],
+                                          "slope": {"angle": 20.0, "weight": 1.0}}))
+    result = run(gait, output=tmp_path / "r.h5")
+    with h5py.File(tmp_path / "r.h5") as f:
+        assert f.attrs["slope_angle"] == 20.0
+        assert json.loads(f.attrs["attribute_units_json"])["slope_angle"] == "degree"
+        assert f.attrs["load_work_per_period"] == pytest.approx(result.load_work_per_period,
+                                                                abs=1e-15)
+        assert f["energy/load_work"][()] == pytest.approx(result.load_work_per_period, abs=1e-15)
+        load = f["limit/load"][()]
+        total = -0.5 - math.sin(math.radians(20.0))
+        np.testing.assert_allclose(load[:, 0], -total, atol=1e-15)  # forward row: -F~_1
+        np.testing.assert_allclose(load[:, 3], -math.sin(math.radians(20.0)), atol=1e-15)
+        assert yaml.safe_load(f.attrs["gait_yaml"])["loads"]["force"] == [-0.5, 0.0]
+
+
+def test_sweep_file_records_the_swept_load_with_units(tmp_path):
+    import h5py
+
+    gait = tmp_path / "gait.yaml"
+    doc = two_block_doc(loads={"force": [0.0, 0.0], "slope": {"angle": 0.0, "weight": 1.0}})
+    doc["units"] = {"length": "mm", "time": "s", "force": "N"}
+    gait.write_text(yaml.safe_dump(doc))
+    r = CliRunner().invoke(main, ["velocity", str(gait), "--sweep", "loads.slope.angle=0:20:3",
+                                  "--sweep", "loads.force.0=0:-0.2:2", "-o",
+                                  str(tmp_path / "s.h5")])
+    assert r.exit_code == 0, r.output
+    with h5py.File(tmp_path / "s.h5") as f:
+        assert f["grid/loads_slope_angle"].attrs["units"] == "degree"
+        assert f["grid/loads_force_0"].attrs["path"] == "loads.force.0"
+        assert f["grid/loads_force_0"].attrs["units"] == "N"
