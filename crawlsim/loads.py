@@ -125,10 +125,13 @@ class Combination(Signal):
         edges = np.unique(edges)
         lo, hi = edges[:-1], edges[1:]
         mid = 0.5 * (lo + hi)
-        value, slope = self(mid), self.rate(mid)
-        ends = np.concatenate([value - slope * (mid - lo), value + slope * (hi - mid)])
-        where = np.concatenate([lo, hi])
-        if not all(isinstance(s, (Constant, Steps, PiecewiseLinear)) for _, s in self.terms):
+        if all(isinstance(s, (Constant, Steps, PiecewiseLinear)) for _, s in self.terms):
+            value, slope = self(mid), self.rate(mid)
+            ends = np.concatenate([value - slope * (mid - lo), value + slope * (hi - mid)])
+            where = np.concatenate([lo, hi])
+        else:  # one-sided limits at the pieces' ends, a dense sample inside, and refinement
+            inside = np.concatenate([lo + 1e-12 * (hi - lo), hi - 1e-12 * (hi - lo)])
+            ends, where = self(inside), inside
             grid = (lo[:, None] + (hi - lo)[:, None] * (np.arange(256) + 0.5)[None, :] / 256).ravel()
             ends = np.concatenate([ends, self(grid)])
             where = np.concatenate([where, grid])

@@ -257,3 +257,137 @@ def _vanishing_subset(gait: Gait) -> tuple[int, ...] | None:
     if best is None or best_value > 1e-6 * scale:
         return None
     return tuple(int(j) + 1 for j in np.nonzero(best)[0])
+
+
+@dataclass(frozen=True)
+class CurveMarks:
+    """What a force-velocity (or slope-velocity) sweep figure marks: the loads between swept
+    points where v0 jumps (the shifted uniqueness condition fails on the whole cycle), and the
+    stall load with its cause."""
+
+    jumps: tuple[float, ...]
+    stall: float | None
+    cause: StallCause | None
+    label: str  # "stall force" or "steepest slope"
+
+
+def curve_marks(gait_yaml: str, path: str, values, v0) -> CurveMarks | None:
+    """The marks of a sweep of one load path (``loads.force...`` or ``loads.slope.angle``), or
+    None for any other sweep (or when the gait cannot be rebuilt).
+
+    Jumps: between consecutive swept values, a subset J whose shifted uniqueness sum g~_J changes
+    sign at every sample time of the cycle (N <= 12) is bisected to the load where it vanishes
+    (to 1e-12 of the interval); there v0 can jump, and the curve is broken there instead of
+    interpolated. Stall: from the swept value nearest the gait's own load, the first interval
+    where v0 loses that point's sign; at a jump inside it the stall is the jump (cause jump),
+    otherwise the linear interpolation of the zero (cause smooth-zero, to the grid's resolution).
+    """
+    import yaml
+
+    from .gait import gait_from_document
+
+    if not (path.startswith("loads.force") or path == "loads.slope.angle"):
+        return None
+    try:
+        document = yaml.safe_load(gait_yaml)
+        gait = gait_from_document(document, "<sweep>")
+    except Exception:  # a figure is drawn without marks rather than not at all
+        return None
+    if not isinstance(gait, Gait) or gait.blocks > 12:
+        return None
+    x = np.asarray(values, dtype=float)
+    v = np.asarray(v0, dtype=float)
+    label = "steepest slope" if path == "loads.slope.angle" else "stall force"
+
+    u = np.linspace(0.0, 1.0, 17)[:-1]
+    N = gait.blocks
+    masks = np.array([[(m >> j) & 1 for j in range(N)] for m in range(1, 2 ** N - 1)], dtype=bool)
+
+    def sums(s: float) -> np.ndarray | None:
+        """g~_J at the sample times (subsets, samples), or None where the gait is refused for
+        another reason than uniqueness."""
+        try:
+            g = gait.replace(path, float(s))
+        except GaitError as error:
+            if "uniqueness" not in str(error):
+                return None
+            g = None
+        if g is None:  # exactly on a uniqueness failure: rebuild the thresholds without checks
+            return np.zeros((len(masks), len(u)))
+        plus, minus = g.thresholds()
+        a, b = evaluate_many(plus, u), evaluate_many(minus, u)
+        return masks.astype(float) @ a.T - (~masks).astype(float) @ b.T
+
+    jumps: list[float] = []
+    order = np.argsort(x)
+    xs = x[order]
+    table = [sums(s) for s in xs]
+    for s, g in zip(xs, table):  # a swept value exactly on a uniqueness failure
+        if g is not None and np.any(np.all(g == 0.0, axis=1)):
+            jumps.append(float(s))
+    for left, right, previous, current in zip(xs[:-1], xs[1:], table[:-1], table[1:]):
+        if previous is not None and current is not None:
+            flips = np.all(np.sign(previous) * np.sign(current) < 0, axis=1)
+            for k in np.flatnonzero(flips):
+                lo, hi, g_lo = float(left), float(right), previous[k, 0]
+                for _ in range(60):
+                    mid = 0.5 * (lo + hi)
+                    g_mid = sums(mid)
+                    if g_mid is None:
+                        break
+                    if np.sign(g_mid[k, 0]) == np.sign(g_lo):
+                        lo = mid
+                    else:
+                        hi = mid
+                    if hi - lo <= 1e-12 * (right - left):
+                        break
+                jumps.append(0.5 * (lo + hi))
+    jumps = sorted(set(jumps))
+
+    stall_at, cause = None, None
+    keys = resolve_path_value(gait.document, path)
+    finite = np.isfinite(v)
+    if keys is not None and np.any(finite):
+        index = np.flatnonzero(finite)
+        start = int(index[np.argmin(np.abs(x[index] - keys))])
+        sign = np.sign(v[start])
+        if sign != 0:
+            # walk away from the start, either way, to where v0 first loses its sign
+            for direction in (1, -1):
+                i = start
+                while 0 <= i + direction < len(x):
+                    j = i + direction
+                    if not np.isfinite(v[j]) or np.sign(v[j]) != sign:
+                        inside = [s for s in jumps if 0 < (s - x[i]) / (x[j] - x[i]) <= 1]
+                        if inside:
+                            nearest = int(np.argmin([abs(s - x[i]) for s in inside]))
+                            stall_at, cause = inside[nearest], StallCause.JUMP
+                        elif np.isfinite(v[j]):
+                            stall_at = float(x[i] + (x[j] - x[i]) * v[i] / (v[i] - v[j]))
+                            k = i - direction
+                            if v[j] == 0.0 and 0 <= k < len(x) and np.isfinite(v[k]) \
+                                    and v[k] != v[i]:
+                                # v0 = 0 on an interval from the zero on: extrapolate the
+                                # secant of the moving side instead, within (x_i, x_j]
+                                root = float(x[i] - v[i] * (x[i] - x[k]) / (v[i] - v[k]))
+                                if 0 < (root - x[i]) / (x[j] - x[i]) <= 1:
+                                    stall_at = root
+                            cause = StallCause.SMOOTH_ZERO
+                        break
+                    i = j
+                if stall_at is not None:
+                    break
+    return CurveMarks(tuple(jumps), stall_at, cause, label)
+
+
+def resolve_path_value(document: dict, path: str) -> float | None:
+    """The number at a dotted path of a document, or None."""
+    from .docpaths import path_keys
+
+    node: Any = document
+    try:
+        for key in path_keys(path):
+            node = node[key]
+    except (KeyError, IndexError, TypeError):
+        return None
+    return float(node) if isinstance(node, (int, float)) and not isinstance(node, bool) else None

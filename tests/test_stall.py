@@ -107,3 +107,32 @@ def test_cli(tmp_path):
                                                    "--slope"]):
         r = runner.invoke(main, args)
         assert r.exit_code == 2 and "Traceback" not in r.output, (args, r.output)
+
+
+def test_force_velocity_figure_marks_the_jump_and_the_stall(tmp_path):
+    """The sweep figure of a load: the jump of v0 at P = 1 (tests/test_loads.py) is located by
+    the shifted uniqueness sums to 1e-9 and the line is broken there, not joined across; the
+    stall force is the jump. With the smooth stroke (Delta = 0.24) v0 = 0.04 - P/10 is affine
+    up to its zero at P = 0.4 and 0 beyond: the secant of the moving side finds 0.4 exactly."""
+    from crawlsim.plotting import sweep_figure
+    from crawlsim.stall import curve_marks
+
+    path = towing(tmp_path, 0.3, -0.5)
+    r = CliRunner().invoke(main, ["velocity", str(path), "--sweep", "loads.force.0=0.1:-1.75:12"])
+    assert r.exit_code == 0, r.output
+    rows = [line.split(",") for line in r.output.splitlines()[1:13]]
+    x = [float(row[0]) for row in rows]
+    v0 = [float(row[1]) if row[1] else float("nan") for row in rows]
+    marks = curve_marks(path.read_text(), "loads.force.0", x, v0)
+    assert len(marks.jumps) == 1 and marks.jumps[0] == pytest.approx(-1.0, abs=1e-9)
+    assert marks.stall == pytest.approx(-1.0, abs=1e-9) and marks.cause == StallCause.JUMP
+    fig = sweep_figure({"loads.force.0": x}, v0, ["ok"] * len(x), "fv", marks=marks)
+    line = fig.axes[0].get_lines()[0]
+    xs = list(line.get_xdata())
+    assert any(math.isnan(value) for value in xs)  # broken at the jump
+    smooth = towing(tmp_path, 0.12, name="s.yaml")
+    xs = [0.0, -0.1, -0.2, -0.3, -0.45, -0.6]
+    v0 = [0.024 - 0.1 * (-s) + 0.016 if -s < 0.4 else 0.0 for s in xs]  # 0.04 - P/10, then 0
+    marks = curve_marks(smooth.read_text(), "loads.force.0", xs, v0)
+    assert marks.cause == StallCause.SMOOTH_ZERO
+    assert marks.stall == pytest.approx(-0.4, abs=1e-12)
