@@ -364,12 +364,13 @@ def curve_marks(gait_yaml: str, path: str, values, v0) -> CurveMarks | None:
                             stall_at, cause = inside[nearest], StallCause.JUMP
                         elif np.isfinite(v[j]):
                             stall_at = float(x[i] + (x[j] - x[i]) * v[i] / (v[i] - v[j]))
-                            k = i - direction
-                            if v[j] == 0.0 and 0 <= k < len(x) and np.isfinite(v[k]) \
-                                    and v[k] != v[i]:
+                            behind = i - direction
+                            if v[j] == 0.0 and 0 <= behind < len(x) and np.isfinite(v[behind]) \
+                                    and v[behind] != v[i]:
                                 # v0 = 0 on an interval from the zero on: extrapolate the
                                 # secant of the moving side instead, within (x_i, x_j]
-                                root = float(x[i] - v[i] * (x[i] - x[k]) / (v[i] - v[k]))
+                                root = float(x[i] - v[i] * (x[i] - x[behind])
+                                             / (v[i] - v[behind]))
                                 if 0 < (root - x[i]) / (x[j] - x[i]) <= 1:
                                     stall_at = root
                             cause = StallCause.SMOOTH_ZERO
