@@ -328,3 +328,106 @@ def test_sweep_file_records_the_swept_load_with_units(tmp_path):
         assert f["grid/loads_slope_angle"].attrs["units"] == "degree"
         assert f["grid/loads_force_0"].attrs["path"] == "loads.force.0"
         assert f["grid/loads_force_0"].attrs["units"] == "N"
+
+
+def test_a_load_that_cannot_be_held_part_of_the_cycle_is_refused_with_the_time():
+    """F(t) = -1 + 1.5 cos 2 pi t on each of 3 blocks, mu- = 2: sum mu~^- = 6 + 3 F(t) is
+    negative around t = T/2 (minimum -1.5 there): no quasistatic motion, refused naming t."""
+    doc = {"blocks": 3, "period": 2.0, "stiffness": 10.0,
+           "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3}, 1.0],
+           "friction": {"forward": 1.0, "backward": 2.0},
+           "loads": {"force": {"kind": "cosine", "mean": -1.0, "amplitude": 1.5}}}
+    with pytest.raises(GaitError, match=r"loads: the loads are too large .* at t = 1 "
+                                        r"the total load sum_j F~_j = -7.5"):
+        make_gait(doc)
+    doc["loads"]["force"]["amplitude"] = 0.9  # minimum 6 - 5.7 = 0.3 > 0: held
+    make_gait(doc)
+
+
+@pytest.mark.parametrize("signals", [
+    [1.0, {"kind": "steps", "times": [0.0, 0.3, 0.8], "values": [0.2, -0.7, 0.1]}],
+    [{"kind": "piecewise-linear", "times": [0.0, 0.4, 1.0], "values": [0.0, -1.0, 0.0]},
+     {"kind": "steps", "times": [0.0, 0.7], "values": [0.3, -0.2]}],
+    [{"kind": "cosine", "mean": 1.0, "amplitude": 0.5, "phase": 0.1},
+     {"kind": "steps", "times": [0.0, 0.25], "values": [0.0, -0.6]}],
+])
+def test_combination_minimum(signals):
+    """The least value of a sum of signals over the cycle (the body's hold condition): exact
+    for constants, steps and piecewise-linear (affine between breakpoints: a one-sided limit at a
+    piece's end), and at least as low as a dense sample otherwise, never below the true one."""
+    from crawlsim.loads import combination
+    from crawlsim.signals import parse_signal
+
+    parsed = [parse_signal(s, "s", "<test>") for s in signals]
+    total = combination([(1.0, s) for s in parsed], 0.25)
+    value, at = total.minimum()
+    u = np.linspace(0.0, 1.0, 200001)[:-1]
+    sampled = 0.25 + sum(s(u) for s in parsed)
+    assert value <= sampled.min() + 1e-9
+    assert value >= sampled.min() - 1e-4  # the one-sided limit at a jump is not sampled exactly
+    assert total(np.array([at]))[0] == pytest.approx(value, abs=1e-4)
+
+
+def test_square_wave_gait_under_a_uniform_force():
+    """A square-wave stroke (a steps link: L jumps from 1 to 1.6 at t = 0 and back at T/2) under
+    the uniform force F = -0.2 on both blocks, mu+ = 1, mu- = 2, k = 10: a = 1.2, b = 1.8, e = c
+    = +1 and each jump of L slips by Delta - 2a/k = 0.6 - 0.24 = 0.36 (the jump loss is the
+    elastic energy of the jump beyond friction: the ledger still balances)."""
+    doc = two_block_doc(loads={"force": -0.2},
+                        link={"kind": "steps", "times": [0.0, 0.5], "values": [1.6, 1.0]})
+    for integrator in ("exact", "catch-up"):
+        doc["simulation"]["integrator"] = integrator
+        result = run(make_gait(doc), history=False)
+        assert result.v0 == pytest.approx(0.36, abs=1e-12)
+        assert result.load_work_per_period == pytest.approx(0.4 * 0.36, abs=1e-12)
+        assert result.jump_loss_per_period > 0
+        assert abs(result.energy_balance_residual) <= 1e-12 * result.actuator_work_per_period
+
+
+def test_climbing_3_closed_form():
+    """gaits/climbing-3.yaml's header: every block advances 2 (Delta - 3a/k) per period, a =
+    cos 10° + sin 10°, and the work against gravity is 3 W sin 10° d."""
+    from .conftest import GAITS
+
+    result = run(GAITS / "climbing-3.yaml", history=False)
+    a = math.cos(math.radians(10)) + math.sin(math.radians(10))
+    d = 2 * (0.6 - 3 * a / 10)
+    assert result.v0 == pytest.approx(d, abs=1e-12)
+    assert result.load_work_per_period == pytest.approx(3 * math.sin(math.radians(10)) * d,
+                                                        abs=1e-12)
+
+
+def test_inching_2_towing_header():
+    from .conftest import GAITS
+
+    result = run(GAITS / "inching-2-towing.yaml", history=False)
+    assert result.v0 == pytest.approx(0.35, abs=1e-12)
+    assert result.load_work_per_period == pytest.approx(0.175, abs=1e-12)
+    assert result.dissipation_per_period == pytest.approx(0.7, abs=1e-12)
+    assert result.actuator_work_per_period == pytest.approx(0.875, abs=1e-12)
+    assert result.efficiency == pytest.approx(0.2, abs=1e-12)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", range(24))
+def test_random_gaits_with_loads_never_crash(seed):
+    """The random-gait corpus with random loads (forces of every kind, some beyond a block's own
+    friction, slopes up to 30 degrees): both integrators run to convergence, or catch-up meets a
+    degenerate grid instant and says so (exit 2); never a certificate or internal failure."""
+    from crawlsim.analysis import simulate
+    from crawlsim.corpus import random_gait
+    from crawlsim.errors import DegenerateModelError
+    from crawlsim.model import compile_gait
+
+    gait = random_gait(seed, blocks=(2, 8), steps_per_period=200, max_periods=300, loads=True)
+    assert gait.loads is not None
+    exact = simulate(compile_gait(gait), integrator="exact", max_periods=300, tolerance=1e-11,
+                     history=False)
+    assert exact.converged and abs(exact.energy_balance_residual) <= 1e-9 * max(
+        1.0, abs(exact.actuator_work_per_period))
+    try:
+        catch_up = simulate(compile_gait(gait), integrator="catch-up", max_periods=300,
+                            tolerance=1e-11, history=False)
+    except DegenerateModelError:
+        return
+    assert catch_up.converged
