@@ -259,7 +259,7 @@ class ExactLedger:
 
     def start(self) -> None:
         self._bounds: list[tuple[float, float]] = []
-        self._products: list[np.ndarray] = []  # (3, nb, nb): work, dissipation, load work
+        self._products: list[np.ndarray] = []  # (2 or 3, nb, nb): work, dissipation, load work
         self._jumps: dict[str, list[float]] = {"work": [], "dissipation": [], "jump_loss": [],
                                                "load_work": []}
 
@@ -293,11 +293,13 @@ class ExactLedger:
         _, KLc, dLc, Mc, lc = self._split(p)
         Sc = Wc + KLc
         Sc[0] = Sc[0] + base
-        G = np.empty((3,) + (self.basis.size,) * 2)
+        loaded = self.constant is not None  # a third product only with loads (§6)
+        G = np.empty((3 if loaded else 2,) + (self.basis.size,) * 2)
         G[0] = Sc @ dLc.T
         dY = self.basis.derivative(Y).T
         G[1] = -(Mc[:, active] @ dY) if active.size else 0.0
-        G[2] = -(lc[:, active] @ dY) if active.size else 0.0
+        if loaded:
+            G[2] = -(lc[:, active] @ dY) if active.size else 0.0
         self._bounds.append((u0, u1))
         self._products.append(G)
 
@@ -332,7 +334,8 @@ class ExactLedger:
             terms = np.einsum("kab,kjab->jk", P, np.array(self._products))
             work.extend(terms[0].tolist())
             dissipation.extend(terms[1].tolist())
-            load_work.extend(terms[2].tolist())
+            if len(terms) > 2:
+                load_work.extend(terms[2].tolist())
         L0, _, _ = self._signals_at(0.0, 0)
         return PeriodEnergy(
             math.fsum(work), math.fsum(dissipation), math.fsum(self._jumps["jump_loss"]),

@@ -9,6 +9,11 @@ outside the admissible set C(0) (docs/model.md §1), and friction coefficients t
 uniqueness condition (docs/model.md §3; decided exactly by `crawlsim.uniqueness`), under which
 the model does not determine how the crawler moves.
 
+An optional `loads:` block (`crawlsim.loads`, docs/model.md §6) puts forces on the blocks and the
+crawler on a slope: the friction thresholds are shifted, the body as a whole must be able to hold
+its loads, the uniqueness condition is checked on the shifted thresholds, and when the
+stress-free start is not admissible a held one is chosen.
+
 `validation_errors` lists every error of a file instead of stopping at the first
 (``crawlsim validate``).
 
