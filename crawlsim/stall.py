@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from .errors import CertificateError, GaitError, InputError
-from .gait import Gait
+from .gait import Gait, gait_from_document
 from .signals import evaluate_many
 
 SCAN_STEPS = 64
@@ -152,6 +152,15 @@ def stall(gait: Gait | str, *, force: str | None = None, slope: bool = False) ->
                                                 "loads.force.0 (the force on block 1) or "
                                                 "loads.force (one force on every block)")
         from .docpaths import resolve_path
+
+        loads = spec.document.get("loads") or {}
+        if "force" not in loads:  # no force yet: start from zero forces on every block
+            zero: Any = 0.0 if path == "loads.force" else [0.0] * spec.blocks
+            document = {**spec.document, "loads": {**loads, "force": zero}}
+            rebuilt = gait_from_document(document, spec.source, source_text=spec.source_text,
+                                         default_name=spec.name)
+            assert isinstance(rebuilt, Gait)
+            spec = rebuilt
 
         found = resolve_path(spec.document, path, spec.source)
         if len(found) != 1:

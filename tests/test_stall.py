@@ -136,3 +136,14 @@ def test_force_velocity_figure_marks_the_jump_and_the_stall(tmp_path):
     marks = curve_marks(smooth.read_text(), "loads.force.0", xs, v0)
     assert marks.cause == StallCause.SMOOTH_ZERO
     assert marks.stall == pytest.approx(-0.4, abs=1e-12)
+
+
+def test_stall_of_a_gait_without_loads_uses_zero_forces():
+    """inching-2 has no loads: block. With one force F on both blocks (loads.force) a = mu+ - F,
+    b = mu- + F, and the slips flip at a = b: F* = (mu+ - mu-)/2 = -0.5, a jump (v0 from
+    Delta - 2 a/k = 0.6 - 0.3 = 0.3 to -0.3)."""
+    result = stall(GAITS / "inching-2.yaml", force="loads.force")
+    assert result.value == pytest.approx(-0.5, abs=1e-6)
+    assert result.cause == StallCause.JUMP
+    assert result.v0_moving == pytest.approx(0.3, abs=1e-6)
+    assert result.v0_stopped == pytest.approx(-0.3, abs=1e-6)
