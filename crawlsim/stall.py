@@ -33,7 +33,8 @@ from .gait import Gait, gait_from_document
 from .signals import evaluate_many
 
 SCAN_STEPS = 64
-"""Scan steps across the load's natural range (the total friction, or 90 degrees)."""
+"""Scan steps across the load's natural range (the loaded block's friction interval, or 90
+degrees); beyond it the steps grow by 5 % each."""
 
 RELATIVE_WIDTH = 1e-9
 """The final bracket's width relative to the natural range. Within about 1e-11 of a load where the
@@ -120,11 +121,16 @@ class _Probe:
         return out
 
 
-def _natural_range(gait: Gait, quantity: str) -> float:
+def _natural_range(gait: Gait, quantity: str, path: str) -> float:
+    """The size of the load's range: 90 degrees, or the friction interval mu+ + mu- at t = 0 of
+    the loaded block (its mean over the blocks for one force on every block)."""
     if quantity == "slope":
         return 90.0
     zero = np.zeros(1)
-    return float(np.sum(gait.mu_plus(zero)) + np.sum(gait.mu_minus(zero))) / 2
+    width = gait.mu_plus(zero)[0] + gait.mu_minus(zero)[0]
+    last = path.rsplit(".", 1)[-1]
+    return float(width[int(last)]) if last.isdigit() and int(last) < len(width) \
+        else float(np.mean(width))
 
 
 def stall(gait: Gait | str, *, force: str | None = None, slope: bool = False) -> StallResult:
@@ -179,7 +185,7 @@ def stall(gait: Gait | str, *, force: str | None = None, slope: bool = False) ->
     v_start, why, _ = probe(s0)
     if v_start is None:  # pragma: no cover - the gait itself was validated
         raise InputError(spec.source, path, why or "refused")
-    scale = _natural_range(spec, quantity)
+    scale = _natural_range(spec, quantity, path)
     tolerance_v = 1e-9 * abs(v_start)
     if not abs(v_start) > 1e-12 * max(scale, 1.0):
         raise InputError(spec.source, path, f"the gait does not move at {path} = {s0:g} (v0 = "
@@ -195,8 +201,12 @@ def stall(gait: Gait | str, *, force: str | None = None, slope: bool = False) ->
     step = scale / SCAN_STEPS
     lo, hi = s0, None
     limit = 90.0 if quantity == "slope" else math.inf
+    offset = 0.0
     for k in itertools.count(1):
-        s = s0 + direction * k * step
+        # uniform steps for SCAN_STEPS, then 5 % longer each: a force on one block of many may
+        # have to reach the whole body's friction
+        offset += step * (1.05 ** max(0, k - SCAN_STEPS))
+        s = s0 + direction * offset
         if abs(s) >= limit:
             s = direction * (limit - 1e-9)
             if not moving(s):
@@ -206,7 +216,7 @@ def stall(gait: Gait | str, *, force: str | None = None, slope: bool = False) ->
             hi = s
             break
         lo = s
-        if k > 100 * SCAN_STEPS:  # pragma: no cover - the body cannot hold past the friction
+        if k > 10 * SCAN_STEPS:  # pragma: no cover - the body cannot hold past the friction
             break
     if hi is None:
         raise InputError(spec.source, path, f"the gait still moves at {path} = {lo:.12g}, the "
