@@ -197,13 +197,6 @@ class Loads:
         minus = tuple(make(m, -1.0, f, float(gj)) for m, f, gj in zip(backward, self.forces, g))
         return plus, minus
 
-    def to_document(self) -> dict:
-        """A plain summary for result files: forces' YAML forms, angle and weights."""
-        out: dict[str, Any] = {"force": [f.to_dict() for f in self.forces]}
-        if self.weights is not None:
-            out["slope"] = {"angle": self.angle, "weight": [float(w) for w in self.weights]}
-        return out
-
 
 def parse_loads(block: dict, n: int, source: str) -> Loads:
     """The `loads:` block of a document whose structure the schema has checked."""
