@@ -629,11 +629,15 @@ def energy_lines(result: RunResult, unit) -> list[str]:
              f" - jump losses{' - load work' if result.load_work_per_period is not None else ''};"
              f" {relative:.1g} relative)"]
     if result.load_work_per_period is not None:
-        lines.insert(2, f"  load work per period     {result.load_work_per_period:.12g}"
-                        f"{unit('dissipation')} (against the loads, docs/model.md §6)")
+        # W_load carries the error of the work it is part of (W = D + J + W_load, §6)
+        load = result.load_work_per_period
+        lines.insert(2, f"  load work per period     {with_error(load, err, unit('dissipation'))}"
+                        " (against the loads, docs/model.md §6)")
         if result.efficiency is not None:
-            lines.append(f"  efficiency               {result.efficiency:.12g} (load work / "
-                         "actuator work)")
+            eff_err = None if err is None or load == 0 else result.efficiency * 1.01 * (
+                err / abs(load) + err / abs(work))
+            lines.append(f"  efficiency               {with_error(result.efficiency, eff_err)} "
+                         "(load work / actuator work)")
     if result.cost_of_transport_bound is not None:
         cot_err = result.cost_of_transport_error_estimate
         eff = "n/a" if result.efficiency is None or result.cost_of_transport is None else (
