@@ -81,19 +81,21 @@ def random_document(seed: int, *, blocks: tuple[int, int] = (2, 12),
     links = [_link_signal(rng, 1.0, amplitude * float(rng.uniform(0.3, 1.0)))
              for _ in range(N - 1)]
     levels: list[tuple[float, float]] = []  # (forward, backward) level of each block
+    # the draws keep their order (forward signal, ratio, backward signal): a seed's gait is the
+    # same as before loads existed
     if rng.uniform() < 0.3:
+        forward = _friction_signal(rng, mu0)
         backward = mu0 * _log_uniform(rng, 1 / friction_ratio, friction_ratio)
-        friction: dict | list = {
-            "forward": _friction_signal(rng, mu0),
-            "backward": _friction_signal(rng, backward)}
+        friction: dict | list = {"forward": forward,
+                                 "backward": _friction_signal(rng, backward)}
         levels = [(mu0, backward)] * N
     else:
         friction = []
         for _ in range(N):
             level = mu0 * _log_uniform(rng, 0.3, 3.0)
+            forward = _friction_signal(rng, level)
             backward = level * _log_uniform(rng, 1 / friction_ratio, friction_ratio)
-            friction.append({"forward": _friction_signal(rng, level),
-                             "backward": _friction_signal(rng, backward)})
+            friction.append({"forward": forward, "backward": _friction_signal(rng, backward)})
             levels.append((level, backward))
     doc = {"name": f"random-{seed}", "blocks": N, "period": _log_uniform(rng, 0.5, 5.0),
            "stiffness": stiffness, "links": links, "friction": friction,
