@@ -78,7 +78,8 @@ class StallResult:
         return abs(self.bracket[1] - self.bracket[0]) / 2
 
     def summary(self) -> dict[str, Any]:
-        return {"quantity": self.quantity, "path": self.path, "stall": self.value,
+        named = "steepest_slope" if self.quantity == "slope" else "stall_force"
+        return {"quantity": self.quantity, "path": self.path, "stall": self.value, named: self.value,
                 "error_estimate": self.error_estimate, "bracket": list(self.bracket),
                 "cause": str(self.cause), "start": self.start, "v0_start": self.v0_start,
                 "v0_moving_side": self.v0_moving, "v0_stopped_side": self.v0_stopped,

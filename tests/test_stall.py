@@ -95,6 +95,7 @@ def test_cli(tmp_path):
     assert r.exit_code == 0, r.output
     out = json.loads(r.output)
     assert out["stall"] == pytest.approx(-1.0, abs=1e-6) and out["cause"] == "jump"
+    assert out["stall_force"] == out["stall"] and out["bracket"][0] > out["bracket"][1]
     assert out["error_estimate"] <= 1e-6
     r = runner.invoke(main, ["stall", str(path), "--force", "loads.force.0"])
     assert r.exit_code == 0 and "jump" in r.output
