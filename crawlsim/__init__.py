@@ -45,15 +45,16 @@ _EXPORTS = {
     "CrawlsimError": "crawlsim.errors",
     "GaitError": "crawlsim.errors",
     "InputError": "crawlsim.errors",
+    "stall": "crawlsim.stall",
 }
 
 _SUBMODULES = {"analysis", "api", "atomic", "batch", "corpus", "docpaths", "errors", "exact",
                "gait", "h5io", "kkt", "model", "offsets", "paper", "projection", "provenance",
-               "signals", "status", "stepping", "sweep", "units"}
+               "signals", "stall", "status", "stepping", "sweep", "units"}
 
 __all__ = ["load_gait", "simulate", "sweep", "run", "SimulationResult", "Trajectory", "Gait",
            "ProcessSpec", "Units", "CertificateError", "CrawlsimError", "GaitError", "InputError",
-           "__version__"]
+           "stall", "__version__"]
 
 
 def __getattr__(name: str) -> Any:

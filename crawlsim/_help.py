@@ -26,6 +26,7 @@ TEXT = (
     '  optimize  Find the gait parameters in a box that maximise v0 (or...\n'
     '  plot      Draw the figures of RESULTS_FILE as <stem>-<figure>.<format>.\n'
     '  run       Simulate GAIT_FILE to its periodic regime; report v0 and...\n'
+    '  stall     Print the load at which v0 reaches 0: the stall force...\n'
     '  validate  Check each GAIT_FILE and list every error in it, one per line...\n'
     '  velocity  Print v0 of GAIT_FILE, or sweep gait parameters and tabulate v0.\n'
     '\n'

@@ -42,7 +42,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .energy import ledger as energy_ledger
-from .energy import period_dissipation
+from .energy import period_dissipation, period_energy
 from .model import SweepingProcess
 from .status import Convergence
 from .stepping import PeriodRecord, make_stepper, positions_of
@@ -59,7 +59,8 @@ RATE_WINDOW = 8
 #: Relative Poincare steps above this carry at most ~1e-6 relative roundoff (eps / step).
 RATE_RELIABLE = 1e-10
 #: The energy ledger's entries of the summary (`crawlsim.energy`).
-ENERGY_KEYS = ("actuator_work_per_period", "jump_loss_per_period", "energy_balance_residual",
+ENERGY_KEYS = ("actuator_work_per_period", "jump_loss_per_period", "load_work_per_period",
+               "energy_balance_residual",
                "cost_of_transport_bound", "efficiency")
 
 
@@ -139,6 +140,8 @@ class RunResult:
     energy_balance_residual: float | None = None
     cost_of_transport_bound: float | None = None
     efficiency: float | None = None
+    # Work against the loads per period (docs/model.md §6); None without loads.
+    load_work_per_period: float | None = None
 
     @property
     def displacement_error_estimate(self) -> float | None:
@@ -336,11 +339,16 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
     if err is not None and err_step is not None:
         err = err + err_step
     if process.is_crawler and d_final is not None and diss_final is not None and err is not None:
-        cot = cost_of_transport(diss_final, d_final, err, T)
+        # with loads the cost of transport counts the work against them (docs/model.md §6)
+        paid = diss_final
+        if process.load is not None:
+            paid += period_energy(process, final).load_work  # type: ignore[union-attr]
+        cot = cost_of_transport(paid, d_final, err, T)
     ledger = energy_ledger(process, final, d_final, cot) if d_final is not None else None
     energy_fields = {} if ledger is None else {
         "actuator_work_per_period": ledger.actuator_work_per_period,
         "jump_loss_per_period": ledger.jump_loss_per_period,
+        "load_work_per_period": ledger.load_work_per_period,
         "energy_balance_residual": ledger.energy_balance_residual,
         "cost_of_transport_bound": ledger.cost_of_transport_bound,
         "efficiency": ledger.efficiency}
@@ -685,7 +693,18 @@ def energy_lines(result: RunResult, unit) -> list[str]:
     lines = [f"  actuator work per period {with_error(work, err, unit('dissipation'))}",
              f"  jump losses per period   {loss:.3g}{unit('dissipation')}",
              f"  energy balance residual  {residual:.3g}{unit('dissipation')} (work - dissipation"
-             f" - jump losses; {relative:.1g} relative)"]
+             f" - jump losses{' - load work' if result.load_work_per_period is not None else ''};"
+             f" {relative:.1g} relative)"]
+    if result.load_work_per_period is not None:
+        # W_load carries the error of the work it is part of (W = D + J + W_load, §6)
+        load = result.load_work_per_period
+        lines.insert(2, f"  load work per period     {with_error(load, err, unit('dissipation'))}"
+                        " (against the loads, docs/model.md §6)")
+        if result.efficiency is not None:
+            eff_err = None if err is None or load == 0 else result.efficiency * 1.01 * (
+                err / abs(load) + err / abs(work))
+            lines.append(f"  efficiency               {with_error(result.efficiency, eff_err)} "
+                         "(load work / actuator work)")
     if result.cost_of_transport_bound is not None:
         cot_err = result.cost_of_transport_error_estimate
         eff = "n/a" if result.efficiency is None or result.cost_of_transport is None else (

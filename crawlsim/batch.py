@@ -140,10 +140,14 @@ class _Lockstep:
             "c_scale": np.array([p.scale for p in rows]),
             "offsets": np.stack([p.offsets for p in rows]),
             "friction": np.stack([_friction(p) for p in rows]),
+            # the loads' share of the thresholds (docs/model.md §6), zero without loads
+            "load": np.stack([p.load if p.load is not None else np.zeros_like(_friction(p))
+                              for p in rows]),
             "w": np.stack([np.asarray(p.initial, dtype=float) for p in rows]),
             "w_start": np.stack([np.asarray(p.initial, dtype=float) for p in rows]),
             "lam_sum": np.zeros((nb, self.m)),
             "diss": np.zeros(nb),
+            "load_work": np.zeros(nb),
             "abs_slip": np.zeros(nb),
             "signs": np.zeros((nb, self.N)),
         }
@@ -199,17 +203,20 @@ class _Lockstep:
         good = runs.ok & ~runs.stop & valid
         accepted = np.where(good.all(axis=1), K, np.argmin(good, axis=1))
         taken = np.arange(K)[None, :] < accepted[:, None]
-        self._account(rows, runs.multipliers, s["friction"][rows[:, None], at], taken)
+        self._account(rows, runs.multipliers, s["friction"][rows[:, None], at], taken,
+                      s["load"][rows[:, None], at])
         moved = accepted > 0
         s["w"][moved] = runs.w[rows[moved], accepted[moved] - 1]
         s["j"] += accepted
         return np.flatnonzero(s["j"] < np.minimum(j + K, self.G))
 
-    def _account(self, rows, LAM, F, taken):
-        """Add the taken steps' multipliers, dissipation and |slips| to each gait's period."""
+    def _account(self, rows, LAM, F, taken, LOAD):
+        """Add the taken steps' multipliers, dissipation, load work and |slips| to each gait's
+        period."""
         s = self.s
         s["lam_sum"][rows] += np.einsum("bk,bkm->bm", taken, LAM)
         s["diss"][rows] += np.einsum("bk,bkm,bkm->b", taken, LAM, F)
+        s["load_work"][rows] += np.einsum("bk,bkm,bkm->b", taken, LAM, LOAD)
         s["abs_slip"][rows] += np.einsum("bk,bkm->b", taken, np.abs(LAM))
 
     def _exact_step(self, positions):
@@ -246,7 +253,8 @@ class _Lockstep:
         s["signs"][positions] = signs
         self._refactor(changed)
         one = np.ones((len(positions), 1), dtype=bool)
-        self._account(positions, lam[:, None, :], s["friction"][positions, jn][:, None, :], one)
+        self._account(positions, lam[:, None, :], s["friction"][positions, jn][:, None, :], one,
+                      s["load"][positions, jn][:, None, :])
         s["w"][positions] = w
         s["j"][positions] += 1
         if failed:
@@ -282,16 +290,18 @@ class _Lockstep:
                 err = period_iteration_error(self.displacements[k], convergence, rate, self.G,
                                              float(s["abs_slip"][pos]) / p.blocks, p.period)
                 diss = float(s["diss"][pos])
+                paid = diss + float(s["load_work"][pos])  # cost of transport with loads, §6
                 self.results[k] = BatchRun(
                     p.name, status, float(d) / p.period, float(d), convergence, q + 1,
                     periodic_from, (q + 1) * self.G, self.projectors[k].clarabel_calls,
                     dissipation_per_period=diss, v0_error_estimate=err, contraction_rate=rate,
-                    cost_of_transport=cost_of_transport(diss, float(d), err, p.period))
+                    cost_of_transport=cost_of_transport(paid, float(d), err, p.period))
         s["period"][positions] += 1
         s["j"][positions] = 0
         s["w_start"][positions] = s["w"][positions]
         s["lam_sum"][positions] = 0.0
         s["diss"][positions] = 0.0
+        s["load_work"][positions] = 0.0
         s["abs_slip"][positions] = 0.0
         if not keep.all():
             self._keep(keep)

@@ -111,6 +111,7 @@ class PeriodEnergy:
     jump_loss: float  # J: energy released at jumps beyond friction work
     energy_start: float  # E at the period's start
     energy_end: float  # E at its end
+    load_work: float = 0.0  # W_load: work against the loads, -oint F~ . dx (docs/model.md §6)
 
     @property
     def energy_change(self) -> float:
@@ -118,14 +119,15 @@ class PeriodEnergy:
 
     @property
     def residual(self) -> float:
-        """W - D - J: zero in the periodic regime (it is E(end) - E(start), up to roundoff)."""
-        return self.work - self.dissipation - self.jump_loss
+        """W - D - J - W_load: zero in the periodic regime (it is E(end) - E(start), up to
+        roundoff)."""
+        return self.work - self.dissipation - self.jump_loss - self.load_work
 
     @property
     def scale(self) -> float:
         """The size of the ledger's terms, for relative residuals."""
         return max(abs(self.work), abs(self.dissipation), abs(self.jump_loss),
-                   self.energy_start, self.energy_end, 1e-300)
+                   abs(self.load_work), self.energy_start, self.energy_end, 1e-300)
 
 
 @dataclass(frozen=True)
@@ -135,9 +137,10 @@ class EnergyLedger:
     actuator_work_per_period: float
     dissipation_per_period: float
     jump_loss_per_period: float
-    energy_balance_residual: float  # W - D - J on the limit period
-    cost_of_transport_bound: float | None  # force; None without a direction of motion
-    efficiency: float | None  # bound / cost of transport; None when either is None
+    energy_balance_residual: float  # W - D - J - W_load on the limit period
+    cost_of_transport_bound: float | None  # force; None without a direction of motion or with loads
+    efficiency: float | None  # bound / cost of transport; with loads W_load / W
+    load_work_per_period: float | None = None  # W_load; None without loads
 
 
 # -- closed-form integrals -----------------------------------------------------------------------
@@ -243,25 +246,39 @@ class ExactLedger:
         self.k = np.asarray(process.stiffness, dtype=float)
         self.N = process.blocks
         self.pieces = pieces.pieces
+        # loads (docs/model.md §6): friction is mu cos(angle), and l = [-F~ ; F~] the load's
+        # share of the thresholds, F~ = F(u) + load_constant
+        self.scale = float(process.friction_scale)
+        self.constant = process.load_constant
         # the signals themselves (links, then mu^+ and mu^- in the order of the rows of B),
         # in the basis and on the pieces of c(t)
         self.signals = PiecewiseOffsets(pieces.signals, _identity, pieces.edges)
         # per piece of c: L, K L, dL/du and mu coefficients (a period revisits every piece)
-        self._cache: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._cache: dict[int, tuple[np.ndarray, ...]] = {}
         self.start()
 
     def start(self) -> None:
         self._bounds: list[tuple[float, float]] = []
-        self._products: list[np.ndarray] = []  # (2, nb, nb): work, dissipation
-        self._jumps: dict[str, list[float]] = {"work": [], "dissipation": [], "jump_loss": []}
+        self._products: list[np.ndarray] = []  # (2 or 3, nb, nb): work, dissipation, load work
+        self._jumps: dict[str, list[float]] = {"work": [], "dissipation": [], "jump_loss": [],
+                                               "load_work": []}
 
-    def _split(self, p: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(Lc, K Lc, Lc', Mc) of piece p."""
+    def _split(self, p: int) -> tuple[np.ndarray, ...]:
+        """(Lc, K Lc, Lc', Mc, lc) of piece p: Mc the friction of the 2N rows, lc the load's
+        share l = [-F~ ; F~] (zero without loads)."""
         cached = self._cache.get(p)
         if cached is None:
             coef = self.signals.coefficients(p)
-            Lc = coef[:, :self.N - 1]
-            cached = (Lc, Lc * self.k, self.basis.derivative(Lc), coef[:, self.N - 1:])
+            N = self.N
+            Lc = coef[:, :N - 1]
+            Mc = self.scale * coef[:, N - 1:3 * N - 1]
+            if self.constant is None:
+                lc = np.zeros_like(Mc)
+            else:
+                force = coef[:, 3 * N - 1:].copy()
+                force[0] += self.constant
+                lc = np.hstack([-force, force])
+            cached = (Lc, Lc * self.k, self.basis.derivative(Lc), Mc, lc)
             if len(self._cache) > 256:
                 self._cache.clear()
             self._cache[p] = cached
@@ -273,48 +290,57 @@ class ExactLedger:
         active rows Lambda(u) = lam0 - phi(u) @ Y."""
         if not u1 > u0:
             return
-        _, KLc, dLc, Mc = self._split(p)
+        _, KLc, dLc, Mc, lc = self._split(p)
         Sc = Wc + KLc
         Sc[0] = Sc[0] + base
-        G = np.empty((2,) + (self.basis.size,) * 2)
+        loaded = self.constant is not None  # a third product only with loads (§6)
+        G = np.empty((3 if loaded else 2,) + (self.basis.size,) * 2)
         G[0] = Sc @ dLc.T
-        G[1] = -(Mc[:, active] @ self.basis.derivative(Y).T) if active.size else 0.0
+        dY = self.basis.derivative(Y).T
+        G[1] = -(Mc[:, active] @ dY) if active.size else 0.0
+        if loaded:
+            G[2] = -(lc[:, active] @ dY) if active.size else 0.0
         self._bounds.append((u0, u1))
         self._products.append(G)
 
-    def _signals_at(self, u: float, p: int) -> tuple[np.ndarray, np.ndarray]:
-        Lc, _, _, Mc = self._split(p)
+    def _signals_at(self, u: float, p: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        Lc, _, _, Mc, lc = self._split(p)
         phi = self.basis.values(u)[0]
-        return phi @ Lc, phi @ Mc
+        return phi @ Lc, phi @ Mc, phi @ lc
 
     def jump(self, p_before: int, u: float, w_before: np.ndarray, w_after: np.ndarray,
              multipliers: np.ndarray) -> None:
         """Add the jump at the end u of piece ``p_before`` (at u = 1 the signals after it are
         those of u = 0): the actuators' jump work, the slip's friction work and the jump loss."""
         p_after = (p_before + 1) % self.pieces
-        L_before, _ = self._signals_at(u, p_before)
-        L_after, mu_after = self._signals_at(u if p_before + 1 < self.pieces else 0.0, p_after)
+        L_before, _, _ = self._signals_at(u, p_before)
+        L_after, mu_after, load_after = self._signals_at(
+            u if p_before + 1 < self.pieces else 0.0, p_after)
         dL = L_after - L_before
         sigma = w_before + self.k * L_before
         self._jumps["work"].append(float(np.sum((sigma + 0.5 * self.k * dL) * dL)))
         self._jumps["dissipation"].append(float(multipliers @ mu_after))
+        self._jumps["load_work"].append(float(multipliers @ load_after))
         dw = w_after - w_before
         self._jumps["jump_loss"].append(float(np.sum(dw * dw / (2.0 * self.k))))
 
     def finish(self, w_start: np.ndarray, w_end: np.ndarray) -> PeriodEnergy:
         """The period's ledger; both ends are at u = 0 of the cycle (L(1) = L(0))."""
         work, dissipation = list(self._jumps["work"]), list(self._jumps["dissipation"])
+        load_work = list(self._jumps["load_work"])
         if self._bounds:
             bounds = np.array(self._bounds)
             P = gram(self.basis, bounds[:, 0], bounds[:, 1])  # (K, nb, nb)
             terms = np.einsum("kab,kjab->jk", P, np.array(self._products))
             work.extend(terms[0].tolist())
             dissipation.extend(terms[1].tolist())
-        L0, _ = self._signals_at(0.0, 0)
+            if len(terms) > 2:
+                load_work.extend(terms[2].tolist())
+        L0, _, _ = self._signals_at(0.0, 0)
         return PeriodEnergy(
             math.fsum(work), math.fsum(dissipation), math.fsum(self._jumps["jump_loss"]),
             elastic_energy(w_start + self.k * L0, self.k),
-            elastic_energy(w_end + self.k * L0, self.k))
+            elastic_energy(w_end + self.k * L0, self.k), math.fsum(load_work))
 
 
 # -- a period's ledger, either integrator ----------------------------------------------------------
@@ -330,8 +356,10 @@ def catch_up_energy(process: SweepingProcess, record: PeriodRecord) -> PeriodEne
     dissipation = period_dissipation(process, record)
     dw = np.diff(record.w, axis=0)
     loss = math.fsum(np.sum(dw * dw / (2.0 * k), axis=1))
+    load_work = 0.0 if process.load is None else math.fsum(
+        np.sum(record.multipliers * process.load[1:], axis=1))
     return PeriodEnergy(work, dissipation, loss, elastic_energy(sigma[0], k),
-                        elastic_energy(sigma[-1], k))
+                        elastic_energy(sigma[-1], k), load_work)
 
 
 def period_energy(process: SweepingProcess, record: PeriodRecord) -> PeriodEnergy | None:
@@ -423,8 +451,8 @@ def friction_minima(process: SweepingProcess) -> tuple[np.ndarray, np.ndarray]:
     N = process.blocks
     signals = process.offset_pieces.signals
     forward = np.array([friction_minimum(s) for s in signals[N - 1:2 * N - 1]])
-    backward = np.array([friction_minimum(s) for s in signals[2 * N - 1:]])
-    return forward, backward
+    backward = np.array([friction_minimum(s) for s in signals[2 * N - 1:3 * N - 1]])
+    return process.friction_scale * forward, process.friction_scale * backward
 
 
 def cost_of_transport_bound(process: SweepingProcess, displacement: float) -> float | None:
@@ -443,6 +471,12 @@ def ledger(process: SweepingProcess, record: PeriodRecord, displacement: float,
     energy = period_energy(process, record)
     if energy is None:
         return None
+    if process.load is not None:
+        # with loads (docs/model.md §6): the efficiency is the share of the actuator work that
+        # goes into the load, and the friction-only bound does not bound the cost of transport
+        efficiency = energy.load_work / energy.work if energy.work > 0 else None
+        return EnergyLedger(energy.work, energy.dissipation, energy.jump_loss, energy.residual,
+                            None, efficiency, energy.load_work)
     bound = cost_of_transport_bound(process, displacement)
     efficiency = None
     if bound is not None and cost_of_transport is not None and cost_of_transport > 0:

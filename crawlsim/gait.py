@@ -9,6 +9,11 @@ outside the admissible set C(0) (docs/model.md §1), and friction coefficients t
 uniqueness condition (docs/model.md §3; decided exactly by `crawlsim.uniqueness`), under which
 the model does not determine how the crawler moves.
 
+An optional `loads:` block (`crawlsim.loads`, docs/model.md §6) puts forces on the blocks and the
+crawler on a slope: the friction thresholds are shifted, the body as a whole must be able to hold
+its loads, the uniqueness condition is checked on the shifted thresholds, and when the
+stress-free start is not admissible a held one is chosen.
+
 `validation_errors` lists every error of a file instead of stopping at the first
 (``crawlsim validate``).
 
@@ -34,6 +39,7 @@ import numpy as np
 import yaml
 
 from crawlsim.errors import GaitError
+from crawlsim.loads import LOADS_SCHEMA, Loads, held_positions, hold_violation, parse_loads
 from crawlsim.signals import (
     LARGEST,
     SIGNAL_SCHEMA,
@@ -91,6 +97,8 @@ class Gait:
     #: True when the uniqueness condition could not be checked exactly and the file opted in
     #: (``simulation: {unchecked_uniqueness: true}``); runs warn and record it.
     uniqueness_unchecked: bool = False
+    #: External forces and a slope (docs/model.md §6), or None for none.
+    loads: Loads | None = None
 
     def replace(self, *changes: Any) -> Gait:
         """A new validated gait with values set at dotted paths, the syntax of ``--sweep``:
@@ -105,7 +113,16 @@ class Gait:
 
     def breakpoints(self) -> np.ndarray:
         """Union of all signals' breakpoints, in cycles in [0, 1): the stepping grid needs them."""
-        return union_breakpoints([s.breakpoints() for s in self.links + self.forward + self.backward])
+        forces = self.loads.forces if self.loads is not None else ()
+        return union_breakpoints([s.breakpoints()
+                                  for s in self.links + self.forward + self.backward + forces])
+
+    def thresholds(self) -> tuple[tuple[Signal, ...], tuple[Signal, ...]]:
+        """The friction thresholds in the elastic force, as signals: (mu^+, mu^-), shifted by
+        the loads to (mu~^+, mu~^-) (docs/model.md §6)."""
+        if self.loads is None:
+            return self.forward, self.backward
+        return self.loads.shifted(self.forward, self.backward)
 
     def lengths(self, t: np.ndarray) -> np.ndarray:
         """Actuator lengths L(t) at times t, shape (len(t), N-1)."""
@@ -250,6 +267,7 @@ CRAWLER_SCHEMA: dict = {
         },
         "simulation": SIMULATION_SCHEMA,
         "units": UNITS_SCHEMA,
+        "loads": LOADS_SCHEMA,
     },
 }
 """JSON Schema (Draft 2020-12) of a crawler gait document."""
@@ -406,6 +424,14 @@ def _signal_slots(document: dict):
             for direction in ("forward", "backward"):
                 if direction in entry:
                     yield f"{path}.{direction}", entry[direction]
+    loads = document.get("loads")
+    if isinstance(loads, dict) and "force" in loads:
+        force = loads["force"]
+        if isinstance(force, list):
+            for j, value in enumerate(force):
+                yield f"loads.force[{j}]", value
+        else:
+            yield "loads.force", force
 
 
 class _Errors:
@@ -589,6 +615,12 @@ def _build_crawler(document: dict, source: str, source_text: str, default_name: 
     simulation = Simulation(**{key: _SIMULATION_TYPES[key](value)
                                for key, value in document.get("simulation", {}).items()})
 
+    loads = None
+    if "loads" in document:
+        loads = errors.attempt(parse_loads, document["loads"], n, source)
+        if loads is None:
+            return None
+
     positions = None
     if "initial" in document:
         given = np.array(document["initial"]["positions"], dtype=float)
@@ -618,14 +650,27 @@ def _build_crawler(document: dict, source: str, source_text: str, default_name: 
         initial_positions=_readonly(positions),
         simulation=simulation,
         units=Units.from_block(document.get("units")),
+        loads=loads,
     )
+    if loads is not None and positive:
+        problem = hold_violation(gait.forward, gait.backward, loads, period)
+        if problem is not None:
+            errors.add(GaitError(source, "loads", problem))
+            return None
+        if "initial" not in document and admissibility_violation(gait, positions) is not None:
+            gait = dataclasses.replace(gait, initial_positions=_readonly(_held_positions(gait)))
+            positions = gait.initial_positions
     problem = admissibility_violation(gait, positions)
     if problem is not None:
+        if loads is not None and positive:
+            problem += (f". With these loads an admissible start is, for instance, initial: "
+                        f"{{positions: [{', '.join(f'{x:.12g}' for x in _held_positions(gait))}]}} "
+                        "(docs/model.md §6)")
         errors.add(GaitError(source, "initial.positions", problem))
     if not positive:
         return None
     try:
-        violation = find_violation(gait.forward, gait.backward)
+        violation = find_violation(*gait.thresholds())
     except UniquenessUndecidable as why:
         if simulation.unchecked_uniqueness:
             if not errors.found:
@@ -638,7 +683,11 @@ def _build_crawler(document: dict, source: str, source_text: str, default_name: 
                              "and its results file records unchecked_uniqueness = 1)"))
         return None
     if violation is not None:
-        errors.add(GaitError(source, "friction", violation.message(period)))
+        message = violation.message(period)
+        if loads is not None:
+            message += (" Here mu+ and mu- are the thresholds shifted by the loads, mu cos(angle) "
+                        "-+ F (docs/model.md §6): change the load or the friction.")
+        errors.add(GaitError(source, "loads" if loads is not None else "friction", message))
         return None
     if not errors.found:  # stiffness and friction each valid: their ratio (`stress_scale`)
         errors.attempt(_check_stress_scale, gait, source)
@@ -960,6 +1009,15 @@ def with_simulation(gait: Gait, **overrides: Any) -> Gait:
     return dataclasses.replace(gait, simulation=simulation, document=document)
 
 
+def _held_positions(gait: Gait) -> np.ndarray:
+    """The default start under loads when the stress-free one is not admissible: every block at
+    the same fraction of its shifted friction interval at t = 0 (docs/model.md §6)."""
+    plus, minus = gait.thresholds()
+    zero = np.zeros(1)
+    return held_positions(gait.lengths(zero)[0], np.asarray(gait.stiffness, dtype=float),
+                          evaluate_many(plus, zero)[0], evaluate_many(minus, zero)[0])
+
+
 def admissibility_violation(gait: Gait, positions: np.ndarray, t: float = 0.0) -> str | None:
     """Why `positions` is not an admissible state at time t, or None if it is.
 
@@ -971,11 +1029,15 @@ def admissibility_violation(gait: Gait, positions: np.ndarray, t: float = 0.0) -
     if x.shape != (gait.blocks,):
         return f"expected {gait.blocks} positions (one per block), got {x.size}"
     at = np.array([t])
-    lengths, mu_plus, mu_minus = gait.lengths(at)[0], gait.mu_plus(at)[0], gait.mu_minus(at)[0]
+    lengths = gait.lengths(at)[0]
+    plus, minus = gait.thresholds()
+    u = at / gait.period
+    mu_plus, mu_minus = evaluate_many(plus, u)[0], evaluate_many(minus, u)[0]
     sigma = gait.stiffness * (lengths - np.diff(x))
     force = np.zeros(gait.blocks)
     force[1:] += sigma
     force[:-1] -= sigma
+    shifted = "; mu shifted by the loads, §6" if gait.loads is not None else ""
     over = force - mu_plus
     under = -mu_minus - force
     for j in range(gait.blocks):
@@ -983,12 +1045,12 @@ def admissibility_violation(gait: Gait, positions: np.ndarray, t: float = 0.0) -
             return (f"block {j + 1} is not held by friction at t = {t:g}: its elastic force "
                     f"f_{j + 1} = {force[j]:.6g} exceeds the forward friction limit "
                     f"mu_{j + 1}^+ = {mu_plus[j]:.6g} by {over[j]:.6g}; an admissible initial state "
-                    "needs -mu^- <= f <= mu^+ on every block (docs/model.md §1)")
+                    "needs -mu^- <= f <= mu^+ on every block (docs/model.md §1" + shifted + ")")
         if under[j] > ROUNDOFF * (1.0 + abs(mu_minus[j])):
             return (f"block {j + 1} is not held by friction at t = {t:g}: its elastic force "
                     f"f_{j + 1} = {force[j]:.6g} is below the backward friction limit "
                     f"-mu_{j + 1}^- = {-mu_minus[j]:.6g} by {under[j]:.6g}; an admissible initial "
-                    "state needs -mu^- <= f <= mu^+ on every block (docs/model.md §1)")
+                    "state needs -mu^- <= f <= mu^+ on every block (docs/model.md §1" + shifted + ")")
     return None
 
 
@@ -1001,5 +1063,5 @@ def uniqueness_violation(gait: Gait) -> str | None:
     unique. Decided exactly for any N by `crawlsim.uniqueness.find_violation`, which raises
     `crawlsim.uniqueness.UniquenessUndecidable` where the friction is beyond its bounds.
     """
-    violation = find_violation(gait.forward, gait.backward)
+    violation = find_violation(*gait.thresholds())
     return None if violation is None else violation.message(gait.period)

@@ -198,7 +198,12 @@ RUN_VARIABLES: dict[str, dict[str, Var]] = {
         "lengths": Var(("limit_time", "link"), "actuator length L(t)", "length"),
         "friction": Var(("limit_time", "constraint"), "friction coefficient of the constraint's "
                                                       "limit: mu+ (forward) or mu- (backward), "
-                                                      "see constraint_limit", "force"),
+                                                      "see constraint_limit (times cos(angle) "
+                                                      "on a slope)", "force"),
+        "load": Var(("limit_time", "constraint"), "the loads' share of the constraint's "
+                                                  "threshold: -F~ (forward) or F~ (backward), "
+                                                  "F~ = F - W sin(angle) (docs/model.md §6; "
+                                                  "gaits with loads only)", "force"),
     },
     "process": {
         "stiffness": Var(("link",), "spring stiffness k of the link (crawlers: B = [D^T; -D^T] "
@@ -221,7 +226,11 @@ RUN_VARIABLES: dict[str, dict[str, Var]] = {
         "cost_of_transport_bound": Var((), "least cost of transport of the friction in the "
                                            "direction of motion: sum_j min_t mu_j^+ (d > 0) or "
                                            "sum_j min_t mu_j^- (d < 0)", "force"),
-        "efficiency": Var((), "cost_of_transport_bound / cost_of_transport, at most 1", "1"),
+        "efficiency": Var((), "cost_of_transport_bound / cost_of_transport, at most 1; with "
+                              "loads load_work / actuator_work", "1"),
+        "load_work": Var((), "work against the loads over the limit period, -oint F~ . dx "
+                             "(on a slope with the potential energy gained; gaits with loads "
+                             "only)", "dissipation"),
     },
     "events": {
         "t": Var(("event_time",), "event time of the exact integrator (every period, never "
@@ -235,7 +244,8 @@ RUN_VARIABLES: dict[str, dict[str, Var]] = {
 #: The /energy datasets and the RunResult fields they hold.
 _ENERGY = {"actuator_work": "actuator_work_per_period", "dissipation": "dissipation_per_period",
            "jump_loss": "jump_loss_per_period", "balance_residual": "energy_balance_residual",
-           "cost_of_transport_bound": "cost_of_transport_bound", "efficiency": "efficiency"}
+           "cost_of_transport_bound": "cost_of_transport_bound", "efficiency": "efficiency",
+           "load_work": "load_work_per_period"}
 #: /limit/solver: the periodic-limit solver's periods (`crawlsim.limit.solve_limit`).
 SOLVER_VARIABLES: dict[str, Var] = {
     "solver_period": Var(("solver_period",), "period simulated by the periodic-limit solver, "
@@ -261,7 +271,8 @@ _ATTRIBUTE_QUANTITIES = {
     "contraction_rate": "1", "periodic_from": "1", "steps_per_period": "1", "periods": "1",
     "save_every": "1", "actuator_work_per_period": "dissipation",
     "jump_loss_per_period": "dissipation", "energy_balance_residual": "dissipation",
-    "cost_of_transport_bound": "force", "efficiency": "1",
+    "cost_of_transport_bound": "force", "efficiency": "1", "load_work_per_period": "dissipation",
+    "slope_angle": "angle",
 }
 
 
@@ -532,7 +543,7 @@ class ResultsWriter:
         }
         groups["limit"].update(step=np.arange(p.steps, dtype=np.int64), offsets=p.offsets)
         if crawler:
-            groups["limit"].update(lengths=p.lengths, friction=p.friction)
+            groups["limit"].update(lengths=p.lengths, friction=p.friction, load=p.load)
         if "events" in f:
             groups["events"] = {name: f["events"][name] for name in f["events"]}
         if crawler and getattr(result, "actuator_work_per_period", None) is not None:
@@ -649,9 +660,14 @@ class ResultsWriter:
         for key in ("v0", "v0_error_estimate", "v0_error_period_iteration", "v0_error_time_step",
                     "contraction_rate", "displacement_per_period", "dissipation_per_period",
                     "cost_of_transport", "actuator_work_per_period", "jump_loss_per_period",
-                    "energy_balance_residual", "cost_of_transport_bound", "efficiency"):
+                    "energy_balance_residual", "cost_of_transport_bound", "efficiency",
+                    "load_work_per_period"):
             value = summary.get(key, getattr(result, key, None))
             a[key] = np.nan if value is None else float(value)
+        # the loads (docs/model.md §6): the effective document (gait_yaml) holds the whole
+        # loads: block; the angle in degrees is repeated here, NaN without a slope
+        angle = self.process.slope_angle
+        a["slope_angle"] = np.nan if angle is None else float(angle)
         a["period"] = result.period
         a["steps_per_period"] = result.steps_per_period
         a["periods"] = result.periods

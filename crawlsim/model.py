@@ -52,6 +52,12 @@ class SweepingProcess:
     stress_offset: np.ndarray | None = None  # K L(t) on the grid (G+1, n): stress = w + K L
     friction: np.ndarray | None = None  # [mu^+, mu^-] on the grid (G+1, m): dissipation weights
     lengths: np.ndarray | None = None  # L(t) on the grid (G+1, N-1)
+    # Loads (docs/model.md §6): the load's share l = [-F~ ; F~] of the offsets on the grid
+    # (G+1, m), so that c's thresholds are friction + l; None without loads.
+    load: np.ndarray | None = None
+    friction_scale: float = 1.0  # cos(angle): the signals' mu scaled to the slope's friction
+    load_constant: np.ndarray | None = None  # -W sin(angle) (N,): F~ = F(t) + load_constant
+    slope_angle: float | None = None  # degrees, None without a slope
     # The closed form of c(t) piece by piece, for integrators that leave the grid (exact):
     offset_pieces: PiecewiseOffsets | None = None
     breakpoints: np.ndarray | None = None  # times in [0, T) where c has a kink or a jump
@@ -145,21 +151,37 @@ def compile_gait(gait: Gait, steps_per_period: int | None = None) -> SweepingPro
     u = period_grid(G, gait.breakpoints())
     k = np.asarray(gait.stiffness, dtype=float)
     L = evaluate_many(gait.links, u)  # (G+1, N-1)
-    mu_f = evaluate_many(gait.forward, u)  # (G+1, N)
-    mu_b = evaluate_many(gait.backward, u)
+    loads = gait.loads
+    scale = 1.0 if loads is None else loads.cos
+    mu_f = evaluate_many(gait.forward, u) * scale  # (G+1, N): friction mu cos(angle), §6
+    mu_b = evaluate_many(gait.backward, u) * scale
     KL = L * k  # K L on the grid
     DtKL = _forces(KL)  # D^T K L, O(N) per row
-    offsets = np.hstack([mu_f - DtKL, mu_b + DtKL])
+    load = None
+    if loads is not None:
+        total = loads.total(u)  # F~ = F - W sin(angle)
+        load = np.hstack([-total, total])
+        offsets = np.hstack([mu_f - total - DtKL, mu_b + total + DtKL])
+    else:
+        offsets = np.hstack([mu_f - DtKL, mu_b + DtKL])
     T = float(gait.period)
     N = gait.blocks
+    constant = None if loads is None else loads.gravity
 
     def combine(coef):
-        """c = [mu^+ - D^T K L; mu^- + D^T K L] from the signals' coefficients (nb, S)."""
+        """c = [mu~^+ - D^T K L; mu~^- + D^T K L] from the signals' coefficients (nb, S):
+        mu~^+ = mu^+ cos - F~, mu~^- = mu^- cos + F~ with F~ = F - W sin (docs/model.md §6)."""
         DtKL_c = _forces(coef[:, :N - 1] * k)
-        return np.hstack([coef[:, N - 1:2 * N - 1] - DtKL_c, coef[:, 2 * N - 1:] + DtKL_c])
+        plus, minus = coef[:, N - 1:2 * N - 1], coef[:, 2 * N - 1:3 * N - 1]
+        if constant is None:
+            return np.hstack([plus - DtKL_c, minus + DtKL_c])
+        force = coef[:, 3 * N - 1:].copy()
+        force[0] += constant
+        return np.hstack([scale * plus - force - DtKL_c, scale * minus + force + DtKL_c])
 
-    pieces = PiecewiseOffsets(gait.links + gait.forward + gait.backward, combine,
-                              piece_edges(gait.breakpoints()))
+    signals = gait.links + gait.forward + gait.backward + (
+        () if loads is None else loads.forces)
+    pieces = PiecewiseOffsets(signals, combine, piece_edges(gait.breakpoints()))
     x0 = np.asarray(gait.initial_positions, dtype=float)
     w0 = -k * np.diff(x0)  # w = -K z, z = D x
     return SweepingProcess(
@@ -174,6 +196,10 @@ def compile_gait(gait: Gait, steps_per_period: int | None = None) -> SweepingPro
         stress_offset=KL,
         friction=np.hstack([mu_f, mu_b]),
         lengths=L,
+        load=load,
+        friction_scale=scale,
+        load_constant=constant,
+        slope_angle=None if loads is None or loads.weights is None else float(loads.angle),
         offset_pieces=pieces,
         breakpoints=np.asarray(gait.breakpoints(), dtype=float) * T,
         _cycles=u,

@@ -1189,4 +1189,10 @@ def plot_table(table: SweepTable, path, title: str | None = None) -> None:
         document = yaml.safe_load(table.gait_yaml) if table.gait_yaml else None
         name = document.get("name") if isinstance(document, dict) else None
         title = f"{name or Path(table.source).stem}: average velocity over a sweep"
-    save_figure(sweep_figure(axes, v0, missing, title), path)
+    marks = None
+    if len(axes) == 1 and table.gait_yaml:
+        from .stall import curve_marks
+
+        name = next(iter(axes))
+        marks = curve_marks(table.gait_yaml, name, axes[name], v0)
+    save_figure(sweep_figure(axes, v0, missing, title, marks=marks), path)

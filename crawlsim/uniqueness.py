@@ -112,7 +112,8 @@ def find_violation(forward: Sequence[Signal], backward: Sequence[Signal]) -> Vio
 
     edges = np.append(union_breakpoints([s.breakpoints() for s in signals] + [np.zeros(1)]), 1.0)
     degree = max(s.harmonics for s in signals)
-    linear = any(isinstance(s, PiecewiseLinear) for s in signals)
+    linear = any(isinstance(s, PiecewiseLinear) or getattr(s, "has_linear", False)
+                 for s in signals)
     per_piece = 2 * degree + 2 + int(linear)
     fractions = (np.arange(per_piece) + 1.0) / (per_piece + 1.0)
     fractions = fractions + 0.3 * np.sin(7.0 * fractions) / (per_piece + 1.0)

@@ -75,7 +75,10 @@ class Units:
         return not self.to_json()
 
     def of(self, quantity: str) -> str:
-        """The unit of ``quantity`` (a key of `QUANTITIES`), "1" when it is dimensionless."""
+        """The unit of ``quantity`` (a key of `QUANTITIES`), "1" when it is dimensionless; a
+        slope's ``angle`` is always in degrees (docs/model.md §6)."""
+        if quantity == "angle":
+            return "degree"
         return self.compose(QUANTITIES[quantity])
 
     def compose(self, exponents: Mapping[str, Fraction]) -> str:
@@ -123,5 +126,7 @@ def path_quantity(kind: str, keys: tuple[str | int, ...]) -> str:
         return "time"
     if kind == "sweeping-process":
         return "length" if first in ("offsets", "initial") else "1"
+    if first == "loads":  # forces and weights; a slope's angle in degrees (docs/model.md §6)
+        return "angle" if names[-1] == "angle" else "force"
     return {"stiffness": "stiffness", "links": "length", "friction": "force",
             "initial": "length"}.get(first, "1")

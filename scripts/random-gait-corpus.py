@@ -52,12 +52,15 @@ def main() -> int:
     parser.add_argument("--steps", type=int, default=1000, help="steps per period")
     parser.add_argument("--max-blocks", type=int, default=40)
     parser.add_argument("--jsonl", help="also write one JSON line per gait to this file")
+    parser.add_argument("--loads", action="store_true",
+                        help="add random loads and slopes (docs/model.md §6) to every gait")
     args = parser.parse_args()
     out = open(args.jsonl, "w") if args.jsonl else None
     rows = []
     for seed in range(args.first, args.first + args.count):
         small = seed % 4 != 0  # three gaits in four have N <= 12, the rest up to max-blocks
-        gait = random_gait(seed, blocks=(2, 12) if small else (2, args.max_blocks))
+        gait = random_gait(seed, blocks=(2, 12) if small else (2, args.max_blocks),
+                           loads=args.loads)
         row = {"seed": seed, "blocks": gait.blocks}
         for integrator in ("catch-up", "exact"):
             row[integrator] = run_one(gait, integrator, args.steps)

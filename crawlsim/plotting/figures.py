@@ -756,7 +756,7 @@ def _status_grid(status, shape) -> np.ndarray:
 
 
 def sweep_figure(axes: dict, v0, status, title: str, *, units: Units | None = None,
-                 displacement=None) -> Figure:
+                 displacement=None, marks=None) -> Figure:
     """v0 over a sweep of one or two gait parameters, named by their dotted paths.
 
     ``axes`` maps each swept dotted path (``"friction.backward"``) to its values, in the order of
@@ -774,7 +774,9 @@ def sweep_figure(axes: dict, v0, status, title: str, *, units: Units | None = No
       (first parameter across, second up), ticks at the swept values, a colour bar, the contour
       v0 = 0 when v0 changes sign, and cells without a value hatched and marked by status.
 
-    A log-spaced axis (constant ratio, `is_geometric`) is drawn on a log scale.
+    A log-spaced axis (constant ratio, `is_geometric`) is drawn on a log scale. ``marks`` (a
+    `crawlsim.stall.CurveMarks`, sweeps of one load) break the line at the loads where v0 jumps
+    (dotted verticals) instead of joining across them, and mark the stall load.
     """
     units = units or Units()
     names = list(axes)
@@ -802,7 +804,7 @@ def sweep_figure(axes: dict, v0, status, title: str, *, units: Units | None = No
         fig, axs = new_figure(height=3.6 if len(names) == 1 else 4.4)
         ax = axs[0, 0]
         if len(names) == 1:
-            _sweep_line(ax, values[0], data, statuses, logs[0])
+            _sweep_line(ax, values[0], data, statuses, logs[0], marks)
             ax.set_xlabel(path_label(names[0], units))
             ax.set_ylabel(value_label)
         else:
@@ -832,8 +834,25 @@ def _status_handles(ax, statuses, where) -> list:
     return handles
 
 
-def _sweep_line(ax, x, data, statuses, log):
-    ax.plot(x, data, color=colours(1)[0], marker="o", markersize=4.5, label="$v_0$")
+def _sweep_line(ax, x, data, statuses, log, marks=None):
+    if marks is not None and marks.jumps:
+        # break the line at every jump: a NaN between the two points around it
+        xs, ys = [float(x[0])], [float(data[0])]
+        for a, b, yb in zip(x[:-1], x[1:], data[1:]):
+            if any(min(a, b) <= s <= max(a, b) for s in marks.jumps):
+                xs.append(float("nan"))
+                ys.append(float("nan"))
+            xs.append(float(b))
+            ys.append(float(yb))
+        ax.plot(xs, ys, color=colours(1)[0], marker="o", markersize=4.5, label="$v_0$")
+        for k, s in enumerate(marks.jumps):
+            ax.axvline(s, color=FAINT, linestyle=":", linewidth=1.0,
+                       label="jump of $v_0$" if k == 0 else "_jump")
+    else:
+        ax.plot(x, data, color=colours(1)[0], marker="o", markersize=4.5, label="$v_0$")
+    if marks is not None and marks.stall is not None:
+        ax.axvline(marks.stall, color=REFERENCE, linestyle="--", linewidth=1.2,
+                   label=f"{marks.label} {marks.stall:.6g} ({marks.cause})")
     if log:
         ax.set_xscale("log")
     ax.axhline(0.0, color=REFERENCE, linewidth=0.6)
@@ -848,7 +867,7 @@ def _sweep_line(ax, x, data, statuses, log):
         ax.set_xlim(x[0] * np.exp(-pad), x[-1] * np.exp(pad))
     else:
         ax.set_xlim(x[0] - pad, x[-1] + pad)
-    if handles:
+    if handles or (marks is not None and (marks.jumps or marks.stall is not None)):
         ax.legend(loc="best")
 
 
@@ -907,8 +926,13 @@ def sweep_data_figure(data: dict, title: str | None = None) -> Figure:
     status = on_grid("status", "", object)
     if title is None:
         title = f"{_sweep_name(data)}: average velocity over a sweep"
+    marks = None
+    if len(paths) == 1 and data.get("gait_yaml"):
+        from ..stall import curve_marks
+
+        marks = curve_marks(data["gait_yaml"], paths[0], data["axes"][0], v0)
     return sweep_figure(dict(zip(paths, data["axes"])), v0, status, title,
-                        units=units_of(data), displacement=displacement)
+                        units=units_of(data), displacement=displacement, marks=marks)
 
 
 def _sweep_name(data: dict) -> str:
