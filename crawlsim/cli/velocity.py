@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 
 import click
@@ -148,6 +149,9 @@ def velocity(gait_file, as_json, sweep_specs, link_specs, output, jobs, shard, s
     check_feedback(quiet, verbose)
     if output == "-":
         output = None  # stdout is where the table (or v0) goes without -o
+    if plot_file is not None and os.path.splitext(plot_file)[1].lower() not in (".png", ".pdf",
+                                                                                ".svg"):
+        raise BadInput(f"--plot {plot_file}: a figure is written as .png, .pdf or .svg")
     with library_errors():
         from ..outputs import FIGURE, SWEEP, check_target
 

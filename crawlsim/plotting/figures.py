@@ -26,6 +26,7 @@ from collections.abc import Callable
 from fractions import Fraction
 
 import numpy as np
+from matplotlib.collections import LineCollection
 from matplotlib.colors import BoundaryNorm, ListedColormap, to_rgba
 from matplotlib.figure import Figure
 from matplotlib.legend_handler import HandlerTuple
@@ -68,6 +69,10 @@ SHAPE_SPACE_TIMES = 6
 NICE_DIVISIONS = (6, 8, 10, 12, 5, 4, 3, 2)
 #: A swept axis with more values than this gets a tick label on every k-th value only.
 MAX_TICK_LABELS = 9
+#: A sweep interval is a jump of v0 when its change is more than this many times what the
+#: neighbouring slopes predict, and more than this fraction of the range of v0 (`jumps`).
+JUMP_RATIO = 4.0
+JUMP_FLOOR = 0.1
 #: The line panels of the gait diagram draw at most this many links (blocks), evenly spaced,
 #: first and last included: beyond it lines are no longer told apart, and a thousand-block
 #: crawler would cost minutes and a gigabyte to draw (`shown_series`).
@@ -913,8 +918,59 @@ def _status_handles(ax, statuses, where) -> list:
     return handles
 
 
+def jumps(values, data, log: bool = False) -> np.ndarray:
+    """Where a sampled v0 jumps between neighbouring swept values: a bool array, one entry per
+    interval [values[k], values[k+1]] (the last axis of ``data``).
+
+    v0 of this model is piecewise smooth in the gait's parameters and jumps where the set of
+    slipping blocks changes discontinuously (a friction coefficient crossing an equality of the
+    uniqueness condition, docs/model.md §3). On a sampled axis a jump is an interval whose
+    change of v0 is more than `JUMP_RATIO` times what the slopes of the intervals on either side
+    predict over it, and more than `JUMP_FLOOR` of the range of v0: a smooth (or kinked)
+    function changes by about its neighbouring slopes times the step; a jump does not shrink
+    with the step. An interval with no neighbour of known slope, or a missing value at an end,
+    is never called a jump (nothing to compare with). On a log axis slopes are taken in log
+    space.
+    """
+    v = np.log(np.asarray(values, dtype=float)) if log else np.asarray(values, dtype=float)
+    d = np.asarray(data, dtype=float)
+    h = np.diff(v)
+    change = np.diff(d, axis=-1)
+    out = np.zeros(change.shape, dtype=bool)
+    if change.shape[-1] < 2:
+        return out
+    slope = np.abs(change) / h
+    finite = np.where(np.isfinite(slope), slope, -np.inf)
+    before = np.concatenate([np.full(finite.shape[:-1] + (1,), -np.inf), finite[..., :-1]],
+                            axis=-1)
+    after = np.concatenate([finite[..., 1:], np.full(finite.shape[:-1] + (1,), -np.inf)],
+                           axis=-1)
+    local = np.maximum(before, after)
+    scale = np.nanmax(np.abs(d)) if np.any(np.isfinite(d)) else 0.0
+    span = (np.nanmax(d) - np.nanmin(d)) if np.any(np.isfinite(d)) else 0.0
+    with np.errstate(invalid="ignore"):
+        out = (np.isfinite(change) & np.isfinite(local)
+               & (np.abs(change) > JUMP_RATIO * local * h)
+               & (np.abs(change) > JUMP_FLOOR * max(span, 1e-12 * scale)))
+    return out
+
+
+def _break_at_jumps(x, data, jump):
+    """x and data with a NaN inserted inside every jump interval, so the line breaks there."""
+    cut = np.flatnonzero(jump) + 1
+    return np.insert(x.astype(float), cut, np.nan), np.insert(data, cut, np.nan)
+
+
 def _sweep_line(ax, x, data, statuses, log):
-    ax.plot(x, data, color=colours(1)[0], marker="o", markersize=4.5, label="$v_0$")
+    jump = jumps(x, data, log)
+    xs, ys = _break_at_jumps(x, data, jump)
+    ax.plot(xs, ys, color=colours(1)[0], marker="o", markersize=4.5, label="$v_0$")
+    for k in np.flatnonzero(jump):
+        # The jump itself: a faint vertical at the middle of the interval, between the two
+        # values, where no value of v0 was sampled.
+        middle = np.sqrt(x[k] * x[k + 1]) if log else (x[k] + x[k + 1]) / 2
+        ax.plot([middle, middle], [data[k], data[k + 1]], color=FAINT, linestyle=":",
+                linewidth=1.0, label="jump of $v_0$" if k == np.flatnonzero(jump)[0] else None)
     if log:
         ax.set_xscale("log")
     ax.axhline(0.0, color=REFERENCE, linewidth=0.6)
@@ -955,10 +1011,18 @@ def _sweep_map(fig, ax, values, data, statuses, logs, value_label):
         handles.append(Patch(facecolor="white", edgecolor=FAINT, hatch="////",
                              label="no value"))
     finite = data[np.isfinite(data)]
+    jump_x, jump_y = jumps(x, data.T, logs[0]).T, jumps(y, data, logs[1])
     if finite.size and finite.min() < 0 < finite.max() and min(data.shape) >= 2:
-        ax.contour(x, y, data.T, levels=[0.0], colors=REFERENCE, linewidths=1.2)
-        handles.append(Line2D([], [], color=REFERENCE, linewidth=1.2, label="$v_0$ = 0"))
-        bar.ax.axhline(0.0, color=REFERENCE, linewidth=1.2)
+        segments = zero_contour(x, y, data, jump_x, jump_y, logs)
+        if segments:
+            ax.add_collection(LineCollection(segments, colors=REFERENCE, linewidths=1.2))
+            handles.append(Line2D([], [], color=REFERENCE, linewidth=1.2, label="$v_0$ = 0"))
+            bar.ax.axhline(0.0, color=REFERENCE, linewidth=1.2)
+    walls = jump_walls(x, y, jump_x, jump_y, logs)
+    if walls:
+        ax.add_collection(LineCollection(walls, colors=REFERENCE, linewidths=2.4,
+                                         linestyles="solid"))
+        handles.append(Line2D([], [], color=REFERENCE, linewidth=2.4, label="jump of $v_0$"))
     handles += _status_handles(ax, statuses, lambda mask: (
         x[np.nonzero(mask)[0]], y[np.nonzero(mask)[1]], {}))
     _set_swept_ticks(ax.xaxis, x, logs[0])
@@ -967,6 +1031,66 @@ def _sweep_map(fig, ax, values, data, statuses, logs, value_label):
     if handles:
         ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.16),
                   ncol=min(len(handles), 3), borderaxespad=0)
+
+
+def zero_contour(x, y, data, jump_x, jump_y, logs=(False, False)) -> list[np.ndarray]:
+    """The level set v0 = 0 of a heat map as line segments, by marching squares on the grid of
+    swept points, never across a jump.
+
+    ``data[a, b]`` is v0 at (x[a], y[b]); ``jump_x[a, b]`` says whether v0 jumps between
+    (x[a], y[b]) and (x[a+1], y[b]), ``jump_y[a, b]`` between (x[a], y[b]) and (x[a], y[b+1])
+    (`jumps`). A crossing of 0 is interpolated linearly along an edge of the grid only where v0
+    is continuous there; a square with a jump on any edge, or a missing value at a corner, has
+    no contour: its sign change is the jump itself (`jump_walls`), which is what the model
+    does, not a smooth zero. Interpolation is in log space on a log axis. A square whose four
+    edges all cross (a saddle) is resolved by the sign of its mean.
+    """
+    d = np.asarray(data, dtype=float)
+    u = np.log(np.asarray(x, dtype=float)) if logs[0] else np.asarray(x, dtype=float)
+    w = np.log(np.asarray(y, dtype=float)) if logs[1] else np.asarray(y, dtype=float)
+
+    def back(p):
+        return (np.exp(p[0]) if logs[0] else p[0], np.exp(p[1]) if logs[1] else p[1])
+
+    def cross(p, q, dp, dq):
+        r = dp / (dp - dq)
+        return back((p[0] + r * (q[0] - p[0]), p[1] + r * (q[1] - p[1])))
+
+    segments = []
+    for a in range(d.shape[0] - 1):
+        for b in range(d.shape[1] - 1):
+            corners = [(a, b), (a + 1, b), (a + 1, b + 1), (a, b + 1)]
+            values = [d[c] for c in corners]
+            if not np.all(np.isfinite(values)):
+                continue
+            if jump_x[a, b] or jump_x[a, b + 1] or jump_y[a, b] or jump_y[a + 1, b]:
+                continue
+            points = []
+            for k in range(4):
+                (i0, j0), (i1, j1) = corners[k], corners[(k + 1) % 4]
+                v_0, v_1 = values[k], values[(k + 1) % 4]
+                if (v_0 < 0) != (v_1 < 0):
+                    points.append(cross((u[i0], w[j0]), (u[i1], w[j1]), v_0, v_1))
+            if len(points) == 2:
+                segments.append(np.array(points))
+            elif len(points) == 4:
+                # Saddle: pair the crossings around the corners whose sign differs from the
+                # square's mean.
+                first = (values[0] < 0) != (np.mean(values) < 0)
+                pairs = [(0, 1), (2, 3)] if first else [(3, 0), (1, 2)]
+                segments += [np.array([points[i], points[j]]) for i, j in pairs]
+    return segments
+
+
+def jump_walls(x, y, jump_x, jump_y, logs=(False, False)) -> list[np.ndarray]:
+    """The jumps of a heat map as segments on the cell boundaries between the two points v0
+    jumps between (`jumps`, `cell_edges`): a wall, where the map changes colour abruptly."""
+    xe, ye = cell_edges(x, logs[0]), cell_edges(y, logs[1])
+    walls = [np.array([[xe[a + 1], ye[b]], [xe[a + 1], ye[b + 1]]])
+             for a, b in zip(*np.nonzero(jump_x))]
+    walls += [np.array([[xe[a], ye[b + 1]], [xe[a + 1], ye[b + 1]]])
+              for a, b in zip(*np.nonzero(jump_y))]
+    return walls
 
 
 def sweep_data_figure(data: dict, title: str | None = None) -> Figure:
