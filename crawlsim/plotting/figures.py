@@ -929,16 +929,16 @@ def jumps(values, data, log: bool = False) -> np.ndarray:
     predict over it, and more than `JUMP_FLOOR` of the range of v0: a smooth (or kinked)
     function changes by about its neighbouring slopes times the step; a jump does not shrink
     with the step. An interval with no neighbour of known slope, or a missing value at an end,
-    is never called a jump (nothing to compare with). On a log axis slopes are taken in log
-    space.
+    is never called a jump (nothing to compare with), nor is any interval of an axis of fewer
+    than four values. On a log axis slopes are taken in log space.
     """
     v = np.log(np.asarray(values, dtype=float)) if log else np.asarray(values, dtype=float)
     d = np.asarray(data, dtype=float)
     h = np.diff(v)
     change = np.diff(d, axis=-1)
     out = np.zeros(change.shape, dtype=bool)
-    if change.shape[-1] < 2:
-        return out
+    if change.shape[-1] < 3:
+        return out  # fewer than four values: too few to tell a jump from a steep slope
     slope = np.abs(change) / h
     finite = np.where(np.isfinite(slope), slope, -np.inf)
     before = np.concatenate([np.full(finite.shape[:-1] + (1,), -np.inf), finite[..., :-1]],
