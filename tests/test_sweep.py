@@ -643,6 +643,29 @@ def test_plot_one_and_two_paths(tmp_path):
     assert not (tmp_path / "three.png").exists()
 
 
+def test_sweep_figures_of_files_mark_invalid_points_as_invalid(tmp_path, monkeypatch):
+    """The figure of a sweep file (`crawlsim plot SWEEP.h5`, `velocity --plot`) marks each point
+    without a v0 by its own status: the three gaits that break uniqueness are "invalid gait"
+    (+), never "failed" (x), as docs/figures.md says (they used to be drawn as failed)."""
+    import crawlsim.plotting.output as output
+
+    one = tmp_path / "one.h5"
+    assert vel(P4, *FAST, "--sweep", "friction.backward=[0.5,1,2,3,4]", "--link",
+               "friction.forward=[0.5,1,1,1,1]", "-o", one).exit_code == 0
+    drawn = []
+    monkeypatch.setattr(output, "save_figure", lambda fig, path, **kw: drawn.append(fig))
+    for args in (["plot", one, "-o", tmp_path / "s.png"],
+                 ["velocity", P4, *FAST, "--sweep", "friction.backward=[0.5,1,2,3,4]", "--link",
+                  "friction.forward=[0.5,1,1,1,1]", "--plot", tmp_path / "v.png"]):
+        assert cli(*args).exit_code == 0
+    assert len(drawn) == 2
+    for fig in drawn:
+        marks = {line.get_label(): line.get_xdata().tolist() for line in fig.axes[0].get_lines()
+                 if line.get_marker() in ("x", "+")}
+        assert marks == {"invalid gait": [0.5, 1.0, 3.0]}
+        assert fig.axes[0].get_ylabel() == "displacement per period $v_0T/\\ell$"
+
+
 def test_crawlsim_plot_draws_sweep_files(tmp_path):
     """`crawlsim plot SWEEP.h5` dispatches on the file's kind: <stem>-sweep.<fmt> with v0 over
     one dimension (linked paths count once) or a heat map over two, the points without a v0

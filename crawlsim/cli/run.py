@@ -69,7 +69,7 @@ def run(gait_file, from_results, output, steps_per_period, max_periods, toleranc
       crawlsim run gaits/peristalsis-4.yaml --integrator exact -o exact.h5
       crawlsim run gaits/inching-2.yaml --json | python -m json.tool
       crawlsim run gaits/inching-2.yaml --max-periods 500 --quiet -o inching.h5
-      crawlsim run gaits/inching-2.yaml -o inching.h5 --plot --plot-format pdf --force
+      crawlsim run gaits/inching-2.yaml -o inching.h5 --plot --plot-format pdf
       crawlsim run --from inching.h5 -o again.h5
     """
     check_feedback(quiet, verbose)

@@ -202,13 +202,13 @@ def animation_figure(results: dict, frames: Frames):
         body, lengths_ax, stress_ax = fig.subplots(
             3, 1, gridspec_kw={"height_ratios": [1.1, 1.0, 1.0]})
         # The crawler: links under blocks.
-        segments = np.stack([np.stack([x_all[0, :-1], np.zeros(N - 1)], -1),
-                             np.stack([x_all[0, 1:], np.zeros(N - 1)], -1)], axis=1)
+        segments = list(np.stack([np.stack([x_all[0, :-1], np.zeros(N - 1)], -1),
+                                  np.stack([x_all[0, 1:], np.zeros(N - 1)], -1)], axis=1))
         link_lines = LineCollection(segments, cmap=cmap, norm=norm,
                                     linewidths=4.0 if N <= 12 else 2.0, zorder=1)
         link_lines.set_array(frames.stress[0])
         body.add_collection(link_lines)
-        boxes = PolyCollection(_block_boxes(x_all[0], width, height),
+        boxes = PolyCollection(list(_block_boxes(x_all[0], width, height)),
                                edgecolors=REFERENCE if N <= 12 else "none",
                                linewidths=0.8, zorder=2)
         body.add_collection(boxes)
@@ -286,10 +286,10 @@ def animation_figure(results: dict, frames: Frames):
     def draw(k: int):
         x = frames.x[k]
         sigma = frames.stress[k]
-        boxes.set_verts(_block_boxes(x, width, height))
-        boxes.set_facecolors([SLIP_COLOURS[int(v)] for v in frames.slip[k]])
-        link_lines.set_segments(np.stack([np.stack([x[:-1], np.zeros(N - 1)], -1),
-                                          np.stack([x[1:], np.zeros(N - 1)], -1)], axis=1))
+        boxes.set_verts(list(_block_boxes(x, width, height)))
+        boxes.set_facecolor([SLIP_COLOURS[int(v)] for v in frames.slip[k]])
+        link_lines.set_segments(list(np.stack([np.stack([x[:-1], np.zeros(N - 1)], -1),
+                                               np.stack([x[1:], np.zeros(N - 1)], -1)], axis=1)))
         link_lines.set_array(sigma)
         z = np.diff(x)
         if N <= 12:
@@ -375,7 +375,7 @@ def write_animation(results: dict, target, *, periods: tuple[int, int] | None = 
     count = len(frames.t)
     fig, draw = animation_figure(results, frames)
     writer = (_BlittingPillowWriter(fps=fps) if fmt == "gif" else
-              animation.FFMpegWriter(fps=fps))
+              animation.FFMpegWriter(fps=round(fps)))
     with figure_style(), atomic_path(target) as tmp:
         # The writers choose the container by the file's name: the temporary keeps the suffix.
         named = tmp.with_name(tmp.name + f".{fmt}")

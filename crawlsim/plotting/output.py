@@ -150,7 +150,7 @@ def save_figure(fig, target, fmt: str | None = None, *, dpi: float | None = None
             fig.set_size_inches(*figsize)
         # The whole figure, not its tight bounding box, when a size is asked for (an
         # bbox_inches of None would fall back to the style's "tight").
-        whole = {"savefig.bbox": "standard"} if figsize is not None else {}
+        whole: dict = {"savefig.bbox": "standard"} if figsize is not None else {}
         with atomic_path(target) as tmp, figure_style(), matplotlib.rc_context(whole):
             fig.savefig(tmp, format=fmt, dpi=dpi or DPI,
                         bbox_inches=None if figsize is not None else "tight",

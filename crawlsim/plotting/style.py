@@ -145,6 +145,7 @@ def check_style(style: str) -> str:
     or an existing file that matplotlib reads as one; else ValueError saying what was expected,
     with the closest names."""
     import difflib
+    import logging
     import warnings
     from pathlib import Path
 
@@ -155,18 +156,36 @@ def check_style(style: str) -> str:
         return style
     path = Path(style)
     if path.is_file():
-        with warnings.catch_warnings():
-            warnings.simplefilter("error")
-            try:
+        # matplotlib reports the bad lines of a style file on its logger (and some as
+        # warnings) and skips them: here each is an error, named with its line.
+        problems: list[str] = []
+
+        class Collect(logging.Handler):
+            def emit(self, record):
+                problems.append(record.getMessage())
+
+        collect = Collect(level=logging.WARNING)
+        logger = logging.getLogger("matplotlib")
+        logger.addHandler(collect)
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")
                 matplotlib.rc_params_from_file(str(path), use_default_template=False)
-            except (OSError, UnicodeDecodeError, Warning, ValueError) as exc:
-                raise ValueError(f"--style {style}: not a matplotlib style sheet ({exc})"
-                                 ) from None
+        except (OSError, UnicodeDecodeError, Warning, ValueError) as exc:
+            problems.append(str(exc))
+        finally:
+            logger.removeHandler(collect)
+        if problems:
+            first = next((line for line in problems[0].splitlines() if line.strip()), "")
+            raise ValueError(f"--style {style}: not a matplotlib style sheet: {first.strip()}")
         return str(path)
     close = difflib.get_close_matches(style, available, n=3)
-    hint = f"; did you mean {' or '.join(close)}?" if close else ""
-    raise ValueError(f"--style {style}: no such matplotlib style sheet or file{hint} (the "
-                     f"names are {', '.join(available)}; or give a .mplstyle file)")
+    if close:
+        hint = f"; did you mean {' or '.join(map(repr, close))}?"
+    else:
+        hint = f"; the names are {', '.join(available)}"
+    raise ValueError(f"--style {style}: no such matplotlib style sheet or file{hint} (or give "
+                     "a .mplstyle file)")
 
 
 def figure_format(path, option: str = "-o") -> str:
