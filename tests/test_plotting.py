@@ -459,11 +459,20 @@ def test_shape_space_title_stays_within_its_axes(run_file, name):
     assert _inside_axes(fig, fig.axes[0])
 
 
-def test_shape_space_title_of_a_long_crawler_stays_within_its_axes(tmp_path):
-    """A 41-block crawler: sections in coordinates (1, 2) of 40, the longest title."""
-    fig = shape_space_figure(read_results(wave_file(tmp_path, 41)))
+def test_titles_of_a_long_crawler_stay_within_their_axes(tmp_path):
+    """A 41-block crawler, named "earthworm-100" (a long name): sections in coordinates (1, 2)
+    of 40, the longest shape-space title, and the convergence title with its verdict."""
+    path = wave_file(tmp_path, 41)
+    with h5py.File(path, "a") as f:
+        f.attrs["name"] = "earthworm-100"
+    r = read_results(path)
+    fig = shape_space_figure(r)
     assert "(1, 2) of 40" in fig.axes[0].get_title()
     assert _inside_axes(fig, fig.axes[0])
+    for draw in (motion_figure, convergence_figure):
+        fig = draw(r)
+        assert "earthworm-100" in fig.axes[0].get_title()
+        assert _inside_axes(fig, fig.axes[0])
 
 
 @pytest.mark.parametrize("integrator", ["exact", "catch-up"])

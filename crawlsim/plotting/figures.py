@@ -501,7 +501,9 @@ def convergence_figure(results: dict) -> Figure:
             state.yaxis.set_minor_formatter(NullFormatter())
         state.set_ylabel(label("distance", "\\Delta w" if crawler else "\\Delta z",
                                "force" if crawler else None, units))
-        state.set_title(title(_name(results), f"convergence to the limit period ({verdict})"))
+        # Two lines, so that a long name keeps the title within the axes.
+        state.set_title(f"{title(_name(results), 'convergence to the limit period')}\n"
+                        f"({verdict})")
         _legend_right(state)
 
         if motion:
