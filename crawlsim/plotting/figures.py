@@ -71,7 +71,7 @@ NICE_DIVISIONS = (6, 8, 10, 12, 5, 4, 3, 2)
 MAX_TICK_LABELS = 9
 #: A sweep interval is a jump of v0 when its change is more than this many times what the
 #: neighbouring slopes predict, and more than this fraction of the range of v0 (`jumps`).
-JUMP_RATIO = 4.0
+JUMP_RATIO = 2.5
 JUMP_FLOOR = 0.1
 #: The line panels of the gait diagram draw at most this many links (blocks), evenly spaced,
 #: first and last included: beyond it lines are no longer told apart, and a thousand-block
@@ -928,11 +928,14 @@ def jumps(values, data, log: bool = False) -> np.ndarray:
     slipping blocks changes discontinuously (a friction coefficient crossing an equality of the
     uniqueness condition, docs/model.md §3). On a sampled axis a jump is an interval whose
     change of v0 is more than `JUMP_RATIO` times what the slopes of the intervals on either side
-    predict over it, and more than `JUMP_FLOOR` of the range of v0: a smooth (or kinked)
-    function changes by about its neighbouring slopes times the step; a jump does not shrink
-    with the step. An interval with no neighbour of known slope, or a missing value at an end,
-    is never called a jump (nothing to compare with), nor is any interval of an axis of fewer
-    than four values. On a log axis slopes are taken in log space.
+    predict over it, and more than `JUMP_FLOOR` of the range of v0. On a monotone convex or
+    concave stretch, and across a kink, the change over an interval lies between its neighbours'
+    (ratio at most 1); a jump does not shrink with the step. A smooth transition sharper than the
+    grid resolves (a tanh of width w sampled at h >= 1.3 w gives a ratio above 2.5) is drawn as
+    a jump too: the grid cannot tell the two apart. An interval with no neighbour of known
+    slope, or a missing value at an end, is never called a jump (nothing to compare with), nor
+    is any interval of an axis of fewer than four values. On a log axis slopes are taken in log
+    space.
     """
     v = np.log(np.asarray(values, dtype=float)) if log else np.asarray(values, dtype=float)
     d = np.asarray(data, dtype=float)
