@@ -926,6 +926,10 @@ def test_jumps_closed_forms():
     step = np.where(x < 0.45, -0.4, 0.4) + 0.01 * x
     np.testing.assert_array_equal(jumps(x, step), x[:-1] == 0.375)
     assert not jumps(x[:3], step[:3]).any()
+    # At an end a saturating curve (1 - e^{-8x}) changes far more than beside it: no jump; a
+    # step in the first interval cannot be told from it.
+    assert not jumps(x, 1 - np.exp(-8 * x)).any()
+    assert not jumps(x, np.where(x < 0.1, 0.0, 1.0)).any()
     # Each row of a 2-D array on its own; a log axis takes slopes in log space.
     np.testing.assert_array_equal(jumps(x, np.vstack([step, 2 * x])), [x[:-1] == 0.375,
                                                                       np.zeros(8, bool)])

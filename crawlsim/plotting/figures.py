@@ -932,9 +932,10 @@ def jumps(values, data, log: bool = False) -> np.ndarray:
     concave stretch, and across a kink, the change over an interval lies between its neighbours'
     (ratio at most 1); a jump does not shrink with the step. A smooth transition sharper than the
     grid resolves (a tanh of width w sampled at h >= 1.3 w gives a ratio above 2.5) is drawn as
-    a jump too: the grid cannot tell the two apart. An interval with no neighbour of known
-    slope, or a missing value at an end, is never called a jump (nothing to compare with), nor
-    is any interval of an axis of fewer than four values. On a log axis slopes are taken in log
+    a jump too: the grid cannot tell the two apart. Only an interval with a known slope on both
+    sides can be a jump: not the first or last of an axis (a saturating curve changes more over
+    its first interval than over the next, by any ratio), nor one beside a missing value, nor
+    any interval of an axis of fewer than four values. On a log axis slopes are taken in log
     space.
     """
     v = np.log(np.asarray(values, dtype=float)) if log else np.asarray(values, dtype=float)
@@ -950,7 +951,9 @@ def jumps(values, data, log: bool = False) -> np.ndarray:
                             axis=-1)
     after = np.concatenate([finite[..., 1:], np.full(finite.shape[:-1] + (1,), -np.inf)],
                            axis=-1)
-    local = np.maximum(before, after)
+    # Both neighbours are needed: at an end of the axis a saturating curve changes more over its
+    # first interval than over the next, by any ratio, without a jump.
+    local = np.where(np.isfinite(before) & np.isfinite(after), np.maximum(before, after), np.nan)
     scale = np.nanmax(np.abs(d)) if np.any(np.isfinite(d)) else 0.0
     span = (np.nanmax(d) - np.nanmin(d)) if np.any(np.isfinite(d)) else 0.0
     with np.errstate(invalid="ignore"):
