@@ -61,7 +61,7 @@ def plot(results_file, output, fmt, only, coords, dpi, figsize, style, force):
       crawlsim run gaits/peristalsis-4.yaml && crawlsim plot peristalsis-4.h5
       crawlsim plot peristalsis-4.h5 --only shape-space --coords 1,3 -o figures --format pdf
       crawlsim plot peristalsis-4.h5 --only motion -o motion.pdf --figsize 3.5,2.6
-      crawlsim plot peristalsis-4.h5 -o png300 --dpi 300 --style seaborn-v0_8-paper
+      crawlsim plot peristalsis-4.h5 -o png300 --dpi 300 --style ggplot
       crawlsim velocity gaits/inching-2.yaml --sweep 'friction.backward=0.5:3:11' \\
           -o sweep.h5 && crawlsim plot sweep.h5
     """
