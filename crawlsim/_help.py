@@ -21,6 +21,7 @@ TEXT = (
     '  -h, --help  Show this message and exit.\n'
     '\n'
     'Commands:\n'
+    '  animate   Animate the run in RESULTS_FILE: the blocks and links move...\n'
     '  info      Summarise a results file, of a run, a sweep or an optimisation.\n'
     '  merge     Join the shard files PART... of one sweep (written with...\n'
     '  optimize  Find the gait parameters in a box that maximise v0 (or...\n'

@@ -57,7 +57,7 @@ from crawlsim.signals import (
     without_signals,
 )
 from crawlsim.uniqueness import UniquenessUndecidable, find_violation
-from crawlsim.units import UNITS_SCHEMA, Units
+from crawlsim.units import UNITS_SCHEMA, Units, unit_problems
 from crawlsim.yamlsafe import load_yaml, read_limited
 
 ROUNDOFF = 1e-12
@@ -461,6 +461,12 @@ def _readonly(array: np.ndarray) -> np.ndarray:
     return array
 
 
+def _check_units(document: dict, source: str, errors: _Errors) -> None:
+    """Each unit name of the ``units:`` block is one of `crawlsim.units.UNIT_NAMES`."""
+    for keypath, problem in unit_problems(document.get("units")):
+        errors.add(GaitError(source, keypath, problem))
+
+
 def _count_error(source: str, keypath: str, expected: int, what: str, got: int) -> GaitError:
     return GaitError(source, keypath, f"expected {expected} {what}, got {got}")
 
@@ -591,6 +597,7 @@ def _stiffness(document: dict, n: int, source: str) -> np.ndarray:
 
 def _build_crawler(document: dict, source: str, source_text: str, default_name: str,
                    errors: _Errors) -> Gait | None:
+    _check_units(document, source, errors)
     n = int(document["blocks"])
     period = float(document["period"])
 
@@ -787,6 +794,7 @@ PROCESS_SCHEMA: dict = {
 
 def _build_process(document: dict, source: str, source_text: str, default_name: str,
                    errors: _Errors) -> ProcessSpec:
+    _check_units(document, source, errors)
     rows = document["normals"]
     n = len(rows[0])
     for i, row in enumerate(rows):

@@ -33,7 +33,7 @@ RUN, SWEEP, FIGURE, GAIT = "run", "sweep", "figure", "gait"
 _WHAT = {RUN: "crawlsim run results file (HDF5)", SWEEP: "crawlsim sweep table (CSV or HDF5)",
          FIGURE: "figure", GAIT: "gait file"}
 _HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
-_IMAGES = {b"\x89PNG\r\n\x1a\n": "png", b"%PDF-": "pdf"}
+_IMAGES = {b"\x89PNG\r\n\x1a\n": "png", b"%PDF-": "pdf", b"GIF87a": "gif", b"GIF89a": "gif"}
 #: Columns every crawlsim sweep table has (CSV header), whatever else it holds.
 SWEEP_COLUMNS = frozenset({"v0", "convergence", "status", "message"})
 
@@ -124,6 +124,8 @@ def classify(path) -> str | None:
     for signature, fmt in _IMAGES.items():
         if head.startswith(signature):
             return f"{FIGURE}:{fmt}"
+    if head[4:8] == b"ftyp":  # an ISO media file (MP4), written by `crawlsim animate`
+        return f"{FIGURE}:mp4"
     text = head.decode("utf-8", errors="replace")
     if "<svg" in text[:4096] and text.lstrip().startswith(("<?xml", "<svg", "<!DOCTYPE svg")):
         return f"{FIGURE}:svg"

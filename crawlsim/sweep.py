@@ -1179,12 +1179,14 @@ def sweep_figure_data(table: SweepTable) -> tuple[dict, np.ndarray, np.ndarray]:
     return axes, table.grid("v0"), missing
 
 
-def plot_table(table: SweepTable, path, title: str | None = None) -> None:
+def plot_table(table: SweepTable, path, title: str | None = None,
+               figure_options: dict | None = None) -> None:
     """v0 against one swept dimension, or a heat map over two, with the points that have no v0
     (failed or invalid) marked; written atomically."""
     from .plotting import save_figure, sweep_figure
+    from .plotting.style import units_of
 
-    axes, v0, missing = sweep_figure_data(table)
+    axes, v0, _ = sweep_figure_data(table)
     if title is None:
         document = yaml.safe_load(table.gait_yaml) if table.gait_yaml else None
         name = document.get("name") if isinstance(document, dict) else None
@@ -1195,4 +1197,9 @@ def plot_table(table: SweepTable, path, title: str | None = None) -> None:
 
         name = next(iter(axes))
         marks = curve_marks(table.gait_yaml, name, axes[name], v0)
-    save_figure(sweep_figure(axes, v0, missing, title, marks=marks), path)
+    # The statuses themselves, not a failed/ok mask: an invalid gait and a failed run are
+    # different answers and are marked differently (docs/figures.md).
+    status = table.grid("status")
+    figure = sweep_figure(axes, v0, status, title, units=units_of({"gait_yaml": table.gait_yaml}),
+                          displacement=table.grid("displacement_per_period"), marks=marks)
+    save_figure(figure, path, **(figure_options or {}))

@@ -17,6 +17,7 @@ This module imports nothing heavy: the gait schema and the results files both us
 
 from __future__ import annotations
 
+import difflib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from fractions import Fraction
@@ -50,6 +51,69 @@ QUANTITIES: dict[str, dict[str, Fraction]] = {
     "velocity_l2": {"length": Fraction(1), "time": Fraction(-1, 2)},
     "force_l2": {"force": Fraction(1), "time": Fraction(1, 2)},
 }
+
+
+#: The unit names a gait file may give, by base dimension: SI symbols with the common prefixes
+#: (UDUNITS/CF spelling, so the results files' ``units`` attributes are read by every CF tool),
+#: "u" or "µ" for micro, and a few customary units. docs/model.md lists them.
+UNIT_NAMES: dict[str, tuple[str, ...]] = {
+    "length": ("m", "km", "dm", "cm", "mm", "um", "µm", "nm", "in", "ft"),
+    "time": ("s", "ms", "us", "µs", "ns", "min", "h"),
+    "force": ("N", "kN", "mN", "uN", "µN", "nN", "dyn", "lbf"),
+}
+
+#: Names written out (lower case, singular or plural, British or American), and the symbol
+#: they stand for: suggested, never accepted, so that every file spells a unit one way.
+_SPELLED_OUT = {
+    "meter": "m", "metre": "m", "kilometer": "km", "kilometre": "km", "centimeter": "cm",
+    "centimetre": "cm", "millimeter": "mm", "millimetre": "mm", "micrometer": "um",
+    "micrometre": "um", "micron": "um", "nanometer": "nm", "nanometre": "nm", "inch": "in",
+    "inches": "in", "foot": "ft", "feet": "ft", "second": "s", "sec": "s",
+    "millisecond": "ms", "msec": "ms", "microsecond": "us", "nanosecond": "ns", "minute": "min",
+    "hour": "h", "hr": "h", "newton": "N", "kilonewton": "kN", "millinewton": "mN",
+    "micronewton": "uN", "nanonewton": "nN", "dyne": "dyn", "pound-force": "lbf",
+    "pound force": "lbf", "lb": "lbf",
+}
+
+
+def unit_problem(base: str, name: str) -> str | None:
+    """Why ``name`` is not a unit of the base dimension ``base`` (None when it is one of
+    `UNIT_NAMES`): what was expected, a unit of another dimension named as such, and the
+    nearest accepted names (a spelled-out name such as "Newtons" gets its symbol)."""
+    accepted = UNIT_NAMES[base]
+    if name in accepted:
+        return None
+    expected = f"a unit of {base}, one of {', '.join(accepted)}"
+    word = name.strip().lower()
+    singular = word[:-1] if word.endswith("s") and word[:-1] in _SPELLED_OUT else word
+    if singular in _SPELLED_OUT:
+        symbol = _SPELLED_OUT[singular]
+        if symbol in accepted:
+            return f"expected {expected}; got {name!r}: write its symbol, {symbol!r}"
+    for other, names in UNIT_NAMES.items():
+        if name in names or _SPELLED_OUT.get(singular) in names:
+            return f"expected {expected}; got {name!r}, a unit of {other}"
+    pool = list(accepted) + [k for k, v in _SPELLED_OUT.items() if v in accepted]
+    close = difflib.get_close_matches(name, pool, n=3, cutoff=0.5) or \
+        difflib.get_close_matches(word, pool, n=3, cutoff=0.5)
+    suggestions = list(dict.fromkeys(_SPELLED_OUT.get(c, c) for c in close))
+    hint = f"; did you mean {' or '.join(map(repr, suggestions))}?" if suggestions else ""
+    return f"expected {expected}; got {name!r}{hint}"
+
+
+def unit_problems(block: Mapping[str, Any] | None) -> list[tuple[str, str]]:
+    """(key path, message) for each unit of a gait file's ``units:`` block that is not in
+    `UNIT_NAMES` (the block's structure is the schema's to check)."""
+    if not isinstance(block, Mapping):
+        return []
+    found = []
+    for base in BASES:
+        name = block.get(base)
+        if isinstance(name, str):
+            problem = unit_problem(base, name)
+            if problem is not None:
+                found.append((f"units.{base}", problem))
+    return found
 
 
 @dataclass(frozen=True)

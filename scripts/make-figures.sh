@@ -19,6 +19,10 @@ crawlsim plot "$work/peristalsis-4.h5" -o "$out" --only convergence
 crawlsim plot "$work/triangle.h5" -o "$out" --only convergence
 crawlsim plot "$work/smooth-friction-3.h5" -o "$out" --only shape-space
 
+# The crawler in motion over its limit period (a GIF for docs/figures.md, kept small).
+crawlsim animate "$work/peristalsis-4.h5" -o "$out/peristalsis-4-crawl.gif" --frames-per-period 30 \
+    --dpi 64 --fps 15 --force
+
 # A 1-D sweep through the command line: v0 of the three-block wave against the phase of its
 # second link, written as a sweep file and drawn by `crawlsim plot`.
 crawlsim velocity "$root/gaits/peristalsis-3.yaml" --sweep links.1.phase=0:1:21 \

@@ -198,6 +198,49 @@ def test_units_block_is_validated(block, message):
         make_gait({**UNITS_GAIT, "units": block})
 
 
+@pytest.mark.parametrize("block, message", [
+    ({"force": "Newtons"}, "units.force: expected a unit of force, one of N, kN, mN, uN, µN, "
+                           "nN, dyn, lbf; got 'Newtons': write its symbol, 'N'"),
+    ({"length": "millimetres"}, "got 'millimetres': write its symbol, 'mm'"),
+    ({"time": "sec"}, "units.time: expected a unit of time"),
+    ({"length": "s"}, "units.length: expected a unit of length, one of m, km, dm, cm, mm, um, "
+                      "µm, nm, in, ft; got 's', a unit of time"),
+    ({"force": "mm"}, "got 'mm', a unit of length"),
+    ({"length": "MM"}, "did you mean 'mm'"),
+    ({"force": "kgf"}, "got 'kgf'"),
+])
+def test_unit_names_are_checked(block, message):
+    """A unit string is one of `crawlsim.units.UNIT_NAMES` for its dimension; a spelled-out name
+    gets its symbol, a unit of another dimension is named as such, a typo gets the closest
+    names."""
+    with pytest.raises(GaitError, match=re.escape(message)):
+        make_gait({**UNITS_GAIT, "units": {**UNITS_GAIT["units"], **block}})
+
+
+def test_every_listed_unit_is_accepted():
+    from crawlsim.units import UNIT_NAMES, unit_problem
+
+    for base, names in UNIT_NAMES.items():
+        for name in names:
+            assert unit_problem(base, name) is None
+            make_gait({**UNITS_GAIT, "units": {base: name}})
+
+
+def test_a_misspelt_unit_exits_2_naming_file_and_key(tmp_path):
+    """`units: {force: Newtons}` used to pass silently: now run and validate exit 2 with the
+    file, the key path and what was expected, and no results file."""
+    import yaml
+
+    path = tmp_path / "u.yaml"
+    path.write_text(yaml.safe_dump({**UNITS_GAIT, "units": {"length": "mm", "force": "Newtons"}}))
+    for args in (["run", path, "-o", tmp_path / "u.h5"], ["validate", path]):
+        r = cli(*args)
+        assert r.exit_code == 2, r.output
+        assert f"{path}: units.force: expected a unit of force" in r.output
+        assert "'N'" in r.output and "Traceback" not in r.output
+    assert not (tmp_path / "u.h5").exists()
+
+
 def test_unit_composition():
     u = Units(length="mm", time="s", force="N")
     assert [u.of(q) for q in ("velocity", "stiffness", "dissipation", "compliance", "force",

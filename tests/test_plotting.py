@@ -39,18 +39,23 @@ from crawlsim.plotting import (
 )
 from crawlsim.plotting.figures import (
     MAX_BAND_LABELS,
+    MAX_FORCE_ROWS,
     MAX_MOTION_BLOCKS,
     MAX_SERIES,
     block_forces,
     cell_edges,
     is_geometric,
+    jumps,
     polygon,
+    relative_stress,
     section,
     shape_space_instants,
     shown_series,
     slip_runs,
     stress_bounds,
+    stress_mode,
     swept_ticks,
+    zero_contour,
 )
 from crawlsim.plotting.style import (
     COLOUR_MAP,
@@ -267,8 +272,10 @@ def test_motion_in_the_files_units(run_file, tmp_path):
     assert ax.get_ylabel() == "position $x_j$ (mm)"
     assert f"{r['attrs']['v0']:.4g} mm/s" in ax.get_lines()[-1].get_label()
     fig = gait_figure(r)
-    assert [a.get_ylabel() for a in fig.axes[1:]] == [
-        "length $L_i, z_i$ (mm)", "stress $\\sigma_i$ (N)", "force $f_j$ (N)"]
+    assert [a.get_ylabel() for a in fig.axes[1:3]] == [
+        "length $L_i, z_i$ (mm)", "stress $\\sigma_i$ (N)"]
+    assert [a.get_ylabel() for a in fig.axes[3:]] == ["$f_{1}$", "$f_{2}$", "$f_{3}$", "$f_{4}$"]
+    assert "elastic force on\neach block $f_j$ (N)" in list(_all_texts(fig))
     assert fig.axes[-1].get_xlabel() == "time in the limit period $t - t_0$ (s)"
     _check_labels(fig, Units("mm", "s", "N"))
     assert convergence_figure(r).axes[0].get_ylabel() == "distance $\\Delta w$ (N)"
@@ -325,10 +332,10 @@ def test_many_blocks_are_drawn_thinned_and_the_slip_pattern_whole(tmp_path):
     r = read_results(wave_file(tmp_path, N))
     lim = r["limit"]
     fig = gait_figure(r)
-    bands, lengths, stresses, forces = fig.axes
+    bands, lengths, stresses, *forces = fig.axes
     (mesh,) = bands.collections
     np.testing.assert_array_equal(np.asarray(mesh.get_array()).reshape(N, -1), lim["slip"].T)
-    links, blocks = shown_series(N - 1, MAX_SERIES), shown_series(N, MAX_SERIES)
+    links, blocks = shown_series(N - 1, MAX_SERIES), shown_series(N, MAX_FORCE_ROWS)
     lines = lengths.get_lines()
     assert len(lines) == 2 * MAX_SERIES
     for k, i in enumerate(links):
@@ -336,16 +343,22 @@ def test_many_blocks_are_drawn_thinned_and_the_slip_pattern_whole(tmp_path):
         np.testing.assert_array_equal(lines[MAX_SERIES + k].get_ydata(), lim["shape"][:, i])
         assert lines[k].get_label() == f"$L_{{{i + 1}}}$ actuator"
     assert lengths.get_legend().get_title().get_text() == f"{MAX_SERIES} of {N - 1} links"
+    # 41 blocks: bounds up to min(20 mu+, 21 mu-) = 20 dwarf the stresses, which are drawn over
+    # their bounds (sigma_i / bound), the bounds being the lines +-1.
+    low, high = stress_bounds(lim["friction"])
+    assert stress_mode(lim["stress"][:, links], low[:, links], high[:, links]) == "relative"
     lines = stresses.get_lines()
-    assert len(lines) == 3 * MAX_SERIES + 1
+    assert len(lines) == MAX_SERIES + 3  # the ratios, the bounds +-1, the zero line
+    ratio = relative_stress(lim["stress"], low, high)
     for k, i in enumerate(links):
-        np.testing.assert_array_equal(lines[3 * k].get_ydata(), lim["stress"][:, i])
-    lines = forces.get_lines()
-    assert len(lines) == MAX_SERIES + 2  # one shared pair of friction limits
+        np.testing.assert_array_equal(lines[k].get_ydata(), ratio[:, i])
+    assert [tuple(line.get_ydata()) for line in lines[MAX_SERIES:]] == [(1, 1), (-1, -1), (0, 0)]
+    assert len(forces) == MAX_FORCE_ROWS
     f = block_forces(lim["stress"])
-    for k, j in enumerate(blocks):
-        np.testing.assert_array_equal(lines[k].get_ydata(), f[:, j])
-    assert forces.get_legend().get_title().get_text() == f"{MAX_SERIES} of {N} blocks"
+    for ax, j in zip(forces, blocks):
+        np.testing.assert_array_equal(ax.get_lines()[0].get_ydata(), f[:, j])
+        assert ax.get_ylabel() == f"$f_{{{j + 1}}}$"
+    assert forces[0].get_legend().get_title().get_text() == f"{MAX_FORCE_ROWS} of {N} blocks"
     ticks = [int(tl.get_text()) for tl in bands.get_yticklabels()]
     assert ticks[0] == 1 and ticks[-1] == N and len(ticks) == 6
     np.testing.assert_array_equal(bands.get_yticks(), np.array(ticks) - 1)
@@ -383,6 +396,87 @@ def test_block_forces_are_d_transpose_sigma():
     assert block_forces(sigma).sum() == pytest.approx(0.0)
 
 
+def test_relative_stress_closed_form():
+    """sigma over its bound on the side of its sign: 1 in [-1, 2] is 1/2, -2 in [-4, 2] is -1/2,
+    2 in [-1, 2] is 1 (on its bound), and a bound of 0 holds a stress of 0, drawn as 0. The
+    figure switches to ratios when the largest bound exceeds RELATIVE_STRESS_RATIO = 5 times the
+    largest stress: 4 <= 5 x 2 keeps stresses, 4 > 5 x 0.2 does not."""
+    sigma = np.array([[1.0, -2.0, 0.0, 2.0]])
+    low = np.array([[-1.0, -4.0, -1.0, -1.0]])
+    high = np.array([[2.0, 2.0, 0.0, 2.0]])
+    np.testing.assert_array_equal(relative_stress(sigma, low, high), [[0.5, -0.5, 0.0, 1.0]])
+    assert stress_mode(sigma, low, high) == "absolute"
+    assert stress_mode(sigma / 10, low, high) == "relative"
+    with pytest.raises(ValueError, match="stress='ratio'"):
+        gait_figure({}, stress="ratio")
+
+
+def test_gait_diagram_stress_bounds_in_link_colours(run_file):
+    """peristalsis-4 (mu+ = 1, mu- = 2; bounds up to 2, stresses up to 4/3) keeps its stresses;
+    each link's two bounds are dotted in its colour, and the one legend entry "friction bounds"
+    is drawn in the links' colours (its first dash in link 1's), not in a grey no line has."""
+    fig = gait_figure(results_of(run_file, "peristalsis-4"))
+    stresses = fig.axes[2]
+    assert stresses.get_ylabel() == "stress $\\sigma_i/F$"
+    lines = stresses.get_lines()
+    for i in range(3):
+        sigma, high, low = lines[3 * i: 3 * i + 3]
+        assert to_hex(sigma.get_color()) == to_hex(high.get_color()) == to_hex(low.get_color())
+        assert to_hex(sigma.get_color()) == to_hex(PALETTE[i])
+        assert high.get_linestyle() == low.get_linestyle() == ":"
+    legend = stresses.get_legend()
+    names = [t.get_text() for t in legend.get_texts()]
+    assert names == ["$\\sigma_{1}$", "$\\sigma_{2}$", "$\\sigma_{3}$", "friction bounds"]
+    assert to_hex(legend.legend_handles[-1].get_color()) == to_hex(PALETTE[0])
+
+
+def test_motion_v0_line_visible_and_legend_in_the_order_of_the_curves(run_file):
+    """The v0 line meets the barycentre at each period start of the limit: it is drawn as a
+    wide translucent band under the (dashed) barycentre, so both show. The legend lists the
+    curves from top to bottom as they end on the right (front block first), then the shaded
+    limit period."""
+    ax = motion_figure(results_of(run_file, "peristalsis-4")).axes[0]
+    *blocks, barycentre, slope = ax.get_lines()
+    assert slope.get_linewidth() >= 3 * barycentre.get_linewidth()
+    assert slope.get_zorder() < min(b.get_zorder() for b in blocks) < barycentre.get_zorder()
+    assert slope.get_alpha() < 0.5
+    texts = [t.get_text() for t in ax.get_legend().get_texts()]
+    by_label = {line.get_label(): line for line in ax.get_lines()}
+    ends = [float(by_label[name].get_ydata()[-1]) for name in texts[:-1]]
+    assert ends == sorted(ends, reverse=True)
+    assert texts[0] == "block 4" and texts[-1] == "limit period" and len(texts) == 7
+
+
+def _inside_axes(fig, ax) -> bool:
+    import io
+
+    fig.savefig(io.BytesIO(), format="png")  # lays out and draws: extents are final
+    title, box = ax.title.get_window_extent(), ax.get_window_extent()
+    return title.x0 >= box.x0 - 1 and title.x1 <= box.x1 + 1
+
+
+@pytest.mark.parametrize("name", ["smooth-friction-3", "peristalsis-4", "anchoring-2"])
+def test_shape_space_title_stays_within_its_axes(run_file, name):
+    fig = shape_space_figure(results_of(run_file, name))
+    assert _inside_axes(fig, fig.axes[0])
+
+
+def test_titles_of_a_long_crawler_stay_within_their_axes(tmp_path):
+    """A 41-block crawler, named "earthworm-100" (a long name): sections in coordinates (1, 2)
+    of 40, the longest shape-space title, and the convergence title with its verdict."""
+    path = wave_file(tmp_path, 41)
+    with h5py.File(path, "a") as f:
+        f.attrs["name"] = "earthworm-100"
+    r = read_results(path)
+    fig = shape_space_figure(r)
+    assert "(1, 2) of 40" in fig.axes[0].get_title()
+    assert _inside_axes(fig, fig.axes[0])
+    for draw in (motion_figure, convergence_figure):
+        fig = draw(r)
+        assert "earthworm-100" in fig.axes[0].get_title()
+        assert _inside_axes(fig, fig.axes[0])
+
+
 @pytest.mark.parametrize("integrator", ["exact", "catch-up"])
 @pytest.mark.parametrize("name", ["peristalsis-4", "smooth-friction-3", "anchoring-2"])
 def test_gait_diagram_content(run_file, name, integrator):
@@ -392,8 +486,8 @@ def test_gait_diagram_content(run_file, name, integrator):
     t, slip = lim["t"], lim["slip"]
     N = slip.shape[1]
     T = r["attrs"]["period"]
-    fig = gait_figure(r)
-    bands, lengths, stresses, forces = fig.axes
+    fig = gait_figure(r, stress="absolute")
+    bands, lengths, stresses, *rows = fig.axes
     assert "gait diagram" in fig._suptitle.get_text() and name in fig._suptitle.get_text()
 
     # Bands: one cell per block and step, the cells of each block tile the period, [0, 1] in
@@ -432,14 +526,28 @@ def test_gait_diagram_content(run_file, name, integrator):
     # complementarity a block that slipped over a step ends it on its face (docs/model.md §3).
     # The exact integrator follows the motion within the step: a block may stop before the step
     # ends, so only the grid points inside a run of slipping steps are surely on the face.
-    lines = forces.get_lines()
+    # One small panel per block (small multiples: forces on the same limit at once are not
+    # drawn on top of each other), sharing one force axis: f_j, then mu_j^+ and -mu_j^-.
+    assert len(rows) == N
     plus, minus = lim["friction"][:, :N], lim["friction"][:, N:]
-    shared = np.all(plus == plus[:, :1]) and np.all(minus == minus[:, :1])
-    assert len(lines) == N + 2 * (1 if shared else N)
-    f = np.column_stack([lines[j].get_ydata() for j in range(N)])
+    for j, ax in enumerate(rows):
+        lines = ax.get_lines()
+        assert len(lines) == 3
+        np.testing.assert_array_equal(lines[1].get_ydata(), plus[:, j])
+        np.testing.assert_array_equal(lines[2].get_ydata(), -minus[:, j])
+        assert ax.get_ylim() == rows[0].get_ylim()
+    f = np.column_stack([ax.get_lines()[0].get_ydata() for ax in rows])
     np.testing.assert_allclose(f, block_forces(lim["stress"]))
     tol = 1e-9 * max(np.max(np.abs(f)), 1.0)
     assert np.all(f <= plus + tol) and np.all(f >= -minus - tol)
+    # Slipping steps are shaded in the slip colours behind each block's force, on the steps of
+    # /limit/slip: the runs of slip_runs, stick left blank.
+    for j, ax in enumerate(rows):
+        spans = [(p.get_x(), p.get_x() + p.get_width(), to_hex(p.get_facecolor()))
+                 for p in ax.patches]
+        runs = [(a, b, to_hex(SLIP_COLOURS[state])) for state, a, b in
+                slip_runs(slip[:, j], t / T) if state != 0]
+        assert [(pytest.approx(a), pytest.approx(b), c) for a, b, c in spans] == runs
     end = f[1:]
     if integrator == "catch-up":
         forward, backward = slip == 1, slip == -1
@@ -451,11 +559,11 @@ def test_gait_diagram_content(run_file, name, integrator):
     assert np.any(forward)
     np.testing.assert_allclose(end[forward], plus[1:][forward], atol=tol)
     np.testing.assert_allclose(end[backward], -minus[1:][backward], atol=tol)
-    assert forces.get_xlim() == (0.0, 1.0)
-    assert forces.get_xlabel() == "time in the limit period $(t - t_0)/T$"
+    assert rows[-1].get_xlim() == (0.0, 1.0)
+    assert rows[-1].get_xlabel() == "time in the limit period $(t - t_0)/T$"
     assert stresses.get_ylabel() == "stress $\\sigma_i/F$"
     # The slip bands use none of the series colours of the lines.
-    line_colours = {to_hex(l.get_color()) for a in (lengths, stresses, forces)
+    line_colours = {to_hex(l.get_color()) for a in (lengths, stresses, *rows)
                     for l in a.get_lines()}
     assert not line_colours & {to_hex(c) for c in SLIP_COLOURS.values()}
 
@@ -800,13 +908,90 @@ def test_sweep_two_parameters_heatmap():
                   for p in hatched) == [(2.0, 0.5), (3.0, 1.0)]
     marks = {l.get_label(): l.get_xydata().tolist() for l in ax.get_lines()}
     assert marks == {"failed": [[2.0, 0.5]], "invalid gait": [[3.0, 1.0]]}
-    assert len(ax.collections) == 2  # the mesh and the contour v0 = 0
+    # v0 changes sign between (1, 0.5) and (1, 1), but every square of the grid has a corner
+    # without a value, so there is no square to interpolate a zero in: no contour.
+    assert len(ax.collections) == 1
     assert ax.get_xlabel() == "friction.backward (N)"
     assert ax.get_ylabel() == "links.0.amplitude (mm)"
     assert bar.get_ylabel() == "average velocity $v_0$ (mm/s)"
     one_sign = sweep_figure({"a": a, "b": b}, np.abs(np.nan_to_num(v0)), np.zeros((3, 2), bool),
                             "s")
     assert len(one_sign.axes[0].collections) == 1  # no contour when v0 keeps its sign
+
+
+def test_jumps_closed_forms():
+    """A line and a kink are continuous; a step from -0.4 to +0.4 between 0.375 and 0.5 is one
+    jump, whatever the slope beside it; three values are too few to tell."""
+    x = np.linspace(0.0, 1.0, 9)
+    assert not jumps(x, 2 * x + 1).any()
+    assert not jumps(x, np.abs(x - 0.5)).any()
+    step = np.where(x < 0.45, -0.4, 0.4) + 0.01 * x
+    np.testing.assert_array_equal(jumps(x, step), x[:-1] == 0.375)
+    assert not jumps(x[:3], step[:3]).any()
+    # At an end a saturating curve (1 - e^{-8x}) changes far more than beside it: no jump; a
+    # step in the first interval cannot be told from it.
+    assert not jumps(x, 1 - np.exp(-8 * x)).any()
+    assert not jumps(x, np.where(x < 0.1, 0.0, 1.0)).any()
+    # Each row of a 2-D array on its own; a log axis takes slopes in log space.
+    np.testing.assert_array_equal(jumps(x, np.vstack([step, 2 * x])), [x[:-1] == 0.375,
+                                                                      np.zeros(8, bool)])
+    g = np.geomspace(1, 100, 7)
+    assert not jumps(g, np.log(g), log=True).any()
+
+
+def _jump_grid():
+    """v0 = (x - 0.3)/2 on x < 0.55, and 0.8 less beyond: a smooth zero at x = 0.3, and a jump
+    from +0.1 (x = 0.5) to -0.6375 (x = 0.625) where v0 changes sign too."""
+    x, y = np.linspace(0.0, 1.0, 9), np.linspace(0.0, 1.0, 5)
+    v0 = np.repeat((0.5 * (x - 0.3) - 0.8 * (x > 0.55))[:, None], len(y), axis=1)
+    return x, y, v0
+
+
+def test_zero_contour_is_not_drawn_across_a_jump():
+    """The contour v0 = 0 is the smooth zero at x = 0.3 alone (linear data: the interpolated
+    crossings are exact), nothing at the jump; the jump is a wall on the cell boundary between
+    0.5 and 0.625 (x = 0.5625), across the whole y range."""
+    from matplotlib.collections import LineCollection
+
+    x, y, v0 = _jump_grid()
+    fig = sweep_figure({"a": x, "b": y}, v0, np.full(v0.shape, "ok", dtype=object), "jump")
+    ax = fig.axes[0]
+    contour, wall = [c for c in ax.collections if isinstance(c, LineCollection)]
+    points = np.concatenate(contour.get_segments())
+    np.testing.assert_allclose(points[:, 0], 0.3, rtol=0, atol=1e-12)
+    assert points[:, 1].min() == 0.0 and points[:, 1].max() == 1.0
+    walls = np.concatenate(wall.get_segments())
+    np.testing.assert_allclose(walls[:, 0], 0.5625, rtol=0, atol=1e-12)
+    assert walls[:, 1].min() == pytest.approx(-0.125) and walls[:, 1].max() == pytest.approx(1.125)
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert labels == ["$v_0$ = 0", "jump of $v_0$"]
+    # The same sweep along one parameter: the line breaks at the jump (a NaN between 0.5 and
+    # 0.625), and the jump is a dotted vertical at its middle.
+    fig = sweep_figure({"a": x}, v0[:, 0], np.full(9, "ok", dtype=object), "jump")
+    curve, jump = fig.axes[0].get_lines()[:2]
+    assert np.count_nonzero(np.isnan(curve.get_xdata())) == 1
+    assert np.isnan(curve.get_xdata()[5]) and np.isnan(curve.get_ydata()[5])
+    np.testing.assert_allclose(jump.get_xdata(), [0.5625, 0.5625])
+    np.testing.assert_allclose(jump.get_ydata(), [v0[4, 0], v0[5, 0]])
+    assert jump.get_label() == "jump of $v_0$"
+
+
+def test_zero_contour_saddle_and_log_axes():
+    """On a saddle square (v0 = x y on [-1, 1]^2, shifted) the crossings are paired, never
+    crossing the square; on log axes the crossings are interpolated in log space: v0 = log10 x
+    - 1 is zero at x = 10 exactly."""
+    x = np.array([1.0, 100.0])
+    y = np.array([1.0, 2.0])
+    v0 = np.log10(x)[:, None] - 1 + 0 * y[None, :]
+    (segment,) = zero_contour(x, y, v0, np.zeros((1, 2), bool), np.zeros((2, 1), bool),
+                              (True, False))
+    np.testing.assert_allclose(segment[:, 0], 10.0)
+    v0 = np.array([[1.0, -1.0], [-1.0, 1.0]])
+    segments = zero_contour([0.0, 1.0], [0.0, 1.0], v0, np.zeros((1, 2), bool),
+                            np.zeros((2, 1), bool))
+    assert len(segments) == 2
+    np.testing.assert_allclose(np.sort(np.concatenate(segments).ravel()), [0, 0, 0.5, 0.5,
+                                                                           0.5, 0.5, 1, 1])
 
 
 def test_sweep_ticks_and_cells():

@@ -663,6 +663,56 @@ def test_plot_one_and_two_paths(tmp_path):
     assert not (tmp_path / "three.png").exists()
 
 
+def test_sweep_figures_of_files_mark_invalid_points_as_invalid(tmp_path, monkeypatch):
+    """The figure of a sweep file (`crawlsim plot SWEEP.h5`, `velocity --plot`) marks each point
+    without a v0 by its own status: the three gaits that break uniqueness are "invalid gait"
+    (+), never "failed" (x), as docs/figures.md says (they used to be drawn as failed)."""
+    import crawlsim.plotting.output as output
+
+    one = tmp_path / "one.h5"
+    assert vel(P4, *FAST, "--sweep", "friction.backward=[0.5,1,2,3,4]", "--link",
+               "friction.forward=[0.5,1,1,1,1]", "-o", one).exit_code == 0
+    drawn = []
+    monkeypatch.setattr(output, "save_figure", lambda fig, path, **kw: drawn.append(fig))
+    for args in (["plot", one, "-o", tmp_path / "s.png"],
+                 ["velocity", P4, *FAST, "--sweep", "friction.backward=[0.5,1,2,3,4]", "--link",
+                  "friction.forward=[0.5,1,1,1,1]", "--plot", tmp_path / "v.png"]):
+        assert cli(*args).exit_code == 0
+    assert len(drawn) == 2
+    for fig in drawn:
+        marks = {line.get_label(): line.get_xdata().tolist() for line in fig.axes[0].get_lines()
+                 if line.get_marker() in ("x", "+")}
+        assert marks == {"invalid gait": [0.5, 1.0, 3.0]}
+        assert fig.axes[0].get_ylabel() == "displacement per period $v_0T/\\ell$"
+
+
+def test_v0_jumps_at_equal_friction_are_walls_not_contours(tmp_path):
+    """peristalsis-4 with forward friction 1: v0 changes sign where the backward friction crosses
+    1 (two blocks forward, two backward: the uniqueness condition fails exactly there, and the
+    set of slipping blocks flips). Sampled at 0.5, 0.68, ..., 1.4, v0 jumps between 0.86 and
+    1.04 (by 0.18 to 0.39) where the intervals beside change by 0.03 to 0.07: the figure draws a
+    wall on that cell boundary for every amplitude, and no v0 = 0 contour, which would be
+    interpolated across the jump."""
+    from matplotlib.collections import LineCollection
+
+    from crawlsim.h5io import read_sweep
+    from crawlsim.plotting import sweep_data_figure
+
+    out = tmp_path / "jump.h5"
+    assert vel(P4, *FAST, "--sweep", "friction.backward=0.5:1.4:6", "--sweep",
+               "links.*.amplitude=0.2:0.3:4", "-o", out).exit_code == 0
+    data = read_sweep(out)
+    v0 = np.asarray(data["columns"]["v0"], dtype=float).reshape(6, 4)
+    assert np.all(v0[:3] < 0) and np.all(v0[3:] > 0)
+    ax = sweep_data_figure(data).axes[0]
+    (walls,) = [c for c in ax.collections if isinstance(c, LineCollection)]
+    points = np.concatenate(walls.get_segments())
+    np.testing.assert_allclose(points[:, 0], 0.95, rtol=0, atol=1e-12)
+    assert points[:, 1].min() == pytest.approx(0.2 - 0.05 / 3)
+    assert points[:, 1].max() == pytest.approx(0.3 + 0.05 / 3)
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["jump of $v_0$"]
+
+
 def test_crawlsim_plot_draws_sweep_files(tmp_path):
     """`crawlsim plot SWEEP.h5` dispatches on the file's kind: <stem>-sweep.<fmt> with v0 over
     one dimension (linked paths count once) or a heat map over two, the points without a v0

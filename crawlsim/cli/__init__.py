@@ -81,7 +81,7 @@ def _terminate(signum, frame):
 
 #: The command modules (``crawlsim.cli.<name>``, each attaching its command to `main`). Only
 #: the invoked one is imported (``--help`` imports them all, for their one-line help).
-COMMANDS = ("info", "merge", "optimize", "plot", "run", "stall", "validate", "velocity")
+COMMANDS = ("animate", "info", "merge", "optimize", "plot", "run", "stall", "validate", "velocity")
 
 
 class CrawlsimGroup(click.Group):

@@ -73,3 +73,60 @@ def warn_unchecked(gait) -> None:
         click.echo(f"Warning: {gait.source}: the uniqueness condition (docs/model.md §3) is beyond "
                    "an exact check for this friction and was not checked (simulation: "
                    "unchecked_uniqueness: true); the results file records it", err=True)
+
+
+def _figsize(ctx, param, value):
+    if value is None:
+        return None
+    try:
+        pair = tuple(float(v) for v in value.split(","))
+    except ValueError:
+        pair = ()
+    if len(pair) != 2 or not all(math.isfinite(v) and 0.5 <= v <= 100 for v in pair):
+        raise click.BadParameter(f"{value!r}: expected the width and height in inches, each "
+                                 "between 0.5 and 100, such as 3.5,2.6")
+    return pair
+
+
+def figure_options(f):
+    """``--dpi``, ``--figsize W,H`` and ``--style``: how figures are written
+    (`crawlsim.plotting.style.FigureOptions`)."""
+    f = click.option("--style", metavar="STYLE",
+                     help="A matplotlib style sheet laid over crawlsim's: a name of "
+                          "matplotlib.style.available (ggplot, seaborn-v0_8-paper, ...) or a "
+                          ".mplstyle file.")(f)
+    f = click.option("--figsize", callback=_figsize, metavar="W,H",
+                     help="Size of every figure in inches, such as 3.5,2.6 (default: each "
+                          "figure's own, cropped to its content).")(f)
+    f = click.option("--dpi", type=FiniteFloatRange(min=10, max=2400),
+                     help="Resolution of PNG figures in dots per inch (default: 150).")(f)
+    return f
+
+
+def figure_options_of(dpi, figsize, style):
+    """The `FigureOptions` of the command line, the style sheet checked first (a bad one is
+    BadInput, exit 2)."""
+    from ..plotting.style import FigureOptions
+
+    if style is not None:
+        from ..plotting.style import check_style
+
+        try:
+            style = check_style(style)
+        except ValueError as exc:
+            from . import BadInput
+
+            raise BadInput(str(exc)) from None
+    return FigureOptions(dpi=dpi, figsize=figsize, style=style)
+
+
+def figure_format_of(path, option: str) -> str:
+    """The format of a figure file by its extension (png, pdf, svg); any other is BadInput."""
+    from ..plotting.style import figure_format
+
+    try:
+        return figure_format(path, option)
+    except ValueError as exc:
+        from . import BadInput
+
+        raise BadInput(str(exc)) from None

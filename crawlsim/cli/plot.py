@@ -9,7 +9,7 @@ import click
 from ..errors import CrawlsimError
 from ..plotting import FIGURE_NAMES, OPTIMIZATION_FIGURES
 from . import BadInput, library_errors, main
-from .guards import force_option
+from .guards import figure_format_of, figure_options, figure_options_of, force_option
 
 if TYPE_CHECKING:  # pathlib is imported where used: `crawlsim --help` needs none of it
     from pathlib import Path
@@ -28,18 +28,20 @@ def _coords(ctx, param, value):
 
 @main.command()
 @click.argument("results_file", type=click.Path(dir_okay=False))
-@click.option("-o", "--output-dir", type=click.Path(file_okay=False),
-              help="Folder for the figures (default: the results file's folder; created if "
-                   "missing).")
-@click.option("--format", "fmt", type=click.Choice(["png", "pdf", "svg"]), default="png",
-              show_default=True, help="Image format.")
+@click.option("-o", "--output", "--output-dir", "output", type=click.Path(),
+              help="A folder for the figures (default: the results file's folder; created if "
+                   "missing), or a file FIG.png, FIG.pdf or FIG.svg for one figure (--only, or "
+                   "a sweep file), its extension giving the format.")
+@click.option("--format", "fmt", type=click.Choice(["png", "pdf", "svg"]),
+              help="Image format of the figures written into a folder.  [default: png]")
 @click.option("--only", type=click.Choice(FIGURE_NAMES + OPTIMIZATION_FIGURES),
               help="Draw this figure only (runs, optimisations).")
 @click.option("--coords", default="1,2", show_default=True, callback=_coords,
               help="Shape coordinates i,j of the shape-space figure when there are more than "
                    "two (four or more blocks): it shows sections of K(t) in that plane.")
+@figure_options
 @force_option
-def plot(results_file, output_dir, fmt, only, coords, force):
+def plot(results_file, output, fmt, only, coords, dpi, figsize, style, force):
     """Draw the figures of RESULTS_FILE as <stem>-<figure>.<format>.
 
     \b
@@ -49,7 +51,7 @@ def plot(results_file, output_dir, fmt, only, coords, force):
     period), shape-space (K(t) and the orbit of w(t)).
     The figure of a sweep file (crawlsim velocity --sweep ... -o SWEEP.h5, crawlsim merge):
     <stem>-sweep, v0 against the swept value for one swept dimension, a heat map over two,
-    points without a v0 (invalid or failed) marked.
+    points without a v0 (invalid or failed) marked, jumps of v0 drawn as jumps.
     The figures of an optimisation file (crawlsim optimize): <stem>-objective, the best value
     against the points simulated; with --pareto, <stem>-pareto-front, the cost of transport
     against v0 with the front and the chosen gaits marked.
@@ -58,20 +60,38 @@ def plot(results_file, output_dir, fmt, only, coords, force):
     Examples:
       crawlsim run gaits/peristalsis-4.yaml && crawlsim plot peristalsis-4.h5
       crawlsim plot peristalsis-4.h5 --only shape-space --coords 1,3 -o figures --format pdf
+      crawlsim plot peristalsis-4.h5 --only motion -o motion.pdf --figsize 3.5,2.6
+      crawlsim plot peristalsis-4.h5 -o png300 --dpi 300 --style ggplot
       crawlsim velocity gaits/inching-2.yaml --sweep 'friction.backward=0.5:3:11' \\
           -o sweep.h5 && crawlsim plot sweep.h5
     """
+    from pathlib import Path
+
     from ..h5io import describe
 
+    options = figure_options_of(dpi, figsize, style)
+    target = None
+    if output is not None and Path(output).suffix and not Path(output).is_dir():
+        target = Path(output)
+        fmt_of_file = figure_format_of(target, "-o")
+        if fmt is not None and fmt != fmt_of_file:
+            raise BadInput(f"--format {fmt} and -o {output}: the file's extension gives the "
+                           "format; give one of the two")
+        fmt = fmt_of_file
+        output = None
+    fmt = fmt or "png"
     with library_errors():
         kind = describe(results_file)["file_kind"]
-        _check_targets(results_file, output_dir, fmt, only, kind, force)
-        if kind == "sweep":
-            written = [_plot_sweep(results_file, output_dir, fmt, only)]
-        elif kind == "optimization":
-            written = _plot_optimization(results_file, output_dir, fmt, only)
+        if target is not None:
+            from ..outputs import FIGURE, check_target
+
+            check_target(target, FIGURE, inputs=[results_file], force=force, option="--output")
         else:
-            written = _plot_run(results_file, output_dir, fmt, only, coords)
+            _check_targets(results_file, output, fmt, only, kind, force)
+        if kind == "sweep":
+            written = [_plot_sweep(results_file, output, fmt, only, options, target)]
+        else:
+            written = _plot_file(results_file, output, fmt, only, coords, options, target)
     for path in written:
         click.echo(str(path))
 
@@ -93,35 +113,29 @@ def _check_targets(results_file, output_dir, fmt, only, kind, force) -> None:
                      inputs=[results_file], force=force, option="--output-dir")
 
 
-def _plot_optimization(results_file, output_dir, fmt, only):
+def _plot_file(results_file, output_dir, fmt, only, coords, options, target):
+    """The figures of a run or an optimisation file (`crawlsim.plotting.plot_results`)."""
+    from ..h5io import describe
     from ..plotting import plot_results
 
-    if only is not None and only not in OPTIMIZATION_FIGURES:
+    if only is not None and describe(results_file)["file_kind"] == "optimization" and \
+            only not in OPTIMIZATION_FIGURES:
         raise BadInput(f"--only {only}: {results_file} is an optimisation file, whose figures "
                        f"are {', '.join(OPTIMIZATION_FIGURES)}")
     try:
-        return plot_results(results_file, output_dir, fmt=fmt, only=only)
+        return plot_results(results_file, output_dir, fmt=fmt, only=only, coords=coords,
+                            options=options, target=target)
     except ValueError as exc:
         if isinstance(exc, CrawlsimError):
             raise
         raise BadInput(f"{results_file}: {exc}") from None
 
 
-def _plot_run(results_file, output_dir, fmt, only, coords):
-    from ..plotting import plot_results
-
-    try:
-        return plot_results(results_file, output_dir, fmt=fmt, only=only, coords=coords)
-    except ValueError as exc:
-        if isinstance(exc, CrawlsimError):
-            raise
-        raise BadInput(f"{results_file}: {exc}") from None
-
-
-def _plot_sweep(results_file, output_dir, fmt, only) -> Path:
+def _plot_sweep(results_file, output_dir, fmt, only, options, target) -> Path:
     from pathlib import Path
 
     from .. import sweep as sweeps
+    from ..plotting.style import user_style
 
     if only is not None:
         raise BadInput(f"--only {only}: {results_file} is a sweep file, whose one figure is "
@@ -134,8 +148,11 @@ def _plot_sweep(results_file, output_dir, fmt, only) -> Path:
         raise BadInput(f"{results_file}: is shard {table.shard[0]}/{table.shard[1]} of a "
                        "sweep; plot the file `crawlsim merge` writes from all the shards")
     path = Path(results_file)
-    folder = Path(output_dir) if output_dir is not None else path.resolve().parent
-    folder.mkdir(parents=True, exist_ok=True)
-    target = folder / f"{path.stem}-sweep.{fmt}"
-    sweeps.plot_table(table, target)
+    if target is None:
+        folder = Path(output_dir) if output_dir is not None else path.resolve().parent
+        target = folder / f"{path.stem}-sweep.{fmt}"
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with user_style(options.style):
+        sweeps.plot_table(table, target, figure_options={"dpi": options.dpi,
+                                                         "figsize": options.figsize})
     return target

@@ -19,7 +19,14 @@ from . import (
     simulation_options,
     to_json,
 )
-from .guards import check_memory, force_option, max_memory_option, warn_unchecked
+from .guards import (
+    check_memory,
+    figure_options,
+    figure_options_of,
+    force_option,
+    max_memory_option,
+    warn_unchecked,
+)
 
 #: Largest ``--save-every``: grid points are counted in int64 (a run has at most 10^8 steps per
 #: period, so any larger value saves only each period's first point anyway).
@@ -46,11 +53,15 @@ MAX_SAVE_EVERY = 2**62
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 @click.option("--plot", is_flag=True,
               help="Also draw the figures next to the results file (<stem>-<figure>.png).")
+@click.option("--plot-format", type=click.Choice(["png", "pdf", "svg"]),
+              help="Image format of the --plot figures.  [default: png]")
+@figure_options
 @max_memory_option
 @force_option
 @feedback_options
 def run(gait_file, from_results, output, steps_per_period, max_periods, tolerance, save_every,
-        check_every_step, as_json, plot, max_memory, force, quiet, verbose):
+        check_every_step, as_json, plot, plot_format, dpi, figsize, style, max_memory, force,
+        quiet, verbose):
     """Simulate GAIT_FILE to its periodic regime; report v0 and write an HDF5 file.
 
     Progress goes to stderr: a bar on a terminal, whose total is the number of periods
@@ -62,6 +73,7 @@ def run(gait_file, from_results, output, steps_per_period, max_periods, toleranc
       crawlsim run gaits/peristalsis-4.yaml --integrator exact -o exact.h5
       crawlsim run gaits/inching-2.yaml --json | python -m json.tool
       crawlsim run gaits/inching-2.yaml --max-periods 500 --quiet -o inching.h5
+      crawlsim run gaits/inching-2.yaml -o inching.h5 --plot --plot-format pdf
       crawlsim run --from inching.h5 -o again.h5
     """
     check_feedback(quiet, verbose)
@@ -71,6 +83,13 @@ def run(gait_file, from_results, output, steps_per_period, max_periods, toleranc
         raise BadInput("--output -: the results of a run are an HDF5 file, which cannot be "
                        "streamed to stdout; give a file name (-o run.h5), and --json prints "
                        "the summary on stdout")
+    given = [name for name, value in (("--plot-format", plot_format), ("--dpi", dpi),
+                                      ("--figsize", figsize), ("--style", style))
+             if value is not None]
+    if given and not plot:
+        raise BadInput(f"{', '.join(given)} set how the figures are drawn: add --plot")
+    options = figure_options_of(dpi, figsize, style) if plot else None
+    fmt = plot_format or "png"
     from pathlib import Path
 
     from .. import api
@@ -96,7 +115,7 @@ def run(gait_file, from_results, output, steps_per_period, max_periods, toleranc
             from ..plotting import FIGURE_NAMES
 
             for name in FIGURE_NAMES:
-                check_target(out.parent / f"{out.stem}-{name}.png", FIGURE,
+                check_target(out.parent / f"{out.stem}-{name}.{fmt}", FIGURE,
                              inputs=[gait_file or from_results], force=force, option="--plot")
         warn_unchecked(gait)
         with run_progress(gait, quiet, verbose) as progress:
@@ -106,7 +125,8 @@ def run(gait_file, from_results, output, steps_per_period, max_periods, toleranc
         if plot:
             from ..plotting import plot_results
 
-            figures = [str(f) for f in plot_results(out, out.resolve().parent, fmt="png")]
+            figures = [str(f) for f in plot_results(out, out.resolve().parent, fmt=fmt,
+                                                    options=options)]
     if as_json:
         summary = result.summary()
         summary["output"] = str(out)

@@ -165,6 +165,9 @@ def velocity(gait_file, as_json, sweep_specs, link_specs, output, jobs, shard, s
         for path, kind, option in ((output, SWEEP, "--output"), (plot_file, FIGURE, "--plot")):
             if path is not None:
                 check_target(path, kind, inputs=[gait_file], force=force, option=option)
+        if plot_file is not None and \
+                os.path.splitext(plot_file)[1].lower() not in (".png", ".pdf", ".svg"):
+            raise BadInput(f"--plot {plot_file}: a figure is written as .png, .pdf or .svg")
         groups = _dimensions(sweep_specs, link_specs)
         gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance)
         from ..gait import need_crawler

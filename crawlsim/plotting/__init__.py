@@ -6,6 +6,7 @@
   and returning a matplotlib `Figure`, plus `sweep_figure` and `sweep_data_figure` for velocity
   sweeps;
 * `optimization` has the figures of an optimisation file (`objective_figure`, `pareto_figure`);
+* `animation` draws the crawler in motion (`write_animation`, ``crawlsim animate``);
 * `output.plot_results` reads a results or sweep file and writes its figures next to it.
 
 The names below are imported lazily (PEP 562), so that ``import crawlsim.plotting`` and the
@@ -38,12 +39,14 @@ _LAZY = {
     "FIGURES": "figures",
     "objective_figure": "optimization",
     "pareto_figure": "optimization",
+    "write_animation": "animation",
+    "FigureOptions": "style",
 }
 
 __all__ = ["CRAWLER_FIGURES", "FIGURES", "FIGURE_NAMES", "OPTIMIZATION_FIGURES", "objective_figure",
            "pareto_figure", "convergence_figure", "gait_figure", "motion_figure",
            "SWEEP_FIGURE", "plot_results", "save_figure", "shape_space_figure", "sweep_data_figure",
-           "sweep_figure"]
+           "sweep_figure", "write_animation", "FigureOptions"]
 
 
 def __getattr__(name):

@@ -26,12 +26,15 @@ from collections.abc import Callable
 from fractions import Fraction
 
 import numpy as np
+from matplotlib.collections import LineCollection
 from matplotlib.colors import BoundaryNorm, ListedColormap, to_rgba
 from matplotlib.figure import Figure
+from matplotlib.legend_handler import HandlerTuple
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Polygon, Rectangle
 from matplotlib.ticker import (
     FixedLocator,
+    FuncFormatter,
     MaxNLocator,
     NullFormatter,
     NullLocator,
@@ -66,6 +69,10 @@ SHAPE_SPACE_TIMES = 6
 NICE_DIVISIONS = (6, 8, 10, 12, 5, 4, 3, 2)
 #: A swept axis with more values than this gets a tick label on every k-th value only.
 MAX_TICK_LABELS = 9
+#: A sweep interval is a jump of v0 when its change is more than this many times what the
+#: neighbouring slopes predict, and more than this fraction of the range of v0 (`jumps`).
+JUMP_RATIO = 2.5
+JUMP_FLOOR = 0.1
 #: The line panels of the gait diagram draw at most this many links (blocks), evenly spaced,
 #: first and last included: beyond it lines are no longer told apart, and a thousand-block
 #: crawler would cost minutes and a gigabyte to draw (`shown_series`).
@@ -75,6 +82,13 @@ MAX_MOTION_BLOCKS = 32
 #: Up to this many blocks, the slip bands of the gait diagram are labelled "block j" one by one
 #: and grow with N; beyond it the panel keeps this height and gets thinned block numbers.
 MAX_BAND_LABELS = 12
+#: The force panel of the gait diagram is one small panel per block, at most this many (evenly
+#: spaced, first and last included), each this tall (inches).
+MAX_FORCE_ROWS = 6
+FORCE_ROW_HEIGHT = 0.62
+#: The gait diagram draws the stresses over their bounds when the largest bound is more than this
+#: many times the largest stress (`stress_mode`).
+RELATIVE_STRESS_RATIO = 5.0
 
 
 def _need(results: dict, figure: str, *paths: str) -> None:
@@ -160,20 +174,27 @@ def motion_figure(results: dict) -> Figure:
             shown = N <= 8 or j in (0, N - 1)
             ax.plot(t * factor, x[:, j], color=colour, label=f"block {j + 1}" if shown else None)
         ax.plot(t * factor, y, color=REFERENCE, linestyle="--", linewidth=1.2,
-                label="barycentre $y$")
-        # a limit found by the solver is the period after the history (`analysis.following`)
+                label="barycentre $y$", zorder=3)
+        # The v0 line meets the barycentre at every period start of the limit, so a thin line
+        # would hide under it: it is a wide translucent band beneath the blocks instead. A limit
+        # found by the solver is the period after the history (`analysis.following`).
         ends = np.array([t[0], max(t[-1], t0 + T)])
         ax.plot(ends * factor, np.interp(t0, t, y) + v0 * (ends - t0), color=REFERENCE,
-                linestyle=":", linewidth=1.2, label=f"slope {speed}")
-        ax.axvspan(t0 * factor, (t0 + T) * factor, color=FAINT, alpha=0.15, linewidth=0,
-                   label="limit period")
+                alpha=0.22, linewidth=6.0, solid_capstyle="butt", zorder=1,
+                label=f"slope {speed}")
+        span = ax.axvspan(t0 * factor, (t0 + T) * factor, color=FAINT, alpha=0.15, linewidth=0,
+                          label="limit period")
         ax.set_xlim(ends[0] * factor, ends[1] * factor)
         if units.time is None and (ends[1] - ends[0]) / T <= 12:
             ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.set_xlabel(time_label)
         ax.set_ylabel(label("position", "x_j", "length", units))
         ax.set_title(title(_name(results), "block positions"))
-        _legend_right(ax, title=_shown_title(drawn, N, "blocks"))
+        # The legend lists the lines from top to bottom as they end at the right of the axes
+        # (the front block first), then the shaded limit period.
+        lines = [line for line in ax.get_lines() if not line.get_label().startswith("_")]
+        lines.sort(key=lambda line: -float(np.asarray(line.get_ydata())[-1]))
+        _legend_right(ax, handles=[*lines, span], title=_shown_title(drawn, N, "blocks"))
     return fig
 
 
@@ -224,25 +245,53 @@ def block_forces(stress: np.ndarray) -> np.ndarray:
     return padded[:, :-1] - padded[:, 1:]
 
 
-def gait_figure(results: dict) -> Figure:
-    """The gait diagram of the limit period, four panels sharing the time axis (t - t0)/T
+def relative_stress(sigma: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """Each link stress over its bound on the side of its sign, sigma_i / high_i where sigma_i >= 0
+    and sigma_i / |low_i| where sigma_i < 0 (`stress_bounds`): a number in [-1, 1], +-1 exactly
+    where the link's stress is as large as a group of blocks can resist. A bound of 0 (no
+    friction on one side) holds a stress of 0, drawn as 0."""
+    sigma = np.asarray(sigma, dtype=float)
+    bound = np.where(sigma >= 0, high, -np.asarray(low, dtype=float))
+    return np.divide(sigma, bound, out=np.zeros_like(sigma), where=bound > 0)
+
+
+def stress_mode(sigma: np.ndarray, low: np.ndarray, high: np.ndarray) -> str:
+    """"relative" when the friction bounds dwarf the stresses (the largest bound more than
+    `RELATIVE_STRESS_RATIO` times the largest stress: a long crawler, whose bounds grow with the
+    number of blocks behind and ahead of a link, while its stresses do not), else "absolute"."""
+    largest = float(np.max(np.abs(sigma), initial=0.0))
+    bound = float(max(np.max(np.abs(low), initial=0.0), np.max(np.abs(high), initial=0.0)))
+    return "relative" if bound > RELATIVE_STRESS_RATIO * largest else "absolute"
+
+
+def gait_figure(results: dict, stress: str = "auto") -> Figure:
+    """The gait diagram of the limit period, panels sharing the time axis (t - t0)/T
     (or t - t0 in the file's time unit):
 
     1. one band per block: stick, forward slip, backward slip on each step (``/limit/slip``), in
        the slip colours, which no line of the figure uses;
     2. actuator lengths L_i(t) (solid) and link lengths z_i(t) = x_{i+1} - x_i (dashed);
-    3. link stresses sigma_i(t) (solid) with their friction bounds (dotted, `stress_bounds`);
-    4. elastic force on each block f_j(t) = sigma_{j-1} - sigma_j (solid) with the friction
-       limits mu_j^+(t) and -mu_j^-(t) (dotted). This is the exact admissibility picture: block j
-       sticks while -mu_j^- < f_j < mu_j^+ and slips forward (backward) only on the upper (lower)
-       limit, which is where the bands of panel 1 change colour. Blocks sharing the same limits
-       get one black pair of dotted lines.
+    3. link stresses sigma_i(t) (solid) with their friction bounds (dotted, in the colour of
+       their link, `stress_bounds`). ``stress="relative"`` draws sigma_i over its bound instead
+       (`relative_stress`), the bounds then being the lines +-1; ``"auto"`` (the default) does so
+       where the bounds dwarf the stresses (`stress_mode`: a 100-block crawler has bounds of
+       +-70 and stresses of order 1, which a shared axis flattens);
+    4. the elastic force on each block f_j(t) = sigma_{j-1} - sigma_j, one small panel per block
+       (small multiples sharing one force axis: several blocks sit on the same limit at once,
+       which one panel would draw as one line), with its friction limits mu_j^+(t) and
+       -mu_j^-(t) (dotted) and its slipping steps shaded in the slip colours. This is the exact
+       admissibility picture: block j sticks while -mu_j^- < f_j < mu_j^+ and slips forward
+       (backward) only on the upper (lower) limit, which is where the bands of panel 1 change
+       colour.
 
-    Panel 1 is one image of N x G cells, whatever N. Beyond `MAX_SERIES` links (blocks), panels
-    2-4 draw that many evenly spaced ones (`shown_series`), named in their legends, whose titles
-    say how many of how many are drawn; beyond `MAX_BAND_LABELS` blocks, panel 1 stops growing
-    and numbers its blocks on a thinned axis.
+    Panel 1 is one image of N x G cells, whatever N. Beyond `MAX_SERIES` links, panels 2-3 draw
+    that many evenly spaced ones (`shown_series`), and beyond `MAX_FORCE_ROWS` blocks panel 4
+    draws that many; their legends (the first force row's) say how many of how many are drawn.
+    Beyond `MAX_BAND_LABELS` blocks, panel 1 stops growing and numbers its blocks on a thinned
+    axis.
     """
+    if stress not in ("auto", "absolute", "relative"):
+        raise ValueError(f"stress={stress!r}: choose auto, absolute or relative")
     _need(results, "gait diagram", "limit/t", "limit/slip", "limit/shape", "limit/stress",
           "limit/lengths", "limit/friction")
     units = units_of(results)
@@ -257,13 +306,20 @@ def gait_figure(results: dict) -> Figure:
     sigma = np.asarray(lim["stress"], dtype=float)
     friction = np.asarray(lim["friction"], dtype=float)
     N = slip.shape[1]
-    links, blocks = shown_series(N - 1, MAX_SERIES), shown_series(N, MAX_SERIES)
+    links, blocks = shown_series(N - 1, MAX_SERIES), shown_series(N, MAX_FORCE_ROWS)
     link_colours, block_colours = colours(len(links)), colours(len(blocks))
     rows = min(N, MAX_BAND_LABELS)
+    low, high = stress_bounds(friction)
+    if stress == "auto":
+        stress = stress_mode(sigma[:, links], low[:, links], high[:, links])
+    nb = len(blocks)
     with figure_style():
-        fig, axs = new_figure(4, 1, height=1.0 + 0.3 * rows + 5.4, sharex=True,
-                              gridspec_kw={"height_ratios": [0.2 * rows + 0.1, 1.0, 1.0, 1.0]})
-        bands, lengths, stresses, forces = axs[:, 0]
+        fig, axs = new_figure(3 + nb, 1, height=1.0 + 0.3 * rows + 3.9 + FORCE_ROW_HEIGHT * nb,
+                              sharex=True,
+                              gridspec_kw={"height_ratios": [0.2 * rows + 0.1, 1.0, 1.0]
+                                           + [FORCE_ROW_HEIGHT / 1.65] * nb})
+        bands, lengths, stresses = axs[:3, 0]
+        force_rows = list(axs[3:, 0])
 
         # One cell per block and step, coloured by its slip state: an image (rasterized in
         # vector formats), so its cost is that of G x N pixels, not of G x N patches.
@@ -295,38 +351,67 @@ def gait_figure(results: dict) -> Figure:
         lengths.set_ylabel(label("length", "L_i, z_i", "length", units))
         _legend_right(lengths, ncol=2, title=links_title)
 
-        low, high = stress_bounds(friction)
-        for i, colour in zip(links, link_colours):
-            stresses.plot(s, sigma[:, i], color=colour, label=f"$\\sigma_{{{i + 1}}}$")
-            stresses.plot(s, high[:, i], color=colour, linestyle=":", linewidth=1.0)
-            stresses.plot(s, low[:, i], color=colour, linestyle=":", linewidth=1.0)
-        handles, names = stresses.get_legend_handles_labels()
-        handles.append(Line2D([], [], color=FAINT, linestyle=":", linewidth=1.0))
-        names.append("friction bounds")
+        if stress == "relative":
+            ratio = relative_stress(sigma, low, high)
+            for i, colour in zip(links, link_colours):
+                stresses.plot(s, ratio[:, i], color=colour, label=f"$\\sigma_{{{i + 1}}}$")
+            bound_lines = [stresses.axhline(v, color=REFERENCE, linestyle=":", linewidth=1.0)
+                           for v in (1.0, -1.0)]
+            handles, names = stresses.get_legend_handles_labels()
+            handles.append(bound_lines[0])
+            names.append("friction bounds")
+            stresses.set_ylim(-1.1, 1.1)
+            stresses.set_ylabel("stress over its bound\n$\\sigma_i/\\bar\\sigma_i$")
+        else:
+            bound_handles = []
+            for i, colour in zip(links, link_colours):
+                stresses.plot(s, sigma[:, i], color=colour, label=f"$\\sigma_{{{i + 1}}}$")
+                bound_handles += stresses.plot(s, high[:, i], color=colour, linestyle=":",
+                                               linewidth=1.0)
+                stresses.plot(s, low[:, i], color=colour, linestyle=":", linewidth=1.0)
+            handles, names = stresses.get_legend_handles_labels()
+            # One entry for the bounds, drawn in the colours of the links they bound.
+            handles.append(tuple(Line2D([], [], color=h.get_color(), linestyle=":",
+                                        linewidth=1.0) for h in bound_handles))
+            names.append("friction bounds")
+            stresses.set_ylabel(label("stress", "\\sigma_i", "force", units))
         stresses.axhline(0.0, color=REFERENCE, linewidth=0.6)
-        stresses.set_ylabel(label("stress", "\\sigma_i", "force", units))
-        _legend_right(stresses, handles=handles, labels=names, title=links_title)
+        _legend_right(stresses, handles=handles, labels=names, title=links_title,
+                      handlelength=3.2, handler_map={tuple: HandlerTuple(ndivide=None, pad=0.0)})
 
         f = block_forces(sigma)
         plus, minus = friction[:, :N], friction[:, N:]
-        shared = bool(np.all(plus == plus[:, :1]) and np.all(minus == minus[:, :1]))
-        for j, colour in zip(blocks, block_colours):
-            forces.plot(s, f[:, j], color=colour, label=f"$f_{{{j + 1}}}$")
-        for j, colour in ([(0, REFERENCE)] if shared else zip(blocks, block_colours)):
-            forces.plot(s, plus[:, j], color=colour, linestyle=":", linewidth=1.0)
-            forces.plot(s, -minus[:, j], color=colour, linestyle=":", linewidth=1.0)
-        handles, names = forces.get_legend_handles_labels()
-        handles.append(Line2D([], [], color=REFERENCE if shared else FAINT, linestyle=":",
-                              linewidth=1.0))
-        names.append("$\\mu^+$, $-\\mu^-$")
-        forces.set_ylabel(label("force", "f_j", "force", units))
-        _legend_right(forces, handles=handles, labels=names,
-                      title=_shown_title(blocks, N, "blocks"))
-
-        forces.set_xlim(s[0], s[-1])
-        forces.set_xlabel(time_label)
+        for ax in force_rows[1:]:
+            ax.sharey(force_rows[0])
+        for ax, j, colour in zip(force_rows, blocks, block_colours):
+            for state, start, stop in slip_runs(slip[:, j], s):
+                if state != 0:
+                    ax.axvspan(start, stop, color=SLIP_COLOURS[state], alpha=0.35,
+                               linewidth=0)
+            ax.plot(s, f[:, j], color=colour, label=f"$f_{{{j + 1}}}$")
+            ax.plot(s, plus[:, j], color=REFERENCE, linestyle=":", linewidth=1.0)
+            ax.plot(s, -minus[:, j], color=REFERENCE, linestyle=":", linewidth=1.0)
+            ax.set_ylabel(f"$f_{{{j + 1}}}$", rotation=0, ha="right", va="center")
+        # Ticks at the extreme limits and 0, a margin so that a force on its limit is not drawn
+        # on the frame.
+        top, bottom = float(np.max(plus[:, blocks])), float(-np.max(minus[:, blocks]))
+        pad = 0.12 * max(top - bottom, 1e-300)
+        force_rows[0].set_ylim(bottom - pad, top + pad)
+        force_rows[0].yaxis.set_major_locator(FixedLocator(sorted({bottom, 0.0, top})))
+        force_rows[0].yaxis.set_major_formatter(FuncFormatter(lambda v, _: _number(v)))
+        first = force_rows[0]
+        first.legend(handles=[Line2D([], [], color=REFERENCE, linestyle=":", linewidth=1.0)],
+                     labels=["$\\mu_j^+$, $-\\mu_j^-$"], loc="upper left",
+                     bbox_to_anchor=(1.01, 1.0), borderaxespad=0,
+                     title=_shown_title(blocks, N, "blocks"))
+        middle = force_rows[(nb - 1) // 2]
+        middle.text(1.02, 0.5 if nb % 2 else 0.0,
+                    label("elastic force on\neach block", "f_j", "force", units),
+                    transform=middle.transAxes, rotation=0, ha="left", va="center")
+        force_rows[-1].set_xlim(s[0], s[-1])
+        force_rows[-1].set_xlabel(time_label)
         fig.suptitle(title(_name(results), "gait diagram over the limit period"))
-        fig.align_ylabels(axs[:, 0])
+        fig.align_ylabels(axs[:3, 0])
     return fig
 
 
@@ -418,7 +503,9 @@ def convergence_figure(results: dict) -> Figure:
             state.yaxis.set_minor_formatter(NullFormatter())
         state.set_ylabel(label("distance", "\\Delta w" if crawler else "\\Delta z",
                                "force" if crawler else None, units))
-        state.set_title(title(_name(results), f"convergence to the limit period ({verdict})"))
+        # Two lines, so that a long name keeps the title within the axes.
+        state.set_title(f"{title(_name(results), 'convergence to the limit period')}\n"
+                        f"({verdict})")
         _legend_right(state)
 
         if motion:
@@ -644,11 +731,14 @@ def shape_space_figure(results: dict, coords=(0, 1), times: int = SHAPE_SPACE_TI
         dimension = "force" if crawler else None
         ax.set_xlabel(label("shape coordinate", f"{state}_{{{i + 1}}}", dimension, units))
         ax.set_ylabel(label("shape coordinate", f"{state}_{{{j + 1}}}", dimension, units))
-        what = (f"${where}$ and the orbit of ${state}(t)$" if n == 2 else
-                f"sections of $K(t)$ through $w(t)$, coordinates ({i + 1}, {j + 1}) of {n}")
-        if crawler:
-            what += ", $w = -Kz$"
-        ax.set_title(title(_name(results), f"shape space: {what}"))
+        # The title in short lines, so that it stays within the axes (square, by the equal
+        # aspect) however long the gait's name: name, what is drawn, and where.
+        if n == 2:
+            what = f"${where}$ and the orbit of ${state}(t)$" + (", $w = -Kz$" if crawler else "")
+        else:
+            what = (f"sections of ${where}$ through ${state}(t)$\ncoordinates ({i + 1}, {j + 1}) "
+                    f"of {n}" + (", $w = -Kz$" if crawler else ""))
+        ax.set_title(f"{title(_name(results), 'shape space')}\n{what}")
         ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0),
                   borderaxespad=0, title=f"${where}$ at $(t - t_0)/T$ =")
     return fig
@@ -689,7 +779,7 @@ def _shape_space_line(results, B, c, tl, wl, tt, wt, t0, crawler, units):
         ax.set_ylabel(label("shape coordinate", f"{state}_1", "force" if crawler else None,
                             units))
         what = f"the interval ${where}$ and ${state}(t)$" + (", $w = -kz$" if crawler else "")
-        ax.set_title(title(_name(results), f"shape space: {what}"))
+        ax.set_title(f"{title(_name(results), 'shape space')}\n{what}")
         _legend_right(ax)
     return fig
 
@@ -834,25 +924,80 @@ def _status_handles(ax, statuses, where) -> list:
     return handles
 
 
+def jumps(values, data, log: bool = False) -> np.ndarray:
+    """Where a sampled v0 jumps between neighbouring swept values: a bool array, one entry per
+    interval [values[k], values[k+1]] (the last axis of ``data``).
+
+    v0 of this model is piecewise smooth in the gait's parameters and jumps where the set of
+    slipping blocks changes discontinuously (a friction coefficient crossing an equality of the
+    uniqueness condition, docs/model.md §3). On a sampled axis a jump is an interval whose
+    change of v0 is more than `JUMP_RATIO` times what the slopes of the intervals on either side
+    predict over it, and more than `JUMP_FLOOR` of the range of v0. On a monotone convex or
+    concave stretch, and across a kink, the change over an interval lies between its neighbours'
+    (ratio at most 1); a jump does not shrink with the step. A smooth transition sharper than the
+    grid resolves (a tanh of width w sampled at h >= 1.3 w gives a ratio above 2.5) is drawn as
+    a jump too: the grid cannot tell the two apart. Only an interval with a known slope on both
+    sides can be a jump: not the first or last of an axis (a saturating curve changes more over
+    its first interval than over the next, by any ratio), nor one beside a missing value, nor
+    any interval of an axis of fewer than four values. On a log axis slopes are taken in log
+    space.
+    """
+    v = np.log(np.asarray(values, dtype=float)) if log else np.asarray(values, dtype=float)
+    d = np.asarray(data, dtype=float)
+    h = np.diff(v)
+    change = np.diff(d, axis=-1)
+    out = np.zeros(change.shape, dtype=bool)
+    if change.shape[-1] < 3:
+        return out  # fewer than four values: too few to tell a jump from a steep slope
+    slope = np.abs(change) / h
+    finite = np.where(np.isfinite(slope), slope, -np.inf)
+    before = np.concatenate([np.full(finite.shape[:-1] + (1,), -np.inf), finite[..., :-1]],
+                            axis=-1)
+    after = np.concatenate([finite[..., 1:], np.full(finite.shape[:-1] + (1,), -np.inf)],
+                           axis=-1)
+    # Both neighbours are needed: at an end of the axis a saturating curve changes more over its
+    # first interval than over the next, by any ratio, without a jump.
+    local = np.where(np.isfinite(before) & np.isfinite(after), np.maximum(before, after), np.nan)
+    scale = np.nanmax(np.abs(d)) if np.any(np.isfinite(d)) else 0.0
+    span = (np.nanmax(d) - np.nanmin(d)) if np.any(np.isfinite(d)) else 0.0
+    with np.errstate(invalid="ignore"):
+        out = (np.isfinite(change) & np.isfinite(local)
+               & (np.abs(change) > JUMP_RATIO * local * h)
+               & (np.abs(change) > JUMP_FLOOR * max(span, 1e-12 * scale)))
+    return out
+
+
+def _break_at_jumps(x, data, jump):
+    """x and data with a NaN inserted inside every jump interval, so the line breaks there."""
+    cut = np.flatnonzero(jump) + 1
+    return np.insert(x.astype(float), cut, np.nan), np.insert(data, cut, np.nan)
+
+
 def _sweep_line(ax, x, data, statuses, log, marks=None):
+    """v0 over one swept value, broken at its jumps. ``marks`` (`crawlsim.stall.curve_marks`, for a
+    swept load) gives the jumps where the uniqueness condition fails, located exactly, and the
+    stall; without them the jumps are found from the samples (`jumps`)."""
     if marks is not None and marks.jumps:
-        # break the line at every jump: a NaN between the two points around it
-        xs, ys = [float(x[0])], [float(data[0])]
-        for a, b, yb in zip(x[:-1], x[1:], data[1:]):
-            if any(min(a, b) <= s <= max(a, b) for s in marks.jumps):
-                xs.append(float("nan"))
-                ys.append(float("nan"))
-            xs.append(float(b))
-            ys.append(float(yb))
-        ax.plot(xs, ys, color=colours(1)[0], marker="o", markersize=4.5, label="$v_0$")
-        for k, s in enumerate(marks.jumps):
-            ax.axvline(s, color=FAINT, linestyle=":", linewidth=1.0,
-                       label="jump of $v_0$" if k == 0 else "_jump")
+        jump = np.array([any(min(a, b) <= s <= max(a, b) for s in marks.jumps)
+                         for a, b in zip(x[:-1], x[1:])], dtype=bool)
     else:
-        ax.plot(x, data, color=colours(1)[0], marker="o", markersize=4.5, label="$v_0$")
+        jump = jumps(x, data, log)
+    xs, ys = _break_at_jumps(x, data, jump)
+    ax.plot(xs, ys, color=colours(1)[0], marker="o", markersize=4.5, label="$v_0$")
     if marks is not None and marks.stall is not None:
         ax.axvline(marks.stall, color=REFERENCE, linestyle="--", linewidth=1.2,
                    label=f"{marks.label} {marks.stall:.6g} ({marks.cause})")
+    if marks is not None and marks.jumps:
+        for k, s in enumerate(marks.jumps):
+            ax.axvline(s, color=FAINT, linestyle=":", linewidth=1.0,
+                       label="jump of $v_0$" if k == 0 else None)
+        return
+    for k in np.flatnonzero(jump):
+        # The jump itself: a faint vertical at the middle of the interval, between the two
+        # values, where no value of v0 was sampled.
+        middle = np.sqrt(x[k] * x[k + 1]) if log else (x[k] + x[k + 1]) / 2
+        ax.plot([middle, middle], [data[k], data[k + 1]], color=FAINT, linestyle=":",
+                linewidth=1.0, label="jump of $v_0$" if k == np.flatnonzero(jump)[0] else None)
     if log:
         ax.set_xscale("log")
     ax.axhline(0.0, color=REFERENCE, linewidth=0.6)
@@ -893,10 +1038,18 @@ def _sweep_map(fig, ax, values, data, statuses, logs, value_label):
         handles.append(Patch(facecolor="white", edgecolor=FAINT, hatch="////",
                              label="no value"))
     finite = data[np.isfinite(data)]
+    jump_x, jump_y = jumps(x, data.T, logs[0]).T, jumps(y, data, logs[1])
     if finite.size and finite.min() < 0 < finite.max() and min(data.shape) >= 2:
-        ax.contour(x, y, data.T, levels=[0.0], colors=REFERENCE, linewidths=1.2)
-        handles.append(Line2D([], [], color=REFERENCE, linewidth=1.2, label="$v_0$ = 0"))
-        bar.ax.axhline(0.0, color=REFERENCE, linewidth=1.2)
+        segments = zero_contour(x, y, data, jump_x, jump_y, logs)
+        if segments:
+            ax.add_collection(LineCollection(segments, colors=REFERENCE, linewidths=1.2))
+            handles.append(Line2D([], [], color=REFERENCE, linewidth=1.2, label="$v_0$ = 0"))
+            bar.ax.axhline(0.0, color=REFERENCE, linewidth=1.2)
+    walls = jump_walls(x, y, jump_x, jump_y, logs)
+    if walls:
+        ax.add_collection(LineCollection(walls, colors=REFERENCE, linewidths=2.4,
+                                         linestyles="solid"))
+        handles.append(Line2D([], [], color=REFERENCE, linewidth=2.4, label="jump of $v_0$"))
     handles += _status_handles(ax, statuses, lambda mask: (
         x[np.nonzero(mask)[0]], y[np.nonzero(mask)[1]], {}))
     _set_swept_ticks(ax.xaxis, x, logs[0])
@@ -905,6 +1058,66 @@ def _sweep_map(fig, ax, values, data, statuses, logs, value_label):
     if handles:
         ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.16),
                   ncol=min(len(handles), 3), borderaxespad=0)
+
+
+def zero_contour(x, y, data, jump_x, jump_y, logs=(False, False)) -> list[np.ndarray]:
+    """The level set v0 = 0 of a heat map as line segments, by marching squares on the grid of
+    swept points, never across a jump.
+
+    ``data[a, b]`` is v0 at (x[a], y[b]); ``jump_x[a, b]`` says whether v0 jumps between
+    (x[a], y[b]) and (x[a+1], y[b]), ``jump_y[a, b]`` between (x[a], y[b]) and (x[a], y[b+1])
+    (`jumps`). A crossing of 0 is interpolated linearly along an edge of the grid only where v0
+    is continuous there; a square with a jump on any edge, or a missing value at a corner, has
+    no contour: its sign change is the jump itself (`jump_walls`), which is what the model
+    does, not a smooth zero. Interpolation is in log space on a log axis. A square whose four
+    edges all cross (a saddle) is resolved by the sign of its mean.
+    """
+    d = np.asarray(data, dtype=float)
+    u = np.log(np.asarray(x, dtype=float)) if logs[0] else np.asarray(x, dtype=float)
+    w = np.log(np.asarray(y, dtype=float)) if logs[1] else np.asarray(y, dtype=float)
+
+    def back(p):
+        return (np.exp(p[0]) if logs[0] else p[0], np.exp(p[1]) if logs[1] else p[1])
+
+    def cross(p, q, dp, dq):
+        r = dp / (dp - dq)
+        return back((p[0] + r * (q[0] - p[0]), p[1] + r * (q[1] - p[1])))
+
+    segments = []
+    for a in range(d.shape[0] - 1):
+        for b in range(d.shape[1] - 1):
+            corners = [(a, b), (a + 1, b), (a + 1, b + 1), (a, b + 1)]
+            values = [d[c] for c in corners]
+            if not np.all(np.isfinite(values)):
+                continue
+            if jump_x[a, b] or jump_x[a, b + 1] or jump_y[a, b] or jump_y[a + 1, b]:
+                continue
+            points = []
+            for k in range(4):
+                (i0, j0), (i1, j1) = corners[k], corners[(k + 1) % 4]
+                v_0, v_1 = values[k], values[(k + 1) % 4]
+                if (v_0 < 0) != (v_1 < 0):
+                    points.append(cross((u[i0], w[j0]), (u[i1], w[j1]), v_0, v_1))
+            if len(points) == 2:
+                segments.append(np.array(points))
+            elif len(points) == 4:
+                # Saddle: pair the crossings around the corners whose sign differs from the
+                # square's mean.
+                first = (values[0] < 0) != (np.mean(values) < 0)
+                pairs = [(0, 1), (2, 3)] if first else [(3, 0), (1, 2)]
+                segments += [np.array([points[i], points[j]]) for i, j in pairs]
+    return segments
+
+
+def jump_walls(x, y, jump_x, jump_y, logs=(False, False)) -> list[np.ndarray]:
+    """The jumps of a heat map as segments on the cell boundaries between the two points v0
+    jumps between (`jumps`, `cell_edges`): a wall, where the map changes colour abruptly."""
+    xe, ye = cell_edges(x, logs[0]), cell_edges(y, logs[1])
+    walls = [np.array([[xe[a + 1], ye[b]], [xe[a + 1], ye[b + 1]]])
+             for a, b in zip(*np.nonzero(jump_x))]
+    walls += [np.array([[xe[a], ye[b + 1]], [xe[a + 1], ye[b + 1]]])
+              for a, b in zip(*np.nonzero(jump_y))]
+    return walls
 
 
 def sweep_data_figure(data: dict, title: str | None = None) -> Figure:

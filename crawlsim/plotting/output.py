@@ -13,9 +13,7 @@ from ..errors import ResultsFileError
 from ..h5io import read_attrs, read_optimization, read_results, read_sweep
 from . import CRAWLER_FIGURES, FIGURE_NAMES, OPTIMIZATION_FIGURES, SWEEP_FIGURE
 from .figures import FIGURES, sweep_data_figure
-from .style import DPI, figure_style
-
-FORMATS = ("png", "pdf", "svg")
+from .style import DPI, FORMATS, FigureOptions, figure_style, user_style
 
 
 def available_figures(results: dict) -> list[str]:
@@ -56,7 +54,8 @@ def read_plottable(path: Path) -> tuple[str, dict]:
 
 
 def plot_results(path, out_dir=None, fmt: str = "png", only: str | None = None, *,
-                 coords=(0, 1)) -> list[Path]:
+                 coords=(0, 1), options: FigureOptions | None = None,
+                 target=None) -> list[Path]:
     """Draw the figures of the results file ``path`` into ``out_dir`` (default: its folder) as
     ``<stem>-<figure>.<fmt>``; return the paths written.
 
@@ -68,7 +67,12 @@ def plot_results(path, out_dir=None, fmt: str = "png", only: str | None = None, 
     ``<stem>-pareto-front.<fmt>`` (`crawlsim.plotting.optimization`). A
     missing dataset raises `ResultsFileError` naming the file and the dataset; nothing is
     written then.
+
+    ``options`` (`style.FigureOptions`) sets the dpi, the size in inches and a matplotlib style
+    sheet. ``target``, a file name, writes the one figure drawn there instead (its extension
+    gives the format; ValueError when more than one figure would be drawn).
     """
+    options = options or FigureOptions()
     path = Path(path)
     if fmt not in FORMATS:
         raise ValueError(f"format {fmt!r}: choose one of {', '.join(FORMATS)}")
@@ -79,27 +83,46 @@ def plot_results(path, out_dir=None, fmt: str = "png", only: str | None = None, 
         article = "an" if kind[0] in "aeiou" else "a"
         raise ValueError(f"unknown figure {only!r} for {article} {kind} file; choose one of "
                          f"{', '.join(choices)}")
+    if target is not None:
+        count = 1 if (only is not None or kind == "sweep") else len(
+            optimization_figures(results) if kind == "optimization" else
+            available_figures(results))
+        if count != 1:
+            raise ValueError(f"{target} names one figure, and this {kind} file has {count}; "
+                             "choose one with --only, or give a folder")
     try:
-        if kind == "sweep":
-            drawn = {SWEEP_FIGURE: sweep_data_figure(results)}
-        elif kind == "optimization":
-            from .optimization import OPTIMIZATION_FIGURE_FUNCTIONS
-
-            drawn = {name: OPTIMIZATION_FIGURE_FUNCTIONS[name](results)
-                     for name in ([only] if only is not None else choices)}
-        else:
-            names = [only] if only is not None else available_figures(results)
-            drawn = {name: draw_figure(results, name, coords=coords) for name in names}
+        with user_style(options.style):
+            drawn = _draw(results, kind, choices, only, coords)
     except ResultsFileError as exc:
         raise ResultsFileError(f"{path}: {exc}") from None
+    if target is not None:
+        (fig,) = drawn.values()
+        Path(target).parent.mkdir(parents=True, exist_ok=True)
+        with user_style(options.style):
+            save_figure(fig, target, dpi=options.dpi, figsize=options.figsize)
+        return [Path(target)]
     folder = Path(out_dir) if out_dir is not None else path.resolve().parent
     folder.mkdir(parents=True, exist_ok=True)
     written = []
-    for name, fig in drawn.items():
-        target = folder / f"{path.stem}-{name}.{fmt}"
-        save_figure(fig, target, fmt)
-        written.append(target)
+    with user_style(options.style):
+        for name, fig in drawn.items():
+            out = folder / f"{path.stem}-{name}.{fmt}"
+            save_figure(fig, out, fmt, dpi=options.dpi, figsize=options.figsize)
+            written.append(out)
     return written
+
+
+def _draw(results, kind, choices, only, coords) -> dict:
+    """The figures of a file of ``kind``, by name, drawn (not yet written)."""
+    if kind == "sweep":
+        return {SWEEP_FIGURE: sweep_data_figure(results)}
+    if kind == "optimization":
+        from .optimization import OPTIMIZATION_FIGURE_FUNCTIONS
+
+        return {name: OPTIMIZATION_FIGURE_FUNCTIONS[name](results)
+                for name in ([only] if only is not None else choices)}
+    names = [only] if only is not None else available_figures(results)
+    return {name: draw_figure(results, name, coords=coords) for name in names}
 
 
 def optimization_figures(data: dict) -> tuple[str, ...]:
@@ -108,15 +131,30 @@ def optimization_figures(data: dict) -> tuple[str, ...]:
     return OPTIMIZATION_FIGURES if "front" in data else OPTIMIZATION_FIGURES[:1]
 
 
-def save_figure(fig, target, fmt: str | None = None) -> Path:
-    """Save ``fig`` atomically in the shared style (`crawlsim.atomic`) and close it."""
+def save_figure(fig, target, fmt: str | None = None, *, dpi: float | None = None,
+                figsize: tuple[float, float] | None = None) -> Path:
+    """Save ``fig`` atomically in the shared style (`crawlsim.atomic`) and close it.
+
+    ``dpi`` (default `style.DPI`) is the resolution of a PNG. Without ``figsize`` the file is
+    cropped to the figure's content; with it (width, height in inches) the figure is laid out
+    again at that size and written whole, so a PNG is exactly width x dpi by height x dpi pixels
+    (rounded), and a PDF or SVG page exactly that size.
+    """
+    import matplotlib
     import matplotlib.pyplot as plt
 
     target = Path(target)
-    fmt = fmt or target.suffix.lstrip(".") or "png"
+    fmt = fmt or target.suffix.lstrip(".").lower() or "png"
     try:
-        with atomic_path(target) as tmp, figure_style():
-            fig.savefig(tmp, format=fmt, dpi=DPI, bbox_inches="tight", metadata=_metadata(fmt))
+        if figsize is not None:
+            fig.set_size_inches(*figsize)
+        # The whole figure, not its tight bounding box, when a size is asked for (an
+        # bbox_inches of None would fall back to the style's "tight").
+        whole: dict = {"savefig.bbox": "standard"} if figsize is not None else {}
+        with atomic_path(target) as tmp, figure_style(), matplotlib.rc_context(whole):
+            fig.savefig(tmp, format=fmt, dpi=dpi or DPI,
+                        bbox_inches=None if figsize is not None else "tight",
+                        metadata=_metadata(fmt))
     finally:
         plt.close(fig)
     return target

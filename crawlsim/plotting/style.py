@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import json
 from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass
 
 import matplotlib
@@ -104,11 +105,110 @@ RC = {
 }
 
 
+#: A matplotlib style sheet laid over `RC` by `figure_style` (``crawlsim plot --style``), set
+#: for the duration of a `user_style` block.
+_USER_STYLE: ContextVar[str | None] = ContextVar("crawlsim_user_style", default=None)
+
+#: The image formats crawlsim writes, by file extension.
+FORMATS = ("png", "pdf", "svg")
+
+
 @contextmanager
 def figure_style():
-    """The rc settings of crawlsim figures, for the duration of the block."""
+    """The rc settings of crawlsim figures, for the duration of the block, with the style sheet
+    of the enclosing `user_style` block (if any) laid over them."""
     with matplotlib.rc_context(RC):
+        style = _USER_STYLE.get()
+        if style is None:
+            yield
+        else:
+            from matplotlib import style as sheets
+
+            with sheets.context(style):
+                yield
+
+
+@contextmanager
+def user_style(style: str | None):
+    """Draw the figures of the block with the matplotlib style sheet ``style`` (a name of
+    ``matplotlib.style.available`` or a ``.mplstyle`` file) over crawlsim's own; None: crawlsim's
+    style alone. Check it first with `check_style`."""
+    token = _USER_STYLE.set(style)
+    try:
         yield
+    finally:
+        _USER_STYLE.reset(token)
+
+
+def check_style(style: str) -> str:
+    """``style`` if it names a matplotlib style sheet (a name of ``matplotlib.style.available``)
+    or an existing file that matplotlib reads as one; else ValueError saying what was expected,
+    with the closest names."""
+    import difflib
+    import logging
+    import warnings
+    from pathlib import Path
+
+    from matplotlib import style as sheets
+
+    available = sorted(sheets.available)
+    if style in available:
+        return style
+    path = Path(style)
+    if path.is_file():
+        # matplotlib reports the bad lines of a style file on its logger (and some as
+        # warnings) and skips them: here each is an error, named with its line.
+        problems: list[str] = []
+
+        class Collect(logging.Handler):
+            def emit(self, record):
+                problems.append(record.getMessage())
+
+        collect = Collect(level=logging.WARNING)
+        logger = logging.getLogger("matplotlib")
+        logger.addHandler(collect)
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")
+                matplotlib.rc_params_from_file(str(path), use_default_template=False)
+        except (OSError, UnicodeDecodeError, Warning, ValueError) as exc:
+            problems.append(str(exc))
+        finally:
+            logger.removeHandler(collect)
+        if problems:
+            first = next((line for line in problems[0].splitlines() if line.strip()), "")
+            raise ValueError(f"--style {style}: not a matplotlib style sheet: {first.strip()}")
+        return str(path)
+    close = difflib.get_close_matches(style, available, n=3)
+    if close:
+        hint = f"; did you mean {' or '.join(map(repr, close))}?"
+    else:
+        hint = f"; the names are {', '.join(available)}"
+    raise ValueError(f"--style {style}: no such matplotlib style sheet or file{hint} (or give "
+                     "a .mplstyle file)")
+
+
+def figure_format(path, option: str = "-o") -> str:
+    """The image format of a figure file, by its extension (png, pdf or svg); ValueError for
+    any other."""
+    from pathlib import Path
+
+    suffix = Path(path).suffix.lower().lstrip(".")
+    if suffix not in FORMATS:
+        given = f"extension .{suffix}" if suffix else "no extension"
+        raise ValueError(f"{option} {path}: {given}; a figure is written as .png, .pdf or .svg")
+    return suffix
+
+
+@dataclass(frozen=True)
+class FigureOptions:
+    """How figures are written (``--dpi``, ``--figsize``, ``--style``): the resolution of PNGs
+    (dots per inch), the size of every figure in inches (width, height; None: each figure's own
+    size, cropped to its content), and a matplotlib style sheet laid over crawlsim's."""
+
+    dpi: float | None = None
+    figsize: tuple[float, float] | None = None
+    style: str | None = None
 
 
 def new_figure(nrows: int = 1, ncols: int = 1, *, height: float = 4.0, **kwargs):

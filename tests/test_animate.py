@@ -1,0 +1,157 @@
+"""``crawlsim animate``: a GIF of the blocks and links in motion, written atomically."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from PIL import Image, ImageSequence
+
+from crawlsim import api
+from crawlsim.cli import main
+from crawlsim.gait import load_gait, with_simulation
+from crawlsim.h5io import read_results
+from crawlsim.plotting import animation
+from crawlsim.plotting.animation import (
+    ANIMATION_DPI,
+    ANIMATION_SIZE,
+    animation_frames,
+    limit_positions,
+    parse_periods,
+    write_animation,
+)
+from crawlsim.plotting.style import SLIP_COLOURS
+
+GAITS = Path(__file__).resolve().parents[1] / "gaits"
+
+
+def cli(*args):
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+@pytest.fixture(scope="module")
+def p4(tmp_path_factory):
+    """peristalsis-4 at 200 steps a period, plain iteration: 2 periods stored whole."""
+    out = tmp_path_factory.mktemp("run") / "p4.h5"
+    gait = with_simulation(load_gait(GAITS / "peristalsis-4.yaml"), steps_per_period=200)
+    api.run(gait, output=out)
+    return out
+
+
+def frames_of(path: Path) -> list[np.ndarray]:
+    with Image.open(path) as image:
+        assert image.format == "GIF"
+        return [np.asarray(f.convert("RGB")) for f in ImageSequence.Iterator(image)]
+
+
+def test_gif_of_peristalsis_4(p4, tmp_path):
+    """40 frames a period by default, 8 x 5.6 in at 80 dpi (640 x 448 pixels), 50 ms a frame
+    (20 frames a second); the frames differ (the crawler moves), and the blocks' slip colours
+    are in them."""
+    target = tmp_path / "crawl.gif"
+    r = cli("animate", p4, "-o", target)
+    assert r.exit_code == 0, r.output
+    assert r.output.strip() == f"{target} (40 frames, 2 s)"
+    assert target.read_bytes()[:6] == b"GIF89a"
+    frames = frames_of(target)
+    assert len(frames) == 40
+    size = (round(ANIMATION_SIZE[0] * ANIMATION_DPI), round(ANIMATION_SIZE[1] * ANIMATION_DPI))
+    assert frames[0].shape == (size[1], size[0], 3)
+    with Image.open(target) as image:
+        assert image.info["duration"] == 50 and image.info.get("loop") == 0
+    changed = [np.mean(np.any(a != b, axis=-1)) for a, b in zip(frames, frames[1:])]
+    assert min(changed) > 0, "two consecutive frames are the same"
+    forward = np.array(Image.new("RGB", (1, 1), SLIP_COLOURS[1]).getpixel((0, 0)))
+    assert any(np.any(np.all(np.abs(f.astype(int) - forward) <= 8, axis=-1)) for f in frames)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["crawl.gif"]
+
+
+def test_limit_positions_are_the_trajectory(p4):
+    """The positions the animation draws over the limit period are the trajectory's over its
+    last period (peristalsis-4 is periodic from period 1, and every step is stored): the body
+    from the link lengths, the barycentre from the running frame and y(t0), to roundoff."""
+    r = read_results(p4)
+    x = limit_positions(r)
+    t, xt = r["trajectory"]["t"], r["trajectory"]["x"]
+    start = np.searchsorted(t, r["limit_attrs"]["start"])
+    np.testing.assert_allclose(x, xt[start:], rtol=0, atol=1e-12)
+
+
+def test_periods_and_frames(p4, tmp_path):
+    """--periods 0:2 with 5 frames a period: 10 frames at t/T = 0, 0.2, ..., 1.8, from the
+    trajectory, each with the slip state of the step that follows it."""
+    r = read_results(p4)
+    frames = animation_frames(r, (0, 2), 5)
+    np.testing.assert_allclose(frames.t, np.arange(10) / 5, atol=1e-12)
+    index = np.searchsorted(r["trajectory"]["t"], frames.t - 1e-12)
+    np.testing.assert_array_equal(frames.x, r["trajectory"]["x"][index])
+    dx = r["trajectory"]["x"][index + 1] - r["trajectory"]["x"][index]
+    np.testing.assert_array_equal(frames.slip, np.sign(np.where(np.abs(dx) > 1e-9, dx, 0)))
+    target = tmp_path / "two.gif"
+    r = cli("animate", p4, "--periods", "0:2", "--frames-per-period", "5", "-o", target)
+    assert r.exit_code == 0, r.output
+    assert len(frames_of(target)) == 10
+    assert parse_periods("3:7") == (3, 7)
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--periods", "0:9"], "the run holds 2 periods"),
+    (["--periods", "2:1"], "0 <= A < B"),
+    (["--periods", "a:b"], "expected A:B"),
+    (["-o", "{tmp}/crawl.avi"], "written as .gif or .mp4"),
+    (["--fps", "0"], "--fps"),
+    (["--frames-per-period", "1"], "--frames-per-period"),
+])
+def test_bad_requests_exit_2_and_write_nothing(p4, tmp_path, args, words):
+    args = [a.format(tmp=tmp_path) for a in args]
+    if "-o" not in args:
+        args += ["-o", str(tmp_path / "crawl.gif")]
+    r = cli("animate", p4, *args)
+    assert r.exit_code == 2 and words in r.output and "Traceback" not in r.output, r.output
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_mp4_without_ffmpeg_is_refused(p4, tmp_path, monkeypatch):
+    from matplotlib import animation as mpl_animation
+
+    monkeypatch.setattr(mpl_animation.writers, "is_available", lambda name: False)
+    r = cli("animate", p4, "-o", tmp_path / "crawl.mp4")
+    assert r.exit_code == 2 and "needs ffmpeg" in r.output
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_an_error_while_writing_leaves_no_file(p4, tmp_path, monkeypatch):
+    """A failure at frame 5 of 40 (a full disk, say) leaves neither the GIF nor a temporary
+    file; an existing animation at the target is kept as it was."""
+    target = tmp_path / "crawl.gif"
+    real = animation.animation_figure
+
+    def failing(results, frames):
+        fig, draw = real(results, frames)
+
+        def draw_or_fail(k):
+            if k == 5:
+                raise OSError(28, "No space left on device")
+            return draw(k)
+
+        return fig, draw_or_fail
+
+    monkeypatch.setattr(animation, "animation_figure", failing)
+    with pytest.raises(OSError, match="No space left"):
+        write_animation(read_results(p4), target)
+    assert list(tmp_path.iterdir()) == []
+    Image.new("RGB", (4, 4)).save(target)
+    before = target.read_bytes()
+    with pytest.raises(OSError):
+        write_animation(read_results(p4), target)
+    assert target.read_bytes() == before
+    assert [p.name for p in tmp_path.iterdir()] == ["crawl.gif"]
+
+
+def test_help_has_an_example():
+    r = cli("animate", "--help")
+    assert r.exit_code == 0
+    assert "crawlsim animate p4.h5 -o crawl.gif" in r.output
+    assert "--periods A:B" in r.output
