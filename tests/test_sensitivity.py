@@ -252,3 +252,83 @@ def test_summary_keys():
 def test_api_export():
     r = crawlsim.sensitivity(_two_block(), ["stiffness"])
     assert r["stiffness"].v0.value == pytest.approx(2.0 / 100.0, abs=1e-10)
+
+
+# -- the command line --------------------------------------------------------------------------
+def _cli(*args):
+    from click.testing import CliRunner
+
+    from crawlsim.cli import main
+
+    return CliRunner().invoke(main, ["velocity", *args])
+
+
+def test_cli_prints_supported_digits():
+    """inching-2: dv0/dk = (mu_1^+ + mu_2^+)/(k^2 T) = 2/100, dv0/dT = -v0/T = -0.4; each
+    printed with the digits its error estimate supports (crawlsim.digits)."""
+    from crawlsim.digits import supported
+
+    res = _cli("gaits/inching-2.yaml", "--sensitivity", "stiffness", "--sensitivity", "period")
+    assert res.exit_code == 0, res.output
+    lines = res.output.splitlines()
+    assert len(lines) == 3
+    name, _, rest = lines[1].partition(" = ")
+    assert name == "dv0/dstiffness"
+    value, _, error = rest.partition(" ± ")
+    assert abs(float(value) - 0.02) <= float(error) <= 1e-12
+    r = sensitivity(crawlsim.load_gait("gaits/inching-2.yaml"), ["stiffness"])
+    assert value == supported(r["stiffness"].v0.value, r["stiffness"].v0.error_estimate)[0]
+    assert lines[2].startswith("dv0/dperiod = -0.4")
+
+
+def test_cli_json_and_star_paths():
+    import json
+
+    res = _cli("gaits/peristalsis-4.yaml", "--json", "--sensitivity", "links.*.phase")
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.output)
+    sens = out["sensitivity"]
+    assert list(sens) == ["links.0.phase", "links.1.phase", "links.2.phase"]
+    for entry in sens.values():
+        assert entry["smooth"] is True
+        assert entry["error_estimate"] < 1e-10
+    # a common phase shift of the three links (the friction is constant): gradient sum 0
+    assert abs(sum(e["value"] for e in sens.values())) <= sum(
+        e["error_estimate"] for e in sens.values())
+
+
+def test_cli_not_smooth_prints_both_sides(tmp_path):
+    import json
+    import textwrap
+
+    gait = tmp_path / "boundary.yaml"
+    gait.write_text(textwrap.dedent("""\
+        name: boundary
+        blocks: 2
+        period: 1.0
+        stiffness: 10.0
+        links: [{kind: cosine, mean: 1.0, amplitude: 0.3}]
+        friction:
+          - {forward: {kind: cosine, mean: 2.0, amplitude: 1.0}, backward: 3.0}
+          - {forward: 1.0, backward: 1.0}
+        simulation: {steps_per_period: 200, max_periods: 50, tolerance: 1.0e-12}
+        """))
+    res = _cli(str(gait), "--sensitivity", "friction.1.backward")
+    assert res.exit_code == 0, res.output
+    assert "not smooth (the friction is on the boundary of the uniqueness" in res.output
+    assert "left " in res.output and "right " in res.output
+    res = _cli(str(gait), "--json", "--sensitivity", "friction.1.backward")
+    entry = json.loads(res.output)["sensitivity"]["friction.1.backward"]
+    assert entry["smooth"] is False and entry["value"] is None
+    assert entry["left"] is not None and entry["right"] is not None
+
+
+def test_cli_bad_input():
+    res = _cli("gaits/inching-2.yaml", "--sensitivity", "links.3.amplitude")
+    assert res.exit_code == 2
+    assert "links.3.amplitude" in res.output and "out of range" in res.output
+    res = _cli("gaits/inching-2.yaml", "--sensitivity", "stiffness", "--sweep", "period=1:2:2")
+    assert res.exit_code == 2
+    assert "--sensitivity" in res.output
+    res = _cli("gaits/inching-2.yaml", "--sensitivity", "links")
+    assert res.exit_code == 2 and "not a number" in res.output
