@@ -44,7 +44,6 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from itertools import product
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
@@ -546,19 +545,19 @@ def _uniqueness_touch(gait: Gait, co: _Coefficients) -> str | None:
     reaches zero without changing sign (a tangency), so that moving the friction creates or
     removes instants where the slips are not unique."""
     N = gait.blocks
-    if N > UNIQUENESS_BLOCKS:
-        return None
+    if N > UNIQUENESS_BLOCKS or not np.any(co.Mu[:, 1:, :]):
+        return None  # friction constant on each piece: g_J = 0 there is refused by validation
     total = np.zeros(N)
+    J = ((np.arange(2 ** N)[:, None] >> np.arange(N)[None, :]) & 1).astype(float)  # (2^N, N)
     for p in range(co.Mu.shape[0]):
         Mu = co.Mu[p]
         if co.basis.size == 1:
             x = np.array([0.5 * (co.edges[p] + co.edges[p + 1])])
         else:
-            x = np.linspace(co.edges[p], co.edges[p + 1], 2049)
+            x = np.linspace(co.edges[p], co.edges[p + 1], 513)
         vals = co.basis.values(x) @ Mu  # (s, 2N)
         plus, minus = vals[:, :N], vals[:, N:]
         total = np.maximum(total, np.max(plus + minus, axis=0))
-        J = np.array(list(product((0.0, 1.0), repeat=N)))  # (2^N, N)
         g = J @ (plus + minus).T - np.sum(minus, axis=1)[None, :]  # (2^N, s)
         tol = 1e-9 * float(np.max(np.sum(plus + minus, axis=1)))
         low = np.min(np.abs(g), axis=1)
