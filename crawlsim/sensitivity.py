@@ -97,6 +97,10 @@ class ParameterSensitivity:
     right: Derivative | None = None  # ... from above
     left_reason: str | None = None
     right_reason: str | None = None
+    # dv0/dtheta on the limit period's own pieces (its visited active sets and event order
+    # held): the derivative itself where smooth, one element of the generalized gradient at
+    # a kink (which side is not known); what a gradient method can follow
+    v0_on_pieces: float | None = None
 
     def summary(self) -> dict[str, Any]:
         out: dict[str, Any] = {
@@ -661,7 +665,8 @@ def sensitivity(gait: Gait, paths: Sequence[str] | str, *,
             zero = Derivative(0.0, 0.0)
             out.append(ParameterSensitivity(prm.path, prm.value, dv, zero, zero,
                                             zero if cot is not None else Derivative(None, None),
-                                            True, "rate-independence"))
+                                            True, "rate-independence",
+                                            v0_on_pieces=dv.value))
             continue
         if prm.dC is None:
             none = Derivative(None, None)
@@ -691,7 +696,7 @@ def sensitivity(gait: Gait, paths: Sequence[str] | str, *,
         if not reasons:
             out.append(ParameterSensitivity(
                 prm.path, prm.value, Derivative(y / T, ey / T), Derivative(y, ey),
-                Derivative(dd, ed), dcot_d, True, "exact"))
+                Derivative(dd, ed), dcot_d, True, "exact", v0_on_pieces=y / T))
             continue
         reason = "; ".join(dict.fromkeys(reasons))
         left = right = None
@@ -704,7 +709,7 @@ def sensitivity(gait: Gait, paths: Sequence[str] | str, *,
         out.append(ParameterSensitivity(prm.path, prm.value, none, none, none, none, False,
                                         "one-sided", reason, left, right,
                                         None if left is not None else lr,
-                                        None if right is not None else rr))
+                                        None if right is not None else rr, y / T))
     return SensitivityResult(gait.name, T, lim.v0, lim.v0_error, Y, D, cot, tuple(out),
                              tuple(dict.fromkeys(kinks)))
 
