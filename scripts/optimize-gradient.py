@@ -7,7 +7,7 @@ against `crawlsim optimize`'s derivative-free search, measured in one run.
    each method: the best v0, the evaluation at which the best v0 first came within 1e-6 of the
    known optimum 7/15 (= 0.4666..., phases (1/2, 0)), the evaluations the method spent in all,
    and its wall time.
-2. **Ten lags**: an 11-block cosine wave, ``links.1.phase`` ... ``links.10.phase`` in [0, 1],
+2. **Ten lags**: an 11-block cosine wave, ``links.0.phase`` ... ``links.9.phase`` in [0, 1],
    the derivative-free search with its default budget, then the gradient method given the same
    wall time (its evaluation budget raised until it uses about that time): best v0 of each.
 
@@ -80,7 +80,7 @@ def main() -> int:
         return 0
 
     big = wave(11)
-    free10 = [(f"links.{i}.phase", 0.0, 1.0) for i in range(1, 11)]
+    free10 = [(f"links.{i}.phase", 0.0, 1.0) for i in range(10)]
     began = time.perf_counter()
     dfo10 = optimize(make_problem(big, [f"{p}={lo}:{hi}" for p, lo, hi in free10]))
     t_dfo10 = time.perf_counter() - began

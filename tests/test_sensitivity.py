@@ -377,3 +377,27 @@ def test_piece_derivative_at_a_kink_is_one_side():
     assert not p.smooth and p.left is not None and p.right is not None
     assert p.v0_on_pieces is not None
     assert min(abs(p.v0_on_pieces - p.left.value), abs(p.v0_on_pieces - p.right.value)) <= 1e-6
+
+
+def test_cli_optimize_gradient(tmp_path):
+    import json
+
+    from click.testing import CliRunner
+
+    from crawlsim.cli import main
+
+    best = tmp_path / "best.yaml"
+    res = CliRunner().invoke(main, ["optimize", "gaits/peristalsis-4.yaml", "--free",
+                                    "links.1.phase=0:1", "--free", "links.2.phase=0:1",
+                                    "--method", "gradient", "--steps-per-period", "20",
+                                    "--json", "--write-best", str(best)])
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.output)
+    assert out["v0"] == pytest.approx(7 / 15, abs=1e-6)
+    assert out["evaluations"] <= 72
+    # the best gait file reproduces its v0
+    assert crawlsim.api.run(crawlsim.load_gait(best), history=False).v0 == pytest.approx(
+        out["v0"], abs=1e-12)
+    res = CliRunner().invoke(main, ["optimize", "gaits/peristalsis-4.yaml", "--free",
+                                    "links.1.phase=0:1", "--method", "gradient", "--pareto"])
+    assert res.exit_code == 2 and "--pareto" in res.output and "--method evolution" in res.output
