@@ -1,15 +1,16 @@
 """Gradient-based gait design: maximise v0 in a box of gait parameters with the exact
 sensitivities of `crawlsim.sensitivity` (docs/sensitivity.md).
 
-The method: a coarse sample of the box (``sample`` points per free parameter, a grid; each a run
-of v0 alone), then L-BFGS-B (`scipy.optimize.minimize`, bounds = the box) from the best
+The method: a coarse sample of the box (``sample`` points per free parameter, a grid, or a Latin
+hypercube when the grid would be large; each a run of v0 alone), then L-BFGS-B (`scipy.optimize.minimize`, bounds = the box) from the best
 ``restarts`` sample points, each step one evaluation of v0 with its gradient at the exact
 integrator's verified limit. v0 is only piecewise smooth: at a kink the gradient used is the
 derivative on the limit period's own pieces (one element of the generalized gradient), and the
 restarts from distinct sample points keep one kink from ending the search. A free path with
 ``*`` ties every element to one value, so its derivative is the sum over the elements.
 
-This is the library form; it is not yet an option of ``crawlsim optimize``.
+``crawlsim optimize --method gradient`` runs it (maximise v0 in a box; no constraints, Pareto
+front or results file yet).
 """
 
 from __future__ import annotations
@@ -23,6 +24,20 @@ import numpy as np
 
 from .errors import CrawlsimError
 from .gait import Gait
+
+#: The largest coarse grid; beyond, the sample is a Latin hypercube.
+GRID_POINTS = 64
+
+
+def _sample(lo: np.ndarray, hi: np.ndarray, sample: int, seed: int) -> list[np.ndarray]:
+    n = len(lo)
+    if sample ** n <= GRID_POINTS:
+        axes = [np.linspace(a, b, sample) for a, b in zip(lo, hi)]
+        return [np.array(corner) for corner in itertools.product(*axes)]
+    from scipy.stats import qmc
+
+    unit = qmc.LatinHypercube(d=n, seed=seed).random(sample * n)
+    return [lo + u * (hi - lo) for u in unit]
 
 
 @dataclass(frozen=True)
@@ -38,8 +53,10 @@ class GradientResult:
 
 def optimize_gradient(gait: Gait, free: Sequence[tuple[str, float, float]], *,
                       sample: int = 4, restarts: int = 2, max_evaluations: int = 200,
-                      gtol: float = 1e-10, stall: int = 8) -> GradientResult:
-    """Maximise v0 over the box ``free`` = [(path, lo, hi), ...] (module docstring). A restart
+                      gtol: float = 1e-10, stall: int = 8, seed: int = 0) -> GradientResult:
+    """Maximise v0 over the box ``free`` = [(path, lo, hi), ...] (module docstring). The
+    sample is the grid of ``sample`` points per parameter while it has at most `GRID_POINTS`
+    points, else a Latin hypercube of ``sample * n`` points seeded by ``seed``. A restart
     ends when L-BFGS-B converges or when ``stall`` evaluations in a row improve its best v0 by
     less than 1e-13 relative (a line search stuck on a kink)."""
     from scipy.optimize import minimize
@@ -68,8 +85,7 @@ def optimize_gradient(gait: Gait, free: Sequence[tuple[str, float, float]], *,
         history.append(best[0])
 
     samples = []
-    for corner in itertools.product(*[np.linspace(a, b, sample) for a, b in zip(lo, hi)]):
-        x = np.array(corner)
+    for x in _sample(lo, hi, sample, seed):
         try:
             v0 = run(moved(x), history=False).v0
         except CrawlsimError:

@@ -90,7 +90,7 @@ def main() -> int:
     budget = 40
     while True:
         began = time.perf_counter()
-        grad10 = optimize_gradient(big, free10, sample=2, restarts=64, max_evaluations=budget)
+        grad10 = optimize_gradient(big, free10, sample=4, restarts=64, max_evaluations=budget)
         t_grad10 = time.perf_counter() - began
         if t_grad10 >= 0.8 * t_dfo10 or grad10.evaluations < budget:
             break
