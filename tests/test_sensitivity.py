@@ -401,3 +401,12 @@ def test_cli_optimize_gradient(tmp_path):
     res = CliRunner().invoke(main, ["optimize", "gaits/peristalsis-4.yaml", "--free",
                                     "links.1.phase=0:1", "--method", "gradient", "--pareto"])
     assert res.exit_code == 2 and "--pareto" in res.output and "--method evolution" in res.output
+
+
+def test_cli_catch_up_says_whose_derivative():
+    res = _cli("gaits/inching-2.yaml", "--integrator", "catch-up", "--steps-per-period", "100",
+               "--sensitivity", "stiffness")
+    assert res.exit_code == 0, res.output
+    assert "derivatives of the exact integrator's v0" in res.output
+    res = _cli("gaits/paper/acute-angle.yaml", "--sensitivity", "period")
+    assert res.exit_code == 2 and "crawler gaits" in res.output
