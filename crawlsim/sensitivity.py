@@ -215,24 +215,24 @@ class _Coefficients:
 
 
 def _coefficients(gait: Gait) -> _Coefficients:
-    from .model import _forces, piece_edges
+    """The offsets' coefficients as the integrator compiles them (every term of c(t), whatever
+    the gait file adds to it), on a grid of the breakpoints only, and the friction weights."""
+    from .model import compile_gait
     from .offsets import PiecewiseOffsets
 
     N = gait.blocks
-    k = np.asarray(gait.stiffness, dtype=float)
-
-    def combine(coef: np.ndarray) -> np.ndarray:
-        DtKL = _forces(coef[:, :N - 1] * k)
-        return np.hstack([coef[:, N - 1:2 * N - 1] - DtKL, coef[:, 2 * N - 1:] + DtKL])
-
+    process = compile_gait(gait, steps_per_period=1)
+    pieces = process.offset_pieces
+    assert pieces is not None and process.stiffness is not None
     signals = list(gait.links) + list(gait.forward) + list(gait.backward)
-    edges = piece_edges(gait.breakpoints())
-    offsets = PiecewiseOffsets(signals, combine, edges)
-    friction = PiecewiseOffsets(signals, lambda coef: coef[:, N - 1:], edges)
-    P = offsets.pieces
-    C = np.array([offsets.coefficients(p) for p in range(P)])
+    friction = PiecewiseOffsets(signals, lambda coef: coef[:, N - 1:], pieces.edges)
+    P = pieces.pieces
+    C = np.array([pieces.coefficients(p) for p in range(P)])
     Mu = np.array([friction.coefficients(p) for p in range(P)])
-    return _Coefficients(C, Mu, k, edges, offsets.basis)
+    if friction.basis != pieces.basis:  # pragma: no cover - the same signals span both
+        raise CrawlsimError(f"{gait.source}: internal error, friction and offsets in two bases")
+    return _Coefficients(C, Mu, np.array(process.stiffness, dtype=float), pieces.edges,
+                         pieces.basis)
 
 
 def _rotation_inverse(base: np.ndarray, moved: np.ndarray, basis: Any, shift: float) -> np.ndarray:
@@ -364,10 +364,10 @@ def _walk(lim: _Limit, co: _Coefficients, dC: np.ndarray, dMu: np.ndarray,
         out[..., n:] = X
         return out
 
-    def solve_on(index, w_s, W_s, piece, u):
-        """Lambda_A(u), w(u) and their tangents for a flow (or projection) on A from w_s."""
+    def solve_on(index, w_s, W_s, piece, phi):
+        """Lambda_A(u), w(u) and their tangents for a flow (or projection) on A from w_s;
+        phi = phi(u), the basis at u."""
         BA, G, Gi = factor(index)
-        phi = basis.values(u)[0]
         cA = phi @ co.C[piece][:, index]
         dcA = pad(np.einsum("b,bap->ap", phi, dC[piece][:, index, :]))
         Lam = Gi @ (BA @ w_s - cA)
@@ -379,6 +379,8 @@ def _walk(lim: _Limit, co: _Coefficients, dC: np.ndarray, dMu: np.ndarray,
         return Lam, dLam, w_e, dW
 
     count = len(transitions)
+    times = np.array([t.u for t in transitions])
+    derivatives: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     du_start = np.zeros(q)
     for j, tr in enumerate(transitions):
         index = np.asarray(tr.active.index, dtype=int)
@@ -387,10 +389,10 @@ def _walk(lim: _Limit, co: _Coefficients, dC: np.ndarray, dMu: np.ndarray,
             if not index.size:
                 continue
             u_t = 0.0 if (piece == 0 and tr.u >= 1.0 - 1e-15) else tr.u
-            Lam, dLam, w, Wt = solve_on(index, w, Wt, piece, u_t)
+            phi = basis.values(u_t)[0]
+            Lam, dLam, w, Wt = solve_on(index, w, Wt, piece, phi)
             lam_total[index] += Lam
             Lt[index] += dLam
-            phi = basis.values(u_t)[0]
             muA = phi @ co.Mu[piece][:, index]
             dmuA = np.einsum("b,bap->ap", phi, dMu[piece][:, index, :])
             diss += float(muA @ Lam)
@@ -401,16 +403,25 @@ def _walk(lim: _Limit, co: _Coefficients, dC: np.ndarray, dMu: np.ndarray,
         nxt = transitions[j + 1] if j + 1 < count else None
         u_e = nxt.u if nxt is not None else 1.0
         hit = nxt is not None and nxt.cause == "hit"
+        phi_e, phi_s = basis.values(u_e)[0], basis.values(u_s)[0]
+        coef = co.C[piece]
+        if piece not in derivatives:
+            derivatives[piece] = (basis.derivative(coef), basis.derivative(dC[piece]))
+        dcoef, dC1 = derivatives[piece]
+        length = u_e - u_s
+        sampled = length > 0
+        if sampled:
+            x = u_s + 0.5 * length * (gx + 1.0)
+            weights = 0.5 * length * gw
+            Phi = basis.values(x)
         if index.size:
-            Lam, dLam, w_e, W_e = solve_on(index, w, Wt, piece, u_e)
+            Lam, dLam, w_e, W_e = solve_on(index, w, Wt, piece, phi_e)
         else:
             Lam, dLam, w_e, W_e = np.zeros(0), np.zeros((0, q)), w.copy(), Wt.copy()
         BA, G, Gi = factor(index) if index.size else (np.zeros((0, n)),) * 3
-        coef = co.C[piece]
-        dcoef = basis.derivative(coef)
         # the flow's velocity and slip rates at the end: w' = K B_A^T G^{-1} c_A', lambda = -G^{-1} c_A'
         if index.size:
-            c1 = basis.values(u_e)[0] @ dcoef[:, index]
+            c1 = phi_e @ dcoef[:, index]
             rate_e = -Gi @ c1
             v_b = -k * (BA.T @ rate_e)
         else:
@@ -419,7 +430,6 @@ def _walk(lim: _Limit, co: _Coefficients, dC: np.ndarray, dMu: np.ndarray,
         if hit:
             assert nxt is not None
             rows = np.asarray(nxt.hit, dtype=int)
-            phi_e = basis.values(u_e)[0]
             c1_all = phi_e @ dcoef
             rates = B[rows] @ v_b - c1_all[rows]
             dg = B[rows] @ W_e - pad(np.einsum("b,bip->ip", phi_e, dC[piece][:, rows, :]))
@@ -438,8 +448,8 @@ def _walk(lim: _Limit, co: _Coefficients, dC: np.ndarray, dMu: np.ndarray,
                     kinks.append(f"{rows.size} constraints reached together at t/T = "
                                  f"{u_e:.12g} move apart")
             # coincidences of the hit with a fixed-time event or another event
-            neighbours = [t.u for t in transitions if t is not nxt]
-            near = [x for x in list(co.edges) + neighbours if abs(x - u_e) <= COINCIDENT]
+            near = np.count_nonzero(np.abs(times - u_e) <= COINCIDENT) > 1 or \
+                np.any(np.abs(co.edges - u_e) <= COINCIDENT)
             if near:
                 kinks.append(f"a constraint is reached at t/T = {u_e:.12g}, at the time of "
                              "another event")
@@ -450,16 +460,11 @@ def _walk(lim: _Limit, co: _Coefficients, dC: np.ndarray, dMu: np.ndarray,
             lam_total[index] += Lam
             Lt[index] += dLam
             # dissipation: int mu_A . lambda_A over [u_s, u_e], lambda_A = -G^{-1} c_A'
-            length = u_e - u_s
-            if length > 0:
-                x = u_s + 0.5 * length * (gx + 1.0)
-                weights = 0.5 * length * gw
-                Phi = basis.values(x)
-                Phi1 = basis.values(x, 1)
-                lam_x = -(Phi1 @ coef[:, index]) @ Gi.T  # (nq, a)
+            if sampled:
+                lam_x = -(Phi @ dcoef[:, index]) @ Gi.T  # (nq, a)
                 mu_x = Phi @ co.Mu[piece][:, index]
                 dmu_x = np.einsum("xb,bap->xap", Phi, dMu[piece][:, index, :])
-                dc1_x = np.einsum("xb,bap->xap", Phi1, dC[piece][:, index, :])
+                dc1_x = np.einsum("xb,bap->xap", Phi, dC1[:, index, :])
                 Btl = lam_x @ BA  # (nq, n): B_A^T lambda
                 dGl = np.einsum("ai,ip,xi->xap", BA, dk, Btl)
                 dlam_x = -np.einsum("ab,xbp->xap", Gi, dc1_x + dGl)
@@ -467,29 +472,25 @@ def _walk(lim: _Limit, co: _Coefficients, dC: np.ndarray, dMu: np.ndarray,
                 Dt[n:] += np.einsum("x,xap->p", weights,
                                     dmu_x * lam_x[:, :, None] + mu_x[:, :, None] * dlam_x)
                 # the moving ends of the piece
-                end_power = float(basis.values(u_e)[0] @ co.Mu[piece][:, index] @ rate_e)
+                end_power = float(phi_e @ co.Mu[piece][:, index] @ rate_e)
                 Dt += end_power * du
-                phi_s = basis.values(u_s)[0]
-                rate_s = -Gi @ (basis.values(u_s, 1)[0] @ coef[:, index])
+                rate_s = -Gi @ (phi_s @ dcoef[:, index])
                 Dt -= float(phi_s @ co.Mu[piece][:, index] @ rate_s) * du_start
-        touches.extend(_touches(B, k, index, w, Wt, coef, dC[piece], dk, basis, u_s, u_e,
-                                scale, solve_on, pad, piece))
+        if length > 4 * COINCIDENT:  # shorter: an event at the time of another, above
+            touches.extend(_touches(B, k, index, w, Wt, coef, dcoef, dC[piece], dC1, dk, x,
+                                    Phi, u_s, u_e, scale, solve_on, pad, piece))
         w, Wt = w_e, W_e
         du_start = du
     return _Walk(Wt, Lt, Dt, lam_total, diss, w, count, kinks, column_kinks, touches)
 
 
-def _touches(B, k, index, w_s, W_s, coef, dcoef, dk, basis, u_s, u_e, scale, solve_on, pad,
-             piece) -> list[tuple[str, np.ndarray]]:
-    """Touches inside a flow piece: an inactive constraint whose gap reaches zero without
-    crossing (or stays at zero), or an active one whose slip rate does so without leaving;
-    with the tangents of those gaps and rates at the samples where they are zero."""
-    length = u_e - u_s
-    if length <= 4 * COINCIDENT:
-        return []
+def _touches(B, k, index, w_s, W_s, coef, dcoef, dC, dC1, dk, x, Phi, u_s, u_e, scale,
+             solve_on, pad, piece) -> list[tuple[str, np.ndarray]]:
+    """Touches inside a flow piece, seen at the interior samples x (basis values Phi): an
+    inactive constraint whose gap reaches zero without crossing (or stays at zero), or an
+    active one whose slip rate does so without leaving; with the tangents of those gaps and
+    rates at the samples where they are zero."""
     out: list[tuple[str, np.ndarray]] = []
-    x = u_s + length * (np.arange(1, 64) / 64.0)
-    Phi = basis.values(x)
     c = Phi @ coef  # (s, m)
     rows_all = np.arange(B.shape[0])
     inactive = rows_all[np.isin(rows_all, index, invert=True)]
@@ -507,22 +508,21 @@ def _touches(B, k, index, w_s, W_s, coef, dcoef, dk, basis, u_s, u_e, scale, sol
         tangents = []
         for s_i in np.flatnonzero(np.max(gap[:, rows], axis=1) >= -tol):
             if index.size:
-                _, _, _, dW = solve_on(index, w_s, W_s, piece, float(x[s_i]))
+                _, _, _, dW = solve_on(index, w_s, W_s, piece, Phi[s_i])
             else:
                 dW = W_s
-            dc = pad(np.einsum("b,bip->ip", Phi[s_i], dcoef[:, rows, :]))
+            dc = pad(np.einsum("b,bip->ip", Phi[s_i], dC[:, rows, :]))
             tangents.append(B[rows] @ dW - dc)
         out.append((f"constraint(s) {rows.tolist()} touch zero gap without entering in "
                     f"t/T in ({u_s:.9g}, {u_e:.9g})", np.concatenate(tangents)))
     if index.size:
-        Phi1 = basis.values(x, 1)
-        rate = -(Phi1 @ coef[:, index]) @ Gi.T
-        size = max(float(np.max(np.abs(Phi1 @ coef))), 1e-300)
+        rate = -(Phi @ dcoef[:, index]) @ Gi.T
+        size = max(float(np.max(np.abs(Phi @ dcoef))), 1e-300)
         low = _touching(-rate, TOUCH * size)
         if low.any():
             tangents = []
             for s_i in np.flatnonzero(np.min(rate[:, low], axis=1) <= TOUCH * size):
-                dc1 = np.einsum("b,bap->ap", Phi1[s_i], dcoef[:, index, :])
+                dc1 = np.einsum("b,bap->ap", Phi[s_i], dC1[:, index, :])
                 dG_rate = BA @ (dk * (BA.T @ rate[s_i])[:, None])
                 tangents.append(pad((-Gi @ (dc1 + dG_rate))[low]))
             out.append((f"slip rate(s) of constraint(s) {index[low].tolist()} touch zero in "

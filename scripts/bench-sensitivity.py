@@ -4,8 +4,9 @@
 For each gait and each number of parameters p, prints the median wall time of
 ``crawlsim.api.run(gait, history=False)`` (what ``crawlsim velocity GAIT`` computes), of
 ``crawlsim.sensitivity(gait, paths)`` with p parameters (its own verified limit included), their
-ratio, and the bar 1 + 0.2 p of issue 22. The tangents of all p parameters are carried together
-through one walk along the limit period, so the ratio grows slowly with p; each parameter costs
+ratio, and the bar 1 + 0.2 p of issue 22; the two are interleaved, repeat by repeat, so that a
+change of load on the machine hits both alike. The tangents of all p parameters are carried
+together through one walk along the limit period, so the ratio grows slowly with p; each parameter costs
 one validated copy of the gait (its coefficients' derivative).
 
     python scripts/bench-sensitivity.py              # about a minute
@@ -61,13 +62,17 @@ def main() -> int:
     print(f"{'gait':16s} {'p':>3s} {'v0 alone':>10s} {'sensitivity':>12s} {'ratio':>7s} "
           f"{'bar':>6s}")
     for gait, *path_sets in cases:
-        base = median_time(lambda g=gait: api.run(g, history=False), args.repeats)
         for paths in path_sets:
             result = crawlsim.api.sensitivity(gait, paths)
             p = len(result.parameters)
-            t = median_time(lambda g=gait, ps=paths: crawlsim.api.sensitivity(g, ps),
-                            args.repeats)
-            print(f"{gait.name:16s} {p:3d} {base:9.4f}s {t:11.4f}s {t / base:7.2f} "
+            # interleaved, so that a change of load on the machine hits both alike
+            base, sens = [], []
+            for _ in range(args.repeats):
+                base.append(median_time(lambda g=gait: api.run(g, history=False), 1))
+                sens.append(median_time(lambda g=gait, ps=paths: crawlsim.api.sensitivity(g, ps),
+                                        1))
+            b, t = statistics.median(base), statistics.median(sens)
+            print(f"{gait.name:16s} {p:3d} {b:9.4f}s {t:11.4f}s {t / b:7.2f} "
                   f"{1 + 0.2 * p:6.1f}")
     return 0
 
