@@ -59,8 +59,10 @@ if TYPE_CHECKING:
 EPS = float(np.finfo(float).eps)
 #: Two events closer than this (in cycles) count as simultaneous: a kink of the period map.
 COINCIDENT = 1e-9
-#: A gap or slip rate within this fraction of the size of c (or of c') counts as zero.
-TOUCH = 1e-9
+#: A gap or slip rate within this fraction of the size of c (or of c') counts as zero: a few
+#: hundred times the roundoff of computing them (the size of c is set by the stiffest link's
+#: K L, which can exceed the friction by 1e4, so a looser bound takes open gaps for touches).
+TOUCH = 1e-11
 #: Relative step of the one-sided differences at a kink (h and 2 h, Richardson extrapolated).
 ONE_SIDED_STEP = 1e-5
 #: Relative step of the difference quotient of the offsets' coefficients (exact for affine
@@ -531,17 +533,20 @@ def _touches(B, k, index, w_s, W_s, coef, dcoef, dC, dC1, dk, x, Phi, u_s, u_e, 
 
 
 def _touching(f: np.ndarray, tol: float) -> np.ndarray:
-    """Columns of samples f (s, r), all <= 0 to roundoff, that reach 0 at an interior local
-    maximum, or stay at 0: a touch. A column that rises to 0 monotonically at an end is an
-    event there (a row hit at the end, or released at the start: its gap opens at second
-    order), not a kink."""
+    """Columns of samples f (s, r), all <= 0 to roundoff, that rise to 0 and fall again inside
+    the piece (samples below -tol on both sides of the maximum), or stay at 0: a touch. A
+    column at 0 near an end only is an event there (a row hit at the end, or released at the
+    start, whose gap opens at second order), not a kink."""
     if not f.shape[1]:
         return np.zeros(0, dtype=bool)
     top = np.max(f, axis=0) >= -tol
     flat = np.min(f, axis=0) >= -tol
     i = np.argmax(f, axis=0)
-    interior = (i > 0) & (i < len(f) - 1)
-    return top & (interior | flat)
+    rows = np.arange(len(f))[:, None]
+    below = f < -tol
+    before = np.any(below & (rows < i[None, :]), axis=0)
+    after = np.any(below & (rows > i[None, :]), axis=0)
+    return top & ((before & after) | flat)
 
 
 def _uniqueness_touch(gait: Gait, co: _Coefficients) -> str | None:
