@@ -479,15 +479,16 @@ def _walk(lim: _Limit, co: _Coefficients, dC: np.ndarray, dMu: np.ndarray,
                 rate_s = -Gi @ (phi_s @ dcoef[:, index])
                 Dt -= float(phi_s @ co.Mu[piece][:, index] @ rate_s) * du_start
         if length > 4 * COINCIDENT:  # shorter: an event at the time of another, above
+            ends = np.asarray(nxt.hit, dtype=int) if hit and nxt is not None else np.zeros(0, int)
             touches.extend(_touches(B, k, index, w, Wt, coef, dcoef, dC[piece], dC1, dk, x,
-                                    Phi, u_s, u_e, scale, solve_on, pad, piece))
+                                    Phi, u_s, u_e, scale, solve_on, pad, piece, ends, basis))
         w, Wt = w_e, W_e
         du_start = du
     return _Walk(Wt, Lt, Dt, lam_total, diss, w, count, kinks, column_kinks, touches)
 
 
 def _touches(B, k, index, w_s, W_s, coef, dcoef, dC, dC1, dk, x, Phi, u_s, u_e, scale,
-             solve_on, pad, piece) -> list[tuple[str, np.ndarray]]:
+             solve_on, pad, piece, hit_at_end, basis) -> list[tuple[str, np.ndarray]]:
     """Touches inside a flow piece, seen at the interior samples x (basis values Phi): an
     inactive constraint whose gap reaches zero without crossing (or stays at zero), or an
     active one whose slip rate does so without leaving; with the tangents of those gaps and
@@ -505,18 +506,52 @@ def _touches(B, k, index, w_s, W_s, coef, dcoef, dC, dC1, dk, x, Phi, u_s, u_e, 
         W = np.broadcast_to(w_s, (len(x), len(w_s)))
     gap = W @ B.T - c
     tol = TOUCH * scale
-    rows = inactive[_touching(gap[:, inactive], tol)]
-    if rows.size:
+    # the gaps in closed form, gap(u) = phi(u) @ Gcoef (w(u) = w_s - K B_A^T G^{-1}
+    # (B_A w_s - c_A(u))), to find each one's largest value between the samples: a touch is an
+    # interior maximum at zero (one at an end is an event there; a touch exactly at the start of
+    # the period is not looked for)
+    Gcoef = -np.array(coef, dtype=float)
+    Gcoef[0] += B @ w_s
+    if index.size:
+        Wc = (coef[:, index] @ Gi.T @ BA) * k[None, :]  # (nb, n): the response to c_A(u)
+        Gcoef += Wc @ B.T
+        Gcoef[0] -= B @ (k * (BA.T @ (Gi @ (BA @ w_s))))
+    candidates = inactive[np.isin(inactive, hit_at_end, invert=True)]
+    grid = np.concatenate([[u_s], x, [u_e]])
+    values = basis.values(grid) @ Gcoef[:, candidates]  # (s + 2, r)
+    found: list[tuple[int, float]] = []
+    flat = np.min(gap[:, candidates], axis=0, initial=np.inf) >= -tol
+    for j, r in enumerate(candidates):
+        i = int(np.argmax(values[:, j]))
+        if values[i, j] < -1e-3 * scale:
+            continue
+        if flat[j]:
+            found.append((int(r), float(x[len(x) // 2])))
+            continue
+        if not 0 < i < len(grid) - 1:
+            continue  # largest at an end: a release at the start, an event at the end
+        from scipy.optimize import minimize_scalar
+
+        res = minimize_scalar(lambda v, z=Gcoef[:, r]: -basis.scalar(v, z),
+                              bounds=(float(grid[i - 1]), float(grid[i + 1])),
+                              method="bounded", options={"xatol": 1e-14})
+        u_best, v_best = float(res.x), max(float(-res.fun), float(values[i, j]))
+        inside = min(u_best - u_s, u_e - u_best) > 1e-6 * (u_e - u_s)
+        if v_best >= -tol and inside:
+            found.append((int(r), u_best))
+    if found:
         tangents = []
-        for s_i in np.flatnonzero(np.max(gap[:, rows], axis=1) >= -tol):
+        for r, u_r in found:
+            phi = basis.values(u_r)[0]
             if index.size:
-                _, _, _, dW = solve_on(index, w_s, W_s, piece, Phi[s_i])
+                _, _, _, dW = solve_on(index, w_s, W_s, piece, phi)
             else:
                 dW = W_s
-            dc = pad(np.einsum("b,bip->ip", Phi[s_i], dC[:, rows, :]))
-            tangents.append(B[rows] @ dW - dc)
-        out.append((f"constraint(s) {rows.tolist()} touch zero gap without entering in "
-                    f"t/T in ({u_s:.9g}, {u_e:.9g})", np.concatenate(tangents)))
+            dc = pad(np.einsum("b,bp->p", phi, dC[:, r, :]))
+            tangents.append((B[r] @ dW - dc)[None, :])
+        rows = [r for r, _ in found]
+        out.append((f"constraint(s) {rows} touch zero gap without entering in t/T in "
+                    f"[{u_s:.9g}, {u_e:.9g}]", np.concatenate(tangents)))
     if index.size:
         rate = -(Phi @ dcoef[:, index]) @ Gi.T
         size = max(float(np.max(np.abs(Phi @ dcoef))), 1e-300)

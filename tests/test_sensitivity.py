@@ -410,3 +410,19 @@ def test_cli_catch_up_says_whose_derivative():
     assert "derivatives of the exact integrator's v0" in res.output
     res = _cli("gaits/paper/acute-angle.yaml", "--sensitivity", "period")
     assert res.exit_code == 2 and "crawler gaits" in res.output
+
+
+def test_threshold_of_motion_is_one_sided():
+    """Two blocks at the threshold of motion, 2 a k = mu_1^+ + mu_2^+ (a = 1/8, k = 8,
+    mu^+ = 1): the stress just touches both forward limits and nothing slips. Below, v0 = 0;
+    above, v0 = (2 a - 2/k)/T (the closed form of the module docstring). So dv0/da is 0 from
+    the left and 2/T from the right, and dv0/dk is 0 and 2/(k^2 T) = 1/32."""
+    r = sensitivity(_two_block(a=0.125, k=8.0, mu1=1.0, mu2=1.0),
+                    ["links.0.amplitude", "stiffness"])
+    assert r.v0 == 0.0
+    for path, right in (("links.0.amplitude", 2.0), ("stiffness", 1 / 32)):
+        p = r[path]
+        assert not p.smooth and "touch zero gap" in (p.reason or "")
+        assert p.left is not None and p.right is not None
+        assert abs(p.left.value) <= p.left.error_estimate + 1e-12
+        assert p.right.value == pytest.approx(right, abs=p.right.error_estimate + 1e-8)
