@@ -41,6 +41,7 @@ extrapolated), or the reason why they could not be.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -307,6 +308,12 @@ def _parameter(gait: Gait, base: _Coefficients, keys: tuple[Any, ...]) -> _Param
 
 
 # -- forward-mode differentiation along the limit period ------------------------------------
+@functools.lru_cache(maxsize=16)
+def _gauss(nq: int) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss-Legendre nodes and weights on [-1, 1]."""
+    return np.polynomial.legendre.leggauss(nq)
+
+
 @dataclass
 class _Walk:
     """Tangents of one period with respect to (w0, theta): n + p columns."""
@@ -351,7 +358,7 @@ def _walk(lim: _Limit, co: _Coefficients, dC: np.ndarray, dMu: np.ndarray,
     transitions = record.transitions
     cache: dict[tuple[int, ...], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
     nq = 24 + 12 * basis.harmonics
-    gx, gw = np.polynomial.legendre.leggauss(nq)
+    gx, gw = _gauss(nq)
 
     def factor(index: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         key = tuple(int(i) for i in index)
@@ -481,64 +488,64 @@ def _walk(lim: _Limit, co: _Coefficients, dC: np.ndarray, dMu: np.ndarray,
         if length > 4 * COINCIDENT:  # shorter: an event at the time of another, above
             ends = np.asarray(nxt.hit, dtype=int) if hit and nxt is not None else np.zeros(0, int)
             touches.extend(_touches(B, k, index, w, Wt, coef, dcoef, dC[piece], dC1, dk, x,
-                                    Phi, u_s, u_e, scale, solve_on, pad, piece, ends, basis))
+                                    Phi, u_s, u_e, scale, solve_on, pad, piece, ends, basis,
+                                    phi_s, phi_e))
         w, Wt = w_e, W_e
         du_start = du
     return _Walk(Wt, Lt, Dt, lam_total, diss, w, count, kinks, column_kinks, touches)
 
 
 def _touches(B, k, index, w_s, W_s, coef, dcoef, dC, dC1, dk, x, Phi, u_s, u_e, scale,
-             solve_on, pad, piece, hit_at_end, basis) -> list[tuple[str, np.ndarray]]:
+             solve_on, pad, piece, hit_at_end, basis, phi_s,
+             phi_e) -> list[tuple[str, np.ndarray]]:
     """Touches inside a flow piece, seen at the interior samples x (basis values Phi): an
     inactive constraint whose gap reaches zero without crossing (or stays at zero), or an
     active one whose slip rate does so without leaving; with the tangents of those gaps and
     rates at the samples where they are zero."""
     out: list[tuple[str, np.ndarray]] = []
-    c = Phi @ coef  # (s, m)
     rows_all = np.arange(B.shape[0])
     inactive = rows_all[np.isin(rows_all, index, invert=True)]
     if index.size:
         BA = B[index]
         Gi = np.linalg.inv(BA @ (k[:, None] * BA.T))
-        Lam = ((BA @ w_s)[None, :] - c[:, index]) @ Gi.T
-        W = w_s[None, :] - (Lam @ BA) * k[None, :]
-    else:
-        W = np.broadcast_to(w_s, (len(x), len(w_s)))
-    gap = W @ B.T - c
     tol = TOUCH * scale
     # the gaps in closed form, gap(u) = phi(u) @ Gcoef (w(u) = w_s - K B_A^T G^{-1}
     # (B_A w_s - c_A(u))), to find each one's largest value between the samples: a touch is an
     # interior maximum at zero (one at an end is an event there; a touch exactly at the start of
     # the period is not looked for)
-    Gcoef = -np.array(coef, dtype=float)
-    Gcoef[0] += B @ w_s
+    candidates = inactive[np.isin(inactive, hit_at_end, invert=True)]
+    Gcoef = -np.array(coef[:, candidates], dtype=float)
+    Gcoef[0] += B[candidates] @ w_s
     if index.size:
         Wc = (coef[:, index] @ Gi.T @ BA) * k[None, :]  # (nb, n): the response to c_A(u)
-        Gcoef += Wc @ B.T
-        Gcoef[0] -= B @ (k * (BA.T @ (Gi @ (BA @ w_s))))
-    candidates = inactive[np.isin(inactive, hit_at_end, invert=True)]
+        Gcoef += Wc @ B[candidates].T
+        Gcoef[0] -= B[candidates] @ (k * (BA.T @ (Gi @ (BA @ w_s))))
     grid = np.concatenate([[u_s], x, [u_e]])
-    values = basis.values(grid) @ Gcoef[:, candidates]  # (s + 2, r)
+    values = np.vstack([phi_s, Phi, phi_e]) @ Gcoef  # (s + 2, r)
+    gap = values[1:-1]
+    # between two samples a gap exceeds the larger by at most h^2/8 max|gap''| (the linear
+    # interpolant's error): only rows that can reach -tol are looked at closely
+    h = float(np.max(np.diff(grid)))
+    reach = np.max(values, axis=0) + h * h / 8.0 * basis.curvature_bound(Gcoef) >= -tol
+    flat = np.min(gap, axis=0, initial=np.inf) >= -tol
     found: list[tuple[int, float]] = []
-    flat = np.min(gap[:, candidates], axis=0, initial=np.inf) >= -tol
-    for j, r in enumerate(candidates):
-        i = int(np.argmax(values[:, j]))
-        if values[i, j] < -1e-3 * scale:
-            continue
+    for j in np.flatnonzero(reach | flat):
+        r = int(candidates[j])
         if flat[j]:
-            found.append((int(r), float(x[len(x) // 2])))
+            found.append((r, float(x[len(x) // 2])))
             continue
+        i = int(np.argmax(values[:, j]))
         if not 0 < i < len(grid) - 1:
             continue  # largest at an end: a release at the start, an event at the end
         from scipy.optimize import minimize_scalar
 
-        res = minimize_scalar(lambda v, z=Gcoef[:, r]: -basis.scalar(v, z),
+        res = minimize_scalar(lambda v, z=Gcoef[:, j]: -basis.scalar(v, z),
                               bounds=(float(grid[i - 1]), float(grid[i + 1])),
                               method="bounded", options={"xatol": 1e-14})
         u_best, v_best = float(res.x), max(float(-res.fun), float(values[i, j]))
         inside = min(u_best - u_s, u_e - u_best) > 1e-6 * (u_e - u_s)
         if v_best >= -tol and inside:
-            found.append((int(r), u_best))
+            found.append((r, u_best))
     if found:
         tangents = []
         for r, u_r in found:
