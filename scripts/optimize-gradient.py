@@ -8,8 +8,10 @@ against `crawlsim optimize`'s derivative-free search, measured in one run.
    known optimum 7/15 (= 0.4666..., phases (1/2, 0)), the evaluations the method spent in all,
    and its wall time.
 2. **Ten lags**: an 11-block cosine wave, ``links.0.phase`` ... ``links.9.phase`` in [0, 1],
-   the derivative-free search with its default budget, then the gradient method given the same
-   wall time (its evaluation budget raised until it uses about that time): best v0 of each.
+   the derivative-free search with its default budget, then the gradient method (a Latin
+   hypercube of 40 points, a restart from each) with its evaluation budget raised until it uses
+   about the same wall time or ends by itself (every restart converged or stalled): best v0 of
+   each.
 
 An evaluation of the gradient method is one verified limit with its gradient (at most
 1 + 0.2 p times the cost of v0 alone, scripts/bench-sensitivity.py); a sample point is v0
