@@ -16,7 +16,7 @@ The names below are imported on first use, so ``import crawlsim`` stays light (n
 ``crawlsim.sweep`` is also the module `crawlsim/sweep.py`: the package makes that module
 callable, so ``crawlsim.sweep(gait, {...})`` runs `crawlsim.api.sweep` while
 ``from crawlsim import sweep`` still gives the module (a type checker sees the module only:
-typed code calls `crawlsim.api.sweep`).
+typed code calls `crawlsim.api.sweep`). ``crawlsim.sensitivity`` is made callable the same way.
 """
 
 from __future__ import annotations
@@ -36,6 +36,7 @@ _EXPORTS = {
     "load_gait": "crawlsim.api",
     "simulate": "crawlsim.api",
     "run": "crawlsim.api",
+    "sensitivity": "crawlsim.api",
     "SimulationResult": "crawlsim.api",
     "Trajectory": "crawlsim.api",
     "Gait": "crawlsim.gait",
@@ -50,10 +51,10 @@ _EXPORTS = {
 
 _SUBMODULES = {"analysis", "api", "atomic", "batch", "corpus", "docpaths", "errors", "exact",
                "gait", "h5io", "kkt", "model", "offsets", "paper", "projection", "provenance",
-               "signals", "stall", "status", "stepping", "sweep", "units"}
+               "sensitivity", "signals", "stall", "status", "stepping", "sweep", "units"}
 
-__all__ = ["load_gait", "simulate", "sweep", "run", "SimulationResult", "Trajectory", "Gait",
-           "ProcessSpec", "Units", "CertificateError", "CrawlsimError", "GaitError", "InputError",
+__all__ = ["load_gait", "simulate", "sweep", "run", "sensitivity", "SimulationResult", "Trajectory",
+           "Gait", "ProcessSpec", "Units", "CertificateError", "CrawlsimError", "GaitError", "InputError",
            "stall", "__version__"]
 
 
@@ -80,13 +81,26 @@ class _CallableSweepModule(types.ModuleType):
         return sweep(*args, **kwargs)
 
 
+class _CallableSensitivityModule(types.ModuleType):
+    """The module crawlsim.sensitivity, callable as `crawlsim.api.sensitivity`."""
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        from .api import sensitivity
+
+        return sensitivity(*args, **kwargs)
+
+
+_CALLABLE_MODULES = {"sweep": _CallableSweepModule, "sensitivity": _CallableSensitivityModule}
+
+
 class _Package(types.ModuleType):
-    """The package: importing the submodule ``sweep`` sets the attribute ``sweep`` here, and that
-    is where the module becomes callable (whatever imports it first)."""
+    """The package: importing the submodule ``sweep`` (``sensitivity``) sets the attribute of
+    that name here, and that is where the module becomes callable (whatever imports it
+    first)."""
 
     def __setattr__(self, name: str, value: Any) -> None:
-        if name == "sweep" and type(value) is types.ModuleType:
-            value.__class__ = _CallableSweepModule
+        if name in _CALLABLE_MODULES and type(value) is types.ModuleType:
+            value.__class__ = _CALLABLE_MODULES[name]
         super().__setattr__(name, value)
 
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 import dataclasses
 import io
 import math
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
@@ -34,13 +34,14 @@ from .units import Units
 if TYPE_CHECKING:
     import xarray
 
+    from .sensitivity import SensitivityResult
     from .sweep import SweepTable
 
 Spec = Gait | ProcessSpec
 Progress = Callable[[int, float], None]
 
 __all__ = ["Rerun", "SimulationResult", "Trajectory", "from_results", "load_gait", "run",
-           "simulate", "sweep"]
+           "sensitivity", "simulate", "sweep"]
 
 
 def load_gait(path: str | Path) -> Spec:
@@ -334,3 +335,26 @@ def _axis_values(path: str, values: Iterable[float]) -> tuple[float, ...]:
         raise SweepSpecError(f"crawlsim.sweep(..., {{{path!r}: ...}})", path,
                              f"expected a non-empty list of finite numbers, got {values!r}")
     return tuple(items)
+
+
+def sensitivity(gait: Spec | str | Path, paths: Sequence[str] | str, *,
+                one_sided: bool = True) -> SensitivityResult:
+    """The exact derivatives of v0, of the displacement and dissipation per period and of the
+    cost of transport with respect to the numbers ``paths`` name in ``gait`` (dotted paths with
+    ``*`` as in ``--sweep``; each ``*`` expands to one parameter per element), at the exact
+    integrator's verified periodic limit (docs/sensitivity.md).
+
+        r = crawlsim.sensitivity(gait, ["links.*.phase", "stiffness"])
+        r["links.1.phase"].v0.value, r["links.1.phase"].v0.error_estimate, r.summary()
+
+    Where v0 has a kink or a jump, a parameter's ``smooth`` is False, ``v0.value`` is None and
+    ``left`` / ``right`` hold one-sided derivatives measured with the exact integrator
+    (``one_sided=False`` skips them).
+    """
+    from .sensitivity import sensitivity as _sensitivity
+
+    spec = _as_spec(gait)
+    if not isinstance(spec, Gait):
+        raise SweepSpecError(spec.source, "", "sensitivities are defined for crawler gaits "
+                                              "(kind: crawler), not generic sweeping processes")
+    return _sensitivity(spec, paths, one_sided=one_sided)

@@ -71,17 +71,23 @@ def _objective(maximize, minimize):
               help="Run on an existing Dask cluster (tcp://host:8786); needs "
                    "pip install 'crawlsim[dask]'.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
+@click.option("--method", type=click.Choice(["evolution", "gradient"]), default="evolution",
+              show_default=True,
+              help="evolution: differential evolution and pattern search (below); gradient: "
+                   "L-BFGS-B on the exact sensitivities of v0 from the best points of a coarse "
+                   "sample (--maximize v0 only, no constraints, no results file yet).")
 @simulation_options
 @feedback_options
 def optimize(gait_file, free_specs, maximize, minimize, constraints, pareto, front_points,
-             output, write_best, seed, max_evaluations, jobs, scheduler, as_json,
+             output, write_best, seed, max_evaluations, jobs, scheduler, as_json, method,
              steps_per_period, max_periods, tolerance, quiet, verbose):
     """Find the gait parameters in a box that maximise v0 (or minimise the cost of transport,
     ...), under constraints, or the Pareto front of v0 against the cost of transport.
 
     A seeded differential evolution (SciPy) evaluates each generation as one batch through
     the sweep engine (-j, --scheduler), then a batched pattern search polishes the best point
-    (v0 has kinks where the contact sequence changes, so no gradient is used). Points whose gait
+    (v0 has kinks where the contact sequence changes, so no gradient is used; --method gradient
+    follows the exact sensitivities of v0 instead, docs/sensitivity.md). Points whose gait
     is invalid or whose run fails are recorded and never chosen. The exact integrator is the
     default, so the objective is exact to roundoff and the result reproducible.
 
@@ -109,6 +115,10 @@ def optimize(gait_file, free_specs, maximize, minimize, constraints, pareto, fro
         raise BadInput("--output -: the results of an optimisation are an HDF5 file, which "
                        "cannot be streamed to stdout; give a file name (-o opt.h5), and --json "
                        "prints the answer on stdout")
+    if method == "gradient":
+        return _gradient(gait_file, free_specs, maximize, minimize, constraints, pareto, output,
+                         write_best, max_evaluations, jobs, scheduler, as_json,
+                         steps_per_period, max_periods, tolerance)
     with library_errors():
         if scheduler is not None:
             from ..sweep import check_scheduler
@@ -146,6 +156,70 @@ def optimize(gait_file, free_specs, maximize, minimize, constraints, pareto, fro
         click.echo(to_json(summary))
     else:
         click.echo(_text(result, summary, out, write_best))
+
+
+def _gradient(gait_file, free_specs, maximize, minimize, constraints, pareto, output,
+              write_best, max_evaluations, jobs, scheduler, as_json, steps_per_period,
+              max_periods, tolerance):
+    """``--method gradient`` (`crawlsim.gradient.optimize_gradient`): what it does not support
+    yet is refused by name, before anything runs."""
+    import time
+
+    from .. import optimize as opt
+
+    given = [name for name, bad in (("--pareto", pareto), ("--subject-to", constraints),
+                                    ("--minimize", minimize), ("--output", output),
+                                    ("--jobs", jobs != 1), ("--scheduler", scheduler))
+             if bad]
+    if maximize and opt.quantity(maximize, "--maximize") != "v0":
+        given.append(f"--maximize {maximize}")
+    if given:
+        raise BadInput(f"--method gradient maximises v0 in a box and nothing else yet; for "
+                       f"{', '.join(given)} use --method evolution")
+    with library_errors():
+        from ..gradient import optimize_gradient
+        from ..provenance import effective_yaml
+
+        if write_best is not None:
+            from ..outputs import GAIT, check_target
+
+            # never the gait file optimised: refused like every output, before any work
+            check_target(write_best, GAIT, inputs=[gait_file], option="--write-best")
+        free = [opt.parse_free(spec) for spec in free_specs]
+        gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance,
+                                   _integrator(gait_file))
+        problem = opt.make_problem(gait, free)
+        began = time.perf_counter()
+        result = optimize_gradient(problem.base, [(f.path, f.lo, f.hi) for f in free],
+                                   max_evaluations=max_evaluations or 200)
+        wall = time.perf_counter() - began
+        if write_best is not None:
+            from ..atomic import atomic_path
+
+            text = (f"# written by crawlsim optimize --method gradient: maximize v0\n"
+                    f"# from {gait.source}, v0 = {result.v0!r}\n"
+                    + effective_yaml(problem.document(result.x)))
+            with atomic_path(write_best) as tmp:
+                tmp.write_text(text, encoding="utf-8")
+    summary = {"name": gait.name, "objective": "maximize v0", "method": "gradient",
+               "best": dict(zip(problem.paths, result.x)), "v0": result.v0,
+               "evaluations": result.evaluations,
+               "gradient_evaluations": result.gradient_evaluations, "wall_time": wall,
+               "best_gait": write_best}
+    if as_json:
+        click.echo(to_json(summary))
+        return
+    lines = [f"{gait.name}: maximize v0",
+             "  method                   gradient (L-BFGS-B, exact sensitivities)"]
+    lines += [f"  {p:<24} {v!r}" for p, v in zip(problem.paths, result.x)]
+    lines.append(f"  {'v0':<24} {result.v0!r}")
+    lines.append(f"  {'evaluations':<24} {result.evaluations}: "
+                 f"{result.evaluations - result.gradient_evaluations} sample, "
+                 f"{result.gradient_evaluations} with gradient")
+    lines.append(f"  {'wall time':<24} {wall:.3g} s")
+    if write_best is not None:
+        lines.append(f"  {'best gait':<24} {write_best}")
+    click.echo("\n".join(lines))
 
 
 def _integrator(gait_file) -> str:

@@ -97,6 +97,9 @@ def _dimensions(sweep_specs, link_specs) -> list[list[str]]:
 @click.option("--link", "link_specs", multiple=True, metavar="PATH=SPEC",
               help="Vary PATH together with the --sweep before it (same number of values): "
                    "value k of each goes with value k of the other; no new grid dimension.")
+@click.option("--sensitivity", "sensitivity_paths", multiple=True, metavar="PATH",
+              help="Also print dv0/dPATH, exact, with its error estimate, for every number "
+                   "PATH names (dotted, * for each element; repeatable; single gait only).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, allow_dash=True),
               help="Write the table to OUT.csv or OUT.h5; - or no -o: CSV on stdout (v0, or "
                    "JSON with --json, without --sweep).")
@@ -115,7 +118,7 @@ def _dimensions(sweep_specs, link_specs) -> list[list[str]]:
 @max_memory_option
 @force_option
 @feedback_options
-def velocity(gait_file, as_json, sweep_specs, link_specs, output, jobs, shard, scheduler,
+def velocity(gait_file, as_json, sweep_specs, sensitivity_paths, link_specs, output, jobs, shard, scheduler,
              plot_file, steps_per_period, max_periods, tolerance, max_memory, force, quiet,
              verbose):
     """Print v0 of GAIT_FILE, or sweep gait parameters and tabulate v0.
@@ -137,6 +140,8 @@ def velocity(gait_file, as_json, sweep_specs, link_specs, output, jobs, shard, s
     Examples:
       crawlsim velocity gaits/peristalsis-4.yaml
       crawlsim velocity gaits/inching-2.yaml --json
+      crawlsim velocity gaits/peristalsis-4.yaml --sensitivity 'links.*.phase' \\
+          --sensitivity stiffness
       crawlsim velocity gaits/peristalsis-4.yaml --sweep 'links.*.amplitude=0.1:0.4:7' \\
           --steps-per-period 100
       crawlsim velocity gaits/peristalsis-3.yaml --sweep links.1.phase=0:1:11 \\
@@ -183,12 +188,22 @@ def velocity(gait_file, as_json, sweep_specs, link_specs, output, jobs, shard, s
                 check_memory(gait, max_memory)
                 with run_progress(gait, quiet, verbose) as progress:
                     result = api.run(gait, progress=progress, history=False)
+                    derivatives = None
+                    if sensitivity_paths:
+                        from . import sensitivities
+
+                        derivatives = sensitivities.compute(gait, sensitivity_paths)
+                summary = result.summary()
                 if as_json:
-                    click.echo(to_json(result.summary()))
+                    if derivatives is not None:
+                        summary["sensitivity"] = derivatives.summary()
+                    click.echo(to_json(summary))
                 else:  # the digits its error estimate supports (--json: full precision)
                     from ..digits import supported
 
                     click.echo(supported(result.v0, result.v0_error_estimate)[0])
+                    if derivatives is not None:
+                        sensitivities.echo(derivatives, summary["integrator"])
                 if not result.converged:
                     from ..analysis import not_converged_message
 
@@ -196,6 +211,8 @@ def velocity(gait_file, as_json, sweep_specs, link_specs, output, jobs, shard, s
                     click.echo(not_converged_message(result, s.max_periods, s.tolerance, s.limit), err=True)
                     sys.exit(EXIT_NOT_CONVERGED)
                 return
+        if sensitivity_paths and groups:
+            raise BadInput("--sensitivity runs on one gait, not yet with --sweep")
         if as_json and groups:
             raise BadInput("--json prints one run's summary; with --sweep the table is CSV or "
                            "HDF5 (-o)")
