@@ -1,6 +1,6 @@
 #!/usr/bin/env python
 """The hostile-input corpus (tests/test_hostile.py) through `crawlsim run`, one file per line:
-exit code, wall time and peak resident memory of the child, under RLIMIT_AS = 500 MB, next to
+exit code, wall time and peak resident memory of the child, under RLIMIT_AS = 1 GiB, next to
 the time of `crawlsim run` on a valid two-block gait (the ratio says how much of each refusal
 is interpreter start-up).
 

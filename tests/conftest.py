@@ -55,3 +55,16 @@ def two_block(amplitude=0.3, k=10.0, friction=None, steps=200, max_periods=20, *
 @pytest.fixture
 def gaits_dir():
     return GAITS
+
+
+@pytest.fixture(scope="session", autouse=True)
+def compiled_kernel():
+    """Compile the kernel (crawlsim/kernel, numba with cache=True) once, before any test: on a
+    fresh install the first run compiles it (about 25 s), and the tests that run crawlsim in a
+    subprocess under a hang guard should find the cache warm rather than pay for it."""
+    from crawlsim.api import simulate
+    from crawlsim.gait import load_gait, with_simulation
+
+    gait = load_gait(GAITS / "inching-2.yaml")
+    for integrator in ("catch-up", "exact"):
+        simulate(with_simulation(gait, integrator=integrator, steps_per_period=20, max_periods=3))
