@@ -409,7 +409,7 @@ def test_cli_catch_up_says_whose_derivative():
     assert res.exit_code == 0, res.output
     assert "derivatives of the exact integrator's v0" in res.output
     res = _cli("gaits/paper/acute-angle.yaml", "--sensitivity", "period")
-    assert res.exit_code == 2 and "crawler gaits" in res.output
+    assert res.exit_code == 2 and "crawler gait" in res.output
 
 
 def test_threshold_of_motion_is_one_sided():
