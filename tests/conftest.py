@@ -17,6 +17,10 @@ from crawlsim.gait import parse_gait
 
 settings.register_profile("ci", derandomize=True, database=None, deadline=None,
                           print_blob=True, suppress_health_check=[HealthCheck.too_slow])
+# "seeded": Hypothesis's own example count, drawn from --hypothesis-seed (the check that the
+# suite holds under any seed: pytest --hypothesis-seed=N with HYPOTHESIS_PROFILE=seeded)
+settings.register_profile("seeded", derandomize=False, deadline=None, database=None,
+                          suppress_health_check=[HealthCheck.too_slow])
 settings.register_profile("explore", derandomize=False, deadline=None, max_examples=400,
                           suppress_health_check=[HealthCheck.too_slow])
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))

@@ -543,8 +543,7 @@ def test_gait_diagram_content(run_file, name, integrator):
     # Slipping steps are shaded in the slip colours behind each block's force, on the steps of
     # /limit/slip: the runs of slip_runs, stick left blank.
     for j, ax in enumerate(rows):
-        spans = [(p.get_x(), p.get_x() + p.get_width(), to_hex(p.get_facecolor()))
-                 for p in ax.patches]
+        spans = [(*_x_extent(p), to_hex(p.get_facecolor())) for p in ax.patches]
         runs = [(a, b, to_hex(SLIP_COLOURS[state])) for state, a, b in
                 slip_runs(slip[:, j], t / T) if state != 0]
         assert [(pytest.approx(a), pytest.approx(b), c) for a, b, c in spans] == runs
@@ -1139,3 +1138,11 @@ def test_generic_process_skips_crawler_figures(run_file):
     assert available_figures(r) == list(FIGURE_NAMES)
     generic = {**r, "attrs": {**r["attrs"], "kind": "sweeping-process"}}
     assert available_figures(generic) == ["convergence", "shape-space"]
+
+
+def _x_extent(patch) -> tuple[float, float]:
+    """The x range of an axvspan: a Rectangle from matplotlib 3.9, a Polygon before."""
+    if hasattr(patch, "get_width"):
+        return patch.get_x(), patch.get_x() + patch.get_width()
+    x = np.asarray(patch.get_xy())[:, 0]
+    return float(x.min()), float(x.max())
