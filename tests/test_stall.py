@@ -131,6 +131,11 @@ def test_force_velocity_figure_marks_the_jump_and_the_stall(tmp_path):
     line = fig.axes[0].get_lines()[0]
     xs = list(line.get_xdata())
     assert any(math.isnan(value) for value in xs)  # broken at the jump
+    # the legend names the curve, the stall and the jump (and the axis keeps its zero line)
+    legend = [text.get_text() for text in fig.axes[0].get_legend().get_texts()]
+    assert legend[0] == "$v_0$" and "jump of $v_0$" in legend
+    assert any(text.startswith("stall force -1 (jump)") for text in legend), legend
+    assert any(list(line.get_ydata()) == [0.0, 0.0] for line in fig.axes[0].get_lines())
     smooth = towing(tmp_path, 0.12, name="s.yaml")
     xs = [0.0, -0.1, -0.2, -0.3, -0.45, -0.6]
     v0 = [0.024 - 0.1 * (-s) + 0.016 if -s < 0.4 else 0.0 for s in xs]  # 0.04 - P/10, then 0

@@ -991,13 +991,13 @@ def _sweep_line(ax, x, data, statuses, log, marks=None):
         for k, s in enumerate(marks.jumps):
             ax.axvline(s, color=FAINT, linestyle=":", linewidth=1.0,
                        label="jump of $v_0$" if k == 0 else None)
-        return
-    for k in np.flatnonzero(jump):
+    sampled = np.flatnonzero(jump) if marks is None or not marks.jumps else []
+    for k in sampled:
         # The jump itself: a faint vertical at the middle of the interval, between the two
         # values, where no value of v0 was sampled.
         middle = np.sqrt(x[k] * x[k + 1]) if log else (x[k] + x[k + 1]) / 2
         ax.plot([middle, middle], [data[k], data[k + 1]], color=FAINT, linestyle=":",
-                linewidth=1.0, label="jump of $v_0$" if k == np.flatnonzero(jump)[0] else None)
+                linewidth=1.0, label="jump of $v_0$" if k == sampled[0] else None)
     if log:
         ax.set_xscale("log")
     ax.axhline(0.0, color=REFERENCE, linewidth=0.6)
