@@ -29,6 +29,7 @@ import pytest
 
 from crawlsim.errors import CertificateError
 from crawlsim.gait import load_gait
+from crawlsim.kernel.catchup import signs_of
 from crawlsim.kkt import REFINE_FRACTION, ActiveSet, DensePolyhedron, Dependent
 from crawlsim.model import compile_gait
 from crawlsim.projection import ExactProjector
@@ -252,12 +253,8 @@ def test_a_batched_run_accepts_no_wrong_step():
     from crawlsim.kkt import chain_factors, run_chains
 
     process, w, c, proj = projected_step()
-    N = process.blocks
-    signs = np.zeros((1, N))
-    for row in proj.active.index:
-        signs[0, row % N] = 1.0 if row < N else -1.0
     k = process.stiffness[None, :]
-    factors = chain_factors(k, signs)
+    factors = chain_factors(k, signs_of(proj.active, process.blocks)[None, :].astype(float))
     C = np.stack([np.vstack([c, c])])
     scale = np.array([process.polyhedron.c_scale])
     good = run_chains(k, factors, w[None, :], C, scale)
@@ -287,12 +284,8 @@ def test_refinement_certifies_slightly_wrong_chain_solves(error):
     np.testing.assert_allclose(point, proj.point, atol=1e-12 * poly.c_scale)
     run = poly.run(scaled, w, np.vstack([c, c]))
     assert run.accepted == 2
-    N = process.blocks
-    signs = np.zeros((1, N))
-    for row in proj.active.index:
-        signs[0, row % N] = 1.0 if row < N else -1.0
     k = process.stiffness[None, :]
-    factors = chain_factors(k, signs)
+    factors = chain_factors(k, signs_of(proj.active, process.blocks)[None, :].astype(float))
     off = replace(factors, D=factors.D / (1.0 + error))
     batch = run_chains(k, off, w[None, :], np.stack([np.vstack([c, c])]),
                        np.array([poly.c_scale]))

@@ -212,18 +212,22 @@ def test_breakpoint_parameters_are_reported_unsupported():
     assert p.smooth and p.v0.value == pytest.approx(1.0, abs=1e-8)
     assert r.displacement_per_period == pytest.approx(0.4 - 0.2, abs=1e-12)
 
+#: Two blocks whose friction sums touch 0 at u = 1/2 without changing sign: on the boundary of
+#: the uniqueness condition (test_uniqueness_boundary_is_one_sided, test_piece_derivative_at_a_kink_is_one_side).
+BOUNDARY = {"name": "boundary", "blocks": 2, "period": 1.0, "stiffness": 10.0,
+            "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3}],
+            "friction": [{"forward": {"kind": "cosine", "mean": 2.0, "amplitude": 1.0},
+                          "backward": 3.0},
+                         {"forward": 1.0, "backward": 1.0}],
+            "simulation": {"steps_per_period": 200, "max_periods": 50, "tolerance": 1e-12}}
+
 
 def test_uniqueness_boundary_is_one_sided():
     """mu_1^+ = 2 + cos 2 pi u and mu_2^- = 1: g_J = mu_1^+ - mu_2^- for J = {1} touches 0 at
     u = 1/2 without changing sign, the boundary of the uniqueness condition. Moving mu_2^- up
     makes g_J change sign on an interval, moving it down keeps it positive: v0 is not
     differentiable there, so the result is one-sided, both sides measured."""
-    doc = {"name": "boundary", "blocks": 2, "period": 1.0, "stiffness": 10.0,
-           "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3}],
-           "friction": [{"forward": {"kind": "cosine", "mean": 2.0, "amplitude": 1.0},
-                         "backward": 3.0},
-                        {"forward": 1.0, "backward": 1.0}],
-           "simulation": {"steps_per_period": 200, "max_periods": 50, "tolerance": 1e-12}}
+    doc = BOUNDARY
     gait = gait_from_document(doc, "boundary")
     r = sensitivity(gait, ["friction.1.backward", "friction.0.forward.mean"])
     for p in r.parameters:
@@ -366,12 +370,7 @@ def test_gradient_optimizer_two_lags():
 def test_piece_derivative_at_a_kink_is_one_side():
     """At a kink the derivative on the limit period's own pieces is one of the one-sided
     derivatives (the uniqueness-boundary gait of the test above)."""
-    doc = {"name": "boundary", "blocks": 2, "period": 1.0, "stiffness": 10.0,
-           "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3}],
-           "friction": [{"forward": {"kind": "cosine", "mean": 2.0, "amplitude": 1.0},
-                         "backward": 3.0},
-                        {"forward": 1.0, "backward": 1.0}],
-           "simulation": {"steps_per_period": 200, "max_periods": 50, "tolerance": 1e-12}}
+    doc = BOUNDARY
     p = sensitivity(gait_from_document(doc, "boundary"), ["friction.1.backward"])[
         "friction.1.backward"]
     assert not p.smooth and p.left is not None and p.right is not None
