@@ -1,29 +1,25 @@
 """crawlsim: exact simulation of soft crawlers with dry friction.
 
-The path from a gait file to an answer, one module per stage:
+The folders are the path from a gait file to an answer:
 
-    gait.py        YAML gait file -> validated `Gait` (docpaths.py: dotted paths into it)
-    model.py       `Gait` -> tabulated shape-space sweeping process (docs/model.md §2)
-    projection.py  exact, certified projections (the only user of Clarabel)
-    stepping.py    catch-up stepping, period by period
-    analysis.py    convergence, v0, limit period
-    h5io.py        HDF5 (netCDF-4) results files; provenance.py and units.py: what they record
-    api.py         the entry points for Python studies: load_gait, simulate, sweep
-    cli/           the `crawlsim` command
+    gait/        YAML gait file -> validated `Gait`: schema, signals, units, dotted paths
+    model/       `Gait` -> shape-space sweeping process: offsets, uniqueness, loads
+    kernel/      exact, certified projections: the KKT certificate, the one Clarabel adapter,
+                 the compiled (numba) catch-up step and event times
+    integrate/   stepping a process period by period: catch-up, exact, the periodic limit, batches
+    analysis/    a run to its periodic regime and what it measures: v0, energy, sensitivities, stall
+    io/          HDF5 (netCDF-4) results files, provenance, atomic writes
+    study/       sweeps, gait design (optimize), the paper's checks
+    plotting/    figures and animations of a results file
+    cli/         the `crawlsim` command, one module per command
+    api.py       the entry points for Python studies: load_gait, simulate, sweep, sensitivity
 
 The names below are imported on first use, so ``import crawlsim`` stays light (no numpy).
-
-``crawlsim.sweep`` is also the module `crawlsim/sweep.py`: the package makes that module
-callable, so ``crawlsim.sweep(gait, {...})`` runs `crawlsim.api.sweep` while
-``from crawlsim import sweep`` still gives the module (a type checker sees the module only:
-typed code calls `crawlsim.api.sweep`). ``crawlsim.sensitivity`` is made callable the same way.
 """
 
 from __future__ import annotations
 
 import importlib
-import sys
-import types
 
 TYPE_CHECKING = False  # typing itself is not imported: `crawlsim --version` needs none of it
 if TYPE_CHECKING:
@@ -36,22 +32,22 @@ _EXPORTS = {
     "load_gait": "crawlsim.api",
     "simulate": "crawlsim.api",
     "run": "crawlsim.api",
+    "sweep": "crawlsim.api",
     "sensitivity": "crawlsim.api",
     "SimulationResult": "crawlsim.api",
     "Trajectory": "crawlsim.api",
-    "Gait": "crawlsim.gait",
-    "ProcessSpec": "crawlsim.gait",
-    "Units": "crawlsim.units",
+    "Gait": "crawlsim.gait.document",
+    "ProcessSpec": "crawlsim.gait.document",
+    "Units": "crawlsim.gait.units",
     "CertificateError": "crawlsim.errors",
     "CrawlsimError": "crawlsim.errors",
     "GaitError": "crawlsim.errors",
     "InputError": "crawlsim.errors",
-    "stall": "crawlsim.stall",
+    "stall": "crawlsim.analysis.stall",
 }
 
-_SUBMODULES = {"analysis", "api", "atomic", "batch", "corpus", "docpaths", "errors", "exact",
-               "gait", "h5io", "kkt", "model", "offsets", "paper", "projection", "provenance",
-               "sensitivity", "signals", "stall", "status", "stepping", "sweep", "units"}
+_SUBPACKAGES = {"analysis", "api", "cli", "errors", "gait", "integrate", "io", "kernel", "model",
+                "plotting", "status", "study"}
 
 __all__ = ["load_gait", "simulate", "sweep", "run", "sensitivity", "SimulationResult", "Trajectory",
            "Gait", "ProcessSpec", "Units", "CertificateError", "CrawlsimError", "GaitError", "InputError",
@@ -63,45 +59,10 @@ def __getattr__(name: str) -> Any:
         value = getattr(importlib.import_module(_EXPORTS[name]), name)
         globals()[name] = value
         return value
-    if name in _SUBMODULES:  # crawlsim.api, crawlsim.h5io, ... without importing them first
-        return importlib.import_module(f"crawlsim.{name}")  # sweep: made callable on import
+    if name in _SUBPACKAGES:  # crawlsim.api, crawlsim.io, ... without importing them first
+        return importlib.import_module(f"crawlsim.{name}")
     raise AttributeError(f"module 'crawlsim' has no attribute {name!r}")
 
 
 def __dir__() -> list[str]:
     return sorted(set(globals()) | set(__all__))
-
-
-class _CallableSweepModule(types.ModuleType):
-    """The module crawlsim.sweep, callable as `crawlsim.api.sweep`."""
-
-    def __call__(self, *args: Any, **kwargs: Any) -> Any:
-        from .api import sweep
-
-        return sweep(*args, **kwargs)
-
-
-class _CallableSensitivityModule(types.ModuleType):
-    """The module crawlsim.sensitivity, callable as `crawlsim.api.sensitivity`."""
-
-    def __call__(self, *args: Any, **kwargs: Any) -> Any:
-        from .api import sensitivity
-
-        return sensitivity(*args, **kwargs)
-
-
-_CALLABLE_MODULES = {"sweep": _CallableSweepModule, "sensitivity": _CallableSensitivityModule}
-
-
-class _Package(types.ModuleType):
-    """The package: importing the submodule ``sweep`` (``sensitivity``) sets the attribute of
-    that name here, and that is where the module becomes callable (whatever imports it
-    first)."""
-
-    def __setattr__(self, name: str, value: Any) -> None:
-        if name in _CALLABLE_MODULES and type(value) is types.ModuleType:
-            value.__class__ = _CALLABLE_MODULES[name]
-        super().__setattr__(name, value)
-
-
-sys.modules[__name__].__class__ = _Package

@@ -1,3 +1,3 @@
-from .cli import main
+from crawlsim.cli import main
 
 main(prog_name="crawlsim")

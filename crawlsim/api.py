@@ -6,7 +6,7 @@
     result.v0, result.trajectory.x, result.to_xarray()
     grid = crawlsim.sweep(gait, {"links.*.amplitude": [0.1, 0.2, 0.3]})   # an xarray.Dataset
 
-Every result records its provenance (`crawlsim.provenance`): the effective gait document, the
+Every result records its provenance (`crawlsim.io.provenance`): the effective gait document, the
 integrator and its settings, the versions, and the call that made it.
 """
 
@@ -22,20 +22,20 @@ from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
-from . import provenance as _provenance
-from .analysis import RunResult
-from .analysis import simulate as _simulate_process
-from .errors import SweepSpecError
-from .gait import Gait, ProcessSpec, parse_gait, with_simulation
-from .gait import load_gait as _load_gait
-from .model import compile
-from .units import Units
+from crawlsim.analysis.run import RunResult
+from crawlsim.analysis.run import simulate as _simulate_process
+from crawlsim.errors import SweepSpecError
+from crawlsim.gait.document import Gait, ProcessSpec, parse_gait, with_simulation
+from crawlsim.gait.document import load_gait as _load_gait
+from crawlsim.gait.units import Units
+from crawlsim.io import provenance as _provenance
+from crawlsim.model.process import compile
 
 if TYPE_CHECKING:
     import xarray
 
-    from .sensitivity import SensitivityResult
-    from .sweep import SweepTable
+    from crawlsim.analysis.sensitivity import SensitivityResult
+    from crawlsim.study.sweep import SweepTable
 
 Spec = Gait | ProcessSpec
 Progress = Callable[[int, float], None]
@@ -97,7 +97,7 @@ class SimulationResult(RunResult):
 
     def save(self, path: str | Path) -> Path:
         """Write the results file this result holds (from `simulate`) to ``path``, atomically."""
-        from .atomic import atomic_path
+        from crawlsim.io.atomic import atomic_path
 
         if not self.image:
             raise ValueError("this result holds no results file (crawlsim.api.run writes one "
@@ -151,7 +151,7 @@ def _extend(run: RunResult, **extra: Any) -> SimulationResult:
 def _execute(spec: Spec, target: Any, *, save_every: int, check_every_step: bool,
              progress: Progress | None, keep_trajectory: bool) -> SimulationResult:
     """Run ``spec`` with its settings, writing its results file into ``target``."""
-    from .h5io import ResultsWriter  # h5py only when a results file is written
+    from crawlsim.io.hdf5 import ResultsWriter  # h5py only when a results file is written
 
     process = compile(spec)
     s = spec.simulation
@@ -178,7 +178,7 @@ def run(gait: Spec | str | Path, *, output: str | Path | None = None, save_every
     ``gait`` is a `Gait`, a `ProcessSpec` (a generic sweeping process, whose run has no velocity:
     v0 and the other crawler keys are None) or the path of either file. Its ``simulation``
     settings are used as they are (`simulate` takes them as arguments). The file records the
-    command line of this process (``sys.argv``) unless a `crawlsim.provenance.recording` is
+    command line of this process (``sys.argv``) unless a `crawlsim.io.provenance.recording` is
     active. The result keeps no trajectory. ``history=False`` (without ``output``: v0 alone)
     stops at the verified periodic limit instead of following the iterates to it.
     """
@@ -228,7 +228,7 @@ def _in_memory(spec: Spec, *, save_every: int, check_every_step: bool,
                progress: Progress | None, keep_trajectory: bool) -> SimulationResult:
     """Run ``spec`` keeping the rows of its results file in memory (`h5io.RowsRecorder`):
     the trajectory comes from them, and the file is written only if it is asked for."""
-    from .h5io import RowsRecorder
+    from crawlsim.io.hdf5 import RowsRecorder
 
     process = compile(spec)
     s = spec.simulation
@@ -269,7 +269,7 @@ def from_results(path: str | Path) -> Rerun:
     gait document (every override of the original command applied) and ``check_every_step``.
     Rerunning it with `run` reproduces v0 bit for bit on the same versions
     (``versions_json``)."""
-    from .h5io import read_provenance
+    from crawlsim.io.hdf5 import read_provenance
 
     info = read_provenance(path)
     spec = parse_gait(info["gait_yaml"], source=f"{path} (gait_yaml)",
@@ -287,15 +287,15 @@ def sweep(gait: Spec | str | Path, axes: Mapping[str, Iterable[float]], *, jobs:
     dotted paths of ``--sweep``, in grid order, the last varying fastest).
 
     Returns an `xarray.Dataset` on the grid, one dimension per swept path (named by
-    `crawlsim.h5io.axis_name`, ``links_all_amplitude``; the path in its ``path`` attribute):
+    `crawlsim.io.hdf5.axis_name`, ``links_all_amplitude``; the path in its ``path`` attribute):
     v0, displacement_per_period, periods, steps, convergence and status (CF flags: see their
     ``flag_meanings``) and message, with the provenance as attributes, exactly the ``/grid``
     group of a sweep file. **Without xarray** (``pip install 'crawlsim[xarray]'``) it returns
-    the `crawlsim.sweep.SweepTable` instead. ``output`` also writes the sweep file (.h5) or CSV
+    the `crawlsim.study.sweep.SweepTable` instead. ``output`` also writes the sweep file (.h5) or CSV
     table. Settings given override the gait's ``simulation`` block.
     """
-    from . import h5io
-    from . import sweep as sweeps
+    from crawlsim.io import hdf5 as h5io
+    from crawlsim.study import sweep as sweeps
 
     spec = _with_settings(_as_spec(gait), integrator=integrator,
                           steps_per_period=steps_per_period, max_periods=max_periods,
@@ -351,7 +351,7 @@ def sensitivity(gait: Spec | str | Path, paths: Sequence[str] | str, *,
     ``left`` / ``right`` hold one-sided derivatives measured with the exact integrator
     (``one_sided=False`` skips them).
     """
-    from .sensitivity import sensitivity as _sensitivity
+    from crawlsim.analysis.sensitivity import sensitivity as _sensitivity
 
     spec = _as_spec(gait)
     if not isinstance(spec, Gait):

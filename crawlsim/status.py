@@ -24,7 +24,7 @@ class PointStatus(StrEnum):
 
 
 class Integrator(StrEnum):
-    """The integrators of `crawlsim.stepping.STEPPERS`."""
+    """The integrators of `crawlsim.integrate.stepping.STEPPERS`."""
 
     CATCH_UP = "catch-up"
     EXACT = "exact"

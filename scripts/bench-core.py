@@ -17,9 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from crawlsim.gait import load_gait, with_simulation
-from crawlsim.model import compile_gait
-from crawlsim.stepping import CatchUpStepper
+from crawlsim.gait.document import load_gait, with_simulation
+from crawlsim.integrate.stepping import CatchUpStepper
+from crawlsim.model.process import compile_gait
 
 GAIT = Path(__file__).resolve().parents[1] / "gaits" / "peristalsis-4.yaml"
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Cost of the exact integrator's energy ledger (crawlsim/energy.py).
+"""Cost of the exact integrator's energy ledger (crawlsim/analysis/energy.py).
 
 In one run, for each example crawler gait and for a long peristaltic wave (--blocks), it times
 periods of the exact integrator with the ledger (as crawlsim runs) and without it (the stepper's
@@ -16,10 +16,10 @@ from pathlib import Path
 
 import yaml
 
-from crawlsim import energy
-from crawlsim.gait import load_gait, parse_gait
-from crawlsim.model import compile_gait
-from crawlsim.stepping import make_stepper
+from crawlsim.analysis import energy
+from crawlsim.gait.document import load_gait, parse_gait
+from crawlsim.integrate.stepping import make_stepper
+from crawlsim.model.process import compile_gait
 
 ROOT = Path(__file__).resolve().parents[1]
 

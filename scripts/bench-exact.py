@@ -30,10 +30,10 @@ from pathlib import Path
 
 import numpy as np
 
-from crawlsim.analysis import simulate
-from crawlsim.exact import EventStepper
-from crawlsim.gait import load_gait
-from crawlsim.model import compile_gait
+from crawlsim.analysis.run import simulate
+from crawlsim.gait.document import load_gait
+from crawlsim.integrate.exact import EventStepper
+from crawlsim.model.process import compile_gait
 
 GAIT = Path(__file__).resolve().parents[1] / "gaits" / "peristalsis-4.yaml"
 TARGET = 1e-9

@@ -12,7 +12,7 @@ Printed, for the ``--wave segments`` and ``--wave body`` gaits of scripts/bench-
 steps per period and N = 4, 16, 64, 256, 1024, each a median over ``--repeats`` interleaved
 runs of ``--periods`` periods (after one period from the initial state, and after compiling):
 
-* catch-up: crawlsim's certified step (`crawlsim.stepping.CatchUpStepper.step_period`, per
+* catch-up: crawlsim's certified step (`crawlsim.integrate.stepping.CatchUpStepper.step_period`, per
   step) / the reference step (bar: <= 5);
 * exact: one period of the exact integrator / one period of the reference (bar: <= 3).
 
@@ -44,9 +44,9 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
-from crawlsim.gait import gait_from_document
-from crawlsim.model import compile_gait
-from crawlsim.stepping import make_stepper
+from crawlsim.gait.document import gait_from_document
+from crawlsim.integrate.stepping import make_stepper
+from crawlsim.model.process import compile_gait
 
 ROOT = Path(__file__).resolve().parents[1]
 SWEEP_BEFORE = 3.21  # seconds, median of the three runs in the docstring
@@ -61,7 +61,7 @@ def _bench_scale():
 
 @njit(cache=True)
 def reference_period(k, C, w0, signs, W):
-    """Catch-up steps w_j -> w_{j+1} onto {B w <= C[j+1]} (crawlsim.kkt's chain), the active
+    """Catch-up steps w_j -> w_{j+1} onto {B w <= C[j+1]} (crawlsim.kernel.kkt's chain), the active
     set of each step found from the previous one; W (G+1, N-1) receives the states."""
     N = signs.shape[0]
     G = C.shape[0] - 1

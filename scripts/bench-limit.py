@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """The periodic limit directly: the periodic-limit solver against plain iteration, in one run.
 
-For each gait, both integrators (exact, the default, and catch-up), `crawlsim.analysis.simulate`
+For each gait, both integrators (exact, the default, and catch-up), `crawlsim.analysis.run.simulate`
 with ``history=False`` (what ``crawlsim velocity`` and sweeps run) at tolerance 1e-12, once with
 ``limit="iterate"`` and once with ``limit="newton"``:
 
@@ -23,7 +23,7 @@ otherwise: it contracts by 1/4 at N = 4, 1/2 at N = 5, 3/4 at N = 7); the paper'
 alpha = 0.5 (rate 1/(1 + alpha^2) = 0.8); the two-block inching gait (finite-time, periodic
 after one period); and a sweep of the phase lag lam of the 8-block wave (link i at phase i lam,
 lam in [0, 1], ``--sweep-points`` points, default 1000, 100 steps per period) through
-`crawlsim.sweep.sweep`, the library call of ``crawlsim velocity --sweep``, end to end, iterate
+`crawlsim.study.sweep.sweep`, the library call of ``crawlsim velocity --sweep``, end to end, iterate
 against newton (``--sweep-repeats`` runs, default 1: a run takes minutes).
 
     python scripts/bench-limit.py [--repeats 3] [--steps 400] [--integrators exact,catch-up]
@@ -45,11 +45,11 @@ from pathlib import Path
 
 import numpy as np
 
-from crawlsim import sweep as sweeps
-from crawlsim.analysis import simulate
-from crawlsim.gait import gait_from_document, load_gait, with_simulation
-from crawlsim.model import compile as compile_gait
-from crawlsim.paper import acute_angle_document
+from crawlsim.analysis.run import simulate
+from crawlsim.gait.document import gait_from_document, load_gait, with_simulation
+from crawlsim.model.process import compile as compile_gait
+from crawlsim.study import sweep as sweeps
+from crawlsim.study.paper import acute_angle_document
 
 ROOT = Path(__file__).resolve().parents[1]
 TOLERANCE = 1e-12
@@ -149,7 +149,7 @@ def _f(value, digits: int) -> str:
 
 def compare_sweep(args) -> list[str]:
     """The phase lag lam of the retrograde cosine wave of ``--sweep-blocks`` blocks (link i at
-    phase i lam: linked paths, one grid dimension), end to end through `crawlsim.sweep.sweep`."""
+    phase i lam: linked paths, one grid dimension), end to end through `crawlsim.study.sweep.sweep`."""
     N, steps, P = args.sweep_blocks, args.sweep_steps, args.sweep_points
     gait = gait_from_document(wave_document(N, steps), f"wave-{N}")
     axes = [[f"links.{i}.phase=0:{i}:{P}" for i in range(1, N - 1)]]

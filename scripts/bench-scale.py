@@ -37,9 +37,9 @@ from pathlib import Path
 
 import numpy as np
 
-from crawlsim.gait import gait_from_document
-from crawlsim.model import compile_gait
-from crawlsim.stepping import make_stepper
+from crawlsim.gait.document import gait_from_document
+from crawlsim.integrate.stepping import make_stepper
+from crawlsim.model.process import compile_gait
 
 #: The waves the benchmark runs (``--wave``): ``body``, one wave over the whole body (link i at
 #: phase i/(N-1), the workload the scaling work was specified on), and ``segments``, an

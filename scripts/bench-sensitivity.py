@@ -22,7 +22,7 @@ from pathlib import Path
 
 import crawlsim
 from crawlsim import api
-from crawlsim.gait import gait_from_document
+from crawlsim.gait.document import gait_from_document
 
 ROOT = Path(__file__).resolve().parents[1]
 

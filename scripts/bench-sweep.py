@@ -3,10 +3,10 @@
 
 The sweep is 1,000 points of the four-block wave (gaits/peristalsis-4.yaml) at 400 steps per
 period, ``links.*.amplitude`` from 0.05 to 0.45, run with ``--jobs 2`` (validation of every point,
-worker start-up and batched stepping included: the wall time of `crawlsim.sweep.sweep`).
+worker start-up and batched stepping included: the wall time of `crawlsim.study.sweep.sweep`).
 
 The loop runs single `crawlsim velocity` computations in-process, as library calls (build and
-validate the point's gait, compile, `crawlsim.analysis.simulate`): the honest comparison, with
+validate the point's gait, compile, `crawlsim.analysis.run.simulate`): the honest comparison, with
 no interpreter start-up per point. It runs every k-th point (``--loop-every``) and is compared
 per gait-step. "gait-steps" = periods actually simulated x steps per period, summed over points.
 
@@ -20,10 +20,10 @@ import statistics
 import time
 from pathlib import Path
 
-from crawlsim import sweep as sweeps
-from crawlsim.analysis import simulate
-from crawlsim.gait import load_gait, with_simulation
-from crawlsim.model import compile_gait
+from crawlsim.analysis.run import simulate
+from crawlsim.gait.document import load_gait, with_simulation
+from crawlsim.model.process import compile_gait
+from crawlsim.study import sweep as sweeps
 
 GAIT = Path(__file__).resolve().parents[1] / "gaits" / "peristalsis-4.yaml"
 

@@ -4,7 +4,7 @@ brute-force grid, then the phase lags and the amplitude for v0 and for the cost 
 
 1. **Agreement with a grid** (the issue's done-when check). v0 on a 60 x 60 grid of the phase lags
    of links 1 and 2 over [0, 1] x [0, 1] (3,600 points, the sweep engine), against
-   `crawlsim.optimize` on the same box with the default budget (150 (n + 1) = 450 points, within
+   `crawlsim.study.optimize` on the same box with the default budget (150 (n + 1) = 450 points, within
    the allowed fifth of the grid, 720), for several seeds: the gap of each optimum to the grid's
    maximum (it must be > -1e-4), its evaluations and wall time (medians printed).
 2. **--jobs**: one optimisation with 1 and with 2 local workers, in one run, as a ratio.
@@ -34,9 +34,9 @@ from pathlib import Path
 
 import numpy as np
 
-from crawlsim import optimize as opt
-from crawlsim import sweep as sweeps
-from crawlsim.gait import load_gait, with_simulation
+from crawlsim.gait.document import load_gait, with_simulation
+from crawlsim.study import optimize as opt
+from crawlsim.study import sweep as sweeps
 
 ROOT = Path(__file__).resolve().parents[1]
 GAIT = ROOT / "gaits" / "peristalsis-4.yaml"

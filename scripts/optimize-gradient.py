@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Gradient-based gait design (`crawlsim.gradient.optimize_gradient`, exact sensitivities)
+"""Gradient-based gait design (`crawlsim.study.gradient.optimize_gradient`, exact sensitivities)
 against `crawlsim optimize`'s derivative-free search, measured in one run.
 
 1. **The README's two-lag example**: maximise v0 of gaits/peristalsis-4.yaml over
@@ -28,9 +28,9 @@ import time
 from pathlib import Path
 
 import crawlsim
-from crawlsim.gait import gait_from_document
-from crawlsim.gradient import optimize_gradient
-from crawlsim.optimize import make_problem, optimize
+from crawlsim.gait.document import gait_from_document
+from crawlsim.study.gradient import optimize_gradient
+from crawlsim.study.optimize import make_problem, optimize
 
 ROOT = Path(__file__).resolve().parents[1]
 OPTIMUM = 7.0 / 15.0

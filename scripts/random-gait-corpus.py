@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Run a seeded corpus of random valid gaits with both integrators and report what happened.
 
-For each seed (`crawlsim.corpus.random_gait`: every signal kind, per-link stiffness, per-block,
+For each seed (`crawlsim.gait.corpus.random_gait`: every signal kind, per-link stiffness, per-block,
 time-varying and switched friction) the gait runs with catch-up and with the exact integrator
 at ``--steps`` steps per period. The script prints one line per gait and a summary:
 
@@ -25,10 +25,10 @@ import time
 
 import numpy as np
 
-from crawlsim.analysis import simulate
-from crawlsim.corpus import random_gait
+from crawlsim.analysis.run import simulate
 from crawlsim.errors import CrawlsimError, InputError
-from crawlsim.model import compile_gait
+from crawlsim.gait.corpus import random_gait
+from crawlsim.model.process import compile_gait
 
 
 def run_one(gait, integrator: str, steps: int) -> dict:

@@ -6,4 +6,4 @@
 #   scripts/reproduce-paper.sh --quick    # coarser grids, as in tests/test_paper.py
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
-exec python -m crawlsim.paper "$@"
+exec python -m crawlsim.study.paper "$@"

@@ -13,7 +13,7 @@ import pytest
 import yaml
 from hypothesis import HealthCheck, settings
 
-from crawlsim.gait import parse_gait
+from crawlsim.gait.document import parse_gait
 
 settings.register_profile("ci", derandomize=True, database=None, deadline=None,
                           print_blob=True, suppress_health_check=[HealthCheck.too_slow])
@@ -67,7 +67,7 @@ def compiled_kernel():
     fresh install the first run compiles it (about 25 s), and the tests that run crawlsim in a
     subprocess under a hang guard should find the cache warm rather than pay for it."""
     from crawlsim.api import simulate
-    from crawlsim.gait import load_gait, with_simulation
+    from crawlsim.gait.document import load_gait, with_simulation
 
     gait = load_gait(GAITS / "inching-2.yaml")
     for integrator in ("catch-up", "exact"):

@@ -1,6 +1,6 @@
 """The printed v0 keeps its promise: |printed v0 - exact v0| <= printed error estimate.
 
-`crawlsim run` prints v0 with only the digits its error estimate supports (`crawlsim.digits`).
+`crawlsim run` prints v0 with only the digits its error estimate supports (`crawlsim.analysis.digits`).
 The exact v0 it is checked against comes from an independent computation: the exact
 integrator on another time grid (997 points per period, which the exact integrator only samples
 for output) by plain period iteration (no periodic-limit solver), or a closed form. This holds
@@ -17,13 +17,13 @@ import pytest
 import yaml
 from click.testing import CliRunner
 
-from crawlsim.analysis import simulate
+from crawlsim.analysis.digits import how_found, supported, with_error
+from crawlsim.analysis.run import simulate
 from crawlsim.cli import main
-from crawlsim.corpus import random_document
-from crawlsim.digits import how_found, supported, with_error
 from crawlsim.errors import GaitError
-from crawlsim.gait import gait_from_document, load_gait, with_simulation
-from crawlsim.model import compile_gait
+from crawlsim.gait.corpus import random_document
+from crawlsim.gait.document import gait_from_document, load_gait, with_simulation
+from crawlsim.model.process import compile_gait
 
 GAITS = Path(__file__).resolve().parent.parent / "gaits"
 EXAMPLES = sorted(p for p in [*GAITS.glob("*.yaml"), *GAITS.glob("paper/*.yaml")]
@@ -85,7 +85,7 @@ def test_catch_up_without_its_exact_reference_claims_no_bound(tmp_path, monkeypa
     import json
 
     from crawlsim.errors import EventError
-    from crawlsim.exact import EventStepper
+    from crawlsim.integrate.exact import EventStepper
 
     def fail(self):
         raise EventError("forced failure of the exact reference run")

@@ -12,8 +12,8 @@ from PIL import Image, ImageSequence
 from crawlsim import api
 from crawlsim.cli import main
 from crawlsim.errors import OutputError
-from crawlsim.gait import load_gait, with_simulation
-from crawlsim.h5io import read_results
+from crawlsim.gait.document import load_gait, with_simulation
+from crawlsim.io.hdf5 import read_results
 from crawlsim.plotting import animation
 from crawlsim.plotting.animation import (
     ANIMATION_DPI,
@@ -140,7 +140,7 @@ def test_an_error_while_writing_leaves_no_file(p4, tmp_path, monkeypatch):
         return fig, draw_or_fail
 
     monkeypatch.setattr(animation, "animation_figure", failing)
-    # a full disk is crawlsim's own refusal, naming the target (crawlsim.atomic.disk_error)
+    # a full disk is crawlsim's own refusal, naming the target (crawlsim.io.atomic.disk_error)
     with pytest.raises(OutputError, match=f"no space left on device: {target}"):
         write_animation(read_results(p4), target)
     assert list(tmp_path.iterdir()) == []

@@ -15,8 +15,8 @@ import pytest
 import crawlsim
 from crawlsim import api
 from crawlsim.errors import GaitError, SweepSpecError
-from crawlsim.h5io import read_results
-from crawlsim.sweep import Axis, make_grid
+from crawlsim.io.hdf5 import read_results
+from crawlsim.study.sweep import Axis, make_grid
 
 from .conftest import GAITS, ROOT
 
@@ -207,7 +207,7 @@ def test_sweep_without_xarray_returns_the_table(monkeypatch, tmp_path):
     out = tmp_path / "s.h5"
     table = crawlsim.sweep(crawlsim.load_gait(INCHING), {"links.0.amplitude": [0.2, 0.3]},
                            steps_per_period=20, output=out)
-    assert isinstance(table, crawlsim.sweep.SweepTable)
+    assert isinstance(table, crawlsim.study.sweep.SweepTable)
     np.testing.assert_allclose(table.columns()["v0"], [0.2, 0.4], atol=1e-13)
     assert out.exists()
 
@@ -219,12 +219,12 @@ def test_sweep_refuses_bad_values(values):
 
 
 def test_crawlsim_sweep_is_both_the_function_and_the_module():
-    """``crawlsim.sweep(...)`` runs the API function; ``crawlsim.sweep.make_grid`` is the
+    """``crawlsim.sweep(...)`` runs the API function; ``crawlsim.study.sweep.make_grid`` is the
     module's, whichever was imported first (checked in a fresh interpreter for each order)."""
-    for first in ("import crawlsim.sweep", "import crawlsim"):
-        code = (f"{first}\nimport crawlsim\nassert callable(crawlsim.sweep)\n"
-                "from crawlsim import sweep as s\nassert s.make_grid and s is crawlsim.sweep\n"
-                "import sys\nassert 'numpy' not in sys.modules or 'crawlsim.sweep' in "
+    for first in ("import crawlsim.study.sweep", "import crawlsim"):
+        code = (f"{first}\nimport crawlsim\nassert callable(crawlsim.study.sweep)\n"
+                "from crawlsim import sweep as s\nassert s.make_grid and s is crawlsim.study.sweep\n"
+                "import sys\nassert 'numpy' not in sys.modules or 'crawlsim.study.sweep' in "
                 "sys.modules\n")
         done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                               check=False)

@@ -15,8 +15,8 @@ import pytest
 from click.testing import CliRunner
 
 import crawlsim.api
-import crawlsim.optimize
-import crawlsim.sweep
+import crawlsim.study.optimize
+import crawlsim.study.sweep
 from crawlsim.cli import main
 
 GAIT = """\
@@ -41,8 +41,8 @@ def folder(tmp_path, monkeypatch):
         raise AssertionError("computation started before the bad option was refused")
 
     monkeypatch.setattr(crawlsim.api, "run", computed)
-    monkeypatch.setattr(crawlsim.sweep, "run_sweep", computed)
-    monkeypatch.setattr(crawlsim.optimize, "optimize", computed)
+    monkeypatch.setattr(crawlsim.study.sweep, "run_sweep", computed)
+    monkeypatch.setattr(crawlsim.study.optimize, "optimize", computed)
     return tmp_path
 
 
@@ -90,9 +90,9 @@ def test_refused_before_any_computation(folder, args, phrase):
 
 def test_the_largest_seed_is_accepted():
     """2**63 - 1 is the largest seed the results file holds; it is a valid search."""
-    crawlsim.optimize.Method(seed=2**63 - 1)
-    with pytest.raises(crawlsim.optimize.SweepSpecError):
-        crawlsim.optimize.Method(seed=2**63)
+    crawlsim.study.optimize.Method(seed=2**63 - 1)
+    with pytest.raises(crawlsim.study.optimize.SweepSpecError):
+        crawlsim.study.optimize.Method(seed=2**63)
 
 
 @pytest.mark.parametrize("address, valid", [
@@ -104,7 +104,7 @@ def test_scheduler_addresses(address, valid):
     and a port from 1 to 65535; anything else is refused before a connection is tried."""
     pytest.importorskip("distributed")
     if valid:
-        crawlsim.sweep.check_scheduler(address)
+        crawlsim.study.sweep.check_scheduler(address)
         return
-    with pytest.raises(crawlsim.sweep.SweepSpecError, match="expected the address of a Dask"):
-        crawlsim.sweep.check_scheduler(address)
+    with pytest.raises(crawlsim.study.sweep.SweepSpecError, match="expected the address of a Dask"):
+        crawlsim.study.sweep.check_scheduler(address)

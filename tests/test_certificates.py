@@ -28,12 +28,12 @@ import numpy as np
 import pytest
 
 from crawlsim.errors import CertificateError
-from crawlsim.gait import load_gait
+from crawlsim.gait.document import load_gait
+from crawlsim.integrate.stepping import make_stepper
 from crawlsim.kernel.catchup import signs_of
-from crawlsim.kkt import REFINE_FRACTION, ActiveSet, DensePolyhedron, Dependent
-from crawlsim.model import compile_gait
-from crawlsim.projection import ExactProjector
-from crawlsim.stepping import make_stepper
+from crawlsim.kernel.kkt import REFINE_FRACTION, ActiveSet, DensePolyhedron, Dependent
+from crawlsim.kernel.projection import ExactProjector
+from crawlsim.model.process import compile_gait
 
 GAITS = Path(__file__).resolve().parents[1] / "gaits"
 INTEGRATORS = ("exact", "catch-up")
@@ -99,7 +99,7 @@ def periods(stepper, count: int = 3) -> None:
 @pytest.mark.parametrize("integrator", INTEGRATORS)
 def test_a_wrong_step_raises_in_both_integrators(integrator, name):
     """Wrong solves of every active set raise. Catch-up runs here on the Python path of
-    `crawlsim.kkt` (``kernel=False``), the one the polyhedron's factors reach; the compiled
+    `crawlsim.kernel.kkt` (``kernel=False``), the one the polyhedron's factors reach; the compiled
     kernel's own corrupted factor is tests/test_kernel.py::test_corrupted_factor_raises_..."""
     options = {"kernel": False} if integrator == "catch-up" else {}
     process = process_of(name)
@@ -250,7 +250,7 @@ def test_a_batched_run_accepts_no_wrong_step():
     batch's factors off by a relative 1e-3."""
     from dataclasses import replace
 
-    from crawlsim.kkt import chain_factors, run_chains
+    from crawlsim.kernel.kkt import chain_factors, run_chains
 
     process, w, c, proj = projected_step()
     k = process.stiffness[None, :]
@@ -274,7 +274,7 @@ def test_refinement_certifies_slightly_wrong_chain_solves(error):
     leaves 1e-20: certified, in a single step, a telescoped run and a batched run."""
     from dataclasses import replace
 
-    from crawlsim.kkt import chain_factors, run_chains
+    from crawlsim.kernel.kkt import chain_factors, run_chains
 
     process, w, c, proj = projected_step()
     poly = process.polyhedron

@@ -29,7 +29,7 @@ import numpy as np
 import pytest
 
 from crawlsim.api import run
-from crawlsim.gait import admissibility_violation, load_gait, with_simulation
+from crawlsim.gait.document import admissibility_violation, load_gait, with_simulation
 
 from .conftest import GAITS, make_gait, two_block
 
@@ -144,7 +144,7 @@ def test_anchoring_catch_up_error_depends_on_the_parity_of_the_step_count(steps,
     barycentre moves 0.8 h_s less, and the state at the end of the step is the same. So the error
     per period is -0.8 (h_a + h_b) over the two steps ending at t = 1/2 and t = 1. For an even
     step count both are uniform steps h: -1.6 h. For an odd one t = 1/2 is inserted in the
-    middle of a uniform step (`crawlsim.model.period_grid`), whose first half, h / 2, ends at
+    middle of a uniform step (`crawlsim.model.process.period_grid`), whose first half, h / 2, ends at
     the switch: -0.8 (h / 2 + h) = -1.2 h. Tolerance 1e-9 on the coefficient: v0's roundoff,
     1e-13, over h >= 1e-3."""
     gait = with_simulation(load_gait(GAITS / "anchoring-2.yaml"), integrator="catch-up",
@@ -156,7 +156,7 @@ def test_anchoring_catch_up_error_depends_on_the_parity_of_the_step_count(steps,
 #: The largest stiffness crawlsim accepts for two_block(0.3, k) with friction 1 / 2: the
 #: stress scale k max|L| / min mu = 1.3 k at most `STRESS_SCALE_LIMIT`.
 def _largest_stiffness():
-    from crawlsim.gait import STRESS_SCALE_LIMIT
+    from crawlsim.gait.document import STRESS_SCALE_LIMIT
 
     return STRESS_SCALE_LIMIT / 1.3
 

@@ -1,6 +1,6 @@
 """Random valid gaits never crash: a seeded corpus through both integrators (slow).
 
-Each gait of `crawlsim.corpus.random_gait` (every signal kind, per-link stiffness over three
+Each gait of `crawlsim.gait.corpus.random_gait` (every signal kind, per-link stiffness over three
 decades, per-block, time-varying and switched friction over two decades either way) runs with
 catch-up and with the exact integrator. Every step of either is certified by the KKT kernel,
 so a certificate or event failure on a valid gait would be an exit-1 bug: there must be none.
@@ -22,10 +22,10 @@ from __future__ import annotations
 
 import pytest
 
-from crawlsim.analysis import simulate
-from crawlsim.corpus import random_gait
+from crawlsim.analysis.run import simulate
 from crawlsim.errors import DegenerateModelError
-from crawlsim.model import compile_gait
+from crawlsim.gait.corpus import random_gait
+from crawlsim.model.process import compile_gait
 
 STEPS = 200
 SEEDS = range(40)

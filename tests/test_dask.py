@@ -6,9 +6,9 @@ import h5py
 import pytest
 from click.testing import CliRunner
 
-from crawlsim import sweep as sweeps
 from crawlsim.cli import main
-from crawlsim.gait import load_gait, with_simulation
+from crawlsim.gait.document import load_gait, with_simulation
+from crawlsim.study import sweep as sweeps
 from tests.test_sweep import AMP, LAG, P4
 
 

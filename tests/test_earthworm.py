@@ -10,7 +10,7 @@ import pytest
 import yaml
 
 from crawlsim import api
-from crawlsim.gait import gait_from_document
+from crawlsim.gait.document import gait_from_document
 
 from .conftest import GAITS
 

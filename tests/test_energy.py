@@ -1,4 +1,4 @@
-"""The energy ledger (crawlsim/energy.py): balance, closed forms, jump losses, the bound on the
+"""The energy ledger (crawlsim/analysis/energy.py): balance, closed forms, jump losses, the bound on the
 cost of transport.
 
 Stress is positive in compression, sigma = K (L - z), and the actuator work W = sum_i oint
@@ -17,18 +17,18 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from scipy.integrate import quad
 
-from crawlsim import energy
-from crawlsim.analysis import simulate, summary_text
+from crawlsim.analysis import energy
+from crawlsim.analysis.run import simulate, summary_text
 from crawlsim.api import run as api_run
 from crawlsim.errors import InputError
-from crawlsim.gait import load_gait
-from crawlsim.h5io import read_results
-from crawlsim.model import compile as compile_any
-from crawlsim.model import compile_gait
-from crawlsim.offsets import Basis
-from crawlsim.signals import Fourier
-from crawlsim.stepping import make_stepper
-from crawlsim.sweep import make_grid, run_points
+from crawlsim.gait.document import load_gait
+from crawlsim.gait.signals import Fourier
+from crawlsim.integrate.stepping import make_stepper
+from crawlsim.io.hdf5 import read_results
+from crawlsim.model.offsets import Basis
+from crawlsim.model.process import compile as compile_any
+from crawlsim.model.process import compile_gait
+from crawlsim.study.sweep import make_grid, run_points
 
 from .conftest import GAITS, make_gait
 
@@ -77,7 +77,7 @@ def test_every_exact_period_balances_with_the_change_of_elastic_energy(path):
 @pytest.mark.parametrize("path", CRAWLERS, ids=lambda p: p.stem)
 def test_catch_up_discrete_balance_is_exact_for_the_scheme(path):
     """W_h = D_h + J_h + E^G - E^0 on every catch-up period (module docstring of
-    crawlsim.energy: each step is an elastic predictor, whose work is (sigma^n + K dL/2) . dL,
+    crawlsim.analysis.energy: each step is an elastic predictor, whose work is (sigma^n + K dL/2) . dL,
     and a K^-1-projection, which releases f^{n+1} . dx + sum k (dz)^2 / 2)."""
     gait = load_gait(path)
     process = compile_gait(gait, 400)

@@ -26,17 +26,17 @@ import pytest
 import yaml
 from click.testing import CliRunner
 
-from crawlsim import paper
-from crawlsim.analysis import simulate
+from crawlsim.analysis.run import simulate
 from crawlsim.api import run
 from crawlsim.cli import main
 from crawlsim.errors import EventError, GaitError, LicqWarning
-from crawlsim.exact import EventStepper
-from crawlsim.gait import load_gait, parse_gait, with_simulation
-from crawlsim.h5io import read_results
-from crawlsim.model import compile as compile_any
-from crawlsim.model import compile_gait
-from crawlsim.stepping import make_stepper
+from crawlsim.gait.document import load_gait, parse_gait, with_simulation
+from crawlsim.integrate.exact import EventStepper
+from crawlsim.integrate.stepping import make_stepper
+from crawlsim.io.hdf5 import read_results
+from crawlsim.model.process import compile as compile_any
+from crawlsim.model.process import compile_gait
+from crawlsim.study import paper
 
 from .conftest import GAITS, iterated_examples, two_block
 
@@ -345,7 +345,7 @@ def test_exact_integrator_does_not_cut_an_asymptotic_decay_short():
     1/2 for alpha = 1). Event tolerances at roundoff keep the decay going to the run's
     tolerance: the verdict and the rate are those of the paper, as with catch-up."""
     from crawlsim.api import run as run_file
-    from crawlsim.gait import load_gait, with_simulation
+    from crawlsim.gait.document import load_gait, with_simulation
 
     gait = load_gait(Path(__file__).resolve().parents[1] / "gaits" / "paper" / "acute-angle.yaml")
     res = run_file(with_simulation(gait, integrator="exact"))

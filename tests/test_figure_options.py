@@ -13,7 +13,7 @@ from PIL import Image
 
 from crawlsim import api
 from crawlsim.cli import main
-from crawlsim.gait import load_gait, with_simulation
+from crawlsim.gait.document import load_gait, with_simulation
 
 GAITS = Path(__file__).resolve().parents[1] / "gaits"
 

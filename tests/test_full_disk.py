@@ -20,9 +20,10 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from crawlsim import atomic, h5io
-from crawlsim import sweep as sweeps
 from crawlsim.cli import main
+from crawlsim.io import atomic
+from crawlsim.io import hdf5 as h5io
+from crawlsim.study import sweep as sweeps
 
 GAITS = Path(__file__).resolve().parents[1] / "gaits"
 GAIT = """\
@@ -44,7 +45,7 @@ def folder(tmp_path, monkeypatch):
 
 
 def full_after(monkeypatch, budget: int) -> None:
-    """HDF5 files (`crawlsim.atomic.GuardedFile`) on a disk that holds ``budget`` bytes."""
+    """HDF5 files (`crawlsim.io.atomic.GuardedFile`) on a disk that holds ``budget`` bytes."""
     class Full(atomic.GuardedFile):
         written = 0
 

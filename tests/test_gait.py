@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from crawlsim.errors import GaitError
-from crawlsim.gait import (
+from crawlsim.gait.document import (
     Simulation,
     admissibility_violation,
     gait_from_document,
@@ -11,7 +11,7 @@ from crawlsim.gait import (
     uniqueness_violation,
     with_simulation,
 )
-from crawlsim.signals import Cosine, Steps
+from crawlsim.gait.signals import Cosine, Steps
 
 EXAMPLE = """\
 name: peristalsis-4
@@ -344,7 +344,7 @@ def test_aliases_that_expand_moderately_are_fine():
 def test_gait_files_are_read_with_a_size_limit(tmp_path):
     import os
 
-    from crawlsim.yamlsafe import read_limited
+    from crawlsim.gait.yamlsafe import read_limited
 
     big = tmp_path / "big.yaml"
     big.write_text("# " + "x" * 100 + "\n")

@@ -15,10 +15,10 @@ from click.testing import CliRunner
 
 from crawlsim.cli import main
 from crawlsim.errors import GaitError, ResultsFileError
-from crawlsim.h5io import FORMAT_VERSION, NOT_A_VARIABLE, axis_name, read_results, read_sweep
+from crawlsim.gait.units import Units, path_quantity
+from crawlsim.io.hdf5 import FORMAT_VERSION, NOT_A_VARIABLE, axis_name, read_results, read_sweep
 from crawlsim.plotting import plot_results
-from crawlsim.sweep import read_table
-from crawlsim.units import Units, path_quantity
+from crawlsim.study.sweep import read_table
 
 from .conftest import GAITS, make_gait
 
@@ -210,7 +210,7 @@ def test_units_block_is_validated(block, message):
     ({"force": "kgf"}, "got 'kgf'"),
 ])
 def test_unit_names_are_checked(block, message):
-    """A unit string is one of `crawlsim.units.UNIT_NAMES` for its dimension; a spelled-out name
+    """A unit string is one of `crawlsim.gait.units.UNIT_NAMES` for its dimension; a spelled-out name
     gets its symbol, a unit of another dimension is named as such, a typo gets the closest
     names."""
     with pytest.raises(GaitError, match=re.escape(message)):
@@ -218,7 +218,7 @@ def test_unit_names_are_checked(block, message):
 
 
 def test_every_listed_unit_is_accepted():
-    from crawlsim.units import UNIT_NAMES, unit_problem
+    from crawlsim.gait.units import UNIT_NAMES, unit_problem
 
     for base, names in UNIT_NAMES.items():
         for name in names:
@@ -254,7 +254,7 @@ def test_unit_composition():
 
 
 def test_quantities_of_swept_paths():
-    from crawlsim.docpaths import path_keys as keys
+    from crawlsim.gait.docpaths import path_keys as keys
 
     assert path_quantity("crawler", keys("links.*.amplitude")) == "length"
     assert path_quantity("crawler", keys("links.1.phase")) == "1"

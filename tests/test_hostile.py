@@ -181,8 +181,8 @@ def test_ten_thousand_blocks_run_within_their_own_estimate(tmp_path_factory, tmp
     """blocks: 10000 is a valid request: with the O(N) chain kernel it runs under the corpus's
     1 GiB address-space limit, and the memory it needs beyond an interpreter's
     (a two-block run's peak) stays within the estimate made before it started."""
-    from crawlsim.gait import load_gait
-    from crawlsim.resources import gait_memory
+    from crawlsim.gait.document import load_gait
+    from crawlsim.integrate.resources import gait_memory
 
     folder = tmp_path_factory.mktemp("valid")
     path = folder / "blocks-10000.yaml"

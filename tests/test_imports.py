@@ -69,25 +69,25 @@ def test_velocity_loads_what_it_needs_and_no_more(integrator, tmp_path):
     machinery. Clarabel is loaded only when the kernel's own updates do not settle a step (the
     two-block gait never needs it), and scipy.optimize not at all: the exact integrator's events
     of a cosine gait have closed forms. jsonschema is not loaded for a valid gait (the compiled
-    check of `crawlsim.schemacheck` accepts it)."""
+    check of `crawlsim.gait.schemacheck` accepts it)."""
     modules = modules_after(["velocity", str(GAIT), "--integrator", integrator], tmp_path)
-    for name in ("numpy", "yaml", "crawlsim.projection", "crawlsim.kkt"):
+    for name in ("numpy", "yaml", "crawlsim.kernel.projection", "crawlsim.kernel.kkt"):
         assert loaded(modules, name), name
-    for name in ("h5py", "matplotlib", "tqdm", "distributed", "dask", "crawlsim.sweep",
-                 "crawlsim.batch", "crawlsim.h5io", "crawlsim.plotting.figures", "clarabel",
+    for name in ("h5py", "matplotlib", "tqdm", "distributed", "dask", "crawlsim.study.sweep",
+                 "crawlsim.integrate.batch", "crawlsim.io.hdf5", "crawlsim.plotting.figures", "clarabel",
                  "scipy.optimize", "jsonschema"):
         assert not loaded(modules, name), name
 
 
 def test_velocity_reads_no_distribution_metadata(tmp_path):
-    """The library versions (`crawlsim.provenance.versions`, 20-30 ms of metadata reading) are
+    """The library versions (`crawlsim.io.provenance.versions`, 20-30 ms of metadata reading) are
     recorded in results files; printing v0 does not look them up, ``--json`` (whose summary
     holds no versions) neither."""
     code = ("import sys\nfrom crawlsim.cli import main\n"
             "for extra in ([], ['--json']):\n"
             "    try:\n        main(['velocity', sys.argv[1], *extra], prog_name='crawlsim')\n"
             "    except SystemExit:\n        pass\n"
-            "from crawlsim.provenance import _versions\n"
+            "from crawlsim.io.provenance import _versions\n"
             "info = _versions.cache_info()\nprint('LOOKUPS', info.hits + info.misses)")
     out = subprocess.run([sys.executable, "-c", code, str(GAIT)], capture_output=True,
                          text=True, check=True, cwd=tmp_path).stdout
@@ -96,7 +96,7 @@ def test_velocity_reads_no_distribution_metadata(tmp_path):
 
 def test_validate_of_a_valid_gait_loads_no_jsonschema(tmp_path):
     modules = modules_after(["validate", str(GAIT)], tmp_path)
-    assert loaded(modules, "crawlsim.gait") and not loaded(modules, "jsonschema")
+    assert loaded(modules, "crawlsim.gait.document") and not loaded(modules, "jsonschema")
 
 
 def test_validate_of_crawler_gaits_loads_neither_scipy_nor_the_kernel(tmp_path):
@@ -105,7 +105,7 @@ def test_validate_of_crawler_gaits_loads_neither_scipy_nor_the_kernel(tmp_path):
     kernel are for running."""
     modules = modules_after(["validate", str(GAIT), str(ROOT / "gaits" / "earthworm-100.yaml")],
                             tmp_path)
-    for name in ("scipy", "numba", "crawlsim.kernel", "crawlsim.kkt", "clarabel", "h5py"):
+    for name in ("scipy", "numba", "crawlsim.kernel", "crawlsim.kernel.kkt", "clarabel", "h5py"):
         assert not loaded(modules, name), name
 
 
@@ -118,10 +118,10 @@ def test_an_invalid_gait_loads_jsonschema_for_its_message(tmp_path):
 
 
 def test_version_of_the_console_script_loads_no_click(tmp_path):
-    """``crawlsim --version`` (the console script, `crawlsim.console`) answers before importing
+    """``crawlsim --version`` (the console script, `crawlsim.cli.console`) answers before importing
     click, with click's own answer."""
     code = ("import sys, json; sys.argv = ['crawlsim', '--version']\n"
-            "from crawlsim.console import main\n"
+            "from crawlsim.cli.console import main\n"
             "try:\n    main()\nexcept SystemExit as e:\n    code = e.code\n"
             "print(json.dumps([code, sorted(sys.modules)]))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
@@ -140,15 +140,15 @@ def test_help_of_the_console_script_is_clicks_and_loads_no_click(tmp_path):
     renders at 80 columns, without importing click; narrower, click renders it itself."""
     from click.testing import CliRunner
 
-    from crawlsim._help import TEXT
     from crawlsim.cli import main as cli
+    from crawlsim.cli._help import TEXT
 
     rendered = CliRunner().invoke(cli, ["--help"], prog_name="crawlsim", terminal_width=78)
     assert rendered.exit_code == 0
     assert TEXT == rendered.output, (
-        "crawlsim/_help.py is stale: its TEXT must be\n" + rendered.output)
+        "crawlsim/cli/_help.py is stale: its TEXT must be\n" + rendered.output)
     code = ("import sys, json; sys.argv = ['crawlsim', '--help']\n"
-            "from crawlsim.console import main\n"
+            "from crawlsim.cli.console import main\n"
             "try:\n    main()\nexcept SystemExit as e:\n    code = e.code\n"
             "print(json.dumps([code, sorted(sys.modules)]))")
     for columns, stored in (("120", True), ("80", True), ("60", False)):
@@ -163,7 +163,7 @@ def test_help_of_the_console_script_is_clicks_and_loads_no_click(tmp_path):
 
 def test_console_script_passes_everything_else_to_the_command_group(tmp_path):
     code = ("import sys; sys.argv = ['crawlsim', 'validate', sys.argv[1]]\n"
-            "from crawlsim.console import main\nmain()")
+            "from crawlsim.cli.console import main\nmain()")
     done = subprocess.run([sys.executable, "-c", code, str(GAIT)], capture_output=True,
                           text=True, cwd=tmp_path)
     assert done.returncode == 0, done.stderr

@@ -2,7 +2,7 @@
 
 What must hold:
 
-* it is the same scheme as `crawlsim.kkt` (the telescoped runs that generic processes keep): a
+* it is the same scheme as `crawlsim.kernel.kkt` (the telescoped runs that generic processes keep): a
   certified KKT point of a strictly convex problem is unique, so both paths take the same steps
   to roundoff, and v0 agrees to 1e-12 on every example crawler;
 * one source: the compiled functions and the same functions run as Python
@@ -23,13 +23,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from crawlsim import kkt
 from crawlsim.errors import CertificateError
-from crawlsim.exact import EventStepper
-from crawlsim.gait import load_gait
-from crawlsim.kernel import catchup, chain
-from crawlsim.model import compile_gait
-from crawlsim.stepping import CatchUpStepper
+from crawlsim.gait.document import load_gait
+from crawlsim.integrate.exact import EventStepper
+from crawlsim.integrate.stepping import CatchUpStepper
+from crawlsim.kernel import catchup, chain, kkt
+from crawlsim.model.process import compile_gait
 
 ROOT = Path(__file__).resolve().parents[1]
 CRAWLERS = sorted(p for p in [*ROOT.glob("gaits/*.yaml"), *ROOT.glob("gaits/paper/*.yaml")]
@@ -46,7 +45,7 @@ def test_kernel_constants_are_the_kkt_policy():
 @pytest.mark.parametrize("path", CRAWLERS, ids=lambda p: p.stem)
 def test_kernel_steps_are_the_kkt_steps(path):
     """Three periods from the file's initial state with the kernel and with the telescoped
-    runs of `crawlsim.kkt`: states, slips and v0 of each period agree to roundoff (1e-12
+    runs of `crawlsim.kernel.kkt`: states, slips and v0 of each period agree to roundoff (1e-12
     relative to the sizes involved), and the periods visit the same active sets."""
     process = compile_gait(load_gait(path))
     fast, slow = CatchUpStepper(process), CatchUpStepper(process, kernel=False)
@@ -66,7 +65,7 @@ def test_kernel_steps_are_the_kkt_steps(path):
 def test_exact_velocity_problems_in_the_kernel_change_nothing(path, monkeypatch):
     """The exact integrator's velocity problems (Moreau's, and the higher orders with the rows
     already decided as equalities) solved and certified by the compiled kernel, or by
-    `crawlsim.kkt` (the kernel switched off): the same certified KKT points, so the same
+    `crawlsim.kernel.kkt` (the kernel switched off): the same certified KKT points, so the same
     decisions, events and states, to roundoff, and v0 of each period to 1e-12."""
     process = compile_gait(load_gait(path))
     calls = []
@@ -95,11 +94,11 @@ def test_exact_velocity_problems_in_the_kernel_change_nothing(path, monkeypatch)
 RUN_PERIODS = """\
 import json, sys
 import numpy as np
-from crawlsim.gait import load_gait
-from crawlsim.model import compile_gait
-from crawlsim.stepping import CatchUpStepper
+from crawlsim.gait.document import load_gait
+from crawlsim.model.process import compile_gait
+from crawlsim.integrate.stepping import CatchUpStepper
 out = {}
-from crawlsim.exact import EventStepper
+from crawlsim.integrate.exact import EventStepper
 for path in json.loads(sys.argv[1]):
     process = compile_gait(load_gait(path))
     for stepper in (CatchUpStepper(process), EventStepper(process)):

@@ -1,4 +1,4 @@
-"""The certified KKT kernel (crawlsim.kkt): structure, factorisations, certificates, runs.
+"""The certified KKT kernel (crawlsim.kernel.kkt): structure, factorisations, certificates, runs.
 
 A projection w* = argmin 1/2 |w - w_trial|_M^2 s.t. B w <= c is characterised by its KKT
 conditions, M (w* - w_trial) + B^T lambda = 0, B w* <= c, lambda >= 0, lambda_i (B w* - c)_i = 0;
@@ -11,9 +11,9 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from crawlsim import kkt
-from crawlsim.kkt import ChainPolyhedron, DensePolyhedron
-from crawlsim.projection import ExactProjector
+from crawlsim.kernel import kkt
+from crawlsim.kernel.kkt import ChainPolyhedron, DensePolyhedron
+from crawlsim.kernel.projection import ExactProjector
 
 EPS = np.finfo(float).eps
 

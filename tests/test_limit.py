@@ -1,4 +1,4 @@
-"""The periodic-limit solver (crawlsim.limit): Newton on F(w) = P(w) - w against plain
+"""The periodic-limit solver (crawlsim.integrate.limit): Newton on F(w) = P(w) - w against plain
 iteration, on gaits that converge only asymptotically, at a kink of the period map, on a family
 of periodic solutions, and when max_periods runs out; and what the results file records.
 
@@ -20,11 +20,10 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from crawlsim.analysis import simulate
+from crawlsim.analysis.run import simulate
 from crawlsim.cli import main
-from crawlsim.gait import gait_from_document
-from crawlsim.h5io import read_results
-from crawlsim.limit import (
+from crawlsim.gait.document import gait_from_document
+from crawlsim.integrate.limit import (
     ATTEMPTS,
     NEWTON,
     PLAIN,
@@ -33,9 +32,10 @@ from crawlsim.limit import (
     solve_limit,
     subdominant_rate,
 )
-from crawlsim.model import compile as compile_gait
-from crawlsim.paper import acute_angle_document
-from crawlsim.stepping import make_stepper
+from crawlsim.integrate.stepping import make_stepper
+from crawlsim.io.hdf5 import read_results
+from crawlsim.model.process import compile as compile_gait
+from crawlsim.study.paper import acute_angle_document
 
 INTEGRATORS = ("exact", "catch-up")
 
@@ -213,7 +213,7 @@ def test_iterates_periodic_on_another_member_of_a_family_stop_the_run(integrator
     convergence: the run stops there, and its limit is the iterates' own periodic solution."""
     from pathlib import Path
 
-    from crawlsim.gait import load_gait
+    from crawlsim.gait.document import load_gait
 
     gait = load_gait(Path(__file__).parent / "data" / "family-10.yaml")
     process = compile_gait(gait)
@@ -367,7 +367,7 @@ def test_jacobian_matches_central_differences_of_the_period_map(integrator):
     O(h^2) term vanishes on an affine piece), so they agree to 1e-6. For the exact flow the
     projectors alone are off by more than 1e-3: the times of those events move with the
     start."""
-    from crawlsim.limit import Saltation, factors
+    from crawlsim.integrate.limit import Saltation, factors
 
     process = process_of(wave_document(10, steps=100))
     limit = simulate(process, integrator=integrator, history=False)
@@ -397,7 +397,7 @@ def test_jacobian_matches_central_differences_of_the_period_map(integrator):
 
 
 def test_saltation_only_where_the_event_time_moves_with_the_start():
-    """A random 10-block gait (`crawlsim.corpus.random_gait`, seed 236: switched, cosine and
+    """A random 10-block gait (`crawlsim.gait.corpus.random_gait`, seed 236: switched, cosine and
     constant friction per block) whose period has swaps at fixed times (the flow's set just
     after a jump of c, a release), and a hit that brings a second, already tight row with it
     while a third is released. Only hits move with
@@ -405,8 +405,8 @@ def test_saltation_only_where_the_event_time_moves_with_the_start():
     rate was 0.975 where the true iterates contract by 0.657. Central differences (h = 1e-6,
     error eps |w| / h + O(h^2) with cosine offsets) along the faces the start lies on (the
     exact flow starts in K(0)) agree with J v to 1e-5 away from the limit."""
-    from crawlsim.corpus import random_gait
-    from crawlsim.limit import factors
+    from crawlsim.gait.corpus import random_gait
+    from crawlsim.integrate.limit import factors
 
     process = compile_gait(random_gait(236, blocks=(2, 16)), 1000)
     stepper = make_stepper(process, "exact")
@@ -448,7 +448,7 @@ def test_newton_through_a_kink_of_the_period_map():
     candidate's own period, is accepted. The exact solver needs 9 periods where plain
     iteration needs 262 (and 43 with only the shortened step), and its verified period is at
     the gait's tolerance."""
-    from crawlsim.corpus import random_gait
+    from crawlsim.gait.corpus import random_gait
 
     gait = random_gait(237, blocks=(2, 12))
     process = compile_gait(gait, 1000)
@@ -468,7 +468,7 @@ def test_rejected_candidates_back_off_and_cost_at_most_log2_periods(monkeypatch)
     then waits 1, 2, 4, ... plain periods after each rejected attempt (the full step, the step
     from its candidate and the shortened one), so it still finds the limit of plain iteration,
     with at most len(ATTEMPTS) (log2(periods) + 1) extra periods."""
-    import crawlsim.limit as limit_module
+    import crawlsim.integrate.limit as limit_module
 
     monkeypatch.setattr(limit_module, "newton_step", lambda poly, factors, F: -2.0 * F)
     process = process_of(square_document(5))
@@ -495,8 +495,8 @@ def test_matrix_free_products_and_step_match_the_dense_jacobian(monkeypatch):
     """Above `DENSE_JACOBIAN` unknowns the Newton step is solved by LSMR with products by J and
     J^T factor by factor: on a small exact-flow period (projectors and saltations) they are
     J v and J^T v of the dense J, and the LSMR step is the dense minimal-norm step."""
-    import crawlsim.limit as limit_module
-    from crawlsim.limit import apply_jacobian, apply_jacobian_transpose, factors, newton_step
+    import crawlsim.integrate.limit as limit_module
+    from crawlsim.integrate.limit import apply_jacobian, apply_jacobian_transpose, factors, newton_step
 
     process = process_of(wave_document(10, steps=100))
     stepper = make_stepper(process, "exact")

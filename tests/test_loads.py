@@ -32,7 +32,7 @@ from hypothesis import strategies as st
 from crawlsim.api import run
 from crawlsim.cli import main
 from crawlsim.errors import GaitError
-from crawlsim.gait import admissibility_violation, parse_gait
+from crawlsim.gait.document import admissibility_violation, parse_gait
 
 from .conftest import make_gait
 
@@ -357,8 +357,8 @@ def test_combination_minimum(signals):
     """The least value of a sum of signals over the cycle (the body's hold condition): exact
     for constants, steps and piecewise-linear (affine between breakpoints: a one-sided limit at a
     piece's end), and at least as low as a dense sample otherwise, never below the true one."""
-    from crawlsim.loads import combination
-    from crawlsim.signals import parse_signal
+    from crawlsim.gait.signals import parse_signal
+    from crawlsim.model.loads import combination
 
     parsed = [parse_signal(s, "s", "<test>") for s in signals]
     total = combination([(1.0, s) for s in parsed], 0.25)
@@ -416,10 +416,10 @@ def test_random_gaits_with_loads_never_crash(seed):
     """The random-gait corpus with random loads (forces of every kind, some beyond a block's own
     friction, slopes up to 30 degrees): both integrators run to convergence, or catch-up meets a
     degenerate grid instant and says so (exit 2); never a certificate or internal failure."""
-    from crawlsim.analysis import simulate
-    from crawlsim.corpus import random_gait
+    from crawlsim.analysis.run import simulate
     from crawlsim.errors import DegenerateModelError
-    from crawlsim.model import compile_gait
+    from crawlsim.gait.corpus import random_gait
+    from crawlsim.model.process import compile_gait
 
     gait = random_gait(seed, blocks=(2, 8), steps_per_period=200, max_periods=300, loads=True)
     assert gait.loads is not None

@@ -16,12 +16,12 @@ import pytest
 import yaml
 from click.testing import CliRunner
 
-from crawlsim import h5io
-from crawlsim import optimize as opt
-from crawlsim import sweep as sweeps
 from crawlsim.cli import main
 from crawlsim.errors import SweepSpecError
-from crawlsim.gait import load_gait, with_simulation
+from crawlsim.gait.document import load_gait, with_simulation
+from crawlsim.io import hdf5 as h5io
+from crawlsim.study import optimize as opt
+from crawlsim.study import sweep as sweeps
 
 GAITS = Path(__file__).resolve().parents[1] / "gaits"
 P4 = str(GAITS / "peristalsis-4.yaml")

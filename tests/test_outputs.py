@@ -1,4 +1,4 @@
-"""Outputs never destroy data (crawlsim.outputs, crawlsim.atomic, the commands' -o/--force).
+"""Outputs never destroy data (crawlsim.io.outputs, crawlsim.io.atomic, the commands' -o/--force).
 
 A command replaces only a crawlsim output of the same kind, never its input nor a special
 file; temporary files are removed on failure, SIGINT and SIGTERM, and stale ones of dead
@@ -18,10 +18,10 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from crawlsim import atomic
 from crawlsim.cli import main
 from crawlsim.errors import OutputError
-from crawlsim.outputs import FIGURE, RUN, SWEEP, check_target, classify
+from crawlsim.io import atomic
+from crawlsim.io.outputs import FIGURE, RUN, SWEEP, check_target, classify
 
 GAIT = """\
 blocks: 2

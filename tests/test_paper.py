@@ -1,13 +1,13 @@
 """The paper's Section 5 and Theorem th:speed, as numbers (the same claims as
-``scripts/reproduce-paper.sh``; derivations in `crawlsim.paper`)."""
+``scripts/reproduce-paper.sh``; derivations in `crawlsim.study.paper`)."""
 
 import numpy as np
 import pytest
 
-from crawlsim import paper
 from crawlsim.api import run
-from crawlsim.gait import gait_from_document, load_gait, with_simulation
-from crawlsim.model import compile
+from crawlsim.gait.document import gait_from_document, load_gait, with_simulation
+from crawlsim.model.process import compile
+from crawlsim.study import paper
 
 from .conftest import GAITS
 

@@ -25,8 +25,8 @@ from scipy.optimize import linprog
 
 from crawlsim import api
 from crawlsim.cli import main
-from crawlsim.gait import gait_from_document, load_gait, with_simulation
-from crawlsim.h5io import read_results
+from crawlsim.gait.document import gait_from_document, load_gait, with_simulation
+from crawlsim.io.hdf5 import read_results
 from crawlsim.plotting import (
     FIGURE_NAMES,
     available_figures,
@@ -1017,7 +1017,7 @@ def test_sweep_ticks_and_cells():
 def test_sweep_file_plot(tmp_path):
     """`crawlsim plot` on a sweep file draws its one figure (the sweep of `crawlsim velocity`,
     with its units when the gait file gives them): the heat map holds the file's values."""
-    from crawlsim.h5io import write_sweep
+    from crawlsim.io.hdf5 import write_sweep
 
     a, b = np.array([1.5, 2.0, 2.5]), np.array([5.0, 10.0])
     v0 = np.array([0.1, 0.2, np.nan, 0.4, 0.5, 0.6])
@@ -1036,7 +1036,7 @@ def test_sweep_file_plot(tmp_path):
     assert result.exit_code == 0, result.output
     (out,) = (tmp_path / "figs").iterdir()
     assert out.name == "grid-sweep.png" and result.output.strip() == str(out)
-    from crawlsim.h5io import read_sweep
+    from crawlsim.io.hdf5 import read_sweep
     from crawlsim.plotting import sweep_data_figure
 
     fig = sweep_data_figure(read_sweep(path))

@@ -15,11 +15,11 @@ from click.testing import CliRunner
 from crawlsim.api import run
 from crawlsim.cli import main
 from crawlsim.errors import DegenerateModelError, GaitError, LicqWarning
-from crawlsim.gait import Gait, ProcessSpec, load_gait, parse_gait, recession_direction
-from crawlsim.h5io import read_results
-from crawlsim.model import compile, compile_gait, compile_process
-from crawlsim.paper import acute_angle_document
-from crawlsim.projection import ExactProjector
+from crawlsim.gait.document import Gait, ProcessSpec, load_gait, parse_gait, recession_direction
+from crawlsim.io.hdf5 import read_results
+from crawlsim.kernel.projection import ExactProjector
+from crawlsim.model.process import compile, compile_gait, compile_process
+from crawlsim.study.paper import acute_angle_document
 
 from .conftest import GAITS
 
@@ -217,7 +217,7 @@ def test_the_projector_reduces_a_dependent_set_only_when_asked():
 def test_every_paper_file_runs(path):
     """Every file in gaits/paper runs (coarse grid): the cell and the crawler settle in finite
     time, the acute angle (rate 1/2) and the triangle (rate 1/8) only asymptotically."""
-    from crawlsim.gait import with_simulation
+    from crawlsim.gait.document import with_simulation
 
     spec = with_simulation(load_gait(path), steps_per_period=60)
     result = run(spec)

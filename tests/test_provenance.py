@@ -17,7 +17,7 @@ from click.testing import CliRunner
 
 import crawlsim
 from crawlsim.cli import main
-from crawlsim.h5io import read_results
+from crawlsim.io.hdf5 import read_results
 
 ROOT = Path(__file__).resolve().parents[1]
 GAITS = ROOT / "gaits"
@@ -167,7 +167,7 @@ def test_sweep_files_record_the_base_document_specs_and_versions(tmp_path):
 
 
 def test_python_call_text():
-    from crawlsim.provenance import command_line, python_call, recording
+    from crawlsim.io.provenance import command_line, python_call, recording
 
     assert python_call("f", 1, x="a", y=None) == "f(1, x='a')"
     assert python_call("f", Path("g.yaml")) == "f('g.yaml')"

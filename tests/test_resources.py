@@ -1,4 +1,4 @@
-"""Memory estimated before a run (crawlsim.resources) and the --max-memory refusal.
+"""Memory estimated before a run (crawlsim.integrate.resources) and the --max-memory refusal.
 
 The estimate must bound the peak memory a run really allocates: measured here with
 tracemalloc (which sees numpy's allocations; Clarabel's own are outside the Python heap and
@@ -14,11 +14,10 @@ import pytest
 from click.testing import CliRunner
 
 from crawlsim import api
-from crawlsim import sweep as sweeps
 from crawlsim.cli import main
 from crawlsim.errors import ResourceError
-from crawlsim.gait import gait_from_document
-from crawlsim.resources import (
+from crawlsim.gait.document import gait_from_document
+from crawlsim.integrate.resources import (
     DEFAULT_CAP,
     check_memory,
     default_limit,
@@ -27,6 +26,7 @@ from crawlsim.resources import (
     parse_size,
     run_memory,
 )
+from crawlsim.study import sweep as sweeps
 
 
 def crawler(n, steps, periods=4, integrator="catch-up"):
@@ -85,7 +85,7 @@ def test_estimate_grows_as_the_arrays_do():
     dense = "dense matrices of the projector"
     assert dense not in dict(small.parts)
     # O(N): 20 blocks against 10 is at most (20 - 1) / (10 - 1) ~ 2.1 times any part, but the
-    # periodic-limit solver's Jacobian, dense (N^2) up to crawlsim.limit.DENSE_JACOBIAN unknowns
+    # periodic-limit solver's Jacobian, dense (N^2) up to crawlsim.integrate.limit.DENSE_JACOBIAN unknowns
     jacobian = "the periodic-limit solver's Jacobian"
     for name, size in wide.parts:
         ratio = size / dict(small.parts)[name]
@@ -126,7 +126,7 @@ def test_default_limit_is_capped_and_follows_the_address_space_limit():
     def limit():
         resource.setrlimit(resource.RLIMIT_AS, (600 << 20, 600 << 20))
 
-    code = "from crawlsim.resources import default_limit; print(default_limit())"
+    code = "from crawlsim.integrate.resources import default_limit; print(default_limit())"
     out = subprocess.run([sys.executable, "-c", code], preexec_fn=limit, capture_output=True,
                          text=True, check=True)
     assert 0 < int(out.stdout) <= 300 << 20  # half the headroom under 600 MB at most
@@ -177,7 +177,7 @@ def test_signal_work_grows_with_harmonics_and_blocks():
     """The estimate is of order H^2 (TRIG_COST + 2N) a period: doubling H multiplies it by about
     4 (exactly 2 (4H + 1) / (2H + 1)); signals of at most one harmonic (closed-form events) cost
     only their tabulation."""
-    from crawlsim.resources import TRIG_COST, signal_work
+    from crawlsim.integrate.resources import TRIG_COST, signal_work
 
     one, two = signal_work(100, 4, 1001), signal_work(200, 4, 1001)
     assert two.per_period / one.per_period == pytest.approx(2 * 401 / 201)
@@ -196,8 +196,8 @@ def test_a_gait_whose_signals_would_not_finish_is_refused_before_it_runs(tmp_pat
     simulation and the sweep fail this test if they start."""
     import yaml
 
-    from crawlsim.gait import load_gait
-    from crawlsim.resources import MAX_SIGNAL_WORK, gait_signal_work
+    from crawlsim.gait.document import load_gait
+    from crawlsim.integrate.resources import MAX_SIGNAL_WORK, gait_signal_work
 
     monkeypatch.chdir(tmp_path)
     (tmp_path / "f.yaml").write_text(yaml.safe_dump(fourier_gait(blocks, 1000, integrator)))
@@ -206,11 +206,11 @@ def test_a_gait_whose_signals_would_not_finish_is_refused_before_it_runs(tmp_pat
     def computed(*args, **kwargs):
         raise AssertionError("the run started")
 
-    import crawlsim.optimize
+    import crawlsim.study.optimize
 
     monkeypatch.setattr(api, "run", computed)
     monkeypatch.setattr(sweeps, "run_sweep", computed)
-    monkeypatch.setattr(crawlsim.optimize, "optimize", computed)
+    monkeypatch.setattr(crawlsim.study.optimize, "optimize", computed)
     for args in (["run", "f.yaml"], ["velocity", "f.yaml"],
                  ["velocity", "f.yaml", "--sweep", "period=1,2", "-o", "s.csv"],
                  ["optimize", "f.yaml", "--free", "period=1:2", "--max-evaluations", "2"]):
@@ -226,7 +226,7 @@ def test_a_gait_whose_signals_would_not_finish_is_refused_before_it_runs(tmp_pat
 def test_gaits_of_few_harmonics_are_not_refused():
     """A Fourier link of 50 harmonics on 2 blocks, and 1000 blocks of cosine links (closed-form
     events; the README's large crawler), are within the estimate."""
-    from crawlsim.resources import MAX_SIGNAL_WORK, gait_signal_work
+    from crawlsim.integrate.resources import MAX_SIGNAL_WORK, gait_signal_work
 
     small = gait_from_document(fourier_gait(2, 50), "small.yaml")
     assert gait_signal_work(small).run < MAX_SIGNAL_WORK / 100

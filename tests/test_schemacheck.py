@@ -1,6 +1,6 @@
-"""The compiled schema check (`crawlsim.schemacheck`) decides exactly what jsonschema decides.
+"""The compiled schema check (`crawlsim.gait.schemacheck`) decides exactly what jsonschema decides.
 
-`crawlsim.signals.check_schema` accepts a document on the compiled check's word alone, without
+`crawlsim.gait.signals.check_schema` accepts a document on the compiled check's word alone, without
 jsonschema, so validation stays as strict as before only if the compiled check never accepts a
 document that jsonschema's Draft202012Validator refuses. These tests compare the two, as
 predicates, on every schema of the project and on every one of their sub-schemas: on the
@@ -16,11 +16,11 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from crawlsim import gait as gait_module
-from crawlsim import signals, units
 from crawlsim.errors import GaitError
-from crawlsim.schemacheck import UnsupportedSchema, compile_schema
-from crawlsim.yamlsafe import load_yaml
+from crawlsim.gait import document as gait_module
+from crawlsim.gait import signals, units
+from crawlsim.gait.schemacheck import UnsupportedSchema, compile_schema
+from crawlsim.gait.yamlsafe import load_yaml
 
 from .conftest import GAITS, ROOT
 
@@ -243,7 +243,7 @@ def test_a_valid_gait_is_accepted_without_importing_jsonschema():
     import subprocess
     import sys
 
-    code = ("import sys; from crawlsim.gait import load_gait; "
+    code = ("import sys; from crawlsim.gait.document import load_gait; "
             f"load_gait({str(GAITS / 'peristalsis-4.yaml')!r}); "
             "print('jsonschema' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,

@@ -32,10 +32,10 @@ import numpy as np
 import pytest
 
 import crawlsim
-from crawlsim.corpus import random_gait
+from crawlsim.analysis.sensitivity import _limit, sensitivity
 from crawlsim.errors import CrawlsimError
-from crawlsim.gait import gait_from_document
-from crawlsim.sensitivity import _limit, sensitivity
+from crawlsim.gait.corpus import random_gait
+from crawlsim.gait.document import gait_from_document
 
 
 def _two_block(a=0.3, k=10.0, mu1=1.0, mu2=1.0, T=1.0):
@@ -269,8 +269,8 @@ def _cli(*args):
 
 def test_cli_prints_supported_digits():
     """inching-2: dv0/dk = (mu_1^+ + mu_2^+)/(k^2 T) = 2/100, dv0/dT = -v0/T = -0.4; each
-    printed with the digits its error estimate supports (crawlsim.digits)."""
-    from crawlsim.digits import supported
+    printed with the digits its error estimate supports (crawlsim.analysis.digits)."""
+    from crawlsim.analysis.digits import supported
 
     res = _cli("gaits/inching-2.yaml", "--sensitivity", "stiffness", "--sensitivity", "period")
     assert res.exit_code == 0, res.output
@@ -342,7 +342,7 @@ def test_cli_bad_input():
 def test_gradient_optimizer_two_block_bound():
     """Two blocks: v0 = (2 a - (mu_1^+ + mu_2^+)/k) / T grows with the amplitude a, so over
     a in [0.1, 0.35] the maximum is at the upper bound, v0 = (0.7 - 0.2) / 1 = 0.5."""
-    from crawlsim.gradient import optimize_gradient
+    from crawlsim.study.gradient import optimize_gradient
 
     r = optimize_gradient(_two_block(a=0.2), [("links.0.amplitude", 0.1, 0.35)])
     assert r.x == pytest.approx((0.35,), abs=1e-12)
@@ -354,7 +354,7 @@ def test_gradient_optimizer_two_lags():
     links.2.phase in [0, 1] is 7/15 at (1/2, 0) (= (1/2, 1): phases are periodic), which
     `crawlsim optimize` reaches in 360 evaluations. The gradient method, from a 4 x 4 sample
     (not containing the optimum), reaches it to 1e-6 within a fifth of those, 72."""
-    from crawlsim.gradient import optimize_gradient
+    from crawlsim.study.gradient import optimize_gradient
 
     gait = crawlsim.load_gait("gaits/peristalsis-4.yaml").replace(
         "simulation.steps_per_period", 20)

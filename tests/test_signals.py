@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from crawlsim.errors import GaitError
-from crawlsim.signals import (
+from crawlsim.gait.signals import (
     Constant,
     Cosine,
     Fourier,

@@ -1,4 +1,4 @@
-"""``crawlsim stall`` and `crawlsim.stall` on closed forms (docs/model.md §6).
+"""``crawlsim stall`` and `crawlsim.analysis.stall` on closed forms (docs/model.md §6).
 
 Two blocks, stroke Delta, stiffness k, friction mu+ < mu- on both, a towed load P on the rear
 block (F_1 = -P): a_1 = mu+ + P, b_1 = mu- - P, a_2 = mu+, b_2 = mu-. While P < mu- - mu+ both
@@ -21,11 +21,11 @@ import pytest
 import yaml
 from click.testing import CliRunner
 
-from crawlsim import stall
+from crawlsim.analysis import stall
+from crawlsim.analysis.stall import StallCause
 from crawlsim.cli import main
 from crawlsim.errors import InputError
-from crawlsim.gait import parse_gait
-from crawlsim.stall import StallCause
+from crawlsim.gait.document import parse_gait
 
 from .conftest import GAITS
 
@@ -115,8 +115,8 @@ def test_force_velocity_figure_marks_the_jump_and_the_stall(tmp_path):
     the shifted uniqueness sums to 1e-9 and the line is broken there, not joined across; the
     stall force is the jump. With the smooth stroke (Delta = 0.24) v0 = 0.04 - P/10 is affine
     up to its zero at P = 0.4 and 0 beyond: the secant of the moving side finds 0.4 exactly."""
+    from crawlsim.analysis.stall import curve_marks
     from crawlsim.plotting import sweep_figure
-    from crawlsim.stall import curve_marks
 
     path = towing(tmp_path, 0.3, -0.5)
     r = CliRunner().invoke(main, ["velocity", str(path), "--sweep", "loads.force.0=0.1:-1.75:12"])

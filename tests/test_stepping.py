@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from crawlsim.analysis import simulate
+from crawlsim.analysis.run import simulate
 from crawlsim.api import run
-from crawlsim.gait import load_gait, with_simulation
-from crawlsim.model import compile_gait, period_grid
-from crawlsim.stepping import CatchUpStepper
+from crawlsim.gait.document import load_gait, with_simulation
+from crawlsim.integrate.stepping import CatchUpStepper
+from crawlsim.model.process import compile_gait, period_grid
 
 from .conftest import GAITS, iterated_examples, make_gait
 

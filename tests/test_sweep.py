@@ -20,11 +20,11 @@ import pytest
 import yaml
 from click.testing import CliRunner
 
-from crawlsim import sweep as sweeps
+from crawlsim.analysis.digits import supported
 from crawlsim.cli import main
-from crawlsim.digits import supported
 from crawlsim.errors import GaitError, InputError
-from crawlsim.gait import load_gait, with_simulation
+from crawlsim.gait.document import load_gait, with_simulation
+from crawlsim.study import sweep as sweeps
 
 GAITS = Path(__file__).resolve().parents[1] / "gaits"
 P4 = str(GAITS / "peristalsis-4.yaml")
@@ -304,7 +304,7 @@ def test_failed_points_are_recorded_not_fatal(tmp_path):
 def test_a_point_that_raises_does_not_sink_its_batch(monkeypatch):
     """A batch that raises is rerun point by point; the point that raises again is recorded as
     failed (an unexpected exception, named) and its neighbours keep their values."""
-    import crawlsim.batch as batch
+    import crawlsim.integrate.batch as batch
 
     gait = with_simulation(base(), integrator="catch-up")
     reference = sweeps.sweep(gait, [AMP])
@@ -695,7 +695,7 @@ def test_v0_jumps_at_equal_friction_are_walls_not_contours(tmp_path):
     interpolated across the jump."""
     from matplotlib.collections import LineCollection
 
-    from crawlsim.h5io import read_sweep
+    from crawlsim.io.hdf5 import read_sweep
     from crawlsim.plotting import sweep_data_figure
 
     out = tmp_path / "jump.h5"

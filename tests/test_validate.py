@@ -4,7 +4,7 @@ import pytest
 from click.testing import CliRunner
 
 from crawlsim.cli import main
-from crawlsim.gait import validation_errors
+from crawlsim.gait.document import validation_errors
 
 from .conftest import GAITS
 

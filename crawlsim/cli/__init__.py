@@ -22,10 +22,10 @@ from typing import TYPE_CHECKING
 
 import click
 
-from .. import __version__
-from ..errors import CrawlsimError, InputError
-from ..status import Integrator
-from .guards import FiniteFloatRange
+from crawlsim import __version__
+from crawlsim.cli.guards import FiniteFloatRange
+from crawlsim.errors import CrawlsimError, InputError
+from crawlsim.status import Integrator
 
 if TYPE_CHECKING:  # json and pathlib are imported where used: `crawlsim --help` needs neither
     from pathlib import Path
@@ -35,7 +35,7 @@ EXIT_NOT_CONVERGED = 3
 EXIT_INTERRUPTED = 128 + signal.SIGINT
 EXIT_TERMINATED = 128 + signal.SIGTERM
 
-#: The defaults of the gait file's ``simulation`` mapping (`crawlsim.gait.Simulation`), for the
+#: The defaults of the gait file's ``simulation`` mapping (`crawlsim.gait.document.Simulation`), for the
 #: help texts; tests/test_cli_help.py checks that they agree.
 DEFAULT_STEPS_PER_PERIOD = 1000
 DEFAULT_MAX_PERIODS = 1000
@@ -143,11 +143,11 @@ class OrderedCommand(click.Command):
 
 
 def _output_path(output, gait_file, force: bool = False, inputs=None) -> Path:
-    """The results file of a run, refused (`crawlsim.outputs.check_target`) when it may not be
+    """The results file of a run, refused (`crawlsim.io.outputs.check_target`) when it may not be
     replaced; ``inputs`` are the files the run reads (never replaced, default the gait file)."""
     from pathlib import Path
 
-    from ..outputs import RUN, check_target
+    from crawlsim.io.outputs import RUN, check_target
 
     out = Path(output) if output else Path(Path(gait_file).stem + ".h5")
     return check_target(out, RUN, inputs=[gait_file] if inputs is None else inputs, force=force)
@@ -243,18 +243,18 @@ def _remember_integrator(ctx, param, value):
 def _remember_limit(ctx, param, value):
     """``--limit``, consumed by `load_with_overrides` like ``--integrator``."""
     if value is not None:
-        ctx.meta["crawlsim.limit"] = value
+        ctx.meta["crawlsim.integrate.limit"] = value
 
 
 def load_with_overrides(gait_file, steps_per_period, max_periods, tolerance, integrator=None):
     """The gait file with the command line's simulation options applied (``--integrator``
     included, taken from the click context when not given)."""
-    from ..gait import load_gait, with_simulation
+    from crawlsim.gait.document import load_gait, with_simulation
 
     ctx = click.get_current_context(silent=True)
     if integrator is None:
         integrator = None if ctx is None else ctx.meta.get("crawlsim.integrator")
-    limit = None if ctx is None else ctx.meta.get("crawlsim.limit")
+    limit = None if ctx is None else ctx.meta.get("crawlsim.integrate.limit")
     gait = load_gait(gait_file)
     overrides = {k: v for k, v in dict(steps_per_period=steps_per_period,
                                        max_periods=max_periods, tolerance=tolerance,
@@ -265,7 +265,7 @@ def load_with_overrides(gait_file, steps_per_period, max_periods, tolerance, int
 
 def run_progress(gait, quiet: bool, verbose: bool):
     """Progress over the periods of one run of ``gait`` (`progress.RunProgress`)."""
-    from .progress import RunProgress, choose_mode
+    from crawlsim.cli.progress import RunProgress, choose_mode
 
     s = gait.simulation
     return RunProgress(gait.name, s.tolerance, s.max_periods, mode=choose_mode(quiet),

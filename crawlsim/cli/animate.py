@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import click
 
-from . import BadInput, library_errors, main
-from .guards import FiniteFloatRange, force_option
+from crawlsim.cli import BadInput, library_errors, main
+from crawlsim.cli.guards import FiniteFloatRange, force_option
 
 
 @main.command()
@@ -38,9 +38,9 @@ def animate(results_file, output, periods, frames_per_period, fps, dpi, force):
     """
     from pathlib import Path
 
-    from ..h5io import read_results
-    from ..outputs import FIGURE, check_target
-    from ..plotting.animation import ANIMATION_FORMATS, parse_periods, write_animation
+    from crawlsim.io.hdf5 import read_results
+    from crawlsim.io.outputs import FIGURE, check_target
+    from crawlsim.plotting.animation import ANIMATION_FORMATS, parse_periods, write_animation
 
     target = Path(output) if output else Path(results_file).with_suffix(".gif")
     if target.suffix.lower().lstrip(".") not in ANIMATION_FORMATS:

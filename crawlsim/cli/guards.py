@@ -1,7 +1,7 @@
 """Options and checks the commands share to refuse bad requests before any work starts:
 finite numbers, the memory limit, and the output targets they may replace (``--force``).
 
-Each check calls a library function (`crawlsim.resources`, `crawlsim.outputs`) so that a Python
+Each check calls a library function (`crawlsim.integrate.resources`, `crawlsim.io.outputs`) so that a Python
 user gets the same refusals; here they only become options.
 """
 
@@ -28,7 +28,7 @@ class FiniteFloatRange(click.FloatRange):
 def _size(ctx, param, value):
     if value is None:
         return None
-    from ..resources import parse_size
+    from crawlsim.integrate.resources import parse_size
 
     try:
         return parse_size(value)
@@ -56,8 +56,8 @@ def check_memory(gait, max_memory, *, save_every: int = 1, batch: int = 1,
                  steps_per_period=None, blocks=None, what: str = "this run") -> None:
     """Refuse (ResourceError, exit 2) a gait whose run would not fit in ``max_memory`` bytes
     (None: the default limit), or whose signals would take too long (`resources.signal_work`)."""
-    from ..resources import check_memory as check
-    from ..resources import check_signal_work, default_limit, gait_memory, gait_signal_work
+    from crawlsim.integrate.resources import check_memory as check
+    from crawlsim.integrate.resources import check_signal_work, default_limit, gait_memory, gait_signal_work
 
     estimate = gait_memory(gait, save_every=save_every, batch=batch,
                            steps_per_period=steps_per_period, blocks=blocks)
@@ -106,15 +106,15 @@ def figure_options(f):
 def figure_options_of(dpi, figsize, style):
     """The `FigureOptions` of the command line, the style sheet checked first (a bad one is
     BadInput, exit 2)."""
-    from ..plotting.style import FigureOptions
+    from crawlsim.plotting.style import FigureOptions
 
     if style is not None:
-        from ..plotting.style import check_style
+        from crawlsim.plotting.style import check_style
 
         try:
             style = check_style(style)
         except ValueError as exc:
-            from . import BadInput
+            from crawlsim.cli import BadInput
 
             raise BadInput(str(exc)) from None
     return FigureOptions(dpi=dpi, figsize=figsize, style=style)
@@ -122,11 +122,11 @@ def figure_options_of(dpi, figsize, style):
 
 def figure_format_of(path, option: str) -> str:
     """The format of a figure file by its extension (png, pdf, svg); any other is BadInput."""
-    from ..plotting.style import figure_format
+    from crawlsim.plotting.style import figure_format
 
     try:
         return figure_format(path, option)
     except ValueError as exc:
-        from . import BadInput
+        from crawlsim.cli import BadInput
 
         raise BadInput(str(exc)) from None

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from . import library_errors, main, to_json
+from crawlsim.cli import library_errors, main, to_json
 
 
 def _g(value, digits: int = 12) -> str:
@@ -12,14 +12,14 @@ def _g(value, digits: int = 12) -> str:
 
 
 def summary_lines(d: dict) -> list[str]:
-    """The text of ``crawlsim info`` for `crawlsim.h5io.describe`'s dict."""
+    """The text of ``crawlsim info`` for `crawlsim.io.hdf5.describe`'s dict."""
     lines = []
     if d["file_kind"] == "run":
         what = "gait" if d["kind"] == "crawler" else d["kind"]
         lines.append(f"{d['file']}: run of {what} {d['name']}")
         lines.append(f"  integrator               {d['integrator'] or 'n/a'}")
         if d["v0"] is not None:
-            from ..digits import with_error
+            from crawlsim.analysis.digits import with_error
 
             lines.append(f"  v0                       {with_error(d['v0'], d['v0_error_estimate'])}")
         conv = d["convergence"]
@@ -28,7 +28,7 @@ def summary_lines(d: dict) -> list[str]:
         elif conv == "asymptotic":
             conv += f", contraction rate {_g(d['contraction_rate'], 4)} per period"
         lines.append(f"  convergence              {conv}")
-        from ..digits import how_found
+        from crawlsim.analysis.digits import how_found
 
         found = how_found(d.get("limit_method"), d.get("limit_newton_steps"),
                           d.get("limit_periods"), d.get("jacobian_rate"))
@@ -93,7 +93,7 @@ def info(results_file, as_json):
       crawlsim run gaits/inching-2.yaml -o inching.h5 && crawlsim info inching.h5
       crawlsim info inching.h5 --json
     """
-    from ..h5io import describe
+    from crawlsim.io.hdf5 import describe
 
     with library_errors():
         d = describe(results_file)

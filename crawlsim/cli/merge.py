@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import click
 
-from . import BadInput, library_errors, main
-from .guards import force_option
+from crawlsim.cli import BadInput, library_errors, main
+from crawlsim.cli.guards import force_option
 
 
 @main.command()
@@ -28,14 +28,14 @@ def merge(parts, output, force):
     """
     from pathlib import Path
 
-    from .. import sweep as sweeps
+    from crawlsim.study import sweep as sweeps
 
     if output != "-" and Path(output).suffix.lower() not in (".h5", ".hdf5", ".csv"):
         raise BadInput(f"--output {output}: name the merged sweep OUT.h5 (HDF5) or OUT.csv, or "
                        "give - for CSV on stdout")
     with library_errors():
         if output != "-":
-            from ..outputs import SWEEP, check_target
+            from crawlsim.io.outputs import SWEEP, check_target
 
             check_target(output, SWEEP, inputs=parts, force=force)
         table = sweeps.merge_tables(sweeps.read_table(p) for p in parts)

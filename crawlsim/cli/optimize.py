@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from . import (
+from crawlsim.cli import (
     BadInput,
     Terminated,
     _output_path,
@@ -20,11 +20,11 @@ from . import (
     simulation_options,
     to_json,
 )
-from .progress import Progress, choose_mode
+from crawlsim.cli.progress import Progress, choose_mode
 
 
 def _objective(maximize, minimize):
-    from .. import optimize as opt
+    from crawlsim.study import optimize as opt
 
     if maximize and minimize:
         raise BadInput(f"--maximize {maximize} and --minimize {minimize}: give one objective "
@@ -106,7 +106,7 @@ def optimize(gait_file, free_specs, maximize, minimize, constraints, pareto, fro
           --front-points 2 --max-evaluations 80 --steps-per-period 20 -o front.h5 --json
     """
     check_feedback(quiet, verbose)
-    from .. import optimize as opt
+    from crawlsim.study import optimize as opt
 
     if not free_specs:
         raise BadInput("give at least one free parameter: --free PATH=LO:HI, for example "
@@ -121,7 +121,7 @@ def optimize(gait_file, free_specs, maximize, minimize, constraints, pareto, fro
                          steps_per_period, max_periods, tolerance)
     with library_errors():
         if scheduler is not None:
-            from ..sweep import check_scheduler
+            from crawlsim.study.sweep import check_scheduler
 
             check_scheduler(scheduler)
         opt.Method(seed=seed)  # refuses a seed the results file cannot hold, before any work
@@ -130,7 +130,7 @@ def optimize(gait_file, free_specs, maximize, minimize, constraints, pareto, fro
             raise BadInput(f"--output {out}: an optimisation is written to HDF5: give a name "
                            "ending in .h5")
         if write_best is not None:
-            from ..outputs import GAIT, check_target
+            from crawlsim.io.outputs import GAIT, check_target
 
             # never the gait file optimised (nor the results file): refused like every output
             check_target(write_best, GAIT, inputs=[gait_file, out], option="--write-best")
@@ -139,7 +139,7 @@ def optimize(gait_file, free_specs, maximize, minimize, constraints, pareto, fro
         cons = [opt.parse_constraint(text) for text in constraints]
         gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance,
                                    _integrator(gait_file))
-        from ..resources import check_signal_work, gait_signal_work
+        from crawlsim.integrate.resources import check_signal_work, gait_signal_work
 
         check_signal_work(gait_signal_work(gait), gait.source)  # before any evaluation
         problem = opt.make_problem(gait, free, objective=objective, constraints=cons,
@@ -161,11 +161,11 @@ def optimize(gait_file, free_specs, maximize, minimize, constraints, pareto, fro
 def _gradient(gait_file, free_specs, maximize, minimize, constraints, pareto, output,
               write_best, max_evaluations, jobs, scheduler, as_json, steps_per_period,
               max_periods, tolerance):
-    """``--method gradient`` (`crawlsim.gradient.optimize_gradient`): what it does not support
+    """``--method gradient`` (`crawlsim.study.gradient.optimize_gradient`): what it does not support
     yet is refused by name, before anything runs."""
     import time
 
-    from .. import optimize as opt
+    from crawlsim.study import optimize as opt
 
     given = [name for name, bad in (("--pareto", pareto), ("--subject-to", constraints),
                                     ("--minimize", minimize), ("--output", output),
@@ -177,11 +177,11 @@ def _gradient(gait_file, free_specs, maximize, minimize, constraints, pareto, ou
         raise BadInput(f"--method gradient maximises v0 in a box and nothing else yet; for "
                        f"{', '.join(given)} use --method evolution")
     with library_errors():
-        from ..gradient import optimize_gradient
-        from ..provenance import effective_yaml
+        from crawlsim.io.provenance import effective_yaml
+        from crawlsim.study.gradient import optimize_gradient
 
         if write_best is not None:
-            from ..outputs import GAIT, check_target
+            from crawlsim.io.outputs import GAIT, check_target
 
             # never the gait file optimised: refused like every output, before any work
             check_target(write_best, GAIT, inputs=[gait_file], option="--write-best")
@@ -194,7 +194,7 @@ def _gradient(gait_file, free_specs, maximize, minimize, constraints, pareto, ou
                                    max_evaluations=max_evaluations or 200)
         wall = time.perf_counter() - began
         if write_best is not None:
-            from ..atomic import atomic_path
+            from crawlsim.io.atomic import atomic_path
 
             text = (f"# written by crawlsim optimize --method gradient: maximize v0\n"
                     f"# from {gait.source}, v0 = {result.v0!r}\n"
@@ -228,7 +228,7 @@ def _integrator(gait_file) -> str:
     ctx = click.get_current_context()
     if ctx.meta.get("crawlsim.integrator"):
         return ctx.meta["crawlsim.integrator"]
-    from ..gait import load_gait
+    from crawlsim.gait.document import load_gait
 
     simulation = load_gait(gait_file).document.get("simulation") or {}
     return simulation.get("integrator", "exact")
@@ -236,7 +236,7 @@ def _integrator(gait_file) -> str:
 
 def _search(problem, method, out, jobs, scheduler, quiet, verbose):
     """Run the search with progress on stderr (the best value so far as the bar's note)."""
-    from .. import optimize as opt
+    from crawlsim.study import optimize as opt
 
     budget = method.budget(problem)
     bar = Progress("optimize", "point", budget, mode=choose_mode(quiet))

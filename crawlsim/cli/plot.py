@@ -6,10 +6,10 @@ from typing import TYPE_CHECKING
 
 import click
 
-from ..errors import CrawlsimError
-from ..plotting import FIGURE_NAMES, OPTIMIZATION_FIGURES
-from . import BadInput, library_errors, main
-from .guards import figure_format_of, figure_options, figure_options_of, force_option
+from crawlsim.cli import BadInput, library_errors, main
+from crawlsim.cli.guards import figure_format_of, figure_options, figure_options_of, force_option
+from crawlsim.errors import CrawlsimError
+from crawlsim.plotting import FIGURE_NAMES, OPTIMIZATION_FIGURES
 
 if TYPE_CHECKING:  # pathlib is imported where used: `crawlsim --help` needs none of it
     from pathlib import Path
@@ -67,7 +67,7 @@ def plot(results_file, output, fmt, only, coords, dpi, figsize, style, force):
     """
     from pathlib import Path
 
-    from ..h5io import describe
+    from crawlsim.io.hdf5 import describe
 
     options = figure_options_of(dpi, figsize, style)
     target = None
@@ -83,7 +83,7 @@ def plot(results_file, output, fmt, only, coords, dpi, figsize, style, force):
     with library_errors():
         kind = describe(results_file)["file_kind"]
         if target is not None:
-            from ..outputs import FIGURE, check_target
+            from crawlsim.io.outputs import FIGURE, check_target
 
             check_target(target, FIGURE, inputs=[results_file], force=force, option="--output")
         else:
@@ -97,10 +97,10 @@ def plot(results_file, output, fmt, only, coords, dpi, figsize, style, force):
 
 
 def _check_targets(results_file, output_dir, fmt, only, kind, force) -> None:
-    """Refuse figure files that may not be replaced (`crawlsim.outputs.check_target`)."""
+    """Refuse figure files that may not be replaced (`crawlsim.io.outputs.check_target`)."""
     from pathlib import Path
 
-    from ..outputs import FIGURE, check_target
+    from crawlsim.io.outputs import FIGURE, check_target
 
     folder = Path(output_dir) if output_dir else Path(results_file).parent
     if not folder.is_dir():
@@ -115,8 +115,8 @@ def _check_targets(results_file, output_dir, fmt, only, kind, force) -> None:
 
 def _plot_file(results_file, output_dir, fmt, only, coords, options, target):
     """The figures of a run or an optimisation file (`crawlsim.plotting.plot_results`)."""
-    from ..h5io import describe
-    from ..plotting import plot_results
+    from crawlsim.io.hdf5 import describe
+    from crawlsim.plotting import plot_results
 
     if only is not None and describe(results_file)["file_kind"] == "optimization" and \
             only not in OPTIMIZATION_FIGURES:
@@ -134,8 +134,8 @@ def _plot_file(results_file, output_dir, fmt, only, coords, options, target):
 def _plot_sweep(results_file, output_dir, fmt, only, options, target) -> Path:
     from pathlib import Path
 
-    from .. import sweep as sweeps
-    from ..plotting.style import user_style
+    from crawlsim.plotting.style import user_style
+    from crawlsim.study import sweep as sweeps
 
     if only is not None:
         raise BadInput(f"--only {only}: {results_file} is a sweep file, whose one figure is "

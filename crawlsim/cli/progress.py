@@ -219,13 +219,13 @@ def periods_to_tolerance(rel_steps, tolerance: float, max_periods: int) -> int |
 
     Asymptotic convergence is geometric (docs/model.md §4): the steps contract as
     ``s_{q+1} ~ r s_q`` with the contraction rate r fitted by
-    `crawlsim.analysis.contraction_rate`. The step after period q then falls to the tolerance
+    `crawlsim.analysis.run.contraction_rate`. The step after period q then falls to the tolerance
     after ``ceil(log(tol / s_q) / log r)`` more periods. None when there is no rate yet (fewer
     than two informative steps); ``max_periods`` when the steps do not contract.
     """
     import numpy as np
 
-    from ..analysis import contraction_rate, effective_tolerance
+    from crawlsim.analysis.run import contraction_rate, effective_tolerance
 
     steps = np.asarray(rel_steps, dtype=float)
     done = len(steps)
@@ -245,7 +245,7 @@ def periods_to_tolerance(rel_steps, tolerance: float, max_periods: int) -> int |
 
 class RunProgress:
     """Progress over the periods of one run: ``callback(q, rel_step)`` for
-    `crawlsim.analysis.simulate`, with the total re-estimated after every period."""
+    `crawlsim.analysis.run.simulate`, with the total re-estimated after every period."""
 
     def __init__(self, label: str, tolerance: float, max_periods: int, *, mode: str,
                  verbose: bool = False, **options):

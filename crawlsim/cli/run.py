@@ -6,7 +6,7 @@ import sys
 
 import click
 
-from . import (
+from crawlsim.cli import (
     EXIT_NOT_CONVERGED,
     BadInput,
     _output_path,
@@ -19,7 +19,7 @@ from . import (
     simulation_options,
     to_json,
 )
-from .guards import (
+from crawlsim.cli.guards import (
     check_memory,
     figure_options,
     figure_options_of,
@@ -92,8 +92,8 @@ def run(gait_file, from_results, output, steps_per_period, max_periods, toleranc
     fmt = plot_format or "png"
     from pathlib import Path
 
-    from .. import api
-    from ..analysis import summary_text
+    from crawlsim import api
+    from crawlsim.analysis.run import summary_text
 
     with library_errors():
         if from_results is not None:
@@ -111,8 +111,8 @@ def run(gait_file, from_results, output, steps_per_period, max_periods, toleranc
                            f"{MAX_SAVE_EVERY:,} (the grid points are counted in 64-bit integers)")
         check_memory(gait, max_memory, save_every=save_every)
         if plot:
-            from ..outputs import FIGURE, check_target
-            from ..plotting import FIGURE_NAMES
+            from crawlsim.io.outputs import FIGURE, check_target
+            from crawlsim.plotting import FIGURE_NAMES
 
             for name in FIGURE_NAMES:
                 check_target(out.parent / f"{out.stem}-{name}.{fmt}", FIGURE,
@@ -123,7 +123,7 @@ def run(gait_file, from_results, output, steps_per_period, max_periods, toleranc
                              check_every_step=check_every_step, progress=progress)
         figures = []
         if plot:
-            from ..plotting import plot_results
+            from crawlsim.plotting import plot_results
 
             figures = [str(f) for f in plot_results(out, out.resolve().parent, fmt=fmt,
                                                     options=options)]
@@ -138,7 +138,7 @@ def run(gait_file, from_results, output, steps_per_period, max_periods, toleranc
         for figure in figures:
             click.echo(f"  figure                   {figure}")
     if not result.converged:
-        from ..analysis import not_converged_message
+        from crawlsim.analysis.run import not_converged_message
 
         s = gait.simulation
         click.echo(not_converged_message(result, s.max_periods, s.tolerance, s.limit), err=True)
@@ -147,8 +147,8 @@ def run(gait_file, from_results, output, steps_per_period, max_periods, toleranc
 
 def _rerun(path, steps_per_period, max_periods, tolerance, check_every_step, save_every):
     """The gait and settings recorded in ``path``, with the options given on top."""
-    from .. import api
-    from ..gait import with_simulation
+    from crawlsim import api
+    from crawlsim.gait.document import with_simulation
 
     recorded = api.from_results(path)
     ctx = click.get_current_context(silent=True)

@@ -11,7 +11,7 @@ import click
 def compute(gait: Any, paths: tuple[str, ...]) -> Any:
     """The sensitivities of ``gait`` for ``paths`` (the exact integrator's, whatever the gait's
     integrator: the lines say so for a catch-up gait)."""
-    from ..sensitivity import sensitivity
+    from crawlsim.analysis.sensitivity import sensitivity
 
     return sensitivity(gait, list(paths))
 
@@ -19,7 +19,7 @@ def compute(gait: Any, paths: tuple[str, ...]) -> Any:
 def lines(result: Any, integrator: str) -> list[str]:
     """One line per parameter: dv0/dPATH with the digits its error estimate supports, or why
     it is not smooth with the one-sided values, or why it was not computed."""
-    from ..digits import with_error
+    from crawlsim.analysis.digits import with_error
 
     out = []
     for p in result.parameters:

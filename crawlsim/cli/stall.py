@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from . import BadInput, library_errors, main, to_json
+from crawlsim.cli import BadInput, library_errors, main, to_json
 
 
 @main.command()
@@ -35,8 +35,8 @@ def stall(gait_file, force_path, slope, as_json):
     if (force_path is None) == (not slope):
         raise BadInput("give exactly one of --force PATH and --slope")
     with library_errors():
-        from ..digits import with_error
-        from ..stall import stall as find_stall
+        from crawlsim.analysis.digits import with_error
+        from crawlsim.analysis.stall import stall as find_stall
 
         result = find_stall(gait_file, force=force_path, slope=slope)
     if as_json:

@@ -6,7 +6,7 @@ import sys
 
 import click
 
-from . import main
+from crawlsim.cli import main
 
 
 @main.command()
@@ -23,7 +23,7 @@ def validate(gait_files):
       crawlsim validate gaits/*.yaml
       crawlsim validate gaits/inching-2.yaml && crawlsim run gaits/inching-2.yaml -o inching.h5
     """
-    from ..gait import validation_errors
+    from crawlsim.gait.document import validation_errors
 
     invalid = 0
     for path in gait_files:

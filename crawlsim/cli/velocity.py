@@ -7,7 +7,7 @@ import sys
 
 import click
 
-from . import (
+from crawlsim.cli import (
     EXIT_NOT_CONVERGED,
     BadInput,
     OrderedCommand,
@@ -21,14 +21,14 @@ from . import (
     simulation_options,
     to_json,
 )
-from .guards import check_memory, force_option, max_memory_option, warn_unchecked
-from .progress import Progress, choose_mode
+from crawlsim.cli.guards import check_memory, force_option, max_memory_option, warn_unchecked
+from crawlsim.cli.progress import Progress, choose_mode
 
 
 def _shard(ctx, param, value):
     if value is None:
         return None
-    from .. import sweep as sweeps
+    from crawlsim.study import sweep as sweeps
 
     with library_errors():
         return sweeps.parse_shard(value)
@@ -37,7 +37,7 @@ def _shard(ctx, param, value):
 def _check_sweep_memory(gait, groups, points, jobs, scheduler, max_memory):
     """The largest point of the grid (most blocks, most steps), in a batch as large as the
     sweep's chunks, once per local worker."""
-    from .. import sweep as sweeps
+    from crawlsim.study import sweep as sweeps
 
     largest = {}
     for group in groups:
@@ -52,14 +52,14 @@ def _check_sweep_memory(gait, groups, points, jobs, scheduler, max_memory):
                  what=f"this sweep ({'one worker' if scheduler else f'{jobs} worker(s)'} with "
                       f"batches of {batch} points)")
     if not scheduler and jobs > 1:
-        from ..resources import default_limit, gait_memory
+        from crawlsim.integrate.resources import default_limit, gait_memory
 
         limit = default_limit() if max_memory is None else max_memory
         each = gait_memory(gait, batch=batch, blocks=largest.get("blocks"),
                            steps_per_period=largest.get("simulation.steps_per_period"))
         if jobs * each.total > limit:
-            from ..errors import ResourceError
-            from ..resources import format_size
+            from crawlsim.errors import ResourceError
+            from crawlsim.integrate.resources import format_size
 
             raise ResourceError(gait.source, "", f"{jobs} local workers would need about "
                                                  f"{format_size(jobs * each.total)} together "
@@ -157,10 +157,10 @@ def velocity(gait_file, as_json, sweep_specs, sensitivity_paths, link_specs, out
     if output == "-":
         output = None  # stdout is where the table (or v0) goes without -o
     with library_errors():
-        from ..outputs import FIGURE, SWEEP, check_target
+        from crawlsim.io.outputs import FIGURE, SWEEP, check_target
 
         if scheduler is not None:
-            from ..sweep import check_scheduler
+            from crawlsim.study.sweep import check_scheduler
 
             check_scheduler(scheduler)
         if output is not None and plot_file is not None and \
@@ -175,7 +175,7 @@ def velocity(gait_file, as_json, sweep_specs, sensitivity_paths, link_specs, out
             raise BadInput(f"--plot {plot_file}: a figure is written as .png, .pdf or .svg")
         groups = _dimensions(sweep_specs, link_specs)
         gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance)
-        from ..gait import need_crawler
+        from crawlsim.gait.document import need_crawler
 
         need_crawler(gait)
         warn_unchecked(gait)
@@ -183,14 +183,14 @@ def velocity(gait_file, as_json, sweep_specs, sensitivity_paths, link_specs, out
             if shard or plot_file:
                 raise BadInput("--shard and --plot need at least one --sweep PATH=SPEC")
             if output is None:
-                from .. import api
+                from crawlsim import api
 
                 check_memory(gait, max_memory)
                 with run_progress(gait, quiet, verbose) as progress:
                     result = api.run(gait, progress=progress, history=False)
                     derivatives = None
                     if sensitivity_paths:
-                        from . import sensitivities
+                        from crawlsim.cli import sensitivities
 
                         derivatives = sensitivities.compute(gait, sensitivity_paths)
                 summary = result.summary()
@@ -199,13 +199,13 @@ def velocity(gait_file, as_json, sweep_specs, sensitivity_paths, link_specs, out
                         summary["sensitivity"] = derivatives.summary()
                     click.echo(to_json(summary))
                 else:  # the digits its error estimate supports (--json: full precision)
-                    from ..digits import supported
+                    from crawlsim.analysis.digits import supported
 
                     click.echo(supported(result.v0, result.v0_error_estimate)[0])
                     if derivatives is not None:
                         sensitivities.echo(derivatives, summary["integrator"])
                 if not result.converged:
-                    from ..analysis import not_converged_message
+                    from crawlsim.analysis.run import not_converged_message
 
                     s = gait.simulation
                     click.echo(not_converged_message(result, s.max_periods, s.tolerance, s.limit), err=True)
@@ -220,13 +220,13 @@ def velocity(gait_file, as_json, sweep_specs, sensitivity_paths, link_specs, out
             raise BadInput("--plot needs the whole grid: plot after `crawlsim merge`")
         if plot_file and len(groups) not in (1, 2):
             raise BadInput(f"--plot draws one or two swept dimensions, got {len(groups)}")
-        from .. import sweep as sweeps
+        from crawlsim.study import sweep as sweeps
 
         points = len(sweeps.make_grid(gait, groups).indices(shard))
         _check_sweep_memory(gait, groups, points, jobs, scheduler, max_memory)
         table = _sweep(gait, groups, output, jobs, shard, scheduler, quiet, verbose)
         if plot_file:
-            from .. import sweep as sweeps
+            from crawlsim.study import sweep as sweeps
 
             sweeps.plot_table(table, plot_file)
     if output is None:
@@ -240,7 +240,7 @@ def velocity(gait_file, as_json, sweep_specs, sensitivity_paths, link_specs, out
 
 def _sweep(gait, groups, output, jobs, shard, scheduler, quiet, verbose):
     """Run the sweep with progress on stderr; an interrupt says what was kept, then exits 130."""
-    from .. import sweep as sweeps
+    from crawlsim.study import sweep as sweeps
 
     grid = sweeps.make_grid(gait, groups)
     total = len(grid.indices(shard))

@@ -1,6 +1,6 @@
 """The driver of the compiled catch-up step (`crawlsim.kernel.chain`): it owns the kernel's
 arrays between periods, calls it, and turns what it reports into crawlsim's terms: the active
-sets as `crawlsim.kkt.ActiveSet` (for the periodic-limit solver), a failed certificate as a
+sets as `crawlsim.kernel.kkt.ActiveSet` (for the periodic-limit solver), a failed certificate as a
 `CertificateError` naming the time and the rows.
 """
 
@@ -11,8 +11,8 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from ..kkt import ActiveSet, ChainPolyhedron, Dependent, Polyhedron
-from . import chain
+from crawlsim.kernel import chain
+from crawlsim.kernel.kkt import ActiveSet, ChainPolyhedron, Dependent, Polyhedron
 
 #: What the first compilation costs (measured with an empty cache on a 2-core machine; printed
 #: so that a first run does not look hung).
@@ -86,7 +86,7 @@ class ChainKernel:
         self.signs[:] = signs_of(active, len(self.signs))
 
     def active(self, fallback: ActiveSet) -> ActiveSet:
-        """The current set, factored by `crawlsim.kkt` (cached there), or ``fallback``."""
+        """The current set, factored by `crawlsim.kernel.kkt` (cached there), or ``fallback``."""
         try:
             return self.polyhedron.factor(rows_of(self.signs))
         except Dependent:
@@ -114,7 +114,7 @@ class ChainKernel:
 
 class VisitedSets(Sequence):
     """The non-empty active sets of a period's steps, in order, consecutive repeats left out
-    (`crawlsim.stepping.PeriodRecord.visited`), factored by `crawlsim.kkt` only when the
+    (`crawlsim.integrate.stepping.PeriodRecord.visited`), factored by `crawlsim.kernel.kkt` only when the
     periodic-limit solver asks for them: most periods never need them."""
 
     def __init__(self, polyhedron: Polyhedron, S: np.ndarray):

@@ -1,7 +1,7 @@
 """The compiled, certified catch-up step of a crawler chain (docs/model.md §3).
 
 One step projects the trial state w_j onto K(t_{j+1}) = {w : B w <= c} in the metric M = K^{-1},
-with B = [D^T; -D^T] (`crawlsim.kkt.ChainPolyhedron`). On the saturated blocks J, with signs
+with B = [D^T; -D^T] (`crawlsim.kernel.kkt.ChainPolyhedron`). On the saturated blocks J, with signs
 s_i = +1 (forward limit, row i) or -1 (backward limit, row N + i), the KKT system is
 
     L_JJ dx_J = f_J - f*_J,   f = D^T w_j,   f*_i = c_i (s_i = +1) or -c_{N+i} (s_i = -1),
@@ -11,7 +11,7 @@ w_{j+1} = w_j - K D dx, multipliers lambda_i = dx_i (s_i = +1), lambda_{N+i} = -
 The system is padded to all N blocks (identity rows on free blocks, no coupling across them) and
 factored by LDL^T in O(N) (the Thomas recurrence), refactored only when J changes.
 
-Every step is certified with the tolerance policy of `crawlsim.kkt.Polyhedron.solve_on` and
+Every step is certified with the tolerance policy of `crawlsim.kernel.kkt.Polyhedron.solve_on` and
 `certify` (one policy for every integrator): primal feasibility max(B w - c) <= tol_p, the sign
 of the multipliers -min(lambda) <= tol_d and complementarity max |(B w - c)_J| <= tol_p, where
 
@@ -20,10 +20,10 @@ of the multipliers -min(lambda) <= tol_d and complementarity max |(B w - c)_J| <
 
 with ||L_JJ^{-1}||_inf = max(L_JJ^{-1} 1) exactly (an M-matrix). A complementarity residual above
 a quarter of tol_p gets one step of iterative refinement. An uncertified step moves its active
-set by the primal-dual updates of `crawlsim.kkt.Polyhedron.refine` (drop the rows with negative
+set by the primal-dual updates of `crawlsim.kernel.kkt.Polyhedron.refine` (drop the rows with negative
 multipliers, add the violated rows; the worst one alone, or the exchange of Goldfarb and Idnani,
 where all at once would saturate every block). A certified KKT point of this strictly convex
-problem is the projection, so the steps agree with `crawlsim.kkt` to roundoff.
+problem is the projection, so the steps agree with `crawlsim.kernel.kkt` to roundoff.
 
 Everything here is a function of plain arrays and scalars, compiled by numba; with
 ``NUMBA_DISABLE_JIT=1`` the same source runs as Python.
@@ -34,7 +34,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-#: The tolerance constants of `crawlsim.kkt` (repeated: the compiled code sees literals only;
+#: The tolerance constants of `crawlsim.kernel.kkt` (repeated: the compiled code sees literals only;
 #: tests/test_kernel.py checks they agree).
 RTOL = 1e-14
 REFINE_FRACTION = 0.25
@@ -212,7 +212,7 @@ def independent(rows, N):
 
 @njit(cache=True)
 def update(signs, lam, slack, tol_p, tol_d, new, fixed):
-    """The next set of a primal-dual update into ``new`` (`crawlsim.kkt.Polyhedron.update_set`,
+    """The next set of a primal-dual update into ``new`` (`crawlsim.kernel.kkt.Polyhedron.update_set`,
     then `exchange` where the set would fail LICQ); rows ``fixed`` never leave. Returns 0 with a
     new set, 1 when nothing is to change (the certificate failed on its own numbers), 2 when
     no independent update exists (the Python projector decides)."""
@@ -291,7 +291,7 @@ def same(a, b):
 def settle(k, kmax, c_scale, w_trial, c, signs, factored, D, l, norms, fixed, dx, w, lam, slack,
            f, res, new, seen, report):
     """One certified projection of ``w_trial`` onto {B w <= c} (rows ``fixed`` as equalities)
-    from the set ``signs``, by primal-dual updates (`crawlsim.kkt.Polyhedron.refine`): DONE
+    from the set ``signs``, by primal-dual updates (`crawlsim.kernel.kkt.Polyhedron.refine`): DONE
     with w, lam, slack and the set in place, HANDOFF when the updates cycle, run out or find
     no independent set, FAILED when the certificate fails with nothing to change (``report``).
     Returns (status, tol_p); the tolerances are also left in report[REPORT_TOLP:REPORT_TOLD+1]."""
@@ -371,7 +371,7 @@ def catch_up(k, c_scale, C, W, LAM, S, signs, factored, D, l, norms, j0, report)
         if status != DONE:
             return status, j
         # every block tight to roundoff with an inactive row among them: LICQ may fail and the
-        # slips may not be unique; the Python projector decides (crawlsim.projection)
+        # slips may not be unique; the Python projector decides (crawlsim.kernel.projection)
         all_tight = True
         inactive_tight = False
         for i in range(N):

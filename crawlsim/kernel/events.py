@@ -1,4 +1,4 @@
-"""The compiled closed forms of the exact integrator's next event (`crawlsim.exact`).
+"""The compiled closed forms of the exact integrator's next event (`crawlsim.integrate.exact`).
 
 On a piece, every gap of an inactive row and every slip rate of an active one is a combination
 f(u) = phi(u) @ z of the offsets' basis. An event is the first u in (u0, u1) where some f

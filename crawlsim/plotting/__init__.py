@@ -2,7 +2,7 @@
 
 * `style` holds the one style of all figures (fonts, palettes, the colour map, labels with
   units, titles);
-* `figures` has one function per figure, each taking the dict of `crawlsim.h5io.read_results`
+* `figures` has one function per figure, each taking the dict of `crawlsim.io.hdf5.read_results`
   and returning a matplotlib `Figure`, plus `sweep_figure` and `sweep_data_figure` for velocity
   sweeps;
 * `optimization` has the figures of an optimisation file (`objective_figure`, `pareto_figure`);

@@ -21,7 +21,7 @@ Frames are taken at evenly spaced instants of the limit period (``/limit``) or, 
 periods, of the stored trajectory (``/trajectory``), at the nearest stored time; the slip state
 there is ``/limit/slip``, or the sign of the block's displacement over the next stored step.
 GIFs are written by matplotlib's Pillow writer, MP4s by its FFmpeg writer (when ffmpeg is on the
-PATH), both to a temporary file renamed into place (`crawlsim.atomic`).
+PATH), both to a temporary file renamed into place (`crawlsim.io.atomic`).
 """
 
 from __future__ import annotations
@@ -35,10 +35,10 @@ from matplotlib.colors import LinearSegmentedColormap, Normalize
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
-from ..atomic import atomic_path
-from ..errors import ResultsFileError
-from .figures import _name, _need, _period
-from .style import (
+from crawlsim.errors import ResultsFileError
+from crawlsim.io.atomic import atomic_path
+from crawlsim.plotting.figures import _name, _need, _period
+from crawlsim.plotting.style import (
     OKABE_ITO,
     REFERENCE,
     SLIP_COLOURS,

@@ -1,4 +1,4 @@
-"""One function per figure: each takes the dict of `crawlsim.h5io.read_results` and returns a
+"""One function per figure: each takes the dict of `crawlsim.io.hdf5.read_results` and returns a
 matplotlib `Figure` in the style of `crawlsim.plotting.style`.
 
 A figure that needs data the file lacks raises `ResultsFileError` naming the missing dataset
@@ -42,8 +42,8 @@ from matplotlib.ticker import (
 from scipy.optimize import linprog
 from scipy.spatial import HalfspaceIntersection
 
-from ..errors import ResultsFileError
-from .style import (
+from crawlsim.errors import ResultsFileError
+from crawlsim.plotting.style import (
     FAINT,
     REFERENCE,
     SLIP_COLOURS,
@@ -865,7 +865,7 @@ def sweep_figure(axes: dict, v0, status, title: str, *, units: Units | None = No
       v0 = 0 when v0 changes sign, and cells without a value hatched and marked by status.
 
     A log-spaced axis (constant ratio, `is_geometric`) is drawn on a log scale. ``marks`` (a
-    `crawlsim.stall.CurveMarks`, sweeps of one load) break the line at the loads where v0 jumps
+    `crawlsim.analysis.stall.CurveMarks`, sweeps of one load) break the line at the loads where v0 jumps
     (dotted verticals) instead of joining across them, and mark the stall load.
     """
     units = units or Units()
@@ -974,7 +974,7 @@ def _break_at_jumps(x, data, jump):
 
 
 def _sweep_line(ax, x, data, statuses, log, marks=None):
-    """v0 over one swept value, broken at its jumps. ``marks`` (`crawlsim.stall.curve_marks`, for a
+    """v0 over one swept value, broken at its jumps. ``marks`` (`crawlsim.analysis.stall.curve_marks`, for a
     swept load) gives the jumps where the uniqueness condition fails, located exactly, and the
     stall; without them the jumps are found from the samples (`jumps`)."""
     if marks is not None and marks.jumps:
@@ -1121,8 +1121,8 @@ def jump_walls(x, y, jump_x, jump_y, logs=(False, False)) -> list[np.ndarray]:
 
 
 def sweep_data_figure(data: dict, title: str | None = None) -> Figure:
-    """The sweep figure of a sweep file (`crawlsim.h5io.read_sweep`) or of a table
-    (`crawlsim.sweep.table_payload`): the columns are put back on the grid (points a shard did
+    """The sweep figure of a sweep file (`crawlsim.io.hdf5.read_sweep`) or of a table
+    (`crawlsim.study.sweep.table_payload`): the columns are put back on the grid (points a shard did
     not hold have no value and no status), the units come from the file (`style.units_of`)."""
     paths = list(data["paths"])
     shape = tuple(len(a) for a in data["axes"])
@@ -1141,7 +1141,7 @@ def sweep_data_figure(data: dict, title: str | None = None) -> Figure:
         title = f"{_sweep_name(data)}: average velocity over a sweep"
     marks = None
     if len(paths) == 1 and data.get("gait_yaml"):
-        from ..stall import curve_marks
+        from crawlsim.analysis.stall import curve_marks
 
         marks = curve_marks(data["gait_yaml"], paths[0], data["axes"][0], v0)
     return sweep_figure(dict(zip(paths, data["axes"])), v0, status, title,

@@ -1,4 +1,4 @@
-"""Figures of an optimisation file (`crawlsim.h5io.read_optimization`), in the shared style.
+"""Figures of an optimisation file (`crawlsim.io.hdf5.read_optimization`), in the shared style.
 
 * objective: how the search converged, the best value of the objective against the number of
   simulated points (a step line), over every evaluated value (faint dots), with the global search
@@ -17,8 +17,8 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
-from ..errors import ResultsFileError
-from .style import FAINT, REFERENCE, Units, colours, figure_style, label, new_figure, title, units_of
+from crawlsim.errors import ResultsFileError
+from crawlsim.plotting.style import FAINT, REFERENCE, Units, colours, figure_style, label, new_figure, title, units_of
 
 #: Labels of the optimisable quantities: (name, symbol, dimension of `style.DIMENSIONS`).
 QUANTITY_LABELS = {

@@ -8,12 +8,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..atomic import atomic_path
-from ..errors import ResultsFileError
-from ..h5io import read_attrs, read_optimization, read_results, read_sweep
-from . import CRAWLER_FIGURES, FIGURE_NAMES, OPTIMIZATION_FIGURES, SWEEP_FIGURE
-from .figures import FIGURES, sweep_data_figure
-from .style import DPI, FORMATS, FigureOptions, figure_style, user_style
+from crawlsim.errors import ResultsFileError
+from crawlsim.io.atomic import atomic_path
+from crawlsim.io.hdf5 import read_attrs, read_optimization, read_results, read_sweep
+from crawlsim.plotting import CRAWLER_FIGURES, FIGURE_NAMES, OPTIMIZATION_FIGURES, SWEEP_FIGURE
+from crawlsim.plotting.figures import FIGURES, sweep_data_figure
+from crawlsim.plotting.style import DPI, FORMATS, FigureOptions, figure_style, user_style
 
 
 def available_figures(results: dict) -> list[str]:
@@ -117,7 +117,7 @@ def _draw(results, kind, choices, only, coords) -> dict:
     if kind == "sweep":
         return {SWEEP_FIGURE: sweep_data_figure(results)}
     if kind == "optimization":
-        from .optimization import OPTIMIZATION_FIGURE_FUNCTIONS
+        from crawlsim.plotting.optimization import OPTIMIZATION_FIGURE_FUNCTIONS
 
         return {name: OPTIMIZATION_FIGURE_FUNCTIONS[name](results)
                 for name in ([only] if only is not None else choices)}
@@ -133,7 +133,7 @@ def optimization_figures(data: dict) -> tuple[str, ...]:
 
 def save_figure(fig, target, fmt: str | None = None, *, dpi: float | None = None,
                 figsize: tuple[float, float] | None = None) -> Path:
-    """Save ``fig`` atomically in the shared style (`crawlsim.atomic`) and close it.
+    """Save ``fig`` atomically in the shared style (`crawlsim.io.atomic`) and close it.
 
     ``dpi`` (default `style.DPI`) is the resolution of a PNG. Without ``figsize`` the file is
     cropped to the figure's content; with it (width, height in inches) the figure is laid out
@@ -162,7 +162,7 @@ def save_figure(fig, target, fmt: str | None = None, *, dpi: float | None = None
 
 def _metadata(fmt: str) -> dict:
     """Reproducible files: no creation date in PDF and SVG, and crawlsim named as creator."""
-    from .. import __version__
+    from crawlsim import __version__
 
     creator = f"crawlsim {__version__}"
     if fmt == "pdf":

@@ -1,0 +1,485 @@
+"""The energy ledger of a crawler's period: actuator work, dissipation, jump losses
+(docs/model.md §1-§4).
+
+**Sign convention.** The stress is positive in compression, ``sigma = K (L(t) - z)`` (§1), and
+the *actuator work* is the work done BY the actuators ON the body,
+
+    W = sum_i  oint sigma_i dL_i,
+
+positive when the actuators pay energy in: an actuator that lengthens against a compressed
+spring (``sigma_i > 0``, ``dL_i > 0``) does positive work. For a crawler that moves, W > 0.
+
+**The balance.** The elastic energy is ``E = sum_i sigma_i^2 / (2 k_i)``. Along the flow,
+
+    dE/dt = sum_i sigma_i (Ldot_i - zdot_i) = sigma . Ldot - sigma . zdot,
+
+and ``sigma . zdot = sigma . D xdot = (D^T sigma) . xdot = f . xdot``. A block moves forward
+only at ``f_j = mu_j^+`` and backward only at ``f_j = -mu_j^-`` (§1), so ``f . xdot =
+sum_j mu_j^+ (xdot_j)^+ + mu_j^- (xdot_j)^-``, the dissipation rate R(t, xdot) >= 0. Hence
+``W = D + E(end) - E(start)`` over any interval on which the motion is continuous.
+
+**Jumps.** Where a ``steps`` signal jumps (friction switched, or an actuator length that jumps),
+the stress can lie outside the new admissible set C(t+); the blocks then slip instantaneously,
+by the projection of the state onto K(t+) in the metric K^{-1} (§3, and `crawlsim.integrate.exact`). Let
+``sigma^-`` be the stress just before, ``sigma^tr = sigma^- + K (L(t+) - L(t-))`` the stress with
+the actuators moved and the blocks held (an actuator jump does the work ``E(sigma^tr) -
+E(sigma^-)`` along that elastic path), and ``sigma^+`` the projected stress, with slips ``dx``
+(the projection's multipliers) and ``z^+ - z^- = D dx``. Expanding the square,
+
+    E(sigma^tr) - E(sigma^+) = sigma^+ . D dx + 1/2 |sigma^tr - sigma^+|^2_{K^-1}
+                             = f^+ . dx + sum_i k_i (z^+_i - z^-_i)^2 / 2,
+
+since ``sigma^tr - sigma^+ = -K (z^+ - z^-)``. The first term is the friction work of the slip
+at the limits in force after the switch (complementarity, as in catch-up): crawlsim books it to
+the dissipation, as ``dissipation_per_period`` always has. The second is the **jump loss**: the
+elastic energy the instantaneous slip releases beyond any friction work, ``sum_i k_i
+(Delta z_i)^2 / 2 >= 0``. Over one period of the periodic regime E is periodic, so
+
+    W = D + J        (D: dissipation, J: jump losses),
+
+and `PeriodEnergy.residual` ``W - D - J`` is the balance residual (it equals ``E(end) -
+E(start)``, zero in the periodic regime, up to roundoff).
+
+**The exact integrator** (`crawlsim.integrate.exact`) moves on pieces with a fixed active set A, on which
+``w(u) = base + phi(u) @ Wc``, the slips ``Lambda_A(u) = lam0 - phi(u) @ Y`` and the signals
+``L(u) = phi(u) @ Lc``, ``mu(u) = phi(u) @ Mc`` are combinations of one basis ``phi = [1, u,
+cos 2 pi h u, sin 2 pi h u]`` of the cycle u = t/T (`crawlsim.model.offsets`). So on a piece
+
+    W_piece = sum_i int sigma_i(u) L_i'(u) du = sum (Sc * (P @ Lc')),
+    D_piece = sum_{r in A} int mu_r(u) lambda_r(u) du = -sum (Mc_A * (P @ Y')),
+
+with ``Sc = Wc + Lc K`` (plus ``base`` in the constant row) the coefficients of sigma, primes
+the exact derivative maps of the basis, and ``P[k, l] = int_{u0}^{u1} phi_k phi_l du`` the Gram
+matrix of the basis on the piece, in closed form (`gram`). The two are computed independently
+(D from the friction signals and the slip rates, W from the stresses and the actuators), so
+their balance checks the trajectory: the active rows sit at their friction limits. The
+integrals are exact up to roundoff: no quadrature, only the closed forms of ``int u^a``
+(a <= 2), ``int u^a cos``, ``int u^a sin`` (a <= 1) and of products of harmonics.
+
+**Catch-up** (`crawlsim.integrate.stepping`) moves on the grid by the elastic predictor (actuators to
+``L^{n+1}``, blocks held: ``sigma^tr = sigma^n + K (L^{n+1} - L^n)``) and the friction corrector
+(the K^{-1}-projection onto C(t_{n+1})), which is a jump of the kind above at every step. The
+consistent discrete ledger is therefore
+
+    W_h = sum_n (sigma^n + K Delta L^n / 2) . Delta L^n        (work along the predictor),
+    D_h = sum_n lambda^{n+1} . mu(t_{n+1})                      (``dissipation_per_period``),
+    J_h = sum_n sum_i k_i (z^{n+1}_i - z^n_i)^2 / 2,
+
+and ``W_h = D_h + J_h + E^G - E^0`` holds exactly for the scheme (each step is the jump identity
+above). Away from jumps ``Delta z = O(h)``, so J_h is the scheme's numerical dissipation, first
+order in h, and converges to the jump losses; W_h and D_h converge to W and D at first order.
+(The right-endpoint sum ``sum_n sigma^{n+1} . Delta L^n`` balances too, with
+``sum_n |sigma^{n+1} - sigma^n|^2_{K^-1} / 2`` in place of J_h, by ``|a|^2/2 - |b|^2/2 = <a, a -
+b> - |a - b|^2/2``; but at a jump of an actuator length that term also holds the elastic work of
+the jump, so it does not converge to the jump loss. The predictor form splits work and loss as
+the exact integrator does.)
+
+**The bound on the cost of transport.** Over a period of the periodic regime every block moves by
+the period displacement d. A block that ends d > 0 ahead slipped forward by at least d, each
+forward slip dissipating at least ``min_t mu_j^+(t)`` per length, so
+
+    D >= sum_j min_t mu_j^+(t) * d   (d > 0),      D >= sum_j min_t mu_j^-(t) * |d|   (d < 0),
+
+that is ``cost_of_transport >= cost_of_transport_bound``. The **efficiency** is their ratio,
+``bound / cost_of_transport`` in (0, 1]: 1 for a gait whose blocks only ever slip one way at
+constant friction (two-block inching). The minima are exact (`friction_minimum`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from crawlsim.gait.signals import Constant, Cosine, Fourier, PiecewiseLinear, Signal, Steps
+from crawlsim.integrate.stepping import PeriodRecord
+from crawlsim.model.offsets import TWO_PI, Basis, PiecewiseOffsets
+from crawlsim.model.process import SweepingProcess
+
+#: Below this value of omega delta the closed form of int s sin(omega s) ds is summed as its
+#: Taylor series (the closed form cancels there).
+_SERIES = 0.1
+
+
+@dataclass(frozen=True)
+class PeriodEnergy:
+    """The energy ledger of one period (module docstring); energies in force x length."""
+
+    work: float  # W: actuator work on the body, sum_i oint sigma_i dL_i
+    dissipation: float  # D: friction work, jump slips at the limits after the switch
+    jump_loss: float  # J: energy released at jumps beyond friction work
+    energy_start: float  # E at the period's start
+    energy_end: float  # E at its end
+    load_work: float = 0.0  # W_load: work against the loads, -oint F~ . dx (docs/model.md §6)
+
+    @property
+    def energy_change(self) -> float:
+        return self.energy_end - self.energy_start
+
+    @property
+    def residual(self) -> float:
+        """W - D - J - W_load: zero in the periodic regime (it is E(end) - E(start), up to
+        roundoff)."""
+        return self.work - self.dissipation - self.jump_loss - self.load_work
+
+    @property
+    def scale(self) -> float:
+        """The size of the ledger's terms, for relative residuals."""
+        return max(abs(self.work), abs(self.dissipation), abs(self.jump_loss),
+                   abs(self.load_work), self.energy_start, self.energy_end, 1e-300)
+
+
+@dataclass(frozen=True)
+class EnergyLedger:
+    """What a run reports of the limit period's energy (`ledger`)."""
+
+    actuator_work_per_period: float
+    dissipation_per_period: float
+    jump_loss_per_period: float
+    energy_balance_residual: float  # W - D - J - W_load on the limit period
+    cost_of_transport_bound: float | None  # force; None without a direction of motion or with loads
+    efficiency: float | None  # bound / cost of transport; with loads W_load / W
+    load_work_per_period: float | None = None  # W_load; None without loads
+
+
+# -- closed-form integrals -----------------------------------------------------------------------
+def _cos_integral(nu: np.ndarray, m: np.ndarray, delta: np.ndarray) -> np.ndarray:
+    """int_{m-delta}^{m+delta} cos(nu u) du = cos(nu m) 2 sin(nu delta)/nu (2 delta at nu = 0)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        c = np.where(nu == 0.0, 2.0 * delta, 2.0 * np.sin(nu * delta) / nu)
+    return np.cos(nu * m) * c
+
+
+def _sin_integral(nu: np.ndarray, m: np.ndarray, delta: np.ndarray) -> np.ndarray:
+    """int_{m-delta}^{m+delta} sin(nu u) du = sin(nu m) 2 sin(nu delta)/nu (0 at nu = 0)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        c = np.where(nu == 0.0, 2.0 * delta, 2.0 * np.sin(nu * delta) / nu)
+    return np.sin(nu * m) * c
+
+
+def _s_sin(omega: np.ndarray, delta: np.ndarray) -> np.ndarray:
+    """int_{-delta}^{delta} s sin(omega s) ds = 2 (sin x - x cos x)/omega^2, x = omega delta;
+    for small x the series 2 delta^2 x (1/3 - x^2/30 + x^4/840 - x^6/45360)."""
+    x = omega * delta
+    with np.errstate(divide="ignore", invalid="ignore"):
+        closed = 2.0 * (np.sin(x) - x * np.cos(x)) / (omega * omega)
+    x2 = x * x
+    series = 2.0 * delta * delta * x * (1 / 3 - x2 / 30 + x2 * x2 / 840 - x2 ** 3 / 45360)
+    return np.where(np.abs(x) < _SERIES, series, closed)
+
+
+def gram(basis: Basis, a, b) -> np.ndarray:
+    """P[k, l] = int_a^b phi_k(u) phi_l(u) du for the basis of `crawlsim.model.offsets`, in closed form:
+    (nb, nb) for scalars a, b, (K, nb, nb) for arrays of K intervals.
+
+    With m = (a + b)/2, delta = (b - a)/2 and u = m + s: ``int 1 = 2 delta``, ``int u = 2 delta
+    m``, ``int u^2 = 2 delta m^2 + 2 delta^3/3``; ``cos(w u) = cos w m cos w s - sin w m sin w s``
+    (and sin likewise), whose odd parts in s integrate to zero, so ``int u cos w u = m cos(w m)
+    C(w) - sin(w m) S(w)`` and ``int u sin w u = m sin(w m) C(w) + cos(w m) S(w)``, with
+    ``C(w) = 2 sin(w delta)/w`` and ``S(w) = int s sin w s``; products of harmonics are sums of
+    harmonics (``cos a cos b = (cos(a-b) + cos(a+b))/2`` and so on). Centring on m keeps every
+    term free of cancellation for short pieces: each entry is correct to a few ulps of the
+    integrand's size times the piece length.
+    """
+    scalar = np.ndim(a) == 0
+    a = np.atleast_1d(np.asarray(a, dtype=float))
+    b = np.atleast_1d(np.asarray(b, dtype=float))
+    m, delta = 0.5 * (a + b), 0.5 * (b - a)
+    nb, K = basis.size, a.size
+    P = np.zeros((K, nb, nb))
+    P[:, 0, 0] = 2.0 * delta
+    lin = 1 if basis.linear else None
+    if lin is not None:
+        P[:, 0, lin] = P[:, lin, 0] = 2.0 * delta * m
+        P[:, lin, lin] = 2.0 * delta * m * m + 2.0 * delta ** 3 / 3.0
+    H = basis.harmonics
+    if H:
+        h0 = basis.first_harmonic
+        w = TWO_PI * np.arange(1, H + 1)
+        ci = h0 + 2 * np.arange(H)  # columns of cos(w_h u)
+        si = ci + 1
+        m1, d1 = m[:, None], delta[:, None]  # (K, 1) against (H,)
+        P[:, 0, ci] = P[:, ci, 0] = _cos_integral(w, m1, d1)
+        P[:, 0, si] = P[:, si, 0] = _sin_integral(w, m1, d1)
+        if lin is not None:
+            cw = 2.0 * np.sin(w * d1) / w
+            ss = _s_sin(w, d1)
+            P[:, lin, ci] = P[:, ci, lin] = m1 * np.cos(w * m1) * cw - np.sin(w * m1) * ss
+            P[:, lin, si] = P[:, si, lin] = m1 * np.sin(w * m1) * cw + np.cos(w * m1) * ss
+        m2, d2 = m[:, None, None], delta[:, None, None]  # (K, 1, 1) against (H, H)
+        diff = w[:, None] - w[None, :]  # alpha - beta
+        total = w[:, None] + w[None, :]
+        cd, ct = _cos_integral(diff, m2, d2), _cos_integral(total, m2, d2)
+        # cos(alpha u) sin(beta u) = (sin((alpha + beta) u) - sin((alpha - beta) u)) / 2
+        cs = 0.5 * (_sin_integral(total, m2, d2) - _sin_integral(diff, m2, d2))
+        P[:, ci[:, None], ci[None, :]] = 0.5 * (cd + ct)
+        P[:, si[:, None], si[None, :]] = 0.5 * (cd - ct)
+        P[:, ci[:, None], si[None, :]] = cs
+        P[:, si[:, None], ci[None, :]] = np.swapaxes(cs, 1, 2)
+    return P[0] if scalar else P
+
+
+def elastic_energy(stress: np.ndarray, stiffness: np.ndarray) -> float:
+    """E = sum_i sigma_i^2 / (2 k_i)."""
+    return float(np.sum(stress * stress / (2.0 * stiffness)))
+
+
+def _identity(coef: np.ndarray) -> np.ndarray:
+    return coef
+
+
+# -- the exact integrator's ledger ---------------------------------------------------------------
+class ExactLedger:
+    """Accumulates `PeriodEnergy` over the pieces and jumps of one exact period (module
+    docstring); `crawlsim.integrate.exact.EventStepper` feeds it.
+
+    A piece contributes ``sum(P * G)`` with P its Gram matrix and ``G = Sc @ Lc'^T`` (work) or
+    ``-Mc_A @ Y'^T`` (dissipation), both (nb, nb): pieces keep only these, and the Gram matrices
+    of all pieces are formed at once at the end of the period.
+    """
+
+    def __init__(self, process: SweepingProcess):
+        pieces = process.offset_pieces
+        assert pieces is not None and process.stiffness is not None
+        self.basis: Basis = pieces.basis
+        self.k = np.asarray(process.stiffness, dtype=float)
+        self.N = process.blocks
+        self.pieces = pieces.pieces
+        # loads (docs/model.md §6): friction is mu cos(angle), and l = [-F~ ; F~] the load's
+        # share of the thresholds, F~ = F(u) + load_constant
+        self.scale = float(process.friction_scale)
+        self.constant = process.load_constant
+        # the signals themselves (links, then mu^+ and mu^- in the order of the rows of B),
+        # in the basis and on the pieces of c(t)
+        self.signals = PiecewiseOffsets(pieces.signals, _identity, pieces.edges)
+        # per piece of c: L, K L, dL/du and mu coefficients (a period revisits every piece)
+        self._cache: dict[int, tuple[np.ndarray, ...]] = {}
+        self.start()
+
+    def start(self) -> None:
+        self._bounds: list[tuple[float, float]] = []
+        self._products: list[np.ndarray] = []  # (2 or 3, nb, nb): work, dissipation, load work
+        self._jumps: dict[str, list[float]] = {"work": [], "dissipation": [], "jump_loss": [],
+                                               "load_work": []}
+
+    def _split(self, p: int) -> tuple[np.ndarray, ...]:
+        """(Lc, K Lc, Lc', Mc, lc) of piece p: Mc the friction of the 2N rows, lc the load's
+        share l = [-F~ ; F~] (zero without loads)."""
+        cached = self._cache.get(p)
+        if cached is None:
+            coef = self.signals.coefficients(p)
+            N = self.N
+            Lc = coef[:, :N - 1]
+            Mc = self.scale * coef[:, N - 1:3 * N - 1]
+            if self.constant is None:
+                lc = np.zeros_like(Mc)
+            else:
+                force = coef[:, 3 * N - 1:].copy()
+                force[0] += self.constant
+                lc = np.hstack([-force, force])
+            cached = (Lc, Lc * self.k, self.basis.derivative(Lc), Mc, lc)
+            if len(self._cache) > 256:
+                self._cache.clear()
+            self._cache[p] = cached
+        return cached
+
+    def piece(self, p: int, u0: float, u1: float, base: np.ndarray, Wc: np.ndarray,
+              active: np.ndarray, Y: np.ndarray) -> None:
+        """Add the piece [u0, u1] of piece p of c(t): w(u) = base + phi(u) @ Wc, slips of the
+        active rows Lambda(u) = lam0 - phi(u) @ Y."""
+        if not u1 > u0:
+            return
+        _, KLc, dLc, Mc, lc = self._split(p)
+        Sc = Wc + KLc
+        Sc[0] = Sc[0] + base
+        loaded = self.constant is not None  # a third product only with loads (§6)
+        G = np.empty((3 if loaded else 2,) + (self.basis.size,) * 2)
+        G[0] = Sc @ dLc.T
+        dY = self.basis.derivative(Y).T
+        G[1] = -(Mc[:, active] @ dY) if active.size else 0.0
+        if loaded:
+            G[2] = -(lc[:, active] @ dY) if active.size else 0.0
+        self._bounds.append((u0, u1))
+        self._products.append(G)
+
+    def _signals_at(self, u: float, p: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        Lc, _, _, Mc, lc = self._split(p)
+        phi = self.basis.values(u)[0]
+        return phi @ Lc, phi @ Mc, phi @ lc
+
+    def jump(self, p_before: int, u: float, w_before: np.ndarray, w_after: np.ndarray,
+             multipliers: np.ndarray) -> None:
+        """Add the jump at the end u of piece ``p_before`` (at u = 1 the signals after it are
+        those of u = 0): the actuators' jump work, the slip's friction work and the jump loss."""
+        p_after = (p_before + 1) % self.pieces
+        L_before, _, _ = self._signals_at(u, p_before)
+        L_after, mu_after, load_after = self._signals_at(
+            u if p_before + 1 < self.pieces else 0.0, p_after)
+        dL = L_after - L_before
+        sigma = w_before + self.k * L_before
+        self._jumps["work"].append(float(np.sum((sigma + 0.5 * self.k * dL) * dL)))
+        self._jumps["dissipation"].append(float(multipliers @ mu_after))
+        self._jumps["load_work"].append(float(multipliers @ load_after))
+        dw = w_after - w_before
+        self._jumps["jump_loss"].append(float(np.sum(dw * dw / (2.0 * self.k))))
+
+    def finish(self, w_start: np.ndarray, w_end: np.ndarray) -> PeriodEnergy:
+        """The period's ledger; both ends are at u = 0 of the cycle (L(1) = L(0))."""
+        work, dissipation = list(self._jumps["work"]), list(self._jumps["dissipation"])
+        load_work = list(self._jumps["load_work"])
+        if self._bounds:
+            bounds = np.array(self._bounds)
+            P = gram(self.basis, bounds[:, 0], bounds[:, 1])  # (K, nb, nb)
+            terms = np.einsum("kab,kjab->jk", P, np.array(self._products))
+            work.extend(terms[0].tolist())
+            dissipation.extend(terms[1].tolist())
+            if len(terms) > 2:
+                load_work.extend(terms[2].tolist())
+        L0, _, _ = self._signals_at(0.0, 0)
+        return PeriodEnergy(
+            math.fsum(work), math.fsum(dissipation), math.fsum(self._jumps["jump_loss"]),
+            elastic_energy(w_start + self.k * L0, self.k),
+            elastic_energy(w_end + self.k * L0, self.k), math.fsum(load_work))
+
+
+# -- a period's ledger, either integrator ----------------------------------------------------------
+def catch_up_energy(process: SweepingProcess, record: PeriodRecord) -> PeriodEnergy:
+    """The discrete ledger of a catch-up period (module docstring): W_h along the elastic
+    predictor, D_h with the friction at the step's end, J_h = sum_n sum_i k_i (Delta z_i)^2/2."""
+    k, KL, lengths, friction = (process.stiffness, process.stress_offset, process.lengths,
+                                process.friction)
+    assert k is not None and KL is not None and lengths is not None and friction is not None
+    sigma = record.w + KL
+    dL = np.diff(lengths, axis=0)
+    work = math.fsum(np.sum((sigma[:-1] + 0.5 * k * dL) * dL, axis=1))
+    dissipation = period_dissipation(process, record)
+    dw = np.diff(record.w, axis=0)
+    loss = math.fsum(np.sum(dw * dw / (2.0 * k), axis=1))
+    load_work = 0.0 if process.load is None else math.fsum(
+        np.sum(record.multipliers * process.load[1:], axis=1))
+    return PeriodEnergy(work, dissipation, loss, elastic_energy(sigma[0], k),
+                        elastic_energy(sigma[-1], k), load_work)
+
+
+def period_energy(process: SweepingProcess, record: PeriodRecord) -> PeriodEnergy | None:
+    """The ledger of one period: the exact integrator's (carried by its record), else the
+    catch-up ledger on the grid; None for a generic sweeping process."""
+    if not process.is_crawler:
+        return None
+    energy = getattr(record, "energy", None)
+    return energy if energy is not None else catch_up_energy(process, record)
+
+
+def period_dissipation(process: SweepingProcess, record: PeriodRecord) -> float:
+    """The friction dissipation of one period (exact for the exact integrator, whose record
+    carries it; the grid sum ``sum_n lambda^{n+1} . mu(t_{n+1})`` for catch-up)."""
+    energy = getattr(record, "energy", None)
+    if energy is not None:
+        return float(energy.dissipation)
+    assert process.friction is not None
+    return float(np.sum(record.multipliers * process.friction[1:]))
+
+
+# -- friction minima and the bound ---------------------------------------------------------------
+def _trig_minimum(mean: float, a: np.ndarray, b: np.ndarray) -> float:
+    """min over v of mean + sum_n a_n cos(n v) + b_n sin(n v).
+
+    The minimum is at a zero of the derivative ``sum_n n (b_n cos n v - a_n sin n v)``; with
+    ``z = e^{iv}`` that is ``z^{-H} p(z)`` for a polynomial p of degree 2H, whose roots on the unit
+    circle give every critical point (numpy's companion-matrix roots, polished by Newton steps
+    on the derivative). Every candidate value is a value of the function, so the result is
+    never below the true minimum, and it is the minimum up to roundoff.
+    """
+    H = len(a)
+    n = np.arange(1, H + 1)
+
+    def f(v):
+        v = np.atleast_1d(v)[:, None]
+        return mean + np.cos(n * v) @ a + np.sin(n * v) @ b
+
+    # derivative coefficients: n (b_n cos n v - a_n sin n v) = sum_n c_n z^n + conj(c_n) z^-n,
+    # c_n = n (b_n + i a_n) / 2
+    # (scaled by the largest coefficient, which moves no critical point: subnormal coefficients
+    # would overflow the companion matrix)
+    size = float(np.max(np.abs(np.concatenate([a, b])), initial=0.0)) or 1.0
+    c = n * (b / size + 1j * a / size) / 2.0
+    candidates: list[np.ndarray] = [np.linspace(0.0, TWO_PI, 8 * H + 1)]
+    # harmonics below roundoff of the largest only make the companion matrix singular: the
+    # critical points are those of the rest, polished below on the whole derivative
+    big = np.flatnonzero(np.abs(c) > 1e-13 * np.max(np.abs(c), initial=0.0))
+    if big.size:
+        K = int(n[big[-1]])
+        poly = np.zeros(2 * K + 1, dtype=complex)  # z^K * derivative, ascending powers 0..2K
+        poly[K + n[:K]] = c[:K]
+        poly[K - n[:K]] = np.conj(c[:K])
+        roots = np.roots(poly[::-1])
+        v = np.angle(roots)
+        for _ in range(3):  # Newton on the derivative
+            d1 = -np.sin(n * v[:, None]) @ (n * a) + np.cos(n * v[:, None]) @ (n * b)
+            d2 = -np.cos(n * v[:, None]) @ (n * n * a) - np.sin(n * v[:, None]) @ (n * n * b)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                step = np.where(d2 != 0.0, d1 / d2, 0.0)
+            v = v - np.where(np.abs(step) < 0.1, step, 0.0)
+        candidates.append(v)
+    return float(np.min(f(np.concatenate(candidates))))
+
+
+def friction_minimum(signal: Signal) -> float:
+    """min over the cycle of a friction signal, exactly: the least value of a constant, a
+    ``steps`` or a ``piecewise-linear`` signal (linear pieces attain their minimum at a knot),
+    ``mean - |amplitude|`` for a cosine, and the critical points of a Fourier series."""
+    if isinstance(signal, Constant):
+        return signal.value
+    if isinstance(signal, (Steps, PiecewiseLinear)):
+        return float(min(signal.values))
+    if isinstance(signal, Cosine):
+        return signal.mean - abs(signal.amplitude)
+    if isinstance(signal, Fourier):
+        H = signal.harmonics
+        a = np.zeros(H)
+        b = np.zeros(H)
+        a[:len(signal.cos)] = signal.cos
+        b[:len(signal.sin)] = signal.sin
+        return signal.mean if H == 0 else _trig_minimum(signal.mean, a, b)
+    raise TypeError(f"no exact minimum for the signal {signal!r}")  # pragma: no cover
+
+
+def friction_minima(process: SweepingProcess) -> tuple[np.ndarray, np.ndarray]:
+    """(min_t mu_j^+(t), min_t mu_j^-(t)) for every block j of a compiled crawler."""
+    assert process.offset_pieces is not None
+    N = process.blocks
+    signals = process.offset_pieces.signals
+    forward = np.array([friction_minimum(s) for s in signals[N - 1:2 * N - 1]])
+    backward = np.array([friction_minimum(s) for s in signals[2 * N - 1:3 * N - 1]])
+    return process.friction_scale * forward, process.friction_scale * backward
+
+
+def cost_of_transport_bound(process: SweepingProcess, displacement: float) -> float | None:
+    """The least cost of transport of any gait with this friction moving this way (module
+    docstring): sum_j min_t mu_j^+ for d > 0, sum_j min_t mu_j^- for d < 0; None for d = 0."""
+    if displacement == 0.0 or not math.isfinite(displacement):
+        return None
+    forward, backward = friction_minima(process)
+    return float(math.fsum(forward if displacement > 0 else backward))
+
+
+def ledger(process: SweepingProcess, record: PeriodRecord, displacement: float,
+           cost_of_transport: float | None) -> EnergyLedger | None:
+    """The ledger of the limit period ``record`` and the bound on the cost of transport; None
+    for a generic sweeping process."""
+    energy = period_energy(process, record)
+    if energy is None:
+        return None
+    if process.load is not None:
+        # with loads (docs/model.md §6): the efficiency is the share of the actuator work that
+        # goes into the load, and the friction-only bound does not bound the cost of transport
+        efficiency = energy.load_work / energy.work if energy.work > 0 else None
+        return EnergyLedger(energy.work, energy.dissipation, energy.jump_loss, energy.residual,
+                            None, efficiency, energy.load_work)
+    bound = cost_of_transport_bound(process, displacement)
+    efficiency = None
+    if bound is not None and cost_of_transport is not None and cost_of_transport > 0:
+        efficiency = bound / cost_of_transport
+    return EnergyLedger(energy.work, energy.dissipation, energy.jump_loss, energy.residual,
+                        bound, efficiency)

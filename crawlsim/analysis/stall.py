@@ -1,0 +1,414 @@
+"""The stall force and the steepest climbable slope (docs/model.md §6).
+
+v0 as a function of a load is only piecewise smooth: it can reach 0 smoothly (the stroke no
+longer exceeds the elastic range), stay identically 0 on an interval of loads, and jump across 0
+where the shifted thresholds violate the uniqueness condition. So the stall load is defined, and
+found, as the boundary of the set of loads at which the crawler still moves its way:
+
+    s* = sup { s : sign(v0(s')) = sign(v0(s0)) and v0(s') != 0 for all s' between s0 and s },
+
+varying the load from the gait's value s0 in the direction that opposes the motion. A scan in
+steps of `SCAN_STEPS`-ths of the load's natural range brackets the first load where the crawler
+stops moving its way (or where the body can no longer hold, or the gait is refused); bisection
+on the same predicate then shrinks the bracket to `RELATIVE_WIDTH` of the range. The predicate
+is a sign, so bisection converges whatever v0 does inside the bracket: a smooth zero, a jump, or
+an interval of v0 = 0 all leave a boundary point. The cause is read off the final bracket's
+moving side: v0 within `SMOOTH` of its starting size there is a smooth zero, otherwise a jump,
+and for a jump the subset J whose shifted uniqueness sum (docs/model.md §3, §6) vanishes at the
+stall load is named.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass, field
+from enum import StrEnum
+from typing import Any
+
+import numpy as np
+
+from crawlsim.errors import CertificateError, GaitError, InputError
+from crawlsim.gait.document import Gait, gait_from_document
+from crawlsim.gait.signals import evaluate_many
+
+SCAN_STEPS = 64
+"""Scan steps across the load's natural range (the loaded block's friction interval, or 90
+degrees); beyond it the steps grow by 5 % each."""
+
+RELATIVE_WIDTH = 1e-9
+"""The final bracket's width relative to the natural range. Within about 1e-11 of a load where the
+shifted uniqueness condition fails the active normals are nearly dependent, and a step's
+certificate can fail at roundoff (`CertificateError`); such a load counts as not moving, which
+moves the boundary by no more than that distance."""
+
+SMOOTH = 1e-6
+"""A v0 below this fraction of |v0(s0)| on the moving side of the final bracket is a smooth zero."""
+
+
+class StallCause(StrEnum):
+    """Why v0 stops having its sign at the stall load."""
+
+    SMOOTH_ZERO = "smooth-zero"  # v0 reaches 0 continuously
+    JUMP = "jump"  # v0 jumps across 0 (or to 0) where the shifted uniqueness condition fails
+    HOLD = "hold"  # the body can no longer hold its loads before v0 reaches 0 (docs/model.md §6)
+
+
+@dataclass(frozen=True)
+class StallResult:
+    """The stall load and how it was found."""
+
+    quantity: str  # "force" or "slope"
+    path: str  # the document path varied
+    value: float  # the stall load (force, or degrees)
+    bracket: tuple[float, float]  # moving side, stopped side
+    cause: StallCause
+    v0_start: float  # v0 at the gait's own load
+    v0_moving: float  # v0 at the bracket's moving side
+    v0_stopped: float | None  # v0 at the stopped side (None where the gait is refused)
+    start: float  # the gait's own load
+    evaluations: int
+    subset: tuple[int, ...] | None = None  # J (1-based blocks) of a jump, when one is found
+    reason: str | None = None  # the refusal at the stopped side, if any
+    unit: str = ""
+
+    @property
+    def error_estimate(self) -> float:
+        """Half the bracket: the stall load is within it of ``value``."""
+        return abs(self.bracket[1] - self.bracket[0]) / 2
+
+    def summary(self) -> dict[str, Any]:
+        named = "steepest_slope" if self.quantity == "slope" else "stall_force"
+        return {"quantity": self.quantity, "path": self.path, "stall": self.value, named: self.value,
+                "error_estimate": self.error_estimate, "bracket": list(self.bracket),
+                "cause": str(self.cause), "start": self.start, "v0_start": self.v0_start,
+                "v0_moving_side": self.v0_moving, "v0_stopped_side": self.v0_stopped,
+                "subset": None if self.subset is None else list(self.subset),
+                "reason": self.reason, "unit": self.unit, "evaluations": self.evaluations}
+
+
+@dataclass
+class _Probe:
+    gait: Gait
+    path: str
+    evaluations: int = 0
+    cache: dict[float, tuple[float | None, str | None, bool]] = field(default_factory=dict)
+
+    def __call__(self, s: float) -> tuple[float | None, str | None, bool]:
+        """(v0, refusal reason, refused because the body cannot hold) at load s."""
+        if s in self.cache:
+            return self.cache[s]
+        from crawlsim.api import run
+
+        self.evaluations += 1
+        try:
+            gait = self.gait.replace(self.path, float(s))
+        except GaitError as error:
+            out: tuple[float | None, str | None, bool] = (
+                None, str(error), "too large for any quasistatic motion" in str(error))
+        else:
+            try:
+                result = run(gait, history=False)
+            except CertificateError as error:  # at roundoff of a uniqueness failure (RELATIVE_WIDTH)
+                out = (None, str(error), False)
+                self.cache[s] = out
+                return out
+            if not result.converged:
+                raise InputError(self.gait.source, self.path,
+                                 f"the run at {self.path} = {s:.12g} did not converge within "
+                                 f"max_periods; raise --max-periods")
+            out = (result.v0, None, False)
+        self.cache[s] = out
+        return out
+
+
+def _natural_range(gait: Gait, quantity: str, path: str) -> float:
+    """The size of the load's range: 90 degrees, or the friction interval mu+ + mu- at t = 0 of
+    the loaded block (its mean over the blocks for one force on every block)."""
+    if quantity == "slope":
+        return 90.0
+    zero = np.zeros(1)
+    width = gait.mu_plus(zero)[0] + gait.mu_minus(zero)[0]
+    last = path.rsplit(".", 1)[-1]
+    return float(width[int(last)]) if last.isdigit() and int(last) < len(width) \
+        else float(np.mean(width))
+
+
+def stall(gait: Gait | str, *, force: str | None = None, slope: bool = False) -> StallResult:
+    """The stall force (``force=PATH``, a number in the ``loads:`` block such as
+    ``"loads.force.0"``) or the steepest slope the gait still climbs (``slope=True``, varying
+    ``loads.slope.angle``, in degrees), with its bracket and cause (module docstring)."""
+    from crawlsim.api import _as_spec
+
+    spec = _as_spec(gait)
+    if not isinstance(spec, Gait):
+        raise InputError(spec.source, "kind", "stall needs a crawler gait, not a sweeping process")
+    if (force is None) == (not slope):
+        raise InputError(spec.source, "", "give exactly one of force=PATH and slope=True")
+    if slope:
+        if spec.loads is None or spec.loads.weights is None:
+            raise InputError(spec.source, "loads.slope",
+                             "the slope search needs the blocks' weights: add "
+                             "'loads: {slope: {angle: 0.0, weight: W}}' to the gait")
+        path, quantity = "loads.slope.angle", "slope"
+    else:
+        assert force is not None
+        path, quantity = force, "force"
+        if not path.startswith("loads.force"):
+            raise InputError(spec.source, path, "expected a path into loads.force, such as "
+                                                "loads.force.0 (the force on block 1) or "
+                                                "loads.force (one force on every block)")
+        from crawlsim.gait.docpaths import resolve_path
+
+        loads = spec.document.get("loads") or {}
+        if "force" not in loads:  # no force yet: start from zero forces on every block
+            zero: Any = 0.0 if path == "loads.force" else [0.0] * spec.blocks
+            document = {**spec.document, "loads": {**loads, "force": zero}}
+            rebuilt = gait_from_document(document, spec.source, source_text=spec.source_text,
+                                         default_name=spec.name)
+            assert isinstance(rebuilt, Gait)
+            spec = rebuilt
+
+        found = resolve_path(spec.document, path, spec.source)
+        if len(found) != 1:
+            raise InputError(spec.source, path, "expected a path to one number (no '*')")
+    from crawlsim.gait.docpaths import resolve_path
+
+    keys = resolve_path(spec.document, path, spec.source)[0]
+    node: Any = spec.document
+    for key in keys:
+        node = node[key]
+    if not isinstance(node, (int, float)) or isinstance(node, bool):
+        raise InputError(spec.source, path, f"expected a number at {path}, got {node!r}: the "
+                                            "stall search varies a constant load")
+    s0 = float(node)
+    probe = _Probe(spec, path)
+    v_start, why, _ = probe(s0)
+    if v_start is None:  # pragma: no cover - the gait itself was validated
+        raise InputError(spec.source, path, why or "refused")
+    scale = _natural_range(spec, quantity, path)
+    tolerance_v = 1e-9 * abs(v_start)
+    if not abs(v_start) > 1e-12 * max(scale, 1.0):
+        raise InputError(spec.source, path, f"the gait does not move at {path} = {s0:g} (v0 = "
+                                            f"{v_start:.3g}): there is no motion to stall")
+    sign = math.copysign(1.0, v_start)
+    # a forward force helps forward motion; a steeper slope hinders climbing
+    direction = -sign if quantity == "force" else sign
+
+    def moving(s: float) -> bool:
+        v, _, _ = probe(s)
+        return v is not None and v * sign > tolerance_v
+
+    step = scale / SCAN_STEPS
+    lo, hi = s0, None
+    limit = 90.0 if quantity == "slope" else math.inf
+    offset = 0.0
+    for k in itertools.count(1):
+        # uniform steps for SCAN_STEPS, then 5 % longer each: a force on one block of many may
+        # have to reach the whole body's friction
+        offset += step * (1.05 ** max(0, k - SCAN_STEPS))
+        s = s0 + direction * offset
+        if abs(s) >= limit:
+            s = direction * (limit - 1e-9)
+            if not moving(s):
+                hi = s
+            break
+        if not moving(s):
+            hi = s
+            break
+        lo = s
+        if k > 10 * SCAN_STEPS:  # pragma: no cover - the body cannot hold past the friction
+            break
+    if hi is None:
+        raise InputError(spec.source, path, f"the gait still moves at {path} = {lo:.12g}, the "
+                                            "end of the range searched: no stall load found")
+    width = RELATIVE_WIDTH * scale
+    while abs(hi - lo) > width:
+        middle = 0.5 * (lo + hi)
+        if middle in (lo, hi):
+            break
+        if moving(middle):
+            lo = middle
+        else:
+            hi = middle
+    v_lo, _, _ = probe(lo)
+    v_hi, reason, no_hold = probe(hi)
+    assert v_lo is not None
+    subset = None
+    value = 0.5 * (lo + hi)
+    if no_hold:
+        cause = StallCause.HOLD
+    elif abs(v_lo) <= SMOOTH * abs(v_start):
+        cause = StallCause.SMOOTH_ZERO
+        # v0 is smooth here: the predicate stopped where |v0| fell to its tolerance, so the zero
+        # is the secant root through lo and a point farther back on the moving side
+        back = lo - direction * max(1e3 * abs(hi - lo), 1e-6 * scale)
+        v_back, _, _ = probe(back)
+        if v_back is not None and v_back * sign > abs(v_lo) and v_back != v_lo:
+            root = lo - v_lo * (lo - back) / (v_lo - v_back)
+            if abs(root - lo) <= 1e3 * abs(hi - lo):
+                value = root
+                hi = lo + 2 * (root - lo) if abs(root - lo) > abs(hi - lo) / 2 else hi
+    else:
+        cause = StallCause.JUMP
+        subset = _vanishing_subset(spec.replace(path, lo))
+    unit = "degree" if quantity == "slope" else spec.units.suffix("force").strip()
+    return StallResult(quantity, path, value, (lo, hi), cause, v_start, v_lo, v_hi,
+                       s0, probe.evaluations, subset, reason, unit)
+
+
+def _vanishing_subset(gait: Gait) -> tuple[int, ...] | None:
+    """The subset J whose shifted uniqueness sum g~_J is nearest to 0 over the cycle's samples
+    (docs/model.md §3, §6); None for more than 16 blocks or when none is near 0."""
+    N = gait.blocks
+    if N > 16:
+        return None
+    plus, minus = gait.thresholds()
+    u = np.linspace(0.0, 1.0, 33)[:-1]
+    a, b = evaluate_many(plus, u), evaluate_many(minus, u)  # (samples, N)
+    scale = float(np.max(np.sum(np.abs(a) + np.abs(b), axis=1)))
+    best, best_value = None, math.inf
+    for mask in range(2 ** N):
+        inside = np.array([(mask >> j) & 1 for j in range(N)], dtype=bool)
+        g = a[:, inside].sum(axis=1) - b[:, ~inside].sum(axis=1)
+        value = float(np.min(np.abs(g)))
+        if value < best_value:
+            best, best_value = inside, value
+    if best is None or best_value > 1e-6 * scale:
+        return None
+    return tuple(int(j) + 1 for j in np.nonzero(best)[0])
+
+
+@dataclass(frozen=True)
+class CurveMarks:
+    """What a force-velocity (or slope-velocity) sweep figure marks: the loads between swept
+    points where v0 jumps (the shifted uniqueness condition fails on the whole cycle), and the
+    stall load with its cause."""
+
+    jumps: tuple[float, ...]
+    stall: float | None
+    cause: StallCause | None
+    label: str  # "stall force" or "steepest slope"
+
+
+def curve_marks(gait_yaml: str, path: str, values, v0) -> CurveMarks | None:
+    """The marks of a sweep of one load path (``loads.force...`` or ``loads.slope.angle``), or
+    None for any other sweep (or when the gait cannot be rebuilt).
+
+    Jumps: between consecutive swept values, a subset J whose shifted uniqueness sum g~_J changes
+    sign at every sample time of the cycle (N <= 12) is bisected to the load where it vanishes
+    (to 1e-12 of the interval); there v0 can jump, and the curve is broken there instead of
+    interpolated. Stall: from the swept value nearest the gait's own load, the first interval
+    where v0 loses that point's sign; at a jump inside it the stall is the jump (cause jump),
+    otherwise the linear interpolation of the zero (cause smooth-zero, to the grid's resolution).
+    """
+    import yaml
+
+    from crawlsim.gait.document import gait_from_document
+
+    if not (path.startswith("loads.force") or path == "loads.slope.angle"):
+        return None
+    try:
+        document = yaml.safe_load(gait_yaml)
+        gait = gait_from_document(document, "<sweep>")
+    except Exception:  # a figure is drawn without marks rather than not at all
+        return None
+    if not isinstance(gait, Gait) or gait.blocks > 12:
+        return None
+    x = np.asarray(values, dtype=float)
+    v = np.asarray(v0, dtype=float)
+    label = "steepest slope" if path == "loads.slope.angle" else "stall force"
+
+    u = np.linspace(0.0, 1.0, 17)[:-1]
+    N = gait.blocks
+    masks = np.array([[(m >> j) & 1 for j in range(N)] for m in range(1, 2 ** N - 1)], dtype=bool)
+
+    def sums(s: float) -> np.ndarray | None:
+        """g~_J at the sample times (subsets, samples), or None where the gait is refused for
+        another reason than uniqueness."""
+        try:
+            g = gait.replace(path, float(s))
+        except GaitError as error:
+            if "uniqueness" not in str(error):
+                return None
+            g = None
+        if g is None:  # exactly on a uniqueness failure: rebuild the thresholds without checks
+            return np.zeros((len(masks), len(u)))
+        plus, minus = g.thresholds()
+        a, b = evaluate_many(plus, u), evaluate_many(minus, u)
+        return masks.astype(float) @ a.T - (~masks).astype(float) @ b.T
+
+    jumps: list[float] = []
+    order = np.argsort(x)
+    xs = x[order]
+    table = [sums(s) for s in xs]
+    for s, g in zip(xs, table):  # a swept value exactly on a uniqueness failure
+        if g is not None and np.any(np.all(g == 0.0, axis=1)):
+            jumps.append(float(s))
+    for left, right, previous, current in zip(xs[:-1], xs[1:], table[:-1], table[1:]):
+        if previous is not None and current is not None:
+            flips = np.all(np.sign(previous) * np.sign(current) < 0, axis=1)
+            for k in np.flatnonzero(flips):
+                lo, hi, g_lo = float(left), float(right), previous[k, 0]
+                for _ in range(60):
+                    mid = 0.5 * (lo + hi)
+                    g_mid = sums(mid)
+                    if g_mid is None:
+                        break
+                    if np.sign(g_mid[k, 0]) == np.sign(g_lo):
+                        lo = mid
+                    else:
+                        hi = mid
+                    if hi - lo <= 1e-12 * (right - left):
+                        break
+                jumps.append(0.5 * (lo + hi))
+    jumps = sorted(set(jumps))
+
+    stall_at, cause = None, None
+    keys = resolve_path_value(gait.document, path)
+    finite = np.isfinite(v)
+    if keys is not None and np.any(finite):
+        index = np.flatnonzero(finite)
+        start = int(index[np.argmin(np.abs(x[index] - keys))])
+        sign = np.sign(v[start])
+        if sign != 0:
+            # walk away from the start, either way, to where v0 first loses its sign
+            for direction in (1, -1):
+                i = start
+                while 0 <= i + direction < len(x):
+                    j = i + direction
+                    if not np.isfinite(v[j]) or np.sign(v[j]) != sign:
+                        inside = [s for s in jumps if 0 < (s - x[i]) / (x[j] - x[i]) <= 1]
+                        if inside:
+                            nearest = int(np.argmin([abs(s - x[i]) for s in inside]))
+                            stall_at, cause = inside[nearest], StallCause.JUMP
+                        elif np.isfinite(v[j]):
+                            stall_at = float(x[i] + (x[j] - x[i]) * v[i] / (v[i] - v[j]))
+                            behind = i - direction
+                            if v[j] == 0.0 and 0 <= behind < len(x) and np.isfinite(v[behind]) \
+                                    and v[behind] != v[i]:
+                                # v0 = 0 on an interval from the zero on: extrapolate the
+                                # secant of the moving side instead, within (x_i, x_j]
+                                root = float(x[i] - v[i] * (x[i] - x[behind])
+                                             / (v[i] - v[behind]))
+                                if 0 < (root - x[i]) / (x[j] - x[i]) <= 1:
+                                    stall_at = root
+                            cause = StallCause.SMOOTH_ZERO
+                        break
+                    i = j
+                if stall_at is not None:
+                    break
+    return CurveMarks(tuple(jumps), stall_at, cause, label)
+
+
+def resolve_path_value(document: dict, path: str) -> float | None:
+    """The number at a dotted path of a document, or None."""
+    from crawlsim.gait.docpaths import path_keys
+
+    node: Any = document
+    try:
+        for key in path_keys(path):
+            node = node[key]
+    except (KeyError, IndexError, TypeError):
+        return None
+    return float(node) if isinstance(node, (int, float)) and not isinstance(node, bool) else None

@@ -1,0 +1,152 @@
+"""Dotted paths into a gait document: the one syntax of ``--sweep PATH=...`` and `Gait.replace`.
+
+A path is keys joined by dots: mapping keys, integer list indices, and ``*`` for every element of
+a list (``links.*.amplitude``, ``friction.1.backward``, ``period``). Every key but the last must
+exist; the last may be an optional key the document leaves out (a signal's ``phase``), and the
+schema then decides whether it is allowed. A path names numbers (or other scalars), never a
+whole mapping or list.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any
+
+from crawlsim.errors import GaitError
+
+if TYPE_CHECKING:
+    from crawlsim.gait.document import Gait, ProcessSpec
+
+Key = str | int
+
+
+def path_keys(path: str) -> tuple[Key, ...]:
+    """The keys of a dotted path, list indices as integers."""
+    return tuple(int(p) if p.isdigit() else p for p in path.split("."))
+
+
+def resolve_path(document: dict, path: Any, source: str) -> list[tuple[Key, ...]]:
+    """The concrete key tuples ``path`` names in ``document`` (``*`` expanded).
+
+    ``path`` is the dotted string or anything with a ``path`` attribute (a sweep `Axis`). A path
+    that does not fit the document is a `GaitError` naming ``source``, the path and why.
+    """
+    path = str(getattr(path, "path", path))
+    if not path or any(part == "" for part in path.split(".")):
+        raise GaitError(source, path, "empty key in the dotted path")
+    found: list[tuple[tuple[Key, ...], Any]] = [((), document)]
+    keys = path_keys(path)
+    for depth, key in enumerate(keys):
+        last = depth == len(keys) - 1
+        nxt: list[tuple[tuple[Key, ...], Any]] = []
+        for prefix, node in found:
+            where = ".".join(str(k) for k in prefix) or "the document"
+            if key == "*":
+                if not isinstance(node, list):
+                    raise GaitError(source, path, f"'*' needs a list, but {where} is "
+                                                  f"{_kind(node)}")
+                nxt.extend((prefix + (i,), item) for i, item in enumerate(node))
+            elif isinstance(node, list):
+                if not isinstance(key, int):
+                    hint = (f"; use {'.'.join(map(str, prefix))}.*.{key} or an index 0.."
+                            f"{len(node) - 1}")
+                    raise GaitError(source, path,
+                                    f"{where} is a list, so the key {key!r} must be an index "
+                                    f"or '*'{hint}")
+                if not 0 <= key < len(node):
+                    raise GaitError(source, path, f"index {key} is out of range: {where} "
+                                                  f"has {len(node)} elements (0..{len(node) - 1})")
+                nxt.append((prefix + (key,), node[key]))
+            elif isinstance(node, dict):
+                if str(key) not in node and not last:
+                    raise GaitError(source, path, f"{where} has no key {str(key)!r} "
+                                                  f"(keys: {', '.join(map(str, node))})")
+                nxt.append((prefix + (str(key),), node.get(str(key))))
+            else:
+                raise GaitError(source, path, f"{where} is {_kind(node)}, it has no key "
+                                              f"{key!r}")
+        found = nxt
+    for prefix, node in found:
+        if isinstance(node, (dict, list)):
+            raise GaitError(source, path, f"{'.'.join(map(str, prefix))} is "
+                                          f"{_kind(node)}, not a number: sweep a number "
+                                          "inside it")
+    return [prefix for prefix, _ in found]
+
+
+def _kind(node: Any) -> str:
+    if isinstance(node, dict):
+        return "a mapping"
+    if isinstance(node, list):
+        return "a list"
+    return f"the value {node!r}"
+
+
+def set_value(document: dict, keys: Sequence[Key], value: Any) -> None:
+    """Set ``value`` at the concrete key tuple ``keys`` of ``document``, in place.
+
+    An integral value replacing an integer stays an integer (``blocks``, ``steps_per_period``),
+    so that the schema, which wants integers there, accepts a swept 3.0.
+    """
+    node: Any = document
+    for key in keys[:-1]:
+        node = node[key]
+    old = node.get(keys[-1]) if isinstance(node, dict) else node[keys[-1]]
+    node[keys[-1]] = typed(value, old)
+
+
+def typed(value: Any, old: Any) -> Any:
+    """``value``, as an int when it is integral and replaces an int."""
+    if (isinstance(old, int) and not isinstance(old, bool) and isinstance(value, (int, float))
+            and not isinstance(value, bool) and float(value).is_integer()):
+        return int(value)
+    return value
+
+
+def changes_of(args: Sequence[Any]) -> list[tuple[str, Any]]:
+    """``(path, value)`` pairs from ``replace``'s arguments: ``path, value[, path, value ...]``
+    or a single mapping ``{path: value}``."""
+    if len(args) == 1 and isinstance(args[0], Mapping):
+        pairs = list(args[0].items())
+    elif len(args) % 2 == 0 and args:
+        pairs = [(args[i], args[i + 1]) for i in range(0, len(args), 2)]
+    else:
+        raise TypeError("replace() takes path, value pairs (replace('period', 2.0, "
+                        "'links.1.phase', 0.25)) or one mapping (replace({'period': 2.0}))")
+    for path, _ in pairs:
+        if not isinstance(path, str):
+            raise TypeError(f"replace(): a path is a dotted string such as 'links.*.amplitude', "
+                            f"got {path!r}")
+    return pairs
+
+
+def edited(document: dict, pairs: Sequence[tuple[str, Any]], source: str) -> dict:
+    """A deep copy of ``document`` with each ``(path, value)`` applied; a path that does not fit,
+    or two paths that set the same number, are a `GaitError`."""
+    doc = copy.deepcopy(document)
+    seen: dict[tuple[Key, ...], str] = {}
+    for path, value in pairs:
+        for keys in resolve_path(document, path, source):
+            if keys in seen:
+                raise GaitError(source, path, f"this path sets {'.'.join(map(str, keys))}, "
+                                              f"which {seen[keys]} sets too: set each value once")
+            seen[keys] = path
+            set_value(doc, keys, value)
+    return doc
+
+
+def replaced(spec: Gait | ProcessSpec, args: Sequence[Any]) -> Gait | ProcessSpec:
+    """``spec`` with the changes of ``replace(*args)`` applied, validated like a gait file.
+
+    Errors name the gait and the changes (``gait.yaml with links.*.amplitude=0.5``), as a sweep
+    names its point. ``source_text`` stays the text that was read; the document is the truth
+    (results files embed it, `crawlsim.io.provenance`).
+    """
+    from crawlsim.gait.document import gait_from_document
+
+    pairs = changes_of(args)
+    label = f"{spec.source} with " + ", ".join(f"{p}={v!r}" for p, v in pairs)
+    document = edited(spec.document, pairs, label)
+    return gait_from_document(document, label, source_text=spec.source_text,
+                              default_name=spec.name)

@@ -1,0 +1,8 @@
+"""Stepping a sweeping process period by period (docs/model.md §3, docs/integrators.md).
+
+    stepping     catch-up stepping of a tabulated process
+    exact        exact, event-driven integration
+    limit        the periodic limit by semismooth Newton on the period map
+    batch        many crawlers stepped together
+    resources    the memory a run needs, checked before it is allocated
+"""

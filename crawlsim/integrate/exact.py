@@ -1,0 +1,552 @@
+"""Exact, event-driven integration of a polyhedral sweeping process (docs/model.md §2-3).
+
+The sweeping process ``w' in -N_{K(t)}(w)`` in the metric M, with K(t) = {w : B w <= c(t)}, reads
+
+    M w'(t) + B^T lambda(t) = 0,   lambda >= 0,   lambda_i (B w - c)_i = 0,
+
+the continuous-time limit of the catch-up KKT system, so lambda(t) is the *rate* of the catch-up
+multipliers: the slip rates (dx/dt = lambda^+ - lambda^-). Times are in cycles u = t / T here.
+
+**Between events** the active set A is fixed and B_A w(u) = c_A(u), so (telescoping, exact)
+
+    Lambda_A(u) = G_A^{-1} (B_A w_0 - c_A(u)),   w(u) = w_0 - M^{-1} B_A^T Lambda_A(u),
+
+Lambda_A the slips accumulated since the piece began, G_A = B_A M^{-1} B_A^T. On a piece of c
+(`crawlsim.model.offsets`: c(u) = phi(u) @ C_p in a basis of 1, u and harmonics), every gap
+(B w(u) - c(u))_i and every slip rate is itself such a combination, computed with one
+multi-right-hand-side solve of the KKT kernel (`crawlsim.kernel.kkt`), O(N) for a crawler.
+
+**Events** end a piece: an inactive row's gap reaches 0 from below, or an active row's slip rate
+reaches 0 from above; and the breakpoints of c, where at a jump (a ``steps`` signal) the state
+is projected exactly onto K(t+) by the certified projector (its multipliers are instantaneous
+slips, booked to the grid interval ending at the jump since signals are right-continuous).
+Zeros are found in closed form where the basis allows it (1 and u: linear; 1 and one harmonic:
+``a + rho cos(theta - phi) = 0``), else by sampling with a curvature bound that rules out a
+crossing between samples, and brentq on the closed form. An event time is the zero crossing;
+it is exact to roundoff.
+
+**The next active set** at an event (or at a breakpoint) comes from Moreau's velocity problem:
+the right derivative v = w'(u+) is the M-minimal element of {v : B_T v <= c'_T(u+)}, T the rows
+tight at w; rows with a positive multiplier stay active, rows whose velocity opens a gap leave.
+Rows where that problem is degenerate (tight, zero multiplier: a tangential contact, or a
+release) are decided at the next order, by the same projection with c'' (the rows already
+decided active as equalities), and so on: on a piece w^(k) = R_A c_A^(k) and
+lambda^(k-1) = -G_A^{-1} c_A^(k), so the k-th order problem is exactly the velocity problem one
+level up. Rows still degenerate after `DECISION_ORDERS` orders stay tight without slipping
+(their gap and rate vanish identically, as for piecewise-linear offsets). Every such problem is
+solved by the kernel (Clarabel proposes only when its updates do not settle).
+
+**Robustness.** More than ``max_events`` events in one period, or `ZENO_EVENTS` events within
+`ZENO_WINDOW` T of each other (a genuine Zeno accumulation), stops the run with an `EventError`
+naming the time and the constraints involved.
+
+The stepper reports each period on the process grid ``process.times``, like catch-up: w at the
+grid times, and in ``multipliers[j]`` the exact integral of lambda over [t_j, t_{j+1}] (plus any
+jump), so every analysis of `crawlsim.analysis.run` applies unchanged and v0 is exact. Every sampled
+state and slip integral is certified with the kernel's tolerance policy. The trajectory at the
+event times is in ``PeriodRecord.events``.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections import deque
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from crawlsim.analysis.energy import ExactLedger
+from crawlsim.errors import CertificateError, DegenerateModelError, EventError, LicqWarning
+from crawlsim.integrate.stepping import PeriodRecord, PeriodStepper, Transition, TransitionCause
+from crawlsim.kernel.kkt import RTOL, ActiveSet, Dependent, Tolerance
+from crawlsim.kernel.projection import ExactProjector
+from crawlsim.model.offsets import TWO_PI
+from crawlsim.model.process import SweepingProcess
+
+#: Default bound on the number of events in one period.
+MAX_EVENTS = 100_000
+#: Zeno-like accumulation: this many consecutive events ...
+ZENO_EVENTS = 64
+#: ... within this fraction of the period.
+ZENO_WINDOW = 1e-9
+#: Orders of the velocity problem used to decide degenerate rows at an event.
+DECISION_ORDERS = 4
+#: Sampling cells per cycle and harmonic where no closed form gives the zeros.
+CELLS_PER_CYCLE = 64
+
+
+class EventTrajectory(NamedTuple):
+    """The exact trajectory at event times (absolute), after each event is processed.
+
+    Between two consecutive entries the active set is fixed and w follows the closed form of the
+    module docstring. Period starts and breakpoints are included.
+    """
+
+    t: np.ndarray  # (E,)
+    w: np.ndarray  # (E, n)
+    x: np.ndarray | None  # (E, N) block positions (crawlers)
+
+
+@dataclass(frozen=True, eq=False)
+class _Piece:
+    """w(u) and Lambda_A(u) on an interval with the active set A fixed (module docstring)."""
+
+    u0: float
+    active: ActiveSet
+    base: np.ndarray  # (n,) w(u) = base + phi(u) @ Wc
+    Wc: np.ndarray  # (nb, n)
+    lam0: np.ndarray  # (a,) Lambda_A(u) = lam0 - phi(u) @ Y
+    Y: np.ndarray  # (nb, a)
+
+    def at(self, phi: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
+        """(w, Lambda padded to m rows) at basis values phi (k, nb)."""
+        w = self.base + phi @ self.Wc
+        lam = np.zeros((len(phi), m))
+        if self.active.size:
+            lam[:, self.active.index] = self.lam0 - phi @ self.Y
+        return w, lam
+
+
+class EventStepper(PeriodStepper):
+    """Exact event-driven stepping of a `SweepingProcess`, period by period (module docstring).
+
+    Same interface as `crawlsim.integrate.stepping.CatchUpStepper`. ``check_every_step=True`` verifies the
+    trajectory with Clarabel: every sampled state is projected onto K(t_j) and must be its own
+    projection. ``max_events`` bounds the events per period, ``zeno_events`` and
+    ``zeno_window`` (fraction of T) set the accumulation test, ``cells_per_cycle`` the sampling
+    where zeros have no closed form.
+    """
+
+    #: A period must start in K(0) (`crawlsim.integrate.limit` projects a Newton candidate first).
+    needs_admissible_start = True
+
+    def __init__(self, process: SweepingProcess, *, check_every_step: bool = False,
+                 max_events: int = MAX_EVENTS, zeno_events: int = ZENO_EVENTS,
+                 zeno_window: float = ZENO_WINDOW, cells_per_cycle: int = CELLS_PER_CYCLE):
+        if process.offset_pieces is None:
+            raise EventError(f"{process.name}: the exact integrator needs the closed form of "
+                             "c(t) that gait and process files provide; use --integrator "
+                             "catch-up")
+        self.process = process
+        self.poly = process.polyhedron
+        self.pieces = process.offset_pieces
+        self.basis = self.pieces.basis
+        self.check_every_step = check_every_step
+        self.max_events = int(max_events)
+        self.zeno_events, self.zeno_window = int(zeno_events), float(zeno_window)
+        self.cells_per_cycle = int(cells_per_cycle)
+        # Crawlers: non-unique slips are a DegenerateModelError (docs/model.md §3); generic processes
+        # keep their unique point with a LicqWarning, as in catch-up.
+        self.projector = ExactProjector(self.poly, describe_active=process.describe_active,
+                                        on_dependent="raise" if process.is_crawler else "warn")
+        self.w = np.array(process.initial, dtype=float)
+        self.x = None if process.initial_positions is None else np.array(
+            process.initial_positions, dtype=float)
+        self.active = self.poly.empty
+        self.period_index = 0
+        self._visited: list = []
+        # the period's energy ledger, integrated exactly on the pieces (crawlers)
+        self._ledger = ExactLedger(process) if process.is_crawler else None
+        self._grid = process.cycles
+        edges = self.pieces.edges
+        self._edge_index = np.searchsorted(self._grid, edges)
+        if not np.array_equal(self._grid[self._edge_index], edges):  # pragma: no cover
+            raise EventError(f"{process.name}: internal error, breakpoints off the grid")
+        # c(edge-) and c(edge+) at every inner edge and at the end of the cycle (wrapping to 0)
+        P = self.pieces.pieces
+        self._jump = np.zeros(P + 1, dtype=bool)
+        for p in range(1, P + 1):
+            left = self.pieces.evaluate(edges[p], piece=p - 1)[0]
+            right = self.pieces.evaluate(edges[p] if p < P else 0.0, piece=p % P)[0]
+            self._jump[p] = np.max(np.abs(left - right)) > 100 * RTOL * self.poly.c_scale
+
+    # -- one period -------------------------------------------------------------------------
+    def step_period(self) -> PeriodRecord:
+        """Advance by one period and return its record, sampled on ``process.times``."""
+        p, T = self.process, self.process.period
+        poly, pieces = self.poly, self.pieces
+        G, n, m = p.steps, poly.n, poly.m
+        start = self.period_index * T
+        calls0 = self.projector.clarabel_calls
+        W = np.empty((G + 1, n))
+        LAMC = np.zeros((G + 1, m))
+        W[0] = self.w
+        j = 1
+        ev_t, ev_w, ev_lam = [], [], []
+        recent: deque[float] = deque(maxlen=self.zeno_events)
+        u, w, lam_cum = 0.0, self.w.copy(), np.zeros(m)
+        forced = np.zeros(0, dtype=int)
+        cause: TransitionCause = "edge"
+        piece_index = 0
+        edges = pieces.edges
+        carried = 0.0  # the largest slip roundoff of the pieces since the last sampled point
+        self._visited = []
+        ledger = self._ledger
+        if ledger is not None:
+            ledger.start()
+        transitions = []
+        while True:
+            ev_t.append(u)
+            ev_w.append(w)
+            ev_lam.append(lam_cum)
+            self._guard(len(ev_t), recent, u, start, forced)
+            time = start + u * T
+            self.active = self._decide(u, w, piece_index, forced, time)
+            self._visit(self.active)
+            transitions.append(Transition(u, piece_index, self.active, cause, forced))
+            piece = self._piece(self.active, w, piece_index, u)
+            u_end = edges[piece_index + 1]
+            event = self._next_event(piece, piece_index, u, u_end)
+            u_e = u_end if event is None else event[0]
+            if ledger is not None:
+                ledger.piece(piece_index, u, u_e, piece.base, piece.Wc, piece.active.index,
+                             piece.Y)
+            # sample the grid times in (u, u_e]
+            j_end = int(np.searchsorted(self._grid, u_e, side="right"))
+            if j_end > j:
+                phi = self.basis.values(self._grid[j:j_end])
+                Wg, Lg = piece.at(phi, m)
+                W[j:j_end] = Wg
+                LAMC[j:j_end] = lam_cum + Lg
+                carried = self._certify_piece(Wg, LAMC[j - 1:j_end], piece, phi, piece_index,
+                                              start + self._grid[j:j_end] * T, carried)
+                j = j_end
+            else:  # the grid interval spans this piece: its roundoff enters the next sample
+                carried = max(carried, self._dual_scale(piece, piece_index))
+            w_e, lam_e = piece.at(self.basis.values(u_e), m)
+            w, lam_cum = w_e[0], lam_cum + lam_e[0]
+            u = u_e
+            if event is not None:
+                forced = event[1]
+                cause = "hit" if forced.size else "release"
+                continue
+            forced = np.zeros(0, dtype=int)
+            cause = "edge"
+            edge = piece_index + 1
+            if self._jump[edge]:
+                target = pieces.evaluate(u if edge < pieces.pieces else 0.0,
+                                         piece=edge % pieces.pieces)[0]
+                proj = self.projector.project(w, target, time=start + u * T, warm=self.active)
+                self._certify_jump(w, target, proj, start + u * T)
+                if ledger is not None:
+                    ledger.jump(piece_index, u, w, proj.point, proj.multipliers)
+                w, lam_cum = proj.point, lam_cum + proj.multipliers
+                self.active = proj.active
+                self._visit(proj.active)
+                transitions.append(Transition(u, edge % pieces.pieces, proj.active, "jump",
+                                              forced))
+                je = self._edge_index[edge]
+                W[je], LAMC[je] = w, lam_cum
+            if edge == pieces.pieces:
+                break
+            piece_index = edge
+        if j != G + 1:  # pragma: no cover - the grid ends at 1, the last edge
+            raise EventError(f"{p.name}: internal error, sampled {j} of {G + 1} grid times")
+
+        multipliers = np.diff(LAMC, axis=0)
+        if self.check_every_step:
+            self._verify(W, start)
+        X = x_events = None
+        if self.x is not None:
+            X = self.x + p.slips(LAMC)
+            x_events = self.x + p.slips(np.array(ev_lam))
+            self.x = X[-1].copy()
+        self.w = W[-1].copy()
+        events = EventTrajectory(start + np.array(ev_t) * T, np.array(ev_w), x_events)
+        record = PeriodRecord(self.period_index, start, W, multipliers, X,
+                              self.projector.clarabel_calls - calls0, events=events,
+                              visited=tuple(self._visited), transitions=tuple(transitions),
+                              energy=None if ledger is None else ledger.finish(W[0], W[-1]))
+        self.period_index += 1
+        return record
+
+    def _guard(self, count, recent, u, start, rows):
+        """Stop on too many events in a period or on Zeno-like accumulation."""
+        p = self.process
+        if count > self.max_events:
+            raise EventError(
+                f"{p.name}: more than {self.max_events} events in period {self.period_index} "
+                f"(at t = {start + u * p.period:.12g}); the active set keeps changing. Raise "
+                "max_events, or use --integrator catch-up")
+        recent.append(u)
+        if len(recent) == self.zeno_events and recent[-1] - recent[0] <= self.zeno_window:
+            raise EventError(
+                f"{p.name}: Zeno-like accumulation of events: {self.zeno_events} events within "
+                f"{(recent[-1] - recent[0]) * p.period:.3g} time units near t = "
+                f"{start + u * p.period:.15g} (last constraints involved: "
+                f"{p.describe_active(rows)}). The exact integrator cannot pass this point; use "
+                "--integrator catch-up")
+
+    # -- an event: the next active set, order by order ----------------------------------------
+    def _decide(self, u: float, w: np.ndarray, piece_index: int, forced: np.ndarray,
+                time: float) -> ActiveSet:
+        """The active set on (u, u + eps) from the velocity problems (module docstring)."""
+        poly = self.poly
+        coef = self.pieces.coefficients(piece_index)
+        c0 = (self.basis.values(u) @ coef)[0]
+        slack = poly.apply(w) - c0
+        tol = poly._tolerance1(poly.empty, c0, w, np.zeros(0))
+        tight = slack >= -tol.primal
+        tight[forced] = True
+        if not tight.any():
+            return poly.empty
+        if self.projector.on_dependent == "warn" and not poly.licq_verified(np.flatnonzero(tight)):
+            self.projector.record_licq(np.flatnonzero(tight), time)  # generic: a warning, once
+        fixed = np.zeros(poly.m, dtype=bool)
+        candidates = tight.copy()
+        warm = np.zeros(poly.m, dtype=bool)
+        warm[self.active.index] = True
+        for order in range(1, DECISION_ORDERS + 1):
+            ck = (self.basis.values(u, order) @ coef)[0]
+            c = np.where(fixed | candidates, ck, np.inf)
+            step = self._velocity(c, np.flatnonzero(fixed | (candidates & warm)),
+                                  np.flatnonzero(fixed), time)
+            opening = poly.apply(step.point) - ck
+            positive = candidates & (step.multipliers > step.tolerance.dual)
+            leaving = candidates & (opening < -step.tolerance.primal)
+            fixed |= positive
+            candidates &= ~(positive | leaving)
+            if not candidates.any():
+                break
+        try:
+            return poly.factor(np.flatnonzero(fixed))
+        except Dependent:
+            raise DegenerateModelError(
+                "", "", self.projector.degenerate_message(np.flatnonzero(fixed), time)) from None
+
+    def _velocity(self, c: np.ndarray, warm: np.ndarray, fixed: np.ndarray,
+                  time: float) -> _Velocity:
+        """argmin 1/2 |v|_M^2 over {B_fixed v = c_fixed, B_i v <= c_i (finite c_i)}: the
+        kernel's updates from ``warm``, Clarabel's proposal when they do not settle."""
+        from crawlsim.kernel.catchup import velocity  # crawlers: the compiled, certified step
+
+        found = velocity(self.poly, c, warm, fixed)
+        if found is not None:
+            return _Velocity(found[0], found[1], Tolerance(found[2], found[3]))
+        poly = self.poly
+        zero = np.zeros(poly.n)
+        step = poly.refine(zero, c, warm, fixed=fixed)
+        if step is not None:
+            return _Velocity(step.point, step.multipliers, step.certificate.tolerance)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", LicqWarning)
+            proj = self.projector.project(zero, c, time=time, warm=warm, fixed=fixed)
+        _, _, _, tol = poly.solve_on(proj.active, zero, c)
+        return _Velocity(proj.point, proj.multipliers, tol)
+
+    # -- a piece: w(u), Lambda(u), and the functions whose zeros are events ---------------------
+    def _piece(self, active: ActiveSet, w0: np.ndarray, piece_index: int, u0: float) -> _Piece:
+        poly = self.poly
+        coef = self.pieces.coefficients(piece_index)
+        nb = self.basis.size
+        if not active.size:
+            return _Piece(u0, active, w0.copy(), np.zeros((nb, poly.n)), np.zeros(0),
+                          np.zeros((nb, 0)))
+        idx = active.index
+        lam0 = active.solve(poly.apply(w0)[idx])
+        Y = active.solve(coef[:, idx])
+        pad = np.zeros(poly.m)
+        pad[idx] = lam0
+        base = w0 - poly.respond(pad)
+        padY = np.zeros((nb, poly.m))
+        padY[:, idx] = Y
+        return _Piece(u0, active, base, poly.respond(padY), lam0, Y)
+
+    def _next_event(self, piece: _Piece, piece_index: int, u0: float, u1: float):
+        """(u, rows newly tight) of the first event in (u0, u1), or None if there is none."""
+        poly, basis = self.poly, self.basis
+        coef = self.pieces.coefficients(piece_index)
+        idx = piece.active.index
+        inactive = np.ones(poly.m, dtype=bool)
+        inactive[idx] = False
+        # gap(u) = phi(u) @ Gc, with the constant part in column 0
+        Gc = poly.apply(piece.Wc) - coef
+        Gc[0] += poly.apply(piece.base)
+        gaps = Gc[:, inactive]
+        c_size = float(np.max(np.sum(np.abs(coef), axis=0)))
+        # half the smallest primal tolerance the certificate of a sample can have: a gap that
+        # would fail the certificate is always an event first
+        tol_gap = 0.5 * RTOL * poly.c_scale
+        rows = np.flatnonzero(inactive)
+        Z = gaps
+        tol = np.full(gaps.shape[1], tol_gap)
+        kinds = np.zeros(gaps.shape[1], dtype=bool)  # True: a release
+        if idx.size:
+            R = basis.derivative(piece.Y)  # -dLambda/du = phi(u) @ R
+            scale = float(np.max(np.sum(np.abs(R), axis=0)))
+            tol_rate = RTOL * max(scale, piece.active.inverse_norm * c_size * TWO_PI)
+            Z = np.hstack([gaps, R])
+            tol = np.concatenate([tol, np.full(R.shape[1], tol_rate)])
+            rows = np.concatenate([rows, idx])
+            kinds = np.concatenate([kinds, np.ones(R.shape[1], dtype=bool)])
+        if not Z.shape[1]:
+            return None
+        crossing = self._crossings(Z, tol, u0, u1)
+        first = float(np.min(crossing))
+        if not first < u1:
+            return None
+        hit = rows[(~kinds) & (crossing <= first + 1e-13)]
+        return first, np.sort(hit)
+
+    # -- zeros -------------------------------------------------------------------------------
+    def _crossings(self, Z: np.ndarray, tol: np.ndarray, u0: float, u1: float) -> np.ndarray:
+        """For each column f = phi @ Z[:, r]: the first u in (u0, u1) where f crosses zero
+        upwards and goes on to exceed tol[r] (inf when it does not before u1)."""
+        b = self.basis
+        out = np.full(Z.shape[1], np.inf)
+        if b.size == 1:
+            return out  # constants: nothing happens inside a piece
+        if b.harmonics == 0:
+            return self._linear(Z, tol, u0, u1)
+        if b.harmonics == 1 and not b.linear:
+            lin = np.zeros_like(Z[0])
+            return self._harmonic(Z[0], lin, Z[1], Z[2], tol, u0, u1)
+        if b.harmonics == 1 and b.linear:
+            pure = Z[1] == 0.0  # no linear part in this function: closed form
+            out[pure] = self._harmonic(Z[0, pure], Z[1, pure], Z[2, pure], Z[3, pure],
+                                       tol[pure], u0, u1)
+            rest = np.flatnonzero(~pure)
+            if rest.size:
+                out[rest] = self._sampled(Z[:, rest], tol[rest], u0, u1)
+            return out
+        return self._sampled(Z, tol, u0, u1)
+
+    def _linear(self, Z, tol, u0, u1):
+        from crawlsim.kernel.events import linear_crossings  # compiled closed form
+
+        out = np.empty(Z.shape[1])
+        linear_crossings(np.ascontiguousarray(Z[0], dtype=float),
+                         np.ascontiguousarray(Z[1], dtype=float),
+                         np.ascontiguousarray(tol, dtype=float), float(u0), float(u1), out)
+        return out
+
+    def _harmonic(self, a, lin, alpha, beta, tol, u0, u1):
+        """f(u) = a + alpha cos 2 pi u + beta sin 2 pi u = a + rho cos(theta - phi)
+        (`crawlsim.kernel.events.harmonic_crossings`, compiled)."""
+        from crawlsim.kernel.events import harmonic_crossings
+
+        out = np.empty(np.shape(a))
+        harmonic_crossings(*(np.ascontiguousarray(v, dtype=float) for v in (a, alpha, beta, tol)),
+                           float(u0), float(u1), out)
+        return out
+
+    def _sampled(self, Z, tol, u0, u1):
+        """Certified sampling: samples every 1/(64 H) cycle; between two samples f can exceed
+        its tolerance only if the larger sample plus h^2/8 max|f''| does (the linear
+        interpolant's error bound), so only such cells are refined (brentq, or a bounded
+        maximisation for a touch between samples)."""
+        from scipy.optimize import brentq, minimize_scalar
+
+        b = self.basis
+        out = np.full(Z.shape[1], np.inf)
+        cells = max(4, int(math.ceil((u1 - u0) * self.cells_per_cycle * max(b.harmonics, 1))))
+        s = np.linspace(u0, u1, cells + 1)
+        F = b.values(s) @ Z
+        h = (u1 - u0) / cells
+        bound = h * h / 8.0 * b.curvature_bound(Z)
+        suspect = np.maximum(F[:-1], F[1:]) + bound > tol
+        for r in np.flatnonzero(suspect.any(axis=0)):
+            z, t = Z[:, r], float(tol[r])
+
+            def f(x, z=z):
+                return b.scalar(x, z)
+
+            for k in np.flatnonzero(suspect[:, r]):
+                left, right = float(s[k]), float(s[k + 1])
+                if F[k, r] > t:
+                    continue  # above its tolerance from the start of the cell: not a crossing
+                if F[k + 1, r] > t:
+                    top = right
+                else:
+                    res = minimize_scalar(lambda x, f=f: -f(x), bounds=(left, right),
+                                          method="bounded", options={"xatol": 1e-15})
+                    if -res.fun <= t:
+                        continue
+                    top = float(res.x)
+                over = brentq(lambda x, f=f, t=t: f(x) - t, left, top, xtol=1e-15)
+                below = np.flatnonzero(F[:k + 1, r] < 0.0)
+                zero = u0
+                if below.size:
+                    a = float(s[below[-1]])
+                    zero = brentq(f, a, over, xtol=1e-15) if f(a) < 0.0 < f(over) else a
+                out[r] = zero if zero > u0 else max(over, np.nextafter(u0, u1))
+                break
+        out[out >= u1] = np.inf
+        return out
+
+    # -- certificate of the sampled trajectory ---------------------------------------------------
+    def _dual_scale(self, piece: _Piece, piece_index: int) -> float:
+        """The roundoff of the slips a piece adds: the kernel's dual tolerance for its active
+        set, at the size of its offsets and state."""
+        if not piece.active.size:
+            return 0.0
+        coef = self.pieces.coefficients(piece_index)
+        c_size = float(np.max(np.sum(np.abs(coef), axis=0)))
+        w_size = float(np.max(np.abs(piece.base)) + np.sum(np.max(np.abs(piece.Wc), axis=1)))
+        lam_size = float(np.max(np.abs(piece.lam0)) + np.sum(np.max(np.abs(piece.Y), axis=1)))
+        return float(self.poly.tolerance(piece.active, c_size, w_size, lam_size).dual)
+
+    def _certify_piece(self, Wg, LAMC, piece: _Piece, phi, piece_index, times,
+                       carried: float) -> float:
+        """Every sampled state is in K(t_j) and the slip integrals between samples are >= 0,
+        to roundoff (the kernel's tolerance policy). A grid interval that began on earlier
+        pieces carries their roundoff (``carried``); returns this piece's, for the next one."""
+        poly = self.poly
+        C = phi @ self.pieces.coefficients(piece_index)
+        slack = poly.apply(Wg) - C
+        lam = np.diff(LAMC, axis=0)
+        tol = poly.tolerance(piece.active, np.max(np.abs(C), axis=1),
+                             np.max(np.abs(Wg), axis=1), np.max(np.abs(LAMC[1:]), axis=1))
+        primal = np.max(slack, axis=1)
+        dual = -np.min(lam, axis=1, initial=0.0)
+        # slip integrals are differences of cumulative slips, which carry their own roundoff,
+        # and the first one also that of the pieces since the previous sample
+        own = self._dual_scale(piece, piece_index)
+        dual_tol = np.maximum(np.maximum(tol.dual, own),
+                              4 * RTOL * np.max(np.abs(LAMC), axis=1)[1:])
+        dual_tol[0] = max(dual_tol[0], carried)
+        idx = piece.active.index
+        comp = np.max(np.abs(slack[:, idx]), axis=1, initial=0.0)
+        bad = (primal > tol.primal) | (dual > dual_tol) | (comp > tol.primal)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise CertificateError(
+                f"{self.process.name}: the exact trajectory failed its certificate at t = "
+                f"{times[i]:.12g}: constraint violation {primal[i]:.3g}, negative slip "
+                f"integral {dual[i]:.3g} (tolerance {float(tol.primal[i]):.3g} / "
+                f"{float(dual_tol[i]):.3g}), complementarity {comp[i]:.3g}")
+        return own
+
+    def _certify_jump(self, w: np.ndarray, c: np.ndarray, proj, time: float) -> None:
+        """The state after a jump of c is written to the grid as it is: it must be the certified
+        projection of the state before it onto K(t+) (feasible, slips >= 0, complementary)."""
+        poly = self.poly
+        slack = poly.apply(proj.point) - c
+        tol = poly._tolerance1(proj.active, c, w, proj.multipliers)
+        cert = poly.certify(slack, proj.multipliers, proj.active, tol)
+        if not cert.ok:
+            raise CertificateError(f"{self.process.name}: the projection at the jump of c at "
+                                   f"t = {time:.12g} failed its certificate: {cert}")
+
+    def _verify(self, W, start):
+        """``check_every_step``: Clarabel confirms every sampled state is its own projection."""
+        p = self.process
+        for j in range(len(W)):
+            proj = self.projector.project(W[j], p.offsets[j], time=start + p.times[j],
+                                          verify=True)
+            moved = float(np.max(np.abs(proj.point - W[j])))
+            tol = self.poly._tolerance1(proj.active, p.offsets[j], W[j], proj.multipliers)
+            if moved > 100 * tol.primal:
+                raise CertificateError(f"{p.name}: Clarabel moves the exact state at t = "
+                                       f"{start + p.times[j]:.12g} by {moved:.3g}")
+
+
+@dataclass(frozen=True, eq=False)
+class _Velocity:
+    """A velocity problem solved by the projector: point, multipliers, tolerance."""
+
+    point: np.ndarray
+    multipliers: np.ndarray
+    tolerance: Tolerance

@@ -1,0 +1,246 @@
+"""Compile a validated gait into its shape-space polyhedral sweeping process (docs/model.md §1-2).
+
+For a crawler of N blocks with link stiffnesses K = diag(k_i), shape z = D x and stress
+sigma = K (L(t) - z), the variable w = -K z moves in
+
+    K(t) = { w : B w <= c(t) },   B = [D^T ; -D^T],
+    c(t) = [ mu^+(t) - D^T K L(t) ; mu^-(t) + D^T K L(t) ],
+
+and catch-up stepping projects in the metric M = K^{-1}. The 2N multipliers
+lambda = [lambda^+ ; lambda^-] of a step are the block slips: dx = lambda^+ - lambda^-
+(docs/model.md §3), so the slip map is S = [I, -I].
+
+A generic polyhedral sweeping process (docs/model.md §5, ``kind: sweeping-process``) compiles to the
+same `SweepingProcess` with its own B, c(t), M and z(0) and no crawler fields, so it is stepped,
+certified and analysed by the same code; `compile` dispatches on the kind.
+
+B and M live in the process's `crawlsim.kernel.kkt.Polyhedron`: for a crawler a `ChainPolyhedron`, which
+never forms anything of size N^2, so compiling, like stepping, costs O(N) per grid time.
+Everything time-dependent is tabulated once on the period's grid, vectorised over all times.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from crawlsim.gait.document import Gait, ProcessSpec
+from crawlsim.gait.signals import evaluate_many
+from crawlsim.kernel.kkt import ChainPolyhedron, DensePolyhedron, Polyhedron
+from crawlsim.model.offsets import PiecewiseOffsets
+
+#: Grid times closer than this (in cycles) to a breakpoint are merged into the breakpoint.
+GRID_MERGE = 1e-12
+
+
+@dataclass(frozen=True, eq=False)
+class SweepingProcess:
+    """A T-periodic polyhedral sweeping process ``w' in -N_{K(t)}(w)``, tabulated on one period.
+
+    The fields after ``initial`` describe a crawler and are ``None`` for a generic process.
+    """
+
+    name: str
+    period: float
+    polyhedron: Polyhedron  # B and the metric M: projections minimise 1/2 |w - w_trial|_M^2
+    times: np.ndarray  # (G+1,) one period's grid: times[0] = 0, times[-1] = period
+    offsets: np.ndarray  # c(t) on the grid (G+1, m)
+    initial: np.ndarray  # w(0) (n,)
+    stiffness: np.ndarray | None = None  # k (N-1,): crawlers, M = K^{-1}
+    initial_positions: np.ndarray | None = None  # x(0) (N,)
+    stress_offset: np.ndarray | None = None  # K L(t) on the grid (G+1, n): stress = w + K L
+    friction: np.ndarray | None = None  # [mu^+, mu^-] on the grid (G+1, m): dissipation weights
+    lengths: np.ndarray | None = None  # L(t) on the grid (G+1, N-1)
+    # Loads (docs/model.md §6): the load's share l = [-F~ ; F~] of the offsets on the grid
+    # (G+1, m), so that c's thresholds are friction + l; None without loads.
+    load: np.ndarray | None = None
+    friction_scale: float = 1.0  # cos(angle): the signals' mu scaled to the slope's friction
+    load_constant: np.ndarray | None = None  # -W sin(angle) (N,): F~ = F(t) + load_constant
+    slope_angle: float | None = None  # degrees, None without a slope
+    # The closed form of c(t) piece by piece, for integrators that leave the grid (exact):
+    offset_pieces: PiecewiseOffsets | None = None
+    breakpoints: np.ndarray | None = None  # times in [0, T) where c has a kink or a jump
+
+    @property
+    def cycles(self) -> np.ndarray:
+        """The grid in cycles t / T, exactly as built (breakpoints are grid points)."""
+        return self._cycles if self._cycles is not None else self.times / self.period
+
+    _cycles: np.ndarray | None = None
+
+    @property
+    def steps(self) -> int:
+        return len(self.times) - 1
+
+    @property
+    def is_crawler(self) -> bool:
+        return self.stiffness is not None
+
+    @property
+    def blocks(self) -> int:
+        return 0 if self.stiffness is None else len(self.stiffness) + 1
+
+    @property
+    def scale(self) -> float:
+        """A natural size of w and c, for relative tolerances."""
+        return self.polyhedron.c_scale
+
+    @property
+    def normals(self) -> np.ndarray:
+        """B as a dense (m, n) array (for files and figures; steps never form it)."""
+        return self.polyhedron.dense_normals()
+
+    @property
+    def metric(self) -> np.ndarray:
+        """M as a dense (n, n) array (for files and figures; steps never form it)."""
+        return self.polyhedron.dense_metric()
+
+    def slips(self, multipliers: np.ndarray) -> np.ndarray:
+        """Block increments dx = lambda^+ - lambda^- of multipliers (..., 2N) (docs/model.md §3)."""
+        N = self.blocks
+        return multipliers[..., :N] - multipliers[..., N:]
+
+    def describe_active(self, index) -> str:
+        """Words for an active set: for crawlers, the set J of saturated blocks."""
+        index = np.asarray(index, dtype=int)
+        if not self.is_crawler:
+            return "active constraints {" + ", ".join(str(i) for i in index) + "}"
+        N = self.blocks
+        fwd = [int(i) + 1 for i in index if i < N]
+        bwd = [int(i) - N + 1 for i in index if i >= N]
+        return (f"J = {{{', '.join(map(str, sorted(fwd + bwd)))}}}: blocks "
+                f"{fwd or 'none'} at their forward friction limit, "
+                f"{bwd or 'none'} at their backward limit")
+
+
+def period_grid(steps_per_period: int, breakpoints) -> np.ndarray:
+    """One period's grid in cycles: ``steps_per_period`` uniform points plus every breakpoint.
+
+    A uniform point within `GRID_MERGE` of a breakpoint is replaced by the breakpoint, so a
+    jump of a `steps` signal is always exactly on the grid.
+    """
+    uniform = np.linspace(0.0, 1.0, steps_per_period + 1)
+    bp = np.asarray(breakpoints, dtype=float)
+    bp = bp[(bp > GRID_MERGE) & (bp < 1.0 - GRID_MERGE)]
+    if bp.size:
+        near = np.min(np.abs(uniform[:, None] - bp[None, :]), axis=1) <= GRID_MERGE
+        uniform = uniform[~near]
+    u = np.union1d(uniform, bp)
+    keep = np.concatenate([[True], np.diff(u) > GRID_MERGE])
+    u = u[keep]
+    u[0], u[-1] = 0.0, 1.0
+    return u
+
+
+def _scale(offsets: np.ndarray, initial: np.ndarray) -> float:
+    """A natural size of w and c, the floor of every certificate tolerance."""
+    return float(max(np.max(np.abs(offsets)), np.max(np.abs(initial)), 1e-300))
+
+
+def piece_edges(breakpoints) -> np.ndarray:
+    """Edges of the pieces of one cycle between breakpoints: exactly the grid's breakpoints."""
+    bp = np.asarray(breakpoints, dtype=float)
+    bp = np.unique(bp[(bp > GRID_MERGE) & (bp < 1.0 - GRID_MERGE)])
+    return np.concatenate([[0.0], bp, [1.0]])
+
+
+def compile_gait(gait: Gait, steps_per_period: int | None = None) -> SweepingProcess:
+    """The shape-space sweeping process of a crawler gait on its time grid (docs/model.md §2)."""
+    G = steps_per_period or gait.simulation.steps_per_period
+    u = period_grid(G, gait.breakpoints())
+    k = np.asarray(gait.stiffness, dtype=float)
+    L = evaluate_many(gait.links, u)  # (G+1, N-1)
+    loads = gait.loads
+    scale = 1.0 if loads is None else loads.cos
+    mu_f = evaluate_many(gait.forward, u) * scale  # (G+1, N): friction mu cos(angle), §6
+    mu_b = evaluate_many(gait.backward, u) * scale
+    KL = L * k  # K L on the grid
+    DtKL = _forces(KL)  # D^T K L, O(N) per row
+    load = None
+    if loads is not None:
+        total = loads.total(u)  # F~ = F - W sin(angle)
+        load = np.hstack([-total, total])
+        offsets = np.hstack([mu_f - total - DtKL, mu_b + total + DtKL])
+    else:
+        offsets = np.hstack([mu_f - DtKL, mu_b + DtKL])
+    T = float(gait.period)
+    N = gait.blocks
+    constant = None if loads is None else loads.gravity
+
+    def combine(coef):
+        """c = [mu~^+ - D^T K L; mu~^- + D^T K L] from the signals' coefficients (nb, S):
+        mu~^+ = mu^+ cos - F~, mu~^- = mu^- cos + F~ with F~ = F - W sin (docs/model.md §6)."""
+        DtKL_c = _forces(coef[:, :N - 1] * k)
+        plus, minus = coef[:, N - 1:2 * N - 1], coef[:, 2 * N - 1:3 * N - 1]
+        if constant is None:
+            return np.hstack([plus - DtKL_c, minus + DtKL_c])
+        force = coef[:, 3 * N - 1:].copy()
+        force[0] += constant
+        return np.hstack([scale * plus - force - DtKL_c, scale * minus + force + DtKL_c])
+
+    signals = gait.links + gait.forward + gait.backward + (
+        () if loads is None else loads.forces)
+    pieces = PiecewiseOffsets(signals, combine, piece_edges(gait.breakpoints()))
+    x0 = np.asarray(gait.initial_positions, dtype=float)
+    w0 = -k * np.diff(x0)  # w = -K z, z = D x
+    return SweepingProcess(
+        name=gait.name,
+        period=float(gait.period),
+        polyhedron=ChainPolyhedron(k, _scale(offsets, w0)),
+        times=u * gait.period,
+        offsets=offsets,
+        initial=w0,
+        stiffness=k,
+        initial_positions=x0,
+        stress_offset=KL,
+        friction=np.hstack([mu_f, mu_b]),
+        lengths=L,
+        load=load,
+        friction_scale=scale,
+        load_constant=constant,
+        slope_angle=None if loads is None or loads.weights is None else float(loads.angle),
+        offset_pieces=pieces,
+        breakpoints=np.asarray(gait.breakpoints(), dtype=float) * T,
+        _cycles=u,
+    )
+
+
+def compile_process(spec: ProcessSpec, steps_per_period: int | None = None) -> SweepingProcess:
+    """The tabulated sweeping process ``z' in -N_{C(t)}(z)`` of a generic process file (docs/model.md §5).
+
+    No change of variables: w is z, B and M are the file's normals and metric, c(t) its offsets.
+    """
+    G = steps_per_period or spec.simulation.steps_per_period
+    u = period_grid(G, spec.breakpoints())
+    T = float(spec.period)
+    offsets = evaluate_many(spec.offsets, u)
+    initial = np.array(spec.initial, dtype=float)
+    return SweepingProcess(
+        name=spec.name,
+        period=T,
+        polyhedron=DensePolyhedron(spec.normals, spec.metric, _scale(offsets, initial)),
+        times=u * T,
+        offsets=offsets,
+        initial=initial,
+        offset_pieces=PiecewiseOffsets(spec.offsets, lambda coef: coef,
+                                       piece_edges(spec.breakpoints())),
+        breakpoints=np.asarray(spec.breakpoints(), dtype=float) * T,
+        _cycles=u,
+    )
+
+
+def compile(spec: Gait | ProcessSpec, steps_per_period: int | None = None) -> SweepingProcess:
+    """Compile a crawler gait or a generic process file, whichever ``spec`` is."""
+    if isinstance(spec, ProcessSpec):
+        return compile_process(spec, steps_per_period)
+    return compile_gait(spec, steps_per_period)
+
+
+def _forces(V: np.ndarray) -> np.ndarray:
+    """D^T v for rows v (..., N-1): (D^T v)_j = v_{j-1} - v_j, with v_{-1} = v_{N-1} = 0."""
+    padded = np.zeros(V.shape[:-1] + (V.shape[-1] + 2,))
+    padded[..., 1:-1] = V
+    return padded[..., :-1] - padded[..., 1:]
+
+

@@ -1,0 +1,351 @@
+"""The uniqueness condition of the crawler model, decided exactly for any number of blocks.
+
+The multipliers of a catch-up step are the block slips, and they are unique exactly when the
+active normals are independent (docs/model.md §3). For a crawler this is the paper's
+eq. (uniqueness): for every subset J of blocks (J = all blocks and J = no block included),
+
+    g_J(t) = sum_{j in J} mu_j^+(t) - sum_{j not in J} mu_j^-(t)
+
+must not vanish on an interval of time. With a_j = mu_j^+ + mu_j^- and R = sum_j mu_j^-,
+g_J = sum_{j in J} a_j - R: a subset-sum problem on functions of time.
+
+**Sampling.** Between the friction breakpoints every coefficient is a trigonometric polynomial of
+degree <= H plus (for piecewise-linear friction) a linear part, so g_J has at most 2H + 1 zeros
+on such a piece unless it vanishes identically. Sampling ``2H + 2`` (``2H + 3`` with a linear
+part) interior points of each piece, unevenly spaced, therefore decides "g_J vanishes on a
+sub-interval" piece by piece: it does exactly when g_J is zero, to roundoff, at every sample of
+a piece. Zero to roundoff means |g_J| <= `TOLERANCE` * sum_j a_j at each sample (about 1.4e-14 of it).
+
+**Exact search.** On one piece each block is a vector a_j of samples. Blocks with equal vectors
+are interchangeable, so only how many of each group are in J matters: N identical blocks give
+N + 1 candidates, not 2^N. The groups are split in two halves; each half's achievable sums are
+built by dynamic programming (a group of n blocks enters as items of 1, 2, 4, ... blocks), and
+sums equal to within a fraction of the tolerance are merged, so commensurate friction values
+(integers, say) keep the lists short. The two lists meet in the middle: the left one sorted by
+a fixed linear key, each right sum looks up the left sums whose key lies within the tolerance
+window of its complement, and each candidate pair is then verified on every sample. Merging
+moves a sum by at most a quarter of the tolerance per half, so every J with |g_J| <= tolerance
+is found, and every J reported satisfies |g_J| <= 1.5 tolerance: the decision is exact up to
+that band of roundoff.
+
+**Bounds.** A half may hold at most `MAX_HALF_ENTRIES` (distinct sums x samples per piece),
+about 2^20 sums of 4 samples, which is 40 blocks of distinct cosine friction; and at most
+`MAX_CANDIDATES` candidate pairs are verified. Beyond that the check raises
+`UniquenessUndecidable`, saying why: the gait file then has to opt in explicitly
+(``simulation: {unchecked_uniqueness: true}``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from crawlsim.gait.signals import JUMP_TOLERANCE, PiecewiseLinear, Signal, evaluate_many, union_breakpoints
+
+TOLERANCE = 64 * float(np.finfo(float).eps)
+"""g_J counts as zero where |g_J| <= TOLERANCE * sum_j (mu_j^+ + mu_j^-), about 1.4e-14 of it.
+
+This is the roundoff of computing g_J (each coefficient is rounded from its decimal, evaluated,
+and summed), not a modelling slack; it is also the relative precision at which a certified step
+tells a tight friction limit from a slack one. It cannot be much larger: with 2^N subsets, sums
+within 1e-12 of zero occur by chance from about 36 blocks of random friction, but within 1.4e-14
+only from about 42."""
+
+MAX_HALF_ENTRIES = 1 << 22
+"""Most (distinct partial sums) x (samples per piece) held for one half of the search: 32 MiB
+of doubles, about 200 MiB at the peak of a merge."""
+
+MAX_CANDIDATES = 1 << 24
+"""Most candidate pairs the meet-in-the-middle verifies on one piece."""
+
+MAX_SAMPLE_ENTRIES = 1 << 22
+"""Friction samples evaluated at once: (distinct friction pairs) x (samples)."""
+
+_MATCH = 1.5  # the band of the decision, in tolerances: 1 + a quarter per half for merging
+_KEY_WEIGHTS_SEED = 0x5EED
+
+
+class UniquenessUndecidable(Exception):
+    """The uniqueness condition is beyond an exact check within the bounds; the message says
+    which bound and by how much."""
+
+
+@dataclass(frozen=True)
+class Violation:
+    """A subset J of blocks for which g_J vanishes on intervals of time."""
+
+    subset: np.ndarray  # (N,) bool: blocks in J (at their forward limit)
+    intervals: tuple[tuple[float, float], ...]  # in cycles, within [0, 1]
+
+    def message(self, period: float) -> str:
+        """The refusal text: names J, the rest, and the intervals in units of time."""
+        where = " and ".join(f"[{lo * period:g}, {hi * period:g}]" for lo, hi in self.intervals)
+        inside = np.nonzero(self.subset)[0]
+        outside = np.nonzero(~self.subset)[0]
+        return (f"uniqueness condition violated: for J = {_blocks_text(inside)} (forward) and the "
+                f"rest {_blocks_text(outside)} (backward), sum mu+ over J - sum mu- over the rest "
+                f"= 0 for t in {where} (a whole interval): the model does not determine how the "
+                "crawler moves (docs/model.md §3, paper eq. (uniqueness)). Make the friction "
+                "anisotropic or change a coefficient.")
+
+
+def _blocks_text(blocks: np.ndarray) -> str:
+    return "{" + ", ".join(str(int(j) + 1) for j in blocks) + "}"
+
+
+def find_violation(forward: Sequence[Signal], backward: Sequence[Signal]) -> Violation | None:
+    """A subset J violating the uniqueness condition, or None if there is none.
+
+    ``forward[j]`` and ``backward[j]`` are mu_j^+ and mu_j^- as signals of the cycle; they must
+    be positive (checked before). Raises `UniquenessUndecidable` when the search would exceed
+    its bounds.
+    """
+    n = len(forward)
+    pairs: dict[tuple[Signal, Signal], int] = {}
+    pair_of = np.array([pairs.setdefault((f, b), len(pairs)) for f, b in zip(forward, backward)])
+    distinct = list(pairs)
+    multiplicity = np.bincount(pair_of, minlength=len(distinct))
+    signals = [s for pair in distinct for s in pair]
+
+    edges = np.append(union_breakpoints([s.breakpoints() for s in signals] + [np.zeros(1)]), 1.0)
+    degree = max(s.harmonics for s in signals)
+    linear = any(isinstance(s, PiecewiseLinear) or getattr(s, "has_linear", False)
+                 for s in signals)
+    per_piece = 2 * degree + 2 + int(linear)
+    fractions = (np.arange(per_piece) + 1.0) / (per_piece + 1.0)
+    fractions = fractions + 0.3 * np.sin(7.0 * fractions) / (per_piece + 1.0)
+
+    samples = _Samples(distinct, edges, fractions)
+    for first, last, mu_plus, mu_minus in samples.chunks():
+        for k in range(last - first):
+            columns = slice(k * per_piece, (k + 1) * per_piece)
+            counts = _search_piece(mu_plus[:, columns] + mu_minus[:, columns],
+                                   multiplicity @ mu_minus[:, columns], multiplicity)
+            if counts is None:
+                continue
+            subset = _subset(counts, pair_of, n)
+            inside = np.bincount(pair_of[subset], minlength=len(distinct))
+            intervals = samples.vanishing_intervals(inside, multiplicity - inside)
+            if intervals:
+                return Violation(subset, intervals)
+    return None
+
+
+class _Samples:
+    """The distinct friction pairs sampled on the pieces, a bounded number of pieces at a time."""
+
+    def __init__(self, distinct: list[tuple[Signal, Signal]], edges: np.ndarray,
+                 fractions: np.ndarray):
+        self.distinct, self.edges, self.fractions = distinct, edges, fractions
+        self.pieces = len(edges) - 1
+        self.step = max(1, MAX_SAMPLE_ENTRIES // (2 * len(distinct) * len(fractions)))
+
+    def chunks(self):
+        """(first piece, end piece, mu^+ (pairs, samples), mu^- (pairs, samples))."""
+        for first in range(0, self.pieces, self.step):
+            last = min(self.pieces, first + self.step)
+            lo, width = self.edges[first:last], np.diff(self.edges[first:last + 1])
+            u = (lo[:, None] + width[:, None] * self.fractions).ravel()
+            yield (first, last, evaluate_many([f for f, _ in self.distinct], u).T,
+                   evaluate_many([b for _, b in self.distinct], u).T)
+
+    def vanishing_intervals(self, inside: np.ndarray, outside: np.ndarray
+                            ) -> tuple[tuple[float, float], ...]:
+        """The unions of pieces on which g_J vanishes at every sample, for J holding ``inside[p]``
+        blocks of friction pair p and leaving out ``outside[p]``: the search's answer verified
+        from the signals themselves."""
+        intervals: list[list[float]] = []
+        for first, _, mu_plus, mu_minus in self.chunks():
+            g = inside @ mu_plus - outside @ mu_minus
+            scale = (inside + outside) @ (mu_plus + mu_minus)
+            ok = (np.abs(g) <= _MATCH * TOLERANCE * scale).reshape(-1, len(self.fractions))
+            for piece in np.nonzero(np.all(ok, axis=1))[0] + first:
+                lo, hi = float(self.edges[piece]), float(self.edges[piece + 1])
+                if intervals and abs(intervals[-1][1] - lo) <= JUMP_TOLERANCE:
+                    intervals[-1][1] = hi
+                else:
+                    intervals.append([lo, hi])
+        return tuple((lo, hi) for lo, hi in intervals)
+
+
+def _subset(counts: np.ndarray, pair_of: np.ndarray, n: int) -> np.ndarray:
+    """J with ``counts[p]`` blocks of friction pair p: the first ones, in block order."""
+    subset = np.zeros(n, dtype=bool)
+    taken = np.zeros(len(counts), dtype=np.int64)
+    for j in range(n):
+        p = pair_of[j]
+        if taken[p] < counts[p]:
+            subset[j] = True
+            taken[p] += 1
+    return subset
+
+
+def _search_piece(a: np.ndarray, rest: np.ndarray, multiplicity: np.ndarray) -> np.ndarray | None:
+    """Counts c_p (0 <= c_p <= multiplicity_p) of blocks of each friction pair with
+    sum_p c_p a_p = rest to within the band, or None.
+
+    ``a`` is (pairs, samples): a_j = mu_j^+ + mu_j^- of each pair at the piece's samples;
+    ``rest`` is sum_j mu_j^- at the same samples.
+    """
+    tolerance = TOLERANCE * (multiplicity @ a)
+    # Identical samples are one condition (constant friction: every sample of the piece).
+    table = np.vstack([a, rest, tolerance])
+    table = np.unique(table, axis=1)
+    a, rest, tolerance = table[:-2], table[-2], table[-1]
+    # Pairs equal on this piece are one group whose count is the sum of theirs.
+    values, group_of = np.unique(a, axis=0, return_inverse=True)
+    group_of = np.ravel(group_of)
+    sizes = np.bincount(group_of, weights=multiplicity, minlength=len(values)).astype(np.int64)
+    scaled = values / tolerance  # in tolerances: a match is |sum - target| <= _MATCH
+    target = rest / tolerance
+
+    order = np.argsort(-sizes, kind="stable")
+    halves: tuple[list[int], list[int]] = ([], [])
+    logs = [0.0, 0.0]
+    for g in order:
+        side = 0 if logs[0] <= logs[1] else 1
+        halves[side].append(int(g))
+        logs[side] += math.log(sizes[g] + 1.0)
+    left = _HalfSums(scaled, sizes, halves[0])
+    right = _HalfSums(scaled, sizes, halves[1])
+    pair = _meet(left.sums, right.sums, target)
+    if pair is None:
+        return None
+    group_counts = left.counts(pair[0]) + right.counts(pair[1])
+    # back from groups to friction pairs: fill each group's pairs in order
+    counts = np.zeros(len(multiplicity), dtype=np.int64)
+    for p in range(len(multiplicity)):
+        g = group_of[p]
+        take = min(int(multiplicity[p]), int(group_counts[g]))
+        counts[p] = take
+        group_counts[g] -= take
+    return counts
+
+
+class _HalfSums:
+    """The distinct sums sum_g c_g v_g over the groups of one half (0 <= c_g <= size_g), built
+    item by item (a group of n blocks as items of 1, 2, 4, ..., rest blocks), merging sums that
+    fall in the same cell of side `quantum` tolerances after each item."""
+
+    def __init__(self, scaled: np.ndarray, sizes: np.ndarray, groups: list[int]):
+        r = scaled.shape[1]
+        items: list[tuple[int, int]] = []
+        for g in groups:
+            left, weight = int(sizes[g]), 1
+            while left > 0:
+                take = min(weight, left)
+                items.append((g, take))
+                left -= take
+                weight *= 2
+        self.groups = len(scaled)
+        self.items = items
+        quantum = 0.25 / max(1, len(items))  # merging moves a sum by < quantum per item
+        sums = np.zeros((1, r))
+        self.parents: list[np.ndarray] = []
+        self.taken: list[np.ndarray] = []
+        for g, weight in items:
+            size = 2 * len(sums)
+            if size * r > MAX_HALF_ENTRIES:
+                raise UniquenessUndecidable(
+                    f"the search would hold more than {MAX_HALF_ENTRIES:,} values for one half "
+                    f"({size:,} distinct sums of friction coefficients x {r} samples per "
+                    f"piece): {len(scaled)} groups of blocks with distinct friction are too many "
+                    "to check exactly")
+            grown = np.concatenate([sums, sums + weight * scaled[g]])
+            keep = _distinct_cells(np.floor(grown / quantum).astype(np.int64))
+            self.parents.append(keep % len(sums))
+            self.taken.append(keep >= len(sums))
+            sums = grown[keep]
+        self.sums = sums
+
+    def counts(self, index: int) -> np.ndarray:
+        """The count of each group in the sum ``self.sums[index]``."""
+        out = np.zeros(self.groups, dtype=np.int64)
+        for (g, weight), parents, taken in zip(reversed(self.items), reversed(self.parents),
+                                               reversed(self.taken)):
+            if taken[index]:
+                out[g] += weight
+            index = int(parents[index])
+        return out
+
+
+_HASH = np.random.default_rng(_KEY_WEIGHTS_SEED).integers(1, 1 << 63, size=64, dtype=np.uint64) | 1
+
+
+def _distinct_cells(cells: np.ndarray) -> np.ndarray:
+    """Sorted indices of one row per distinct row of the integer array ``cells`` (n, r).
+
+    Rows are hashed to one word, and (hash, index) pairs packed into one integer are sorted
+    (an argsort or a lexicographic sort of rows is several times slower). A row whose hash
+    collides with a different row's is kept as well, so no cell is lost.
+    """
+    n = len(cells)
+    bits = max(1, int(n - 1).bit_length())
+    words = cells.view(np.uint64)
+    with np.errstate(over="ignore"):
+        hashes = words[:, 0] * _HASH[0]
+        for k in range(1, cells.shape[1]):
+            hashes = (hashes ^ (hashes >> np.uint64(29))) + words[:, k] * _HASH[k % len(_HASH)]
+    low = np.uint64((1 << bits) - 1)
+    packed = np.sort((hashes & ~low) | np.arange(n, dtype=np.uint64))
+    index = (packed & low).astype(np.int64)
+    starts = np.concatenate([[True], (packed[1:] & ~low) != (packed[:-1] & ~low)])
+    first = index[starts]
+    representative = np.empty(n, dtype=np.int64)
+    representative[index] = index[np.maximum.accumulate(np.where(starts, np.arange(n), 0))]
+    keep = np.any(cells != cells[representative], axis=1)
+    keep[first] = True
+    return np.flatnonzero(keep)
+
+
+def _meet(left: np.ndarray, right: np.ndarray, target: np.ndarray) -> tuple[int, int] | None:
+    """Indices (i, k) with |left[i] + right[k] - target| <= _MATCH on every sample, or None.
+
+    The left sums are sorted by a key, a fixed positive combination of the samples: a match
+    needs |key(left) + key(right) - key(target)| <= _MATCH * sum(weights), a window found by
+    binary search; every pair in a window is then verified on all samples.
+    """
+    r = left.shape[1]
+    weights = np.asarray(1.0 + np.random.default_rng(_KEY_WEIGHTS_SEED).random(r))
+    key_left = left @ weights
+    key_right = right @ weights
+    right_order = np.argsort(key_right, kind="stable")
+    order = np.argsort(key_left, kind="stable")
+    sorted_keys = key_left[order]
+    # the right sums in key order, so the binary searches walk memory in order
+    right = right[right_order]
+    centre = target @ weights - right @ weights
+    # the keys' own roundoff, a small fraction of a tolerance
+    slack = (r + 8) * float(np.finfo(float).eps) * (np.abs(centre) + np.max(np.abs(key_left)) + 1.0)
+    half = _MATCH * float(weights.sum()) + slack
+    lo = np.searchsorted(sorted_keys, centre - half, side="left")
+    hi = np.searchsorted(sorted_keys, centre + half, side="right")
+    width = hi - lo
+    total = int(width.sum())
+    if total == 0:
+        return None
+    if total > MAX_CANDIDATES:
+        raise UniquenessUndecidable(
+            f"{total:,} candidate subsets would have to be verified (more than "
+            f"{MAX_CANDIDATES:,}): the friction coefficients have too many nearly equal sums to "
+            "check exactly")
+    rights = np.nonzero(width)[0]
+    cumulative = np.cumsum(width[rights])
+    start = 0
+    while start < len(rights):
+        # a batch of right sums whose windows hold about 2^20 candidates together
+        before = cumulative[start] - width[rights[start]]
+        end = max(start + 1, int(np.searchsorted(cumulative, before + (1 << 20), side="right")))
+        ks = rights[start:end]
+        start = end
+        k = np.repeat(ks, width[ks])
+        offset = np.arange(k.size) - np.repeat(np.cumsum(width[ks]) - width[ks], width[ks])
+        i = order[lo[k] + offset]
+        ok = np.all(np.abs(left[i] + right[k] - target) <= _MATCH, axis=1)
+        hit = np.flatnonzero(ok)
+        if hit.size:
+            return int(i[hit[0]]), int(right_order[k[hit[0]]])
+    return None
