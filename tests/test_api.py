@@ -218,14 +218,21 @@ def test_sweep_refuses_bad_values(values):
         crawlsim.sweep(crawlsim.load_gait(INCHING), {"period": values})
 
 
-def test_crawlsim_sweep_is_both_the_function_and_the_module():
-    """``crawlsim.sweep(...)`` runs the API function; ``crawlsim.study.sweep.make_grid`` is the
-    module's, whichever was imported first (checked in a fresh interpreter for each order)."""
+def test_crawlsim_sweep_and_sensitivity_are_functions_with_signatures():
+    """``crawlsim.sweep`` and ``crawlsim.sensitivity`` are the API's functions (real signatures,
+    their own docstrings), whichever of the package and the module `crawlsim.study.sweep` was
+    imported first (checked in a fresh interpreter for each order)."""
     for first in ("import crawlsim.study.sweep", "import crawlsim"):
-        code = (f"{first}\nimport crawlsim\nassert callable(crawlsim.study.sweep)\n"
-                "from crawlsim import sweep as s\nassert s.make_grid and s is crawlsim.study.sweep\n"
-                "import sys\nassert 'numpy' not in sys.modules or 'crawlsim.study.sweep' in "
-                "sys.modules\n")
+        code = (f"{first}\nimport crawlsim, inspect, types\n"
+                "import crawlsim.api as api\n"
+                "assert crawlsim.sweep is api.sweep and crawlsim.sensitivity is api.sensitivity\n"
+                "import importlib\n"
+                "assert isinstance(importlib.import_module('crawlsim.study.sweep'), types.ModuleType)\n"
+                "for f in (crawlsim.sweep, crawlsim.sensitivity):\n"
+                "    params = inspect.signature(f).parameters\n"
+                "    assert 'gait' in params, params\n"
+                "    assert not any(p.kind is p.VAR_POSITIONAL for p in params.values())\n"
+                "    assert f.__doc__ and 'module' not in f.__doc__.splitlines()[0]\n")
         done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                               check=False)
         assert done.returncode == 0, done.stderr

@@ -118,10 +118,10 @@ def test_an_invalid_gait_loads_jsonschema_for_its_message(tmp_path):
 
 
 def test_version_of_the_console_script_loads_no_click(tmp_path):
-    """``crawlsim --version`` (the console script, `crawlsim.cli.console`) answers before importing
+    """``crawlsim --version`` (the console script, `crawlsim.console`) answers before importing
     click, with click's own answer."""
     code = ("import sys, json; sys.argv = ['crawlsim', '--version']\n"
-            "from crawlsim.cli.console import main\n"
+            "from crawlsim.console import main\n"
             "try:\n    main()\nexcept SystemExit as e:\n    code = e.code\n"
             "print(json.dumps([code, sorted(sys.modules)]))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
@@ -140,15 +140,15 @@ def test_help_of_the_console_script_is_clicks_and_loads_no_click(tmp_path):
     renders at 80 columns, without importing click; narrower, click renders it itself."""
     from click.testing import CliRunner
 
+    from crawlsim._help import TEXT
     from crawlsim.cli import main as cli
-    from crawlsim.cli._help import TEXT
 
     rendered = CliRunner().invoke(cli, ["--help"], prog_name="crawlsim", terminal_width=78)
     assert rendered.exit_code == 0
     assert TEXT == rendered.output, (
-        "crawlsim/cli/_help.py is stale: its TEXT must be\n" + rendered.output)
+        "crawlsim/_help.py is stale: its TEXT must be\n" + rendered.output)
     code = ("import sys, json; sys.argv = ['crawlsim', '--help']\n"
-            "from crawlsim.cli.console import main\n"
+            "from crawlsim.console import main\n"
             "try:\n    main()\nexcept SystemExit as e:\n    code = e.code\n"
             "print(json.dumps([code, sorted(sys.modules)]))")
     for columns, stored in (("120", True), ("80", True), ("60", False)):
@@ -163,7 +163,7 @@ def test_help_of_the_console_script_is_clicks_and_loads_no_click(tmp_path):
 
 def test_console_script_passes_everything_else_to_the_command_group(tmp_path):
     code = ("import sys; sys.argv = ['crawlsim', 'validate', sys.argv[1]]\n"
-            "from crawlsim.cli.console import main\nmain()")
+            "from crawlsim.console import main\nmain()")
     done = subprocess.run([sys.executable, "-c", code, str(GAIT)], capture_output=True,
                           text=True, cwd=tmp_path)
     assert done.returncode == 0, done.stderr

@@ -21,8 +21,7 @@ import pytest
 import yaml
 from click.testing import CliRunner
 
-from crawlsim.analysis import stall
-from crawlsim.analysis.stall import StallCause
+from crawlsim.analysis.stall import StallCause, stall
 from crawlsim.cli import main
 from crawlsim.errors import InputError
 from crawlsim.gait.document import parse_gait

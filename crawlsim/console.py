@@ -3,7 +3,7 @@
 scripts and installers ask for the version first, people for the help).
 
 The answers are click's own: ``crawlsim, version X`` (``click.version_option``) and the help
-text click renders at 80 columns (`crawlsim.cli._help`, generated), printed only where click would
+text click renders at 80 columns (`crawlsim._help`, generated), printed only where click would
 render that width too (a terminal or ``COLUMNS`` of 80 or more, or no terminal at all) and when
 the program is called ``crawlsim``; tests/test_imports.py checks that both agree with click.
 """
@@ -37,7 +37,7 @@ def main() -> None:
         sys.exit(0)
     if (sys.argv[1:] == ["--help"] and os.path.basename(sys.argv[0]) == "crawlsim"
             and _columns() >= 80):
-        from crawlsim.cli._help import TEXT
+        from crawlsim._help import TEXT
 
         sys.stdout.write(TEXT)
         sys.exit(0)

@@ -1,5 +1,5 @@
 """``crawlsim --help`` as click renders it at the full width of 80 columns (generated: do not
-edit by hand). `crawlsim.cli.console` prints it without importing click, which alone costs more than
+edit by hand). `crawlsim.console` prints it without importing click, which alone costs more than
 the interpreter's start-up; tests/test_imports.py checks that it is click's text to the byte, and
 its failure message prints the text to paste here when a command or its help changes.
 """
