@@ -65,7 +65,7 @@ class Trajectory:
     events: Mapping[str, np.ndarray] | None = None  # t, w (and x): the exact integrator's events
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class SimulationResult(RunResult):
     """A `RunResult` with what a study needs besides: the trajectory (None when not kept), the
     units of the gait file, the provenance, and the same data as an xarray tree

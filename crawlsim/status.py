@@ -28,3 +28,11 @@ class Integrator(StrEnum):
 
     CATCH_UP = "catch-up"
     EXACT = "exact"
+
+
+class RunStatus(StrEnum):
+    """The outcome of one run, in the manner of diffrax's ``RESULTS``: `RunResult.message`
+    says what to change when it is not `SUCCESSFUL`."""
+
+    SUCCESSFUL = "successful"  # the periodic limit was found (finite-time or asymptotic)
+    MAX_PERIODS_REACHED = "max-periods-reached"  # max_periods ran out before the limit

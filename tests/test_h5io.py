@@ -360,12 +360,21 @@ def test_sweep_file_is_not_a_run_file(files):
         read_results(files["sweep"])
 
 
-def test_dimensions_without_values_take_no_storage(files):
-    """time, limit_time and event_time are netCDF dimensions but not variables: the values are
-    the group's t, stored once."""
+def test_time_dimensions_are_indexed_by_their_times(files):
+    """time, limit_time and event_time are coordinate variables (dimension scales) holding the
+    group's t, so xarray indexes them: ``sel(time=...)`` picks a saved grid point by its time."""
     with h5py.File(files["exact"]) as f:
         for path in ("trajectory/time", "limit/limit_time", "events/event_time"):
             ds = f[path]
-            assert ds.attrs["NAME"].startswith(NOT_A_VARIABLE)
-            assert ds.id.get_storage_size() == 0
-            assert ds.shape == f[path.rsplit("/", 1)[0] + "/t"].shape
+            assert ds.attrs["CLASS"] == b"DIMENSION_SCALE"
+            assert not bytes(ds.attrs["NAME"]).startswith(NOT_A_VARIABLE)
+            np.testing.assert_array_equal(ds[()], f[path.rsplit("/", 1)[0] + "/t"][()])
+        assert f.attrs["Conventions"] == "CF-1.10"
+    with xr.open_datatree(files["exact"], engine="h5netcdf") as tree:
+        trajectory = tree["trajectory"].to_dataset()
+        t = trajectory.t.values
+        picked = trajectory.sel(time=t[7])
+        np.testing.assert_array_equal(picked.w.values, trajectory.w.values[7])
+        assert "time" in trajectory.indexes and "event_time" in tree["events"].to_dataset().indexes
+
+

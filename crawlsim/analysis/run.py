@@ -29,39 +29,78 @@ The convergence is classified from the true iterates:
 
 The distances of each period to the limit period (W^{1,2}, sup, and the L^2 distance of the
 slip rates) are computed at the end, against the limit the run settled on; until then the
-periods wait on disk, so a long run's memory stays bounded.
+periods wait on disk, so a long run's memory stays bounded (`crawlsim.analysis.convergence`).
+
+`simulate` is a driver (`_drive`: the periods, the solver, the history) followed by the analysis
+of what it produced (`_analyse`: convergence, v0 and its error, energy); the result carries a
+`RunStatus` and a message saying what to change when the run did not succeed.
 """
 
 from __future__ import annotations
 
-import math
-import tempfile
 import time as _time
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from crawlsim.analysis.convergence import (
+    FINITE_JUMP,
+    RATE_RELIABLE,
+    RATE_WINDOW,
+    ROUNDOFF_FLOOR,
+    History,
+    RateFit,
+    classify_convergence,
+    contraction_rate,
+    effective_tolerance,
+    fit_contraction_rate,
+    period_iteration_error,
+    poincare_step,
+    settled_elsewhere,
+)
 from crawlsim.analysis.energy import ledger as energy_ledger
 from crawlsim.analysis.energy import period_dissipation, period_energy
+from crawlsim.analysis.report import (
+    energy_lines,
+    grid_note,
+    not_converged_message,
+    run_message,
+    summary_text,
+    verdict_rate,
+)
 from crawlsim.integrate.stepping import PeriodRecord, make_stepper, positions_of
 from crawlsim.model.process import SweepingProcess
-from crawlsim.status import Convergence
+from crawlsim.status import Convergence, RunStatus
+
+if TYPE_CHECKING:
+    from crawlsim.integrate.limit import LimitSolution
+
+__all__ = ["ENERGY_KEYS", "FINITE_JUMP", "LIMIT_METHODS", "RATE_RELIABLE", "RATE_WINDOW",
+           "ROUNDOFF_FLOOR", "ConvergenceHistory", "LimitPeriod", "RateFit", "RunResult",
+           "classify_convergence", "contraction_rate", "cost_of_transport",
+           "effective_tolerance", "energy_lines", "fit_contraction_rate", "following",
+           "limit_period", "not_converged_message", "period_iteration_error", "poincare_step",
+           "simulate", "summary_text", "time_step_reference"]
 
 #: How the periodic limit is found: the solver of `crawlsim.integrate.limit`, or plain iteration.
 LIMIT_METHODS = ("newton", "iterate")
 
-#: Relative Poincare steps below this are roundoff: a smaller tolerance is clamped to it.
-ROUNDOFF_FLOOR = 1e-13
-#: One-period drop of the Poincare step that counts as finite-time convergence.
-FINITE_JUMP = 1e-4
-#: Periods used to fit the contraction rate.
-RATE_WINDOW = 8
-#: Relative Poincare steps above this carry at most ~1e-6 relative roundoff (eps / step).
-RATE_RELIABLE = 1e-10
 #: The energy ledger's entries of the summary (`crawlsim.analysis.energy`).
 ENERGY_KEYS = ("actuator_work_per_period", "jump_loss_per_period", "load_work_per_period",
                "energy_balance_residual",
                "cost_of_transport_bound", "efficiency")
+
+#: The keys of `RunResult.summary`, in order.
+SUMMARY_KEYS = ("name", "integrator", "status", "message", "v0", "v0_error_estimate",
+                "v0_error_period_iteration", "v0_error_time_step", "v0_error_reason",
+                "displacement_per_period", "dissipation_error_estimate", "convergence",
+                "periodic_from", "contraction_rate", "contraction_rate_error",
+                "contraction_rate_periods", "jacobian_rate", "exact_convergence", "exact_rate",
+                "grid_note", "periods", "steps_per_period", "dissipation_per_period",
+                "cost_of_transport", "limit_method", "limit_newton_steps", "limit_periods",
+                "clarabel_calls", "steps", "wall_time") + ENERGY_KEYS
 
 
 @dataclass(frozen=True, eq=False)
@@ -93,7 +132,7 @@ class LimitPeriod:
     slip_rate: np.ndarray | None = None  # (G, N) dx / dt on each step
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class RunResult:
     """Everything `simulate` measured. ``summary()`` is the JSON-ready part."""
 
@@ -142,6 +181,17 @@ class RunResult:
     efficiency: float | None = None
     # Work against the loads per period (docs/model.md §6); None without loads.
     load_work_per_period: float | None = None
+    # The outcome and, when it is not successful, what to change (diffrax's manner).
+    status: RunStatus = RunStatus.SUCCESSFUL
+    message: str = ""
+    # The contraction rate's evidence: its standard error and the periods it was fitted on.
+    contraction_rate_error: float | None = None
+    contraction_rate_periods: int = 0
+    # Catch-up runs measured against the exact integrator: its verdict and rate (the Jacobian's
+    # at the limit), and the note the summary prints when catch-up's verdict depends on the grid.
+    exact_convergence: Convergence | None = None
+    exact_rate: float | None = None
+    grid_note: str | None = None
 
     @property
     def displacement_error_estimate(self) -> float | None:
@@ -162,54 +212,44 @@ class RunResult:
     def converged(self) -> bool:
         return self.convergence != Convergence.NOT_CONVERGED
 
-    def summary(self) -> dict:
-        keys = ("name", "integrator", "v0", "v0_error_estimate", "v0_error_period_iteration",
-                "v0_error_time_step", "v0_error_reason", "displacement_per_period", "dissipation_error_estimate",
-                "convergence",
-                "periodic_from", "contraction_rate", "jacobian_rate", "periods",
-                "steps_per_period", "dissipation_per_period", "cost_of_transport",
-                "limit_method", "limit_newton_steps", "limit_periods", "clarabel_calls",
-                "steps", "wall_time") + ENERGY_KEYS
-        out = {k: getattr(self, k) for k in keys}
-        out["convergence"] = str(self.convergence)
+    def __repr__(self) -> str:
+        from crawlsim.analysis.report import result_repr
+
+        return result_repr(self)
+
+    def _repr_html_(self) -> str:
+        from crawlsim.analysis.report import result_html
+
+        return result_html(self)
+
+    def summary(self) -> dict[str, Any]:
+        """The JSON-ready numbers (`SUMMARY_KEYS`), statuses as their strings."""
+        out = {k: getattr(self, k) for k in SUMMARY_KEYS}
+        for key in ("status", "convergence", "exact_convergence"):
+            out[key] = None if out[key] is None else str(out[key])
         out["final_poincare_step"] = float(self.history.poincare_step[-1])
         return out
 
 
-class _PeriodSpill:
-    """Each period's w and multipliers, spilled to an anonymous temporary file.
+Progress = Callable[[int, float], None]
 
-    The distances to the limit period need every period and the final one, which is known only at
-    the end; keeping them on disk keeps a long run's memory bounded.
-    """
 
-    def __init__(self):
-        self._file = tempfile.TemporaryFile()
-        self._shapes = None
+@dataclass
+class _Drive:
+    """What the driver produced: the true iterates, the limit period the run settled on and,
+    when the periodic-limit solver found it, its solution; the cost of the solver's periods."""
 
-    def add(self, rec: PeriodRecord):
-        self._shapes = (rec.w.shape, rec.multipliers.shape)
-        rec.w.tofile(self._file)
-        rec.multipliers.tofile(self._file)
-
-    def periods(self):
-        (wshape, lshape) = self._shapes
-        nw, nl = math.prod(wshape), math.prod(lshape)
-        self._file.seek(0)
-        while True:
-            w = np.fromfile(self._file, count=nw)
-            if w.size < nw:
-                return
-            lam = np.fromfile(self._file, count=nl)
-            yield w.reshape(wshape), lam.reshape(lshape)
-
-    def close(self):
-        self._file.close()
+    log: History
+    final: PeriodRecord
+    solution: LimitSolution | None
+    distances: dict[str, np.ndarray]
+    clarabel_calls: int
+    solver_periods: int
 
 
 def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: float = 1e-12,
-             integrator: str = "catch-up", check_every_step: bool = False, sink=None,
-             progress=None, limit: str = "newton", history: bool = True,
+             integrator: str = "catch-up", check_every_step: bool = False, sink: Any = None,
+             progress: Progress | None = None, limit: str = "newton", history: bool = True,
              time_step_error: bool = False) -> RunResult:
     """Step ``process`` to its periodic regime and analyse the run (module docstring).
 
@@ -223,55 +263,41 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
     measured (``time_step_error``) against the exact integrator's v0 for the same gait
     (`time_step_reference`), and left None where that cannot run.
     """
-    from crawlsim.integrate.limit import PLAIN_PERIODS, solve_limit
-
     if limit not in LIMIT_METHODS:
         raise ValueError(f"limit must be one of {', '.join(LIMIT_METHODS)}, got {limit!r}")
     began = _time.perf_counter()
     options = {"check_every_step": True} if check_every_step else {}
-    stepper = make_stepper(process, integrator, **options)
     tol = effective_tolerance(tolerance)
-    log = _History(process)
-    final: PeriodRecord | None = None  # the limit period
-    solution = None
-    solver_cost = (0, 0)  # periods simulated and Clarabel calls made by the limit solver
+    drive = _drive(process, integrator, options, tol=tol, max_periods=max_periods, limit=limit,
+                   history=history, sink=sink, progress=progress)
+    result = _analyse(process, drive, integrator=integrator, tol=tol,
+                      reference=_reference(process, integrator, time_step_error,
+                                           max_periods=max_periods, tolerance=tolerance))
+    return replace(result, wall_time=_time.perf_counter() - began,
+                   **_outcome(result, max_periods=max_periods, tolerance=tol, limit=limit))
+
+
+def _drive(process: SweepingProcess, integrator: str, options: dict[str, Any], *, tol: float,
+           max_periods: int, limit: str, history: bool, sink: Any,
+           progress: Progress | None) -> _Drive:
+    """The true iterates, period by period, and the limit: plain iteration, or a few plain
+    periods and then the periodic-limit solver, with the history following the iterates to it."""
+    from crawlsim.integrate.limit import PLAIN_PERIODS
+
+    stepper = make_stepper(process, integrator, **options)
+    log = History(process)
+    solution: LimitSolution | None = None
+    cost = (0, 0)  # periods simulated and Clarabel calls made by the limit solver
     try:
         # the true iterates; with the solver, only a few before it takes over
         budget = max_periods if limit == "iterate" else min(max_periods, PLAIN_PERIODS)
-        while len(log) < budget:
-            record = log.add(stepper.step_period(), sink, progress)
-            if log.rel_steps[-1] <= tol:
-                final = record
-                break
+        final = _iterate(log, stepper, budget, tol, sink, progress)
         if final is None and limit == "newton" and len(log) < max_periods:
-            solver = make_stepper(process, integrator, **options)
-            # the last true iterate is the solver's first period: not simulated twice
-            solution = solve_limit(process, solver, tolerance=tol, first=log.last,
-                                   max_periods=max_periods - len(log), plain=0)
-            solver_cost = (solution.periods, solver.projector.clarabel_calls)
-            if solution.converged:
-                final = solution.record
-                log.set_limit(final)
-                # the history goes on until the iterates reach the verified limit, or are
-                # periodic themselves (a Poincare step of 0 is convergence): where the periodic
-                # solutions form a family (Theorem th:speed: they differ by constants of the
-                # directions no active set ever sees), the iterates may settle on another member
-                # than the solver's, and would never reach it. Their own is then the limit.
-                while history and len(log) < max_periods and not log.reached(tol):
-                    record = log.add(stepper.step_period(), sink, progress)
-                    if _settled_elsewhere(log, tol):
-                        final, solution = record, None
-                        break
-            else:  # the solver's periods count against max_periods: the history stops
-                solution = None
+            final, solution, cost = _solve(process, integrator, options, log, stepper, tol=tol,
+                                           max_periods=max_periods, history=history,
+                                           sink=sink, progress=progress)
         if final is None:  # plain iteration to the end (limit="iterate", or a solver failure)
-            while len(log) < max_periods:
-                record = log.add(stepper.step_period(), sink, progress)
-                if log.rel_steps[-1] <= tol:
-                    final = record
-                    break
-            if final is None:
-                final = log.last
+            final = _iterate(log, stepper, max_periods, tol, sink, progress) or log.last
         assert final is not None, "max_periods >= 1"
         log.set_limit(final)
         distances = log.distances()
@@ -280,95 +306,221 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
     if solution is not None:
         assert log.last is not None
         final = following(process, final, log.last)
+    return _Drive(log, final, solution, distances,
+                  stepper.projector.clarabel_calls + cost[1], cost[0])
 
-    T, G = process.period, process.steps
-    rel = np.array(log.rel_steps)
-    convergence, periodic_from = classify_convergence(rel, tol)
-    if solution is not None and convergence == Convergence.NOT_CONVERGED:
-        # the limit is verified; the iterates approach it geometrically but had not reached it
-        convergence = Convergence.ASYMPTOTIC
-    rate = None if convergence == Convergence.FINITE_TIME else contraction_rate(rel)
-    Q = len(log) - 1
-    displacement = np.array(log.displacements) if process.is_crawler else np.full(Q + 1, np.nan)
-    dissipation = np.array(log.dissipations) if process.is_crawler else np.full(Q + 1, np.nan)
-    hist = ConvergenceHistory(
-        period=np.arange(Q + 1), displacement=displacement, velocity=displacement / T,
-        poincare_step=np.array(log.steps), dissipation=dissipation, **distances)
+
+def _iterate(log: History, stepper: Any, budget: int, tol: float, sink: Any,
+             progress: Progress | None) -> PeriodRecord | None:
+    """Plain periods until the Poincare step reaches ``tol`` (that period, the limit) or the
+    history holds ``budget`` periods (None)."""
+    while len(log) < budget:
+        record = log.add(stepper.step_period(), sink, progress)
+        if log.rel_steps[-1] <= tol:
+            return record
+    return None
+
+
+def _solve(process: SweepingProcess, integrator: str, options: dict[str, Any], log: History,
+           stepper: Any, *, tol: float, max_periods: int, history: bool, sink: Any,
+           progress: Progress | None) -> tuple[PeriodRecord | None, LimitSolution | None,
+                                               tuple[int, int]]:
+    """The periodic-limit solver from the last true iterate, then the history up to its limit:
+    (the limit period or None when the solver failed, the solution or None when the iterates
+    settled elsewhere, the solver's (periods, Clarabel calls))."""
+    from crawlsim.integrate.limit import solve_limit
+
+    solver = make_stepper(process, integrator, **options)
+    # the last true iterate is the solver's first period: not simulated twice
+    solution = solve_limit(process, solver, tolerance=tol, first=log.last,
+                           max_periods=max_periods - len(log), plain=0)
+    cost = (solution.periods, solver.projector.clarabel_calls)
+    if not solution.converged:  # the solver's periods count against max_periods
+        return None, None, cost
+    log.set_limit(solution.record)
+    # the history goes on until the iterates reach the verified limit, or are periodic
+    # themselves (a Poincare step of 0 is convergence): where the periodic solutions form a
+    # family (Theorem th:speed: they differ by constants of the directions no active set ever
+    # sees), the iterates may settle on another member than the solver's, and would never
+    # reach it. Their own is then the limit.
+    while history and len(log) < max_periods and not log.reached(tol):
+        record = log.add(stepper.step_period(), sink, progress)
+        if settled_elsewhere(log, tol):
+            return record, None, cost
+    return solution.record, solution, cost
+
+
+@dataclass
+class _Motion:
+    """A crawler's limit period: displacement, v0, dissipation and v0's period-iteration error."""
+
+    displacement: float
+    v0: float
+    dissipation: float
+    error: float
+
+
+def _motion(process: SweepingProcess, drive: _Drive, displacements: np.ndarray,
+            convergence: Convergence, rate: float | None) -> _Motion | None:
+    """v0 of the limit period and the error of the period iteration: the residual of the
+    verified period, or the roundoff and geometric tail of the iterates (None: no crawler)."""
+    if not process.is_crawler:
+        return None
+    final, T, G = drive.final, process.period, process.steps
+    assert final.x is not None and final.slips is not None and process.friction is not None
+    d_final = float(np.mean(final.x[-1] - final.x[0]))
+    roundoff = float(np.sum(np.abs(final.slips))) / process.blocks
+    if drive.solution is not None:
+        # the verified period is periodic to its residual |P(w) - w|: a shape mismatch of
+        # |F| / k_min (a length) bounds the displacement's
+        F = float(np.max(np.abs(final.w[-1] - final.w[0])))
+        assert process.stiffness is not None
+        err = float((G * np.finfo(float).eps * roundoff
+                     + F / float(np.min(process.stiffness))) / T)
+    else:
+        err = period_iteration_error(displacements, convergence, rate, G, roundoff, T)
+    return _Motion(d_final, d_final / T, period_dissipation(process, final), err)
+
+
+@dataclass
+class _StepError:
+    """Catch-up's time-step error of v0 and of the dissipation, measured against the exact
+    integrator (zero for the exact integrator), or the reason it could not be measured."""
 
     v0: float | None = None
-    err: float | None = None
-    d_final = diss_final = cot = None
-    if process.is_crawler:
-        assert final.x is not None and final.slips is not None and process.friction is not None
-        d_final = float(np.mean(final.x[-1] - final.x[0]))
-        v0 = d_final / T
-        diss_final = period_dissipation(process, final)
-        roundoff = float(np.sum(np.abs(final.slips))) / process.blocks
-        if solution is not None:
-            # the verified period is periodic to its residual |P(w) - w|: a shape mismatch of
-            # |F| / k_min (a length) bounds the displacement's
-            F = float(np.max(np.abs(final.w[-1] - final.w[0])))
-            assert process.stiffness is not None
-            err = float((G * np.finfo(float).eps * roundoff
-                         + F / float(np.min(process.stiffness))) / T)
-        else:
-            err = period_iteration_error(displacement, convergence, rate, G, roundoff, T)
-    err_step: float | None = None
-    diss_step: float | None = None
-    err_reason: str | None = None
-    if v0 is not None:
-        if integrator == "exact":
-            err_step = diss_step = 0.0
-        elif time_step_error:
-            reference = time_step_reference(process, max_periods=max_periods, tolerance=tolerance)
-            if reference is not None and reference.v0 is not None:
-                err_step = abs(v0 - reference.v0) + (reference.v0_error_estimate or 0.0)
-                assert diss_final is not None and reference.dissipation_per_period is not None
-                diss_step = abs(diss_final - reference.dissipation_per_period) + (
-                    reference.dissipation_error_estimate or 0.0)
-            else:  # the period iteration's part alone bounds nothing: catch-up is O(h)
-                reason = ("the exact integrator needs a closed form of c(t), which this gait "
-                          "has not" if process.offset_pieces is None
-                          else "the exact integrator's reference run failed")
-                err_reason = ("no error estimate: the catch-up time-step error could not be "
-                              f"measured; {reason}")
-    err_pi = err
-    diss_err: float | None = None
-    if diss_final is not None and err_pi is not None and diss_step is not None and v0:
-        diss_err = abs(diss_final) * err_pi / abs(v0) + diss_step
-    if err is not None and err_step is not None:
-        err = err + err_step
-    if process.is_crawler and d_final is not None and diss_final is not None and err is not None:
-        # with loads the cost of transport counts the work against them (docs/model.md §6)
-        paid = diss_final
+    dissipation: float | None = None
+    reason: str | None = None
+
+
+def _reference(process: SweepingProcess, integrator: str, wanted: bool, *, max_periods: int,
+               tolerance: float) -> RunResult | None | bool:
+    """The exact integrator's run a catch-up run is measured against (`time_step_reference`);
+    False when none is wanted (the exact integrator, or ``time_step_error`` off)."""
+    if integrator == "exact" or not wanted or not process.is_crawler:
+        return False
+    return time_step_reference(process, max_periods=max_periods, tolerance=tolerance)
+
+
+def _step_error(process: SweepingProcess, motion: _Motion | None, integrator: str,
+                reference: RunResult | None | bool) -> _StepError:
+    if motion is None:
+        return _StepError()
+    if integrator == "exact":
+        return _StepError(0.0, 0.0)
+    if reference is False:
+        return _StepError()
+    if isinstance(reference, RunResult) and reference.v0 is not None:
+        assert reference.dissipation_per_period is not None
+        return _StepError(
+            abs(motion.v0 - reference.v0) + (reference.v0_error_estimate or 0.0),
+            abs(motion.dissipation - reference.dissipation_per_period)
+            + (reference.dissipation_error_estimate or 0.0))
+    # the period iteration's part alone bounds nothing: catch-up is O(h)
+    reason = ("the exact integrator needs a closed form of c(t), which this gait has not"
+              if process.offset_pieces is None
+              else "the exact integrator's reference run failed")
+    return _StepError(reason="no error estimate: the catch-up time-step error could not be "
+                             f"measured; {reason}")
+
+
+def _energy_fields(process: SweepingProcess, final: PeriodRecord, motion: _Motion | None,
+                   error: float | None) -> dict[str, Any]:
+    """The cost of transport (with loads, counting the work against them: docs/model.md §6)
+    and the energy ledger of the limit period (`crawlsim.analysis.energy`)."""
+    if motion is None:
+        return {"cost_of_transport": None}
+    cot = None
+    if error is not None:
+        paid = motion.dissipation
         if process.load is not None:
             paid += period_energy(process, final).load_work  # type: ignore[union-attr]
-        cot = cost_of_transport(paid, d_final, err, T)
-    ledger = energy_ledger(process, final, d_final, cot) if d_final is not None else None
-    energy_fields = {} if ledger is None else {
-        "actuator_work_per_period": ledger.actuator_work_per_period,
-        "jump_loss_per_period": ledger.jump_loss_per_period,
-        "load_work_per_period": ledger.load_work_per_period,
-        "energy_balance_residual": ledger.energy_balance_residual,
-        "cost_of_transport_bound": ledger.cost_of_transport_bound,
-        "efficiency": ledger.efficiency}
-    simulated = len(log) + solver_cost[0]
+        cot = cost_of_transport(paid, motion.displacement, error, process.period)
+    ledger = energy_ledger(process, final, motion.displacement, cot)
+    fields: dict[str, Any] = {"cost_of_transport": cot}
+    if ledger is not None:
+        fields.update(
+            actuator_work_per_period=ledger.actuator_work_per_period,
+            jump_loss_per_period=ledger.jump_loss_per_period,
+            load_work_per_period=ledger.load_work_per_period,
+            energy_balance_residual=ledger.energy_balance_residual,
+            cost_of_transport_bound=ledger.cost_of_transport_bound,
+            efficiency=ledger.efficiency)
+    return fields
+
+
+def _history_arrays(process: SweepingProcess, drive: _Drive) -> ConvergenceHistory:
+    """The per-period measurements of the true iterates (NaN displacements for generic
+    processes)."""
+    log = drive.log
+    Q = len(log) - 1
+    crawler = process.is_crawler
+    displacement = np.array(log.displacements) if crawler else np.full(Q + 1, np.nan)
+    dissipation = np.array(log.dissipations) if crawler else np.full(Q + 1, np.nan)
+    return ConvergenceHistory(
+        period=np.arange(Q + 1), displacement=displacement,
+        velocity=displacement / process.period, poincare_step=np.array(log.steps),
+        dissipation=dissipation, **drive.distances)
+
+
+def _solver_fields(solution: LimitSolution | None) -> dict[str, Any]:
+    """How the limit was found: the periodic-limit solver's numbers, or plain iteration."""
+    if solution is None:
+        return {"limit_method": "iterate"}
+    return {"limit_method": "newton", "limit_newton_steps": solution.newton_steps,
+            "limit_periods": solution.periods, "limit_residuals": solution.residuals,
+            "limit_kinds": solution.kinds, "jacobian_rate": solution.jacobian_rate}
+
+
+def _analyse(process: SweepingProcess, drive: _Drive, *, integrator: str, tol: float,
+             reference: RunResult | None | bool) -> RunResult:
+    """What the driver's periods measure: the convergence and its rate, v0 and its error
+    (period iteration plus time step), the cost of transport and the energy ledger."""
+    rel = np.array(drive.log.rel_steps)
+    convergence, periodic_from = classify_convergence(rel, tol)
+    if drive.solution is not None and convergence == Convergence.NOT_CONVERGED:
+        # the limit is verified; the iterates approach it geometrically but had not reached it
+        convergence = Convergence.ASYMPTOTIC
+    fit = None if convergence == Convergence.FINITE_TIME else fit_contraction_rate(rel)
+    rate = None if fit is None else fit.rate
+    hist = _history_arrays(process, drive)
+    motion = _motion(process, drive, hist.displacement, convergence, rate)
+    step = _step_error(process, motion, integrator, reference)
+    err_pi = None if motion is None else motion.error
+    err = err_pi if err_pi is None or step.v0 is None else err_pi + step.v0
+    diss_err = None
+    if motion is not None and step.dissipation is not None and motion.v0:
+        diss_err = abs(motion.dissipation) * motion.error / abs(motion.v0) + step.dissipation
+    G = process.steps
+    exact = reference if isinstance(reference, RunResult) else None
     return RunResult(
-        name=process.name, period=T, steps_per_period=G, convergence=convergence,
-        periods=Q + 1, periodic_from=periodic_from, contraction_rate=rate, v0=v0,
-        v0_error_estimate=None if err_reason else err, displacement_per_period=d_final,
-        dissipation_per_period=diss_final, cost_of_transport=cot, history=hist,
-        limit=limit_period(process, final, v0),
-        clarabel_calls=stepper.projector.clarabel_calls + solver_cost[1],
-        wall_time=_time.perf_counter() - began, steps=simulated * G, integrator=integrator,
-        limit_method="newton" if solution is not None else "iterate",
-        limit_newton_steps=solution.newton_steps if solution is not None else 0,
-        limit_periods=solution.periods if solution is not None else 0,
-        limit_residuals=solution.residuals if solution is not None else None,
-        limit_kinds=solution.kinds if solution is not None else None,
-        jacobian_rate=solution.jacobian_rate if solution is not None else None,
-        v0_error_period_iteration=err_pi, v0_error_time_step=err_step, v0_error_reason=err_reason,
-        dissipation_error_estimate=diss_err, **energy_fields)
+        name=process.name, period=process.period, steps_per_period=G, convergence=convergence,
+        periods=len(drive.log), periodic_from=periodic_from, contraction_rate=rate,
+        v0=None if motion is None else motion.v0,
+        v0_error_estimate=None if step.reason else err,
+        displacement_per_period=None if motion is None else motion.displacement,
+        dissipation_per_period=None if motion is None else motion.dissipation,
+        history=hist,
+        limit=limit_period(process, drive.final, None if motion is None else motion.v0),
+        clarabel_calls=drive.clarabel_calls, wall_time=0.0,
+        steps=(len(drive.log) + drive.solver_periods) * G, integrator=integrator,
+        v0_error_period_iteration=err_pi, v0_error_time_step=step.v0,
+        v0_error_reason=step.reason, dissipation_error_estimate=diss_err,
+        contraction_rate_error=None if fit is None else fit.error,
+        contraction_rate_periods=0 if fit is None else fit.periods,
+        exact_convergence=None if exact is None else exact.convergence,
+        exact_rate=None if exact is None else verdict_rate(exact),
+        **_solver_fields(drive.solution),
+        **_energy_fields(process, drive.final, motion, err))
+
+
+def _outcome(result: RunResult, *, max_periods: int, tolerance: float,
+             limit: str) -> dict[str, Any]:
+    """The status, the message saying what to change, and the grid note of a catch-up run."""
+    status = (RunStatus.MAX_PERIODS_REACHED if result.convergence == Convergence.NOT_CONVERGED
+              else RunStatus.SUCCESSFUL)
+    message = "" if status == RunStatus.SUCCESSFUL else run_message(
+        result, max_periods=max_periods, tolerance=tolerance, limit=limit)
+    return {"status": status, "message": message, "grid_note": grid_note(result)}
 
 
 def time_step_reference(process: SweepingProcess, *, max_periods: int,
@@ -388,114 +540,6 @@ def time_step_reference(process: SweepingProcess, *, max_periods: int,
         return None
 
 
-class _History:
-    """The true iterates of a run: per-period measurements, and each period's w and multipliers
-    (spilled to disk) for their distances to the limit period, measured at the end against the
-    limit the run settles on (the solver's, or the iterates' own if they become periodic on
-    another member of a family of periodic solutions)."""
-
-    def __init__(self, process: SweepingProcess):
-        self.process = process
-        self.h = np.diff(process.times)
-        self.steps: list[float] = []
-        self.rel_steps: list[float] = []
-        self.displacements: list[float] = []
-        self.dissipations: list[float] = []
-        self.last: PeriodRecord | None = None
-        self._spill: _PeriodSpill | None = _PeriodSpill()
-        self._limit: PeriodRecord | None = None
-        self._last_gap = np.inf
-
-    def __len__(self) -> int:
-        return len(self.steps)
-
-    def add(self, record: PeriodRecord, sink, progress) -> PeriodRecord:
-        p = self.process
-        if sink is not None:
-            sink.add_period(record)
-        step, rel = poincare_step(p, record.w[0], record.w[-1])
-        self.steps.append(step)
-        self.rel_steps.append(rel)
-        if p.is_crawler:
-            assert record.x is not None and p.friction is not None
-            self.displacements.append(float(np.mean(record.x[-1] - record.x[0])))
-            self.dissipations.append(period_dissipation(p, record))
-        assert self._spill is not None
-        self._spill.add(record)
-        self.last = record
-        self._gap()
-        if progress is not None:
-            progress(len(self.steps) - 1, rel)
-        return record
-
-    def set_limit(self, limit: PeriodRecord) -> None:
-        """The limit period the distances are measured against (`distances`)."""
-        self._limit = limit
-        self._gap()
-
-    def _gap(self) -> None:
-        if self._limit is None or self.last is None:
-            return
-        scale = max(float(np.linalg.norm(self._limit.w[0])), self.process.scale)
-        self._last_gap = float(np.linalg.norm(self.last.w[-1] - self._limit.w[0])) / scale
-
-    def reached(self, tol: float) -> bool:
-        """Whether the last iterate's end state is within ``tol`` of the limit's start."""
-        return bool(self.steps) and self._last_gap <= tol
-
-    @property
-    def gap(self) -> float:
-        """The last iterate's relative distance to the limit's start (inf before a limit)."""
-        return self._last_gap
-
-    def distances(self) -> dict:
-        """The distances of every period to the limit period (W^{1,2}, sup, slip rates)."""
-        out: dict[str, list[float]] = {"w12_distance": [], "sup_distance": [],
-                                       "slip_l2_distance": []}
-        assert self._limit is not None and self._spill is not None
-        for w, lam in self._spill.periods():
-            for key, value in _period_distances(w, lam, self._limit, self.h).items():
-                out[key].append(value)
-        return {k: np.array(v) for k, v in out.items()}
-
-    def close(self) -> None:
-        if self._spill is not None:
-            self._spill.close()
-            self._spill = None
-
-
-def _settled_elsewhere(log: _History, tol: float) -> bool:
-    """Whether the iterates are periodic to ``tol`` yet cannot reach the solver's limit: the
-    way they still have to go, at most the geometric tail ``step r / (1 - r)`` of their Poincare
-    steps (none after a step of 0, a finite-time convergence), is shorter than their distance
-    to it. An iterate that merely approaches the solver's limit slowly (``r`` near 1) has its
-    tail at least as long as that distance, and goes on."""
-    step = log.rel_steps[-1]
-    if step > tol or log.reached(tol):
-        return False
-    if step == 0.0:
-        travel = 0.0
-    else:
-        rate = contraction_rate(np.array(log.rel_steps))
-        if rate is None or not rate < 1.0:
-            return False
-        travel = step * rate / (1.0 - rate)
-    return log.gap > tol + 2.0 * travel
-
-
-def period_iteration_error(displacements, convergence: Convergence, rate: float | None,
-                           steps_per_period: int, mean_abs_slip: float, period: float) -> float:
-    """Error bound of v0 from the period iteration: the roundoff of summing the period's slips
-    (``mean_abs_slip``: sum of |dx| over the period, averaged over the blocks), plus, when the
-    convergence is not finite-time, the geometric tail still to come."""
-    err = steps_per_period * np.finfo(float).eps * mean_abs_slip / period
-    if convergence != Convergence.FINITE_TIME and len(displacements) >= 2:
-        dv = abs(displacements[-1] - displacements[-2]) / period
-        r = rate if rate is not None and rate < 1 else None
-        err += dv * r / (1 - r) if r is not None else dv
-    return float(err)
-
-
 def cost_of_transport(dissipation: float, displacement: float, v0_error: float,
                       period: float) -> float | None:
     """Dissipation per distance travelled, or None when the net motion is not distinguishable
@@ -503,72 +547,6 @@ def cost_of_transport(dissipation: float, displacement: float, v0_error: float,
     if abs(displacement) > 10 * v0_error * period + 1e-300:
         return dissipation / abs(displacement)
     return None
-
-
-def effective_tolerance(tolerance: float) -> float:
-    """The Poincare-step tolerance actually used: relative steps below roundoff are clamped."""
-    return max(float(tolerance), ROUNDOFF_FLOOR)
-
-
-def poincare_step(process: SweepingProcess, w_start, w_end) -> tuple[float, float]:
-    """The Poincare step ``|w(t0+(q+1)T) - w(t0+qT)|``, and relative to ``max(|w|, scale)``."""
-    step = float(np.linalg.norm(w_end - w_start))
-    size = max(float(np.linalg.norm(w_end)), process.scale)
-    return step, step / size
-
-
-def classify_convergence(rel_steps, tol: float) -> tuple[Convergence, int | None]:
-    """(convergence, periodic_from) from the relative Poincare steps of periods 0..Q.
-
-    Finite-time when the last step reached ``tol`` in one jump by more than `FINITE_JUMP`,
-    asymptotic when it reached it gradually, not-converged when it did not reach it.
-    """
-    Q = len(rel_steps) - 1
-    if rel_steps[Q] > tol:
-        return Convergence.NOT_CONVERGED, None
-    if Q == 0 or rel_steps[Q] < FINITE_JUMP * rel_steps[Q - 1]:
-        return Convergence.FINITE_TIME, Q
-    return Convergence.ASYMPTOTIC, None
-
-
-def _period_distances(w: np.ndarray, lam: np.ndarray, final: PeriodRecord,
-                      h: np.ndarray) -> dict[str, float]:
-    """W^{1,2} and sup distances of one period's w, and the L^2 distance of its multiplier
-    rates, to the limit period ``final``.
-
-    On the grid, with e = w_q - w_final: ||e||_{L2}^2 by the trapezoidal rule, ||e'||_{L2}^2 as
-    sum |e_{j+1} - e_j|^2 / h_j (e' is piecewise constant for the catch-up interpolant), and the
-    slip rates lambda_j / h_j are piecewise constant too.
-    """
-    e = w - final.w
-    e2 = np.sum(e * e, axis=1)
-    l2 = float(np.sum(h * (e2[1:] + e2[:-1]) / 2))
-    de = np.diff(e, axis=0)
-    h1 = float(np.sum(np.sum(de * de, axis=1) / h))
-    dl = lam - final.multipliers
-    return {"w12_distance": math.sqrt(l2 + h1), "sup_distance": float(np.sqrt(np.max(e2))),
-            "slip_l2_distance": math.sqrt(float(np.sum(np.sum(dl * dl, axis=1) / h)))}
-
-
-def contraction_rate(rel_steps: np.ndarray) -> float | None:
-    """Geometric rate of the Poincare steps: a least-squares fit of log(step) on the last periods.
-
-    A relative step s carries a roundoff of about eps / s relative to itself, so the fit uses
-    the last `RATE_WINDOW` steps above `RATE_RELIABLE` (each good to 1e-6 or better) when there
-    are at least three; otherwise every step above the roundoff floor.
-    """
-    steps = np.asarray(rel_steps, dtype=float)
-    q = np.arange(len(steps))
-    reliable = np.flatnonzero(steps > RATE_RELIABLE)[-RATE_WINDOW:]
-    if reliable.size >= 3 and reliable[-1] - reliable[0] == reliable.size - 1:
-        chosen = reliable
-    else:
-        tail = q[-RATE_WINDOW:]
-        chosen = tail[steps[tail] > ROUNDOFF_FLOOR / 10]
-    if chosen.size < 2:
-        return None
-    slope = np.polyfit(q[chosen], np.log(steps[chosen]), 1)[0]
-    return float(math.exp(slope))
 
 
 def following(process: SweepingProcess, limit: PeriodRecord, last: PeriodRecord) -> PeriodRecord:
@@ -602,114 +580,3 @@ def limit_period(process: SweepingProcess, final: PeriodRecord, v0: float | None
                        stress=stress, slip=slip, slip_rate=dx / np.diff(t)[:, None])
 
 
-def _error_parts(result: RunResult) -> str:
-    """Where v0's error estimate comes from, after ``v0 ± estimate``."""
-    if result.v0_error_estimate is None:
-        return f" ({result.v0_error_reason or 'no error estimate'})"
-    if result.integrator == "exact":
-        return " (period iteration; the exact integrator has no time-step error)"
-    step = result.v0_error_time_step
-    if step is None:
-        return " (period iteration only)"
-    return (f" (time step {step:.1g}, measured against the exact integrator; period iteration "
-            f"{result.v0_error_period_iteration:.1g})")
-
-
-def not_converged_message(result: RunResult, max_periods: int, tolerance: float,
-                          limit: str) -> str:
-    """The one line on stderr of a run that ended without a verified limit (exit code 3): why,
-    and what to change."""
-    step = float(result.history.poincare_step[-1]) if len(result.history.poincare_step) else math.nan
-    advice = "raise max_periods (--max-periods)"
-    if limit == "iterate":
-        advice += " or let the periodic-limit solver find the limit (--limit newton)"
-    return (f"Not converged: max_periods = {max_periods} periods ran out before the limit was "
-            f"found (final Poincare step {step:.3g}, tolerance {tolerance:.3g} relative); "
-            f"{advice}. The numbers printed are those of the last period.")
-
-
-def summary_text(result: RunResult, output: str | None = None) -> str:
-    """The short human summary printed by ``crawlsim run``: each number with only the digits
-    its error estimate supports (`crawlsim.analysis.digits`); ``--json`` keeps full precision."""
-    from crawlsim.analysis.digits import with_error
-
-    what = "gait" if result.v0 is not None else "process"  # a generic process has no v0
-    units = getattr(result, "units", None)  # the gait file's units (crawlsim.api results)
-
-    def unit(quantity: str) -> str:
-        return "" if units is None else units.suffix(quantity)
-    lines = [f"{what} {result.name}: {result.periods} periods of {result.steps_per_period} steps"]
-    if result.v0 is not None:
-        lines.append(f"  v0                       "
-                     f"{with_error(result.v0, result.v0_error_estimate, unit('velocity'))}"
-                     f"{_error_parts(result)}")
-    if result.convergence == "finite-time":
-        lines.append(f"  convergence              finite-time: periodic from period "
-                     f"{result.periodic_from}")
-    elif result.convergence == "asymptotic":
-        rate = "n/a" if result.contraction_rate is None else f"{result.contraction_rate:.4g}"
-        lines.append(f"  convergence              asymptotic, contraction rate {rate} per period")
-    else:
-        lines.append(f"  convergence              NOT converged: final Poincare step "
-                     f"{result.history.poincare_step[-1]:.3g}. Try increasing max_periods.")
-    from crawlsim.analysis.digits import how_found
-
-    found = how_found(result.limit_method, result.limit_newton_steps, result.limit_periods,
-                      result.jacobian_rate)
-    lines.append(f"  limit found by           {found}")
-    if result.displacement_per_period is not None:
-        assert result.dissipation_per_period is not None
-        lines.append("  displacement per period  "
-                     + with_error(result.displacement_per_period,
-                                  result.displacement_error_estimate, unit('length')))
-        lines.append("  dissipation per period   "
-                     + with_error(result.dissipation_per_period,
-                                  result.dissipation_error_estimate, unit('dissipation')))
-        cot = "n/a (no net motion)" if result.cost_of_transport is None else with_error(
-            result.cost_of_transport, result.cost_of_transport_error_estimate, unit('force'))
-        lines.append(f"  cost of transport        {cot}")
-        lines.extend(energy_lines(result, unit))
-    if output:
-        lines.append(f"  written                  {output}")
-    return "\n".join(lines)
-
-
-
-def energy_lines(result: RunResult, unit) -> list[str]:
-    """The energy ledger's lines of the summary (`crawlsim.analysis.energy`)."""
-    if result.actuator_work_per_period is None:
-        return []
-    from crawlsim.analysis.digits import with_error
-
-    work = result.actuator_work_per_period
-    loss = result.jump_loss_per_period or 0.0
-    residual = result.energy_balance_residual or 0.0
-    relative = abs(residual) / max(abs(work), 1e-300)
-    # W = D + J: the work is as accurate as the dissipation, and for catch-up its jump losses
-    # J_h hold the scheme's own numerical loss (first order in the step) besides the true one
-    err = result.dissipation_error_estimate
-    if err is not None and result.integrator != "exact":
-        err += abs(loss)
-    lines = [f"  actuator work per period {with_error(work, err, unit('dissipation'))}",
-             f"  jump losses per period   {loss:.3g}{unit('dissipation')}",
-             f"  energy balance residual  {residual:.3g}{unit('dissipation')} (work - dissipation"
-             f" - jump losses{' - load work' if result.load_work_per_period is not None else ''};"
-             f" {relative:.1g} relative)"]
-    if result.load_work_per_period is not None:
-        # W_load carries the error of the work it is part of (W = D + J + W_load, §6)
-        load = result.load_work_per_period
-        lines.insert(2, f"  load work per period     {with_error(load, err, unit('dissipation'))}"
-                        " (against the loads, docs/model.md §6)")
-        if result.efficiency is not None:
-            eff_err = None if err is None or load == 0 else result.efficiency * 1.01 * (
-                err / abs(load) + err / abs(work))
-            lines.append(f"  efficiency               {with_error(result.efficiency, eff_err)} "
-                         "(load work / actuator work)")
-    if result.cost_of_transport_bound is not None:
-        cot_err = result.cost_of_transport_error_estimate
-        eff = "n/a" if result.efficiency is None or result.cost_of_transport is None else (
-            with_error(result.efficiency, None if cot_err is None else
-                       1.01 * result.efficiency * cot_err / result.cost_of_transport))
-        lines.append(f"  cost of transport bound  {result.cost_of_transport_bound:.12g}"
-                     f"{unit('force')} (efficiency {eff})")
-    return lines

@@ -1,0 +1,261 @@
+"""How the true iterates of a run approach the periodic limit (docs/model.md §4).
+
+The Poincare steps ``|w(t0+(q+1)T) - w(t0+qT)|`` of the periods q = 0, 1, ... classify the
+convergence (`classify_convergence`: finite-time when the step falls to the tolerance in one jump
+by more than `FINITE_JUMP`, asymptotic otherwise) and give the contraction rate, a least-squares
+fit of their logarithm with its standard error (`fit_contraction_rate`). `History` keeps the
+per-period measurements and spills each period's w and multipliers to disk, so that the distances
+to the limit period, known only at the end, cost no memory during a long run.
+"""
+
+from __future__ import annotations
+
+import math
+import tempfile
+from dataclasses import dataclass
+
+import numpy as np
+
+from crawlsim.analysis.energy import period_dissipation
+from crawlsim.integrate.stepping import PeriodRecord
+from crawlsim.model.process import SweepingProcess
+from crawlsim.status import Convergence
+
+#: Relative Poincare steps below this are roundoff: a smaller tolerance is clamped to it.
+ROUNDOFF_FLOOR = 1e-13
+#: One-period drop of the Poincare step that counts as finite-time convergence.
+FINITE_JUMP = 1e-4
+#: Periods used to fit the contraction rate.
+RATE_WINDOW = 8
+#: Relative Poincare steps above this carry at most ~1e-6 relative roundoff (eps / step).
+RATE_RELIABLE = 1e-10
+
+
+class _PeriodSpill:
+    """Each period's w and multipliers, spilled to an anonymous temporary file.
+
+    The distances to the limit period need every period and the final one, which is known only at
+    the end; keeping them on disk keeps a long run's memory bounded.
+    """
+
+    def __init__(self):
+        self._file = tempfile.TemporaryFile()
+        self._shapes = None
+
+    def add(self, rec: PeriodRecord):
+        self._shapes = (rec.w.shape, rec.multipliers.shape)
+        rec.w.tofile(self._file)
+        rec.multipliers.tofile(self._file)
+
+    def periods(self):
+        (wshape, lshape) = self._shapes
+        nw, nl = math.prod(wshape), math.prod(lshape)
+        self._file.seek(0)
+        while True:
+            w = np.fromfile(self._file, count=nw)
+            if w.size < nw:
+                return
+            lam = np.fromfile(self._file, count=nl)
+            yield w.reshape(wshape), lam.reshape(lshape)
+
+    def close(self):
+        self._file.close()
+
+
+class History:
+    """The true iterates of a run: per-period measurements, and each period's w and multipliers
+    (spilled to disk) for their distances to the limit period, measured at the end against the
+    limit the run settles on (the solver's, or the iterates' own if they become periodic on
+    another member of a family of periodic solutions)."""
+
+    def __init__(self, process: SweepingProcess):
+        self.process = process
+        self.h = np.diff(process.times)
+        self.steps: list[float] = []
+        self.rel_steps: list[float] = []
+        self.displacements: list[float] = []
+        self.dissipations: list[float] = []
+        self.last: PeriodRecord | None = None
+        self._spill: _PeriodSpill | None = _PeriodSpill()
+        self._limit: PeriodRecord | None = None
+        self._last_gap = np.inf
+
+    def __len__(self) -> int:
+        return len(self.steps)
+
+    def add(self, record: PeriodRecord, sink, progress) -> PeriodRecord:
+        p = self.process
+        if sink is not None:
+            sink.add_period(record)
+        step, rel = poincare_step(p, record.w[0], record.w[-1])
+        self.steps.append(step)
+        self.rel_steps.append(rel)
+        if p.is_crawler:
+            assert record.x is not None and p.friction is not None
+            self.displacements.append(float(np.mean(record.x[-1] - record.x[0])))
+            self.dissipations.append(period_dissipation(p, record))
+        assert self._spill is not None
+        self._spill.add(record)
+        self.last = record
+        self._gap()
+        if progress is not None:
+            progress(len(self.steps) - 1, rel)
+        return record
+
+    def set_limit(self, limit: PeriodRecord) -> None:
+        """The limit period the distances are measured against (`distances`)."""
+        self._limit = limit
+        self._gap()
+
+    def _gap(self) -> None:
+        if self._limit is None or self.last is None:
+            return
+        scale = max(float(np.linalg.norm(self._limit.w[0])), self.process.scale)
+        self._last_gap = float(np.linalg.norm(self.last.w[-1] - self._limit.w[0])) / scale
+
+    def reached(self, tol: float) -> bool:
+        """Whether the last iterate's end state is within ``tol`` of the limit's start."""
+        return bool(self.steps) and self._last_gap <= tol
+
+    @property
+    def gap(self) -> float:
+        """The last iterate's relative distance to the limit's start (inf before a limit)."""
+        return self._last_gap
+
+    def distances(self) -> dict:
+        """The distances of every period to the limit period (W^{1,2}, sup, slip rates)."""
+        out: dict[str, list[float]] = {"w12_distance": [], "sup_distance": [],
+                                       "slip_l2_distance": []}
+        assert self._limit is not None and self._spill is not None
+        for w, lam in self._spill.periods():
+            for key, value in _period_distances(w, lam, self._limit, self.h).items():
+                out[key].append(value)
+        return {k: np.array(v) for k, v in out.items()}
+
+    def close(self) -> None:
+        if self._spill is not None:
+            self._spill.close()
+            self._spill = None
+
+
+def settled_elsewhere(log: History, tol: float) -> bool:
+    """Whether the iterates are periodic to ``tol`` yet cannot reach the solver's limit: the
+    way they still have to go, at most the geometric tail ``step r / (1 - r)`` of their Poincare
+    steps (none after a step of 0, a finite-time convergence), is shorter than their distance
+    to it. An iterate that merely approaches the solver's limit slowly (``r`` near 1) has its
+    tail at least as long as that distance, and goes on."""
+    step = log.rel_steps[-1]
+    if step > tol or log.reached(tol):
+        return False
+    if step == 0.0:
+        travel = 0.0
+    else:
+        rate = contraction_rate(np.array(log.rel_steps))
+        if rate is None or not rate < 1.0:
+            return False
+        travel = step * rate / (1.0 - rate)
+    return log.gap > tol + 2.0 * travel
+
+
+def period_iteration_error(displacements, convergence: Convergence, rate: float | None,
+                           steps_per_period: int, mean_abs_slip: float, period: float) -> float:
+    """Error bound of v0 from the period iteration: the roundoff of summing the period's slips
+    (``mean_abs_slip``: sum of |dx| over the period, averaged over the blocks), plus, when the
+    convergence is not finite-time, the geometric tail still to come."""
+    err = steps_per_period * np.finfo(float).eps * mean_abs_slip / period
+    if convergence != Convergence.FINITE_TIME and len(displacements) >= 2:
+        dv = abs(displacements[-1] - displacements[-2]) / period
+        r = rate if rate is not None and rate < 1 else None
+        err += dv * r / (1 - r) if r is not None else dv
+    return float(err)
+
+
+def effective_tolerance(tolerance: float) -> float:
+    """The Poincare-step tolerance actually used: relative steps below roundoff are clamped."""
+    return max(float(tolerance), ROUNDOFF_FLOOR)
+
+
+def poincare_step(process: SweepingProcess, w_start, w_end) -> tuple[float, float]:
+    """The Poincare step ``|w(t0+(q+1)T) - w(t0+qT)|``, and relative to ``max(|w|, scale)``."""
+    step = float(np.linalg.norm(w_end - w_start))
+    size = max(float(np.linalg.norm(w_end)), process.scale)
+    return step, step / size
+
+
+def classify_convergence(rel_steps, tol: float) -> tuple[Convergence, int | None]:
+    """(convergence, periodic_from) from the relative Poincare steps of periods 0..Q.
+
+    Finite-time when the last step reached ``tol`` in one jump by more than `FINITE_JUMP`,
+    asymptotic when it reached it gradually, not-converged when it did not reach it.
+    """
+    Q = len(rel_steps) - 1
+    if rel_steps[Q] > tol:
+        return Convergence.NOT_CONVERGED, None
+    if Q == 0 or rel_steps[Q] < FINITE_JUMP * rel_steps[Q - 1]:
+        return Convergence.FINITE_TIME, Q
+    return Convergence.ASYMPTOTIC, None
+
+
+def _period_distances(w: np.ndarray, lam: np.ndarray, final: PeriodRecord,
+                      h: np.ndarray) -> dict[str, float]:
+    """W^{1,2} and sup distances of one period's w, and the L^2 distance of its multiplier
+    rates, to the limit period ``final``.
+
+    On the grid, with e = w_q - w_final: ||e||_{L2}^2 by the trapezoidal rule, ||e'||_{L2}^2 as
+    sum |e_{j+1} - e_j|^2 / h_j (e' is piecewise constant for the catch-up interpolant), and the
+    slip rates lambda_j / h_j are piecewise constant too.
+    """
+    e = w - final.w
+    e2 = np.sum(e * e, axis=1)
+    l2 = float(np.sum(h * (e2[1:] + e2[:-1]) / 2))
+    de = np.diff(e, axis=0)
+    h1 = float(np.sum(np.sum(de * de, axis=1) / h))
+    dl = lam - final.multipliers
+    return {"w12_distance": math.sqrt(l2 + h1), "sup_distance": float(np.sqrt(np.max(e2))),
+            "slip_l2_distance": math.sqrt(float(np.sum(np.sum(dl * dl, axis=1) / h)))}
+
+
+@dataclass(frozen=True)
+class RateFit:
+    """The contraction rate r of the Poincare steps with its evidence: the standard error of
+    the fitted r (the slope's, through r = exp(slope)) and the number of periods fitted."""
+
+    rate: float
+    error: float | None  # None with two periods: a line through two points has no residual
+    periods: int
+
+
+def fit_contraction_rate(rel_steps: np.ndarray) -> RateFit | None:
+    """Geometric rate of the Poincare steps: a least-squares fit of log(step) on the last periods.
+
+    A relative step s carries a roundoff of about eps / s relative to itself, so the fit uses
+    the last `RATE_WINDOW` steps above `RATE_RELIABLE` (each good to 1e-6 or better) when there
+    are at least three; otherwise every step above the roundoff floor. The error is the
+    slope's standard error sqrt(sum e_q^2 / ((n - 2) sum (q - mean q)^2)) over the residuals e_q
+    of the fit, carried to r = exp(slope) to first order (dr = r d slope).
+    """
+    steps = np.asarray(rel_steps, dtype=float)
+    q = np.arange(len(steps))
+    reliable = np.flatnonzero(steps > RATE_RELIABLE)[-RATE_WINDOW:]
+    if reliable.size >= 3 and reliable[-1] - reliable[0] == reliable.size - 1:
+        chosen = reliable
+    else:
+        tail = q[-RATE_WINDOW:]
+        chosen = tail[steps[tail] > ROUNDOFF_FLOOR / 10]
+    if chosen.size < 2:
+        return None
+    x, y = q[chosen].astype(float), np.log(steps[chosen])
+    slope, intercept = np.polyfit(x, y, 1)
+    rate = float(math.exp(slope))
+    if chosen.size < 3:
+        return RateFit(rate, None, int(chosen.size))
+    residual = y - (slope * x + intercept)
+    spread = float(np.sum((x - x.mean()) ** 2))
+    slope_error = math.sqrt(float(np.sum(residual ** 2)) / (chosen.size - 2) / spread)
+    return RateFit(rate, rate * slope_error, int(chosen.size))
+
+
+def contraction_rate(rel_steps: np.ndarray) -> float | None:
+    """The fitted geometric rate of the Poincare steps (`fit_contraction_rate`), or None."""
+    fit = fit_contraction_rate(rel_steps)
+    return None if fit is None else fit.rate
