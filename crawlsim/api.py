@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import io
+import json
 import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -65,28 +66,67 @@ class Trajectory:
     events: Mapping[str, np.ndarray] | None = None  # t, w (and x): the exact integrator's events
 
 
+#: Writes a result's results file into a target (a path, or a binary file object).
+Writer = Callable[[Any], None]
+
+
 @dataclass(frozen=True, eq=False, repr=False)
 class SimulationResult(RunResult):
     """A `RunResult` with what a study needs besides: the trajectory (None when not kept), the
     units of the gait file, the provenance, and the same data as an xarray tree
-    (`to_xarray`)."""
+    (`to_xarray`). It keeps arrays, never an HDF5 image: the results file is written when it is
+    asked for (`save`, `to_xarray`, `image`). Made by one constructor per source: `from_run`
+    (a run in memory) and `from_file` (a results file, `open_run`)."""
 
     trajectory: Trajectory | None = None
     units: Units = Units()
     provenance: _provenance.Provenance | None = None
     output: Path | None = None  # the results file written, if any
-    # the results file in memory (`image`): bytes, or what writes them when first asked for
-    _image: bytes | Callable[[], bytes] = field(default=b"", repr=False)
+    # writes the results file of this result from its arrays (None: read from `output`)
+    _write: Writer | None = field(default=None, repr=False)
+
+    @classmethod
+    def from_run(cls, run: RunResult, *, units: Units | None = None,
+                 provenance: _provenance.Provenance | None = None,
+                 trajectory: Trajectory | None = None, output: Path | None = None,
+                 write: Writer | None = None) -> SimulationResult:
+        """The result of a run in memory (`crawlsim.analysis.run.simulate`), with what the
+        caller kept besides."""
+        fields = {f.name: getattr(run, f.name) for f in dataclasses.fields(RunResult)}
+        return cls(**fields, trajectory=trajectory, units=units or Units(), provenance=provenance,
+                   output=output, _write=write)
+
+    @classmethod
+    def from_file(cls, path: str | Path) -> SimulationResult:
+        """The result recorded in a run's results file: the same type and the same numbers as
+        the `simulate` that wrote it (`crawlsim.io.runread.read_results`)."""
+        from crawlsim.io.runread import read_results
+
+        data = read_results(path)
+        return cls(**_fields_of_file(data), output=Path(path))
 
     @property
     def image(self) -> bytes:
-        """The results file, in memory (`simulate`: written when first asked for, by `save`,
-        `to_xarray` or here; b"" for `run`)."""
-        image = self._image
-        if callable(image):
-            image = image()
-            object.__setattr__(self, "_image", image)
-        return image
+        """The results file, written now into memory (it is not kept)."""
+        buffer = io.BytesIO()
+        self._write_to(buffer)
+        return buffer.getvalue()
+
+    def _write_to(self, target: Any) -> None:
+        if self._write is not None:
+            self._write(target)
+        elif self.output is not None:
+            data = Path(self.output).read_bytes()
+            if isinstance(target, io.IOBase):
+                target.write(data)
+            else:
+                from crawlsim.io.atomic import atomic_path
+
+                with atomic_path(target) as tmp:
+                    tmp.write_bytes(data)
+        else:
+            raise ValueError("this result holds no results file: use crawlsim.simulate, or "
+                             "crawlsim.api.run with output=")
 
     def summary(self) -> dict[str, Any]:
         """The JSON-ready numbers of `RunResult.summary`, plus ``units`` (the gait file's
@@ -96,30 +136,79 @@ class SimulationResult(RunResult):
         return out
 
     def save(self, path: str | Path) -> Path:
-        """Write the results file this result holds (from `simulate`) to ``path``, atomically."""
-        from crawlsim.io.atomic import atomic_path
-
-        if not self.image:
-            raise ValueError("this result holds no results file (crawlsim.api.run writes one "
-                             "with output=)")
-        with atomic_path(path) as tmp:
-            tmp.write_bytes(self.image)
+        """Write the results file of this result to ``path``, atomically."""
+        self._write_to(Path(path))
         return Path(path)
 
     def to_xarray(self) -> xarray.DataTree:
         """The results as an `xarray.DataTree` with the groups, names, dimensions and
-        attributes of the results file (it is read from the same bytes). Needs
+        attributes of the results file (it is read from the same bytes): ``time`` is an index,
+        so ``tree["trajectory"].to_dataset().sel(time=5.0)`` picks a saved point. Needs
         ``pip install 'crawlsim[xarray]'``."""
         xr = _xarray()
-        if self.image:
-            source: Any = io.BytesIO(self.image)
-        elif self.output is not None:
-            source = self.output
-        else:
+        source: Any = self.output if self._write is None else io.BytesIO(self.image)
+        if source is None:
             raise ValueError("this result keeps no results file: use crawlsim.simulate, or "
                              "crawlsim.api.run with output=")
         with xr.open_datatree(source, engine="h5netcdf", decode_timedelta=False) as tree:
             return cast("xarray.DataTree", tree.load())
+
+
+def open_run(path: str | Path) -> SimulationResult:
+    """Read a run's results file as the `SimulationResult` `simulate` returns: the summary's
+    numbers, the convergence history, the limit period, the trajectory, units and provenance.
+    Raises `crawlsim.errors.ResultsFileError` for a file that is not a run's results file."""
+    return SimulationResult.from_file(path)
+
+
+def _none(value: Any) -> Any:
+    """NaN (a float attribute that does not apply) as None."""
+    return None if isinstance(value, float) and math.isnan(value) else value
+
+
+def _fields_of_file(data: Mapping[str, Any]) -> dict[str, Any]:
+    """The fields of a `SimulationResult` from `read_results`'s dicts: the scalars of the
+    summary (summary_json; files written before a field existed give its default), the arrays
+    of /convergence, /limit, /limit/solver and /trajectory."""
+    from crawlsim.analysis.run import SUMMARY_KEYS, ConvergenceHistory, LimitPeriod
+    from crawlsim.status import Convergence, RunStatus
+
+    attrs = data["attrs"]
+    summary = json.loads(attrs.get("summary_json", "{}"))
+    known = {f.name for f in dataclasses.fields(RunResult)}
+    fields: dict[str, Any] = {k: summary[k] for k in SUMMARY_KEYS if k in summary and k in known}
+    for key in ("name", "period", "steps_per_period", "periods"):
+        fields[key] = attrs[key]
+    fields["convergence"] = Convergence(attrs["convergence"])
+    fields["periodic_from"] = None if attrs["periodic_from"] < 0 else int(attrs["periodic_from"])
+    for key in ("v0", "v0_error_estimate", "displacement_per_period", "dissipation_per_period",
+                "cost_of_transport", "contraction_rate"):
+        fields[key] = _none(attrs.get(key, math.nan))
+    fields["status"] = RunStatus(summary.get("status", RunStatus.SUCCESSFUL))
+    if summary.get("exact_convergence") is not None:
+        fields["exact_convergence"] = Convergence(summary["exact_convergence"])
+    conv, lim = data["convergence"], data["limit"]
+    fields["history"] = ConvergenceHistory(
+        **{f.name: conv[f.name] for f in dataclasses.fields(ConvergenceHistory)})
+    fields["limit"] = LimitPeriod(start=float(data["limit_attrs"]["start"]), t=lim["t"],
+                                  w=lim["w"], multipliers=lim["multipliers"],
+                                  **{k: lim.get(k) for k in ("x", "shape", "stress", "slip",
+                                                             "slip_rate")})
+    solver = data.get("limit_solver", {})
+    if len(solver.get("residual", ())):
+        fields.update(limit_residuals=solver["residual"], limit_kinds=solver["kind"])
+    fields.setdefault("clarabel_calls", 0)
+    fields.setdefault("wall_time", math.nan)
+    fields["units"] = Units.from_block(json.loads(attrs.get("units_json", "{}")))
+    fields["provenance"] = _provenance.Provenance.from_attrs(attrs)
+    fields["trajectory"] = _trajectory_of_file(data) if attrs.get("save_every", 1) else None
+    return fields
+
+
+def _trajectory_of_file(data: Mapping[str, Any]) -> Trajectory:
+    t = data["trajectory"]
+    return Trajectory(t=t["t"], w=t["w"], x=t.get("x"), stress=t.get("stress"),
+                      shape=t.get("shape"), reaction=t.get("reaction"), events=data.get("events"))
 
 
 def _xarray() -> Any:
@@ -143,11 +232,6 @@ def _with_settings(spec: Spec, **overrides: Any) -> Spec:
     return cast(Spec, with_simulation(cast(Gait, spec), **given))
 
 
-def _extend(run: RunResult, **extra: Any) -> SimulationResult:
-    fields = {f.name: getattr(run, f.name) for f in dataclasses.fields(RunResult)}
-    return SimulationResult(**fields, **extra)
-
-
 def _execute(spec: Spec, target: Any, *, save_every: int, check_every_step: bool,
              progress: Progress | None, keep_trajectory: bool) -> SimulationResult:
     """Run ``spec`` with its settings, writing its results file into ``target``."""
@@ -163,7 +247,7 @@ def _execute(spec: Spec, target: Any, *, save_every: int, check_every_step: bool
                                 integrator=s.integrator, check_every_step=check_every_step,
                                 sink=writer, progress=progress, limit=s.limit,
                                 time_step_error=True)
-        result = _extend(run, units=spec.units, provenance=record)
+        result = SimulationResult.from_run(run, units=spec.units, provenance=record)
         writer.finish(result, record, kind=kind,
                       unchecked_uniqueness=getattr(spec, "uniqueness_unchecked", False))
     return result
@@ -189,8 +273,9 @@ def run(gait: Spec | str | Path, *, output: str | Path | None = None, save_every
                                  integrator=s.integrator, check_every_step=check_every_step,
                                  progress=progress, limit=s.limit, history=history,
                                  time_step_error=True)
-        return _extend(run_, units=spec.units,
-                       provenance=_provenance.for_gait(spec, check_every_step=check_every_step))
+        return SimulationResult.from_run(
+            run_, units=spec.units,
+            provenance=_provenance.for_gait(spec, check_every_step=check_every_step))
     result = _execute(spec, Path(output), save_every=save_every,
                       check_every_step=check_every_step, progress=progress,
                       keep_trajectory=True)
@@ -226,9 +311,9 @@ def simulate(gait: Spec | str | Path, *, integrator: str | None = None,
 
 def _in_memory(spec: Spec, *, save_every: int, check_every_step: bool,
                progress: Progress | None, keep_trajectory: bool) -> SimulationResult:
-    """Run ``spec`` keeping the rows of its results file in memory (`h5io.RowsRecorder`):
-    the trajectory comes from them, and the file is written only if it is asked for."""
-    from crawlsim.io.hdf5 import RowsRecorder
+    """Run ``spec`` keeping the rows of its results file in memory (`RowsRecorder`): the
+    trajectory holds them, and the file is written from it only when it is asked for."""
+    from crawlsim.io.runfile import RowsRecorder
 
     process = compile(spec)
     s = spec.simulation
@@ -238,20 +323,34 @@ def _in_memory(spec: Spec, *, save_every: int, check_every_step: bool,
                             integrator=s.integrator, check_every_step=check_every_step,
                             sink=recorder, progress=progress, limit=s.limit,
                             time_step_error=True)
-    result = _extend(run, units=spec.units, provenance=record)
     trajectory = None
     if keep_trajectory:
         t = recorder.trajectory()
         trajectory = Trajectory(t=t["t"], w=t["w"], x=t.get("x"), stress=t.get("stress"),
                                 shape=t.get("shape"), reaction=t.get("reaction"),
                                 events=recorder.events())
+    del recorder  # its rows are the trajectory's now
+    result = SimulationResult.from_run(run, units=spec.units, provenance=record,
+                                       trajectory=trajectory)
+    kind = str(spec.document.get("kind", "crawler"))
+    unchecked = bool(getattr(spec, "uniqueness_unchecked", False))
 
-    def image() -> bytes:
-        return recorder.image(result, record, units=spec.units,
-                              kind=str(spec.document.get("kind", "crawler")),
-                              unchecked_uniqueness=getattr(spec, "uniqueness_unchecked", False))
+    def write(target: Any) -> None:
+        from crawlsim.io.runfile import ResultsWriter
 
-    return dataclasses.replace(result, trajectory=trajectory, _image=image)
+        with ResultsWriter(target, process, save_every=save_every, units=spec.units,
+                           trajectory=keep_trajectory) as writer:
+            if trajectory is not None:
+                writer.write_rows(_rows_of(trajectory), trajectory.events)
+            writer.finish(result, record, kind=kind, unchecked_uniqueness=unchecked)
+
+    return dataclasses.replace(result, _write=write)
+
+
+def _rows_of(trajectory: Trajectory) -> dict[str, np.ndarray]:
+    """The /trajectory rows a `Trajectory` holds."""
+    names = ("t", "w", "x", "stress", "shape", "reaction")
+    return {n: v for n in names if (v := getattr(trajectory, n)) is not None}
 
 
 @dataclass(frozen=True)

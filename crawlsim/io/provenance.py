@@ -144,6 +144,20 @@ class Provenance:
             "created": self.created,
         }
 
+    @classmethod
+    def from_attrs(cls, attrs: Mapping[str, Any]) -> Provenance | None:
+        """The provenance recorded in a results file's root attributes (`attrs`); None for a
+        file written before provenance was recorded (format_version 1)."""
+        if "gait_yaml" not in attrs or "integrator_json" not in attrs:
+            return None
+        return cls(gait_yaml=str(attrs["gait_yaml"]), gait_file=str(attrs.get("gait_file", "")),
+                   gait_file_text=str(attrs.get("gait_file_text", "")),
+                   integrator=str(attrs.get("integrator", "")),
+                   integrator_settings=json.loads(attrs["integrator_json"]),
+                   command_line=str(attrs.get("command_line", "")),
+                   versions=json.loads(attrs.get("versions_json", "{}")),
+                   created=str(attrs.get("created", "")))
+
 
 def for_gait(gait: Any, *, check_every_step: bool = False) -> Provenance:
     """The provenance of a run of ``gait`` (a `Gait` or `ProcessSpec`) with its own simulation
