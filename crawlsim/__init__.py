@@ -12,7 +12,8 @@ The folders are the path from a gait file to an answer:
     study/       sweeps, gait design (optimize), the paper's checks
     plotting/    figures and animations of a results file
     cli/         the `crawlsim` command, one module per command
-    api.py       the entry points for Python studies: load_gait, simulate, sweep, sensitivity
+    api.py       the entry points for Python studies: load_gait, simulate, sweep, sensitivity,
+                 and the typed readers open_run, open_sweep
 
 The names below are imported on first use, so ``import crawlsim`` stays light (no numpy).
 """
@@ -34,6 +35,10 @@ _EXPORTS = {
     "run": "crawlsim.api",
     "sweep": "crawlsim.api",
     "sensitivity": "crawlsim.api",
+    "open_run": "crawlsim.api",
+    "open_sweep": "crawlsim.api",
+    "RunStatus": "crawlsim.status",
+    "Convergence": "crawlsim.status",
     "SimulationResult": "crawlsim.api",
     "Trajectory": "crawlsim.api",
     "Gait": "crawlsim.gait.document",
@@ -49,7 +54,8 @@ _EXPORTS = {
 _SUBPACKAGES = {"analysis", "api", "cli", "errors", "gait", "integrate", "io", "kernel", "model",
                 "plotting", "status", "study"}
 
-__all__ = ["load_gait", "simulate", "sweep", "run", "sensitivity", "SimulationResult", "Trajectory",
+__all__ = ["load_gait", "simulate", "sweep", "run", "sensitivity", "open_run", "open_sweep",
+           "SimulationResult", "Trajectory", "RunStatus", "Convergence",
            "Gait", "ProcessSpec", "Units", "CertificateError", "CrawlsimError", "GaitError", "InputError",
            "stall", "__version__"]
 

@@ -41,8 +41,8 @@ if TYPE_CHECKING:
 Spec = Gait | ProcessSpec
 Progress = Callable[[int, float], None]
 
-__all__ = ["Rerun", "SimulationResult", "Trajectory", "from_results", "load_gait", "run",
-           "sensitivity", "simulate", "sweep"]
+__all__ = ["Rerun", "SimulationResult", "Trajectory", "from_results", "load_gait", "open_run",
+           "open_sweep", "run", "sensitivity", "simulate", "sweep"]
 
 
 def load_gait(path: str | Path) -> Spec:
@@ -411,15 +411,41 @@ def sweep(gait: Spec | str | Path, axes: Mapping[str, Iterable[float]], *, jobs:
     with _provenance.recording(call):
         table = sweeps.sweep(spec, axis_list, output=output, jobs=jobs, progress=progress)
         try:
-            xr = _xarray()
+            _xarray()
         except ImportError:
             return table
         buffer = io.BytesIO()
         h5io.write_sweep(buffer, **sweeps.table_payload(table))
-    buffer.seek(0)
-    attrs = h5io.read_attrs(buffer)
-    buffer.seek(0)
-    with xr.open_dataset(buffer, engine="h5netcdf", group="grid",
+    return _grid_dataset(buffer)
+
+
+def open_sweep(path: str | Path) -> xarray.Dataset | SweepTable:
+    """Read a sweep file as `sweep` returns it: the `xarray.Dataset` of its ``/grid`` with the
+    provenance as attributes, or without xarray the `crawlsim.study.sweep.SweepTable`. Raises
+    `crawlsim.errors.ResultsFileError` for a file that is not a sweep file."""
+    from crawlsim.io.sweepfile import read_sweep
+    from crawlsim.study import sweep as sweeps
+
+    read_sweep(path)  # refuses what is not a sweep file, naming what is missing
+    try:
+        _xarray()
+    except ImportError:
+        return sweeps.read_table(path)
+    return _grid_dataset(path)
+
+
+def _grid_dataset(source: Any) -> xarray.Dataset:
+    """The ``/grid`` group of a sweep file (a path or a binary file object) as a Dataset, the
+    root attributes (provenance) merged into its own."""
+    from crawlsim.io.runread import read_attrs
+
+    xr = _xarray()
+    if isinstance(source, io.IOBase):
+        source.seek(0)
+    attrs = read_attrs(source)
+    if isinstance(source, io.IOBase):
+        source.seek(0)
+    with xr.open_dataset(source, engine="h5netcdf", group="grid",
                          decode_timedelta=False) as ds:
         grid = cast("xarray.Dataset", ds.load())
     grid.attrs = {**attrs, **grid.attrs}
