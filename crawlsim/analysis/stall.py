@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Any
@@ -138,50 +139,8 @@ def stall(gait: Gait | str, *, force: str | None = None, slope: bool = False) ->
     """The stall force (``force=PATH``, a number in the ``loads:`` block such as
     ``"loads.force.0"``) or the steepest slope the gait still climbs (``slope=True``, varying
     ``loads.slope.angle``, in degrees), with its bracket and cause (module docstring)."""
-    from crawlsim.api import _as_spec
-
-    spec = _as_spec(gait)
-    if not isinstance(spec, Gait):
-        raise InputError(spec.source, "kind", "stall needs a crawler gait, not a sweeping process")
-    if (force is None) == (not slope):
-        raise InputError(spec.source, "", "give exactly one of force=PATH and slope=True")
-    if slope:
-        if spec.loads is None or spec.loads.weights is None:
-            raise InputError(spec.source, "loads.slope",
-                             "the slope search needs the blocks' weights: add "
-                             "'loads: {slope: {angle: 0.0, weight: W}}' to the gait")
-        path, quantity = "loads.slope.angle", "slope"
-    else:
-        assert force is not None
-        path, quantity = force, "force"
-        if not path.startswith("loads.force"):
-            raise InputError(spec.source, path, "expected a path into loads.force, such as "
-                                                "loads.force.0 (the force on block 1) or "
-                                                "loads.force (one force on every block)")
-        from crawlsim.gait.docpaths import resolve_path
-
-        loads = spec.document.get("loads") or {}
-        if "force" not in loads:  # no force yet: start from zero forces on every block
-            zero: Any = 0.0 if path == "loads.force" else [0.0] * spec.blocks
-            document = {**spec.document, "loads": {**loads, "force": zero}}
-            rebuilt = gait_from_document(document, spec.source, source_text=spec.source_text,
-                                         default_name=spec.name)
-            assert isinstance(rebuilt, Gait)
-            spec = rebuilt
-
-        found = resolve_path(spec.document, path, spec.source)
-        if len(found) != 1:
-            raise InputError(spec.source, path, "expected a path to one number (no '*')")
-    from crawlsim.gait.docpaths import resolve_path
-
-    keys = resolve_path(spec.document, path, spec.source)[0]
-    node: Any = spec.document
-    for key in keys:
-        node = node[key]
-    if not isinstance(node, (int, float)) or isinstance(node, bool):
-        raise InputError(spec.source, path, f"expected a number at {path}, got {node!r}: the "
-                                            "stall search varies a constant load")
-    s0 = float(node)
+    spec, path, quantity = _stall_problem(gait, force, slope)
+    s0 = _start_load(spec, path)
     probe = _Probe(spec, path)
     v_start, why, _ = probe(s0)
     if v_start is None:  # pragma: no cover - the gait itself was validated
@@ -199,38 +158,11 @@ def stall(gait: Gait | str, *, force: str | None = None, slope: bool = False) ->
         v, _, _ = probe(s)
         return v is not None and v * sign > tolerance_v
 
-    step = scale / SCAN_STEPS
-    lo, hi = s0, None
-    limit = 90.0 if quantity == "slope" else math.inf
-    offset = 0.0
-    for k in itertools.count(1):
-        # uniform steps for SCAN_STEPS, then 5 % longer each: a force on one block of many may
-        # have to reach the whole body's friction
-        offset += step * (1.05 ** max(0, k - SCAN_STEPS))
-        s = s0 + direction * offset
-        if abs(s) >= limit:
-            s = direction * (limit - 1e-9)
-            if not moving(s):
-                hi = s
-            break
-        if not moving(s):
-            hi = s
-            break
-        lo = s
-        if k > 10 * SCAN_STEPS:  # pragma: no cover - the body cannot hold past the friction
-            break
+    lo, hi = _scan(moving, s0, direction, scale, quantity)
     if hi is None:
         raise InputError(spec.source, path, f"the gait still moves at {path} = {lo:.12g}, the "
                                             "end of the range searched: no stall load found")
-    width = RELATIVE_WIDTH * scale
-    while abs(hi - lo) > width:
-        middle = 0.5 * (lo + hi)
-        if middle in (lo, hi):
-            break
-        if moving(middle):
-            lo = middle
-        else:
-            hi = middle
+    lo, hi = _bisect(moving, lo, hi, RELATIVE_WIDTH * scale)
     v_lo, _, _ = probe(lo)
     v_hi, reason, no_hold = probe(hi)
     assert v_lo is not None
@@ -240,21 +172,116 @@ def stall(gait: Gait | str, *, force: str | None = None, slope: bool = False) ->
         cause = StallCause.HOLD
     elif abs(v_lo) <= SMOOTH * abs(v_start):
         cause = StallCause.SMOOTH_ZERO
-        # v0 is smooth here: the predicate stopped where |v0| fell to its tolerance, so the zero
-        # is the secant root through lo and a point farther back on the moving side
-        back = lo - direction * max(1e3 * abs(hi - lo), 1e-6 * scale)
-        v_back, _, _ = probe(back)
-        if v_back is not None and v_back * sign > abs(v_lo) and v_back != v_lo:
-            root = lo - v_lo * (lo - back) / (v_lo - v_back)
-            if abs(root - lo) <= 1e3 * abs(hi - lo):
-                value = root
-                hi = lo + 2 * (root - lo) if abs(root - lo) > abs(hi - lo) / 2 else hi
+        value, hi = _smooth_zero(probe, lo, hi, v_lo, sign, direction, scale)
     else:
         cause = StallCause.JUMP
         subset = _vanishing_subset(spec.replace(path, lo))
     unit = "degree" if quantity == "slope" else spec.units.suffix("force").strip()
     return StallResult(quantity, path, value, (lo, hi), cause, v_start, v_lo, v_hi,
                        s0, probe.evaluations, subset, reason, unit)
+
+
+def _stall_problem(gait: Gait | str, force: str | None, slope: bool) -> tuple[Gait, str, str]:
+    """(the gait, the path varied, "force" or "slope"): a force path gets zero forces on every
+    block when the gait has none yet."""
+    from crawlsim.api import _as_spec
+    from crawlsim.gait.docpaths import resolve_path
+
+    spec = _as_spec(gait)
+    if not isinstance(spec, Gait):
+        raise InputError(spec.source, "kind", "stall needs a crawler gait, not a sweeping process")
+    if (force is None) == (not slope):
+        raise InputError(spec.source, "", "give exactly one of force=PATH and slope=True")
+    if slope:
+        if spec.loads is None or spec.loads.weights is None:
+            raise InputError(spec.source, "loads.slope",
+                             "the slope search needs the blocks' weights: add "
+                             "'loads: {slope: {angle: 0.0, weight: W}}' to the gait")
+        return spec, "loads.slope.angle", "slope"
+    assert force is not None
+    path = force
+    if not path.startswith("loads.force"):
+        raise InputError(spec.source, path, "expected a path into loads.force, such as "
+                                            "loads.force.0 (the force on block 1) or "
+                                            "loads.force (one force on every block)")
+    loads = spec.document.get("loads") or {}
+    if "force" not in loads:  # no force yet: start from zero forces on every block
+        zero: Any = 0.0 if path == "loads.force" else [0.0] * spec.blocks
+        document = {**spec.document, "loads": {**loads, "force": zero}}
+        rebuilt = gait_from_document(document, spec.source, source_text=spec.source_text,
+                                     default_name=spec.name)
+        assert isinstance(rebuilt, Gait)
+        spec = rebuilt
+    if len(resolve_path(spec.document, path, spec.source)) != 1:
+        raise InputError(spec.source, path, "expected a path to one number (no '*')")
+    return spec, path, "force"
+
+
+def _start_load(spec: Gait, path: str) -> float:
+    """The gait's own load at ``path``: a constant number."""
+    from crawlsim.gait.docpaths import resolve_path
+
+    keys = resolve_path(spec.document, path, spec.source)[0]
+    node: Any = spec.document
+    for key in keys:
+        node = node[key]
+    if not isinstance(node, (int, float)) or isinstance(node, bool):
+        raise InputError(spec.source, path, f"expected a number at {path}, got {node!r}: the "
+                                            "stall search varies a constant load")
+    return float(node)
+
+
+def _scan(moving: Callable[[float], bool], s0: float, direction: float, scale: float,
+          quantity: str) -> tuple[float, float | None]:
+    """(the last load still moving, the first load stopped or None): uniform steps of
+    `SCAN_STEPS`-ths of the range, then 5 % longer each (a force on one block of many may have
+    to reach the whole body's friction), up to 90 degrees for a slope."""
+    step = scale / SCAN_STEPS
+    lo = s0
+    limit = 90.0 if quantity == "slope" else math.inf
+    offset = 0.0
+    for k in itertools.count(1):
+        offset += step * (1.05 ** max(0, k - SCAN_STEPS))
+        s = s0 + direction * offset
+        if abs(s) >= limit:
+            s = direction * (limit - 1e-9)
+            return lo, (None if moving(s) else s)
+        if not moving(s):
+            return lo, s
+        lo = s
+        if k > 10 * SCAN_STEPS:  # pragma: no cover - the body cannot hold past the friction
+            break
+    return lo, None
+
+
+def _bisect(moving: Callable[[float], bool], lo: float, hi: float,
+            width: float) -> tuple[float, float]:
+    """The bracket (moving, stopped) shrunk to ``width`` by bisection on the predicate."""
+    while abs(hi - lo) > width:
+        middle = 0.5 * (lo + hi)
+        if middle in (lo, hi):
+            break
+        if moving(middle):
+            lo = middle
+        else:
+            hi = middle
+    return lo, hi
+
+
+def _smooth_zero(probe: _Probe, lo: float, hi: float, v_lo: float, sign: float,
+                 direction: float, scale: float) -> tuple[float, float]:
+    """(the stall load, the bracket's stopped side) of a smooth zero: the predicate stopped
+    where |v0| fell to its tolerance, so the zero is the secant root through lo and a point
+    farther back on the moving side."""
+    value = 0.5 * (lo + hi)
+    back = lo - direction * max(1e3 * abs(hi - lo), 1e-6 * scale)
+    v_back, _, _ = probe(back)
+    if v_back is not None and v_back * sign > abs(v_lo) and v_back != v_lo:
+        root = lo - v_lo * (lo - back) / (v_lo - v_back)
+        if abs(root - lo) <= 1e3 * abs(hi - lo):
+            value = root
+            hi = lo + 2 * (root - lo) if abs(root - lo) > abs(hi - lo) / 2 else hi
+    return value, hi
 
 
 def _vanishing_subset(gait: Gait) -> tuple[int, ...] | None:
@@ -304,8 +331,6 @@ def curve_marks(gait_yaml: str, path: str, values, v0) -> CurveMarks | None:
     """
     import yaml
 
-    from crawlsim.gait.document import gait_from_document
-
     if not (path.startswith("loads.force") or path == "loads.slope.angle"):
         return None
     try:
@@ -318,87 +343,113 @@ def curve_marks(gait_yaml: str, path: str, values, v0) -> CurveMarks | None:
     x = np.asarray(values, dtype=float)
     v = np.asarray(v0, dtype=float)
     label = "steepest slope" if path == "loads.slope.angle" else "stall force"
-
-    u = np.linspace(0.0, 1.0, 17)[:-1]
-    N = gait.blocks
-    masks = np.array([[(m >> j) & 1 for j in range(N)] for m in range(1, 2 ** N - 1)], dtype=bool)
-
-    def sums(s: float) -> np.ndarray | None:
-        """g~_J at the sample times (subsets, samples), or None where the gait is refused for
-        another reason than uniqueness."""
-        try:
-            g = gait.replace(path, float(s))
-        except GaitError as error:
-            if "uniqueness" not in str(error):
-                return None
-            g = None
-        if g is None:  # exactly on a uniqueness failure: rebuild the thresholds without checks
-            return np.zeros((len(masks), len(u)))
-        plus, minus = g.thresholds()
-        a, b = evaluate_many(plus, u), evaluate_many(minus, u)
-        return masks.astype(float) @ a.T - (~masks).astype(float) @ b.T
-
-    jumps: list[float] = []
-    order = np.argsort(x)
-    xs = x[order]
-    table = [sums(s) for s in xs]
-    for s, g in zip(xs, table):  # a swept value exactly on a uniqueness failure
-        if g is not None and np.any(np.all(g == 0.0, axis=1)):
-            jumps.append(float(s))
-    for left, right, previous, current in zip(xs[:-1], xs[1:], table[:-1], table[1:]):
-        if previous is not None and current is not None:
-            flips = np.all(np.sign(previous) * np.sign(current) < 0, axis=1)
-            for k in np.flatnonzero(flips):
-                lo, hi, g_lo = float(left), float(right), previous[k, 0]
-                for _ in range(60):
-                    mid = 0.5 * (lo + hi)
-                    g_mid = sums(mid)
-                    if g_mid is None:
-                        break
-                    if np.sign(g_mid[k, 0]) == np.sign(g_lo):
-                        lo = mid
-                    else:
-                        hi = mid
-                    if hi - lo <= 1e-12 * (right - left):
-                        break
-                jumps.append(0.5 * (lo + hi))
-    jumps = sorted(set(jumps))
-
+    jumps = _UniquenessSums(gait, path).jumps(x)
     stall_at, cause = None, None
-    keys = resolve_path_value(gait.document, path)
+    own = resolve_path_value(gait.document, path)
     finite = np.isfinite(v)
-    if keys is not None and np.any(finite):
+    if own is not None and np.any(finite):
         index = np.flatnonzero(finite)
-        start = int(index[np.argmin(np.abs(x[index] - keys))])
-        sign = np.sign(v[start])
-        if sign != 0:
+        start = int(index[np.argmin(np.abs(x[index] - own))])
+        if np.sign(v[start]) != 0:
             # walk away from the start, either way, to where v0 first loses its sign
             for direction in (1, -1):
-                i = start
-                while 0 <= i + direction < len(x):
-                    j = i + direction
-                    if not np.isfinite(v[j]) or np.sign(v[j]) != sign:
-                        inside = [s for s in jumps if 0 < (s - x[i]) / (x[j] - x[i]) <= 1]
-                        if inside:
-                            nearest = int(np.argmin([abs(s - x[i]) for s in inside]))
-                            stall_at, cause = inside[nearest], StallCause.JUMP
-                        elif np.isfinite(v[j]):
-                            stall_at = float(x[i] + (x[j] - x[i]) * v[i] / (v[i] - v[j]))
-                            behind = i - direction
-                            if v[j] == 0.0 and 0 <= behind < len(x) and np.isfinite(v[behind]) \
-                                    and v[behind] != v[i]:
-                                # v0 = 0 on an interval from the zero on: extrapolate the
-                                # secant of the moving side instead, within (x_i, x_j]
-                                root = float(x[i] - v[i] * (x[i] - x[behind])
-                                             / (v[i] - v[behind]))
-                                if 0 < (root - x[i]) / (x[j] - x[i]) <= 1:
-                                    stall_at = root
-                            cause = StallCause.SMOOTH_ZERO
-                        break
-                    i = j
+                stall_at, cause = _first_stall(x, v, start, direction, jumps)
                 if stall_at is not None:
                     break
     return CurveMarks(tuple(jumps), stall_at, cause, label)
+
+
+class _UniquenessSums:
+    """The shifted uniqueness sums g~_J of every proper subset J at 16 sample times of the
+    cycle, as the load at ``path`` varies (docs/model.md §3, §6)."""
+
+    def __init__(self, gait: Gait, path: str):
+        self.gait, self.path = gait, path
+        self.u = np.linspace(0.0, 1.0, 17)[:-1]
+        N = gait.blocks
+        self.masks = np.array([[(m >> j) & 1 for j in range(N)] for m in range(1, 2 ** N - 1)],
+                              dtype=bool)
+
+    def __call__(self, s: float) -> np.ndarray | None:
+        """g~_J at the sample times (subsets, samples), or None where the gait is refused for
+        another reason than uniqueness (zeros exactly on a uniqueness failure)."""
+        try:
+            g = self.gait.replace(self.path, float(s))
+        except GaitError as error:
+            if "uniqueness" not in str(error):
+                return None
+            return np.zeros((len(self.masks), len(self.u)))
+        plus, minus = g.thresholds()
+        a, b = evaluate_many(plus, self.u), evaluate_many(minus, self.u)
+        return self.masks.astype(float) @ a.T - (~self.masks).astype(float) @ b.T
+
+    def jumps(self, x: np.ndarray) -> list[float]:
+        """The loads where some g~_J vanishes on the whole cycle: swept values exactly there,
+        and between consecutive values where it changes sign at every sample, bisected."""
+        jumps: list[float] = []
+        xs = np.sort(x)
+        table = [self(s) for s in xs]
+        for s, g in zip(xs, table):  # a swept value exactly on a uniqueness failure
+            if g is not None and np.any(np.all(g == 0.0, axis=1)):
+                jumps.append(float(s))
+        for left, right, previous, current in zip(xs[:-1], xs[1:], table[:-1], table[1:]):
+            if previous is None or current is None:
+                continue
+            flips = np.all(np.sign(previous) * np.sign(current) < 0, axis=1)
+            for k in np.flatnonzero(flips):
+                jumps.append(self._root(int(k), float(left), float(right), previous[k, 0]))
+        return sorted(set(jumps))
+
+    def _root(self, k: int, left: float, right: float, g_left: float) -> float:
+        """Bisection of subset k's sum between two swept values, to 1e-12 of the interval."""
+        lo, hi = left, right
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            g_mid = self(mid)
+            if g_mid is None:
+                break
+            if np.sign(g_mid[k, 0]) == np.sign(g_left):
+                lo = mid
+            else:
+                hi = mid
+            if hi - lo <= 1e-12 * (right - left):
+                break
+        return 0.5 * (lo + hi)
+
+
+def _first_stall(x: np.ndarray, v: np.ndarray, start: int, direction: int,
+                 jumps: list[float]) -> tuple[float | None, StallCause | None]:
+    """Walking from ``start`` in ``direction``, the first interval where v0 loses its sign:
+    a jump inside it (the nearest), else the zero of the secant (cause smooth-zero); (None,
+    None) when v0 keeps its sign to the end of the sweep."""
+    sign = np.sign(v[start])
+    i = start
+    while 0 <= i + direction < len(x):
+        j = i + direction
+        if np.isfinite(v[j]) and np.sign(v[j]) == sign:
+            i = j
+            continue
+        inside = [s for s in jumps if 0 < (s - x[i]) / (x[j] - x[i]) <= 1]
+        if inside:
+            nearest = int(np.argmin([abs(s - x[i]) for s in inside]))
+            return inside[nearest], StallCause.JUMP
+        if not np.isfinite(v[j]):
+            return None, None
+        return _secant_zero(x, v, i, j, direction), StallCause.SMOOTH_ZERO
+    return None, None
+
+
+def _secant_zero(x: np.ndarray, v: np.ndarray, i: int, j: int, direction: int) -> float:
+    """The zero of v0 between swept points i (moving) and j (stopped): linear interpolation,
+    or, where v0 = 0 on an interval from the zero on, the secant of the moving side
+    extrapolated within (x_i, x_j]."""
+    stall_at = float(x[i] + (x[j] - x[i]) * v[i] / (v[i] - v[j]))
+    behind = i - direction
+    if v[j] == 0.0 and 0 <= behind < len(x) and np.isfinite(v[behind]) and v[behind] != v[i]:
+        root = float(x[i] - v[i] * (x[i] - x[behind]) / (v[i] - v[behind]))
+        if 0 < (root - x[i]) / (x[j] - x[i]) <= 1:
+            stall_at = root
+    return stall_at
 
 
 def resolve_path_value(document: dict, path: str) -> float | None:
