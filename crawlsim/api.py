@@ -171,7 +171,7 @@ def _fields_of_file(data: Mapping[str, Any]) -> dict[str, Any]:
     summary (summary_json; files written before a field existed give its default), the arrays
     of /convergence, /limit, /limit/solver and /trajectory."""
     from crawlsim.analysis.run import SUMMARY_KEYS, ConvergenceHistory, LimitPeriod
-    from crawlsim.status import Convergence, RunStatus
+    from crawlsim.status import Convergence, LimitMethod, RunStatus
 
     attrs = data["attrs"]
     summary = json.loads(attrs.get("summary_json", "{}"))
@@ -185,6 +185,8 @@ def _fields_of_file(data: Mapping[str, Any]) -> dict[str, Any]:
                 "cost_of_transport", "contraction_rate"):
         fields[key] = _none(attrs.get(key, math.nan))
     fields["status"] = RunStatus(summary.get("status", RunStatus.SUCCESSFUL))
+    fields["limit_method"] = LimitMethod(data.get("limit_solver_attrs", {}).get(
+        "method", summary.get("limit_method", LimitMethod.ITERATE)))
     if summary.get("exact_convergence") is not None:
         fields["exact_convergence"] = Convergence(summary["exact_convergence"])
     conv, lim = data["convergence"], data["limit"]

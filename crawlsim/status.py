@@ -36,3 +36,10 @@ class RunStatus(StrEnum):
 
     SUCCESSFUL = "successful"  # the periodic limit was found (finite-time or asymptotic)
     MAX_PERIODS_REACHED = "max-periods-reached"  # max_periods ran out before the limit
+
+
+class LimitMethod(StrEnum):
+    """How a run's periodic limit was found (`crawlsim.integrate.limit`)."""
+
+    NEWTON = "newton"  # the periodic-limit solver found and verified it
+    ITERATE = "iterate"  # the true iterates reached it themselves

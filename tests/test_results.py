@@ -148,6 +148,7 @@ def test_grid_note_compares_the_rates_of_two_asymptotic_verdicts(triangle):
 
 # -- xarray and the typed readers -----------------------------------------------------------------
 def test_to_xarray_indexes_time(p4):
+    pytest.importorskip("xarray")
     tree = p4.to_xarray()
     assert tree.attrs["Conventions"] == "CF-1.10"
     trajectory = tree["trajectory"].to_dataset()
@@ -210,7 +211,7 @@ def test_run_files_of_the_cli_read_as_the_api_result(tmp_path):
 
 
 def test_open_sweep_gives_back_the_dataset_sweep_returned(tmp_path):
-    import xarray as xr
+    xr = pytest.importorskip("xarray")
 
     out = tmp_path / "sweep.h5"
     grid = crawlsim.sweep(P4, {"links.*.amplitude": [0.2, 0.3]}, steps_per_period=100,

@@ -14,7 +14,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from crawlsim.analysis.digits import how_found, with_error
-from crawlsim.status import Convergence, RunStatus
+from crawlsim.status import Convergence, LimitMethod, RunStatus
 
 if TYPE_CHECKING:
     from crawlsim.analysis.run import RunResult
@@ -34,7 +34,7 @@ def run_message(result: RunResult, *, max_periods: int, tolerance: float, limit:
     steps = result.history.poincare_step
     step = float(steps[-1]) if len(steps) else math.nan
     advice = "raise `max_periods` (--max-periods)"
-    if limit == "iterate":
+    if limit == LimitMethod.ITERATE:
         advice += " or let the periodic-limit solver find the limit (`--limit newton`)"
     return (f"the maximum number of periods was reached: max_periods = {max_periods} periods "
             f"ran out before the limit was found (final Poincare step {step:.3g}, tolerance "

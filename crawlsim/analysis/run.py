@@ -72,7 +72,7 @@ from crawlsim.analysis.report import (
 )
 from crawlsim.integrate.stepping import PeriodRecord, make_stepper, positions_of
 from crawlsim.model.process import SweepingProcess
-from crawlsim.status import Convergence, RunStatus
+from crawlsim.status import Convergence, LimitMethod, RunStatus
 
 if TYPE_CHECKING:
     from crawlsim.integrate.limit import LimitSolution
@@ -85,7 +85,7 @@ __all__ = ["ENERGY_KEYS", "FINITE_JUMP", "LIMIT_METHODS", "RATE_RELIABLE", "RATE
            "simulate", "summary_text", "time_step_reference"]
 
 #: How the periodic limit is found: the solver of `crawlsim.integrate.limit`, or plain iteration.
-LIMIT_METHODS = ("newton", "iterate")
+LIMIT_METHODS = tuple(LimitMethod)
 
 #: The energy ledger's entries of the summary (`crawlsim.analysis.energy`).
 ENERGY_KEYS = ("actuator_work_per_period", "jump_loss_per_period", "load_work_per_period",
@@ -157,7 +157,7 @@ class RunResult:
     # The periodic-limit solver: how the limit was found ("newton" or "iterate"), its accepted
     # Newton steps, the periods it simulated (the verifying one included), its relative Poincare
     # steps, and the contraction rate read from the Jacobian at the limit.
-    limit_method: str = "iterate"
+    limit_method: LimitMethod = LimitMethod.ITERATE
     limit_newton_steps: int = 0
     limit_periods: int = 0
     limit_residuals: np.ndarray | None = None
@@ -225,7 +225,7 @@ class RunResult:
     def summary(self) -> dict[str, Any]:
         """The JSON-ready numbers (`SUMMARY_KEYS`), statuses as their strings."""
         out = {k: getattr(self, k) for k in SUMMARY_KEYS}
-        for key in ("status", "convergence", "exact_convergence"):
+        for key in ("status", "convergence", "exact_convergence", "limit_method"):
             out[key] = None if out[key] is None else str(out[key])
         out["final_poincare_step"] = float(self.history.poincare_step[-1])
         return out
@@ -290,9 +290,9 @@ def _drive(process: SweepingProcess, integrator: str, options: dict[str, Any], *
     cost = (0, 0)  # periods simulated and Clarabel calls made by the limit solver
     try:
         # the true iterates; with the solver, only a few before it takes over
-        budget = max_periods if limit == "iterate" else min(max_periods, PLAIN_PERIODS)
+        budget = max_periods if limit == LimitMethod.ITERATE else min(max_periods, PLAIN_PERIODS)
         final = _iterate(log, stepper, budget, tol, sink, progress)
-        if final is None and limit == "newton" and len(log) < max_periods:
+        if final is None and limit == LimitMethod.NEWTON and len(log) < max_periods:
             final, solution, cost = _solve(process, integrator, options, log, stepper, tol=tol,
                                            max_periods=max_periods, history=history,
                                            sink=sink, progress=progress)
@@ -465,8 +465,8 @@ def _history_arrays(process: SweepingProcess, drive: _Drive) -> ConvergenceHisto
 def _solver_fields(solution: LimitSolution | None) -> dict[str, Any]:
     """How the limit was found: the periodic-limit solver's numbers, or plain iteration."""
     if solution is None:
-        return {"limit_method": "iterate"}
-    return {"limit_method": "newton", "limit_newton_steps": solution.newton_steps,
+        return {"limit_method": LimitMethod.ITERATE}
+    return {"limit_method": LimitMethod.NEWTON, "limit_newton_steps": solution.newton_steps,
             "limit_periods": solution.periods, "limit_residuals": solution.residuals,
             "limit_kinds": solution.kinds, "jacobian_rate": solution.jacobian_rate}
 
