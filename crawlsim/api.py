@@ -65,6 +65,11 @@ class Trajectory:
     reaction: np.ndarray | None = None
     events: Mapping[str, np.ndarray] | None = None  # t, w (and x): the exact integrator's events
 
+    def columns(self) -> dict[str, np.ndarray]:
+        """The /trajectory variables held, by name (those that are None left out)."""
+        names = ("t", "w", "x", "stress", "shape", "reaction")
+        return {n: v for n in names if (v := getattr(self, n)) is not None}
+
 
 #: Writes a result's results file into a target (a path, or a binary file object).
 Writer = Callable[[Any], None]
@@ -343,16 +348,10 @@ def _in_memory(spec: Spec, *, save_every: int, check_every_step: bool,
         with ResultsWriter(target, process, save_every=save_every, units=spec.units,
                            trajectory=keep_trajectory) as writer:
             if trajectory is not None:
-                writer.write_rows(_rows_of(trajectory), trajectory.events)
+                writer.write_rows(trajectory.columns(), trajectory.events)
             writer.finish(result, record, kind=kind, unchecked_uniqueness=unchecked)
 
     return dataclasses.replace(result, _write=write)
-
-
-def _rows_of(trajectory: Trajectory) -> dict[str, np.ndarray]:
-    """The /trajectory rows a `Trajectory` holds."""
-    names = ("t", "w", "x", "stress", "shape", "reaction")
-    return {n: v for n in names if (v := getattr(trajectory, n)) is not None}
 
 
 @dataclass(frozen=True)

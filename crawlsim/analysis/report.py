@@ -220,8 +220,7 @@ def _extra_rows(result: RunResult) -> list[Row]:
                         + ("" if result.status == RunStatus.SUCCESSFUL else f": {result.message}"))]
     trajectory = getattr(result, "trajectory", None)
     if trajectory is not None:
-        names = [n for n in ("t", "w", "x", "stress", "shape", "reaction")
-                 if getattr(trajectory, n) is not None]
+        names = list(trajectory.columns())
         events = "" if trajectory.events is None else (
             f", {len(trajectory.events['t'])} events")
         rows.append(("trajectory", f"{len(trajectory.t)} saved points ({', '.join(names)})"

@@ -268,6 +268,16 @@ def _reaction_rows(multipliers: np.ndarray, sel: np.ndarray,
     return rows, multipliers[ends[-1]:].sum(axis=0)
 
 
+def trajectory_columns(process: Any) -> dict[str, tuple[int, ...]]:
+    """The /trajectory variables of a process and the shape of one row of each: t, w and, for
+    crawlers, x, stress and shape, for generic processes the reactions."""
+    n, m = process.polyhedron.n, process.polyhedron.m
+    columns: dict[str, tuple[int, ...]] = {"t": (), "w": (n,)}
+    columns.update({"x": (process.blocks,), "stress": (n,), "shape": (n,)}
+                   if process.is_crawler else {"reaction": (m,)})
+    return columns
+
+
 class RowsRecorder:
     """The in-memory twin of `ResultsWriter` (`crawlsim.api.simulate`): it keeps the rows a
     results file would hold and writes the file only when `image` is asked for, so a result
@@ -295,13 +305,9 @@ class RowsRecorder:
 
     def trajectory(self) -> dict[str, np.ndarray]:
         """The /trajectory variables, as `read_results` would give them."""
-        p = self.process
-        n = p.polyhedron.n
-        widths = {"t": (), "w": (n,)}
-        widths.update({"x": (p.blocks,), "stress": (n,), "shape": (n,)} if p.is_crawler
-                      else {"reaction": (p.polyhedron.m,)})
         return {name: (np.concatenate(self._rows[name]) if name in self._rows
-                       else np.zeros((0,) + tail)) for name, tail in widths.items()}
+                       else np.zeros((0,) + tail))
+                for name, tail in trajectory_columns(self.process).items()}
 
     def events(self) -> dict[str, np.ndarray] | None:
         return {name: np.concatenate(rows) for name, rows in self._events.items()} or None
@@ -340,15 +346,8 @@ class ResultsWriter:
         self._scales = Scales()
         self._traj = self.file.create_group("trajectory", track_order=True)
         self._sets: dict[str, h5py.Dataset] = {}
-        self._columns = ["t", "w"] + (["x", "stress", "shape"] if process.is_crawler
-                                      else ["reaction"])
-        m, n = process.polyhedron.m, process.polyhedron.n
-        self._reaction_carry = np.zeros(m)
-        widths = {"t": (), "w": (n,),
-                  "x": (process.blocks,), "stress": (process.blocks - 1,),
-                  "shape": (process.blocks - 1,), "reaction": (m,)}
-        for name in self._columns:
-            tail = widths[name]
+        self._reaction_carry = np.zeros(process.polyhedron.m)
+        for name, tail in trajectory_columns(process).items():
             rows = max(1, min(4096, (1 << 16) // max(1, math.prod(tail))))
             self._sets[name] = self._traj.create_dataset(
                 name, shape=(0,) + tail, maxshape=(None,) + tail, dtype=float,
