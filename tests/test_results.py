@@ -224,3 +224,17 @@ def test_open_sweep_gives_back_the_dataset_sweep_returned(tmp_path):
     np.testing.assert_array_equal(read.v0.values, grid.v0.values)
     with pytest.raises(ResultsFileError, match="not a crawlsim sweep file"):
         open_sweep(crawlsim.simulate(P4, steps_per_period=50).save(tmp_path / "run.h5"))
+
+
+def test_info_prints_the_rate_with_its_evidence(triangle, tmp_path):
+    from click.testing import CliRunner
+
+    from crawlsim.cli import main
+
+    path = triangle.save(tmp_path / "triangle.h5")
+    r = CliRunner().invoke(main, ["info", str(path)])
+    assert r.exit_code == 0, r.output
+    line = next(x for x in r.output.splitlines() if x.startswith("  convergence"))
+    error = f"{triangle.contraction_rate_error:.1g}"
+    assert line == ("  convergence              asymptotic, contraction rate 0.125 per period "
+                    f"(± {error}, fitted on {RATE_WINDOW} periods)")

@@ -5,40 +5,51 @@ from __future__ import annotations
 import click
 
 from crawlsim.cli import library_errors, main, to_json
+from crawlsim.status import Convergence
 
 
 def _g(value, digits: int = 12) -> str:
     return "n/a" if value is None else f"{value:.{digits}g}"
 
 
+def _run_lines(d: dict) -> list[str]:
+    """The lines of a run's file: the summary of ``crawlsim run``, from the attributes."""
+    from crawlsim.analysis.digits import how_found, with_error
+
+    what = "gait" if d["kind"] == "crawler" else d["kind"]
+    lines = [f"{d['file']}: run of {what} {d['name']}",
+             f"  integrator               {d['integrator'] or 'n/a'}"]
+    if d["v0"] is not None:
+        lines.append(f"  v0                       {with_error(d['v0'], d['v0_error_estimate'])}")
+    conv = d["convergence"]
+    if conv == Convergence.FINITE_TIME:
+        conv += f": periodic from period {d['periodic_from']}"
+    elif conv == Convergence.ASYMPTOTIC:
+        conv += f", contraction rate {_g(d['contraction_rate'], 4)} per period"
+        if d.get("contraction_rate_periods"):
+            error = d.get("contraction_rate_error")
+            spread = "" if error is None else f"± {error:.1g}, "
+            conv += f" ({spread}fitted on {d['contraction_rate_periods']} periods)"
+    lines.append(f"  convergence              {conv}")
+    if d.get("grid_note"):
+        lines.append(f"  grid                     {d['grid_note']}")
+    found = how_found(d.get("limit_method"), d.get("limit_newton_steps"),
+                      d.get("limit_periods"), d.get("jacobian_rate"))
+    lines.append(f"  limit found by           {found}")
+    lines.append(f"  periods                  {d['periods']} of {d['steps_per_period']} "
+                 f"steps (period {_g(d['period'])})")
+    if d["displacement_per_period"] is not None:
+        lines.append(f"  displacement per period  {_g(d['displacement_per_period'])}")
+        lines.append(f"  dissipation per period   {_g(d['dissipation_per_period'])}")
+        lines.append(f"  cost of transport        {_g(d['cost_of_transport'], 6)}")
+    return lines
+
+
 def summary_lines(d: dict) -> list[str]:
     """The text of ``crawlsim info`` for `crawlsim.io.hdf5.describe`'s dict."""
     lines = []
     if d["file_kind"] == "run":
-        what = "gait" if d["kind"] == "crawler" else d["kind"]
-        lines.append(f"{d['file']}: run of {what} {d['name']}")
-        lines.append(f"  integrator               {d['integrator'] or 'n/a'}")
-        if d["v0"] is not None:
-            from crawlsim.analysis.digits import with_error
-
-            lines.append(f"  v0                       {with_error(d['v0'], d['v0_error_estimate'])}")
-        conv = d["convergence"]
-        if conv == "finite-time":
-            conv += f": periodic from period {d['periodic_from']}"
-        elif conv == "asymptotic":
-            conv += f", contraction rate {_g(d['contraction_rate'], 4)} per period"
-        lines.append(f"  convergence              {conv}")
-        from crawlsim.analysis.digits import how_found
-
-        found = how_found(d.get("limit_method"), d.get("limit_newton_steps"),
-                          d.get("limit_periods"), d.get("jacobian_rate"))
-        lines.append(f"  limit found by           {found}")
-        lines.append(f"  periods                  {d['periods']} of {d['steps_per_period']} "
-                     f"steps (period {_g(d['period'])})")
-        if d["displacement_per_period"] is not None:
-            lines.append(f"  displacement per period  {_g(d['displacement_per_period'])}")
-            lines.append(f"  dissipation per period   {_g(d['dissipation_per_period'])}")
-            lines.append(f"  cost of transport        {_g(d['cost_of_transport'], 6)}")
+        lines.extend(_run_lines(d))
     elif d["file_kind"] == "optimization":
         lines.append(f"{d['file']}: optimisation of gait {d['name']}, from {d['source']}: "
                      f"{d['objective']}")

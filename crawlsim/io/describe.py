@@ -83,6 +83,10 @@ def _describe_run(path: Path, f: h5py.File, attrs: dict[str, Any]) -> dict[str, 
         "limit_newton_steps": solver.get("newton_steps", summary.get("limit_newton_steps")),
         "limit_periods": solver.get("periods", summary.get("limit_periods")),
         "jacobian_rate": number(solver.get("jacobian_rate", summary.get("jacobian_rate"))),
+        "contraction_rate_error": summary.get("contraction_rate_error"),
+        "contraction_rate_periods": summary.get("contraction_rate_periods"),
+        "status": summary.get("status"), "message": summary.get("message"),
+        "grid_note": summary.get("grid_note"),
     }
 
 
