@@ -238,3 +238,20 @@ def test_info_prints_the_rate_with_its_evidence(triangle, tmp_path):
     error = f"{triangle.contraction_rate_error:.1g}"
     assert line == ("  convergence              asymptotic, contraction rate 0.125 per period "
                     f"(± {error}, fitted on {RATE_WINDOW} periods)")
+
+
+def test_the_exact_verdict_is_claimed_only_where_the_reference_run_shows_it(p4, triangle):
+    """The reference run stops at the verified limit: its own verdict counts where its iterates
+    reached the limit themselves; after the solver, a Jacobian rate r > 0 means asymptotic at r;
+    otherwise nothing is claimed."""
+    from crawlsim.analysis.run import exact_verdict
+    from crawlsim.status import LimitMethod
+
+    assert p4.limit_method == LimitMethod.ITERATE
+    assert exact_verdict(p4) == (Convergence.FINITE_TIME, None)
+    assert triangle.limit_method == LimitMethod.NEWTON
+    verdict, rate = exact_verdict(triangle)
+    assert verdict == Convergence.ASYMPTOTIC and rate == pytest.approx(0.125, rel=1e-9)
+    unformed = dataclasses.replace(triangle, jacobian_rate=None)
+    assert exact_verdict(unformed) == (None, None)
+    assert exact_verdict(dataclasses.replace(triangle, jacobian_rate=0.0)) == (None, None)

@@ -491,7 +491,7 @@ def _analyse(process: SweepingProcess, drive: _Drive, *, integrator: str, tol: f
     if motion is not None and step.dissipation is not None and motion.v0:
         diss_err = abs(motion.dissipation) * motion.error / abs(motion.v0) + step.dissipation
     G = process.steps
-    exact = reference if isinstance(reference, RunResult) else None
+    exact = exact_verdict(reference) if isinstance(reference, RunResult) else (None, None)
     return RunResult(
         name=process.name, period=process.period, steps_per_period=G, convergence=convergence,
         periods=len(drive.log), periodic_from=periodic_from, contraction_rate=rate,
@@ -507,10 +507,24 @@ def _analyse(process: SweepingProcess, drive: _Drive, *, integrator: str, tol: f
         v0_error_reason=step.reason, dissipation_error_estimate=diss_err,
         contraction_rate_error=None if fit is None else fit.error,
         contraction_rate_periods=0 if fit is None else fit.periods,
-        exact_convergence=None if exact is None else exact.convergence,
-        exact_rate=None if exact is None else verdict_rate(exact),
+        exact_convergence=exact[0], exact_rate=exact[1],
         **_solver_fields(drive.solution),
         **_energy_fields(process, drive.final, motion, err))
+
+
+def exact_verdict(reference: RunResult) -> tuple[Convergence | None, float | None]:
+    """The exact integrator's verdict and rate from its reference run (`time_step_reference`),
+    where it costs nothing more: that run stops at the verified limit without following the
+    iterates to it, so its own classification is the true iterates' only when they reached the
+    limit themselves (limit_method iterate). When the solver found it, a Jacobian rate r > 0 at
+    the limit means the iterates approach it geometrically, at that rate (asymptotic);
+    otherwise the verdict is unknown (None) and nothing is claimed."""
+    if reference.limit_method == LimitMethod.ITERATE:
+        return reference.convergence, verdict_rate(reference)
+    rate = reference.jacobian_rate
+    if rate is not None and rate > 0:
+        return Convergence.ASYMPTOTIC, rate
+    return None, None
 
 
 def _outcome(result: RunResult, *, max_periods: int, tolerance: float,
