@@ -230,9 +230,15 @@ def fit_contraction_rate(rel_steps: np.ndarray) -> RateFit | None:
 
     A relative step s carries a roundoff of about eps / s relative to itself, so the fit uses
     the last `RATE_WINDOW` steps above `RATE_RELIABLE` (each good to 1e-6 or better) when there
-    are at least three; otherwise every step above the roundoff floor. The error is the
-    slope's standard error sqrt(sum e_q^2 / ((n - 2) sum (q - mean q)^2)) over the residuals e_q
-    of the fit, carried to r = exp(slope) to first order (dr = r d slope).
+    are at least three; otherwise every step above the roundoff floor.
+
+    The error of the slope b = sum_q c_q log s_q (c_q = (q - mean q) / sum (q - mean q)^2) has two
+    parts: the scatter of the points about the line, its standard error
+    sqrt(sum e_q^2 / ((n - 2) sum (q - mean q)^2)) over the residuals e_q, and the roundoff of
+    the logarithms, at most sum |c_q| eps / s_q. Their sum is carried to r = exp(b) to first
+    order (dr = r db). The roundoff part keeps the estimate honest, and the same on every
+    machine, where the steps contract exactly geometrically and the residuals are roundoff
+    themselves.
     """
     steps = np.asarray(rel_steps, dtype=float)
     q = np.arange(len(steps))
@@ -251,8 +257,10 @@ def fit_contraction_rate(rel_steps: np.ndarray) -> RateFit | None:
         return RateFit(rate, None, int(chosen.size))
     residual = y - (slope * x + intercept)
     spread = float(np.sum((x - x.mean()) ** 2))
-    slope_error = math.sqrt(float(np.sum(residual ** 2)) / (chosen.size - 2) / spread)
-    return RateFit(rate, rate * slope_error, int(chosen.size))
+    scatter = math.sqrt(float(np.sum(residual ** 2)) / (chosen.size - 2) / spread)
+    roundoff = float(np.sum(np.abs(x - x.mean()) / spread * np.finfo(float).eps
+                            / steps[chosen]))
+    return RateFit(rate, rate * (scatter + roundoff), int(chosen.size))
 
 
 def contraction_rate(rel_steps: np.ndarray) -> float | None:
