@@ -280,8 +280,9 @@ def trajectory_columns(process: Any) -> dict[str, tuple[int, ...]]:
 
 class RowsRecorder:
     """The in-memory twin of `ResultsWriter` (`crawlsim.api.simulate`): it keeps the rows a
-    results file would hold and writes the file only when `image` is asked for, so a result
-    nobody saves costs no HDF5."""
+    results file would hold; the API's result holds them as its trajectory, and writes the
+    file from it (`ResultsWriter.write_rows`) only when asked, so a result nobody saves costs no
+    HDF5."""
 
     def __init__(self, process: Any, *, save_every: int = 1, trajectory: bool = True):
         self.process = process
@@ -311,18 +312,6 @@ class RowsRecorder:
 
     def events(self) -> dict[str, np.ndarray] | None:
         return {name: np.concatenate(rows) for name, rows in self._events.items()} or None
-
-    def image(self, result: Any, provenance: Any, *, units: Units | None = None,
-              kind: str = "crawler", unchecked_uniqueness: bool = False) -> bytes:
-        """The results file of the run, written now into memory."""
-        buffer = io.BytesIO()
-        with ResultsWriter(buffer, self.process, save_every=self.save_every, units=units,
-                           trajectory=self.keep) as writer:
-            writer.write_rows({name: np.concatenate(rows) for name, rows in self._rows.items()},
-                              self.events())
-            writer.finish(result, provenance, kind=kind,
-                          unchecked_uniqueness=unchecked_uniqueness)
-        return buffer.getvalue()
 
 
 class ResultsWriter:
