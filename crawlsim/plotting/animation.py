@@ -37,7 +37,7 @@ from matplotlib.patches import Patch
 
 from crawlsim.errors import ResultsFileError
 from crawlsim.io.atomic import atomic_path
-from crawlsim.plotting.figures import _name, _need, _period
+from crawlsim.plotting.source import need, run_name, run_period, takes_run
 from crawlsim.plotting.style import (
     OKABE_ITO,
     REFERENCE,
@@ -98,8 +98,8 @@ def animation_frames(results: dict, periods: tuple[int, int] | None = None,
     """The instants of the animation and what each shows: the limit period, or the periods
     ``(A, B)`` of the stored trajectory (`parse_periods`). ValueError for periods the file
     does not hold."""
-    _need(results, "animation", "limit/t", "limit/x", "limit/stress", "limit/slip")
-    T = _period(results)
+    need(results, "animation", "limit/t", "limit/x", "limit/stress", "limit/slip")
+    T = run_period(results)
     start = float(results["limit_attrs"].get("start", 0.0))
     if periods is None:
         lim = results["limit"]
@@ -112,7 +112,7 @@ def animation_frames(results: dict, periods: tuple[int, int] | None = None,
         wanted = t[0] + (t[-1] - t[0]) * np.arange(count) / count
         t_abs = t + start
     else:
-        _need(results, "animation", "trajectory/t", "trajectory/x", "trajectory/stress")
+        need(results, "animation", "trajectory/t", "trajectory/x", "trajectory/stress")
         tr = results["trajectory"]
         t_abs = np.asarray(tr["t"], dtype=float)
         a, b = periods
@@ -229,7 +229,7 @@ def animation_figure(results: dict, frames: Frames):
             texts = [body.text(0, 0.75 * height, "", ha="center", va="bottom", fontsize=8)
                      for _ in links]
         clock = body.set_title("", loc="right")
-        fig.suptitle(title(_name(results), "the crawler in motion"))
+        fig.suptitle(title(run_name(results), "the crawler in motion"))
 
         # Link lengths against the actuators'.
         colour = colours(2)
@@ -357,6 +357,7 @@ def _BlittingPillowWriter(fps: float):
     return _blitting_pillow_writer()(fps=fps)
 
 
+@takes_run
 def write_animation(results: dict, target, *, periods: tuple[int, int] | None = None,
                     frames_per_period: int = FRAMES_PER_PERIOD, fps: float = FPS,
                     dpi: float = ANIMATION_DPI) -> tuple[Path, int]:
