@@ -28,6 +28,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, cast
 
 import numpy as np
 from matplotlib.collections import LineCollection, PolyCollection
@@ -179,6 +180,43 @@ def _block_boxes(x: np.ndarray, width: float, height: float) -> np.ndarray:
                      np.stack([right, high], -1), np.stack([left, high], -1)], axis=1)
 
 
+def _lengths_panel(ax, frames: Frames, links: np.ndarray, units):
+    """The link lengths z_i of the first frame against the actuators' L_i: bars from 0 for a
+    few links; beyond 12 a curve along the body, on an axis fitted to the lengths, where the
+    wave of a long crawler shows. Returns the artists a frame updates: the bars (or the curve)
+    and the actuator markers (None when the file has no actuator lengths)."""
+    x_all = frames.x
+    N = x_all.shape[1]
+    colour = colours(2)
+    if N <= 12:
+        bars = ax.bar(links, np.diff(x_all[0]), color=colour[0], width=0.7, label="link $z_i$")
+        z_artists, handles = list(bars), [bars]  # the container carries the legend label
+    else:
+        (z_line,) = ax.plot(links, np.diff(x_all[0]), color=colour[0], linewidth=1.6,
+                            label="link $z_i$")
+        z_artists, handles = [z_line], [z_line]
+    actuator = None
+    if frames.lengths is not None:
+        (actuator,) = ax.plot(links, frames.lengths[0], linestyle="none",
+                              marker="_" if N > 12 else "o", markersize=8, color=REFERENCE,
+                              label="actuator $L_i$")
+        handles.append(actuator)
+    z_all = np.diff(x_all, axis=1)
+    given = frames.lengths if frames.lengths is not None else z_all
+    top = max(float(z_all.max()), float(np.max(frames.lengths)) if frames.lengths is not None
+              else 0.0)
+    if N > 12:
+        low = min(float(z_all.min()), float(np.min(given)))
+        pad = 0.08 * max(top - low, 1e-12 * max(abs(top), 1.0))
+        ax.set_ylim(low - pad, top + pad)
+    else:
+        bottom = min(float(z_all.min()), float(np.min(given)), 0.0)
+        ax.set_ylim(bottom, top * 1.08 if top > 0 else 1.0)
+    ax.set_ylabel(label("length", "z_i", "length", units))
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
+    return z_artists, actuator
+
+
 def animation_figure(results: dict, frames: Frames):
     """The figure of the animation and the function that draws frame k on it (for
     `matplotlib.animation.FuncAnimation`)."""
@@ -231,40 +269,7 @@ def animation_figure(results: dict, frames: Frames):
         clock = body.set_title("", loc="right")
         fig.suptitle(title(run_name(results), "the crawler in motion"))
 
-        # Link lengths against the actuators'.
-        colour = colours(2)
-        # Bars from 0 for a few links; beyond 12 a curve along the body, on an axis fitted to
-        # the lengths, where the wave of a long crawler shows.
-        if N <= 12:
-            z_bars = list(lengths_ax.bar(links, np.diff(x_all[0]), color=colour[0], width=0.7,
-                                         label="link $z_i$"))
-            handles = [z_bars[0]]
-        else:
-            (z_line,) = lengths_ax.plot(links, np.diff(x_all[0]), color=colour[0],
-                                        linewidth=1.6, label="link $z_i$")
-            z_bars = [z_line]
-            handles = [z_line]
-        actuator = None
-        if frames.lengths is not None:
-            (actuator,) = lengths_ax.plot(links, frames.lengths[0], linestyle="none",
-                                          marker="_" if N > 12 else "o", markersize=8,
-                                          color=REFERENCE, label="actuator $L_i$")
-            handles.append(actuator)
-        z_all = np.diff(x_all, axis=1)
-        top = max(float(z_all.max()), float(np.max(frames.lengths))
-                  if frames.lengths is not None else 0.0)
-        bottom = min(float(z_all.min()), float(np.min(frames.lengths))
-                     if frames.lengths is not None else 0.0, 0.0)
-        if N > 12:
-            low = min(float(z_all.min()), float(np.min(frames.lengths))
-                      if frames.lengths is not None else np.inf)
-            pad = 0.08 * max(top - low, 1e-12 * max(abs(top), 1.0))
-            lengths_ax.set_ylim(low - pad, top + pad)
-        else:
-            lengths_ax.set_ylim(bottom, top * 1.08 if top > 0 else 1.0)
-        lengths_ax.set_ylabel(label("length", "z_i", "length", units))
-        lengths_ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0),
-                          borderaxespad=0)
+        z_bars, actuator = _lengths_panel(lengths_ax, frames, links, units)
 
         s_bars = stress_ax.bar(links, frames.stress[0], width=0.7,
                                color=cmap(norm(frames.stress[0])))
@@ -321,8 +326,6 @@ def animation_figure(results: dict, frames: Frames):
 
 
 def _blitting_pillow_writer():
-    from io import BytesIO
-
     from matplotlib import animation
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from PIL import Image
@@ -346,9 +349,9 @@ def _blitting_pillow_writer():
             for artist in self._animated:
                 self.fig.draw_artist(artist)
             width, height = canvas.get_width_height()
-            buffer = BytesIO(bytes(canvas.buffer_rgba()))
-            self._frames.append(Image.frombuffer("RGBA", (width, height), buffer.getbuffer(),
-                                                 "raw", "RGBA", 0, 1))
+            frame = Image.frombuffer("RGBA", (width, height), bytes(canvas.buffer_rgba()),
+                                     "raw", "RGBA", 0, 1)
+            cast(Any, self)._frames.append(frame)  # PillowWriter's own list of frames
 
     return BlittingPillowWriter
 

@@ -87,25 +87,7 @@ def convergence_figure(results) -> Figure:
             shown = value if scale == "linear" else np.where(value > 0, value, np.nan)
             state.plot(q, shown, color=colour, marker=marker, markersize=5, linewidth=1.0,
                        label=name, clip_on=False)
-        rate = attrs.get("contraction_rate", np.nan)
-        poincare = next(iter(series.values()))
-        if finite:
-            for ax in axs[:, 0]:
-                ax.axvline(periodic_from, color=REFERENCE, linestyle="--", linewidth=1.0,
-                           label=f"periodic from period {periodic_from}" if ax is state
-                           else None)
-            right = periodic_from >= q[-1] - 0.5 * (q[-1] - q[0])
-            state.text(periodic_from, 0.97, f" periodic from period {periodic_from} "
-                       if right else f" periodic from period {periodic_from}",
-                       transform=state.get_xaxis_transform(), ha="right" if right else "left",
-                       va="top", color=REFERENCE)
-            state.set_ylim(bottom=0.0)
-        elif (scale == "log" and rate is not None and np.isfinite(rate)
-              and np.any(poincare > 0)):
-            last = np.flatnonzero(poincare > 0)[-1]
-            state.plot(q, poincare[last] * rate ** (q - q[last]), color=REFERENCE,
-                       linestyle="--", linewidth=1.0,
-                       label=f"fitted rate {rate:.3g}\nper period")
+        _mark_the_limit(axs[:, 0], q, series, attrs, scale, finite)
         if verdict == "not-converged":
             state.text(0.98, 0.95, "not converged", transform=state.transAxes, ha="right",
                        va="top", color=REFERENCE)
@@ -119,22 +101,7 @@ def convergence_figure(results) -> Figure:
         legend_right(state)
 
         if motion:
-            ax = axs[1, 0]
-            displacement = np.asarray(conv["displacement"], dtype=float)
-            per_period, what = velocity_axis(units)
-            if per_period:
-                value, target, symbol, each = displacement, v0 * T, "v_0T", "d_q"
-                what = label("displacement", "d_q", "length", units)
-            else:
-                value, target, symbol, each = displacement / T, v0, "v_0", "v_q"
-                what = label("velocity", "v_q", "velocity", units)
-            ax.plot(q, value, color=colours(3)[2], marker="^", markersize=5, linewidth=1.0,
-                    label=f"${each}$, period $q$")
-            ax.axhline(target, color=REFERENCE, linestyle=":", linewidth=1.2,
-                       label=f"${symbol}$ = {format_number(target)}")
-            ax.margins(y=0.15)
-            ax.set_ylabel(what)
-            legend_right(ax)
+            _period_displacements(axs[1, 0], q, conv, v0, T, units)
         bottom = axs[-1, 0]
         bottom.xaxis.set_major_locator(MaxNLocator(integer=True))
         if len(q) <= 3:
@@ -142,3 +109,50 @@ def convergence_figure(results) -> Figure:
         bottom.set_xlabel(label("period index", "q"))
         fig.align_ylabels(axs[:, 0])
     return fig
+
+
+def _mark_the_limit(axes, q, series, attrs, scale, finite) -> None:
+    """A finite-time run: a vertical line at its first periodic period on every panel, named
+    on the state panel. An asymptotic run on a log axis: the geometric decay r^q of the fitted
+    contraction rate r through the last positive Poincare step."""
+    state = axes[0]
+    rate = attrs.get("contraction_rate", np.nan)
+    poincare = next(iter(series.values()))
+    if finite:
+        periodic_from = attrs["periodic_from"]
+        for ax in axes:
+            ax.axvline(periodic_from, color=REFERENCE, linestyle="--", linewidth=1.0,
+                       label=f"periodic from period {periodic_from}" if ax is state
+                       else None)
+        right = periodic_from >= q[-1] - 0.5 * (q[-1] - q[0])
+        state.text(periodic_from, 0.97, f" periodic from period {periodic_from} "
+                   if right else f" periodic from period {periodic_from}",
+                   transform=state.get_xaxis_transform(), ha="right" if right else "left",
+                   va="top", color=REFERENCE)
+        state.set_ylim(bottom=0.0)
+    elif (scale == "log" and rate is not None and np.isfinite(rate)
+          and np.any(poincare > 0)):
+        last = np.flatnonzero(poincare > 0)[-1]
+        state.plot(q, poincare[last] * rate ** (q - q[last]), color=REFERENCE,
+                   linestyle="--", linewidth=1.0,
+                   label=f"fitted rate {rate:.3g}\nper period")
+
+
+def _period_displacements(ax, q, conv, v0, T, units) -> None:
+    """The displacement d_q of each period against v0 T (without a time unit), or the velocity
+    v_q = d_q / T of each period against v0 (with one)."""
+    displacement = np.asarray(conv["displacement"], dtype=float)
+    per_period, _ = velocity_axis(units)
+    if per_period:
+        value, target, symbol, each = displacement, v0 * T, "v_0T", "d_q"
+        what = label("displacement", "d_q", "length", units)
+    else:
+        value, target, symbol, each = displacement / T, v0, "v_0", "v_q"
+        what = label("velocity", "v_q", "velocity", units)
+    ax.plot(q, value, color=colours(3)[2], marker="^", markersize=5, linewidth=1.0,
+            label=f"${each}$, period $q$")
+    ax.axhline(target, color=REFERENCE, linestyle=":", linewidth=1.2,
+               label=f"${symbol}$ = {format_number(target)}")
+    ax.margins(y=0.15)
+    ax.set_ylabel(what)
+    legend_right(ax)

@@ -32,6 +32,7 @@ import json
 from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass
+from typing import Any, cast
 
 import matplotlib
 
@@ -119,7 +120,7 @@ FORMATS = ("png", "pdf", "svg")
 def figure_style():
     """The rc settings of crawlsim figures, for the duration of the block, with the style sheet
     of the enclosing `user_style` block (if any) laid over them."""
-    with matplotlib.rc_context(RC):
+    with matplotlib.rc_context(cast(Any, RC)):
         style = _USER_STYLE.get()
         if style is None:
             yield

@@ -231,27 +231,18 @@ def _sweep_line(ax, x, data, statuses, log, marks=None):
     """v0 over one swept value, broken at its jumps. ``marks`` (`crawlsim.analysis.stall.curve_marks`, for a
     swept load) gives the jumps where the uniqueness condition fails, located exactly, and the
     stall; without them the jumps are found from the samples (`jumps`)."""
-    if marks is not None and marks.jumps:
+    exact = marks is not None and bool(marks.jumps)
+    if exact:
         jump = np.array([any(min(a, b) <= s <= max(a, b) for s in marks.jumps)
                          for a, b in zip(x[:-1], x[1:])], dtype=bool)
     else:
         jump = jumps(x, data, log)
     xs, ys = _break_at_jumps(x, data, jump)
     ax.plot(xs, ys, color=colours(1)[0], marker="o", markersize=4.5, label="$v_0$")
-    if marks is not None and marks.stall is not None:
-        ax.axvline(marks.stall, color=REFERENCE, linestyle="--", linewidth=1.2,
-                   label=f"{marks.label} {marks.stall:.6g} ({marks.cause})")
-    if marks is not None and marks.jumps:
-        for k, s in enumerate(marks.jumps):
-            ax.axvline(s, color=FAINT, linestyle=":", linewidth=1.0,
-                       label="jump of $v_0$" if k == 0 else None)
-    sampled = np.flatnonzero(jump) if marks is None or not marks.jumps else []
-    for k in sampled:
-        # The jump itself: a faint vertical at the middle of the interval, between the two
-        # values, where no value of v0 was sampled.
-        middle = np.sqrt(x[k] * x[k + 1]) if log else (x[k] + x[k + 1]) / 2
-        ax.plot([middle, middle], [data[k], data[k + 1]], color=FAINT, linestyle=":",
-                linewidth=1.0, label="jump of $v_0$" if k == sampled[0] else None)
+    if marks is not None:
+        _draw_marks(ax, marks)
+    if not exact:
+        _draw_sampled_jumps(ax, x, data, jump, log)
     if log:
         ax.set_xscale("log")
     ax.axhline(0.0, color=REFERENCE, linewidth=0.6)
@@ -270,6 +261,26 @@ def _sweep_line(ax, x, data, statuses, log, marks=None):
         ax.legend(loc="best")
 
 
+def _draw_marks(ax, marks) -> None:
+    """The stall load (dashed) and the exact jumps of a swept load (dotted verticals)."""
+    if marks.stall is not None:
+        ax.axvline(marks.stall, color=REFERENCE, linestyle="--", linewidth=1.2,
+                   label=f"{marks.label} {marks.stall:.6g} ({marks.cause})")
+    for k, s in enumerate(marks.jumps or ()):
+        ax.axvline(s, color=FAINT, linestyle=":", linewidth=1.0,
+                   label="jump of $v_0$" if k == 0 else None)
+
+
+def _draw_sampled_jumps(ax, x, data, jump, log) -> None:
+    """Each jump found from the samples: a faint vertical at the middle of its interval,
+    between the two values, where no value of v0 was sampled."""
+    sampled = np.flatnonzero(jump)
+    for k in sampled:
+        middle = np.sqrt(x[k] * x[k + 1]) if log else (x[k] + x[k + 1]) / 2
+        ax.plot([middle, middle], [data[k], data[k + 1]], color=FAINT, linestyle=":",
+                linewidth=1.0, label="jump of $v_0$" if k == sampled[0] else None)
+
+
 def _sweep_map(fig, ax, values, data, statuses, logs, value_label):
     x, y = values
     cmap = colour_map().with_extremes(bad="white")
@@ -281,7 +292,7 @@ def _sweep_map(fig, ax, values, data, statuses, logs, value_label):
         ax.set_xscale("log")
     if logs[1]:
         ax.set_yscale("log")
-    handles = []
+    handles: list = []
     empty = ~np.isfinite(data)
     if np.any(empty):
         xe, ye = cell_edges(x, logs[0]), cell_edges(y, logs[1])
