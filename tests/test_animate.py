@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from matplotlib.colors import to_hex
 from PIL import Image, ImageSequence
 
 from crawlsim import api
@@ -23,7 +24,7 @@ from crawlsim.plotting.animation import (
     parse_periods,
     write_animation,
 )
-from crawlsim.plotting.style import SLIP_COLOURS
+from crawlsim.plotting.style import FAINT, SLIP_COLOURS
 
 GAITS = Path(__file__).resolve().parents[1] / "gaits"
 
@@ -160,8 +161,13 @@ def test_help_has_an_example():
 
 
 def _length_legend(results) -> list[str]:
+    """The legend of the lengths panel; its link lengths are grey (blue and vermilion are
+    tension and compression in the stress panel)."""
     fig, _ = animation.animation_figure(results, animation_frames(results, None, 4))
     lengths = fig.axes[1]
+    first = lengths.patches[0] if lengths.patches else lengths.get_lines()[0]
+    colour = first.get_facecolor() if lengths.patches else first.get_color()
+    assert to_hex(colour) == FAINT.lower()
     return [text.get_text() for text in lengths.get_legend().get_texts()]
 
 

@@ -8,8 +8,8 @@ Each frame shows, at one instant,
   stress sigma_i(t) = k_i (L_i - z_i) in a diverging map of two Okabe-Ito colours (tension
   sigma < 0 blue, compression sigma > 0 vermilion, through light grey), never a slip colour,
   with a colour bar;
-* the link lengths z_i(t) = x_{i+1} - x_i (bars) against the actuator lengths L_i(t) (markers)
-  when the file has them, by link i;
+* the link lengths z_i(t) = x_{i+1} - x_i (grey bars; beyond 12 blocks a grey curve) against
+  the actuator lengths L_i(t) (black markers) when the file has them, by link i;
 * the link stresses sigma_i(t), by link i, in the colours of the links above.
 
 The lower panels are drawn against the link index, so a 100-block crawler stays readable: its
@@ -40,11 +40,11 @@ from crawlsim.errors import ResultsFileError
 from crawlsim.io.atomic import atomic_path
 from crawlsim.plotting.source import need, run_name, run_period, takes_run
 from crawlsim.plotting.style import (
+    FAINT,
     OKABE_ITO,
     REFERENCE,
     SLIP_COLOURS,
     SLIP_NAMES,
-    colours,
     figure_style,
     label,
     title,
@@ -187,12 +187,12 @@ def _lengths_panel(ax, frames: Frames, links: np.ndarray, units):
     and the actuator markers (None when the file has no actuator lengths)."""
     x_all = frames.x
     N = x_all.shape[1]
-    colour = colours(2)
+    # Grey, not a series colour: blue and vermilion are the stress map's tension and compression.
     if N <= 12:
-        bars = ax.bar(links, np.diff(x_all[0]), color=colour[0], width=0.7, label="link $z_i$")
+        bars = ax.bar(links, np.diff(x_all[0]), color=FAINT, width=0.7, label="link $z_i$")
         z_artists, handles = list(bars), [bars]  # the container carries the legend label
     else:
-        (z_line,) = ax.plot(links, np.diff(x_all[0]), color=colour[0], linewidth=1.6,
+        (z_line,) = ax.plot(links, np.diff(x_all[0]), color=FAINT, linewidth=1.6,
                             label="link $z_i$")
         z_artists, handles = [z_line], [z_line]
     actuator = None
