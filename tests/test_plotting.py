@@ -40,6 +40,7 @@ from crawlsim.plotting import (
     shape_space_figure,
     sweep_figure,
 )
+from crawlsim.plotting.convergence import MAX_MARKERS, marked_periods
 from crawlsim.plotting.figures import (
     MAX_BAND_LABELS,
     MAX_FORCE_ROWS,
@@ -597,6 +598,11 @@ def test_convergence_finite_time(run_file):
         np.testing.assert_array_equal(line.get_xdata(), conv["period"])
         np.testing.assert_array_equal(line.get_ydata(), value)
     assert conv["poincare_step"][1] == 0 and conv["w12_distance"][1] == 0
+    # Both are 0 at period 1: the Poincare step's dot is drawn above the distance's open,
+    # larger square, so both show.
+    assert poincare.get_zorder() > w12.get_zorder()
+    assert w12.get_markerfacecolor() == "none" and w12.get_marker() == "s"
+    assert poincare.get_marker() == "o" and w12.get_markersize() > poincare.get_markersize()
     np.testing.assert_array_equal(vline.get_xdata(), [1, 1])
     assert "periodic from period 1" in vline.get_label()
     assert any(t.get_text().strip() == "periodic from period 1" for t in state.texts)
@@ -657,6 +663,9 @@ def test_convergence_triangle_rate_one_eighth(run_file):
     assert r["attrs"]["contraction_rate"] == pytest.approx(1 / 8, rel=1e-3)
     assert "0.125" in fitted.get_label()
     assert not any("periodic from" in l.get_label() for l in ax.get_lines())
+    count = len(r["convergence"]["period"])
+    for line in ax.get_lines()[:2]:
+        assert line.get_markevery() == marked_periods(count)
 
 
 # --------------------------------------------------------------------------------------------
@@ -1217,3 +1226,15 @@ def test_a_result_without_trajectory_says_what_to_do():
     assert fig._suptitle.get_text() == "peristalsis-4: gait diagram over the limit period"
     with pytest.raises(TypeError, match="takes a results file.*got int"):
         motion_figure(3)
+
+
+def test_convergence_markers_thinned_beyond_the_transient():
+    """Every one of the first 10 periods has a marker, then 30 evenly spaced ones with the last;
+    the lines still join every period."""
+    assert marked_periods(4) == [0, 1, 2, 3]
+    assert marked_periods(30) == list(range(30))
+    marked = marked_periods(100)
+    assert marked[:10] == list(range(10)) and marked[-1] == 99
+    assert set(shown_series(100, MAX_MARKERS)) <= set(marked) and len(marked) <= 10 + MAX_MARKERS
+    steps = np.diff([m for m in marked if m >= 10])
+    assert steps.max() - steps.min() <= 1  # evenly spaced, to rounding

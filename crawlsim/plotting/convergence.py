@@ -19,6 +19,7 @@ from crawlsim.plotting.style import (
     label,
     legend_right,
     new_figure,
+    shown_series,
     title,
     units_of,
     velocity_axis,
@@ -26,6 +27,19 @@ from crawlsim.plotting.style import (
 
 # --------------------------------------------------------------------------------------------
 # 3. Convergence
+
+#: A series of the convergence figure has a marker on each of its first `MARKED_START`
+#: periods (the transient) and on `MAX_MARKERS` evenly spaced ones (`marked_periods`).
+MARKED_START = 10
+MAX_MARKERS = 30
+
+
+def marked_periods(count: int) -> list[int]:
+    """The indices of the periods whose values get a marker, out of ``count``: every one of
+    the first `MARKED_START`, and `MAX_MARKERS` evenly spaced ones, the last included. The
+    lines join every period; a hundred markers would merge into a band."""
+    every = set(range(min(count, MARKED_START))) | set(shown_series(count, MAX_MARKERS).tolist())
+    return sorted(every)
 
 
 def convergence_series(results: dict) -> dict[str, np.ndarray]:
@@ -83,10 +97,16 @@ def convergence_figure(results) -> Figure:
             fig, axs = new_figure(height=3.4)
         state = axs[0, 0]
         state.set_yscale(scale)
-        for (name, value), colour, marker in zip(series.items(), colours(2), ["o", "s"]):
+        markers = marked_periods(len(q))
+        # The Poincare step's dots above the distance's open squares, which are larger: at the
+        # last period both are 0, and the dot shows inside the square.
+        for (name, value), colour, style in zip(series.items(), colours(2), [
+                {"marker": "o", "markersize": 5, "zorder": 2.5},
+                {"marker": "s", "markersize": 7.5, "markerfacecolor": "none",
+                 "markeredgewidth": 1.2}]):
             shown = value if scale == "linear" else np.where(value > 0, value, np.nan)
-            state.plot(q, shown, color=colour, marker=marker, markersize=5, linewidth=1.0,
-                       label=name, clip_on=False)
+            state.plot(q, shown, color=colour, linewidth=1.0, label=name, clip_on=False,
+                       markevery=markers, **style)
         _mark_the_limit(axs[:, 0], q, series, attrs, scale, finite)
         if verdict == "not-converged":
             state.text(0.98, 0.95, "not converged", transform=state.transAxes, ha="right",
@@ -150,7 +170,7 @@ def _period_displacements(ax, q, conv, v0, T, units) -> None:
         value, target, symbol, each = displacement / T, v0, "v_0", "v_q"
         what = label("velocity", "v_q", "velocity", units)
     ax.plot(q, value, color=colours(3)[2], marker="^", markersize=5, linewidth=1.0,
-            label=f"${each}$, period $q$")
+            markevery=marked_periods(len(q)), label=f"${each}$, period $q$")
     ax.axhline(target, color=REFERENCE, linestyle=":", linewidth=1.2,
                label=f"${symbol}$ = {format_number(target)}")
     ax.margins(y=0.15)
