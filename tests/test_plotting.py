@@ -662,6 +662,7 @@ def test_convergence_triangle_rate_one_eighth(run_file):
     np.testing.assert_allclose(y[1:] / y[:-1], r["attrs"]["contraction_rate"], rtol=1e-12)
     assert r["attrs"]["contraction_rate"] == pytest.approx(1 / 8, rel=1e-3)
     assert "0.125" in fitted.get_label()
+    assert fitted.get_zorder() > max(l.get_zorder() for l in ax.get_lines()[:2])  # on top
     assert not any("periodic from" in l.get_label() for l in ax.get_lines())
     count = len(r["convergence"]["period"])
     for line in ax.get_lines()[:2]:

@@ -154,7 +154,7 @@ def _mark_the_limit(axes, q, series, attrs, scale, finite) -> None:
           and np.any(poincare > 0)):
         last = np.flatnonzero(poincare > 0)[-1]
         state.plot(q, poincare[last] * rate ** (q - q[last]), color=REFERENCE,
-                   linestyle="--", linewidth=1.0,
+                   linestyle="--", linewidth=1.0, zorder=3,
                    label=f"fitted rate {rate:.3g}\nper period")
 
 
