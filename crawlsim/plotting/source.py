@@ -41,7 +41,8 @@ F = TypeVar("F", bound=Callable[..., Any])
 def run_data(source: Any) -> dict[str, Any]:
     """The dict of `crawlsim.io.hdf5.read_results` for ``source``: that dict itself, a results
     file's path (read), or a run's result object (`crawlsim.api.SimulationResult`,
-    `crawlsim.analysis.run.RunResult`: `from_result`). TypeError for anything else."""
+    `crawlsim.analysis.run.RunResult`: `from_result`; the results file it names as ``output``,
+    when it wrote one). TypeError for anything else."""
     if isinstance(source, dict):
         return source
     if isinstance(source, (str, os.PathLike)):
@@ -49,6 +50,13 @@ def run_data(source: Any) -> dict[str, Any]:
 
         return read_results(source)
     if hasattr(source, "limit") and hasattr(source, "history"):
+        written = getattr(source, "output", None)
+        if written is not None and os.path.isfile(written):
+            # `crawlsim.api.run(gait, output=...)`: its file holds the trajectory the result
+            # object does not keep.
+            from crawlsim.io.hdf5 import read_results
+
+            return read_results(written)
         return from_result(source)
     raise TypeError(f"a figure of a run takes a results file, the dict of "
                     f"crawlsim.io.hdf5.read_results or the result of crawlsim.simulate; got "
