@@ -1241,3 +1241,26 @@ def test_convergence_markers_thinned_beyond_the_transient():
     assert set(shown_series(100, MAX_MARKERS)) <= set(marked) and len(marked) <= 10 + MAX_MARKERS
     steps = np.diff([m for m in marked if m >= 10])
     assert steps.max() - steps.min() <= 1  # evenly spaced, to rounding
+
+
+def test_pareto_title_stays_within_its_axes():
+    """The Pareto front's title says what is drawn against what (cost of transport against v0)
+    and lists the free parameters on wrapped lines of their own: with five long dotted paths it
+    stays within the axes (one line ran past both ends of the axes)."""
+    from crawlsim.plotting import pareto_figure
+
+    paths = ["links.1.phase", "links.2.phase", "links.*.amplitude", "friction.backward",
+             "loads.slope.angle"]
+    v0 = np.linspace(0.1, 0.7, 7)
+    data = {"attrs": {"name": "peristalsis-4", "units_json": "{}",
+                      "free_json": json.dumps([{"path": p} for p in paths])},
+            "evaluations": {"v0": v0, "cost_of_transport": 4 + v0, "status": ["ok"] * 7},
+            "front": {"v0": v0[::2], "cost_of_transport": 4 + v0[::2],
+                      "chosen": np.array([True, False, False, True])}}
+    fig = pareto_figure(data)
+    text = fig.axes[0].get_title()
+    first, *rest = text.split("\n")
+    assert first == "peristalsis-4: cost of transport against $v_0$"
+    assert " ".join(rest).replace("over ", "", 1).split(", ") == paths
+    assert len(rest) >= 2
+    assert _inside_axes(fig, fig.axes[0])
