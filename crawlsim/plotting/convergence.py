@@ -5,10 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 from matplotlib.figure import Figure
-from matplotlib.ticker import (
-    MaxNLocator,
-    NullFormatter,
-)
+from matplotlib.ticker import MaxNLocator, NullFormatter
 
 from crawlsim.plotting.source import is_crawler_run, need, run_name, run_period, takes_run
 from crawlsim.plotting.style import (
@@ -24,9 +21,6 @@ from crawlsim.plotting.style import (
     units_of,
     velocity_axis,
 )
-
-# --------------------------------------------------------------------------------------------
-# 3. Convergence
 
 #: A series of the convergence figure has a marker on each of its first `MARKED_START`
 #: periods (the transient) and on `MAX_MARKERS` evenly spaced ones (`marked_periods`).

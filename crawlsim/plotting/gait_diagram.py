@@ -12,10 +12,7 @@ from matplotlib.figure import Figure
 from matplotlib.legend_handler import HandlerTuple
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
-from matplotlib.ticker import (
-    FixedLocator,
-    FuncFormatter,
-)
+from matplotlib.ticker import FixedLocator, FuncFormatter
 
 from crawlsim.plotting.source import need, run_name, run_period, takes_run
 from crawlsim.plotting.style import (
@@ -49,10 +46,6 @@ FORCE_ROW_HEIGHT = 0.62
 #: The gait diagram draws the stresses over their bounds when the largest bound is more than this
 #: many times the largest stress (`stress_mode`).
 RELATIVE_STRESS_RATIO = 5.0
-
-
-# --------------------------------------------------------------------------------------------
-# 2. Gait diagram
 
 
 def slip_runs(slip: np.ndarray, t: np.ndarray) -> list[tuple[int, float, float]]:

@@ -5,9 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 from matplotlib.figure import Figure
-from matplotlib.ticker import (
-    MaxNLocator,
-)
+from matplotlib.ticker import MaxNLocator
 
 from crawlsim.plotting.source import need, run_name, run_period, takes_run
 from crawlsim.plotting.style import (
@@ -29,10 +27,6 @@ from crawlsim.plotting.style import (
 
 #: The motion figure draws at most this many blocks (evenly spaced, first and last included).
 MAX_MOTION_BLOCKS = 32
-
-
-# --------------------------------------------------------------------------------------------
-# 1. Motion
 
 
 @takes_run

@@ -35,10 +35,6 @@ SHAPE_SPACE_TIMES = 6
 NICE_DIVISIONS = (6, 8, 10, 12, 5, 4, 3, 2)
 
 
-# --------------------------------------------------------------------------------------------
-# 4. Shape space
-
-
 def polygon(normals: np.ndarray, offsets: np.ndarray, box=None) -> np.ndarray:
     """Vertices, counter-clockwise, of the 2-D polygon {p : A p <= b}; ``box`` = (lo, hi) corners
     of a bounding box added to keep an unbounded region finite.
@@ -254,7 +250,6 @@ def interval(normals: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, np.n
         high = np.min(np.where(b > 0, c / np.where(b > 0, b, 1), np.inf), axis=-1)
         low = np.max(np.where(b < 0, c / np.where(b < 0, b, 1), -np.inf), axis=-1)
     return low, high
-
 
 
 def _shape_space_line(results, B, c, tl, wl, tt, wt, t0, crawler, units):

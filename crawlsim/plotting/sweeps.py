@@ -8,11 +8,7 @@ from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Rectangle
-from matplotlib.ticker import (
-    FixedLocator,
-    NullFormatter,
-    NullLocator,
-)
+from matplotlib.ticker import FixedLocator, NullFormatter, NullLocator
 
 from crawlsim.plotting.style import (
     FAINT,
@@ -36,10 +32,6 @@ MAX_TICK_LABELS = 9
 #: neighbouring slopes predict, and more than this fraction of the range of v0 (`jumps`).
 JUMP_RATIO = 2.5
 JUMP_FLOOR = 0.1
-
-
-# --------------------------------------------------------------------------------------------
-# 5. Sweeps
 
 
 def is_geometric(values) -> bool:
