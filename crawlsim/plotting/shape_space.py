@@ -212,34 +212,49 @@ def shape_space_figure(results, coords=(0, 1), times: int = SHAPE_SPACE_TIMES) -
                 ax.plot(wl[k, i], wl[k, j], marker="o", markersize=5.5, color=colour,
                         markeredgecolor="white", markeredgewidth=0.6, linestyle="none",
                         zorder=4)
-        if np.count_nonzero(earlier) > 1 and np.ptp(wt[earlier][:, [i, j]], axis=0).max() > 0:
-            handles += ax.plot(wt[earlier, i], wt[earlier, j], color=FAINT, linewidth=0.8,
-                               alpha=0.9, label="earlier periods")
-        if np.ptp(wl[:, [i, j]], axis=0).max() <= 1e-9 * span:
-            handles += ax.plot(wl[0, i], wl[0, j], marker="o", markersize=8, color=REFERENCE,
-                               markerfacecolor="none", markeredgewidth=1.6, linestyle="none",
-                               label="limit (a constant state)")
-        else:
-            handles += ax.plot(wl[:, i], wl[:, j], color=REFERENCE, linewidth=2.2,
-                               label="limit cycle")
-        handles += ax.plot(wt[0, i], wt[0, j], marker="x", markersize=7, color=REFERENCE,
-                           linestyle="none", label=f"start ${state}(0)$")
+        handles += _orbit(ax, wt[:, [i, j]], wl[:, [i, j]], earlier, span, state)
         ax.autoscale_view()
         ax.set_aspect("equal", adjustable="datalim")
         dimension = "force" if crawler else None
         ax.set_xlabel(label("shape coordinate", f"{state}_{{{i + 1}}}", dimension, units))
         ax.set_ylabel(label("shape coordinate", f"{state}_{{{j + 1}}}", dimension, units))
-        # The title in short lines, so that it stays within the axes (square, by the equal
-        # aspect) however long the gait's name: name, what is drawn, and where.
-        if n == 2:
-            what = f"${where}$ and the orbit of ${state}(t)$" + (", $w = -Kz$" if crawler else "")
-        else:
-            what = (f"sections of ${where}$ through ${state}(t)$\ncoordinates ({i + 1}, {j + 1}) "
-                    f"of {n}" + (", $w = -Kz$" if crawler else ""))
-        ax.set_title(f"{title(run_name(results), 'shape space')}\n{what}")
+        ax.set_title(_title(run_name(results), n, (i, j), crawler))
         ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0),
                   borderaxespad=0, title=f"${where}$ at $(t - t_0)/T$ =")
     return fig
+
+
+def _orbit(ax, trajectory, limit, earlier, span, state) -> list:
+    """The orbit in the drawn plane (``trajectory`` and ``limit`` (rows, 2)): the earlier periods
+    faint (when they have any extent), the limit cycle bold (a circle when the limit is a
+    constant state), the start w(0) a cross. Returns the legend handles."""
+    handles = []
+    if np.count_nonzero(earlier) > 1 and np.ptp(trajectory[earlier], axis=0).max() > 0:
+        handles += ax.plot(trajectory[earlier, 0], trajectory[earlier, 1], color=FAINT,
+                           linewidth=0.8, alpha=0.9, label="earlier periods")
+    if np.ptp(limit, axis=0).max() <= 1e-9 * span:
+        handles += ax.plot(limit[0, 0], limit[0, 1], marker="o", markersize=8, color=REFERENCE,
+                           markerfacecolor="none", markeredgewidth=1.6, linestyle="none",
+                           label="limit (a constant state)")
+    else:
+        handles += ax.plot(limit[:, 0], limit[:, 1], color=REFERENCE, linewidth=2.2,
+                           label="limit cycle")
+    handles += ax.plot(trajectory[0, 0], trajectory[0, 1], marker="x", markersize=7,
+                       color=REFERENCE, linestyle="none", label=f"start ${state}(0)$")
+    return handles
+
+
+def _title(name: str, n: int, coords: tuple[int, int], crawler: bool) -> str:
+    """The title in short lines, so that it stays within the axes (square, by the equal
+    aspect) however long the gait's name: name, what is drawn, and where."""
+    state, where = ("w", "K(t)") if crawler else ("z", "C(t)")
+    i, j = coords
+    if n == 2:
+        what = f"${where}$ and the orbit of ${state}(t)$" + (", $w = -Kz$" if crawler else "")
+    else:
+        what = (f"sections of ${where}$ through ${state}(t)$\ncoordinates ({i + 1}, {j + 1}) "
+                f"of {n}" + (", $w = -Kz$" if crawler else ""))
+    return f"{title(name, 'shape space')}\n{what}"
 
 
 def interval(normals: np.ndarray, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
