@@ -347,18 +347,20 @@ def label(name: str, symbol: str | None = None, dimension: str | None = None,
         return f"{text} ({unit})"
     if symbol is None:
         # A name without a symbol: the scale in parentheses, as a unit.
-        top, bottom = DIMENSIONS[dimension]
-        mixed = [getattr(units, d) or f"${SCALE_SYMBOLS[d]}$" for d in top]
-        under = [getattr(units, d) or f"${SCALE_SYMBOLS[d]}$" for d in bottom]
-        return f"{name} ({' '.join(mixed)}{'/' + ' '.join(under) if under else ''})"
-    given = [d for side in DIMENSIONS[dimension] for d in side if getattr(units, d)]
-    if given:
+        return f"{name} ({mixed_unit(dimension, units)})"
+    if any(getattr(units, d) for side in DIMENSIONS[dimension] for d in side):
         # Some parts given, some not: the unit written with the scales of the missing parts.
-        top, bottom = DIMENSIONS[dimension]
-        num = " ".join(getattr(units, d) or f"${SCALE_SYMBOLS[d]}$" for d in top)
-        den = " ".join(getattr(units, d) or f"${SCALE_SYMBOLS[d]}$" for d in bottom)
-        return f"{name} ${symbol}$ ({num}{'/' + den if den else ''})"
+        return f"{name} ${symbol}$ ({mixed_unit(dimension, units)})"
     return f"{name} ${_scaled(symbol, dimension)}$"
+
+
+def mixed_unit(dimension: str, units: Units) -> str:
+    """The unit of ``dimension`` with the given units and, for the missing ones, their scales
+    of `SCALE_SYMBOLS` in mathtext: "N/$\\ell$" for a stiffness with a force unit only."""
+    top, bottom = DIMENSIONS[dimension]
+    num = " ".join(getattr(units, d) or f"${SCALE_SYMBOLS[d]}$" for d in top)
+    den = " ".join(getattr(units, d) or f"${SCALE_SYMBOLS[d]}$" for d in bottom)
+    return f"{num}{'/' + den if den else ''}"
 
 
 def time_axis(units: Units, period: float, *, symbol: str = "t",
@@ -415,10 +417,7 @@ def path_label(path: str, units: Units) -> str:
         return f"{path} ({unit})"
     if dimension == "time":
         return path  # a swept period, in the gait file's own time unit: nothing to divide by
-    top, bottom = DIMENSIONS[dimension]
-    num = " ".join(getattr(units, d) or f"${SCALE_SYMBOLS[d]}$" for d in top)
-    den = " ".join(getattr(units, d) or f"${SCALE_SYMBOLS[d]}$" for d in bottom)
-    return f"{path} ({num}{'/' + den if den else ''})"
+    return f"{path} ({mixed_unit(dimension, units)})"
 
 
 def title(gait: str, figure: str) -> str:
