@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from matplotlib.colors import to_hex
 from PIL import Image, ImageSequence
 
 from crawlsim import api
@@ -23,7 +24,7 @@ from crawlsim.plotting.animation import (
     parse_periods,
     write_animation,
 )
-from crawlsim.plotting.style import SLIP_COLOURS
+from crawlsim.plotting.style import FAINT, SLIP_COLOURS
 
 GAITS = Path(__file__).resolve().parents[1] / "gaits"
 
@@ -157,3 +158,42 @@ def test_help_has_an_example():
     assert r.exit_code == 0
     assert "crawlsim animate p4.h5 -o crawl.gif" in r.output
     assert "--periods A:B" in r.output
+
+
+def _length_legend(results) -> list[str]:
+    """The legend of the lengths panel; its link lengths are grey (blue and vermilion are
+    tension and compression in the stress panel)."""
+    fig, _ = animation.animation_figure(results, animation_frames(results, None, 4))
+    lengths = fig.axes[1]
+    first = lengths.patches[0] if lengths.patches else lengths.get_lines()[0]
+    colour = first.get_facecolor() if lengths.patches else first.get_color()
+    assert to_hex(colour) == FAINT.lower()
+    return [text.get_text() for text in lengths.get_legend().get_texts()]
+
+
+def test_length_panel_legend_names_its_artists(p4, tmp_path):
+    """The lengths panel's legend reads "link $z_i$" and "actuator $L_i$", for the bars of a
+    4-block crawler (it read "_nolegend_": the label is the bar container's, not a bar's) and
+    for the curve along the body of a 41-block one."""
+    from .test_plotting import wave_file
+
+    assert _length_legend(read_results(p4)) == ["link $z_i$", "actuator $L_i$"]
+    assert _length_legend(read_results(wave_file(tmp_path, 41))) == ["link $z_i$",
+                                                                      "actuator $L_i$"]
+
+
+def test_animation_of_a_result_object(p4, tmp_path):
+    """write_animation takes the result of crawlsim.simulate: the frames are those of the
+    results file of the same run (positions, stresses, slips to 1e-12), and the GIF has them
+    all."""
+    from crawlsim.plotting import run_data
+
+    gait = with_simulation(load_gait(GAITS / "peristalsis-4.yaml"), steps_per_period=200)
+    result = api.simulate(gait)
+    ours, stored = (animation_frames(run_data(result), None, 8),
+                    animation_frames(read_results(p4), None, 8))
+    for name in ("t", "x", "stress", "lengths", "slip"):
+        np.testing.assert_allclose(getattr(ours, name), getattr(stored, name), rtol=1e-12,
+                                   atol=1e-12, err_msg=name)
+    path, count = write_animation(result, tmp_path / "r.gif", frames_per_period=8)
+    assert count == 8 and len(frames_of(path)) == 8

@@ -25,7 +25,9 @@ from scipy.optimize import linprog
 
 from crawlsim import api
 from crawlsim.cli import main
+from crawlsim.errors import ResultsFileError
 from crawlsim.gait.document import gait_from_document, load_gait, with_simulation
+from crawlsim.gait.units import Units as GaitUnits
 from crawlsim.io.hdf5 import read_results
 from crawlsim.plotting import (
     FIGURE_NAMES,
@@ -34,9 +36,11 @@ from crawlsim.plotting import (
     gait_figure,
     motion_figure,
     plot_results,
+    run_data,
     shape_space_figure,
     sweep_figure,
 )
+from crawlsim.plotting.convergence import MAX_MARKERS, marked_periods
 from crawlsim.plotting.figures import (
     MAX_BAND_LABELS,
     MAX_FORCE_ROWS,
@@ -64,6 +68,7 @@ from crawlsim.plotting.style import (
     Units,
     colours,
     label,
+    parse_units,
     path_dimension,
     path_label,
     units_of,
@@ -202,7 +207,9 @@ def test_units_from_results():
     assert units_of({"gait_yaml": "units: {length: cm}\n"}) == Units(length="cm")
     assert units_of({"attrs": {"units_json": "not json"}}) == Units()
     assert units_of({"attrs": {"gait_yaml": "blocks: 2\n"}}) == Units()
-    assert Units.parse({"length": 3, "time": " "}) == Units()
+    assert parse_units({"length": 3, "time": " "}) == Units()
+    # The one Units class: the gait's (crawlsim.gait.units), not a copy of it.
+    assert Units is GaitUnits and type(units_of({"attrs": {"units_json": '{"force": "N"}'}})) is GaitUnits
 
 
 def test_palettes_are_disjoint():
@@ -591,6 +598,11 @@ def test_convergence_finite_time(run_file):
         np.testing.assert_array_equal(line.get_xdata(), conv["period"])
         np.testing.assert_array_equal(line.get_ydata(), value)
     assert conv["poincare_step"][1] == 0 and conv["w12_distance"][1] == 0
+    # Both are 0 at period 1: the Poincare step's dot is drawn above the distance's open,
+    # larger square, so both show.
+    assert poincare.get_zorder() > w12.get_zorder()
+    assert w12.get_markerfacecolor() == "none" and w12.get_marker() == "s"
+    assert poincare.get_marker() == "o" and w12.get_markersize() > poincare.get_markersize()
     np.testing.assert_array_equal(vline.get_xdata(), [1, 1])
     assert "periodic from period 1" in vline.get_label()
     assert any(t.get_text().strip() == "periodic from period 1" for t in state.texts)
@@ -650,7 +662,11 @@ def test_convergence_triangle_rate_one_eighth(run_file):
     np.testing.assert_allclose(y[1:] / y[:-1], r["attrs"]["contraction_rate"], rtol=1e-12)
     assert r["attrs"]["contraction_rate"] == pytest.approx(1 / 8, rel=1e-3)
     assert "0.125" in fitted.get_label()
+    assert fitted.get_zorder() > max(l.get_zorder() for l in ax.get_lines()[:2])  # on top
     assert not any("periodic from" in l.get_label() for l in ax.get_lines())
+    count = len(r["convergence"]["period"])
+    for line in ax.get_lines()[:2]:
+        assert line.get_markevery() == marked_periods(count)
 
 
 # --------------------------------------------------------------------------------------------
@@ -1146,3 +1162,105 @@ def _x_extent(patch) -> tuple[float, float]:
         return patch.get_x(), patch.get_x() + patch.get_width()
     x = np.asarray(patch.get_xy())[:, 0]
     return float(x.min()), float(x.max())
+
+
+# --------------------------------------------------------------------------------------------
+# Result objects: crawlsim.plotting.motion_figure(crawlsim.simulate(gait))
+
+
+def _drawn(fig):
+    """What a figure shows, in drawing order: every line's data, every polygon's vertices, and
+    every text."""
+    lines = [np.asarray(line.get_xydata(), dtype=float) for ax in fig.axes
+             for line in ax.get_lines()]
+    polygons = [np.asarray(p.get_xy(), dtype=float) for p in fig.findobj(Polygon)]
+    return lines, polygons, sorted(_all_texts(fig))
+
+
+@pytest.mark.parametrize("name", ["peristalsis-4", "paper/triangle"])
+def test_figures_of_a_result_object_are_those_of_its_file(name, tmp_path):
+    """A figure of the result of crawlsim.simulate is the figure of the results file of the same
+    run: the same lines (to 1e-12), polygons and texts, for every figure of the run; the
+    converted result holds the file's datasets that the figures read, to 1e-12."""
+    gait = with_simulation(load_gait(GAITS / f"{name}.yaml"), steps_per_period=STEPS)
+    result = api.simulate(gait)
+    path = tmp_path / "run.h5"
+    written = api.run(gait, output=path)
+    stored = read_results(path)
+    # A result that wrote a file is drawn from it (its object keeps no trajectory).
+    assert run_data(written)["attrs"]["gait_yaml"] == stored["attrs"]["gait_yaml"]
+    data = run_data(result)
+    for group, names in (("limit", ("t", "w", "offsets", "lengths", "friction", "x", "slip")),
+                         ("trajectory", ("t", "w", "x")),
+                         ("convergence", ("period", "poincare_step", "w12_distance")),
+                         ("process", ("normals",))):
+        for key in names:
+            if key in stored[group]:
+                np.testing.assert_allclose(data[group][key], stored[group][key], rtol=1e-12,
+                                           atol=1e-12, err_msg=f"{group}/{key}")
+            else:
+                assert key not in data[group], f"{group}/{key}"
+    for key in ("name", "kind", "convergence", "periodic_from"):
+        assert data["attrs"][key] == stored["attrs"][key], key
+    assert available_figures(data) == available_figures(stored)
+    for figure in available_figures(stored):
+        function = {"motion": motion_figure, "gait-diagram": gait_figure,
+                    "convergence": convergence_figure, "shape-space": shape_space_figure}[figure]
+        (lines, polygons, texts), (file_lines, file_polygons, file_texts) = (
+            _drawn(function(result)), _drawn(function(stored)))
+        assert texts == file_texts, figure
+        assert len(lines) == len(file_lines) and len(polygons) == len(file_polygons), figure
+        for a, b in zip(lines + polygons, file_lines + file_polygons):
+            np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12, err_msg=figure)
+    # A path is read: the same figure as its dict.
+    assert _drawn(convergence_figure(str(path)))[2] == _drawn(convergence_figure(stored))[2]
+
+
+def test_a_result_without_trajectory_says_what_to_do():
+    """crawlsim.api.run without output keeps no trajectory: the motion figure says so and how to
+    get one; the gait diagram (limit period only) is drawn; anything else is a TypeError."""
+    gait = with_simulation(load_gait(GAITS / "peristalsis-4.yaml"), steps_per_period=STEPS)
+    result = api.run(gait)
+    with pytest.raises(ResultsFileError, match=r"needs /trajectory/t, which is missing \(this "
+                                               r"result keeps no trajectory: use crawlsim\."
+                                               r"simulate"):
+        motion_figure(result)
+    fig = gait_figure(result)
+    assert fig._suptitle.get_text() == "peristalsis-4: gait diagram over the limit period"
+    with pytest.raises(TypeError, match="takes a results file.*got int"):
+        motion_figure(3)
+
+
+def test_convergence_markers_thinned_beyond_the_transient():
+    """Every one of the first 10 periods has a marker, then 30 evenly spaced ones with the last;
+    the lines still join every period."""
+    assert marked_periods(4) == [0, 1, 2, 3]
+    assert marked_periods(30) == list(range(30))
+    marked = marked_periods(100)
+    assert marked[:10] == list(range(10)) and marked[-1] == 99
+    assert set(shown_series(100, MAX_MARKERS)) <= set(marked) and len(marked) <= 10 + MAX_MARKERS
+    steps = np.diff([m for m in marked if m >= 10])
+    assert steps.max() - steps.min() <= 1  # evenly spaced, to rounding
+
+
+def test_pareto_title_stays_within_its_axes():
+    """The Pareto front's title says what is drawn against what (cost of transport against v0)
+    and lists the free parameters on wrapped lines of their own: with five long dotted paths it
+    stays within the axes (one line ran past both ends of the axes)."""
+    from crawlsim.plotting import pareto_figure
+
+    paths = ["links.1.phase", "links.2.phase", "links.*.amplitude", "friction.backward",
+             "loads.slope.angle"]
+    v0 = np.linspace(0.1, 0.7, 7)
+    data = {"attrs": {"name": "peristalsis-4", "units_json": "{}",
+                      "free_json": json.dumps([{"path": p} for p in paths])},
+            "evaluations": {"v0": v0, "cost_of_transport": 4 + v0, "status": ["ok"] * 7},
+            "front": {"v0": v0[::2], "cost_of_transport": 4 + v0[::2],
+                      "chosen": np.array([True, False, False, True])}}
+    fig = pareto_figure(data)
+    text = fig.axes[0].get_title()
+    first, *rest = text.split("\n")
+    assert first == "peristalsis-4: cost of transport against $v_0$"
+    assert " ".join(rest).replace("over ", "", 1).split(", ") == paths
+    assert len(rest) >= 2
+    assert _inside_axes(fig, fig.axes[0])

@@ -47,8 +47,9 @@ def plot(results_file, output, fmt, only, coords, dpi, figsize, style, force):
     \b
     Figures of a run (crawlsim run): motion (block positions, barycentre, slope v0),
     gait-diagram (slip bands, lengths, stresses and block forces against the friction limits
-    over the limit period), convergence (Poincare step, W^{1,2} distance, |v_q - v0| per
-    period), shape-space (K(t) and the orbit of w(t)).
+    over the limit period), convergence (Poincare step, W^{1,2} distance to the last
+    period, displacement of each period against v0 T), shape-space (K(t) and the orbit of
+    w(t)).
     The figure of a sweep file (crawlsim velocity --sweep ... -o SWEEP.h5, crawlsim merge):
     <stem>-sweep, v0 against the swept value for one swept dimension, a heat map over two,
     points without a v0 (invalid or failed) marked, jumps of v0 drawn as jumps.

@@ -2,9 +2,11 @@
 
 * `style` holds the one style of all figures (fonts, palettes, the colour map, labels with
   units, titles);
-* `figures` has one function per figure, each taking the dict of `crawlsim.io.hdf5.read_results`
-  and returning a matplotlib `Figure`, plus `sweep_figure` and `sweep_data_figure` for velocity
-  sweeps;
+* one module per figure of a run, `motion`, `gait_diagram`, `convergence` and `shape_space`,
+  each function taking the run (a results file, the dict of `crawlsim.io.hdf5.read_results`, or
+  the result of `crawlsim.simulate`: `source.run_data`) and returning a matplotlib `Figure`;
+  `figures.FIGURES` names them;
+* `sweeps` draws velocity sweeps (`sweep_figure`, `sweep_data_figure`);
 * `optimization` has the figures of an optimisation file (`objective_figure`, `pareto_figure`);
 * `animation` draws the crawler in motion (`write_animation`, ``crawlsim animate``);
 * `output.plot_results` reads a results or sweep file and writes its figures next to it.
@@ -30,12 +32,13 @@ _LAZY = {
     "available_figures": "output",
     "draw_figure": "output",
     "save_figure": "output",
-    "motion_figure": "figures",
-    "gait_figure": "figures",
-    "convergence_figure": "figures",
-    "shape_space_figure": "figures",
-    "sweep_figure": "figures",
-    "sweep_data_figure": "figures",
+    "motion_figure": "motion",
+    "gait_figure": "gait_diagram",
+    "convergence_figure": "convergence",
+    "shape_space_figure": "shape_space",
+    "sweep_figure": "sweeps",
+    "sweep_data_figure": "sweeps",
+    "run_data": "source",
     "FIGURES": "figures",
     "objective_figure": "optimization",
     "pareto_figure": "optimization",
@@ -46,7 +49,7 @@ _LAZY = {
 __all__ = ["CRAWLER_FIGURES", "FIGURES", "FIGURE_NAMES", "OPTIMIZATION_FIGURES", "objective_figure",
            "pareto_figure", "convergence_figure", "gait_figure", "motion_figure",
            "SWEEP_FIGURE", "plot_results", "save_figure", "shape_space_figure", "sweep_data_figure",
-           "sweep_figure", "write_animation", "FigureOptions"]
+           "sweep_figure", "write_animation", "FigureOptions", "run_data"]
 
 
 def __getattr__(name):

@@ -8,8 +8,8 @@ Each frame shows, at one instant,
   stress sigma_i(t) = k_i (L_i - z_i) in a diverging map of two Okabe-Ito colours (tension
   sigma < 0 blue, compression sigma > 0 vermilion, through light grey), never a slip colour,
   with a colour bar;
-* the link lengths z_i(t) = x_{i+1} - x_i (bars) against the actuator lengths L_i(t) (markers)
-  when the file has them, by link i;
+* the link lengths z_i(t) = x_{i+1} - x_i (grey bars; beyond 12 blocks a grey curve) against
+  the actuator lengths L_i(t) (black markers) when the file has them, by link i;
 * the link stresses sigma_i(t), by link i, in the colours of the links above.
 
 The lower panels are drawn against the link index, so a 100-block crawler stays readable: its
@@ -28,6 +28,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, cast
 
 import numpy as np
 from matplotlib.collections import LineCollection, PolyCollection
@@ -37,13 +38,13 @@ from matplotlib.patches import Patch
 
 from crawlsim.errors import ResultsFileError
 from crawlsim.io.atomic import atomic_path
-from crawlsim.plotting.figures import _name, _need, _period
+from crawlsim.plotting.source import need, run_name, run_period, takes_run
 from crawlsim.plotting.style import (
+    FAINT,
     OKABE_ITO,
     REFERENCE,
     SLIP_COLOURS,
     SLIP_NAMES,
-    colours,
     figure_style,
     label,
     title,
@@ -98,8 +99,8 @@ def animation_frames(results: dict, periods: tuple[int, int] | None = None,
     """The instants of the animation and what each shows: the limit period, or the periods
     ``(A, B)`` of the stored trajectory (`parse_periods`). ValueError for periods the file
     does not hold."""
-    _need(results, "animation", "limit/t", "limit/x", "limit/stress", "limit/slip")
-    T = _period(results)
+    need(results, "animation", "limit/t", "limit/x", "limit/stress", "limit/slip")
+    T = run_period(results)
     start = float(results["limit_attrs"].get("start", 0.0))
     if periods is None:
         lim = results["limit"]
@@ -112,7 +113,7 @@ def animation_frames(results: dict, periods: tuple[int, int] | None = None,
         wanted = t[0] + (t[-1] - t[0]) * np.arange(count) / count
         t_abs = t + start
     else:
-        _need(results, "animation", "trajectory/t", "trajectory/x", "trajectory/stress")
+        need(results, "animation", "trajectory/t", "trajectory/x", "trajectory/stress")
         tr = results["trajectory"]
         t_abs = np.asarray(tr["t"], dtype=float)
         a, b = periods
@@ -179,6 +180,43 @@ def _block_boxes(x: np.ndarray, width: float, height: float) -> np.ndarray:
                      np.stack([right, high], -1), np.stack([left, high], -1)], axis=1)
 
 
+def _lengths_panel(ax, frames: Frames, links: np.ndarray, units):
+    """The link lengths z_i of the first frame against the actuators' L_i: bars from 0 for a
+    few links; beyond 12 a curve along the body, on an axis fitted to the lengths, where the
+    wave of a long crawler shows. Returns the artists a frame updates: the bars (or the curve)
+    and the actuator markers (None when the file has no actuator lengths)."""
+    x_all = frames.x
+    N = x_all.shape[1]
+    # Grey, not a series colour: blue and vermilion are the stress map's tension and compression.
+    if N <= 12:
+        bars = ax.bar(links, np.diff(x_all[0]), color=FAINT, width=0.7, label="link $z_i$")
+        z_artists, handles = list(bars), [bars]  # the container carries the legend label
+    else:
+        (z_line,) = ax.plot(links, np.diff(x_all[0]), color=FAINT, linewidth=1.6,
+                            label="link $z_i$")
+        z_artists, handles = [z_line], [z_line]
+    actuator = None
+    if frames.lengths is not None:
+        (actuator,) = ax.plot(links, frames.lengths[0], linestyle="none",
+                              marker="_" if N > 12 else "o", markersize=8, color=REFERENCE,
+                              label="actuator $L_i$")
+        handles.append(actuator)
+    z_all = np.diff(x_all, axis=1)
+    given = frames.lengths if frames.lengths is not None else z_all
+    top = max(float(z_all.max()), float(np.max(frames.lengths)) if frames.lengths is not None
+              else 0.0)
+    if N > 12:
+        low = min(float(z_all.min()), float(np.min(given)))
+        pad = 0.08 * max(top - low, 1e-12 * max(abs(top), 1.0))
+        ax.set_ylim(low - pad, top + pad)
+    else:
+        bottom = min(float(z_all.min()), float(np.min(given)), 0.0)
+        ax.set_ylim(bottom, top * 1.08 if top > 0 else 1.0)
+    ax.set_ylabel(label("length", "z_i", "length", units))
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0)
+    return z_artists, actuator
+
+
 def animation_figure(results: dict, frames: Frames):
     """The figure of the animation and the function that draws frame k on it (for
     `matplotlib.animation.FuncAnimation`)."""
@@ -229,42 +267,9 @@ def animation_figure(results: dict, frames: Frames):
             texts = [body.text(0, 0.75 * height, "", ha="center", va="bottom", fontsize=8)
                      for _ in links]
         clock = body.set_title("", loc="right")
-        fig.suptitle(title(_name(results), "the crawler in motion"))
+        fig.suptitle(title(run_name(results), "the crawler in motion"))
 
-        # Link lengths against the actuators'.
-        colour = colours(2)
-        # Bars from 0 for a few links; beyond 12 a curve along the body, on an axis fitted to
-        # the lengths, where the wave of a long crawler shows.
-        if N <= 12:
-            z_bars = list(lengths_ax.bar(links, np.diff(x_all[0]), color=colour[0], width=0.7,
-                                         label="link $z_i$"))
-            handles = [z_bars[0]]
-        else:
-            (z_line,) = lengths_ax.plot(links, np.diff(x_all[0]), color=colour[0],
-                                        linewidth=1.6, label="link $z_i$")
-            z_bars = [z_line]
-            handles = [z_line]
-        actuator = None
-        if frames.lengths is not None:
-            (actuator,) = lengths_ax.plot(links, frames.lengths[0], linestyle="none",
-                                          marker="_" if N > 12 else "o", markersize=8,
-                                          color=REFERENCE, label="actuator $L_i$")
-            handles.append(actuator)
-        z_all = np.diff(x_all, axis=1)
-        top = max(float(z_all.max()), float(np.max(frames.lengths))
-                  if frames.lengths is not None else 0.0)
-        bottom = min(float(z_all.min()), float(np.min(frames.lengths))
-                     if frames.lengths is not None else 0.0, 0.0)
-        if N > 12:
-            low = min(float(z_all.min()), float(np.min(frames.lengths))
-                      if frames.lengths is not None else np.inf)
-            pad = 0.08 * max(top - low, 1e-12 * max(abs(top), 1.0))
-            lengths_ax.set_ylim(low - pad, top + pad)
-        else:
-            lengths_ax.set_ylim(bottom, top * 1.08 if top > 0 else 1.0)
-        lengths_ax.set_ylabel(label("length", "z_i", "length", units))
-        lengths_ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0),
-                          borderaxespad=0)
+        z_bars, actuator = _lengths_panel(lengths_ax, frames, links, units)
 
         s_bars = stress_ax.bar(links, frames.stress[0], width=0.7,
                                color=cmap(norm(frames.stress[0])))
@@ -321,8 +326,6 @@ def animation_figure(results: dict, frames: Frames):
 
 
 def _blitting_pillow_writer():
-    from io import BytesIO
-
     from matplotlib import animation
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from PIL import Image
@@ -346,9 +349,9 @@ def _blitting_pillow_writer():
             for artist in self._animated:
                 self.fig.draw_artist(artist)
             width, height = canvas.get_width_height()
-            buffer = BytesIO(bytes(canvas.buffer_rgba()))
-            self._frames.append(Image.frombuffer("RGBA", (width, height), buffer.getbuffer(),
-                                                 "raw", "RGBA", 0, 1))
+            frame = Image.frombuffer("RGBA", (width, height), bytes(canvas.buffer_rgba()),
+                                     "raw", "RGBA", 0, 1)
+            cast(Any, self)._frames.append(frame)  # PillowWriter's own list of frames
 
     return BlittingPillowWriter
 
@@ -357,6 +360,7 @@ def _BlittingPillowWriter(fps: float):
     return _blitting_pillow_writer()(fps=fps)
 
 
+@takes_run
 def write_animation(results: dict, target, *, periods: tuple[int, int] | None = None,
                     frames_per_period: int = FRAMES_PER_PERIOD, fps: float = FPS,
                     dpi: float = ANIMATION_DPI) -> tuple[Path, int]:

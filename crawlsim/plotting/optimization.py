@@ -12,6 +12,7 @@
 from __future__ import annotations
 
 import json
+import textwrap
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -27,6 +28,9 @@ QUANTITY_LABELS = {
     "dissipation_per_period": ("dissipation per period", "D", None),
     "displacement_per_period": ("displacement per period", "d", "length"),
 }
+
+#: Characters a line of a title holds within the axes of a figure of `style.WIDTH`.
+TITLE_WIDTH = 60
 
 
 def quantity_label(name: str, units: Units) -> str:
@@ -179,9 +183,12 @@ def pareto_figure(data: dict) -> Figure:
             ax.set_ylim(low - pad, top + pad)
         ax.set_xlabel(quantity_label("v0", units))
         ax.set_ylabel(quantity_label("cost_of_transport", units))
-        free_text = ", ".join(f["path"] for f in free)
-        ax.set_title(title(str(attrs.get("name", "gait")), f"v0 against cost of transport "
-                                                           f"over {free_text}"))
+        # The free parameters on lines of their own, wrapped, so that the title stays within
+        # the axes however many there are.
+        free_text = textwrap.fill(", ".join(f["path"] for f in free), width=TITLE_WIDTH,
+                                  break_on_hyphens=False)
+        ax.set_title(title(str(attrs.get("name", "gait")), "cost of transport against $v_0$")
+                     + (f"\nover {free_text}" if free_text else ""))
         ax.legend(loc="upper left")
     return fig
 

@@ -12,8 +12,9 @@ from crawlsim.errors import ResultsFileError
 from crawlsim.io.atomic import atomic_path
 from crawlsim.io.hdf5 import read_attrs, read_optimization, read_results, read_sweep
 from crawlsim.plotting import CRAWLER_FIGURES, FIGURE_NAMES, OPTIMIZATION_FIGURES, SWEEP_FIGURE
-from crawlsim.plotting.figures import FIGURES, sweep_data_figure
+from crawlsim.plotting.figures import FIGURES
 from crawlsim.plotting.style import DPI, FORMATS, FigureOptions, figure_style, user_style
+from crawlsim.plotting.sweeps import sweep_data_figure
 
 
 def available_figures(results: dict) -> list[str]:

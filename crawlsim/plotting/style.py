@@ -32,6 +32,7 @@ import json
 from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass
+from typing import Any, cast
 
 import matplotlib
 
@@ -41,6 +42,8 @@ import numpy as np
 from matplotlib import cycler  # type: ignore[attr-defined]
 from matplotlib.colors import to_hex
 from matplotlib.figure import Figure
+
+from crawlsim.gait.units import BASES, Units
 
 #: Okabe-Ito palette, in the order that puts the most distinct colours first.
 OKABE_ITO = {
@@ -117,7 +120,7 @@ FORMATS = ("png", "pdf", "svg")
 def figure_style():
     """The rc settings of crawlsim figures, for the duration of the block, with the style sheet
     of the enclosing `user_style` block (if any) laid over them."""
-    with matplotlib.rc_context(RC):
+    with matplotlib.rc_context(cast(Any, RC)):
         style = _USER_STYLE.get()
         if style is None:
             yield
@@ -246,32 +249,6 @@ def colours(count: int) -> list:
 # Units and labels
 
 
-@dataclass(frozen=True)
-class Units:
-    """The units a gait file gives (``units:``), each a string such as ``"mm"``, or None."""
-
-    length: str | None = None
-    time: str | None = None
-    force: str | None = None
-
-    @classmethod
-    def parse(cls, value) -> Units:
-        """From the ``units_json`` attribute (a JSON object), a mapping, or None.
-
-        Anything that is not a mapping of strings gives no units: a figure is never refused
-        for its labels.
-        """
-        if isinstance(value, (bytes, str)):
-            try:
-                value = json.loads(value)
-            except ValueError:
-                return cls()
-        if not isinstance(value, dict):
-            return cls()
-        return cls(**{k: str(value[k]) for k in ("length", "time", "force")
-                      if isinstance(value.get(k), str) and value[k].strip()})
-
-
 #: How a quantity's dimension is written when its units are not given: ℓ the gait file's unit
 #: of length, F its unit of force, T the period (times are measured in periods).
 SCALE_SYMBOLS = {"length": r"\ell", "force": "F", "time": "T"}
@@ -286,6 +263,23 @@ DIMENSIONS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
 }
 
 
+def parse_units(value) -> Units:
+    """The units of a ``units_json`` attribute (a JSON object), a ``units:`` mapping, or None.
+
+    Anything that is not a mapping of non-blank strings gives no units: a figure is never
+    refused for its labels (the gait file's units were checked when it was read).
+    """
+    if isinstance(value, (bytes, str)):
+        try:
+            value = json.loads(value)
+        except ValueError:
+            return Units()
+    if not isinstance(value, dict):
+        return Units()
+    return Units.from_block({k: str(value[k]) for k in BASES
+                             if isinstance(value.get(k), str) and value[k].strip()})
+
+
 def units_of(data: dict) -> Units:
     """The units of a results dict (`crawlsim.io.hdf5.read_results`) or a sweep dict
     (`crawlsim.io.hdf5.read_sweep`): the ``units_json`` attribute when the file has it, else the
@@ -293,7 +287,7 @@ def units_of(data: dict) -> Units:
     attrs = data.get("attrs") or {}
     for holder in (attrs, data):
         if holder.get("units_json"):
-            return Units.parse(holder["units_json"])
+            return parse_units(holder["units_json"])
     text = attrs.get("gait_yaml", data.get("gait_yaml"))
     if isinstance(text, str) and "units" in text:
         import yaml
@@ -303,7 +297,7 @@ def units_of(data: dict) -> Units:
         except yaml.YAMLError:
             return Units()
         if isinstance(document, dict):
-            return Units.parse(document.get("units"))
+            return parse_units(document.get("units"))
     return Units()
 
 
@@ -353,18 +347,20 @@ def label(name: str, symbol: str | None = None, dimension: str | None = None,
         return f"{text} ({unit})"
     if symbol is None:
         # A name without a symbol: the scale in parentheses, as a unit.
-        top, bottom = DIMENSIONS[dimension]
-        mixed = [getattr(units, d) or f"${SCALE_SYMBOLS[d]}$" for d in top]
-        under = [getattr(units, d) or f"${SCALE_SYMBOLS[d]}$" for d in bottom]
-        return f"{name} ({' '.join(mixed)}{'/' + ' '.join(under) if under else ''})"
-    given = [d for side in DIMENSIONS[dimension] for d in side if getattr(units, d)]
-    if given:
+        return f"{name} ({mixed_unit(dimension, units)})"
+    if any(getattr(units, d) for side in DIMENSIONS[dimension] for d in side):
         # Some parts given, some not: the unit written with the scales of the missing parts.
-        top, bottom = DIMENSIONS[dimension]
-        num = " ".join(getattr(units, d) or f"${SCALE_SYMBOLS[d]}$" for d in top)
-        den = " ".join(getattr(units, d) or f"${SCALE_SYMBOLS[d]}$" for d in bottom)
-        return f"{name} ${symbol}$ ({num}{'/' + den if den else ''})"
+        return f"{name} ${symbol}$ ({mixed_unit(dimension, units)})"
     return f"{name} ${_scaled(symbol, dimension)}$"
+
+
+def mixed_unit(dimension: str, units: Units) -> str:
+    """The unit of ``dimension`` with the given units and, for the missing ones, their scales
+    of `SCALE_SYMBOLS` in mathtext: "N/$\\ell$" for a stiffness with a force unit only."""
+    top, bottom = DIMENSIONS[dimension]
+    num = " ".join(getattr(units, d) or f"${SCALE_SYMBOLS[d]}$" for d in top)
+    den = " ".join(getattr(units, d) or f"${SCALE_SYMBOLS[d]}$" for d in bottom)
+    return f"{num}{'/' + den if den else ''}"
 
 
 def time_axis(units: Units, period: float, *, symbol: str = "t",
@@ -421,10 +417,7 @@ def path_label(path: str, units: Units) -> str:
         return f"{path} ({unit})"
     if dimension == "time":
         return path  # a swept period, in the gait file's own time unit: nothing to divide by
-    top, bottom = DIMENSIONS[dimension]
-    num = " ".join(getattr(units, d) or f"${SCALE_SYMBOLS[d]}$" for d in top)
-    den = " ".join(getattr(units, d) or f"${SCALE_SYMBOLS[d]}$" for d in bottom)
-    return f"{path} ({num}{'/' + den if den else ''})"
+    return f"{path} ({mixed_unit(dimension, units)})"
 
 
 def title(gait: str, figure: str) -> str:
@@ -432,9 +425,24 @@ def title(gait: str, figure: str) -> str:
     return f"{gait}: {figure}"
 
 
-def block_names(count: int) -> list[str]:
-    return [f"block {j + 1}" for j in range(count)]
+def format_number(value: float) -> str:
+    """A value for a legend or a tick: four significant digits, no trailing zeros."""
+    return f"{value:.4g}"
 
 
-def link_names(count: int) -> list[str]:
-    return [f"link {i + 1}" for i in range(count)]
+def legend_right(ax, **kwargs):
+    """The legend of ``ax`` outside it, on its right, top-aligned."""
+    return ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0, **kwargs)
+
+
+def shown_series(count: int, limit: int) -> np.ndarray:
+    """The 0-based indices of the series drawn out of ``count``: all of them up to ``limit``,
+    else ``limit`` evenly spaced ones, the first and the last included."""
+    if count <= limit:
+        return np.arange(count)
+    return np.unique(np.round(np.linspace(0, count - 1, limit)).astype(int))
+
+
+def shown_title(shown: np.ndarray, count: int, what: str) -> str | None:
+    """The legend title of a thinned panel ("8 of 999 links"), None when all are drawn."""
+    return None if len(shown) == count else f"{len(shown)} of {count} {what}"
