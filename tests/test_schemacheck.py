@@ -20,15 +20,16 @@ from crawlsim.errors import GaitError
 from crawlsim.gait import document as gait_module
 from crawlsim.gait import signals, units
 from crawlsim.gait.schemacheck import UnsupportedSchema, compile_schema
+from crawlsim.gait.validation import structure
 from crawlsim.gait.yamlsafe import load_yaml
 
 from .conftest import GAITS, ROOT
 
 SCHEMAS = {
     "crawler": gait_module.CRAWLER_SCHEMA,
-    "crawler structure": gait_module._structure(gait_module.CRAWLER_SCHEMA),
+    "crawler structure": structure(gait_module.CRAWLER_SCHEMA),
     "process": gait_module.PROCESS_SCHEMA,
-    "process structure": gait_module._structure(gait_module.PROCESS_SCHEMA),
+    "process structure": structure(gait_module.PROCESS_SCHEMA),
     "signal": signals.SIGNAL_SCHEMA,
     "simulation": gait_module.SIMULATION_SCHEMA,
     "units": units.UNITS_SCHEMA,
