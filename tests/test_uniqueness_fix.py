@@ -49,7 +49,12 @@ def refusal(doc) -> str:
     return info.value.message
 
 
-CHANGE = re.compile(r"change (\S+) from (\S+) to (\S+) \(gait\.replace\('([^']+)', ([^)]+)\)")
+CHANGE = re.compile(r"change (\S+) from (\S+) to ([0-9.e+-]+)(?: \(path (\S+)\))?: the smallest")
+
+
+def apply(doc, change, source):
+    """The document with the message's change applied (its dotted path, or its key path)."""
+    return edited(doc, [(change[4] or change[1], float(change[3]))], source)
 
 
 def test_three_violating_subsets_are_all_listed_and_fixed_in_one_round():
@@ -67,7 +72,7 @@ def test_three_violating_subsets_are_all_listed_and_fixed_in_one_round():
     # the fix, from the message alone: apply it, validate again, and it passes
     change = CHANGE.search(message)
     assert change is not None
-    fixed = edited(SIX, [(change[4], float(change[5]))], "six.yaml")
+    fixed = apply(SIX, change, "six.yaml")
     assert gait_from_document(fixed, "six-fixed.yaml").blocks == 6
     assert brute_force(*thresholds(fixed)) == set()
     changed = [(j, d) for j in range(6) for d in ("forward", "backward")
@@ -108,8 +113,8 @@ def test_a_shared_friction_is_changed_once_for_all_blocks():
     assert ("for J = {1, 2, 3, 4} (forward) and the rest {5, 6} (backward) (and 14 more subsets "
             "that exchange blocks of J for blocks of the same friction)") in message
     change = CHANGE.search(message)
-    assert change is not None and change[4] in ("friction.forward", "friction.backward")
-    fixed = edited(doc, [(change[4], float(change[5]))], "shared.yaml")
+    assert change is not None and change[1] in ("friction.forward", "friction.backward")
+    fixed = apply(doc, change, "shared.yaml")
     assert gait_from_document(fixed, "fixed.yaml").blocks == 6
     f, b = fixed["friction"]["forward"], fixed["friction"]["backward"]
     assert brute_force([f] * 6, [b] * 6) == set()
@@ -129,7 +134,7 @@ def test_steps_friction_names_the_value_and_the_interval():
     change = CHANGE.search(message)
     assert change is not None
     assert change[4] in ("friction.0.forward", "friction.1.backward.values.0")
-    fixed = edited(doc, [(change[4], float(change[5]))], "steps.yaml")
+    fixed = apply(doc, change, "steps.yaml")
     assert gait_from_document(fixed, "fixed.yaml").blocks == 2
 
 

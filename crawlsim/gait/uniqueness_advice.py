@@ -13,7 +13,8 @@ are tried in order of the size of the change, and the first that leaves the fric
 the start admissible and no g_J vanishing on an interval (the caller's test, the file's own
 checks) is the suggestion: the smallest change on that grid. A coefficient that does not enter
 some violating g_J (mu_j^+ of a block outside that J, mu_j^- of a block in it) cannot fix it
-and is skipped without a test. At most `MAX_TRIALS` candidates are tested.
+and is skipped without a test. At most `MAX_TRIALS` candidates are tested (`MAX_TRIALS_LARGE`
+when the frictions are too many to list every violating subset).
 """
 
 from __future__ import annotations
@@ -32,7 +33,14 @@ from crawlsim.gait.signals import Signal, parse_signal
 from crawlsim.model.uniqueness import UniquenessAnalysis
 
 MAX_TRIALS = 400
-"""Most candidate changes tested (each a uniqueness check of the changed friction)."""
+"""Most candidate changes tested (each a uniqueness check of the changed friction) when every
+violating subset is known (`UniquenessAnalysis.complete`: at most 16 distinct frictions, each
+check fast)."""
+
+MAX_TRIALS_LARGE = 4
+"""Most candidate changes tested when there are too many frictions to list every violating
+subset: each check is then a full exact search, and with so many coincident sums one change
+rarely fixes them all."""
 
 _VALUE_KEYS = ("value", "mean", "amplitude", "values", "cos", "sin")
 """Keys of a signal's mapping whose numbers are friction values (times and phases are not)."""
@@ -75,11 +83,10 @@ class Change:
     new: float
 
     def text(self) -> str:
+        path = "" if self.slot.dotted == self.slot.keypath else f" (path {self.slot.dotted})"
         return (f"To restore it, change {self.slot.keypath} from {self.slot.value:g} to "
-                f"{self.new:g} (gait.replace({self.slot.dotted!r}, {self.new!r}), or "
-                f"--sweep {self.slot.dotted}={self.new!r}): the smallest change of one friction "
-                "coefficient that does, among steps of 1, 2 and 5 x 10^e from 1 % of each "
-                "coefficient")
+                f"{self.new!r}{path}: the smallest change of one friction coefficient that does, "
+                "in round steps from 1 % of it")
 
 
 def friction_slots(document: dict, blocks: int) -> list[Slot]:
@@ -134,14 +141,14 @@ def _enters_every(slot: Slot, analysis: UniquenessAnalysis) -> bool:
 def smallest_change(document: dict, friction: Friction, analysis: UniquenessAnalysis,
                     acceptable: FrictionTest, source: str) -> Change | None:
     """The smallest change of one coefficient (module docstring) after which ``acceptable``
-    holds for the changed friction, or None within `MAX_TRIALS` tests."""
+    holds for the changed friction, or None within `MAX_TRIALS` (`MAX_TRIALS_LARGE`) tests."""
     forward, backward = friction
     slots = [s for s in friction_slots(document, len(forward)) if _enters_every(s, analysis)]
     scale = max((abs(s.value) for s in slots), default=1.0) or 1.0
     candidates = sorted(((step, i, sign) for i, slot in enumerate(slots)
                          for step in _steps(slot.value, scale) for sign in (1, -1)),
                         key=lambda c: (c[0], c[1], -c[2]))
-    for step, i, sign in candidates[:MAX_TRIALS]:
+    for step, i, sign in candidates[:MAX_TRIALS if analysis.complete else MAX_TRIALS_LARGE]:
         slot = slots[i]
         new = float(Decimal(repr(slot.value)) + sign * step)
         changed = _changed(document, slot, new, source)
@@ -191,6 +198,6 @@ def remedy_text(change: Change | None) -> str:
     """The sentence that ends a refusal: the change, or why there is none."""
     if change is not None:
         return change.text() + "."
-    return ("No change of one friction coefficient, by up to its own size, restores it: "
+    return ("No change of one friction coefficient among the smallest tried restores it: "
             "change one coefficient in the g_J of each subset above (mu+ of a block in J "
             "or mu- of a block outside it).")
