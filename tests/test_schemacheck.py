@@ -1,6 +1,6 @@
 """The compiled schema check (`crawlsim.gait.schemacheck`) decides exactly what jsonschema decides.
 
-`crawlsim.gait.signals.check_schema` accepts a document on the compiled check's word alone, without
+`crawlsim.gait.schemaerrors.check_schema` accepts a document on the compiled check's word alone, without
 jsonschema, so validation stays as strict as before only if the compiled check never accepts a
 document that jsonschema's Draft202012Validator refuses. These tests compare the two, as
 predicates, on every schema of the project and on every one of their sub-schemas: on the

@@ -25,7 +25,7 @@ def validate(gait_files, explain):
     \b
     Examples:
       crawlsim validate gaits/*.yaml
-      crawlsim validate --explain my-gait.yaml
+      crawlsim validate --explain gaits/peristalsis-4.yaml
       crawlsim validate gaits/inching-2.yaml && crawlsim run gaits/inching-2.yaml -o inching.h5
     """
     from crawlsim.gait.document import uniqueness_explanation, validation_errors

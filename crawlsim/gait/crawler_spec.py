@@ -27,6 +27,7 @@ import numpy as np
 from crawlsim.errors import GaitError
 from crawlsim.gait.crawler_limits import check_stiffness, check_stress_scale
 from crawlsim.gait.docpaths import replacement
+from crawlsim.gait.schemaerrors import LARGEST
 from crawlsim.gait.settings import (
     MAX_BLOCKS,
     PERIOD_SCHEMA,
@@ -37,7 +38,7 @@ from crawlsim.gait.settings import (
     positive_schema,
     simulation_from,
 )
-from crawlsim.gait.signals import LARGEST, SIGNAL_SCHEMA, Signal, evaluate_many, parse_signal, union_breakpoints
+from crawlsim.gait.signals import SIGNAL_SCHEMA, Signal, evaluate_many, parse_signal, union_breakpoints
 from crawlsim.gait.uniqueness_advice import remedy_text, smallest_change, uniqueness_message
 from crawlsim.gait.units import UNITS_SCHEMA, Units
 from crawlsim.gait.validation import ErrorSink, check_units, count_error, plain, readonly, validated

@@ -49,6 +49,7 @@ from crawlsim.gait.process_spec import (
     process_admissibility_violation,
     recession_direction,
 )
+from crawlsim.gait.schemaerrors import check_schema, finite_errors, schema_errors
 from crawlsim.gait.settings import (
     MAX_BLOCKS,
     MAX_PERIOD,
@@ -60,7 +61,7 @@ from crawlsim.gait.settings import (
     Simulation,
     simulation_from,
 )
-from crawlsim.gait.signals import SIGNAL_SCHEMA, check_schema, finite_errors, parse_signal, schema_errors
+from crawlsim.gait.signals import SIGNAL_SCHEMA, parse_signal
 from crawlsim.gait.validation import Builder, ErrorSink, plain, structure, validated
 from crawlsim.gait.yamlsafe import load_yaml, read_limited
 

@@ -8,7 +8,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from crawlsim.gait.signals import LARGEST
+from crawlsim.gait.schemaerrors import LARGEST
 
 ROUNDOFF = 1e-12
 """Relative tolerance of the admissibility checks: roundoff, not a modelling slack."""

@@ -13,7 +13,8 @@ import numpy as np
 import yaml
 
 from crawlsim.errors import GaitError
-from crawlsim.gait.signals import check_finite, check_schema, without_signals
+from crawlsim.gait.schemaerrors import check_finite, check_schema
+from crawlsim.gait.signals import without_signals
 from crawlsim.gait.units import unit_problems
 
 Builder = Callable[..., Any]
