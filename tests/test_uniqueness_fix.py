@@ -8,6 +8,7 @@ import re
 from decimal import Decimal
 from fractions import Fraction
 
+import numpy as np
 import pytest
 import yaml
 from click.testing import CliRunner
@@ -16,6 +17,8 @@ from crawlsim.cli import main
 from crawlsim.errors import GaitError
 from crawlsim.gait.docpaths import edited
 from crawlsim.gait.document import gait_from_document
+from crawlsim.gait.signals import Constant
+from crawlsim.model.uniqueness import alike_subsets, analyse
 
 SIX = {
     "blocks": 6, "period": 2.0, "stiffness": 10.0,
@@ -153,3 +156,25 @@ def test_validate_explain_prints_the_whole_analysis(tmp_path):
     assert f"{bad}:   To restore it, change friction[" in result.output
     assert f"{good}: valid" in result.output
     assert f"{good}:   holds: no g_J vanishes on an interval (decided exactly)" in result.output
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_analyse_lists_exactly_the_subsets_of_a_brute_force(seed):
+    """Random friction of small integers on 2 to 8 blocks: the subsets `analyse` lists, with
+    those alike written out (`alike_subsets`), are exactly the J with g_J = 0."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(2, 9))
+    forward = [float(v) for v in rng.integers(1, 4, n)]
+    backward = [float(v) for v in rng.integers(1, 4, n)]
+    expected = brute_force(forward, backward)
+    f, b = [Constant(v) for v in forward], [Constant(v) for v in backward]
+    analysis = analyse(f, b)
+    if not expected:
+        assert analysis is None
+        return
+    assert analysis is not None and analysis.complete
+    listed = [frozenset(int(j) + 1 for j in np.flatnonzero(s))
+              for v in analysis.violations for s in alike_subsets(v, f, b, limit=1 << 10)]
+    assert len(listed) == len(set(listed)) == sum(v.alike for v in analysis.violations)
+    assert set(listed) == expected
+    assert all(v.intervals == ((0.0, 1.0),) for v in analysis.violations)

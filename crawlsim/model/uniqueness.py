@@ -103,10 +103,6 @@ class Violation:
         """The intervals of time on which g_J vanishes, "[0, 0.5] and [0.75, 1]"."""
         return " and ".join(f"[{lo * period:g}, {hi * period:g}]" for lo, hi in self.intervals)
 
-    def message(self, period: float) -> str:
-        """The refusal text for this subset alone (`UniquenessAnalysis.message` lists all)."""
-        return UniquenessAnalysis((self,), complete=True).message(period)
-
 
 @dataclass(frozen=True)
 class UniquenessAnalysis:
