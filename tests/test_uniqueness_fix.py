@@ -146,7 +146,9 @@ def test_validate_explain_prints_the_whole_analysis(tmp_path):
     bad.write_text(yaml.safe_dump(SIX))
     good = tmp_path / "good.yaml"
     good.write_text(yaml.safe_dump(edited(SIX, [("friction.2.backward", 3.5)], "good.yaml")))
-    result = CliRunner().invoke(main, ["validate", "--explain", str(bad), str(good)])
+    broken = tmp_path / "broken.yaml"
+    broken.write_text(yaml.safe_dump(dict(SIX, stiffness=-1.0)))
+    result = CliRunner().invoke(main, ["validate", "--explain", str(bad), str(good), str(broken)])
     assert result.exit_code == 2
     listed = {frozenset(int(x) for x in m.split(", "))
               for m in re.findall(rf"{re.escape(str(bad))}:     J = \{{([0-9, ]+)\}}: g_J = 0 "
@@ -156,6 +158,10 @@ def test_validate_explain_prints_the_whole_analysis(tmp_path):
     assert f"{bad}:   To restore it, change friction[" in result.output
     assert f"{good}: valid" in result.output
     assert f"{good}:   holds: no g_J vanishes on an interval (decided exactly)" in result.output
+    assert f"{broken}: stiffness: " in result.output
+    assert (f"{broken}: uniqueness condition (docs/model.md §3): not analysed until the errors "
+            "above are fixed") in result.output
+    assert "Traceback" not in result.output
 
 
 @pytest.mark.parametrize("seed", range(40))

@@ -431,12 +431,13 @@ def uniqueness_report(document: dict, source: str) -> list[str]:
     """The whole uniqueness analysis of a crawler document (``crawlsim validate --explain``):
     what was checked, every violating subset J (those alike written out) with the intervals on
     which g_J vanishes, and the smallest change of one coefficient that restores the condition.
-    Empty when the document is not a crawler or fails a check that comes before."""
+    A document that fails a check that comes before gets one line saying so."""
     try:
         gait = validated(plain(document), CRAWLER_SCHEMA,
                          functools.partial(build_crawler, unique=False), source)
     except GaitError:
-        return []
+        return ["uniqueness condition (docs/model.md §3): not analysed until the errors above "
+                "are fixed"]
     plus, minus = gait.thresholds()
     lines = [f"uniqueness condition (docs/model.md §3): g_J(t) = sum of mu+ over J - sum of mu- "
              f"over the rest, for each of the 2^{gait.blocks} subsets J of blocks, must not "

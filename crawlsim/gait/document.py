@@ -143,8 +143,7 @@ def validation_errors(path: str | Path) -> list[GaitError]:
 
 def uniqueness_explanation(path: str | Path) -> list[str]:
     """The whole uniqueness analysis of a crawler gait file (`crawlsim.gait.crawler_spec.
-    uniqueness_report`), empty for a file that cannot be read, a process, or a gait that fails
-    a check before the uniqueness condition."""
+    uniqueness_report`); empty for a file that cannot be read and for a process."""
     source = str(path)
     try:
         document = load_yaml(read_limited(path), source)
