@@ -184,3 +184,20 @@ def test_analyse_lists_exactly_the_subsets_of_a_brute_force(seed):
     assert len(listed) == len(set(listed)) == sum(v.alike for v in analysis.violations)
     assert set(listed) == expected
     assert all(v.intervals == ((0.0, 1.0),) for v in analysis.violations)
+
+
+def test_blocks_of_equal_friction_written_one_by_one_cannot_be_fixed_by_one_coefficient():
+    """Six blocks each written (forward 1, backward 2): the 15 subsets of four blocks violate,
+    and every coefficient misses some of them (mu_j^+ enters g_J only for j in J, mu_j^- only for
+    j outside), so the refusal says no single change can work, and a brute force agrees."""
+    doc = dict(SIX, friction=[{"forward": 1.0, "backward": 2.0} for _ in range(6)])
+    message = refusal(doc)
+    assert "(and 14 more subsets that exchange blocks of J" in message
+    assert "No single friction coefficient of the file enters the g_J of every subset" in message
+    forward, backward = thresholds(doc)
+    for j in range(6):
+        for values in (forward, backward):
+            trial = list(values)
+            trial[j] += 0.05
+            f, b = (trial, backward) if values is forward else (forward, trial)
+            assert brute_force(f, b)

@@ -128,22 +128,42 @@ def _steps(value: float, scale: float) -> list[Decimal]:
 
 
 def _enters_every(slot: Slot, analysis: UniquenessAnalysis) -> bool:
-    """Whether the slot's threshold enters g_J of every violating J listed: mu_j^+ for j in J,
-    mu_j^- for j outside it."""
-    owners = np.array(slot.blocks)
+    """Whether the slot's threshold enters g_J of every violating J, those alike included:
+    mu_j^+ enters for j in J, mu_j^- for j outside it. Of the s_p slot blocks of friction pair p
+    (m_p blocks, c_p of them in J), at least max(0, c_p - m_p + s_p) are in every alike J and at
+    least max(0, s_p - c_p) outside it."""
+    pair_of = analysis.pair_of
+    if pair_of is None:  # pragma: no cover - `analyse` always records the pairs
+        return True
+    pairs = int(pair_of.max()) + 1
+    owned = np.bincount(pair_of[list(slot.blocks)], minlength=pairs)
+    multiplicity = np.bincount(pair_of, minlength=pairs)
     for violation in analysis.violations:
-        inside = violation.subset[owners]
-        if not (np.any(inside) if slot.direction == "forward" else np.any(~inside)):
+        inside = np.bincount(pair_of[violation.subset], minlength=pairs)
+        least = (np.maximum(0, inside - multiplicity + owned) if slot.direction == "forward"
+                 else np.maximum(0, owned - inside))
+        if not least.sum() > 0:
             return False
     return True
 
 
+@dataclass(frozen=True)
+class NoChange:
+    """Why no change of one coefficient is suggested: ``impossible`` when no coefficient enters
+    the g_J of every violating J, else none of the candidates tried worked."""
+
+    impossible: bool
+
+
 def smallest_change(document: dict, friction: Friction, analysis: UniquenessAnalysis,
-                    acceptable: FrictionTest, source: str) -> Change | None:
+                    acceptable: FrictionTest, source: str) -> Change | NoChange:
     """The smallest change of one coefficient (module docstring) after which ``acceptable``
-    holds for the changed friction, or None within `MAX_TRIALS` (`MAX_TRIALS_LARGE`) tests."""
+    holds for the changed friction, or why there is none within `MAX_TRIALS`
+    (`MAX_TRIALS_LARGE`) tests."""
     forward, backward = friction
     slots = [s for s in friction_slots(document, len(forward)) if _enters_every(s, analysis)]
+    if not slots:
+        return NoChange(impossible=True)
     scale = max((abs(s.value) for s in slots), default=1.0) or 1.0
     candidates = sorted(((step, i, sign) for i, slot in enumerate(slots)
                          for step in _steps(slot.value, scale) for sign in (1, -1)),
@@ -161,7 +181,7 @@ def smallest_change(document: dict, friction: Friction, analysis: UniquenessAnal
                                                                                tuple(signals))
         if acceptable(*trial):
             return Change(slot, new)
-    return None
+    return NoChange(impossible=False)
 
 
 def _changed(document: dict, slot: Slot, new: float, source: str) -> Signal | None:
@@ -194,10 +214,17 @@ def uniqueness_message(document: dict, forward: Sequence[Signal], backward: Sequ
     return analysis.message(period, remedy_text(change)) + note
 
 
-def remedy_text(change: Change | None) -> str:
+def remedy_text(change: Change | NoChange) -> str:
     """The sentence that ends a refusal: the change, or why there is none."""
-    if change is not None:
+    if isinstance(change, Change):
         return change.text() + "."
+    if change.impossible:
+        return ("No single friction coefficient of the file enters the g_J of every subset "
+                "above (blocks of the same friction are exchanged between them), so no change "
+                "of one coefficient restores it: change the friction of those blocks together "
+                "(one shared 'friction: {forward: ..., backward: ...}' moves all blocks at "
+                "once), or one coefficient in the g_J of each subset (mu+ of a block in J or mu- "
+                "of a block outside it).")
     return ("No change of one friction coefficient among the smallest tried restores it: "
             "change one coefficient in the g_J of each subset above (mu+ of a block in J "
             "or mu- of a block outside it).")

@@ -112,6 +112,8 @@ class UniquenessAnalysis:
 
     violations: tuple[Violation, ...]
     complete: bool
+    #: The friction pair of each block (N,): blocks of one pair are exchangeable in every g_J.
+    pair_of: np.ndarray | None = None
 
     def message(self, period: float, remedy: str = "") -> str:
         """The refusal text: names every J with the rest and its intervals in units of time,
@@ -172,7 +174,7 @@ def analyse(forward: Sequence[Signal], backward: Sequence[Signal]) -> Uniqueness
         return None
     friction = _Friction(forward, backward)
     if np.prod(friction.multiplicity + 1.0) > MAX_LISTED:
-        return UniquenessAnalysis((found,), complete=False)
+        return UniquenessAnalysis((found,), complete=False, pair_of=friction.pair_of)
     samples, per_piece = friction.samples()
     grids = np.meshgrid(*[np.arange(m + 1) for m in friction.multiplicity], indexing="ij")
     counts = np.stack([g.ravel() for g in grids], axis=1).astype(float)  # (C, pairs)
@@ -194,7 +196,7 @@ def analyse(forward: Sequence[Signal], backward: Sequence[Signal]) -> Uniqueness
         violation = friction.violation(samples, _subset(c, friction.pair_of, friction.blocks))
         if violation is not None:
             violations.append(violation)
-    return UniquenessAnalysis(tuple(violations), complete=True)
+    return UniquenessAnalysis(tuple(violations), complete=True, pair_of=friction.pair_of)
 
 
 def alike_subsets(violation: Violation, forward: Sequence[Signal], backward: Sequence[Signal],
