@@ -13,6 +13,8 @@ from crawlsim.gait.document import (
 )
 from crawlsim.gait.signals import Cosine, Steps
 
+from .conftest import GAITS
+
 EXAMPLE = """\
 name: peristalsis-4
 description: retrograde wave
@@ -362,3 +364,22 @@ def test_gait_files_are_read_with_a_size_limit(tmp_path):
     binary.write_bytes(b"blocks: \xff\xfe\n")
     with pytest.raises(GaitError, match="is not UTF-8 text"):
         load_gait(binary)
+
+
+def test_dotted_paths_are_below_the_document_no_cycle():
+    """`crawlsim.gait.docpaths` edits documents only: importing it loads no gait kind, and
+    `Gait.replace` validates with the crawler's own schema and builder (no function-level
+    import dodging a cycle)."""
+    import subprocess
+    import sys
+
+    code = ("import sys, crawlsim.gait.docpaths; "
+            "print(sorted(m for m in sys.modules if m.startswith('crawlsim.gait.')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert "crawlsim.gait.docpaths" in out
+    assert "crawlsim.gait.document" not in out and "crawlsim.gait.crawler_spec" not in out
+    gait = load_gait(GAITS / "inching-2.yaml")
+    changed = gait.replace("links.0.amplitude", 0.25)
+    assert changed.links[0].amplitude == 0.25 and gait.links[0].amplitude == 0.3
+    assert changed.source == f"{gait.source} with links.0.amplitude=0.25"

@@ -464,3 +464,25 @@ def test_two_blocks_closed_form_any_monotone_stroke(mu_plus, mu_minus, k, stroke
     assert result.v0 == pytest.approx(d, abs=1e-9)
     W = result.actuator_work_per_period
     assert abs(result.energy_balance_residual) <= 1e-11 * max(W, 1.0)
+
+
+def test_a_towing_load_on_the_uniqueness_boundary_is_fixed_by_the_suggested_change():
+    """At P = 1 both J = {1} and J = {2} violate the condition on the shifted thresholds
+    (mu+ = 1, mu- = 2, F_1 = -1: mu~_1^+ = 2 = mu~_2^-, mu~_2^+ = 1 = mu~_1^-); the refusal names
+    both and a change of one friction coefficient after which the gait is valid."""
+    import re
+
+    from crawlsim.gait.docpaths import edited
+
+    doc = two_block_doc(loads={"force": [-1.0, 0.0]})
+    with pytest.raises(GaitError) as info:
+        make_gait(doc)
+    message = info.value.message
+    assert info.value.keypath == "loads"
+    assert "for J = {1} (forward) and the rest {2} (backward)" in message
+    assert "J = {2} (forward) and the rest {1} (backward) for t in [0, 1]" in message
+    change = re.search(r"change (\S+) from (\S+) to ([0-9.e+-]+)(?: \(path (\S+)\))?: ", message)
+    assert change is not None
+    fixed = make_gait(edited(doc, [(change[4] or change[1], float(change[3]))], "fixed.yaml"))
+    assert fixed.blocks == 2
+    assert 0 < abs(float(change[3]) - float(change[2])) <= 0.05 * float(change[2])

@@ -228,3 +228,48 @@ def test_every_paper_file_runs(path):
     if rate is not None:
         assert result.contraction_rate == pytest.approx(rate, rel=1e-3)
     assert (result.v0 is not None) == isinstance(spec, Gait)
+
+
+def test_the_crawler_object_gives_stress_shape_forces_bounds_and_dissipation_in_closed_form():
+    """For peristalsis-4 (k = 10, friction forward 1, backward 2 on every block): sigma = w + K L,
+    z = -w / k, f = D^T sigma sums to zero, and the stress bounds are -min(i mu+, (N-i) mu-) and
+    min(i mu-, (N-i) mu+) for link i (docs/model.md §1); a catch-up period's dissipation is the
+    multipliers paid at their thresholds."""
+    from crawlsim.analysis.energy import catch_up_energy
+    from crawlsim.integrate.stepping import CatchUpStepper
+    from crawlsim.model.crawler import Crawler, block_forces, stress_bounds
+
+    gait = load_gait(GAITS / "peristalsis-4.yaml")
+    p = compile_gait(gait, steps_per_period=64)
+    crawler = p.crawler
+    assert isinstance(crawler, Crawler) and crawler.blocks == 4 and p.blocks == 4
+    record = CatchUpStepper(p).step_period()
+    k = np.asarray(gait.stiffness)
+    sigma = crawler.stress(record.w)
+    np.testing.assert_allclose(sigma, k * (gait.lengths(p.times) - crawler.shape(record.w)),
+                               rtol=0, atol=1e-12 * np.max(np.abs(sigma)))
+    np.testing.assert_allclose(crawler.shape(record.w), np.diff(record.x, axis=1), rtol=0,
+                               atol=1e-12)
+    f = crawler.block_forces(record.w)
+    np.testing.assert_allclose(f.sum(axis=1), 0.0, atol=1e-12)
+    np.testing.assert_array_equal(f[:, 0], -sigma[:, 0])
+    np.testing.assert_array_equal(block_forces(sigma), f)
+    plus = gait.mu_plus(np.zeros(1))[0]
+    minus = gait.mu_minus(np.zeros(1))[0]
+    low, high = crawler.stress_bounds()
+    behind_plus = np.cumsum(plus)[:-1]
+    behind_minus = np.cumsum(minus)[:-1]
+    np.testing.assert_allclose(low[0], -np.minimum(behind_plus, minus.sum() - behind_minus))
+    np.testing.assert_allclose(high[0], np.minimum(behind_minus, plus.sum() - behind_plus))
+    assert low.shape == high.shape == (p.steps + 1, 3) and np.all(low < 0) and np.all(high > 0)
+    np.testing.assert_array_equal(stress_bounds(crawler.friction)[1], high)
+    # friction is held at every grid time: -mu^- <= f <= mu^+ (to roundoff)
+    scale = float(np.max(np.abs(crawler.friction)))
+    assert np.all(f <= crawler.friction[:, :4] + 1e-12 * scale)
+    assert np.all(-f <= crawler.friction[:, 4:] + 1e-12 * scale)
+    # the ledger's dissipation is the crawler's, and the period balances W = D + J + dE
+    energy = catch_up_energy(p, record)
+    assert energy.dissipation == crawler.dissipation(record.multipliers) > 0
+    assert abs(energy.residual - energy.energy_change) <= 1e-12 * energy.scale
+    np.testing.assert_allclose(crawler.positions(record.w[-1], float(np.mean(record.x[-1]))),
+                               record.x[-1], atol=1e-12)

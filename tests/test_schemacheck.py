@@ -1,6 +1,6 @@
 """The compiled schema check (`crawlsim.gait.schemacheck`) decides exactly what jsonschema decides.
 
-`crawlsim.gait.signals.check_schema` accepts a document on the compiled check's word alone, without
+`crawlsim.gait.schemaerrors.check_schema` accepts a document on the compiled check's word alone, without
 jsonschema, so validation stays as strict as before only if the compiled check never accepts a
 document that jsonschema's Draft202012Validator refuses. These tests compare the two, as
 predicates, on every schema of the project and on every one of their sub-schemas: on the
@@ -20,15 +20,16 @@ from crawlsim.errors import GaitError
 from crawlsim.gait import document as gait_module
 from crawlsim.gait import signals, units
 from crawlsim.gait.schemacheck import UnsupportedSchema, compile_schema
+from crawlsim.gait.validation import structure
 from crawlsim.gait.yamlsafe import load_yaml
 
 from .conftest import GAITS, ROOT
 
 SCHEMAS = {
     "crawler": gait_module.CRAWLER_SCHEMA,
-    "crawler structure": gait_module._structure(gait_module.CRAWLER_SCHEMA),
+    "crawler structure": structure(gait_module.CRAWLER_SCHEMA),
     "process": gait_module.PROCESS_SCHEMA,
-    "process structure": gait_module._structure(gait_module.PROCESS_SCHEMA),
+    "process structure": structure(gait_module.PROCESS_SCHEMA),
     "signal": signals.SIGNAL_SCHEMA,
     "simulation": gait_module.SIMULATION_SCHEMA,
     "units": units.UNITS_SCHEMA,

@@ -94,6 +94,7 @@ import numpy as np
 
 from crawlsim.gait.signals import Constant, Cosine, Fourier, PiecewiseLinear, Signal, Steps
 from crawlsim.integrate.stepping import PeriodRecord
+from crawlsim.model.crawler import elastic_energy
 from crawlsim.model.offsets import TWO_PI, Basis, PiecewiseOffsets
 from crawlsim.model.process import SweepingProcess
 
@@ -220,11 +221,6 @@ def gram(basis: Basis, a, b) -> np.ndarray:
     return P[0] if scalar else P
 
 
-def elastic_energy(stress: np.ndarray, stiffness: np.ndarray) -> float:
-    """E = sum_i sigma_i^2 / (2 k_i)."""
-    return float(np.sum(stress * stress / (2.0 * stiffness)))
-
-
 def _identity(coef: np.ndarray) -> np.ndarray:
     return coef
 
@@ -240,16 +236,16 @@ class ExactLedger:
     """
 
     def __init__(self, process: SweepingProcess):
-        pieces = process.offset_pieces
-        assert pieces is not None and process.stiffness is not None
+        pieces, crawler = process.offset_pieces, process.crawler
+        assert pieces is not None and crawler is not None
         self.basis: Basis = pieces.basis
-        self.k = np.asarray(process.stiffness, dtype=float)
-        self.N = process.blocks
+        self.k = np.asarray(crawler.stiffness, dtype=float)
+        self.N = crawler.blocks
         self.pieces = pieces.pieces
         # loads (docs/model.md §6): friction is mu cos(angle), and l = [-F~ ; F~] the load's
         # share of the thresholds, F~ = F(u) + load_constant
-        self.scale = float(process.friction_scale)
-        self.constant = process.load_constant
+        self.scale = float(crawler.friction_scale)
+        self.constant = crawler.load_constant
         # the signals themselves (links, then mu^+ and mu^- in the order of the rows of B),
         # in the basis and on the pieces of c(t)
         self.signals = PiecewiseOffsets(pieces.signals, _identity, pieces.edges)
@@ -347,25 +343,23 @@ class ExactLedger:
 def catch_up_energy(process: SweepingProcess, record: PeriodRecord) -> PeriodEnergy:
     """The discrete ledger of a catch-up period (module docstring): W_h along the elastic
     predictor, D_h with the friction at the step's end, J_h = sum_n sum_i k_i (Delta z_i)^2/2."""
-    k, KL, lengths, friction = (process.stiffness, process.stress_offset, process.lengths,
-                                process.friction)
-    assert k is not None and KL is not None and lengths is not None and friction is not None
-    sigma = record.w + KL
-    dL = np.diff(lengths, axis=0)
+    crawler = process.crawler
+    assert crawler is not None
+    k = crawler.stiffness
+    sigma = crawler.stress(record.w)
+    dL = np.diff(crawler.lengths, axis=0)
     work = math.fsum(np.sum((sigma[:-1] + 0.5 * k * dL) * dL, axis=1))
     dissipation = period_dissipation(process, record)
     dw = np.diff(record.w, axis=0)
     loss = math.fsum(np.sum(dw * dw / (2.0 * k), axis=1))
-    load_work = 0.0 if process.load is None else math.fsum(
-        np.sum(record.multipliers * process.load[1:], axis=1))
-    return PeriodEnergy(work, dissipation, loss, elastic_energy(sigma[0], k),
-                        elastic_energy(sigma[-1], k), load_work)
+    return PeriodEnergy(work, dissipation, loss, crawler.elastic_energy(sigma[0]),
+                        crawler.elastic_energy(sigma[-1]), crawler.load_work(record.multipliers))
 
 
 def period_energy(process: SweepingProcess, record: PeriodRecord) -> PeriodEnergy | None:
     """The ledger of one period: the exact integrator's (carried by its record), else the
     catch-up ledger on the grid; None for a generic sweeping process."""
-    if not process.is_crawler:
+    if process.crawler is None:
         return None
     energy = getattr(record, "energy", None)
     return energy if energy is not None else catch_up_energy(process, record)
@@ -377,8 +371,8 @@ def period_dissipation(process: SweepingProcess, record: PeriodRecord) -> float:
     energy = getattr(record, "energy", None)
     if energy is not None:
         return float(energy.dissipation)
-    assert process.friction is not None
-    return float(np.sum(record.multipliers * process.friction[1:]))
+    assert process.crawler is not None
+    return process.crawler.dissipation(record.multipliers)
 
 
 # -- friction minima and the bound ---------------------------------------------------------------
@@ -452,7 +446,9 @@ def friction_minima(process: SweepingProcess) -> tuple[np.ndarray, np.ndarray]:
     signals = process.offset_pieces.signals
     forward = np.array([friction_minimum(s) for s in signals[N - 1:2 * N - 1]])
     backward = np.array([friction_minimum(s) for s in signals[2 * N - 1:3 * N - 1]])
-    return process.friction_scale * forward, process.friction_scale * backward
+    assert process.crawler is not None
+    scale = process.crawler.friction_scale
+    return scale * forward, scale * backward
 
 
 def cost_of_transport_bound(process: SweepingProcess, displacement: float) -> float | None:
@@ -471,7 +467,7 @@ def ledger(process: SweepingProcess, record: PeriodRecord, displacement: float,
     energy = period_energy(process, record)
     if energy is None:
         return None
-    if process.load is not None:
+    if process.crawler is not None and process.crawler.load is not None:
         # with loads (docs/model.md §6): the efficiency is the share of the actuator work that
         # goes into the load, and the friction-only bound does not bound the cost of transport
         efficiency = energy.load_work / energy.work if energy.work > 0 else None

@@ -11,12 +11,9 @@ from __future__ import annotations
 
 import copy
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from crawlsim.errors import GaitError
-
-if TYPE_CHECKING:
-    from crawlsim.gait.document import Gait, ProcessSpec
 
 Key = str | int
 
@@ -136,17 +133,10 @@ def edited(document: dict, pairs: Sequence[tuple[str, Any]], source: str) -> dic
     return doc
 
 
-def replaced(spec: Gait | ProcessSpec, args: Sequence[Any]) -> Gait | ProcessSpec:
-    """``spec`` with the changes of ``replace(*args)`` applied, validated like a gait file.
-
-    Errors name the gait and the changes (``gait.yaml with links.*.amplitude=0.5``), as a sweep
-    names its point. ``source_text`` stays the text that was read; the document is the truth
-    (results files embed it, `crawlsim.io.provenance`).
-    """
-    from crawlsim.gait.document import gait_from_document
-
+def replacement(source: str, document: dict, args: Sequence[Any]) -> tuple[str, dict]:
+    """The label and the edited document of ``replace(*args)`` on a gait read from ``source``:
+    errors of the rebuilt gait name the gait and the changes (``gait.yaml with
+    links.*.amplitude=0.5``), as a sweep names its point."""
     pairs = changes_of(args)
-    label = f"{spec.source} with " + ", ".join(f"{p}={v!r}" for p, v in pairs)
-    document = edited(spec.document, pairs, label)
-    return gait_from_document(document, label, source_text=spec.source_text,
-                              default_name=spec.name)
+    label = f"{source} with " + ", ".join(f"{p}={v!r}" for p, v in pairs)
+    return label, edited(document, pairs, label)

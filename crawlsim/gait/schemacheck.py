@@ -5,7 +5,7 @@ Importing jsonschema (with attrs, referencing and the bundled metaschemas) costs
 a quarter of what `crawlsim velocity` on a small gait needs, and a shell loop calls it thousands
 of times. Almost every file such a loop reads is valid, and a valid file needs only the answer
 "valid". So `compile_schema` turns a schema into a predicate built from closures, once per
-process; `crawlsim.gait.signals.check_schema` asks it first and calls jsonschema, the reference, only
+process; `crawlsim.gait.schemaerrors.check_schema` asks it first and calls jsonschema, the reference, only
 when the predicate says "invalid": jsonschema then finds the error and phrases the message (file,
 key path, expectation), exactly as before. Validation is not weakened as long as the predicate
 never accepts what jsonschema refuses; tests/test_schemacheck.py checks that the two agree on

@@ -18,6 +18,7 @@ This module imports nothing heavy: the gait schema and the results files both us
 from __future__ import annotations
 
 import difflib
+import json
 from collections.abc import Mapping
 from dataclasses import dataclass
 from fractions import Fraction
@@ -89,10 +90,14 @@ def unit_problem(base: str, name: str) -> str | None:
     if singular in _SPELLED_OUT:
         symbol = _SPELLED_OUT[singular]
         if symbol in accepted:
-            return f"expected {expected}; got {name!r}: write its symbol, {symbol!r}"
+            return (f"expected {expected}; got {name!r}: write its symbol, {symbol!r} "
+                    f"(did you mean {symbol!r}?)")
     for other, names in UNIT_NAMES.items():
         if name in names or _SPELLED_OUT.get(singular) in names:
             return f"expected {expected}; got {name!r}, a unit of {other}"
+    same_letters = [a for a in accepted if a.lower() == word]
+    if len(same_letters) == 1:  # "MM": the case is wrong, not the unit
+        return f"expected {expected}; got {name!r}; did you mean {same_letters[0]!r}?"
     pool = list(accepted) + [k for k, v in _SPELLED_OUT.items() if v in accepted]
     close = difflib.get_close_matches(name, pool, n=3, cutoff=0.5) or \
         difflib.get_close_matches(word, pool, n=3, cutoff=0.5)
@@ -129,6 +134,25 @@ class Units:
         """From a validated ``units:`` mapping (None or absent keys: dimensionless)."""
         block = block or {}
         return cls(**{base: block.get(base) for base in BASES})
+
+    @classmethod
+    def parse(cls, value: Any) -> Units:
+        """From a results file's ``units_json`` attribute (a JSON object), a mapping, or None.
+
+        Lenient, unlike `from_block`: anything that is not a mapping of non-blank strings gives
+        no units, because a figure or a report is never refused for its labels.
+        """
+        if isinstance(value, bytes):
+            value = value.decode("utf-8", "replace")
+        if isinstance(value, str):
+            try:
+                value = json.loads(value)
+            except ValueError:
+                return cls()
+        if not isinstance(value, Mapping):
+            return cls()
+        return cls(**{k: str(value[k]) for k in BASES
+                      if isinstance(value.get(k), str) and value[k].strip()})
 
     def to_json(self) -> dict[str, str]:
         """The block as given: only the base dimensions that have a unit."""

@@ -83,7 +83,7 @@ def simulate_batch(processes, *, max_periods, tolerance, capacity: int = DEFAULT
     tolerance = np.broadcast_to(np.asarray(tolerance, dtype=float), (count,))
     groups: dict[tuple, list[int]] = {}
     for i, p in enumerate(processes):
-        if not p.is_crawler:
+        if p.crawler is None:
             raise ValueError(f"{p.name}: batched stepping measures v0 and needs a crawler")
         groups.setdefault((p.steps, p.blocks), []).append(i)
     out: list[BatchRun | None] = [None] * count
@@ -96,13 +96,13 @@ def simulate_batch(processes, *, max_periods, tolerance, capacity: int = DEFAULT
 
 
 def _friction(process: SweepingProcess) -> np.ndarray:
-    assert process.friction is not None, "batched stepping needs crawlers"
-    return process.friction
+    assert process.crawler is not None, "batched stepping needs crawlers"
+    return process.crawler.friction
 
 
 def _stiffness(process: SweepingProcess) -> np.ndarray:
-    assert process.stiffness is not None, "batched stepping needs crawlers"
-    return process.stiffness
+    assert process.crawler is not None, "batched stepping needs crawlers"
+    return process.crawler.stiffness
 
 
 class _Lockstep:

@@ -140,7 +140,7 @@ class EventStepper(PeriodStepper):
         # Crawlers: non-unique slips are a DegenerateModelError (docs/model.md §3); generic processes
         # keep their unique point with a LicqWarning, as in catch-up.
         self.projector = ExactProjector(self.poly, describe_active=process.describe_active,
-                                        on_dependent="raise" if process.is_crawler else "warn")
+                                        on_dependent="raise" if process.crawler is not None else "warn")
         self.w = np.array(process.initial, dtype=float)
         self.x = None if process.initial_positions is None else np.array(
             process.initial_positions, dtype=float)
@@ -148,7 +148,7 @@ class EventStepper(PeriodStepper):
         self.period_index = 0
         self._visited: list = []
         # the period's energy ledger, integrated exactly on the pieces (crawlers)
-        self._ledger = ExactLedger(process) if process.is_crawler else None
+        self._ledger = ExactLedger(process) if process.crawler is not None else None
         self._grid = process.cycles
         edges = self.pieces.edges
         self._edge_index = np.searchsorted(self._grid, edges)

@@ -104,8 +104,8 @@ class PeriodRecord:
 def positions_of(process, w: np.ndarray, barycentre: float) -> np.ndarray:
     """Block positions of a crawler in the state ``w`` with the given barycentre: the shape is
     z = D x = -K^{-1} w (docs/model.md §2), so x_i = x_1 + z_1 + ... + z_{i-1}."""
-    x = np.concatenate([[0.0], np.cumsum(-np.asarray(w, dtype=float) / process.stiffness)])
-    return x - np.mean(x) + barycentre
+    assert process.crawler is not None
+    return process.crawler.positions(w, barycentre)
 
 
 class PeriodStepper:
@@ -142,7 +142,7 @@ class CatchUpStepper(PeriodStepper):
         self.polyhedron = process.polyhedron
         self.projector = ExactProjector(
             process.polyhedron, describe_active=process.describe_active,
-            persistent=persistent_solver, on_dependent="raise" if process.is_crawler else "warn")
+            persistent=persistent_solver, on_dependent="raise" if process.crawler is not None else "warn")
         self.w = np.array(process.initial, dtype=float)
         self.x = None if process.initial_positions is None else np.array(
             process.initial_positions, dtype=float)
@@ -151,7 +151,7 @@ class CatchUpStepper(PeriodStepper):
         self._visited: list = []
         self._kernel = None
         self._lazy_visited: Sequence | None = None  # the kernel's record (`VisitedSets`)
-        if kernel and not check_every_step and process.is_crawler:
+        if kernel and not check_every_step and process.crawler is not None:
             from crawlsim.kernel.catchup import ChainKernel
 
             self._kernel = ChainKernel(self.polyhedron)

@@ -28,6 +28,7 @@ import numpy as np
 from crawlsim.gait.document import Gait, ProcessSpec
 from crawlsim.gait.signals import evaluate_many
 from crawlsim.kernel.kkt import ChainPolyhedron, DensePolyhedron, Polyhedron
+from crawlsim.model.crawler import Crawler, block_forces, slips
 from crawlsim.model.offsets import PiecewiseOffsets
 
 #: Grid times closer than this (in cycles) to a breakpoint are merged into the breakpoint.
@@ -38,7 +39,10 @@ GRID_MERGE = 1e-12
 class SweepingProcess:
     """A T-periodic polyhedral sweeping process ``w' in -N_{K(t)}(w)``, tabulated on one period.
 
-    The fields after ``initial`` describe a crawler and are ``None`` for a generic process.
+    ``crawler`` holds what is a crawler's only (`crawlsim.model.crawler.Crawler`: stiffness,
+    stress, shape, block forces, stress bounds, dissipation); it is ``None`` for a generic
+    process. The read-only properties named after its fields give them, or their value without
+    a crawler (None, or a friction scale of 1).
     """
 
     name: str
@@ -47,17 +51,7 @@ class SweepingProcess:
     times: np.ndarray  # (G+1,) one period's grid: times[0] = 0, times[-1] = period
     offsets: np.ndarray  # c(t) on the grid (G+1, m)
     initial: np.ndarray  # w(0) (n,)
-    stiffness: np.ndarray | None = None  # k (N-1,): crawlers, M = K^{-1}
-    initial_positions: np.ndarray | None = None  # x(0) (N,)
-    stress_offset: np.ndarray | None = None  # K L(t) on the grid (G+1, n): stress = w + K L
-    friction: np.ndarray | None = None  # [mu^+, mu^-] on the grid (G+1, m): dissipation weights
-    lengths: np.ndarray | None = None  # L(t) on the grid (G+1, N-1)
-    # Loads (docs/model.md §6): the load's share l = [-F~ ; F~] of the offsets on the grid
-    # (G+1, m), so that c's thresholds are friction + l; None without loads.
-    load: np.ndarray | None = None
-    friction_scale: float = 1.0  # cos(angle): the signals' mu scaled to the slope's friction
-    load_constant: np.ndarray | None = None  # -W sin(angle) (N,): F~ = F(t) + load_constant
-    slope_angle: float | None = None  # degrees, None without a slope
+    crawler: Crawler | None = None  # the crawler's physics; None for a generic process
     # The closed form of c(t) piece by piece, for integrators that leave the grid (exact):
     offset_pieces: PiecewiseOffsets | None = None
     breakpoints: np.ndarray | None = None  # times in [0, T) where c has a kink or a jump
@@ -75,11 +69,47 @@ class SweepingProcess:
 
     @property
     def is_crawler(self) -> bool:
-        return self.stiffness is not None
+        return self.crawler is not None
 
     @property
     def blocks(self) -> int:
-        return 0 if self.stiffness is None else len(self.stiffness) + 1
+        return 0 if self.crawler is None else self.crawler.blocks
+
+    @property
+    def stiffness(self) -> np.ndarray | None:
+        return None if self.crawler is None else self.crawler.stiffness
+
+    @property
+    def initial_positions(self) -> np.ndarray | None:
+        return None if self.crawler is None else self.crawler.initial_positions
+
+    @property
+    def stress_offset(self) -> np.ndarray | None:
+        return None if self.crawler is None else self.crawler.stress_offset
+
+    @property
+    def friction(self) -> np.ndarray | None:
+        return None if self.crawler is None else self.crawler.friction
+
+    @property
+    def lengths(self) -> np.ndarray | None:
+        return None if self.crawler is None else self.crawler.lengths
+
+    @property
+    def load(self) -> np.ndarray | None:
+        return None if self.crawler is None else self.crawler.load
+
+    @property
+    def friction_scale(self) -> float:
+        return 1.0 if self.crawler is None else self.crawler.friction_scale
+
+    @property
+    def load_constant(self) -> np.ndarray | None:
+        return None if self.crawler is None else self.crawler.load_constant
+
+    @property
+    def slope_angle(self) -> float | None:
+        return None if self.crawler is None else self.crawler.slope_angle
 
     @property
     def scale(self) -> float:
@@ -98,20 +128,14 @@ class SweepingProcess:
 
     def slips(self, multipliers: np.ndarray) -> np.ndarray:
         """Block increments dx = lambda^+ - lambda^- of multipliers (..., 2N) (docs/model.md §3)."""
-        N = self.blocks
-        return multipliers[..., :N] - multipliers[..., N:]
+        return slips(multipliers)
 
     def describe_active(self, index) -> str:
         """Words for an active set: for crawlers, the set J of saturated blocks."""
-        index = np.asarray(index, dtype=int)
-        if not self.is_crawler:
+        if self.crawler is None:
+            index = np.asarray(index, dtype=int)
             return "active constraints {" + ", ".join(str(i) for i in index) + "}"
-        N = self.blocks
-        fwd = [int(i) + 1 for i in index if i < N]
-        bwd = [int(i) - N + 1 for i in index if i >= N]
-        return (f"J = {{{', '.join(map(str, sorted(fwd + bwd)))}}}: blocks "
-                f"{fwd or 'none'} at their forward friction limit, "
-                f"{bwd or 'none'} at their backward limit")
+        return self.crawler.describe_active(index)
 
 
 def period_grid(steps_per_period: int, breakpoints) -> np.ndarray:
@@ -156,7 +180,7 @@ def compile_gait(gait: Gait, steps_per_period: int | None = None) -> SweepingPro
     mu_f = evaluate_many(gait.forward, u) * scale  # (G+1, N): friction mu cos(angle), §6
     mu_b = evaluate_many(gait.backward, u) * scale
     KL = L * k  # K L on the grid
-    DtKL = _forces(KL)  # D^T K L, O(N) per row
+    DtKL = block_forces(KL)  # D^T K L, O(N) per row
     load = None
     if loads is not None:
         total = loads.total(u)  # F~ = F - W sin(angle)
@@ -171,7 +195,7 @@ def compile_gait(gait: Gait, steps_per_period: int | None = None) -> SweepingPro
     def combine(coef):
         """c = [mu~^+ - D^T K L; mu~^- + D^T K L] from the signals' coefficients (nb, S):
         mu~^+ = mu^+ cos - F~, mu~^- = mu^- cos + F~ with F~ = F - W sin (docs/model.md §6)."""
-        DtKL_c = _forces(coef[:, :N - 1] * k)
+        DtKL_c = block_forces(coef[:, :N - 1] * k)
         plus, minus = coef[:, N - 1:2 * N - 1], coef[:, 2 * N - 1:3 * N - 1]
         if constant is None:
             return np.hstack([plus - DtKL_c, minus + DtKL_c])
@@ -191,15 +215,11 @@ def compile_gait(gait: Gait, steps_per_period: int | None = None) -> SweepingPro
         times=u * gait.period,
         offsets=offsets,
         initial=w0,
-        stiffness=k,
-        initial_positions=x0,
-        stress_offset=KL,
-        friction=np.hstack([mu_f, mu_b]),
-        lengths=L,
-        load=load,
-        friction_scale=scale,
-        load_constant=constant,
-        slope_angle=None if loads is None or loads.weights is None else float(loads.angle),
+        crawler=Crawler(
+            stiffness=k, initial_positions=x0, stress_offset=KL,
+            friction=np.hstack([mu_f, mu_b]), lengths=L, load=load, friction_scale=scale,
+            load_constant=constant,
+            slope_angle=None if loads is None or loads.weights is None else float(loads.angle)),
         offset_pieces=pieces,
         breakpoints=np.asarray(gait.breakpoints(), dtype=float) * T,
         _cycles=u,
@@ -235,12 +255,3 @@ def compile(spec: Gait | ProcessSpec, steps_per_period: int | None = None) -> Sw
     if isinstance(spec, ProcessSpec):
         return compile_process(spec, steps_per_period)
     return compile_gait(spec, steps_per_period)
-
-
-def _forces(V: np.ndarray) -> np.ndarray:
-    """D^T v for rows v (..., N-1): (D^T v)_j = v_{j-1} - v_j, with v_{-1} = v_{N-1} = 0."""
-    padded = np.zeros(V.shape[:-1] + (V.shape[-1] + 2,))
-    padded[..., 1:-1] = V
-    return padded[..., :-1] - padded[..., 1:]
-
-

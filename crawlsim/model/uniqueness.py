@@ -37,6 +37,7 @@ about 2^20 sums of 4 samples, which is 40 blocks of distinct cosine friction; an
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -61,6 +62,10 @@ of doubles, about 200 MiB at the peak of a merge."""
 MAX_CANDIDATES = 1 << 24
 """Most candidate pairs the meet-in-the-middle verifies on one piece."""
 
+MAX_LISTED = 1 << 16
+"""Most combinations (prod_p (multiplicity_p + 1) over the distinct friction pairs) that
+`analyse` enumerates to list every violating subset: 16 blocks of distinct friction."""
+
 MAX_SAMPLE_ENTRIES = 1 << 22
 """Friction samples evaluated at once: (distinct friction pairs) x (samples)."""
 
@@ -79,17 +84,52 @@ class Violation:
 
     subset: np.ndarray  # (N,) bool: blocks in J (at their forward limit)
     intervals: tuple[tuple[float, float], ...]  # in cycles, within [0, 1]
+    #: How many subsets violate alike: J and those that exchange its blocks for blocks of the
+    #: same friction (they have the same g_J).
+    alike: int = 1
 
-    def message(self, period: float) -> str:
-        """The refusal text: names J, the rest, and the intervals in units of time."""
-        where = " and ".join(f"[{lo * period:g}, {hi * period:g}]" for lo, hi in self.intervals)
+    def subsets_text(self) -> str:
+        """"J = {1, 2} (forward) and the rest {3} (backward)", and the subsets alike."""
         inside = np.nonzero(self.subset)[0]
         outside = np.nonzero(~self.subset)[0]
-        return (f"uniqueness condition violated: for J = {_blocks_text(inside)} (forward) and the "
-                f"rest {_blocks_text(outside)} (backward), sum mu+ over J - sum mu- over the rest "
-                f"= 0 for t in {where} (a whole interval): the model does not determine how the "
-                "crawler moves (docs/model.md §3, paper eq. (uniqueness)). Make the friction "
-                "anisotropic or change a coefficient.")
+        text = (f"J = {_blocks_text(inside)} (forward) and the rest {_blocks_text(outside)} "
+                "(backward)")
+        if self.alike > 1:
+            text += (f" (and {self.alike - 1:,} more subsets that exchange blocks of J for "
+                     "blocks of the same friction)")
+        return text
+
+    def where(self, period: float) -> str:
+        """The intervals of time on which g_J vanishes, "[0, 0.5] and [0.75, 1]"."""
+        return " and ".join(f"[{lo * period:g}, {hi * period:g}]" for lo, hi in self.intervals)
+
+
+@dataclass(frozen=True)
+class UniquenessAnalysis:
+    """Every subset J for which g_J vanishes on an interval (`analyse`). ``complete`` is False
+    when there are too many combinations of friction to list them all (`MAX_LISTED`): then
+    ``violations`` holds the one subset the exact search found."""
+
+    violations: tuple[Violation, ...]
+    complete: bool
+    #: The friction pair of each block (N,): blocks of one pair are exchangeable in every g_J.
+    pair_of: np.ndarray | None = None
+
+    def message(self, period: float, remedy: str = "") -> str:
+        """The refusal text: names every J with the rest and its intervals in units of time,
+        then ``remedy``, the change that fixes them."""
+        first, *others = self.violations
+        text = (f"uniqueness condition violated: for {first.subsets_text()}, sum mu+ over J - "
+                f"sum mu- over the rest = 0 for t in {first.where(period)} (a whole interval)")
+        if others:
+            text += f"; and for {len(others)} more subset{'s' if len(others) > 1 else ''}: " + \
+                "; ".join(f"{v.subsets_text()} for t in {v.where(period)}" for v in others)
+        if not self.complete:
+            text += ("; other subsets may violate it too (too many combinations of friction "
+                     "to list them all)")
+        text += (": the model does not determine how the crawler moves (docs/model.md §3, "
+                 "paper eq. (uniqueness)).")
+        return text + (f" {remedy}" if remedy else "")
 
 
 def _blocks_text(blocks: np.ndarray) -> str:
@@ -103,35 +143,117 @@ def find_violation(forward: Sequence[Signal], backward: Sequence[Signal]) -> Vio
     be positive (checked before). Raises `UniquenessUndecidable` when the search would exceed
     its bounds.
     """
-    n = len(forward)
-    pairs: dict[tuple[Signal, Signal], int] = {}
-    pair_of = np.array([pairs.setdefault((f, b), len(pairs)) for f, b in zip(forward, backward)])
-    distinct = list(pairs)
-    multiplicity = np.bincount(pair_of, minlength=len(distinct))
-    signals = [s for pair in distinct for s in pair]
-
-    edges = np.append(union_breakpoints([s.breakpoints() for s in signals] + [np.zeros(1)]), 1.0)
-    degree = max(s.harmonics for s in signals)
-    linear = any(isinstance(s, PiecewiseLinear) or getattr(s, "has_linear", False)
-                 for s in signals)
-    per_piece = 2 * degree + 2 + int(linear)
-    fractions = (np.arange(per_piece) + 1.0) / (per_piece + 1.0)
-    fractions = fractions + 0.3 * np.sin(7.0 * fractions) / (per_piece + 1.0)
-
-    samples = _Samples(distinct, edges, fractions)
+    friction = _Friction(forward, backward)
+    samples, per_piece = friction.samples()
     for first, last, mu_plus, mu_minus in samples.chunks():
         for k in range(last - first):
             columns = slice(k * per_piece, (k + 1) * per_piece)
             counts = _search_piece(mu_plus[:, columns] + mu_minus[:, columns],
-                                   multiplicity @ mu_minus[:, columns], multiplicity)
+                                   friction.multiplicity @ mu_minus[:, columns],
+                                   friction.multiplicity)
             if counts is None:
                 continue
-            subset = _subset(counts, pair_of, n)
-            inside = np.bincount(pair_of[subset], minlength=len(distinct))
-            intervals = samples.vanishing_intervals(inside, multiplicity - inside)
-            if intervals:
-                return Violation(subset, intervals)
+            violation = friction.violation(samples, _subset(counts, friction.pair_of,
+                                                            friction.blocks))
+            if violation is not None:
+                return violation
     return None
+
+
+def analyse(forward: Sequence[Signal], backward: Sequence[Signal]) -> UniquenessAnalysis | None:
+    """Every subset J violating the uniqueness condition, or None if there is none.
+
+    The exact search (`find_violation`) decides; when it finds a J and the count vectors
+    c (0 <= c_p <= multiplicity_p blocks of each distinct friction pair p) number at most
+    `MAX_LISTED`, all of them are tested on every sample of every piece, vectorised: g_J
+    depends on J only through c, so this lists every violating J, those alike grouped. The
+    subset the search found comes first.
+    """
+    found = find_violation(forward, backward)
+    if found is None:
+        return None
+    friction = _Friction(forward, backward)
+    if np.prod(friction.multiplicity + 1.0) > MAX_LISTED:
+        return UniquenessAnalysis((found,), complete=False, pair_of=friction.pair_of)
+    samples, per_piece = friction.samples()
+    grids = np.meshgrid(*[np.arange(m + 1) for m in friction.multiplicity], indexing="ij")
+    counts = np.stack([g.ravel() for g in grids], axis=1).astype(float)  # (C, pairs)
+    hit = np.zeros(len(counts), dtype=bool)
+    for _, _, mu_plus, mu_minus in samples.chunks():
+        a = mu_plus + mu_minus
+        rest = friction.multiplicity @ mu_minus
+        band = _MATCH * TOLERANCE * (friction.multiplicity @ a)
+        rows = max(1, MAX_SAMPLE_ENTRIES // a.shape[1])
+        for start in range(0, len(counts), rows):
+            g = counts[start:start + rows] @ a - rest  # (rows, samples)
+            zero = (np.abs(g) <= band).reshape(len(g), -1, per_piece)
+            hit[start:start + rows] |= np.any(np.all(zero, axis=2), axis=1)
+    violations = [found]
+    key = tuple(friction.counts_of(found.subset))
+    for c in counts[hit].astype(np.int64):
+        if tuple(c) == key:
+            continue
+        violation = friction.violation(samples, _subset(c, friction.pair_of, friction.blocks))
+        if violation is not None:
+            violations.append(violation)
+    return UniquenessAnalysis(tuple(violations), complete=True, pair_of=friction.pair_of)
+
+
+def alike_subsets(violation: Violation, forward: Sequence[Signal], backward: Sequence[Signal],
+                  limit: int = 64) -> list[np.ndarray]:
+    """J and the subsets that exchange its blocks for blocks of the same friction pair (the same
+    g_J), in lexicographic order of their blocks; at most ``limit`` of them."""
+    friction = _Friction(forward, backward)
+    counts = friction.counts_of(violation.subset)
+    choices = [itertools.combinations(np.flatnonzero(friction.pair_of == p), int(c))
+               for p, c in enumerate(counts)]
+    out = []
+    for chosen in itertools.islice(itertools.product(*choices), limit):
+        subset = np.zeros(friction.blocks, dtype=bool)
+        for blocks in chosen:
+            subset[list(blocks)] = True
+        out.append(subset)
+    return sorted(out, key=lambda s: tuple(np.flatnonzero(s)))
+
+
+class _Friction:
+    """The blocks' friction as distinct (mu^+, mu^-) pairs, each with its multiplicity: blocks of
+    the same pair are interchangeable in every g_J."""
+
+    def __init__(self, forward: Sequence[Signal], backward: Sequence[Signal]):
+        self.blocks = len(forward)
+        pairs: dict[tuple[Signal, Signal], int] = {}
+        self.pair_of = np.array([pairs.setdefault((f, b), len(pairs))
+                                 for f, b in zip(forward, backward)])
+        self.distinct = list(pairs)
+        self.multiplicity = np.bincount(self.pair_of, minlength=len(self.distinct))
+
+    def samples(self) -> tuple[_Samples, int]:
+        """The sampled pieces (module docstring, "Sampling") and the samples per piece."""
+        signals = [s for pair in self.distinct for s in pair]
+        edges = np.append(union_breakpoints([s.breakpoints() for s in signals] + [np.zeros(1)]),
+                          1.0)
+        degree = max(s.harmonics for s in signals)
+        linear = any(isinstance(s, PiecewiseLinear) or getattr(s, "has_linear", False)
+                     for s in signals)
+        per_piece = 2 * degree + 2 + int(linear)
+        fractions = (np.arange(per_piece) + 1.0) / (per_piece + 1.0)
+        fractions = fractions + 0.3 * np.sin(7.0 * fractions) / (per_piece + 1.0)
+        return _Samples(self.distinct, edges, fractions), per_piece
+
+    def counts_of(self, subset: np.ndarray) -> np.ndarray:
+        """How many blocks of each friction pair J holds."""
+        return np.bincount(self.pair_of[subset], minlength=len(self.distinct))
+
+    def violation(self, samples: _Samples, subset: np.ndarray) -> Violation | None:
+        """J = ``subset`` with the intervals where g_J vanishes, verified from the signals; None
+        when it vanishes on no piece."""
+        inside = self.counts_of(subset)
+        intervals = samples.vanishing_intervals(inside, self.multiplicity - inside)
+        if not intervals:
+            return None
+        alike = math.prod(math.comb(int(m), int(c)) for m, c in zip(self.multiplicity, inside))
+        return Violation(subset, intervals, alike)
 
 
 class _Samples:
