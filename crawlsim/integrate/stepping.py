@@ -93,7 +93,7 @@ class PeriodRecord:
     # Event-driven integrators: every decision of the active set, in order (`Transition`).
     # `crawlsim.integrate.limit` adds the saltation of the events whose time depends on the start (the
     # hits) to the Jacobian.
-    transitions: tuple[Transition, ...] = ()
+    transitions: Sequence[Transition] = ()
 
     @property
     def slips(self) -> np.ndarray | None:
