@@ -61,7 +61,7 @@ import numpy as np
 from crawlsim.analysis.energy import ExactLedger
 from crawlsim.errors import CertificateError, DegenerateModelError, EventError, LicqWarning
 from crawlsim.integrate.stepping import PeriodRecord, PeriodStepper, Transition, TransitionCause
-from crawlsim.kernel.kkt import RTOL, ActiveSet, Certificate, ChainPolyhedron, Dependent, Polyhedron, Tolerance
+from crawlsim.kernel.kkt import RTOL, ActiveSet, ChainPolyhedron, Dependent, Polyhedron, Tolerance
 from crawlsim.kernel.projection import ExactProjector
 from crawlsim.model.offsets import TWO_PI
 from crawlsim.model.process import SweepingProcess
@@ -676,13 +676,6 @@ class _CompiledLoop:
                 f"{report[loop.R_PRIMAL]:.3g}, negative slip integral {report[loop.R_DUAL]:.3g} "
                 f"(tolerance {report[loop.R_TOLP]:.3g} / {report[loop.R_TOLD]:.3g}), "
                 f"complementarity {report[loop.R_COMP]:.3g}")
-        if status == loop.FAILED_JUMP:
-            cert = Certificate(float(report[loop.R_PRIMAL]), float(report[loop.R_DUAL]),
-                               float(report[loop.R_COMP]),
-                               Tolerance(float(report[loop.R_TOLP]), float(report[loop.R_TOLD])))
-            raise CertificateError(f"{s.process.name}: the projection at the jump of c at "
-                                   f"t = {start + u * s.process.period:.12g} failed its "
-                                   f"certificate: {cert}")
         return None  # HANDOFF
 
     def _run(self, s: EventStepper) -> dict:
