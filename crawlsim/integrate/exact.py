@@ -62,8 +62,7 @@ from crawlsim.analysis.energy import ExactLedger
 from crawlsim.errors import CertificateError, DegenerateModelError, EventError, LicqWarning
 from crawlsim.integrate.stepping import PeriodRecord, PeriodStepper, Transition, TransitionCause
 from crawlsim.kernel.kkt import RTOL, ActiveSet, ChainPolyhedron, Dependent, Polyhedron, Tolerance
-from crawlsim.kernel.projection import ExactProjector
-from crawlsim.model.offsets import TWO_PI
+from crawlsim.model.offsets import TWO_PI, PiecewiseOffsets
 from crawlsim.model.process import SweepingProcess
 
 #: Default bound on the number of events in one period.
@@ -125,6 +124,7 @@ class EventStepper(PeriodStepper):
 
     #: A period must start in K(0) (`crawlsim.integrate.limit` projects a Newton candidate first).
     needs_admissible_start = True
+    pieces: PiecewiseOffsets
 
     def __init__(self, process: SweepingProcess, *, check_every_step: bool = False,
                  max_events: int = MAX_EVENTS, zeno_events: int = ZENO_EVENTS,
@@ -133,24 +133,13 @@ class EventStepper(PeriodStepper):
             raise EventError(f"{process.name}: the exact integrator needs the closed form of "
                              "c(t) that gait and process files provide; use --integrator "
                              "catch-up")
-        self.process = process
+        super().__init__(process, check_every_step=check_every_step)
         self.poly = process.polyhedron
         self.pieces = process.offset_pieces
         self.basis = self.pieces.basis
-        self.check_every_step = check_every_step
         self.max_events = int(max_events)
         self.zeno_events, self.zeno_window = int(zeno_events), float(zeno_window)
         self.cells_per_cycle = int(cells_per_cycle)
-        # Crawlers: non-unique slips are a DegenerateModelError (docs/model.md §3); generic processes
-        # keep their unique point with a LicqWarning, as in catch-up.
-        self.projector = ExactProjector(self.poly, describe_active=process.describe_active,
-                                        on_dependent="raise" if process.is_crawler else "warn")
-        self.w = np.array(process.initial, dtype=float)
-        self.x = None if process.initial_positions is None else np.array(
-            process.initial_positions, dtype=float)
-        self.active = self.poly.empty
-        self.period_index = 0
-        self._visited: list = []
         # the period's energy ledger, integrated exactly on the pieces (crawlers)
         self._ledger = ExactLedger(process) if process.is_crawler else None
         self._grid = process.cycles
@@ -168,8 +157,8 @@ class EventStepper(PeriodStepper):
         self._loop = _CompiledLoop.of(self)
 
     # -- one period -------------------------------------------------------------------------
-    def step_period(self) -> PeriodRecord:
-        """Advance by one period and return its record, sampled on ``process.times``: in the
+    def _step_impl(self) -> PeriodRecord:
+        """One period, sampled on ``process.times``: in the
         compiled event loop (`crawlsim.kernel.eventloop`) for a crawler whose offsets have
         closed-form zeros, else (or where that loop hands the period over) in Python."""
         if self._loop is not None:
@@ -278,7 +267,6 @@ class EventStepper(PeriodStepper):
                               self.projector.clarabel_calls - calls0, events=events,
                               visited=tuple(self._visited), transitions=tuple(transitions),
                               energy=None if ledger is None else ledger.finish(W[0], W[-1]))
-        self.period_index += 1
         return record
 
     def _guard(self, count, recent, u, start, rows):
@@ -740,5 +728,4 @@ class _CompiledLoop:
         record = PeriodRecord(s.period_index, start, W, np.diff(LAMC, axis=0), X, 0,
                               events=events, visited=catchup.VisitedSets(s.poly, signs),
                               transitions=transitions, energy=energy)
-        s.period_index += 1
         return record
