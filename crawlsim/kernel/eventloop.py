@@ -186,12 +186,10 @@ def dual_scale(k, kmax, c_scale, signs, coef, dx0, Ydx, base, Wc, inverse, gram)
 
 # -- an event: the next active set --------------------------------------------------------------
 @njit(cache=True)
-def decide(k, c_scale, linear, H, coef, u, w, forced, warm, out, phi, cvec, Bw):
-    """The active set on (u, u + eps) into ``out`` (`EventStepper._decide`): the rows tight at
-    w (and ``forced``), decided by the velocity problems of orders 1, 2, ...; False when one of
-    them is not settled by the kernel's updates or the result is dependent (HANDOFF)."""
-    N = out.shape[0]
-    m = 2 * N
+def tight_rows(c_scale, linear, H, coef, u, w, forced, phi, cvec, Bw):
+    """The rows tight at w to the primal tolerance of a step with no multipliers, and
+    ``forced`` (the rows an event hit): the candidates of `decide`."""
+    m = Bw.shape[0]
     basis_values(u, 0, linear, H, phi)
     combine(phi, coef, cvec)
     apply(w, Bw)
@@ -201,13 +199,39 @@ def decide(k, c_scale, linear, H, coef, u, w, forced, warm, out, phi, cvec, Bw):
             c_size = max(c_size, abs(cvec[r]))
     tol = RTOL * max(max(c_scale, c_size), 2.0 * max_abs(w))
     candidates = np.zeros(m, dtype=np.bool_)
-    any_tight = False
     for r in range(m):
         candidates[r] = Bw[r] - cvec[r] >= -tol or forced[r]
-        any_tight = any_tight or candidates[r]
+    return candidates
+
+
+@njit(cache=True)
+def settle_rows(candidates, fixed, lam, Bv, ck, tol_p, tol_d):
+    """One order of `decide`: candidates with a positive multiplier become fixed, those whose
+    velocity opens their gap leave. Returns whether candidates are left."""
+    left = False
+    for r in range(candidates.shape[0]):
+        if candidates[r]:
+            if lam[r] > tol_d:
+                fixed[r] = True
+                candidates[r] = False
+            elif Bv[r] - ck[r] < -tol_p:
+                candidates[r] = False
+            else:
+                left = True
+    return left
+
+
+@njit(cache=True)
+def decide(k, c_scale, linear, H, coef, u, w, forced, warm, out, phi, cvec, Bw):
+    """The active set on (u, u + eps) into ``out`` (`EventStepper._decide`): the rows tight at
+    w (and ``forced``), decided by the velocity problems of orders 1, 2, ...; False when one of
+    them is not settled by the kernel's updates or the result is dependent (HANDOFF)."""
+    candidates = tight_rows(c_scale, linear, H, coef, u, w, forced, phi, cvec, Bw)
     out[:] = 0
-    if not any_tight:
+    if not candidates.any():
         return True
+    N = out.shape[0]
+    m = 2 * N
     fixed = np.zeros(m, dtype=np.bool_)
     rows = np.zeros(m, dtype=np.bool_)
     signs = np.empty(N, dtype=np.int8)
@@ -231,17 +255,7 @@ def decide(k, c_scale, linear, H, coef, u, w, forced, warm, out, phi, cvec, Bw):
             return False
         tol_p, tol_d = report[chain.REPORT_TOLP], report[chain.REPORT_TOLD]
         apply(v, Bw)
-        left = False
-        for r in range(m):
-            if candidates[r]:
-                if lam[r] > tol_d:
-                    fixed[r] = True
-                    candidates[r] = False
-                elif Bw[r] - cvec[r] < -tol_p:
-                    candidates[r] = False
-                else:
-                    left = True
-        if not left:
+        if not settle_rows(candidates, fixed, lam, Bw, cvec, tol_p, tol_d):
             break
     if not chain.independent(fixed, N):
         return False
@@ -444,6 +458,45 @@ def jump(k, c_scale, w, target, signs, w_out, lam, report):
 
 # -- one period -----------------------------------------------------------------------------------
 @njit(cache=True)
+def begin_event(u, w, lam_cum, forced, max_events, zeno_events, zeno_window, EV_T, EV_W, EV_LAM,
+                TR_HIT, counts, report):
+    """Record the state at an event and apply the guards (`EventStepper._guard`): DONE, or
+    OVERFLOW (the arrays are full), TOO_MANY or ZENO (the rows hit in TR_HIT at the count of
+    transitions)."""
+    e = counts[C_EVENTS]
+    t_count = counts[C_TRANSITIONS]
+    if e >= EV_T.shape[0] or t_count + 2 > TR_HIT.shape[0]:
+        return OVERFLOW
+    EV_T[e], EV_W[e], EV_LAM[e] = u, w, lam_cum
+    counts[C_EVENTS] = e + 1
+    report[R_U] = u
+    if e + 1 > max_events:
+        return TOO_MANY
+    if e + 1 >= zeno_events and u - EV_T[e + 1 - zeno_events] <= zeno_window:
+        TR_HIT[t_count] = forced
+        return ZENO
+    return DONE
+
+
+@njit(cache=True)
+def after_jump(u, piece_after, w, w_next, lam_cum, lam_jump, signs, forced, grid, W, LAMC, TR_U,
+               TR_PIECE, TR_SIGNS, TR_CAUSE, TR_HIT, counts):
+    """The state after the projection at a jump: w and the cumulative slips, the transition,
+    and the grid point at the jump (signals are right-continuous)."""
+    w[:] = w_next
+    for r in range(lam_cum.shape[0]):
+        lam_cum[r] += lam_jump[r]
+    t_count = counts[C_TRANSITIONS]
+    TR_U[t_count], TR_PIECE[t_count], TR_SIGNS[t_count] = u, piece_after, signs
+    TR_CAUSE[t_count], TR_HIT[t_count] = JUMP, forced
+    counts[C_TRANSITIONS] = t_count + 1
+    je = 0
+    while grid[je] < u:
+        je += 1
+    W[je], LAMC[je] = w, lam_cum
+
+
+@njit(cache=True)
 def period(k, c_scale, linear, H, COEF, edges, jumps, TARGET, grid, w_start, signs,
            max_events, zeno_events, zeno_window, ledger, KLC, DLC, MC, LC,
            W, LAMC, EV_T, EV_W, EV_LAM, TR_U, TR_PIECE, TR_SIGNS, TR_CAUSE, TR_HIT,
@@ -476,20 +529,12 @@ def period(k, c_scale, linear, H, COEF, edges, jumps, TARGET, grid, w_start, sig
     counts[:] = 0
     u, j, p, cause = 0.0, 1, 0, EDGE
     carried = 0.0
-    E = EV_T.shape[0]
     while True:
-        e = counts[C_EVENTS]
+        status = begin_event(u, w, lam_cum, forced, max_events, zeno_events, zeno_window, EV_T,
+                             EV_W, EV_LAM, TR_HIT, counts, report)
+        if status != DONE:
+            return status
         t_count = counts[C_TRANSITIONS]
-        if e >= E or t_count + 2 > TR_U.shape[0]:
-            return OVERFLOW
-        EV_T[e], EV_W[e], EV_LAM[e] = u, w, lam_cum
-        counts[C_EVENTS] = e + 1
-        report[R_U] = u
-        if e + 1 > max_events:
-            return TOO_MANY
-        if e + 1 >= zeno_events and u - EV_T[e + 1 - zeno_events] <= zeno_window:
-            TR_HIT[t_count] = forced
-            return ZENO
         coef = COEF[p]
         if not decide(k, c_scale, linear, H, coef, u, w, forced, signs, chosen, phi, cvec, Bw):
             return HANDOFF
@@ -545,17 +590,8 @@ def period(k, c_scale, linear, H, COEF, edges, jumps, TARGET, grid, w_start, sig
             JUMP_PIECE[q], JUMP_U[q] = p, u
             JUMP_W[q, 0], JUMP_W[q, 1], JUMP_LAM[q] = w, w_next, lam_jump
             counts[C_JUMPS] = q + 1
-            w[:] = w_next
-            for r in range(m):
-                lam_cum[r] += lam_jump[r]
-            t_count = counts[C_TRANSITIONS]
-            TR_U[t_count], TR_PIECE[t_count], TR_SIGNS[t_count] = u, edge % P, signs
-            TR_CAUSE[t_count], TR_HIT[t_count] = JUMP, forced
-            counts[C_TRANSITIONS] = t_count + 1
-            je = 0
-            while grid[je] < u:
-                je += 1
-            W[je], LAMC[je] = w, lam_cum
+            after_jump(u, edge % P, w, w_next, lam_cum, lam_jump, signs, forced, grid, W, LAMC,
+                       TR_U, TR_PIECE, TR_SIGNS, TR_CAUSE, TR_HIT, counts)
         if edge == P:
             break
         p = edge
