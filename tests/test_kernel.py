@@ -120,15 +120,14 @@ def test_corrupted_piece_fails_the_sample_certificate():
     inverse, gram = eventloop.piece(loop.k, signs, w0, coef, D, l, dx0, Ydx, base, Wc,
                                     np.empty(N), np.empty(N))
     assert inverse > 0
-    grid = np.linspace(tr.u, record.transitions[2].u, 6)
-    G = len(grid)
+    PHI = stepper.basis.values(np.linspace(tr.u, record.transitions[2].u, 6))
+    G = len(PHI)
 
     def certify(base):
         W, LAMC, report = np.zeros((G, N - 1)), np.zeros((G, 2 * N)), np.zeros(8)
         ok = eventloop.certify_samples(
-            loop.k, float(np.max(loop.k)), loop.c_scale, stepper.basis.linear,
-            stepper.basis.harmonics, coef, signs, grid, 1, G, W, LAMC, lam_cum, dx0, Ydx, base,
-            Wc, inverse, gram, 0.0, 0.0, report, np.empty(nb), np.empty(2 * N),
+            loop.k, float(np.max(loop.k)), loop.c_scale, coef, signs, PHI, 1, G, W, LAMC,
+            lam_cum, dx0, Ydx, base, Wc, inverse, gram, 0.0, 0.0, report, np.empty(2 * N),
             np.empty(2 * N), np.empty(N))
         return ok, report
 

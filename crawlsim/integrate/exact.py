@@ -266,7 +266,7 @@ class EventStepper(PeriodStepper):
         record = PeriodRecord(self.period_index, start, W, multipliers, X,
                               self.projector.clarabel_calls - calls0, events=events,
                               visited=tuple(self._visited), transitions=tuple(transitions),
-                              energy=None if ledger is None else ledger.finish(W[0], W[-1]))
+                              energy_of=None if ledger is None else ledger.finish(W[0], W[-1]))
         return record
 
     def _guard(self, count, recent, u, start, rows):
@@ -621,8 +621,10 @@ class _CompiledLoop:
                 _, KLc, dLc, Mc, lc = stepper._ledger.terms(q)
                 self.terms[0, q], self.terms[1, q] = KLc, dLc
                 self.rows[0, q], self.rows[1, q] = Mc, lc
+        self.phi = np.ascontiguousarray(basis.values(stepper._grid))
         self.capacity = 64
         self.handoffs = 0
+        self._scratch: dict = {}
         catchup.announce_compilation("exact")
 
     @staticmethod
@@ -674,19 +676,26 @@ class _CompiledLoop:
         nb, P, G = s.basis.size, s.pieces.pieces, p.steps
         E = min(self.capacity, s.max_events + 1)
         T2 = E + P + 2
-        out: dict = {
-            "W": np.empty((G + 1, n)), "LAMC": np.empty((G + 1, m)), "ev_t": np.empty(E),
-            "ev_w": np.empty((E, n)), "ev_lam": np.empty((E, m)), "tr_u": np.empty(T2),
-            "tr_piece": np.empty(T2, dtype=np.int64), "tr_signs": np.empty((T2, N), dtype=np.int8),
-            "tr_cause": np.empty(T2, dtype=np.int8), "tr_hit": np.zeros((T2, m), dtype=np.bool_),
-            "bounds": np.empty((E, 2)), "products": np.empty((E, 3, nb, nb)),
-            "jump_piece": np.empty(P + 1, dtype=np.int64), "jump_u": np.empty(P + 1),
-            "jump_w": np.empty((P + 1, 2, n)), "jump_lam": np.empty((P + 1, m)),
-            "counts": np.zeros(4, dtype=np.int64), "report": np.zeros(8),
-            "signs": catchup.signs_of(s.active, N)}
+        out = self._scratch
+        if out.get("capacity") != E:  # work arrays kept from period to period
+            out.clear()
+            out.update({
+                "capacity": E, "ev_t": np.empty(E), "ev_w": np.empty((E, n)),
+                "ev_lam": np.empty((E, m)), "tr_u": np.empty(T2),
+                "tr_piece": np.empty(T2, dtype=np.int64),
+                "tr_signs": np.empty((T2, N), dtype=np.int8),
+                "tr_cause": np.empty(T2, dtype=np.int8),
+                "tr_hit": np.zeros((T2, m), dtype=np.bool_), "bounds": np.empty((E, 2)),
+                "products": np.empty((E, 3, nb, nb)),
+                "jump_piece": np.empty(P + 1, dtype=np.int64), "jump_u": np.empty(P + 1),
+                "jump_w": np.empty((P + 1, 2, n)), "jump_lam": np.empty((P + 1, m)),
+                "counts": np.zeros(4, dtype=np.int64), "report": np.zeros(8)})
+        out["W"], out["LAMC"] = np.empty((G + 1, n)), np.empty((G + 1, m))
+        out["signs"] = catchup.signs_of(s.active, N)
         out["status"] = eventloop.period(
             self.k, self.c_scale, s.basis.linear, s.basis.harmonics, self.coef, s.pieces.edges,
-            s._jump, self.target, s._grid, np.ascontiguousarray(s.w, dtype=float), out["signs"],
+            s._jump, self.target, s._grid, self.phi, np.ascontiguousarray(s.w, dtype=float),
+            out["signs"],
             s.max_events, s.zeno_events, s.zeno_window, s._ledger is not None, self.terms[0],
             self.terms[1], self.rows[0], self.rows[1], out["W"], out["LAMC"], out["ev_t"],
             out["ev_w"], out["ev_lam"], out["tr_u"], out["tr_piece"], out["tr_signs"],
@@ -713,19 +722,39 @@ class _CompiledLoop:
             s.x = X[-1].copy()
         s.w = W[-1].copy()
         energy = None
-        ledger = s._ledger
-        if ledger is not None:
-            ledger.start()
-            ledger.add_pieces(out["bounds"][:q], out["products"][:q, :ledger.products])
-            for i in range(nj):
-                ledger.jump(int(out["jump_piece"][i]), float(out["jump_u"][i]),
-                            out["jump_w"][i, 0], out["jump_w"][i, 1], out["jump_lam"][i])
-            energy = ledger.finish(W[0], W[-1])
-        signs = out["tr_signs"][:t]
-        transitions = _Transitions(s.poly, out["tr_u"][:t], out["tr_piece"][:t], signs,
-                                   out["tr_cause"][:t], out["tr_hit"][:t])
+        if s._ledger is not None:
+            energy = _Energy(s._ledger, out["bounds"][:q].copy(),
+                             out["products"][:q, :s._ledger.products].copy(),
+                             [(int(out["jump_piece"][i]), float(out["jump_u"][i]),
+                               out["jump_w"][i, 0].copy(), out["jump_w"][i, 1].copy(),
+                               out["jump_lam"][i].copy()) for i in range(nj)],
+                             W[0], W[-1])
+        signs = out["tr_signs"][:t].copy()
+        transitions = _Transitions(s.poly, out["tr_u"][:t].copy(), out["tr_piece"][:t].copy(),
+                                   signs, out["tr_cause"][:t].copy(), out["tr_hit"][:t].copy())
         events = EventTrajectory(start + out["ev_t"][:e] * T, out["ev_w"][:e].copy(), x_events)
         record = PeriodRecord(s.period_index, start, W, np.diff(LAMC, axis=0), X, 0,
                               events=events, visited=catchup.VisitedSets(s.poly, signs),
-                              transitions=transitions, energy=energy)
+                              transitions=transitions, energy_of=energy)
         return record
+
+
+@dataclass(frozen=True, eq=False)
+class _Energy:
+    """A period's energy ledger from the compiled loop's pieces and jumps, formed by the
+    stepper's `ExactLedger` when it is first read (`PeriodRecord.energy`)."""
+
+    ledger: ExactLedger
+    bounds: np.ndarray
+    products: np.ndarray
+    jumps: list
+    w_start: np.ndarray
+    w_end: np.ndarray
+
+    def __call__(self):
+        ledger = self.ledger
+        ledger.start()
+        ledger.add_pieces(self.bounds, self.products)
+        for jump in self.jumps:
+            ledger.jump(*jump)
+        return ledger.finish(self.w_start, self.w_end)

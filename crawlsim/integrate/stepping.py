@@ -102,12 +102,24 @@ class PeriodRecord:
     # projectors I - R_A B_A (`crawlsim.integrate.limit`).
     visited: Sequence = ()
     # The period's energy ledger integrated exactly on the event-driven integrator's pieces
-    # (`crawlsim.analysis.energy.PeriodEnergy`); None for catch-up, whose ledger follows from the grid.
-    energy: Any = None
+    # (`crawlsim.analysis.energy.PeriodEnergy`), or a callable that forms it when `energy` is
+    # first read (most periods' ledgers are never read); None for catch-up, whose ledger
+    # follows from the grid.
+    energy_of: Any = None
     # Event-driven integrators: every decision of the active set, in order (`Transition`).
     # `crawlsim.integrate.limit` adds the saltation of the events whose time depends on the start (the
     # hits) to the Jacobian.
     transitions: Sequence[Transition] = ()
+
+    @property
+    def energy(self) -> Any:
+        """The period's `crawlsim.analysis.energy.PeriodEnergy` (event-driven integrators), or
+        None."""
+        source = self.energy_of
+        if callable(source):
+            source = source()
+            object.__setattr__(self, "energy_of", source)
+        return source
 
     @property
     def slips(self) -> np.ndarray | None:

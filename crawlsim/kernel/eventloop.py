@@ -342,8 +342,8 @@ def next_event(c_scale, linear, H, coef, signs, base, Wc, Ydx, inverse, u0, u1, 
 
 # -- the grid samples of a piece and their certificate ------------------------------------------
 @njit(cache=True)
-def certify_samples(k, kmax, c_scale, linear, H, coef, signs, grid, j0, j1, W, LAMC, lam_cum,
-                    dx0, Ydx, base, Wc, inverse, gram, carried, own, report, phi, cvec, Bw, dx):
+def certify_samples(k, kmax, c_scale, coef, signs, PHI, j0, j1, W, LAMC, lam_cum, dx0, Ydx,
+                    base, Wc, inverse, gram, carried, own, report, cvec, Bw, dx):
     """W[j0:j1] and LAMC[j0:j1] at the grid times in the piece, each certified
     (`EventStepper._certify_piece`): in K(t_j), slip integrals >= 0 and complementary, to the
     kernel's tolerances; the first one carries the roundoff of earlier pieces (``carried``).
@@ -351,7 +351,7 @@ def certify_samples(k, kmax, c_scale, linear, H, coef, signs, grid, j0, j1, W, L
     N = signs.shape[0]
     m = 2 * N
     for j in range(j0, j1):
-        basis_values(grid[j], 0, linear, H, phi)
+        phi = PHI[j]  # phi at the grid times, tabulated once
         combine(phi, Wc, W[j])
         for i in range(N - 1):
             W[j, i] += base[i]
@@ -497,11 +497,12 @@ def after_jump(u, piece_after, w, w_next, lam_cum, lam_jump, signs, forced, grid
 
 
 @njit(cache=True)
-def period(k, c_scale, linear, H, COEF, edges, jumps, TARGET, grid, w_start, signs,
+def period(k, c_scale, linear, H, COEF, edges, jumps, TARGET, grid, PHI, w_start, signs,
            max_events, zeno_events, zeno_window, ledger, KLC, DLC, MC, LC,
            W, LAMC, EV_T, EV_W, EV_LAM, TR_U, TR_PIECE, TR_SIGNS, TR_CAUSE, TR_HIT,
            PIECE_BOUNDS, PIECE_TERMS, JUMP_PIECE, JUMP_U, JUMP_W, JUMP_LAM, counts, report):
-    """One period from w_start (in K(0)) with the warm set ``signs`` (left at the final set):
+    """One period from w_start (in K(0)) with the warm set ``signs`` (left at the final set), on
+    the grid ``grid`` (PHI: phi at its times):
     W and LAMC (cumulative slips) on the grid; the events, transitions, the pieces' energy
     terms (``ledger``) and the jumps into the other arrays, their numbers in ``counts``.
     Returns a status (module docstring)."""
@@ -562,9 +563,9 @@ def period(k, c_scale, linear, H, COEF, edges, jumps, TARGET, grid, w_start, sig
         while j_end < G1 and grid[j_end] <= u_e:
             j_end += 1
         if j_end > j:
-            if not certify_samples(k, kmax, c_scale, linear, H, coef, signs, grid, j, j_end, W,
-                                   LAMC, lam_cum, dx0, Ydx, base, Wc, inverse, gram, carried,
-                                   own, inner, phi, cvec, Bw, dx):
+            if not certify_samples(k, kmax, c_scale, coef, signs, PHI, j, j_end, W, LAMC,
+                                   lam_cum, dx0, Ydx, base, Wc, inverse, gram, carried, own,
+                                   inner, cvec, Bw, dx):
                 report[1:] = inner[1:]
                 return FAILED_PIECE
             carried = own
