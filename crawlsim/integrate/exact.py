@@ -595,6 +595,28 @@ class _Transitions(Sequence):
         return self._list()[i]
 
 
+class _Visited(Sequence):
+    """`PeriodRecord.visited` of a compiled period: `crawlsim.kernel.catchup.VisitedSets` of
+    its transitions' sets, formed when first read (`crawlsim.integrate.limit`)."""
+
+    def __init__(self, poly: Polyhedron, signs: np.ndarray):
+        self._args: tuple | None = (poly, signs)
+        self._sets: Sequence = ()
+
+    def _list(self) -> Sequence:
+        if self._args is not None:
+            from crawlsim.kernel.catchup import VisitedSets
+
+            self._sets, self._args = VisitedSets(*self._args), None
+        return self._sets
+
+    def __len__(self) -> int:
+        return len(self._list())
+
+    def __getitem__(self, i):
+        return self._list()[i]
+
+
 class _CompiledLoop:
     """The arrays of one crawler's compiled event loop (`crawlsim.kernel.eventloop.period`): the
     offsets' coefficients per piece, the jump targets and the energy terms, built once; the
@@ -625,6 +647,7 @@ class _CompiledLoop:
         self.capacity = 64
         self.handoffs = 0
         self._scratch: dict = {}
+        self._final: tuple[bytes, ActiveSet] = (b"", stepper.poly.empty)
         catchup.announce_compilation("exact")
 
     @staticmethod
@@ -711,7 +734,10 @@ class _CompiledLoop:
         e, t, q, nj = (int(v) for v in out["counts"])
         self.capacity = max(64, 2 * e)
         W, LAMC = out["W"], out["LAMC"]
-        s.active = s.poly.factor(catchup.rows_of(out["signs"]))
+        key = out["signs"].tobytes()
+        if key != self._final[0]:  # a periodic regime ends every period on the same set
+            self._final = key, s.poly.factor(catchup.rows_of(out["signs"]))
+        s.active = self._final[1]
         if s.check_every_step:
             s._verify(W, start)
         ev_lam = out["ev_lam"][:e]
@@ -734,7 +760,7 @@ class _CompiledLoop:
                                    signs, out["tr_cause"][:t].copy(), out["tr_hit"][:t].copy())
         events = EventTrajectory(start + out["ev_t"][:e] * T, out["ev_w"][:e].copy(), x_events)
         record = PeriodRecord(s.period_index, start, W, np.diff(LAMC, axis=0), X, 0,
-                              events=events, visited=catchup.VisitedSets(s.poly, signs),
+                              events=events, visited=_Visited(s.poly, signs),
                               transitions=transitions, energy_of=energy)
         return record
 
