@@ -274,6 +274,16 @@ def crossing(z, tol, u0, u1, linear, H):
         return np.inf
     if H == 0:
         return events.linear_crossing(z[0], z[1], tol, u0, u1)
+    # f <= a + max(s u0, s u1) + |alpha| + |beta| on the piece: a row that cannot reach its
+    # tolerance has no event (the closed forms and the sampling agree), without their trig
+    # (the bound's own roundoff is covered by 1e-12 of its terms' size)
+    top = z[0] + abs(z[nb - 2]) + abs(z[nb - 1])
+    size = abs(z[0]) + abs(z[nb - 2]) + abs(z[nb - 1])
+    if linear:
+        top += max(z[1] * u0, z[1] * u1)
+        size += abs(z[1]) * max(abs(u0), abs(u1))
+    if top + 1e-12 * size < tol:
+        return np.inf
     if H == 1 and not linear:
         return events.harmonic_crossing(z[0], z[1], z[2], tol, u0, u1)
     if H == 1 and z[1] == 0.0:
