@@ -36,6 +36,15 @@ level up. Rows still degenerate after `DECISION_ORDERS` orders stay tight withou
 (their gap and rate vanish identically, as for piecewise-linear offsets). Every such problem is
 solved by the kernel (Clarabel proposes only when its updates do not settle).
 
+**Where it runs.** For a crawler whose offsets are linear or one harmonic (with or without a
+linear part), the whole period, every step above and the certificate of every sample, runs in
+the compiled event loop `crawlsim.kernel.eventloop` (numba; one source, which runs as Python
+under ``NUMBA_DISABLE_JIT=1``). A period it cannot finish on its own (a velocity problem or a
+jump projection whose active-set updates do not settle, a dependent tight set, a zero that
+needs sampling) is handed over whole to the Python loop below, which decides with Clarabel;
+generic processes and offsets with several harmonics always take the Python loop. A failed
+certificate is a `CertificateError` in both.
+
 **Robustness.** More than ``max_events`` events in one period, or `ZENO_EVENTS` events within
 `ZENO_WINDOW` T of each other (a genuine Zeno accumulation), stops the run with an `EventError`
 naming the time and the constraints involved.
