@@ -24,6 +24,21 @@ measured before the compiled kernel by it (bar: >= 30):
 
     crawlsim velocity gaits/peristalsis-4.yaml --sweep 'links.1.phase=0:1:120' -j 1 -o OUT.csv
 
+The exact integrator's period against the reference (exact/ref, bar <= 3), medians of three runs
+of this script on a 2-core machine shared with other jobs (load 9-13):
+
+    wave       N    before (b994998, wall)   compiled event loop (wall / --clock cpu)
+    segments   4          67.7                     3.3 / 3.7
+    segments  16          55.0                     2.6 / 2.4
+    segments  64          57.0                    13.9 / 3.3   (wall runs 23.8, 13.9, 1.4: preempted)
+    segments 256          29.1                     4.1 / 4.5
+    segments 1024         10.0                     4.0 / 3.8
+    body       4          62.3                     3.6 / 3.3
+    body      16          64.4                     2.4 / 2.5
+    body      64           9.4                     1.3 / 1.3
+    body     256           3.3                     1.3 / 1.3
+    body    1024           5.6                     1.1 / 1.0
+
 Before the kernel (commit 3423cad, 2-core machine shared with other jobs): 3.29, 3.21, 3.04 s,
 median 3.21 s (37 points/s). The catch-up step on the segments wave at 1000 steps per period was
 then 3.09, 10.1 and 24.2 us at N = 4, 16 and 64 (median of 3 runs of 3 periods, the in-process
