@@ -282,3 +282,20 @@ def test_harmonic_crossing_closed_form():
     harmonic_crossings(np.array([-0.5]), np.array([0.0]), np.array([1.0]),
                        np.array([1e-14]), 0.0, 1.0, out)
     assert out[0] == pytest.approx(1 / 12, abs=1e-14)
+
+
+@pytest.mark.parametrize("name", ["peristalsis-4", "anchoring-2"])
+def test_compiled_loop_samples_taken_at_wrong_times_raise(name):
+    """The compiled event loop writes its grid samples from phi at the grid times, which it
+    receives tabulated: tabulated 0.01 cycle late, every sample is the piece's closed form at
+    the wrong time, off its interval where gaps have crossed zero, and the period stops with
+    the sample certificate's `CertificateError` (naming the time), not with wrong results."""
+    process = compile_gait(load_gait(ROOT / "gaits" / f"{name}.yaml"), 100)
+    stepper = EventStepper(process)
+    stepper.step_period()
+    loop = stepper._loop
+    assert loop is not None
+    loop.phi = np.ascontiguousarray(stepper.basis.values(stepper._grid + 0.01))
+    with pytest.raises(CertificateError, match=r"exact trajectory failed its certificate at "
+                                               r"t = 1\.\d+: constraint violation"):
+        stepper.step_period()

@@ -128,7 +128,8 @@ class EventStepper(PeriodStepper):
     trajectory with Clarabel: every sampled state is projected onto K(t_j) and must be its own
     projection. ``max_events`` bounds the events per period, ``zeno_events`` and
     ``zeno_window`` (fraction of T) set the accumulation test, ``cells_per_cycle`` the sampling
-    where zeros have no closed form.
+    where zeros have no closed form. ``kernel=False`` keeps a crawler on the Python loop (the
+    path of generic processes), for comparison.
     """
 
     #: A period must start in K(0) (`crawlsim.integrate.limit` projects a Newton candidate first).
@@ -137,7 +138,8 @@ class EventStepper(PeriodStepper):
 
     def __init__(self, process: SweepingProcess, *, check_every_step: bool = False,
                  max_events: int = MAX_EVENTS, zeno_events: int = ZENO_EVENTS,
-                 zeno_window: float = ZENO_WINDOW, cells_per_cycle: int = CELLS_PER_CYCLE):
+                 zeno_window: float = ZENO_WINDOW, cells_per_cycle: int = CELLS_PER_CYCLE,
+                 kernel: bool = True):
         if process.offset_pieces is None:
             raise EventError(f"{process.name}: the exact integrator needs the closed form of "
                              "c(t) that gait and process files provide; use --integrator "
@@ -163,7 +165,7 @@ class EventStepper(PeriodStepper):
             left = self.pieces.evaluate(edges[p], piece=p - 1)[0]
             right = self.pieces.evaluate(edges[p] if p < P else 0.0, piece=p % P)[0]
             self._jump[p] = np.max(np.abs(left - right)) > 100 * RTOL * self.poly.c_scale
-        self._loop = _CompiledLoop.of(self)
+        self._loop = _CompiledLoop.of(self) if kernel else None
 
     # -- one period -------------------------------------------------------------------------
     def _step_impl(self) -> PeriodRecord:
