@@ -715,7 +715,7 @@ class _CompiledLoop:
             out.clear()
             out.update({
                 "capacity": E, "ev_t": np.empty(E), "ev_w": np.empty((E, n)),
-                "ev_lam": np.empty((E, m)), "tr_u": np.empty(T2),
+                "ev_dx": np.empty((E, N)), "tr_u": np.empty(T2),
                 "tr_piece": np.empty(T2, dtype=np.int64),
                 "tr_signs": np.empty((T2, N), dtype=np.int8),
                 "tr_cause": np.empty(T2, dtype=np.int8),
@@ -732,7 +732,7 @@ class _CompiledLoop:
             out["signs"],
             s.max_events, s.zeno_events, s.zeno_window, s._ledger is not None, self.terms[0],
             self.terms[1], self.rows[0], self.rows[1], out["W"], out["LAMC"], out["ev_t"],
-            out["ev_w"], out["ev_lam"], out["tr_u"], out["tr_piece"], out["tr_signs"],
+            out["ev_w"], out["ev_dx"], out["tr_u"], out["tr_piece"], out["tr_signs"],
             out["tr_cause"], out["tr_hit"], out["bounds"], out["products"], out["jump_piece"],
             out["jump_u"], out["jump_w"], out["jump_lam"], out["counts"], out["report"])
         return out
@@ -743,7 +743,7 @@ class _CompiledLoop:
         p, T = s.process, s.process.period
         start = s.period_index * T
         e, t, q, nj = (int(v) for v in out["counts"])
-        self.capacity = max(64, 2 * e)
+        self.capacity = max(64, e + e // 4 + 16)  # room for a few more events next period
         W, LAMC = out["W"], out["LAMC"]
         key = out["signs"].tobytes()
         if key != self._final[0]:  # a periodic regime ends every period on the same set
@@ -751,11 +751,10 @@ class _CompiledLoop:
         s.active = self._final[1]
         if s.check_every_step:
             s._verify(W, start)
-        ev_lam = out["ev_lam"][:e]
         X = x_events = None
         if s.x is not None:
             X = s.x + p.slips(LAMC)
-            x_events = s.x + p.slips(ev_lam)
+            x_events = s.x + out["ev_dx"][:e]
             s.x = X[-1].copy()
         s.w = W[-1].copy()
         energy = None

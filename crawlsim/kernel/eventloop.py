@@ -468,7 +468,7 @@ def jump(k, c_scale, w, target, signs, w_out, lam, report):
 
 # -- one period -----------------------------------------------------------------------------------
 @njit(cache=True)
-def begin_event(u, w, lam_cum, forced, max_events, zeno_events, zeno_window, EV_T, EV_W, EV_LAM,
+def begin_event(u, w, lam_cum, forced, max_events, zeno_events, zeno_window, EV_T, EV_W, EV_DX,
                 TR_HIT, counts, report):
     """Record the state at an event and apply the guards (`EventStepper._guard`): DONE, or
     OVERFLOW (the arrays are full), TOO_MANY or ZENO (the rows hit in TR_HIT at the count of
@@ -477,7 +477,10 @@ def begin_event(u, w, lam_cum, forced, max_events, zeno_events, zeno_window, EV_
     t_count = counts[C_TRANSITIONS]
     if e >= EV_T.shape[0] or t_count + 2 > TR_HIT.shape[0]:
         return OVERFLOW
-    EV_T[e], EV_W[e], EV_LAM[e] = u, w, lam_cum
+    N = EV_DX.shape[1]
+    EV_T[e], EV_W[e] = u, w
+    for i in range(N):  # the block slips so far (positions): lambda^+ - lambda^-
+        EV_DX[e, i] = lam_cum[i] - lam_cum[N + i]
     counts[C_EVENTS] = e + 1
     report[R_U] = u
     if e + 1 > max_events:
@@ -509,7 +512,7 @@ def after_jump(u, piece_after, w, w_next, lam_cum, lam_jump, signs, forced, grid
 @njit(cache=True)
 def period(k, c_scale, linear, H, COEF, edges, jumps, TARGET, grid, PHI, w_start, signs,
            max_events, zeno_events, zeno_window, ledger, KLC, DLC, MC, LC,
-           W, LAMC, EV_T, EV_W, EV_LAM, TR_U, TR_PIECE, TR_SIGNS, TR_CAUSE, TR_HIT,
+           W, LAMC, EV_T, EV_W, EV_DX, TR_U, TR_PIECE, TR_SIGNS, TR_CAUSE, TR_HIT,
            PIECE_BOUNDS, PIECE_TERMS, JUMP_PIECE, JUMP_U, JUMP_W, JUMP_LAM, counts, report):
     """One period from w_start (in K(0)) with the warm set ``signs`` (left at the final set), on
     the grid ``grid`` (PHI: phi at its times):
@@ -542,7 +545,7 @@ def period(k, c_scale, linear, H, COEF, edges, jumps, TARGET, grid, PHI, w_start
     carried = 0.0
     while True:
         status = begin_event(u, w, lam_cum, forced, max_events, zeno_events, zeno_window, EV_T,
-                             EV_W, EV_LAM, TR_HIT, counts, report)
+                             EV_W, EV_DX, TR_HIT, counts, report)
         if status != DONE:
             return status
         t_count = counts[C_TRANSITIONS]
