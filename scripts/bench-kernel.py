@@ -17,12 +17,27 @@ runs of ``--periods`` periods (after one period from the initial state, and afte
 * exact: one period of the exact integrator / one period of the reference (bar: <= 3).
 
     python scripts/bench-kernel.py [--sizes 4,16,64,256,1024] [--waves segments,body]
-                                   [--periods 3] [--repeats 3] [--sweep]
+                                   [--periods 3] [--repeats 3] [--sweep] [--clock wall|cpu]
 
 ``--sweep`` also times the exact 1-D sweep of the bar (120 points, -j 1) and divides the figure
 measured before the compiled kernel by it (bar: >= 30):
 
     crawlsim velocity gaits/peristalsis-4.yaml --sweep 'links.1.phase=0:1:120' -j 1 -o OUT.csv
+
+The exact integrator's period against the reference (exact/ref, bar <= 3), medians of three runs
+of this script on a 2-core machine shared with other jobs (load 9-13):
+
+    wave       N    before (b994998, wall)   compiled event loop (wall / --clock cpu)
+    segments   4          67.7                     3.3 / 3.7
+    segments  16          55.0                     2.6 / 2.4
+    segments  64          57.0                    13.9 / 3.3   (wall runs 23.8, 13.9, 1.4: preempted)
+    segments 256          29.1                     4.1 / 4.5
+    segments 1024         10.0                     4.0 / 3.8
+    body       4          62.3                     3.6 / 3.3
+    body      16          64.4                     2.4 / 2.5
+    body      64           9.4                     1.3 / 1.3
+    body     256           3.3                     1.3 / 1.3
+    body    1024           5.6                     1.1 / 1.0
 
 Before the kernel (commit 3423cad, 2-core machine shared with other jobs): 3.29, 3.21, 3.04 s,
 median 3.21 s (37 points/s). The catch-up step on the segments wave at 1000 steps per period was
@@ -124,6 +139,11 @@ def _process(N: int, wave: str):
     return compile_gait(gait_from_document(doc, f"wave-{N}"))
 
 
+#: The clock of the measurements (``--clock``): wall time, or the process's CPU time, which a
+#: machine shared with other jobs does not inflate by preemption.
+CLOCK = time.perf_counter
+
+
 def measure(N: int, wave: str, periods: int, repeats: int):
     """(reference s/period, catch-up s/period, exact s/period, max |w - w_reference|)."""
     process = _process(N, wave)
@@ -143,16 +163,16 @@ def measure(N: int, wave: str, periods: int, repeats: int):
     for _ in range(repeats):
         for _ in range(periods):
             start = catch_up.w.copy()
-            began = time.perf_counter()
+            began = CLOCK()
             record = catch_up.step_period()
-            cu.append(time.perf_counter() - began)
-            began = time.perf_counter()
+            cu.append(CLOCK() - began)
+            began = CLOCK()
             reference_period(k, C, start, signs, W)
-            ref.append(time.perf_counter() - began)
+            ref.append(CLOCK() - began)
             diff = max(diff, float(np.max(np.abs(W - record.w))))
-            began = time.perf_counter()
+            began = CLOCK()
             exact.step_period()
-            ex.append(time.perf_counter() - began)
+            ex.append(CLOCK() - began)
     return statistics.median(ref), statistics.median(cu), statistics.median(ex), diff
 
 
@@ -177,9 +197,13 @@ def main() -> int:
     parser.add_argument("--periods", type=int, default=3)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--sweep", action="store_true")
+    parser.add_argument("--clock", choices=("wall", "cpu"), default="wall")
     args = parser.parse_args()
+    global CLOCK
+    CLOCK = time.process_time if args.clock == "cpu" else time.perf_counter
     sizes = [int(s) for s in args.sizes.split(",") if s]
-    print(f"1000 steps per period; medians of {args.repeats} x {args.periods} interleaved periods")
+    print(f"1000 steps per period; medians of {args.repeats} x {args.periods} interleaved periods "
+          f"({args.clock} clock)")
     print(f"{'wave':>9} {'N':>5} {'reference us/step':>18} {'catch-up us/step':>17} "
           f"{'catch-up/ref':>13} {'exact ms/period':>16} {'exact/ref period':>17} "
           f"{'max|dw|':>9}")

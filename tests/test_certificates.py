@@ -16,8 +16,9 @@ a `CertificateError` instead of going on:
 * the iterative refinement of the kernel: an ill-conditioned generic process whose first solve
   misses its complementarity tolerance, so that only the refined step is certified.
 
-The piece and the jump are reached through the stepper's ``_piece`` and its projector (there is
-no other way to corrupt one piece alone); the rest goes through public interfaces.
+The piece and the jump are reached through the stepper's ``_piece`` and its projector on the
+Python loop (``kernel=False``; there is no other way to corrupt one piece alone); the rest goes
+through public interfaces. The compiled loop's own corruptions are in tests/test_kernel.py.
 """
 
 from __future__ import annotations
@@ -98,10 +99,10 @@ def periods(stepper, count: int = 3) -> None:
 @pytest.mark.parametrize("name", CORRUPTIBLE)
 @pytest.mark.parametrize("integrator", INTEGRATORS)
 def test_a_wrong_step_raises_in_both_integrators(integrator, name):
-    """Wrong solves of every active set raise. Catch-up runs here on the Python path of
+    """Wrong solves of every active set raise. Both integrators run here on the Python path of
     `crawlsim.kernel.kkt` (``kernel=False``), the one the polyhedron's factors reach; the compiled
-    kernel's own corrupted factor is tests/test_kernel.py::test_corrupted_factor_raises_..."""
-    options = {"kernel": False} if integrator == "catch-up" else {}
+    kernel's own corrupted factor and piece are in tests/test_kernel.py."""
+    options = {"kernel": False}
     process = process_of(name)
     # the uncorrupted run is certified
     periods(make_stepper(process_of(name), integrator, **options))
@@ -112,7 +113,7 @@ def test_a_wrong_step_raises_in_both_integrators(integrator, name):
 
 @pytest.mark.parametrize("name", CORRUPTIBLE)
 def test_a_corrupted_exact_piece_raises(name):
-    stepper = make_stepper(process_of(name), "exact")
+    stepper = make_stepper(process_of(name), "exact", kernel=False)
     periods(stepper)  # certified
     corrupt_pieces(stepper)
     with pytest.raises(CertificateError, match="exact trajectory failed its certificate"):
@@ -122,7 +123,8 @@ def test_a_corrupted_exact_piece_raises(name):
 def test_clarabel_check_of_every_step_catches_a_corrupted_piece_alone():
     """``check_every_step``: Clarabel must find a state outside K(t_j) by itself, with the
     kernel's certificate of the sampled trajectory switched off."""
-    stepper = make_stepper(process_of("peristalsis-4"), "exact", check_every_step=True)
+    stepper = make_stepper(process_of("peristalsis-4"), "exact", check_every_step=True,
+                           kernel=False)
     periods(stepper, 1)
     corrupt_pieces(stepper, relative=1e-6)
     stepper._certify_piece = lambda *args: 0.0
@@ -133,7 +135,7 @@ def test_clarabel_check_of_every_step_catches_a_corrupted_piece_alone():
 def test_a_corrupted_jump_raises():
     """anchoring-2: the friction of both blocks jumps at t = T/2 and T; the state after the
     jump is the projector's, pushed out of K(t+) here."""
-    stepper = make_stepper(process_of("anchoring-2"), "exact")
+    stepper = make_stepper(process_of("anchoring-2"), "exact", kernel=False)
     periods(stepper)
     poly, project = stepper.poly, stepper.projector.project
     jumps = []

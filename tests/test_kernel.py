@@ -27,7 +27,7 @@ from crawlsim.errors import CertificateError
 from crawlsim.gait.document import load_gait
 from crawlsim.integrate.exact import EventStepper
 from crawlsim.integrate.stepping import CatchUpStepper
-from crawlsim.kernel import catchup, chain, kkt
+from crawlsim.kernel import catchup, chain, eventloop, kkt
 from crawlsim.model.process import compile_gait
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -62,33 +62,81 @@ def test_kernel_steps_are_the_kkt_steps(path):
 
 
 @pytest.mark.parametrize("path", CRAWLERS, ids=lambda p: p.stem)
-def test_exact_velocity_problems_in_the_kernel_change_nothing(path, monkeypatch):
-    """The exact integrator's velocity problems (Moreau's, and the higher orders with the rows
-    already decided as equalities) solved and certified by the compiled kernel, or by
-    `crawlsim.kernel.kkt` (the kernel switched off): the same certified KKT points, so the same
-    decisions, events and states, to roundoff, and v0 of each period to 1e-12."""
+def test_compiled_event_loop_changes_nothing(path, monkeypatch):
+    """The exact integrator's compiled event loop (`crawlsim.kernel.eventloop`) against its
+    Python loop with the velocity problems solved by `crawlsim.kernel.kkt` (the kernel switched
+    off): the same certified KKT points, so the same decisions, events and states to roundoff,
+    v0 of each period to 1e-12 and the same energy ledger (1e-12 relative)."""
     process = compile_gait(load_gait(path))
-    calls = []
-    fast_velocity = catchup.velocity
-
-    def counted(*args):
-        found = fast_velocity(*args)
-        calls.append(found is not None)
-        return found
-
-    monkeypatch.setattr(catchup, "velocity", counted)
     fast = EventStepper(process)
+    closed_form = fast._loop is not None
     fast_records = [fast.step_period() for _ in range(2)]
+    assert (fast._loop is not None) == closed_form  # no period was handed over
     monkeypatch.setattr(catchup, "velocity", lambda *args: None)
     slow = EventStepper(process)
+    slow._loop = None
     for a in fast_records:
         b = slow.step_period()
         assert np.max(np.abs(a.w - b.w)) <= 1e-12 * max(1.0, float(np.max(np.abs(b.w))))
         v_a = float(np.mean(a.x[-1] - a.x[0])) / process.period
         v_b = float(np.mean(b.x[-1] - b.x[0])) / process.period
         assert abs(v_a - v_b) <= 1e-12
-        assert len(a.events.t) == len(b.events.t)
-    assert any(calls)  # the kernel did decide (events with tight rows happen on every gait)
+        assert np.max(np.abs(a.events.t - b.events.t)) <= 1e-12
+        assert [(t.cause, t.piece, t.active.index.tolist(), t.hit.tolist())
+                for t in a.transitions] == [(t.cause, t.piece, t.active.index.tolist(),
+                                             t.hit.tolist()) for t in b.transitions]
+        assert [A.index.tolist() for A in a.visited] == [A.index.tolist() for A in b.visited]
+        for name in ("work", "dissipation", "jump_loss"):
+            x, y = getattr(a.energy, name), getattr(b.energy, name)
+            assert abs(x - y) <= 1e-12 * max(1.0, abs(y)), name
+
+
+def test_example_crawlers_take_the_compiled_event_loop():
+    """Every example crawler whose offsets are linear or one harmonic runs compiled."""
+    names = {p.stem for p in CRAWLERS
+             if EventStepper(compile_gait(load_gait(p)))._loop is not None}
+    assert {"inching-2", "peristalsis-4", "anchoring-2", "earthworm-100"} <= names
+
+
+def test_corrupted_piece_fails_the_sample_certificate():
+    """The grid samples of a piece of peristalsis-4 pass their certificate as computed, and fail
+    it (a constraint violated, complementarity lost) when the piece's state is shifted by 1e-9
+    relative: `certify_samples` is what stands between a wrong piece and the results. (Making
+    it return True lets the corrupted piece through.)"""
+    process = compile_gait(load_gait(ROOT / "gaits" / "peristalsis-4.yaml"))
+    stepper = EventStepper(process)
+    stepper.step_period()
+    record = stepper.step_period()
+    loop = stepper._loop
+    assert loop is not None
+    tr = record.transitions[1]
+    i = int(np.argmin(np.abs((record.events.t - record.start) / process.period - tr.u)))
+    w0, lam_cum = record.events.w[i], np.zeros(process.polyhedron.m)
+    signs = catchup.signs_of(tr.active, process.blocks)
+    N, nb = process.blocks, stepper.basis.size
+    coef = loop.coef[tr.piece]
+    D, l, dx0, Ydx = np.empty(N), np.empty(N - 1), np.empty(N), np.empty((nb, N))
+    base, Wc = np.empty(N - 1), np.empty((nb, N - 1))
+    inverse, gram = eventloop.piece(loop.k, signs, w0, coef, D, l, dx0, Ydx, base, Wc,
+                                    np.empty(N), np.empty(N))
+    assert inverse > 0
+    PHI = stepper.basis.values(np.linspace(tr.u, record.transitions[2].u, 6))
+    G = len(PHI)
+
+    def certify(base):
+        W, LAMC, report = np.zeros((G, N - 1)), np.zeros((G, 2 * N)), np.zeros(8)
+        ok = eventloop.certify_samples(
+            loop.k, float(np.max(loop.k)), loop.c_scale, coef, signs, PHI, 1, G, W, LAMC,
+            lam_cum, dx0, Ydx, base, Wc, inverse, gram, 0.0, 0.0, report, np.empty(2 * N),
+            np.empty(2 * N), np.empty(N))
+        return ok, report
+
+    ok, _ = certify(base)
+    assert ok
+    shift = 1e-9 * float(np.max(np.abs(base))) * np.where(np.arange(N - 1) % 2, 1.0, -1.0)
+    ok, report = certify(base + shift)
+    assert not ok
+    assert max(report[eventloop.R_PRIMAL], report[eventloop.R_COMP]) > report[eventloop.R_TOLP]
 
 
 RUN_PERIODS = """\
@@ -104,7 +152,9 @@ for path in json.loads(sys.argv[1]):
     for stepper in (CatchUpStepper(process), EventStepper(process)):
         records = [stepper.step_period() for _ in range(2)]
         out[f"{path} {type(stepper).__name__}"] = [
-            [r.w.tobytes().hex(), r.multipliers.tobytes().hex()] for r in records]
+            [r.w.tobytes().hex(), r.multipliers.tobytes().hex()]
+            + ([] if r.events is None else [r.events.t.tobytes().hex(), repr(r.energy)])
+            for r in records]
 with open(sys.argv[2], "w") as f:
     json.dump(out, f)
 """
@@ -121,8 +171,9 @@ def _periods(paths, out: Path, disable_jit: bool) -> dict:
 
 
 def test_compiled_and_python_kernels_agree_bit_for_bit(tmp_path):
-    """Two periods of catch-up and of the exact integrator (the velocity problems and the
-    closed-form events run in the kernel) on four gaits."""
+    """Two periods of catch-up and of the exact integrator (its compiled event loop on three
+    gaits, the Python loop with the kernel's velocity problems on smooth-friction-3): states,
+    slips, event times and energy ledgers, bit for bit."""
     paths = [str(ROOT / "gaits" / f"{name}.yaml") for name in BITWISE]
     compiled = _periods(paths, tmp_path / "compiled.json", disable_jit=False)
     python = _periods(paths, tmp_path / "python.json", disable_jit=True)
@@ -231,3 +282,20 @@ def test_harmonic_crossing_closed_form():
     harmonic_crossings(np.array([-0.5]), np.array([0.0]), np.array([1.0]),
                        np.array([1e-14]), 0.0, 1.0, out)
     assert out[0] == pytest.approx(1 / 12, abs=1e-14)
+
+
+@pytest.mark.parametrize("name", ["peristalsis-4", "anchoring-2"])
+def test_compiled_loop_samples_taken_at_wrong_times_raise(name):
+    """The compiled event loop writes its grid samples from phi at the grid times, which it
+    receives tabulated: tabulated 0.01 cycle late, every sample is the piece's closed form at
+    the wrong time, off its interval where gaps have crossed zero, and the period stops with
+    the sample certificate's `CertificateError` (naming the time), not with wrong results."""
+    process = compile_gait(load_gait(ROOT / "gaits" / f"{name}.yaml"), 100)
+    stepper = EventStepper(process)
+    stepper.step_period()
+    loop = stepper._loop
+    assert loop is not None
+    loop.phi = np.ascontiguousarray(stepper.basis.values(stepper._grid + 0.01))
+    with pytest.raises(CertificateError, match=r"exact trajectory failed its certificate at "
+                                               r"t = 1\.\d+: constraint violation"):
+        stepper.step_period()

@@ -6,10 +6,16 @@ import pytest
 from crawlsim.analysis.run import simulate
 from crawlsim.api import run
 from crawlsim.gait.document import load_gait, with_simulation
-from crawlsim.integrate.stepping import CatchUpStepper
+from crawlsim.integrate.stepping import (
+    STEPPERS,
+    CatchUpStepper,
+    PeriodStepper,
+    make_stepper,
+    stepper_class,
+)
 from crawlsim.model.process import compile_gait, period_grid
 
-from .conftest import GAITS, iterated_examples, make_gait
+from .conftest import GAITS, iterated_examples, make_gait, two_block
 
 EXAMPLES = iterated_examples()
 
@@ -140,3 +146,43 @@ def test_isolated_uniqueness_crossing_on_a_grid_time_is_refused_with_time_and_bl
         run(_isolated_crossing_gait(100))
     # Off the grid the crossing is harmless: the gait runs.
     assert run(_isolated_crossing_gait(101)).converged
+
+
+# -- the stepper contract and the registry of integrators ---------------------------------------
+
+@pytest.mark.parametrize("name", sorted(STEPPERS))
+def test_registered_integrators_follow_the_contract(name):
+    """Every integrator is a `PeriodStepper` that implements `_step_impl` and inherits the
+    public `step_period`, which numbers the periods; the registry says its order and whether
+    it is exact (order 0 exactly when exact)."""
+    entry = STEPPERS[name]
+    cls = stepper_class(name)
+    assert issubclass(cls, PeriodStepper)
+    assert cls.step_period is PeriodStepper.step_period
+    assert cls._step_impl is not PeriodStepper._step_impl
+    assert entry.exact == (entry.order == 0)
+    stepper = make_stepper(compile_gait(two_block(steps=50)), name)
+    records = [stepper.step_period() for _ in range(3)]
+    assert [r.index for r in records] == [0, 1, 2] and stepper.period_index == 3
+    assert [r.start for r in records] == [0.0, 1.0, 2.0]
+
+
+@pytest.mark.parametrize("name", sorted(STEPPERS))
+@pytest.mark.parametrize("steps", [50, 200])
+def test_registered_integrators_meet_the_two_block_closed_form(name, steps):
+    """v0 of the two-block inching gait is 2 a - 2 mu+ / k (test_exact's closed form); each
+    registered integrator's error is within its order: roundoff for an exact one, at most
+    (2 a) h^order with h = 1 / steps otherwise."""
+    amplitude, k, mu_plus = 0.3, 10.0, 1.0
+    delta = 2 * amplitude - 2 * mu_plus / k
+    stepper = make_stepper(compile_gait(two_block(amplitude, k, steps=steps)), name)
+    record = [stepper.step_period() for _ in range(4)][-1]
+    v0 = float(np.mean(record.x[-1] - record.x[0]))
+    entry = STEPPERS[name]
+    bound = 1e-12 if entry.exact else 2 * amplitude * (1.0 / steps) ** entry.order
+    assert abs(v0 - delta) <= bound
+
+
+def test_unknown_integrator_is_named():
+    with pytest.raises(ValueError, match="unknown integrator 'rk4'; expected one of catch-up, exact"):
+        make_stepper(compile_gait(two_block()), "rk4")

@@ -280,6 +280,21 @@ class ExactLedger:
             self._cache[p] = cached
         return cached
 
+    @property
+    def products(self) -> int:
+        """Products a piece keeps: work and dissipation, and the load's work with loads."""
+        return 2 if self.constant is None else 3
+
+    def terms(self, p: int) -> tuple[np.ndarray, ...]:
+        """(Lc, K Lc, Lc', Mc, lc) of piece p of c(t), as `piece` uses them."""
+        return self._split(p)
+
+    def add_pieces(self, bounds: np.ndarray, products: np.ndarray) -> None:
+        """Add pieces [u0, u1] (rows of ``bounds``) whose products (K, `products`, nb, nb)
+        were formed elsewhere (the compiled event loop, `crawlsim.kernel.eventloop`)."""
+        self._bounds.extend((float(a), float(b)) for a, b in bounds)
+        self._products.extend(products)
+
     def piece(self, p: int, u0: float, u1: float, base: np.ndarray, Wc: np.ndarray,
               active: np.ndarray, Y: np.ndarray) -> None:
         """Add the piece [u0, u1] of piece p of c(t): w(u) = base + phi(u) @ Wc, slips of the

@@ -36,6 +36,15 @@ level up. Rows still degenerate after `DECISION_ORDERS` orders stay tight withou
 (their gap and rate vanish identically, as for piecewise-linear offsets). Every such problem is
 solved by the kernel (Clarabel proposes only when its updates do not settle).
 
+**Where it runs.** For a crawler whose offsets are linear or one harmonic (with or without a
+linear part), the whole period, every step above and the certificate of every sample, runs in
+the compiled event loop `crawlsim.kernel.eventloop` (numba; one source, which runs as Python
+under ``NUMBA_DISABLE_JIT=1``). A period it cannot finish on its own (a velocity problem or a
+jump projection whose active-set updates do not settle, a dependent tight set, a zero that
+needs sampling) is handed over whole to the Python loop below, which decides with Clarabel;
+generic processes and offsets with several harmonics always take the Python loop. A failed
+certificate is a `CertificateError` in both.
+
 **Robustness.** More than ``max_events`` events in one period, or `ZENO_EVENTS` events within
 `ZENO_WINDOW` T of each other (a genuine Zeno accumulation), stops the run with an `EventError`
 naming the time and the constraints involved.
@@ -52,17 +61,17 @@ from __future__ import annotations
 import math
 import warnings
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import NamedTuple, cast
 
 import numpy as np
 
 from crawlsim.analysis.energy import ExactLedger
 from crawlsim.errors import CertificateError, DegenerateModelError, EventError, LicqWarning
 from crawlsim.integrate.stepping import PeriodRecord, PeriodStepper, Transition, TransitionCause
-from crawlsim.kernel.kkt import RTOL, ActiveSet, Dependent, Tolerance
-from crawlsim.kernel.projection import ExactProjector
-from crawlsim.model.offsets import TWO_PI
+from crawlsim.kernel.kkt import RTOL, ActiveSet, ChainPolyhedron, Dependent, Polyhedron, Tolerance
+from crawlsim.model.offsets import TWO_PI, PiecewiseOffsets
 from crawlsim.model.process import SweepingProcess
 
 #: Default bound on the number of events in one period.
@@ -75,6 +84,9 @@ ZENO_WINDOW = 1e-9
 DECISION_ORDERS = 4
 #: Sampling cells per cycle and harmonic where no closed form gives the zeros.
 CELLS_PER_CYCLE = 64
+#: Periods the compiled event loop may hand over to the Python loop before a stepper stops
+#: trying it (a gait whose zeros need sampling, or whose velocity problems need Clarabel).
+LOOP_HANDOFFS = 3
 
 
 class EventTrajectory(NamedTuple):
@@ -116,37 +128,29 @@ class EventStepper(PeriodStepper):
     trajectory with Clarabel: every sampled state is projected onto K(t_j) and must be its own
     projection. ``max_events`` bounds the events per period, ``zeno_events`` and
     ``zeno_window`` (fraction of T) set the accumulation test, ``cells_per_cycle`` the sampling
-    where zeros have no closed form.
+    where zeros have no closed form. ``kernel=False`` keeps a crawler on the Python loop (the
+    path of generic processes), for comparison.
     """
 
     #: A period must start in K(0) (`crawlsim.integrate.limit` projects a Newton candidate first).
     needs_admissible_start = True
+    pieces: PiecewiseOffsets
 
     def __init__(self, process: SweepingProcess, *, check_every_step: bool = False,
                  max_events: int = MAX_EVENTS, zeno_events: int = ZENO_EVENTS,
-                 zeno_window: float = ZENO_WINDOW, cells_per_cycle: int = CELLS_PER_CYCLE):
+                 zeno_window: float = ZENO_WINDOW, cells_per_cycle: int = CELLS_PER_CYCLE,
+                 kernel: bool = True):
         if process.offset_pieces is None:
             raise EventError(f"{process.name}: the exact integrator needs the closed form of "
                              "c(t) that gait and process files provide; use --integrator "
                              "catch-up")
-        self.process = process
+        super().__init__(process, check_every_step=check_every_step)
         self.poly = process.polyhedron
         self.pieces = process.offset_pieces
         self.basis = self.pieces.basis
-        self.check_every_step = check_every_step
         self.max_events = int(max_events)
         self.zeno_events, self.zeno_window = int(zeno_events), float(zeno_window)
         self.cells_per_cycle = int(cells_per_cycle)
-        # Crawlers: non-unique slips are a DegenerateModelError (docs/model.md §3); generic processes
-        # keep their unique point with a LicqWarning, as in catch-up.
-        self.projector = ExactProjector(self.poly, describe_active=process.describe_active,
-                                        on_dependent="raise" if process.crawler is not None else "warn")
-        self.w = np.array(process.initial, dtype=float)
-        self.x = None if process.initial_positions is None else np.array(
-            process.initial_positions, dtype=float)
-        self.active = self.poly.empty
-        self.period_index = 0
-        self._visited: list = []
         # the period's energy ledger, integrated exactly on the pieces (crawlers)
         self._ledger = ExactLedger(process) if process.crawler is not None else None
         self._grid = process.cycles
@@ -161,10 +165,25 @@ class EventStepper(PeriodStepper):
             left = self.pieces.evaluate(edges[p], piece=p - 1)[0]
             right = self.pieces.evaluate(edges[p] if p < P else 0.0, piece=p % P)[0]
             self._jump[p] = np.max(np.abs(left - right)) > 100 * RTOL * self.poly.c_scale
+        self._loop = _CompiledLoop.of(self) if kernel else None
 
     # -- one period -------------------------------------------------------------------------
-    def step_period(self) -> PeriodRecord:
-        """Advance by one period and return its record, sampled on ``process.times``."""
+    def _step_impl(self) -> PeriodRecord:
+        """One period, sampled on ``process.times``: in the
+        compiled event loop (`crawlsim.kernel.eventloop`) for a crawler whose offsets have
+        closed-form zeros, else (or where that loop hands the period over) in Python."""
+        if self._loop is not None:
+            record = self._loop.period(self)
+            if record is not None:
+                return record
+            self._loop.handoffs += 1
+            if self._loop.handoffs >= LOOP_HANDOFFS:  # a gait the compiled loop cannot take
+                self._loop = None
+        return self._python_period()
+
+    def _python_period(self) -> PeriodRecord:
+        """One period with the event loop in Python (generic processes, sampled zeros, and the
+        periods the compiled loop hands over)."""
         p, T = self.process, self.process.period
         poly, pieces = self.poly, self.pieces
         G, n, m = p.steps, poly.n, poly.m
@@ -258,26 +277,32 @@ class EventStepper(PeriodStepper):
         record = PeriodRecord(self.period_index, start, W, multipliers, X,
                               self.projector.clarabel_calls - calls0, events=events,
                               visited=tuple(self._visited), transitions=tuple(transitions),
-                              energy=None if ledger is None else ledger.finish(W[0], W[-1]))
-        self.period_index += 1
+                              energy_of=None if ledger is None else ledger.finish(W[0], W[-1]))
         return record
 
     def _guard(self, count, recent, u, start, rows):
         """Stop on too many events in a period or on Zeno-like accumulation."""
-        p = self.process
         if count > self.max_events:
-            raise EventError(
-                f"{p.name}: more than {self.max_events} events in period {self.period_index} "
-                f"(at t = {start + u * p.period:.12g}); the active set keeps changing. Raise "
-                "max_events, or use --integrator catch-up")
+            raise self._too_many(u, start)
         recent.append(u)
         if len(recent) == self.zeno_events and recent[-1] - recent[0] <= self.zeno_window:
-            raise EventError(
-                f"{p.name}: Zeno-like accumulation of events: {self.zeno_events} events within "
-                f"{(recent[-1] - recent[0]) * p.period:.3g} time units near t = "
-                f"{start + u * p.period:.15g} (last constraints involved: "
-                f"{p.describe_active(rows)}). The exact integrator cannot pass this point; use "
-                "--integrator catch-up")
+            raise self._zeno(recent[-1] - recent[0], u, start, rows)
+
+    def _too_many(self, u: float, start: float) -> EventError:
+        p = self.process
+        return EventError(
+            f"{p.name}: more than {self.max_events} events in period {self.period_index} "
+            f"(at t = {start + u * p.period:.12g}); the active set keeps changing. Raise "
+            "max_events, or use --integrator catch-up")
+
+    def _zeno(self, width: float, u: float, start: float, rows: np.ndarray) -> EventError:
+        p = self.process
+        return EventError(
+            f"{p.name}: Zeno-like accumulation of events: {self.zeno_events} events within "
+            f"{width * p.period:.3g} time units near t = "
+            f"{start + u * p.period:.15g} (last constraints involved: "
+            f"{p.describe_active(rows)}). The exact integrator cannot pass this point; use "
+            "--integrator catch-up")
 
     # -- an event: the next active set, order by order ----------------------------------------
     def _decide(self, u: float, w: np.ndarray, piece_index: int, forced: np.ndarray,
@@ -550,3 +575,222 @@ class _Velocity:
     point: np.ndarray
     multipliers: np.ndarray
     tolerance: Tolerance
+
+
+class _Transitions(Sequence):
+    """The period's `Transition` records from the compiled loop's arrays, their active sets
+    factored by `crawlsim.kernel.kkt` only when they are read (`crawlsim.integrate.limit`,
+    sensitivities)."""
+
+    def __init__(self, poly: Polyhedron, u, piece, signs, cause, hit):
+        self._poly = poly
+        self._arrays = (u, piece, signs, cause, hit)
+        self._built: list[Transition] | None = None
+
+    def _list(self) -> list[Transition]:
+        if self._built is None:
+            from crawlsim.kernel.catchup import rows_of
+            from crawlsim.kernel.eventloop import CAUSES
+
+            u, piece, signs, cause, hit = self._arrays
+            self._built = [
+                Transition(float(u[i]), int(piece[i]), self._poly.factor(rows_of(signs[i])),
+                           cast(TransitionCause, CAUSES[int(cause[i])]), np.flatnonzero(hit[i]))
+                for i in range(len(u))]
+        return self._built
+
+    def __len__(self) -> int:
+        return len(self._arrays[0])
+
+    def __getitem__(self, i):
+        return self._list()[i]
+
+
+class _Visited(Sequence):
+    """`PeriodRecord.visited` of a compiled period: `crawlsim.kernel.catchup.VisitedSets` of
+    its transitions' sets, formed when first read (`crawlsim.integrate.limit`)."""
+
+    def __init__(self, poly: Polyhedron, signs: np.ndarray):
+        self._args: tuple | None = (poly, signs)
+        self._sets: Sequence = ()
+
+    def _list(self) -> Sequence:
+        if self._args is not None:
+            from crawlsim.kernel.catchup import VisitedSets
+
+            self._sets, self._args = VisitedSets(*self._args), None
+        return self._sets
+
+    def __len__(self) -> int:
+        return len(self._list())
+
+    def __getitem__(self, i):
+        return self._list()[i]
+
+
+class _CompiledLoop:
+    """The arrays of one crawler's compiled event loop (`crawlsim.kernel.eventloop.period`): the
+    offsets' coefficients per piece, the jump targets and the energy terms, built once; the
+    output arrays, sized to the events of the last period."""
+
+    def __init__(self, stepper: EventStepper):
+        from crawlsim.kernel import catchup
+
+        pieces, basis = stepper.pieces, stepper.basis
+        P, n, m, nb = pieces.pieces, stepper.poly.n, stepper.poly.m, basis.size
+        poly = stepper.poly
+        assert isinstance(poly, ChainPolyhedron)
+        self.k = np.ascontiguousarray(poly.stiffness, dtype=np.float64)
+        self.c_scale = float(poly.c_scale)
+        self.coef = np.ascontiguousarray([pieces.coefficients(q) for q in range(P)], dtype=float)
+        self.target = np.zeros((P + 1, m))
+        for edge in map(int, np.flatnonzero(stepper._jump)):
+            self.target[edge] = pieces.evaluate(pieces.edges[edge] if edge < P else 0.0,
+                                                piece=edge % P)[0]
+        self.terms = np.zeros((4, P, nb, n))
+        self.rows = np.zeros((2, P, nb, m))
+        if stepper._ledger is not None:
+            for q in range(P):
+                _, KLc, dLc, Mc, lc = stepper._ledger.terms(q)
+                self.terms[0, q], self.terms[1, q] = KLc, dLc
+                self.rows[0, q], self.rows[1, q] = Mc, lc
+        self.phi = np.ascontiguousarray(basis.values(stepper._grid))
+        self.capacity = 64
+        self.handoffs = 0
+        self._scratch: dict = {}
+        self._final: tuple[bytes, ActiveSet] = (b"", stepper.poly.empty)
+        catchup.announce_compilation("exact")
+
+    @staticmethod
+    def of(stepper: EventStepper) -> _CompiledLoop | None:
+        """The loop for crawlers whose offsets are linear, or one harmonic (with or without a
+        linear part); None where the Python loop is the only one."""
+        basis = stepper.basis
+        if not isinstance(stepper.poly, ChainPolyhedron) or basis.harmonics > 1:
+            return None
+        return _CompiledLoop(stepper)
+
+    def period(self, s: EventStepper) -> PeriodRecord | None:
+        """One period of ``s`` in the compiled loop, or None where it hands the period over."""
+        from crawlsim.kernel import eventloop as loop
+
+        while True:
+            out = self._run(s)
+            status = out["status"]
+            if status != loop.OVERFLOW:
+                break
+            self.capacity *= 2
+        if status == loop.DONE:
+            return self._record(s, out)
+        start = s.period_index * s.process.period
+        report = out["report"]
+        u = float(report[loop.R_U])
+        if status == loop.TOO_MANY:
+            raise s._too_many(u, start)
+        if status == loop.ZENO:
+            e = int(out["counts"][loop.C_EVENTS])
+            width = float(out["ev_t"][e - 1] - out["ev_t"][e - s.zeno_events])
+            rows = np.flatnonzero(out["tr_hit"][out["counts"][loop.C_TRANSITIONS]])
+            raise s._zeno(width, u, start, rows)
+        if status == loop.FAILED_PIECE:
+            j = int(report[loop.R_INDEX])
+            raise CertificateError(
+                f"{s.process.name}: the exact trajectory failed its certificate at t = "
+                f"{start + s._grid[j] * s.process.period:.12g}: constraint violation "
+                f"{report[loop.R_PRIMAL]:.3g}, negative slip integral {report[loop.R_DUAL]:.3g} "
+                f"(tolerance {report[loop.R_TOLP]:.3g} / {report[loop.R_TOLD]:.3g}), "
+                f"complementarity {report[loop.R_COMP]:.3g}")
+        return None  # HANDOFF
+
+    def _run(self, s: EventStepper) -> dict:
+        from crawlsim.kernel import catchup, eventloop
+
+        p = s.process
+        N, n, m = p.blocks, s.poly.n, s.poly.m
+        nb, P, G = s.basis.size, s.pieces.pieces, p.steps
+        E = min(self.capacity, s.max_events + 1)
+        T2 = E + P + 2
+        out = self._scratch
+        if out.get("capacity") != E:  # work arrays kept from period to period
+            out.clear()
+            out.update({
+                "capacity": E, "ev_t": np.empty(E), "ev_w": np.empty((E, n)),
+                "ev_dx": np.empty((E, N)), "tr_u": np.empty(T2),
+                "tr_piece": np.empty(T2, dtype=np.int64),
+                "tr_signs": np.empty((T2, N), dtype=np.int8),
+                "tr_cause": np.empty(T2, dtype=np.int8),
+                "tr_hit": np.zeros((T2, m), dtype=np.bool_), "bounds": np.empty((E, 2)),
+                "products": np.empty((E, 3, nb, nb)),
+                "jump_piece": np.empty(P + 1, dtype=np.int64), "jump_u": np.empty(P + 1),
+                "jump_w": np.empty((P + 1, 2, n)), "jump_lam": np.empty((P + 1, m)),
+                "counts": np.zeros(4, dtype=np.int64), "report": np.zeros(8)})
+        out["W"], out["LAMC"] = np.empty((G + 1, n)), np.empty((G + 1, m))
+        out["signs"] = catchup.signs_of(s.active, N)
+        out["status"] = eventloop.period(
+            self.k, self.c_scale, s.basis.linear, s.basis.harmonics, self.coef, s.pieces.edges,
+            s._jump, self.target, s._grid, self.phi, np.ascontiguousarray(s.w, dtype=float),
+            out["signs"],
+            s.max_events, s.zeno_events, s.zeno_window, s._ledger is not None, self.terms[0],
+            self.terms[1], self.rows[0], self.rows[1], out["W"], out["LAMC"], out["ev_t"],
+            out["ev_w"], out["ev_dx"], out["tr_u"], out["tr_piece"], out["tr_signs"],
+            out["tr_cause"], out["tr_hit"], out["bounds"], out["products"], out["jump_piece"],
+            out["jump_u"], out["jump_w"], out["jump_lam"], out["counts"], out["report"])
+        return out
+
+    def _record(self, s: EventStepper, out: dict) -> PeriodRecord:
+        from crawlsim.kernel import catchup
+
+        p, T = s.process, s.process.period
+        start = s.period_index * T
+        e, t, q, nj = (int(v) for v in out["counts"])
+        self.capacity = max(64, e + e // 4 + 16)  # room for a few more events next period
+        W, LAMC = out["W"], out["LAMC"]
+        key = out["signs"].tobytes()
+        if key != self._final[0]:  # a periodic regime ends every period on the same set
+            self._final = key, s.poly.factor(catchup.rows_of(out["signs"]))
+        s.active = self._final[1]
+        if s.check_every_step:
+            s._verify(W, start)
+        X = x_events = None
+        if s.x is not None:
+            X = s.x + p.slips(LAMC)
+            x_events = s.x + out["ev_dx"][:e]
+            s.x = X[-1].copy()
+        s.w = W[-1].copy()
+        energy = None
+        if s._ledger is not None:
+            energy = _Energy(s._ledger, out["bounds"][:q].copy(),
+                             out["products"][:q, :s._ledger.products].copy(),
+                             [(int(out["jump_piece"][i]), float(out["jump_u"][i]),
+                               out["jump_w"][i, 0].copy(), out["jump_w"][i, 1].copy(),
+                               out["jump_lam"][i].copy()) for i in range(nj)],
+                             W[0], W[-1])
+        signs = out["tr_signs"][:t].copy()
+        transitions = _Transitions(s.poly, out["tr_u"][:t].copy(), out["tr_piece"][:t].copy(),
+                                   signs, out["tr_cause"][:t].copy(), out["tr_hit"][:t].copy())
+        events = EventTrajectory(start + out["ev_t"][:e] * T, out["ev_w"][:e].copy(), x_events)
+        record = PeriodRecord(s.period_index, start, W, np.diff(LAMC, axis=0), X, 0,
+                              events=events, visited=_Visited(s.poly, signs),
+                              transitions=transitions, energy_of=energy)
+        return record
+
+
+@dataclass(frozen=True, eq=False)
+class _Energy:
+    """A period's energy ledger from the compiled loop's pieces and jumps, formed by the
+    stepper's `ExactLedger` when it is first read (`PeriodRecord.energy`)."""
+
+    ledger: ExactLedger
+    bounds: np.ndarray
+    products: np.ndarray
+    jumps: list
+    w_start: np.ndarray
+    w_end: np.ndarray
+
+    def __call__(self):
+        ledger = self.ledger
+        ledger.start()
+        ledger.add_pieces(self.bounds, self.products)
+        for jump in self.jumps:
+            ledger.jump(*jump)
+        return ledger.finish(self.w_start, self.w_end)

@@ -257,63 +257,38 @@ def solve_limit(process: SweepingProcess, stepper, *, tolerance: float, max_peri
         if exact and start is not None:
             w = _admissible(stepper, w)
         record, periods = period(w), 1
-    residuals = [relative_step(process, w, record.w[-1])]
-    kinds = [PLAIN]
+    search = _Search([relative_step(process, w, record.w[-1])], [PLAIN], periods)
+    residuals = search.residuals
     newton_steps, rate = 0, None
     approach = None  # the active sets of the last accepted Newton step's Jacobian
     rejected = wait = 0  # candidates rejected so far; plain periods before the next one
     used_newton = False
-    while residuals[-1] > tolerance and periods < max_periods:
-        F = record.w[-1] - w
-        if method == "newton" and periods >= plain and wait == 0:
-            base = factors(process, record)
-            d = newton_step(poly, base, F)
-            current, accepted = residuals[-1], False
-            # the affine model holds on the map's current piece only (`ATTEMPTS`)
-            beyond = None  # the full step's candidate and its period
-            for how, scale in ATTEMPTS:
-                if how == "through":
-                    if beyond is None:
-                        continue
-                    model = factors(process, beyond[1])
-                    candidate = beyond[0] + newton_step(poly, model, beyond[1].w[-1] - beyond[0])
-                else:
-                    model, candidate = base, w + scale * d
-                if exact:
-                    candidate = _admissible(stepper, candidate)
-                trial = period(candidate)
-                periods += 1
-                r = relative_step(process, candidate, trial.w[-1])
-                residuals.append(r)
-                if r < current:
-                    w, record = candidate, trial
-                    newton_steps += 1
-                    used_newton = accepted = True
-                    approach = model
-                    kinds.append(NEWTON)
-                    break
-                kinds.append(REJECTED)
-                if how == "step" and scale == 1.0:
-                    beyond = candidate, trial
-                if periods >= max_periods:
-                    break
-            if accepted and r <= SUFFICIENT_DECREASE * current:
-                continue
+    while residuals[-1] > tolerance and search.periods < max_periods:
+        if method == "newton" and search.periods >= plain and wait == 0:
+            current = residuals[-1]
+            found = _newton(process, stepper, period, w, record, search, max_periods)
+            if found is not None:
+                w, record, approach = found
+                newton_steps += 1
+                used_newton = True
+                if residuals[-1] <= SUFFICIENT_DECREASE * current:
+                    continue
             # back off: 1, 2, 4, ... plain periods before the next candidate, so that a
             # solver whose candidates keep failing costs at most 2 log2 more periods than plain
             # iteration; a step kept for a small decrease (the model is off here) counts too
             wait = 2 ** rejected
             rejected += 1
-            if accepted:
+            if found is not None:
                 continue
-            if periods >= max_periods:
+            if search.periods >= max_periods:
                 break
         wait = max(wait - 1, 0)
         w = record.w[-1].copy()  # plain iteration
         record = period(w)
-        periods += 1
+        search.periods += 1
         residuals.append(relative_step(process, w, record.w[-1]))
-        kinds.append(PLAIN)
+        search.kinds.append(PLAIN)
+    periods, kinds = search.periods, search.kinds
     converged = residuals[-1] <= tolerance
     if converged and method == "newton" and poly.n <= DENSE_JACOBIAN:
         rate = subdominant_rate(jacobian(poly, factors(process, record) if approach is None
@@ -321,6 +296,51 @@ def solve_limit(process: SweepingProcess, stepper, *, tolerance: float, max_peri
     return LimitSolution(converged, w, record, "newton" if used_newton else "iterate",
                          newton_steps, periods, np.array(residuals),
                          np.array(kinds, dtype=np.int8), rate)
+
+
+@dataclass
+class _Search:
+    """The periodic-limit solver's history: the residual and kind of every period, and their
+    number."""
+
+    residuals: list[float]
+    kinds: list[int]
+    periods: int
+
+
+def _newton(process: SweepingProcess, stepper, period, w: np.ndarray, record: PeriodRecord,
+            search: _Search, max_periods: int):
+    """One Newton step from w (its period ``record``): the candidates of `ATTEMPTS` in turn,
+    each one period; (candidate, its period, the model's factors) of the first that lowers
+    the residual, or None. The affine model holds on the map's current piece only."""
+    poly = process.polyhedron
+    base = factors(process, record)
+    d = newton_step(poly, base, record.w[-1] - w)
+    current = search.residuals[-1]
+    beyond = None  # the full step's candidate and its period
+    for how, scale in ATTEMPTS:
+        if how == "through":
+            if beyond is None:
+                continue
+            model = factors(process, beyond[1])
+            candidate = beyond[0] + newton_step(poly, model, beyond[1].w[-1] - beyond[0])
+        else:
+            model, candidate = base, w + scale * d
+        if getattr(stepper, "needs_admissible_start", False):
+            candidate = _admissible(stepper, candidate)
+        trial = period(candidate)
+        search.periods += 1
+        r = relative_step(process, candidate, trial.w[-1])
+        search.residuals.append(r)
+        if r < current:
+            search.kinds.append(NEWTON)
+            return candidate, trial, model
+        search.kinds.append(REJECTED)
+        if how == "step" and scale == 1.0:
+            beyond = candidate, trial
+        if search.periods >= max_periods:
+            break
+    return None
 
 
 def _admissible(stepper, w: np.ndarray) -> np.ndarray:

@@ -34,23 +34,37 @@ from crawlsim.model.process import SweepingProcess
 
 _FIRST_BLOCK = 8
 
-#: Integrators by name, resolved lazily. Each is a class built as ``cls(process, **options)``
-#: with a ``step_period() -> PeriodRecord`` method and a ``projector`` attribute; tests are
+class Registered(NamedTuple):
+    """An integrator of `STEPPERS`: where its class is (``module:name``, imported lazily), the
+    order of its error in the step (a step h = T / steps_per_period; 0: exact, the error is
+    roundoff), and whether it is exact."""
+
+    target: str
+    order: int
+    exact: bool
+
+
+#: Integrators by name. Each is a `PeriodStepper` built as ``cls(process, **options)``; tests are
 #: parametrized over this registry.
-STEPPERS = {
-    "catch-up": "crawlsim.integrate.stepping:CatchUpStepper",
-    "exact": "crawlsim.integrate.exact:EventStepper",
+STEPPERS: dict[str, Registered] = {
+    "catch-up": Registered("crawlsim.integrate.stepping:CatchUpStepper", order=1, exact=False),
+    "exact": Registered("crawlsim.integrate.exact:EventStepper", order=0, exact=True),
 }
 
 
-def make_stepper(process, integrator: str = "catch-up", **options):
-    """Build the stepper registered under ``integrator``."""
+def stepper_class(integrator: str) -> type[PeriodStepper]:
+    """The class registered under ``integrator``."""
     try:
-        module, name = STEPPERS[integrator].split(":")
+        module, name = STEPPERS[integrator].target.split(":")
     except KeyError:
         raise ValueError(f"unknown integrator {integrator!r}; expected one of "
                          f"{', '.join(STEPPERS)}") from None
-    return getattr(importlib.import_module(module), name)(process, **options)
+    return getattr(importlib.import_module(module), name)
+
+
+def make_stepper(process, integrator: str = "catch-up", **options) -> PeriodStepper:
+    """Build the stepper registered under ``integrator``."""
+    return stepper_class(integrator)(process, **options)
 
 
 #: Why an event-driven integrator decided its active set anew (`Transition.cause`): the start
@@ -88,12 +102,24 @@ class PeriodRecord:
     # projectors I - R_A B_A (`crawlsim.integrate.limit`).
     visited: Sequence = ()
     # The period's energy ledger integrated exactly on the event-driven integrator's pieces
-    # (`crawlsim.analysis.energy.PeriodEnergy`); None for catch-up, whose ledger follows from the grid.
-    energy: Any = None
+    # (`crawlsim.analysis.energy.PeriodEnergy`), or a callable that forms it when `energy` is
+    # first read (most periods' ledgers are never read); None for catch-up, whose ledger
+    # follows from the grid.
+    energy_of: Any = None
     # Event-driven integrators: every decision of the active set, in order (`Transition`).
     # `crawlsim.integrate.limit` adds the saltation of the events whose time depends on the start (the
     # hits) to the Jacobian.
-    transitions: tuple[Transition, ...] = ()
+    transitions: Sequence[Transition] = ()
+
+    @property
+    def energy(self) -> Any:
+        """The period's `crawlsim.analysis.energy.PeriodEnergy` (event-driven integrators), or
+        None."""
+        source = self.energy_of
+        if callable(source):
+            source = source()
+            object.__setattr__(self, "energy_of", source)
+        return source
 
     @property
     def slips(self) -> np.ndarray | None:
@@ -109,13 +135,43 @@ def positions_of(process, w: np.ndarray, barycentre: float) -> np.ndarray:
 
 
 class PeriodStepper:
-    """What every integrator of `STEPPERS` shares: restarting a period from a given state, and
-    the record of the active sets a period visits (`PeriodRecord.visited`)."""
+    """The contract of every integrator of `STEPPERS`, in the manner of scipy's ``OdeSolver``:
+    the base class owns the set-up (the process, its polyhedron, the certified projector, the
+    state w and positions x, the warm active set) and the public `step_period`, which runs the
+    subclass's `_step_impl` for the period ``period_index`` and counts it. It also restarts a
+    period from a given state (`reset`) and records the active sets a period visits
+    (`PeriodRecord.visited`)."""
 
-    process: SweepingProcess
-    w: np.ndarray
-    x: np.ndarray | None
-    _visited: list
+    #: Whether a period must start in K(0) (the exact integrator's closed forms need it).
+    needs_admissible_start = False
+
+    def __init__(self, process: SweepingProcess, *, check_every_step: bool = False,
+                 persistent_solver: bool = True):
+        self.process = process
+        self.polyhedron = process.polyhedron
+        self.check_every_step = check_every_step
+        # Crawlers: non-unique slips are a DegenerateModelError (docs/model.md §3); generic
+        # processes keep their unique point with a LicqWarning.
+        self.projector = ExactProjector(
+            process.polyhedron, describe_active=process.describe_active,
+            persistent=persistent_solver, on_dependent="raise" if process.crawler is not None else "warn")
+        self.w = np.array(process.initial, dtype=float)
+        self.x = None if process.initial_positions is None else np.array(
+            process.initial_positions, dtype=float)
+        self.active = self.polyhedron.empty
+        self.period_index = 0
+        self._visited: list = []
+
+    def step_period(self) -> PeriodRecord:
+        """Advance by one period from the current state and return its record."""
+        record = self._step_impl()
+        self.period_index += 1
+        return record
+
+    def _step_impl(self) -> PeriodRecord:
+        """One period from ``self.w`` (``self.x``), the period ``self.period_index``: the
+        record, with ``self.w``, ``self.x`` and ``self.active`` left at its end."""
+        raise NotImplementedError
 
     def reset(self, w: np.ndarray, x: np.ndarray | None = None) -> None:
         """Start the next period from the state ``w`` (positions ``x``; by default the
@@ -137,18 +193,8 @@ class CatchUpStepper(PeriodStepper):
 
     def __init__(self, process: SweepingProcess, *, check_every_step: bool = False,
                  persistent_solver: bool = True, kernel: bool = True):
-        self.process = process
-        self.check_every_step = check_every_step
-        self.polyhedron = process.polyhedron
-        self.projector = ExactProjector(
-            process.polyhedron, describe_active=process.describe_active,
-            persistent=persistent_solver, on_dependent="raise" if process.crawler is not None else "warn")
-        self.w = np.array(process.initial, dtype=float)
-        self.x = None if process.initial_positions is None else np.array(
-            process.initial_positions, dtype=float)
-        self.active = self.polyhedron.empty
-        self.period_index = 0
-        self._visited: list = []
+        super().__init__(process, check_every_step=check_every_step,
+                         persistent_solver=persistent_solver)
         self._kernel = None
         self._lazy_visited: Sequence | None = None  # the kernel's record (`VisitedSets`)
         if kernel and not check_every_step and process.crawler is not None:
@@ -157,8 +203,7 @@ class CatchUpStepper(PeriodStepper):
             self._kernel = ChainKernel(self.polyhedron)
             self._offsets = np.ascontiguousarray(process.offsets, dtype=float)
 
-    def step_period(self) -> PeriodRecord:
-        """Advance by one period and return its record."""
+    def _step_impl(self) -> PeriodRecord:
         p = self.process
         G, n, m = p.steps, len(self.w), p.polyhedron.m
         start = self.period_index * p.period
@@ -208,7 +253,6 @@ class CatchUpStepper(PeriodStepper):
                               self.projector.clarabel_calls - calls0,
                               visited=(tuple(self._visited) if self._lazy_visited is None
                                        else self._lazy_visited))
-        self.period_index += 1
         return record
 
     def _kernel_period(self, W, LAM, start) -> None:

@@ -6,6 +6,7 @@
     catchup      the driver that allocates the compiled step's arrays and turns its reports
                  into crawlsim's errors
     events       the compiled closed forms of the exact integrator's next event
+    eventloop    the exact integrator's compiled event loop: one period of a crawler, certified
 
 The compiled modules are not imported until a crawler is stepped: `crawlsim validate` and the
 CLI's start-up do not load numba. With ``NUMBA_DISABLE_JIT=1`` they run as Python.

@@ -23,7 +23,9 @@ _announced: set[str] = set()
 def _entries(integrator: str) -> tuple:
     """The compiled entry point an integrator calls first (the exact integrator's closed
     forms are small and compile with it only when its gait needs them)."""
-    return (chain.catch_up,) if integrator == "catch-up" else (chain.project,)
+    from crawlsim.kernel import eventloop
+
+    return (chain.catch_up,) if integrator == "catch-up" else (eventloop.period,)
 
 
 def cache_is_cold(integrator: str = "catch-up") -> bool:

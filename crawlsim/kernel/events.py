@@ -28,39 +28,50 @@ TWO_PI = 2.0 * math.pi
 
 
 @njit(cache=True)
+def linear_crossing(a, s, tol, u0, u1):
+    """Event time of f = a + s u (inf where there is none before u1)."""
+    if not s > 0:
+        return np.inf
+    over = (tol - a) / s
+    if over < u1 and over > u0:
+        zero = -a / s
+        return zero if zero > u0 else over
+    return np.inf
+
+
+@njit(cache=True)
+def harmonic_crossing(a, alpha, beta, tol, u0, u1):
+    """Event time of f = a + alpha cos 2 pi u + beta sin 2 pi u (inf where there is none)."""
+    rho = np.hypot(alpha, beta)
+    if not rho > 0:
+        return np.inf
+    x_over = (tol - a) / rho
+    if not x_over < 1.0:
+        return np.inf
+    x_zero = -a / rho
+    b_over = math.acos(min(max(x_over, -1.0), 1.0))
+    b_zero = math.acos(min(max(x_zero, -1.0), 1.0))
+    ph = math.atan2(beta, alpha)
+    th0 = TWO_PI * u0
+    k = math.ceil((th0 - (ph + b_over)) / TWO_PI)
+    start = ph - b_over + TWO_PI * k
+    if start <= th0:  # inside the arc already: the next one
+        k = k + 1
+        start = ph - b_over + TWO_PI * k
+    zero = ph - b_zero + TWO_PI * k
+    t = zero / TWO_PI if zero / TWO_PI > u0 else start / TWO_PI
+    return t if t < u1 else np.inf
+
+
+@njit(cache=True)
 def linear_crossings(a, s, tol, u0, u1, out):
-    """Event times of f = a + s u into ``out`` (inf where there is none before u1)."""
+    """`linear_crossing` of every row into ``out``."""
     for r in range(a.shape[0]):
-        out[r] = np.inf
-        if not s[r] > 0:
-            continue
-        over = (tol[r] - a[r]) / s[r]
-        if over < u1 and over > u0:
-            zero = -a[r] / s[r]
-            out[r] = zero if zero > u0 else over
+        out[r] = linear_crossing(a[r], s[r], tol[r], u0, u1)
 
 
 @njit(cache=True)
 def harmonic_crossings(a, alpha, beta, tol, u0, u1, out):
-    """Event times of f = a + alpha cos 2 pi u + beta sin 2 pi u into ``out``."""
-    th0 = TWO_PI * u0
+    """`harmonic_crossing` of every row into ``out``."""
     for r in range(a.shape[0]):
-        out[r] = np.inf
-        rho = np.hypot(alpha[r], beta[r])
-        if not rho > 0:
-            continue
-        x_over = (tol[r] - a[r]) / rho
-        if not x_over < 1.0:
-            continue
-        x_zero = -a[r] / rho
-        b_over = math.acos(min(max(x_over, -1.0), 1.0))
-        b_zero = math.acos(min(max(x_zero, -1.0), 1.0))
-        ph = math.atan2(beta[r], alpha[r])
-        k = math.ceil((th0 - (ph + b_over)) / TWO_PI)
-        start = ph - b_over + TWO_PI * k
-        if start <= th0:  # inside the arc already: the next one
-            k = k + 1
-            start = ph - b_over + TWO_PI * k
-        zero = ph - b_zero + TWO_PI * k
-        t = zero / TWO_PI if zero / TWO_PI > u0 else start / TWO_PI
-        out[r] = t if t < u1 else np.inf
+        out[r] = harmonic_crossing(a[r], alpha[r], beta[r], tol[r], u0, u1)

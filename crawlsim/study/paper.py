@@ -195,7 +195,7 @@ def _periods(spec, count: int, integrator: str = "catch-up"):
 def _exact_available() -> bool:
     if "exact" not in STEPPERS:
         return False
-    module = STEPPERS["exact"].split(":")[0]
+    module = STEPPERS["exact"].target.split(":")[0]
     try:
         __import__(module)
     except ModuleNotFoundError as exc:

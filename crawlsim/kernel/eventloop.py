@@ -1,0 +1,614 @@
+"""The compiled event loop of the exact integrator for a crawler chain (`crawlsim.integrate.exact`).
+
+One call runs one period of the exact, event-driven integration of docs/model.md §2-3 in machine
+code: at every event the next active set from Moreau's velocity problems, order by order
+(`decide`); on the piece that follows, w(u) = base + phi(u) @ Wc and the block slips
+dx(u) = dx0 - phi(u) @ Ydx from one factorisation of the chain's tridiagonal KKT system
+(`piece`, O(N), the factor and solve of `crawlsim.kernel.chain`); the next zero crossing of every
+gap and slip rate in closed form (`next_event`, `crawlsim.kernel.events`); the grid samples and
+their certificate (`certify_samples`); and at a jump of c(t) the certified projection onto
+K(t+) (`jump`). The formulas, tolerances and decisions are those of the module docstring of
+`crawlsim.integrate.exact`, which documents them; the rows of a chain are those of
+`crawlsim.kernel.kkt.ChainPolyhedron` (row i < N: block i at its forward limit, row N + i at its
+backward one), and an active set is its signs (+1, -1, 0 per block).
+
+The loop returns a status. DONE: the period is in the output arrays. HANDOFF: a step the
+compiled code does not take (a velocity problem or projection whose updates do not settle, a
+dependent set, a zero with no closed form); the caller runs the period on its Python path,
+which decides with Clarabel. FAILED_PIECE: the certificate of a grid sample failed (``report``).
+TOO_MANY / ZENO: the event guards fired. OVERFLOW: the event arrays are full (the caller
+enlarges them and runs the period again).
+
+Every function takes plain arrays and scalars; with ``NUMBA_DISABLE_JIT=1`` the same source runs
+as Python.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from crawlsim.kernel import chain, events
+
+TWO_PI = 2.0 * math.pi
+RTOL = chain.RTOL
+#: Orders of the velocity problem used to decide degenerate rows at an event (the exact
+#: integrator's DECISION_ORDERS).
+DECISION_ORDERS = 4
+#: Two rows hit within this many cycles of the first crossing are hit together.
+SIMULTANEOUS = 1e-13
+
+DONE, HANDOFF, FAILED_PIECE, TOO_MANY, ZENO, OVERFLOW = range(6)
+#: Transition causes (`crawlsim.integrate.stepping.TransitionCause`), in this order.
+CAUSES = ("edge", "release", "hit", "jump")
+EDGE, RELEASE, HIT, JUMP = range(4)
+#: Entries of ``report``.
+R_U, R_INDEX, R_PRIMAL, R_DUAL, R_TOLP, R_TOLD, R_COMP = range(7)
+#: Entries of ``counts``.
+C_EVENTS, C_TRANSITIONS, C_PIECES, C_JUMPS = range(4)
+
+
+# -- the basis phi(u) and products with it ------------------------------------------------------
+@njit(cache=True)
+def basis_values(u, order, linear, H, out):
+    """The order-th derivative of phi at u into ``out`` (`crawlsim.model.offsets.Basis.values`)."""
+    for b in range(out.shape[0]):
+        out[b] = 0.0
+    if order == 0:
+        out[0] = 1.0
+    h0 = 1
+    if linear:
+        h0 = 2
+        if order == 0:
+            out[1] = u
+        elif order == 1:
+            out[1] = 1.0
+    shift = order * (math.pi / 2)
+    for h in range(1, H + 1):
+        w = TWO_PI * h
+        scale = w ** order
+        angle = u * w
+        out[h0 + 2 * (h - 1)] = scale * math.cos(angle + shift)
+        out[h0 + 2 * (h - 1) + 1] = scale * math.sin(angle + shift)
+
+
+@njit(cache=True)
+def derivative(coef, linear, H, out):
+    """Coefficients (nb, k) of f' for f = phi @ coef (`crawlsim.model.offsets.Basis.derivative`)."""
+    out[:] = 0.0
+    h0 = 1
+    if linear:
+        h0 = 2
+        out[0] = coef[1]
+    for h in range(1, H + 1):
+        w = TWO_PI * h
+        ci = h0 + 2 * (h - 1)
+        out[ci] = w * coef[ci + 1]
+        out[ci + 1] = -w * coef[ci]
+
+
+@njit(cache=True)
+def combine(phi, coef, out):
+    """out = phi @ coef for coef (nb, k)."""
+    for r in range(out.shape[0]):
+        total = 0.0
+        for b in range(phi.shape[0]):
+            total += phi[b] * coef[b, r]
+        out[r] = total
+
+
+@njit(cache=True)
+def apply(w, out):
+    """B w = [D^T w; -D^T w] of a chain (`crawlsim.kernel.kkt.ChainPolyhedron.apply`)."""
+    N = out.shape[0] // 2
+    for i in range(N):
+        f = (w[i - 1] if i > 0 else 0.0) - (w[i] if i < N - 1 else 0.0)
+        out[i] = f
+        out[N + i] = -f
+
+
+@njit(cache=True)
+def max_abs(x):
+    out = 0.0
+    for i in range(x.shape[0]):
+        if abs(x[i]) > out:
+            out = abs(x[i])
+    return out
+
+
+# -- a piece: the factor and the closed form of w(u) and the slips --------------------------------
+@njit(cache=True)
+def piece(k, signs, w0, coef, D, l, dx0, Ydx, base, Wc, f, col):
+    """w(u) = base + phi(u) @ Wc and dx(u) = dx0 - phi(u) @ Ydx on the set ``signs`` from w0:
+    Lambda_A = G_A^{-1} (B_A w0 - c_A(u)) in the chain's block form L_JJ dx_J = f_J - f*_J.
+    Returns (||L_JJ^{-1}||, ||L_JJ||) (zeros for the empty set)."""
+    N = signs.shape[0]
+    nb = coef.shape[0]
+    active = False
+    for i in range(N):
+        if signs[i] != 0:
+            active = True
+    base[:] = w0
+    Wc[:] = 0.0
+    dx0[:] = 0.0
+    Ydx[:] = 0.0
+    if not active:
+        return 0.0, 0.0
+    inverse, gram = chain.factor(k, signs, D, l)
+    chain.forces(w0, f)
+    for i in range(N):
+        dx0[i] = f[i] if signs[i] != 0 else 0.0
+    chain.solve(D, l, dx0)
+    for b in range(nb):
+        for i in range(N):
+            s = signs[i]
+            col[i] = coef[b, i] if s > 0 else (-coef[b, N + i] if s < 0 else 0.0)
+        chain.solve(D, l, col)
+        Ydx[b] = col
+    for i in range(N - 1):
+        base[i] = w0[i] - (dx0[i + 1] - dx0[i]) * k[i]
+        for b in range(nb):
+            Wc[b, i] = (Ydx[b, i + 1] - Ydx[b, i]) * k[i]
+    return inverse, gram
+
+
+@njit(cache=True)
+def dual_scale(k, kmax, c_scale, signs, coef, dx0, Ydx, base, Wc, inverse, gram):
+    """The roundoff of the slips a piece adds (`EventStepper._dual_scale`): the dual tolerance of
+    its set at the size of its offsets, state and slips."""
+    if inverse == 0.0:
+        return 0.0
+    N = signs.shape[0]
+    nb = coef.shape[0]
+    c_size = 0.0
+    for r in range(coef.shape[1]):
+        total = 0.0
+        for b in range(nb):
+            total += abs(coef[b, r])
+        c_size = max(c_size, total)
+    w_size = max_abs(base)
+    lam_size = 0.0
+    for i in range(N):
+        if signs[i] != 0:
+            lam_size = max(lam_size, abs(dx0[i]))
+    for b in range(nb):
+        w_size += max_abs(Wc[b])
+        top = 0.0
+        for i in range(N):
+            if signs[i] != 0:
+                top = max(top, abs(Ydx[b, i]))
+        lam_size += top
+    size = max(max(c_scale, c_size), max(2.0 * w_size, 4.0 * kmax * lam_size))
+    return 2.0 * RTOL * inverse * (size + gram * lam_size)
+
+
+# -- an event: the next active set --------------------------------------------------------------
+@njit(cache=True)
+def tight_rows(c_scale, linear, H, coef, u, w, forced, phi, cvec, Bw):
+    """The rows tight at w to the primal tolerance of a step with no multipliers, and
+    ``forced`` (the rows an event hit): the candidates of `decide`."""
+    m = Bw.shape[0]
+    basis_values(u, 0, linear, H, phi)
+    combine(phi, coef, cvec)
+    apply(w, Bw)
+    c_size = 0.0
+    for r in range(m):
+        if abs(cvec[r]) < np.inf:
+            c_size = max(c_size, abs(cvec[r]))
+    tol = RTOL * max(max(c_scale, c_size), 2.0 * max_abs(w))
+    candidates = np.zeros(m, dtype=np.bool_)
+    for r in range(m):
+        candidates[r] = Bw[r] - cvec[r] >= -tol or forced[r]
+    return candidates
+
+
+@njit(cache=True)
+def settle_rows(candidates, fixed, lam, Bv, ck, tol_p, tol_d):
+    """One order of `decide`: candidates with a positive multiplier become fixed, those whose
+    velocity opens their gap leave. Returns whether candidates are left."""
+    left = False
+    for r in range(candidates.shape[0]):
+        if candidates[r]:
+            if lam[r] > tol_d:
+                fixed[r] = True
+                candidates[r] = False
+            elif Bv[r] - ck[r] < -tol_p:
+                candidates[r] = False
+            else:
+                left = True
+    return left
+
+
+@njit(cache=True)
+def decide(k, c_scale, linear, H, coef, u, w, forced, warm, out, phi, cvec, Bw):
+    """The active set on (u, u + eps) into ``out`` (`EventStepper._decide`): the rows tight at
+    w (and ``forced``), decided by the velocity problems of orders 1, 2, ...; False when one of
+    them is not settled by the kernel's updates or the result is dependent (HANDOFF)."""
+    candidates = tight_rows(c_scale, linear, H, coef, u, w, forced, phi, cvec, Bw)
+    out[:] = 0
+    if not candidates.any():
+        return True
+    N = out.shape[0]
+    m = 2 * N
+    fixed = np.zeros(m, dtype=np.bool_)
+    rows = np.zeros(m, dtype=np.bool_)
+    signs = np.empty(N, dtype=np.int8)
+    v = np.empty(N - 1)
+    lam = np.empty(m)
+    report = np.zeros(6)
+    zero = np.zeros(N - 1)
+    c = np.empty(m)
+    for order in range(1, DECISION_ORDERS + 1):
+        basis_values(u, order, linear, H, phi)
+        combine(phi, coef, cvec)
+        for r in range(m):
+            c[r] = cvec[r] if (fixed[r] or candidates[r]) else np.inf
+            block_warm = warm[r] > 0 if r < N else warm[r - N] < 0
+            rows[r] = fixed[r] or (candidates[r] and block_warm)
+        if not chain.independent(rows, N):
+            return False
+        for i in range(N):
+            signs[i] = 1 if rows[i] else (-1 if rows[N + i] else 0)
+        if chain.project(k, c_scale, zero, c, signs, fixed, v, lam, report) != chain.DONE:
+            return False
+        tol_p, tol_d = report[chain.REPORT_TOLP], report[chain.REPORT_TOLD]
+        apply(v, Bw)
+        if not settle_rows(candidates, fixed, lam, Bw, cvec, tol_p, tol_d):
+            break
+    if not chain.independent(fixed, N):
+        return False
+    for i in range(N):
+        out[i] = 1 if fixed[i] else (-1 if fixed[N + i] else 0)
+    return True
+
+
+# -- the next event on a piece ------------------------------------------------------------------
+@njit(cache=True)
+def crossing(z, tol, u0, u1, linear, H):
+    """The first upward zero crossing of f = phi @ z in (u0, u1) that goes on to exceed tol
+    (`crawlsim.kernel.events`); inf if none, NaN where the basis has no closed form for f."""
+    nb = z.shape[0]
+    if nb == 1:
+        return np.inf
+    if H == 0:
+        return events.linear_crossing(z[0], z[1], tol, u0, u1)
+    # f <= a + max(s u0, s u1) + |alpha| + |beta| on the piece: a row that cannot reach its
+    # tolerance has no event (the closed forms and the sampling agree), without their trig
+    # (the bound's own roundoff is covered by 1e-12 of its terms' size)
+    top = z[0] + abs(z[nb - 2]) + abs(z[nb - 1])
+    size = abs(z[0]) + abs(z[nb - 2]) + abs(z[nb - 1])
+    if linear:
+        top += max(z[1] * u0, z[1] * u1)
+        size += abs(z[1]) * max(abs(u0), abs(u1))
+    if top + 1e-12 * size < tol:
+        return np.inf
+    if H == 1 and not linear:
+        return events.harmonic_crossing(z[0], z[1], z[2], tol, u0, u1)
+    if H == 1 and z[1] == 0.0:
+        return events.harmonic_crossing(z[0], z[2], z[3], tol, u0, u1)
+    return np.nan
+
+
+@njit(cache=True)
+def next_event(c_scale, linear, H, coef, signs, base, Wc, Ydx, inverse, u0, u1, hit,
+               Gc, Rdx, Bw, z):
+    """(u, handoff) of the first event in (u0, u1) (u = inf: none), the rows newly tight in
+    ``hit`` (`EventStepper._next_event`): gaps phi @ (B Wc - coef + B base e_0) of the inactive
+    rows, slip rates -dLambda/du = phi @ derivative(Y) of the active ones."""
+    N = signs.shape[0]
+    m = 2 * N
+    nb = coef.shape[0]
+    for b in range(nb):
+        apply(Wc[b], Bw)
+        for r in range(m):
+            Gc[b, r] = Bw[r] - coef[b, r]
+    apply(base, Bw)
+    for r in range(m):
+        Gc[0, r] += Bw[r]
+    derivative(Ydx, linear, H, Rdx)
+    c_size = 0.0
+    for r in range(m):
+        total = 0.0
+        for b in range(nb):
+            total += abs(coef[b, r])
+        c_size = max(c_size, total)
+    tol_gap = 0.5 * RTOL * c_scale
+    scale = 0.0
+    for i in range(N):
+        if signs[i] != 0:
+            total = 0.0
+            for b in range(nb):
+                total += abs(Rdx[b, i])
+            scale = max(scale, total)
+    tol_rate = RTOL * max(scale, inverse * c_size * TWO_PI)
+    times = np.full(m, np.inf)
+    first = np.inf
+    for r in range(m):
+        i = r % N
+        s = signs[i]
+        if (r < N and s > 0) or (r >= N and s < 0):
+            for b in range(nb):
+                z[b] = s * Rdx[b, i]
+            t = crossing(z, tol_rate, u0, u1, linear, H)
+        else:
+            for b in range(nb):
+                z[b] = Gc[b, r]
+            t = crossing(z, tol_gap, u0, u1, linear, H)
+        if np.isnan(t):
+            return np.inf, True
+        times[r] = t
+        first = min(first, t)
+    hit[:] = False
+    if not first < u1:
+        return np.inf, False
+    for r in range(m):
+        s = signs[r % N]
+        inactive = not ((r < N and s > 0) or (r >= N and s < 0))
+        hit[r] = inactive and times[r] <= first + SIMULTANEOUS
+    return first, False
+
+
+# -- the grid samples of a piece and their certificate ------------------------------------------
+@njit(cache=True)
+def certify_samples(k, kmax, c_scale, coef, signs, PHI, j0, j1, W, LAMC, lam_cum, dx0, Ydx,
+                    base, Wc, inverse, gram, carried, own, report, cvec, Bw, dx):
+    """W[j0:j1] and LAMC[j0:j1] at the grid times in the piece, each certified
+    (`EventStepper._certify_piece`): in K(t_j), slip integrals >= 0 and complementary, to the
+    kernel's tolerances; the first one carries the roundoff of earlier pieces (``carried``).
+    Returns False with ``report`` filled on a failure."""
+    N = signs.shape[0]
+    m = 2 * N
+    for j in range(j0, j1):
+        phi = PHI[j]  # phi at the grid times, tabulated once
+        combine(phi, Wc, W[j])
+        for i in range(N - 1):
+            W[j, i] += base[i]
+        combine(phi, Ydx, dx)
+        LAMC[j] = lam_cum
+        for i in range(N):
+            if signs[i] > 0:
+                LAMC[j, i] = lam_cum[i] + (dx0[i] - dx[i])
+            elif signs[i] < 0:
+                LAMC[j, N + i] = lam_cum[N + i] + -(dx0[i] - dx[i])
+        combine(phi, coef, cvec)
+        apply(W[j], Bw)
+        lam_size = max_abs(LAMC[j])
+        size = max(max(c_scale, max_abs(cvec)), max(2.0 * max_abs(W[j]), 4.0 * kmax * lam_size))
+        tol_p = RTOL * size
+        tol_d = max(2.0 * RTOL * inverse * (size + gram * lam_size), own)
+        tol_d = max(tol_d, 4 * RTOL * lam_size)
+        if j == j0:
+            tol_d = max(tol_d, carried)
+        primal, dual, comp = -np.inf, 0.0, 0.0
+        for r in range(m):
+            slack = Bw[r] - cvec[r]
+            primal = max(primal, slack)
+            dual = max(dual, -(LAMC[j, r] - LAMC[j - 1, r]))
+            s = signs[r % N]
+            if (r < N and s > 0) or (r >= N and s < 0):
+                comp = max(comp, abs(slack))
+        if primal > tol_p or dual > tol_d or comp > tol_p:
+            report[R_INDEX] = j
+            report[R_PRIMAL], report[R_DUAL], report[R_COMP] = primal, dual, comp
+            report[R_TOLP], report[R_TOLD] = tol_p, tol_d
+            return False
+    return True
+
+
+@njit(cache=True)
+def state_at(u, linear, H, signs, dx0, Ydx, base, Wc, lam_cum, w, phi, dx):
+    """w(u) into ``w`` and the slips of the piece up to u added to ``lam_cum``."""
+    N = signs.shape[0]
+    basis_values(u, 0, linear, H, phi)
+    combine(phi, Wc, w)
+    for i in range(N - 1):
+        w[i] += base[i]
+    combine(phi, Ydx, dx)
+    for i in range(N):
+        if signs[i] > 0:
+            lam_cum[i] = lam_cum[i] + (dx0[i] - dx[i])
+        elif signs[i] < 0:
+            lam_cum[N + i] = lam_cum[N + i] + -(dx0[i] - dx[i])
+
+
+@njit(cache=True)
+def energy_terms(k, linear, H, signs, base, Wc, Ydx, KLc, dLc, Mc, lc, out):
+    """The piece's products for `crawlsim.analysis.energy.ExactLedger` (its ``piece``):
+    (Wc + K Lc + base e_0) @ dLc^T, -Mc_A @ Y'^T and -lc_A @ Y'^T."""
+    N = signs.shape[0]
+    nb = Wc.shape[0]
+    dY = np.empty((nb, N))
+    derivative(Ydx, linear, H, dY)
+    out[:] = 0.0
+    for a in range(nb):
+        for b in range(nb):
+            total = 0.0
+            for i in range(N - 1):
+                total += (Wc[a, i] + KLc[a, i] + (base[i] if a == 0 else 0.0)) * dLc[b, i]
+            out[0, a, b] = total
+            friction, load = 0.0, 0.0
+            for i in range(N):
+                s = signs[i]
+                if s != 0:
+                    r = i if s > 0 else N + i
+                    friction -= Mc[a, r] * (s * dY[b, i])
+                    load -= lc[a, r] * (s * dY[b, i])
+            out[1, a, b] = friction
+            out[2, a, b] = load
+
+
+# -- a jump of c at a breakpoint ----------------------------------------------------------------
+@njit(cache=True)
+def jump(k, c_scale, w, target, signs, w_out, lam, report):
+    """The projection of w onto K(t+) = {B v <= target} from the set ``signs``, certified by
+    `crawlsim.kernel.chain.project` (DONE only with its certificate), and LICQ at its tight
+    rows (`crawlsim.kernel.projection.ExactProjector`: a tight set that may be dependent goes to
+    the projector, which decides whether the slips are unique). Returns DONE or HANDOFF."""
+    N = signs.shape[0]
+    m = 2 * N
+    fixed = np.zeros(m, dtype=np.bool_)
+    if chain.project(k, c_scale, w, target, signs, fixed, w_out, lam, report) != chain.DONE:
+        return HANDOFF
+    tol_p = report[chain.REPORT_TOLP]
+    slack = np.empty(m)
+    apply(w_out, slack)
+    tight = np.zeros(m, dtype=np.bool_)
+    extra = False
+    for r in range(m):
+        s = signs[r % N]
+        member = (r < N and s > 0) or (r >= N and s < 0)
+        tight[r] = member or slack[r] - target[r] >= -tol_p
+        extra = extra or (tight[r] and not member)
+    if extra and not chain.independent(tight, N):
+        return HANDOFF
+    return DONE
+
+
+# -- one period -----------------------------------------------------------------------------------
+@njit(cache=True)
+def begin_event(u, w, lam_cum, forced, max_events, zeno_events, zeno_window, EV_T, EV_W, EV_DX,
+                TR_HIT, counts, report):
+    """Record the state at an event and apply the guards (`EventStepper._guard`): DONE, or
+    OVERFLOW (the arrays are full), TOO_MANY or ZENO (the rows hit in TR_HIT at the count of
+    transitions)."""
+    e = counts[C_EVENTS]
+    t_count = counts[C_TRANSITIONS]
+    if e >= EV_T.shape[0] or t_count + 2 > TR_HIT.shape[0]:
+        return OVERFLOW
+    N = EV_DX.shape[1]
+    EV_T[e], EV_W[e] = u, w
+    for i in range(N):  # the block slips so far (positions): lambda^+ - lambda^-
+        EV_DX[e, i] = lam_cum[i] - lam_cum[N + i]
+    counts[C_EVENTS] = e + 1
+    report[R_U] = u
+    if e + 1 > max_events:
+        return TOO_MANY
+    if e + 1 >= zeno_events and u - EV_T[e + 1 - zeno_events] <= zeno_window:
+        TR_HIT[t_count] = forced
+        return ZENO
+    return DONE
+
+
+@njit(cache=True)
+def after_jump(u, piece_after, w, w_next, lam_cum, lam_jump, signs, forced, grid, W, LAMC, TR_U,
+               TR_PIECE, TR_SIGNS, TR_CAUSE, TR_HIT, counts):
+    """The state after the projection at a jump: w and the cumulative slips, the transition,
+    and the grid point at the jump (signals are right-continuous)."""
+    w[:] = w_next
+    for r in range(lam_cum.shape[0]):
+        lam_cum[r] += lam_jump[r]
+    t_count = counts[C_TRANSITIONS]
+    TR_U[t_count], TR_PIECE[t_count], TR_SIGNS[t_count] = u, piece_after, signs
+    TR_CAUSE[t_count], TR_HIT[t_count] = JUMP, forced
+    counts[C_TRANSITIONS] = t_count + 1
+    je = 0
+    while grid[je] < u:
+        je += 1
+    W[je], LAMC[je] = w, lam_cum
+
+
+@njit(cache=True)
+def period(k, c_scale, linear, H, COEF, edges, jumps, TARGET, grid, PHI, w_start, signs,
+           max_events, zeno_events, zeno_window, ledger, KLC, DLC, MC, LC,
+           W, LAMC, EV_T, EV_W, EV_DX, TR_U, TR_PIECE, TR_SIGNS, TR_CAUSE, TR_HIT,
+           PIECE_BOUNDS, PIECE_TERMS, JUMP_PIECE, JUMP_U, JUMP_W, JUMP_LAM, counts, report):
+    """One period from w_start (in K(0)) with the warm set ``signs`` (left at the final set), on
+    the grid ``grid`` (PHI: phi at its times):
+    W and LAMC (cumulative slips) on the grid; the events, transitions, the pieces' energy
+    terms (``ledger``) and the jumps into the other arrays, their numbers in ``counts``.
+    Returns a status (module docstring)."""
+    N = signs.shape[0]
+    n, m = N - 1, 2 * N
+    nb = COEF.shape[1]
+    P = COEF.shape[0]
+    G1 = grid.shape[0]
+    kmax = 0.0
+    for i in range(n):
+        kmax = max(kmax, k[i])
+    D, l, f, col, dx0, dx = (np.empty(N), np.empty(max(N - 1, 0)), np.empty(N), np.empty(N),
+                             np.empty(N), np.empty(N))
+    Ydx, Rdx = np.empty((nb, N)), np.empty((nb, N))
+    base, Wc = np.empty(n), np.empty((nb, n))
+    Gc, z = np.empty((nb, m)), np.empty(nb)
+    phi, cvec, Bw = np.empty(nb), np.empty(m), np.empty(m)
+    w, lam_cum = w_start.copy(), np.zeros(m)
+    w_next, lam_jump = np.empty(n), np.empty(m)
+    forced = np.zeros(m, dtype=np.bool_)
+    chosen = np.empty(N, dtype=np.int8)
+    inner = np.zeros(8)
+    W[0] = w_start
+    LAMC[0] = 0.0
+    counts[:] = 0
+    u, j, p, cause = 0.0, 1, 0, EDGE
+    carried = 0.0
+    while True:
+        status = begin_event(u, w, lam_cum, forced, max_events, zeno_events, zeno_window, EV_T,
+                             EV_W, EV_DX, TR_HIT, counts, report)
+        if status != DONE:
+            return status
+        t_count = counts[C_TRANSITIONS]
+        coef = COEF[p]
+        if not decide(k, c_scale, linear, H, coef, u, w, forced, signs, chosen, phi, cvec, Bw):
+            return HANDOFF
+        signs[:] = chosen
+        TR_U[t_count], TR_PIECE[t_count], TR_SIGNS[t_count] = u, p, signs
+        TR_CAUSE[t_count], TR_HIT[t_count] = cause, forced
+        counts[C_TRANSITIONS] = t_count + 1
+        inverse, gram = piece(k, signs, w, coef, D, l, dx0, Ydx, base, Wc, f, col)
+        u_end = edges[p + 1]
+        u_e, handoff = next_event(c_scale, linear, H, coef, signs, base, Wc, Ydx, inverse, u,
+                                  u_end, forced, Gc, Rdx, Bw, z)
+        if handoff:
+            return HANDOFF
+        event = u_e < u_end
+        if not event:
+            u_e = u_end
+        if ledger and u_e > u:
+            q = counts[C_PIECES]
+            PIECE_BOUNDS[q, 0], PIECE_BOUNDS[q, 1] = u, u_e
+            energy_terms(k, linear, H, signs, base, Wc, Ydx, KLC[p], DLC[p], MC[p], LC[p],
+                         PIECE_TERMS[q])
+            counts[C_PIECES] = q + 1
+        own = dual_scale(k, kmax, c_scale, signs, coef, dx0, Ydx, base, Wc, inverse, gram)
+        j_end = j
+        while j_end < G1 and grid[j_end] <= u_e:
+            j_end += 1
+        if j_end > j:
+            if not certify_samples(k, kmax, c_scale, coef, signs, PHI, j, j_end, W, LAMC,
+                                   lam_cum, dx0, Ydx, base, Wc, inverse, gram, carried, own,
+                                   inner, cvec, Bw, dx):
+                report[1:] = inner[1:]
+                return FAILED_PIECE
+            carried = own
+            j = j_end
+        else:  # the grid interval spans this piece: its roundoff enters the next sample
+            carried = max(carried, own)
+        state_at(u_e, linear, H, signs, dx0, Ydx, base, Wc, lam_cum, w, phi, dx)
+        u = u_e
+        if event:
+            any_hit = False
+            for r in range(m):
+                any_hit = any_hit or forced[r]
+            cause = HIT if any_hit else RELEASE
+            continue
+        forced[:] = False
+        cause = EDGE
+        edge = p + 1
+        if jumps[edge]:
+            report[R_U] = u
+            if jump(k, c_scale, w, TARGET[edge], signs, w_next, lam_jump, inner) != DONE:
+                return HANDOFF
+            q = counts[C_JUMPS]
+            JUMP_PIECE[q], JUMP_U[q] = p, u
+            JUMP_W[q, 0], JUMP_W[q, 1], JUMP_LAM[q] = w, w_next, lam_jump
+            counts[C_JUMPS] = q + 1
+            after_jump(u, edge % P, w, w_next, lam_cum, lam_jump, signs, forced, grid, W, LAMC,
+                       TR_U, TR_PIECE, TR_SIGNS, TR_CAUSE, TR_HIT, counts)
+        if edge == P:
+            break
+        p = edge
+    if j != G1:
+        return HANDOFF  # pragma: no cover - the grid ends at 1, the last edge
+    return DONE
