@@ -23,6 +23,7 @@ from click.testing import CliRunner
 from crawlsim.analysis.digits import supported
 from crawlsim.cli import main
 from crawlsim.errors import GaitError, InputError
+from crawlsim.gait.docpaths import resolve_path
 from crawlsim.gait.document import load_gait, with_simulation
 from crawlsim.study import sweep as sweeps
 
@@ -78,9 +79,9 @@ def test_log_spaced_axis_is_geometric_with_exact_ends():
 
 def test_paths_expand_and_refuse():
     doc = base().document
-    assert sweeps.resolve_path(doc, sweeps.parse_axis("links.*.phase=0"), "g") == [
+    assert resolve_path(doc, sweeps.parse_axis("links.*.phase=0"), "g") == [
         ("links", 0, "phase"), ("links", 1, "phase"), ("links", 2, "phase")]
-    assert sweeps.resolve_path(doc, sweeps.parse_axis("friction.backward=1"), "g") == [
+    assert resolve_path(doc, sweeps.parse_axis("friction.backward=1"), "g") == [
         ("friction", "backward")]
     messages = {
         "links.3.phase=0": "index 3 is out of range",
@@ -92,7 +93,7 @@ def test_paths_expand_and_refuse():
     }
     for spec, text in messages.items():
         with pytest.raises(GaitError, match=text):
-            sweeps.resolve_path(doc, sweeps.parse_axis(spec), "g")
+            resolve_path(doc, sweeps.parse_axis(spec), "g")
     with pytest.raises(GaitError, match="sets links.1.phase, which --sweep links.1.phase"):
         sweeps.make_grid(base(), [sweeps.parse_axis("links.1.phase=0"),
                                   sweeps.parse_axis("links.*.phase=0")])
@@ -434,7 +435,7 @@ def test_chunks_grow_with_the_measured_rate_and_shrink_at_the_end():
     """Tasks start at MIN_CHUNK points (progress and the journal move at once), then take about
     TASK_SECONDS at the measured rate (capped at MAX_CHUNK); the last ones split what is left
     among the workers."""
-    chunker = sweeps._Chunker(np.arange(1000), workers=2)
+    chunker = sweeps.Chunker(np.arange(1000), workers=2)
     sizes = [len(chunker.take())]
     assert sizes == [sweeps.MIN_CHUNK]
     chunker.record(8, 8 / 20.0)  # 20 points per second
