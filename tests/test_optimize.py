@@ -117,7 +117,7 @@ def test_points_of_a_grid_evaluate_as_the_grid_does(lag_grid):
     coords = lag_grid.coordinates()
     k = 37
     x = (float(coords[0][k]), float(coords[1][k]))
-    ev = opt._Evaluator(lags_problem(), 10, jobs=1, scheduler=None, journal=None,
+    ev = opt.Evaluator(lags_problem(), 10, jobs=1, scheduler=None, journal=None,
                         progress=None, report=None)
     (e,) = ev.evaluate(np.array([x]), 0, opt.Stage.INITIAL)
     assert e.row.v0 == lag_grid.rows[k].v0
