@@ -417,20 +417,24 @@ def test_older_sweep_files_are_read(tmp_path):
 
 @pytest.fixture
 def workers_always(monkeypatch):
-    """Local workers start whatever the measured cost (a small sweep would run here)."""
+    """Local workers start whatever the measured cost and the load of the machine (a small
+    sweep would run here), after the two tasks of MIN_CHUNK points that run here first."""
     from crawlsim.study import executors
 
-    monkeypatch.setattr(executors, "worth_workers", lambda seconds, jobs: jobs > 1)
+    monkeypatch.setattr(executors, "worth_workers", lambda seconds, jobs, warm_up=0.0: jobs > 1)
+    monkeypatch.setattr(executors, "free_cores", lambda jobs: jobs)
+    monkeypatch.setattr(executors, "TASK_SECONDS", 1e-9)  # every task MIN_CHUNK points
 
 
 @pytest.mark.parametrize("integrator", ["exact", "catch-up"])
 def test_jobs_give_the_same_table(integrator, workers_always):
     """The rows on two workers are those of one process, bit for bit (the same arithmetic)."""
     gait = with_simulation(base(), integrator=integrator)
-    one = sweeps.sweep(gait, [AMP, LAG])
-    two = sweeps.sweep(gait, [AMP, LAG], jobs=2)
+    axes = [AMP, "links.1.phase=0.2,0.33,0.4,0.5,0.6"]
+    one = sweeps.sweep(gait, axes)
+    two = sweeps.sweep(gait, axes, jobs=2)
     assert two.to_csv() == one.to_csv()
-    assert [r.v0 for r in two.rows] == [r.v0 for r in one.rows] and len(one.rows) == 15
+    assert [r.v0 for r in two.rows] == [r.v0 for r in one.rows] and len(one.rows) == 25
 
 
 def test_workers_start_only_when_they_pay():
@@ -445,6 +449,11 @@ def test_workers_start_only_when_they_pay():
     assert executors.worth_workers(1.1 * even, 2)
     assert not executors.worth_workers(1e6, 1)
     assert executors.worth_workers(1.1 * start / (0.75 - gain), 4)
+    # each worker pays the warm-up the first task here paid beyond its points
+    assert not executors.worth_workers(1.1 * even, 2, warm_up=1.0)
+    assert executors.worth_workers(1.1 * (start + 1.0) / (0.5 - gain), 2, warm_up=1.0)
+    assert 1 <= executors.free_cores(8) <= (os.cpu_count() or 1)
+    assert executors.free_cores(1) == 1
 
 
 def test_a_small_sweep_runs_here_with_jobs(monkeypatch):

@@ -56,53 +56,71 @@ class Chunker:
         return chunk
 
 
-#: What starting the local workers costs, in seconds of one worker's time (the forkserver
-#: imports numpy, scipy and the compiled kernel, then forks), and the least share of the serial
-#: time that the workers must save beyond it: below, a sweep runs here (`run_local`).
+#: What starting local workers costs besides their warm-up, in seconds (the forkserver imports
+#: numpy and crawlsim, then forks), and the least share of the serial time that the workers
+#: must save beyond it and their warm-up: below, a sweep runs here (`run_local`).
 POOL_START_SECONDS = 1.0
 POOL_MIN_GAIN = 0.2
 
 
-def _run_chunks(grid, chunker: Chunker, collect, progress) -> None:
-    """The chunks of ``chunker`` one after the other in this process."""
-    while (chunk := chunker.take()) is not None:
-        _run_chunk(grid, chunk, chunker, collect, progress)
-
-
-def _run_chunk(grid, chunk, chunker: Chunker, collect, progress) -> None:
+def _run_chunk(grid, chunk, chunker: Chunker, collect, progress) -> float:
+    """Run one task here; its seconds."""
     began = time.perf_counter()
     rows = run_points(grid, chunk, progress=progress)
-    chunker.record(len(chunk), time.perf_counter() - began)
+    seconds = time.perf_counter() - began
+    chunker.record(len(chunk), seconds)
     collect(rows)
+    return seconds
 
 
-def worth_workers(seconds_left: float, jobs: int) -> bool:
+def free_cores(jobs: int) -> int:
+    """Workers that can run at once: at most ``jobs``, the cores, and the cores not busy with
+    other processes (the load average of the last minute, this process counted out); at
+    least 1."""
+    cores = os.cpu_count() or 1
+    try:
+        busy = max(os.getloadavg()[0] - 1.0, 0.0)
+    except (AttributeError, OSError):  # no load average on this platform
+        busy = 0.0
+    return max(1, min(int(jobs), cores, math.floor(cores - busy + 0.5)))
+
+
+def worth_workers(seconds_left: float, jobs: int, warm_up: float = 0.0) -> bool:
     """Do ``jobs`` local workers finish ``seconds_left`` of serial work sooner than this
-    process, by at least `POOL_MIN_GAIN` of it, once they have started (`POOL_START_SECONDS`)?
-    On a machine with ``jobs`` cores the ideal parallel time is ``seconds_left / jobs``."""
+    process, by at least `POOL_MIN_GAIN` of it, once they have started (`POOL_START_SECONDS`)
+    and warmed up (``warm_up``: what this process's first task cost beyond its points, the
+    kernel loaded once per process)? The ideal parallel time is ``seconds_left / jobs``."""
     if jobs <= 1:
         return False
-    parallel = POOL_START_SECONDS + seconds_left / jobs
+    parallel = POOL_START_SECONDS + warm_up + seconds_left / jobs
     return parallel <= (1 - POOL_MIN_GAIN) * seconds_left
 
 
 def run_local(grid, todo, jobs: int, collect, progress) -> None:
-    """The points ``todo`` in this process or on ``jobs`` local workers, whichever is sooner:
-    the first task runs here and measures the cost of a point; the rest goes to a pool only
-    when `worth_workers` says the pool pays for its start-up (a small sweep, or cheap points,
-    never runs slower with ``-j 2`` than with ``-j 1``). The rows are the same either way."""
+    """The points ``todo`` in this process or on local workers, whichever is sooner (so a small
+    sweep, or one of cheap points, never runs slower with ``-j 2`` than with ``-j 1``): the
+    first two tasks run here, the first pays the warm-up of a process and the second measures
+    the steady cost of a point; the rest goes to a pool only when `worth_workers` says it pays
+    for its start-up and warm-up, on `free_cores` workers. The rows are the same either way."""
     chunker = Chunker(todo, 1)
     first = chunker.take()
     if first is None:
         return
-    _run_chunk(grid, first, chunker, collect, progress)
+    warm = _run_chunk(grid, first, chunker, collect, progress)
+    second = chunker.take()
+    if second is None:
+        return
+    each = _run_chunk(grid, second, chunker, collect, progress) / len(second)
+    warm = max(warm - each * len(first), 0.0)
     left = len(chunker.todo) - chunker.pos
-    if left and worth_workers(left * chunker.seconds / chunker.points, jobs):
-        with WorkerPool(jobs) as pool:
+    workers = free_cores(jobs) if jobs > 1 and left else 1
+    if worth_workers(left * each, workers, warm):
+        with WorkerPool(workers) as pool:
             run_on_pool(grid, chunker.todo[chunker.pos:], pool, collect, progress,
-                        rate=(chunker.points, chunker.seconds))
+                        rate=(len(second), each * len(second)))
     else:
-        _run_chunks(grid, chunker, collect, progress)
+        while (chunk := chunker.take()) is not None:
+            _run_chunk(grid, chunk, chunker, collect, progress)
 
 
 _WORKER: dict[str, Any] = {}
