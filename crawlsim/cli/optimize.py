@@ -256,7 +256,7 @@ def _evaluations_line(result) -> str:
     counts, stages = result.counts(), result.stage_counts()
     bad = ", ".join(f"{counts[k]} {k}" for k in ("invalid", "failed", "not-converged")
                     if counts[k])
-    kinds = ("sample", "with gradient") if result.method.gradient else ("global", "polish")
+    kinds = ("global", "with gradient") if result.method.gradient else ("global", "polish")
     return (f"  {'evaluations':<24} {len(result.evaluations)} of {result.budget} allowed: "
             f"{stages['global']} {kinds[0]}, {stages['polish']} {kinds[1]}"
             + (f"; {bad}" if bad else ""))

@@ -2,12 +2,14 @@
 of the box, then quasi-Newton runs from its best points on the exact derivatives of the
 objective and the constraints (`crawlsim.sensitivity`, docs/sensitivity.md).
 
-* **The sample** is one batch through the sweep engine (so ``jobs``, a Dask scheduler and the
-  journal apply): the grid of `Method.sample` points per free parameter while it has at most
-  `crawlsim.study.method.SAMPLE_GRID` points, else a Latin hypercube of ``sample n`` points
-  drawn from the run's seeded generator. A run of a Pareto front starts from the population it
-  is given instead (the front found so far among it).
-* **The local runs** start from the `Method.restarts` best sample points by the feasibility
+* **The global stage** goes through the sweep engine in batches (so ``jobs``, a Dask scheduler
+  and the journal apply): the grid of `Method.sample` points per free parameter, one batch,
+  while it has at most `crawlsim.study.method.SAMPLE_GRID` points; in more dimensions, where a
+  coarse sample leaves most basins of v0 unvisited, differential evolution on the run's budget
+  less `Method.polish_share` (the evolution search's global stage, `Search._global`). A run of a
+  Pareto front evaluates the population it is given instead (the front found so far among
+  it).
+* **The local runs** start from the `Method.restarts` best points of that stage by the feasibility
   rules (`crawlsim.study.problem.rank`): L-BFGS-B in the box without constraints, SLSQP with
   them (each constraint ``q >= b`` or ``q <= b`` with its exact gradient), in units of the box.
   Every step is one verified limit with the derivatives of v0, the displacement, the dissipation
@@ -117,7 +119,8 @@ class Descent(Search):
             for u0 in starts[:self.method.restarts]:
                 self._local(u0)
             self.stop = f"{min(len(starts), self.method.restarts)} quasi-Newton runs converged " \
-                        "or stalled"
+                        "or stalled" + (f" (differential evolution: {self.stop})"
+                                        if self.stop else "")
         except BudgetSpent:
             self.stop = f"{BUDGET_SPENT} in the quasi-Newton runs" if self.best >= 0 else \
                 BUDGET_SPENT
@@ -129,24 +132,25 @@ class Descent(Search):
                    self.stop)
 
     def _sample(self, n: int) -> np.ndarray:
-        """The coarse sample, in the unit box."""
-        k = self.method.sample
-        if k ** n <= SAMPLE_GRID:
-            return np.array(list(itertools.product(*[np.linspace(0.0, 1.0, k)] * n)))
-        from scipy.stats import qmc
-
-        return qmc.LatinHypercube(d=n, rng=self.rng).random(k * n)
+        """The coarse sample: the grid of `Method.sample` points per parameter, in the unit
+        box."""
+        return np.array(list(itertools.product(*[np.linspace(0.0, 1.0, self.method.sample)] * n)))
 
     def _starts(self, n: int) -> list[np.ndarray]:
-        """The sample evaluated as one batch (cut to what the run may spend), and its points
-        that run, best first by the feasibility rules, in the unit box."""
+        """The global stage, and its points that run, best first by the feasibility rules, in
+        the unit box: the coarse sample as one batch (cut to what the run may spend) while its
+        grid is small, else differential evolution on the run's budget less the quasi-Newton
+        runs' share (`Method.polish_share`): a Latin hypercube of ``sample n`` points leaves
+        most basins of a multimodal v0 unvisited in many dimensions (ten phase lags:
+        scripts/optimize-gradient.py)."""
         problem = self.ev.problem
-        if self.init is not None:
-            X = np.asarray(self.init, dtype=float)
+        if self.init is None and self.method.sample ** n > SAMPLE_GRID:
+            self._global(n)
+            evaluations = self.ev.evaluations[self.start:]
         else:
-            X = np.array([problem.values(u) for u in self._sample(n)])
-        X = X[:max(self.left(), 1)]
-        evaluations = self.evaluate(X, Stage.INITIAL)
+            X = np.asarray(self.init, dtype=float) if self.init is not None else \
+                np.array([problem.values(u) for u in self._sample(n)])
+            evaluations = self.evaluate(X[:max(self.left(), 1)], Stage.INITIAL)
         ranked = sorted({e.index: e for e in evaluations if self.rank(e)[0] < 2}.values(),
                         key=self.rank)
         return [np.array([f.unit(v) for f, v in zip(problem.free, e.x)]) for e in ranked]

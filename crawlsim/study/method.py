@@ -31,8 +31,8 @@ POLISH_XTOL = 1e-6
 #: Interior points of a Pareto front (epsilon-constraint runs) besides its two ends.
 FRONT_POINTS = 5
 #: The gradient search's coarse sample: points per free parameter of its grid, while the grid
-#: has at most `SAMPLE_GRID` points (else a Latin hypercube of ``SAMPLE_PER_PARAMETER n``), and
-#: the quasi-Newton runs started from its best points.
+#: has at most `SAMPLE_GRID` points (else differential evolution is its global stage), and the
+#: quasi-Newton runs started from the best points of that stage.
 SAMPLE_PER_PARAMETER = 4
 SAMPLE_GRID = 64
 RESTARTS = 3
@@ -105,8 +105,12 @@ class Method:
 
     def settings(self) -> dict:
         if self.gradient:
-            return {"sample": "grid of sample points per parameter, or a Latin hypercube",
+            return {"global": "grid of sample points per parameter, or "
+                              "scipy.optimize.differential_evolution when the grid would exceed "
+                              "sample_grid points",
                     "sample_per_parameter": self.sample, "sample_grid": SAMPLE_GRID,
+                    "strategy": self.strategy, "popsize_per_parameter": self.popsize,
+                    "polish_share": self.polish_share,
                     "local": "scipy.optimize.minimize: L-BFGS-B in the box, SLSQP with "
                              "constraints; exact gradients (crawlsim.sensitivity)",
                     "restarts": self.restarts, "gradient_tol": self.gradient_tol,
