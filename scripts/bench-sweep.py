@@ -20,6 +20,22 @@ alternately (interleaved), median wall times of ``--repeat`` runs and their rati
 t(-j 2) (>= 1: -j 2 is not slower).
 
     python scripts/bench-sweep.py --jobs-check [--repeat 5]
+
+Measured (``--jobs-check --repeat 3``, medians of 3 interleaved runs, on the 2-core machine
+shared with other jobs at a load average of 11-14):
+
+    sweep                                                  -j 1 s   -j 2 s  ratio
+    exact, 20 steps, links.1.phase=0:1:12                   2.444    2.260   1.08
+    exact, 20 steps, links.1.phase=0:1:120                 31.451   30.258   1.04
+    catch-up, 400 steps, links.*.amplitude=0.05:0.45:40     3.857    4.593   0.84
+    catch-up, 400 steps, links.*.amplitude=0.05:0.45:1000   52.861   47.284   1.12
+
+At that load `free_cores` leaves no core free, so ``-j 2`` runs every one of these sweeps in
+this process, exactly as ``-j 1`` does: the ratios are the noise of the shared machine (the
+40-point catch-up sweep again, 5 interleaved runs: 1.31, no pool started). Before this change
+(issue 20) a catch-up sweep with ``-j 2`` always started two workers and ran at 0.72-0.82x of
+``-j 1``; the first task of each worker pays the kernel's warm-up again (several seconds at
+this load), which `crawlsim.study.executors.worth_workers` now counts against them.
 """
 
 from __future__ import annotations
