@@ -9,8 +9,9 @@
     optimize     gait design: the driver (one objective, or the Pareto front)
     problem      free parameters, objective, constraints, the feasibility rules
     method       the search's settings and budget
-    search       one search on the shared evaluator: evolution + pattern search, or gradient
+    search       the shared evaluator; one search: evolution + pattern search
+    descent      the gradient search: sample (or evolution), then quasi-Newton, exact gradients
     optresult    the answer: evaluations, history, runs, front, hypervolume
-    gradient     gradient-based gait design with exact sensitivities
+    gradient     gradient-based design of v0 in a box (optimize_gradient, the first version)
     paper        the paper's convergence results, reproduced
 """
