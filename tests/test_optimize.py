@@ -503,3 +503,24 @@ def test_gradient_search_refuses_a_catch_up_gait():
     assert opt.default_search(problem) == "evolution"
     with pytest.raises(SweepSpecError, match="--integrator exact"):
         opt.default_search(problem, "gradient")
+
+
+def test_the_command_runs_the_gradient_search_where_it_is_the_default(tmp_path):
+    """`crawlsim optimize` maximising v0 without constraints runs the gradient search (measured to
+    win there) and says so; --method evolution still runs the evolution search; a constraint
+    keeps the evolution search by default."""
+    args = [P4, "--free", LAGS[0], "--free", LAGS[1], *FAST, "-q", "--json"]
+    gradient = json.loads(cli("optimize", *args, "-o", tmp_path / "g.h5").stdout)
+    assert gradient["method"] == "sample + quasi-Newton on exact gradients"
+    assert gradient["v0"] == pytest.approx(7 / 15, abs=1e-6)
+    assert gradient["stages"] == {"global": 16, "polish": gradient["evaluations"] - 16}
+    evolution = json.loads(cli("optimize", *args, "--method", "evolution", "--max-evaluations",
+                               "30", "-o", tmp_path / "e.h5").stdout)
+    assert evolution["method"] == "differential evolution + pattern search"
+    constrained = json.loads(cli("optimize", *args, "--subject-to", "v0<=0.3",
+                                 "--max-evaluations", "30", "-o", tmp_path / "c.h5").stdout)
+    assert constrained["method"] == "differential evolution + pattern search"
+    assert constrained["v0"] <= 0.3
+    r = cli("optimize", *args, "--method", "gradient", "--integrator", "catch-up", "-o",
+            tmp_path / "x.h5")
+    assert r.exit_code == 2 and "--integrator exact" in r.output and not (tmp_path / "x.h5").exists()
