@@ -150,9 +150,11 @@ def certificate(signs, lam, slack, fixed):
 
 
 @njit(cache=True)
-def on_set(k, kmax, c_scale, w_trial, c, signs, D, l, inverse, gram, dx, w, lam, slack, f, res):
+def on_set(k, kmax, c_scale, w_trial, c, signs, D, l, inverse, gram, dx, w, lam, slack, f, res,
+           told):
     """The equality KKT system on the factored set ``signs``, with one step of iterative
-    refinement when its complementarity residual asks for it. Returns (tol_p, tol_d)."""
+    refinement when its complementarity residual asks for it. Returns (tol_p, tol_d), the
+    scalar tolerances, and leaves each row's own dual tolerance in ``told`` (`row_duals`)."""
     N = signs.shape[0]
     forces(w_trial, f)
     active = False
@@ -195,7 +197,65 @@ def on_set(k, kmax, c_scale, w_trial, c, signs, D, l, inverse, gram, dx, w, lam,
         for i in range(N):
             dx[i] += res[i]
         state(k, w_trial, dx, signs, w, lam, slack, c, f)
+    row_duals(k, w_trial, c, signs, D, l, dx, tol_d, res, told)
     return tol_p, tol_d
+
+
+@njit(cache=True)
+def row_duals(k, w_trial, c, signs, D, l, dx, tol_d, s, told):
+    """Each row's own dual tolerance into ``told`` (2N), from the magnitudes of the numbers its
+    multiplier is computed from (a componentwise, Skeel-type bound).
+
+    The slips solve L_JJ dx_J = r_J, r = f - f*, f = D^T w_trial. Rounding r costs
+    eps (|f| + |f*| + |w_{i-1}| + |w_i|); the LDL^T of the M-matrix L_JJ is backward stable
+    componentwise (its factors have no sign cancellation, |L~| |D| |L~^T| = |L_JJ|), so the solve
+    adds eps |L_JJ| |dx|. With L_JJ^{-1} >= 0 entrywise, |L_JJ^{-1}| s = L_JJ^{-1} s and
+
+        |dx - dx*|_i <= 2 RTOL (L_JJ^{-1} s)_i,   s = |f| + |f*| + |w_{i-1}| + |w_i| + |L_JJ| |dx|,
+
+    one extra O(N) solve. On a chain whose stiffness spans decades this is orders of magnitude
+    below the scalar bound ||L_JJ^{-1}|| max s of `on_set`, which is set by the stiffest link:
+    a slip of a soft segment is then decided by its own roundoff, not the stiff one's.
+    Rows not in the set keep the scalar ``tol_d`` (their multiplier is exactly 0)."""
+    N = signs.shape[0]
+    for i in range(N):
+        if signs[i] == 0:
+            s[i] = 0.0
+            continue
+        left = k[i - 1] if i > 0 else 0.0
+        right = k[i] if i < N - 1 else 0.0
+        target = c[i] if signs[i] > 0 else -c[N + i]
+        wl = abs(w_trial[i - 1]) if i > 0 else 0.0
+        wr = abs(w_trial[i]) if i < N - 1 else 0.0
+        coupled = 0.0
+        if i > 0 and signs[i - 1] != 0:
+            coupled += left * abs(dx[i - 1])
+        if i < N - 1 and signs[i + 1] != 0:
+            coupled += right * abs(dx[i + 1])
+        s[i] = 2.0 * (wl + wr) + abs(target) + (left + right) * abs(dx[i]) + coupled
+    solve(D, l, s)
+    for r in range(2 * N):
+        told[r] = tol_d
+    for i in range(N):
+        bound = 2.0 * RTOL * s[i]
+        if signs[i] > 0 and bound < tol_d:
+            told[i] = bound
+        elif signs[i] < 0 and bound < tol_d:
+            told[N + i] = bound
+
+
+@njit(cache=True)
+def dual_excess(lam, told, fixed):
+    """(-lambda_r, tol_r) of the row whose multiplier is most negative relative to its own
+    tolerance (rows ``fixed`` excluded); (0, tol) when every sign holds."""
+    worst, value, tol = 0.0, 0.0, told[0] if told.shape[0] else 0.0
+    for r in range(lam.shape[0]):
+        if fixed[r] or lam[r] >= 0.0:
+            continue
+        ratio = -lam[r] / told[r] if told[r] > 0.0 else np.inf
+        if ratio > worst:
+            worst, value, tol = ratio, -lam[r], told[r]
+    return value, tol
 
 
 @njit(cache=True)
@@ -211,7 +271,7 @@ def independent(rows, N):
 
 
 @njit(cache=True)
-def update(signs, lam, slack, tol_p, tol_d, new, fixed):
+def update(signs, lam, slack, tol_p, told, new, fixed):
     """The next set of a primal-dual update into ``new`` (`crawlsim.kernel.kkt.Polyhedron.update_set`,
     then `exchange` where the set would fail LICQ); rows ``fixed`` never leave. Returns 0 with a
     new set, 1 when nothing is to change (the certificate failed on its own numbers), 2 when
@@ -227,7 +287,7 @@ def update(signs, lam, slack, tol_p, tol_d, new, fixed):
     worst_add, worst_slack = -1, -np.inf
     for r in range(2 * N):
         if member[r]:
-            if lam[r] < -tol_d and not fixed[r]:
+            if lam[r] < -told[r] and not fixed[r]:
                 change = True
                 if lam[r] < worst_lam:
                     worst_lam, worst_drop = lam[r], r
@@ -289,12 +349,14 @@ def same(a, b):
 
 @njit(cache=True)
 def settle(k, kmax, c_scale, w_trial, c, signs, factored, D, l, norms, fixed, dx, w, lam, slack,
-           f, res, new, seen, report):
+           f, res, new, seen, report, told):
     """One certified projection of ``w_trial`` onto {B w <= c} (rows ``fixed`` as equalities)
     from the set ``signs``, by primal-dual updates (`crawlsim.kernel.kkt.Polyhedron.refine`): DONE
     with w, lam, slack and the set in place, HANDOFF when the updates cycle, run out or find
     no independent set, FAILED when the certificate fails with nothing to change (``report``).
-    Returns (status, tol_p); the tolerances are also left in report[REPORT_TOLP:REPORT_TOLD+1]."""
+    The sign of each multiplier is held to its own row's tolerance (``told``, `row_duals`).
+    Returns (status, tol_p); the scalar tolerances are also left in
+    report[REPORT_TOLP:REPORT_TOLD+1]."""
     for it in range(UPDATE_ITERATIONS):
         for q in range(it):  # a set seen before: the updates cycle
             if same(seen[q], signs):
@@ -304,14 +366,16 @@ def settle(k, kmax, c_scale, w_trial, c, signs, factored, D, l, norms, fixed, dx
             norms[0], norms[1] = factor(k, signs, D, l)
             factored[:] = signs
         tol_p, tol_d = on_set(k, kmax, c_scale, w_trial, c, signs, D, l, norms[0], norms[1],
-                              dx, w, lam, slack, f, res)
-        primal, dual, comp = certificate(signs, lam, slack, fixed)
+                              dx, w, lam, slack, f, res, told)
+        primal, _, comp = certificate(signs, lam, slack, fixed)
+        dual, dual_tol = dual_excess(lam, told, fixed)
         report[REPORT_TOLP], report[REPORT_TOLD] = tol_p, tol_d
-        if primal <= tol_p and dual <= tol_d and comp <= tol_p:
+        if primal <= tol_p and dual <= dual_tol and comp <= tol_p:
             return DONE, tol_p
-        outcome = update(signs, lam, slack, tol_p, tol_d, new, fixed)
+        outcome = update(signs, lam, slack, tol_p, told, new, fixed)
         if outcome == 1:
             report[REPORT_PRIMAL], report[REPORT_DUAL], report[REPORT_COMP] = primal, dual, comp
+            report[REPORT_TOLD] = dual_tol
             report[REPORT_ROW] = worst_row(signs, lam, slack)
             return FAILED, tol_p
         if outcome == 2:
@@ -325,7 +389,15 @@ def project(k, c_scale, w_trial, c, signs, fixed, w, lam, report):
     """One certified projection (`settle`) for the exact integrator's velocity problems:
     w_trial = 0, c infinite on the rows to ignore, ``fixed`` the rows held with equality.
     Returns the status; w, lam, signs and report[REPORT_TOLP], report[REPORT_TOLD] hold the
-    step when it is DONE."""
+    step when it is DONE (`project_rows` also gives each row's own dual tolerance)."""
+    return project_rows(k, c_scale, w_trial, c, signs, fixed, w, lam, report,
+                        np.empty(2 * signs.shape[0]))
+
+
+@njit(cache=True)
+def project_rows(k, c_scale, w_trial, c, signs, fixed, w, lam, report, told):
+    """`project`, leaving each row's own dual tolerance in ``told`` (2N, `row_duals`): the
+    threshold above which a multiplier is positive beyond its roundoff."""
     N = signs.shape[0]
     kmax = 0.0
     for i in range(k.shape[0]):
@@ -338,7 +410,7 @@ def project(k, c_scale, w_trial, c, signs, fixed, w, lam, report):
     status, _ = settle(k, kmax, c_scale, w_trial, c, signs, factored, D, l, norms, fixed,
                        np.empty(N), w, lam, np.empty(2 * N), np.empty(N), np.empty(N),
                        np.empty(N, dtype=np.int8), np.empty((UPDATE_ITERATIONS, N), dtype=np.int8),
-                       report)
+                       report, told)
     return status
 
 
@@ -363,11 +435,12 @@ def catch_up(k, c_scale, C, W, LAM, S, signs, factored, D, l, norms, j0, report)
     new = np.empty(N, dtype=np.int8)
     seen = np.empty((UPDATE_ITERATIONS, N), dtype=np.int8)
     fixed = np.zeros(2 * N, dtype=np.bool_)
+    told = np.empty(2 * N)
     for j in range(j0, G):
         c = C[j + 1]
         w_trial = W[j]
         status, tol_p = settle(k, kmax, c_scale, w_trial, c, signs, factored, D, l, norms, fixed,
-                               dx, w, lam, slack, f, res, new, seen, report)
+                               dx, w, lam, slack, f, res, new, seen, report, told)
         if status != DONE:
             return status, j
         # every block tight to roundoff with an inactive row among them: LICQ may fail and the

@@ -88,22 +88,30 @@ class Tolerance:
 
 @dataclass(frozen=True)
 class Certificate:
-    """The largest violations of one step, and the tolerances they are held to."""
+    """The largest violations of one step, and the tolerances they are held to. With per-row
+    dual tolerances (an array ``tolerance.dual``), ``dual`` is the negative multiplier largest
+    relative to its own row's tolerance, ``dual_tolerance`` that tolerance."""
 
     primal: float  # max (B w - c)
     dual: float  # max (-lambda)
     complementarity: float  # max |(B w - c)_A|
     tolerance: Tolerance
+    dual_tolerance: float | None = None
+
+    @property
+    def _dual_tol(self) -> float:
+        return float(self.tolerance.dual) if self.dual_tolerance is None else self.dual_tolerance
 
     @property
     def ok(self) -> bool:
         t = self.tolerance
-        return self.primal <= t.primal and self.dual <= t.dual and self.complementarity <= t.primal
+        return (self.primal <= t.primal and self.dual <= self._dual_tol
+                and self.complementarity <= t.primal)
 
     def __str__(self) -> str:
         t = self.tolerance
         return (f"primal violation {self.primal:.3g} (tolerance {t.primal:.3g}), negative "
-                f"multiplier {self.dual:.3g} (tolerance {t.dual:.3g}), complementarity "
+                f"multiplier {self.dual:.3g} (tolerance {self._dual_tol:.3g}), complementarity "
                 f"{self.complementarity:.3g} (tolerance {t.primal:.3g})")
 
 
@@ -392,7 +400,13 @@ class Polyhedron:
             lam += delta
             w = w - self.respond(delta)
             slack = self.apply(w) - c
-        return w, lam, slack, tol
+        return w, lam, slack, self.row_tolerance(active, w_trial, c, lam, tol)
+
+    def row_tolerance(self, active: ActiveSet, w_trial: np.ndarray, c: np.ndarray,
+                      lam: np.ndarray, tol: Tolerance) -> Tolerance:
+        """``tol`` with each row's own dual tolerance where the structure gives one (chains:
+        `ChainPolyhedron.row_tolerance`); generic processes keep the scalar bound."""
+        return tol
 
     def _tolerance1(self, active, c, w, lam) -> Tolerance:
         """`tolerance` for one step, in Python floats."""
@@ -412,8 +426,17 @@ class Polyhedron:
         if fixed is not None and len(fixed):
             lam = lam.copy()
             lam[fixed] = 0.0
-        return Certificate(float(slack.max(initial=-np.inf)), float(-lam.min(initial=0.0)),
-                           comp, tol)
+        primal = float(slack.max(initial=-np.inf))
+        if np.ndim(tol.dual) == 0:
+            return Certificate(primal, float(-lam.min(initial=0.0)), comp, tol)
+        # per-row dual tolerances: the multiplier most negative relative to its own row's
+        told = np.asarray(tol.dual, dtype=float)
+        neg = np.maximum(-lam, 0.0)
+        ratio = np.divide(neg, told, out=np.where(neg > 0, np.inf, 0.0), where=told > 0)
+        r = int(np.argmax(ratio)) if len(ratio) else 0
+        value = float(neg[r]) if len(neg) else 0.0
+        return Certificate(primal, value, comp, tol,
+                           float(told[r]) if len(told) else 0.0)
 
     def tight_rows(self, slack: np.ndarray, active: ActiveSet, tol: Tolerance) -> np.ndarray:
         """Rows tight to roundoff at a certified point: the active ones and any inactive row
@@ -697,7 +720,33 @@ class ChainPolyhedron(Polyhedron):
         lam = step.multipliers[tight]
         upper = np.min(lam[signs < 0], initial=np.inf)  # s <= lam_j for s_j = -1
         lower = -np.min(lam[signs > 0], initial=np.inf)  # s >= -lam_j for s_j = +1
-        return bool(upper - lower > tol.dual)
+        return bool(upper - lower > float(np.max(tol.dual)))
+
+    def row_tolerance(self, active, w_trial, c, lam, tol):
+        """Each active row's own dual tolerance, the componentwise bound of
+        `crawlsim.kernel.chain.row_duals` (same formula, numpy): with L_JJ^{-1} >= 0,
+
+            |dx - dx*|_i <= 2 RTOL (L_JJ^{-1} s)_i,   s = |f| + |f*| + |w_{i-1}| + |w_i| + |L_JJ| |dx|,
+
+        capped by the scalar bound; inactive rows keep the scalar one."""
+        if not active.size:
+            return tol
+        N = self.blocks
+        idx = active.index
+        blocks = idx % N
+        sign = np.where(idx < N, 1.0, -1.0)
+        absdx = np.zeros(N + 2)
+        absdx[blocks + 1] = np.abs(lam[idx])
+        kpad = np.concatenate([[0.0], self.stiffness, [0.0]])
+        wpad = np.abs(np.concatenate([[0.0], np.asarray(w_trial, dtype=float), [0.0]]))
+        left, right = kpad[blocks], kpad[blocks + 1]
+        s = (2.0 * (wpad[blocks] + wpad[blocks + 1]) + np.abs(c[idx])
+             + (left + right) * absdx[blocks + 1] + left * absdx[blocks]
+             + right * absdx[blocks + 2])
+        y = sign * active.solve(sign * s)
+        told = np.full(self.m, float(tol.dual))
+        told[idx] = np.minimum(2.0 * RTOL * y, float(tol.dual))
+        return Tolerance(tol.primal, told)
 
     def metric_times(self, w):
         return np.asarray(w, dtype=float) / self.stiffness
