@@ -497,8 +497,10 @@ class EventStepper(PeriodStepper):
         C = phi @ self.pieces.coefficients(piece_index)
         slack = poly.apply(Wg) - C
         lam = np.diff(LAMC, axis=0)
-        tol = poly.tolerance(piece.active, np.max(np.abs(C), axis=1),
-                             np.max(np.abs(Wg), axis=1), np.max(np.abs(LAMC[1:]), axis=1))
+        # sizes of the numbers summed (phi @ coef cancels on short pieces with steep offsets)
+        tol = poly.tolerance(piece.active, np.max(np.abs(phi) @ np.abs(self.pieces.coefficients(
+            piece_index)), axis=1), np.max(np.abs(piece.base) + np.abs(phi) @ np.abs(piece.Wc),
+            axis=1), np.max(np.abs(LAMC[1:]), axis=1))
         primal = np.max(slack, axis=1)
         dual = -np.min(lam, axis=1, initial=0.0)
         # slip integrals are differences of cumulative slips, which carry their own roundoff,
