@@ -224,3 +224,66 @@ def test_degenerate_slips_are_told_from_unique_ones():
     assert poly.degenerate_slips(step, np.array([0, 3]), tol)
     step = kkt.Step(np.zeros(1), np.array([0.0, 0.0, 0.0, 0.0]), poly.factor([0]), None)  # type: ignore[arg-type]
     assert not poly.degenerate_slips(step, np.array([0, 3]), tol)
+
+
+def exact_slips(poly, w_trial, c, index):
+    """The slips of the equality system on ``index`` in rational arithmetic, from the same
+    floating-point data: L_JJ dx_J = f_J - f*_J, f = D^T w_trial (module docstring of kkt)."""
+    from fractions import Fraction
+
+    N = poly.blocks
+    blocks = [int(i) % N for i in index]
+    order = np.argsort(blocks)
+    J = [blocks[q] for q in order]
+    rows = [int(index[q]) for q in order]
+    k = [Fraction(float(v)) for v in poly.stiffness]
+    w = [Fraction(0)] + [Fraction(float(v)) for v in w_trial] + [Fraction(0)]
+    f = [w[i] - w[i + 1] for i in range(N)]
+    rhs = [f[i] - (Fraction(float(c[r])) if r < N else -Fraction(float(c[r])))
+           for i, r in zip(J, rows)]
+    diag = [(k[i - 1] if i > 0 else 0) + (k[i] if i < N - 1 else 0) for i in J]
+    off = [-k[J[q]] if J[q + 1] == J[q] + 1 else Fraction(0) for q in range(len(J) - 1)]
+    for q in range(1, len(J)):  # Thomas, exactly
+        m = off[q - 1] / diag[q - 1]
+        diag[q] -= m * off[q - 1]
+        rhs[q] -= m * rhs[q - 1]
+    dx = [Fraction(0)] * len(J)
+    for q in range(len(J) - 1, -1, -1):
+        dx[q] = (rhs[q] - (off[q] * dx[q + 1] if q < len(J) - 1 else 0)) / diag[q]
+    lam = np.zeros(poly.m)
+    for q, r in enumerate(rows):
+        lam[r] = float(dx[q]) if r < N else -float(dx[q])
+    return lam
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_row_dual_tolerances_bound_each_multiplier_and_follow_its_segment(seed):
+    """Each active row's own dual tolerance (`ChainPolyhedron.row_tolerance`, compiled
+    `chain.row_duals`) bounds the error of its multiplier against the rational solution of the
+    same system, and on a chain whose stiffness spans 1e6 it is orders of magnitude below the
+    scalar bound set by the stiffest link, where the kernel decides a soft segment's slip
+    (tests/test_corpus.py: the seeds that exited 1 with the scalar bound). The compiled and
+    numpy bounds are the same formula."""
+    from crawlsim.kernel import chain
+
+    poly, c, w_trial = chain_problem(seed, 30, 1e6, 1e3, 3.0)
+    step = ExactProjector(poly).project(w_trial, c)
+    A = step.active
+    assert A.size >= 3
+    _, lam, _, tol = poly.solve_on(A, w_trial, c)
+    told = np.asarray(tol.dual)
+    assert told.shape == (poly.m,)
+    exact = exact_slips(poly, w_trial, c, A.index)
+    idx = A.index
+    assert np.all(np.abs(lam[idx] - exact[idx]) <= told[idx])
+    scalar = float(np.max(told))  # inactive rows keep the scalar bound
+    assert np.min(told[idx]) <= 1e-3 * scalar
+    signs = np.zeros(poly.blocks, dtype=np.int8)
+    signs[idx[idx < poly.blocks]] = 1
+    signs[idx[idx >= poly.blocks] - poly.blocks] = -1
+    w, lam_k, report, told_k = (np.empty(poly.n), np.empty(poly.m), np.zeros(6),
+                                np.empty(poly.m))
+    status = chain.project_rows(poly.stiffness, poly.c_scale, w_trial, c, signs,
+                                np.zeros(poly.m, dtype=np.bool_), w, lam_k, report, told_k)
+    assert status == chain.DONE
+    np.testing.assert_allclose(told_k[idx], told[idx], rtol=1e-9)
