@@ -31,7 +31,9 @@ from crawlsim.errors import CertificateError
 from crawlsim.gait.document import load_gait
 from crawlsim.integrate.stepping import make_stepper
 from crawlsim.kernel.catchup import signs_of
-from crawlsim.kernel.kkt import REFINE_FRACTION, ActiveSet, DensePolyhedron, Dependent
+from crawlsim.kernel.certificate import REFINE_FRACTION, Dependent
+from crawlsim.kernel.dense_polyhedron import DensePolyhedron
+from crawlsim.kernel.polyhedron import ActiveSet
 from crawlsim.kernel.projection import ExactProjector
 from crawlsim.model.process import compile_gait
 
@@ -253,7 +255,7 @@ def test_a_batched_run_accepts_no_wrong_step():
     batch's factors off by a relative 1e-3."""
     from dataclasses import replace
 
-    from crawlsim.kernel.kkt import chain_factors, run_chains
+    from crawlsim.kernel.batched import chain_factors, run_chains
 
     process, w, c, proj = projected_step()
     k = process.stiffness[None, :]
@@ -277,7 +279,7 @@ def test_refinement_certifies_slightly_wrong_chain_solves(error):
     leaves 1e-20: certified, in a single step, a telescoped run and a batched run."""
     from dataclasses import replace
 
-    from crawlsim.kernel.kkt import chain_factors, run_chains
+    from crawlsim.kernel.batched import chain_factors, run_chains
 
     process, w, c, proj = projected_step()
     poly = process.polyhedron

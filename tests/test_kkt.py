@@ -11,8 +11,9 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from crawlsim.kernel import kkt
-from crawlsim.kernel.kkt import ChainPolyhedron, DensePolyhedron
+from crawlsim.kernel import batched, certificate, tridiagonal
+from crawlsim.kernel.chain_polyhedron import ChainPolyhedron
+from crawlsim.kernel.dense_polyhedron import DensePolyhedron
 from crawlsim.kernel.projection import ExactProjector
 
 EPS = np.finfo(float).eps
@@ -64,7 +65,7 @@ def test_chain_operators_are_the_dense_matrices(shape):
     B, Minv = poly.dense_normals(), np.linalg.inv(poly.dense_metric())
     np.testing.assert_allclose(poly.apply(W), W @ B.T, rtol=0, atol=1e-14)
     np.testing.assert_allclose(poly.respond(LAM), LAM @ (Minv @ B.T).T, rtol=0, atol=1e-13)
-    np.testing.assert_allclose(kkt.chain_apply(W), W @ B.T, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(batched.chain_apply(W), W @ B.T, rtol=0, atol=1e-14)
 
 
 @pytest.mark.parametrize("blocks", [3, 6, 7, 40, 200])
@@ -94,7 +95,7 @@ def test_chain_licq_is_not_every_block_and_not_both_limits():
     assert poly.licq([0, 1, 6])
     assert not poly.licq([0, 1, 2, 7])  # every block at a limit: L 1 = 0
     assert not poly.licq([1, 5])  # block 1 at both limits: opposite normals
-    with pytest.raises(kkt.Dependent):
+    with pytest.raises(certificate.Dependent):
         poly.factor([0, 1, 2, 7])
 
 
@@ -123,7 +124,7 @@ def test_chain_projection_satisfies_kkt_and_agrees_with_clarabel(seed, blocks, s
     poly, c, w_trial = chain_problem(seed, blocks, stiffness_ratio, friction_ratio, push)
     projector = ExactProjector(poly)
     proj = projector.project(w_trial, c)
-    step = kkt.Step(proj.point, proj.multipliers, proj.active, None)  # type: ignore[arg-type]
+    step = certificate.Step(proj.point, proj.multipliers, proj.active, None)  # type: ignore[arg-type]
     assert_kkt(poly, c, w_trial, step)
     lam_ip, _ = projector._clarabel(w_trial, c)
     if projector.clarabel_status not in ("Solved", "AlmostSolved"):
@@ -132,7 +133,7 @@ def test_chain_projection_satisfies_kkt_and_agrees_with_clarabel(seed, blocks, s
         # proposal, and the kernel certifies the same projection from it
         again = projector.project(w_trial, c, verify=True)
         assert again.used_clarabel
-        assert_kkt(poly, c, w_trial, kkt.Step(again.point, again.multipliers, again.active,
+        assert_kkt(poly, c, w_trial, certificate.Step(again.point, again.multipliers, again.active,
                                               None))  # type: ignore[arg-type]
         np.testing.assert_allclose(again.point, proj.point, rtol=0, atol=1e-13 * max(
             1.0, float(np.max(np.abs(w_trial)))))
@@ -192,7 +193,7 @@ def test_batched_updates_agree_with_single_projections(blocks):
     k = np.stack([p.stiffness for p, _, _ in problems])
     c = np.stack([cc for _, cc, _ in problems])
     w = np.stack([wt for _, _, wt in problems])
-    w_out, lam_out, signs, done = kkt.refine_chains(k, np.zeros((12, blocks)), w, c,
+    w_out, lam_out, signs, done = batched.refine_chains(k, np.zeros((12, blocks)), w, c,
                                                     np.ones(12))
     assert done.sum() >= 10
     for i in np.flatnonzero(done):
@@ -205,9 +206,9 @@ def test_ldl_tridiagonal_solves_batches():
     rng = np.random.default_rng(0)
     d = rng.uniform(3, 5, (4, 7))
     e = rng.uniform(-1, 1, (4, 6))
-    D, l = kkt.ldl_tridiagonal(d, e)
+    D, l = tridiagonal.ldl_tridiagonal(d, e)
     b = rng.normal(size=(4, 3, 7))
-    x = kkt.ldl_solve(D, l, b)
+    x = tridiagonal.ldl_solve(D, l, b)
     for i in range(4):
         T = np.diag(d[i]) + np.diag(e[i], 1) + np.diag(e[i], -1)
         np.testing.assert_allclose(x[i], np.linalg.solve(T, b[i].T).T, rtol=1e-12)
@@ -219,10 +220,10 @@ def test_degenerate_slips_are_told_from_unique_ones():
     at its backward limit with multiplier 0.5: s in [-1, 0.5] (not unique). With both
     multipliers 0 the interval is the point s = 0: unique."""
     poly = ChainPolyhedron(np.ones(1), 1.0)
-    tol = kkt.Tolerance(1e-14, 1e-14)
-    step = kkt.Step(np.zeros(1), np.array([1.0, 0.0, 0.0, 0.5]), poly.factor([0]), None)  # type: ignore[arg-type]
+    tol = certificate.Tolerance(1e-14, 1e-14)
+    step = certificate.Step(np.zeros(1), np.array([1.0, 0.0, 0.0, 0.5]), poly.factor([0]), None)  # type: ignore[arg-type]
     assert poly.degenerate_slips(step, np.array([0, 3]), tol)
-    step = kkt.Step(np.zeros(1), np.array([0.0, 0.0, 0.0, 0.0]), poly.factor([0]), None)  # type: ignore[arg-type]
+    step = certificate.Step(np.zeros(1), np.array([0.0, 0.0, 0.0, 0.0]), poly.factor([0]), None)  # type: ignore[arg-type]
     assert not poly.degenerate_slips(step, np.array([0, 3]), tol)
 
 

@@ -5,8 +5,8 @@ Each gait b of the batch follows the catch-up scheme of `crawlsim.integrate.step
     w_{j+1} = argmin { 1/2 |w - w_j|_M^2 : B w <= c(t_{j+1}) },
 
 on its own tabulated offsets, each gait at its own step j of its own period. The numbers of every
-step come from the KKT kernel's batched routines (`crawlsim.kernel.kkt.run_chains`,
-`crawlsim.kernel.kkt.refine_chains`): on the active set of each gait a block of up to `BLOCK` steps
+step come from the KKT kernel's batched routines (`crawlsim.kernel.batched.run_chains`,
+`crawlsim.kernel.batched.refine_chains`): on the active set of each gait a block of up to `BLOCK` steps
 telescopes, all gaits at once, certified step by step with each gait's own tolerances; a gait
 keeps the steps before its first uncertified one. That step then gets a new active set by the
 kernel's primal-dual updates, vectorised over the gaits that need one, and, when those do not
@@ -38,7 +38,7 @@ from crawlsim.analysis.run import (
     poincare_step,
 )
 from crawlsim.errors import CrawlsimError, InputError
-from crawlsim.kernel import kkt
+from crawlsim.kernel import batched
 from crawlsim.kernel.projection import ExactProjector
 from crawlsim.model.process import SweepingProcess
 from crawlsim.status import Convergence, PointStatus
@@ -123,7 +123,7 @@ class _Lockstep:
         self.displacements: list[list[float]] = [[] for _ in processes]
         self.results: list[BatchRun | None] = [None] * len(processes)
         self.s: dict[str, np.ndarray] = {}
-        self.factors: kkt.ChainFactors | None = None
+        self.factors: batched.ChainFactors | None = None
 
     # -- admission of gaits ------------------------------------------------------------------
     def _admit(self, ids: list[int]):
@@ -163,11 +163,11 @@ class _Lockstep:
         """Factors of the active sets (all gaits, or refresh the ``rows`` whose set changed)."""
         s = self.s
         if rows is None or self.factors is None:
-            self.factors = kkt.chain_factors(s["stiffness"], s["signs"])
+            self.factors = batched.chain_factors(s["stiffness"], s["signs"])
             return
         if not len(rows):
             return
-        f = kkt.chain_factors(s["stiffness"][rows], s["signs"][rows])
+        f = batched.chain_factors(s["stiffness"][rows], s["signs"][rows])
         for name in ("signs", "D", "l", "inverse_norm", "gram_norm"):
             getattr(self.factors, name)[rows] = getattr(f, name)
 
@@ -199,7 +199,7 @@ class _Lockstep:
         valid = steps <= self.G
         at = np.minimum(steps, self.G)
         C = s["offsets"][rows[:, None], at]
-        runs = kkt.run_chains(s["stiffness"], self.factors, s["w"], C, s["c_scale"])
+        runs = batched.run_chains(s["stiffness"], self.factors, s["w"], C, s["c_scale"])
         good = runs.ok & ~runs.stop & valid
         accepted = np.where(good.all(axis=1), K, np.argmin(good, axis=1))
         taken = np.arange(K)[None, :] < accepted[:, None]
@@ -225,7 +225,7 @@ class _Lockstep:
         s = self.s
         jn = s["j"][positions] + 1
         c = s["offsets"][positions, jn]
-        w, lam, signs, done = kkt.refine_chains(s["stiffness"][positions], s["signs"][positions],
+        w, lam, signs, done = batched.refine_chains(s["stiffness"][positions], s["signs"][positions],
                                                 s["w"][positions], c, s["c_scale"][positions])
         failed = []
         for i in np.flatnonzero(~done):

@@ -1,6 +1,6 @@
 """The driver of the compiled catch-up step (`crawlsim.kernel.chain`): it owns the kernel's
 arrays between periods, calls it, and turns what it reports into crawlsim's terms: the active
-sets as `crawlsim.kernel.kkt.ActiveSet` (for the periodic-limit solver), a failed certificate as a
+sets as `crawlsim.kernel.polyhedron.ActiveSet` (for the periodic-limit solver), a failed certificate as a
 `CertificateError` naming the time and the rows.
 """
 
@@ -12,7 +12,9 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from crawlsim.kernel import chain
-from crawlsim.kernel.kkt import ActiveSet, ChainPolyhedron, Dependent, Polyhedron
+from crawlsim.kernel.certificate import Dependent
+from crawlsim.kernel.chain_polyhedron import ChainPolyhedron
+from crawlsim.kernel.polyhedron import ActiveSet, Polyhedron
 
 #: What the first compilation costs (measured with an empty cache on a 2-core machine; printed
 #: so that a first run does not look hung).

@@ -1,7 +1,7 @@
 """The compiled, certified catch-up step of a crawler chain (docs/model.md §3).
 
 One step projects the trial state w_j onto K(t_{j+1}) = {w : B w <= c} in the metric M = K^{-1},
-with B = [D^T; -D^T] (`crawlsim.kernel.kkt.ChainPolyhedron`). On the saturated blocks J, with signs
+with B = [D^T; -D^T] (`crawlsim.kernel.chain_polyhedron.ChainPolyhedron`). On the saturated blocks J, with signs
 s_i = +1 (forward limit, row i) or -1 (backward limit, row N + i), the KKT system is
 
     L_JJ dx_J = f_J - f*_J,   f = D^T w_j,   f*_i = c_i (s_i = +1) or -c_{N+i} (s_i = -1),
@@ -11,7 +11,7 @@ w_{j+1} = w_j - K D dx, multipliers lambda_i = dx_i (s_i = +1), lambda_{N+i} = -
 The system is padded to all N blocks (identity rows on free blocks, no coupling across them) and
 factored by LDL^T in O(N) (the Thomas recurrence), refactored only when J changes.
 
-Every step is certified with the tolerance policy of `crawlsim.kernel.kkt.Polyhedron.solve_on` and
+Every step is certified with the tolerance policy of `crawlsim.kernel.polyhedron.Polyhedron.solve_on` and
 `certify` (one policy for every integrator): primal feasibility max(B w - c) <= tol_p, the sign
 of the multipliers -min(lambda) <= tol_d and complementarity max |(B w - c)_J| <= tol_p, where
 
@@ -20,7 +20,7 @@ of the multipliers -min(lambda) <= tol_d and complementarity max |(B w - c)_J| <
 
 with ||L_JJ^{-1}||_inf = max(L_JJ^{-1} 1) exactly (an M-matrix). A complementarity residual above
 a quarter of tol_p gets one step of iterative refinement. An uncertified step moves its active
-set by the primal-dual updates of `crawlsim.kernel.kkt.Polyhedron.refine` (drop the rows with negative
+set by the primal-dual updates of `crawlsim.kernel.polyhedron.Polyhedron.refine` (drop the rows with negative
 multipliers, add the violated rows; the worst one alone, or the exchange of Goldfarb and Idnani,
 where all at once would saturate every block). A certified KKT point of this strictly convex
 problem is the projection, so the steps agree with `crawlsim.kernel.kkt` to roundoff.
@@ -272,7 +272,7 @@ def independent(rows, N):
 
 @njit(cache=True)
 def update(signs, lam, slack, tol_p, told, new, fixed):
-    """The next set of a primal-dual update into ``new`` (`crawlsim.kernel.kkt.Polyhedron.update_set`,
+    """The next set of a primal-dual update into ``new`` (`crawlsim.kernel.polyhedron.Polyhedron.update_set`,
     then `exchange` where the set would fail LICQ); rows ``fixed`` never leave. Returns 0 with a
     new set, 1 when nothing is to change (the certificate failed on its own numbers), 2 when
     no independent update exists (the Python projector decides)."""
@@ -307,34 +307,42 @@ def update(signs, lam, slack, tol_p, told, new, fixed):
             rows[worst_drop] = False
         else:
             rows[worst_add] = True
-        if not independent(rows, N):
-            # the exchange: the entering row r depends on the active ones only when every block
-            # would be saturated (a block at both limits has no leaving row); along the
-            # dependency z = S 1 (signs of the rows, z_r > 0) the active row of the opposite
-            # sign with the smallest multiplier leaves
-            r = -1
-            best = -np.inf
-            for q in range(2 * N):
-                if not member[q] and slack[q] > best:
-                    best, r = slack[q], q
-            block = r % N
-            if member[block] or member[N + block]:
-                return 2
-            sign_r = 1 if r < N else -1
-            leave, smallest = -1, np.inf
-            for q in range(2 * N):
-                if member[q] and not fixed[q] and (1 if q < N else -1) != sign_r:
-                    ratio = max(lam[q], 0.0)
-                    if ratio < smallest:
-                        smallest, leave = ratio, q
-            if leave < 0:
-                return 2
-            rows[:] = member
-            rows[leave] = False
-            rows[r] = True
+        if not independent(rows, N) and not exchange(member, lam, slack, fixed, rows):
+            return 2
     for i in range(N):
         new[i] = 1 if rows[i] else (-1 if rows[N + i] else 0)
     return 0
+
+
+@njit(cache=True)
+def exchange(member, lam, slack, fixed, rows):
+    """The exchange of Goldfarb and Idnani into ``rows`` (`crawlsim.kernel.polyhedron.Polyhedron.exchange`):
+    the most violated row r enters although it depends on the active ones, which happens only
+    when every block would be saturated (a block at both limits has no leaving row); along the
+    dependency z = S 1 (signs of the rows, z_r > 0) the active row of the opposite sign with
+    the smallest multiplier leaves. False when no row can."""
+    N = member.shape[0] // 2
+    r = -1
+    best = -np.inf
+    for q in range(2 * N):
+        if not member[q] and slack[q] > best:
+            best, r = slack[q], q
+    block = r % N
+    if member[block] or member[N + block]:
+        return False
+    sign_r = 1 if r < N else -1
+    leave, smallest = -1, np.inf
+    for q in range(2 * N):
+        if member[q] and not fixed[q] and (1 if q < N else -1) != sign_r:
+            ratio = max(lam[q], 0.0)
+            if ratio < smallest:
+                smallest, leave = ratio, q
+    if leave < 0:
+        return False
+    rows[:] = member
+    rows[leave] = False
+    rows[r] = True
+    return True
 
 
 @njit(cache=True)
@@ -351,7 +359,7 @@ def same(a, b):
 def settle(k, kmax, c_scale, w_trial, c, signs, factored, D, l, norms, fixed, dx, w, lam, slack,
            f, res, new, seen, report, told):
     """One certified projection of ``w_trial`` onto {B w <= c} (rows ``fixed`` as equalities)
-    from the set ``signs``, by primal-dual updates (`crawlsim.kernel.kkt.Polyhedron.refine`): DONE
+    from the set ``signs``, by primal-dual updates (`crawlsim.kernel.polyhedron.Polyhedron.refine`): DONE
     with w, lam, slack and the set in place, HANDOFF when the updates cycle, run out or find
     no independent set, FAILED when the certificate fails with nothing to change (``report``).
     The sign of each multiplier is held to its own row's tolerance (``told``, `row_duals`).

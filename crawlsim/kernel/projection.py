@@ -33,7 +33,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from crawlsim.errors import CertificateError, DegenerateModelError, LicqWarning
-from crawlsim.kernel.kkt import ActiveSet, DensePolyhedron, Dependent, Polyhedron, Step
+from crawlsim.kernel.certificate import Dependent, Step
+from crawlsim.kernel.dense_polyhedron import DensePolyhedron
+from crawlsim.kernel.polyhedron import ActiveSet, Polyhedron
 
 
 @dataclass(frozen=True, eq=False)
