@@ -127,7 +127,10 @@ def test_chain_projection_satisfies_kkt_and_agrees_with_clarabel(seed, blocks, s
     step = certificate.Step(proj.point, proj.multipliers, proj.active, None)  # type: ignore[arg-type]
     assert_kkt(poly, c, w_trial, step)
     lam_ip, _ = projector._clarabel(w_trial, c)
-    if projector.clarabel_status not in ("Solved", "AlmostSolved"):
+    import clarabel
+
+    if projector.clarabel_status not in (clarabel.SolverStatus.Solved,
+                                         clarabel.SolverStatus.AlmostSolved):
         # Clarabel stopped early (MaxIterations on seed 1987: two blocks, an interior trial
         # point, limits from 0.39 to 223): no reference point, but its iterate is still a
         # proposal, and the kernel certifies the same projection from it
