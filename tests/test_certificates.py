@@ -30,7 +30,6 @@ import pytest
 from crawlsim.errors import CertificateError
 from crawlsim.gait.document import load_gait
 from crawlsim.integrate.stepping import make_stepper
-from crawlsim.kernel.catchup import signs_of
 from crawlsim.kernel.certificate import REFINE_FRACTION, Dependent
 from crawlsim.kernel.dense_polyhedron import DensePolyhedron
 from crawlsim.kernel.polyhedron import ActiveSet
@@ -250,25 +249,6 @@ def test_a_telescoped_run_accepts_no_wrong_step():
     assert bad.accepted == 0 and bad.failed is not None and not bad.failed.ok
 
 
-def test_a_batched_run_accepts_no_wrong_step():
-    """`run_chains` (the batched catch-up of sweeps): the same, with the LDL^T pivots of the
-    batch's factors off by a relative 1e-3."""
-    from dataclasses import replace
-
-    from crawlsim.kernel.batched import chain_factors, run_chains
-
-    process, w, c, proj = projected_step()
-    k = process.stiffness[None, :]
-    factors = chain_factors(k, signs_of(proj.active, process.blocks)[None, :].astype(float))
-    C = np.stack([np.vstack([c, c])])
-    scale = np.array([process.polyhedron.c_scale])
-    good = run_chains(k, factors, w[None, :], C, scale)
-    assert good.ok.all()
-    np.testing.assert_allclose(good.w[0, 0], proj.point, atol=1e-12 * scale[0])
-    bad = run_chains(k, replace(factors, D=factors.D * (1.0 + 1e-3)), w[None, :], C, scale)
-    assert not bad.ok.any()
-
-
 @pytest.mark.parametrize("error", [1e-10, -1e-10])
 def test_refinement_certifies_slightly_wrong_chain_solves(error):
     """The chain's own LDL^T is backward stable: its first solve stays far inside the
@@ -276,11 +256,7 @@ def test_refinement_certifies_slightly_wrong_chain_solves(error):
     stiffness ratios up to 1e14), so the refinement is needed only where a solve is a little
     off, as a less accurate factorisation would make it. A relative 1e-10 leaves a residual
     of about 1e-10 of the step's forces, above the tolerance (1e-14 of them); one refinement
-    leaves 1e-20: certified, in a single step, a telescoped run and a batched run."""
-    from dataclasses import replace
-
-    from crawlsim.kernel.batched import chain_factors, run_chains
-
+    leaves 1e-20: certified, in a single step and in a telescoped run."""
     process, w, c, proj = projected_step()
     poly = process.polyhedron
     scaled = _Scaled(proj.active, error)
@@ -289,12 +265,6 @@ def test_refinement_certifies_slightly_wrong_chain_solves(error):
     np.testing.assert_allclose(point, proj.point, atol=1e-12 * poly.c_scale)
     run = poly.run(scaled, w, np.vstack([c, c]))
     assert run.accepted == 2
-    k = process.stiffness[None, :]
-    factors = chain_factors(k, signs_of(proj.active, process.blocks)[None, :].astype(float))
-    off = replace(factors, D=factors.D / (1.0 + error))
-    batch = run_chains(k, off, w[None, :], np.stack([np.vstack([c, c])]),
-                       np.array([poly.c_scale]))
-    assert batch.ok.all()
     # and the first solve alone is not certified: the refinement is what passes it
     lam = np.zeros(poly.m)
     lam[proj.active.index] = scaled.solve(poly.apply(w)[proj.active.index] - c[proj.active.index])

@@ -11,7 +11,7 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from crawlsim.kernel import batched, certificate, tridiagonal
+from crawlsim.kernel import certificate, tridiagonal
 from crawlsim.kernel.chain_polyhedron import ChainPolyhedron
 from crawlsim.kernel.dense_polyhedron import DensePolyhedron
 from crawlsim.kernel.projection import ExactProjector
@@ -56,7 +56,7 @@ def assert_kkt(poly, c, w_trial, step, rtol=1e-12):
 @pytest.mark.parametrize("shape", [(8,), (3, 8), (7, 8), (5, 4, 6), (2, 1)])
 def test_chain_operators_are_the_dense_matrices(shape):
     """B w and M^{-1} B^T lambda of a chain equal the dense D^T, K D products, for any
-    leading shape (the batched runs and the basis coefficients use 2-D and 3-D arrays)."""
+    leading shape (the telescoped runs and the basis coefficients use 2-D and 3-D arrays)."""
     rng = np.random.default_rng(sum(shape))
     k = rng.uniform(0.5, 5, shape[-1])
     poly = ChainPolyhedron(k, 1.0)
@@ -65,7 +65,6 @@ def test_chain_operators_are_the_dense_matrices(shape):
     B, Minv = poly.dense_normals(), np.linalg.inv(poly.dense_metric())
     np.testing.assert_allclose(poly.apply(W), W @ B.T, rtol=0, atol=1e-14)
     np.testing.assert_allclose(poly.respond(LAM), LAM @ (Minv @ B.T).T, rtol=0, atol=1e-13)
-    np.testing.assert_allclose(batched.chain_apply(W), W @ B.T, rtol=0, atol=1e-14)
 
 
 @pytest.mark.parametrize("blocks", [3, 6, 7, 40, 200])
@@ -186,23 +185,6 @@ def test_a_telescoped_run_is_the_steps_one_by_one():
         np.testing.assert_allclose(run.w[i], w_i, rtol=0, atol=1e-13)
         np.testing.assert_allclose(run.multipliers[i], lam_i, rtol=0, atol=1e-13)
         w = w_i
-
-
-@pytest.mark.parametrize("blocks", [2, 5, 20])
-def test_batched_updates_agree_with_single_projections(blocks):
-    """`refine_chains` (vectorised primal-dual updates over a batch) certifies the same steps
-    as each gait's own projector, or leaves them to it."""
-    problems = [chain_problem(s, blocks, 1e2, 1e2, 2.0) for s in range(12)]
-    k = np.stack([p.stiffness for p, _, _ in problems])
-    c = np.stack([cc for _, cc, _ in problems])
-    w = np.stack([wt for _, _, wt in problems])
-    w_out, lam_out, signs, done = batched.refine_chains(k, np.zeros((12, blocks)), w, c,
-                                                    np.ones(12))
-    assert done.sum() >= 10
-    for i in np.flatnonzero(done):
-        proj = ExactProjector(problems[i][0]).project(w[i], c[i])
-        np.testing.assert_allclose(w_out[i], proj.point, rtol=0, atol=1e-12)
-        np.testing.assert_allclose(lam_out[i], proj.multipliers, rtol=0, atol=1e-11)
 
 
 def test_ldl_tridiagonal_solves_batches():

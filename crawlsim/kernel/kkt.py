@@ -29,29 +29,20 @@ Two structures share the interface `Polyhedron` (`crawlsim.kernel.polyhedron`):
   (docs/model.md §5): dense B and M, Cholesky of G_A, and LICQ decided by the conditioning of
   G_A.
 
-The telescoped run of steps on a fixed active set (`Polyhedron.run`, and `run_chains` for a
-batch of crawlers) uses that after a step on A, B_A w = c_A, so the next k steps are
+The telescoped run of steps on a fixed active set (`Polyhedron.run`, the path of generic
+processes) uses that after a step on A, B_A w = c_A, so the next k steps are
 
     w_{j+i} = w_j - M^{-1} B_A^T Lambda_i,   G_A Lambda_i = B_A w_j - c_A(t_{j+i}),
 
 Lambda_i the cumulative multipliers: one factorisation and one multi-right-hand-side solve for a
-whole run of steps, certified step by step in one vectorised pass (`crawlsim.kernel.batched`
-for a batch of crawlers).
+whole run of steps, certified step by step in one vectorised pass. Crawlers step in the
+compiled kernel (`crawlsim.kernel.chain`), single runs and sweeps' batches alike.
 
 This module is the kernel's one name space: the tolerance policy and certificate records
 (`crawlsim.kernel.certificate`), the tridiagonal factorisation (`crawlsim.kernel.tridiagonal`)
 and the polyhedra above, re-exported.
 """
 
-from crawlsim.kernel.batched import (
-    ChainFactors,
-    ChainRuns,
-    chain_apply,
-    chain_factors,
-    chain_respond,
-    refine_chains,
-    run_chains,
-)
 from crawlsim.kernel.certificate import (
     CACHE_NUMBERS,
     GENERIC_RCOND,
@@ -72,8 +63,6 @@ from crawlsim.kernel.tridiagonal import ldl_solve, ldl_tridiagonal
 
 __all__ = [
     "CACHE_NUMBERS", "GENERIC_RCOND", "REFINE_FRACTION", "RTOL", "SMALL_CHAIN",
-    "UPDATE_ITERATIONS", "ActiveSet", "Certificate", "ChainFactors", "ChainPolyhedron",
-    "ChainRuns", "DensePolyhedron", "Dependent", "Polyhedron", "Run", "Step", "Tolerance",
-    "chain_apply", "chain_factors", "chain_respond", "ldl_solve", "ldl_tridiagonal",
-    "refine_chains", "run_chains",
+    "UPDATE_ITERATIONS", "ActiveSet", "Certificate", "ChainPolyhedron", "DensePolyhedron",
+    "Dependent", "Polyhedron", "Run", "Step", "Tolerance", "ldl_solve", "ldl_tridiagonal",
 ]
