@@ -80,8 +80,10 @@ def run(name, path, old, new, tests, workdir: Path, env) -> str:
         shutil.copy2(ROOT / path, target)
     if proc.returncode == 0:
         return "NOT CAUGHT"
-    failed = [line for line in proc.stdout.splitlines() if line.startswith("FAILED")]
-    return "caught by " + (failed[0].split()[1] if failed else f"pytest exit {proc.returncode}")
+    failed = [line for line in proc.stdout.splitlines() if line.startswith(("FAILED", "ERROR"))]
+    if failed:
+        return "caught by " + failed[0].split()[1]
+    return f"caught: pytest exit {proc.returncode}: " + " | ".join(proc.stdout.splitlines()[-3:])
 
 
 def main() -> int:
