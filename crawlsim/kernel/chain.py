@@ -197,21 +197,25 @@ def on_set(k, kmax, c_scale, w_trial, c, signs, D, l, inverse, gram, dx, w, lam,
         for i in range(N):
             dx[i] += res[i]
         state(k, w_trial, dx, signs, w, lam, slack, c, f)
-    row_duals(k, w_trial, c, signs, D, l, dx, tol_d, res, told)
+    row_duals(k, kmax, c_scale, w_trial, c, signs, D, l, dx, tol_d, res, told)
     return tol_p, tol_d
 
 
 @njit(cache=True)
-def row_duals(k, w_trial, c, signs, D, l, dx, tol_d, s, told):
+def row_duals(k, kmax, c_scale, w_trial, c, signs, D, l, dx, tol_d, s, told):
     """Each row's own dual tolerance into ``told`` (2N), from the magnitudes of the numbers its
     multiplier is computed from (a componentwise, Skeel-type bound).
 
     The slips solve L_JJ dx_J = r_J, r = f - f*, f = D^T w_trial. Rounding r costs
-    eps (|f| + |f*| + |w_{i-1}| + |w_i|); the LDL^T of the M-matrix L_JJ is backward stable
-    componentwise (its factors have no sign cancellation, |L~| |D| |L~^T| = |L_JJ|), so the solve
-    adds eps |L_JJ| |dx|. With L_JJ^{-1} >= 0 entrywise, |L_JJ^{-1}| s = L_JJ^{-1} s and
+    eps (|f| + |f*| + |w_{i-1}| + |w_i|), and f* carries the roundoff of the terms it was
+    summed from, at least the natural size of c scaled to the block's own links,
+    c_scale max(k_{i-1}, k_i) / max k (the floor of the scalar policy, localised). The LDL^T
+    of the M-matrix L_JJ is backward stable componentwise (its factors have no sign
+    cancellation, |L~| |D| |L~^T| = |L_JJ|), so the solve adds eps |L_JJ| |dx|. With
+    L_JJ^{-1} >= 0 entrywise, |L_JJ^{-1}| s = L_JJ^{-1} s and
 
-        |dx - dx*|_i <= 2 RTOL (L_JJ^{-1} s)_i,   s = |f| + |f*| + |w_{i-1}| + |w_i| + |L_JJ| |dx|,
+        |dx - dx*|_i <= 2 RTOL (L_JJ^{-1} s)_i,
+        s = |f| + |f*| + c_scale max(k_{i-1}, k_i) / max k + |w_{i-1}| + |w_i| + |L_JJ| |dx|,
 
     one extra O(N) solve. On a chain whose stiffness spans decades this is orders of magnitude
     below the scalar bound ||L_JJ^{-1}|| max s of `on_set`, which is set by the stiffest link:
@@ -232,7 +236,8 @@ def row_duals(k, w_trial, c, signs, D, l, dx, tol_d, s, told):
             coupled += left * abs(dx[i - 1])
         if i < N - 1 and signs[i + 1] != 0:
             coupled += right * abs(dx[i + 1])
-        s[i] = 2.0 * (wl + wr) + abs(target) + (left + right) * abs(dx[i]) + coupled
+        floor = c_scale * max(left, right) / kmax if kmax > 0.0 else c_scale
+        s[i] = 2.0 * (wl + wr) + abs(target) + floor + (left + right) * abs(dx[i]) + coupled
     solve(D, l, s)
     for r in range(2 * N):
         told[r] = tol_d

@@ -158,7 +158,8 @@ class ChainPolyhedron(Polyhedron):
         """Each active row's own dual tolerance, the componentwise bound of
         `crawlsim.kernel.chain.row_duals` (same formula, numpy): with L_JJ^{-1} >= 0,
 
-            |dx - dx*|_i <= 2 RTOL (L_JJ^{-1} s)_i,   s = |f| + |f*| + |w_{i-1}| + |w_i| + |L_JJ| |dx|,
+            |dx - dx*|_i <= 2 RTOL (L_JJ^{-1} s)_i,
+            s = |f| + |f*| + c_scale max(k_{i-1}, k_i) / max k + |w_{i-1}| + |w_i| + |L_JJ| |dx|,
 
         capped by the scalar bound; inactive rows keep the scalar one."""
         if not active.size:
@@ -172,7 +173,8 @@ class ChainPolyhedron(Polyhedron):
         kpad = np.concatenate([[0.0], self.stiffness, [0.0]])
         wpad = np.abs(np.concatenate([[0.0], np.asarray(w_trial, dtype=float), [0.0]]))
         left, right = kpad[blocks], kpad[blocks + 1]
-        s = (2.0 * (wpad[blocks] + wpad[blocks + 1]) + np.abs(c[idx])
+        floor = self.c_scale * np.maximum(left, right) / float(np.max(self.stiffness))
+        s = (2.0 * (wpad[blocks] + wpad[blocks + 1]) + np.abs(c[idx]) + floor
              + (left + right) * absdx[blocks + 1] + left * absdx[blocks]
              + right * absdx[blocks + 2])
         y = sign * active.solve(sign * s)
