@@ -348,6 +348,9 @@ def _admissible(stepper, w: np.ndarray) -> np.ndarray:
     c0 = stepper.process.offsets[0]
     try:
         proj = stepper.projector.project(w, c0, time=None)
+        # a long step is certified to the roundoff of its own large multipliers; once more from
+        # its point, the residual is the point's alone, as the exact period certifies it
+        proj = stepper.projector.project(proj.point, c0, time=None, warm=proj.active)
     except Dependent:  # pragma: no cover - the projector handles dependence itself
         return w
     return proj.point
