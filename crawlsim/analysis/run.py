@@ -145,6 +145,7 @@ class RunResult:
 
     @property
     def displacement_error_estimate(self) -> float | None:
+        """The error estimate of `displacement_per_period`: v0's times the period."""
         return None if self.v0_error_estimate is None else self.v0_error_estimate * self.period
 
     @property
@@ -160,9 +161,11 @@ class RunResult:
 
     @property
     def converged(self) -> bool:
+        """Whether the run reached its periodic regime (finite-time or asymptotic)."""
         return self.convergence != Convergence.NOT_CONVERGED
 
     def summary(self) -> dict:
+        """The numbers of ``crawlsim run --json``, at full precision, JSON-ready."""
         keys = ("name", "integrator", "v0", "v0_error_estimate", "v0_error_period_iteration",
                 "v0_error_time_step", "v0_error_reason", "displacement_per_period", "dissipation_error_estimate",
                 "convergence",
