@@ -8,8 +8,11 @@ documentation keeps the section numbers that code and messages cite as ``docs/mo
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -218,3 +221,23 @@ def test_every_object_of_the_api_reference_has_a_docstring():
     assert hook.undocumented("tests.test_readme.Block") == ["tests.test_readme.Block",
                                                             "tests.test_readme.Block.id",
                                                             "tests.test_readme.Block.where"]
+
+
+def test_the_site_builds_strictly(tmp_path):
+    """`mkdocs build --strict` (as .ci/run runs it): no broken link or anchor, no page outside
+    the navigation, no undocumented object in the API reference, and the notebooks rendered
+    with their stored figures."""
+    pytest.importorskip("mkdocs")
+    pytest.importorskip("material")
+    pytest.importorskip("mkdocstrings_handlers.python")
+    pytest.importorskip("mkdocs_jupyter")
+    env = dict(os.environ, NO_MKDOCS_2_WARNING="1")
+    done = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir",
+                           str(tmp_path / "site")], cwd=ROOT, env=env, capture_output=True,
+                          text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    assert "WARNING" not in done.stderr, done.stderr
+    notebook = (tmp_path / "site" / "examples" / "first-run" / "index.html").read_text(encoding="utf-8")
+    assert notebook.count("data:image/png") >= 3
+    api = (tmp_path / "site" / "api" / "index.html").read_text(encoding="utf-8")
+    assert "keep_trajectory" in api  # a signature rendered from the code
