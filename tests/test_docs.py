@@ -143,12 +143,15 @@ def test_the_commands_page_has_every_command():
 
 
 def test_the_layout_page_names_every_package_and_only_paths_that_exist():
-    """docs/layout.md names every package folder of crawlsim/ (``gait/``, ``kernel/``, ...), and
-    every ``crawlsim/...`` path named on any page exists: a module that moves or splits cannot
-    leave a stale name behind."""
+    """docs/layout.md names every package folder of crawlsim/ (``gait/``, ``kernel/``, ...) and
+    every module, and every ``crawlsim/...`` path named on any page exists: a module that is
+    added, moves or splits cannot leave the page behind."""
     layout = (DOCS / "layout.md").read_text(encoding="utf-8")
     for package in sorted(p.parent.name for p in (ROOT / "crawlsim").glob("*/__init__.py")):
         assert f"{package}/" in layout, package
+    for module in sorted((ROOT / "crawlsim").glob("**/*.py")):  # a new module is described
+        if module.name not in ("__init__.py", "__main__.py"):
+            assert f"`{module.name}`" in layout, f"docs/layout.md does not describe {module.relative_to(ROOT)}"
     for page in PAGES:
         for path in re.findall(r"crawlsim/[\w/]+\.py|crawlsim/[\w/]+/(?=[\s`),])", page.read_text(encoding="utf-8")):
             assert (ROOT / path).exists(), f"{page.name}: {path} does not exist"
