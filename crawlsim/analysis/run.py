@@ -195,6 +195,7 @@ class RunResult:
 
     @property
     def displacement_error_estimate(self) -> float | None:
+        """The error estimate of `displacement_per_period`: v0's times the period."""
         return None if self.v0_error_estimate is None else self.v0_error_estimate * self.period
 
     @property
@@ -210,6 +211,7 @@ class RunResult:
 
     @property
     def converged(self) -> bool:
+        """Whether the run reached its periodic regime (finite-time or asymptotic)."""
         return self.convergence != Convergence.NOT_CONVERGED
 
     def __repr__(self) -> str:

@@ -79,6 +79,7 @@ class StallResult:
         return abs(self.bracket[1] - self.bracket[0]) / 2
 
     def summary(self) -> dict[str, Any]:
+        """The numbers of ``crawlsim stall --json``, JSON-ready."""
         named = "steepest_slope" if self.quantity == "slope" else "stall_force"
         return {"quantity": self.quantity, "path": self.path, "stall": self.value, named: self.value,
                 "error_estimate": self.error_estimate, "bracket": list(self.bracket),
