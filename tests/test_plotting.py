@@ -68,7 +68,6 @@ from crawlsim.plotting.style import (
     Units,
     colours,
     label,
-    parse_units,
     path_dimension,
     path_label,
     units_of,
@@ -207,7 +206,7 @@ def test_units_from_results():
     assert units_of({"gait_yaml": "units: {length: cm}\n"}) == Units(length="cm")
     assert units_of({"attrs": {"units_json": "not json"}}) == Units()
     assert units_of({"attrs": {"gait_yaml": "blocks: 2\n"}}) == Units()
-    assert parse_units({"length": 3, "time": " "}) == Units()
+    assert Units.parse({"length": 3, "time": " "}) == Units()
     # The one Units class: the gait's (crawlsim.gait.units), not a copy of it.
     assert Units is GaitUnits and type(units_of({"attrs": {"units_json": '{"force": "N"}'}})) is GaitUnits
 
