@@ -40,7 +40,7 @@ class _PeriodSpill:
 
     def __init__(self):
         self._file = tempfile.TemporaryFile()
-        self._shapes = None
+        self._shapes: tuple[tuple[int, ...], tuple[int, ...]] | None = None
 
     def add(self, rec: PeriodRecord):
         self._shapes = (rec.w.shape, rec.multipliers.shape)
@@ -48,6 +48,7 @@ class _PeriodSpill:
         rec.multipliers.tofile(self._file)
 
     def periods(self):
+        assert self._shapes is not None, "no period was added"
         (wshape, lshape) = self._shapes
         nw, nl = math.prod(wshape), math.prod(lshape)
         self._file.seek(0)

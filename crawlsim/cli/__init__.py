@@ -138,7 +138,7 @@ class OrderedCommand(click.Command):
             ctx.meta["crawlsim.option_order"] = [getattr(p, "name", None) for p in order]
             return opts, largs, order
 
-        parser.parse_args = parse_args
+        parser.parse_args = parse_args  # type: ignore[method-assign]
         return parser
 
 

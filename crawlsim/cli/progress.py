@@ -19,7 +19,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable
-from typing import IO
+from typing import IO, Any
 
 #: Seconds between two log lines when stderr is not a terminal.
 DEFAULT_INTERVAL = 10.0
@@ -76,7 +76,7 @@ class Progress:
         self.lines = 0  # log lines written
         self._lock = threading.RLock()
         self._start = self._last = clock()
-        self._bar = None
+        self._bar: Any = None  # a tqdm bar (untyped), made by _ensure_bar
         self._closed = False
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None

@@ -211,6 +211,7 @@ def _single(gait, sensitivity_paths, as_json, max_memory, quiet, verbose):
     else:  # the digits its error estimate supports (--json: full precision)
         from crawlsim.analysis.digits import supported
 
+        assert result.v0 is not None  # a crawler (need_crawler): v0 is measured
         click.echo(supported(result.v0, result.v0_error_estimate)[0])
         if derivatives is not None:
             sensitivities.echo(derivatives, summary["integrator"])

@@ -82,7 +82,7 @@ _KINDS: dict[str, tuple[dict, Builder]] = {
 }
 """Gait kinds: the value of the document's `kind` key -> (schema, builder)."""
 
-Spec = TypeVar("Spec", Gait, ProcessSpec)
+Spec = TypeVar("Spec", bound=Gait | ProcessSpec)
 
 
 def load_gait(path: str | Path) -> Gait | ProcessSpec:

@@ -77,7 +77,7 @@ class ExactProjector:
         self.m, self.n = polyhedron.m, polyhedron.n
         self.on_dependent = on_dependent
         self._describe = describe_active or (lambda idx: f"active constraints {_label(idx)}")
-        self._solver = None
+        self._solver: Any = None  # a clarabel.DefaultSolver (untyped)
         self._persistent = persistent  # False rebuilds the solver every call (benchmark baseline)
         self.clarabel_calls = 0
         self.clarabel_status: Any = None  # the last call's clarabel.SolverStatus (its proposal is certified)
