@@ -18,7 +18,7 @@ import math
 import signal
 import warnings
 from contextlib import contextmanager
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import click
 
@@ -29,6 +29,8 @@ from crawlsim.status import Integrator
 
 if TYPE_CHECKING:  # json and pathlib are imported where used: `crawlsim --help` needs neither
     from pathlib import Path
+
+    from click.parser import _OptionParser
 
 EXIT_NOT_CONVERGED = 3
 #: 128 + the signal number, as shells report a process ended by a signal.
@@ -129,11 +131,11 @@ class OrderedCommand(click.Command):
     ``ctx.meta["crawlsim.option_order"]`` (click keeps the values of each option, not how
     different options interleave): ``--link`` joins the ``--sweep`` before it."""
 
-    def make_parser(self, ctx):
+    def make_parser(self, ctx: click.Context) -> _OptionParser:
         parser = super().make_parser(ctx)
         parse = parser.parse_args
 
-        def parse_args(args):
+        def parse_args(args: list[str]) -> tuple[dict[str, Any], list[str], list[click.Parameter]]:
             opts, largs, order = parse(args)
             ctx.meta["crawlsim.option_order"] = [getattr(p, "name", None) for p in order]
             return opts, largs, order
