@@ -14,9 +14,13 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 if TYPE_CHECKING:
     from crawlsim.kernel.polyhedron import ActiveSet
+
+#: Float arrays of any shape (the annotation that lets numpy's stubs type their arithmetic).
+Floats = npt.NDArray[np.floating[Any]]
 
 #: Relative tolerance of every certificate: about 45 ulps of the size of the step's numbers.
 RTOL = 1e-14
@@ -35,7 +39,7 @@ CACHE_NUMBERS = 1 << 22
 class Dependent(Exception):
     """The rows ``index`` have linearly dependent normals (LICQ fails)."""
 
-    def __init__(self, index):
+    def __init__(self, index: npt.ArrayLike):
         super().__init__(index)
         self.index = np.asarray(index, dtype=int)
 

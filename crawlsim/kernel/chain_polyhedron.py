@@ -17,9 +17,12 @@ Lemma lem:licqstar).
 
 from __future__ import annotations
 
-import numpy as np
+from typing import Any
 
-from crawlsim.kernel.certificate import RTOL, SMALL_CHAIN, Dependent, Step, Tolerance
+import numpy as np
+import numpy.typing as npt
+
+from crawlsim.kernel.certificate import RTOL, SMALL_CHAIN, Dependent, Floats, Step, Tolerance
 from crawlsim.kernel.polyhedron import ActiveSet, Polyhedron
 from crawlsim.kernel.tridiagonal import _lapack, ldl_solve, ldl_tridiagonal
 
@@ -59,7 +62,7 @@ class _ChainSet(ActiveSet):
         x, info = dpttrs(self._D, self._l, rhs.T)
         return np.asarray(x).T
 
-    def solve(self, R):
+    def solve(self, R: np.ndarray) -> np.ndarray:
         R = np.asarray(R, dtype=float)
         flat = R.reshape(-1, self.size)
         y = self._solve_block(flat[:, self._order] * self._signs) * self._signs
@@ -72,9 +75,9 @@ class ChainPolyhedron(Polyhedron):
     """A crawler of N blocks with link stiffnesses k (module docstring): B = [D^T; -D^T],
     M = K^{-1}. Nothing of size N^2 is ever formed."""
 
-    def __init__(self, stiffness, c_scale: float):
+    def __init__(self, stiffness: npt.ArrayLike, c_scale: float):
         super().__init__()
-        k = np.asarray(stiffness, dtype=float)
+        k: Floats = np.asarray(stiffness, dtype=float)
         self.stiffness = k
         self.blocks = len(k) + 1
         self.n = len(k)
@@ -96,7 +99,7 @@ class ChainPolyhedron(Polyhedron):
         f[..., -1] = W[..., -1]
         return f
 
-    def apply(self, W):
+    def apply(self, W: np.ndarray) -> np.ndarray:
         W = np.asarray(W, dtype=float)
         N = self.blocks
         out = np.empty(W.shape[:-1] + (2 * N,))
@@ -109,20 +112,20 @@ class ChainPolyhedron(Polyhedron):
         np.negative(f, out=f)
         return out
 
-    def respond(self, LAM):
+    def respond(self, LAM: np.ndarray) -> np.ndarray:
         LAM = np.asarray(LAM, dtype=float)
         N = self.blocks
-        dx = LAM[..., :N] - LAM[..., N:]
+        dx: Floats = LAM[..., :N] - LAM[..., N:]
         return (dx[..., 1:] - dx[..., :-1]) * self.stiffness
 
-    def licq(self, index) -> bool:
+    def licq(self, index: npt.ArrayLike) -> bool:
         blocks = np.asarray(index, dtype=int) % self.blocks
         return len(np.unique(blocks)) == len(blocks) and len(blocks) < self.blocks
 
-    def _factor(self, index):
+    def _factor(self, index: np.ndarray) -> ActiveSet:
         return _ChainSet(self, index)
 
-    def dependency(self, index):
+    def dependency(self, index: np.ndarray) -> np.ndarray | None:
         """Every block saturated: B^T lambda = D (lambda^+ - lambda^-) vanishes for slips
         dx = 1, that is lambda = S 1 (the signs of the rows)."""
         index = np.asarray(index, dtype=int)
@@ -136,10 +139,11 @@ class ChainPolyhedron(Polyhedron):
             return z
         return np.where(index < self.blocks, 1.0, -1.0)
 
-    def tight_stop(self, tight, any_inactive):
+    def tight_stop(self, tight: np.ndarray, any_inactive: np.ndarray) -> np.ndarray:
         """LICQ of a chain's tight rows fails only with every block tight (module docstring)."""
         N = self.blocks
-        return np.asarray(any_inactive) & (tight[:, :N] | tight[:, N:]).all(axis=1)
+        stop: np.ndarray = np.asarray(any_inactive) & (tight[:, :N] | tight[:, N:]).all(axis=1)
+        return stop
 
     def degenerate_slips(self, step: Step, tight: np.ndarray, tol: Tolerance) -> bool:
         """Every block tight: the slips are unique only up to a rigid translation s 1, with s
@@ -154,7 +158,8 @@ class ChainPolyhedron(Polyhedron):
         lower = -np.min(lam[signs > 0], initial=np.inf)  # s >= -lam_j for s_j = +1
         return bool(upper - lower > float(np.max(tol.dual)))
 
-    def row_tolerance(self, active, w_trial, c, lam, tol):
+    def row_tolerance(self, active: ActiveSet, w_trial: np.ndarray, c: np.ndarray,
+                      lam: np.ndarray, tol: Tolerance) -> Tolerance:
         """Each active row's own dual tolerance, the componentwise bound of
         `crawlsim.kernel.chain.row_duals` (same formula, numpy): with L_JJ^{-1} >= 0,
 
@@ -182,27 +187,27 @@ class ChainPolyhedron(Polyhedron):
         told[idx] = np.minimum(2.0 * RTOL * y, float(tol.dual))
         return Tolerance(tol.primal, told)
 
-    def metric_times(self, w):
+    def metric_times(self, w: np.ndarray) -> np.ndarray:
         return np.asarray(w, dtype=float) / self.stiffness
 
-    def metric_solve(self, v):
+    def metric_solve(self, v: np.ndarray) -> np.ndarray:
         return np.asarray(v, dtype=float) * self.stiffness
 
-    def metric_root(self, v):
+    def metric_root(self, v: np.ndarray) -> np.ndarray:
         return np.asarray(v, dtype=float) / np.sqrt(self.stiffness)
 
-    def metric_root_transpose(self, v):
+    def metric_root_transpose(self, v: np.ndarray) -> np.ndarray:
         return np.asarray(v, dtype=float) / np.sqrt(self.stiffness)
 
-    def dense_normals(self):
+    def dense_normals(self) -> np.ndarray:
         N = self.blocks
         D = np.diff(np.eye(N), axis=0)
         return np.vstack([D.T, -D.T])
 
-    def dense_metric(self):
+    def dense_metric(self) -> np.ndarray:
         return np.diag(1.0 / self.stiffness)
 
-    def sparse_normals(self):
+    def sparse_normals(self) -> Any:
         import scipy.sparse as sp
 
         N, n = self.blocks, self.n
@@ -214,7 +219,7 @@ class ChainPolyhedron(Polyhedron):
         Dt = sp.csr_matrix((vals, (rows, cols)), shape=(N, n))
         return sp.vstack([Dt, -Dt]).tocsc()
 
-    def clarabel_matrices(self):
+    def clarabel_matrices(self) -> tuple[Any, Any]:
         import scipy.sparse as sp
 
         return sp.diags(1.0 / self.stiffness, format="csc"), self.sparse_normals()

@@ -5,10 +5,12 @@ G_A = B_A M^{-1} B_A^T, and LICQ decided by the conditioning of G_A (`GENERIC_RC
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
-from crawlsim.kernel.certificate import GENERIC_RCOND, Dependent
+from crawlsim.kernel.certificate import GENERIC_RCOND, Dependent, Floats
 from crawlsim.kernel.polyhedron import ActiveSet, Polyhedron
 
 
@@ -25,35 +27,36 @@ class _DenseSet(ActiveSet):
         self.inverse_norm = float(math.sqrt(len(index)) / s[-1])
         self.gram_norm = float(np.max(np.sum(np.abs(G), axis=1)))
 
-    def solve(self, R):
+    def solve(self, R: np.ndarray) -> np.ndarray:
         from scipy.linalg import cho_solve
 
         R = np.asarray(R, dtype=float)
         flat = R.reshape(-1, self.size).T
-        return cho_solve((self._chol, True), flat).T.reshape(R.shape)
+        out: np.ndarray = cho_solve((self._chol, True), flat).T.reshape(R.shape)
+        return out
 
 
 class DensePolyhedron(Polyhedron):
     """A generic polyhedral sweeping process: dense normals B (m, n) and metric M (n, n)."""
 
-    def __init__(self, normals, metric, c_scale: float):
+    def __init__(self, normals: npt.ArrayLike, metric: npt.ArrayLike, c_scale: float):
         super().__init__()
-        self.normals = np.ascontiguousarray(normals, dtype=float)
-        self.metric = np.ascontiguousarray(metric, dtype=float)
+        self.normals: Floats = np.ascontiguousarray(normals, dtype=float)
+        self.metric: Floats = np.ascontiguousarray(metric, dtype=float)
         self.m, self.n = self.normals.shape
-        self.metric_inv = np.linalg.inv(self.metric)  # n x n, once: a constant of the problem
+        self.metric_inv: Floats = np.linalg.inv(self.metric)  # n x n, once: a constant of the problem
         self.minv_bt = self.metric_inv @ self.normals.T
         self.row_norm = float(np.max(np.sum(np.abs(self.normals), axis=1), initial=1.0))
         self.response_norm = float(np.max(np.sum(np.abs(self.minv_bt), axis=1), initial=1.0))
         self.c_scale = c_scale if c_scale > 0 else 1.0
 
-    def apply(self, W):
+    def apply(self, W: np.ndarray) -> np.ndarray:
         return np.asarray(W, dtype=float) @ self.normals.T
 
-    def respond(self, LAM):
+    def respond(self, LAM: np.ndarray) -> np.ndarray:
         return np.asarray(LAM, dtype=float) @ self.minv_bt.T
 
-    def licq(self, index) -> bool:
+    def licq(self, index: npt.ArrayLike) -> bool:
         index = np.asarray(index, dtype=int)
         if len(index) == 0:
             return True
@@ -63,26 +66,26 @@ class DensePolyhedron(Polyhedron):
         s = np.linalg.svd(G, compute_uv=False)
         return bool(s[-1] > GENERIC_RCOND * s[0])
 
-    def _factor(self, index):
+    def _factor(self, index: np.ndarray) -> ActiveSet:
         return _DenseSet(self, index)
 
     def _numbers(self, size: int) -> int:
         return size * size + 8
 
-    def metric_times(self, w):
+    def metric_times(self, w: np.ndarray) -> np.ndarray:
         return np.asarray(w, dtype=float) @ self.metric.T
 
-    def metric_solve(self, v):
+    def metric_solve(self, v: np.ndarray) -> np.ndarray:
         return np.asarray(v, dtype=float) @ self.metric_inv.T
 
-    def metric_root(self, v):
+    def metric_root(self, v: np.ndarray) -> np.ndarray:
         return np.asarray(v, dtype=float) @ self._root  # rows v -> (L^T v)^T = v^T L
 
-    def metric_root_transpose(self, v):
+    def metric_root_transpose(self, v: np.ndarray) -> np.ndarray:
         return np.asarray(v, dtype=float) @ self._root.T
 
     @property
-    def _root(self) -> np.ndarray:
+    def _root(self) -> Floats:
         """L with M = L L^T (Cholesky)."""
         cached = getattr(self, "_root_cache", None)
         if cached is None:
@@ -90,13 +93,13 @@ class DensePolyhedron(Polyhedron):
             self._root_cache = cached
         return cached
 
-    def dense_normals(self):
+    def dense_normals(self) -> np.ndarray:
         return self.normals
 
-    def dense_metric(self):
+    def dense_metric(self) -> np.ndarray:
         return self.metric
 
-    def clarabel_matrices(self):
+    def clarabel_matrices(self) -> tuple[Any, Any]:
         import scipy.sparse as sp
 
         return sp.csc_matrix(np.triu(self.metric)), sp.csc_matrix(self.normals)

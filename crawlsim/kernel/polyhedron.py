@@ -12,6 +12,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from crawlsim.kernel.certificate import (
     CACHE_NUMBERS,
@@ -44,12 +45,12 @@ class ActiveSet:
 
 
 class _EmptySet(ActiveSet):
-    def __init__(self):
+    def __init__(self) -> None:
         self.index = np.zeros(0, dtype=int)
         self.inverse_norm = 0.0
         self.gram_norm = 0.0
 
-    def solve(self, R):
+    def solve(self, R: np.ndarray) -> np.ndarray:
         return np.zeros(np.shape(R))
 
 
@@ -84,7 +85,7 @@ class Polyhedron:
         """M^{-1} B^T lambda for multipliers (..., m) -> (..., n)."""
         raise NotImplementedError
 
-    def licq(self, index) -> bool:
+    def licq(self, index: npt.ArrayLike) -> bool:
         """Whether the normals of the rows ``index`` are linearly independent."""
         raise NotImplementedError
 
@@ -127,7 +128,7 @@ class Polyhedron:
         return not self.licq(tight)
 
     # -- active sets ---------------------------------------------------------------------------
-    def factor(self, index) -> ActiveSet:
+    def factor(self, index: npt.ArrayLike) -> ActiveSet:
         """The factored active set of the rows ``index`` (cached); `Dependent` if LICQ fails."""
         key = tuple(np.sort(np.asarray(index, dtype=int)).tolist())
         cached = self._cache.get(key)
@@ -146,7 +147,8 @@ class Polyhedron:
         return cached
 
     # -- the one tolerance policy --------------------------------------------------------------
-    def tolerance(self, active: ActiveSet, c_size, w_size, lam_size) -> Tolerance:
+    def tolerance(self, active: ActiveSet, c_size: npt.ArrayLike, w_size: npt.ArrayLike,
+                  lam_size: npt.ArrayLike) -> Tolerance:
         """Certificate tolerances for a step (or arrays of steps) whose offsets, states and
         cumulative multipliers have these sup norms.
 
@@ -191,7 +193,8 @@ class Polyhedron:
         `ChainPolyhedron.row_tolerance`); generic processes keep the scalar bound."""
         return tol
 
-    def _tolerance1(self, active, c, w, lam) -> Tolerance:
+    def _tolerance1(self, active: ActiveSet, c: np.ndarray, w: np.ndarray,
+                    lam: np.ndarray) -> Tolerance:
         """`tolerance` for one step, in Python floats."""
         # rows with an infinite offset are ignored (velocity problems of the exact integrator)
         c_size = float(np.max(np.abs(c), initial=0.0, where=np.isfinite(c)))
@@ -229,7 +232,7 @@ class Polyhedron:
         return np.flatnonzero(tight)
 
     # -- primal-dual active-set updates ------------------------------------------------------
-    def refine(self, w_trial: np.ndarray, c: np.ndarray, start: ActiveSet | tuple | np.ndarray,
+    def refine(self, w_trial: np.ndarray, c: np.ndarray, start: ActiveSet | tuple[int, ...] | np.ndarray,
                *, iterations: int = UPDATE_ITERATIONS, single: bool = False,
                fixed: np.ndarray | None = None) -> Step | None:
         """A certified step from the active set ``start``, by primal-dual active-set updates,
@@ -308,7 +311,8 @@ class Polyhedron:
             return None
         _, s, vt = np.linalg.svd(B.T)
         if len(index) > len(s) or s[-1] <= GENERIC_RCOND * s[0]:
-            return vt[-1]
+            z: np.ndarray = vt[-1]
+            return z
         return None
 
     def update_set(self, active: ActiveSet, lam: np.ndarray, slack: np.ndarray, tol: Tolerance,
@@ -408,7 +412,7 @@ class Polyhedron:
             out[i] = tuple(np.flatnonzero(tight[i]).tolist()) not in self._licq_ok
         return out
 
-    def licq_verified(self, index) -> bool:
+    def licq_verified(self, index: np.ndarray) -> bool:
         """`licq`, remembering the sets that pass so that runs through them need not stop."""
         key = tuple(sorted(int(i) for i in index))
         if key in self._licq_ok:
@@ -419,7 +423,7 @@ class Polyhedron:
         return ok
 
 
-def _mask(index, m) -> np.ndarray:
+def _mask(index: np.ndarray, m: int) -> np.ndarray:
     out = np.zeros(m, dtype=bool)
     out[index] = True
     return out

@@ -7,6 +7,8 @@ M-matrix), in numpy for short active sets and with LAPACK's ``dpttrf``/``dpttrs`
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 
@@ -36,7 +38,8 @@ def ldl_solve(D: np.ndarray, l: np.ndarray, b: np.ndarray) -> np.ndarray:
     return y
 
 
-def _lapack():
+def _lapack() -> tuple[Any, Any]:
+    """(dpttrf, dpttrs): LAPACK's tridiagonal LDL^T factor and solve (untyped wrappers)."""
     # Imported only for long chains: scipy.linalg costs start-up time the short runs don't need.
     from scipy.linalg.lapack import dpttrf, dpttrs
 
