@@ -50,7 +50,7 @@ REPORT_PRIMAL, REPORT_DUAL, REPORT_COMP, REPORT_TOLP, REPORT_TOLD, REPORT_ROW = 
 
 
 @njit(cache=True)
-def factor(k, signs, D, l):
+def factor(k: np.ndarray, signs: np.ndarray, D: np.ndarray, l: np.ndarray) -> tuple[float, float]:
     """LDL^T of the padded L~ (diagonal L_ii on saturated blocks, 1 on free ones; off-diagonal
     -k_i where blocks i and i+1 are both saturated) into the pivots D and unit subdiagonal l.
     Returns (||L_JJ^{-1}||_inf, ||L_JJ||_inf)."""
@@ -81,7 +81,7 @@ def factor(k, signs, D, l):
 
 
 @njit(cache=True)
-def solve(D, l, y):
+def solve(D: np.ndarray, l: np.ndarray, y: np.ndarray) -> None:
     """y <- L~^{-1} y in place with the LDL^T factor (D, l)."""
     N = y.shape[0]
     for i in range(1, N):
@@ -93,7 +93,7 @@ def solve(D, l, y):
 
 
 @njit(cache=True)
-def forces(w, f):
+def forces(w: np.ndarray, f: np.ndarray) -> None:
     """f = D^T w: f_i = w_{i-1} - w_i with w_{-1} = w_{N-1} = 0."""
     N = f.shape[0]
     f[0] = -w[0]
@@ -103,7 +103,8 @@ def forces(w, f):
 
 
 @njit(cache=True)
-def state(k, w_trial, dx, signs, w, lam, slack, c, f):
+def state(k: np.ndarray, w_trial: np.ndarray, dx: np.ndarray, signs: np.ndarray, w: np.ndarray,
+          lam: np.ndarray, slack: np.ndarray, c: np.ndarray, f: np.ndarray) -> None:
     """From the slips dx (0 on free blocks): the point w = w_trial - K D dx, the multipliers
     lambda (2N) and the slack B w - c."""
     N = signs.shape[0]
@@ -119,7 +120,7 @@ def state(k, w_trial, dx, signs, w, lam, slack, c, f):
 
 
 @njit(cache=True)
-def complementarity(signs, slack):
+def complementarity(signs: np.ndarray, slack: np.ndarray) -> float:
     N = signs.shape[0]
     comp = 0.0
     for i in range(N):
@@ -135,7 +136,7 @@ def complementarity(signs, slack):
 
 
 @njit(cache=True)
-def certificate(signs, lam, slack, fixed):
+def certificate(signs: np.ndarray, lam: np.ndarray, slack: np.ndarray, fixed: np.ndarray) -> tuple[float, float, float]:
     """(primal, dual, complementarity): max(B w - c), max(0, -min lambda) over the rows not
     ``fixed`` (equalities: multipliers of either sign), max |(B w - c)_A|."""
     primal = -np.inf
@@ -150,8 +151,10 @@ def certificate(signs, lam, slack, fixed):
 
 
 @njit(cache=True)
-def on_set(k, kmax, c_scale, w_trial, c, signs, D, l, inverse, gram, dx, w, lam, slack, f, res,
-           told):
+def on_set(k: np.ndarray, kmax: float, c_scale: float, w_trial: np.ndarray, c: np.ndarray,
+           signs: np.ndarray, D: np.ndarray, l: np.ndarray, inverse: float, gram: float,
+           dx: np.ndarray, w: np.ndarray, lam: np.ndarray, slack: np.ndarray, f: np.ndarray,
+           res: np.ndarray, told: np.ndarray) -> tuple[float, float]:
     """The equality KKT system on the factored set ``signs``, with one step of iterative
     refinement when its complementarity residual asks for it. Returns (tol_p, tol_d), the
     scalar tolerances, and leaves each row's own dual tolerance in ``told`` (`row_duals`)."""
@@ -202,7 +205,9 @@ def on_set(k, kmax, c_scale, w_trial, c, signs, D, l, inverse, gram, dx, w, lam,
 
 
 @njit(cache=True)
-def row_duals(k, kmax, c_scale, w_trial, c, signs, D, l, dx, tol_d, s, told):
+def row_duals(k: np.ndarray, kmax: float, c_scale: float, w_trial: np.ndarray, c: np.ndarray,
+              signs: np.ndarray, D: np.ndarray, l: np.ndarray, dx: np.ndarray, tol_d: float,
+              s: np.ndarray, told: np.ndarray) -> None:
     """Each row's own dual tolerance into ``told`` (2N), from the magnitudes of the numbers its
     multiplier is computed from (a componentwise, Skeel-type bound).
 
@@ -250,7 +255,7 @@ def row_duals(k, kmax, c_scale, w_trial, c, signs, D, l, dx, tol_d, s, told):
 
 
 @njit(cache=True)
-def dual_excess(lam, told, fixed):
+def dual_excess(lam: np.ndarray, told: np.ndarray, fixed: np.ndarray) -> tuple[float, float]:
     """(-lambda_r, tol_r) of the row whose multiplier is most negative relative to its own
     tolerance (rows ``fixed`` excluded); (0, tol) when every sign holds."""
     worst, value, tol = 0.0, 0.0, told[0] if told.shape[0] else 0.0
@@ -264,7 +269,7 @@ def dual_excess(lam, told, fixed):
 
 
 @njit(cache=True)
-def independent(rows, N):
+def independent(rows: np.ndarray, N: int) -> bool:
     """LICQ of the rows (a mask of 2N) of a chain: no block at both limits, not every block."""
     count = 0
     for i in range(N):
@@ -276,7 +281,8 @@ def independent(rows, N):
 
 
 @njit(cache=True)
-def update(signs, lam, slack, tol_p, told, new, fixed):
+def update(signs: np.ndarray, lam: np.ndarray, slack: np.ndarray, tol_p: float, told: np.ndarray,
+           new: np.ndarray, fixed: np.ndarray) -> int:
     """The next set of a primal-dual update into ``new`` (`crawlsim.kernel.polyhedron.Polyhedron.update_set`,
     then `exchange` where the set would fail LICQ); rows ``fixed`` never leave. Returns 0 with a
     new set, 1 when nothing is to change (the certificate failed on its own numbers), 2 when
@@ -320,7 +326,8 @@ def update(signs, lam, slack, tol_p, told, new, fixed):
 
 
 @njit(cache=True)
-def exchange(member, lam, slack, fixed, rows):
+def exchange(member: np.ndarray, lam: np.ndarray, slack: np.ndarray, fixed: np.ndarray,
+             rows: np.ndarray) -> bool:
     """The exchange of Goldfarb and Idnani into ``rows`` (`crawlsim.kernel.polyhedron.Polyhedron.exchange`):
     the most violated row r enters although it depends on the active ones, which happens only
     when every block would be saturated (a block at both limits has no leaving row); along the
@@ -351,7 +358,7 @@ def exchange(member, lam, slack, fixed, rows):
 
 
 @njit(cache=True)
-def same(a, b):
+def same(a: np.ndarray, b: np.ndarray) -> bool:
     """a == b for two sets of signs, without the temporary array of np.array_equal (a step at
     N = 4 costs about as much as that allocation)."""
     for i in range(a.shape[0]):
@@ -361,8 +368,11 @@ def same(a, b):
 
 
 @njit(cache=True)
-def settle(k, kmax, c_scale, w_trial, c, signs, factored, D, l, norms, fixed, dx, w, lam, slack,
-           f, res, new, seen, report, told):
+def settle(k: np.ndarray, kmax: float, c_scale: float, w_trial: np.ndarray, c: np.ndarray,
+           signs: np.ndarray, factored: np.ndarray, D: np.ndarray, l: np.ndarray,
+           norms: np.ndarray, fixed: np.ndarray, dx: np.ndarray, w: np.ndarray, lam: np.ndarray,
+           slack: np.ndarray, f: np.ndarray, res: np.ndarray, new: np.ndarray, seen: np.ndarray,
+           report: np.ndarray, told: np.ndarray) -> tuple[int, float]:
     """One certified projection of ``w_trial`` onto {B w <= c} (rows ``fixed`` as equalities)
     from the set ``signs``, by primal-dual updates (`crawlsim.kernel.polyhedron.Polyhedron.refine`): DONE
     with w, lam, slack and the set in place, HANDOFF when the updates cycle, run out or find
@@ -398,7 +408,8 @@ def settle(k, kmax, c_scale, w_trial, c, signs, factored, D, l, norms, fixed, dx
 
 
 @njit(cache=True)
-def project(k, c_scale, w_trial, c, signs, fixed, w, lam, report):
+def project(k: np.ndarray, c_scale: float, w_trial: np.ndarray, c: np.ndarray, signs: np.ndarray,
+            fixed: np.ndarray, w: np.ndarray, lam: np.ndarray, report: np.ndarray) -> int:
     """One certified projection (`settle`) for the exact integrator's velocity problems:
     w_trial = 0, c infinite on the rows to ignore, ``fixed`` the rows held with equality.
     Returns the status; w, lam, signs and report[REPORT_TOLP], report[REPORT_TOLD] hold the
@@ -408,7 +419,9 @@ def project(k, c_scale, w_trial, c, signs, fixed, w, lam, report):
 
 
 @njit(cache=True)
-def project_rows(k, c_scale, w_trial, c, signs, fixed, w, lam, report, told):
+def project_rows(k: np.ndarray, c_scale: float, w_trial: np.ndarray, c: np.ndarray,
+                 signs: np.ndarray, fixed: np.ndarray, w: np.ndarray, lam: np.ndarray,
+                 report: np.ndarray, told: np.ndarray) -> int:
     """`project`, leaving each row's own dual tolerance in ``told`` (2N, `row_duals`): the
     threshold above which a multiplier is positive beyond its roundoff."""
     N = signs.shape[0]
@@ -428,7 +441,9 @@ def project_rows(k, c_scale, w_trial, c, signs, fixed, w, lam, report, told):
 
 
 @njit(cache=True)
-def catch_up(k, c_scale, C, W, LAM, S, signs, factored, D, l, norms, j0, report):
+def catch_up(k: np.ndarray, c_scale: float, C: np.ndarray, W: np.ndarray, LAM: np.ndarray,
+             S: np.ndarray, signs: np.ndarray, factored: np.ndarray, D: np.ndarray, l: np.ndarray,
+             norms: np.ndarray, j0: int, report: np.ndarray) -> tuple[int, int]:
     """Catch-up steps j = j0, j0+1, ... of a period: W[j+1] and LAM[j] from W[j] and C[j+1],
     each certified; S[j] the set it settled on. ``signs`` (the current set) and ``factored``,
     ``D``, ``l``, ``norms`` (its factor and (||L_JJ^{-1}||, ||L_JJ||)) carry over between calls.
@@ -477,7 +492,7 @@ def catch_up(k, c_scale, C, W, LAM, S, signs, factored, D, l, norms, j0, report)
 
 
 @njit(cache=True)
-def worst_row(signs, lam, slack):
+def worst_row(signs: np.ndarray, lam: np.ndarray, slack: np.ndarray) -> int:
     """The row that violates its certificate most, relative to nothing: the largest slack, or
     the most negative multiplier, or the active row with the largest residual."""
     N = signs.shape[0]
