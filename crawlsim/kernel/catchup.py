@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Callable, Sequence
+from typing import Any, overload
 
 import numpy as np
 
@@ -22,7 +23,7 @@ COLD_SECONDS = 25
 _announced: set[str] = set()
 
 
-def _entries(integrator: str) -> tuple:
+def _entries(integrator: str) -> tuple[Any, ...]:
     """The compiled entry point an integrator calls first (the exact integrator's closed
     forms are small and compile with it only when its gait needs them)."""
     from crawlsim.kernel import eventloop
@@ -116,7 +117,7 @@ class ChainKernel:
                 f"{describe(rows_of(self.signs))}")
 
 
-class VisitedSets(Sequence):
+class VisitedSets(Sequence[ActiveSet]):
     """The non-empty active sets of a period's steps, in order, consecutive repeats left out
     (`crawlsim.integrate.stepping.PeriodRecord.visited`), factored by `crawlsim.kernel.kkt` only when the
     periodic-limit solver asks for them: most periods never need them."""
@@ -148,7 +149,13 @@ class VisitedSets(Sequence):
     def __len__(self) -> int:
         return len(self._list())
 
-    def __getitem__(self, i):
+    @overload
+    def __getitem__(self, i: int) -> ActiveSet: ...
+
+    @overload
+    def __getitem__(self, i: slice) -> list[ActiveSet]: ...
+
+    def __getitem__(self, i: int | slice) -> ActiveSet | list[ActiveSet]:
         return self._list()[i]
 
 

@@ -28,11 +28,12 @@ from __future__ import annotations
 
 import functools
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, SupportsInt
 
 import numpy as np
+import numpy.typing as npt
 
 from crawlsim.errors import CertificateError, DegenerateModelError, LicqWarning
 from crawlsim.kernel.certificate import Dependent, Step
@@ -50,7 +51,7 @@ class Projection:
     used_clarabel: bool
 
 
-def _label(index) -> str:
+def _label(index: Iterable[SupportsInt]) -> str:
     return "{" + ", ".join(str(int(i)) for i in index) + "}"
 
 
@@ -70,7 +71,7 @@ class ExactProjector:
 
     def __init__(self, polyhedron: Polyhedron, *,
                  describe_active: Callable[[np.ndarray], str] | None = None,
-                 persistent: bool = True, on_dependent: str = "raise"):
+                 persistent: bool = True, on_dependent: str = "raise") -> None:
         if on_dependent not in ("raise", "warn"):
             raise ValueError(f"on_dependent must be 'raise' or 'warn', got {on_dependent!r}")
         self.polyhedron = polyhedron
@@ -81,10 +82,11 @@ class ExactProjector:
         self._persistent = persistent  # False rebuilds the solver every call (benchmark baseline)
         self.clarabel_calls = 0
         self.clarabel_status: Any = None  # the last call's clarabel.SolverStatus (its proposal is certified)
-        self.licq_failures: dict[tuple, tuple] = {}
+        self.licq_failures: dict[tuple[int, ...], tuple[float | None, int]] = {}
 
     @classmethod
-    def dense(cls, normals, metric, c_scale: float = 1.0, **options) -> ExactProjector:
+    def dense(cls, normals: npt.ArrayLike, metric: npt.ArrayLike, c_scale: float = 1.0,
+              **options: Any) -> ExactProjector:
         """A projector for dense normals B and metric M (a generic polyhedron)."""
         return cls(DensePolyhedron(normals, metric, c_scale), **options)
 
@@ -93,7 +95,7 @@ class ExactProjector:
         return self.polyhedron.empty
 
     # -- Clarabel, the authority on the active set ------------------------------------------
-    def _clarabel(self, w_trial, c):
+    def _clarabel(self, w_trial: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Clarabel's (z, s) for the projection with every finite row an inequality."""
         poly = self.polyhedron
         finite = np.isfinite(c)
@@ -114,7 +116,7 @@ class ExactProjector:
         lam[~finite] = 0.0
         return lam, slack
 
-    def _proposal(self, solution, problem: str) -> tuple[np.ndarray, np.ndarray]:
+    def _proposal(self, solution: Any, problem: str) -> tuple[np.ndarray, np.ndarray]:
         """The one status rule on Clarabel's answers (`clarabel.SolverStatus`). Clarabel only
         proposes the active set, which the kernel then certifies: any finite iterate is a
         proposal worth trying, an iterate stopped early (MaxIterations on a badly scaled set)
@@ -131,7 +133,7 @@ class ExactProjector:
         return lam, slack
 
     # -- the projection ----------------------------------------------------------------------
-    def project(self, w_trial, c, *, time: float | None = None,
+    def project(self, w_trial: npt.ArrayLike, c: npt.ArrayLike, *, time: float | None = None,
                 warm: ActiveSet | np.ndarray | None = None, verify: bool = False,
                 fixed: np.ndarray | None = None) -> Projection:
         """Certified projection of ``w_trial`` onto ``{B w <= c}`` (module docstring): an
@@ -190,7 +192,8 @@ class ExactProjector:
             rows.remove(min(free, key=lambda i: lam_ip[i]))
         return np.array(sorted(rows), dtype=int)
 
-    def _clarabel_mixed(self, w_trial, c, fixed: np.ndarray):
+    def _clarabel_mixed(self, w_trial: np.ndarray, c: np.ndarray,
+                        fixed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Clarabel on the finite rows with the rows ``fixed`` as equalities (a one-off solver:
         the cone structure changes with ``fixed``)."""
         import clarabel
@@ -213,7 +216,7 @@ class ExactProjector:
         lam[fixed] = np.abs(lam[fixed]) + 1.0  # equalities: always proposed
         return lam, slack
 
-    def _last_attempt(self, w_trial, c, proposed) -> str:
+    def _last_attempt(self, w_trial: np.ndarray, c: np.ndarray, proposed: np.ndarray) -> str:
         try:
             active = self.polyhedron.factor(proposed)
         except Dependent:
@@ -221,7 +224,8 @@ class ExactProjector:
         _, lam, slack, tol = self.polyhedron.solve_on(active, w_trial, c)
         return str(self.polyhedron.certify(slack, lam, active, tol))
 
-    def _finish(self, step: Step, c, used_clarabel: bool, time) -> Projection:
+    def _finish(self, step: Step, c: np.ndarray, used_clarabel: bool,
+                time: float | None) -> Projection:
         """LICQ of the rows tight at the certified point (module docstring)."""
         poly = self.polyhedron
         active = step.active
@@ -237,7 +241,7 @@ class ExactProjector:
         return Projection(step.point, step.multipliers, active, used_clarabel)
 
     # -- messages ----------------------------------------------------------------------------
-    def record_licq(self, index, time) -> None:
+    def record_licq(self, index: Iterable[SupportsInt], time: float | None) -> None:
         """Count a dependent set of tight rows of a generic process; warn the first time."""
         key = tuple(int(i) for i in index)
         first, count = self.licq_failures.get(key, (time, 0))
@@ -251,7 +255,7 @@ class ExactProjector:
                 "of this set are counted in `licq_failures`, not repeated.",
                 LicqWarning, stacklevel=3)
 
-    def degenerate_message(self, index, time) -> str:
+    def degenerate_message(self, index: np.ndarray, time: float | None) -> str:
         if not hasattr(self.polyhedron, "blocks"):
             return (f"the normals of the tight constraints {_label(index)} are linearly "
                     f"dependent{_at(time)}: LICQ fails there, so the multipliers (the reactions) "
@@ -265,7 +269,7 @@ class ExactProjector:
                 "no grid time falls on this instant, or change the friction coefficients.")
 
 
-def _solver(P, q, A, b, cones):
+def _solver(P: Any, q: np.ndarray, A: Any, b: np.ndarray, cones: list[Any]) -> Any:
     """A Clarabel solver with crawlsim's settings: no presolve (``solver.update`` needs the
     structure fixed) and tight tolerances, which make the identification of the active set
     unambiguous; the step itself never uses Clarabel's numbers."""
@@ -280,7 +284,7 @@ def _solver(P, q, A, b, cones):
 
 
 @functools.cache
-def _infeasible() -> frozenset:
+def _infeasible() -> frozenset[Any]:
     """The statuses that refuse a proposal (built on first use: clarabel is imported only when
     a projection needs it)."""
     import clarabel
@@ -290,5 +294,5 @@ def _infeasible() -> frozenset:
                       S.AlmostDualInfeasible})
 
 
-def _at(time) -> str:
+def _at(time: float | None) -> str:
     return "" if time is None else f" at t = {time:.12g}"
