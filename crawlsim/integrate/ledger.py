@@ -12,7 +12,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
+from crawlsim.kernel.certificate import Floats
 from crawlsim.model.crawler import elastic_energy
 from crawlsim.model.offsets import TWO_PI, Basis, PiecewiseOffsets
 from crawlsim.model.process import SweepingProcess
@@ -51,21 +53,21 @@ class PeriodEnergy:
 
 
 # -- closed-form integrals -----------------------------------------------------------------------
-def _cos_integral(nu: np.ndarray, m: np.ndarray, delta: np.ndarray) -> np.ndarray:
+def _cos_integral(nu: Floats, m: Floats, delta: Floats) -> np.ndarray:
     """int_{m-delta}^{m+delta} cos(nu u) du = cos(nu m) 2 sin(nu delta)/nu (2 delta at nu = 0)."""
     with np.errstate(divide="ignore", invalid="ignore"):
         c = np.where(nu == 0.0, 2.0 * delta, 2.0 * np.sin(nu * delta) / nu)
     return np.cos(nu * m) * c
 
 
-def _sin_integral(nu: np.ndarray, m: np.ndarray, delta: np.ndarray) -> np.ndarray:
+def _sin_integral(nu: Floats, m: Floats, delta: Floats) -> np.ndarray:
     """int_{m-delta}^{m+delta} sin(nu u) du = sin(nu m) 2 sin(nu delta)/nu (0 at nu = 0)."""
     with np.errstate(divide="ignore", invalid="ignore"):
         c = np.where(nu == 0.0, 2.0 * delta, 2.0 * np.sin(nu * delta) / nu)
     return np.sin(nu * m) * c
 
 
-def _s_sin(omega: np.ndarray, delta: np.ndarray) -> np.ndarray:
+def _s_sin(omega: Floats, delta: Floats) -> np.ndarray:
     """int_{-delta}^{delta} s sin(omega s) ds = 2 (sin x - x cos x)/omega^2, x = omega delta;
     for small x the series 2 delta^2 x (1/3 - x^2/30 + x^4/840 - x^6/45360)."""
     x = omega * delta
@@ -76,7 +78,7 @@ def _s_sin(omega: np.ndarray, delta: np.ndarray) -> np.ndarray:
     return np.where(np.abs(x) < _SERIES, series, closed)
 
 
-def gram(basis: Basis, a, b) -> np.ndarray:
+def gram(basis: Basis, a: npt.ArrayLike, b: npt.ArrayLike) -> np.ndarray:
     """P[k, l] = int_a^b phi_k(u) phi_l(u) du for the basis of `crawlsim.model.offsets`, in closed form:
     (nb, nb) for scalars a, b, (K, nb, nb) for arrays of K intervals.
 

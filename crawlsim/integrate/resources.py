@@ -42,8 +42,13 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, cast
 
 from crawlsim.errors import ResourceError
+
+if TYPE_CHECKING:
+    from crawlsim.gait.crawler_spec import Gait
+    from crawlsim.gait.process_spec import ProcessSpec
 
 BYTES = 8  # a double
 BASE_BYTES = 8 << 20
@@ -122,7 +127,7 @@ def process_memory(dimension: int, faces: int, grid_points: int, *, save_every: 
                       integrator=integrator, dense=True)
 
 
-def gait_memory(gait, *, save_every: int = 1, batch: int = 1, steps_per_period: int | None = None,
+def gait_memory(gait: Gait | ProcessSpec, *, save_every: int = 1, batch: int = 1, steps_per_period: int | None = None,
                 blocks: int | None = None) -> MemoryEstimate:
     """`run_memory` of a validated `Gait` or `ProcessSpec` with its simulation settings (the
     grid is its steps per period plus its breakpoints); ``steps_per_period`` and ``blocks``
@@ -252,13 +257,14 @@ def signal_work(harmonics: int, faces: int, grid_points: int, key: str = "") -> 
     return SignalWork(per_period, float(grid_points) * per_sample, h, m, key)
 
 
-def gait_signal_work(gait, *, steps_per_period: int | None = None) -> SignalWork:
+def gait_signal_work(gait: Gait | ProcessSpec, *, steps_per_period: int | None = None) -> SignalWork:
     """`signal_work` of a validated `Gait` or `ProcessSpec` with its simulation settings."""
     steps = steps_per_period or gait.simulation.steps_per_period
     points = steps + len(gait.breakpoints()) + 1
     if hasattr(gait, "normals"):
-        named = [(f"offsets[{i}]", s) for i, s in enumerate(gait.offsets)]
-        faces = gait.normals.shape[0]
+        process = cast("ProcessSpec", gait)  # a generic process: only it has normals
+        named = [(f"offsets[{i}]", s) for i, s in enumerate(process.offsets)]
+        faces = process.normals.shape[0]
     else:
         named = [(f"links[{i}]", s) for i, s in enumerate(gait.links)]
         named += [("friction", s) for s in gait.forward + gait.backward]
