@@ -29,6 +29,7 @@ import numpy as np
 
 from crawlsim.errors import CertificateError
 from crawlsim.kernel.kkt import Dependent
+from crawlsim.kernel.polyhedron import ActiveSet
 from crawlsim.kernel.projection import ExactProjector
 from crawlsim.model.process import SweepingProcess
 
@@ -59,10 +60,12 @@ def stepper_class(integrator: str) -> type[PeriodStepper]:
     except KeyError:
         raise ValueError(f"unknown integrator {integrator!r}; expected one of "
                          f"{', '.join(STEPPERS)}") from None
-    return getattr(importlib.import_module(module), name)
+    cls: type[PeriodStepper] = getattr(importlib.import_module(module), name)
+    return cls
 
 
-def make_stepper(process, integrator: str = "catch-up", **options) -> PeriodStepper:
+def make_stepper(process: SweepingProcess, integrator: str = "catch-up",
+                 **options: Any) -> PeriodStepper:
     """Build the stepper registered under ``integrator``."""
     return stepper_class(integrator)(process, **options)
 
@@ -96,11 +99,11 @@ class PeriodRecord:
     clarabel_calls: int
     # The exact trajectory at event times, (t, w, x), from event-driven integrators
     # (`crawlsim.integrate.exact.EventTrajectory`); None for catch-up.
-    events: tuple | None = None
+    events: tuple[Any, ...] | None = None
     # The active sets the period visited, in order (consecutive repeats and empty sets left
     # out): the period map is affine near this start, with Jacobian the product of their
     # projectors I - R_A B_A (`crawlsim.integrate.limit`).
-    visited: Sequence = ()
+    visited: Sequence[ActiveSet] = ()
     # The period's energy ledger integrated exactly on the event-driven integrator's pieces
     # (`crawlsim.analysis.energy.PeriodEnergy`), or a callable that forms it when `energy` is
     # first read (most periods' ledgers are never read); None for catch-up, whose ledger
@@ -124,10 +127,13 @@ class PeriodRecord:
     @property
     def slips(self) -> np.ndarray | None:
         """Block increments of each step, ``dx = S lambda`` (G, N); None for generic processes."""
-        return None if self.x is None else np.diff(self.x, axis=0)
+        if self.x is None:
+            return None
+        dx: np.ndarray = np.diff(self.x, axis=0)
+        return dx
 
 
-def positions_of(process, w: np.ndarray, barycentre: float) -> np.ndarray:
+def positions_of(process: SweepingProcess, w: np.ndarray, barycentre: float) -> np.ndarray:
     """Block positions of a crawler in the state ``w`` with the given barycentre: the shape is
     z = D x = -K^{-1} w (docs/model.md §2), so x_i = x_1 + z_1 + ... + z_{i-1}."""
     assert process.crawler is not None
@@ -146,7 +152,7 @@ class PeriodStepper:
     needs_admissible_start = False
 
     def __init__(self, process: SweepingProcess, *, check_every_step: bool = False,
-                 persistent_solver: bool = True):
+                 persistent_solver: bool = True) -> None:
         self.process = process
         self.polyhedron = process.polyhedron
         self.check_every_step = check_every_step
@@ -160,7 +166,7 @@ class PeriodStepper:
             process.initial_positions, dtype=float)
         self.active = self.polyhedron.empty
         self.period_index = 0
-        self._visited: list = []
+        self._visited: list[ActiveSet] = []
 
     def step_period(self) -> PeriodRecord:
         """Advance by one period from the current state and return its record."""
@@ -183,7 +189,7 @@ class PeriodStepper:
             self.x = positions_of(self.process, self.w, float(np.mean(self.x))) if x is None \
                 else np.array(x, dtype=float)
 
-    def _visit(self, active) -> None:
+    def _visit(self, active: ActiveSet) -> None:
         if active.size and (not self._visited or self._visited[-1] is not active):
             self._visited.append(active)
 
@@ -192,11 +198,11 @@ class CatchUpStepper(PeriodStepper):
     """Steps a `SweepingProcess` period by period from its initial state."""
 
     def __init__(self, process: SweepingProcess, *, check_every_step: bool = False,
-                 persistent_solver: bool = True, kernel: bool = True):
+                 persistent_solver: bool = True, kernel: bool = True) -> None:
         super().__init__(process, check_every_step=check_every_step,
                          persistent_solver=persistent_solver)
         self._kernel = None
-        self._lazy_visited: Sequence | None = None  # the kernel's record (`VisitedSets`)
+        self._lazy_visited: Sequence[ActiveSet] | None = None  # the kernel's record (`VisitedSets`)
         if kernel and not check_every_step and process.crawler is not None:
             from crawlsim.kernel.catchup import ChainKernel
 
@@ -255,10 +261,10 @@ class CatchUpStepper(PeriodStepper):
                                        else self._lazy_visited))
         return record
 
-    def _kernel_period(self, W, LAM, start) -> None:
+    def _kernel_period(self, W: np.ndarray, LAM: np.ndarray, start: float) -> None:
         """The period's steps in the compiled kernel; the steps it hands over go to the
         projector (`_full_step`), warm from the kernel's current set."""
-        from crawlsim.kernel import catchup
+        from crawlsim.kernel import catchup, chain
 
         kernel, p = self._kernel, self.process
         assert kernel is not None
@@ -267,9 +273,9 @@ class CatchUpStepper(PeriodStepper):
         j = 0
         while True:
             status, j = kernel.run(self._offsets, W, LAM, S, j)
-            if status == catchup.chain.DONE:
+            if status == chain.DONE:
                 break
-            if status == catchup.chain.FAILED:
+            if status == chain.FAILED:
                 raise CertificateError(kernel.failure(p.name, start + p.times[j + 1],
                                                       p.describe_active))
             self.active = kernel.active(self.active)
@@ -280,7 +286,8 @@ class CatchUpStepper(PeriodStepper):
         self.active = kernel.active(self.active)
         self._lazy_visited = catchup.VisitedSets(self.polyhedron, S)
 
-    def _full_step(self, j, W, LAM, start, *, warm: bool):
+    def _full_step(self, j: int, W: np.ndarray, LAM: np.ndarray, start: float, *,
+                   warm: bool) -> None:
         p = self.process
         proj = self.projector.project(W[j], p.offsets[j + 1], time=start + p.times[j + 1],
                                       warm=self.active if warm else None, verify=not warm)
