@@ -42,13 +42,14 @@ was taken).
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 
-from crawlsim.integrate.stepping import PeriodRecord
-from crawlsim.kernel.kkt import Dependent, Polyhedron
+from crawlsim.integrate.stepping import PeriodRecord, PeriodStepper
+from crawlsim.kernel.kkt import ActiveSet, Dependent, Polyhedron
 from crawlsim.model.process import SweepingProcess
 
 #: Plain periods before the first Newton step.
@@ -107,7 +108,11 @@ class Saltation:
     rate: float  # <b_i, v_b> - c_i'(u)
 
 
-def factors(process: SweepingProcess, record: PeriodRecord) -> list:
+#: A factor of the period map's Jacobian: the projector of an active set, or a saltation.
+Factor = ActiveSet | Saltation
+
+
+def factors(process: SweepingProcess, record: PeriodRecord) -> list[Factor]:
     """The Jacobian of the period map from ``record``'s start, as the factors applied in turn:
     the projectors P_A of the visited sets (`crawlsim.kernel.kkt.ActiveSet`), and, for event-driven
     integrators (``record.transitions``), the `Saltation` of every hit that swaps the set.
@@ -121,7 +126,7 @@ def factors(process: SweepingProcess, record: PeriodRecord) -> list:
         return list(record.visited)
     poly, pieces = process.polyhedron, process.offset_pieces
     assert pieces is not None, "event-driven integrators need the closed form of c(t)"
-    out: list = []
+    out: list[Factor] = []
     before = poly.empty
     for u, piece, A, cause, hit in record.transitions:
         if cause == "jump":  # the projection at a jump of c: a catch-up step
@@ -144,7 +149,7 @@ def factors(process: SweepingProcess, record: PeriodRecord) -> list:
     return out
 
 
-def _velocity(poly: Polyhedron, A, dc: np.ndarray) -> np.ndarray:
+def _velocity(poly: Polyhedron, A: ActiveSet, dc: np.ndarray) -> np.ndarray:
     """R_A c_A': the velocity of the exact flow on the faces A (zero off every face)."""
     if not A.size:
         return np.zeros(poly.n)
@@ -160,13 +165,13 @@ def _row_vector(poly: Polyhedron, i: int, n: int) -> np.ndarray:
     return poly.metric_times(poly.respond(e)).reshape(n)
 
 
-def jacobian(poly: Polyhedron, visited) -> np.ndarray:
+def jacobian(poly: Polyhedron, visited: Sequence[Factor]) -> np.ndarray:
     """J, the product of the factors ``visited`` (active sets, `Saltation`), as a dense (n, n)
     matrix, O(K n N) for a crawler."""
     return apply_jacobian(poly, visited, np.eye(poly.n)).T
 
 
-def apply_jacobian(poly: Polyhedron, visited, V: np.ndarray) -> np.ndarray:
+def apply_jacobian(poly: Polyhedron, visited: Sequence[Factor], V: np.ndarray) -> np.ndarray:
     """J v for the rows v of V (k, n): each factor in turn."""
     X = np.array(V, dtype=float)
     for A in visited:
@@ -179,7 +184,8 @@ def apply_jacobian(poly: Polyhedron, visited, V: np.ndarray) -> np.ndarray:
     return X
 
 
-def apply_jacobian_transpose(poly: Polyhedron, visited, V: np.ndarray) -> np.ndarray:
+def apply_jacobian_transpose(poly: Polyhedron, visited: Sequence[Factor],
+                             V: np.ndarray) -> np.ndarray:
     """J^T v for the rows v of V: P_A^T = I - B_A^T G_A^{-1} B_A M^{-1} and
     S^T = I - b_i (v_b - v_a)^T / rate, in reverse order."""
     X = np.array(V, dtype=float)
@@ -201,7 +207,7 @@ def subdominant_rate(J: np.ndarray) -> float:
     return float(np.max(below)) if below.size else 0.0
 
 
-def newton_step(poly: Polyhedron, visited, F: np.ndarray) -> np.ndarray:
+def newton_step(poly: Polyhedron, visited: Sequence[Factor], F: np.ndarray) -> np.ndarray:
     """The minimal-norm least-squares solution of (J - I) d = -F in the metric M: dense
     ``lstsq`` up to `DENSE_JACOBIAN` state variables, matrix-free LSMR beyond."""
     n = len(F)
@@ -209,20 +215,23 @@ def newton_step(poly: Polyhedron, visited, F: np.ndarray) -> np.ndarray:
     if n <= DENSE_JACOBIAN:
         J = jacobian(poly, visited)
         A = poly.metric_root((J - np.eye(n)).T).T  # L^T (J - I)
+        d: np.ndarray
         d, *_ = np.linalg.lstsq(A, rhs, rcond=None)
         return d
     from scipy.sparse.linalg import LinearOperator, lsmr
 
-    def matvec(x):
+    def matvec(x: np.ndarray) -> np.ndarray:
         x = np.ravel(x)
         return poly.metric_root(apply_jacobian(poly, visited, x) - x)
 
-    def rmatvec(y):
+    def rmatvec(y: np.ndarray) -> np.ndarray:
         y = poly.metric_root_transpose(np.ravel(y))
-        return apply_jacobian_transpose(poly, visited, y) - y
+        out: np.ndarray = apply_jacobian_transpose(poly, visited, y) - y
+        return out
 
     op = LinearOperator((n, n), matvec=matvec, rmatvec=rmatvec, dtype=float)
-    return lsmr(op, rhs, atol=1e-15, btol=1e-15, maxiter=20 * n)[0]
+    d_lsmr: np.ndarray = lsmr(op, rhs, atol=1e-15, btol=1e-15, maxiter=20 * n)[0]
+    return d_lsmr
 
 
 def relative_step(process: SweepingProcess, w_start: np.ndarray, w_end: np.ndarray) -> float:
@@ -231,7 +240,7 @@ def relative_step(process: SweepingProcess, w_start: np.ndarray, w_end: np.ndarr
     return step / max(float(np.linalg.norm(w_end)), process.scale)
 
 
-def solve_limit(process: SweepingProcess, stepper, *, tolerance: float, max_periods: int,
+def solve_limit(process: SweepingProcess, stepper: PeriodStepper, *, tolerance: float, max_periods: int,
                 start: np.ndarray | None = None, plain: int = PLAIN_PERIODS,
                 method: str = "newton", first: PeriodRecord | None = None) -> LimitSolution:
     """Find the periodic limit of ``process`` from ``start`` (default: the stepper's state)
@@ -259,7 +268,7 @@ def solve_limit(process: SweepingProcess, stepper, *, tolerance: float, max_peri
     search = _Search([relative_step(process, w, record.w[-1])], [PLAIN], periods)
     residuals = search.residuals
     newton_steps, rate = 0, None
-    approach = None  # the active sets of the last accepted Newton step's Jacobian
+    approach: list[Factor] | None = None  # the active sets of the last accepted Newton step's Jacobian
     rejected = wait = 0  # candidates rejected so far; plain periods before the next one
     used_newton = False
     while residuals[-1] > tolerance and search.periods < max_periods:
@@ -307,8 +316,9 @@ class _Search:
     periods: int
 
 
-def _newton(process: SweepingProcess, stepper, period, w: np.ndarray, record: PeriodRecord,
-            search: _Search, max_periods: int):
+def _newton(process: SweepingProcess, stepper: PeriodStepper,
+            period: Callable[[np.ndarray], PeriodRecord], w: np.ndarray, record: PeriodRecord,
+            search: _Search, max_periods: int) -> tuple[np.ndarray, PeriodRecord, list[Factor]] | None:
     """One Newton step from w (its period ``record``): the candidates of `ATTEMPTS` in turn,
     each one period; (candidate, its period, the model's factors) of the first that lowers
     the residual, or None. The affine model holds on the map's current piece only."""
@@ -342,7 +352,7 @@ def _newton(process: SweepingProcess, stepper, period, w: np.ndarray, record: Pe
     return None
 
 
-def _admissible(stepper, w: np.ndarray) -> np.ndarray:
+def _admissible(stepper: PeriodStepper, w: np.ndarray) -> np.ndarray:
     """The exact integrator starts from a point of K(0): project the candidate onto it."""
     c0 = stepper.process.offsets[0]
     try:
