@@ -63,14 +63,15 @@ import warnings
 from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import NamedTuple, cast
+from typing import Any, NamedTuple, cast, overload
 
 import numpy as np
 
 from crawlsim.errors import CertificateError, DegenerateModelError, EventError, LicqWarning
-from crawlsim.integrate.ledger import ExactLedger
+from crawlsim.integrate.ledger import ExactLedger, PeriodEnergy
 from crawlsim.integrate.stepping import PeriodRecord, PeriodStepper, Transition, TransitionCause
 from crawlsim.kernel.kkt import RTOL, ActiveSet, ChainPolyhedron, Dependent, Polyhedron, Tolerance
+from crawlsim.kernel.projection import Projection
 from crawlsim.model.offsets import TWO_PI, PiecewiseOffsets
 from crawlsim.model.process import SweepingProcess
 
@@ -280,7 +281,8 @@ class EventStepper(PeriodStepper):
                               energy_of=None if ledger is None else ledger.finish(W[0], W[-1]))
         return record
 
-    def _guard(self, count, recent, u, start, rows):
+    def _guard(self, count: int, recent: deque[float], u: float, start: float,
+               rows: np.ndarray) -> None:
         """Stop on too many events in a period or on Zeno-like accumulation."""
         if count > self.max_events:
             raise self._too_many(u, start)
@@ -379,7 +381,8 @@ class EventStepper(PeriodStepper):
         padY[:, idx] = Y
         return _Piece(u0, active, base, poly.respond(padY), lam0, Y)
 
-    def _next_event(self, piece: _Piece, piece_index: int, u0: float, u1: float):
+    def _next_event(self, piece: _Piece, piece_index: int, u0: float,
+                    u1: float) -> tuple[float, np.ndarray] | None:
         """(u, rows newly tight) of the first event in (u0, u1), or None if there is none."""
         poly, basis = self.poly, self.basis
         coef = self.pieces.coefficients(piece_index)
@@ -438,7 +441,7 @@ class EventStepper(PeriodStepper):
             return out
         return self._sampled(Z, tol, u0, u1)
 
-    def _linear(self, Z, tol, u0, u1):
+    def _linear(self, Z: np.ndarray, tol: np.ndarray, u0: float, u1: float) -> np.ndarray:
         from crawlsim.kernel.events import linear_crossings  # compiled closed form
 
         out = np.empty(Z.shape[1])
@@ -447,17 +450,18 @@ class EventStepper(PeriodStepper):
                          np.ascontiguousarray(tol, dtype=float), float(u0), float(u1), out)
         return out
 
-    def _harmonic(self, a, lin, alpha, beta, tol, u0, u1):
+    def _harmonic(self, a: np.ndarray, lin: np.ndarray, alpha: np.ndarray, beta: np.ndarray,
+                  tol: np.ndarray, u0: float, u1: float) -> np.ndarray:
         """f(u) = a + alpha cos 2 pi u + beta sin 2 pi u = a + rho cos(theta - phi)
         (`crawlsim.kernel.events.harmonic_crossings`, compiled)."""
         from crawlsim.kernel.events import harmonic_crossings
 
         out = np.empty(np.shape(a))
-        harmonic_crossings(*(np.ascontiguousarray(v, dtype=float) for v in (a, alpha, beta, tol)),
-                           float(u0), float(u1), out)
+        a_, alpha_, beta_, tol_ = (np.ascontiguousarray(v, dtype=float) for v in (a, alpha, beta, tol))
+        harmonic_crossings(a_, alpha_, beta_, tol_, float(u0), float(u1), out)
         return out
 
-    def _sampled(self, Z, tol, u0, u1):
+    def _sampled(self, Z: np.ndarray, tol: np.ndarray, u0: float, u1: float) -> np.ndarray:
         """Certified sampling: samples every 1/(64 H) cycle; between two samples f can exceed
         its tolerance only if the larger sample plus h^2/8 max|f''| does (the linear
         interpolant's error bound), so only such cells are refined (brentq, or a bounded
@@ -475,7 +479,7 @@ class EventStepper(PeriodStepper):
         for r in np.flatnonzero(suspect.any(axis=0)):
             z, t = Z[:, r], float(tol[r])
 
-            def f(x, z=z):
+            def f(x: float, z: np.ndarray = z) -> float:
                 return b.scalar(x, z)
 
             for k in np.flatnonzero(suspect[:, r]):
@@ -513,8 +517,8 @@ class EventStepper(PeriodStepper):
         lam_size = float(np.max(np.abs(piece.lam0)) + np.sum(np.max(np.abs(piece.Y), axis=1)))
         return float(self.poly.tolerance(piece.active, c_size, w_size, lam_size).dual)
 
-    def _certify_piece(self, Wg, LAMC, piece: _Piece, phi, piece_index, times,
-                       carried: float) -> float:
+    def _certify_piece(self, Wg: np.ndarray, LAMC: np.ndarray, piece: _Piece, phi: np.ndarray,
+                       piece_index: int, times: np.ndarray, carried: float) -> float:
         """Every sampled state is in K(t_j) and the slip integrals between samples are >= 0,
         to roundoff (the kernel's tolerance policy). A grid interval that began on earlier
         pieces carries their roundoff (``carried``); returns this piece's, for the next one."""
@@ -549,7 +553,7 @@ class EventStepper(PeriodStepper):
                 f"{self.process.describe_active(idx)}")
         return own
 
-    def _certify_jump(self, w: np.ndarray, c: np.ndarray, proj, time: float) -> None:
+    def _certify_jump(self, w: np.ndarray, c: np.ndarray, proj: Projection, time: float) -> None:
         """The state after a jump of c is written to the grid as it is: it must be the certified
         projection of the state before it onto K(t+) (feasible, slips >= 0, complementary)."""
         poly = self.poly
@@ -562,7 +566,7 @@ class EventStepper(PeriodStepper):
                                    f"{self.process.describe_active(np.flatnonzero(slack > tol.primal))}"
                                    f"; active set {self.process.describe_active(proj.active.index)}")
 
-    def _verify(self, W, start):
+    def _verify(self, W: np.ndarray, start: float) -> None:
         """``check_every_step``: Clarabel confirms every sampled state is its own projection."""
         p = self.process
         for j in range(len(W)):
@@ -584,12 +588,13 @@ class _Velocity:
     tolerance: Tolerance
 
 
-class _Transitions(Sequence):
+class _Transitions(Sequence[Transition]):
     """The period's `Transition` records from the compiled loop's arrays, their active sets
     factored by `crawlsim.kernel.kkt` only when they are read (`crawlsim.integrate.limit`,
     sensitivities)."""
 
-    def __init__(self, poly: Polyhedron, u, piece, signs, cause, hit):
+    def __init__(self, poly: Polyhedron, u: np.ndarray, piece: np.ndarray, signs: np.ndarray,
+                 cause: np.ndarray, hit: np.ndarray) -> None:
         self._poly = poly
         self._arrays = (u, piece, signs, cause, hit)
         self._built: list[Transition] | None = None
@@ -609,19 +614,25 @@ class _Transitions(Sequence):
     def __len__(self) -> int:
         return len(self._arrays[0])
 
-    def __getitem__(self, i):
+    @overload
+    def __getitem__(self, i: int) -> Transition: ...
+
+    @overload
+    def __getitem__(self, i: slice) -> list[Transition]: ...
+
+    def __getitem__(self, i: int | slice) -> Transition | list[Transition]:
         return self._list()[i]
 
 
-class _Visited(Sequence):
+class _Visited(Sequence[ActiveSet]):
     """`PeriodRecord.visited` of a compiled period: `crawlsim.kernel.catchup.VisitedSets` of
     its transitions' sets, formed when first read (`crawlsim.integrate.limit`)."""
 
-    def __init__(self, poly: Polyhedron, signs: np.ndarray):
-        self._args: tuple | None = (poly, signs)
-        self._sets: Sequence = ()
+    def __init__(self, poly: Polyhedron, signs: np.ndarray) -> None:
+        self._args: tuple[Polyhedron, np.ndarray] | None = (poly, signs)
+        self._sets: Sequence[ActiveSet] = ()
 
-    def _list(self) -> Sequence:
+    def _list(self) -> Sequence[ActiveSet]:
         if self._args is not None:
             from crawlsim.kernel.catchup import VisitedSets
 
@@ -631,7 +642,13 @@ class _Visited(Sequence):
     def __len__(self) -> int:
         return len(self._list())
 
-    def __getitem__(self, i):
+    @overload
+    def __getitem__(self, i: int) -> ActiveSet: ...
+
+    @overload
+    def __getitem__(self, i: slice) -> Sequence[ActiveSet]: ...
+
+    def __getitem__(self, i: int | slice) -> ActiveSet | Sequence[ActiveSet]:
         return self._list()[i]
 
 
@@ -640,7 +657,7 @@ class _CompiledLoop:
     offsets' coefficients per piece, the jump targets and the energy terms, built once; the
     output arrays, sized to the events of the last period."""
 
-    def __init__(self, stepper: EventStepper):
+    def __init__(self, stepper: EventStepper) -> None:
         from crawlsim.kernel import catchup
 
         pieces, basis = stepper.pieces, stepper.basis
@@ -664,7 +681,7 @@ class _CompiledLoop:
         self.phi = np.ascontiguousarray(basis.values(stepper._grid))
         self.capacity = 64
         self.handoffs = 0
-        self._scratch: dict = {}
+        self._scratch: dict[str, Any] = {}
         self._final: tuple[bytes, ActiveSet] = (b"", stepper.poly.empty)
         catchup.announce_compilation("exact")
 
@@ -709,7 +726,7 @@ class _CompiledLoop:
                 f"complementarity {report[loop.R_COMP]:.3g}")
         return None  # HANDOFF
 
-    def _run(self, s: EventStepper) -> dict:
+    def _run(self, s: EventStepper) -> dict[str, Any]:
         from crawlsim.kernel import catchup, eventloop
 
         p = s.process
@@ -744,7 +761,7 @@ class _CompiledLoop:
             out["jump_u"], out["jump_w"], out["jump_lam"], out["counts"], out["report"])
         return out
 
-    def _record(self, s: EventStepper, out: dict) -> PeriodRecord:
+    def _record(self, s: EventStepper, out: dict[str, Any]) -> PeriodRecord:
         from crawlsim.kernel import catchup
 
         p, T = s.process, s.process.period
@@ -790,11 +807,11 @@ class _Energy:
     ledger: ExactLedger
     bounds: np.ndarray
     products: np.ndarray
-    jumps: list
+    jumps: list[tuple[int, float, np.ndarray, np.ndarray, np.ndarray]]
     w_start: np.ndarray
     w_end: np.ndarray
 
-    def __call__(self):
+    def __call__(self) -> PeriodEnergy:
         ledger = self.ledger
         ledger.start()
         ledger.add_pieces(self.bounds, self.products)

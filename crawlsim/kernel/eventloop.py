@@ -52,7 +52,7 @@ C_EVENTS, C_TRANSITIONS, C_PIECES, C_JUMPS = range(4)
 
 # -- the basis phi(u) and products with it ------------------------------------------------------
 @njit(cache=True)
-def basis_values(u, order, linear, H, out):
+def basis_values(u: float, order: int, linear: bool, H: int, out: np.ndarray) -> None:
     """The order-th derivative of phi at u into ``out`` (`crawlsim.model.offsets.Basis.values`)."""
     for b in range(out.shape[0]):
         out[b] = 0.0
@@ -75,7 +75,7 @@ def basis_values(u, order, linear, H, out):
 
 
 @njit(cache=True)
-def derivative(coef, linear, H, out):
+def derivative(coef: np.ndarray, linear: bool, H: int, out: np.ndarray) -> None:
     """Coefficients (nb, k) of f' for f = phi @ coef (`crawlsim.model.offsets.Basis.derivative`)."""
     out[:] = 0.0
     h0 = 1
@@ -90,7 +90,7 @@ def derivative(coef, linear, H, out):
 
 
 @njit(cache=True)
-def combine(phi, coef, out):
+def combine(phi: np.ndarray, coef: np.ndarray, out: np.ndarray) -> None:
     """out = phi @ coef for coef (nb, k)."""
     for r in range(out.shape[0]):
         total = 0.0
@@ -100,7 +100,7 @@ def combine(phi, coef, out):
 
 
 @njit(cache=True)
-def apply(w, out):
+def apply(w: np.ndarray, out: np.ndarray) -> None:
     """B w = [D^T w; -D^T w] of a chain (`crawlsim.kernel.kkt.ChainPolyhedron.apply`)."""
     N = out.shape[0] // 2
     for i in range(N):
@@ -110,7 +110,7 @@ def apply(w, out):
 
 
 @njit(cache=True)
-def max_abs(x):
+def max_abs(x: np.ndarray) -> float:
     out = 0.0
     for i in range(x.shape[0]):
         if abs(x[i]) > out:
@@ -120,7 +120,9 @@ def max_abs(x):
 
 # -- a piece: the factor and the closed form of w(u) and the slips --------------------------------
 @njit(cache=True)
-def piece(k, signs, w0, coef, D, l, dx0, Ydx, base, Wc, f, col):
+def piece(k: np.ndarray, signs: np.ndarray, w0: np.ndarray, coef: np.ndarray, D: np.ndarray,
+          l: np.ndarray, dx0: np.ndarray, Ydx: np.ndarray, base: np.ndarray, Wc: np.ndarray,
+          f: np.ndarray, col: np.ndarray) -> tuple[float, float]:
     """w(u) = base + phi(u) @ Wc and dx(u) = dx0 - phi(u) @ Ydx on the set ``signs`` from w0:
     Lambda_A = G_A^{-1} (B_A w0 - c_A(u)) in the chain's block form L_JJ dx_J = f_J - f*_J.
     Returns (||L_JJ^{-1}||, ||L_JJ||) (zeros for the empty set)."""
@@ -155,7 +157,9 @@ def piece(k, signs, w0, coef, D, l, dx0, Ydx, base, Wc, f, col):
 
 
 @njit(cache=True)
-def dual_scale(k, kmax, c_scale, signs, coef, dx0, Ydx, base, Wc, inverse, gram):
+def dual_scale(k: np.ndarray, kmax: float, c_scale: float, signs: np.ndarray, coef: np.ndarray,
+               dx0: np.ndarray, Ydx: np.ndarray, base: np.ndarray, Wc: np.ndarray, inverse: float,
+               gram: float) -> float:
     """The roundoff of the slips a piece adds (`EventStepper._dual_scale`): the dual tolerance of
     its set at the size of its offsets, state and slips."""
     if inverse == 0.0:
@@ -186,7 +190,9 @@ def dual_scale(k, kmax, c_scale, signs, coef, dx0, Ydx, base, Wc, inverse, gram)
 
 # -- an event: the next active set --------------------------------------------------------------
 @njit(cache=True)
-def tight_rows(c_scale, linear, H, coef, u, w, forced, phi, cvec, Bw):
+def tight_rows(c_scale: float, linear: bool, H: int, coef: np.ndarray, u: float, w: np.ndarray,
+               forced: np.ndarray, phi: np.ndarray, cvec: np.ndarray,
+               Bw: np.ndarray) -> np.ndarray:
     """The rows tight at w to the primal tolerance of a step with no multipliers, and
     ``forced`` (the rows an event hit): the candidates of `decide`."""
     m = Bw.shape[0]
@@ -205,7 +211,8 @@ def tight_rows(c_scale, linear, H, coef, u, w, forced, phi, cvec, Bw):
 
 
 @njit(cache=True)
-def settle_rows(candidates, fixed, lam, Bv, ck, tol_p, tol_d):
+def settle_rows(candidates: np.ndarray, fixed: np.ndarray, lam: np.ndarray, Bv: np.ndarray,
+                ck: np.ndarray, tol_p: float, tol_d: float) -> bool:
     """One order of `decide`: candidates with a positive multiplier become fixed, those whose
     velocity opens their gap leave. Returns whether candidates are left."""
     left = False
@@ -222,7 +229,9 @@ def settle_rows(candidates, fixed, lam, Bv, ck, tol_p, tol_d):
 
 
 @njit(cache=True)
-def decide(k, c_scale, linear, H, coef, u, w, forced, warm, out, phi, cvec, Bw):
+def decide(k: np.ndarray, c_scale: float, linear: bool, H: int, coef: np.ndarray, u: float,
+           w: np.ndarray, forced: np.ndarray, warm: np.ndarray, out: np.ndarray, phi: np.ndarray,
+           cvec: np.ndarray, Bw: np.ndarray) -> bool:
     """The active set on (u, u + eps) into ``out`` (`EventStepper._decide`): the rows tight at
     w (and ``forced``), decided by the velocity problems of orders 1, 2, ...; False when one of
     them is not settled by the kernel's updates or the result is dependent (HANDOFF)."""
@@ -266,7 +275,7 @@ def decide(k, c_scale, linear, H, coef, u, w, forced, warm, out, phi, cvec, Bw):
 
 # -- the next event on a piece ------------------------------------------------------------------
 @njit(cache=True)
-def crossing(z, tol, u0, u1, linear, H):
+def crossing(z: np.ndarray, tol: float, u0: float, u1: float, linear: bool, H: int) -> float:
     """The first upward zero crossing of f = phi @ z in (u0, u1) that goes on to exceed tol
     (`crawlsim.kernel.events`); inf if none, NaN where the basis has no closed form for f."""
     nb = z.shape[0]
@@ -292,8 +301,10 @@ def crossing(z, tol, u0, u1, linear, H):
 
 
 @njit(cache=True)
-def next_event(c_scale, linear, H, coef, signs, base, Wc, Ydx, inverse, u0, u1, hit,
-               Gc, Rdx, Bw, z):
+def next_event(c_scale: float, linear: bool, H: int, coef: np.ndarray, signs: np.ndarray,
+               base: np.ndarray, Wc: np.ndarray, Ydx: np.ndarray, inverse: float, u0: float,
+               u1: float, hit: np.ndarray, Gc: np.ndarray, Rdx: np.ndarray, Bw: np.ndarray,
+               z: np.ndarray) -> tuple[float, bool]:
     """(u, handoff) of the first event in (u0, u1) (u = inf: none), the rows newly tight in
     ``hit`` (`EventStepper._next_event`): gaps phi @ (B Wc - coef + B base e_0) of the inactive
     rows, slip rates -dLambda/du = phi @ derivative(Y) of the active ones."""
@@ -352,8 +363,12 @@ def next_event(c_scale, linear, H, coef, signs, base, Wc, Ydx, inverse, u0, u1, 
 
 # -- the grid samples of a piece and their certificate ------------------------------------------
 @njit(cache=True)
-def certify_samples(k, kmax, c_scale, coef, signs, PHI, j0, j1, W, LAMC, lam_cum, dx0, Ydx,
-                    base, Wc, inverse, gram, carried, own, report, cvec, Bw, dx):
+def certify_samples(k: np.ndarray, kmax: float, c_scale: float, coef: np.ndarray,
+                    signs: np.ndarray, PHI: np.ndarray, j0: int, j1: int, W: np.ndarray,
+                    LAMC: np.ndarray, lam_cum: np.ndarray, dx0: np.ndarray, Ydx: np.ndarray,
+                    base: np.ndarray, Wc: np.ndarray, inverse: float, gram: float, carried: float,
+                    own: float, report: np.ndarray, cvec: np.ndarray, Bw: np.ndarray,
+                    dx: np.ndarray) -> bool:
     """W[j0:j1] and LAMC[j0:j1] at the grid times in the piece, each certified
     (`EventStepper._certify_piece`): in K(t_j), slip integrals >= 0 and complementary, to the
     kernel's tolerances; the first one carries the roundoff of earlier pieces (``carried``).
@@ -398,7 +413,9 @@ def certify_samples(k, kmax, c_scale, coef, signs, PHI, j0, j1, W, LAMC, lam_cum
 
 
 @njit(cache=True)
-def state_at(u, linear, H, signs, dx0, Ydx, base, Wc, lam_cum, w, phi, dx):
+def state_at(u: float, linear: bool, H: int, signs: np.ndarray, dx0: np.ndarray, Ydx: np.ndarray,
+             base: np.ndarray, Wc: np.ndarray, lam_cum: np.ndarray, w: np.ndarray, phi: np.ndarray,
+             dx: np.ndarray) -> None:
     """w(u) into ``w`` and the slips of the piece up to u added to ``lam_cum``."""
     N = signs.shape[0]
     basis_values(u, 0, linear, H, phi)
@@ -414,7 +431,9 @@ def state_at(u, linear, H, signs, dx0, Ydx, base, Wc, lam_cum, w, phi, dx):
 
 
 @njit(cache=True)
-def energy_terms(k, linear, H, signs, base, Wc, Ydx, KLc, dLc, Mc, lc, out):
+def energy_terms(k: np.ndarray, linear: bool, H: int, signs: np.ndarray, base: np.ndarray,
+                 Wc: np.ndarray, Ydx: np.ndarray, KLc: np.ndarray, dLc: np.ndarray, Mc: np.ndarray,
+                 lc: np.ndarray, out: np.ndarray) -> None:
     """The piece's products for `crawlsim.analysis.energy.ExactLedger` (its ``piece``):
     (Wc + K Lc + base e_0) @ dLc^T, -Mc_A @ Y'^T and -lc_A @ Y'^T."""
     N = signs.shape[0]
@@ -441,7 +460,8 @@ def energy_terms(k, linear, H, signs, base, Wc, Ydx, KLc, dLc, Mc, lc, out):
 
 # -- a jump of c at a breakpoint ----------------------------------------------------------------
 @njit(cache=True)
-def jump(k, c_scale, w, target, signs, w_out, lam, report):
+def jump(k: np.ndarray, c_scale: float, w: np.ndarray, target: np.ndarray, signs: np.ndarray,
+         w_out: np.ndarray, lam: np.ndarray, report: np.ndarray) -> int:
     """The projection of w onto K(t+) = {B v <= target} from the set ``signs``, certified by
     `crawlsim.kernel.chain.project` (DONE only with its certificate), and LICQ at its tight
     rows (`crawlsim.kernel.projection.ExactProjector`: a tight set that may be dependent goes to
@@ -468,8 +488,10 @@ def jump(k, c_scale, w, target, signs, w_out, lam, report):
 
 # -- one period -----------------------------------------------------------------------------------
 @njit(cache=True)
-def begin_event(u, w, lam_cum, forced, max_events, zeno_events, zeno_window, EV_T, EV_W, EV_DX,
-                TR_HIT, counts, report):
+def begin_event(u: float, w: np.ndarray, lam_cum: np.ndarray, forced: np.ndarray, max_events: int,
+                zeno_events: int, zeno_window: float, EV_T: np.ndarray, EV_W: np.ndarray,
+                EV_DX: np.ndarray, TR_HIT: np.ndarray, counts: np.ndarray,
+                report: np.ndarray) -> int:
     """Record the state at an event and apply the guards (`EventStepper._guard`): DONE, or
     OVERFLOW (the arrays are full), TOO_MANY or ZENO (the rows hit in TR_HIT at the count of
     transitions)."""
@@ -492,8 +514,11 @@ def begin_event(u, w, lam_cum, forced, max_events, zeno_events, zeno_window, EV_
 
 
 @njit(cache=True)
-def after_jump(u, piece_after, w, w_next, lam_cum, lam_jump, signs, forced, grid, W, LAMC, TR_U,
-               TR_PIECE, TR_SIGNS, TR_CAUSE, TR_HIT, counts):
+def after_jump(u: float, piece_after: int, w: np.ndarray, w_next: np.ndarray, lam_cum: np.ndarray,
+               lam_jump: np.ndarray, signs: np.ndarray, forced: np.ndarray, grid: np.ndarray,
+               W: np.ndarray, LAMC: np.ndarray, TR_U: np.ndarray, TR_PIECE: np.ndarray,
+               TR_SIGNS: np.ndarray, TR_CAUSE: np.ndarray, TR_HIT: np.ndarray,
+               counts: np.ndarray) -> None:
     """The state after the projection at a jump: w and the cumulative slips, the transition,
     and the grid point at the jump (signals are right-continuous)."""
     w[:] = w_next
@@ -510,10 +535,16 @@ def after_jump(u, piece_after, w, w_next, lam_cum, lam_jump, signs, forced, grid
 
 
 @njit(cache=True)
-def period(k, c_scale, linear, H, COEF, edges, jumps, TARGET, grid, PHI, w_start, signs,
-           max_events, zeno_events, zeno_window, ledger, KLC, DLC, MC, LC,
-           W, LAMC, EV_T, EV_W, EV_DX, TR_U, TR_PIECE, TR_SIGNS, TR_CAUSE, TR_HIT,
-           PIECE_BOUNDS, PIECE_TERMS, JUMP_PIECE, JUMP_U, JUMP_W, JUMP_LAM, counts, report):
+def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray,
+           edges: np.ndarray, jumps: np.ndarray, TARGET: np.ndarray, grid: np.ndarray,
+           PHI: np.ndarray, w_start: np.ndarray, signs: np.ndarray, max_events: int,
+           zeno_events: int, zeno_window: float, ledger: bool, KLC: np.ndarray, DLC: np.ndarray,
+           MC: np.ndarray, LC: np.ndarray, W: np.ndarray, LAMC: np.ndarray, EV_T: np.ndarray,
+           EV_W: np.ndarray, EV_DX: np.ndarray, TR_U: np.ndarray, TR_PIECE: np.ndarray,
+           TR_SIGNS: np.ndarray, TR_CAUSE: np.ndarray, TR_HIT: np.ndarray,
+           PIECE_BOUNDS: np.ndarray, PIECE_TERMS: np.ndarray, JUMP_PIECE: np.ndarray,
+           JUMP_U: np.ndarray, JUMP_W: np.ndarray, JUMP_LAM: np.ndarray, counts: np.ndarray,
+           report: np.ndarray) -> int:
     """One period from w_start (in K(0)) with the warm set ``signs`` (left at the final set), on
     the grid ``grid`` (PHI: phi at its times):
     W and LAMC (cumulative slips) on the grid; the events, transitions, the pieces' energy

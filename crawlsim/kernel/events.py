@@ -28,7 +28,7 @@ TWO_PI = 2.0 * math.pi
 
 
 @njit(cache=True)
-def linear_crossing(a, s, tol, u0, u1):
+def linear_crossing(a: float, s: float, tol: float, u0: float, u1: float) -> float:
     """Event time of f = a + s u (inf where there is none before u1)."""
     if not s > 0:
         return np.inf
@@ -40,7 +40,8 @@ def linear_crossing(a, s, tol, u0, u1):
 
 
 @njit(cache=True)
-def harmonic_crossing(a, alpha, beta, tol, u0, u1):
+def harmonic_crossing(a: float, alpha: float, beta: float, tol: float, u0: float,
+                      u1: float) -> float:
     """Event time of f = a + alpha cos 2 pi u + beta sin 2 pi u (inf where there is none)."""
     rho = np.hypot(alpha, beta)
     if not rho > 0:
@@ -64,14 +65,16 @@ def harmonic_crossing(a, alpha, beta, tol, u0, u1):
 
 
 @njit(cache=True)
-def linear_crossings(a, s, tol, u0, u1, out):
+def linear_crossings(a: np.ndarray, s: np.ndarray, tol: np.ndarray, u0: float, u1: float,
+                     out: np.ndarray) -> None:
     """`linear_crossing` of every row into ``out``."""
     for r in range(a.shape[0]):
         out[r] = linear_crossing(a[r], s[r], tol[r], u0, u1)
 
 
 @njit(cache=True)
-def harmonic_crossings(a, alpha, beta, tol, u0, u1, out):
+def harmonic_crossings(a: np.ndarray, alpha: np.ndarray, beta: np.ndarray, tol: np.ndarray,
+                       u0: float, u1: float, out: np.ndarray) -> None:
     """`harmonic_crossing` of every row into ``out``."""
     for r in range(a.shape[0]):
         out[r] = harmonic_crossing(a[r], alpha[r], beta[r], tol[r], u0, u1)
