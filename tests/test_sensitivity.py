@@ -350,7 +350,7 @@ def test_gradient_optimizer_two_block_bound():
 
 
 def test_gradient_optimizer_two_lags():
-    """The README's two-lag peristalsis-4 example: the maximum of v0 over links.1.phase and
+    """docs/optimize.md's two-lag peristalsis-4 example: the maximum of v0 over links.1.phase and
     links.2.phase in [0, 1] is 7/15 at (1/2, 0) (= (1/2, 1): phases are periodic), which
     `crawlsim optimize` reaches in 360 evaluations. The gradient method, from a 4 x 4 sample
     (not containing the optimum), reaches it to 1e-6 within a fifth of those, 72."""

@@ -45,10 +45,12 @@ class SweepTable:
 
     @property
     def dimensions(self) -> tuple[int, ...]:
+        """The grid dimension of each swept path (linked paths share one)."""
         return tuple(range(len(self.paths))) if self.dims is None else tuple(self.dims)
 
     @property
     def shape(self) -> tuple[int, ...]:
+        """The shape of the grid: the number of values of each dimension."""
         return grid_shape([len(a) for a in self.axes], self.dimensions)
 
     def dimension_paths(self) -> list[list[str]]:
@@ -84,6 +86,7 @@ class SweepTable:
         return cols
 
     def counts(self) -> dict[str, int]:
+        """The number of points of each status (``ok``, ``invalid``, ...)."""
         out = {str(s): 0 for s in PointStatus}
         for r in self.rows:
             out[r.status] = out.get(r.status, 0) + 1
@@ -98,6 +101,7 @@ class SweepTable:
         return full.reshape(self.shape)
 
     def to_csv(self) -> str:
+        """The table as ``crawlsim velocity --sweep`` prints it: CSV, one row per point."""
         buf = io.StringIO()
         writer = csv.writer(buf, lineterminator="\n")
         writer.writerow(list(self.paths) + list(RESULT_COLUMNS) + list(self.quantities))
