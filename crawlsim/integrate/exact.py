@@ -67,8 +67,8 @@ from typing import NamedTuple, cast
 
 import numpy as np
 
-from crawlsim.analysis.energy import ExactLedger
 from crawlsim.errors import CertificateError, DegenerateModelError, EventError, LicqWarning
+from crawlsim.integrate.ledger import ExactLedger
 from crawlsim.integrate.stepping import PeriodRecord, PeriodStepper, Transition, TransitionCause
 from crawlsim.kernel.kkt import RTOL, ActiveSet, ChainPolyhedron, Dependent, Polyhedron, Tolerance
 from crawlsim.model.offsets import TWO_PI, PiecewiseOffsets

@@ -47,7 +47,6 @@ from typing import Literal
 
 import numpy as np
 
-from crawlsim.analysis.digits import how_found  # noqa: F401 - re-exported: where the solver's words belong
 from crawlsim.integrate.stepping import PeriodRecord
 from crawlsim.kernel.kkt import Dependent, Polyhedron
 from crawlsim.model.process import SweepingProcess
