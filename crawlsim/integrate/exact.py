@@ -490,7 +490,14 @@ class EventStepper(PeriodStepper):
                     if -res.fun <= t:
                         continue
                     top = float(res.x)
-                over = brentq(lambda x, f=f, t=t: f(x) - t, left, top, xtol=1e-15)
+                # F (the tabulated samples) and f (the scalar evaluation) may round differently
+                # at the bracket's ends: a bracket without a sign change has its crossing at an
+                # end (left when f is already above t there, else top, where F is above t)
+                f_left, f_top = f(left) - t, f(top) - t
+                if f_left * f_top > 0.0:
+                    over = left if f_left > 0.0 else top
+                else:
+                    over = brentq(lambda x, f=f, t=t: f(x) - t, left, top, xtol=1e-15)
                 below = np.flatnonzero(F[:k + 1, r] < 0.0)
                 zero = u0
                 if below.size:

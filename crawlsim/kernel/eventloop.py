@@ -205,13 +205,14 @@ def tight_rows(c_scale, linear, H, coef, u, w, forced, phi, cvec, Bw):
 
 
 @njit(cache=True)
-def settle_rows(candidates, fixed, lam, Bv, ck, tol_p, tol_d):
-    """One order of `decide`: candidates with a positive multiplier become fixed, those whose
-    velocity opens their gap leave. Returns whether candidates are left."""
+def settle_rows(candidates, fixed, lam, Bv, ck, tol_p, told):
+    """One order of `decide`: candidates with a multiplier above their own row's dual
+    tolerance ``told[r]`` (`chain.project_rows`) become fixed, those whose velocity opens their
+    gap leave. Returns whether candidates are left."""
     left = False
     for r in range(candidates.shape[0]):
         if candidates[r]:
-            if lam[r] > tol_d:
+            if lam[r] > told[r]:
                 fixed[r] = True
                 candidates[r] = False
             elif Bv[r] - ck[r] < -tol_p:
@@ -240,6 +241,7 @@ def decide(k, c_scale, linear, H, coef, u, w, forced, warm, out, phi, cvec, Bw):
     report = np.zeros(6)
     zero = np.zeros(N - 1)
     c = np.empty(m)
+    told = np.empty(m)
     for order in range(1, DECISION_ORDERS + 1):
         basis_values(u, order, linear, H, phi)
         combine(phi, coef, cvec)
@@ -251,11 +253,11 @@ def decide(k, c_scale, linear, H, coef, u, w, forced, warm, out, phi, cvec, Bw):
             return False
         for i in range(N):
             signs[i] = 1 if rows[i] else (-1 if rows[N + i] else 0)
-        if chain.project(k, c_scale, zero, c, signs, fixed, v, lam, report) != chain.DONE:
+        if chain.project_rows(k, c_scale, zero, c, signs, fixed, v, lam, report,
+                              told) != chain.DONE:
             return False
-        tol_p, tol_d = report[chain.REPORT_TOLP], report[chain.REPORT_TOLD]
         apply(v, Bw)
-        if not settle_rows(candidates, fixed, lam, Bw, cvec, tol_p, tol_d):
+        if not settle_rows(candidates, fixed, lam, Bw, cvec, report[chain.REPORT_TOLP], told):
             break
     if not chain.independent(fixed, N):
         return False
@@ -375,7 +377,21 @@ def certify_samples(k, kmax, c_scale, coef, signs, PHI, j0, j1, W, LAMC, lam_cum
         combine(phi, coef, cvec)
         apply(W[j], Bw)
         lam_size = max_abs(LAMC[j])
-        size = max(max(c_scale, max_abs(cvec)), max(2.0 * max_abs(W[j]), 4.0 * kmax * lam_size))
+        # sizes of the numbers summed, not of the sums: phi @ coef and base + phi @ Wc cancel
+        # on short pieces with steep offsets (`EventStepper._certify_piece`)
+        c_size = 0.0
+        for r in range(m):
+            total = 0.0
+            for b in range(coef.shape[0]):
+                total += abs(phi[b]) * abs(coef[b, r])
+            c_size = max(c_size, total)
+        w_size = 0.0
+        for i in range(N - 1):
+            total = abs(base[i])
+            for b in range(Wc.shape[0]):
+                total += abs(phi[b]) * abs(Wc[b, i])
+            w_size = max(w_size, total)
+        size = max(max(c_scale, c_size), max(2.0 * w_size, 4.0 * kmax * lam_size))
         tol_p = RTOL * size
         tol_d = max(2.0 * RTOL * inverse * (size + gram * lam_size), own)
         tol_d = max(tol_d, 4 * RTOL * lam_size)
