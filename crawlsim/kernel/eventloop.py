@@ -466,6 +466,23 @@ def jump(k, c_scale, w, target, signs, w_out, lam, report):
     return DONE
 
 
+@njit(cache=True)
+def grid_record(LAMC, x0, MU, X):
+    """The record's arrays from the cumulative slips on the grid, in one pass:
+    MU[j] = LAMC[j+1] - LAMC[j] (the slips of step j) and, for a crawler (x0 not empty),
+    X[j] = x0 + (lambda^+ - lambda^-)(t_j), the block positions (docs/model.md §3)."""
+    G1, m = LAMC.shape
+    N = m // 2
+    for j in range(G1 - 1):
+        for r in range(m):
+            MU[j, r] = LAMC[j + 1, r] - LAMC[j, r]
+    if x0.shape[0] == 0:
+        return
+    for j in range(G1):
+        for i in range(N):
+            X[j, i] = x0[i] + (LAMC[j, i] - LAMC[j, N + i])
+
+
 # -- one period -----------------------------------------------------------------------------------
 @njit(cache=True)
 def begin_event(u, w, lam_cum, forced, max_events, zeno_events, zeno_window, EV_T, EV_W, EV_DX,
