@@ -266,9 +266,11 @@ def decide(k, c_scale, linear, H, coef, u, w, forced, warm, out, phi, cvec, Bw):
 
 # -- the next event on a piece ------------------------------------------------------------------
 @njit(cache=True)
-def crossing(z, tol, u0, u1, linear, H):
+def crossing(z, tol, u0, u1, linear, H, phi0, horizon):
     """The first upward zero crossing of f = phi @ z in (u0, u1) that goes on to exceed tol
-    (`crawlsim.kernel.events`); inf if none, NaN where the basis has no closed form for f."""
+    (`crawlsim.kernel.events`); inf if none, NaN where the basis has no closed form for f.
+    inf also for a harmonic f that stays below zero on [u0, horizon] (phi0 = phi(u0)): its
+    crossing, where f = 0 or tol, is after horizon (the caller's earliest event so far)."""
     nb = z.shape[0]
     if nb == 1:
         return np.inf
@@ -284,11 +286,18 @@ def crossing(z, tol, u0, u1, linear, H):
         size += abs(z[1]) * max(abs(u0), abs(u1))
     if top + 1e-12 * size < tol:
         return np.inf
-    if H == 1 and not linear:
-        return events.harmonic_crossing(z[0], z[1], z[2], tol, u0, u1)
-    if H == 1 and z[1] == 0.0:
-        return events.harmonic_crossing(z[0], z[2], z[3], tol, u0, u1)
-    return np.nan
+    if H != 1 or (linear and z[1] != 0.0):
+        return np.nan
+    alpha, beta = z[nb - 2], z[nb - 1]
+    # f(u) <= f(u0) + 2 pi (|alpha| + |beta|) (u - u0) on [u0, horizon], without trig: below
+    # zero there (by more than the roundoff of f(u0) and of the crossing's own closed form,
+    # 1e-12 of its terms' size), f has neither its zero nor its tolerance before horizon
+    f0 = 0.0
+    for b in range(nb):
+        f0 += z[b] * phi0[b]
+    if f0 + TWO_PI * (abs(alpha) + abs(beta)) * (horizon - u0) + 1e-12 * size < 0.0:
+        return np.inf
+    return events.harmonic_crossing(z[0], alpha, beta, tol, u0, u1)
 
 
 @njit(cache=True)
@@ -325,17 +334,21 @@ def next_event(c_scale, linear, H, coef, signs, base, Wc, Ydx, inverse, u0, u1, 
     tol_rate = RTOL * max(scale, inverse * c_size * TWO_PI)
     times = np.full(m, np.inf)
     first = np.inf
+    phi0 = np.empty(nb)
+    basis_values(u0, 0, linear, H, phi0)
     for r in range(m):
         i = r % N
         s = signs[i]
+        # a row whose crossing is after first + SIMULTANEOUS is neither the first nor hit
+        horizon = min(u1, first + SIMULTANEOUS)
         if (r < N and s > 0) or (r >= N and s < 0):
             for b in range(nb):
                 z[b] = s * Rdx[b, i]
-            t = crossing(z, tol_rate, u0, u1, linear, H)
+            t = crossing(z, tol_rate, u0, u1, linear, H, phi0, horizon)
         else:
             for b in range(nb):
                 z[b] = Gc[b, r]
-            t = crossing(z, tol_gap, u0, u1, linear, H)
+            t = crossing(z, tol_gap, u0, u1, linear, H, phi0, horizon)
         if np.isnan(t):
             return np.inf, True
         times[r] = t
@@ -422,21 +435,28 @@ def energy_terms(k, linear, H, signs, base, Wc, Ydx, KLc, dLc, Mc, lc, out):
     dY = np.empty((nb, N))
     derivative(Ydx, linear, H, dY)
     out[:] = 0.0
+    stress = np.empty(N - 1)
     for a in range(nb):
+        # the stress coefficient a once, then its products (adding base to a = 0 only: the
+        # other terms are those of Wc + KLc + 0.0, the same numbers)
+        for i in range(N - 1):
+            stress[i] = Wc[a, i] + KLc[a, i]
+            if a == 0:
+                stress[i] += base[i]
         for b in range(nb):
             total = 0.0
             for i in range(N - 1):
-                total += (Wc[a, i] + KLc[a, i] + (base[i] if a == 0 else 0.0)) * dLc[b, i]
+                total += stress[i] * dLc[b, i]
             out[0, a, b] = total
-            friction, load = 0.0, 0.0
-            for i in range(N):
-                s = signs[i]
-                if s != 0:
-                    r = i if s > 0 else N + i
-                    friction -= Mc[a, r] * (s * dY[b, i])
-                    load -= lc[a, r] * (s * dY[b, i])
-            out[1, a, b] = friction
-            out[2, a, b] = load
+    for i in range(N):  # the slipping blocks only (the friction and load rows of the set)
+        s = signs[i]
+        if s == 0:
+            continue
+        r = i if s > 0 else N + i
+        for a in range(nb):
+            for b in range(nb):
+                out[1, a, b] -= Mc[a, r] * (s * dY[b, i])
+                out[2, a, b] -= lc[a, r] * (s * dY[b, i])
 
 
 # -- a jump of c at a breakpoint ----------------------------------------------------------------
