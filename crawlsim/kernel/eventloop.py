@@ -91,12 +91,14 @@ def derivative(coef, linear, H, out):
 
 @njit(cache=True)
 def combine(phi, coef, out):
-    """out = phi @ coef for coef (nb, k)."""
+    """out = phi @ coef for coef (nb, k), row by row of coef (contiguous; the sums add the same
+    terms in the same order as the dot product of each column)."""
     for r in range(out.shape[0]):
-        total = 0.0
-        for b in range(phi.shape[0]):
-            total += phi[b] * coef[b, r]
-        out[r] = total
+        out[r] = 0.0
+    for b in range(phi.shape[0]):
+        p = phi[b]
+        for r in range(out.shape[0]):
+            out[r] += p * coef[b, r]
 
 
 @njit(cache=True)
