@@ -122,6 +122,23 @@ def max_abs(x):
 
 # -- a piece: the factor and the closed form of w(u) and the slips --------------------------------
 @njit(cache=True)
+def solve_rows(D, l, Y):
+    """Y[b] <- L~^{-1} Y[b] for every row b (`crawlsim.kernel.chain.solve`, the same operations
+    on each row), the rows side by side: their recurrences overlap instead of waiting on one
+    another."""
+    nb, N = Y.shape
+    for i in range(1, N):
+        for b in range(nb):
+            Y[b, i] -= l[i - 1] * Y[b, i - 1]
+    for i in range(N):
+        for b in range(nb):
+            Y[b, i] /= D[i]
+    for i in range(N - 2, -1, -1):
+        for b in range(nb):
+            Y[b, i] -= l[i] * Y[b, i + 1]
+
+
+@njit(cache=True)
 def piece(k, signs, w0, coef, D, l, dx0, Ydx, base, Wc, f, col):
     """w(u) = base + phi(u) @ Wc and dx(u) = dx0 - phi(u) @ Ydx on the set ``signs`` from w0:
     Lambda_A = G_A^{-1} (B_A w0 - c_A(u)) in the chain's block form L_JJ dx_J = f_J - f*_J.
@@ -146,9 +163,8 @@ def piece(k, signs, w0, coef, D, l, dx0, Ydx, base, Wc, f, col):
     for b in range(nb):
         for i in range(N):
             s = signs[i]
-            col[i] = coef[b, i] if s > 0 else (-coef[b, N + i] if s < 0 else 0.0)
-        chain.solve(D, l, col)
-        Ydx[b] = col
+            Ydx[b, i] = coef[b, i] if s > 0 else (-coef[b, N + i] if s < 0 else 0.0)
+    solve_rows(D, l, Ydx)
     for i in range(N - 1):
         base[i] = w0[i] - (dx0[i + 1] - dx0[i]) * k[i]
         for b in range(nb):
@@ -303,21 +319,13 @@ def crossing(z, tol, u0, u1, linear, H, phi0, horizon):
 
 
 @njit(cache=True)
-def next_event(c_scale, linear, H, coef, signs, base, Wc, Ydx, inverse, u0, u1, hit,
-               Gc, Rdx, Bw, z):
+def next_event(c_scale, linear, H, coef, signs, base, Wc, Ydx, inverse, u0, u1, hit, Rdx, z):
     """(u, handoff) of the first event in (u0, u1) (u = inf: none), the rows newly tight in
     ``hit`` (`EventStepper._next_event`): gaps phi @ (B Wc - coef + B base e_0) of the inactive
     rows, slip rates -dLambda/du = phi @ derivative(Y) of the active ones."""
     N = signs.shape[0]
     m = 2 * N
     nb = coef.shape[0]
-    for b in range(nb):
-        apply(Wc[b], Bw)
-        for r in range(m):
-            Gc[b, r] = Bw[r] - coef[b, r]
-    apply(base, Bw)
-    for r in range(m):
-        Gc[0, r] += Bw[r]
     derivative(Ydx, linear, H, Rdx)
     c_size = 0.0
     for r in range(m):
@@ -347,9 +355,12 @@ def next_event(c_scale, linear, H, coef, signs, base, Wc, Ydx, inverse, u0, u1, 
             for b in range(nb):
                 z[b] = s * Rdx[b, i]
             t = crossing(z, tol_rate, u0, u1, linear, H, phi0, horizon)
-        else:
+        else:  # the gap of row r, B Wc - coef + B base e_0 (the entries of `apply`)
             for b in range(nb):
-                z[b] = Gc[b, r]
+                g = (Wc[b, i - 1] if i > 0 else 0.0) - (Wc[b, i] if i < N - 1 else 0.0)
+                z[b] = (g if r < N else -g) - coef[b, r]
+            g = (base[i - 1] if i > 0 else 0.0) - (base[i] if i < N - 1 else 0.0)
+            z[0] += g if r < N else -g
             t = crossing(z, tol_gap, u0, u1, linear, H, phi0, horizon)
         if np.isnan(t):
             return np.inf, True
@@ -570,7 +581,7 @@ def period(k, c_scale, linear, H, COEF, edges, jumps, TARGET, grid, PHI, w_start
                              np.empty(N), np.empty(N))
     Ydx, Rdx = np.empty((nb, N)), np.empty((nb, N))
     base, Wc = np.empty(n), np.empty((nb, n))
-    Gc, z = np.empty((nb, m)), np.empty(nb)
+    z = np.empty(nb)
     phi, cvec, Bw = np.empty(nb), np.empty(m), np.empty(m)
     w, lam_cum = w_start.copy(), np.zeros(m)
     w_next, lam_jump = np.empty(n), np.empty(m)
@@ -598,7 +609,7 @@ def period(k, c_scale, linear, H, COEF, edges, jumps, TARGET, grid, PHI, w_start
         inverse, gram = piece(k, signs, w, coef, D, l, dx0, Ydx, base, Wc, f, col)
         u_end = edges[p + 1]
         u_e, handoff = next_event(c_scale, linear, H, coef, signs, base, Wc, Ydx, inverse, u,
-                                  u_end, forced, Gc, Rdx, Bw, z)
+                                  u_end, forced, Rdx, z)
         if handoff:
             return HANDOFF
         event = u_e < u_end
