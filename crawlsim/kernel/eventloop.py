@@ -139,7 +139,7 @@ def solve_rows(D, l, Y):
 
 
 @njit(cache=True)
-def piece(k, signs, w0, coef, D, l, dx0, Ydx, base, Wc, f, col):
+def piece(k, signs, w0, coef, D, l, dx0, Ydx, base, Wc, f):
     """w(u) = base + phi(u) @ Wc and dx(u) = dx0 - phi(u) @ Ydx on the set ``signs`` from w0:
     Lambda_A = G_A^{-1} (B_A w0 - c_A(u)) in the chain's block form L_JJ dx_J = f_J - f*_J.
     Returns (||L_JJ^{-1}||, ||L_JJ||) (zeros for the empty set)."""
@@ -577,8 +577,8 @@ def period(k, c_scale, linear, H, COEF, edges, jumps, TARGET, grid, PHI, w_start
     kmax = 0.0
     for i in range(n):
         kmax = max(kmax, k[i])
-    D, l, f, col, dx0, dx = (np.empty(N), np.empty(max(N - 1, 0)), np.empty(N), np.empty(N),
-                             np.empty(N), np.empty(N))
+    D, l, f, dx0, dx = (np.empty(N), np.empty(max(N - 1, 0)), np.empty(N), np.empty(N),
+                        np.empty(N))
     Ydx, Rdx = np.empty((nb, N)), np.empty((nb, N))
     base, Wc = np.empty(n), np.empty((nb, n))
     z = np.empty(nb)
@@ -606,7 +606,7 @@ def period(k, c_scale, linear, H, COEF, edges, jumps, TARGET, grid, PHI, w_start
         TR_U[t_count], TR_PIECE[t_count], TR_SIGNS[t_count] = u, p, signs
         TR_CAUSE[t_count], TR_HIT[t_count] = cause, forced
         counts[C_TRANSITIONS] = t_count + 1
-        inverse, gram = piece(k, signs, w, coef, D, l, dx0, Ydx, base, Wc, f, col)
+        inverse, gram = piece(k, signs, w, coef, D, l, dx0, Ydx, base, Wc, f)
         u_end = edges[p + 1]
         u_e, handoff = next_event(c_scale, linear, H, coef, signs, base, Wc, Ydx, inverse, u,
                                   u_end, forced, Rdx, z)
