@@ -142,6 +142,8 @@ class RunResult:
     efficiency: float | None = None
     # Work against the loads per period (docs/model.md §6); None without loads.
     load_work_per_period: float | None = None
+    # The limit period itself, for exact sensitivities of this run (`crawlsim.analysis.sensitivity`)
+    limit_record: PeriodRecord | None = field(default=None, repr=False, compare=False)
 
     @property
     def displacement_error_estimate(self) -> float | None:
@@ -368,7 +370,7 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
         limit_kinds=solution.kinds if solution is not None else None,
         jacobian_rate=solution.jacobian_rate if solution is not None else None,
         v0_error_period_iteration=err_pi, v0_error_time_step=err_step, v0_error_reason=err_reason,
-        dissipation_error_estimate=diss_err, **energy_fields)
+        dissipation_error_estimate=diss_err, limit_record=final, **energy_fields)
 
 
 def time_step_reference(process: SweepingProcess, *, max_periods: int,

@@ -192,7 +192,7 @@ def velocity(gait_file, as_json, sweep_specs, sensitivity_paths, link_specs, out
                     if sensitivity_paths:
                         from crawlsim.cli import sensitivities
 
-                        derivatives = sensitivities.compute(gait, sensitivity_paths)
+                        derivatives = sensitivities.compute(gait, sensitivity_paths, result)
                 summary = result.summary()
                 if as_json:
                     if derivatives is not None:
