@@ -332,9 +332,10 @@ def test_cli_bad_input():
     res = _cli("gaits/inching-2.yaml", "--sensitivity", "links.3.amplitude")
     assert res.exit_code == 2
     assert "links.3.amplitude" in res.output and "out of range" in res.output
-    res = _cli("gaits/inching-2.yaml", "--sensitivity", "stiffness", "--sweep", "period=1:2:2")
+    res = _cli("gaits/inching-2.yaml", "--sensitivity", "links.3.amplitude", "--sweep",
+               "period=1:2:2")
     assert res.exit_code == 2
-    assert "--sensitivity" in res.output
+    assert "links.3.amplitude" in res.output and "out of range" in res.output
     res = _cli("gaits/inching-2.yaml", "--sensitivity", "links")
     assert res.exit_code == 2 and "not a number" in res.output
 

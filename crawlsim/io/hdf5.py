@@ -992,6 +992,16 @@ def _write_sweep(f: h5py.File, paths: Sequence[str], axes: Sequence[Any], points
         ds = grid.create_dataset(name, data=data.reshape(shape), track_order=True)
         scales.attach(ds, dim_names)
         _describe(ds, var, units.of(var.quantity))
+    from crawlsim.analysis.sensitivity_sweep import variables as derivative_variables
+
+    derivatives = derivative_variables(columns, units, kind, [*names, *SWEEP_VARIABLES])
+    for column, name, unit, long_name in derivatives:  # dv0/dPATH (--sensitivity)
+        data = np.full(full.size, np.nan)
+        data[points] = np.asarray(columns[column], dtype=float)
+        ds = grid.create_dataset(name, data=data.reshape(shape), track_order=True)
+        scales.attach(ds, dim_names)
+        _describe(ds, Var((), long_name, "1"), unit)
+        ds.attrs["column"] = column
     messages = np.full(full.size, "", dtype=object)
     messages[points] = np.asarray(columns["message"], dtype=object).astype(str)
     ds = grid.create_dataset("message", data=messages.reshape(shape).tolist(), dtype=text,
@@ -1023,6 +1033,12 @@ def _write_sweep(f: h5py.File, paths: Sequence[str], axes: Sequence[Any], points
         # the table keeps the words (as in the CSV table); /grid has the CF flags
         _describe(ds, Var(var.dims, var.long_name, var.quantity, comment=_WORDS.get(name, "")),
                   units.of(var.quantity))
+    for column, name, unit, long_name in derivatives:
+        ds = results.create_dataset(name, data=np.asarray(columns[column], dtype=float),
+                                    track_order=True)
+        scales.attach(ds, ("point",))
+        _describe(ds, Var(("point",), long_name, "1"), unit)
+        ds.attrs["column"] = column
 
 
 def read_sweep(path: Any) -> dict[str, Any]:
@@ -1061,7 +1077,8 @@ def read_sweep(path: Any) -> dict[str, Any]:
         for name in results:  # later columns (v0_error_estimate, ...), when the file has them
             if name not in columns and name not in names:
                 ds = results[name]
-                columns[name] = (np.array(ds.asstr()[()], dtype=object)
+                columns[_plain(ds.attrs.get("column", name))] = (
+                    np.array(ds.asstr()[()], dtype=object)
                                  if h5py.check_string_dtype(ds.dtype) else ds[()])
         dimensions = (json.loads(_plain(f.attrs["dimensions"])) if "dimensions" in f.attrs
                       else None)
