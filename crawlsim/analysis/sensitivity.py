@@ -156,7 +156,7 @@ def sensitivity(gait: Gait, paths: Sequence[str] | str, *, one_sided: bool = Tru
         raise GaitError(getattr(gait, "source", "<gait>"), "",
                         "sensitivities are defined for crawler gaits (kind: crawler)")
     lim = _limit_of_run(gait, run)
-    co = coefficients_of(gait)
+    co = coefficients_of(gait, lim.process)
     params = [parameter_of(gait, co, keys) for keys in _expand(gait, paths)]
     active = [i for i, prm in enumerate(params) if prm.dC is not None]
     dC, dMu, dk = _stack(co, [params[i] for i in active])
@@ -193,7 +193,9 @@ def _limit_of_run(gait: Gait, run: Any) -> Limit:
         return find_limit(gait)
     from crawlsim.model.process import compile_gait
 
-    return limit_of(compile_gait(gait), record)
+    # the exact walk needs the closed form of c only, not the run's grid
+    steps = 1 if gait.simulation.integrator == "exact" else None
+    return limit_of(compile_gait(gait, steps_per_period=steps), record)
 
 
 def _expand(gait: Gait, paths: Sequence[str] | str) -> list[tuple[Any, ...]]:
@@ -230,16 +232,17 @@ class _Ift:
         J, Ptheta = walk.W[:, :n], walk.W[:, n:]
         Yw, Ytheta = S @ walk.L[:, :n], S @ walk.L[:, n:]
         Dw, Dtheta = walk.D[:n], walk.D[n:]
-        A = np.eye(n) - J
-        self.dw, *_ = np.linalg.lstsq(A, Ptheta, rcond=1e-12)
+        # the least-squares solution of minimal norm, singular values below 1e-12 of the
+        # largest dropped (a family of periodic solutions), from one SVD of I - dP/dw
+        U, sv, Vt = np.linalg.svd(np.eye(n) - J)
+        kept = sv > 1e-12 * max(float(sv[0]) if sv.size else 1.0, 1e-300)
+        self.dw = Vt[kept].T @ ((U[:, kept].T @ Ptheta) / sv[kept, None])
         self.dY = Ytheta + Yw @ self.dw
         self.dD = Dtheta + Dw @ self.dw
         # error: roundoff of every term (pieces x eps x their sizes, times the conditioning of
         # the least-squares solve) plus the verified limit's distance, relative, on the same
         # sizes
-        sv = np.linalg.svd(A, compute_uv=False)
-        kept = sv[sv > 1e-12 * max(float(sv[0]) if sv.size else 1.0, 1e-300)]
-        cond = float(kept[0] / kept[-1]) if kept.size else 1.0
+        cond = float(sv[kept][0] / sv[kept][-1]) if kept.any() else 1.0
         magY = np.abs(Ytheta) + np.abs(Yw) @ np.abs(self.dw)
         magD = np.abs(Dtheta) + np.abs(Dw) @ np.abs(self.dw)
         rel = 64 * EPS * (walk.pieces + n) * cond + lim.residual

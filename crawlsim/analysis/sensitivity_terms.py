@@ -94,7 +94,8 @@ def limit_of(process: SweepingProcess, final: PeriodRecord) -> Limit:
     d = float(np.mean(final.x[-1] - final.x[0]))
     F = float(np.max(np.abs(final.w[-1] - final.w[0])))
     roundoff = float(np.sum(np.abs(slips))) / process.blocks
-    err = (process.steps * EPS * roundoff + F / float(np.min(process.stiffness))) / T
+    steps = len(final.w) - 1  # the run's grid (``process`` may be compiled on a coarser one)
+    err = (steps * EPS * roundoff + F / float(np.min(process.stiffness))) / T
     return Limit(process, final, d / T, err, d, period_dissipation(process, final),
                   relative_step(process, final.w[0], final.w[-1]))
 
@@ -107,18 +108,31 @@ class Coefficients:
     k: np.ndarray  # (N-1,)
     edges: np.ndarray
     basis: Any
+    pieces: Any  # the compiled `crawlsim.model.offsets.PiecewiseOffsets` they come from
 
 
-def coefficients_of(gait: Gait) -> Coefficients:
+def coefficients_of(gait: Gait, process: SweepingProcess | None = None) -> Coefficients:
     """The offsets' coefficients as the integrator compiles them (every term of c(t), whatever
-    the gait file adds to it), on a grid of the breakpoints only, and the friction weights."""
-    from crawlsim.model.offsets import PiecewiseOffsets
+    the gait file adds to it) and the friction weights: those of ``process`` (the gait's,
+    compiled on any grid) or of the gait compiled on a grid of its breakpoints only."""
     from crawlsim.model.process import compile_gait
 
+    if process is None:
+        process = compile_gait(gait, steps_per_period=1)
+    assert process.offset_pieces is not None and process.stiffness is not None
+    return _assemble(gait, process.offset_pieces, np.array(process.stiffness, dtype=float))
+
+
+def _signals(gait: Gait) -> tuple[Any, ...]:
+    """The signals c(t) is combined from, in the order `compile_gait` takes them."""
+    forces = () if gait.loads is None else tuple(gait.loads.forces)
+    return tuple(gait.links) + tuple(gait.forward) + tuple(gait.backward) + forces
+
+
+def _assemble(gait: Gait, pieces: Any, k: np.ndarray) -> Coefficients:
+    from crawlsim.model.offsets import PiecewiseOffsets
+
     N = gait.blocks
-    process = compile_gait(gait, steps_per_period=1)
-    pieces = process.offset_pieces
-    assert pieces is not None and process.stiffness is not None
     signals = list(gait.links) + list(gait.forward) + list(gait.backward)
     friction = PiecewiseOffsets(signals, lambda coef: coef[:, N - 1:], pieces.edges)
     P = pieces.pieces
@@ -126,8 +140,23 @@ def coefficients_of(gait: Gait) -> Coefficients:
     Mu = np.array([friction.coefficients(p) for p in range(P)])
     if friction.basis != pieces.basis:  # pragma: no cover - the same signals span both
         raise CrawlsimError(f"{gait.source}: internal error, friction and offsets in two bases")
-    return Coefficients(C, Mu, np.array(process.stiffness, dtype=float), pieces.edges,
-                         pieces.basis)
+    return Coefficients(C, Mu, k, pieces.edges, pieces.basis, pieces)
+
+
+def _moved_coefficients(gait: Gait, base: Coefficients, keys: tuple[Any, ...],
+                        value: float) -> Coefficients:
+    """The coefficients of the gait with one number moved. A signal's number (a link's, a
+    friction's) changes the signals alone: they are combined by the base's own map into c
+    (linear in them, docs/sensitivity.md), on the base's pieces when the breakpoints stay;
+    anything else (the stiffness, which that map holds) is compiled anew."""
+    from crawlsim.model.offsets import PiecewiseOffsets
+
+    moved = _moved(gait, keys, value)
+    if keys[0] in ("links", "friction") and np.array_equal(moved.breakpoints(),
+                                                           gait.breakpoints()):
+        pieces = PiecewiseOffsets(_signals(moved), base.pieces.combine, base.pieces.edges)
+        return _assemble(moved, pieces, base.k)
+    return coefficients_of(moved)
 
 
 def _rotation_inverse(base: np.ndarray, moved: np.ndarray, basis: Any, shift: float) -> np.ndarray:
@@ -180,6 +209,10 @@ def _moved(gait: Gait, keys: tuple[Any, ...], value: float) -> Gait:
         links = list(gait.links)
         links[i] = parse_signal(node, f"links[{i}]", gait.source)
         return dataclasses.replace(gait, links=tuple(links))
+    if keys[0] == "friction" and value > 0:
+        friction = _moved_friction(gait, keys, value)
+        if friction is not None:
+            return dataclasses.replace(gait, forward=friction[0], backward=friction[1])
     if keys[0] == "stiffness" and len(keys) <= 2 and value > 0:
         k = np.array(gait.stiffness, dtype=float)
         if len(keys) == 1:
@@ -188,6 +221,34 @@ def _moved(gait: Gait, keys: tuple[Any, ...], value: float) -> Gait:
             k[keys[1]] = value
         return dataclasses.replace(gait, stiffness=k)
     return gait.replace(".".join(str(k) for k in keys), value)
+
+
+def _moved_friction(gait: Gait, keys: tuple[Any, ...], value: float
+                    ) -> tuple[tuple[Any, ...], tuple[Any, ...]] | None:
+    """mu^+ and mu^- per block with one friction number moved (``friction.forward...``, shared
+    by every block, or ``friction.I.forward...``); None for another form of the block."""
+    from crawlsim.gait.signals import parse_signal
+
+    shared = isinstance(keys[1], str)
+    rest = keys[1:] if shared else keys[2:]
+    if not rest or rest[0] not in ("forward", "backward"):
+        return None
+    node: Any = gait.document["friction"] if shared else gait.document["friction"][keys[1]]
+    node = copy.deepcopy(node[rest[0]])
+    if len(rest) == 1:
+        node = value
+    else:
+        inner = node
+        for key in rest[1:-1]:
+            inner = inner[key]
+        inner[rest[-1]] = value
+    signal = parse_signal(node, ".".join(map(str, keys[:len(keys) - len(rest) + 1])),
+                          gait.source)
+    sides = {"forward": list(gait.forward), "backward": list(gait.backward)}
+    blocks = range(gait.blocks) if shared else [keys[1]]
+    for j in blocks:
+        sides[rest[0]][j] = signal
+    return tuple(sides["forward"]), tuple(sides["backward"])
 
 
 def parameter_of(gait: Gait, base: Coefficients, keys: tuple[Any, ...]) -> Parameter:
@@ -209,11 +270,11 @@ def parameter_of(gait: Gait, base: Coefficients, keys: tuple[Any, ...]) -> Param
     H = max(base.basis.harmonics, 1)
     h = 0.25 / (2 * H + 1) * 1e-2 if phase else COEFFICIENT_STEP * max(abs(value), 1.0)
     try:
-        moved = coefficients_of(_moved(gait, keys, value + h))
+        moved = _moved_coefficients(gait, base, keys, value + h)
     except CrawlsimError as exc:
         try:
             h = -h
-            moved = coefficients_of(_moved(gait, keys, value + h))
+            moved = _moved_coefficients(gait, base, keys, value + h)
         except CrawlsimError:
             return Parameter(path, keys, value, reason=f"the gait with {path} moved is "
                                                        f"refused: {exc}")

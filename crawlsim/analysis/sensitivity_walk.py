@@ -86,11 +86,11 @@ class _Walker:
         self.kinks: list[str] = []
         self.touches: list[tuple[str, np.ndarray]] = []
         self.column_kinks = np.zeros(self.q, dtype=bool)
-        self._factors: dict[tuple[int, ...], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self._factors: dict[bytes, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 
     def factor(self, index: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """B_A, G_A = B_A K B_A^T and its inverse, once per active set."""
-        key = tuple(int(i) for i in index)
+        key = np.asarray(index, dtype=np.int64).tobytes()
         if key not in self._factors:
             BA = self.B[index]
             G = BA @ (self.k[:, None] * BA.T)
@@ -168,14 +168,14 @@ def _flow(s: _Walker, tr: Transition, nxt: Transition | None, times: np.ndarray,
     basis = s.basis
     u_s = tr.u
     u_e = nxt.u if nxt is not None else 1.0
-    phi_e, phi_s = basis.values(u_e)[0], basis.values(u_s)[0]
     if piece not in derivatives:
         derivatives[piece] = (basis.derivative(s.co.C[piece]), basis.derivative(s.dC[piece]))
     dcoef, dC1 = derivatives[piece]
     length = u_e - u_s
     gx, gw = _gauss(24 + 12 * basis.harmonics)
     x = u_s + 0.5 * length * (gx + 1.0)
-    Phi = basis.values(x)
+    values = basis.values(np.concatenate([[u_s], x, [u_e]]))  # one call: the ends, the nodes
+    phi_s, Phi, phi_e = values[0], values[1:-1], values[-1]
     if index.size:
         Lam, dLam, w_e, W_e = s.solve_on(index, s.w, s.Wt, piece, phi_e)
         BA, _, Gi = s.factor(index)
@@ -192,18 +192,19 @@ def _flow(s: _Walker, tr: Transition, nxt: Transition | None, times: np.ndarray,
         W_e = W_e + np.outer(v_b, du)
         if index.size:
             dLam = dLam + np.outer(rate_e, du)
+    rate = None
     if index.size:
         s.lam[index] += Lam
         s.Lt[index] += dLam
         if length > 0:
-            _piece_dissipation(s, index, piece, 0.5 * length * gw, Phi, dcoef, dC1,
-                               (phi_s, phi_e), (du_start, du))
+            rate = _piece_dissipation(s, index, piece, 0.5 * length * gw, Phi, dcoef, dC1,
+                                      (phi_s, phi_e), (du_start, du))
     if length > 4 * COINCIDENT:  # shorter: an event at the time of another, in _saltation
         ends = np.asarray(nxt.hit, dtype=int) if nxt is not None and nxt.cause == "hit" \
             else np.zeros(0, int)
         _gap_touches(s, index, piece, x, Phi, (u_s, u_e), ends, (phi_s, phi_e))
-        if index.size:
-            _rate_touches(s, index, Phi, dcoef, dC1, (u_s, u_e))
+        if rate is not None:
+            _rate_touches(s, index, rate, Phi, dcoef, dC1, (u_s, u_e))
     s.w, s.Wt = w_e, W_e
     return du
 
@@ -242,9 +243,10 @@ def _saltation(s: _Walker, nxt: Transition, piece: int, phi_e: np.ndarray, dcoef
 def _piece_dissipation(s: _Walker, index: np.ndarray, piece: int, weights: np.ndarray,
                        Phi: np.ndarray, dcoef: np.ndarray, dC1: np.ndarray,
                        phis: tuple[np.ndarray, np.ndarray],
-                       dus: tuple[np.ndarray, np.ndarray]) -> None:
+                       dus: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
     """int mu_A . lambda_A over the piece, lambda_A = -G_A^{-1} c_A' (Gauss-Legendre with
-    ``weights`` at the samples Phi), and its tangent with the moving ends' terms."""
+    ``weights`` at the samples Phi), and its tangent with the moving ends' terms; returns the
+    slip rates lambda_A at the samples."""
     BA, _, Gi = s.factor(index)
     Mu = s.co.Mu[piece][:, index]
     lam_x = -(Phi @ dcoef[:, index]) @ Gi.T  # (nq, a)
@@ -252,7 +254,7 @@ def _piece_dissipation(s: _Walker, index: np.ndarray, piece: int, weights: np.nd
     dmu_x = np.einsum("xb,bap->xap", Phi, s.dMu[piece][:, index, :])
     dc1_x = np.einsum("xb,bap->xap", Phi, dC1[:, index, :])
     Btl = lam_x @ BA  # (nq, n): B_A^T lambda
-    dGl = np.einsum("ai,ip,xi->xap", BA, s.dk, Btl)
+    dGl = np.einsum("ai,xip->xap", BA, Btl[:, :, None] * s.dk[None, :, :])
     dlam_x = -np.einsum("ab,xbp->xap", Gi, dc1_x + dGl)
     s.diss += float(weights @ np.sum(mu_x * lam_x, axis=1))
     s.Dt[s.n:] += np.einsum("x,xap->p", weights,
@@ -260,6 +262,7 @@ def _piece_dissipation(s: _Walker, index: np.ndarray, piece: int, weights: np.nd
     for phi, du, sign in ((phis[1], dus[1], 1.0), (phis[0], dus[0], -1.0)):
         rate = -Gi @ (phi @ dcoef[:, index])
         s.Dt += sign * float(phi @ Mu @ rate) * du
+    return lam_x
 
 
 def _gap_touches(s: _Walker, index: np.ndarray, piece: int, x: np.ndarray, Phi: np.ndarray,
@@ -271,9 +274,10 @@ def _gap_touches(s: _Walker, index: np.ndarray, piece: int, x: np.ndarray, Phi: 
     an end is an event there; a touch exactly at the start of the period is not looked for)."""
     B, k, basis = s.B, s.k, s.basis
     u_s, u_e = span
-    rows_all = np.arange(s.m)
-    inactive = rows_all[np.isin(rows_all, index, invert=True)]
-    candidates = inactive[np.isin(inactive, hit_at_end, invert=True)]
+    outside = np.ones(s.m, dtype=bool)
+    outside[index] = False
+    outside[hit_at_end] = False
+    candidates = np.flatnonzero(outside)
     coef = s.co.C[piece]
     # gap(u) = phi(u) @ Gcoef, w(u) = w_s - K B_A^T G^{-1} (B_A w_s - c_A(u))
     Gcoef = -np.array(coef[:, candidates], dtype=float)
@@ -326,12 +330,11 @@ def _interior_maximum(basis: Any, z: np.ndarray, grid: np.ndarray, values: np.nd
     return u_best if v_best >= -tol and inside else float("nan")
 
 
-def _rate_touches(s: _Walker, index: np.ndarray, Phi: np.ndarray, dcoef: np.ndarray,
-                  dC1: np.ndarray, span: tuple[float, float]) -> None:
-    """Active constraints whose slip rate touches zero inside the piece without leaving
-    (sampled), with the tangents of those rates where they are zero."""
+def _rate_touches(s: _Walker, index: np.ndarray, rate: np.ndarray, Phi: np.ndarray,
+                  dcoef: np.ndarray, dC1: np.ndarray, span: tuple[float, float]) -> None:
+    """Active constraints whose slip rate (``rate`` at the samples Phi) touches zero inside
+    the piece without leaving, with the tangents of those rates where they are zero."""
     BA, _, Gi = s.factor(index)
-    rate = -(Phi @ dcoef[:, index]) @ Gi.T
     size = max(float(np.max(np.abs(Phi @ dcoef))), 1e-300)
     low = _touching(-rate, TOUCH * size)
     if not low.any():
@@ -430,7 +433,7 @@ def _catch_up_run(s: _Walker, grid: _GridOffsets, index: np.ndarray, j0: int, j1
     prev = np.concatenate([(BA @ s.w)[None, :], c[:-1]])
     dprev = np.concatenate([(BA @ s.Wt)[None, :, :], dc[:-1]])
     lam = (prev - c) @ Gi.T  # (r, a)
-    dGl = s.pad(np.einsum("ai,ip,ri->rap", BA, s.dk, lam @ BA))
+    dGl = s.pad(np.einsum("ai,rip->rap", BA, (lam @ BA)[:, :, None] * s.dk[None, :, :]))
     dlam = np.einsum("ab,rbq->raq", Gi, dprev - dc - dGl)
     mu = grid.Mu[j0 + 1:j1 + 1][:, index]
     dmu = grid.dMu[j0 + 1:j1 + 1][:, index, :]
