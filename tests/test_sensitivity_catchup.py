@@ -1,0 +1,149 @@
+"""Catch-up sensitivities (issue 22): the derivative of the catch-up scheme's own discrete
+period map w -> proj(... proj(w)), not of the exact v0, reported with ``method: catch-up``.
+
+**Closed forms.** The two-block crawler of tests/test_sensitivity.py slips by
+d = 2 a - (mu_1^+ + mu_2^+)/k per period under catch-up too, whenever the grid holds the
+extremes of L(u) = L0 + a cos 2 pi u (u = 0 and 1/2: an even number of steps): the stroke the
+scheme sees is the full 2 a. So the catch-up map's derivatives are the closed forms themselves.
+
+**Finite differences.** On other gaits the map's v0 differs from the exact one by O(1/G), and
+its derivative is checked against central differences of catch-up's own v0. It is not an
+approximation of the exact derivative: where a parameter moves events across the fixed grid (a
+phase), v0_G(theta) wiggles by O(1/G) with a period O(1/G) in theta, so the derivatives differ
+by O(1) however fine the grid (peristalsis-4's dv0/dlinks.1.phase: 0.87 at G = 200 against the
+exact 0.82).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import crawlsim
+from crawlsim.analysis.sensitivity import sensitivity
+from crawlsim.analysis.sensitivity_terms import find_limit
+from crawlsim.errors import CrawlsimError
+from crawlsim.gait.corpus import random_gait
+from crawlsim.gait.document import gait_from_document
+
+
+def _two_block(a, k, mu1, mu2, T, steps=200):
+    doc = {"name": "two-block", "blocks": 2, "period": T, "stiffness": k,
+           "links": [{"kind": "cosine", "mean": 1.0, "amplitude": a}],
+           "friction": [{"forward": mu1, "backward": 5.0}, {"forward": mu2, "backward": 5.0}],
+           "simulation": {"steps_per_period": steps, "max_periods": 50, "tolerance": 1e-12,
+                          "integrator": "catch-up"}}
+    return gait_from_document(doc, "two-block")
+
+
+@pytest.mark.parametrize("a,k,mu1,mu2,T", [(0.3, 10.0, 1.0, 1.0, 1.0),
+                                           (0.25, 17.0, 0.7, 1.3, 2.5),
+                                           (0.4, 6.0, 1.1, 0.6, 0.8)])
+def test_two_block_closed_forms(a, k, mu1, mu2, T):
+    r = sensitivity(_two_block(a, k, mu1, mu2, T),
+                    ["links.0.amplitude", "stiffness", "friction.0.forward",
+                     "friction.1.forward", "period"])
+    mus = mu1 + mu2
+    d = 2 * a - mus / k
+    assert r.displacement_per_period == pytest.approx(d, abs=1e-12)
+    expected = {"links.0.amplitude": 2 / T, "stiffness": mus / (k * k * T),
+                "friction.0.forward": -1 / (k * T), "friction.1.forward": -1 / (k * T),
+                "period": -d / T / T}
+    for path, value in expected.items():
+        p = r[path]
+        assert p.smooth, (path, p.reason)
+        assert p.method == ("rate-independence" if path == "period" else "catch-up")
+        assert p.v0.value == pytest.approx(value, abs=1e-8), path
+    # the grid sum of mu . lambda: each block slips d at its forward limit
+    assert r.dissipation_per_period == pytest.approx(mus * d, abs=1e-10)
+    assert r["links.0.amplitude"].dissipation_per_period.value == pytest.approx(2 * mus,
+                                                                               abs=1e-8)
+    assert r["friction.0.forward"].cost_of_transport.value == pytest.approx(1.0, abs=1e-8)
+
+
+def _central(gait, path, value, h):
+    plus = find_limit(gait.replace(path, value + h))
+    minus = find_limit(gait.replace(path, value - h))
+    return ((plus.v0 - minus.v0) / (2 * h), (plus.dissipation - minus.dissipation) / (2 * h),
+            (plus.v0_error + minus.v0_error) / (2 * h))
+
+
+def _check(gait, paths) -> int:
+    """Every smooth derivative of ``paths`` against central differences of catch-up's own v0
+    and dissipation (h and h/2: their change estimates the difference's error)."""
+    r = sensitivity(gait, paths, one_sided=False)
+    checked = 0
+    for p in r.parameters:
+        if not p.smooth or p.method != "catch-up":
+            continue
+        scale = max(abs(p.value), 1.0)
+        d1, D1, e1 = _central(gait, p.path, p.value, 1e-4 * scale)
+        d2, D2, e2 = _central(gait, p.path, p.value, 5e-5 * scale)
+        tol = 2 * abs(d1 - d2) + 4 * e2 + p.v0.error_estimate + 1e-11
+        assert abs(p.v0.value - d2) <= tol, (gait.name, p.path, p.v0, d1, d2)
+        tolD = 2 * abs(D1 - D2) + 1e-9 * max(abs(D2), 1.0) + p.dissipation_per_period.error_estimate
+        assert abs(p.dissipation_per_period.value - D2) <= tolD, (gait.name, p.path)
+        checked += 1
+    return checked
+
+
+def test_corpus_gaits_against_finite_differences():
+    per = crawlsim.load_gait("gaits/peristalsis-4.yaml").replace(
+        "simulation.integrator", "catch-up", "simulation.steps_per_period", 200)
+    assert _check(per, ["links.*.phase", "links.0.amplitude", "links.2.mean", "stiffness",
+                        "friction.forward"]) == 7
+    smooth = crawlsim.load_gait("gaits/smooth-friction-3.yaml").replace(
+        "simulation.integrator", "catch-up", "simulation.steps_per_period", 200)
+    assert _check(smooth, ["links.1.phase", "links.0.cos.1", "stiffness.1",
+                           "friction.0.forward.amplitude", "friction.1.backward.phase",
+                           "friction.2.forward"]) == 6
+
+
+def test_random_gaits_against_finite_differences():
+    """Ten seeded random gaits (every signal kind among them) on a catch-up grid of 160 steps:
+    the smooth derivatives of a mean, an amplitude or value, a phase and the stiffness."""
+    checked = gaits = 0
+    seed = 0
+    while gaits < 10:
+        gait = random_gait(5000 + seed, blocks=(2, 3), max_periods=300)
+        seed += 1
+        gait = gait.replace("simulation.integrator", "catch-up",
+                            "simulation.steps_per_period", 160)
+        paths = [p for p in ("links.0.mean", "links.0.amplitude", "links.0.phase",
+                             "links.0.values.1", "links.0.cos.0", "stiffness")
+                 if _names(gait, p)]
+        try:
+            n = _check(gait, paths)
+        except CrawlsimError:
+            continue
+        checked += n
+        gaits += n > 0
+    assert checked >= 15
+
+
+def _names(gait, path) -> bool:
+    node = gait.document
+    for key in path.split("."):
+        key = int(key) if key.isdigit() else key
+        try:
+            node = node[key]
+        except (KeyError, IndexError, TypeError):
+            return False
+    return isinstance(node, (int, float)) and not isinstance(node, bool)
+
+
+def test_cli_json_says_catch_up(tmp_path):
+    import json
+
+    from click.testing import CliRunner
+
+    from crawlsim.cli import main
+
+    res = CliRunner().invoke(main, ["velocity", "gaits/inching-2.yaml", "--integrator",
+                                    "catch-up", "--steps-per-period", "100", "--json",
+                                    "--sensitivity", "stiffness"])
+    assert res.exit_code == 0, res.output
+    entry = json.loads(res.stdout)["sensitivity"]["stiffness"]
+    assert entry["method"] == "catch-up" and entry["smooth"] is True
+    assert entry["value"] == pytest.approx(0.02, abs=1e-10)  # (mu_1^+ + mu_2^+)/(k^2 T)
+    assert np.isfinite(entry["error_estimate"])
