@@ -147,3 +147,40 @@ def test_cli_json_says_catch_up(tmp_path):
     assert entry["method"] == "catch-up" and entry["smooth"] is True
     assert entry["value"] == pytest.approx(0.02, abs=1e-10)  # (mu_1^+ + mu_2^+)/(k^2 T)
     assert np.isfinite(entry["error_estimate"])
+
+
+# -- loads (docs/model.md §6), both integrators ------------------------------------------------
+@pytest.mark.parametrize("integrator", ["exact", "catch-up"])
+def test_towing_force_closed_form(integrator):
+    """inching-2-towing: a force F = -0.5 on the rear block adds -F to the friction it must
+    overcome, d = 2 a - (mu_1^+ + mu_2^+ - F)/k, so dv0/dF = 1/(k T) = 0.1 and the dissipation
+    (mu_1^+ + mu_2^+) d moves by (mu_1^+ + mu_2^+)/k = 0.2."""
+    gait = crawlsim.load_gait("gaits/inching-2-towing.yaml")
+    if integrator == "catch-up":
+        gait = gait.replace("simulation.integrator", "catch-up", "simulation.steps_per_period",
+                            200)
+    p = sensitivity(gait, ["loads.force.0"])["loads.force.0"]
+    assert p.smooth and p.method == integrator
+    assert p.v0.value == pytest.approx(0.1, abs=1e-10)
+    assert p.dissipation_per_period.value == pytest.approx(0.2, abs=1e-10)
+
+
+@pytest.mark.parametrize("integrator", ["exact", "catch-up"])
+def test_slope_against_finite_differences(integrator):
+    """climbing-3 on a 10 degree slope: the angle (through cos and sin, not affinely), the
+    weight and the friction (weighted by cos(angle) in the dissipation) against central
+    differences of the integrator's own v0 and dissipation."""
+    gait = crawlsim.load_gait("gaits/climbing-3.yaml")
+    if integrator == "catch-up":
+        gait = gait.replace("simulation.integrator", "catch-up", "simulation.steps_per_period",
+                            200)
+    r = sensitivity(gait, ["loads.slope.angle", "loads.slope.weight", "friction.forward"],
+                    one_sided=False)
+    for p in r.parameters:
+        assert p.smooth and p.method == integrator, (p.path, p.reason)
+        h = 1e-4 * max(abs(p.value), 1.0)
+        d1, D1, e1 = _central(gait, p.path, p.value, h)
+        d2, D2, e2 = _central(gait, p.path, p.value, h / 2)
+        assert abs(p.v0.value - d2) <= 2 * abs(d1 - d2) + 4 * e2 + 1e-10, (p.path, p.v0, d2)
+        assert abs(p.dissipation_per_period.value - D2) <= 2 * abs(D1 - D2) + 1e-8, \
+            (p.path, p.dissipation_per_period, D2)

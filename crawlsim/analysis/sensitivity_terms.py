@@ -30,6 +30,8 @@ EPS = float(np.finfo(float).eps)
 #: Relative step of the difference quotient of the offsets' coefficients (exact for affine
 #: dependence, so only roundoff / h matters).
 COEFFICIENT_STEP = 2.0 ** -10
+#: Step in degrees of the central difference in a slope's angle (not affine: cos and sin).
+ANGLE_STEP = 1e-3
 #: Most blocks for which the uniqueness boundary is checked over every subset.
 UNIQUENESS_BLOCKS = 12
 #: Top-level keys that are not continuous parameters of a gait.
@@ -137,7 +139,9 @@ def _assemble(gait: Gait, pieces: Any, k: np.ndarray) -> Coefficients:
     friction = PiecewiseOffsets(signals, lambda coef: coef[:, N - 1:], pieces.edges)
     P = pieces.pieces
     C = np.array([pieces.coefficients(p) for p in range(P)])
-    Mu = np.array([friction.coefficients(p) for p in range(P)])
+    # the friction weights of the rows are mu cos(angle) on a slope (docs/model.md §6)
+    Mu = np.array([friction.coefficients(p) for p in range(P)]) * (
+        1.0 if gait.loads is None else gait.loads.cos)
     if friction.basis != pieces.basis:  # pragma: no cover - the same signals span both
         raise CrawlsimError(f"{gait.source}: internal error, friction and offsets in two bases")
     return Coefficients(C, Mu, k, pieces.edges, pieces.basis, pieces)
@@ -267,6 +271,8 @@ def parameter_of(gait: Gait, base: Coefficients, keys: tuple[Any, ...]) -> Param
         return Parameter(path, keys, value, reason=f"{path} is not a continuous parameter of "
                                                    "the gait")
     phase = keys[-1] == "phase"
+    if keys[-1] == "angle":
+        return _angle(gait, keys, path, value)
     H = max(base.basis.harmonics, 1)
     h = 0.25 / (2 * H + 1) * 1e-2 if phase else COEFFICIENT_STEP * max(abs(value), 1.0)
     try:
@@ -288,6 +294,21 @@ def parameter_of(gait: Gait, base: Coefficients, keys: tuple[Any, ...]) -> Param
     else:
         dC, dMu = (moved.C - base.C) / h, (moved.Mu - base.Mu) / h
     return Parameter(path, keys, value, dC, dMu, (moved.k - base.k) / h)
+
+
+def _angle(gait: Gait, keys: tuple[Any, ...], path: str, value: float) -> Parameter:
+    """A slope's angle enters c and the friction weights through its cosine and sine, not
+    affinely: a central difference of the coefficients, h = ANGLE_STEP degrees (its error
+    h^2 (pi/180)^2 / 6 relative, below 1e-12; its roundoff eps |C| / h)."""
+    try:
+        plus = coefficients_of(gait.replace(path, value + ANGLE_STEP))
+        minus = coefficients_of(gait.replace(path, value - ANGLE_STEP))
+    except CrawlsimError as exc:
+        return Parameter(path, keys, value, reason=f"the gait with {path} moved is refused: "
+                                                   f"{exc}")
+    h2 = 2 * ANGLE_STEP
+    return Parameter(path, keys, value, (plus.C - minus.C) / h2, (plus.Mu - minus.Mu) / h2,
+                     (plus.k - minus.k) / h2)
 
 
 def uniqueness_touch(gait: Gait, co: Coefficients) -> str | None:

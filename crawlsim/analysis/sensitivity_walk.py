@@ -382,12 +382,17 @@ def walk_catch_up(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
                             "catch-up grid's; the catch-up map is not differentiated")
     LAM = np.asarray(record.multipliers, dtype=float)
     active = LAM > 0.0
-    _weak_steps(s, record, process.offsets, active)
+    # rows tight at w_{j+1} with a zero multiplier: the map has a kink there for the
+    # parameters that move that gap off zero (a touch, as in the exact walk)
+    gaps = record.w[1:] @ s.B.T - process.offsets[1:]
+    weak = ~active & (np.abs(gaps) <= TOUCH * s.scale)
     G = len(LAM)
     starts = np.concatenate([[0], np.flatnonzero(np.any(active[1:] != active[:-1], axis=1)) + 1,
                              [G]])
     for j0, j1 in zip(starts[:-1], starts[1:]):
         index = np.flatnonzero(active[j0])
+        if weak[j0:j1].any():
+            _weak_steps(s, grid, index, int(j0), weak[j0:j1])
         if index.size:
             _catch_up_run(s, grid, index, int(j0), int(j1))
     scale_w = max(float(np.max(np.abs(record.w))), 1e-300)
@@ -411,15 +416,20 @@ class _GridOffsets:
         self.dMu = np.einsum("gb,gbmp->gmp", self.Phi, s.dMu[self.pieces])
 
 
-def _weak_steps(s: _Walker, record: Any, offsets: np.ndarray, active: np.ndarray) -> None:
-    """Steps whose projection lands on a row with a zero multiplier (tight but not active):
-    the catch-up map has a kink there."""
-    gaps = record.w[1:] @ s.B.T - offsets[1:]
-    weak = ~active & (np.abs(gaps) <= TOUCH * s.scale)
-    if weak.any():
-        j, i = np.argwhere(weak)[0]
-        s.kinks.append(f"catch-up step {int(j) + 1}: constraint {int(i)} is tight with a zero "
-                       f"multiplier ({int(np.count_nonzero(weak))} such step rows)")
+def _weak_steps(s: _Walker, grid: _GridOffsets, index: np.ndarray, j0: int,
+                weak: np.ndarray) -> None:
+    """The tangents of the gaps of rows tight with a zero multiplier after steps j0 + r of a
+    run on A (``weak`` (r, m)): w_{j+1} is the piece formula at u_{j+1} from the run's start."""
+    tangents = []
+    for r, i in np.argwhere(weak):
+        j = j0 + int(r) + 1
+        dW = s.solve_on(index, s.w, s.Wt, int(grid.pieces[j]), grid.Phi[j])[3] \
+            if index.size else s.Wt
+        tangents.append((s.B[i] @ dW - s.pad(grid.dC[j, i]))[None, :])
+    first = int(np.argwhere(weak)[0][0]) + j0 + 1
+    s.touches.append((f"catch-up step(s) from {first}: constraint(s) "
+                      f"{sorted(set(np.argwhere(weak)[:, 1].tolist()))} tight with a zero "
+                      "multiplier", np.concatenate(tangents)))
 
 
 def _catch_up_run(s: _Walker, grid: _GridOffsets, index: np.ndarray, j0: int, j1: int) -> None:
