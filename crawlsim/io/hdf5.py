@@ -992,16 +992,6 @@ def _write_sweep(f: h5py.File, paths: Sequence[str], axes: Sequence[Any], points
         ds = grid.create_dataset(name, data=data.reshape(shape), track_order=True)
         scales.attach(ds, dim_names)
         _describe(ds, var, units.of(var.quantity))
-    from crawlsim.analysis.sensitivity_sweep import variables as derivative_variables
-
-    derivatives = derivative_variables(columns, units, kind, [*names, *SWEEP_VARIABLES])
-    for column, name, unit, long_name in derivatives:  # dv0/dPATH (--sensitivity)
-        data = np.full(full.size, np.nan)
-        data[points] = np.asarray(columns[column], dtype=float)
-        ds = grid.create_dataset(name, data=data.reshape(shape), track_order=True)
-        scales.attach(ds, dim_names)
-        _describe(ds, Var((), long_name, "1"), unit)
-        ds.attrs["column"] = column
     messages = np.full(full.size, "", dtype=object)
     messages[points] = np.asarray(columns["message"], dtype=object).astype(str)
     ds = grid.create_dataset("message", data=messages.reshape(shape).tolist(), dtype=text,
@@ -1033,12 +1023,29 @@ def _write_sweep(f: h5py.File, paths: Sequence[str], axes: Sequence[Any], points
         # the table keeps the words (as in the CSV table); /grid has the CF flags
         _describe(ds, Var(var.dims, var.long_name, var.quantity, comment=_WORDS.get(name, "")),
                   units.of(var.quantity))
-    for column, name, unit, long_name in derivatives:
-        ds = results.create_dataset(name, data=np.asarray(columns[column], dtype=float),
-                                    track_order=True)
-        scales.attach(ds, ("point",))
-        _describe(ds, Var(("point",), long_name, "1"), unit)
-        ds.attrs["column"] = column
+    _write_derivatives(grid, results, scales, columns, units, kind, names, points, shape,
+                       dim_names)
+
+
+def _write_derivatives(grid: h5py.Group, results: h5py.Group, scales: _Scales,
+                       columns: Mapping[str, Any], units: Units, kind: str,
+                       names: Sequence[str], points: np.ndarray, shape: tuple[int, ...],
+                       dim_names: Sequence[str]) -> None:
+    """The dv0/dPATH columns of ``--sensitivity`` (`crawlsim.analysis.sensitivity_sweep`), on
+    the grid and in the table, with the units of v0 over PATH; the column in ``column``."""
+    from crawlsim.analysis.sensitivity_sweep import variables
+
+    for column, name, unit, long_name in variables(columns, units, kind,
+                                                   [*names, *SWEEP_VARIABLES]):
+        values = np.asarray(columns[column], dtype=float)
+        data = np.full(math.prod(shape), np.nan)
+        data[points] = values
+        for group, array, dims in ((grid, data.reshape(shape), dim_names),
+                                   (results, values, ("point",))):
+            ds = group.create_dataset(name, data=array, track_order=True)
+            scales.attach(ds, dims)
+            _describe(ds, Var(tuple(dims), long_name, "1"), unit)
+            ds.attrs["column"] = column
 
 
 def read_sweep(path: Any) -> dict[str, Any]:
