@@ -97,6 +97,20 @@ class _Walker:
             self._factors[key] = (BA, G, np.linalg.inv(G))
         return self._factors[key]
 
+    def prefactor(self, sets: list[np.ndarray]) -> None:
+        """Factor the active sets a walk will visit, one batched inverse per size of set."""
+        by_size: dict[int, dict[bytes, np.ndarray]] = {}
+        for index in sets:
+            index = np.asarray(index, dtype=np.int64)
+            key = index.tobytes()
+            if index.size and key not in self._factors:
+                by_size.setdefault(index.size, {})[key] = index
+        for group in by_size.values():
+            BAs = np.stack([self.B[index] for index in group.values()])  # (K, a, n)
+            Gs = np.einsum("kai,i,kbi->kab", BAs, self.k, BAs)
+            for key, BA, G, Gi in zip(group, BAs, Gs, np.linalg.inv(Gs)):
+                self._factors[key] = (BA, G, Gi)
+
     def pad(self, X: np.ndarray) -> np.ndarray:
         """Parameter columns X (..., p) as full tangent columns (..., n + p)."""
         out = np.zeros(X.shape[:-1] + (self.q,))
@@ -141,6 +155,7 @@ def walk_exact(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     dC (P, nb, m, p), dMu (P, nb, m, p), dk (n, p)."""
     s = _Walker(lim, co, dC, dMu, dk)
     transitions = lim.record.transitions
+    s.prefactor([tr.active.index for tr in transitions])
     times = np.array([t.u for t in transitions])
     derivatives: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     du_start = np.zeros(s.q)
@@ -174,8 +189,8 @@ def _flow(s: _Walker, tr: Transition, nxt: Transition | None, times: np.ndarray,
     length = u_e - u_s
     gx, gw = _gauss(24 + 12 * basis.harmonics)
     x = u_s + 0.5 * length * (gx + 1.0)
-    values = basis.values(np.concatenate([[u_s], x, [u_e]]))  # one call: the ends, the nodes
-    phi_s, Phi, phi_e = values[0], values[1:-1], values[-1]
+    stacked = basis.values(np.concatenate([[u_s], x, [u_e]]))  # the ends and the nodes
+    phi_s, Phi, phi_e = stacked[0], stacked[1:-1], stacked[-1]
     if index.size:
         Lam, dLam, w_e, W_e = s.solve_on(index, s.w, s.Wt, piece, phi_e)
         BA, _, Gi = s.factor(index)
@@ -202,7 +217,7 @@ def _flow(s: _Walker, tr: Transition, nxt: Transition | None, times: np.ndarray,
     if length > 4 * COINCIDENT:  # shorter: an event at the time of another, in _saltation
         ends = np.asarray(nxt.hit, dtype=int) if nxt is not None and nxt.cause == "hit" \
             else np.zeros(0, int)
-        _gap_touches(s, index, piece, x, Phi, (u_s, u_e), ends, (phi_s, phi_e))
+        _gap_touches(s, index, piece, x, stacked, (u_s, u_e), ends)
         if rate is not None:
             _rate_touches(s, index, rate, Phi, dcoef, dC1, (u_s, u_e))
     s.w, s.Wt = w_e, W_e
@@ -265,42 +280,41 @@ def _piece_dissipation(s: _Walker, index: np.ndarray, piece: int, weights: np.nd
     return lam_x
 
 
-def _gap_touches(s: _Walker, index: np.ndarray, piece: int, x: np.ndarray, Phi: np.ndarray,
-                 span: tuple[float, float], hit_at_end: np.ndarray,
-                 phis: tuple[np.ndarray, np.ndarray]) -> None:
+def _gap_touches(s: _Walker, index: np.ndarray, piece: int, x: np.ndarray,
+                 stacked: np.ndarray, span: tuple[float, float], hit_at_end: np.ndarray) -> None:
     """Inactive constraints whose gap reaches zero inside the piece without crossing (or
     stays at zero), seen on the closed form of the gaps between the samples x, with the
     tangents of those gaps where they are zero. A touch is an interior maximum at zero (one at
-    an end is an event there; a touch exactly at the start of the period is not looked for)."""
+    an end is an event there; a touch exactly at the start of the period is not looked for).
+    ``stacked``: the basis at u_s, at the samples x and at u_e."""
     B, k, basis = s.B, s.k, s.basis
     u_s, u_e = span
     outside = np.ones(s.m, dtype=bool)
     outside[index] = False
     outside[hit_at_end] = False
-    candidates = np.flatnonzero(outside)
     coef = s.co.C[piece]
-    # gap(u) = phi(u) @ Gcoef, w(u) = w_s - K B_A^T G^{-1} (B_A w_s - c_A(u))
-    Gcoef = -np.array(coef[:, candidates], dtype=float)
-    Gcoef[0] += B[candidates] @ s.w
+    # every row's gap(u) = phi(u) @ Gcoef, w(u) = w_s - K B_A^T G^{-1} (B_A w_s - c_A(u))
+    Wcoef = np.zeros((len(coef), s.n))
+    Wcoef[0] = s.w
     if index.size:
         BA, _, Gi = s.factor(index)
-        Wc = (coef[:, index] @ Gi.T @ BA) * k[None, :]  # (nb, n): the response to c_A(u)
-        Gcoef += Wc @ B[candidates].T
-        Gcoef[0] -= B[candidates] @ (k * (BA.T @ (Gi @ (BA @ s.w))))
+        Wcoef[0] -= k * (BA.T @ (Gi @ (BA @ s.w)))
+        Wcoef += (coef[:, index] @ Gi.T @ BA) * k[None, :]  # the response to c_A(u)
+    Gcoef = Wcoef @ B.T - coef  # (nb, m)
     tol = TOUCH * s.scale
     grid = np.concatenate([[u_s], x, [u_e]])
-    values = np.vstack([phis[0], Phi, phis[1]]) @ Gcoef  # (s + 2, r)
+    values = stacked @ Gcoef  # (s + 2, m)
     # between two samples a gap exceeds the larger by at most h^2/8 max|gap''| (the linear
     # interpolant's error): only rows that can reach -tol are looked at closely
     h = float(np.max(np.diff(grid)))
     reach = np.max(values, axis=0) + h * h / 8.0 * basis.curvature_bound(Gcoef) >= -tol
     flat = np.min(values[1:-1], axis=0, initial=np.inf) >= -tol
     found: list[tuple[int, float]] = []
-    for j in np.flatnonzero(reach | flat):
+    for j in np.flatnonzero((reach | flat) & outside):
         u_best = float(x[len(x) // 2]) if flat[j] else _interior_maximum(
             basis, Gcoef[:, j], grid, values[:, j], tol)
         if u_best == u_best:  # not NaN: a touch
-            found.append((int(candidates[j]), u_best))
+            found.append((int(j), u_best))
     if not found:
         return
     tangents = []
