@@ -156,3 +156,23 @@ def test_unconverged_and_kinked_points_have_no_value(tmp_path):
     assert column[1] == pytest.approx(1.5 / (400 * 2.0), abs=1e-10)
     text = table.to_csv().splitlines()
     assert text[1].endswith(",")  # the missing cell is empty
+
+
+def test_column_is_the_point_sensitivity():
+    """On peristalsis-4 (no closed form) each cell is `crawlsim.sensitivity` of that point's
+    gait, walked on the limit period the point's own run found."""
+    import crawlsim
+
+    gait = crawlsim.load_gait("gaits/peristalsis-4.yaml")
+    table = sweeps.sweep(gait, ["links.1.phase=[0.2,0.3]"], sensitivity=["links.*.phase"])
+    cols = table.columns()
+    assert [c for c in cols if c.startswith("dv0/d")] == [
+        "dv0/dlinks.0.phase", "dv0/dlinks.1.phase", "dv0/dlinks.2.phase"]
+    for n, lag in enumerate((0.2, 0.3)):
+        r = sensitivity(gait.replace("links.1.phase", lag), ["links.*.phase"])
+        for p in r.parameters:
+            assert p.smooth
+            assert cols["dv0/d" + p.path][n] == pytest.approx(
+                p.v0.value, abs=10 * p.v0.error_estimate + 1e-12), (lag, p.path)
+        # a common phase shift: the three derivatives sum to zero
+        assert abs(sum(cols[f"dv0/dlinks.{i}.phase"][n] for i in range(3))) <= 1e-10

@@ -1,6 +1,7 @@
 """The ``dv0/dPATH`` columns of ``crawlsim velocity --sweep ... --sensitivity PATH`` (issue 22):
 the derivative of each grid point's v0 in each number PATH names, computed where the point runs
-(`crawlsim.study.sweep.run_points`, so workers and shards share the work), kept in the journal
+(`crawlsim.study.sweep.run_points`, on the limit period the point's run found, so workers and
+shards share the work), kept in the journal
 with the row, and written to the CSV table, the sweep file's /grid and /results groups and the
 xarray Dataset of `crawlsim.sweep` with the units of v0 over those of PATH.
 
@@ -34,10 +35,12 @@ def check_paths(gait: Any, paths: Sequence[str]) -> tuple[str, ...]:
 
 
 def with_derivatives(paths: Sequence[str], gaits: Iterable[tuple[int, Any]],
-                     rows: Mapping[int, Any]) -> dict[int, Any]:
+                     rows: Mapping[int, Any], runs: Mapping[int, Any]) -> dict[int, Any]:
     """The rows of the converged points among ``gaits`` ((index, Gait) pairs) with their
     ``derivatives``: {concrete path: dv0/dpath, None where not smooth}; a point whose
-    derivatives fail keeps its row, with the failure in its message."""
+    derivatives fail keeps its row, with the failure in its message. ``runs``: the points' own
+    runs by index, whose limit periods are walked (the others' limits are searched again:
+    catch-up points of the vectorised batch)."""
     import dataclasses
 
     from crawlsim.analysis.sensitivity import sensitivity
@@ -50,7 +53,7 @@ def with_derivatives(paths: Sequence[str], gaits: Iterable[tuple[int, Any]],
         if row.status != PointStatus.OK:
             continue
         try:
-            result = sensitivity(gait, list(paths), one_sided=False)
+            result = sensitivity(gait, list(paths), one_sided=False, run=runs.get(i))
         except CrawlsimError as exc:
             message = f"{row.message}; " if row.message else ""
             out[i] = dataclasses.replace(row, message=f"{message}no derivatives: {exc}")

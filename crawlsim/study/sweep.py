@@ -391,17 +391,18 @@ def run_points(grid: SweepGrid, indices, *, capacity=None, progress=None) -> lis
             if progress is not None:
                 progress(1)
     if valid:
+        runs: dict | None = {} if grid.sensitivity else None  # their limits, for derivatives
         for row in evaluate([g for _, g in valid], [i for i, _ in valid], capacity=capacity,
-                            progress=progress):
+                            progress=progress, runs=runs):
             rows[row.index] = row
-        if grid.sensitivity:
+        if runs is not None:
             from crawlsim.analysis.sensitivity_sweep import with_derivatives
 
-            rows.update(with_derivatives(grid.sensitivity, valid, rows))
+            rows.update(with_derivatives(grid.sensitivity, valid, rows, runs))
     return [rows[int(i)] for i in indices]
 
 
-def evaluate(gaits, indices, *, capacity=None, progress=None) -> list[PointResult]:
+def evaluate(gaits, indices, *, capacity=None, progress=None, runs=None) -> list[PointResult]:
     """v0 of validated gaits: ``exact`` ones one by one (periodic-limit solver, no history),
     catch-up ones through the batched stepper, for at most `BATCH_PLAIN_PERIODS` periods when
     the gait's limit method is ``newton`` (the periodic-limit solver then finishes those that
@@ -495,6 +496,8 @@ def evaluate(gaits, indices, *, capacity=None, progress=None) -> list[PointResul
                 cost_of_transport=run.cost_of_transport, convergence=str(run.convergence),
                 periods=run.periods + run.limit_periods, integrator=run.integrator,
                 steps=run.steps, limit=run.limit_method, newton_steps=run.limit_newton_steps)
+            if runs is not None:  # ``runs``: each point run here, by index (``--sensitivity``)
+                runs[i] = run
         if progress is not None:
             progress(1)
     return [out[int(i)] for i in indices]
