@@ -98,9 +98,9 @@ def _dimensions(sweep_specs, link_specs) -> list[list[str]]:
               help="Vary PATH together with the --sweep before it (same number of values): "
                    "value k of each goes with value k of the other; no new grid dimension.")
 @click.option("--sensitivity", "sensitivity_paths", multiple=True, metavar="PATH",
-              help="Also print dv0/dPATH, exact, with its error estimate, for every number "
-                   "PATH names (dotted, * for each element; repeatable); with --sweep, a "
-                   "dv0/dPATH column per number.")
+              help="Also print dv0/dPATH with its error estimate for every number PATH "
+                   "names (dotted, * for each element; repeatable): exact, or of the catch-up "
+                   "scheme's own map; with --sweep, a dv0/dPATH column per number.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, allow_dash=True),
               help="Write the table to OUT.csv or OUT.h5; - or no -o: CSV on stdout (v0, or "
                    "JSON with --json, without --sweep).")
