@@ -184,3 +184,40 @@ def test_slope_against_finite_differences(integrator):
         assert abs(p.v0.value - d2) <= 2 * abs(d1 - d2) + 4 * e2 + 1e-10, (p.path, p.v0, d2)
         assert abs(p.dissipation_per_period.value - D2) <= 2 * abs(D1 - D2) + 1e-8, \
             (p.path, p.dissipation_per_period, D2)
+
+
+def _steps_gait(values0, values1, integrator="catch-up"):
+    doc = {"name": "steps", "blocks": 3, "period": 1.0, "stiffness": 10.0,
+           "links": [{"kind": "steps", "times": [0.0, 0.5], "values": values0},
+                     {"kind": "piecewise-linear", "times": [0.0, 0.3, 0.7, 1.0],
+                      "values": values1}],
+           "friction": {"forward": 1.0, "backward": 2.5},
+           "simulation": {"steps_per_period": 100, "max_periods": 50, "tolerance": 1e-12,
+                          "integrator": integrator}}
+    return gait_from_document(doc, "steps")
+
+
+def test_steps_and_piecewise_linear_signals():
+    """A steps link (its jump at u = 1 is the one at u = 0: the grid's last offsets are c(0))
+    and a piecewise-linear one: each knot value against central differences, and the same
+    values as the exact integrator (the jumps and the knots sit on the grid)."""
+    gait = _steps_gait([0.83, 1.21], [1.0, 1.27, 0.93, 1.0])
+    paths = ["links.0.values.0", "links.0.values.1", "links.1.values.1", "links.1.values.2",
+             "stiffness"]
+    assert _check(gait, paths) == 5
+    exact = sensitivity(_steps_gait([0.83, 1.21], [1.0, 1.27, 0.93, 1.0], "exact"), paths)
+    r = sensitivity(gait, paths)
+    for p, q in zip(r.parameters, exact.parameters):
+        assert p.v0.value == pytest.approx(q.v0.value, abs=1e-9), p.path
+
+
+def test_event_on_a_grid_time_is_a_kink():
+    """With round numbers the third block's forward limit is reached exactly at a grid time
+    (its gap falls by 0.1 a step from -0.4): a kink of the catch-up map for the numbers that
+    move that gap, reported with the step; a number that does not move it stays smooth."""
+    r = sensitivity(_steps_gait([0.8, 1.2], [1.0, 1.3, 0.9, 1.0]),
+                    ["links.1.values.1", "friction.backward"], one_sided=False)
+    p = r["links.1.values.1"]
+    assert not p.smooth and "tight with a zero multiplier" in (p.reason or "")
+    assert p.left is None and "not requested" in (p.left_reason or "")
+    assert r["friction.backward"].smooth

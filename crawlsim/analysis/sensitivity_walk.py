@@ -422,6 +422,7 @@ class _GridOffsets:
 
     def __init__(self, s: _Walker, u: np.ndarray):
         co = s.co
+        u = np.mod(u, 1.0)  # the signals are periodic: c(1) is c(0), jumps included
         self.pieces = np.minimum(np.searchsorted(co.edges, u, side="right") - 1, len(co.C) - 1)
         self.Phi = s.basis.values(u)
         self.C = np.einsum("gb,gbm->gm", self.Phi, co.C[self.pieces])
