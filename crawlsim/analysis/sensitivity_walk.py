@@ -157,6 +157,12 @@ def walk_exact(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     transitions = lim.record.transitions
     s.prefactor([tr.active.index for tr in transitions])
     times = np.array([t.u for t in transitions])
+    ends = np.append(times[1:], 1.0)
+    # the basis at every flow's ends and Gauss nodes, in one call
+    gx, _ = _gauss(24 + 12 * s.basis.harmonics)
+    grids = times[:, None] + 0.5 * (ends - times)[:, None] * (gx[None, :] + 1.0)
+    samples = np.concatenate([times[:, None], grids, ends[:, None]], axis=1)  # (K, nq + 2)
+    stacked = s.basis.values(samples.ravel()).reshape(len(times), samples.shape[1], -1)
     derivatives: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     du_start = np.zeros(s.q)
     for j, tr in enumerate(transitions):
@@ -168,16 +174,18 @@ def walk_exact(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
                 du_start = np.zeros(s.q)
             continue
         nxt = transitions[j + 1] if j + 1 < len(transitions) else None
-        du_start = _flow(s, tr, nxt, times, derivatives, du_start)
+        du_start = _flow(s, tr, nxt, times, derivatives, du_start,
+                         (samples[j, 1:-1], stacked[j]))
     return s.result(len(transitions))
 
 
 def _flow(s: _Walker, tr: Transition, nxt: Transition | None, times: np.ndarray,
-          derivatives: dict[int, tuple[np.ndarray, np.ndarray]], du_start: np.ndarray
-          ) -> np.ndarray:
+          derivatives: dict[int, tuple[np.ndarray, np.ndarray]], du_start: np.ndarray,
+          nodes: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
     """One flow piece of the exact integrator, from ``tr`` to the next transition ``nxt``
     (or the end of the period): the state, slips and dissipation with their tangents, the
-    saltation of a hit at its end, and the touches inside it. Returns the end time's du."""
+    saltation of a hit at its end, and the touches inside it. ``nodes``: the Gauss nodes x of
+    the piece and the basis at u_s, x and u_e. Returns the end time's du."""
     index = np.asarray(tr.active.index, dtype=int)
     piece = int(tr.piece)
     basis = s.basis
@@ -187,9 +195,8 @@ def _flow(s: _Walker, tr: Transition, nxt: Transition | None, times: np.ndarray,
         derivatives[piece] = (basis.derivative(s.co.C[piece]), basis.derivative(s.dC[piece]))
     dcoef, dC1 = derivatives[piece]
     length = u_e - u_s
-    gx, gw = _gauss(24 + 12 * basis.harmonics)
-    x = u_s + 0.5 * length * (gx + 1.0)
-    stacked = basis.values(np.concatenate([[u_s], x, [u_e]]))  # the ends and the nodes
+    _, gw = _gauss(24 + 12 * basis.harmonics)
+    x, stacked = nodes
     phi_s, Phi, phi_e = stacked[0], stacked[1:-1], stacked[-1]
     if index.size:
         Lam, dLam, w_e, W_e = s.solve_on(index, s.w, s.Wt, piece, phi_e)
@@ -348,8 +355,10 @@ def _rate_touches(s: _Walker, index: np.ndarray, rate: np.ndarray, Phi: np.ndarr
                   dcoef: np.ndarray, dC1: np.ndarray, span: tuple[float, float]) -> None:
     """Active constraints whose slip rate (``rate`` at the samples Phi) touches zero inside
     the piece without leaving, with the tangents of those rates where they are zero."""
-    BA, _, Gi = s.factor(index)
     size = max(float(np.max(np.abs(Phi @ dcoef))), 1e-300)
+    if float(np.min(rate)) > TOUCH * size:
+        return  # every slip rate stays positive on the samples
+    BA, _, Gi = s.factor(index)
     low = _touching(-rate, TOUCH * size)
     if not low.any():
         return
