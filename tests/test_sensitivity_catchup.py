@@ -21,19 +21,19 @@ import pytest
 
 import crawlsim
 from crawlsim.analysis.sensitivity import sensitivity
-from crawlsim.analysis.sensitivity_terms import find_limit
 from crawlsim.errors import CrawlsimError
 from crawlsim.gait.corpus import random_gait
 from crawlsim.gait.document import gait_from_document
 
+from .conftest import two_block
+from .test_sensitivity import _central
 
-def _two_block(a, k, mu1, mu2, T, steps=200):
-    doc = {"name": "two-block", "blocks": 2, "period": T, "stiffness": k,
-           "links": [{"kind": "cosine", "mean": 1.0, "amplitude": a}],
-           "friction": [{"forward": mu1, "backward": 5.0}, {"forward": mu2, "backward": 5.0}],
-           "simulation": {"steps_per_period": steps, "max_periods": 50, "tolerance": 1e-12,
-                          "integrator": "catch-up"}}
-    return gait_from_document(doc, "two-block")
+
+def _two_block(a, k, mu1, mu2, T):
+    return two_block(a, k, [{"forward": mu1, "backward": 5.0},
+                            {"forward": mu2, "backward": 5.0}], period=T,
+                     simulation={"steps_per_period": 200, "max_periods": 50,
+                                 "tolerance": 1e-12, "integrator": "catch-up"})
 
 
 @pytest.mark.parametrize("a,k,mu1,mu2,T", [(0.3, 10.0, 1.0, 1.0, 1.0),
@@ -59,13 +59,6 @@ def test_two_block_closed_forms(a, k, mu1, mu2, T):
     assert r["links.0.amplitude"].dissipation_per_period.value == pytest.approx(2 * mus,
                                                                                abs=1e-8)
     assert r["friction.0.forward"].cost_of_transport.value == pytest.approx(1.0, abs=1e-8)
-
-
-def _central(gait, path, value, h):
-    plus = find_limit(gait.replace(path, value + h))
-    minus = find_limit(gait.replace(path, value - h))
-    return ((plus.v0 - minus.v0) / (2 * h), (plus.dissipation - minus.dissipation) / (2 * h),
-            (plus.v0_error + minus.v0_error) / (2 * h))
 
 
 def _check(gait, paths) -> int:

@@ -198,20 +198,11 @@ def _moved(gait: Gait, keys: tuple[Any, ...], value: float) -> Gait:
     coefficients: a link's signal or the stiffness rebuilt alone (``parse_signal`` checks the
     signal), anything else through `Gait.replace`, validated like a file. The cheap path is
     what keeps a parameter's share of the cost small (issue 22: <= 0.2 of a run each)."""
-    from crawlsim.gait.signals import parse_signal
-
     if keys[0] == "links" and len(keys) >= 2 and isinstance(keys[1], int):
         i = keys[1]
-        node: Any = copy.deepcopy(gait.document["links"][i])
-        if len(keys) == 2:
-            node = value
-        else:
-            inner = node
-            for key in keys[2:-1]:
-                inner = inner[key]
-            inner[keys[-1]] = value
         links = list(gait.links)
-        links[i] = parse_signal(node, f"links[{i}]", gait.source)
+        links[i] = _moved_signal(gait, gait.document["links"][i], keys[2:], value,
+                                 f"links[{i}]")
         return dataclasses.replace(gait, links=tuple(links))
     if keys[0] == "friction" and value > 0:
         friction = _moved_friction(gait, keys, value)
@@ -227,27 +218,32 @@ def _moved(gait: Gait, keys: tuple[Any, ...], value: float) -> Gait:
     return gait.replace(".".join(str(k) for k in keys), value)
 
 
+def _moved_signal(gait: Gait, node: Any, inside: tuple[Any, ...], value: float,
+                  keypath: str) -> Any:
+    """The signal of the document ``node`` with the number at ``inside`` it set to ``value``
+    (the node itself when ``inside`` is empty: a constant), parsed and checked."""
+    from crawlsim.gait.docpaths import set_value
+    from crawlsim.gait.signals import parse_signal
+
+    if inside:
+        node = copy.deepcopy(node)
+        set_value(node, inside, value)
+    else:
+        node = value
+    return parse_signal(node, keypath, gait.source)
+
+
 def _moved_friction(gait: Gait, keys: tuple[Any, ...], value: float
                     ) -> tuple[tuple[Any, ...], tuple[Any, ...]] | None:
     """mu^+ and mu^- per block with one friction number moved (``friction.forward...``, shared
     by every block, or ``friction.I.forward...``); None for another form of the block."""
-    from crawlsim.gait.signals import parse_signal
-
     shared = isinstance(keys[1], str)
     rest = keys[1:] if shared else keys[2:]
     if not rest or rest[0] not in ("forward", "backward"):
         return None
     node: Any = gait.document["friction"] if shared else gait.document["friction"][keys[1]]
-    node = copy.deepcopy(node[rest[0]])
-    if len(rest) == 1:
-        node = value
-    else:
-        inner = node
-        for key in rest[1:-1]:
-            inner = inner[key]
-        inner[rest[-1]] = value
-    signal = parse_signal(node, ".".join(map(str, keys[:len(keys) - len(rest) + 1])),
-                          gait.source)
+    signal = _moved_signal(gait, node[rest[0]], rest[1:], value,
+                           ".".join(map(str, keys[:len(keys) - len(rest) + 1])))
     sides = {"forward": list(gait.forward), "backward": list(gait.backward)}
     blocks = range(gait.blocks) if shared else [keys[1]]
     for j in blocks:
