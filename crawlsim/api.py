@@ -346,14 +346,15 @@ def sensitivity(gait: Spec | str | Path, paths: Sequence[str] | str, *,
                 one_sided: bool = True) -> SensitivityResult:
     """The exact derivatives of v0, of the displacement and dissipation per period and of the
     cost of transport with respect to the numbers ``paths`` name in ``gait`` (dotted paths with
-    ``*`` as in ``--sweep``; each ``*`` expands to one parameter per element), at the exact
-    integrator's verified periodic limit (docs/sensitivity.md).
+    ``*`` as in ``--sweep``; each ``*`` expands to one parameter per element), at the verified
+    periodic limit of the gait's integrator: the exact integrator's, or the catch-up scheme's own
+    discrete map's (``method: catch-up``; docs/sensitivity.md).
 
         r = crawlsim.sensitivity(gait, ["links.*.phase", "stiffness"])
         r["links.1.phase"].v0.value, r["links.1.phase"].v0.error_estimate, r.summary()
 
     Where v0 has a kink or a jump, a parameter's ``smooth`` is False, ``v0.value`` is None and
-    ``left`` / ``right`` hold one-sided derivatives measured with the exact integrator
+    ``left`` / ``right`` hold one-sided derivatives measured with the same integrator
     (``one_sided=False`` skips them).
     """
     from crawlsim.analysis.sensitivity import sensitivity as _sensitivity

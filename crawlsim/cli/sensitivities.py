@@ -1,4 +1,4 @@
-"""``crawlsim velocity --sensitivity PATH``: the lines and JSON of the exact derivatives of v0
+"""``crawlsim velocity --sensitivity PATH``: the lines and JSON of the derivatives of v0
 (`crawlsim.sensitivity`), kept out of velocity.py so that the command only calls two functions."""
 
 from __future__ import annotations
