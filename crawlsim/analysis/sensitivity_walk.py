@@ -72,6 +72,8 @@ class _Walker:
         self.B = poly.dense_normals()
         self.k = co.k
         self.co, self.dC, self.dMu, self.dk = co, dC, dMu, dk
+        # which kinds of terms the parameters move at all (the others' tangents are 0)
+        self.moves_mu, self.moves_k = bool(np.any(dMu)), bool(np.any(dk))
         self.n, self.m = self.B.shape[1], self.B.shape[0]
         self.q = self.n + dk.shape[1]
         self.basis = co.basis
@@ -126,11 +128,14 @@ class _Walker:
         dcA = self.pad(np.einsum("b,bap->ap", phi, self.dC[piece][:, index, :]))
         Lam = Gi @ (BA @ w_s - cA)
         BtL = BA.T @ Lam
-        dGL = self.pad(BA @ (self.dk * BtL[:, None]))  # d G_A Lambda, parameter columns
-        dLam = Gi @ (BA @ W_s - dcA - dGL)
-        w_e = w_s - self.k * BtL
-        dW = W_s - self.pad(self.dk * BtL[:, None]) - self.k[:, None] * (BA.T @ dLam)
-        return Lam, dLam, w_e, dW
+        if self.moves_k:
+            dKBtL = self.pad(self.dk * BtL[:, None])  # dK B_A^T Lambda, parameter columns
+            dLam = Gi @ (BA @ (W_s - dKBtL) - dcA)  # d G_A Lambda = B_A dK B_A^T Lambda
+            dW = W_s - dKBtL - self.k[:, None] * (BA.T @ dLam)
+        else:
+            dLam = Gi @ (BA @ W_s - dcA)
+            dW = W_s - self.k[:, None] * (BA.T @ dLam)
+        return Lam, dLam, w_s - self.k * BtL, dW
 
     def project(self, index: np.ndarray, piece: int, u: float) -> None:
         """A projection on A at cycle u (a jump of c): the state, the slips and mu(u) . Lambda."""
@@ -272,18 +277,21 @@ def _piece_dissipation(s: _Walker, index: np.ndarray, piece: int, weights: np.nd
     BA, _, Gi = s.factor(index)
     Mu = s.co.Mu[piece][:, index]
     lam_x = -(Phi @ dcoef[:, index]) @ Gi.T  # (nq, a)
-    mu_x = Phi @ Mu
-    dmu_x = np.einsum("xb,bap->xap", Phi, s.dMu[piece][:, index, :])
-    dc1_x = np.einsum("xb,bap->xap", Phi, dC1[:, index, :])
-    Btl = lam_x @ BA  # (nq, n): B_A^T lambda
-    dGl = np.einsum("ai,xip->xap", BA, Btl[:, :, None] * s.dk[None, :, :])
-    dlam_x = -np.einsum("ab,xbp->xap", Gi, dc1_x + dGl)
-    s.diss += float(weights @ np.sum(mu_x * lam_x, axis=1))
-    s.Dt[s.n:] += np.einsum("x,xap->p", weights,
-                            dmu_x * lam_x[:, :, None] + mu_x[:, :, None] * dlam_x)
+    wmu = weights[:, None] * (Phi @ Mu)  # mu_A at the samples, weighted
+    s.diss += float(np.sum(wmu * lam_x))
+    # int mu_A . dlambda_A, dlambda_A = -G_A^{-1} (dc_A' + dG_A lambda_A): with
+    # v = G_A^{-T} int mu_A, one contraction per term
+    dc1 = np.einsum("xb,bap->xap", Phi, dC1[:, index, :])
+    if s.moves_k:  # dG_A lambda = B_A dK B_A^T lambda
+        dc1 = dc1 + np.einsum("ai,xip->xap", BA, (lam_x @ BA)[:, :, None] * s.dk[None, :, :])
+    s.Dt[s.n:] -= np.einsum("xb,xbp->p", wmu @ Gi, dc1)
+    if s.moves_mu:
+        dmu = np.einsum("xb,bap->xap", Phi, s.dMu[piece][:, index, :])
+        s.Dt[s.n:] += np.einsum("x,xa,xap->p", weights, lam_x, dmu)
     for phi, du, sign in ((phis[1], dus[1], 1.0), (phis[0], dus[0], -1.0)):
-        rate = -Gi @ (phi @ dcoef[:, index])
-        s.Dt += sign * float(phi @ Mu @ rate) * du
+        if du.any():  # an end that moves (a hit): the power there times du
+            rate = -Gi @ (phi @ dcoef[:, index])
+            s.Dt += sign * float(phi @ Mu @ rate) * du
     return lam_x
 
 
