@@ -420,6 +420,7 @@ def walk_catch_up(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     G = len(LAM)
     starts = np.concatenate([[0], np.flatnonzero(np.any(active[1:] != active[:-1], axis=1)) + 1,
                              [G]])
+    s.prefactor([np.flatnonzero(active[j0]) for j0 in starts[:-1]])
     for j0, j1 in zip(starts[:-1], starts[1:]):
         index = np.flatnonzero(active[j0])
         if weak[j0:j1].any():
