@@ -98,8 +98,9 @@ def _dimensions(sweep_specs, link_specs) -> list[list[str]]:
               help="Vary PATH together with the --sweep before it (same number of values): "
                    "value k of each goes with value k of the other; no new grid dimension.")
 @click.option("--sensitivity", "sensitivity_paths", multiple=True, metavar="PATH",
-              help="Also print dv0/dPATH, exact, with its error estimate, for every number "
-                   "PATH names (dotted, * for each element; repeatable; single gait only).")
+              help="Also print dv0/dPATH with its error estimate for every number PATH "
+                   "names (dotted, * for each element; repeatable): exact, or of the catch-up "
+                   "scheme's own map; with --sweep, a dv0/dPATH column per number.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, allow_dash=True),
               help="Write the table to OUT.csv or OUT.h5; - or no -o: CSV on stdout (v0, or "
                    "JSON with --json, without --sweep).")
@@ -192,7 +193,7 @@ def velocity(gait_file, as_json, sweep_specs, sensitivity_paths, link_specs, out
                     if sensitivity_paths:
                         from crawlsim.cli import sensitivities
 
-                        derivatives = sensitivities.compute(gait, sensitivity_paths)
+                        derivatives = sensitivities.compute(gait, sensitivity_paths, result)
                 summary = result.summary()
                 if as_json:
                     if derivatives is not None:
@@ -211,8 +212,6 @@ def velocity(gait_file, as_json, sweep_specs, sensitivity_paths, link_specs, out
                     click.echo(not_converged_message(result, s.max_periods, s.tolerance, s.limit), err=True)
                     sys.exit(EXIT_NOT_CONVERGED)
                 return
-        if sensitivity_paths and groups:
-            raise BadInput("--sensitivity runs on one gait, not yet with --sweep")
         if as_json and groups:
             raise BadInput("--json prints one run's summary; with --sweep the table is CSV or "
                            "HDF5 (-o)")
@@ -224,7 +223,8 @@ def velocity(gait_file, as_json, sweep_specs, sensitivity_paths, link_specs, out
 
         points = len(sweeps.make_grid(gait, groups).indices(shard))
         _check_sweep_memory(gait, groups, points, jobs, scheduler, max_memory)
-        table = _sweep(gait, groups, output, jobs, shard, scheduler, quiet, verbose)
+        table = _sweep(gait, groups, output, jobs, shard, scheduler, quiet, verbose,
+                       sensitivity_paths)
         if plot_file:
             from crawlsim.study import sweep as sweeps
 
@@ -238,7 +238,7 @@ def velocity(gait_file, as_json, sweep_specs, sensitivity_paths, link_specs, out
                    "the status and message columns)", err=True)
 
 
-def _sweep(gait, groups, output, jobs, shard, scheduler, quiet, verbose):
+def _sweep(gait, groups, output, jobs, shard, scheduler, quiet, verbose, sensitivity=()):
     """Run the sweep with progress on stderr; an interrupt says what was kept, then exits 130."""
     from crawlsim.study import sweep as sweeps
 
@@ -259,7 +259,8 @@ def _sweep(gait, groups, output, jobs, shard, scheduler, quiet, verbose):
 
     try:
         table = sweeps.sweep(gait, groups, output=output, jobs=jobs, shard=shard,
-                             scheduler=scheduler, progress=bar.update, on_rows=on_rows)
+                             scheduler=scheduler, progress=bar.update, on_rows=on_rows,
+                             sensitivity=sensitivity)
     except sweeps.SweepInterrupted as exc:
         bar.close()
         where = (f"kept in {exc.journal}; run the same command again to resume"

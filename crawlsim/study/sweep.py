@@ -173,6 +173,7 @@ class SweepGrid:
     axes: tuple[Axis, ...]
     targets: tuple[tuple[tuple, ...], ...]  # concrete key tuples of each axis
     dims: tuple[int, ...] = ()
+    sensitivity: tuple[str, ...] = ()  # --sensitivity paths: a dv0/dPATH column each
 
     def __post_init__(self) -> None:
         if not self.dims:
@@ -234,7 +235,8 @@ class SweepGrid:
         axes: list = [[a.path, list(a.values)] for a in self.axes]
         if self.linked:
             axes = [axes, list(self.dims)]
-        spec = json.dumps([self.gait_yaml, axes, list(shard) if shard else None])
+        spec = json.dumps([self.gait_yaml, axes, list(shard) if shard else None]
+                          + ([list(self.sensitivity)] if self.sensitivity else []))
         return hashlib.sha256(spec.encode()).hexdigest()
 
     def indices(self, shard=None) -> np.ndarray:
@@ -265,7 +267,7 @@ def _group(item) -> tuple[Axis, ...]:
                  for k, a in enumerate(items))
 
 
-def make_grid(base: Gait, axes) -> SweepGrid:
+def make_grid(base: Gait, axes, sensitivity: Sequence[str] = ()) -> SweepGrid:
     """The grid of ``base`` over ``axes``: each item is one dimension, an `Axis` (or its
     ``PATH=SPEC`` text) or a sequence of them that vary together (linked paths, the same
     number of values each). Every path is checked against the base document; overlapping or
@@ -294,7 +296,9 @@ def make_grid(base: Gait, axes) -> SweepGrid:
                                                    f"which {seen[key]} sets too: sweep each "
                                                    "value once")
             seen[key] = f"{option} {axis.path}"
-    return SweepGrid(base, tuple(flat), targets, tuple(dims))
+    from crawlsim.analysis.sensitivity_sweep import check_paths
+
+    return SweepGrid(base, tuple(flat), targets, tuple(dims), check_paths(base, sensitivity))
 
 
 def parse_shard(text: str) -> tuple[int, int]:
@@ -346,6 +350,7 @@ class PointResult:
     steps: int = 0
     limit: str = ""
     newton_steps: int | None = None  # None: not computed (a failed point, an older file)
+    derivatives: dict[str, float | None] | None = None  # dv0/dPATH (--sensitivity)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "status", PointStatus(self.status))
@@ -361,7 +366,7 @@ class PointResult:
 
 _POINT_FIELDS = ("index", "status", "v0", "v0_error_estimate", "displacement_per_period",
                  "dissipation_per_period", "cost_of_transport", "convergence", "periods",
-                 "integrator", "message", "steps", "limit", "newton_steps")
+                 "integrator", "message", "steps", "limit", "newton_steps", "derivatives")
 
 
 def _failure(index: int, exc: BaseException) -> PointResult:
@@ -386,13 +391,18 @@ def run_points(grid: SweepGrid, indices, *, capacity=None, progress=None) -> lis
             if progress is not None:
                 progress(1)
     if valid:
+        runs: dict | None = {} if grid.sensitivity else None  # their limits, for derivatives
         for row in evaluate([g for _, g in valid], [i for i, _ in valid], capacity=capacity,
-                            progress=progress):
+                            progress=progress, runs=runs):
             rows[row.index] = row
+        if runs is not None:
+            from crawlsim.analysis.sensitivity_sweep import with_derivatives
+
+            rows.update(with_derivatives(grid.sensitivity, valid, rows, runs))
     return [rows[int(i)] for i in indices]
 
 
-def evaluate(gaits, indices, *, capacity=None, progress=None) -> list[PointResult]:
+def evaluate(gaits, indices, *, capacity=None, progress=None, runs=None) -> list[PointResult]:
     """v0 of validated gaits: ``exact`` ones one by one (periodic-limit solver, no history),
     catch-up ones through the batched stepper, for at most `BATCH_PLAIN_PERIODS` periods when
     the gait's limit method is ``newton`` (the periodic-limit solver then finishes those that
@@ -486,6 +496,8 @@ def evaluate(gaits, indices, *, capacity=None, progress=None) -> list[PointResul
                 cost_of_transport=run.cost_of_transport, convergence=str(run.convergence),
                 periods=run.periods + run.limit_periods, integrator=run.integrator,
                 steps=run.steps, limit=run.limit_method, newton_steps=run.limit_newton_steps)
+            if runs is not None:  # ``runs``: each point run here, by index (``--sensitivity``)
+                runs[i] = run
         if progress is not None:
             progress(1)
     return [out[int(i)] for i in indices]
@@ -662,6 +674,9 @@ class SweepTable:
                 cols[name] = np.array([str(v) for v in values], dtype=object)
             else:
                 cols[name] = np.array([np.nan if v is None else v for v in values], float)
+        from crawlsim.analysis import sensitivity_sweep
+
+        cols.update(sensitivity_sweep.columns(self.rows))
         return cols
 
     def counts(self) -> dict[str, int]:
@@ -681,11 +696,15 @@ class SweepTable:
     def to_csv(self) -> str:
         buf = io.StringIO()
         writer = csv.writer(buf, lineterminator="\n")
-        writer.writerow(list(self.paths) + list(RESULT_COLUMNS))
+        from crawlsim.analysis.sensitivity_sweep import columns
+
+        derivatives = columns(self.rows)
+        writer.writerow(list(self.paths) + list(RESULT_COLUMNS) + list(derivatives))
         coords = self.coordinates()
         for n, r in enumerate(self.rows):
             writer.writerow([_cell(c[n]) for c in coords]
-                            + [_cell(getattr(r, name)) for name in RESULT_COLUMNS])
+                            + [_cell(getattr(r, name)) for name in RESULT_COLUMNS]
+                            + [_cell(d[n]) for d in derivatives.values()])
         return buf.getvalue()
 
 
@@ -728,6 +747,7 @@ def table_payload(table: SweepTable) -> dict:
 def read_table(path) -> SweepTable:
     """A sweep HDF5 file (complete or a shard) back as a `SweepTable`. Files written before the
     `LATER_COLUMNS` existed read with those columns missing (NaN, "")."""
+    from crawlsim.analysis.sensitivity_sweep import row_derivatives
     from crawlsim.io import hdf5 as h5io
 
     data = h5io.read_sweep(path)
@@ -752,7 +772,8 @@ def read_table(path) -> SweepTable:
             message=str(cols["message"][n]), steps=int(data["steps"][n]),
             limit=str(cols["limit"][n]) if "limit" in cols else "",
             newton_steps=(int(cols["newton_steps"][n])
-                          if "newton_steps" in cols and cols["newton_steps"][n] >= 0 else None)))
+                          if "newton_steps" in cols and cols["newton_steps"][n] >= 0 else None),
+            derivatives=row_derivatives(cols, n)))
     shard = parse_shard(data["shard"]) if data["shard"] else None
     dims = data.get("dimensions")
     return SweepTable(tuple(data["paths"]), tuple(data["axes"]), np.asarray(data["points"]),
@@ -1143,15 +1164,17 @@ def run_sweep(grid: SweepGrid, *, jobs: int = 1, shard=None, scheduler: str | No
 
 
 def sweep(gait: Gait, axes, *, output=None, jobs: int = 1, shard=None,
-          scheduler: str | None = None, progress=None, on_rows=None) -> SweepTable:
+          scheduler: str | None = None, progress=None, on_rows=None,
+          sensitivity: Sequence[str] = ()) -> SweepTable:
     """The library entry point behind ``crawlsim velocity --sweep``.
 
     ``axes`` as `make_grid` takes them (``PATH=SPEC`` texts or `Axis`, a sequence of them for
     linked paths). Checks the paths, runs the points, keeps a journal next to ``output`` while
     running, and writes ``output`` (CSV or HDF5) atomically at the end, removing the journal.
     Without ``output`` nothing is written. ``progress`` and ``on_rows`` as in `run_sweep`.
+    ``sensitivity``: paths whose ``dv0/dPATH`` columns are added (`crawlsim.analysis.sensitivity_sweep`).
     """
-    grid = make_grid(gait, axes)
+    grid = make_grid(gait, axes, sensitivity)
     if shard is not None and (output is None or not is_hdf5(output)):
         raise SweepSpecError("--shard", "", "a shard must be written to an HDF5 file "
                                             "(-o part-I.h5) so that `crawlsim merge` can join "
