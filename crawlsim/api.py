@@ -36,6 +36,7 @@ if TYPE_CHECKING:
     import xarray
 
     from crawlsim.analysis.sensitivity import SensitivityResult
+    from crawlsim.study.grid import SweepGrid
     from crawlsim.study.sweep import SweepTable
 
 Spec = Gait | ProcessSpec
@@ -378,7 +379,8 @@ def from_results(path: str | Path) -> Rerun:
     return Rerun(spec, bool(settings.get("check_every_step", False)), int(info["save_every"]))
 
 
-def sweep(gait: Spec | str | Path, axes: Mapping[str, Iterable[float]], *, jobs: int = 1,
+def sweep(gait: Spec | str | Path | SweepGrid, axes: Mapping[str, Iterable[float]] | None = None,
+          *, jobs: int = 1,
           integrator: str | None = None, steps_per_period: int | None = None,
           max_periods: int | None = None, tolerance: float | None = None,
           output: str | Path | None = None,
@@ -393,20 +395,25 @@ def sweep(gait: Spec | str | Path, axes: Mapping[str, Iterable[float]], *, jobs:
     ``flag_meanings``) and message, with the provenance as attributes, exactly the ``/grid``
     group of a sweep file. **Without xarray** (``pip install 'crawlsim[xarray]'``) it returns
     the `crawlsim.study.sweep.SweepTable` instead. ``output`` also writes the sweep file (.h5) or CSV
-    table. Settings given override the gait's ``simulation`` block. ``sensitivity``: dotted
-    paths (with ``*``) whose ``dv0/dPATH`` are added at every point, with units
-    (`crawlsim.analysis.sensitivity_sweep`).
+    table. Settings given override the gait's ``simulation`` block. ``gait`` may also be a
+    grid already made (`crawlsim.study.grid.make_grid`: linked paths, extra columns), swept as
+    it is (no ``axes``, no settings). ``sensitivity``: dotted paths (with ``*``) whose
+    ``dv0/dPATH`` are added at every point, with units (`crawlsim.analysis.sensitivity_sweep`).
     """
-    from crawlsim.io import hdf5 as h5io
     from crawlsim.study import sweep as sweeps
 
+    if isinstance(gait, sweeps.SweepGrid):
+        table = sweeps.sweep(gait, output=output, jobs=jobs, progress=progress,
+                             sensitivity=sensitivity)
+        return _sweep_dataset(table)
     spec = _with_settings(_as_spec(gait), integrator=integrator,
                           steps_per_period=steps_per_period, max_periods=max_periods,
                           tolerance=tolerance)
     if not isinstance(spec, Gait):
         raise SweepSpecError(spec.source, "", "sweeps run crawler gaits (kind: crawler), not "
                                               "generic sweeping processes")
-    axis_list = [sweeps.Axis(path, _axis_values(path, values)) for path, values in axes.items()]
+    axis_list = [sweeps.Axis(path, _axis_values(path, values))
+                 for path, values in (axes or {}).items()]
     call = _provenance.python_call("crawlsim.sweep", gait, {a.path: list(a.values)
                                                             for a in axis_list},
                                    jobs=jobs if jobs != 1 else None, integrator=integrator,
@@ -416,12 +423,22 @@ def sweep(gait: Spec | str | Path, axes: Mapping[str, Iterable[float]], *, jobs:
     with _provenance.recording(call):
         table = sweeps.sweep(spec, axis_list, output=output, jobs=jobs, progress=progress,
                              sensitivity=sensitivity)
-        try:
-            _xarray()
-        except ImportError:
-            return table
-        buffer = io.BytesIO()
-        h5io.write_sweep(buffer, **sweeps.table_payload(table))
+        return _sweep_dataset(table)
+
+
+def _sweep_dataset(table: SweepTable) -> xarray.Dataset | SweepTable:
+    """The ``/grid`` group of the table's sweep file as an `xarray.Dataset` (the table itself
+    without xarray)."""
+    from crawlsim.study import sweep as sweeps
+
+    try:
+        _xarray()
+    except ImportError:
+        return table
+    from crawlsim.io.sweepfile import write_sweep
+
+    buffer = io.BytesIO()
+    write_sweep(buffer, **sweeps.table_payload(table))
     return _grid_dataset(buffer)
 
 

@@ -11,6 +11,31 @@ no interpreter start-up per point. It runs every k-th point (``--loop-every``) a
 per gait-step. "gait-steps" = periods actually simulated x steps per period, summed over points.
 
     python scripts/bench-sweep.py [--repeat 3] [--points 1000] [--jobs 2] [--loop-every 10]
+
+``--jobs-check`` measures instead whether ``-j 2`` is ever slower than ``-j 1`` (the sweep picks
+its own parallelism, `crawlsim.study.executors.run_local`: the first task runs here and measures
+the cost of a point, and the workers start only when they pay for their start-up): exact and
+catch-up sweeps of peristalsis-4, small and large, each run with ``jobs=1`` and ``jobs=2``
+alternately (interleaved), median wall times of ``--repeat`` runs and their ratio t(-j 1) /
+t(-j 2) (>= 1: -j 2 is not slower).
+
+    python scripts/bench-sweep.py --jobs-check [--repeat 5]
+
+Measured (``--jobs-check --repeat 3``, medians of 3 interleaved runs, on the 2-core machine
+shared with other jobs at a load average of 11-14):
+
+    sweep                                                  -j 1 s   -j 2 s  ratio
+    exact, 20 steps, links.1.phase=0:1:12                   2.444    2.260   1.08
+    exact, 20 steps, links.1.phase=0:1:120                 31.451   30.258   1.04
+    catch-up, 400 steps, links.*.amplitude=0.05:0.45:40     3.857    4.593   0.84
+    catch-up, 400 steps, links.*.amplitude=0.05:0.45:1000   52.861   47.284   1.12
+
+At that load `free_cores` leaves no core free, so ``-j 2`` runs every one of these sweeps in
+this process, exactly as ``-j 1`` does: the ratios are the noise of the shared machine (the
+40-point catch-up sweep again, 5 interleaved runs: 1.31, no pool started). Before this change
+(issue 20) a catch-up sweep with ``-j 2`` always started two workers and ran at 0.72-0.82x of
+``-j 1``; the first task of each worker pays the kernel's warm-up again (several seconds at
+this load), which `crawlsim.study.executors.worth_workers` now counts against them.
 """
 
 from __future__ import annotations
@@ -28,8 +53,34 @@ from crawlsim.study import sweep as sweeps
 GAIT = Path(__file__).resolve().parents[1] / "gaits" / "peristalsis-4.yaml"
 
 
+#: The --jobs-check cases: (integrator, steps per period, axis).
+JOB_CASES = (("exact", 20, "links.1.phase=0:1:12"),
+             ("exact", 20, "links.1.phase=0:1:120"),
+             ("catch-up", 400, "links.*.amplitude=0.05:0.45:40"),
+             ("catch-up", 400, "links.*.amplitude=0.05:0.45:1000"))
+
+
+def jobs_check(repeat: int) -> None:
+    """Median wall times of -j 1 and -j 2, interleaved, for each of `JOB_CASES`."""
+    print(f"{'sweep':<52} {'-j 1 s':>8} {'-j 2 s':>8} {'ratio':>6}")
+    for integrator, steps, axis in JOB_CASES:
+        gait = with_simulation(load_gait(GAIT), steps_per_period=steps, integrator=integrator)
+        walls: dict[int, list[float]] = {1: [], 2: []}
+        tables = {}
+        for _ in range(repeat):
+            for jobs in (1, 2):
+                began = time.perf_counter()
+                tables[jobs] = sweeps.sweep(gait, [axis], jobs=jobs)
+                walls[jobs].append(time.perf_counter() - began)
+        assert tables[1].to_csv() == tables[2].to_csv()  # the same rows, bit for bit
+        one, two = statistics.median(walls[1]), statistics.median(walls[2])
+        print(f"{integrator + ', ' + str(steps) + ' steps, ' + axis:<52} {one:>8.3f} {two:>8.3f} "
+              f"{one / two:>6.2f}", flush=True)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--jobs-check", action="store_true")
     ap.add_argument("--points", type=int, default=1000)
     ap.add_argument("--steps", type=int, default=400)
     ap.add_argument("--jobs", type=int, default=2)
@@ -37,6 +88,9 @@ def main():
     ap.add_argument("--loop-every", type=int, default=10)
     ap.add_argument("--path", default="links.*.amplitude=0.05:0.45")
     args = ap.parse_args()
+    if args.jobs_check:
+        jobs_check(args.repeat)
+        return
     gait = with_simulation(load_gait(GAIT), steps_per_period=args.steps)
     axis = f"{args.path}:{args.points}"
     grid = sweeps.make_grid(gait, [sweeps.parse_axis(axis)])

@@ -123,7 +123,8 @@ def test_shards_merge_and_journal_keep_the_columns(tmp_path):
     assert sweeps.PointResult.from_json(json.loads(json.dumps(row.to_json()))) == row
     # a journal of the same grid without --sensitivity is another sweep
     grid = sweeps.make_grid(gait, ["stiffness=[5,10,20]"])
-    with_paths = sweeps.make_grid(gait, ["stiffness=[5,10,20]"], ["stiffness"])
+    with_paths = sweeps.make_grid(gait, ["stiffness=[5,10,20]"],
+                                   sensitivity=["stiffness"])
     assert grid.fingerprint(None) != with_paths.fingerprint(None)
 
 

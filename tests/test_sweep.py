@@ -23,6 +23,7 @@ from click.testing import CliRunner
 from crawlsim.analysis.digits import supported
 from crawlsim.cli import main
 from crawlsim.errors import GaitError, InputError
+from crawlsim.gait.docpaths import resolve_path
 from crawlsim.gait.document import load_gait, with_simulation
 from crawlsim.study import sweep as sweeps
 
@@ -78,9 +79,9 @@ def test_log_spaced_axis_is_geometric_with_exact_ends():
 
 def test_paths_expand_and_refuse():
     doc = base().document
-    assert sweeps.resolve_path(doc, sweeps.parse_axis("links.*.phase=0"), "g") == [
+    assert resolve_path(doc, sweeps.parse_axis("links.*.phase=0"), "g") == [
         ("links", 0, "phase"), ("links", 1, "phase"), ("links", 2, "phase")]
-    assert sweeps.resolve_path(doc, sweeps.parse_axis("friction.backward=1"), "g") == [
+    assert resolve_path(doc, sweeps.parse_axis("friction.backward=1"), "g") == [
         ("friction", "backward")]
     messages = {
         "links.3.phase=0": "index 3 is out of range",
@@ -92,7 +93,7 @@ def test_paths_expand_and_refuse():
     }
     for spec, text in messages.items():
         with pytest.raises(GaitError, match=text):
-            sweeps.resolve_path(doc, sweeps.parse_axis(spec), "g")
+            resolve_path(doc, sweeps.parse_axis(spec), "g")
     with pytest.raises(GaitError, match="sets links.1.phase, which --sweep links.1.phase"):
         sweeps.make_grid(base(), [sweeps.parse_axis("links.1.phase=0"),
                                   sweeps.parse_axis("links.*.phase=0")])
@@ -414,13 +415,115 @@ def test_older_sweep_files_are_read(tmp_path):
         assert fields[name] == "", name
 
 
-def test_jobs_give_the_same_table(tmp_path):
-    one = sweeps.sweep(base(), [AMP, LAG])
-    two = sweeps.sweep(base(), [AMP, LAG], jobs=2)
+@pytest.fixture
+def workers_always(monkeypatch):
+    """Local workers start whatever the measured cost and the load of the machine (a small
+    sweep would run here), after the two tasks of MIN_CHUNK points that run here first."""
+    from crawlsim.study import executors
+
+    monkeypatch.setattr(executors, "worth_workers", lambda seconds, jobs, warm_up=0.0: jobs > 1)
+    monkeypatch.setattr(executors, "free_cores", lambda jobs: jobs)
+    monkeypatch.setattr(executors, "TASK_SECONDS", 1e-9)  # every task MIN_CHUNK points
+
+
+@pytest.mark.parametrize("integrator", ["exact", "catch-up"])
+def test_jobs_give_the_same_table(integrator, workers_always):
+    """The rows on two workers are those of one process, bit for bit (the same arithmetic)."""
+    gait = with_simulation(base(), integrator=integrator)
+    axes = [AMP, "links.1.phase=0.2,0.33,0.4,0.5,0.6"]
+    one = sweeps.sweep(gait, axes)
+    two = sweeps.sweep(gait, axes, jobs=2)
     assert two.to_csv() == one.to_csv()
+    assert [r.v0 for r in two.rows] == [r.v0 for r in one.rows] and len(one.rows) == 25
 
 
-def test_workers_report_every_point(tmp_path):
+def test_workers_start_only_when_they_pay():
+    """Two workers on 2 cores halve the serial time at best, after their start-up: they start
+    only when that saves at least POOL_MIN_GAIN of the serial time; one job never starts any."""
+    from crawlsim.study import executors
+
+    start, gain = executors.POOL_START_SECONDS, executors.POOL_MIN_GAIN
+    # break-even: start + t / 2 = (1 - gain) t  <=>  t = start / (1/2 - gain)
+    even = start / (0.5 - gain)
+    assert not executors.worth_workers(0.9 * even, 2)
+    assert executors.worth_workers(1.1 * even, 2)
+    assert not executors.worth_workers(1e6, 1)
+    assert executors.worth_workers(1.1 * start / (0.75 - gain), 4)
+    # each worker pays the warm-up the first task here paid beyond its points
+    assert not executors.worth_workers(1.1 * even, 2, warm_up=1.0)
+    assert executors.worth_workers(1.1 * (start + 1.0) / (0.5 - gain), 2, warm_up=1.0)
+    assert 1 <= executors.free_cores(8) <= (os.cpu_count() or 1)
+    assert executors.free_cores(1) == 1
+
+
+def test_a_small_sweep_runs_here_with_jobs(monkeypatch):
+    """A sweep whose measured cost does not pay for the workers' start-up starts no pool, and
+    gives the same rows."""
+    from crawlsim.study import executors
+
+    started = []
+    monkeypatch.setattr(executors, "WorkerPool", lambda jobs: started.append(jobs))
+    one = sweeps.sweep(base(), [LAG])
+    two = sweeps.sweep(base(), [LAG], jobs=2)
+    assert started == [] and two.to_csv() == one.to_csv()
+
+
+def test_velocity_builds_the_grid_once(monkeypatch):
+    """`crawlsim velocity --sweep` makes one grid (checks, memory estimate and the sweep share
+    it) and `crawlsim.study.sweep.sweep` takes it as it is."""
+    from crawlsim.study import grid as grids
+
+    made = []
+    post_init = grids.SweepGrid.__post_init__
+
+    def spy(self):
+        made.append(self)
+        post_init(self)
+
+    monkeypatch.setattr(grids.SweepGrid, "__post_init__", spy)
+    r = vel(P4, *FAST, "--sweep", LAG, "--sweep", "links.2.phase=0,0.5")
+    assert r.exit_code == 0, r.output
+    assert len(made) == 1 and made[0].shape == (3, 2)
+    rows = list(csv.DictReader(io.StringIO(r.stdout)))
+    assert len(rows) == 6 and all(row["status"] == "ok" for row in rows)
+
+
+def test_sweep_takes_a_grid_or_a_gait_and_axes():
+    grid = sweeps.make_grid(base(), [LAG])
+    by_grid = sweeps.sweep(grid)
+    by_axes = sweeps.sweep(base(), [LAG])
+    assert by_grid.to_csv() == by_axes.to_csv()
+    with pytest.raises(TypeError, match="has its axes"):
+        sweeps.sweep(grid, [LAG])
+
+
+def test_extra_columns_of_a_grid():
+    """A `PointQuantity` adds a column to every row that runs, to the CSV and to the journal:
+    here the displacement per period again, as v0 T (T = 1 for this gait)."""
+
+    class Displacement:
+        name = "v0_times_period"
+
+        def __call__(self, gait, row):
+            return row.v0 * gait.period
+
+    grid = sweeps.make_grid(base(), ["friction.backward=[0,2,2.5]"], quantities=[Displacement()])
+    table = sweeps.sweep(grid)
+    cols = table.columns()
+    ok = cols["status"] == "ok"
+    assert list(ok) == [False, True, True]
+    np.testing.assert_allclose(cols["v0_times_period"][ok], cols["displacement_per_period"][ok],
+                               rtol=1e-12, atol=0)
+    assert np.isnan(cols["v0_times_period"][0])
+    assert table.to_csv().splitlines()[0].endswith(",message,v0_times_period")
+    row = table.rows[1]
+    assert sweeps.PointResult.from_json(row.to_json()) == row
+    assert "extra" not in sweeps.sweep(base(), [LAG]).rows[0].to_json()  # journals unchanged
+    assert grid.fingerprint(None) != sweeps.make_grid(base(), ["friction.backward=[0,2,2.5]"]
+                                                      ).fingerprint(None)
+
+
+def test_workers_report_every_point(tmp_path, workers_always):
     """With --jobs 2 the progress moves point by point (each worker reports a finished point at
     once), including invalid points, and adds up to the grid."""
     calls = []
@@ -434,7 +537,7 @@ def test_chunks_grow_with_the_measured_rate_and_shrink_at_the_end():
     """Tasks start at MIN_CHUNK points (progress and the journal move at once), then take about
     TASK_SECONDS at the measured rate (capped at MAX_CHUNK); the last ones split what is left
     among the workers."""
-    chunker = sweeps._Chunker(np.arange(1000), workers=2)
+    chunker = sweeps.Chunker(np.arange(1000), workers=2)
     sizes = [len(chunker.take())]
     assert sizes == [sweeps.MIN_CHUNK]
     chunker.record(8, 8 / 20.0)  # 20 points per second

@@ -1,6 +1,6 @@
 """The ``dv0/dPATH`` columns of ``crawlsim velocity --sweep ... --sensitivity PATH`` (issue 22):
 the derivative of each grid point's v0 in each number PATH names, computed where the point runs
-(`crawlsim.study.sweep.run_points`, on the limit period the point's run found, so workers and
+(`crawlsim.study.points.run_points`, on the limit period the point's run found, so workers and
 shards share the work), kept in the journal
 with the row, and written to the CSV table, the sweep file's /grid and /results groups and the
 xarray Dataset of `crawlsim.sweep` with the units of v0 over those of PATH.

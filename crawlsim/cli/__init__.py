@@ -191,7 +191,9 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
 
 
 def simulation_options(f):
-    """Options that override the gait file's ``simulation`` mapping."""
+    """Options that override the gait file's ``simulation`` mapping: the command receives
+    ``steps_per_period, max_periods, tolerance, integrator, limit`` (None when not given) and
+    hands them to `load_with_overrides`."""
     f = click.option("--tolerance", type=FiniteFloatRange(min=0, min_open=True),
                      help="Stop when the Poincare step is at most this, relative to |w| "
                           f"(default: the gait file's value, else {DEFAULT_TOLERANCE:g}).")(f)
@@ -203,13 +205,11 @@ def simulation_options(f):
                           f"the gait file's value, else {DEFAULT_STEPS_PER_PERIOD}). With "
                           "--integrator exact, only the output grid.")(f)
     f = click.option("--integrator", type=click.Choice([str(i) for i in Integrator]),
-                     expose_value=False, callback=_remember_integrator,
                      help="exact: event-driven, v0 to roundoff. catch-up: the paper's time "
                           "discretisation, first order in the step (its time-step error is "
                           "measured against exact) (default: the gait file's value, else "
                           f"{DEFAULT_INTEGRATOR}).")(f)
-    f = click.option("--limit", type=click.Choice(["newton", "iterate"]), expose_value=False,
-                     callback=_remember_limit,
+    f = click.option("--limit", type=click.Choice(["newton", "iterate"]),
                      help="How the periodic limit is found: newton, the periodic-limit solver "
                           "(a few periods even when the iterates converge slowly), or iterate, "
                           "period after period (default: the gait file's value, else "
@@ -234,27 +234,11 @@ def check_feedback(quiet: bool, verbose: bool) -> None:
         raise BadInput("--quiet and --verbose: choose one")
 
 
-def _remember_integrator(ctx, param, value):
-    """``--integrator`` is consumed by `load_with_overrides`, so commands need no parameter."""
-    if value is not None:
-        ctx.meta["crawlsim.integrator"] = value
-
-
-def _remember_limit(ctx, param, value):
-    """``--limit``, consumed by `load_with_overrides` like ``--integrator``."""
-    if value is not None:
-        ctx.meta["crawlsim.integrate.limit"] = value
-
-
-def load_with_overrides(gait_file, steps_per_period, max_periods, tolerance, integrator=None):
-    """The gait file with the command line's simulation options applied (``--integrator``
-    included, taken from the click context when not given)."""
+def load_with_overrides(gait_file, steps_per_period, max_periods, tolerance, integrator=None,
+                        limit=None):
+    """The gait file with the command line's simulation options applied (those not None)."""
     from crawlsim.gait.document import load_gait, with_simulation
 
-    ctx = click.get_current_context(silent=True)
-    if integrator is None:
-        integrator = None if ctx is None else ctx.meta.get("crawlsim.integrator")
-    limit = None if ctx is None else ctx.meta.get("crawlsim.integrate.limit")
     gait = load_gait(gait_file)
     overrides = {k: v for k, v in dict(steps_per_period=steps_per_period,
                                        max_periods=max_periods, tolerance=tolerance,

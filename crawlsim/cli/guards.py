@@ -130,3 +130,32 @@ def figure_format_of(path, option: str) -> str:
         from crawlsim.cli import BadInput
 
         raise BadInput(str(exc)) from None
+
+
+def check_sweep_memory(grid, points: int, jobs: int, scheduler, max_memory) -> None:
+    """Refuse a sweep whose largest point (most blocks, most steps per period) would not fit,
+    in a batch as large as the sweep's tasks, once per local worker."""
+    from crawlsim.study.executors import MAX_CHUNK
+
+    largest = {a.path: int(max(a.values)) for a in grid.axes
+               if a.path in ("blocks", "simulation.steps_per_period")}
+    blocks, steps = largest.get("blocks"), largest.get("simulation.steps_per_period")
+    batch = min(points, MAX_CHUNK)
+    gait = grid.base
+    check_memory(gait, max_memory, batch=batch, steps_per_period=steps, blocks=blocks,
+                 what=f"this sweep ({'one worker' if scheduler else f'{jobs} worker(s)'} with "
+                      f"batches of {batch} points)")
+    if scheduler or jobs <= 1:
+        return
+    from crawlsim.integrate.resources import default_limit, format_size, gait_memory
+
+    limit = default_limit() if max_memory is None else max_memory
+    each = gait_memory(gait, batch=batch, blocks=blocks, steps_per_period=steps)
+    if jobs * each.total > limit:
+        from crawlsim.errors import ResourceError
+
+        raise ResourceError(gait.source, "", f"{jobs} local workers would need about "
+                                             f"{format_size(jobs * each.total)} together "
+                                             f"({each.describe()} each), more than the memory "
+                                             f"limit of {format_size(limit)} (--max-memory); "
+                                             "use fewer --jobs")

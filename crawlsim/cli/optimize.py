@@ -71,25 +71,27 @@ def _objective(maximize, minimize):
               help="Run on an existing Dask cluster (tcp://host:8786); needs "
                    "pip install 'crawlsim[dask]'.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
-@click.option("--method", type=click.Choice(["evolution", "gradient"]), default="evolution",
-              show_default=True,
-              help="evolution: differential evolution and pattern search (below); gradient: "
-                   "L-BFGS-B on the exact sensitivities of v0 from the best points of a coarse "
-                   "sample (--maximize v0 only, no constraints, no results file yet).")
+@click.option("--method", "search", type=click.Choice(["evolution", "gradient"]),
+              help="evolution: differential evolution, then a pattern search; gradient: a "
+                   "coarse sample, then quasi-Newton runs (L-BFGS-B, SLSQP with --subject-to) "
+                   "on the exact sensitivities from its best points (exact integrator). "
+                   "[default: gradient to maximise v0 without constraints, else evolution]")
 @simulation_options
 @feedback_options
 def optimize(gait_file, free_specs, maximize, minimize, constraints, pareto, front_points,
-             output, write_best, seed, max_evaluations, jobs, scheduler, as_json, method,
-             steps_per_period, max_periods, tolerance, quiet, verbose):
+             output, write_best, seed, max_evaluations, jobs, scheduler, as_json, search,
+             steps_per_period, max_periods, tolerance, integrator, limit, quiet, verbose):
     """Find the gait parameters in a box that maximise v0 (or minimise the cost of transport,
     ...), under constraints, or the Pareto front of v0 against the cost of transport.
 
-    A seeded differential evolution (SciPy) evaluates each generation as one batch through
-    the sweep engine (-j, --scheduler), then a batched pattern search polishes the best point
-    (v0 has kinks where the contact sequence changes, so no gradient is used; --method gradient
-    follows the exact sensitivities of v0 instead, docs/sensitivity.md). Points whose gait
-    is invalid or whose run fails are recorded and never chosen. The exact integrator is the
-    default, so the objective is exact to roundoff and the result reproducible.
+    --method evolution: a seeded differential evolution (SciPy) evaluates each generation as one
+    batch through the sweep engine (-j, --scheduler), then a batched pattern search polishes the
+    best point. --method gradient: a coarse sample of the box (one batch), then quasi-Newton
+    runs from its best points on the exact sensitivities of v0 and of the constraints
+    (docs/sensitivity.md); v0 has kinks where the contact sequence changes, and the restarts
+    keep one kink from ending the search. Points whose gait is invalid or whose run fails are
+    recorded and never chosen. The exact integrator is the default, so the objective is exact
+    to roundoff and the result reproducible.
 
     Exit codes: 0 done; 2 bad input, or no evaluated point satisfies the constraints (no file
     written); 130 interrupted (finished points kept in OUT.journal; rerun to resume).
@@ -108,44 +110,22 @@ def optimize(gait_file, free_specs, maximize, minimize, constraints, pareto, fro
     check_feedback(quiet, verbose)
     from crawlsim.study import optimize as opt
 
-    if not free_specs:
-        raise BadInput("give at least one free parameter: --free PATH=LO:HI, for example "
-                       "--free links.1.phase=0:1")
-    if output == "-":
-        raise BadInput("--output -: the results of an optimisation are an HDF5 file, which "
-                       "cannot be streamed to stdout; give a file name (-o opt.h5), and --json "
-                       "prints the answer on stdout")
-    if method == "gradient":
-        return _gradient(gait_file, free_specs, maximize, minimize, constraints, pareto, output,
-                         write_best, max_evaluations, jobs, scheduler, as_json,
-                         steps_per_period, max_periods, tolerance)
+    _check_options(free_specs, output)
     with library_errors():
-        if scheduler is not None:
-            from crawlsim.study.sweep import check_scheduler
-
-            check_scheduler(scheduler)
-        opt.Method(seed=seed)  # refuses a seed the results file cannot hold, before any work
-        out = _output_path(output, Path(gait_file).stem + "-optimize", inputs=[gait_file])
-        if out.suffix.lower() not in (".h5", ".hdf5"):
-            raise BadInput(f"--output {out}: an optimisation is written to HDF5: give a name "
-                           "ending in .h5")
-        if write_best is not None:
-            from crawlsim.io.outputs import GAIT, check_target
-
-            # never the gait file optimised (nor the results file): refused like every output
-            check_target(write_best, GAIT, inputs=[gait_file, out], option="--write-best")
+        out = _targets(gait_file, output, write_best, scheduler, seed)
         objective = _objective(maximize, minimize)
         free = [opt.parse_free(spec) for spec in free_specs]
         cons = [opt.parse_constraint(text) for text in constraints]
         gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance,
-                                   _integrator(gait_file))
+                                   _integrator(gait_file, integrator), limit)
         from crawlsim.integrate.resources import check_signal_work, gait_signal_work
 
         check_signal_work(gait_signal_work(gait), gait.source)  # before any evaluation
         problem = opt.make_problem(gait, free, objective=objective, constraints=cons,
                                    pareto=pareto)
         method = opt.Method(seed=seed, max_evaluations=max_evaluations,
-                            front_points=front_points)
+                            front_points=front_points,
+                            search=opt.default_search(problem, search))
         result = _search(problem, method, out, jobs, scheduler, quiet, verbose)
         result.check_feasible()
         if write_best is not None:
@@ -158,76 +138,43 @@ def optimize(gait_file, free_specs, maximize, minimize, constraints, pareto, fro
         click.echo(_text(result, summary, out, write_best))
 
 
-def _gradient(gait_file, free_specs, maximize, minimize, constraints, pareto, output,
-              write_best, max_evaluations, jobs, scheduler, as_json, steps_per_period,
-              max_periods, tolerance):
-    """``--method gradient`` (`crawlsim.study.gradient.optimize_gradient`): what it does not support
-    yet is refused by name, before anything runs."""
-    import time
+def _check_options(free_specs, output) -> None:
+    if not free_specs:
+        raise BadInput("give at least one free parameter: --free PATH=LO:HI, for example "
+                       "--free links.1.phase=0:1")
+    if output == "-":
+        raise BadInput("--output -: the results of an optimisation are an HDF5 file, which "
+                       "cannot be streamed to stdout; give a file name (-o opt.h5), and --json "
+                       "prints the answer on stdout")
 
+
+def _targets(gait_file, output, write_best, scheduler, seed) -> Path:
+    """The results file, checked with the --write-best file and the --scheduler address
+    before any work."""
     from crawlsim.study import optimize as opt
 
-    given = [name for name, bad in (("--pareto", pareto), ("--subject-to", constraints),
-                                    ("--minimize", minimize), ("--output", output),
-                                    ("--jobs", jobs != 1), ("--scheduler", scheduler))
-             if bad]
-    if maximize and opt.quantity(maximize, "--maximize") != "v0":
-        given.append(f"--maximize {maximize}")
-    if given:
-        raise BadInput(f"--method gradient maximises v0 in a box and nothing else yet; for "
-                       f"{', '.join(given)} use --method evolution")
-    with library_errors():
-        from crawlsim.io.provenance import effective_yaml
-        from crawlsim.study.gradient import optimize_gradient
+    if scheduler is not None:
+        from crawlsim.study.executors import check_scheduler
 
-        if write_best is not None:
-            from crawlsim.io.outputs import GAIT, check_target
-
-            # never the gait file optimised: refused like every output, before any work
-            check_target(write_best, GAIT, inputs=[gait_file], option="--write-best")
-        free = [opt.parse_free(spec) for spec in free_specs]
-        gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance,
-                                   _integrator(gait_file))
-        problem = opt.make_problem(gait, free)
-        began = time.perf_counter()
-        result = optimize_gradient(problem.base, [(f.path, f.lo, f.hi) for f in free],
-                                   max_evaluations=max_evaluations or 200)
-        wall = time.perf_counter() - began
-        if write_best is not None:
-            from crawlsim.io.atomic import atomic_path
-
-            text = (f"# written by crawlsim optimize --method gradient: maximize v0\n"
-                    f"# from {gait.source}, v0 = {result.v0!r}\n"
-                    + effective_yaml(problem.document(result.x)))
-            with atomic_path(write_best) as tmp:
-                tmp.write_text(text, encoding="utf-8")
-    summary = {"name": gait.name, "objective": "maximize v0", "method": "gradient",
-               "best": dict(zip(problem.paths, result.x)), "v0": result.v0,
-               "evaluations": result.evaluations,
-               "gradient_evaluations": result.gradient_evaluations, "wall_time": wall,
-               "best_gait": write_best}
-    if as_json:
-        click.echo(to_json(summary))
-        return
-    lines = [f"{gait.name}: maximize v0",
-             "  method                   gradient (L-BFGS-B, exact sensitivities)"]
-    lines += [f"  {p:<24} {v!r}" for p, v in zip(problem.paths, result.x)]
-    lines.append(f"  {'v0':<24} {result.v0!r}")
-    lines.append(f"  {'evaluations':<24} {result.evaluations}: "
-                 f"{result.evaluations - result.gradient_evaluations} sample, "
-                 f"{result.gradient_evaluations} with gradient")
-    lines.append(f"  {'wall time':<24} {wall:.3g} s")
+        check_scheduler(scheduler)
+    opt.Method(seed=seed)  # refuses a seed the results file cannot hold, before any work
+    out = _output_path(output, Path(gait_file).stem + "-optimize", inputs=[gait_file])
+    if out.suffix.lower() not in (".h5", ".hdf5"):
+        raise BadInput(f"--output {out}: an optimisation is written to HDF5: give a name "
+                       "ending in .h5")
     if write_best is not None:
-        lines.append(f"  {'best gait':<24} {write_best}")
-    click.echo("\n".join(lines))
+        from crawlsim.io.outputs import GAIT, check_target
+
+        # never the gait file optimised (nor the results file): refused like every output
+        check_target(write_best, GAIT, inputs=[gait_file, out], option="--write-best")
+    return out
 
 
-def _integrator(gait_file) -> str:
+def _integrator(gait_file, integrator) -> str:
     """``--integrator`` if given, else the gait file's own, else exact (v0 exact to roundoff:
     the objective is deterministic)."""
-    ctx = click.get_current_context()
-    if ctx.meta.get("crawlsim.integrator"):
-        return ctx.meta["crawlsim.integrator"]
+    if integrator:
+        return integrator
     from crawlsim.gait.document import load_gait
 
     simulation = load_gait(gait_file).document.get("simulation") or {}
@@ -292,30 +239,47 @@ def _text(result, summary, out, write_best) -> str:
         value = getattr(best.row, name)
         lines.append(f"  {name:<24} {'n/a' if value is None else repr(value)}")
     lines.append(f"  {'feasible':<24} {'yes' if result.feasible else 'no'}")
-    counts, stages = result.counts(), result.stage_counts()
-    bad = ", ".join(f"{counts[k]} {k}" for k in ("invalid", "failed", "not-converged")
-                    if counts[k])
-    lines.append(f"  {'evaluations':<24} {len(result.evaluations)} of {result.budget} allowed: "
-                 f"{stages['global']} global, {stages['polish']} polish"
-                 + (f"; {bad}" if bad else ""))
+    lines.append(_evaluations_line(result))
     if problem.pareto:
-        chosen = [p for p in summary["front"] if p["chosen"]]
-        lines.append(f"  {'front':<24} {len(result.front)} points, {len(chosen)} of them "
-                     "optima of the runs:")
-        for point in summary["front"]:
-            if point["chosen"]:
-                values = ", ".join(f"{p}={point[p]:.6g}" for p in problem.paths)
-                lines.append(f"    v0 {point['v0']:.6g}  cost_of_transport "
-                             f"{point['cost_of_transport']:.6g}  ({values})")
-    # a run stopped by its budget is not converged: its optimum may improve with a larger one
-    spent = [(k, r) for k, r in enumerate(result.runs, 1) if r.out_of_budget]
-    if spent:
-        lines.append(f"  {'out of budget':<24} {len(spent)} of {len(result.runs)} run"
-                     f"{'s' if len(result.runs) > 1 else ''} (--max-evaluations):")
-        for k, run in spent:
-            lines.append(f"    run {k}, {run.text}: {run.stop}")
+        lines += _front_lines(problem, summary)
+    lines += _budget_lines(result)
     lines.append(f"  {'wall time':<24} {result.wall_time:.3g} s")
     lines.append(f"  {'results':<24} {out}")
     if write_best is not None:
         lines.append(f"  {'best gait':<24} {write_best}")
     return "\n".join(lines)
+
+
+def _evaluations_line(result) -> str:
+    """How many points were simulated, by stage (the gradient search's sample and its
+    evaluations with a gradient), and how many did not run."""
+    counts, stages = result.counts(), result.stage_counts()
+    bad = ", ".join(f"{counts[k]} {k}" for k in ("invalid", "failed", "not-converged")
+                    if counts[k])
+    kinds = ("global", "with gradient") if result.method.gradient else ("global", "polish")
+    return (f"  {'evaluations':<24} {len(result.evaluations)} of {result.budget} allowed: "
+            f"{stages['global']} {kinds[0]}, {stages['polish']} {kinds[1]}"
+            + (f"; {bad}" if bad else ""))
+
+
+def _front_lines(problem, summary) -> list[str]:
+    chosen = [p for p in summary["front"] if p["chosen"]]
+    lines = [f"  {'front':<24} {len(summary['front'])} points, {len(chosen)} of them optima "
+             "of the runs:"]
+    for point in chosen:
+        values = ", ".join(f"{p}={point[p]:.6g}" for p in problem.paths)
+        lines.append(f"    v0 {point['v0']:.6g}  cost_of_transport "
+                     f"{point['cost_of_transport']:.6g}  ({values})")
+    return lines
+
+
+def _budget_lines(result) -> list[str]:
+    """The runs stopped by their budget: not converged, their optima may improve with a
+    larger one."""
+    spent = [(k, r) for k, r in enumerate(result.runs, 1) if r.out_of_budget]
+    if not spent:
+        return []
+    lines = [f"  {'out of budget':<24} {len(spent)} of {len(result.runs)} run"
+             f"{'s' if len(result.runs) > 1 else ''} (--max-evaluations):"]
+    lines += [f"    run {k}, {run.text}: {run.stop}" for k, run in spent]
+    return lines

@@ -59,8 +59,8 @@ MAX_SAVE_EVERY = 2**62
 @max_memory_option
 @force_option
 @feedback_options
-def run(gait_file, from_results, output, steps_per_period, max_periods, tolerance, save_every,
-        check_every_step, as_json, plot, plot_format, dpi, figsize, style, max_memory, force,
+def run(gait_file, from_results, output, steps_per_period, max_periods, tolerance, integrator,
+        limit, save_every, check_every_step, as_json, plot, plot_format, dpi, figsize, style, max_memory, force,
         quiet, verbose):
     """Simulate GAIT_FILE to its periodic regime; report v0 and write an HDF5 file.
 
@@ -98,12 +98,13 @@ def run(gait_file, from_results, output, steps_per_period, max_periods, toleranc
     with library_errors():
         if from_results is not None:
             gait, check_every_step, save_every = _rerun(from_results, steps_per_period,
-                                                        max_periods, tolerance,
+                                                        max_periods, tolerance, integrator,
                                                         check_every_step, save_every)
             out = _output_path(output, Path(from_results).stem + "-rerun", force,
                                inputs=[from_results])
         else:
-            gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance)
+            gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance,
+                                       integrator, limit)
             out = _output_path(output, gait_file, force)
             save_every = save_every or 1
         if save_every > MAX_SAVE_EVERY:
@@ -145,14 +146,13 @@ def run(gait_file, from_results, output, steps_per_period, max_periods, toleranc
         sys.exit(EXIT_NOT_CONVERGED)
 
 
-def _rerun(path, steps_per_period, max_periods, tolerance, check_every_step, save_every):
+def _rerun(path, steps_per_period, max_periods, tolerance, integrator, check_every_step,
+           save_every):
     """The gait and settings recorded in ``path``, with the options given on top."""
     from crawlsim import api
     from crawlsim.gait.document import with_simulation
 
     recorded = api.from_results(path)
-    ctx = click.get_current_context(silent=True)
-    integrator = None if ctx is None else ctx.meta.get("crawlsim.integrator")
     overrides = {k: v for k, v in dict(steps_per_period=steps_per_period, max_periods=max_periods,
                                        tolerance=tolerance, integrator=integrator).items()
                  if v is not None}

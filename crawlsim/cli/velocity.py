@@ -21,51 +21,23 @@ from crawlsim.cli import (
     simulation_options,
     to_json,
 )
-from crawlsim.cli.guards import check_memory, force_option, max_memory_option, warn_unchecked
+from crawlsim.cli.guards import (
+    check_memory,
+    check_sweep_memory,
+    force_option,
+    max_memory_option,
+    warn_unchecked,
+)
 from crawlsim.cli.progress import Progress, choose_mode
 
 
 def _shard(ctx, param, value):
     if value is None:
         return None
-    from crawlsim.study import sweep as sweeps
+    from crawlsim.study.grid import parse_shard
 
     with library_errors():
-        return sweeps.parse_shard(value)
-
-
-def _check_sweep_memory(gait, groups, points, jobs, scheduler, max_memory):
-    """The largest point of the grid (most blocks, most steps), in a batch as large as the
-    sweep's chunks, once per local worker."""
-    from crawlsim.study import sweep as sweeps
-
-    largest = {}
-    for group in groups:
-        for spec in group:
-            axis = sweeps.parse_axis(spec)
-            if axis.path in ("blocks", "simulation.steps_per_period"):
-                largest[axis.path] = int(max(axis.values))
-    batch = min(points, sweeps.MAX_CHUNK)
-    check_memory(gait, max_memory, batch=batch,
-                 steps_per_period=largest.get("simulation.steps_per_period"),
-                 blocks=largest.get("blocks"),
-                 what=f"this sweep ({'one worker' if scheduler else f'{jobs} worker(s)'} with "
-                      f"batches of {batch} points)")
-    if not scheduler and jobs > 1:
-        from crawlsim.integrate.resources import default_limit, gait_memory
-
-        limit = default_limit() if max_memory is None else max_memory
-        each = gait_memory(gait, batch=batch, blocks=largest.get("blocks"),
-                           steps_per_period=largest.get("simulation.steps_per_period"))
-        if jobs * each.total > limit:
-            from crawlsim.errors import ResourceError
-            from crawlsim.integrate.resources import format_size
-
-            raise ResourceError(gait.source, "", f"{jobs} local workers would need about "
-                                                 f"{format_size(jobs * each.total)} together "
-                                                 f"({each.describe()} each), more than the memory "
-                                                 f"limit of {format_size(limit)} (--max-memory); "
-                                                 "use fewer --jobs")
+        return parse_shard(value)
 
 
 def _dimensions(sweep_specs, link_specs) -> list[list[str]]:
@@ -119,9 +91,9 @@ def _dimensions(sweep_specs, link_specs) -> list[list[str]]:
 @max_memory_option
 @force_option
 @feedback_options
-def velocity(gait_file, as_json, sweep_specs, sensitivity_paths, link_specs, output, jobs, shard, scheduler,
-             plot_file, steps_per_period, max_periods, tolerance, max_memory, force, quiet,
-             verbose):
+def velocity(gait_file, as_json, sweep_specs, sensitivity_paths, link_specs, output, jobs,
+             shard, scheduler, plot_file, steps_per_period, max_periods, tolerance, integrator,
+             limit, max_memory, force, quiet, verbose):
     """Print v0 of GAIT_FILE, or sweep gait parameters and tabulate v0.
 
     Without --sweep, prints v0 alone on one line, with the digits its error estimate supports
@@ -155,27 +127,12 @@ def velocity(gait_file, as_json, sweep_specs, sensitivity_paths, link_specs, out
           --shard $i/3 -o part-$i.h5; done && crawlsim merge part-*.h5 -o all.h5
     """
     check_feedback(quiet, verbose)
-    if output == "-":
-        output = None  # stdout is where the table (or v0) goes without -o
+    output = None if output == "-" else output  # stdout is where the table (or v0) goes
     with library_errors():
-        from crawlsim.io.outputs import FIGURE, SWEEP, check_target
-
-        if scheduler is not None:
-            from crawlsim.study.sweep import check_scheduler
-
-            check_scheduler(scheduler)
-        if output is not None and plot_file is not None and \
-                os.path.abspath(output) == os.path.abspath(plot_file):
-            raise BadInput(f"--plot {plot_file}: is also the --output file; give two names")
-
-        for path, kind, option in ((output, SWEEP, "--output"), (plot_file, FIGURE, "--plot")):
-            if path is not None:
-                check_target(path, kind, inputs=[gait_file], force=force, option=option)
-        if plot_file is not None and \
-                os.path.splitext(plot_file)[1].lower() not in (".png", ".pdf", ".svg"):
-            raise BadInput(f"--plot {plot_file}: a figure is written as .png, .pdf or .svg")
+        _check_targets(gait_file, output, plot_file, scheduler, force)
         groups = _dimensions(sweep_specs, link_specs)
-        gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance)
+        gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance,
+                                   integrator, limit)
         from crawlsim.gait.document import need_crawler
 
         need_crawler(gait)
@@ -184,50 +141,14 @@ def velocity(gait_file, as_json, sweep_specs, sensitivity_paths, link_specs, out
             if shard or plot_file:
                 raise BadInput("--shard and --plot need at least one --sweep PATH=SPEC")
             if output is None:
-                from crawlsim import api
-
-                check_memory(gait, max_memory)
-                with run_progress(gait, quiet, verbose) as progress:
-                    result = api.run(gait, progress=progress, history=False)
-                    derivatives = None
-                    if sensitivity_paths:
-                        from crawlsim.cli import sensitivities
-
-                        derivatives = sensitivities.compute(gait, sensitivity_paths, result)
-                summary = result.summary()
-                if as_json:
-                    if derivatives is not None:
-                        summary["sensitivity"] = derivatives.summary()
-                    click.echo(to_json(summary))
-                else:  # the digits its error estimate supports (--json: full precision)
-                    from crawlsim.analysis.digits import supported
-
-                    click.echo(supported(result.v0, result.v0_error_estimate)[0])
-                    if derivatives is not None:
-                        sensitivities.echo(derivatives, summary["integrator"])
-                if not result.converged:
-                    from crawlsim.analysis.run import not_converged_message
-
-                    s = gait.simulation
-                    click.echo(not_converged_message(result, s.max_periods, s.tolerance, s.limit), err=True)
-                    sys.exit(EXIT_NOT_CONVERGED)
-                return
-        if as_json and groups:
-            raise BadInput("--json prints one run's summary; with --sweep the table is CSV or "
-                           "HDF5 (-o)")
-        if plot_file and shard:
-            raise BadInput("--plot needs the whole grid: plot after `crawlsim merge`")
-        if plot_file and len(groups) not in (1, 2):
-            raise BadInput(f"--plot draws one or two swept dimensions, got {len(groups)}")
+                return _single(gait, sensitivity_paths, as_json, max_memory, quiet, verbose)
+        _check_sweep_options(groups, as_json, plot_file, shard)
         from crawlsim.study import sweep as sweeps
 
-        points = len(sweeps.make_grid(gait, groups).indices(shard))
-        _check_sweep_memory(gait, groups, points, jobs, scheduler, max_memory)
-        table = _sweep(gait, groups, output, jobs, shard, scheduler, quiet, verbose,
-                       sensitivity_paths)
+        grid = sweeps.make_grid(gait, groups, sensitivity=sensitivity_paths)
+        check_sweep_memory(grid, len(grid.indices(shard)), jobs, scheduler, max_memory)
+        table = _sweep(grid, output, jobs, shard, scheduler, quiet, verbose)
         if plot_file:
-            from crawlsim.study import sweep as sweeps
-
             sweeps.plot_table(table, plot_file)
     if output is None:
         click.echo(table.to_csv(), nl=False)
@@ -238,11 +159,72 @@ def velocity(gait_file, as_json, sweep_specs, sensitivity_paths, link_specs, out
                    "the status and message columns)", err=True)
 
 
-def _sweep(gait, groups, output, jobs, shard, scheduler, quiet, verbose, sensitivity=()):
+def _check_targets(gait_file, output, plot_file, scheduler, force) -> None:
+    """Refuse, before the gait is read, a --scheduler that is no address and outputs that may
+    not be written (`crawlsim.io.outputs.check_target`)."""
+    from crawlsim.io.outputs import FIGURE, SWEEP, check_target
+
+    if scheduler is not None:
+        from crawlsim.study.executors import check_scheduler
+
+        check_scheduler(scheduler)
+    if output is not None and plot_file is not None and \
+            os.path.abspath(output) == os.path.abspath(plot_file):
+        raise BadInput(f"--plot {plot_file}: is also the --output file; give two names")
+    for path, kind, option in ((output, SWEEP, "--output"), (plot_file, FIGURE, "--plot")):
+        if path is not None:
+            check_target(path, kind, inputs=[gait_file], force=force, option=option)
+    if plot_file is not None and \
+            os.path.splitext(plot_file)[1].lower() not in (".png", ".pdf", ".svg"):
+        raise BadInput(f"--plot {plot_file}: a figure is written as .png, .pdf or .svg")
+
+
+def _check_sweep_options(groups, as_json, plot_file, shard) -> None:
+    if as_json and groups:
+        raise BadInput("--json prints one run's summary; with --sweep the table is CSV or "
+                       "HDF5 (-o)")
+    if plot_file and shard:
+        raise BadInput("--plot needs the whole grid: plot after `crawlsim merge`")
+    if plot_file and len(groups) not in (1, 2):
+        raise BadInput(f"--plot draws one or two swept dimensions, got {len(groups)}")
+
+
+def _single(gait, sensitivity_paths, as_json, max_memory, quiet, verbose):
+    """v0 of one gait (`crawlsim.api.run`), with its sensitivities if asked; exit code 3 when
+    the run did not converge."""
+    from crawlsim import api
+
+    check_memory(gait, max_memory)
+    with run_progress(gait, quiet, verbose) as progress:
+        result = api.run(gait, progress=progress, history=False)
+        derivatives = None
+        if sensitivity_paths:
+            from crawlsim.cli import sensitivities
+
+            derivatives = sensitivities.compute(gait, sensitivity_paths, result)
+    summary = result.summary()
+    if as_json:
+        if derivatives is not None:
+            summary["sensitivity"] = derivatives.summary()
+        click.echo(to_json(summary))
+    else:  # the digits its error estimate supports (--json: full precision)
+        from crawlsim.analysis.digits import supported
+
+        click.echo(supported(result.v0, result.v0_error_estimate)[0])
+        if derivatives is not None:
+            sensitivities.echo(derivatives, summary["integrator"])
+    if not result.converged:
+        from crawlsim.analysis.run import not_converged_message
+
+        s = gait.simulation
+        click.echo(not_converged_message(result, s.max_periods, s.tolerance, s.limit), err=True)
+        sys.exit(EXIT_NOT_CONVERGED)
+
+
+def _sweep(grid, output, jobs, shard, scheduler, quiet, verbose):
     """Run the sweep with progress on stderr; an interrupt says what was kept, then exits 130."""
     from crawlsim.study import sweep as sweeps
 
-    grid = sweeps.make_grid(gait, groups)
     total = len(grid.indices(shard))
     bar = Progress("velocity", "point", total, mode=choose_mode(quiet))
 
@@ -258,9 +240,8 @@ def _sweep(gait, groups, output, jobs, shard, scheduler, quiet, verbose, sensiti
                     bar.message(f"point {r.index} {r.status}: {r.message}")
 
     try:
-        table = sweeps.sweep(gait, groups, output=output, jobs=jobs, shard=shard,
-                             scheduler=scheduler, progress=bar.update, on_rows=on_rows,
-                             sensitivity=sensitivity)
+        table = sweeps.sweep(grid, output=output, jobs=jobs, shard=shard, scheduler=scheduler,
+                             progress=bar.update, on_rows=on_rows)
     except sweeps.SweepInterrupted as exc:
         bar.close()
         where = (f"kept in {exc.journal}; run the same command again to resume"

@@ -1,7 +1,17 @@
 """Studies of many gaits: sweeps, gait design, the paper's checks.
 
-    sweep        parameter sweeps of v0, in batches, resumable
-    optimize     the fastest or the cheapest gait in a box (derivative-free)
-    gradient     gradient-based gait design with exact sensitivities
+    sweep        parameter sweeps of v0: the entry points (sweep, run_sweep), resumable
+    grid         the axes (PATH=SPEC), linked dimensions, the grid of edited gait documents
+    points       one point validated, compiled and run: a row of the table, extra columns
+    executors    where points run: here, local workers (only when they pay), a Dask cluster
+    journal      finished points kept across interruptions
+    table        the sweep table, its CSV and HDF5 files, the join of shards
+    optimize     gait design: the driver (one objective, or the Pareto front)
+    problem      free parameters, objective, constraints, the feasibility rules
+    method       the search's settings and budget
+    search       the shared evaluator; one search: evolution + pattern search
+    descent      the gradient search: sample (or evolution), then quasi-Newton, exact gradients
+    optresult    the answer: evaluations, history, runs, front, hypervolume
+    gradient     gradient-based design of v0 in a box (optimize_gradient, the first version)
     paper        the paper's convergence results, reproduced
 """
