@@ -48,7 +48,7 @@ _EXPORTS = {
     "CrawlsimError": "crawlsim.errors",
     "GaitError": "crawlsim.errors",
     "InputError": "crawlsim.errors",
-    "stall": "crawlsim.analysis.stall",
+    "stall": "crawlsim.study.stall",
 }
 
 _SUBPACKAGES = {"analysis", "api", "cli", "errors", "gait", "integrate", "io", "kernel", "model",

@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Timings of the exact uniqueness check (crawlsim.model.uniqueness.find_violation).
+"""Timings of the exact uniqueness check (crawlsim.gait.uniqueness.find_violation).
 
 Cases: 21, 120 and 1000 identical blocks (forward 1, backward 2: the 21- and 120-block waves
 violate the condition, 1000 does not), and 40 blocks of distinct friction, constant and cosine
@@ -17,7 +17,7 @@ import time
 import numpy as np
 
 from crawlsim.gait.signals import Constant, Cosine
-from crawlsim.model.uniqueness import TOLERANCE, find_violation
+from crawlsim.gait.uniqueness import TOLERANCE, find_violation
 
 
 def distinct(n, cosine=False, seed=0):

@@ -1,4 +1,4 @@
-"""Batched exact stepping (crawlsim.integrate.batch) against the single-run stepper.
+"""Batched exact stepping (crawlsim.study.batch) against the single-run stepper.
 
 A certified KKT point of the strictly convex projection is the projection itself, so a gait
 stepped in a batch must take the same steps as in a single run up to roundoff: v0 agrees to
@@ -11,8 +11,8 @@ import pytest
 from crawlsim.analysis.run import simulate
 from crawlsim.errors import DegenerateModelError
 from crawlsim.gait.document import gait_from_document, load_gait, parse_gait, with_simulation
-from crawlsim.integrate.batch import simulate_batch
 from crawlsim.model.process import compile_gait
+from crawlsim.study.batch import simulate_batch
 
 from .conftest import iterated_examples
 

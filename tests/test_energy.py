@@ -23,6 +23,7 @@ from crawlsim.api import run as api_run
 from crawlsim.errors import InputError
 from crawlsim.gait.document import load_gait
 from crawlsim.gait.signals import Fourier
+from crawlsim.integrate import ledger
 from crawlsim.integrate.stepping import make_stepper
 from crawlsim.io.hdf5 import read_results
 from crawlsim.model.offsets import Basis
@@ -211,7 +212,7 @@ def test_catch_up_jump_loss_converges_to_the_jump_loss():
 def test_gram_matrix_is_the_integral_of_the_basis_products(linear, harmonics, a, b):
     """P[k, l] = int_a^b phi_k phi_l du, against adaptive quadrature (tiny pieces included)."""
     basis = Basis(linear, harmonics)
-    P = energy.gram(basis, a, b)
+    P = ledger.gram(basis, a, b)
     assert np.array_equal(P, P.T)
     for i in range(basis.size):
         for j in range(basis.size):

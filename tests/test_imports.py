@@ -74,7 +74,7 @@ def test_velocity_loads_what_it_needs_and_no_more(integrator, tmp_path):
     for name in ("numpy", "yaml", "crawlsim.kernel.projection", "crawlsim.kernel.kkt"):
         assert loaded(modules, name), name
     for name in ("h5py", "matplotlib", "tqdm", "distributed", "dask", "crawlsim.study.sweep",
-                 "crawlsim.integrate.batch", "crawlsim.io.hdf5", "crawlsim.plotting.figures", "clarabel",
+                 "crawlsim.study.batch", "crawlsim.io.hdf5", "crawlsim.plotting.figures", "clarabel",
                  "scipy.optimize", "jsonschema"):
         assert not loaded(modules, name), name
 

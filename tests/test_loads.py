@@ -357,8 +357,8 @@ def test_combination_minimum(signals):
     """The least value of a sum of signals over the cycle (the body's hold condition): exact
     for constants, steps and piecewise-linear (affine between breakpoints: a one-sided limit at a
     piece's end), and at least as low as a dense sample otherwise, never below the true one."""
+    from crawlsim.gait.loads import combination
     from crawlsim.gait.signals import parse_signal
-    from crawlsim.model.loads import combination
 
     parsed = [parse_signal(s, "s", "<test>") for s in signals]
     total = combination([(1.0, s) for s in parsed], 0.25)

@@ -29,10 +29,13 @@ from crawlsim.errors import ResultsFileError
 from crawlsim.gait.document import gait_from_document, load_gait, with_simulation
 from crawlsim.gait.units import Units as GaitUnits
 from crawlsim.io.hdf5 import read_results
+from crawlsim.model import crawler as crawler_module
+from crawlsim.model.process import compile_gait
 from crawlsim.plotting import (
     FIGURE_NAMES,
     available_figures,
     convergence_figure,
+    gait_diagram,
     gait_figure,
     motion_figure,
     plot_results,
@@ -68,7 +71,6 @@ from crawlsim.plotting.style import (
     Units,
     colours,
     label,
-    parse_units,
     path_dimension,
     path_label,
     units_of,
@@ -207,7 +209,7 @@ def test_units_from_results():
     assert units_of({"gait_yaml": "units: {length: cm}\n"}) == Units(length="cm")
     assert units_of({"attrs": {"units_json": "not json"}}) == Units()
     assert units_of({"attrs": {"gait_yaml": "blocks: 2\n"}}) == Units()
-    assert parse_units({"length": 3, "time": " "}) == Units()
+    assert Units.parse({"length": 3, "time": " "}) == Units()
     # The one Units class: the gait's (crawlsim.gait.units), not a copy of it.
     assert Units is GaitUnits and type(units_of({"attrs": {"units_json": '{"force": "N"}'}})) is GaitUnits
 
@@ -401,6 +403,32 @@ def test_block_forces_are_d_transpose_sigma():
     D = np.diff(np.eye(4), axis=0)
     np.testing.assert_allclose(block_forces(sigma), sigma @ D)
     assert block_forces(sigma).sum() == pytest.approx(0.0)
+
+
+def test_figures_ask_the_crawler_of_the_run(run_file):
+    """The gait diagram's stress bounds and block forces are the model's (one implementation,
+    crawlsim.model.crawler), and on a results file's arrays they give what the compiled
+    process's Crawler gives: the file's /limit/stress is sigma = w + K L(t) of its /limit/w,
+    its /limit/shape z = -w / k, the bounds those of its /limit/friction, and the forces sum to
+    zero on every row (D^T sigma has zero column sums)."""
+    assert gait_diagram.stress_bounds is crawler_module.stress_bounds
+    assert gait_diagram.block_forces is crawler_module.block_forces
+    res = read_results(run_file("peristalsis-4"))
+    lim = res["limit"]
+    c = compile_gait(with_simulation(load_gait(GAITS / "peristalsis-4.yaml"),
+                                     steps_per_period=STEPS)).crawler
+    assert c is not None and c.blocks == 4
+    np.testing.assert_allclose(lim["stress"], c.stress(lim["w"]), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(lim["shape"], c.shape(lim["w"]), rtol=0, atol=1e-12)
+    low, high = stress_bounds(lim["friction"])
+    c_low, c_high = c.stress_bounds()
+    np.testing.assert_allclose(low, c_low, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(high, c_high, rtol=0, atol=1e-12)
+    f = block_forces(lim["stress"])
+    np.testing.assert_allclose(f, c.block_forces(lim["w"]), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(f.sum(axis=1), 0.0, atol=1e-12)
+    # the stresses of the limit lie within their bounds (the crawler's state is admissible)
+    assert np.all(lim["stress"] >= low - 1e-9) and np.all(lim["stress"] <= high + 1e-9)
 
 
 def test_relative_stress_closed_form():

@@ -1,6 +1,7 @@
 """The README's code blocks run as printed, and the outputs it shows are what crawlsim prints.
 
-Every fenced block of README.md is one of:
+The same rules hold for every page of docs/ (tests/test_docs.py runs them with the functions
+below). Every fenced block of a page is one of:
 
 * a **command block** (no language): lines ``$ COMMAND`` each followed by the output it shows,
   or, without ``$``, commands alone (each line starting with ``crawlsim``). Each command runs
@@ -13,14 +14,16 @@ Every fenced block of README.md is one of:
   key by key without its ``wall_time`` (the one number that changes from run to run);
 * a **YAML block**: a gait file. With a ``file NAME`` marker it is written as NAME for the
   commands after it (which must use it); without one it must pass ``crawlsim validate``;
-* a **Python block**: run with this interpreter in the same folder;
+* a **Python block**: run with this interpreter in the same folder; a block right after it
+  marked ``output`` holds what it prints, compared as a command's output is;
 * an **illustration**, marked ``skip: REASON`` (the set-up commands, which install the package;
   synopses of options; a line for ``~/.bashrc``; an example progress line of a long sweep).
 
 A marker is an HTML comment on the last non-blank line before the block's opening fence:
 ``<!-- readme-test: skip: REASON -->``, ``<!-- readme-test: file NAME -->`` or
-``<!-- readme-test: exit N -->``. A block that fits no kind and has no marker fails the test:
-nothing is skipped silently. No cost override is applied: every command runs as printed.
+``<!-- readme-test: exit N -->`` or ``<!-- readme-test: output -->``. A block that fits no
+kind and has no marker fails the test: nothing is skipped silently. No cost override is applied:
+every command runs as printed.
 
 The blocks run in document order in one folder (a later block may read what an earlier one
 wrote, as a reader following the page would).
@@ -53,13 +56,18 @@ class Block:
     language: str
     text: str  # dedented by the fence's indentation
     marker: str | None
+    page: str = "README.md"
 
     @property
     def id(self) -> str:
         return f"line-{self.line}-{self.language or 'text'}"
 
+    @property
+    def where(self) -> str:
+        return f"{self.page}:{self.line}"
 
-def parse_blocks(text: str) -> list[Block]:
+
+def parse_blocks(text: str, page: str = "README.md") -> list[Block]:
     blocks: list[Block] = []
     lines = text.splitlines()
     i = 0
@@ -77,9 +85,9 @@ def parse_blocks(text: str) -> list[Block]:
             line = lines[j]
             body.append(line[len(indent):] if line.startswith(indent) else line.lstrip())
             j += 1
-        assert j < len(lines), f"README.md:{i + 1}: unclosed code block"
+        assert j < len(lines), f"{page}:{i + 1}: unclosed code block"
         blocks.append(Block(i + 1, language, "\n".join(body) + "\n",
-                            marker.group(1) if marker else None))
+                            marker.group(1) if marker else None, page))
         i = j + 1
     return blocks
 
@@ -88,10 +96,16 @@ BLOCKS = parse_blocks(README.read_text(encoding="utf-8"))
 
 
 def commands(block: Block) -> list[tuple[str, list[str] | None]]:
-    """(command, expected output lines or None) of a command block."""
-    lines = block.text.rstrip("\n").splitlines()
+    """(command, expected output lines or None) of a command block; a line ending in a
+    backslash continues on the next, as in a shell."""
+    lines: list[str] = []
+    for line in block.text.rstrip("\n").splitlines():
+        if lines and lines[-1].endswith("\\"):
+            lines[-1] = lines[-1][:-1].rstrip() + " " + line.strip()
+        else:
+            lines.append(line)
     if any(line.startswith("$ ") for line in lines):
-        assert lines[0].startswith("$ "), f"README.md:{block.line}: output before a command"
+        assert lines[0].startswith("$ "), f"{block.where}: output before a command"
         out: list[tuple[str, list[str] | None]] = []
         for line in lines:
             if line.startswith("$ "):
@@ -102,7 +116,7 @@ def commands(block: Block) -> list[tuple[str, list[str] | None]]:
                 expected.append(line.rstrip())
         return out
     assert all(line.startswith("crawlsim ") for line in lines if line.strip()), (
-        f"README.md:{block.line}: a block that is neither commands ($ ... or crawlsim ...) nor "
+        f"{block.where}: a block that is neither commands ($ ... or crawlsim ...) nor "
         "marked `<!-- readme-test: skip: REASON -->`")
     return [(line, None) for line in lines if line.strip()]
 
@@ -298,30 +312,54 @@ def test_numbers_match_to_the_digits_their_estimate_supports():
     assert not output_matches([json.dumps(want)], [json.dumps(want | {"periods": 3})])
 
 
+def check_markers(blocks: list[Block]) -> None:
+    """Every marker is known and used as it says: a skip says why, a ``file`` gait is read by a
+    later command, ``exit N`` marks a command block, ``output`` follows a Python block."""
+    for k, block in enumerate(blocks):
+        if block.marker is None:
+            continue
+        kind, _, rest = block.marker.partition(" ")
+        assert kind in ("skip:", "file", "exit", "output"), f"{block.where}: marker {block.marker!r}"
+        if kind == "skip:":
+            assert rest.strip(), f"{block.where}: a skip marker says why"
+        if kind == "file":
+            assert block.language == "yaml", f"{block.where}: `file` marks a gait"
+            later = " ".join(cmd for b in blocks if b.line > block.line and b.language == ""
+                             and not (b.marker or "").startswith(("skip:", "output"))
+                             for cmd, _ in commands(b))
+            assert rest.strip() in later, f"{block.where}: {rest} is never used"
+        if kind == "exit":
+            assert block.language == "" and rest.strip().isdigit()
+        if kind == "output":
+            assert block.language == "" and k > 0 and blocks[k - 1].language == "python" and \
+                blocks[k - 1].marker is None, f"{block.where}: `output` follows a Python block that runs"
+    runnable = [b for b in blocks if not (b.marker or "").startswith("skip:")]
+    assert {b.language for b in runnable} <= {"", "yaml", "python"}, \
+        "a block in another language needs a runner here or a skip marker"
+
+
 def test_every_block_is_run_or_marked_as_an_illustration():
     assert BLOCKS, "README.md has no code blocks"
     first = BLOCKS[0]
     assert first.marker and first.marker.startswith("skip:") and "pip install" in first.text, \
         "the first block (set-up: pip install) is marked as not run"
-    for block in BLOCKS:
-        if block.marker is None:
-            continue
-        kind, _, rest = block.marker.partition(" ")
-        assert kind in ("skip:", "file", "exit"), f"README.md:{block.line}: marker {block.marker!r}"
-        if kind == "skip:":
-            assert rest.strip(), f"README.md:{block.line}: a skip marker says why"
-        if kind == "file":
-            assert block.language == "yaml", f"README.md:{block.line}: `file` marks a gait"
-            later = " ".join(cmd for b in BLOCKS if b.line > block.line and b.language == ""
-                             and not (b.marker or "").startswith("skip:")
-                             for cmd, _ in commands(b))
-            assert rest.strip() in later, f"README.md:{block.line}: {rest} is never used"
-        if kind == "exit":
-            assert block.language == "" and rest.strip().isdigit()
-    runnable = [b for b in BLOCKS if not (b.marker or "").startswith("skip:")]
-    assert {b.language for b in runnable} <= {"", "yaml", "python"}, \
-        "a block in another language needs a runner here or a skip marker"
-    assert sum(1 for b in runnable if b.language == "") >= 5
+    assert "python -m pytest tests" in first.text, "the set-up runs the tests as .ci/run does"
+    check_markers(BLOCKS)
+    shown = [cmd for b in BLOCKS if b.language == "" and b.marker is None
+             for cmd, expected in commands(b) if expected]
+    assert "crawlsim run gaits/peristalsis-4.yaml" in shown, "the first run's output is shown"
+
+
+def test_readme_fits_a_newcomer():
+    """Issue 23: at most 200 lines, one figure, and links into the documentation site."""
+    text = README.read_text(encoding="utf-8")
+    assert len(text.splitlines()) <= 200
+    images = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", text)
+    assert len(images) == 1 and images[0].startswith("docs/figures/")
+    linked = set(re.findall(r"\]\(docs/([\w\-/]+\.(?:md|ipynb))", text))
+    assert {"model.md", "gait-files.md", "commands.md", "hdf5.md", "integrators.md", "sweeps.md",
+            "optimize.md", "paper.md", "benchmarks.md", "api.md", "exact-step.md",
+            "layout.md"} <= linked
 
 
 @pytest.fixture(scope="module")
@@ -339,12 +377,22 @@ def _environment() -> dict[str, str]:
     return env
 
 
-def _run(block: Block, folder: Path) -> None:
+def run_block(block: Block, folder: Path, printed: dict[str, str]) -> None:
+    """Run one block in ``folder``; ``printed`` keeps the stdout of the last Python block for
+    the ``output`` block after it."""
     env = _environment()
     marker = block.marker or ""
     if marker.startswith("skip:"):
         return
-    where = f"README.md:{block.line}"
+    where = block.where
+    if marker == "output":
+        assert "python" in printed, f"{where}: no Python block ran before this output"
+        actual = [line.rstrip() for line in printed.pop("python").splitlines()]
+        expected = block.text.rstrip("\n").splitlines()
+        assert output_matches(expected, actual), (
+            f"{where}: the Python block above printed\n" + "\n".join(actual)
+            + f"\nbut {block.page} shows\n" + "\n".join(expected))
+        return
     if block.language == "yaml":
         if marker.startswith("file "):
             (folder / marker.split(None, 1)[1]).write_text(block.text)
@@ -359,6 +407,7 @@ def _run(block: Block, folder: Path) -> None:
         done = subprocess.run([sys.executable, "-c", block.text], cwd=folder, env=env,
                               capture_output=True, text=True, timeout=600)
         assert done.returncode == 0, f"{where}: {done.stderr}"
+        printed["python"] = done.stdout
         return
     code = int(marker.split()[1]) if marker.startswith("exit ") else 0
     for command, expected in commands(block):
@@ -370,23 +419,31 @@ def _run(block: Block, folder: Path) -> None:
             actual = [line.rstrip() for line in (done.stdout + done.stderr).splitlines()]
             assert output_matches(expected, actual), (
                 f"{where}: `{command}` printed\n" + "\n".join(actual)
-                + "\nbut the README shows\n" + "\n".join(expected))
+                + f"\nbut {block.page} shows\n" + "\n".join(expected))
+
+
+def run_in_order(blocks: list[Block], index: int, folder: Path, done: set[int],
+                 printed: dict[str, str]) -> None:
+    """Block ``index``, after every earlier block not yet run (a later block may use an earlier
+    one's files, as a reader following the page would); an earlier failure is reported by its
+    own test."""
+    for earlier in range(index + 1):
+        if earlier not in done:
+            done.add(earlier)
+            if earlier == index:
+                run_block(blocks[earlier], folder, printed)
+            else:
+                try:
+                    run_block(blocks[earlier], folder, printed)
+                except AssertionError:
+                    pass
 
 
 _DONE: set[int] = set()
+_PRINTED: dict[str, str] = {}
 
 
 @pytest.mark.parametrize("index", range(len(BLOCKS)), ids=[b.id for b in BLOCKS])
 def test_block(index, workdir):
-    """Block ``index``, after every earlier block (a later block may use an earlier one's
-    files, as a reader following the page would)."""
-    for earlier in range(index + 1):
-        if earlier not in _DONE:
-            _DONE.add(earlier)  # an earlier failure is reported by its own test
-            if earlier == index:
-                _run(BLOCKS[earlier], workdir)
-            else:
-                try:
-                    _run(BLOCKS[earlier], workdir)
-                except AssertionError:
-                    pass
+    """Block ``index`` of the README, after every earlier block."""
+    run_in_order(BLOCKS, index, workdir, _DONE, _PRINTED)

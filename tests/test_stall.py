@@ -21,10 +21,11 @@ import pytest
 import yaml
 from click.testing import CliRunner
 
-from crawlsim.analysis.stall import StallCause, stall
+from crawlsim.analysis.stall import StallCause
 from crawlsim.cli import main
 from crawlsim.errors import InputError
 from crawlsim.gait.document import parse_gait
+from crawlsim.study.stall import stall
 
 from .conftest import GAITS
 

@@ -305,7 +305,7 @@ def test_failed_points_are_recorded_not_fatal(tmp_path):
 def test_a_point_that_raises_does_not_sink_its_batch(monkeypatch):
     """A batch that raises is rerun point by point; the point that raises again is recorded as
     failed (an unexpected exception, named) and its neighbours keep their values."""
-    import crawlsim.integrate.batch as batch
+    import crawlsim.study.batch as batch
 
     gait = with_simulation(base(), integrator="catch-up")
     reference = sweeps.sweep(gait, [AMP])

@@ -1,4 +1,4 @@
-"""The uniqueness condition decided exactly at any N (crawlsim.model.uniqueness, docs/model.md §3).
+"""The uniqueness condition decided exactly at any N (crawlsim.gait.uniqueness, docs/model.md §3).
 
 g_J(t) = sum_{j in J} mu_j^+(t) - sum_{j not in J} mu_j^-(t) must not vanish on an interval for
 any subset J of blocks (J = all and J = none included). The tests use friction values that are
@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 from crawlsim.errors import GaitError
 from crawlsim.gait.document import gait_from_document
 from crawlsim.gait.signals import Constant, Cosine
-from crawlsim.model.uniqueness import UniquenessUndecidable, find_violation
+from crawlsim.gait.uniqueness import UniquenessUndecidable, find_violation
 
 
 def wave(n, forward=1.0, backward=2.0, **simulation):

@@ -18,7 +18,7 @@ from crawlsim.errors import GaitError
 from crawlsim.gait.docpaths import edited
 from crawlsim.gait.document import gait_from_document
 from crawlsim.gait.signals import Constant
-from crawlsim.model.uniqueness import alike_subsets, analyse
+from crawlsim.gait.uniqueness import alike_subsets, analyse
 
 SIX = {
     "blocks": 6, "period": 2.0, "stiffness": 10.0,

@@ -90,8 +90,8 @@ class History:
         step, rel = poincare_step(p, record.w[0], record.w[-1])
         self.steps.append(step)
         self.rel_steps.append(rel)
-        if p.is_crawler:
-            assert record.x is not None and p.friction is not None
+        if p.crawler is not None:
+            assert record.x is not None
             self.displacements.append(float(np.mean(record.x[-1] - record.x[0])))
             self.dissipations.append(period_dissipation(p, record))
         assert self._spill is not None

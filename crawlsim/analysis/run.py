@@ -197,6 +197,7 @@ class RunResult:
 
     @property
     def displacement_error_estimate(self) -> float | None:
+        """The error estimate of `displacement_per_period`: v0's times the period."""
         return None if self.v0_error_estimate is None else self.v0_error_estimate * self.period
 
     @property
@@ -212,6 +213,7 @@ class RunResult:
 
     @property
     def converged(self) -> bool:
+        """Whether the run reached its periodic regime (finite-time or asymptotic)."""
         return self.convergence != Convergence.NOT_CONVERGED
 
     def __repr__(self) -> str:
@@ -366,19 +368,19 @@ def _motion(process: SweepingProcess, drive: _Drive, displacements: np.ndarray,
             convergence: Convergence, rate: float | None) -> _Motion | None:
     """v0 of the limit period and the error of the period iteration: the residual of the
     verified period, or the roundoff and geometric tail of the iterates (None: no crawler)."""
-    if not process.is_crawler:
+    c = process.crawler
+    if c is None:
         return None
     final, T, G = drive.final, process.period, process.steps
-    assert final.x is not None and final.slips is not None and process.friction is not None
+    assert final.x is not None and final.slips is not None
     d_final = float(np.mean(final.x[-1] - final.x[0]))
-    roundoff = float(np.sum(np.abs(final.slips))) / process.blocks
+    roundoff = float(np.sum(np.abs(final.slips))) / c.blocks
     if drive.solution is not None:
         # the verified period is periodic to its residual |P(w) - w|: a shape mismatch of
         # |F| / k_min (a length) bounds the displacement's
         F = float(np.max(np.abs(final.w[-1] - final.w[0])))
-        assert process.stiffness is not None
         err = float((G * np.finfo(float).eps * roundoff
-                     + F / float(np.min(process.stiffness))) / T)
+                     + F / float(np.min(c.stiffness))) / T)
     else:
         err = period_iteration_error(displacements, convergence, rate, G, roundoff, T)
     return _Motion(d_final, d_final / T, period_dissipation(process, final), err)
@@ -398,7 +400,7 @@ def _reference(process: SweepingProcess, integrator: str, wanted: bool, *, max_p
                tolerance: float) -> RunResult | None | bool:
     """The exact integrator's run a catch-up run is measured against (`time_step_reference`);
     False when none is wanted (the exact integrator, or ``time_step_error`` off)."""
-    if integrator == "exact" or not wanted or not process.is_crawler:
+    if integrator == "exact" or not wanted or process.crawler is None:
         return False
     return time_step_reference(process, max_periods=max_periods, tolerance=tolerance)
 
@@ -429,12 +431,12 @@ def _energy_fields(process: SweepingProcess, final: PeriodRecord, motion: _Motio
                    error: float | None) -> dict[str, Any]:
     """The cost of transport (with loads, counting the work against them: docs/model.md §6)
     and the energy ledger of the limit period (`crawlsim.analysis.energy`)."""
-    if motion is None:
+    if motion is None or process.crawler is None:
         return {"cost_of_transport": None}
     cot = None
     if error is not None:
         paid = motion.dissipation
-        if process.load is not None:
+        if process.crawler.load is not None:
             paid += period_energy(process, final).load_work  # type: ignore[union-attr]
         cot = cost_of_transport(paid, motion.displacement, error, process.period)
     ledger = energy_ledger(process, final, motion.displacement, cot)
@@ -455,7 +457,7 @@ def _history_arrays(process: SweepingProcess, drive: _Drive) -> ConvergenceHisto
     processes)."""
     log = drive.log
     Q = len(log) - 1
-    crawler = process.is_crawler
+    crawler = process.crawler is not None
     displacement = np.array(log.displacements) if crawler else np.full(Q + 1, np.nan)
     dissipation = np.array(log.dissipations) if crawler else np.full(Q + 1, np.nan)
     return ConvergenceHistory(
@@ -582,12 +584,12 @@ def following(process: SweepingProcess, limit: PeriodRecord, last: PeriodRecord)
 def limit_period(process: SweepingProcess, final: PeriodRecord, v0: float | None) -> LimitPeriod:
     """The final period in the running frame: ``xbar(t) = xbar_0 + v0 (t - t0) + p(t)``."""
     t = process.times
-    if not process.is_crawler:
+    c = process.crawler
+    if c is None:
         return LimitPeriod(final.start, t.copy(), final.w, final.multipliers)
     assert final.x is not None and final.slips is not None and v0 is not None
-    assert process.stiffness is not None
-    shape = -final.w / process.stiffness
-    stress = final.w + process.stress_offset
+    shape = c.shape(final.w)
+    stress = c.stress(final.w)
     y0 = float(np.mean(final.x[0]))
     x_run = final.x - y0 - v0 * t[:, None]
     dx = final.slips

@@ -131,9 +131,11 @@ class SensitivityResult:
 
     @property
     def smooth(self) -> bool:
+        """True when v0 is differentiable in every parameter (no kink of the contact sequence)."""
         return all(p.smooth for p in self.parameters)
 
     def summary(self) -> dict[str, Any]:
+        """The ``sensitivity`` mapping of ``crawlsim velocity --json``: path -> its derivatives."""
         return {p.path: p.summary() for p in self.parameters}
 
 

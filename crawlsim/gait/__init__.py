@@ -3,6 +3,8 @@
     document            `load_gait`: reading a file, dispatching on its kind, listing its errors
     crawler_spec        `Gait`: the crawler's schema, its semantic checks
     crawler_limits      the limits of double precision on stiffness and stress scale
+    loads               the ``loads:`` block: forces and slopes, the shifted thresholds (§6)
+    uniqueness          the uniqueness condition, decided exactly, every violating subset listed
     uniqueness_advice   what to change when the friction violates the uniqueness condition
     process_spec        `ProcessSpec`: a generic sweeping process's schema and checks
     settings            the ``simulation:`` settings and the bounds every document shares

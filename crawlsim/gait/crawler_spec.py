@@ -6,10 +6,10 @@ check refuses something the model cannot handle, and says why: non-positive fric
 (docs/model.md §1: mu > 0), stiffness ratios too wide for a certified step in double precision
 (`crawlsim.gait.crawler_limits`), an initial state outside the admissible set C(0)
 (docs/model.md §1), and friction coefficients that violate the uniqueness condition
-(docs/model.md §3; decided exactly by `crawlsim.model.uniqueness`), under which the model does
+(docs/model.md §3; decided exactly by `crawlsim.gait.uniqueness`), under which the model does
 not determine how the crawler moves.
 
-An optional `loads:` block (`crawlsim.model.loads`, docs/model.md §6) puts forces on the blocks
+An optional `loads:` block (`crawlsim.gait.loads`, docs/model.md §6) puts forces on the blocks
 and the crawler on a slope: the friction thresholds are shifted, the body as a whole must be
 able to hold its loads, the uniqueness condition is checked on the shifted thresholds, and when
 the stress-free start is not admissible a held one is chosen.
@@ -27,6 +27,7 @@ import numpy as np
 from crawlsim.errors import GaitError
 from crawlsim.gait.crawler_limits import check_stiffness, check_stress_scale
 from crawlsim.gait.docpaths import replacement
+from crawlsim.gait.loads import LOADS_SCHEMA, Loads, held_positions, hold_violation, parse_loads
 from crawlsim.gait.schemaerrors import LARGEST
 from crawlsim.gait.settings import (
     MAX_BLOCKS,
@@ -39,11 +40,10 @@ from crawlsim.gait.settings import (
     simulation_from,
 )
 from crawlsim.gait.signals import SIGNAL_SCHEMA, Signal, evaluate_many, parse_signal, union_breakpoints
+from crawlsim.gait.uniqueness import UniquenessUndecidable, alike_subsets, analyse, find_violation
 from crawlsim.gait.uniqueness_advice import remedy_text, smallest_change, uniqueness_message
 from crawlsim.gait.units import UNITS_SCHEMA, Units
 from crawlsim.gait.validation import ErrorSink, check_units, count_error, plain, readonly, validated
-from crawlsim.model.loads import LOADS_SCHEMA, Loads, held_positions, hold_violation, parse_loads
-from crawlsim.model.uniqueness import UniquenessUndecidable, alike_subsets, analyse, find_violation
 
 _FRICTION_MAPPING = {
     "type": "object",
@@ -414,8 +414,8 @@ def uniqueness_violation(gait: Gait) -> str | None:
     For every subset J of blocks (all and none included), g_J(t) = sum_{j in J} mu_j^+(t) -
     sum_{j not in J} mu_j^-(t) must not vanish on an interval (docs/model.md §3; paper eq.
     (uniqueness)); otherwise the multipliers of the projection, which are the slips, are not
-    unique. Decided exactly for any N by `crawlsim.model.uniqueness`, which raises
-    `crawlsim.model.uniqueness.UniquenessUndecidable` where the friction is beyond its bounds.
+    unique. Decided exactly for any N by `crawlsim.gait.uniqueness`, which raises
+    `crawlsim.gait.uniqueness.UniquenessUndecidable` where the friction is beyond its bounds.
     The message lists every violating subset and the smallest change of one friction
     coefficient that restores the condition (`crawlsim.gait.uniqueness_advice`).
     """

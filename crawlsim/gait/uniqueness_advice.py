@@ -1,6 +1,6 @@
 """What to change when a gait's friction violates the uniqueness condition (docs/model.md §3).
 
-The refusal lists every violating subset J (`crawlsim.model.uniqueness.analyse`) and the
+The refusal lists every violating subset J (`crawlsim.gait.uniqueness.analyse`) and the
 smallest change of one friction coefficient of the file that restores the condition, so that a
 gait is fixed in one round.
 
@@ -30,7 +30,7 @@ import numpy as np
 
 from crawlsim.errors import GaitError
 from crawlsim.gait.signals import Signal, parse_signal
-from crawlsim.model.uniqueness import UniquenessAnalysis
+from crawlsim.gait.uniqueness import UniquenessAnalysis
 
 MAX_TRIALS = 400
 """Most candidate changes tested (each a uniqueness check of the changed friction) when every

@@ -160,6 +160,7 @@ class Units:
 
     @property
     def dimensionless(self) -> bool:
+        """True when the gait file names no unit (its quantities are pure numbers)."""
         return not self.to_json()
 
     def of(self, quantity: str) -> str:

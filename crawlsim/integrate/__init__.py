@@ -3,6 +3,6 @@
     stepping     catch-up stepping of a tabulated process
     exact        exact, event-driven integration
     limit        the periodic limit by semismooth Newton on the period map
-    batch        many crawlers stepped together
+    ledger       the exact integrator's energy ledger, integrated on its pieces
     resources    the memory a run needs, checked before it is allocated
 """

@@ -67,8 +67,8 @@ from typing import NamedTuple, cast
 
 import numpy as np
 
-from crawlsim.analysis.energy import ExactLedger
 from crawlsim.errors import CertificateError, DegenerateModelError, EventError, LicqWarning
+from crawlsim.integrate.ledger import ExactLedger
 from crawlsim.integrate.stepping import PeriodRecord, PeriodStepper, Transition, TransitionCause
 from crawlsim.kernel.kkt import RTOL, ActiveSet, ChainPolyhedron, Dependent, Polyhedron, Tolerance
 from crawlsim.model.offsets import TWO_PI, PiecewiseOffsets
@@ -522,8 +522,10 @@ class EventStepper(PeriodStepper):
         C = phi @ self.pieces.coefficients(piece_index)
         slack = poly.apply(Wg) - C
         lam = np.diff(LAMC, axis=0)
-        tol = poly.tolerance(piece.active, np.max(np.abs(C), axis=1),
-                             np.max(np.abs(Wg), axis=1), np.max(np.abs(LAMC[1:]), axis=1))
+        # sizes of the numbers summed (phi @ coef cancels on short pieces with steep offsets)
+        tol = poly.tolerance(piece.active, np.max(np.abs(phi) @ np.abs(self.pieces.coefficients(
+            piece_index)), axis=1), np.max(np.abs(piece.base) + np.abs(phi) @ np.abs(piece.Wc),
+            axis=1), np.max(np.abs(LAMC[1:]), axis=1))
         primal = np.max(slack, axis=1)
         dual = -np.min(lam, axis=1, initial=0.0)
         # slip integrals are differences of cumulative slips, which carry their own roundoff,
@@ -537,11 +539,14 @@ class EventStepper(PeriodStepper):
         bad = (primal > tol.primal) | (dual > dual_tol) | (comp > tol.primal)
         if bad.any():
             i = int(np.argmax(bad))
+            rows = np.flatnonzero((slack[i] > tol.primal[i]) | (lam[i] < -dual_tol[i]))
             raise CertificateError(
                 f"{self.process.name}: the exact trajectory failed its certificate at t = "
                 f"{times[i]:.12g}: constraint violation {primal[i]:.3g}, negative slip "
                 f"integral {dual[i]:.3g} (tolerance {float(tol.primal[i]):.3g} / "
-                f"{float(dual_tol[i]):.3g}), complementarity {comp[i]:.3g}")
+                f"{float(dual_tol[i]):.3g}), complementarity {comp[i]:.3g}; rows "
+                f"{self.process.describe_active(rows)}; active set "
+                f"{self.process.describe_active(idx)}")
         return own
 
     def _certify_jump(self, w: np.ndarray, c: np.ndarray, proj, time: float) -> None:
@@ -553,7 +558,9 @@ class EventStepper(PeriodStepper):
         cert = poly.certify(slack, proj.multipliers, proj.active, tol)
         if not cert.ok:
             raise CertificateError(f"{self.process.name}: the projection at the jump of c at "
-                                   f"t = {time:.12g} failed its certificate: {cert}")
+                                   f"t = {time:.12g} failed its certificate: {cert}; rows "
+                                   f"{self.process.describe_active(np.flatnonzero(slack > tol.primal))}"
+                                   f"; active set {self.process.describe_active(proj.active.index)}")
 
     def _verify(self, W, start):
         """``check_every_step``: Clarabel confirms every sampled state is its own projection."""

@@ -47,7 +47,6 @@ from typing import Literal
 
 import numpy as np
 
-from crawlsim.analysis.digits import how_found  # noqa: F401 - re-exported: where the solver's words belong
 from crawlsim.integrate.stepping import PeriodRecord
 from crawlsim.kernel.kkt import Dependent, Polyhedron
 from crawlsim.model.process import SweepingProcess
@@ -348,6 +347,9 @@ def _admissible(stepper, w: np.ndarray) -> np.ndarray:
     c0 = stepper.process.offsets[0]
     try:
         proj = stepper.projector.project(w, c0, time=None)
+        # a long step is certified to the roundoff of its own large multipliers; once more from
+        # its point, the residual is the point's alone, as the exact period certifies it
+        proj = stepper.projector.project(proj.point, c0, time=None, warm=proj.active)
     except Dependent:  # pragma: no cover - the projector handles dependence itself
         return w
     return proj.point

@@ -232,15 +232,16 @@ def period_rows(process: Any, record: Any, save_every: int,
     local = np.arange(first, p.steps + 1)
     global_index = record.index * p.steps + local
     sel = local[global_index % save_every == 0]
+    c = p.crawler
     reaction = None
-    if not p.is_crawler:
+    if c is None:
         reaction, carry = _reaction_rows(record.multipliers, sel, carry)
     if sel.size == 0:
         return {}, carry
     rows = {"t": record.start + p.times[sel], "w": record.w[sel]}
-    if p.is_crawler:
-        rows.update(x=record.x[sel], stress=record.w[sel] + p.stress_offset[sel],
-                    shape=-record.w[sel] / p.stiffness)
+    if c is not None:
+        rows.update(x=record.x[sel], stress=c.stress(record.w[sel], sel),
+                    shape=c.shape(record.w[sel]))
     if reaction is not None:
         rows["reaction"] = reaction
     return rows, carry
@@ -273,8 +274,9 @@ def trajectory_columns(process: Any) -> dict[str, tuple[int, ...]]:
     crawlers, x, stress and shape, for generic processes the reactions."""
     n, m = process.polyhedron.n, process.polyhedron.m
     columns: dict[str, tuple[int, ...]] = {"t": (), "w": (n,)}
-    columns.update({"x": (process.blocks,), "stress": (n,), "shape": (n,)}
-                   if process.is_crawler else {"reaction": (m,)})
+    c = process.crawler
+    columns.update({"x": (c.blocks,), "stress": (n,), "shape": (n,)}
+                   if c is not None else {"reaction": (m,)})
     return columns
 
 
@@ -409,7 +411,7 @@ class ResultsWriter:
     def _groups(self, result: Any) -> dict[str, dict[str, Any]]:
         """The values of each group, by dataset name (None: not written)."""
         p, f = self.process, self.file
-        crawler = p.is_crawler
+        c = p.crawler
         groups: dict[str, dict[str, Any]] = {
             "trajectory": dict(self._sets),
             "convergence": {name: getattr(result.history, name)
@@ -417,15 +419,15 @@ class ResultsWriter:
             "limit": {name: getattr(result.limit, name) for name in
                       ("t", "w", "multipliers", "x", "shape", "stress", "slip", "slip_rate")},
             # a crawler's B and M are of size N^2 but follow from k: store k only
-            "process": ({"stiffness": p.stiffness} if crawler
+            "process": ({"stiffness": c.stiffness} if c is not None
                         else {"normals": p.normals, "metric": p.metric}),
         }
         groups["limit"].update(step=np.arange(p.steps, dtype=np.int64), offsets=p.offsets)
-        if crawler:
-            groups["limit"].update(lengths=p.lengths, friction=p.friction, load=p.load)
+        if c is not None:
+            groups["limit"].update(lengths=c.lengths, friction=c.friction, load=c.load)
         if "events" in f:
             groups["events"] = {name: f["events"][name] for name in f["events"]}
-        if crawler and getattr(result, "actuator_work_per_period", None) is not None:
+        if c is not None and getattr(result, "actuator_work_per_period", None) is not None:
             groups["energy"] = {name: getattr(result, attr) for name, attr in _ENERGY.items()}
         return groups
 
@@ -433,7 +435,7 @@ class ResultsWriter:
         """One group: its dimension coordinates (time, period, step), then its variables with
         their dimensions and CF attributes."""
         f, scales = self.file, self._scales
-        crawler = self.process.is_crawler
+        crawler = self.process.crawler is not None
         group = f.require_group(gname) if gname in f else f.create_group(gname, track_order=True)
         table = RUN_VARIABLES[gname]
         time_dim = TIME_DIMENSIONS.get(gname)
@@ -510,21 +512,22 @@ class ResultsWriter:
         n, m = p.polyhedron.n, p.polyhedron.m
         values: dict[str, Any] = {"state": np.arange(n), "state_column": np.arange(n),
                                   "constraint": np.arange(m)}
-        if p.is_crawler:
-            N = p.blocks
+        aux: dict[str, np.ndarray] = {}
+        if p.crawler is not None:
+            N = p.crawler.blocks
             values.update(block=np.arange(1, N + 1), link=np.arange(1, N))
+            aux = {"constraint_block": np.tile(np.arange(1, N + 1), 2).astype(np.int64),
+                   "constraint_limit": np.repeat(np.array([1, -1], dtype=np.int8), N)}
         for name in ("block", "link", "state", "state_column", "constraint"):
             if name in values:
                 scales.coordinate(f, name, np.asarray(values[name], dtype=np.int64))
                 describe_var(f[name], ROOT_COORDINATES[name], "1")
-        if p.is_crawler:
-            N = p.blocks
-            aux = {"constraint_block": np.tile(np.arange(1, N + 1), 2).astype(np.int64),
-                   "constraint_limit": np.repeat(np.array([1, -1], dtype=np.int8), N)}
-            for name, data in aux.items():
-                ds = f.create_dataset(name, data=data, track_order=True)
-                scales.attach(ds, ("constraint",))
-                describe_var(ds, ROOT_COORDINATES[name], "1")
+        # the crawler's auxiliary coordinates of the constraints, after the dimensions they use
+        for name, data in aux.items():
+            ds = f.create_dataset(name, data=data, track_order=True)
+            scales.attach(ds, ("constraint",))
+            describe_var(ds, ROOT_COORDINATES[name], "1")
+        if aux:
             # xarray reads a global `coordinates` attribute as the root's auxiliary coordinates
             f.attrs["coordinates"] = "constraint_block constraint_limit"
 
@@ -545,7 +548,8 @@ class ResultsWriter:
             a[key] = np.nan if value is None else float(value)
         # the loads (docs/model.md §6): the effective document (gait_yaml) holds the whole
         # loads: block; the angle in degrees is repeated here, NaN without a slope
-        angle = self.process.slope_angle
+        c = self.process.crawler
+        angle = None if c is None else c.slope_angle
         a["slope_angle"] = np.nan if angle is None else float(angle)
         a["period"] = result.period
         a["steps_per_period"] = result.steps_per_period

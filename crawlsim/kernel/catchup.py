@@ -1,6 +1,6 @@
 """The driver of the compiled catch-up step (`crawlsim.kernel.chain`): it owns the kernel's
 arrays between periods, calls it, and turns what it reports into crawlsim's terms: the active
-sets as `crawlsim.kernel.kkt.ActiveSet` (for the periodic-limit solver), a failed certificate as a
+sets as `crawlsim.kernel.polyhedron.ActiveSet` (for the periodic-limit solver), a failed certificate as a
 `CertificateError` naming the time and the rows.
 """
 
@@ -12,7 +12,9 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from crawlsim.kernel import chain
-from crawlsim.kernel.kkt import ActiveSet, ChainPolyhedron, Dependent, Polyhedron
+from crawlsim.kernel.certificate import Dependent
+from crawlsim.kernel.chain_polyhedron import ChainPolyhedron
+from crawlsim.kernel.polyhedron import ActiveSet, Polyhedron
 
 #: What the first compilation costs (measured with an empty cache on a 2-core machine; printed
 #: so that a first run does not look hung).
@@ -151,11 +153,12 @@ class VisitedSets(Sequence):
 
 
 def velocity(polyhedron: Polyhedron, c: np.ndarray, warm: np.ndarray,
-             fixed: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float] | None:
+             fixed: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, np.ndarray] | None:
     """The exact integrator's velocity problem argmin 1/2 |v|_M^2 over {B_fixed v = c_fixed,
     B_i v <= c_i (finite c_i)} of a crawler, certified in the compiled kernel from the rows
-    ``warm`` (`chain.project`): (v, lambda, tol_p, tol_d), or None when the kernel does not
-    settle it (the caller's Python path decides, as before)."""
+    ``warm`` (`chain.project_rows`): (v, lambda, tol_p, tol_d), tol_d each row's own dual
+    tolerance (m,), the threshold above which its multiplier is positive beyond roundoff; or
+    None when the kernel does not settle it (the caller's Python path decides, as before)."""
     if not isinstance(polyhedron, ChainPolyhedron):
         return None
     announce_compilation("exact")
@@ -173,9 +176,11 @@ def velocity(polyhedron: Polyhedron, c: np.ndarray, warm: np.ndarray,
     w = np.empty(N - 1)
     lam = np.empty(2 * N)
     report = np.zeros(6)
-    status = chain.project(np.ascontiguousarray(polyhedron.stiffness, dtype=float),
-                           float(polyhedron.c_scale), np.zeros(N - 1),
-                           np.ascontiguousarray(c, dtype=float), signs, mask, w, lam, report)
+    told = np.empty(2 * N)
+    status = chain.project_rows(np.ascontiguousarray(polyhedron.stiffness, dtype=float),
+                                float(polyhedron.c_scale), np.zeros(N - 1),
+                                np.ascontiguousarray(c, dtype=float), signs, mask, w, lam, report,
+                                told)
     if status != chain.DONE:
         return None
-    return w, lam, float(report[chain.REPORT_TOLP]), float(report[chain.REPORT_TOLD])
+    return w, lam, float(report[chain.REPORT_TOLP]), told

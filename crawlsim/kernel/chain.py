@@ -1,7 +1,7 @@
 """The compiled, certified catch-up step of a crawler chain (docs/model.md §3).
 
 One step projects the trial state w_j onto K(t_{j+1}) = {w : B w <= c} in the metric M = K^{-1},
-with B = [D^T; -D^T] (`crawlsim.kernel.kkt.ChainPolyhedron`). On the saturated blocks J, with signs
+with B = [D^T; -D^T] (`crawlsim.kernel.chain_polyhedron.ChainPolyhedron`). On the saturated blocks J, with signs
 s_i = +1 (forward limit, row i) or -1 (backward limit, row N + i), the KKT system is
 
     L_JJ dx_J = f_J - f*_J,   f = D^T w_j,   f*_i = c_i (s_i = +1) or -c_{N+i} (s_i = -1),
@@ -11,7 +11,7 @@ w_{j+1} = w_j - K D dx, multipliers lambda_i = dx_i (s_i = +1), lambda_{N+i} = -
 The system is padded to all N blocks (identity rows on free blocks, no coupling across them) and
 factored by LDL^T in O(N) (the Thomas recurrence), refactored only when J changes.
 
-Every step is certified with the tolerance policy of `crawlsim.kernel.kkt.Polyhedron.solve_on` and
+Every step is certified with the tolerance policy of `crawlsim.kernel.polyhedron.Polyhedron.solve_on` and
 `certify` (one policy for every integrator): primal feasibility max(B w - c) <= tol_p, the sign
 of the multipliers -min(lambda) <= tol_d and complementarity max |(B w - c)_J| <= tol_p, where
 
@@ -20,7 +20,7 @@ of the multipliers -min(lambda) <= tol_d and complementarity max |(B w - c)_J| <
 
 with ||L_JJ^{-1}||_inf = max(L_JJ^{-1} 1) exactly (an M-matrix). A complementarity residual above
 a quarter of tol_p gets one step of iterative refinement. An uncertified step moves its active
-set by the primal-dual updates of `crawlsim.kernel.kkt.Polyhedron.refine` (drop the rows with negative
+set by the primal-dual updates of `crawlsim.kernel.polyhedron.Polyhedron.refine` (drop the rows with negative
 multipliers, add the violated rows; the worst one alone, or the exchange of Goldfarb and Idnani,
 where all at once would saturate every block). A certified KKT point of this strictly convex
 problem is the projection, so the steps agree with `crawlsim.kernel.kkt` to roundoff.
@@ -150,9 +150,11 @@ def certificate(signs, lam, slack, fixed):
 
 
 @njit(cache=True)
-def on_set(k, kmax, c_scale, w_trial, c, signs, D, l, inverse, gram, dx, w, lam, slack, f, res):
+def on_set(k, kmax, c_scale, w_trial, c, signs, D, l, inverse, gram, dx, w, lam, slack, f, res,
+           told):
     """The equality KKT system on the factored set ``signs``, with one step of iterative
-    refinement when its complementarity residual asks for it. Returns (tol_p, tol_d)."""
+    refinement when its complementarity residual asks for it. Returns (tol_p, tol_d), the
+    scalar tolerances, and leaves each row's own dual tolerance in ``told`` (`row_duals`)."""
     N = signs.shape[0]
     forces(w_trial, f)
     active = False
@@ -195,7 +197,70 @@ def on_set(k, kmax, c_scale, w_trial, c, signs, D, l, inverse, gram, dx, w, lam,
         for i in range(N):
             dx[i] += res[i]
         state(k, w_trial, dx, signs, w, lam, slack, c, f)
+    row_duals(k, kmax, c_scale, w_trial, c, signs, D, l, dx, tol_d, res, told)
     return tol_p, tol_d
+
+
+@njit(cache=True)
+def row_duals(k, kmax, c_scale, w_trial, c, signs, D, l, dx, tol_d, s, told):
+    """Each row's own dual tolerance into ``told`` (2N), from the magnitudes of the numbers its
+    multiplier is computed from (a componentwise, Skeel-type bound).
+
+    The slips solve L_JJ dx_J = r_J, r = f - f*, f = D^T w_trial. Rounding r costs
+    eps (|f| + |f*| + |w_{i-1}| + |w_i|), and f* carries the roundoff of the terms it was
+    summed from, at least the natural size of c scaled to the block's own links,
+    c_scale max(k_{i-1}, k_i) / max k (the floor of the scalar policy, localised). The LDL^T
+    of the M-matrix L_JJ is backward stable componentwise (its factors have no sign
+    cancellation, |L~| |D| |L~^T| = |L_JJ|), so the solve adds eps |L_JJ| |dx|. With
+    L_JJ^{-1} >= 0 entrywise, |L_JJ^{-1}| s = L_JJ^{-1} s and
+
+        |dx - dx*|_i <= 2 RTOL (L_JJ^{-1} s)_i,
+        s = |f| + |f*| + c_scale max(k_{i-1}, k_i) / max k + |w_{i-1}| + |w_i| + |L_JJ| |dx|,
+
+    one extra O(N) solve. On a chain whose stiffness spans decades this is orders of magnitude
+    below the scalar bound ||L_JJ^{-1}|| max s of `on_set`, which is set by the stiffest link:
+    a slip of a soft segment is then decided by its own roundoff, not the stiff one's.
+    Rows not in the set keep the scalar ``tol_d`` (their multiplier is exactly 0)."""
+    N = signs.shape[0]
+    for i in range(N):
+        if signs[i] == 0:
+            s[i] = 0.0
+            continue
+        left = k[i - 1] if i > 0 else 0.0
+        right = k[i] if i < N - 1 else 0.0
+        target = c[i] if signs[i] > 0 else -c[N + i]
+        wl = abs(w_trial[i - 1]) if i > 0 else 0.0
+        wr = abs(w_trial[i]) if i < N - 1 else 0.0
+        coupled = 0.0
+        if i > 0 and signs[i - 1] != 0:
+            coupled += left * abs(dx[i - 1])
+        if i < N - 1 and signs[i + 1] != 0:
+            coupled += right * abs(dx[i + 1])
+        floor = c_scale * max(left, right) / kmax if kmax > 0.0 else c_scale
+        s[i] = 2.0 * (wl + wr) + abs(target) + floor + (left + right) * abs(dx[i]) + coupled
+    solve(D, l, s)
+    for r in range(2 * N):
+        told[r] = tol_d
+    for i in range(N):
+        bound = 2.0 * RTOL * s[i]
+        if signs[i] > 0 and bound < tol_d:
+            told[i] = bound
+        elif signs[i] < 0 and bound < tol_d:
+            told[N + i] = bound
+
+
+@njit(cache=True)
+def dual_excess(lam, told, fixed):
+    """(-lambda_r, tol_r) of the row whose multiplier is most negative relative to its own
+    tolerance (rows ``fixed`` excluded); (0, tol) when every sign holds."""
+    worst, value, tol = 0.0, 0.0, told[0] if told.shape[0] else 0.0
+    for r in range(lam.shape[0]):
+        if fixed[r] or lam[r] >= 0.0:
+            continue
+        ratio = -lam[r] / told[r] if told[r] > 0.0 else np.inf
+        if ratio > worst:
+            worst, value, tol = ratio, -lam[r], told[r]
+    return value, tol
 
 
 @njit(cache=True)
@@ -211,8 +276,8 @@ def independent(rows, N):
 
 
 @njit(cache=True)
-def update(signs, lam, slack, tol_p, tol_d, new, fixed):
-    """The next set of a primal-dual update into ``new`` (`crawlsim.kernel.kkt.Polyhedron.update_set`,
+def update(signs, lam, slack, tol_p, told, new, fixed):
+    """The next set of a primal-dual update into ``new`` (`crawlsim.kernel.polyhedron.Polyhedron.update_set`,
     then `exchange` where the set would fail LICQ); rows ``fixed`` never leave. Returns 0 with a
     new set, 1 when nothing is to change (the certificate failed on its own numbers), 2 when
     no independent update exists (the Python projector decides)."""
@@ -227,7 +292,7 @@ def update(signs, lam, slack, tol_p, tol_d, new, fixed):
     worst_add, worst_slack = -1, -np.inf
     for r in range(2 * N):
         if member[r]:
-            if lam[r] < -tol_d and not fixed[r]:
+            if lam[r] < -told[r] and not fixed[r]:
                 change = True
                 if lam[r] < worst_lam:
                     worst_lam, worst_drop = lam[r], r
@@ -247,34 +312,42 @@ def update(signs, lam, slack, tol_p, tol_d, new, fixed):
             rows[worst_drop] = False
         else:
             rows[worst_add] = True
-        if not independent(rows, N):
-            # the exchange: the entering row r depends on the active ones only when every block
-            # would be saturated (a block at both limits has no leaving row); along the
-            # dependency z = S 1 (signs of the rows, z_r > 0) the active row of the opposite
-            # sign with the smallest multiplier leaves
-            r = -1
-            best = -np.inf
-            for q in range(2 * N):
-                if not member[q] and slack[q] > best:
-                    best, r = slack[q], q
-            block = r % N
-            if member[block] or member[N + block]:
-                return 2
-            sign_r = 1 if r < N else -1
-            leave, smallest = -1, np.inf
-            for q in range(2 * N):
-                if member[q] and not fixed[q] and (1 if q < N else -1) != sign_r:
-                    ratio = max(lam[q], 0.0)
-                    if ratio < smallest:
-                        smallest, leave = ratio, q
-            if leave < 0:
-                return 2
-            rows[:] = member
-            rows[leave] = False
-            rows[r] = True
+        if not independent(rows, N) and not exchange(member, lam, slack, fixed, rows):
+            return 2
     for i in range(N):
         new[i] = 1 if rows[i] else (-1 if rows[N + i] else 0)
     return 0
+
+
+@njit(cache=True)
+def exchange(member, lam, slack, fixed, rows):
+    """The exchange of Goldfarb and Idnani into ``rows`` (`crawlsim.kernel.polyhedron.Polyhedron.exchange`):
+    the most violated row r enters although it depends on the active ones, which happens only
+    when every block would be saturated (a block at both limits has no leaving row); along the
+    dependency z = S 1 (signs of the rows, z_r > 0) the active row of the opposite sign with
+    the smallest multiplier leaves. False when no row can."""
+    N = member.shape[0] // 2
+    r = -1
+    best = -np.inf
+    for q in range(2 * N):
+        if not member[q] and slack[q] > best:
+            best, r = slack[q], q
+    block = r % N
+    if member[block] or member[N + block]:
+        return False
+    sign_r = 1 if r < N else -1
+    leave, smallest = -1, np.inf
+    for q in range(2 * N):
+        if member[q] and not fixed[q] and (1 if q < N else -1) != sign_r:
+            ratio = max(lam[q], 0.0)
+            if ratio < smallest:
+                smallest, leave = ratio, q
+    if leave < 0:
+        return False
+    rows[:] = member
+    rows[leave] = False
+    rows[r] = True
+    return True
 
 
 @njit(cache=True)
@@ -289,12 +362,14 @@ def same(a, b):
 
 @njit(cache=True)
 def settle(k, kmax, c_scale, w_trial, c, signs, factored, D, l, norms, fixed, dx, w, lam, slack,
-           f, res, new, seen, report):
+           f, res, new, seen, report, told):
     """One certified projection of ``w_trial`` onto {B w <= c} (rows ``fixed`` as equalities)
-    from the set ``signs``, by primal-dual updates (`crawlsim.kernel.kkt.Polyhedron.refine`): DONE
+    from the set ``signs``, by primal-dual updates (`crawlsim.kernel.polyhedron.Polyhedron.refine`): DONE
     with w, lam, slack and the set in place, HANDOFF when the updates cycle, run out or find
     no independent set, FAILED when the certificate fails with nothing to change (``report``).
-    Returns (status, tol_p); the tolerances are also left in report[REPORT_TOLP:REPORT_TOLD+1]."""
+    The sign of each multiplier is held to its own row's tolerance (``told``, `row_duals`).
+    Returns (status, tol_p); the scalar tolerances are also left in
+    report[REPORT_TOLP:REPORT_TOLD+1]."""
     for it in range(UPDATE_ITERATIONS):
         for q in range(it):  # a set seen before: the updates cycle
             if same(seen[q], signs):
@@ -304,14 +379,16 @@ def settle(k, kmax, c_scale, w_trial, c, signs, factored, D, l, norms, fixed, dx
             norms[0], norms[1] = factor(k, signs, D, l)
             factored[:] = signs
         tol_p, tol_d = on_set(k, kmax, c_scale, w_trial, c, signs, D, l, norms[0], norms[1],
-                              dx, w, lam, slack, f, res)
-        primal, dual, comp = certificate(signs, lam, slack, fixed)
+                              dx, w, lam, slack, f, res, told)
+        primal, _, comp = certificate(signs, lam, slack, fixed)
+        dual, dual_tol = dual_excess(lam, told, fixed)
         report[REPORT_TOLP], report[REPORT_TOLD] = tol_p, tol_d
-        if primal <= tol_p and dual <= tol_d and comp <= tol_p:
+        if primal <= tol_p and dual <= dual_tol and comp <= tol_p:
             return DONE, tol_p
-        outcome = update(signs, lam, slack, tol_p, tol_d, new, fixed)
+        outcome = update(signs, lam, slack, tol_p, told, new, fixed)
         if outcome == 1:
             report[REPORT_PRIMAL], report[REPORT_DUAL], report[REPORT_COMP] = primal, dual, comp
+            report[REPORT_TOLD] = dual_tol
             report[REPORT_ROW] = worst_row(signs, lam, slack)
             return FAILED, tol_p
         if outcome == 2:
@@ -325,7 +402,15 @@ def project(k, c_scale, w_trial, c, signs, fixed, w, lam, report):
     """One certified projection (`settle`) for the exact integrator's velocity problems:
     w_trial = 0, c infinite on the rows to ignore, ``fixed`` the rows held with equality.
     Returns the status; w, lam, signs and report[REPORT_TOLP], report[REPORT_TOLD] hold the
-    step when it is DONE."""
+    step when it is DONE (`project_rows` also gives each row's own dual tolerance)."""
+    return project_rows(k, c_scale, w_trial, c, signs, fixed, w, lam, report,
+                        np.empty(2 * signs.shape[0]))
+
+
+@njit(cache=True)
+def project_rows(k, c_scale, w_trial, c, signs, fixed, w, lam, report, told):
+    """`project`, leaving each row's own dual tolerance in ``told`` (2N, `row_duals`): the
+    threshold above which a multiplier is positive beyond its roundoff."""
     N = signs.shape[0]
     kmax = 0.0
     for i in range(k.shape[0]):
@@ -338,7 +423,7 @@ def project(k, c_scale, w_trial, c, signs, fixed, w, lam, report):
     status, _ = settle(k, kmax, c_scale, w_trial, c, signs, factored, D, l, norms, fixed,
                        np.empty(N), w, lam, np.empty(2 * N), np.empty(N), np.empty(N),
                        np.empty(N, dtype=np.int8), np.empty((UPDATE_ITERATIONS, N), dtype=np.int8),
-                       report)
+                       report, told)
     return status
 
 
@@ -363,11 +448,12 @@ def catch_up(k, c_scale, C, W, LAM, S, signs, factored, D, l, norms, j0, report)
     new = np.empty(N, dtype=np.int8)
     seen = np.empty((UPDATE_ITERATIONS, N), dtype=np.int8)
     fixed = np.zeros(2 * N, dtype=np.bool_)
+    told = np.empty(2 * N)
     for j in range(j0, G):
         c = C[j + 1]
         w_trial = W[j]
         status, tol_p = settle(k, kmax, c_scale, w_trial, c, signs, factored, D, l, norms, fixed,
-                               dx, w, lam, slack, f, res, new, seen, report)
+                               dx, w, lam, slack, f, res, new, seen, report, told)
         if status != DONE:
             return status, j
         # every block tight to roundoff with an inactive row among them: LICQ may fail and the

@@ -26,14 +26,18 @@ a `LicqWarning`, once per set of rows, and the step goes on.
 
 from __future__ import annotations
 
+import functools
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from crawlsim.errors import CertificateError, DegenerateModelError, LicqWarning
-from crawlsim.kernel.kkt import ActiveSet, DensePolyhedron, Dependent, Polyhedron, Step
+from crawlsim.kernel.certificate import Dependent, Step
+from crawlsim.kernel.dense_polyhedron import DensePolyhedron
+from crawlsim.kernel.polyhedron import ActiveSet, Polyhedron
 
 
 @dataclass(frozen=True, eq=False)
@@ -76,7 +80,7 @@ class ExactProjector:
         self._solver = None
         self._persistent = persistent  # False rebuilds the solver every call (benchmark baseline)
         self.clarabel_calls = 0
-        self.clarabel_status = ""  # the status of the last Clarabel call (its proposal is certified)
+        self.clarabel_status: Any = None  # the last call's clarabel.SolverStatus (its proposal is certified)
         self.licq_failures: dict[tuple, tuple] = {}
 
     @classmethod
@@ -90,8 +94,7 @@ class ExactProjector:
 
     # -- Clarabel, the authority on the active set ------------------------------------------
     def _clarabel(self, w_trial, c):
-        import clarabel
-
+        """Clarabel's (z, s) for the projection with every finite row an inequality."""
         poly = self.polyhedron
         finite = np.isfinite(c)
         b = np.where(finite, c, 0.0)
@@ -101,29 +104,30 @@ class ExactProjector:
             b[~finite] = 1e6 * (reach + float(np.max(np.abs(b), initial=0.0)) + poly.c_scale)
         q = -poly.metric_times(w_trial)
         if self._solver is None or not self._persistent:
-            settings = clarabel.DefaultSettings()
-            settings.verbose = False
-            settings.presolve_enable = False
-            # Tight tolerances make the identification of the active set unambiguous; the step
-            # itself never uses Clarabel's numbers.
-            settings.tol_gap_abs = settings.tol_gap_rel = 1e-10
-            settings.tol_feas = 1e-10
+            import clarabel
+
             P, A = poly.clarabel_matrices()
-            self._solver = clarabel.DefaultSolver(
-                P, q, A, b, [clarabel.NonnegativeConeT(self.m)], settings)
+            self._solver = _solver(P, q, A, b, [clarabel.NonnegativeConeT(self.m)])
         else:
             self._solver.update(q=q, b=b)
-        solution = self._solver.solve()
-        self.clarabel_calls += 1
-        self.clarabel_status = status = str(solution.status)
-        lam, slack = np.asarray(solution.z), np.asarray(solution.s)
-        # Clarabel only proposes the active set, which the kernel then certifies: an iterate
-        # stopped early (MaxIterations on a badly scaled set) is still a proposal worth trying
-        if "Infeasible" in status or not (np.isfinite(lam).all() and np.isfinite(slack).all()):
-            raise CertificateError(
-                f"Clarabel could not solve the projection (status {status}); the set may be "
-                "empty at this time")
+        lam, slack = self._proposal(self._solver.solve(), "the projection")
         lam[~finite] = 0.0
+        return lam, slack
+
+    def _proposal(self, solution, problem: str) -> tuple[np.ndarray, np.ndarray]:
+        """The one status rule on Clarabel's answers (`clarabel.SolverStatus`). Clarabel only
+        proposes the active set, which the kernel then certifies: any finite iterate is a
+        proposal worth trying, an iterate stopped early (MaxIterations on a badly scaled set)
+        included; a problem Clarabel finds (almost) infeasible, or a non-finite iterate, is a
+        `CertificateError`."""
+        self.clarabel_calls += 1
+        self.clarabel_status = solution.status
+        lam, slack = np.asarray(solution.z, dtype=float), np.asarray(solution.s, dtype=float)
+        if solution.status in _infeasible() or not (np.isfinite(lam).all()
+                                                   and np.isfinite(slack).all()):
+            raise CertificateError(
+                f"Clarabel could not solve {problem} (status {solution.status}); the set may be "
+                "empty at this time")
         return lam, slack
 
     # -- the projection ----------------------------------------------------------------------
@@ -199,23 +203,13 @@ class ExactProjector:
         order = np.concatenate([fixed, others])
         P, A = poly.clarabel_matrices()
         A = sp.csr_matrix(A)[order].tocsc()
-        settings = clarabel.DefaultSettings()
-        settings.verbose = False
-        settings.tol_gap_abs = settings.tol_gap_rel = 1e-10
-        settings.tol_feas = 1e-10
         cones = [clarabel.ZeroConeT(len(fixed)), clarabel.NonnegativeConeT(len(others))]
-        solver = clarabel.DefaultSolver(P, -poly.metric_times(w_trial), A, c[order], cones,
-                                        settings)
-        solution = solver.solve()
-        self.clarabel_calls += 1
-        status = str(solution.status)
-        if status not in ("Solved", "AlmostSolved"):
-            raise CertificateError(f"Clarabel could not solve a velocity problem (status "
-                                   f"{status})")
+        solver = _solver(P, -poly.metric_times(w_trial), A, c[order], cones)
+        z, s = self._proposal(solver.solve(), "a velocity problem")
         lam = np.zeros(self.m)
         slack = np.full(self.m, np.inf)
-        lam[order] = np.asarray(solution.z)
-        slack[order] = np.asarray(solution.s)
+        lam[order] = z
+        slack[order] = s
         lam[fixed] = np.abs(lam[fixed]) + 1.0  # equalities: always proposed
         return lam, slack
 
@@ -269,6 +263,31 @@ class ExactProjector:
                 "where the uniqueness condition of docs/model.md §3 fails (sum of mu+ over the "
                 "forward blocks = sum of mu- over the others). Change steps_per_period so that "
                 "no grid time falls on this instant, or change the friction coefficients.")
+
+
+def _solver(P, q, A, b, cones):
+    """A Clarabel solver with crawlsim's settings: no presolve (``solver.update`` needs the
+    structure fixed) and tight tolerances, which make the identification of the active set
+    unambiguous; the step itself never uses Clarabel's numbers."""
+    import clarabel
+
+    settings = clarabel.DefaultSettings()
+    settings.verbose = False
+    settings.presolve_enable = False
+    settings.tol_gap_abs = settings.tol_gap_rel = 1e-10
+    settings.tol_feas = 1e-10
+    return clarabel.DefaultSolver(P, q, A, b, cones, settings)
+
+
+@functools.cache
+def _infeasible() -> frozenset:
+    """The statuses that refuse a proposal (built on first use: clarabel is imported only when
+    a projection needs it)."""
+    import clarabel
+
+    S = clarabel.SolverStatus
+    return frozenset({S.PrimalInfeasible, S.DualInfeasible, S.AlmostPrimalInfeasible,
+                      S.AlmostDualInfeasible})
 
 
 def _at(time) -> str:

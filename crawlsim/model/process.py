@@ -41,8 +41,9 @@ class SweepingProcess:
 
     ``crawler`` holds what is a crawler's only (`crawlsim.model.crawler.Crawler`: stiffness,
     stress, shape, block forces, stress bounds, dissipation); it is ``None`` for a generic
-    process. The read-only properties named after its fields give them, or their value without
-    a crawler (None, or a friction scale of 1).
+    process. The read-only properties ``is_crawler``, ``blocks``, ``stiffness``,
+    ``initial_positions``, ``friction``, ``lengths`` and ``load`` give its fields, or None (0
+    blocks) without a crawler, to the integrators and sensitivities that still read them there.
     """
 
     name: str
@@ -84,10 +85,6 @@ class SweepingProcess:
         return None if self.crawler is None else self.crawler.initial_positions
 
     @property
-    def stress_offset(self) -> np.ndarray | None:
-        return None if self.crawler is None else self.crawler.stress_offset
-
-    @property
     def friction(self) -> np.ndarray | None:
         return None if self.crawler is None else self.crawler.friction
 
@@ -98,18 +95,6 @@ class SweepingProcess:
     @property
     def load(self) -> np.ndarray | None:
         return None if self.crawler is None else self.crawler.load
-
-    @property
-    def friction_scale(self) -> float:
-        return 1.0 if self.crawler is None else self.crawler.friction_scale
-
-    @property
-    def load_constant(self) -> np.ndarray | None:
-        return None if self.crawler is None else self.crawler.load_constant
-
-    @property
-    def slope_angle(self) -> float | None:
-        return None if self.crawler is None else self.crawler.slope_angle
 
     @property
     def scale(self) -> float:

@@ -14,6 +14,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 from matplotlib.ticker import FixedLocator, FuncFormatter
 
+from crawlsim.model.crawler import block_forces, stress_bounds
 from crawlsim.plotting.source import need, run_name, run_period, takes_run
 from crawlsim.plotting.style import (
     REFERENCE,
@@ -59,36 +60,6 @@ def slip_runs(slip: np.ndarray, t: np.ndarray) -> list[tuple[int, float, float]]
     starts = np.concatenate([[0], cuts])
     ends = np.concatenate([cuts, [len(slip)]])
     return [(int(slip[a]), float(t[a]), float(t[b])) for a, b in zip(starts, ends)]
-
-
-def stress_bounds(friction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The range of each link stress sigma_i over the admissible set C(t), (G+1, N-1) each.
-
-    With f = D^T sigma we have sigma_i = -(f_1 + ... + f_i) = f_{i+1} + ... + f_N (the forces sum
-    to zero), and the f_j range independently over [-mu_j^-, mu_j^+]. So sigma_i ranges exactly
-    over
-
-        [ -min(sum_{j<=i} mu_j^+, sum_{j>i} mu_j^-),  min(sum_{j<=i} mu_j^-, sum_{j>i} mu_j^+) ]:
-
-    a link in compression sigma_i > 0 pushes the blocks behind it backward and those ahead
-    forward, and it reaches its bound when one of the two groups slips as a whole. These are
-    necessary limits for a stress; the exact ones are the block limits of `gait_figure`.
-    """
-    friction = np.asarray(friction, dtype=float)
-    N = friction.shape[1] // 2
-    plus, minus = friction[:, :N], friction[:, N:]
-    behind_plus, behind_minus = np.cumsum(plus, axis=1)[:, :-1], np.cumsum(minus, axis=1)[:, :-1]
-    ahead_plus = plus.sum(axis=1, keepdims=True) - behind_plus
-    ahead_minus = minus.sum(axis=1, keepdims=True) - behind_minus
-    return -np.minimum(behind_plus, ahead_minus), np.minimum(behind_minus, ahead_plus)
-
-
-def block_forces(stress: np.ndarray) -> np.ndarray:
-    """Net elastic force on each block, f = D^T sigma: f_j = sigma_{j-1} - sigma_j (docs/model.md §1),
-    with sigma_0 = sigma_N = 0. Shape (G+1, N)."""
-    stress = np.asarray(stress, dtype=float)
-    padded = np.pad(stress, ((0, 0), (1, 1)))
-    return padded[:, :-1] - padded[:, 1:]
 
 
 def relative_stress(sigma: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:

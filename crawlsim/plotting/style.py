@@ -28,7 +28,6 @@ Labels
 
 from __future__ import annotations
 
-import json
 from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass
@@ -43,7 +42,7 @@ from matplotlib import cycler  # type: ignore[attr-defined]
 from matplotlib.colors import to_hex
 from matplotlib.figure import Figure
 
-from crawlsim.gait.units import BASES, Units
+from crawlsim.gait.units import Units
 
 #: Okabe-Ito palette, in the order that puts the most distinct colours first.
 OKABE_ITO = {
@@ -263,23 +262,6 @@ DIMENSIONS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
 }
 
 
-def parse_units(value) -> Units:
-    """The units of a ``units_json`` attribute (a JSON object), a ``units:`` mapping, or None.
-
-    Anything that is not a mapping of non-blank strings gives no units: a figure is never
-    refused for its labels (the gait file's units were checked when it was read).
-    """
-    if isinstance(value, (bytes, str)):
-        try:
-            value = json.loads(value)
-        except ValueError:
-            return Units()
-    if not isinstance(value, dict):
-        return Units()
-    return Units.from_block({k: str(value[k]) for k in BASES
-                             if isinstance(value.get(k), str) and value[k].strip()})
-
-
 def units_of(data: dict) -> Units:
     """The units of a results dict (`crawlsim.io.hdf5.read_results`) or a sweep dict
     (`crawlsim.io.hdf5.read_sweep`): the ``units_json`` attribute when the file has it, else the
@@ -287,7 +269,7 @@ def units_of(data: dict) -> Units:
     attrs = data.get("attrs") or {}
     for holder in (attrs, data):
         if holder.get("units_json"):
-            return parse_units(holder["units_json"])
+            return Units.parse(holder["units_json"])
     text = attrs.get("gait_yaml", data.get("gait_yaml"))
     if isinstance(text, str) and "units" in text:
         import yaml
@@ -297,7 +279,7 @@ def units_of(data: dict) -> Units:
         except yaml.YAMLError:
             return Units()
         if isinstance(document, dict):
-            return parse_units(document.get("units"))
+            return Units.parse(document.get("units"))
     return Units()
 
 

@@ -24,7 +24,7 @@ TASK_SECONDS = 2.0
 #: How long to wait for a Dask scheduler before giving up (exit code 2).
 SCHEDULER_TIMEOUT = "20s"
 #: Modules a fresh local worker imports before its first task.
-_PRELOAD = ["crawlsim.study.points", "crawlsim.integrate.batch"]
+_PRELOAD = ["crawlsim.study.points", "crawlsim.study.batch"]
 
 
 class Chunker:

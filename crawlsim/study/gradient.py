@@ -63,7 +63,7 @@ def optimize_gradient(gait: Gait, free: Sequence[tuple[str, float, float]], *,
     from scipy.optimize import minimize
 
     from crawlsim.analysis.sensitivity import sensitivity
-    from crawlsim.api import run
+    from crawlsim.study.simulation import run
 
     paths = [f[0] for f in free]
     lo = np.array([f[1] for f in free], dtype=float)

@@ -39,7 +39,6 @@ from pathlib import Path
 import numpy as np
 
 from crawlsim.analysis.run import RunResult
-from crawlsim.api import run
 from crawlsim.gait.document import (
     Gait,
     ProcessSpec,
@@ -50,6 +49,7 @@ from crawlsim.gait.document import (
 )
 from crawlsim.integrate.stepping import STEPPERS, make_stepper
 from crawlsim.model.process import compile
+from crawlsim.study.simulation import run
 
 #: Where the paper's example files live: ``gaits/paper`` of the repository, relative to the
 #: working directory (``scripts/reproduce-paper.sh`` runs from the repository's root).

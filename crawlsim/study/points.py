@@ -2,7 +2,7 @@
 periodic regime, one `PointResult` (a row of the sweep table) per point.
 
 Exact points run one by one through the periodic-limit solver (no history); catch-up points go
-through the batched stepper (`crawlsim.integrate.batch`), for at most `BATCH_PLAIN_PERIODS`
+through the batched stepper (`crawlsim.study.batch`), for at most `BATCH_PLAIN_PERIODS`
 periods when the gait's limit method is ``newton`` (the periodic-limit solver then finishes
 those that have not converged, one by one). One point never stops the others: it is recorded
 ``invalid`` (an `InputError`, exit code 2 for a single run) or ``failed``, with its reason.
@@ -198,7 +198,7 @@ def _run_batch(members: list[_Member], single: list[_Member], out: dict[int, Poi
                capacity, tick) -> None:
     """Catch-up points through the batched stepper; a ``newton`` point not converged within
     `BATCH_PLAIN_PERIODS` goes to ``single`` (the periodic-limit solver finishes it)."""
-    from crawlsim.integrate.batch import DEFAULT_CAPACITY, simulate_batch
+    from crawlsim.study.batch import DEFAULT_CAPACITY, simulate_batch
 
     newton = [g.simulation.limit == "newton" for _, _, g in members]
     runs = simulate_batch(

@@ -1,0 +1,102 @@
+"""A generic polyhedral sweeping process (docs/model.md §5): dense B and M, Cholesky of
+G_A = B_A M^{-1} B_A^T, and LICQ decided by the conditioning of G_A (`GENERIC_RCOND`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from crawlsim.kernel.certificate import GENERIC_RCOND, Dependent
+from crawlsim.kernel.polyhedron import ActiveSet, Polyhedron
+
+
+class _DenseSet(ActiveSet):
+    def __init__(self, poly: DensePolyhedron, index: np.ndarray):
+        self.index = index
+        if len(index) > poly.n:
+            raise Dependent(index)
+        G = poly.normals[index] @ poly.minv_bt[:, index]
+        s = np.linalg.svd(G, compute_uv=False)
+        if not s[-1] > GENERIC_RCOND * s[0]:
+            raise Dependent(index)
+        self._chol = np.linalg.cholesky(G)
+        self.inverse_norm = float(math.sqrt(len(index)) / s[-1])
+        self.gram_norm = float(np.max(np.sum(np.abs(G), axis=1)))
+
+    def solve(self, R):
+        from scipy.linalg import cho_solve
+
+        R = np.asarray(R, dtype=float)
+        flat = R.reshape(-1, self.size).T
+        return cho_solve((self._chol, True), flat).T.reshape(R.shape)
+
+
+class DensePolyhedron(Polyhedron):
+    """A generic polyhedral sweeping process: dense normals B (m, n) and metric M (n, n)."""
+
+    def __init__(self, normals, metric, c_scale: float):
+        super().__init__()
+        self.normals = np.ascontiguousarray(normals, dtype=float)
+        self.metric = np.ascontiguousarray(metric, dtype=float)
+        self.m, self.n = self.normals.shape
+        self.metric_inv = np.linalg.inv(self.metric)  # n x n, once: a constant of the problem
+        self.minv_bt = self.metric_inv @ self.normals.T
+        self.row_norm = float(np.max(np.sum(np.abs(self.normals), axis=1), initial=1.0))
+        self.response_norm = float(np.max(np.sum(np.abs(self.minv_bt), axis=1), initial=1.0))
+        self.c_scale = c_scale if c_scale > 0 else 1.0
+
+    def apply(self, W):
+        return np.asarray(W, dtype=float) @ self.normals.T
+
+    def respond(self, LAM):
+        return np.asarray(LAM, dtype=float) @ self.minv_bt.T
+
+    def licq(self, index) -> bool:
+        index = np.asarray(index, dtype=int)
+        if len(index) == 0:
+            return True
+        if len(index) > self.n:
+            return False
+        G = self.normals[index] @ self.minv_bt[:, index]
+        s = np.linalg.svd(G, compute_uv=False)
+        return bool(s[-1] > GENERIC_RCOND * s[0])
+
+    def _factor(self, index):
+        return _DenseSet(self, index)
+
+    def _numbers(self, size: int) -> int:
+        return size * size + 8
+
+    def metric_times(self, w):
+        return np.asarray(w, dtype=float) @ self.metric.T
+
+    def metric_solve(self, v):
+        return np.asarray(v, dtype=float) @ self.metric_inv.T
+
+    def metric_root(self, v):
+        return np.asarray(v, dtype=float) @ self._root  # rows v -> (L^T v)^T = v^T L
+
+    def metric_root_transpose(self, v):
+        return np.asarray(v, dtype=float) @ self._root.T
+
+    @property
+    def _root(self) -> np.ndarray:
+        """L with M = L L^T (Cholesky)."""
+        cached = getattr(self, "_root_cache", None)
+        if cached is None:
+            cached = np.linalg.cholesky(self.metric)
+            self._root_cache = cached
+        return cached
+
+    def dense_normals(self):
+        return self.normals
+
+    def dense_metric(self):
+        return self.metric
+
+    def clarabel_matrices(self):
+        import scipy.sparse as sp
+
+        return sp.csc_matrix(np.triu(self.metric)), sp.csc_matrix(self.normals)
