@@ -107,22 +107,3 @@ def unit(units: Any, kind: str, path: str) -> str:
                  for b in set(velocity) | set(below)}
     return str(units.compose(exponents))
 
-
-def variables(cols: Mapping[str, Any], units: Any, kind: str,
-              taken: Sequence[str]) -> list[tuple[str, str, str, str]]:
-    """(column, dataset name, units, long_name) of each derivative column of a sweep file: the
-    name netCDF-safe (``dv0_dlinks_1_phase``), the path itself in the attribute ``path``."""
-    from crawlsim.io.sweepfile import axis_name
-
-    out = []
-    names = list(taken)
-    for column in cols:
-        if not column.startswith(PREFIX):
-            continue
-        path = column[len(PREFIX):]
-        name = axis_name("dv0_d" + path.replace(".", "_"), names)
-        names.append(name)
-        out.append((column, name, unit(units, kind, path),
-                    f"derivative of v0 with respect to {path} (NaN where not smooth or not "
-                    "computed)"))
-    return out

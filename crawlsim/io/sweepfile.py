@@ -270,11 +270,9 @@ def _write_derivatives(f: h5py.File, scales: Scales, layout: _SweepLayout,
                        columns: Mapping[str, Any]) -> None:
     """The dv0/dPATH columns of ``--sensitivity`` (`crawlsim.analysis.sensitivity_sweep`), on
     the grid and in the table, with the units of v0 over PATH; the column in ``column``."""
-    from crawlsim.analysis.sensitivity_sweep import variables
-
     shape, dim_names = layout.shape, layout.dim_names
-    for column, name, unit, long_name in variables(columns, layout.units, layout.kind,
-                                                   [*layout.names, *SWEEP_VARIABLES]):
+    for column, name, unit, long_name in _derivative_variables(
+            columns, layout.units, layout.kind, [*layout.names, *SWEEP_VARIABLES]):
         values = np.asarray(columns[column], dtype=float)
         data = np.full(math.prod(shape), np.nan)
         data[layout.points] = values
@@ -284,6 +282,26 @@ def _write_derivatives(f: h5py.File, scales: Scales, layout: _SweepLayout,
             scales.attach(ds, dims)
             describe_var(ds, Var(tuple(dims), long_name, "1"), unit)
             ds.attrs["column"] = column
+
+
+def _derivative_variables(cols: Mapping[str, Any], units: Units, kind: str,
+                          taken: Sequence[str]) -> list[tuple[str, str, str, str]]:
+    """(column, dataset name, units, long_name) of each derivative column of a sweep file: the
+    name netCDF-safe (``dv0_dlinks_1_phase``), the column itself in the attribute ``column``."""
+    from crawlsim.analysis.sensitivity_sweep import PREFIX, unit
+
+    out = []
+    names = list(taken)
+    for column in cols:
+        if not column.startswith(PREFIX):
+            continue
+        path = column[len(PREFIX):]
+        name = axis_name("dv0_d" + path.replace(".", "_"), names)
+        names.append(name)
+        out.append((column, name, unit(units, kind, path),
+                    f"derivative of v0 with respect to {path} (NaN where not smooth or not "
+                    "computed)"))
+    return out
 
 
 def worded(var: Var, name: str) -> Var:
