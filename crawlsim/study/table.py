@@ -83,6 +83,9 @@ class SweepTable:
         for k, name in enumerate(self.quantities):
             cols[name] = np.array([np.nan if not r.extra or r.extra[k] is None else r.extra[k]
                                    for r in self.rows], float)
+        from crawlsim.analysis import sensitivity_sweep
+
+        cols.update(sensitivity_sweep.columns(self.rows))
         return cols
 
     def counts(self) -> dict[str, int]:
@@ -104,13 +107,18 @@ class SweepTable:
         """The table as ``crawlsim velocity --sweep`` prints it: CSV, one row per point."""
         buf = io.StringIO()
         writer = csv.writer(buf, lineterminator="\n")
-        writer.writerow(list(self.paths) + list(RESULT_COLUMNS) + list(self.quantities))
+        from crawlsim.analysis.sensitivity_sweep import columns
+
+        derivatives = columns(self.rows)
+        writer.writerow(list(self.paths) + list(RESULT_COLUMNS) + list(self.quantities)
+                        + list(derivatives))
         coords = self.coordinates()
         for n, r in enumerate(self.rows):
             extra = r.extra or (None,) * len(self.quantities)
             writer.writerow([_cell(c[n]) for c in coords]
                             + [_cell(getattr(r, name)) for name in RESULT_COLUMNS]
-                            + [_cell(v) for v in extra])
+                            + [_cell(v) for v in extra]
+                            + [_cell(d[n]) for d in derivatives.values()])
         return buf.getvalue()
 
 
@@ -152,7 +160,9 @@ def table_payload(table: SweepTable) -> dict:
 
 def read_table(path) -> SweepTable:
     """A sweep HDF5 file (complete or a shard) back as a `SweepTable`. Files written before the
-    `LATER_COLUMNS` existed read with those columns missing (NaN, "")."""
+    `LATER_COLUMNS` existed read with those columns missing (NaN, ""); the dv0/dPATH columns
+    of ``--sensitivity`` come back as the rows' ``derivatives``."""
+    from crawlsim.analysis.sensitivity_sweep import row_derivatives
     from crawlsim.io import hdf5 as h5io
 
     data = h5io.read_sweep(path)
@@ -177,7 +187,8 @@ def read_table(path) -> SweepTable:
             message=str(cols["message"][n]), steps=int(data["steps"][n]),
             limit=str(cols["limit"][n]) if "limit" in cols else "",
             newton_steps=(int(cols["newton_steps"][n])
-                          if "newton_steps" in cols and cols["newton_steps"][n] >= 0 else None)))
+                          if "newton_steps" in cols and cols["newton_steps"][n] >= 0 else None),
+            derivatives=row_derivatives(cols, n)))
     shard = parse_shard(data["shard"]) if data["shard"] else None
     dims = data.get("dimensions")
     return SweepTable(tuple(data["paths"]), tuple(data["axes"]), np.asarray(data["points"]),
