@@ -54,7 +54,8 @@ def sweep(gait: Spec | str | Path | SweepGrid, axes: Mapping[str, Iterable[float
           integrator: str | None = None, steps_per_period: int | None = None,
           max_periods: int | None = None, tolerance: float | None = None,
           output: str | Path | None = None,
-          progress: Callable[[int], None] | None = None) -> xarray.Dataset | SweepTable:
+          progress: Callable[[int], None] | None = None,
+          sensitivity: Sequence[str] = ()) -> xarray.Dataset | SweepTable:
     """v0 over the Cartesian grid of ``axes`` (``{"links.*.amplitude": [0.1, 0.2], ...}``: the
     dotted paths of ``--sweep``, in grid order, the last varying fastest).
 
@@ -66,12 +67,14 @@ def sweep(gait: Spec | str | Path | SweepGrid, axes: Mapping[str, Iterable[float
     the `crawlsim.study.sweep.SweepTable` instead. ``output`` also writes the sweep file (.h5) or CSV
     table. Settings given override the gait's ``simulation`` block. ``gait`` may also be a
     grid already made (`crawlsim.study.grid.make_grid`: linked paths, extra columns), swept as
-    it is (no ``axes``, no settings).
+    it is (no ``axes``, no settings). ``sensitivity``: dotted paths (with ``*``) whose
+    ``dv0/dPATH`` are added at every point, with units (`crawlsim.analysis.sensitivity_sweep`).
     """
     from crawlsim.study import sweep as sweeps
 
     if isinstance(gait, sweeps.SweepGrid):
-        table = sweeps.sweep(gait, output=output, jobs=jobs, progress=progress)
+        table = sweeps.sweep(gait, output=output, jobs=jobs, progress=progress,
+                             sensitivity=sensitivity)
         return _sweep_dataset(table)
     spec = _with_settings(_as_spec(gait), integrator=integrator,
                           steps_per_period=steps_per_period, max_periods=max_periods,
@@ -85,9 +88,11 @@ def sweep(gait: Spec | str | Path | SweepGrid, axes: Mapping[str, Iterable[float
                                                             for a in axis_list},
                                    jobs=jobs if jobs != 1 else None, integrator=integrator,
                                    steps_per_period=steps_per_period, max_periods=max_periods,
-                                   tolerance=tolerance, output=output)
+                                   tolerance=tolerance, output=output,
+                                   sensitivity=list(sensitivity) or None)
     with _provenance.recording(call):
-        table = sweeps.sweep(spec, axis_list, output=output, jobs=jobs, progress=progress)
+        table = sweeps.sweep(spec, axis_list, output=output, jobs=jobs, progress=progress,
+                             sensitivity=sensitivity)
         return _sweep_dataset(table)
 
 
@@ -154,14 +159,15 @@ def sensitivity(gait: Spec | str | Path, paths: Sequence[str] | str, *,
                 one_sided: bool = True) -> SensitivityResult:
     """The exact derivatives of v0, of the displacement and dissipation per period and of the
     cost of transport with respect to the numbers ``paths`` name in ``gait`` (dotted paths with
-    ``*`` as in ``--sweep``; each ``*`` expands to one parameter per element), at the exact
-    integrator's verified periodic limit (docs/sensitivity.md).
+    ``*`` as in ``--sweep``; each ``*`` expands to one parameter per element), at the verified
+    periodic limit of the gait's integrator: the exact integrator's, or the catch-up scheme's own
+    discrete map's (``method: catch-up``; docs/sensitivity.md).
 
         r = crawlsim.sensitivity(gait, ["links.*.phase", "stiffness"])
         r["links.1.phase"].v0.value, r["links.1.phase"].v0.error_estimate, r.summary()
 
     Where v0 has a kink or a jump, a parameter's ``smooth`` is False, ``v0.value`` is None and
-    ``left`` / ``right`` hold one-sided derivatives measured with the exact integrator
+    ``left`` / ``right`` hold one-sided derivatives measured with the same integrator
     (``one_sided=False`` skips them).
     """
     from crawlsim.analysis.sensitivity import sensitivity as _sensitivity

@@ -27,17 +27,21 @@ measured before the compiled kernel by it (bar: >= 30):
 The exact integrator's period against the reference (exact/ref, bar <= 3), medians of three runs
 of this script on a 2-core machine shared with other jobs (load 9-13):
 
-    wave       N    before (b994998, wall)   compiled event loop (wall / --clock cpu)
-    segments   4          67.7                     3.3 / 3.7
-    segments  16          55.0                     2.6 / 2.4
-    segments  64          57.0                    13.9 / 3.3   (wall runs 23.8, 13.9, 1.4: preempted)
-    segments 256          29.1                     4.1 / 4.5
-    segments 1024         10.0                     4.0 / 3.8
-    body       4          62.3                     3.6 / 3.3
-    body      16          64.4                     2.4 / 2.5
-    body      64           9.4                     1.3 / 1.3
-    body     256           3.3                     1.3 / 1.3
-    body    1024           5.6                     1.1 / 1.0
+    wave       N    before (b994998, wall)   compiled event loop (wall / --clock cpu)   now (cpu)
+    segments   4          67.7                     3.3 / 3.7                              3.1
+    segments  16          55.0                     2.6 / 2.4                              1.8
+    segments  64          57.0                    13.9 / 3.3   (wall: preempted)          2.5
+    segments 256          29.1                     4.1 / 4.5                              3.5
+    segments 1024         10.0                     4.0 / 3.8                              3.2
+    body       4          62.3                     3.6 / 3.3                              3.0
+    body      16          64.4                     2.4 / 2.5                              2.2
+    body      64           9.4                     1.3 / 1.3                              1.0
+    body     256           3.3                     1.3 / 1.3                              0.9
+    body    1024           5.6                     1.1 / 1.0                              0.9
+
+"now": the record's slips and positions in one compiled pass, the closed-form crossings only
+for rows that can cross before the earliest event so far, contiguous phi @ coef, the energy
+terms of the slipping blocks only (medians of three runs, load 2-5).
 
 Before the kernel (commit 3423cad, 2-core machine shared with other jobs): 3.29, 3.21, 3.04 s,
 median 3.21 s (37 points/s). The catch-up step on the segments wave at 1000 steps per period was

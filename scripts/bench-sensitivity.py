@@ -1,16 +1,18 @@
 #!/usr/bin/env python
-"""Benchmark: the cost of exact sensitivities against v0 alone, measured in one run.
+"""Benchmark: the cost of ``crawlsim velocity GAIT --sensitivity ...`` against ``crawlsim velocity
+GAIT`` alone, for p = 1, 2, 5 and 10 parameters, measured in one run (issue 22's bar: a ratio of
+at most 1 + 0.2 p).
 
-For each gait and each number of parameters p, prints the median wall time of
-``crawlsim.api.run(gait, history=False)`` (what ``crawlsim velocity GAIT`` computes), of
-``crawlsim.sensitivity(gait, paths)`` with p parameters (its own verified limit included), their
-ratio, and the bar 1 + 0.2 p of issue 22; the two are interleaved, repeat by repeat, so that a
-change of load on the machine hits both alike. The tangents of all p parameters are carried
-together through one walk along the limit period, so the ratio grows slowly with p; each parameter costs
-one validated copy of the gait (its coefficients' derivative).
+``velocity`` alone is ``crawlsim.api.run(gait, history=False)``; with ``--sensitivity`` the
+command runs the same and then ``crawlsim.analysis.sensitivity.sensitivity(gait, paths, run=result)``,
+which walks the run's own limit period once with p + n tangent columns and solves (I - dP/dw)
+for the p right-hand sides together: the limit is not searched again, and no parameter costs a
+run. The two are interleaved, repeat by repeat, so that a change of load on the machine hits
+both alike; the ratio printed is the median of the repeats' ratios (each repeat's pair run
+back to back), beside the median times.
 
-    python scripts/bench-sensitivity.py              # about a minute
-    python scripts/bench-sensitivity.py --repeats 3
+    python scripts/bench-sensitivity.py              # a minute or two
+    python scripts/bench-sensitivity.py --repeats 21
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from pathlib import Path
 
 import crawlsim
 from crawlsim import api
+from crawlsim.analysis.sensitivity import sensitivity
 from crawlsim.gait.document import gait_from_document
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -39,41 +42,43 @@ def wave(blocks: int) -> crawlsim.Gait:
     return gait
 
 
-def median_time(call, repeats: int) -> float:
-    times = []
-    for _ in range(repeats):
-        began = time.perf_counter()
-        call()
-        times.append(time.perf_counter() - began)
-    return statistics.median(times)
+def cases() -> list[tuple[crawlsim.Gait, dict[int, list[str]]]]:
+    """(gait, {p: paths naming p numbers}) for p = 1, 2, 5, 10."""
+    peristalsis = crawlsim.load_gait(ROOT / "gaits" / "peristalsis-4.yaml")
+    assert isinstance(peristalsis, crawlsim.Gait)
+    catch_up = peristalsis.replace("simulation.integrator", "catch-up")
+    four = {1: ["links.1.phase"], 2: ["links.1.phase", "links.2.phase"],
+            5: ["links.*.phase", "links.0.amplitude", "links.1.amplitude"],
+            10: ["links.*.phase", "links.*.amplitude", "links.*.mean", "stiffness"]}
+    eleven = {1: ["links.1.phase"], 2: ["links.1.phase", "links.2.phase"],
+              5: [f"links.{i}.phase" for i in range(5)], 10: ["links.*.phase"]}
+    return [(peristalsis, four), (wave(11), eleven), (catch_up, four)]
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
-    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--repeats", type=int, default=9)
     args = parser.parse_args()
-    peristalsis = crawlsim.load_gait(ROOT / "gaits" / "peristalsis-4.yaml")
-    assert isinstance(peristalsis, crawlsim.Gait)
-    cases = [(peristalsis, ["links.1.phase"], ["links.*.phase", "links.*.amplitude"],
-              ["links.*.phase", "links.*.amplitude", "links.*.mean", "stiffness",
-               "friction.forward", "friction.backward"]),
-             (wave(11), ["links.1.phase"], ["links.*.phase"],
-              ["links.*.phase", "links.*.amplitude"])]
-    print(f"{'gait':16s} {'p':>3s} {'v0 alone':>10s} {'sensitivity':>12s} {'ratio':>7s} "
-          f"{'bar':>6s}")
-    for gait, *path_sets in cases:
-        for paths in path_sets:
-            result = crawlsim.api.sensitivity(gait, paths)
-            p = len(result.parameters)
-            # interleaved, so that a change of load on the machine hits both alike
-            base, sens = [], []
-            for _ in range(args.repeats):
-                base.append(median_time(lambda g=gait: api.run(g, history=False), 1))
-                sens.append(median_time(lambda g=gait, ps=paths: crawlsim.api.sensitivity(g, ps),
-                                        1))
-            b, t = statistics.median(base), statistics.median(sens)
-            print(f"{gait.name:16s} {p:3d} {b:9.4f}s {t:11.4f}s {t / b:7.2f} "
-                  f"{1 + 0.2 * p:6.1f}")
+    print(f"{'gait':16s} {'integrator':10s} {'p':>3s} {'velocity':>10s} {'--sensitivity':>14s} "
+          f"{'ratio':>7s} {'bar':>5s}")
+    for gait, path_sets in cases():
+        for p, paths in path_sets.items():
+            result = api.run(gait, history=False)  # warm (and the count of parameters)
+            got = len(sensitivity(gait, paths, run=result).parameters)
+            assert got == p, (gait.name, paths, got)
+            alone, both = [], []
+            for _ in range(args.repeats):  # interleaved
+                began = time.perf_counter()
+                api.run(gait, history=False)
+                alone.append(time.perf_counter() - began)
+                began = time.perf_counter()
+                result = api.run(gait, history=False)
+                sensitivity(gait, paths, run=result)
+                both.append(time.perf_counter() - began)
+            a, b = statistics.median(alone), statistics.median(both)
+            ratio = statistics.median(y / x for x, y in zip(alone, both))
+            print(f"{gait.name:16s} {gait.simulation.integrator:10s} {p:3d} {a:9.4f}s "
+                  f"{b:13.4f}s {ratio:7.2f} {1 + 0.2 * p:5.1f}")
     return 0
 
 

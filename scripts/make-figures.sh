@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Render one of each crawlsim figure from the example gaits into docs/figures/ (small PNGs that
-# the README and docs/figures.md show). Run from anywhere: scripts/make-figures.sh
+# docs/figures.md shows; the README shows peristalsis-4-motion.png). Run from anywhere: scripts/make-figures.sh
 set -euo pipefail
 
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"

@@ -10,7 +10,7 @@ brute-force grid, then the phase lags and the amplitude for v0 and for the cost 
 2. **--jobs**: one optimisation with 1 and with 2 local workers, in one run, as a ratio.
 3. **Three parameters**: the lags and ``links.*.amplitude`` in [0.1, 0.4], maximising v0; then
    minimising the cost of transport subject to v0 >= 0.3.
-4. **Figures** for the README and docs/optimize.md, through the command line as a user draws
+4. **Figures** for docs/optimize.md, through the command line as a user draws
    them (`crawlsim optimize ... -o X.h5`, `crawlsim plot X.h5 -o docs/figures`): the convergence
    of the three-parameter v0 search, and the Pareto front of v0 against the cost of transport
    over the same three parameters (``--pareto``).

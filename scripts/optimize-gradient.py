@@ -3,7 +3,7 @@
 quasi-Newton runs on the exact sensitivities, `crawlsim.study.descent`) against the evolution
 search (differential evolution + pattern search), measured in one run.
 
-1. **The README's two-lag example**: maximise v0 of gaits/peristalsis-4.yaml over
+1. **docs/optimize.md's two-lag example**: maximise v0 of gaits/peristalsis-4.yaml over
    ``links.1.phase`` and ``links.2.phase`` in [0, 1] (exact integrator, 20 output steps). For
    each method: the best v0, the evaluation at which the best v0 first came within 1e-6 of the
    known optimum 7/15 (phases (1/2, 0)), the evaluations the method spent in all, and its wall

@@ -175,7 +175,7 @@ def test_generic_processes_run_through_the_same_api():
 # -- sweep ----------------------------------------------------------------------------------------
 def test_sweep_returns_a_dataset_on_the_grid():
     """v0 on the grid equals single runs of the same gaits (the batched stepper agrees with
-    single runs to 1e-12, README Scale)."""
+    single runs to 1e-12, docs/sweeps.md#scale)."""
     pytest.importorskip("xarray")
     pytest.importorskip("h5netcdf")
     gait = crawlsim.load_gait(P4)

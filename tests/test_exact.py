@@ -231,6 +231,31 @@ def test_tangential_contact_of_a_fourier_offset_between_samples():
         assert np.sum(rec.multipliers) == pytest.approx(d, abs=1e-15)
 
 
+def test_sampled_crossing_survives_a_bracket_the_scalar_rounds_differently(monkeypatch):
+    """f = -cos 2 pi u (a two-harmonic basis) crosses t just below the sample F[k+1] > t; if
+    the scalar evaluation of f rounds below t at that sample (emulated by lowering it by
+    delta), the bracket [s_k, s_{k+1}] has no sign change: the crossing is taken at its end
+    and the zero reported is still the root of the scalar f, -cos 2 pi u = delta, not a brentq
+    error."""
+    from crawlsim.model.offsets import Basis
+
+    offset = {"kind": "fourier", "mean": 1.0, "cos": [0.25, 0.125]}
+    stepper = EventStepper(generic([[1.0]], [[1.0]], [offset], [0.0]))
+    b = stepper.basis
+    Z = np.zeros((b.size, 1))
+    Z[b.first_harmonic, 0] = -1.0
+    cells = max(4, int(math.ceil(stepper.cells_per_cycle * max(b.harmonics, 1))))
+    s = np.linspace(0.0, 1.0, cells + 1)
+    k = int(np.searchsorted(s, 1 / 3)) - 1  # the cell of the crossing of t ~ 1/2
+    delta = 2e-3
+    tol = np.array([-math.cos(2 * math.pi * s[k + 1]) - delta / 2])
+    exact_scalar = Basis.scalar
+    monkeypatch.setattr(Basis, "scalar", lambda self, x, coef: exact_scalar(self, x, coef) - delta)
+    assert stepper.basis.scalar(float(s[k + 1]), Z[:, 0]) < tol[0]  # no sign change in the cell
+    found = stepper._sampled(Z, tol, 0.0, 1.0)
+    assert found[0] == pytest.approx(math.acos(-delta) / (2 * math.pi), abs=1e-13)
+
+
 # -- the paper's Section 5 maps ---------------------------------------------------------------
 
 @pytest.mark.parametrize("alpha", [0.5, 1.0, 2.0])

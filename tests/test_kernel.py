@@ -118,7 +118,7 @@ def test_corrupted_piece_fails_the_sample_certificate():
     D, l, dx0, Ydx = np.empty(N), np.empty(N - 1), np.empty(N), np.empty((nb, N))
     base, Wc = np.empty(N - 1), np.empty((nb, N - 1))
     inverse, gram = eventloop.piece(loop.k, signs, w0, coef, D, l, dx0, Ydx, base, Wc,
-                                    np.empty(N), np.empty(N))
+                                    np.empty(N))
     assert inverse > 0
     PHI = stepper.basis.values(np.linspace(tr.u, record.transitions[2].u, 6))
     G = len(PHI)

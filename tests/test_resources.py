@@ -225,7 +225,7 @@ def test_a_gait_whose_signals_would_not_finish_is_refused_before_it_runs(tmp_pat
 
 def test_gaits_of_few_harmonics_are_not_refused():
     """A Fourier link of 50 harmonics on 2 blocks, and 1000 blocks of cosine links (closed-form
-    events; the README's large crawler), are within the estimate."""
+    events; docs/large-crawlers.md), are within the estimate."""
     from crawlsim.integrate.resources import MAX_SIGNAL_WORK, gait_signal_work
 
     small = gait_from_document(fourier_gait(2, 50), "small.yaml")

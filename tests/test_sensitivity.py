@@ -32,7 +32,8 @@ import numpy as np
 import pytest
 
 import crawlsim
-from crawlsim.analysis.sensitivity import _limit, sensitivity
+from crawlsim.analysis.sensitivity import sensitivity
+from crawlsim.analysis.sensitivity_terms import find_limit as _limit
 from crawlsim.errors import CrawlsimError
 from crawlsim.gait.corpus import random_gait
 from crawlsim.gait.document import gait_from_document
@@ -331,9 +332,10 @@ def test_cli_bad_input():
     res = _cli("gaits/inching-2.yaml", "--sensitivity", "links.3.amplitude")
     assert res.exit_code == 2
     assert "links.3.amplitude" in res.output and "out of range" in res.output
-    res = _cli("gaits/inching-2.yaml", "--sensitivity", "stiffness", "--sweep", "period=1:2:2")
+    res = _cli("gaits/inching-2.yaml", "--sensitivity", "links.3.amplitude", "--sweep",
+               "period=1:2:2")
     assert res.exit_code == 2
-    assert "--sensitivity" in res.output
+    assert "links.3.amplitude" in res.output and "out of range" in res.output
     res = _cli("gaits/inching-2.yaml", "--sensitivity", "links")
     assert res.exit_code == 2 and "not a number" in res.output
 
@@ -350,7 +352,7 @@ def test_gradient_optimizer_two_block_bound():
 
 
 def test_gradient_optimizer_two_lags():
-    """The README's two-lag peristalsis-4 example: the maximum of v0 over links.1.phase and
+    """docs/optimize.md's two-lag peristalsis-4 example: the maximum of v0 over links.1.phase and
     links.2.phase in [0, 1] is 7/15 at (1/2, 0) (= (1/2, 1): phases are periodic), which
     `crawlsim optimize` reaches in 360 evaluations. The gradient method, from a 4 x 4 sample
     (not containing the optimum), reaches it to 1e-6 within a fifth of those, 72."""
@@ -410,7 +412,7 @@ def test_cli_catch_up_says_whose_derivative():
     res = _cli("gaits/inching-2.yaml", "--integrator", "catch-up", "--steps-per-period", "100",
                "--sensitivity", "stiffness")
     assert res.exit_code == 0, res.output
-    assert "derivatives of the exact integrator's v0" in res.output
+    assert "derivatives of the catch-up scheme's own discrete period map" in res.output
     res = _cli("gaits/paper/acute-angle.yaml", "--sensitivity", "period")
     assert res.exit_code == 2 and "crawler gait" in res.output
 

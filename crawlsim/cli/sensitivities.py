@@ -1,4 +1,4 @@
-"""``crawlsim velocity --sensitivity PATH``: the lines and JSON of the exact derivatives of v0
+"""``crawlsim velocity --sensitivity PATH``: the lines and JSON of the derivatives of v0
 (`crawlsim.sensitivity`), kept out of velocity.py so that the command only calls two functions."""
 
 from __future__ import annotations
@@ -8,12 +8,13 @@ from typing import Any
 import click
 
 
-def compute(gait: Any, paths: tuple[str, ...]) -> Any:
-    """The sensitivities of ``gait`` for ``paths`` (the exact integrator's, whatever the gait's
-    integrator: the lines say so for a catch-up gait)."""
+def compute(gait: Any, paths: tuple[str, ...], run: Any = None) -> Any:
+    """The sensitivities of ``gait`` for ``paths`` at the limit period of ``run`` (the
+    command's own run of the gait: the limit is not searched twice), with the gait's
+    integrator: exact, or the catch-up scheme's discrete map (the lines say so)."""
     from crawlsim.analysis.sensitivity import sensitivity
 
-    return sensitivity(gait, list(paths))
+    return sensitivity(gait, list(paths), run=run)
 
 
 def lines(result: Any, integrator: str) -> list[str]:
@@ -36,8 +37,8 @@ def lines(result: Any, integrator: str) -> list[str]:
                              else f"{side}: {why}")
             out.append(f"{name}: not smooth ({p.reason}); " + ", ".join(sides))
     if integrator != "exact":
-        out.append(f"(derivatives of the exact integrator's v0 = {result.v0:.12g}; the "
-                   f"{integrator} v0 above has its own time-step error)")
+        out.append(f"(derivatives of the {integrator} scheme's own discrete period map at its "
+                   f"v0 = {result.v0:.12g}, not of the exact v0: method {integrator})")
     return out
 
 

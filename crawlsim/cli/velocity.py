@@ -70,8 +70,9 @@ def _dimensions(sweep_specs, link_specs) -> list[list[str]]:
               help="Vary PATH together with the --sweep before it (same number of values): "
                    "value k of each goes with value k of the other; no new grid dimension.")
 @click.option("--sensitivity", "sensitivity_paths", multiple=True, metavar="PATH",
-              help="Also print dv0/dPATH, exact, with its error estimate, for every number "
-                   "PATH names (dotted, * for each element; repeatable; single gait only).")
+              help="Also print dv0/dPATH with its error estimate for every number PATH "
+                   "names (dotted, * for each element; repeatable): exact, or of the catch-up "
+                   "scheme's own map; with --sweep, a dv0/dPATH column per number.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, allow_dash=True),
               help="Write the table to OUT.csv or OUT.h5; - or no -o: CSV on stdout (v0, or "
                    "JSON with --json, without --sweep).")
@@ -141,10 +142,10 @@ def velocity(gait_file, as_json, sweep_specs, sensitivity_paths, link_specs, out
                 raise BadInput("--shard and --plot need at least one --sweep PATH=SPEC")
             if output is None:
                 return _single(gait, sensitivity_paths, as_json, max_memory, quiet, verbose)
-        _check_sweep_options(groups, sensitivity_paths, as_json, plot_file, shard)
+        _check_sweep_options(groups, as_json, plot_file, shard)
         from crawlsim.study import sweep as sweeps
 
-        grid = sweeps.make_grid(gait, groups)
+        grid = sweeps.make_grid(gait, groups, sensitivity=sensitivity_paths)
         check_sweep_memory(grid, len(grid.indices(shard)), jobs, scheduler, max_memory)
         table = _sweep(grid, output, jobs, shard, scheduler, quiet, verbose)
         if plot_file:
@@ -178,9 +179,7 @@ def _check_targets(gait_file, output, plot_file, scheduler, force) -> None:
         raise BadInput(f"--plot {plot_file}: a figure is written as .png, .pdf or .svg")
 
 
-def _check_sweep_options(groups, sensitivity_paths, as_json, plot_file, shard) -> None:
-    if sensitivity_paths and groups:
-        raise BadInput("--sensitivity runs on one gait, not yet with --sweep")
+def _check_sweep_options(groups, as_json, plot_file, shard) -> None:
     if as_json and groups:
         raise BadInput("--json prints one run's summary; with --sweep the table is CSV or "
                        "HDF5 (-o)")
@@ -202,7 +201,7 @@ def _single(gait, sensitivity_paths, as_json, max_memory, quiet, verbose):
         if sensitivity_paths:
             from crawlsim.cli import sensitivities
 
-            derivatives = sensitivities.compute(gait, sensitivity_paths)
+            derivatives = sensitivities.compute(gait, sensitivity_paths, result)
     summary = result.summary()
     if as_json:
         if derivatives is not None:

@@ -494,7 +494,14 @@ class EventStepper(PeriodStepper):
                     if -res.fun <= t:
                         continue
                     top = float(res.x)
-                over = brentq(lambda x, f=f, t=t: f(x) - t, left, top, xtol=1e-15)
+                # F (the tabulated samples) and f (the scalar evaluation) may round differently
+                # at the bracket's ends: a bracket without a sign change has its crossing at an
+                # end (left when f is already above t there, else top, where F is above t)
+                f_left, f_top = f(left) - t, f(top) - t
+                if f_left * f_top > 0.0:
+                    over = left if f_left > 0.0 else top
+                else:
+                    over = brentq(lambda x, f=f, t=t: f(x) - t, left, top, xtol=1e-15)
                 below = np.flatnonzero(F[:k + 1, r] < 0.0)
                 zero = u0
                 if below.size:
@@ -735,7 +742,9 @@ class _CompiledLoop:
         E = min(self.capacity, s.max_events + 1)
         T2 = E + P + 2
         out = self._scratch
-        if out.get("capacity") != E:  # work arrays kept from period to period
+        # work arrays kept from period to period while they hold E events and are not more
+        # than twice that (a run's peak memory)
+        if not E <= out.get("capacity", 0) <= 2 * E:
             out.clear()
             out.update({
                 "capacity": E, "ev_t": np.empty(E), "ev_w": np.empty((E, n)),
@@ -748,7 +757,9 @@ class _CompiledLoop:
                 "jump_piece": np.empty(P + 1, dtype=np.int64), "jump_u": np.empty(P + 1),
                 "jump_w": np.empty((P + 1, 2, n)), "jump_lam": np.empty((P + 1, m)),
                 "counts": np.zeros(4, dtype=np.int64), "report": np.zeros(8)})
-        out["W"], out["LAMC"] = np.empty((G + 1, n)), np.empty((G + 1, m))
+        if "LAMC" not in out:  # the cumulative slips on the grid: scratch of the loop
+            out["LAMC"] = np.empty((G + 1, m))
+        out["W"] = np.empty((G + 1, n))
         out["signs"] = catchup.signs_of(s.active, N)
         out["status"] = eventloop.period(
             self.k, self.c_scale, s.basis.linear, s.basis.harmonics, self.coef, s.pieces.edges,
@@ -762,9 +773,9 @@ class _CompiledLoop:
         return out
 
     def _record(self, s: EventStepper, out: dict[str, Any]) -> PeriodRecord:
-        from crawlsim.kernel import catchup
+        from crawlsim.kernel import catchup, eventloop
 
-        p, T = s.process, s.process.period
+        T = s.process.period
         start = s.period_index * T
         e, t, q, nj = (int(v) for v in out["counts"])
         self.capacity = max(64, e + e // 4 + 16)  # room for a few more events next period
@@ -776,10 +787,14 @@ class _CompiledLoop:
         if s.check_every_step:
             s._verify(W, start)
         X = x_events = None
+        MU = np.empty((LAMC.shape[0] - 1, LAMC.shape[1]))
         if s.x is not None:
-            X = s.x + p.slips(LAMC)
+            X = np.empty((LAMC.shape[0], s.x.shape[0]))
+            eventloop.grid_record(LAMC, np.ascontiguousarray(s.x, dtype=float), MU, X)
             x_events = s.x + out["ev_dx"][:e]
             s.x = X[-1].copy()
+        else:
+            eventloop.grid_record(LAMC, np.empty(0), MU, np.empty((0, 0)))
         s.w = W[-1].copy()
         energy = None
         if s._ledger is not None:
@@ -793,7 +808,7 @@ class _CompiledLoop:
         transitions = _Transitions(s.poly, out["tr_u"][:t].copy(), out["tr_piece"][:t].copy(),
                                    signs, out["tr_cause"][:t].copy(), out["tr_hit"][:t].copy())
         events = EventTrajectory(start + out["ev_t"][:e] * T, out["ev_w"][:e].copy(), x_events)
-        record = PeriodRecord(s.period_index, start, W, np.diff(LAMC, axis=0), X, 0,
+        record = PeriodRecord(s.period_index, start, W, MU, X, 0,
                               events=events, visited=_Visited(s.poly, signs),
                               transitions=transitions, energy_of=energy)
         return record

@@ -6,7 +6,7 @@ every dataset is attached to a named dimension scale, and every dataset carries 
 syntax, "1" when dimensionless) and ``long_name``; enumerations carry the CF ``flag_values`` and
 ``flag_meanings``; the root carries ``Conventions``. So ``xarray.open_datatree(path,
 engine="h5netcdf")`` opens every group with named dimensions, and ``h5dump -H`` reads as
-documentation. The README's HDF5 section documents the layout; each module's tables are its single
+documentation. docs/hdf5.md documents the layout; each module's tables are its single
 source in the code:
 
     layout      the conventions shared by every file: dimension scales, CF attributes, atomic

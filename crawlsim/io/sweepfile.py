@@ -191,6 +191,7 @@ def _write_sweep(f: h5py.File, layout: _SweepLayout, columns: Mapping[str, Any],
     scales = Scales()
     _write_grid(f, scales, layout, columns, steps)
     _write_results(f, scales, layout, columns, steps)
+    _write_derivatives(f, scales, layout, columns)
 
 
 def _write_grid(f: h5py.File, scales: Scales, layout: _SweepLayout,
@@ -265,6 +266,44 @@ def _write_results(f: h5py.File, scales: Scales, layout: _SweepLayout,
         describe_var(ds, worded(var, name), units.of(var.quantity))
 
 
+def _write_derivatives(f: h5py.File, scales: Scales, layout: _SweepLayout,
+                       columns: Mapping[str, Any]) -> None:
+    """The dv0/dPATH columns of ``--sensitivity`` (`crawlsim.analysis.sensitivity_sweep`), on
+    the grid and in the table, with the units of v0 over PATH; the column in ``column``."""
+    shape, dim_names = layout.shape, layout.dim_names
+    for column, name, unit, long_name in _derivative_variables(
+            columns, layout.units, layout.kind, [*layout.names, *SWEEP_VARIABLES]):
+        values = np.asarray(columns[column], dtype=float)
+        data = np.full(math.prod(shape), np.nan)
+        data[layout.points] = values
+        for group, array, dims in ((f["grid"], data.reshape(shape), dim_names),
+                                   (f["results"], values, ("point",))):
+            ds = group.create_dataset(name, data=array, track_order=True)
+            scales.attach(ds, dims)
+            describe_var(ds, Var(tuple(dims), long_name, "1"), unit)
+            ds.attrs["column"] = column
+
+
+def _derivative_variables(cols: Mapping[str, Any], units: Units, kind: str,
+                          taken: Sequence[str]) -> list[tuple[str, str, str, str]]:
+    """(column, dataset name, units, long_name) of each derivative column of a sweep file: the
+    name netCDF-safe (``dv0_dlinks_1_phase``), the column itself in the attribute ``column``."""
+    from crawlsim.analysis.sensitivity_sweep import PREFIX, unit
+
+    out = []
+    names = list(taken)
+    for column in cols:
+        if not column.startswith(PREFIX):
+            continue
+        path = column[len(PREFIX):]
+        name = axis_name("dv0_d" + path.replace(".", "_"), names)
+        names.append(name)
+        out.append((column, name, unit(units, kind, path),
+                    f"derivative of v0 with respect to {path} (NaN where not smooth or not "
+                    "computed)"))
+    return out
+
+
 def worded(var: Var, name: str) -> Var:
     """A status column kept as words: its flags dropped, the words it takes as its comment."""
     return Var(var.dims, var.long_name, var.quantity, comment=_WORDS.get(name, ""))
@@ -319,7 +358,7 @@ def _read_columns(path: Path, results: h5py.Group, names: Sequence[str],
         if name not in results:
             raise ResultsFileError(f"{path}: missing /results/{name}")
         columns[key] = read_column(results[name])
-    for name in results:
+    for name in results:  # a dv0/dPATH dataset is keyed by its column (`_write_derivatives`)
         if name not in columns and name not in names:
-            columns[name] = read_column(results[name])
+            columns[plain(results[name].attrs.get("column", name))] = read_column(results[name])
     return columns

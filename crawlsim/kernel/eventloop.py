@@ -91,12 +91,14 @@ def derivative(coef: np.ndarray, linear: bool, H: int, out: np.ndarray) -> None:
 
 @njit(cache=True)
 def combine(phi: np.ndarray, coef: np.ndarray, out: np.ndarray) -> None:
-    """out = phi @ coef for coef (nb, k)."""
+    """out = phi @ coef for coef (nb, k), row by row of coef (contiguous; the sums add the same
+    terms in the same order as the dot product of each column)."""
     for r in range(out.shape[0]):
-        total = 0.0
-        for b in range(phi.shape[0]):
-            total += phi[b] * coef[b, r]
-        out[r] = total
+        out[r] = 0.0
+    for b in range(phi.shape[0]):
+        p = phi[b]
+        for r in range(out.shape[0]):
+            out[r] += p * coef[b, r]
 
 
 @njit(cache=True)
@@ -120,9 +122,26 @@ def max_abs(x: np.ndarray) -> float:
 
 # -- a piece: the factor and the closed form of w(u) and the slips --------------------------------
 @njit(cache=True)
+def solve_rows(D: np.ndarray, l: np.ndarray, Y: np.ndarray) -> None:
+    """Y[b] <- L~^{-1} Y[b] for every row b (`crawlsim.kernel.chain.solve`, the same operations
+    on each row), the rows side by side: their recurrences overlap instead of waiting on one
+    another."""
+    nb, N = Y.shape
+    for i in range(1, N):
+        for b in range(nb):
+            Y[b, i] -= l[i - 1] * Y[b, i - 1]
+    for i in range(N):
+        for b in range(nb):
+            Y[b, i] /= D[i]
+    for i in range(N - 2, -1, -1):
+        for b in range(nb):
+            Y[b, i] -= l[i] * Y[b, i + 1]
+
+
+@njit(cache=True)
 def piece(k: np.ndarray, signs: np.ndarray, w0: np.ndarray, coef: np.ndarray, D: np.ndarray,
           l: np.ndarray, dx0: np.ndarray, Ydx: np.ndarray, base: np.ndarray, Wc: np.ndarray,
-          f: np.ndarray, col: np.ndarray) -> tuple[float, float]:
+          f: np.ndarray) -> tuple[float, float]:
     """w(u) = base + phi(u) @ Wc and dx(u) = dx0 - phi(u) @ Ydx on the set ``signs`` from w0:
     Lambda_A = G_A^{-1} (B_A w0 - c_A(u)) in the chain's block form L_JJ dx_J = f_J - f*_J.
     Returns (||L_JJ^{-1}||, ||L_JJ||) (zeros for the empty set)."""
@@ -146,9 +165,8 @@ def piece(k: np.ndarray, signs: np.ndarray, w0: np.ndarray, coef: np.ndarray, D:
     for b in range(nb):
         for i in range(N):
             s = signs[i]
-            col[i] = coef[b, i] if s > 0 else (-coef[b, N + i] if s < 0 else 0.0)
-        chain.solve(D, l, col)
-        Ydx[b] = col
+            Ydx[b, i] = coef[b, i] if s > 0 else (-coef[b, N + i] if s < 0 else 0.0)
+    solve_rows(D, l, Ydx)
     for i in range(N - 1):
         base[i] = w0[i] - (dx0[i + 1] - dx0[i]) * k[i]
         for b in range(nb):
@@ -212,13 +230,14 @@ def tight_rows(c_scale: float, linear: bool, H: int, coef: np.ndarray, u: float,
 
 @njit(cache=True)
 def settle_rows(candidates: np.ndarray, fixed: np.ndarray, lam: np.ndarray, Bv: np.ndarray,
-                ck: np.ndarray, tol_p: float, tol_d: float) -> bool:
-    """One order of `decide`: candidates with a positive multiplier become fixed, those whose
-    velocity opens their gap leave. Returns whether candidates are left."""
+                ck: np.ndarray, tol_p: float, told: np.ndarray) -> bool:
+    """One order of `decide`: candidates with a multiplier above their own row's dual
+    tolerance ``told[r]`` (`chain.project_rows`) become fixed, those whose velocity opens their
+    gap leave. Returns whether candidates are left."""
     left = False
     for r in range(candidates.shape[0]):
         if candidates[r]:
-            if lam[r] > tol_d:
+            if lam[r] > told[r]:
                 fixed[r] = True
                 candidates[r] = False
             elif Bv[r] - ck[r] < -tol_p:
@@ -249,6 +268,7 @@ def decide(k: np.ndarray, c_scale: float, linear: bool, H: int, coef: np.ndarray
     report = np.zeros(6)
     zero = np.zeros(N - 1)
     c = np.empty(m)
+    told = np.empty(m)
     for order in range(1, DECISION_ORDERS + 1):
         basis_values(u, order, linear, H, phi)
         combine(phi, coef, cvec)
@@ -260,11 +280,11 @@ def decide(k: np.ndarray, c_scale: float, linear: bool, H: int, coef: np.ndarray
             return False
         for i in range(N):
             signs[i] = 1 if rows[i] else (-1 if rows[N + i] else 0)
-        if chain.project(k, c_scale, zero, c, signs, fixed, v, lam, report) != chain.DONE:
+        if chain.project_rows(k, c_scale, zero, c, signs, fixed, v, lam, report,
+                              told) != chain.DONE:
             return False
-        tol_p, tol_d = report[chain.REPORT_TOLP], report[chain.REPORT_TOLD]
         apply(v, Bw)
-        if not settle_rows(candidates, fixed, lam, Bw, cvec, tol_p, tol_d):
+        if not settle_rows(candidates, fixed, lam, Bw, cvec, report[chain.REPORT_TOLP], told):
             break
     if not chain.independent(fixed, N):
         return False
@@ -275,9 +295,12 @@ def decide(k: np.ndarray, c_scale: float, linear: bool, H: int, coef: np.ndarray
 
 # -- the next event on a piece ------------------------------------------------------------------
 @njit(cache=True)
-def crossing(z: np.ndarray, tol: float, u0: float, u1: float, linear: bool, H: int) -> float:
+def crossing(z: np.ndarray, tol: float, u0: float, u1: float, linear: bool, H: int,
+             phi0: np.ndarray, horizon: float) -> float:
     """The first upward zero crossing of f = phi @ z in (u0, u1) that goes on to exceed tol
-    (`crawlsim.kernel.events`); inf if none, NaN where the basis has no closed form for f."""
+    (`crawlsim.kernel.events`); inf if none, NaN where the basis has no closed form for f.
+    inf also for a harmonic f that stays below zero on [u0, horizon] (phi0 = phi(u0)): its
+    crossing, where f = 0 or tol, is after horizon (the caller's earliest event so far)."""
     nb = z.shape[0]
     if nb == 1:
         return np.inf
@@ -293,31 +316,30 @@ def crossing(z: np.ndarray, tol: float, u0: float, u1: float, linear: bool, H: i
         size += abs(z[1]) * max(abs(u0), abs(u1))
     if top + 1e-12 * size < tol:
         return np.inf
-    if H == 1 and not linear:
-        return events.harmonic_crossing(z[0], z[1], z[2], tol, u0, u1)
-    if H == 1 and z[1] == 0.0:
-        return events.harmonic_crossing(z[0], z[2], z[3], tol, u0, u1)
-    return np.nan
+    if H != 1 or (linear and z[1] != 0.0):
+        return np.nan
+    alpha, beta = z[nb - 2], z[nb - 1]
+    # f(u) <= f(u0) + 2 pi (|alpha| + |beta|) (u - u0) on [u0, horizon], without trig: below
+    # zero there (by more than the roundoff of f(u0) and of the crossing's own closed form,
+    # 1e-12 of its terms' size), f has neither its zero nor its tolerance before horizon
+    f0 = 0.0
+    for b in range(nb):
+        f0 += z[b] * phi0[b]
+    if f0 + TWO_PI * (abs(alpha) + abs(beta)) * (horizon - u0) + 1e-12 * size < 0.0:
+        return np.inf
+    return events.harmonic_crossing(z[0], alpha, beta, tol, u0, u1)
 
 
 @njit(cache=True)
 def next_event(c_scale: float, linear: bool, H: int, coef: np.ndarray, signs: np.ndarray,
                base: np.ndarray, Wc: np.ndarray, Ydx: np.ndarray, inverse: float, u0: float,
-               u1: float, hit: np.ndarray, Gc: np.ndarray, Rdx: np.ndarray, Bw: np.ndarray,
-               z: np.ndarray) -> tuple[float, bool]:
+               u1: float, hit: np.ndarray, Rdx: np.ndarray, z: np.ndarray) -> tuple[float, bool]:
     """(u, handoff) of the first event in (u0, u1) (u = inf: none), the rows newly tight in
     ``hit`` (`EventStepper._next_event`): gaps phi @ (B Wc - coef + B base e_0) of the inactive
     rows, slip rates -dLambda/du = phi @ derivative(Y) of the active ones."""
     N = signs.shape[0]
     m = 2 * N
     nb = coef.shape[0]
-    for b in range(nb):
-        apply(Wc[b], Bw)
-        for r in range(m):
-            Gc[b, r] = Bw[r] - coef[b, r]
-    apply(base, Bw)
-    for r in range(m):
-        Gc[0, r] += Bw[r]
     derivative(Ydx, linear, H, Rdx)
     c_size = 0.0
     for r in range(m):
@@ -336,17 +358,24 @@ def next_event(c_scale: float, linear: bool, H: int, coef: np.ndarray, signs: np
     tol_rate = RTOL * max(scale, inverse * c_size * TWO_PI)
     times = np.full(m, np.inf)
     first = np.inf
+    phi0 = np.empty(nb)
+    basis_values(u0, 0, linear, H, phi0)
     for r in range(m):
         i = r % N
         s = signs[i]
+        # a row whose crossing is after first + SIMULTANEOUS is neither the first nor hit
+        horizon = min(u1, first + SIMULTANEOUS)
         if (r < N and s > 0) or (r >= N and s < 0):
             for b in range(nb):
                 z[b] = s * Rdx[b, i]
-            t = crossing(z, tol_rate, u0, u1, linear, H)
-        else:
+            t = crossing(z, tol_rate, u0, u1, linear, H, phi0, horizon)
+        else:  # the gap of row r, B Wc - coef + B base e_0 (the entries of `apply`)
             for b in range(nb):
-                z[b] = Gc[b, r]
-            t = crossing(z, tol_gap, u0, u1, linear, H)
+                g = (Wc[b, i - 1] if i > 0 else 0.0) - (Wc[b, i] if i < N - 1 else 0.0)
+                z[b] = (g if r < N else -g) - coef[b, r]
+            g = (base[i - 1] if i > 0 else 0.0) - (base[i] if i < N - 1 else 0.0)
+            z[0] += g if r < N else -g
+            t = crossing(z, tol_gap, u0, u1, linear, H, phi0, horizon)
         if np.isnan(t):
             return np.inf, True
         times[r] = t
@@ -390,7 +419,21 @@ def certify_samples(k: np.ndarray, kmax: float, c_scale: float, coef: np.ndarray
         combine(phi, coef, cvec)
         apply(W[j], Bw)
         lam_size = max_abs(LAMC[j])
-        size = max(max(c_scale, max_abs(cvec)), max(2.0 * max_abs(W[j]), 4.0 * kmax * lam_size))
+        # sizes of the numbers summed, not of the sums: phi @ coef and base + phi @ Wc cancel
+        # on short pieces with steep offsets (`EventStepper._certify_piece`)
+        c_size = 0.0
+        for r in range(m):
+            total = 0.0
+            for b in range(coef.shape[0]):
+                total += abs(phi[b]) * abs(coef[b, r])
+            c_size = max(c_size, total)
+        w_size = 0.0
+        for i in range(N - 1):
+            total = abs(base[i])
+            for b in range(Wc.shape[0]):
+                total += abs(phi[b]) * abs(Wc[b, i])
+            w_size = max(w_size, total)
+        size = max(max(c_scale, c_size), max(2.0 * w_size, 4.0 * kmax * lam_size))
         tol_p = RTOL * size
         tol_d = max(2.0 * RTOL * inverse * (size + gram * lam_size), own)
         tol_d = max(tol_d, 4 * RTOL * lam_size)
@@ -441,21 +484,28 @@ def energy_terms(k: np.ndarray, linear: bool, H: int, signs: np.ndarray, base: n
     dY = np.empty((nb, N))
     derivative(Ydx, linear, H, dY)
     out[:] = 0.0
+    stress = np.empty(N - 1)
     for a in range(nb):
+        # the stress coefficient a once, then its products (adding base to a = 0 only: the
+        # other terms are those of Wc + KLc + 0.0, the same numbers)
+        for i in range(N - 1):
+            stress[i] = Wc[a, i] + KLc[a, i]
+            if a == 0:
+                stress[i] += base[i]
         for b in range(nb):
             total = 0.0
             for i in range(N - 1):
-                total += (Wc[a, i] + KLc[a, i] + (base[i] if a == 0 else 0.0)) * dLc[b, i]
+                total += stress[i] * dLc[b, i]
             out[0, a, b] = total
-            friction, load = 0.0, 0.0
-            for i in range(N):
-                s = signs[i]
-                if s != 0:
-                    r = i if s > 0 else N + i
-                    friction -= Mc[a, r] * (s * dY[b, i])
-                    load -= lc[a, r] * (s * dY[b, i])
-            out[1, a, b] = friction
-            out[2, a, b] = load
+    for i in range(N):  # the slipping blocks only (the friction and load rows of the set)
+        s = signs[i]
+        if s == 0:
+            continue
+        r = i if s > 0 else N + i
+        for a in range(nb):
+            for b in range(nb):
+                out[1, a, b] -= Mc[a, r] * (s * dY[b, i])
+                out[2, a, b] -= lc[a, r] * (s * dY[b, i])
 
 
 # -- a jump of c at a breakpoint ----------------------------------------------------------------
@@ -484,6 +534,23 @@ def jump(k: np.ndarray, c_scale: float, w: np.ndarray, target: np.ndarray, signs
     if extra and not chain.independent(tight, N):
         return HANDOFF
     return DONE
+
+
+@njit(cache=True)
+def grid_record(LAMC: np.ndarray, x0: np.ndarray, MU: np.ndarray, X: np.ndarray) -> None:
+    """The record's arrays from the cumulative slips on the grid, in one pass:
+    MU[j] = LAMC[j+1] - LAMC[j] (the slips of step j) and, for a crawler (x0 not empty),
+    X[j] = x0 + (lambda^+ - lambda^-)(t_j), the block positions (docs/model.md §3)."""
+    G1, m = LAMC.shape
+    N = m // 2
+    for j in range(G1 - 1):
+        for r in range(m):
+            MU[j, r] = LAMC[j + 1, r] - LAMC[j, r]
+    if x0.shape[0] == 0:
+        return
+    for j in range(G1):
+        for i in range(N):
+            X[j, i] = x0[i] + (LAMC[j, i] - LAMC[j, N + i])
 
 
 # -- one period -----------------------------------------------------------------------------------
@@ -558,11 +625,11 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
     kmax = 0.0
     for i in range(n):
         kmax = max(kmax, k[i])
-    D, l, f, col, dx0, dx = (np.empty(N), np.empty(max(N - 1, 0)), np.empty(N), np.empty(N),
-                             np.empty(N), np.empty(N))
+    D, l, f, dx0, dx = (np.empty(N), np.empty(max(N - 1, 0)), np.empty(N), np.empty(N),
+                        np.empty(N))
     Ydx, Rdx = np.empty((nb, N)), np.empty((nb, N))
     base, Wc = np.empty(n), np.empty((nb, n))
-    Gc, z = np.empty((nb, m)), np.empty(nb)
+    z = np.empty(nb)
     phi, cvec, Bw = np.empty(nb), np.empty(m), np.empty(m)
     w, lam_cum = w_start.copy(), np.zeros(m)
     w_next, lam_jump = np.empty(n), np.empty(m)
@@ -587,10 +654,10 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
         TR_U[t_count], TR_PIECE[t_count], TR_SIGNS[t_count] = u, p, signs
         TR_CAUSE[t_count], TR_HIT[t_count] = cause, forced
         counts[C_TRANSITIONS] = t_count + 1
-        inverse, gram = piece(k, signs, w, coef, D, l, dx0, Ydx, base, Wc, f, col)
+        inverse, gram = piece(k, signs, w, coef, D, l, dx0, Ydx, base, Wc, f)
         u_end = edges[p + 1]
         u_e, handoff = next_event(c_scale, linear, H, coef, signs, base, Wc, Ydx, inverse, u,
-                                  u_end, forced, Gc, Rdx, Bw, z)
+                                  u_end, forced, Rdx, z)
         if handoff:
             return HANDOFF
         event = u_e < u_end

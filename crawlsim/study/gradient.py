@@ -4,7 +4,7 @@ sensitivities of `crawlsim.sensitivity` (docs/sensitivity.md).
 The method: a coarse sample of the box (``sample`` points per free parameter, a grid, or a Latin
 hypercube when the grid would be large; each a run of v0 alone), then L-BFGS-B
 (`scipy.optimize.minimize`, bounds = the box) from the best ``restarts`` sample points, each
-step one evaluation of v0 with its gradient at the exact integrator's verified limit. v0 is
+step one evaluation of v0 with its gradient at the gait's integrator's verified limit. v0 is
 only piecewise smooth: at a kink the gradient used is the derivative on the limit period's own
 pieces (one element of the generalized gradient), and the restarts from distinct sample points
 keep one kink from ending the search. A free path with ``*`` ties every element to one value,

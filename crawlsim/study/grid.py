@@ -140,6 +140,7 @@ class SweepGrid:
     dims: tuple[int, ...] = ()
     #: Extra columns computed at every point that runs (`crawlsim.study.points.PointQuantity`).
     quantities: tuple[PointQuantity, ...] = ()
+    sensitivity: tuple[str, ...] = ()  # --sensitivity paths: a dv0/dPATH column each
 
     def __post_init__(self) -> None:
         if not self.dims:
@@ -204,6 +205,8 @@ class SweepGrid:
         parts: list = [self.gait_yaml, axes, list(shard) if shard else None]
         if self.quantities:
             parts.append([q.name for q in self.quantities])
+        if self.sensitivity:
+            parts.append(list(self.sensitivity))
         spec = json.dumps(parts)
         return hashlib.sha256(spec.encode()).hexdigest()
 
@@ -235,13 +238,15 @@ def _group(item) -> tuple[Axis, ...]:
                  for k, a in enumerate(items))
 
 
-def make_grid(base: Gait, axes, quantities: Sequence[PointQuantity] = ()) -> SweepGrid:
+def make_grid(base: Gait, axes, quantities: Sequence[PointQuantity] = (),
+              sensitivity: Sequence[str] = ()) -> SweepGrid:
     """The grid of ``base`` over ``axes``: each item is one dimension, an `Axis` (or its
     ``PATH=SPEC`` text) or a sequence of them that vary together (linked paths, the same
     number of values each). Every path is checked against the base document; overlapping or
     repeated paths are refused, and so is a base that is not a crawler
     (`crawlsim.gait.document.need_crawler`). ``quantities`` are extra columns of the table
-    (`crawlsim.study.points.PointQuantity`)."""
+    (`crawlsim.study.points.PointQuantity`); ``sensitivity``, the ``--sensitivity`` paths, each
+    number's ``dv0/dPATH`` column (`crawlsim.analysis.sensitivity_sweep`)."""
     need_crawler(base, "a sweep of v0")
     groups = [_group(item) for item in axes]
     flat: list[Axis] = []
@@ -266,7 +271,10 @@ def make_grid(base: Gait, axes, quantities: Sequence[PointQuantity] = ()) -> Swe
                                                    f"which {seen[key]} sets too: sweep each "
                                                    "value once")
             seen[key] = f"{option} {axis.path}"
-    return SweepGrid(base, tuple(flat), targets, tuple(dims), tuple(quantities))
+    from crawlsim.analysis.sensitivity_sweep import check_paths
+
+    return SweepGrid(base, tuple(flat), targets, tuple(dims), tuple(quantities),
+                     check_paths(base, sensitivity))
 
 
 def parse_shard(text: str) -> tuple[int, int]:

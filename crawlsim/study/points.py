@@ -58,6 +58,7 @@ class PointResult:
     limit: str = ""
     newton_steps: int | None = None  # None: not computed (a failed point, an older file)
     extra: tuple[float | None, ...] = ()  # the grid's extra columns (`PointQuantity`)
+    derivatives: dict[str, float | None] | None = None  # dv0/dPATH (--sensitivity)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "status", PointStatus(self.status))
@@ -67,12 +68,15 @@ class PointResult:
         row = {f: getattr(self, f) for f in _POINT_FIELDS}
         if self.extra:  # journals of sweeps without extra columns stay as they were
             row["extra"] = list(self.extra)
+        if self.derivatives is not None:  # and so do those of sweeps without --sensitivity
+            row["derivatives"] = self.derivatives
         return row
 
     @classmethod
     def from_json(cls, row: dict) -> PointResult:
         """A journal line (older journals lack the later columns: they stay missing)."""
-        return cls(**{k: v for k, v in row.items() if k in (*_POINT_FIELDS, "extra")})
+        return cls(**{k: v for k, v in row.items()
+                      if k in (*_POINT_FIELDS, "extra", "derivatives")})
 
 
 _POINT_FIELDS = ("index", "status", "v0", "v0_error_estimate", "displacement_per_period",
@@ -91,7 +95,9 @@ def _failure(index: int, exc: BaseException) -> PointResult:
 def run_points(grid: SweepGrid, indices, *, capacity=None, progress=None) -> list[PointResult]:
     """Validate and evaluate the grid points ``indices`` (a worker's task); a point that is not
     a valid gait is an ``invalid`` row, the others go to `evaluate` (with the grid's extra
-    `quantities <PointQuantity>`). ``progress(k)`` is called as k more points finish."""
+    `quantities <PointQuantity>`), then, with ``--sensitivity``, to
+    `crawlsim.analysis.sensitivity_sweep.with_derivatives` on the limit periods their runs
+    found. ``progress(k)`` is called as k more points finish."""
     rows: dict[int, PointResult] = {}
     valid: list[tuple[int, Gait]] = []
     for i in (int(i) for i in indices):
@@ -102,9 +108,14 @@ def run_points(grid: SweepGrid, indices, *, capacity=None, progress=None) -> lis
             if progress is not None:
                 progress(1)
     if valid:
+        runs: dict | None = {} if grid.sensitivity else None  # their limits, for derivatives
         for row in evaluate([g for _, g in valid], [i for i, _ in valid], capacity=capacity,
-                            progress=progress, quantities=grid.quantities):
+                            progress=progress, quantities=grid.quantities, runs=runs):
             rows[row.index] = row
+        if runs is not None:
+            from crawlsim.analysis.sensitivity_sweep import with_derivatives
+
+            rows.update(with_derivatives(grid.sensitivity, valid, rows, runs))
     return [rows[int(i)] for i in indices]
 
 
@@ -112,7 +123,7 @@ _Member = tuple[int, Any, Gait]  # grid index, compiled process, gait
 
 
 def evaluate(gaits, indices, *, capacity=None, progress=None,
-             quantities: Sequence[PointQuantity] = ()) -> list[PointResult]:
+             quantities: Sequence[PointQuantity] = (), runs=None) -> list[PointResult]:
     """v0 of validated gaits (module docstring), one row per gait, in the order given.
 
     A row's ``v0_error_estimate`` bounds the true error of its v0. Catch-up rows leave it
@@ -123,7 +134,8 @@ def evaluate(gaits, indices, *, capacity=None, progress=None,
     A gait that cannot be compiled, or a batch that raises, is retried point by point, and each
     point that still raises is recorded (``invalid`` for an `InputError` such as a uniqueness
     failure at a grid time, ``failed`` otherwise). ``quantities`` add their columns to the rows
-    that are ``ok``.
+    that are ``ok``. ``runs``, when given, receives the run of each point run one by one, by
+    index (``--sensitivity`` walks its limit period).
     """
     tick: Callable[[int], None] = progress if progress is not None else (lambda k: None)
     out: dict[int, PointResult] = {}
@@ -131,7 +143,7 @@ def evaluate(gaits, indices, *, capacity=None, progress=None,
     if batch:
         _run_batch_safely(batch, single, out, capacity, tick)
     for member in single:
-        out[member[0]] = _run_single(member)
+        out[member[0]] = _run_single(member, runs)
         tick(1)
     by_index = {int(i): g for i, g in zip(indices, gaits)}
     return [_with_quantities(out[int(i)], by_index[int(i)], quantities) for i in indices]
@@ -216,8 +228,9 @@ def _limit_of(v0: float | None) -> dict[str, Any]:
     return {"limit": "iterate", "newton_steps": 0} if v0 is not None else {}
 
 
-def _run_single(member: _Member) -> PointResult:
-    """One point through `crawlsim.analysis.run.simulate` (no history)."""
+def _run_single(member: _Member, runs: dict | None = None) -> PointResult:
+    """One point through `crawlsim.analysis.run.simulate` (no history); its run joins
+    ``runs`` (by index) when given."""
     from crawlsim.analysis.run import simulate
 
     i, process, g = member
@@ -229,6 +242,8 @@ def _run_single(member: _Member) -> PointResult:
         _reraise_memory(exc)
         return _failure(i, exc)
     status = PointStatus.OK if run.converged else PointStatus.NOT_CONVERGED
+    if runs is not None:
+        runs[i] = run
     return PointResult(
         i, status, v0=run.v0,
         v0_error_estimate=run.v0_error_estimate if run.integrator == "exact" else None,

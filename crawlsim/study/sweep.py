@@ -30,6 +30,7 @@ recomputed. The output file is written atomically at the end.
 from __future__ import annotations
 
 import os  # noqa: F401  (tests patch sweeps.os.fsync: the journal's fsync)
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -137,19 +138,24 @@ def run_sweep(grid: SweepGrid, *, jobs: int = 1, shard=None, scheduler: str | No
 
 
 def sweep(grid: SweepGrid | Gait, axes=None, *, output=None, jobs: int = 1, shard=None,
-          scheduler: str | None = None, progress=None, on_rows=None) -> SweepTable:
+          scheduler: str | None = None, progress=None, on_rows=None,
+          sensitivity: Sequence[str] = ()) -> SweepTable:
     """The library entry point behind ``crawlsim velocity --sweep``.
 
     ``grid`` is a `SweepGrid` (`make_grid`), or a base gait and its ``axes`` as `make_grid`
     takes them (``PATH=SPEC`` texts or `Axis`, a sequence of them for linked paths). Runs the
     points, keeps a journal next to ``output`` while running, and writes ``output`` (CSV or
     HDF5) atomically at the end, removing the journal. Without ``output`` nothing is written.
-    ``progress`` and ``on_rows`` as in `run_sweep`.
+    ``progress`` and ``on_rows`` as in `run_sweep`. ``sensitivity``: paths whose ``dv0/dPATH``
+    columns are added (`crawlsim.analysis.sensitivity_sweep`), with a base gait.
     """
     if not isinstance(grid, SweepGrid):
-        grid = make_grid(grid, () if axes is None else axes)
+        grid = make_grid(grid, () if axes is None else axes, sensitivity=sensitivity)
     elif axes is not None:
         raise TypeError("sweep(grid, axes): a SweepGrid has its axes already")
+    elif sensitivity:
+        raise TypeError("sweep(grid, sensitivity=...): a SweepGrid has its sensitivity already "
+                        "(make_grid(..., sensitivity=...))")
     check_shard_output(shard, output)
     journal = Journal(journal_path(output), grid.fingerprint(shard)) if output else None
     table = run_sweep(grid, jobs=jobs, shard=shard, scheduler=scheduler, journal=journal,

@@ -45,10 +45,12 @@ class SweepTable:
 
     @property
     def dimensions(self) -> tuple[int, ...]:
+        """The grid dimension of each swept path (linked paths share one)."""
         return tuple(range(len(self.paths))) if self.dims is None else tuple(self.dims)
 
     @property
     def shape(self) -> tuple[int, ...]:
+        """The shape of the grid: the number of values of each dimension."""
         return grid_shape([len(a) for a in self.axes], self.dimensions)
 
     def dimension_paths(self) -> list[list[str]]:
@@ -81,9 +83,13 @@ class SweepTable:
         for k, name in enumerate(self.quantities):
             cols[name] = np.array([np.nan if not r.extra or r.extra[k] is None else r.extra[k]
                                    for r in self.rows], float)
+        from crawlsim.analysis import sensitivity_sweep
+
+        cols.update(sensitivity_sweep.columns(self.rows))
         return cols
 
     def counts(self) -> dict[str, int]:
+        """The number of points of each status (``ok``, ``invalid``, ...)."""
         out = {str(s): 0 for s in PointStatus}
         for r in self.rows:
             out[r.status] = out.get(r.status, 0) + 1
@@ -98,15 +104,21 @@ class SweepTable:
         return full.reshape(self.shape)
 
     def to_csv(self) -> str:
+        """The table as ``crawlsim velocity --sweep`` prints it: CSV, one row per point."""
         buf = io.StringIO()
         writer = csv.writer(buf, lineterminator="\n")
-        writer.writerow(list(self.paths) + list(RESULT_COLUMNS) + list(self.quantities))
+        from crawlsim.analysis.sensitivity_sweep import columns
+
+        derivatives = columns(self.rows)
+        writer.writerow(list(self.paths) + list(RESULT_COLUMNS) + list(self.quantities)
+                        + list(derivatives))
         coords = self.coordinates()
         for n, r in enumerate(self.rows):
             extra = r.extra or (None,) * len(self.quantities)
             writer.writerow([_cell(c[n]) for c in coords]
                             + [_cell(getattr(r, name)) for name in RESULT_COLUMNS]
-                            + [_cell(v) for v in extra])
+                            + [_cell(v) for v in extra]
+                            + [_cell(d[n]) for d in derivatives.values()])
         return buf.getvalue()
 
 
@@ -148,7 +160,9 @@ def table_payload(table: SweepTable) -> dict:
 
 def read_table(path) -> SweepTable:
     """A sweep HDF5 file (complete or a shard) back as a `SweepTable`. Files written before the
-    `LATER_COLUMNS` existed read with those columns missing (NaN, "")."""
+    `LATER_COLUMNS` existed read with those columns missing (NaN, ""); the dv0/dPATH columns
+    of ``--sensitivity`` come back as the rows' ``derivatives``."""
+    from crawlsim.analysis.sensitivity_sweep import row_derivatives
     from crawlsim.io import hdf5 as h5io
 
     data = h5io.read_sweep(path)
@@ -173,7 +187,8 @@ def read_table(path) -> SweepTable:
             message=str(cols["message"][n]), steps=int(data["steps"][n]),
             limit=str(cols["limit"][n]) if "limit" in cols else "",
             newton_steps=(int(cols["newton_steps"][n])
-                          if "newton_steps" in cols and cols["newton_steps"][n] >= 0 else None)))
+                          if "newton_steps" in cols and cols["newton_steps"][n] >= 0 else None),
+            derivatives=row_derivatives(cols, n)))
     shard = parse_shard(data["shard"]) if data["shard"] else None
     dims = data.get("dimensions")
     return SweepTable(tuple(data["paths"]), tuple(data["axes"]), np.asarray(data["points"]),

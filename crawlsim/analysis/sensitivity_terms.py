@@ -1,0 +1,351 @@
+"""The terms of the implicit function theorem that are not walked along the period
+(`crawlsim.analysis.sensitivity`, docs/sensitivity.md): the verified limit period, the offsets'
+coefficients c(u) = phi(u) C_p with their derivatives in each number of the gait file, and the
+friction's distance to the uniqueness boundary.
+
+Every number of a gait file that is a mean, an amplitude, a Fourier coefficient, a knot value,
+a friction coefficient or a stiffness enters C_p, the friction weights and K affinely, so one
+difference quotient of the coefficients is exact to roundoff (eq. (parameters) of
+docs/sensitivity.md); a phase rotates each harmonic pair, and the rotation is inverted exactly.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from crawlsim.errors import CrawlsimError, GaitError
+
+if TYPE_CHECKING:
+    from crawlsim.gait.document import Gait
+    from crawlsim.integrate.stepping import PeriodRecord
+    from crawlsim.model.process import SweepingProcess
+
+EPS = float(np.finfo(float).eps)
+#: Relative step of the difference quotient of the offsets' coefficients (exact for affine
+#: dependence, so only roundoff / h matters).
+COEFFICIENT_STEP = 2.0 ** -10
+#: Step in degrees of the central difference in a slope's angle (not affine: cos and sin).
+ANGLE_STEP = 1e-3
+#: Most blocks for which the uniqueness boundary is checked over every subset.
+UNIQUENESS_BLOCKS = 12
+#: Top-level keys that are not continuous parameters of a gait.
+STRUCTURAL = ("blocks", "simulation", "name", "description", "units", "kind")
+
+
+# -- the limit period ------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class Limit:
+    process: SweepingProcess
+    record: PeriodRecord
+    v0: float
+    v0_error: float
+    displacement: float
+    dissipation: float
+    residual: float  # relative Poincare step of the verified period
+
+
+def find_limit(gait: Gait) -> Limit:
+    """The verified limit period of ``gait`` with its own integrator (as `crawlsim velocity`
+    finds it: plain periods, then the periodic-limit solver)."""
+    from crawlsim.analysis.run import effective_tolerance
+    from crawlsim.integrate.limit import PLAIN_PERIODS, relative_step, solve_limit
+    from crawlsim.integrate.stepping import make_stepper
+    from crawlsim.model.process import compile_gait
+
+    process = compile_gait(gait)
+    s = gait.simulation
+    tol = effective_tolerance(s.tolerance)
+    integrator = s.integrator
+    stepper = make_stepper(process, integrator)
+    record = None
+    final = None
+    periods = 0
+    while periods < min(PLAIN_PERIODS, s.max_periods):
+        record = stepper.step_period()
+        periods += 1
+        if relative_step(process, record.w[0], record.w[-1]) <= tol:
+            final = record
+            break
+    if final is None:
+        solution = solve_limit(process, make_stepper(process, integrator), tolerance=tol,
+                               first=record, max_periods=max(s.max_periods - periods, 1),
+                               plain=0)
+        if not solution.converged:
+            raise CrawlsimError(f"{gait.source}: the periodic limit was not found within "
+                                f"max_periods = {s.max_periods}; sensitivities need it")
+        final = solution.record
+    return limit_of(process, final)
+
+
+def limit_of(process: SweepingProcess, final: PeriodRecord) -> Limit:
+    """v0, its error and the period's displacement and dissipation of a verified limit period
+    (the error as `crawlsim.analysis.run.simulate` bounds it: the steps' roundoff and the
+    residual |P(w) - w| as a shape mismatch over the smallest stiffness)."""
+    from crawlsim.analysis.energy import period_dissipation
+    from crawlsim.integrate.limit import relative_step
+
+    slips = final.slips
+    assert final.x is not None and slips is not None and process.stiffness is not None
+    T = process.period
+    d = float(np.mean(final.x[-1] - final.x[0]))
+    F = float(np.max(np.abs(final.w[-1] - final.w[0])))
+    roundoff = float(np.sum(np.abs(slips))) / process.blocks
+    steps = len(final.w) - 1  # the run's grid (``process`` may be compiled on a coarser one)
+    err = (steps * EPS * roundoff + F / float(np.min(process.stiffness))) / T
+    return Limit(process, final, d / T, err, d, period_dissipation(process, final),
+                  relative_step(process, final.w[0], final.w[-1]))
+
+
+# -- the offsets' coefficients and their derivatives -----------------------------------------
+@dataclass(frozen=True, eq=False)
+class Coefficients:
+    C: np.ndarray  # (P, nb, m) offsets c = phi @ C_p
+    Mu: np.ndarray  # (P, nb, m) friction weights of the rows, mu = phi @ Mu_p
+    k: np.ndarray  # (N-1,)
+    edges: np.ndarray
+    basis: Any
+    pieces: Any  # the compiled `crawlsim.model.offsets.PiecewiseOffsets` they come from
+
+
+def coefficients_of(gait: Gait, process: SweepingProcess | None = None) -> Coefficients:
+    """The offsets' coefficients as the integrator compiles them (every term of c(t), whatever
+    the gait file adds to it) and the friction weights: those of ``process`` (the gait's,
+    compiled on any grid) or of the gait compiled on a grid of its breakpoints only."""
+    from crawlsim.model.process import compile_gait
+
+    if process is None:
+        process = compile_gait(gait, steps_per_period=1)
+    assert process.offset_pieces is not None and process.stiffness is not None
+    return _assemble(gait, process.offset_pieces, np.array(process.stiffness, dtype=float))
+
+
+def _signals(gait: Gait) -> tuple[Any, ...]:
+    """The signals c(t) is combined from, in the order `compile_gait` takes them."""
+    forces = () if gait.loads is None else tuple(gait.loads.forces)
+    return tuple(gait.links) + tuple(gait.forward) + tuple(gait.backward) + forces
+
+
+def _assemble(gait: Gait, pieces: Any, k: np.ndarray) -> Coefficients:
+    from crawlsim.model.offsets import PiecewiseOffsets
+
+    N = gait.blocks
+    signals = list(gait.links) + list(gait.forward) + list(gait.backward)
+    friction = PiecewiseOffsets(signals, lambda coef: coef[:, N - 1:], pieces.edges)
+    P = pieces.pieces
+    C = np.array([pieces.coefficients(p) for p in range(P)])
+    # the friction weights of the rows are mu cos(angle) on a slope (docs/model.md §6)
+    Mu = np.array([friction.coefficients(p) for p in range(P)]) * (
+        1.0 if gait.loads is None else gait.loads.cos)
+    if friction.basis != pieces.basis:  # pragma: no cover - the same signals span both
+        raise CrawlsimError(f"{gait.source}: internal error, friction and offsets in two bases")
+    return Coefficients(C, Mu, k, pieces.edges, pieces.basis, pieces)
+
+
+def _moved_coefficients(gait: Gait, base: Coefficients, keys: tuple[Any, ...],
+                        value: float) -> Coefficients:
+    """The coefficients of the gait with one number moved. A signal's number (a link's, a
+    friction's) changes the signals alone: they are combined by the base's own map into c
+    (linear in them, docs/sensitivity.md), on the base's pieces when the breakpoints stay;
+    anything else (the stiffness, which that map holds) is compiled anew."""
+    from crawlsim.model.offsets import PiecewiseOffsets
+
+    moved = _moved(gait, keys, value)
+    if keys[0] in ("links", "friction") and np.array_equal(moved.breakpoints(),
+                                                           gait.breakpoints()):
+        pieces = PiecewiseOffsets(_signals(moved), base.pieces.combine, base.pieces.edges)
+        return _assemble(moved, pieces, base.k)
+    return coefficients_of(moved)
+
+
+def _rotation_inverse(base: np.ndarray, moved: np.ndarray, basis: Any, shift: float) -> np.ndarray:
+    """d/dphase of coefficients from those at phase and phase + shift: harmonic n of every
+    column is rotated by 2 pi n shift (rotations commute with the linear combination of the
+    signals), Delta_n = (R_n - I) Z_n, and dZ_n/dphase = 2 pi n J Z_n, J the quarter turn."""
+    out = np.zeros_like(base)
+    h0 = basis.first_harmonic
+    delta = moved - base
+    for n in range(1, basis.harmonics + 1):
+        a = 2.0 * math.pi * n * shift
+        R = np.array([[math.cos(a) - 1.0, -math.sin(a)], [math.sin(a), math.cos(a) - 1.0]])
+        rows = slice(h0 + 2 * (n - 1), h0 + 2 * n)
+        Z = np.linalg.solve(R, delta[..., rows, :].swapaxes(-1, -2)[..., None]).squeeze(-1)
+        Z = Z.swapaxes(-1, -2)  # (..., 2, cols)
+        out[..., rows.start, :] = -2.0 * math.pi * n * Z[..., 1, :]
+        out[..., rows.start + 1, :] = 2.0 * math.pi * n * Z[..., 0, :]
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class Parameter:
+    path: str
+    keys: tuple[Any, ...]
+    value: float
+    dC: np.ndarray | None = None
+    dMu: np.ndarray | None = None
+    dk: np.ndarray | None = None
+    reason: str | None = None  # not computed: why
+    period: bool = False
+
+
+def _moved(gait: Gait, keys: tuple[Any, ...], value: float) -> Gait:
+    """The gait with the number at ``keys`` set to ``value``, for a difference quotient of the
+    coefficients: a link's signal or the stiffness rebuilt alone (``parse_signal`` checks the
+    signal), anything else through `Gait.replace`, validated like a file. The cheap path is
+    what keeps a parameter's share of the cost small (issue 22: <= 0.2 of a run each)."""
+    if keys[0] == "links" and len(keys) >= 2 and isinstance(keys[1], int):
+        i = keys[1]
+        links = list(gait.links)
+        links[i] = _moved_signal(gait, gait.document["links"][i], keys[2:], value,
+                                 f"links[{i}]")
+        return dataclasses.replace(gait, links=tuple(links))
+    if keys[0] == "friction" and value > 0:
+        friction = _moved_friction(gait, keys, value)
+        if friction is not None:
+            return dataclasses.replace(gait, forward=friction[0], backward=friction[1])
+    if keys[0] == "stiffness" and len(keys) <= 2 and value > 0:
+        k = np.array(gait.stiffness, dtype=float)
+        if len(keys) == 1:
+            k[:] = value
+        else:
+            k[keys[1]] = value
+        return dataclasses.replace(gait, stiffness=k)
+    return gait.replace(".".join(str(k) for k in keys), value)
+
+
+def _moved_signal(gait: Gait, node: Any, inside: tuple[Any, ...], value: float,
+                  keypath: str) -> Any:
+    """The signal of the document ``node`` with the number at ``inside`` it set to ``value``
+    (the node itself when ``inside`` is empty: a constant), parsed and checked."""
+    from crawlsim.gait.docpaths import set_value
+    from crawlsim.gait.signals import parse_signal
+
+    if inside:
+        node = copy.deepcopy(node)
+        set_value(node, inside, value)
+    else:
+        node = value
+    return parse_signal(node, keypath, gait.source)
+
+
+def _moved_friction(gait: Gait, keys: tuple[Any, ...], value: float
+                    ) -> tuple[tuple[Any, ...], tuple[Any, ...]] | None:
+    """mu^+ and mu^- per block with one friction number moved (``friction.forward...``, shared
+    by every block, or ``friction.I.forward...``); None for another form of the block."""
+    shared = isinstance(keys[1], str)
+    rest = keys[1:] if shared else keys[2:]
+    if not rest or rest[0] not in ("forward", "backward"):
+        return None
+    node: Any = gait.document["friction"] if shared else gait.document["friction"][keys[1]]
+    signal = _moved_signal(gait, node[rest[0]], rest[1:], value,
+                           ".".join(map(str, keys[:len(keys) - len(rest) + 1])))
+    sides = {"forward": list(gait.forward), "backward": list(gait.backward)}
+    blocks = range(gait.blocks) if shared else [keys[1]]
+    for j in blocks:
+        sides[rest[0]][j] = signal
+    return tuple(sides["forward"]), tuple(sides["backward"])
+
+
+def parameter_of(gait: Gait, base: Coefficients, keys: tuple[Any, ...]) -> Parameter:
+    path = ".".join(str(k) for k in keys)
+    node: Any = gait.document
+    for key in keys:
+        node = node.get(key) if isinstance(node, dict) else node[key]
+    if node is None and keys[-1] == "phase":
+        node = 0.0
+    if isinstance(node, bool) or not isinstance(node, (int, float)):
+        raise GaitError(gait.source, path, f"a sensitivity needs a number, found {node!r}")
+    value = float(node)
+    if keys == ("period",):
+        return Parameter(path, keys, value, period=True)
+    if keys[0] in STRUCTURAL:
+        return Parameter(path, keys, value, reason=f"{path} is not a continuous parameter of "
+                                                   "the gait")
+    phase = keys[-1] == "phase"
+    if keys[-1] == "angle":
+        return _angle(gait, keys, path, value)
+    H = max(base.basis.harmonics, 1)
+    h = 0.25 / (2 * H + 1) * 1e-2 if phase else COEFFICIENT_STEP * max(abs(value), 1.0)
+    try:
+        moved = _moved_coefficients(gait, base, keys, value + h)
+    except CrawlsimError as exc:
+        try:
+            h = -h
+            moved = _moved_coefficients(gait, base, keys, value + h)
+        except CrawlsimError:
+            return Parameter(path, keys, value, reason=f"the gait with {path} moved is "
+                                                       f"refused: {exc}")
+    if (moved.C.shape != base.C.shape or not np.array_equal(moved.edges, base.edges)
+            or moved.basis != base.basis):
+        return Parameter(path, keys, value, reason=f"moving {path} moves the breakpoints of "
+                                                   "c(t) or changes its form: not differentiated")
+    if phase:
+        dC = _rotation_inverse(base.C, moved.C, base.basis, h)
+        dMu = _rotation_inverse(base.Mu, moved.Mu, base.basis, h)
+    else:
+        dC, dMu = (moved.C - base.C) / h, (moved.Mu - base.Mu) / h
+    return Parameter(path, keys, value, dC, dMu, (moved.k - base.k) / h)
+
+
+def _angle(gait: Gait, keys: tuple[Any, ...], path: str, value: float) -> Parameter:
+    """A slope's angle enters c and the friction weights through its cosine and sine, not
+    affinely: a central difference of the coefficients, h = ANGLE_STEP degrees (its error
+    h^2 (pi/180)^2 / 6 relative, below 1e-12; its roundoff eps |C| / h)."""
+    try:
+        plus = coefficients_of(gait.replace(path, value + ANGLE_STEP))
+        minus = coefficients_of(gait.replace(path, value - ANGLE_STEP))
+    except CrawlsimError as exc:
+        return Parameter(path, keys, value, reason=f"the gait with {path} moved is refused: "
+                                                   f"{exc}")
+    h2 = 2 * ANGLE_STEP
+    return Parameter(path, keys, value, (plus.C - minus.C) / h2, (plus.Mu - minus.Mu) / h2,
+                     (plus.k - minus.k) / h2)
+
+
+def uniqueness_touch(gait: Gait, co: Coefficients) -> str | None:
+    """Friction on the boundary of the uniqueness condition: some g_J(t) (docs/model.md §3)
+    reaches zero without changing sign (a tangency), so that moving the friction creates or
+    removes instants where the slips are not unique."""
+    N = gait.blocks
+    if N > UNIQUENESS_BLOCKS or not np.any(co.Mu[:, 1:, :]):
+        return None  # friction constant on each piece: g_J = 0 there is refused by validation
+    total = np.zeros(N)
+    J = ((np.arange(2 ** N)[:, None] >> np.arange(N)[None, :]) & 1).astype(float)  # (2^N, N)
+    for p in range(co.Mu.shape[0]):
+        Mu = co.Mu[p]
+        if co.basis.size == 1:
+            x = np.array([0.5 * (co.edges[p] + co.edges[p + 1])])
+        else:
+            x = np.linspace(co.edges[p], co.edges[p + 1], 513)
+        vals = co.basis.values(x) @ Mu  # (s, 2N)
+        plus, minus = vals[:, :N], vals[:, N:]
+        total = np.maximum(total, np.max(plus + minus, axis=0))
+        g = J @ (plus + minus).T - np.sum(minus, axis=1)[None, :]  # (2^N, s)
+        tol = 1e-9 * float(np.max(np.sum(plus + minus, axis=1)))
+        low = np.min(np.abs(g), axis=1)
+        for r in np.flatnonzero(low <= 1e-3 * tol / 1e-9):
+            gr = g[r]
+            i = int(np.argmin(np.abs(gr)))
+            if np.all(gr >= -tol) or np.all(gr <= tol):
+                # refine the minimum of |g| near sample i on the closed form
+                from scipy.optimize import minimize_scalar
+
+                coefs = (J[r] @ (Mu[:, :N] + Mu[:, N:]).T) - np.sum(Mu[:, N:], axis=1)
+                lo, hi = x[max(i - 1, 0)], x[min(i + 1, len(x) - 1)]
+                if hi > lo:
+                    res = minimize_scalar(lambda v, z=coefs: abs(co.basis.scalar(v, z)),
+                                          bounds=(lo, hi), method="bounded",
+                                          options={"xatol": 1e-12})
+                    val = float(res.fun)
+                else:
+                    val = abs(float(gr[i]))
+                if val <= tol:
+                    blocks = [j + 1 for j in range(N) if J[r, j]]
+                    return (f"the friction is on the boundary of the uniqueness condition: "
+                            f"g_J touches zero at t/T = {x[i]:.6g} for J = {blocks}")
+    return None
