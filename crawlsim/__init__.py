@@ -2,18 +2,22 @@
 
 The folders are the path from a gait file to an answer:
 
-    gait/        YAML gait file -> validated `Gait`: schema, signals, units, dotted paths
-    model/       `Gait` -> shape-space sweeping process: offsets, uniqueness, loads
+    gait/        YAML gait file -> validated `Gait`: schema, signals, units, dotted paths,
+                 loads, the uniqueness condition
     kernel/      exact, certified projections: the KKT certificate, the one Clarabel adapter,
-                 the compiled (numba) catch-up step and event times
-    integrate/   stepping a process period by period: catch-up, exact, the periodic limit, batches
-    analysis/    a run to its periodic regime and what it measures: v0, energy, sensitivities, stall
+                 the compiled (numba) catch-up step and exact event loop
+    model/       `Gait` -> shape-space sweeping process: offsets, the `Crawler`'s quantities
+    integrate/   stepping a process period by period: catch-up, exact, the periodic limit, the
+                 exact energy ledger
+    analysis/    a run to its periodic regime and what it measures: v0, energy, sensitivities
     io/          HDF5 (netCDF-4) results files, provenance, atomic writes
-    study/       sweeps, gait design (optimize), the paper's checks
-    plotting/    figures and animations of a results file
-    cli/         the `crawlsim` command, one module per command
+    plotting/    figures and animations of a run
+    study/       one gait's run, sweeps, the stall search, gait design (optimize), the paper's checks
     api.py       the entry points for Python studies: load_gait, simulate, sweep, sensitivity,
                  and the typed readers open_run, open_sweep
+    cli/         the `crawlsim` command, one module per command
+
+Each package imports only those listed above it (`lint-imports`, pyproject.toml).
 
 The names below are imported on first use, so ``import crawlsim`` stays light (no numpy).
 """
