@@ -1,0 +1,274 @@
+"""The exact integrator's compiled path (`crawlsim.kernel.eventloop`) seen from Python: the driver
+that hands a crawler's period to the compiled event loop and turns its arrays into a
+`PeriodRecord` whose transitions, visited active sets and energy ledger are formed only when they
+are read (`crawlsim.integrate.limit`, `crawlsim.analysis.energy`). The stepper that owns it, and
+the Python loop that takes the periods the compiled one hands back, are `crawlsim.integrate.exact`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, NamedTuple, cast, overload
+
+import numpy as np
+
+from crawlsim.errors import CertificateError
+from crawlsim.integrate.ledger import ExactLedger, PeriodEnergy
+from crawlsim.integrate.stepping import PeriodRecord, Transition, TransitionCause
+from crawlsim.kernel.kkt import ActiveSet, ChainPolyhedron, Polyhedron
+
+if TYPE_CHECKING:
+    from crawlsim.integrate.exact import EventStepper
+
+
+class EventTrajectory(NamedTuple):
+    """The exact trajectory at event times (absolute), after each event is processed.
+
+    Between two consecutive entries the active set is fixed and w follows the closed form of the
+    module docstring. Period starts and breakpoints are included.
+    """
+
+    t: np.ndarray  # (E,)
+    w: np.ndarray  # (E, n)
+    x: np.ndarray | None  # (E, N) block positions (crawlers)
+
+
+class _Transitions(Sequence[Transition]):
+    """The period's `Transition` records from the compiled loop's arrays, their active sets
+    factored by `crawlsim.kernel.kkt` only when they are read (`crawlsim.integrate.limit`,
+    sensitivities)."""
+
+    def __init__(self, poly: Polyhedron, u: np.ndarray, piece: np.ndarray, signs: np.ndarray,
+                 cause: np.ndarray, hit: np.ndarray) -> None:
+        self._poly = poly
+        self._arrays = (u, piece, signs, cause, hit)
+        self._built: list[Transition] | None = None
+
+    def _list(self) -> list[Transition]:
+        if self._built is None:
+            from crawlsim.kernel.catchup import rows_of
+            from crawlsim.kernel.eventloop import CAUSES
+
+            u, piece, signs, cause, hit = self._arrays
+            self._built = [
+                Transition(float(u[i]), int(piece[i]), self._poly.factor(rows_of(signs[i])),
+                           cast(TransitionCause, CAUSES[int(cause[i])]), np.flatnonzero(hit[i]))
+                for i in range(len(u))]
+        return self._built
+
+    def __len__(self) -> int:
+        return len(self._arrays[0])
+
+    @overload
+    def __getitem__(self, i: int) -> Transition: ...
+
+    @overload
+    def __getitem__(self, i: slice) -> list[Transition]: ...
+
+    def __getitem__(self, i: int | slice) -> Transition | list[Transition]:
+        return self._list()[i]
+
+
+class _Visited(Sequence[ActiveSet]):
+    """`PeriodRecord.visited` of a compiled period: `crawlsim.kernel.catchup.VisitedSets` of
+    its transitions' sets, formed when first read (`crawlsim.integrate.limit`)."""
+
+    def __init__(self, poly: Polyhedron, signs: np.ndarray) -> None:
+        self._args: tuple[Polyhedron, np.ndarray] | None = (poly, signs)
+        self._sets: Sequence[ActiveSet] = ()
+
+    def _list(self) -> Sequence[ActiveSet]:
+        if self._args is not None:
+            from crawlsim.kernel.catchup import VisitedSets
+
+            self._sets, self._args = VisitedSets(*self._args), None
+        return self._sets
+
+    def __len__(self) -> int:
+        return len(self._list())
+
+    @overload
+    def __getitem__(self, i: int) -> ActiveSet: ...
+
+    @overload
+    def __getitem__(self, i: slice) -> Sequence[ActiveSet]: ...
+
+    def __getitem__(self, i: int | slice) -> ActiveSet | Sequence[ActiveSet]:
+        return self._list()[i]
+
+
+class _CompiledLoop:
+    """The arrays of one crawler's compiled event loop (`crawlsim.kernel.eventloop.period`): the
+    offsets' coefficients per piece, the jump targets and the energy terms, built once; the
+    output arrays, sized to the events of the last period."""
+
+    def __init__(self, stepper: EventStepper) -> None:
+        from crawlsim.kernel import catchup
+
+        pieces, basis = stepper.pieces, stepper.basis
+        P, n, m, nb = pieces.pieces, stepper.poly.n, stepper.poly.m, basis.size
+        poly = stepper.poly
+        assert isinstance(poly, ChainPolyhedron)
+        self.k = np.ascontiguousarray(poly.stiffness, dtype=np.float64)
+        self.c_scale = float(poly.c_scale)
+        self.coef = np.ascontiguousarray([pieces.coefficients(q) for q in range(P)], dtype=float)
+        self.target = np.zeros((P + 1, m))
+        for edge in map(int, np.flatnonzero(stepper._jump)):
+            self.target[edge] = pieces.evaluate(pieces.edges[edge] if edge < P else 0.0,
+                                                piece=edge % P)[0]
+        self.terms = np.zeros((4, P, nb, n))
+        self.rows = np.zeros((2, P, nb, m))
+        if stepper._ledger is not None:
+            for q in range(P):
+                _, KLc, dLc, Mc, lc = stepper._ledger.terms(q)
+                self.terms[0, q], self.terms[1, q] = KLc, dLc
+                self.rows[0, q], self.rows[1, q] = Mc, lc
+        self.phi = np.ascontiguousarray(basis.values(stepper._grid))
+        self.capacity = 64
+        self.handoffs = 0
+        self._scratch: dict[str, Any] = {}
+        self._final: tuple[bytes, ActiveSet] = (b"", stepper.poly.empty)
+        catchup.announce_compilation("exact")
+
+    @staticmethod
+    def of(stepper: EventStepper) -> _CompiledLoop | None:
+        """The loop for crawlers whose offsets are linear, or one harmonic (with or without a
+        linear part); None where the Python loop is the only one."""
+        basis = stepper.basis
+        if not isinstance(stepper.poly, ChainPolyhedron) or basis.harmonics > 1:
+            return None
+        return _CompiledLoop(stepper)
+
+    def period(self, s: EventStepper) -> PeriodRecord | None:
+        """One period of ``s`` in the compiled loop, or None where it hands the period over."""
+        from crawlsim.kernel import eventloop as loop
+
+        while True:
+            out = self._run(s)
+            status = out["status"]
+            if status != loop.OVERFLOW:
+                break
+            self.capacity *= 2
+        if status == loop.DONE:
+            return self._record(s, out)
+        start = s.period_index * s.process.period
+        report = out["report"]
+        u = float(report[loop.R_U])
+        if status == loop.TOO_MANY:
+            raise s._too_many(u, start)
+        if status == loop.ZENO:
+            e = int(out["counts"][loop.C_EVENTS])
+            width = float(out["ev_t"][e - 1] - out["ev_t"][e - s.zeno_events])
+            rows = np.flatnonzero(out["tr_hit"][out["counts"][loop.C_TRANSITIONS]])
+            raise s._zeno(width, u, start, rows)
+        if status == loop.FAILED_PIECE:
+            j = int(report[loop.R_INDEX])
+            raise CertificateError(
+                f"{s.process.name}: the exact trajectory failed its certificate at t = "
+                f"{start + s._grid[j] * s.process.period:.12g}: constraint violation "
+                f"{report[loop.R_PRIMAL]:.3g}, negative slip integral {report[loop.R_DUAL]:.3g} "
+                f"(tolerance {report[loop.R_TOLP]:.3g} / {report[loop.R_TOLD]:.3g}), "
+                f"complementarity {report[loop.R_COMP]:.3g}")
+        return None  # HANDOFF
+
+    def _run(self, s: EventStepper) -> dict[str, Any]:
+        from crawlsim.kernel import catchup, eventloop
+
+        p = s.process
+        N, n, m = p.blocks, s.poly.n, s.poly.m
+        nb, P, G = s.basis.size, s.pieces.pieces, p.steps
+        E = min(self.capacity, s.max_events + 1)
+        T2 = E + P + 2
+        out = self._scratch
+        # work arrays kept from period to period while they hold E events and are not more
+        # than twice that (a run's peak memory)
+        if not E <= out.get("capacity", 0) <= 2 * E:
+            out.clear()
+            out.update({
+                "capacity": E, "ev_t": np.empty(E), "ev_w": np.empty((E, n)),
+                "ev_dx": np.empty((E, N)), "tr_u": np.empty(T2),
+                "tr_piece": np.empty(T2, dtype=np.int64),
+                "tr_signs": np.empty((T2, N), dtype=np.int8),
+                "tr_cause": np.empty(T2, dtype=np.int8),
+                "tr_hit": np.zeros((T2, m), dtype=np.bool_), "bounds": np.empty((E, 2)),
+                "products": np.empty((E, 3, nb, nb)),
+                "jump_piece": np.empty(P + 1, dtype=np.int64), "jump_u": np.empty(P + 1),
+                "jump_w": np.empty((P + 1, 2, n)), "jump_lam": np.empty((P + 1, m)),
+                "counts": np.zeros(4, dtype=np.int64), "report": np.zeros(8)})
+        if "LAMC" not in out:  # the cumulative slips on the grid: scratch of the loop
+            out["LAMC"] = np.empty((G + 1, m))
+        out["W"] = np.empty((G + 1, n))
+        out["signs"] = catchup.signs_of(s.active, N)
+        out["status"] = eventloop.period(
+            self.k, self.c_scale, s.basis.linear, s.basis.harmonics, self.coef, s.pieces.edges,
+            s._jump, self.target, s._grid, self.phi, np.ascontiguousarray(s.w, dtype=float),
+            out["signs"],
+            s.max_events, s.zeno_events, s.zeno_window, s._ledger is not None, self.terms[0],
+            self.terms[1], self.rows[0], self.rows[1], out["W"], out["LAMC"], out["ev_t"],
+            out["ev_w"], out["ev_dx"], out["tr_u"], out["tr_piece"], out["tr_signs"],
+            out["tr_cause"], out["tr_hit"], out["bounds"], out["products"], out["jump_piece"],
+            out["jump_u"], out["jump_w"], out["jump_lam"], out["counts"], out["report"])
+        return out
+
+    def _record(self, s: EventStepper, out: dict[str, Any]) -> PeriodRecord:
+        from crawlsim.kernel import catchup, eventloop
+
+        T = s.process.period
+        start = s.period_index * T
+        e, t, q, nj = (int(v) for v in out["counts"])
+        self.capacity = max(64, e + e // 4 + 16)  # room for a few more events next period
+        W, LAMC = out["W"], out["LAMC"]
+        key = out["signs"].tobytes()
+        if key != self._final[0]:  # a periodic regime ends every period on the same set
+            self._final = key, s.poly.factor(catchup.rows_of(out["signs"]))
+        s.active = self._final[1]
+        if s.check_every_step:
+            s._verify(W, start)
+        X = x_events = None
+        MU = np.empty((LAMC.shape[0] - 1, LAMC.shape[1]))
+        if s.x is not None:
+            X = np.empty((LAMC.shape[0], s.x.shape[0]))
+            eventloop.grid_record(LAMC, np.ascontiguousarray(s.x, dtype=float), MU, X)
+            x_events = s.x + out["ev_dx"][:e]
+            s.x = X[-1].copy()
+        else:
+            eventloop.grid_record(LAMC, np.empty(0), MU, np.empty((0, 0)))
+        s.w = W[-1].copy()
+        energy = None
+        if s._ledger is not None:
+            energy = _Energy(s._ledger, out["bounds"][:q].copy(),
+                             out["products"][:q, :s._ledger.products].copy(),
+                             [(int(out["jump_piece"][i]), float(out["jump_u"][i]),
+                               out["jump_w"][i, 0].copy(), out["jump_w"][i, 1].copy(),
+                               out["jump_lam"][i].copy()) for i in range(nj)],
+                             W[0], W[-1])
+        signs = out["tr_signs"][:t].copy()
+        transitions = _Transitions(s.poly, out["tr_u"][:t].copy(), out["tr_piece"][:t].copy(),
+                                   signs, out["tr_cause"][:t].copy(), out["tr_hit"][:t].copy())
+        events = EventTrajectory(start + out["ev_t"][:e] * T, out["ev_w"][:e].copy(), x_events)
+        record = PeriodRecord(s.period_index, start, W, MU, X, 0,
+                              events=events, visited=_Visited(s.poly, signs),
+                              transitions=transitions, energy_of=energy)
+        return record
+
+
+@dataclass(frozen=True, eq=False)
+class _Energy:
+    """A period's energy ledger from the compiled loop's pieces and jumps, formed by the
+    stepper's `ExactLedger` when it is first read (`PeriodRecord.energy`)."""
+
+    ledger: ExactLedger
+    bounds: np.ndarray
+    products: np.ndarray
+    jumps: list[tuple[int, float, np.ndarray, np.ndarray, np.ndarray]]
+    w_start: np.ndarray
+    w_end: np.ndarray
+
+    def __call__(self) -> PeriodEnergy:
+        ledger = self.ledger
+        ledger.start()
+        ledger.add_pieces(self.bounds, self.products)
+        for jump in self.jumps:
+            ledger.jump(*jump)
+        return ledger.finish(self.w_start, self.w_end)
