@@ -31,6 +31,16 @@ import numpy as np
 from numba import njit
 
 from crawlsim.kernel import chain, events
+from crawlsim.kernel.piece import (  # noqa: F401 - eventloop.piece etc. are its entry points too
+    apply,
+    basis_values,
+    combine,
+    derivative,
+    dual_scale,
+    max_abs,
+    piece,
+    solve_rows,
+)
 
 TWO_PI = 2.0 * math.pi
 RTOL = chain.RTOL
@@ -50,163 +60,6 @@ R_U, R_INDEX, R_PRIMAL, R_DUAL, R_TOLP, R_TOLD, R_COMP = range(7)
 C_EVENTS, C_TRANSITIONS, C_PIECES, C_JUMPS = range(4)
 
 
-# -- the basis phi(u) and products with it ------------------------------------------------------
-@njit(cache=True)
-def basis_values(u: float, order: int, linear: bool, H: int, out: np.ndarray) -> None:
-    """The order-th derivative of phi at u into ``out`` (`crawlsim.model.offsets.Basis.values`)."""
-    for b in range(out.shape[0]):
-        out[b] = 0.0
-    if order == 0:
-        out[0] = 1.0
-    h0 = 1
-    if linear:
-        h0 = 2
-        if order == 0:
-            out[1] = u
-        elif order == 1:
-            out[1] = 1.0
-    shift = order * (math.pi / 2)
-    for h in range(1, H + 1):
-        w = TWO_PI * h
-        scale = w ** order
-        angle = u * w
-        out[h0 + 2 * (h - 1)] = scale * math.cos(angle + shift)
-        out[h0 + 2 * (h - 1) + 1] = scale * math.sin(angle + shift)
-
-
-@njit(cache=True)
-def derivative(coef: np.ndarray, linear: bool, H: int, out: np.ndarray) -> None:
-    """Coefficients (nb, k) of f' for f = phi @ coef (`crawlsim.model.offsets.Basis.derivative`)."""
-    out[:] = 0.0
-    h0 = 1
-    if linear:
-        h0 = 2
-        out[0] = coef[1]
-    for h in range(1, H + 1):
-        w = TWO_PI * h
-        ci = h0 + 2 * (h - 1)
-        out[ci] = w * coef[ci + 1]
-        out[ci + 1] = -w * coef[ci]
-
-
-@njit(cache=True)
-def combine(phi: np.ndarray, coef: np.ndarray, out: np.ndarray) -> None:
-    """out = phi @ coef for coef (nb, k), row by row of coef (contiguous; the sums add the same
-    terms in the same order as the dot product of each column)."""
-    for r in range(out.shape[0]):
-        out[r] = 0.0
-    for b in range(phi.shape[0]):
-        p = phi[b]
-        for r in range(out.shape[0]):
-            out[r] += p * coef[b, r]
-
-
-@njit(cache=True)
-def apply(w: np.ndarray, out: np.ndarray) -> None:
-    """B w = [D^T w; -D^T w] of a chain (`crawlsim.kernel.kkt.ChainPolyhedron.apply`)."""
-    N = out.shape[0] // 2
-    for i in range(N):
-        f = (w[i - 1] if i > 0 else 0.0) - (w[i] if i < N - 1 else 0.0)
-        out[i] = f
-        out[N + i] = -f
-
-
-@njit(cache=True)
-def max_abs(x: np.ndarray) -> float:
-    out = 0.0
-    for i in range(x.shape[0]):
-        if abs(x[i]) > out:
-            out = abs(x[i])
-    return out
-
-
-# -- a piece: the factor and the closed form of w(u) and the slips --------------------------------
-@njit(cache=True)
-def solve_rows(D: np.ndarray, l: np.ndarray, Y: np.ndarray) -> None:
-    """Y[b] <- L~^{-1} Y[b] for every row b (`crawlsim.kernel.chain.solve`, the same operations
-    on each row), the rows side by side: their recurrences overlap instead of waiting on one
-    another."""
-    nb, N = Y.shape
-    for i in range(1, N):
-        for b in range(nb):
-            Y[b, i] -= l[i - 1] * Y[b, i - 1]
-    for i in range(N):
-        for b in range(nb):
-            Y[b, i] /= D[i]
-    for i in range(N - 2, -1, -1):
-        for b in range(nb):
-            Y[b, i] -= l[i] * Y[b, i + 1]
-
-
-@njit(cache=True)
-def piece(k: np.ndarray, signs: np.ndarray, w0: np.ndarray, coef: np.ndarray, D: np.ndarray,
-          l: np.ndarray, dx0: np.ndarray, Ydx: np.ndarray, base: np.ndarray, Wc: np.ndarray,
-          f: np.ndarray) -> tuple[float, float]:
-    """w(u) = base + phi(u) @ Wc and dx(u) = dx0 - phi(u) @ Ydx on the set ``signs`` from w0:
-    Lambda_A = G_A^{-1} (B_A w0 - c_A(u)) in the chain's block form L_JJ dx_J = f_J - f*_J.
-    Returns (||L_JJ^{-1}||, ||L_JJ||) (zeros for the empty set)."""
-    N = signs.shape[0]
-    nb = coef.shape[0]
-    active = False
-    for i in range(N):
-        if signs[i] != 0:
-            active = True
-    base[:] = w0
-    Wc[:] = 0.0
-    dx0[:] = 0.0
-    Ydx[:] = 0.0
-    if not active:
-        return 0.0, 0.0
-    inverse, gram = chain.factor(k, signs, D, l)
-    chain.forces(w0, f)
-    for i in range(N):
-        dx0[i] = f[i] if signs[i] != 0 else 0.0
-    chain.solve(D, l, dx0)
-    for b in range(nb):
-        for i in range(N):
-            s = signs[i]
-            Ydx[b, i] = coef[b, i] if s > 0 else (-coef[b, N + i] if s < 0 else 0.0)
-    solve_rows(D, l, Ydx)
-    for i in range(N - 1):
-        base[i] = w0[i] - (dx0[i + 1] - dx0[i]) * k[i]
-        for b in range(nb):
-            Wc[b, i] = (Ydx[b, i + 1] - Ydx[b, i]) * k[i]
-    return inverse, gram
-
-
-@njit(cache=True)
-def dual_scale(k: np.ndarray, kmax: float, c_scale: float, signs: np.ndarray, coef: np.ndarray,
-               dx0: np.ndarray, Ydx: np.ndarray, base: np.ndarray, Wc: np.ndarray, inverse: float,
-               gram: float) -> float:
-    """The roundoff of the slips a piece adds (`EventStepper._dual_scale`): the dual tolerance of
-    its set at the size of its offsets, state and slips."""
-    if inverse == 0.0:
-        return 0.0
-    N = signs.shape[0]
-    nb = coef.shape[0]
-    c_size = 0.0
-    for r in range(coef.shape[1]):
-        total = 0.0
-        for b in range(nb):
-            total += abs(coef[b, r])
-        c_size = max(c_size, total)
-    w_size = max_abs(base)
-    lam_size = 0.0
-    for i in range(N):
-        if signs[i] != 0:
-            lam_size = max(lam_size, abs(dx0[i]))
-    for b in range(nb):
-        w_size += max_abs(Wc[b])
-        top = 0.0
-        for i in range(N):
-            if signs[i] != 0:
-                top = max(top, abs(Ydx[b, i]))
-        lam_size += top
-    size = max(max(c_scale, c_size), max(2.0 * w_size, 4.0 * kmax * lam_size))
-    return 2.0 * RTOL * inverse * (size + gram * lam_size)
-
-
-# -- an event: the next active set --------------------------------------------------------------
 @njit(cache=True)
 def tight_rows(c_scale: float, linear: bool, H: int, coef: np.ndarray, u: float, w: np.ndarray,
                forced: np.ndarray, phi: np.ndarray, cvec: np.ndarray,
