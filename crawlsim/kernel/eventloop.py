@@ -184,6 +184,28 @@ def crossing(z: np.ndarray, tol: float, u0: float, u1: float, linear: bool, H: i
 
 
 @njit(cache=True)
+def rate_tolerance(coef: np.ndarray, signs: np.ndarray, Rdx: np.ndarray, inverse: float) -> float:
+    """The tolerance of the active rows' slip rates on a piece: RTOL times the larger of the
+    rates' own size (sum_b |Rdx[b, i]| over the active blocks) and what the offsets' rates
+    carry through the inverse, ||L_JJ^{-1}|| 2 pi max_r sum_b |coef[b, r]|."""
+    nb = coef.shape[0]
+    c_size = 0.0
+    for r in range(2 * signs.shape[0]):
+        total = 0.0
+        for b in range(nb):
+            total += abs(coef[b, r])
+        c_size = max(c_size, total)
+    scale = 0.0
+    for i in range(signs.shape[0]):
+        if signs[i] != 0:
+            total = 0.0
+            for b in range(nb):
+                total += abs(Rdx[b, i])
+            scale = max(scale, total)
+    return RTOL * max(scale, inverse * c_size * TWO_PI)
+
+
+@njit(cache=True)
 def next_event(c_scale: float, linear: bool, H: int, coef: np.ndarray, signs: np.ndarray,
                base: np.ndarray, Wc: np.ndarray, Ydx: np.ndarray, inverse: float, u0: float,
                u1: float, hit: np.ndarray, Rdx: np.ndarray, z: np.ndarray) -> tuple[float, bool]:
@@ -194,21 +216,8 @@ def next_event(c_scale: float, linear: bool, H: int, coef: np.ndarray, signs: np
     m = 2 * N
     nb = coef.shape[0]
     derivative(Ydx, linear, H, Rdx)
-    c_size = 0.0
-    for r in range(m):
-        total = 0.0
-        for b in range(nb):
-            total += abs(coef[b, r])
-        c_size = max(c_size, total)
     tol_gap = 0.5 * RTOL * c_scale
-    scale = 0.0
-    for i in range(N):
-        if signs[i] != 0:
-            total = 0.0
-            for b in range(nb):
-                total += abs(Rdx[b, i])
-            scale = max(scale, total)
-    tol_rate = RTOL * max(scale, inverse * c_size * TWO_PI)
+    tol_rate = rate_tolerance(coef, signs, Rdx, inverse)
     times = np.full(m, np.inf)
     first = np.inf
     phi0 = np.empty(nb)
