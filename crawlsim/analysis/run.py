@@ -364,6 +364,18 @@ class _Motion:
     error: float
 
 
+def verified_limit_error(process: SweepingProcess, final: PeriodRecord, steps: int) -> float:
+    """The error of v0 from a verified limit period of ``steps`` steps: the steps' roundoff,
+    and the period's residual |P(w) - w|, periodic to which it is: a shape mismatch of
+    |F| / k_min (a length) bounds the displacement's."""
+    c = process.crawler
+    assert c is not None and final.slips is not None
+    roundoff = float(np.sum(np.abs(final.slips))) / c.blocks
+    F = float(np.max(np.abs(final.w[-1] - final.w[0])))
+    return float((steps * np.finfo(float).eps * roundoff
+                  + F / float(np.min(c.stiffness))) / process.period)
+
+
 def _motion(process: SweepingProcess, drive: _Drive, displacements: np.ndarray,
             convergence: Convergence, rate: float | None) -> _Motion | None:
     """v0 of the limit period and the error of the period iteration: the residual of the
@@ -376,11 +388,7 @@ def _motion(process: SweepingProcess, drive: _Drive, displacements: np.ndarray,
     d_final = float(np.mean(final.x[-1] - final.x[0]))
     roundoff = float(np.sum(np.abs(final.slips))) / c.blocks
     if drive.solution is not None:
-        # the verified period is periodic to its residual |P(w) - w|: a shape mismatch of
-        # |F| / k_min (a length) bounds the displacement's
-        F = float(np.max(np.abs(final.w[-1] - final.w[0])))
-        err = float((G * np.finfo(float).eps * roundoff
-                     + F / float(np.min(c.stiffness))) / T)
+        err = verified_limit_error(process, final, G)
     else:
         err = period_iteration_error(displacements, convergence, rate, G, roundoff, T)
     return _Motion(d_final, d_final / T, period_dissipation(process, final), err)

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from crawlsim.analysis.run import verified_limit_error
 from crawlsim.errors import CrawlsimError, GaitError
 
 if TYPE_CHECKING:
@@ -90,14 +91,11 @@ def limit_of(process: SweepingProcess, final: PeriodRecord) -> Limit:
     from crawlsim.analysis.energy import period_dissipation
     from crawlsim.integrate.limit import relative_step
 
-    slips = final.slips
-    assert final.x is not None and slips is not None and process.stiffness is not None
+    assert final.x is not None
     T = process.period
     d = float(np.mean(final.x[-1] - final.x[0]))
-    F = float(np.max(np.abs(final.w[-1] - final.w[0])))
-    roundoff = float(np.sum(np.abs(slips))) / process.blocks
     steps = len(final.w) - 1  # the run's grid (``process`` may be compiled on a coarser one)
-    err = (steps * EPS * roundoff + F / float(np.min(process.stiffness))) / T
+    err = verified_limit_error(process, final, steps)
     return Limit(process, final, d / T, err, d, period_dissipation(process, final),
                   relative_step(process, final.w[0], final.w[-1]))
 
