@@ -341,32 +341,17 @@ def test_cli_bad_input():
 
 
 # -- gradient-based design ---------------------------------------------------------------------
-def test_gradient_optimizer_two_block_bound():
+def test_gradient_search_two_block_bound():
     """Two blocks: v0 = (2 a - (mu_1^+ + mu_2^+)/k) / T grows with the amplitude a, so over
-    a in [0.1, 0.35] the maximum is at the upper bound, v0 = (0.7 - 0.2) / 1 = 0.5."""
-    from crawlsim.study.gradient import optimize_gradient
+    a in [0.1, 0.35] the maximum is at the upper bound, v0 = (0.7 - 0.2) / 1 = 0.5, which the
+    gradient search of `crawlsim optimize` (exact gradients, bounds) reaches to roundoff. The
+    two-lag example is tests/test_optimize.py's."""
+    from crawlsim.study import optimize as opt
 
-    r = optimize_gradient(_two_block(a=0.2), [("links.0.amplitude", 0.1, 0.35)])
-    assert r.x == pytest.approx((0.35,), abs=1e-12)
-    assert r.v0 == pytest.approx(0.5, abs=1e-12)
-
-
-def test_gradient_optimizer_two_lags():
-    """docs/optimize.md's two-lag peristalsis-4 example: the maximum of v0 over links.1.phase and
-    links.2.phase in [0, 1] is 7/15 at (1/2, 0) (= (1/2, 1): phases are periodic), which
-    `crawlsim optimize` reaches in 360 evaluations. The gradient method, from a 4 x 4 sample
-    (not containing the optimum), reaches it to 1e-6 within a fifth of those, 72."""
-    from crawlsim.study.gradient import optimize_gradient
-
-    gait = crawlsim.load_gait("gaits/peristalsis-4.yaml").replace(
-        "simulation.steps_per_period", 20)
-    r = optimize_gradient(gait, [("links.1.phase", 0.0, 1.0), ("links.2.phase", 0.0, 1.0)])
-    assert r.v0 == pytest.approx(7 / 15, abs=1e-6)
-    reached = next(i + 1 for i, v in enumerate(r.history) if v >= 7 / 15 - 1e-6)
-    assert reached <= 72
-    assert r.evaluations <= 72
-    assert r.x[0] == pytest.approx(0.5, abs=1e-6)
-    assert min(r.x[1], 1 - r.x[1]) == pytest.approx(0.0, abs=1e-6)
+    problem = opt.make_problem(_two_block(a=0.2), ["links.0.amplitude=0.1:0.35"])
+    result = opt.optimize(problem, opt.Method(search="gradient", max_evaluations=40))
+    assert result.feasible
+    assert result.value == pytest.approx(0.5, abs=1e-12)
 
 
 def test_piece_derivative_at_a_kink_is_one_side():

@@ -14,7 +14,6 @@
     search       the shared evaluator; one search: evolution + pattern search
     descent      the gradient search: sample (or evolution), then quasi-Newton, exact gradients
     optresult    the answer: evaluations, history, runs, front, hypervolume
-    gradient     gradient-based design of v0 in a box (optimize_gradient, the first version)
     stall        the stall force and the steepest slope, searched by runs at probed loads
     paper        the paper's convergence results, reproduced
 """
