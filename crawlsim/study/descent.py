@@ -124,12 +124,7 @@ class Descent(Search):
         except BudgetSpent:
             self.stop = f"{BUDGET_SPENT} in the quasi-Newton runs" if self.best >= 0 else \
                 BUDGET_SPENT
-        if self.best < 0:
-            self.stop = BUDGET_SPENT + " before the first point"
-        return Run(self.run, self.objective, self.constraints, self.best,
-                   self.best_rank[0] == 0,
-                   sum(1 for e in self.ev.evaluations[self.start:] if e.run == self.run),
-                   self.stop)
+        return self._finished()
 
     def _sample(self, n: int) -> np.ndarray:
         """The coarse sample: the grid of `Method.sample` points per parameter, in the unit

@@ -244,6 +244,10 @@ class Search:
             before = "" if not self.stop or self.stop.startswith(BUDGET_SPENT) else \
                 f" (differential evolution: {self.stop})"
             self.stop = f"{BUDGET_SPENT} in the polish{before}" if self.stop else BUDGET_SPENT
+        return self._finished()
+
+    def _finished(self) -> Run:
+        """The run's record once its search stopped (a budget spent before any point says so)."""
         if self.best < 0:
             self.stop = BUDGET_SPENT + " before the first point"
         return Run(self.run, self.objective, self.constraints, self.best,
