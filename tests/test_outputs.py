@@ -180,6 +180,11 @@ def test_stale_temporary_files_of_dead_processes_are_removed(folder):
 
 def start_slow_run(folder):
     (folder / "slow.yaml").write_text(SLOW)
+    # the same run for two periods first, so that the compiled kernel is in numba's cache and
+    # the signal below arrives while periods are written, not during the first compilation
+    subprocess.run([sys.executable, "-m", "crawlsim", "run", "slow.yaml", "-o", "warm.h5",
+                    "--check-every-step", "--max-periods", "2", "--quiet"], cwd=folder,
+                   capture_output=True, timeout=900, check=False)
     child = subprocess.Popen([sys.executable, "-m", "crawlsim", "run", "slow.yaml", "-o", "slow.h5",
                               "--check-every-step"], cwd=folder, stdout=subprocess.PIPE,
                              stderr=subprocess.PIPE)
