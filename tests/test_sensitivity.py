@@ -39,19 +39,23 @@ from crawlsim.gait.corpus import random_gait
 from crawlsim.gait.document import gait_from_document
 
 
-def _two_block(a=0.3, k=10.0, mu1=1.0, mu2=1.0, T=1.0):
+def _two_block(a=0.3, k=10.0, mu1=1.0, mu2=1.0, T=1.0, integrator="exact"):
     doc = {"name": "two-block", "blocks": 2, "period": T, "stiffness": k,
            "links": [{"kind": "cosine", "mean": 1.0, "amplitude": a}],
            "friction": [{"forward": mu1, "backward": 5.0}, {"forward": mu2, "backward": 5.0}],
-           "simulation": {"steps_per_period": 200, "max_periods": 50, "tolerance": 1e-12}}
+           "simulation": {"steps_per_period": 200, "max_periods": 50, "tolerance": 1e-12,
+                          "integrator": integrator}}
     return gait_from_document(doc, "two-block")
 
 
 @pytest.mark.parametrize("a,k,mu1,mu2,T", [(0.3, 10.0, 1.0, 1.0, 1.0),
                                            (0.25, 17.0, 0.7, 1.3, 2.5),
                                            (0.4, 6.0, 1.1, 0.6, 0.8)])
-def test_two_block_closed_forms(a, k, mu1, mu2, T):
-    r = sensitivity(_two_block(a, k, mu1, mu2, T),
+@pytest.mark.parametrize("integrator", ["exact", "catch-up"])
+def test_two_block_closed_forms(a, k, mu1, mu2, T, integrator):
+    """Both integrators meet the closed forms: the grid holds L's extremes, so catch-up's own
+    discrete map has the exact derivatives too (and says it is catch-up's)."""
+    r = sensitivity(_two_block(a, k, mu1, mu2, T, integrator),
                     ["links.0.amplitude", "stiffness", "friction.0.forward",
                      "friction.1.forward", "period"])
     mus = mu1 + mu2
@@ -63,6 +67,8 @@ def test_two_block_closed_forms(a, k, mu1, mu2, T):
     for path, value in expected_v0.items():
         p = r[path]
         assert p.smooth, (path, p.reason)
+        if integrator == "catch-up":
+            assert p.method == ("rate-independence" if path == "period" else "catch-up")
         assert p.v0.value == pytest.approx(value, abs=1e-8), path
         assert p.v0.error_estimate is not None and p.v0.error_estimate < 1e-10
     assert r["links.0.amplitude"].dissipation_per_period.value == pytest.approx(2 * mus, abs=1e-8)

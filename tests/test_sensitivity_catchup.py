@@ -25,40 +25,7 @@ from crawlsim.errors import CrawlsimError
 from crawlsim.gait.corpus import random_gait
 from crawlsim.gait.document import gait_from_document
 
-from .conftest import two_block
 from .test_sensitivity import _central
-
-
-def _two_block(a, k, mu1, mu2, T):
-    return two_block(a, k, [{"forward": mu1, "backward": 5.0},
-                            {"forward": mu2, "backward": 5.0}], period=T,
-                     simulation={"steps_per_period": 200, "max_periods": 50,
-                                 "tolerance": 1e-12, "integrator": "catch-up"})
-
-
-@pytest.mark.parametrize("a,k,mu1,mu2,T", [(0.3, 10.0, 1.0, 1.0, 1.0),
-                                           (0.25, 17.0, 0.7, 1.3, 2.5),
-                                           (0.4, 6.0, 1.1, 0.6, 0.8)])
-def test_two_block_closed_forms(a, k, mu1, mu2, T):
-    r = sensitivity(_two_block(a, k, mu1, mu2, T),
-                    ["links.0.amplitude", "stiffness", "friction.0.forward",
-                     "friction.1.forward", "period"])
-    mus = mu1 + mu2
-    d = 2 * a - mus / k
-    assert r.displacement_per_period == pytest.approx(d, abs=1e-12)
-    expected = {"links.0.amplitude": 2 / T, "stiffness": mus / (k * k * T),
-                "friction.0.forward": -1 / (k * T), "friction.1.forward": -1 / (k * T),
-                "period": -d / T / T}
-    for path, value in expected.items():
-        p = r[path]
-        assert p.smooth, (path, p.reason)
-        assert p.method == ("rate-independence" if path == "period" else "catch-up")
-        assert p.v0.value == pytest.approx(value, abs=1e-8), path
-    # the grid sum of mu . lambda: each block slips d at its forward limit
-    assert r.dissipation_per_period == pytest.approx(mus * d, abs=1e-10)
-    assert r["links.0.amplitude"].dissipation_per_period.value == pytest.approx(2 * mus,
-                                                                               abs=1e-8)
-    assert r["friction.0.forward"].cost_of_transport.value == pytest.approx(1.0, abs=1e-8)
 
 
 def _check(gait, paths) -> int:
