@@ -14,7 +14,8 @@ The folders are the path from a gait file to an answer:
     plotting/    figures and animations of a run
     study/       one gait's run, sweeps, the stall search, gait design (optimize), the paper's checks
     api.py       the entry points for Python studies: load_gait, simulate, sweep, sensitivity,
-                 and the typed readers open_run, open_sweep
+                 and the typed readers open_run, open_sweep,
+                 open_optimization
     cli/         the `crawlsim` command, one module per command
 
 Each package imports only those listed above it (`lint-imports`, pyproject.toml).
@@ -41,6 +42,7 @@ _EXPORTS = {
     "sensitivity": "crawlsim.api",
     "open_run": "crawlsim.api",
     "open_sweep": "crawlsim.api",
+    "open_optimization": "crawlsim.api",
     "RunStatus": "crawlsim.status",
     "Convergence": "crawlsim.status",
     "SimulationResult": "crawlsim.api",
@@ -59,6 +61,7 @@ _SUBPACKAGES = {"analysis", "api", "cli", "errors", "gait", "integrate", "io", "
                 "plotting", "status", "study"}
 
 __all__ = ["load_gait", "simulate", "sweep", "run", "sensitivity", "open_run", "open_sweep",
+           "open_optimization",
            "SimulationResult", "Trajectory", "RunStatus", "Convergence",
            "Gait", "ProcessSpec", "Units", "CertificateError", "CrawlsimError", "GaitError", "InputError",
            "stall", "__version__"]

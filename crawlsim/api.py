@@ -43,10 +43,11 @@ if TYPE_CHECKING:
 
     from crawlsim.analysis.sensitivity import SensitivityResult
     from crawlsim.study.grid import SweepGrid
+    from crawlsim.study.optresult import OptimizationResult
     from crawlsim.study.sweep import SweepTable
 
-__all__ = ["Rerun", "SimulationResult", "Trajectory", "from_results", "load_gait", "open_run",
-           "open_sweep", "run", "sensitivity", "simulate", "sweep"]
+__all__ = ["Rerun", "SimulationResult", "Trajectory", "from_results", "load_gait",
+           "open_optimization", "open_run", "open_sweep", "run", "sensitivity", "simulate", "sweep"]
 
 
 def sweep(gait: Spec | str | Path | SweepGrid, axes: Mapping[str, Iterable[float]] | None = None,
@@ -125,6 +126,16 @@ def open_sweep(path: str | Path) -> xarray.Dataset | SweepTable:
     except ImportError:
         return sweeps.read_table(path)
     return _grid_dataset(path)
+
+
+def open_optimization(path: str | Path) -> OptimizationResult:
+    """Read an optimisation file (``crawlsim optimize -o``) as the
+    `crawlsim.study.optresult.OptimizationResult` that `crawlsim.study.optimize.optimize`
+    returns (`OptimizationResult.from_file`). Raises `crawlsim.errors.ResultsFileError` for a
+    file that is not an optimisation file."""
+    from crawlsim.study.optresult import OptimizationResult
+
+    return OptimizationResult.from_file(path)
 
 
 def _grid_dataset(source: Any) -> xarray.Dataset:

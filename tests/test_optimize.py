@@ -44,6 +44,37 @@ def lags_problem(**kwargs):
 
 
 # -- specifications ----------------------------------------------------------------------------
+def assert_reads_back(result, path):
+    """The optimisation file reads back (`crawlsim.open_optimization`) as the result that wrote
+    it: the same type, problem, method, evaluations, history, runs, front and summary; only what
+    the file does not keep differs (``computed``, the rows' limit method, Newton steps and the
+    gradient search's extra columns)."""
+    import dataclasses
+
+    import crawlsim
+    from crawlsim.study.optresult import OptimizationResult
+
+    back = crawlsim.open_optimization(path)
+    assert type(back) is OptimizationResult
+    assert back.method == result.method and back.budget == result.budget
+    p, q = back.problem, result.problem
+    assert (p.free, p.objective, p.constraints, p.pareto) == (q.free, q.objective,
+                                                              q.constraints, q.pareto)
+    assert p.base.document == q.base.document and p.base.name == q.base.name
+
+    def kept(e):
+        return dataclasses.replace(e, row=dataclasses.replace(e.row, limit="", newton_steps=None, extra=(),
+                                                              derivatives=None))
+
+    assert [kept(e) for e in back.evaluations] == [kept(e) for e in result.evaluations]
+    assert back.front == result.front
+    for mine, theirs in ((back.runs, result.runs), (back.history, result.history)):
+        np.testing.assert_equal([dataclasses.astuple(x) for x in mine],
+                                [dataclasses.astuple(x) for x in theirs])  # NaN == NaN here
+    assert back.best_yaml().split("# command:")[0] == result.best_yaml().split("# command:")[0]
+    assert {**back.summary(), "computed": 0} == {**result.summary(), "computed": 0}
+
+
 def test_free_parameters_and_constraints_are_parsed_exactly():
     f = opt.parse_free("links.*.amplitude=0.1:0.4")
     assert (f.path, f.lo, f.hi) == ("links.*.amplitude", 0.1, 0.4)
@@ -198,6 +229,7 @@ def test_invalid_points_are_recorded_and_never_chosen(tmp_path):
     data = h5io.read_optimization(tmp_path / "o.h5")
     status = list(data["evaluations"]["status"])
     assert status.count("invalid") == len(invalid)
+    assert_reads_back(result, tmp_path / "o.h5")
     assert not (tmp_path / "o.h5.journal").exists()
 
 
@@ -273,6 +305,7 @@ def test_pareto_front_is_the_non_dominated_set_of_the_evaluated_points(tmp_path)
     data = h5io.read_optimization(tmp_path / "front.h5")
     assert data["front"]["evaluation"].tolist() == list(result.front)
     assert data["front"]["chosen"].sum() >= 1
+    assert_reads_back(result, tmp_path / "front.h5")
     # the figure draws the file's front and marks its chosen points
     from crawlsim.plotting import pareto_figure
 
@@ -467,6 +500,7 @@ def test_gradient_search_pareto_front_and_results_file(tmp_path):
     data = h5io.read_optimization(out)
     assert data["attrs"]["method"] == "sample + quasi-Newton on exact gradients"
     assert len(data["evaluations"]["v0"]) == len(result.evaluations)
+    assert_reads_back(result, out)
 
 
 def test_gradient_search_resumes_from_its_journal(tmp_path, monkeypatch):

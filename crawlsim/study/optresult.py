@@ -3,6 +3,7 @@ the runs, and the Pareto front with its hypervolume."""
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -15,7 +16,15 @@ import numpy as np
 from crawlsim.status import PointStatus
 from crawlsim.study.method import Method
 from crawlsim.study.points import PointResult
-from crawlsim.study.problem import Constraint, InfeasibleError, Objective, Problem, rank
+from crawlsim.study.problem import (
+    Constraint,
+    Free,
+    InfeasibleError,
+    Objective,
+    Problem,
+    Sense,
+    rank,
+)
 
 BUDGET_SPENT = "budget spent"
 
@@ -185,6 +194,18 @@ class OptimizationResult:
         return "\n".join(line.replace("\n", " ") for line in head) + "\n" + \
             effective_yaml(self.problem.document(e.x))
 
+    @classmethod
+    def from_file(cls, path: Path | str) -> OptimizationResult:
+        """The result recorded in an optimisation file (`crawlsim.io.optfile`): the same type
+        and the same numbers as the `crawlsim.study.optimize.optimize` that wrote it. What the
+        file does not keep comes back empty: ``computed`` is 0 (this process simulated nothing),
+        and the rows' ``limit``, ``newton_steps`` and ``extra`` (the gradient search's derivative
+        columns) are unset. Raises `ResultsFileError` for a
+        file that is not an optimisation file."""
+        from crawlsim.io.optfile import read_optimization
+
+        return _result_of_file(read_optimization(path))
+
     def summary(self) -> dict[str, Any]:
         """The JSON-ready answer (``crawlsim optimize --json``)."""
         best = self.best_point
@@ -212,6 +233,93 @@ class OptimizationResult:
                              "chosen": i in self.chosen} for i in self.front]
         return out
 
+
+
+def _result_of_file(data: dict[str, Any]) -> OptimizationResult:
+    """`OptimizationResult.from_file` on `read_optimization`'s dicts."""
+    from crawlsim.gait.document import Gait, gait_from_document
+    from crawlsim.gait.yamlsafe import load_yaml
+    from crawlsim.io.optfile import STAGE_FLAGS
+    from crawlsim.study.problem import parse_constraint
+
+    a = data["attrs"]
+    base = gait_from_document(load_yaml(a["gait_yaml"], a["source"]), a["source"],
+                              source_text=a.get("gait_file_text") or None,
+                              default_name=a["name"])
+    assert isinstance(base, Gait)
+    free = tuple(Free(f["path"], float(f["lo"]), float(f["hi"])) for f in data["free"])
+    pareto = bool(a["pareto"])
+    objective = Objective(a["objective_quantity"], Sense(a["objective_sense"]))
+    problem = Problem(base, free, objective,
+                      tuple(parse_constraint(c) for c in json.loads(a["constraints_json"])),
+                      pareto)
+    stages = dict(STAGE_FLAGS)
+    ev = data["evaluations"]
+    names = [f["name"] for f in data["free"]]
+
+    def number(column: str, n: int) -> float | None:
+        value = float(ev[column][n])
+        return None if math.isnan(value) else value
+
+    evaluations = tuple(Evaluation(
+        n, tuple(float(ev[name][n]) for name in names), int(ev["run"][n]),
+        Stage(stages[int(ev["stage"][n])]), int(ev["batch"][n]),
+        PointResult(n, PointStatus(str(ev["status"][n])), v0=number("v0", n),
+                    v0_error_estimate=number("v0_error_estimate", n),
+                    displacement_per_period=number("displacement_per_period", n),
+                    dissipation_per_period=number("dissipation_per_period", n),
+                    cost_of_transport=number("cost_of_transport", n),
+                    convergence=str(ev["convergence"][n]), periods=int(ev["periods"][n]),
+                    integrator=str(ev["integrator"][n]), message=str(ev["message"][n]),
+                    steps=int(ev["steps"][n])))
+        for n in range(len(ev["run"])))
+    hist = data["history"]
+    history = tuple(Batch(
+        int(hist["batch"][n]), int(hist["run"][n]), Stage(stages[int(hist["stage"][n])]),
+        int(hist["evaluations"][n]), float(hist["best"][n]), int(hist["best_evaluation"][n]),
+        bool(hist["feasible"][n]), float(hist["step"][n]),
+        float(hist["hypervolume"][n]) if "hypervolume" in hist else math.nan)
+        for n in range(len(hist["batch"])))
+    r = data["runs"]
+    runs = tuple(Run(
+        int(r["run"][n]), _objective_of(str(r["objective"][n])),
+        tuple(parse_constraint(c) for c in str(r["constraints"][n]).split(", ") if c),
+        int(r["best_evaluation"][n]), bool(r["feasible"][n]), int(r["evaluations"][n]),
+        str(r["stop"][n]), float(r["epsilon"][n]))
+        for n in range(len(r["run"])))
+    front = tuple(int(i) for i in data["front"]["evaluation"]) if "front" in data else ()
+    return OptimizationResult(problem, _method_of(a), int(a["max_evaluations"]), evaluations,
+                              history, runs, int(a["best_evaluation"]), bool(a["best_feasible"]),
+                              front, float(a["wall_time"]))
+
+
+def _objective_of(text: str) -> Objective:
+    """`Objective.text` (``maximize v0``) back as the objective."""
+    sense, _, quantity = text.partition(" ")
+    return Objective(quantity, Sense(sense))
+
+
+def _method_of(attrs: dict[str, Any]) -> Method:
+    """The `Method` whose `Method.settings` and seed the file recorded (the settings the search
+    used: the file keeps each one it reads)."""
+    settings = json.loads(attrs["method_json"])
+    gradient = "sample_per_parameter" in settings
+    fields: dict[str, Any] = {
+        "seed": int(attrs["seed"]), "max_evaluations": int(attrs["max_evaluations"]),
+        "search": "gradient" if gradient else "evolution", "strategy": settings["strategy"],
+        "popsize": int(settings["popsize_per_parameter"]),
+        "polish_share": float(settings["polish_share"]),
+        "front_points": int(settings["front_points"])}
+    if gradient:
+        fields.update(sample=int(settings["sample_per_parameter"]),
+                      restarts=int(settings["restarts"]),
+                      gradient_tol=float(settings["gradient_tol"]), stall=int(settings["stall"]))
+    else:
+        fields.update(mutation=tuple(float(m) for m in settings["mutation"]),
+                      recombination=float(settings["recombination"]), init=settings["init"],
+                      tol=float(settings["tol"]), polish_step=float(settings["polish_step"]),
+                      polish_xtol=float(settings["polish_xtol"]))
+    return Method(**fields)
 
 
 def non_dominated(points: np.ndarray) -> np.ndarray:
