@@ -118,14 +118,17 @@ class OptimizationResult:
 
     @property
     def best_point(self) -> Evaluation:
+        """The evaluation chosen as the answer (`best`)."""
         return self.evaluations[self.best]
 
     @property
     def best_values(self) -> dict[str, float]:
+        """The free parameters of the best point, by path."""
         return dict(zip(self.problem.paths, self.best_point.x))
 
     @property
     def value(self) -> float:
+        """The objective at the best point (NaN when it has none)."""
         return self.problem.objective.value(self.best_point.row)
 
     @property
@@ -148,6 +151,7 @@ class OptimizationResult:
         return Path(path)
 
     def counts(self) -> dict[str, int]:
+        """Evaluated points by `crawlsim.status.PointStatus` (ok, invalid, failed...)."""
         out = {str(s): 0 for s in PointStatus}
         for e in self.evaluations:
             out[e.row.status] += 1
@@ -165,6 +169,8 @@ class OptimizationResult:
         return flags, violations
 
     def stage_counts(self) -> dict[str, int]:
+        """Evaluated points of the global stage (first population, generations or sample)
+        and of the local polish."""
         out = {"global": 0, "polish": 0}
         for e in self.evaluations:
             out["polish" if e.stage == Stage.POLISH else "global"] += 1
