@@ -21,12 +21,13 @@ held fixed.
 from __future__ import annotations
 
 import functools
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from crawlsim.analysis.sensitivity_terms import EPS, Coefficients, Limit
+from crawlsim.analysis.sensitivity_terms import Coefficients, Limit
 
 if TYPE_CHECKING:
     from crawlsim.integrate.stepping import Transition
@@ -137,17 +138,6 @@ class _Walker:
             dW = W_s - self.k[:, None] * (BA.T @ dLam)
         return Lam, dLam, w_s - self.k * BtL, dW
 
-    def project(self, index: np.ndarray, piece: int, u: float) -> None:
-        """A projection on A at cycle u (a jump of c): the state, the slips and mu(u) . Lambda."""
-        phi = self.basis.values(u)[0]
-        Lam, dLam, self.w, self.Wt = self.solve_on(index, self.w, self.Wt, piece, phi)
-        self.lam[index] += Lam
-        self.Lt[index] += dLam
-        muA = phi @ self.co.Mu[piece][:, index]
-        dmuA = np.einsum("b,bap->ap", phi, self.dMu[piece][:, index, :])
-        self.diss += float(muA @ Lam)
-        self.Dt += muA @ dLam + self.pad(Lam @ dmuA)
-
     def result(self, pieces: int) -> Walk:
         return Walk(self.Wt, self.Lt, self.Dt, self.lam, self.diss, self.w, pieces,
                     self.kinks, self.column_kinks, self.touches)
@@ -157,142 +147,96 @@ class _Walker:
 def walk_exact(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
                dk: np.ndarray) -> Walk:
     """Differentiate the exact integrator's limit period from its start (module docstring);
-    dC (P, nb, m, p), dMu (P, nb, m, p), dk (n, p)."""
-    s = _Walker(lim, co, dC, dMu, dk)
+    dC (P, nb, m, p), dMu (P, nb, m, p), dk (n, p). The walk is the compiled
+    `crawlsim.kernel.tangent.walk_exact`; the flows it flags as holding a possible touch are
+    examined here on the closed form, from the state and tangent it had at their start."""
+    from crawlsim.kernel import tangent
+
+    poly = lim.process.polyhedron
+    B = np.ascontiguousarray(poly.dense_normals(), dtype=float)
+    m, n = B.shape
+    q = n + dk.shape[1]
     transitions = lim.record.transitions
-    s.prefactor([tr.active.index for tr in transitions])
-    times = np.array([t.u for t in transitions])
-    ends = np.append(times[1:], 1.0)
-    # the basis at every flow's ends and Gauss nodes, in one call
-    gx, _ = _gauss(24 + 12 * s.basis.harmonics)
-    grids = times[:, None] + 0.5 * (ends - times)[:, None] * (gx[None, :] + 1.0)
-    samples = np.concatenate([times[:, None], grids, ends[:, None]], axis=1)  # (K, nq + 2)
-    stacked = s.basis.values(samples.ravel()).reshape(len(times), samples.shape[1], -1)
-    derivatives: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-    du_start = np.zeros(s.q)
+    K = len(transitions)
+    u = np.array([t.u for t in transitions], dtype=float)
+    piece = np.array([t.piece for t in transitions], dtype=np.int64)
+    cause = np.array([tangent.CAUSES.index(t.cause) for t in transitions], dtype=np.int64)
+    act = np.zeros((K, m), dtype=np.int64)
+    nact = np.zeros(K, dtype=np.int64)
+    hit = np.zeros((K, m), dtype=np.int64)
+    nhit = np.zeros(K, dtype=np.int64)
     for j, tr in enumerate(transitions):
-        index = np.asarray(tr.active.index, dtype=int)
-        if tr.cause == "jump":
-            if index.size:
-                piece = int(tr.piece)
-                s.project(index, piece, 0.0 if (piece == 0 and tr.u >= 1.0 - 1e-15) else tr.u)
-                du_start = np.zeros(s.q)
-            continue
-        nxt = transitions[j + 1] if j + 1 < len(transitions) else None
-        du_start = _flow(s, tr, nxt, times, derivatives, du_start,
-                         (samples[j, 1:-1], stacked[j]))
-    return s.result(len(transitions))
+        index, rows = np.asarray(tr.active.index), np.asarray(tr.hit)
+        nact[j], nhit[j] = index.size, rows.size
+        act[j, :index.size], hit[j, :rows.size] = index, rows
+    basis = co.basis
+    derivative = _derivatives(basis, co.C, dC)
+    gx, gw = _gauss(24 + 12 * basis.harmonics)
+    W, L, D = np.empty((n, q)), np.empty((m, q)), np.empty(q)
+    lam, w_end = np.empty(m), np.empty(n)
+    kink = np.zeros(K, dtype=np.int64)
+    column_kinks = np.zeros(q, dtype=np.bool_)
+    gap_flag, rate_flag = np.zeros(K, dtype=np.bool_), np.zeros(K, dtype=np.bool_)
+    w_start, W_start = np.empty((K, n)), np.empty((K, n, q))
+    k = np.ascontiguousarray(co.k, dtype=float)
+    diss = tangent.walk_exact(
+        B, k, co.C, co.Mu, dC, dMu, dk, derivative[0], derivative[1], basis.linear,
+        basis.harmonics, co.edges, u, piece, cause, act, nact, hit, nhit, gx, gw,
+        np.array(lim.record.w[0], dtype=float), float(poly.c_scale), COINCIDENT, TOUCH,
+        W, L, D, lam, w_end, kink, column_kinks, gap_flag, rate_flag, w_start, W_start)
+    kinks: list[str] = []
+    for at in np.flatnonzero(kink).tolist():
+        u_e, bits = u[at], int(kink[at])
+        if bits & tangent.ZERO_RATE:
+            kinks.append(f"a constraint is reached with zero rate at t/T = {u_e:.12g}")
+        if bits & tangent.APART:
+            kinks.append(f"{nhit[at]} constraints reached together at t/T = {u_e:.12g} "
+                         "move apart")
+        if bits & tangent.COINCIDENT:
+            kinks.append(f"a constraint is reached at t/T = {u_e:.12g}, at the time of another "
+                         "event")
+    touches: list[tuple[str, np.ndarray]] = []
+    flagged = np.flatnonzero(gap_flag | rate_flag)
+    if flagged.size:
+        s = _Walker(lim, co, dC, dMu, dk)
+        for at in flagged.tolist():
+            s.w, s.Wt = w_start[at], W_start[at]
+            _touches_of_flow(s, transitions, at, derivative, (gx, gw),
+                             (bool(gap_flag[at]), bool(rate_flag[at])))
+        touches = s.touches
+    return Walk(W, L, D, lam, float(diss), w_end, K, kinks, column_kinks, touches)
 
 
-def _flow(s: _Walker, tr: Transition, nxt: Transition | None, times: np.ndarray,
-          derivatives: dict[int, tuple[np.ndarray, np.ndarray]], du_start: np.ndarray,
-          nodes: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
-    """One flow piece of the exact integrator, from ``tr`` to the next transition ``nxt``
-    (or the end of the period): the state, slips and dissipation with their tangents, the
-    saltation of a hit at its end, and the touches inside it. ``nodes``: the Gauss nodes x of
-    the piece and the basis at u_s, x and u_e. Returns the end time's du."""
+def _derivatives(basis: Any, C: np.ndarray, dC: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The coefficients of c' and dc' on every piece: (P, nb, m) and (P, nb, m, p)."""
+    dcoef = np.moveaxis(basis.derivative(np.moveaxis(C, 1, 0)), 0, 1)
+    dC1 = np.moveaxis(basis.derivative(np.moveaxis(dC, 1, 0)), 0, 1)
+    return np.ascontiguousarray(dcoef), np.ascontiguousarray(dC1)
+
+
+def _touches_of_flow(s: _Walker, transitions: Sequence[Transition], j: int,
+                     derivative: tuple[np.ndarray, np.ndarray],
+                     gauss: tuple[np.ndarray, np.ndarray], flags: tuple[bool, bool]) -> None:
+    """The touches of the flow from transition j, flagged by the compiled walk: an inactive
+    gap (``flags[0]``) or a slip rate (``flags[1]``) reaching zero inside it."""
+    tr = transitions[j]
+    nxt = transitions[j + 1] if j + 1 < len(transitions) else None
     index = np.asarray(tr.active.index, dtype=int)
     piece = int(tr.piece)
-    basis = s.basis
-    u_s = tr.u
-    u_e = nxt.u if nxt is not None else 1.0
-    if piece not in derivatives:
-        derivatives[piece] = (basis.derivative(s.co.C[piece]), basis.derivative(s.dC[piece]))
-    dcoef, dC1 = derivatives[piece]
-    length = u_e - u_s
-    _, gw = _gauss(24 + 12 * basis.harmonics)
-    x, stacked = nodes
-    phi_s, Phi, phi_e = stacked[0], stacked[1:-1], stacked[-1]
-    if index.size:
-        Lam, dLam, w_e, W_e = s.solve_on(index, s.w, s.Wt, piece, phi_e)
-        BA, _, Gi = s.factor(index)
-        # the flow's velocity and slip rates at the end: w' = K B_A^T G^{-1} c_A',
-        # lambda = -G^{-1} c_A'
-        rate_e = -Gi @ (phi_e @ dcoef[:, index])
-        v_b = -s.k * (BA.T @ rate_e)
-    else:
-        Lam, dLam, w_e, W_e = np.zeros(0), np.zeros((0, s.q)), s.w.copy(), s.Wt.copy()
-        rate_e, v_b = np.zeros(0), np.zeros(s.n)
-    du = np.zeros(s.q)
-    if nxt is not None and nxt.cause == "hit":
-        du = _saltation(s, nxt, piece, phi_e, dcoef, W_e, v_b, times)
-        W_e = W_e + np.outer(v_b, du)
-        if index.size:
-            dLam = dLam + np.outer(rate_e, du)
-    rate = None
-    if index.size:
-        s.lam[index] += Lam
-        s.Lt[index] += dLam
-        if length > 0:
-            rate = _piece_dissipation(s, index, piece, 0.5 * length * gw, Phi, dcoef, dC1,
-                                      (phi_s, phi_e), (du_start, du))
-    if length > 4 * COINCIDENT:  # shorter: an event at the time of another, in _saltation
+    u_s, u_e = tr.u, (nxt.u if nxt is not None else 1.0)
+    gx, _ = gauss
+    x = u_s + 0.5 * (u_e - u_s) * (gx + 1.0)
+    stacked = s.basis.values(np.concatenate([[u_s], x, [u_e]]))
+    if flags[0]:
         ends = np.asarray(nxt.hit, dtype=int) if nxt is not None and nxt.cause == "hit" \
             else np.zeros(0, int)
         _gap_touches(s, index, piece, x, stacked, (u_s, u_e), ends)
-        if rate is not None:
-            _rate_touches(s, index, rate, Phi, dcoef, dC1, (u_s, u_e))
-    s.w, s.Wt = w_e, W_e
-    return du
-
-
-def _saltation(s: _Walker, nxt: Transition, piece: int, phi_e: np.ndarray, dcoef: np.ndarray,
-               W_e: np.ndarray, v_b: np.ndarray, times: np.ndarray) -> np.ndarray:
-    """du of a hit at the end of a piece (eq. (saltation)), du = -dg_i / (b_i . w' - c_i'),
-    and the kinks of the hit: a zero rate, rows hit together whose du differ, a hit at the time
-    of another event."""
-    rows = np.asarray(nxt.hit, dtype=int)
-    u_e = nxt.u
-    c1_all = phi_e @ dcoef
-    rates = s.B[rows] @ v_b - c1_all[rows]
-    dg = s.B[rows] @ W_e - s.pad(np.einsum("b,bip->ip", phi_e, s.dC[piece][:, rows, :]))
-    size = max(float(np.max(np.abs(c1_all))), 1e-300)
-    best = int(np.argmax(np.abs(rates)))
-    du = np.zeros(s.q)
-    if abs(rates[best]) <= TOUCH * size:
-        s.kinks.append(f"a constraint is reached with zero rate at t/T = {u_e:.12g}")
-    else:
-        dus = -dg / rates[:, None]
-        du = dus[best]
-        spread = np.max(np.abs(dus - du), axis=0)
-        bad = spread > 1e-7 * (np.abs(du) + 1e-300 + np.max(np.abs(dus), axis=0)) + 1e3 * EPS
-        if rows.size > 1 and bad.any():
-            s.column_kinks |= bad
-            s.kinks.append(f"{rows.size} constraints reached together at t/T = {u_e:.12g} "
-                           "move apart")
-    if np.count_nonzero(np.abs(times - u_e) <= COINCIDENT) > 1 or \
-            np.any(np.abs(s.co.edges - u_e) <= COINCIDENT):
-        s.kinks.append(f"a constraint is reached at t/T = {u_e:.12g}, at the time of another "
-                       "event")
-    return du
-
-
-def _piece_dissipation(s: _Walker, index: np.ndarray, piece: int, weights: np.ndarray,
-                       Phi: np.ndarray, dcoef: np.ndarray, dC1: np.ndarray,
-                       phis: tuple[np.ndarray, np.ndarray],
-                       dus: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
-    """int mu_A . lambda_A over the piece, lambda_A = -G_A^{-1} c_A' (Gauss-Legendre with
-    ``weights`` at the samples Phi), and its tangent with the moving ends' terms; returns the
-    slip rates lambda_A at the samples."""
-    BA, _, Gi = s.factor(index)
-    Mu = s.co.Mu[piece][:, index]
-    lam_x = -(Phi @ dcoef[:, index]) @ Gi.T  # (nq, a)
-    wmu = weights[:, None] * (Phi @ Mu)  # mu_A at the samples, weighted
-    s.diss += float(np.sum(wmu * lam_x))
-    # int mu_A . dlambda_A, dlambda_A = -G_A^{-1} (dc_A' + dG_A lambda_A): with
-    # v = G_A^{-T} int mu_A, one contraction per term
-    dc1 = np.einsum("xb,bap->xap", Phi, dC1[:, index, :])
-    if s.moves_k:  # dG_A lambda = B_A dK B_A^T lambda
-        dc1 = dc1 + np.einsum("ai,xip->xap", BA, (lam_x @ BA)[:, :, None] * s.dk[None, :, :])
-    s.Dt[s.n:] -= np.einsum("xb,xbp->p", wmu @ Gi, dc1)
-    if s.moves_mu:
-        dmu = np.einsum("xb,bap->xap", Phi, s.dMu[piece][:, index, :])
-        s.Dt[s.n:] += np.einsum("x,xa,xap->p", weights, lam_x, dmu)
-    for phi, du, sign in ((phis[1], dus[1], 1.0), (phis[0], dus[0], -1.0)):
-        if du.any():  # an end that moves (a hit): the power there times du
-            rate = -Gi @ (phi @ dcoef[:, index])
-            s.Dt += sign * float(phi @ Mu @ rate) * du
-    return lam_x
+    if flags[1] and index.size:
+        dcoef, dC1 = derivative[0][piece], derivative[1][piece]
+        _, _, Gi = s.factor(index)
+        Phi = stacked[1:-1]
+        rate = -(Phi @ dcoef[:, index]) @ Gi.T
+        _rate_touches(s, index, rate, Phi, dcoef, dC1, (u_s, u_e))
 
 
 def _gap_touches(s: _Walker, index: np.ndarray, piece: int, x: np.ndarray,
