@@ -37,6 +37,7 @@ from crawlsim.analysis.sensitivity_terms import (
     EPS,
     Limit,
     Parameter,
+    breakpoint_scale,
     coefficients_of,
     find_limit,
     limit_of,
@@ -189,15 +190,19 @@ def sensitivity(gait: Gait, paths: Sequence[str] | str, *, one_sided: bool = Tru
 
 
 def _limit_of_run(gait: Gait, run: Any) -> Limit:
-    """The limit period of ``run`` (its ``limit_record``) when it is this gait's, else found."""
+    """The limit period of ``run`` (its ``limit_record``, on its ``limit_process``) when it is
+    this gait's, else found. The exact walk needs the closed form of c only, not the run's
+    grid: its tolerances are relative to c's size at the pieces' edges (`breakpoint_scale`)."""
     record = getattr(run, "limit_record", None)
     if record is None or not run.converged or run.integrator != gait.simulation.integrator:
         return find_limit(gait)
-    from crawlsim.model.process import compile_gait
+    exact = gait.simulation.integrator == "exact"
+    process = getattr(run, "limit_process", None)
+    if process is None:
+        from crawlsim.model.process import compile_gait
 
-    # the exact walk needs the closed form of c only, not the run's grid
-    steps = 1 if gait.simulation.integrator == "exact" else None
-    return limit_of(compile_gait(gait, steps_per_period=steps), record)
+        process = compile_gait(gait, steps_per_period=1 if exact else None)
+    return limit_of(process, record, breakpoint_scale(process) if exact else None)
 
 
 def _expand(gait: Gait, paths: Sequence[str] | str) -> list[tuple[Any, ...]]:
@@ -229,7 +234,7 @@ class _Ift:
     def __init__(self, lim: Limit, walk: Walk, co: Any, dC: np.ndarray, dk: np.ndarray,
                  blocks: int):
         n = len(co.k)
-        self.n, self.walk, self.scale_c = n, walk, lim.process.polyhedron.c_scale
+        self.n, self.walk, self.scale_c = n, walk, lim.scale
         S = np.concatenate([np.ones(blocks), -np.ones(blocks)]) / blocks
         J, Ptheta = walk.W[:, :n], walk.W[:, n:]
         Yw, Ytheta = S @ walk.L[:, :n], S @ walk.L[:, n:]

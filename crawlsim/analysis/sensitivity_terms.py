@@ -49,6 +49,9 @@ class Limit:
     displacement: float
     dissipation: float
     residual: float  # relative Poincare step of the verified period
+    # the size of c that the walk's tolerances are relative to (the polyhedron's c_scale on
+    # the grid the walk is defined on)
+    scale: float
 
 
 def find_limit(gait: Gait) -> Limit:
@@ -84,20 +87,36 @@ def find_limit(gait: Gait) -> Limit:
     return limit_of(process, final)
 
 
-def limit_of(process: SweepingProcess, final: PeriodRecord) -> Limit:
+def limit_of(process: SweepingProcess, final: PeriodRecord, scale: float | None = None) -> Limit:
     """v0, its error and the period's displacement and dissipation of a verified limit period
     (the error as `crawlsim.analysis.run.simulate` bounds it: the steps' roundoff and the
-    residual |P(w) - w| as a shape mismatch over the smallest stiffness)."""
+    residual |P(w) - w| as a shape mismatch over the smallest stiffness). ``scale``: the size
+    of c of the walk's grid where it is not ``process``'s (`breakpoint_scale`); the relative
+    Poincare step is taken on it."""
     from crawlsim.analysis.energy import period_dissipation
-    from crawlsim.integrate.limit import relative_step
 
     assert final.x is not None
     T = process.period
     d = float(np.mean(final.x[-1] - final.x[0]))
     steps = len(final.w) - 1  # the run's grid (``process`` may be compiled on a coarser one)
     err = verified_limit_error(process, final, steps)
-    return Limit(process, final, d / T, err, d, period_dissipation(process, final),
-                  relative_step(process, final.w[0], final.w[-1]))
+    scale = process.scale if scale is None else scale
+    # the relative Poincare step (`crawlsim.integrate.limit.relative_step`) on that scale
+    residual = float(np.linalg.norm(final.w[-1] - final.w[0])) / max(
+        float(np.linalg.norm(final.w[-1])), scale)
+    return Limit(process, final, d / T, err, d, period_dissipation(process, final), residual,
+                 scale)
+
+
+def breakpoint_scale(process: SweepingProcess) -> float:
+    """The c_scale of ``process``'s gait compiled on the grid of its breakpoints alone (the
+    exact walk's grid, `compile_gait` with one step): its offsets at the pieces' edges and
+    its initial state, read off ``process``'s own grid, which holds every edge."""
+    from crawlsim.model.process import _scale
+
+    assert process.offset_pieces is not None
+    rows = np.isin(process.cycles, process.offset_pieces.edges)
+    return _scale(process.offsets[rows], process.initial)
 
 
 # -- the offsets' coefficients and their derivatives -----------------------------------------

@@ -78,7 +78,7 @@ class _Walker:
         self.n, self.m = self.B.shape[1], self.B.shape[0]
         self.q = self.n + dk.shape[1]
         self.basis = co.basis
-        self.scale = poly.c_scale
+        self.scale = lim.scale
         self.w = np.array(lim.record.w[0], dtype=float)
         self.Wt = np.zeros((self.n, self.q))
         self.Wt[:, :self.n] = np.eye(self.n)
@@ -152,8 +152,7 @@ def walk_exact(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     examined here on the closed form, from the state and tangent it had at their start."""
     from crawlsim.kernel import tangent
 
-    poly = lim.process.polyhedron
-    B = np.ascontiguousarray(poly.dense_normals(), dtype=float)
+    B = np.ascontiguousarray(lim.process.polyhedron.dense_normals(), dtype=float)
     m, n = B.shape
     q = n + dk.shape[1]
     transitions = lim.record.transitions
@@ -182,7 +181,7 @@ def walk_exact(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     diss = tangent.walk_exact(
         B, k, co.C, co.Mu, dC, dMu, dk, derivative[0], derivative[1], basis.linear,
         basis.harmonics, co.edges, u, piece, cause, act, nact, hit, nhit, gx, gw,
-        np.array(lim.record.w[0], dtype=float), float(poly.c_scale), COINCIDENT, TOUCH,
+        np.array(lim.record.w[0], dtype=float), float(lim.scale), COINCIDENT, TOUCH,
         W, L, D, lam, w_end, kink, column_kinks, gap_flag, rate_flag, w_start, W_start)
     kinks: list[str] = []
     for at in np.flatnonzero(kink).tolist():
