@@ -65,54 +65,26 @@ class Walk:
 
 
 class _Walker:
-    """The tangent state of a walk and the formulas shared by both integrators' walks."""
+    """The start of a flow or run that the compiled walk flagged (``w``, ``Wt``), the touches
+    found there, and the kernel's formulas (`crawlsim.kernel.tangent`) called from Python."""
 
-    def __init__(self, lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
-                 dk: np.ndarray):
-        poly = lim.process.polyhedron
-        self.B = poly.dense_normals()
-        self.k = co.k
-        self.co, self.dC, self.dMu, self.dk = co, dC, dMu, dk
-        # which kinds of terms the parameters move at all (the others' tangents are 0)
-        self.moves_mu, self.moves_k = bool(np.any(dMu)), bool(np.any(dk))
-        self.n, self.m = self.B.shape[1], self.B.shape[0]
+    def __init__(self, lim: Limit, co: Coefficients, dC: np.ndarray, dk: np.ndarray):
+        self.B = np.ascontiguousarray(lim.process.polyhedron.dense_normals(), dtype=float)
+        self.k = np.ascontiguousarray(co.k, dtype=float)
+        self.co, self.dC, self.dk = co, dC, dk
+        self.m, self.n = self.B.shape
         self.q = self.n + dk.shape[1]
         self.basis = co.basis
         self.scale = lim.scale
-        self.w = np.array(lim.record.w[0], dtype=float)
+        self.w = np.zeros(self.n)
         self.Wt = np.zeros((self.n, self.q))
-        self.Wt[:, :self.n] = np.eye(self.n)
-        self.lam = np.zeros(self.m)
-        self.Lt = np.zeros((self.m, self.q))
-        self.diss = 0.0
-        self.Dt = np.zeros(self.q)
-        self.kinks: list[str] = []
         self.touches: list[tuple[str, np.ndarray]] = []
-        self.column_kinks = np.zeros(self.q, dtype=bool)
-        self._factors: dict[bytes, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 
-    def factor(self, index: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """B_A, G_A = B_A K B_A^T and its inverse, once per active set."""
-        key = np.asarray(index, dtype=np.int64).tobytes()
-        if key not in self._factors:
-            BA = self.B[index]
-            G = BA @ (self.k[:, None] * BA.T)
-            self._factors[key] = (BA, G, np.linalg.inv(G))
-        return self._factors[key]
+    def factor(self, index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """B_A and G_A^{-1}, G_A = B_A K B_A^T."""
+        from crawlsim.kernel.tangent import factor
 
-    def prefactor(self, sets: list[np.ndarray]) -> None:
-        """Factor the active sets a walk will visit, one batched inverse per size of set."""
-        by_size: dict[int, dict[bytes, np.ndarray]] = {}
-        for index in sets:
-            index = np.asarray(index, dtype=np.int64)
-            key = index.tobytes()
-            if index.size and key not in self._factors:
-                by_size.setdefault(index.size, {})[key] = index
-        for group in by_size.values():
-            BAs = np.stack([self.B[index] for index in group.values()])  # (K, a, n)
-            Gs = np.einsum("kai,i,kbi->kab", BAs, self.k, BAs)
-            for key, BA, G, Gi in zip(group, BAs, Gs, np.linalg.inv(Gs)):
-                self._factors[key] = (BA, G, Gi)
+        return factor(self.B, self.k, np.asarray(index, dtype=np.int64))
 
     def pad(self, X: np.ndarray) -> np.ndarray:
         """Parameter columns X (..., p) as full tangent columns (..., n + p)."""
@@ -123,24 +95,13 @@ class _Walker:
     def solve_on(self, index: np.ndarray, w_s: np.ndarray, W_s: np.ndarray, piece: int,
                  phi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Lambda_A(u), w(u) and their tangents for a flow (or projection) on A from w_s;
-        phi = phi(u), the basis at u (eq. (piece))."""
-        BA, G, Gi = self.factor(index)
-        cA = phi @ self.co.C[piece][:, index]
-        dcA = self.pad(np.einsum("b,bap->ap", phi, self.dC[piece][:, index, :]))
-        Lam = Gi @ (BA @ w_s - cA)
-        BtL = BA.T @ Lam
-        if self.moves_k:
-            dKBtL = self.pad(self.dk * BtL[:, None])  # dK B_A^T Lambda, parameter columns
-            dLam = Gi @ (BA @ (W_s - dKBtL) - dcA)  # d G_A Lambda = B_A dK B_A^T Lambda
-            dW = W_s - dKBtL - self.k[:, None] * (BA.T @ dLam)
-        else:
-            dLam = Gi @ (BA @ W_s - dcA)
-            dW = W_s - self.k[:, None] * (BA.T @ dLam)
-        return Lam, dLam, w_s - self.k * BtL, dW
+        phi = phi(u), the basis at u (eq. (piece), `crawlsim.kernel.tangent.solve_on`)."""
+        from crawlsim.kernel.tangent import solve_on
 
-    def result(self, pieces: int) -> Walk:
-        return Walk(self.Wt, self.Lt, self.Dt, self.lam, self.diss, self.w, pieces,
-                    self.kinks, self.column_kinks, self.touches)
+        BA, Gi = self.factor(index)
+        return solve_on(BA, Gi, np.asarray(index, dtype=np.int64), self.k, self.dk,
+                        np.ascontiguousarray(w_s), np.ascontiguousarray(W_s),
+                        np.ascontiguousarray(phi), self.co.C[piece], self.dC[piece])
 
 
 # -- the exact integrator ----------------------------------------------------------------------
@@ -155,7 +116,7 @@ def walk_exact(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     B = np.ascontiguousarray(lim.process.polyhedron.dense_normals(), dtype=float)
     m, n = B.shape
     q = n + dk.shape[1]
-    transitions = lim.record.transitions
+    transitions = list(lim.record.transitions[:])  # built once (a compiled record's are lazy)
     K = len(transitions)
     u = np.array([t.u for t in transitions], dtype=float)
     piece = np.array([t.piece for t in transitions], dtype=np.int64)
@@ -197,7 +158,7 @@ def walk_exact(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     touches: list[tuple[str, np.ndarray]] = []
     flagged = np.flatnonzero(gap_flag | rate_flag)
     if flagged.size:
-        s = _Walker(lim, co, dC, dMu, dk)
+        s = _Walker(lim, co, dC, dk)
         for at in flagged.tolist():
             s.w, s.Wt = w_start[at], W_start[at]
             _touches_of_flow(s, transitions, at, derivative, (gx, gw),
@@ -232,7 +193,7 @@ def _touches_of_flow(s: _Walker, transitions: Sequence[Transition], j: int,
         _gap_touches(s, index, piece, x, stacked, (u_s, u_e), ends)
     if flags[1] and index.size:
         dcoef, dC1 = derivative[0][piece], derivative[1][piece]
-        _, _, Gi = s.factor(index)
+        _, Gi = s.factor(index)
         Phi = stacked[1:-1]
         rate = -(Phi @ dcoef[:, index]) @ Gi.T
         _rate_touches(s, index, rate, Phi, dcoef, dC1, (u_s, u_e))
@@ -255,7 +216,7 @@ def _gap_touches(s: _Walker, index: np.ndarray, piece: int, x: np.ndarray,
     Wcoef = np.zeros((len(coef), s.n))
     Wcoef[0] = s.w
     if index.size:
-        BA, _, Gi = s.factor(index)
+        BA, Gi = s.factor(index)
         Wcoef[0] -= k * (BA.T @ (Gi @ (BA @ s.w)))
         Wcoef += (coef[:, index] @ Gi.T @ BA) * k[None, :]  # the response to c_A(u)
     Gcoef = Wcoef @ B.T - coef  # (nb, m)
@@ -309,7 +270,7 @@ def _rate_touches(s: _Walker, index: np.ndarray, rate: np.ndarray, Phi: np.ndarr
     size = max(float(np.max(np.abs(Phi @ dcoef))), 1e-300)
     if float(np.min(rate)) > TOUCH * size:
         return  # every slip rate stays positive on the samples
-    BA, _, Gi = s.factor(index)
+    BA, Gi = s.factor(index)
     low = _touching(-rate, TOUCH * size)
     if not low.any():
         return
@@ -345,86 +306,70 @@ def walk_catch_up(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
                   dk: np.ndarray) -> Walk:
     """Differentiate the catch-up scheme's discrete period map at its limit period (module
     docstring, eq. (catch-up)): runs of steps on one active set (the rows with a positive
-    multiplier) telescope to the piece formula at the run's last grid time."""
+    multiplier) telescope to the piece formula at the run's last grid time. The walk is the
+    compiled `crawlsim.kernel.tangent.walk_catch_up`; the runs with a row tight at a zero
+    multiplier are examined here, from the state and tangent it had at their start."""
     from crawlsim.errors import CrawlsimError
+    from crawlsim.kernel import tangent
 
-    s = _Walker(lim, co, dC, dMu, dk)
     process, record = lim.process, lim.record
-    grid = _GridOffsets(s, np.asarray(process.times, dtype=float) / process.period)
-    if not np.allclose(grid.C, process.offsets, rtol=0.0, atol=1e-9 * s.scale):
-        raise CrawlsimError(f"{process.name}: the offsets' closed form does not reproduce the "
-                            "catch-up grid's; the catch-up map is not differentiated")
+    B = np.ascontiguousarray(process.polyhedron.dense_normals(), dtype=float)
+    m, n = B.shape
+    q = n + dk.shape[1]
+    u = np.mod(np.asarray(process.times, dtype=float) / process.period, 1.0)  # c(1) is c(0)
+    pieces = np.minimum(np.searchsorted(co.edges, u, side="right") - 1, len(co.C) - 1)
+    Phi = co.basis.values(u)
     LAM = np.asarray(record.multipliers, dtype=float)
     active = LAM > 0.0
     # rows tight at w_{j+1} with a zero multiplier: the map has a kink there for the
     # parameters that move that gap off zero (a touch, as in the exact walk)
-    gaps = record.w[1:] @ s.B.T - process.offsets[1:]
-    weak = ~active & (np.abs(gaps) <= TOUCH * s.scale)
+    gaps = record.w[1:] @ B.T - process.offsets[1:]
+    weak = ~active & (np.abs(gaps) <= TOUCH * lim.scale)
     G = len(LAM)
     starts = np.concatenate([[0], np.flatnonzero(np.any(active[1:] != active[:-1], axis=1)) + 1,
-                             [G]])
-    s.prefactor([np.flatnonzero(active[j0]) for j0 in starts[:-1]])
-    for j0, j1 in zip(starts[:-1], starts[1:]):
-        index = np.flatnonzero(active[j0])
-        if weak[j0:j1].any():
-            _weak_steps(s, grid, index, int(j0), weak[j0:j1])
-        if index.size:
-            _catch_up_run(s, grid, index, int(j0), int(j1))
+                             [G]]).astype(np.int64)
+    R = len(starts) - 1
+    W, L, D = np.empty((n, q)), np.empty((m, q)), np.empty(q)
+    lam, w_end = np.empty(m), np.empty(n)
+    w_start, W_start = np.empty((R, n)), np.empty((R, n, q))
+    diss, agrees = tangent.walk_catch_up(
+        B, np.ascontiguousarray(co.k, dtype=float), co.C, co.Mu, dC, dMu, dk, Phi,
+        pieces.astype(np.int64), np.ascontiguousarray(process.offsets, dtype=float), active,
+        starts, np.array(record.w[0], dtype=float), 1e-9 * lim.scale, W, L, D, lam, w_end,
+        w_start, W_start)
+    if not agrees:
+        raise CrawlsimError(f"{process.name}: the offsets' closed form does not reproduce the "
+                            "catch-up grid's; the catch-up map is not differentiated")
+    touches: list[tuple[str, np.ndarray]] = []
+    weak_runs = [r for r in range(R) if weak[starts[r]:starts[r + 1]].any()]
+    if weak_runs:
+        s = _Walker(lim, co, dC, dk)
+        for r in weak_runs:
+            j0, j1 = int(starts[r]), int(starts[r + 1])
+            s.w, s.Wt = w_start[r], W_start[r]
+            _weak_steps(s, (pieces, Phi), np.flatnonzero(active[j0]), j0, weak[j0:j1])
+        touches = s.touches
     scale_w = max(float(np.max(np.abs(record.w))), 1e-300)
-    if float(np.max(np.abs(s.w - record.w[-1]))) > 1e-8 * scale_w:
+    if float(np.max(np.abs(w_end - record.w[-1]))) > 1e-8 * scale_w:
         raise CrawlsimError(f"{process.name}: the catch-up walk does not reproduce the limit "
                             "period (internal error)")
-    return s.result(G)
+    return Walk(W, L, D, lam, float(diss), w_end, G, [], np.zeros(q, dtype=bool), touches)
 
 
-class _GridOffsets:
-    """c, mu and their parameter derivatives at the catch-up grid's times u (G+1,): C, Mu
-    (G+1, m), dC, dMu (G+1, m, p), with the piece and the basis values of each time."""
-
-    def __init__(self, s: _Walker, u: np.ndarray):
-        co = s.co
-        u = np.mod(u, 1.0)  # the signals are periodic: c(1) is c(0), jumps included
-        self.pieces = np.minimum(np.searchsorted(co.edges, u, side="right") - 1, len(co.C) - 1)
-        self.Phi = s.basis.values(u)
-        self.C = np.einsum("gb,gbm->gm", self.Phi, co.C[self.pieces])
-        self.Mu = np.einsum("gb,gbm->gm", self.Phi, co.Mu[self.pieces])
-        self.dC = np.einsum("gb,gbmp->gmp", self.Phi, s.dC[self.pieces])
-        self.dMu = np.einsum("gb,gbmp->gmp", self.Phi, s.dMu[self.pieces])
-
-
-def _weak_steps(s: _Walker, grid: _GridOffsets, index: np.ndarray, j0: int,
+def _weak_steps(s: _Walker, grid: tuple[np.ndarray, np.ndarray], index: np.ndarray, j0: int,
                 weak: np.ndarray) -> None:
     """The tangents of the gaps of rows tight with a zero multiplier after steps j0 + r of a
-    run on A (``weak`` (r, m)): w_{j+1} is the piece formula at u_{j+1} from the run's start."""
+    run on A (``weak`` (r, m)): w_{j+1} is the piece formula at u_{j+1} from the run's start;
+    ``grid``: the piece and the basis values of each grid time."""
+    pieces, Phi = grid
     tangents = []
     for r, i in np.argwhere(weak):
         j = j0 + int(r) + 1
-        dW = s.solve_on(index, s.w, s.Wt, int(grid.pieces[j]), grid.Phi[j])[3] \
-            if index.size else s.Wt
-        tangents.append((s.B[i] @ dW - s.pad(grid.dC[j, i]))[None, :])
+        piece = int(pieces[j])
+        dW = s.solve_on(index, s.w, s.Wt, piece, Phi[j])[3] if index.size else s.Wt
+        dc = np.einsum("b,bp->p", Phi[j], s.dC[piece][:, i, :])
+        tangents.append((s.B[i] @ dW - s.pad(dc))[None, :])
     first = int(np.argwhere(weak)[0][0]) + j0 + 1
     s.touches.append((f"catch-up step(s) from {first}: constraint(s) "
                       f"{sorted(set(np.argwhere(weak)[:, 1].tolist()))} tight with a zero "
                       "multiplier", np.concatenate(tangents)))
-
-
-def _catch_up_run(s: _Walker, grid: _GridOffsets, index: np.ndarray, j0: int, j1: int) -> None:
-    """Steps j0 .. j1 - 1 on the active set A: the state and the slips over the run from the
-    piece formula at u_{j1}, the dissipation from each step's slips
-    Lambda_j = G_A^{-1} (B_A w_j - c_A(u_{j+1})), B_A w_j = c_A(u_j) after the first."""
-    BA, _, Gi = s.factor(index)
-    Lam, dLam, w_e, W_e = s.solve_on(index, s.w, s.Wt, int(grid.pieces[j1]), grid.Phi[j1])
-    c = grid.C[j0 + 1:j1 + 1][:, index]  # (r, a)
-    dc = s.pad(grid.dC[j0 + 1:j1 + 1][:, index, :])  # (r, a, q)
-    prev = np.concatenate([(BA @ s.w)[None, :], c[:-1]])
-    dprev = np.concatenate([(BA @ s.Wt)[None, :, :], dc[:-1]])
-    lam = (prev - c) @ Gi.T  # (r, a)
-    dGl = s.pad(np.einsum("ai,rip->rap", BA, (lam @ BA)[:, :, None] * s.dk[None, :, :]))
-    dlam = np.einsum("ab,rbq->raq", Gi, dprev - dc - dGl)
-    mu = grid.Mu[j0 + 1:j1 + 1][:, index]
-    dmu = grid.dMu[j0 + 1:j1 + 1][:, index, :]
-    s.diss += float(np.sum(mu * lam))
-    s.Dt += np.einsum("ra,raq->q", mu, dlam) + s.pad(np.einsum("ra,rap->p", lam, dmu))
-    s.lam[index] += Lam
-    s.Lt[index] += dLam
-    s.w, s.Wt = w_e, W_e

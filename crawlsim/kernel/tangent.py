@@ -250,49 +250,72 @@ def _rate(Gi: np.ndarray, phi: np.ndarray, dcoef: np.ndarray, idx: np.ndarray) -
 
 @njit(cache=True)
 def _dissipation(BA: np.ndarray, Gi: np.ndarray, idx: np.ndarray, k_moves: bool, mu_moves: bool,
-                 dk: np.ndarray,
-                 weights: np.ndarray, Phi: np.ndarray, Mu: np.ndarray, dMu: np.ndarray,
-                 dcoef: np.ndarray, dC1: np.ndarray, phi_s: np.ndarray, phi_e: np.ndarray,
-                 du_s: np.ndarray, du_e: np.ndarray, D: np.ndarray) -> tuple[float, np.ndarray]:
+                 dk: np.ndarray, weights: np.ndarray, Phi: np.ndarray, Mu: np.ndarray,
+                 dMu: np.ndarray, dcoef: np.ndarray, dC1: np.ndarray, phi_s: np.ndarray,
+                 phi_e: np.ndarray, du_s: np.ndarray, du_e: np.ndarray,
+                 D: np.ndarray) -> tuple[float, np.ndarray]:
     """int mu_A . lambda_A over a flow, lambda_A = -G_A^{-1} c_A' (Gauss-Legendre ``weights``
-    at the samples Phi), its tangent into D (with dG_A lambda = B_A dK B_A^T lambda, dmu_A and
-    the moving ends' power times du); returns the integral and lambda_A at the samples."""
+    at the samples Phi), its tangent into D and the slip rates at the samples. With
+    v = G_A^{-T} (weights mu_A) at each sample, int mu_A . dlambda_A = -sum v . (dc_A' +
+    B_A dK B_A^T lambda_A); the terms linear in phi are summed over the samples first, so each
+    parameter column costs O(nb a). dmu_A adds sum weights lambda_A . dmu_A; an end that moves
+    (a hit) adds the power there times du."""
     a, n = BA.shape
-    nq = Phi.shape[0]
+    nq, nb = Phi.shape
     p = dk.shape[1]
-    lam_x = np.empty((nq, a))
+    lam_x = np.zeros((nq, a))
+    Vb = np.zeros((nb, a))  # sum_x phi(x) v(x)
+    Lb = np.zeros((nb, a))  # sum_x weights phi(x) lambda_A(x)
+    Q = np.zeros(n)  # sum_x (B_A^T v)_i (B_A^T lambda_A)_i
+    c1 = np.empty(a)
+    mu = np.empty(a)
+    v = np.empty(a)
     total = 0.0
     for x in range(nq):
-        lx = _rate(Gi, Phi[x], dcoef, idx)
-        lam_x[x] = lx
-        muA = _at(Phi[x], Mu, idx)
-        wmu = weights[x] * muA
         for s in range(a):
-            total += wmu[s] * lx[s]
-        # v = G_A^{-T} (weights mu_A): int mu_A . dlambda_A = -v . (dc_A' + dG_A lambda_A)
-        v = np.zeros(a)
+            t1 = 0.0
+            t2 = 0.0
+            for b in range(nb):
+                t1 += Phi[x, b] * dcoef[b, idx[s]]
+                t2 += Phi[x, b] * Mu[b, idx[s]]
+            c1[s] = t1
+            mu[s] = weights[x] * t2
         for s in range(a):
+            t1 = 0.0
+            t2 = 0.0
             for r in range(a):
-                v[s] += wmu[r] * Gi[r, s]
-        dc1 = _at_p(Phi[x], dC1, idx)
-        if k_moves:
-            Bl = np.zeros(n)
-            for s in range(a):
-                for i in range(n):
-                    Bl[i] += lx[s] * BA[s, i]
-            for s in range(a):
-                for i in range(n):
-                    f = BA[s, i] * Bl[i]
-                    for j in range(p):
-                        dc1[s, j] += f * dk[i, j]
+                t1 -= Gi[s, r] * c1[r]
+                t2 += mu[r] * Gi[r, s]
+            lam_x[x, s] = t1
+            v[s] = t2
         for s in range(a):
-            for j in range(p):
-                D[n + j] -= v[s] * dc1[s, j]
-        if mu_moves:
-            dmu = _at_p(Phi[x], dMu, idx)
+            total += mu[s] * lam_x[x, s]
+            for b in range(nb):
+                Vb[b, s] += Phi[x, b] * v[s]
+                Lb[b, s] += Phi[x, b] * weights[x] * lam_x[x, s]
+        if k_moves:
+            for i in range(n):
+                bv = 0.0
+                bl = 0.0
+                for s in range(a):
+                    bv += BA[s, i] * v[s]
+                    bl += BA[s, i] * lam_x[x, s]
+                Q[i] += bv * bl
+    for j in range(p):
+        t = 0.0
+        for b in range(nb):
             for s in range(a):
-                for j in range(p):
-                    D[n + j] += weights[x] * lx[s] * dmu[s, j]
+                t += Vb[b, s] * dC1[b, idx[s], j]
+        if k_moves:
+            for i in range(n):
+                t += Q[i] * dk[i, j]
+        D[n + j] -= t
+        if mu_moves:
+            t = 0.0
+            for b in range(nb):
+                for s in range(a):
+                    t += Lb[b, s] * dMu[b, idx[s], j]
+            D[n + j] += t
     for end in range(2):
         phi = phi_e if end == 0 else phi_s
         du = du_e if end == 0 else du_s
@@ -520,3 +543,109 @@ def walk_exact(B: np.ndarray, k: np.ndarray, C: np.ndarray, Mu: np.ndarray, dC: 
     W[:] = Wt
     w_end[:] = w
     return diss
+
+
+@njit(cache=True)
+def walk_catch_up(B: np.ndarray, k: np.ndarray, C: np.ndarray, Mu: np.ndarray, dC: np.ndarray,
+                  dMu: np.ndarray, dk: np.ndarray, Phi: np.ndarray, pieces: np.ndarray,
+                  offsets: np.ndarray, active: np.ndarray, starts: np.ndarray,
+                  w0: np.ndarray, atol: float, W: np.ndarray, L: np.ndarray, D: np.ndarray,
+                  lam: np.ndarray, w_end: np.ndarray, w_start: np.ndarray,
+                  W_start: np.ndarray) -> tuple[float, bool]:
+    """The catch-up scheme's discrete period map walked from w0 (eq. (catch-up)): the grid's
+    basis values Phi (G+1, nb) and pieces, the active rows of each step (G, m), the first step
+    of each run on one active set (``starts``, G at the end). A run on A telescopes to the
+    piece formula at its last grid time; its steps' slips are
+    Lambda_j = G_A^{-1} (B_A w_j - c_A(u_{j+1})), B_A w_j = c_A(u_j) after the first, with their
+    tangents, and the dissipation is sum_j mu(u_{j+1}) . Lambda_j. Fills the tangents and the
+    start of each run (for the caller's touches); returns the dissipation and whether c's
+    closed form reproduces ``offsets`` on the grid to ``atol``."""
+    m, n = B.shape
+    p = dk.shape[1]
+    q = n + p
+    nb = Phi.shape[1]
+    # the closed form of c against the grid's offsets
+    agrees = True
+    for g in range(Phi.shape[0]):
+        pc = pieces[g]
+        for i in range(m):
+            t = 0.0
+            for b in range(nb):
+                t += Phi[g, b] * C[pc, b, i]
+            if not abs(t - offsets[g, i]) <= atol:
+                agrees = False
+    w = w0.copy()
+    Wt = np.zeros((n, q))
+    for i in range(n):
+        Wt[i, i] = 1.0
+    L[:] = 0.0
+    D[:] = 0.0
+    lam[:] = 0.0
+    diss = 0.0
+    a_max = m
+    prev = np.empty(a_max)
+    dprev = np.empty((a_max, q))
+    for r in range(starts.shape[0] - 1):
+        j0, j1 = starts[r], starts[r + 1]
+        w_start[r] = w
+        W_start[r] = Wt
+        idx = np.flatnonzero(active[j0])
+        a = idx.shape[0]
+        if a == 0:
+            continue
+        BA, Gi = factor(B, k, idx)
+        pe = pieces[j1]
+        Lam, dLam, w_e, W_e = solve_on(BA, Gi, idx, k, dk, w, Wt, Phi[j1], C[pe], dC[pe])
+        # B_A w_j and its tangent at the run's first step
+        for s in range(a):
+            t = 0.0
+            for i in range(n):
+                t += BA[s, i] * w[i]
+            prev[s] = t
+            for c in range(q):
+                t = 0.0
+                for i in range(n):
+                    t += BA[s, i] * Wt[i, c]
+                dprev[s, c] = t
+        for j in range(j0 + 1, j1 + 1):
+            pc = pieces[j]
+            c_j = _at(Phi[j], C[pc], idx)
+            dc_j = _at_p(Phi[j], dC[pc], idx)
+            mu_j = _at(Phi[j], Mu[pc], idx)
+            dmu_j = _at_p(Phi[j], dMu[pc], idx)
+            lam_j = _mv(Gi, prev[:a] - c_j)
+            R = dprev[:a].copy()
+            for s in range(a):
+                for c in range(p):
+                    R[s, n + c] -= dc_j[s, c]
+            if p:
+                Bl = np.zeros(n)
+                for s in range(a):
+                    for i in range(n):
+                        Bl[i] += lam_j[s] * BA[s, i]
+                for s in range(a):
+                    for i in range(n):
+                        f = BA[s, i] * Bl[i]
+                        for c in range(p):
+                            R[s, n + c] -= f * dk[i, c]
+            dlam_j = _mm(Gi, R)
+            for s in range(a):
+                diss += mu_j[s] * lam_j[s]
+                for c in range(q):
+                    D[c] += mu_j[s] * dlam_j[s, c]
+                for c in range(p):
+                    D[n + c] += lam_j[s] * dmu_j[s, c]
+            # B_A w_{j+1} = c_A(u_{j+1}) inside the run
+            for s in range(a):
+                prev[s] = c_j[s]
+                for c in range(n):
+                    dprev[s, c] = 0.0
+                for c in range(p):
+                    dprev[s, n + c] = dc_j[s, c]
+        for s in range(a):
+            lam[idx[s]] += Lam[s]
+            L[idx[s]] += dLam[s]
+        w, Wt = w_e, W_e
+    W[:] = Wt
+    w_end[:] = w
+    return diss, agrees
