@@ -582,9 +582,11 @@ def walk_catch_up(B: np.ndarray, k: np.ndarray, C: np.ndarray, Mu: np.ndarray, d
     D[:] = 0.0
     lam[:] = 0.0
     diss = 0.0
-    a_max = m
-    prev = np.empty(a_max)
-    dprev = np.empty((a_max, q))
+    k_moves = bool(np.any(dk != 0.0))
+    prev, c_j, mu_j, lam_j = np.empty(m), np.empty(m), np.empty(m), np.empty(m)
+    dprev, R = np.empty((m, q)), np.empty((m, q))
+    dc_j, dmu_j = np.empty((m, p)), np.empty((m, p))
+    Bl = np.empty(n)
     for r in range(starts.shape[0] - 1):
         j0, j1 = starts[r], starts[r + 1]
         w_start[r] = w
@@ -609,30 +611,55 @@ def walk_catch_up(B: np.ndarray, k: np.ndarray, C: np.ndarray, Mu: np.ndarray, d
                 dprev[s, c] = t
         for j in range(j0 + 1, j1 + 1):
             pc = pieces[j]
-            c_j = _at(Phi[j], C[pc], idx)
-            dc_j = _at_p(Phi[j], dC[pc], idx)
-            mu_j = _at(Phi[j], Mu[pc], idx)
-            dmu_j = _at_p(Phi[j], dMu[pc], idx)
-            lam_j = _mv(Gi, prev[:a] - c_j)
-            R = dprev[:a].copy()
+            # c_A, mu_A and their parameter columns at u_j (in the buffers: no allocation
+            # per step)
             for s in range(a):
+                r_ = idx[s]
+                t1 = 0.0
+                t2 = 0.0
+                for b in range(nb):
+                    t1 += Phi[j, b] * C[pc, b, r_]
+                    t2 += Phi[j, b] * Mu[pc, b, r_]
+                c_j[s] = t1
+                mu_j[s] = t2
                 for c in range(p):
-                    R[s, n + c] -= dc_j[s, c]
-            if p:
-                Bl = np.zeros(n)
-                for s in range(a):
-                    for i in range(n):
-                        Bl[i] += lam_j[s] * BA[s, i]
+                    t1 = 0.0
+                    t2 = 0.0
+                    for b in range(nb):
+                        t1 += Phi[j, b] * dC[pc, b, r_, c]
+                        t2 += Phi[j, b] * dMu[pc, b, r_, c]
+                    dc_j[s, c] = t1
+                    dmu_j[s, c] = t2
+            # Lambda_j = G_A^{-1} (B_A w_j - c_A(u_{j+1})) and its tangent, with
+            # d(G_A Lambda) = B_A dK B_A^T Lambda
+            for s in range(a):
+                t1 = 0.0
+                for r_ in range(a):
+                    t1 += Gi[s, r_] * (prev[r_] - c_j[r_])
+                lam_j[s] = t1
+            for s in range(a):
+                for c in range(n):
+                    R[s, c] = dprev[s, c]
+                for c in range(p):
+                    R[s, n + c] = dprev[s, n + c] - dc_j[s, c]
+            if k_moves:
+                for i in range(n):
+                    t1 = 0.0
+                    for s in range(a):
+                        t1 += lam_j[s] * BA[s, i]
+                    Bl[i] = t1
                 for s in range(a):
                     for i in range(n):
                         f = BA[s, i] * Bl[i]
                         for c in range(p):
                             R[s, n + c] -= f * dk[i, c]
-            dlam_j = _mm(Gi, R)
             for s in range(a):
                 diss += mu_j[s] * lam_j[s]
                 for c in range(q):
-                    D[c] += mu_j[s] * dlam_j[s, c]
+                    t1 = 0.0
+                    for r_ in range(a):
+                        t1 += Gi[s, r_] * R[r_, c]
+                    D[c] += mu_j[s] * t1
                 for c in range(p):
                     D[n + c] += lam_j[s] * dmu_j[s, c]
             # B_A w_{j+1} = c_A(u_{j+1}) inside the run
