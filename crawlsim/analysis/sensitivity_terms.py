@@ -115,8 +115,9 @@ def breakpoint_scale(process: SweepingProcess) -> float:
     from crawlsim.model.process import _scale
 
     assert process.offset_pieces is not None
-    rows = np.isin(process.cycles, process.offset_pieces.edges)
-    return _scale(process.offsets[rows], process.initial)
+    cycles, edges = process.cycles, process.offset_pieces.edges
+    at = np.minimum(np.searchsorted(cycles, edges), len(cycles) - 1)
+    return _scale(process.offsets[at[cycles[at] == edges]], process.initial)
 
 
 # -- the offsets' coefficients and their derivatives -----------------------------------------
@@ -152,18 +153,14 @@ def _signals(gait: Gait, fields: dict[str, Any] | None = None) -> tuple[Any, ...
 
 
 def _assemble(gait: Gait, pieces: Any, k: np.ndarray) -> Coefficients:
-    from crawlsim.model.offsets import PiecewiseOffsets
-
+    """C_p of ``pieces`` and the friction weights Mu_p: the friction signals' own coefficients
+    on each piece (the columns after the links'), times cos(angle) on a slope (docs/model.md
+    §6)."""
     N = gait.blocks
-    signals = list(gait.links) + list(gait.forward) + list(gait.backward)
-    friction = PiecewiseOffsets(signals, lambda coef: coef[:, N - 1:], pieces.edges)
     P = pieces.pieces
     C = np.array([pieces.coefficients(p) for p in range(P)])
-    # the friction weights of the rows are mu cos(angle) on a slope (docs/model.md §6)
-    Mu = np.array([friction.coefficients(p) for p in range(P)]) * (
+    Mu = np.array([pieces.signal_coefficients(p)[:, N - 1:3 * N - 1] for p in range(P)]) * (
         1.0 if gait.loads is None else gait.loads.cos)
-    if friction.basis != pieces.basis:  # pragma: no cover - the same signals span both
-        raise CrawlsimError(f"{gait.source}: internal error, friction and offsets in two bases")
     return Coefficients(C, Mu, k, pieces.edges, pieces.basis, pieces)
 
 
@@ -227,12 +224,13 @@ def _rotation_inverse(delta: np.ndarray, basis: Any, shift: float) -> np.ndarray
     h0 = basis.first_harmonic
     for n in range(1, basis.harmonics + 1):
         a = 2.0 * math.pi * n * shift
-        R = np.array([[math.cos(a) - 1.0, -math.sin(a)], [math.sin(a), math.cos(a) - 1.0]])
-        rows = slice(h0 + 2 * (n - 1), h0 + 2 * n)
-        Z = np.linalg.solve(R, delta[..., rows, :].swapaxes(-1, -2)[..., None]).squeeze(-1)
-        Z = Z.swapaxes(-1, -2)  # (..., 2, cols)
-        out[..., rows.start, :] = -2.0 * math.pi * n * Z[..., 1, :]
-        out[..., rows.start + 1, :] = 2.0 * math.pi * n * Z[..., 0, :]
+        # R_n - I = [[c, -s], [s, c]], c = cos a - 1, s = sin a, inverted in closed form
+        c, s = math.cos(a) - 1.0, math.sin(a)
+        det = c * c + s * s
+        d0, d1 = delta[..., h0 + 2 * (n - 1), :], delta[..., h0 + 2 * n - 1, :]
+        z0, z1 = (c * d0 + s * d1) / det, (c * d1 - s * d0) / det
+        out[..., h0 + 2 * (n - 1), :] = -2.0 * math.pi * n * z1
+        out[..., h0 + 2 * n - 1, :] = 2.0 * math.pi * n * z0
     return out
 
 

@@ -168,10 +168,11 @@ def walk_exact(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
 
 
 def _derivatives(basis: Any, C: np.ndarray, dC: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The coefficients of c' and dc' on every piece: (P, nb, m) and (P, nb, m, p)."""
-    dcoef = np.moveaxis(basis.derivative(np.moveaxis(C, 1, 0)), 0, 1)
-    dC1 = np.moveaxis(basis.derivative(np.moveaxis(dC, 1, 0)), 0, 1)
-    return np.ascontiguousarray(dcoef), np.ascontiguousarray(dC1)
+    """The coefficients of c' and dc' on every piece: (P, nb, m) and (P, nb, m, p), by the
+    matrix of d/du on the basis (each entry a single product, as `Basis.derivative`)."""
+    d = basis.derivative(np.eye(basis.size))
+    P, nb, m, p = dC.shape
+    return d @ C, (d @ dC.reshape(P, nb, m * p)).reshape(P, nb, m, p)
 
 
 def _touches_of_flow(s: _Walker, transitions: Sequence[Transition], j: int,
