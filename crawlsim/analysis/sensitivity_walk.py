@@ -116,19 +116,8 @@ def walk_exact(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     B = np.ascontiguousarray(lim.process.polyhedron.dense_normals(), dtype=float)
     m, n = B.shape
     q = n + dk.shape[1]
-    transitions = list(lim.record.transitions[:])  # built once (a compiled record's are lazy)
-    K = len(transitions)
-    u = np.array([t.u for t in transitions], dtype=float)
-    piece = np.array([t.piece for t in transitions], dtype=np.int64)
-    cause = np.array([tangent.CAUSES.index(t.cause) for t in transitions], dtype=np.int64)
-    act = np.zeros((K, m), dtype=np.int64)
-    nact = np.zeros(K, dtype=np.int64)
-    hit = np.zeros((K, m), dtype=np.int64)
-    nhit = np.zeros(K, dtype=np.int64)
-    for j, tr in enumerate(transitions):
-        index, rows = np.asarray(tr.active.index), np.asarray(tr.hit)
-        nact[j], nhit[j] = index.size, rows.size
-        act[j, :index.size], hit[j, :rows.size] = index, rows
+    u, piece, cause, act, hit = _transition_arrays(lim.record.transitions, m)
+    K = len(u)
     basis = co.basis
     derivative = _derivatives(basis, co.C, dC)
     gx, gw = _gauss(24 + 12 * basis.harmonics)
@@ -141,7 +130,7 @@ def walk_exact(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     k = np.ascontiguousarray(co.k, dtype=float)
     diss = tangent.walk_exact(
         B, k, co.C, co.Mu, dC, dMu, dk, derivative[0], derivative[1], basis.linear,
-        basis.harmonics, co.edges, u, piece, cause, act, nact, hit, nhit, gx, gw,
+        basis.harmonics, co.edges, u, piece, cause, act, hit, gx, gw,
         np.array(lim.record.w[0], dtype=float), float(lim.scale), COINCIDENT, TOUCH,
         W, L, D, lam, w_end, kink, column_kinks, gap_flag, rate_flag, w_start, W_start)
     kinks: list[str] = []
@@ -150,7 +139,8 @@ def walk_exact(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
         if bits & tangent.ZERO_RATE:
             kinks.append(f"a constraint is reached with zero rate at t/T = {u_e:.12g}")
         if bits & tangent.APART:
-            kinks.append(f"{nhit[at]} constraints reached together at t/T = {u_e:.12g} "
+            kinks.append(f"{np.count_nonzero(hit[at])} constraints reached together at "
+                         f"t/T = {u_e:.12g} "
                          "move apart")
         if bits & tangent.COINCIDENT:
             kinks.append(f"a constraint is reached at t/T = {u_e:.12g}, at the time of another "
@@ -161,7 +151,7 @@ def walk_exact(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
         s = _Walker(lim, co, dC, dk)
         for at in flagged.tolist():
             s.w, s.Wt = w_start[at], W_start[at]
-            _touches_of_flow(s, transitions, at, derivative, (gx, gw),
+            _touches_of_flow(s, (u, piece, cause, act, hit), at, derivative, (gx, gw),
                              (bool(gap_flag[at]), bool(rate_flag[at])))
         touches = s.touches
     return Walk(W, L, D, lam, float(diss), w_end, K, kinks, column_kinks, touches)
@@ -175,21 +165,47 @@ def _derivatives(basis: Any, C: np.ndarray, dC: np.ndarray) -> tuple[np.ndarray,
     return d @ C, (d @ dC.reshape(P, nb, m * p)).reshape(P, nb, m, p)
 
 
-def _touches_of_flow(s: _Walker, transitions: Sequence[Transition], j: int,
+def _transition_arrays(transitions: Sequence[Transition], m: int) -> tuple[np.ndarray, ...]:
+    """The transitions as arrays: u, piece, cause (`crawlsim.kernel.tangent.CAUSES`), the
+    active rows after each (K, m) and the rows hit (K, m). A compiled period's are read off
+    its loop's arrays, without factoring its sets."""
+    from crawlsim.kernel import tangent
+
+    arrays = getattr(transitions, "arrays", None)
+    if arrays is not None:  # `crawlsim.integrate.compiled`: signs per block, rows_of's order
+        u, piece, signs, cause, hit = arrays
+        act = np.concatenate([signs > 0, signs < 0], axis=1)
+        return (np.asarray(u, dtype=float), np.asarray(piece, dtype=np.int64),
+                np.asarray(cause, dtype=np.int64), act, np.asarray(hit, dtype=np.bool_))
+    K = len(transitions)
+    act, hit = np.zeros((K, m), dtype=np.bool_), np.zeros((K, m), dtype=np.bool_)
+    for j, tr in enumerate(transitions):
+        act[j, np.asarray(tr.active.index, dtype=np.int64)] = True
+        hit[j, np.asarray(tr.hit, dtype=np.int64)] = True
+    return (np.array([t.u for t in transitions], dtype=float),
+            np.array([t.piece for t in transitions], dtype=np.int64),
+            np.array([tangent.CAUSES.index(t.cause) for t in transitions], dtype=np.int64),
+            act, hit)
+
+
+def _touches_of_flow(s: _Walker, arrays: tuple[np.ndarray, ...], j: int,
                      derivative: tuple[np.ndarray, np.ndarray],
                      gauss: tuple[np.ndarray, np.ndarray], flags: tuple[bool, bool]) -> None:
-    """The touches of the flow from transition j, flagged by the compiled walk: an inactive
-    gap (``flags[0]``) or a slip rate (``flags[1]``) reaching zero inside it."""
-    tr = transitions[j]
-    nxt = transitions[j + 1] if j + 1 < len(transitions) else None
-    index = np.asarray(tr.active.index, dtype=int)
-    piece = int(tr.piece)
-    u_s, u_e = tr.u, (nxt.u if nxt is not None else 1.0)
+    """The touches of the flow from transition j (``arrays``: `_transition_arrays`), flagged
+    by the compiled walk: an inactive gap (``flags[0]``) or a slip rate (``flags[1]``)
+    reaching zero inside it."""
+    from crawlsim.kernel.tangent import HIT
+
+    u, pieces, cause, act, hit = arrays
+    last = j + 1 >= len(u)
+    index = np.flatnonzero(act[j])
+    piece = int(pieces[j])
+    u_s, u_e = float(u[j]), (1.0 if last else float(u[j + 1]))
     gx, _ = gauss
     x = u_s + 0.5 * (u_e - u_s) * (gx + 1.0)
     stacked = s.basis.values(np.concatenate([[u_s], x, [u_e]]))
     if flags[0]:
-        ends = np.asarray(nxt.hit, dtype=int) if nxt is not None and nxt.cause == "hit" \
+        ends = np.flatnonzero(hit[j + 1]) if not last and cause[j + 1] == HIT \
             else np.zeros(0, int)
         _gap_touches(s, index, piece, x, stacked, (u_s, u_e), ends)
     if flags[1] and index.size:

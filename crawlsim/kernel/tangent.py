@@ -410,15 +410,16 @@ def _gap_screen(B: np.ndarray, k: np.ndarray, BA: np.ndarray, Gi: np.ndarray, id
 def walk_exact(B: np.ndarray, k: np.ndarray, C: np.ndarray, Mu: np.ndarray, dC: np.ndarray,
                dMu: np.ndarray, dk: np.ndarray, dcoef: np.ndarray, dC1: np.ndarray,
                linear: bool, H: int, edges: np.ndarray, u: np.ndarray, piece: np.ndarray,
-               cause: np.ndarray, act: np.ndarray, nact: np.ndarray, hit: np.ndarray,
-               nhit: np.ndarray, gx: np.ndarray, gw: np.ndarray, w0: np.ndarray, scale: float,
+               cause: np.ndarray, act: np.ndarray, hit: np.ndarray, gx: np.ndarray,
+               gw: np.ndarray, w0: np.ndarray, scale: float,
                coincident: float, touch: float, W: np.ndarray, L: np.ndarray, D: np.ndarray,
                lam: np.ndarray, w_end: np.ndarray, kink: np.ndarray, column_kinks: np.ndarray,
                gap_flag: np.ndarray, rate_flag: np.ndarray, w_start: np.ndarray,
                W_start: np.ndarray) -> float:
     """The exact integrator's limit period walked from w0 along its transitions (module
     docstring); C, Mu (P, nb, m), dC, dMu (P, nb, m, p), dk (n, p), dcoef and dC1 the
-    derivatives in u of C and dC. Fills the tangents W (n, q),
+    derivatives in u of C and dC; per transition its cycle u, piece, cause, the active rows
+    after it and the rows it hit (masks (K, m)). Fills the tangents W (n, q),
     L (m, q), D (q,), the slips lam, the end state, the kink bits and the flags of flows to
     examine for touches; returns the dissipation."""
     m, n = B.shape
@@ -450,8 +451,8 @@ def walk_exact(B: np.ndarray, k: np.ndarray, C: np.ndarray, Mu: np.ndarray, dC: 
     for j in range(K):
         w_start[j] = w
         W_start[j] = Wt
-        a = nact[j]
-        idx = act[j, :a]
+        idx = np.flatnonzero(act[j])
+        a = idx.shape[0]
         pc = piece[j]
         if cause[j] == JUMP:
             if a:
@@ -502,7 +503,7 @@ def walk_exact(B: np.ndarray, k: np.ndarray, C: np.ndarray, Mu: np.ndarray, dC: 
             rate_e, v_b = np.zeros(0), np.zeros(n)
         du = np.zeros(q)
         hits = has_next and cause[j + 1] == HIT
-        rows = hit[j + 1, :nhit[j + 1]] if hits else hit[j, :0]
+        rows = np.flatnonzero(hit[j + 1]) if hits else np.zeros(0, dtype=np.int64)
         if hits:
             du, bits = _saltation(B, rows, phi_e, dcoef[pc], dC[pc], W_e, v_b, u_e, u,
                                          edges, coincident, touch, column_kinks)
