@@ -235,9 +235,10 @@ class _Ift:
                  blocks: int):
         n = len(co.k)
         self.n, self.walk, self.scale_c = n, walk, lim.scale
-        S = np.concatenate([np.ones(blocks), -np.ones(blocks)]) / blocks
+        # dY = S dLambda, S = [1, ..., 1, -1, ..., -1] / N: the mean slip of the blocks
+        Y = (walk.L[:blocks].sum(axis=0) - walk.L[blocks:].sum(axis=0)) / blocks
         J, Ptheta = walk.W[:, :n], walk.W[:, n:]
-        Yw, Ytheta = S @ walk.L[:, :n], S @ walk.L[:, n:]
+        Yw, Ytheta = Y[:n], Y[n:]
         Dw, Dtheta = walk.D[:n], walk.D[n:]
         # the least-squares solution of minimal norm, singular values below 1e-12 of the
         # largest dropped (a family of periodic solutions), from one SVD of I - dP/dw

@@ -203,11 +203,13 @@ def _smooth_change(gait: Gait, base: Coefficients, keys: tuple[Any, ...],
             if not isinstance(signal, (Constant, Cosine, Fourier)) or \
                     signal.harmonics > basis.harmonics:
                 return None
-    dS = np.zeros((basis.size, len(old)))
+    # a zero row first: ``combine`` adds its constant term (the loads') to row 0, the
+    # coefficient of phi_0 = 1, so the rows after it are the linear part alone
+    dS = np.zeros((basis.size + 1, len(old)))
     for c in changed:
-        dS[:, c] = _smooth_coefficients(new[c], basis) - _smooth_coefficients(old[c], basis)
-    combine = base.pieces.combine
-    dC = combine(dS) - combine(np.zeros_like(dS))
+        dS[1:, c] = _smooth_coefficients(new[c], basis) - _smooth_coefficients(old[c], basis)
+    dC = base.pieces.combine(dS)[1:]
+    dS = dS[1:]
     N = gait.blocks
     dMu = dS[:, N - 1:3 * N - 1] * (1.0 if gait.loads is None else gait.loads.cos)
     P = base.C.shape[0]
