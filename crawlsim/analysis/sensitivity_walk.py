@@ -16,6 +16,11 @@ held fixed.
   step's slips are Lambda_j = G_A^{-1} (c_A(u_j) - c_A(u_{j+1})); the dissipation is the grid
   sum of mu(u_{j+1}) . Lambda_j, as the run's ledger counts it. The grid times are fixed: no
   saltation.
+
+Both walks run compiled (`crawlsim.kernel.tangent`), so that a walk costs its arithmetic. The
+kernel screens every flow for touches (a gap or a slip rate reaching zero inside it) with
+tolerances twice the walk's; the few flows (and catch-up runs) it flags are examined here, on
+the closed form, from the state and tangent the kernel had at their start.
 """
 
 from __future__ import annotations
