@@ -228,20 +228,17 @@ def _gap_touches(s: _Walker, index: np.ndarray, piece: int, x: np.ndarray,
     tangents of those gaps where they are zero. A touch is an interior maximum at zero (one at
     an end is an event there; a touch exactly at the start of the period is not looked for).
     ``stacked``: the basis at u_s, at the samples x and at u_e."""
+    from crawlsim.kernel.tangent import gap_coefficients
+
     B, k, basis = s.B, s.k, s.basis
     u_s, u_e = span
     outside = np.ones(s.m, dtype=bool)
     outside[index] = False
     outside[hit_at_end] = False
-    coef = s.co.C[piece]
-    # every row's gap(u) = phi(u) @ Gcoef, w(u) = w_s - K B_A^T G^{-1} (B_A w_s - c_A(u))
-    Wcoef = np.zeros((len(coef), s.n))
-    Wcoef[0] = s.w
-    if index.size:
-        BA, Gi = s.factor(index)
-        Wcoef[0] -= k * (BA.T @ (Gi @ (BA @ s.w)))
-        Wcoef += (coef[:, index] @ Gi.T @ BA) * k[None, :]  # the response to c_A(u)
-    Gcoef = Wcoef @ B.T - coef  # (nb, m)
+    # every row's gap(u) = phi(u) @ Gcoef (nb, m)
+    BA, Gi = s.factor(index)
+    Gcoef = gap_coefficients(B, k, BA, Gi, np.asarray(index, dtype=np.int64),
+                             np.ascontiguousarray(s.w), s.co.C[piece])
     tol = TOUCH * s.scale
     grid = np.concatenate([[u_s], x, [u_e]])
     values = stacked @ Gcoef  # (s + 2, m)

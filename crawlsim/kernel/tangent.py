@@ -336,21 +336,13 @@ def _dissipation(BA: np.ndarray, Gi: np.ndarray, idx: np.ndarray, k_moves: bool,
 
 
 @njit(cache=True)
-def _gap_screen(B: np.ndarray, k: np.ndarray, BA: np.ndarray, Gi: np.ndarray, idx: np.ndarray,
-                ends: np.ndarray, w: np.ndarray, coef: np.ndarray, grid: np.ndarray,
-                values_phi: np.ndarray, H: int, first: int, tol: float) -> bool:
-    """Whether an inactive row's gap may touch zero inside the flow: it comes within 2 tol of
-    zero (between the samples by the interpolant's bound h^2/8 max|gap''|) and is largest
-    inside, or it stays within 2 tol of zero (the caller decides on the closed form)."""
+def gap_coefficients(B: np.ndarray, k: np.ndarray, BA: np.ndarray, Gi: np.ndarray,
+                     idx: np.ndarray, w: np.ndarray, coef: np.ndarray) -> np.ndarray:
+    """Every row's gap on a flow on A from w as coefficients of phi (nb, m): gap(u) =
+    phi(u) @ out = B w(u) - c(u), w(u) = w - K B_A^T G_A^{-1} (B_A w - c_A(u)); coef = C_p."""
     m, n = B.shape
     nb = coef.shape[0]
     a = idx.shape[0]
-    outside = np.ones(m, dtype=np.bool_)
-    for r in idx:
-        outside[r] = False
-    for r in ends:
-        outside[r] = False
-    # w(u) = w_s - K B_A^T G^{-1} (B_A w_s - c_A(u)) as coefficients of phi
     Wc = np.zeros((nb, n))
     for i in range(n):
         Wc[0, i] = w[i]
@@ -371,6 +363,31 @@ def _gap_screen(B: np.ndarray, k: np.ndarray, BA: np.ndarray, Gi: np.ndarray, id
                 for s in range(a):
                     f += M[b, s] * BA[s, i]
                 Wc[b, i] += f * k[i]
+    out = np.empty((nb, m))
+    for b in range(nb):
+        for r in range(m):
+            t2 = -coef[b, r]
+            for i in range(n):
+                t2 += Wc[b, i] * B[r, i]
+            out[b, r] = t2
+    return out
+
+
+@njit(cache=True)
+def _gap_screen(B: np.ndarray, k: np.ndarray, BA: np.ndarray, Gi: np.ndarray, idx: np.ndarray,
+                ends: np.ndarray, w: np.ndarray, coef: np.ndarray, grid: np.ndarray,
+                values_phi: np.ndarray, H: int, first: int, tol: float) -> bool:
+    """Whether an inactive row's gap may touch zero inside the flow: it comes within 2 tol of
+    zero (between the samples by the interpolant's bound h^2/8 max|gap''|) and is largest
+    inside, or it stays within 2 tol of zero (the caller decides on the closed form)."""
+    m = B.shape[0]
+    nb = coef.shape[0]
+    outside = np.ones(m, dtype=np.bool_)
+    for r in idx:
+        outside[r] = False
+    for r in ends:
+        outside[r] = False
+    Gc = gap_coefficients(B, k, BA, Gi, idx, w, coef)
     h = 0.0
     for x in range(grid.shape[0] - 1):
         h = max(h, grid[x + 1] - grid[x])
@@ -378,12 +395,7 @@ def _gap_screen(B: np.ndarray, k: np.ndarray, BA: np.ndarray, Gi: np.ndarray, id
     for r in range(m):
         if not outside[r]:
             continue
-        g = np.empty(nb)
-        for b in range(nb):
-            t2 = -coef[b, r]
-            for i in range(n):
-                t2 += Wc[b, i] * B[r, i]
-            g[b] = t2
+        g = Gc[:, r]
         curv = 0.0
         for hh in range(1, H + 1):
             curv += (TWO_PI * hh) ** 2 * (abs(g[first + 2 * (hh - 1)])
