@@ -29,13 +29,12 @@ import math
 import numpy as np
 from numba import njit
 
+# the transition causes, coded as the compiled event loop codes them
+from crawlsim.kernel.eventloop import CAUSES, HIT, JUMP  # noqa: F401 - CAUSES for the callers
 from crawlsim.kernel.piece import basis_values
 
 TWO_PI = 2.0 * math.pi
 EPS = float(np.finfo(np.float64).eps)
-#: Transition causes (`crawlsim.integrate.stepping.TransitionCause`), in this order.
-CAUSES = ("edge", "release", "hit", "jump")
-EDGE, RELEASE, HIT, JUMP = range(4)
 #: Bits of ``kink`` at a hit: reached with zero rate, rows reached together move apart, reached
 #: at the time of another event.
 ZERO_RATE, APART, COINCIDENT = 1, 2, 4
