@@ -233,26 +233,15 @@ class _Ift:
 
     def __init__(self, lim: Limit, walk: Walk, co: Any, dC: np.ndarray, dk: np.ndarray,
                  blocks: int):
+        from crawlsim.kernel.tangent import implicit
+
         n = len(co.k)
         self.n, self.walk, self.scale_c = n, walk, lim.scale
-        # dY = S dLambda, S = [1, ..., 1, -1, ..., -1] / N: the mean slip of the blocks
-        Y = (walk.L[:blocks].sum(axis=0) - walk.L[blocks:].sum(axis=0)) / blocks
-        J, Ptheta = walk.W[:, :n], walk.W[:, n:]
-        Yw, Ytheta = Y[:n], Y[n:]
-        Dw, Dtheta = walk.D[:n], walk.D[n:]
-        # the least-squares solution of minimal norm, singular values below 1e-12 of the
-        # largest dropped (a family of periodic solutions), from one SVD of I - dP/dw
-        U, sv, Vt = np.linalg.svd(np.eye(n) - J)
-        kept = sv > 1e-12 * max(float(sv[0]) if sv.size else 1.0, 1e-300)
-        self.dw = Vt[kept].T @ ((U[:, kept].T @ Ptheta) / sv[kept, None])
-        self.dY = Ytheta + Yw @ self.dw
-        self.dD = Dtheta + Dw @ self.dw
         # error: roundoff of every term (pieces x eps x their sizes, times the conditioning of
         # the least-squares solve) plus the verified limit's distance, relative, on the same
-        # sizes
-        cond = float(sv[kept][0] / sv[kept][-1]) if kept.any() else 1.0
-        magY = np.abs(Ytheta) + np.abs(Yw) @ np.abs(self.dw)
-        magD = np.abs(Dtheta) + np.abs(Dw) @ np.abs(self.dw)
+        # sizes (`crawlsim.kernel.tangent.implicit` gives the sizes and the conditioning)
+        self.dw, self.dY, self.dD, magY, magD, cond = implicit(
+            walk.W, walk.L, walk.D, blocks)
         rel = 64 * EPS * (walk.pieces + n) * cond + lim.residual
         # a floor at the roundoff of the slips themselves: a derivative that cancels to ~0 (a
         # common phase shift) is zero to eps times the sizes the period's slips are made of
