@@ -350,8 +350,9 @@ def parameter_of(gait: Gait, base: Coefficients, keys: tuple[Any, ...]) -> Param
                                                    "c(t) or changes its form: not differentiated")
     dC, dMu, dk = change
     if phase:
+        # (a link's phase leaves the friction: its rotation is of zeros, skipped)
         return Parameter(path, keys, value, _rotation_inverse(dC, base.basis, h),
-                         _rotation_inverse(dMu, base.basis, h), dk / h)
+                         _rotation_inverse(dMu, base.basis, h) if dMu.any() else dMu, dk / h)
     return Parameter(path, keys, value, dC / h, dMu / h, dk / h)
 
 
