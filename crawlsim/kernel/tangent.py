@@ -418,6 +418,87 @@ def _gap_screen(B: np.ndarray, k: np.ndarray, BA: np.ndarray, Gi: np.ndarray, id
 
 
 @njit(cache=True)
+def _jump(B: np.ndarray, k: np.ndarray, dk: np.ndarray, C: np.ndarray, Mu: np.ndarray,
+          dC: np.ndarray, dMu: np.ndarray, mu_moves: bool, idx: np.ndarray, phi: np.ndarray,
+          w: np.ndarray, Wt: np.ndarray, lam: np.ndarray, L: np.ndarray,
+          D: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """A jump of c (a ``steps`` signal): the projection on its active set A with phi the basis
+    at the jump; the slips and their tangents join lam and L, mu . Lambda and its tangent D.
+    Returns the state, its tangent and mu . Lambda."""
+    n = B.shape[1]
+    p = dk.shape[1]
+    a = idx.shape[0]
+    BA, Gi = factor(B, k, idx)
+    Lam, dLam, w, Wt = solve_on(BA, Gi, idx, k, dk, w, Wt, phi, C, dC)
+    muA = _at(phi, Mu, idx)
+    diss = 0.0
+    for s in range(a):
+        lam[idx[s]] += Lam[s]
+        L[idx[s]] += dLam[s]
+        diss += muA[s] * Lam[s]
+        D += muA[s] * dLam[s]
+    if mu_moves:
+        dmuA = _at_p(phi, dMu, idx)
+        for s in range(a):
+            for c in range(p):
+                D[n + c] += Lam[s] * dmuA[s, c]
+    return w, Wt, diss
+
+
+@njit(cache=True)
+def _samples(u_s: float, u_e: float, gx: np.ndarray, gw: np.ndarray, linear: bool, H: int,
+             grid: np.ndarray, weights: np.ndarray, stacked: np.ndarray) -> None:
+    """A flow's samples: its ends and Gauss-Legendre nodes (``grid``), the weights of the
+    nodes and the basis at all of them (``stacked``, ends first and last)."""
+    nq = gx.shape[0]
+    length = u_e - u_s
+    grid[0] = u_s
+    grid[nq + 1] = u_e
+    for x in range(nq):
+        grid[x + 1] = u_s + 0.5 * length * (gx[x] + 1.0)
+        weights[x] = 0.5 * length * gw[x]
+    for x in range(nq + 2):
+        basis_values(grid[x], 0, linear, H, stacked[x])
+
+
+@njit(cache=True)
+def _velocity(BA: np.ndarray, k: np.ndarray, rate: np.ndarray) -> np.ndarray:
+    """w' = -K B_A^T lambda_A for the slip rates lambda_A."""
+    v = np.zeros(BA.shape[1])
+    for s in range(BA.shape[0]):
+        for i in range(BA.shape[1]):
+            v[i] -= k[i] * BA[s, i] * rate[s]
+    return v
+
+
+@njit(cache=True)
+def _outer_add(X: np.ndarray, a: np.ndarray, b: np.ndarray) -> None:
+    """X += outer(a, b)."""
+    for i in range(a.shape[0]):
+        for c in range(b.shape[0]):
+            X[i, c] += a[i] * b[c]
+
+
+@njit(cache=True)
+def _rate_screen(Phi: np.ndarray, dcoef: np.ndarray, lam_x: np.ndarray, touch: float) -> bool:
+    """Whether an active row's slip rate (``lam_x`` at the samples Phi) comes within twice the
+    walk's tolerance of zero, relative to the size of c' on the samples (the caller decides
+    on the closed form)."""
+    size = 1e-300
+    for x in range(Phi.shape[0]):
+        for i in range(dcoef.shape[1]):
+            t = 0.0
+            for b in range(Phi.shape[1]):
+                t += Phi[x, b] * dcoef[b, i]
+            size = max(size, abs(t))
+    low = np.inf
+    for x in range(lam_x.shape[0]):
+        for s in range(lam_x.shape[1]):
+            low = min(low, lam_x[x, s])
+    return bool(low <= 2.0 * touch * size)
+
+
+@njit(cache=True)
 def walk_exact(B: np.ndarray, k: np.ndarray, C: np.ndarray, Mu: np.ndarray, dC: np.ndarray,
                dMu: np.ndarray, dk: np.ndarray, dcoef: np.ndarray, dC1: np.ndarray,
                linear: bool, H: int, edges: np.ndarray, u: np.ndarray, piece: np.ndarray,
@@ -471,42 +552,25 @@ def walk_exact(B: np.ndarray, k: np.ndarray, C: np.ndarray, Mu: np.ndarray, dC: 
                 if pc == 0 and uj >= 1.0 - 1e-15:
                     uj = 0.0
                 basis_values(uj, 0, linear, H, phi)
-                BA, Gi = factor(B, k, idx)
-                Lam, dLam, w, Wt = solve_on(BA, Gi, idx, k, dk, w, Wt, phi, C[pc], dC[pc])
-                muA = _at(phi, Mu[pc], idx)
-                for s in range(a):
-                    lam[idx[s]] += Lam[s]
-                    L[idx[s]] += dLam[s]
-                    diss += muA[s] * Lam[s]
-                    D += muA[s] * dLam[s]
-                if mu_moves:
-                    dmuA = _at_p(phi, dMu[pc], idx)
-                    for s in range(a):
-                        for c in range(p):
-                            D[n + c] += Lam[s] * dmuA[s, c]
+                w, Wt, part = _jump(B, k, dk, C[pc], Mu[pc], dC[pc], dMu[pc], mu_moves, idx,
+                                    phi, w, Wt, lam, L, D)
+                diss += part
                 du_start = np.zeros(q)
             continue
         has_next = j + 1 < K
         u_s = u[j]
         u_e = u[j + 1] if has_next else 1.0
         length = u_e - u_s
-        grid[0] = u_s
-        grid[nq + 1] = u_e
-        for x in range(nq):
-            grid[x + 1] = u_s + 0.5 * length * (gx[x] + 1.0)
-            weights[x] = 0.5 * length * gw[x]
-        for x in range(nq + 2):
-            basis_values(grid[x], 0, linear, H, stacked[x])
+        _samples(u_s, u_e, gx, gw, linear, H, grid, weights, stacked)
         phi_s, phi_e = stacked[0], stacked[nq + 1]
         Phi = stacked[1:nq + 1]
         if a:
             BA, Gi = factor(B, k, idx)
             Lam, dLam, w_e, W_e = solve_on(BA, Gi, idx, k, dk, w, Wt, phi_e, C[pc], dC[pc])
+            # the slip rates and the velocity at the end: lambda = -G^{-1} c_A',
+            # w' = K B_A^T G^{-1} c_A'
             rate_e = _rate(Gi, phi_e, dcoef[pc], idx)
-            v_b = np.zeros(n)
-            for s in range(a):
-                for i in range(n):
-                    v_b[i] -= k[i] * BA[s, i] * rate_e[s]
+            v_b = _velocity(BA, k, rate_e)
         else:
             BA, Gi = np.zeros((0, n)), np.zeros((0, 0))
             Lam, dLam = np.zeros(0), np.zeros((0, q))
@@ -517,14 +581,10 @@ def walk_exact(B: np.ndarray, k: np.ndarray, C: np.ndarray, Mu: np.ndarray, dC: 
         rows = np.flatnonzero(hit[j + 1]) if hits else np.zeros(0, dtype=np.int64)
         if hits:
             du, bits = _saltation(B, rows, phi_e, dcoef[pc], dC[pc], W_e, v_b, u_e, u,
-                                         edges, coincident, touch, column_kinks)
+                                  edges, coincident, touch, column_kinks)
             kink[j + 1] = bits
-            for i in range(n):
-                for c in range(q):
-                    W_e[i, c] += v_b[i] * du[c]
-            for s in range(a):
-                for c in range(q):
-                    dLam[s, c] += rate_e[s] * du[c]
+            _outer_add(W_e, v_b, du)
+            _outer_add(dLam, rate_e, du)
         if a:
             for s in range(a):
                 lam[idx[s]] += Lam[s]
@@ -535,18 +595,7 @@ def walk_exact(B: np.ndarray, k: np.ndarray, C: np.ndarray, Mu: np.ndarray, dC: 
                                            du_start, du, D)
                 diss += part
                 if length > 4 * coincident:
-                    size = 1e-300
-                    for x in range(nq):
-                        for i in range(m):
-                            t = 0.0
-                            for b in range(nb):
-                                t += Phi[x, b] * dcoef[pc, b, i]
-                            size = max(size, abs(t))
-                    low = np.inf
-                    for x in range(nq):
-                        for s in range(a):
-                            low = min(low, lam_x[x, s])
-                    rate_flag[j] = low <= 2.0 * touch * size
+                    rate_flag[j] = _rate_screen(Phi, dcoef[pc], lam_x, touch)
         if length > 4 * coincident:
             gap_flag[j] = _gap_screen(B, k, BA, Gi, idx, rows, w, C[pc], grid, stacked, H,
                                       first, touch * scale)
@@ -554,6 +603,102 @@ def walk_exact(B: np.ndarray, k: np.ndarray, C: np.ndarray, Mu: np.ndarray, dC: 
         du_start = du
     W[:] = Wt
     w_end[:] = w
+    return diss
+
+
+@njit(cache=True)
+def _grid_agrees(Phi: np.ndarray, pieces: np.ndarray, C: np.ndarray, offsets: np.ndarray,
+                 atol: float) -> bool:
+    """Whether the closed form of c reproduces the catch-up grid's offsets to ``atol``."""
+    agrees = True
+    for g in range(Phi.shape[0]):
+        pc = pieces[g]
+        for i in range(offsets.shape[1]):
+            t = 0.0
+            for b in range(Phi.shape[1]):
+                t += Phi[g, b] * C[pc, b, i]
+            if not abs(t - offsets[g, i]) <= atol:
+                agrees = False
+    return agrees
+
+
+@njit(cache=True)
+def _steps(BA: np.ndarray, Gi: np.ndarray, idx: np.ndarray, k_moves: bool, dk: np.ndarray,
+           Phi: np.ndarray, pieces: np.ndarray, C: np.ndarray, Mu: np.ndarray, dC: np.ndarray,
+           dMu: np.ndarray, j0: int, j1: int, D: np.ndarray,
+           buffers: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                          np.ndarray, np.ndarray, np.ndarray, np.ndarray]) -> float:
+    """The steps j0 + 1 .. j1 of a run on A: each step's slips
+    Lambda_j = G_A^{-1} (B_A w_j - c_A(u_{j+1})) with their tangents, their dissipation
+    mu(u_{j+1}) . Lambda_j returned and its tangent into D. ``buffers`` hold B_A w_j and its
+    tangent at the run's first step (``prev``, ``dprev``) and the per-step scratch, so that
+    a step allocates nothing."""
+    prev, c_j, mu_j, lam_j, dprev, R, dc_j, dmu_j, Bl = buffers
+    a, n = BA.shape
+    p = dk.shape[1]
+    q = n + p
+    nb = Phi.shape[1]
+    diss = 0.0
+    for j in range(j0 + 1, j1 + 1):
+        pc = pieces[j]
+        # c_A, mu_A and their parameter columns at u_j (in the buffers: no allocation
+        # per step)
+        for s in range(a):
+            r_ = idx[s]
+            t1 = 0.0
+            t2 = 0.0
+            for b in range(nb):
+                t1 += Phi[j, b] * C[pc, b, r_]
+                t2 += Phi[j, b] * Mu[pc, b, r_]
+            c_j[s] = t1
+            mu_j[s] = t2
+            for c in range(p):
+                t1 = 0.0
+                t2 = 0.0
+                for b in range(nb):
+                    t1 += Phi[j, b] * dC[pc, b, r_, c]
+                    t2 += Phi[j, b] * dMu[pc, b, r_, c]
+                dc_j[s, c] = t1
+                dmu_j[s, c] = t2
+        # Lambda_j = G_A^{-1} (B_A w_j - c_A(u_{j+1})) and its tangent, with
+        # d(G_A Lambda) = B_A dK B_A^T Lambda
+        for s in range(a):
+            t1 = 0.0
+            for r_ in range(a):
+                t1 += Gi[s, r_] * (prev[r_] - c_j[r_])
+            lam_j[s] = t1
+        for s in range(a):
+            for c in range(n):
+                R[s, c] = dprev[s, c]
+            for c in range(p):
+                R[s, n + c] = dprev[s, n + c] - dc_j[s, c]
+        if k_moves:
+            for i in range(n):
+                t1 = 0.0
+                for s in range(a):
+                    t1 += lam_j[s] * BA[s, i]
+                Bl[i] = t1
+            for s in range(a):
+                for i in range(n):
+                    f = BA[s, i] * Bl[i]
+                    for c in range(p):
+                        R[s, n + c] -= f * dk[i, c]
+        for s in range(a):
+            diss += mu_j[s] * lam_j[s]
+            for c in range(q):
+                t1 = 0.0
+                for r_ in range(a):
+                    t1 += Gi[s, r_] * R[r_, c]
+                D[c] += mu_j[s] * t1
+            for c in range(p):
+                D[n + c] += lam_j[s] * dmu_j[s, c]
+        # B_A w_{j+1} = c_A(u_{j+1}) inside the run
+        for s in range(a):
+            prev[s] = c_j[s]
+            for c in range(n):
+                dprev[s, c] = 0.0
+            for c in range(p):
+                dprev[s, n + c] = dc_j[s, c]
     return diss
 
 
@@ -575,17 +720,7 @@ def walk_catch_up(B: np.ndarray, k: np.ndarray, C: np.ndarray, Mu: np.ndarray, d
     m, n = B.shape
     p = dk.shape[1]
     q = n + p
-    nb = Phi.shape[1]
-    # the closed form of c against the grid's offsets
-    agrees = True
-    for g in range(Phi.shape[0]):
-        pc = pieces[g]
-        for i in range(m):
-            t = 0.0
-            for b in range(nb):
-                t += Phi[g, b] * C[pc, b, i]
-            if not abs(t - offsets[g, i]) <= atol:
-                agrees = False
+    agrees = _grid_agrees(Phi, pieces, C, offsets, atol)
     w = w0.copy()
     Wt = np.zeros((n, q))
     for i in range(n):
@@ -621,66 +756,8 @@ def walk_catch_up(B: np.ndarray, k: np.ndarray, C: np.ndarray, Mu: np.ndarray, d
                 for i in range(n):
                     t += BA[s, i] * Wt[i, c]
                 dprev[s, c] = t
-        for j in range(j0 + 1, j1 + 1):
-            pc = pieces[j]
-            # c_A, mu_A and their parameter columns at u_j (in the buffers: no allocation
-            # per step)
-            for s in range(a):
-                r_ = idx[s]
-                t1 = 0.0
-                t2 = 0.0
-                for b in range(nb):
-                    t1 += Phi[j, b] * C[pc, b, r_]
-                    t2 += Phi[j, b] * Mu[pc, b, r_]
-                c_j[s] = t1
-                mu_j[s] = t2
-                for c in range(p):
-                    t1 = 0.0
-                    t2 = 0.0
-                    for b in range(nb):
-                        t1 += Phi[j, b] * dC[pc, b, r_, c]
-                        t2 += Phi[j, b] * dMu[pc, b, r_, c]
-                    dc_j[s, c] = t1
-                    dmu_j[s, c] = t2
-            # Lambda_j = G_A^{-1} (B_A w_j - c_A(u_{j+1})) and its tangent, with
-            # d(G_A Lambda) = B_A dK B_A^T Lambda
-            for s in range(a):
-                t1 = 0.0
-                for r_ in range(a):
-                    t1 += Gi[s, r_] * (prev[r_] - c_j[r_])
-                lam_j[s] = t1
-            for s in range(a):
-                for c in range(n):
-                    R[s, c] = dprev[s, c]
-                for c in range(p):
-                    R[s, n + c] = dprev[s, n + c] - dc_j[s, c]
-            if k_moves:
-                for i in range(n):
-                    t1 = 0.0
-                    for s in range(a):
-                        t1 += lam_j[s] * BA[s, i]
-                    Bl[i] = t1
-                for s in range(a):
-                    for i in range(n):
-                        f = BA[s, i] * Bl[i]
-                        for c in range(p):
-                            R[s, n + c] -= f * dk[i, c]
-            for s in range(a):
-                diss += mu_j[s] * lam_j[s]
-                for c in range(q):
-                    t1 = 0.0
-                    for r_ in range(a):
-                        t1 += Gi[s, r_] * R[r_, c]
-                    D[c] += mu_j[s] * t1
-                for c in range(p):
-                    D[n + c] += lam_j[s] * dmu_j[s, c]
-            # B_A w_{j+1} = c_A(u_{j+1}) inside the run
-            for s in range(a):
-                prev[s] = c_j[s]
-                for c in range(n):
-                    dprev[s, c] = 0.0
-                for c in range(p):
-                    dprev[s, n + c] = dc_j[s, c]
+        diss += _steps(BA, Gi, idx, k_moves, dk, Phi, pieces, C, Mu, dC, dMu, j0, j1, D,
+                       (prev, c_j, mu_j, lam_j, dprev, R, dc_j, dmu_j, Bl))
         for s in range(a):
             lam[idx[s]] += Lam[s]
             L[idx[s]] += dLam[s]
