@@ -117,7 +117,9 @@ def walk_exact(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     `crawlsim.kernel.tangent.walk_exact`; the flows it flags as holding a possible touch are
     examined here on the closed form, from the state and tangent it had at their start."""
     from crawlsim.kernel import tangent
+    from crawlsim.kernel.catchup import announce_compilation
 
+    announce_compilation("sensitivity")  # a first walk compiles the kernel (once per cache)
     B = np.ascontiguousarray(lim.process.polyhedron.dense_normals(), dtype=float)
     m, n = B.shape
     q = n + dk.shape[1]
@@ -330,7 +332,9 @@ def walk_catch_up(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     multiplier are examined here, from the state and tangent it had at their start."""
     from crawlsim.errors import CrawlsimError
     from crawlsim.kernel import tangent
+    from crawlsim.kernel.catchup import announce_compilation
 
+    announce_compilation("sensitivity")
     process, record = lim.process, lim.record
     B = np.ascontiguousarray(process.polyhedron.dense_normals(), dtype=float)
     m, n = B.shape
