@@ -11,8 +11,14 @@ run. The two are interleaved, repeat by repeat, so that a change of load on the 
 both alike; the ratio printed is the median of the repeats' ratios (each repeat's pair run
 back to back), beside the median times.
 
+Two more columns, measured in the same repeats: ``sens`` is the sensitivity call alone (what
+``--sensitivity`` adds to a run), and ``stepping`` the periods that run stepped, stepped again
+on a fresh stepper of its compiled process (the integrator's own cost, without compiling the
+gait, the run's analysis or its bookkeeping); ``sens/step`` is the median of their ratios
+(issue 22's target for the fixed cost: at most 0.15 at p = 1).
+
     python scripts/bench-sensitivity.py              # a minute or two
-    python scripts/bench-sensitivity.py --repeats 21
+    python scripts/bench-sensitivity.py --repeats 21 --clock cpu
 """
 
 from __future__ import annotations
@@ -26,6 +32,7 @@ import crawlsim
 from crawlsim import api
 from crawlsim.analysis.sensitivity import sensitivity
 from crawlsim.gait.document import gait_from_document
+from crawlsim.integrate.stepping import make_stepper
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -58,27 +65,45 @@ def cases() -> list[tuple[crawlsim.Gait, dict[int, list[str]]]]:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     parser.add_argument("--repeats", type=int, default=9)
+    parser.add_argument("--clock", choices=("wall", "cpu"), default="wall",
+                        help="wall time (perf_counter) or this process's CPU time "
+                             "(process_time: less sensitive to other load on the machine)")
     args = parser.parse_args()
+    clock = time.perf_counter if args.clock == "wall" else time.process_time
     print(f"{'gait':16s} {'integrator':10s} {'p':>3s} {'velocity':>10s} {'--sensitivity':>14s} "
-          f"{'ratio':>7s} {'bar':>5s}")
+          f"{'ratio':>7s} {'bar':>5s} {'sens':>9s} {'stepping':>9s} {'sens/step':>9s}")
     for gait, path_sets in cases():
         for p, paths in path_sets.items():
             result = api.run(gait, history=False)  # warm (and the count of parameters)
             got = len(sensitivity(gait, paths, run=result).parameters)
             assert got == p, (gait.name, paths, got)
-            alone, both = [], []
+            process = result.limit_process
+            assert process is not None
+            periods = result.periods + result.limit_periods
+            alone, both, sens, stepping = [], [], [], []
             for _ in range(args.repeats):  # interleaved
-                began = time.perf_counter()
+                began = clock()
                 api.run(gait, history=False)
-                alone.append(time.perf_counter() - began)
-                began = time.perf_counter()
+                alone.append(clock() - began)
+                began = clock()
                 result = api.run(gait, history=False)
+                middle = clock()
                 sensitivity(gait, paths, run=result)
-                both.append(time.perf_counter() - began)
+                ended = clock()
+                both.append(ended - began)
+                sens.append(ended - middle)
+                began = clock()
+                stepper = make_stepper(process, gait.simulation.integrator)
+                for _ in range(periods):
+                    stepper.step_period()
+                stepping.append(clock() - began)
             a, b = statistics.median(alone), statistics.median(both)
             ratio = statistics.median(y / x for x, y in zip(alone, both))
+            fixed = statistics.median(x / y for x, y in zip(sens, stepping))
             print(f"{gait.name:16s} {gait.simulation.integrator:10s} {p:3d} {a:9.4f}s "
-                  f"{b:13.4f}s {ratio:7.2f} {1 + 0.2 * p:5.1f}")
+                  f"{b:13.4f}s {ratio:7.2f} {1 + 0.2 * p:5.1f} "
+                  f"{statistics.median(sens) * 1e3:7.3f}ms "
+                  f"{statistics.median(stepping) * 1e3:7.3f}ms {fixed:9.2f}")
     return 0
 
 

@@ -194,6 +194,7 @@ class RunResult:
     grid_note: str | None = None
     # The limit period itself, for exact sensitivities of this run (`crawlsim.analysis.sensitivity`)
     limit_record: PeriodRecord | None = field(default=None, repr=False, compare=False)
+    limit_process: SweepingProcess | None = field(default=None, repr=False, compare=False)
 
     @property
     def displacement_error_estimate(self) -> float | None:
@@ -520,7 +521,7 @@ def _analyse(process: SweepingProcess, drive: _Drive, *, integrator: str, tol: f
         contraction_rate_error=None if fit is None else fit.error,
         contraction_rate_periods=0 if fit is None else fit.periods,
         exact_convergence=exact[0], exact_rate=exact[1],
-        limit_record=drive.final,
+        limit_record=drive.final, limit_process=process,
         **_solver_fields(drive.solution),
         **_energy_fields(process, drive.final, motion, err))
 

@@ -37,6 +37,7 @@ from crawlsim.analysis.sensitivity_terms import (
     EPS,
     Limit,
     Parameter,
+    breakpoint_scale,
     coefficients_of,
     find_limit,
     limit_of,
@@ -189,15 +190,19 @@ def sensitivity(gait: Gait, paths: Sequence[str] | str, *, one_sided: bool = Tru
 
 
 def _limit_of_run(gait: Gait, run: Any) -> Limit:
-    """The limit period of ``run`` (its ``limit_record``) when it is this gait's, else found."""
+    """The limit period of ``run`` (its ``limit_record``, on its ``limit_process``) when it is
+    this gait's, else found. The exact walk needs the closed form of c only, not the run's
+    grid: its tolerances are relative to c's size at the pieces' edges (`breakpoint_scale`)."""
     record = getattr(run, "limit_record", None)
     if record is None or not run.converged or run.integrator != gait.simulation.integrator:
         return find_limit(gait)
-    from crawlsim.model.process import compile_gait
+    exact = gait.simulation.integrator == "exact"
+    process = getattr(run, "limit_process", None)
+    if process is None:
+        from crawlsim.model.process import compile_gait
 
-    # the exact walk needs the closed form of c only, not the run's grid
-    steps = 1 if gait.simulation.integrator == "exact" else None
-    return limit_of(compile_gait(gait, steps_per_period=steps), record)
+        process = compile_gait(gait, steps_per_period=1 if exact else None)
+    return limit_of(process, record, breakpoint_scale(process) if exact else None)
 
 
 def _expand(gait: Gait, paths: Sequence[str] | str) -> list[tuple[Any, ...]]:
@@ -228,25 +233,15 @@ class _Ift:
 
     def __init__(self, lim: Limit, walk: Walk, co: Any, dC: np.ndarray, dk: np.ndarray,
                  blocks: int):
+        from crawlsim.kernel.tangent import implicit
+
         n = len(co.k)
-        self.n, self.walk, self.scale_c = n, walk, lim.process.polyhedron.c_scale
-        S = np.concatenate([np.ones(blocks), -np.ones(blocks)]) / blocks
-        J, Ptheta = walk.W[:, :n], walk.W[:, n:]
-        Yw, Ytheta = S @ walk.L[:, :n], S @ walk.L[:, n:]
-        Dw, Dtheta = walk.D[:n], walk.D[n:]
-        # the least-squares solution of minimal norm, singular values below 1e-12 of the
-        # largest dropped (a family of periodic solutions), from one SVD of I - dP/dw
-        U, sv, Vt = np.linalg.svd(np.eye(n) - J)
-        kept = sv > 1e-12 * max(float(sv[0]) if sv.size else 1.0, 1e-300)
-        self.dw = Vt[kept].T @ ((U[:, kept].T @ Ptheta) / sv[kept, None])
-        self.dY = Ytheta + Yw @ self.dw
-        self.dD = Dtheta + Dw @ self.dw
+        self.n, self.walk, self.scale_c = n, walk, lim.scale
         # error: roundoff of every term (pieces x eps x their sizes, times the conditioning of
         # the least-squares solve) plus the verified limit's distance, relative, on the same
-        # sizes
-        cond = float(sv[kept][0] / sv[kept][-1]) if kept.any() else 1.0
-        magY = np.abs(Ytheta) + np.abs(Yw) @ np.abs(self.dw)
-        magD = np.abs(Dtheta) + np.abs(Dw) @ np.abs(self.dw)
+        # sizes (`crawlsim.kernel.tangent.implicit` gives the sizes and the conditioning)
+        self.dw, self.dY, self.dD, magY, magD, cond = implicit(
+            walk.W, walk.L, walk.D, blocks)
         rel = 64 * EPS * (walk.pieces + n) * cond + lim.residual
         # a floor at the roundoff of the slips themselves: a derivative that cancels to ~0 (a
         # common phase shift) is zero to eps times the sizes the period's slips are made of

@@ -39,8 +39,9 @@ def with_derivatives(paths: Sequence[str], gaits: Iterable[tuple[int, Any]],
     """The rows of the converged points among ``gaits`` ((index, Gait) pairs) with their
     ``derivatives``: {concrete path: dv0/dpath, None where not smooth}; a point whose
     derivatives fail keeps its row, with the failure in its message. ``runs``: the points' own
-    runs by index, whose limit periods are walked (the others' limits are searched again:
-    catch-up points of the vectorised batch)."""
+    runs by index (`crawlsim.analysis.run.RunResult`, or `crawlsim.study.batch.BatchRun` for
+    catch-up points of the batch), whose limit periods are walked: no point is stepped again
+    (a point without one has its limit searched)."""
     import dataclasses
 
     from crawlsim.analysis.sensitivity import sensitivity

@@ -49,6 +49,9 @@ class Limit:
     displacement: float
     dissipation: float
     residual: float  # relative Poincare step of the verified period
+    # the size of c that the walk's tolerances are relative to (the polyhedron's c_scale on
+    # the grid the walk is defined on)
+    scale: float
 
 
 def find_limit(gait: Gait) -> Limit:
@@ -84,20 +87,37 @@ def find_limit(gait: Gait) -> Limit:
     return limit_of(process, final)
 
 
-def limit_of(process: SweepingProcess, final: PeriodRecord) -> Limit:
+def limit_of(process: SweepingProcess, final: PeriodRecord, scale: float | None = None) -> Limit:
     """v0, its error and the period's displacement and dissipation of a verified limit period
     (the error as `crawlsim.analysis.run.simulate` bounds it: the steps' roundoff and the
-    residual |P(w) - w| as a shape mismatch over the smallest stiffness)."""
+    residual |P(w) - w| as a shape mismatch over the smallest stiffness). ``scale``: the size
+    of c of the walk's grid where it is not ``process``'s (`breakpoint_scale`); the relative
+    Poincare step is taken on it."""
     from crawlsim.analysis.energy import period_dissipation
-    from crawlsim.integrate.limit import relative_step
 
     assert final.x is not None
     T = process.period
     d = float(np.mean(final.x[-1] - final.x[0]))
     steps = len(final.w) - 1  # the run's grid (``process`` may be compiled on a coarser one)
     err = verified_limit_error(process, final, steps)
-    return Limit(process, final, d / T, err, d, period_dissipation(process, final),
-                  relative_step(process, final.w[0], final.w[-1]))
+    scale = process.scale if scale is None else scale
+    # the relative Poincare step (`crawlsim.integrate.limit.relative_step`) on that scale
+    residual = float(np.linalg.norm(final.w[-1] - final.w[0])) / max(
+        float(np.linalg.norm(final.w[-1])), scale)
+    return Limit(process, final, d / T, err, d, period_dissipation(process, final), residual,
+                 scale)
+
+
+def breakpoint_scale(process: SweepingProcess) -> float:
+    """The c_scale of ``process``'s gait compiled on the grid of its breakpoints alone (the
+    exact walk's grid, `compile_gait` with one step): its offsets at the pieces' edges and
+    its initial state, read off ``process``'s own grid, which holds every edge."""
+    from crawlsim.model.process import _scale
+
+    assert process.offset_pieces is not None
+    cycles, edges = process.cycles, process.offset_pieces.edges
+    at = np.minimum(np.searchsorted(cycles, edges), len(cycles) - 1)
+    return _scale(process.offsets[at[cycles[at] == edges]], process.initial)
 
 
 # -- the offsets' coefficients and their derivatives -----------------------------------------
@@ -123,25 +143,24 @@ def coefficients_of(gait: Gait, process: SweepingProcess | None = None) -> Coeff
     return _assemble(gait, process.offset_pieces, np.array(process.stiffness, dtype=float))
 
 
-def _signals(gait: Gait) -> tuple[Any, ...]:
-    """The signals c(t) is combined from, in the order `compile_gait` takes them."""
+def _signals(gait: Gait, fields: dict[str, Any] | None = None) -> tuple[Any, ...]:
+    """The signals c(t) is combined from, in the order `compile_gait` takes them (with the
+    gait's ``fields`` replaced by those given, `_moved_fields`)."""
+    f = fields or {}
     forces = () if gait.loads is None else tuple(gait.loads.forces)
-    return tuple(gait.links) + tuple(gait.forward) + tuple(gait.backward) + forces
+    return (tuple(f.get("links", gait.links)) + tuple(f.get("forward", gait.forward))
+            + tuple(f.get("backward", gait.backward)) + forces)
 
 
 def _assemble(gait: Gait, pieces: Any, k: np.ndarray) -> Coefficients:
-    from crawlsim.model.offsets import PiecewiseOffsets
-
+    """C_p of ``pieces`` and the friction weights Mu_p: the friction signals' own coefficients
+    on each piece (the columns after the links'), times cos(angle) on a slope (docs/model.md
+    §6)."""
     N = gait.blocks
-    signals = list(gait.links) + list(gait.forward) + list(gait.backward)
-    friction = PiecewiseOffsets(signals, lambda coef: coef[:, N - 1:], pieces.edges)
     P = pieces.pieces
     C = np.array([pieces.coefficients(p) for p in range(P)])
-    # the friction weights of the rows are mu cos(angle) on a slope (docs/model.md §6)
-    Mu = np.array([friction.coefficients(p) for p in range(P)]) * (
+    Mu = np.array([pieces.signal_coefficients(p)[:, N - 1:3 * N - 1] for p in range(P)]) * (
         1.0 if gait.loads is None else gait.loads.cos)
-    if friction.basis != pieces.basis:  # pragma: no cover - the same signals span both
-        raise CrawlsimError(f"{gait.source}: internal error, friction and offsets in two bases")
     return Coefficients(C, Mu, k, pieces.edges, pieces.basis, pieces)
 
 
@@ -161,21 +180,59 @@ def _moved_coefficients(gait: Gait, base: Coefficients, keys: tuple[Any, ...],
     return coefficients_of(moved)
 
 
-def _rotation_inverse(base: np.ndarray, moved: np.ndarray, basis: Any, shift: float) -> np.ndarray:
-    """d/dphase of coefficients from those at phase and phase + shift: harmonic n of every
-    column is rotated by 2 pi n shift (rotations commute with the linear combination of the
-    signals), Delta_n = (R_n - I) Z_n, and dZ_n/dphase = 2 pi n J Z_n, J the quarter turn."""
-    out = np.zeros_like(base)
+def _smooth_change(gait: Gait, base: Coefficients, keys: tuple[Any, ...],
+                   value: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """The change of C and of the friction weights (P, nb, m) when the number at ``keys`` of a
+    constant, cosine or fourier signal (a link's, a friction's) is set to ``value``: only that
+    signal's coefficients change, the same on every piece, and c is combined from the signals
+    by the base's own map, affine in them, so the change is that map's linear part applied to
+    the change of the signals (exact to roundoff, without building c anew); None for other
+    numbers and signals (`_moved_coefficients`)."""
+    from crawlsim.gait.signals import Constant, Cosine, Fourier
+    from crawlsim.model.offsets import _smooth_coefficients
+
+    fields = _moved_fields(gait, keys, value)
+    if fields is None or not set(fields) <= {"links", "forward", "backward"}:
+        return None
+    old = _signals(gait)
+    new = _signals(gait, fields)
+    changed = [c for c, (a, b) in enumerate(zip(old, new)) if a is not b]
+    basis = base.basis
+    for c in changed:
+        for signal in (old[c], new[c]):
+            if not isinstance(signal, (Constant, Cosine, Fourier)) or \
+                    signal.harmonics > basis.harmonics:
+                return None
+    # a zero row first: ``combine`` adds its constant term (the loads') to row 0, the
+    # coefficient of phi_0 = 1, so the rows after it are the linear part alone
+    dS = np.zeros((basis.size + 1, len(old)))
+    for c in changed:
+        dS[1:, c] = _smooth_coefficients(new[c], basis) - _smooth_coefficients(old[c], basis)
+    dC = base.pieces.combine(dS)[1:]
+    dS = dS[1:]
+    N = gait.blocks
+    dMu = dS[:, N - 1:3 * N - 1] * (1.0 if gait.loads is None else gait.loads.cos)
+    P = base.C.shape[0]
+    return (np.broadcast_to(dC, (P, *dC.shape)).copy(),
+            np.broadcast_to(dMu, (P, *dMu.shape)).copy())
+
+
+def _rotation_inverse(delta: np.ndarray, basis: Any, shift: float) -> np.ndarray:
+    """d/dphase of coefficients from their change ``delta`` from phase to phase + shift:
+    harmonic n of every column is rotated by 2 pi n shift (rotations commute with the linear
+    combination of the signals), Delta_n = (R_n - I) Z_n, and dZ_n/dphase = 2 pi n J Z_n, J
+    the quarter turn."""
+    out = np.zeros_like(delta)
     h0 = basis.first_harmonic
-    delta = moved - base
     for n in range(1, basis.harmonics + 1):
         a = 2.0 * math.pi * n * shift
-        R = np.array([[math.cos(a) - 1.0, -math.sin(a)], [math.sin(a), math.cos(a) - 1.0]])
-        rows = slice(h0 + 2 * (n - 1), h0 + 2 * n)
-        Z = np.linalg.solve(R, delta[..., rows, :].swapaxes(-1, -2)[..., None]).squeeze(-1)
-        Z = Z.swapaxes(-1, -2)  # (..., 2, cols)
-        out[..., rows.start, :] = -2.0 * math.pi * n * Z[..., 1, :]
-        out[..., rows.start + 1, :] = 2.0 * math.pi * n * Z[..., 0, :]
+        # R_n - I = [[c, -s], [s, c]], c = cos a - 1, s = sin a, inverted in closed form
+        c, s = math.cos(a) - 1.0, math.sin(a)
+        det = c * c + s * s
+        d0, d1 = delta[..., h0 + 2 * (n - 1), :], delta[..., h0 + 2 * n - 1, :]
+        z0, z1 = (c * d0 + s * d1) / det, (c * d1 - s * d0) / det
+        out[..., h0 + 2 * (n - 1), :] = -2.0 * math.pi * n * z1
+        out[..., h0 + 2 * n - 1, :] = 2.0 * math.pi * n * z0
     return out
 
 
@@ -193,27 +250,37 @@ class Parameter:
 
 def _moved(gait: Gait, keys: tuple[Any, ...], value: float) -> Gait:
     """The gait with the number at ``keys`` set to ``value``, for a difference quotient of the
-    coefficients: a link's signal or the stiffness rebuilt alone (``parse_signal`` checks the
-    signal), anything else through `Gait.replace`, validated like a file. The cheap path is
-    what keeps a parameter's share of the cost small (issue 22: <= 0.2 of a run each)."""
+    coefficients: the fields of `_moved_fields` rebuilt alone, anything else through
+    `Gait.replace`, validated like a file."""
+    fields = _moved_fields(gait, keys, value)
+    if fields is None:
+        return gait.replace(".".join(str(k) for k in keys), value)
+    return dataclasses.replace(gait, **fields)
+
+
+def _moved_fields(gait: Gait, keys: tuple[Any, ...], value: float) -> dict[str, Any] | None:
+    """The fields of the gait that setting the number at ``keys`` to ``value`` changes, when it
+    is a link's signal, a friction signal or the stiffness (``parse_signal`` checks a signal);
+    None for anything else. The cheap path is what keeps a parameter's share of the cost small
+    (issue 22: <= 0.2 of a run each)."""
     if keys[0] == "links" and len(keys) >= 2 and isinstance(keys[1], int):
         i = keys[1]
         links = list(gait.links)
         links[i] = _moved_signal(gait, gait.document["links"][i], keys[2:], value,
                                  f"links[{i}]")
-        return dataclasses.replace(gait, links=tuple(links))
+        return {"links": tuple(links)}
     if keys[0] == "friction" and value > 0:
         friction = _moved_friction(gait, keys, value)
         if friction is not None:
-            return dataclasses.replace(gait, forward=friction[0], backward=friction[1])
+            return {"forward": friction[0], "backward": friction[1]}
     if keys[0] == "stiffness" and len(keys) <= 2 and value > 0:
         k = np.array(gait.stiffness, dtype=float)
         if len(keys) == 1:
             k[:] = value
         else:
             k[keys[1]] = value
-        return dataclasses.replace(gait, stiffness=k)
-    return gait.replace(".".join(str(k) for k in keys), value)
+        return {"stiffness": k}
+    return None
 
 
 def _moved_signal(gait: Gait, node: Any, inside: tuple[Any, ...], value: float,
@@ -270,24 +337,37 @@ def parameter_of(gait: Gait, base: Coefficients, keys: tuple[Any, ...]) -> Param
     H = max(base.basis.harmonics, 1)
     h = 0.25 / (2 * H + 1) * 1e-2 if phase else COEFFICIENT_STEP * max(abs(value), 1.0)
     try:
-        moved = _moved_coefficients(gait, base, keys, value + h)
+        change = _change(gait, base, keys, value, h)
     except CrawlsimError as exc:
         try:
             h = -h
-            moved = _moved_coefficients(gait, base, keys, value + h)
+            change = _change(gait, base, keys, value, h)
         except CrawlsimError:
             return Parameter(path, keys, value, reason=f"the gait with {path} moved is "
                                                        f"refused: {exc}")
-    if (moved.C.shape != base.C.shape or not np.array_equal(moved.edges, base.edges)
-            or moved.basis != base.basis):
+    if change is None:
         return Parameter(path, keys, value, reason=f"moving {path} moves the breakpoints of "
                                                    "c(t) or changes its form: not differentiated")
+    dC, dMu, dk = change
     if phase:
-        dC = _rotation_inverse(base.C, moved.C, base.basis, h)
-        dMu = _rotation_inverse(base.Mu, moved.Mu, base.basis, h)
-    else:
-        dC, dMu = (moved.C - base.C) / h, (moved.Mu - base.Mu) / h
-    return Parameter(path, keys, value, dC, dMu, (moved.k - base.k) / h)
+        # (a link's phase leaves the friction: its rotation is of zeros, skipped)
+        return Parameter(path, keys, value, _rotation_inverse(dC, base.basis, h),
+                         _rotation_inverse(dMu, base.basis, h) if dMu.any() else dMu, dk / h)
+    return Parameter(path, keys, value, dC / h, dMu / h, dk / h)
+
+
+def _change(gait: Gait, base: Coefficients, keys: tuple[Any, ...], value: float,
+            h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """The change of C, of the friction weights and of k when the number at ``keys`` moves
+    from ``value`` by h; None when that moves the breakpoints of c or changes its form."""
+    smooth = _smooth_change(gait, base, keys, value + h)
+    if smooth is not None:
+        return smooth[0], smooth[1], np.zeros_like(base.k)
+    moved = _moved_coefficients(gait, base, keys, value + h)
+    if (moved.C.shape != base.C.shape or not np.array_equal(moved.edges, base.edges)
+            or moved.basis != base.basis):
+        return None
+    return moved.C - base.C, moved.Mu - base.Mu, moved.k - base.k
 
 
 def _angle(gait: Gait, keys: tuple[Any, ...], path: str, value: float) -> Parameter:

@@ -16,17 +16,23 @@ held fixed.
   step's slips are Lambda_j = G_A^{-1} (c_A(u_j) - c_A(u_{j+1})); the dissipation is the grid
   sum of mu(u_{j+1}) . Lambda_j, as the run's ledger counts it. The grid times are fixed: no
   saltation.
+
+Both walks run compiled (`crawlsim.kernel.tangent`), so that a walk costs its arithmetic. The
+kernel screens every flow for touches (a gap or a slip rate reaching zero inside it) with
+tolerances twice the walk's; the few flows (and catch-up runs) it flags are examined here, on
+the closed form, from the state and tangent the kernel had at their start.
 """
 
 from __future__ import annotations
 
 import functools
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from crawlsim.analysis.sensitivity_terms import EPS, Coefficients, Limit
+from crawlsim.analysis.sensitivity_terms import Coefficients, Limit
 
 if TYPE_CHECKING:
     from crawlsim.integrate.stepping import Transition
@@ -64,54 +70,26 @@ class Walk:
 
 
 class _Walker:
-    """The tangent state of a walk and the formulas shared by both integrators' walks."""
+    """The start of a flow or run that the compiled walk flagged (``w``, ``Wt``), the touches
+    found there, and the kernel's formulas (`crawlsim.kernel.tangent`) called from Python."""
 
-    def __init__(self, lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
-                 dk: np.ndarray):
-        poly = lim.process.polyhedron
-        self.B = poly.dense_normals()
-        self.k = co.k
-        self.co, self.dC, self.dMu, self.dk = co, dC, dMu, dk
-        # which kinds of terms the parameters move at all (the others' tangents are 0)
-        self.moves_mu, self.moves_k = bool(np.any(dMu)), bool(np.any(dk))
-        self.n, self.m = self.B.shape[1], self.B.shape[0]
+    def __init__(self, lim: Limit, co: Coefficients, dC: np.ndarray, dk: np.ndarray):
+        self.B = np.ascontiguousarray(lim.process.polyhedron.dense_normals(), dtype=float)
+        self.k = np.ascontiguousarray(co.k, dtype=float)
+        self.co, self.dC, self.dk = co, dC, dk
+        self.m, self.n = self.B.shape
         self.q = self.n + dk.shape[1]
         self.basis = co.basis
-        self.scale = poly.c_scale
-        self.w = np.array(lim.record.w[0], dtype=float)
+        self.scale = lim.scale
+        self.w = np.zeros(self.n)
         self.Wt = np.zeros((self.n, self.q))
-        self.Wt[:, :self.n] = np.eye(self.n)
-        self.lam = np.zeros(self.m)
-        self.Lt = np.zeros((self.m, self.q))
-        self.diss = 0.0
-        self.Dt = np.zeros(self.q)
-        self.kinks: list[str] = []
         self.touches: list[tuple[str, np.ndarray]] = []
-        self.column_kinks = np.zeros(self.q, dtype=bool)
-        self._factors: dict[bytes, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 
-    def factor(self, index: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """B_A, G_A = B_A K B_A^T and its inverse, once per active set."""
-        key = np.asarray(index, dtype=np.int64).tobytes()
-        if key not in self._factors:
-            BA = self.B[index]
-            G = BA @ (self.k[:, None] * BA.T)
-            self._factors[key] = (BA, G, np.linalg.inv(G))
-        return self._factors[key]
+    def factor(self, index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """B_A and G_A^{-1}, G_A = B_A K B_A^T."""
+        from crawlsim.kernel.tangent import factor
 
-    def prefactor(self, sets: list[np.ndarray]) -> None:
-        """Factor the active sets a walk will visit, one batched inverse per size of set."""
-        by_size: dict[int, dict[bytes, np.ndarray]] = {}
-        for index in sets:
-            index = np.asarray(index, dtype=np.int64)
-            key = index.tobytes()
-            if index.size and key not in self._factors:
-                by_size.setdefault(index.size, {})[key] = index
-        for group in by_size.values():
-            BAs = np.stack([self.B[index] for index in group.values()])  # (K, a, n)
-            Gs = np.einsum("kai,i,kbi->kab", BAs, self.k, BAs)
-            for key, BA, G, Gi in zip(group, BAs, Gs, np.linalg.inv(Gs)):
-                self._factors[key] = (BA, G, Gi)
+        return factor(self.B, self.k, np.asarray(index, dtype=np.int64))
 
     def pad(self, X: np.ndarray) -> np.ndarray:
         """Parameter columns X (..., p) as full tangent columns (..., n + p)."""
@@ -122,177 +100,127 @@ class _Walker:
     def solve_on(self, index: np.ndarray, w_s: np.ndarray, W_s: np.ndarray, piece: int,
                  phi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Lambda_A(u), w(u) and their tangents for a flow (or projection) on A from w_s;
-        phi = phi(u), the basis at u (eq. (piece))."""
-        BA, G, Gi = self.factor(index)
-        cA = phi @ self.co.C[piece][:, index]
-        dcA = self.pad(np.einsum("b,bap->ap", phi, self.dC[piece][:, index, :]))
-        Lam = Gi @ (BA @ w_s - cA)
-        BtL = BA.T @ Lam
-        if self.moves_k:
-            dKBtL = self.pad(self.dk * BtL[:, None])  # dK B_A^T Lambda, parameter columns
-            dLam = Gi @ (BA @ (W_s - dKBtL) - dcA)  # d G_A Lambda = B_A dK B_A^T Lambda
-            dW = W_s - dKBtL - self.k[:, None] * (BA.T @ dLam)
-        else:
-            dLam = Gi @ (BA @ W_s - dcA)
-            dW = W_s - self.k[:, None] * (BA.T @ dLam)
-        return Lam, dLam, w_s - self.k * BtL, dW
+        phi = phi(u), the basis at u (eq. (piece), `crawlsim.kernel.tangent.solve_on`)."""
+        from crawlsim.kernel.tangent import solve_on
 
-    def project(self, index: np.ndarray, piece: int, u: float) -> None:
-        """A projection on A at cycle u (a jump of c): the state, the slips and mu(u) . Lambda."""
-        phi = self.basis.values(u)[0]
-        Lam, dLam, self.w, self.Wt = self.solve_on(index, self.w, self.Wt, piece, phi)
-        self.lam[index] += Lam
-        self.Lt[index] += dLam
-        muA = phi @ self.co.Mu[piece][:, index]
-        dmuA = np.einsum("b,bap->ap", phi, self.dMu[piece][:, index, :])
-        self.diss += float(muA @ Lam)
-        self.Dt += muA @ dLam + self.pad(Lam @ dmuA)
-
-    def result(self, pieces: int) -> Walk:
-        return Walk(self.Wt, self.Lt, self.Dt, self.lam, self.diss, self.w, pieces,
-                    self.kinks, self.column_kinks, self.touches)
+        BA, Gi = self.factor(index)
+        return solve_on(BA, Gi, np.asarray(index, dtype=np.int64), self.k, self.dk,
+                        np.ascontiguousarray(w_s), np.ascontiguousarray(W_s),
+                        np.ascontiguousarray(phi), self.co.C[piece], self.dC[piece])
 
 
 # -- the exact integrator ----------------------------------------------------------------------
 def walk_exact(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
                dk: np.ndarray) -> Walk:
     """Differentiate the exact integrator's limit period from its start (module docstring);
-    dC (P, nb, m, p), dMu (P, nb, m, p), dk (n, p)."""
-    s = _Walker(lim, co, dC, dMu, dk)
-    transitions = lim.record.transitions
-    s.prefactor([tr.active.index for tr in transitions])
-    times = np.array([t.u for t in transitions])
-    ends = np.append(times[1:], 1.0)
-    # the basis at every flow's ends and Gauss nodes, in one call
-    gx, _ = _gauss(24 + 12 * s.basis.harmonics)
-    grids = times[:, None] + 0.5 * (ends - times)[:, None] * (gx[None, :] + 1.0)
-    samples = np.concatenate([times[:, None], grids, ends[:, None]], axis=1)  # (K, nq + 2)
-    stacked = s.basis.values(samples.ravel()).reshape(len(times), samples.shape[1], -1)
-    derivatives: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-    du_start = np.zeros(s.q)
+    dC (P, nb, m, p), dMu (P, nb, m, p), dk (n, p). The walk is the compiled
+    `crawlsim.kernel.tangent.walk_exact`; the flows it flags as holding a possible touch are
+    examined here on the closed form, from the state and tangent it had at their start."""
+    from crawlsim.kernel import tangent
+    from crawlsim.kernel.catchup import announce_compilation
+
+    announce_compilation("sensitivity")  # a first walk compiles the kernel (once per cache)
+    B = np.ascontiguousarray(lim.process.polyhedron.dense_normals(), dtype=float)
+    m, n = B.shape
+    q = n + dk.shape[1]
+    u, piece, cause, act, hit = _transition_arrays(lim.record.transitions, m)
+    K = len(u)
+    basis = co.basis
+    derivative = _derivatives(basis, co.C, dC)
+    gx, gw = _gauss(24 + 12 * basis.harmonics)
+    W, L, D = np.empty((n, q)), np.empty((m, q)), np.empty(q)
+    lam, w_end = np.empty(m), np.empty(n)
+    kink = np.zeros(K, dtype=np.int64)
+    column_kinks = np.zeros(q, dtype=np.bool_)
+    gap_flag, rate_flag = np.zeros(K, dtype=np.bool_), np.zeros(K, dtype=np.bool_)
+    w_start, W_start = np.empty((K, n)), np.empty((K, n, q))
+    k = np.ascontiguousarray(co.k, dtype=float)
+    diss = tangent.walk_exact(
+        B, k, co.C, co.Mu, dC, dMu, dk, derivative[0], derivative[1], basis.linear,
+        basis.harmonics, co.edges, u, piece, cause, act, hit, gx, gw,
+        np.array(lim.record.w[0], dtype=float), float(lim.scale), COINCIDENT, TOUCH,
+        W, L, D, lam, w_end, kink, column_kinks, gap_flag, rate_flag, w_start, W_start)
+    kinks: list[str] = []
+    for at in np.flatnonzero(kink).tolist():
+        u_e, bits = u[at], int(kink[at])
+        if bits & tangent.ZERO_RATE:
+            kinks.append(f"a constraint is reached with zero rate at t/T = {u_e:.12g}")
+        if bits & tangent.APART:
+            kinks.append(f"{np.count_nonzero(hit[at])} constraints reached together at "
+                         f"t/T = {u_e:.12g} "
+                         "move apart")
+        if bits & tangent.COINCIDENT:
+            kinks.append(f"a constraint is reached at t/T = {u_e:.12g}, at the time of another "
+                         "event")
+    touches: list[tuple[str, np.ndarray]] = []
+    flagged = np.flatnonzero(gap_flag | rate_flag)
+    if flagged.size:
+        s = _Walker(lim, co, dC, dk)
+        for at in flagged.tolist():
+            s.w, s.Wt = w_start[at], W_start[at]
+            _touches_of_flow(s, (u, piece, cause, act, hit), at, derivative, (gx, gw),
+                             (bool(gap_flag[at]), bool(rate_flag[at])))
+        touches = s.touches
+    return Walk(W, L, D, lam, float(diss), w_end, K, kinks, column_kinks, touches)
+
+
+def _derivatives(basis: Any, C: np.ndarray, dC: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The coefficients of c' and dc' on every piece: (P, nb, m) and (P, nb, m, p), by the
+    matrix of d/du on the basis (each entry a single product, as `Basis.derivative`)."""
+    d = basis.derivative(np.eye(basis.size))
+    P, nb, m, p = dC.shape
+    return d @ C, (d @ dC.reshape(P, nb, m * p)).reshape(P, nb, m, p)
+
+
+def _transition_arrays(transitions: Sequence[Transition], m: int) -> tuple[np.ndarray, ...]:
+    """The transitions as arrays: u, piece, cause (`crawlsim.kernel.tangent.CAUSES`), the
+    active rows after each (K, m) and the rows hit (K, m). A compiled period's are read off
+    its loop's arrays, without factoring its sets."""
+    from crawlsim.kernel import tangent
+
+    arrays = getattr(transitions, "arrays", None)
+    if arrays is not None:  # `crawlsim.integrate.compiled`: signs per block, rows_of's order
+        u, piece, signs, cause, hit = arrays
+        act = np.concatenate([signs > 0, signs < 0], axis=1)
+        return (np.asarray(u, dtype=float), np.asarray(piece, dtype=np.int64),
+                np.asarray(cause, dtype=np.int64), act, np.asarray(hit, dtype=np.bool_))
+    K = len(transitions)
+    act, hit = np.zeros((K, m), dtype=np.bool_), np.zeros((K, m), dtype=np.bool_)
     for j, tr in enumerate(transitions):
-        index = np.asarray(tr.active.index, dtype=int)
-        if tr.cause == "jump":
-            if index.size:
-                piece = int(tr.piece)
-                s.project(index, piece, 0.0 if (piece == 0 and tr.u >= 1.0 - 1e-15) else tr.u)
-                du_start = np.zeros(s.q)
-            continue
-        nxt = transitions[j + 1] if j + 1 < len(transitions) else None
-        du_start = _flow(s, tr, nxt, times, derivatives, du_start,
-                         (samples[j, 1:-1], stacked[j]))
-    return s.result(len(transitions))
+        act[j, np.asarray(tr.active.index, dtype=np.int64)] = True
+        hit[j, np.asarray(tr.hit, dtype=np.int64)] = True
+    return (np.array([t.u for t in transitions], dtype=float),
+            np.array([t.piece for t in transitions], dtype=np.int64),
+            np.array([tangent.CAUSES.index(t.cause) for t in transitions], dtype=np.int64),
+            act, hit)
 
 
-def _flow(s: _Walker, tr: Transition, nxt: Transition | None, times: np.ndarray,
-          derivatives: dict[int, tuple[np.ndarray, np.ndarray]], du_start: np.ndarray,
-          nodes: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
-    """One flow piece of the exact integrator, from ``tr`` to the next transition ``nxt``
-    (or the end of the period): the state, slips and dissipation with their tangents, the
-    saltation of a hit at its end, and the touches inside it. ``nodes``: the Gauss nodes x of
-    the piece and the basis at u_s, x and u_e. Returns the end time's du."""
-    index = np.asarray(tr.active.index, dtype=int)
-    piece = int(tr.piece)
-    basis = s.basis
-    u_s = tr.u
-    u_e = nxt.u if nxt is not None else 1.0
-    if piece not in derivatives:
-        derivatives[piece] = (basis.derivative(s.co.C[piece]), basis.derivative(s.dC[piece]))
-    dcoef, dC1 = derivatives[piece]
-    length = u_e - u_s
-    _, gw = _gauss(24 + 12 * basis.harmonics)
-    x, stacked = nodes
-    phi_s, Phi, phi_e = stacked[0], stacked[1:-1], stacked[-1]
-    if index.size:
-        Lam, dLam, w_e, W_e = s.solve_on(index, s.w, s.Wt, piece, phi_e)
-        BA, _, Gi = s.factor(index)
-        # the flow's velocity and slip rates at the end: w' = K B_A^T G^{-1} c_A',
-        # lambda = -G^{-1} c_A'
-        rate_e = -Gi @ (phi_e @ dcoef[:, index])
-        v_b = -s.k * (BA.T @ rate_e)
-    else:
-        Lam, dLam, w_e, W_e = np.zeros(0), np.zeros((0, s.q)), s.w.copy(), s.Wt.copy()
-        rate_e, v_b = np.zeros(0), np.zeros(s.n)
-    du = np.zeros(s.q)
-    if nxt is not None and nxt.cause == "hit":
-        du = _saltation(s, nxt, piece, phi_e, dcoef, W_e, v_b, times)
-        W_e = W_e + np.outer(v_b, du)
-        if index.size:
-            dLam = dLam + np.outer(rate_e, du)
-    rate = None
-    if index.size:
-        s.lam[index] += Lam
-        s.Lt[index] += dLam
-        if length > 0:
-            rate = _piece_dissipation(s, index, piece, 0.5 * length * gw, Phi, dcoef, dC1,
-                                      (phi_s, phi_e), (du_start, du))
-    if length > 4 * COINCIDENT:  # shorter: an event at the time of another, in _saltation
-        ends = np.asarray(nxt.hit, dtype=int) if nxt is not None and nxt.cause == "hit" \
+def _touches_of_flow(s: _Walker, arrays: tuple[np.ndarray, ...], j: int,
+                     derivative: tuple[np.ndarray, np.ndarray],
+                     gauss: tuple[np.ndarray, np.ndarray], flags: tuple[bool, bool]) -> None:
+    """The touches of the flow from transition j (``arrays``: `_transition_arrays`), flagged
+    by the compiled walk: an inactive gap (``flags[0]``) or a slip rate (``flags[1]``)
+    reaching zero inside it."""
+    from crawlsim.kernel.tangent import HIT
+
+    u, pieces, cause, act, hit = arrays
+    last = j + 1 >= len(u)
+    index = np.flatnonzero(act[j])
+    piece = int(pieces[j])
+    u_s, u_e = float(u[j]), (1.0 if last else float(u[j + 1]))
+    gx, _ = gauss
+    x = u_s + 0.5 * (u_e - u_s) * (gx + 1.0)
+    stacked = s.basis.values(np.concatenate([[u_s], x, [u_e]]))
+    if flags[0]:
+        ends = np.flatnonzero(hit[j + 1]) if not last and cause[j + 1] == HIT \
             else np.zeros(0, int)
         _gap_touches(s, index, piece, x, stacked, (u_s, u_e), ends)
-        if rate is not None:
-            _rate_touches(s, index, rate, Phi, dcoef, dC1, (u_s, u_e))
-    s.w, s.Wt = w_e, W_e
-    return du
-
-
-def _saltation(s: _Walker, nxt: Transition, piece: int, phi_e: np.ndarray, dcoef: np.ndarray,
-               W_e: np.ndarray, v_b: np.ndarray, times: np.ndarray) -> np.ndarray:
-    """du of a hit at the end of a piece (eq. (saltation)), du = -dg_i / (b_i . w' - c_i'),
-    and the kinks of the hit: a zero rate, rows hit together whose du differ, a hit at the time
-    of another event."""
-    rows = np.asarray(nxt.hit, dtype=int)
-    u_e = nxt.u
-    c1_all = phi_e @ dcoef
-    rates = s.B[rows] @ v_b - c1_all[rows]
-    dg = s.B[rows] @ W_e - s.pad(np.einsum("b,bip->ip", phi_e, s.dC[piece][:, rows, :]))
-    size = max(float(np.max(np.abs(c1_all))), 1e-300)
-    best = int(np.argmax(np.abs(rates)))
-    du = np.zeros(s.q)
-    if abs(rates[best]) <= TOUCH * size:
-        s.kinks.append(f"a constraint is reached with zero rate at t/T = {u_e:.12g}")
-    else:
-        dus = -dg / rates[:, None]
-        du = dus[best]
-        spread = np.max(np.abs(dus - du), axis=0)
-        bad = spread > 1e-7 * (np.abs(du) + 1e-300 + np.max(np.abs(dus), axis=0)) + 1e3 * EPS
-        if rows.size > 1 and bad.any():
-            s.column_kinks |= bad
-            s.kinks.append(f"{rows.size} constraints reached together at t/T = {u_e:.12g} "
-                           "move apart")
-    if np.count_nonzero(np.abs(times - u_e) <= COINCIDENT) > 1 or \
-            np.any(np.abs(s.co.edges - u_e) <= COINCIDENT):
-        s.kinks.append(f"a constraint is reached at t/T = {u_e:.12g}, at the time of another "
-                       "event")
-    return du
-
-
-def _piece_dissipation(s: _Walker, index: np.ndarray, piece: int, weights: np.ndarray,
-                       Phi: np.ndarray, dcoef: np.ndarray, dC1: np.ndarray,
-                       phis: tuple[np.ndarray, np.ndarray],
-                       dus: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
-    """int mu_A . lambda_A over the piece, lambda_A = -G_A^{-1} c_A' (Gauss-Legendre with
-    ``weights`` at the samples Phi), and its tangent with the moving ends' terms; returns the
-    slip rates lambda_A at the samples."""
-    BA, _, Gi = s.factor(index)
-    Mu = s.co.Mu[piece][:, index]
-    lam_x = -(Phi @ dcoef[:, index]) @ Gi.T  # (nq, a)
-    wmu = weights[:, None] * (Phi @ Mu)  # mu_A at the samples, weighted
-    s.diss += float(np.sum(wmu * lam_x))
-    # int mu_A . dlambda_A, dlambda_A = -G_A^{-1} (dc_A' + dG_A lambda_A): with
-    # v = G_A^{-T} int mu_A, one contraction per term
-    dc1 = np.einsum("xb,bap->xap", Phi, dC1[:, index, :])
-    if s.moves_k:  # dG_A lambda = B_A dK B_A^T lambda
-        dc1 = dc1 + np.einsum("ai,xip->xap", BA, (lam_x @ BA)[:, :, None] * s.dk[None, :, :])
-    s.Dt[s.n:] -= np.einsum("xb,xbp->p", wmu @ Gi, dc1)
-    if s.moves_mu:
-        dmu = np.einsum("xb,bap->xap", Phi, s.dMu[piece][:, index, :])
-        s.Dt[s.n:] += np.einsum("x,xa,xap->p", weights, lam_x, dmu)
-    for phi, du, sign in ((phis[1], dus[1], 1.0), (phis[0], dus[0], -1.0)):
-        if du.any():  # an end that moves (a hit): the power there times du
-            rate = -Gi @ (phi @ dcoef[:, index])
-            s.Dt += sign * float(phi @ Mu @ rate) * du
-    return lam_x
+    if flags[1] and index.size:
+        dcoef, dC1 = derivative[0][piece], derivative[1][piece]
+        _, Gi = s.factor(index)
+        Phi = stacked[1:-1]
+        rate = -(Phi @ dcoef[:, index]) @ Gi.T
+        _rate_touches(s, index, rate, Phi, dcoef, dC1, (u_s, u_e))
 
 
 def _gap_touches(s: _Walker, index: np.ndarray, piece: int, x: np.ndarray,
@@ -302,20 +230,17 @@ def _gap_touches(s: _Walker, index: np.ndarray, piece: int, x: np.ndarray,
     tangents of those gaps where they are zero. A touch is an interior maximum at zero (one at
     an end is an event there; a touch exactly at the start of the period is not looked for).
     ``stacked``: the basis at u_s, at the samples x and at u_e."""
+    from crawlsim.kernel.tangent import gap_coefficients
+
     B, k, basis = s.B, s.k, s.basis
     u_s, u_e = span
     outside = np.ones(s.m, dtype=bool)
     outside[index] = False
     outside[hit_at_end] = False
-    coef = s.co.C[piece]
-    # every row's gap(u) = phi(u) @ Gcoef, w(u) = w_s - K B_A^T G^{-1} (B_A w_s - c_A(u))
-    Wcoef = np.zeros((len(coef), s.n))
-    Wcoef[0] = s.w
-    if index.size:
-        BA, _, Gi = s.factor(index)
-        Wcoef[0] -= k * (BA.T @ (Gi @ (BA @ s.w)))
-        Wcoef += (coef[:, index] @ Gi.T @ BA) * k[None, :]  # the response to c_A(u)
-    Gcoef = Wcoef @ B.T - coef  # (nb, m)
+    # every row's gap(u) = phi(u) @ Gcoef (nb, m)
+    BA, Gi = s.factor(index)
+    Gcoef = gap_coefficients(B, k, BA, Gi, np.asarray(index, dtype=np.int64),
+                             np.ascontiguousarray(s.w), s.co.C[piece])
     tol = TOUCH * s.scale
     grid = np.concatenate([[u_s], x, [u_e]])
     values = stacked @ Gcoef  # (s + 2, m)
@@ -366,7 +291,7 @@ def _rate_touches(s: _Walker, index: np.ndarray, rate: np.ndarray, Phi: np.ndarr
     size = max(float(np.max(np.abs(Phi @ dcoef))), 1e-300)
     if float(np.min(rate)) > TOUCH * size:
         return  # every slip rate stays positive on the samples
-    BA, _, Gi = s.factor(index)
+    BA, Gi = s.factor(index)
     low = _touching(-rate, TOUCH * size)
     if not low.any():
         return
@@ -402,86 +327,72 @@ def walk_catch_up(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
                   dk: np.ndarray) -> Walk:
     """Differentiate the catch-up scheme's discrete period map at its limit period (module
     docstring, eq. (catch-up)): runs of steps on one active set (the rows with a positive
-    multiplier) telescope to the piece formula at the run's last grid time."""
+    multiplier) telescope to the piece formula at the run's last grid time. The walk is the
+    compiled `crawlsim.kernel.tangent.walk_catch_up`; the runs with a row tight at a zero
+    multiplier are examined here, from the state and tangent it had at their start."""
     from crawlsim.errors import CrawlsimError
+    from crawlsim.kernel import tangent
+    from crawlsim.kernel.catchup import announce_compilation
 
-    s = _Walker(lim, co, dC, dMu, dk)
+    announce_compilation("sensitivity")
     process, record = lim.process, lim.record
-    grid = _GridOffsets(s, np.asarray(process.times, dtype=float) / process.period)
-    if not np.allclose(grid.C, process.offsets, rtol=0.0, atol=1e-9 * s.scale):
-        raise CrawlsimError(f"{process.name}: the offsets' closed form does not reproduce the "
-                            "catch-up grid's; the catch-up map is not differentiated")
+    B = np.ascontiguousarray(process.polyhedron.dense_normals(), dtype=float)
+    m, n = B.shape
+    q = n + dk.shape[1]
+    u = np.mod(np.asarray(process.times, dtype=float) / process.period, 1.0)  # c(1) is c(0)
+    pieces = np.minimum(np.searchsorted(co.edges, u, side="right") - 1, len(co.C) - 1)
+    Phi = co.basis.values(u)
     LAM = np.asarray(record.multipliers, dtype=float)
     active = LAM > 0.0
     # rows tight at w_{j+1} with a zero multiplier: the map has a kink there for the
     # parameters that move that gap off zero (a touch, as in the exact walk)
-    gaps = record.w[1:] @ s.B.T - process.offsets[1:]
-    weak = ~active & (np.abs(gaps) <= TOUCH * s.scale)
+    gaps = record.w[1:] @ B.T - process.offsets[1:]
+    weak = ~active & (np.abs(gaps) <= TOUCH * lim.scale)
     G = len(LAM)
     starts = np.concatenate([[0], np.flatnonzero(np.any(active[1:] != active[:-1], axis=1)) + 1,
-                             [G]])
-    s.prefactor([np.flatnonzero(active[j0]) for j0 in starts[:-1]])
-    for j0, j1 in zip(starts[:-1], starts[1:]):
-        index = np.flatnonzero(active[j0])
-        if weak[j0:j1].any():
-            _weak_steps(s, grid, index, int(j0), weak[j0:j1])
-        if index.size:
-            _catch_up_run(s, grid, index, int(j0), int(j1))
+                             [G]]).astype(np.int64)
+    R = len(starts) - 1
+    W, L, D = np.empty((n, q)), np.empty((m, q)), np.empty(q)
+    lam, w_end = np.empty(m), np.empty(n)
+    w_start, W_start = np.empty((R, n)), np.empty((R, n, q))
+    diss, agrees = tangent.walk_catch_up(
+        B, np.ascontiguousarray(co.k, dtype=float), co.C, co.Mu, dC, dMu, dk, Phi,
+        pieces.astype(np.int64), np.ascontiguousarray(process.offsets, dtype=float), active,
+        starts, np.array(record.w[0], dtype=float), 1e-9 * lim.scale, W, L, D, lam, w_end,
+        w_start, W_start)
+    if not agrees:
+        raise CrawlsimError(f"{process.name}: the offsets' closed form does not reproduce the "
+                            "catch-up grid's; the catch-up map is not differentiated")
+    touches: list[tuple[str, np.ndarray]] = []
+    weak_runs = [r for r in range(R) if weak[starts[r]:starts[r + 1]].any()]
+    if weak_runs:
+        s = _Walker(lim, co, dC, dk)
+        for r in weak_runs:
+            j0, j1 = int(starts[r]), int(starts[r + 1])
+            s.w, s.Wt = w_start[r], W_start[r]
+            _weak_steps(s, (pieces, Phi), np.flatnonzero(active[j0]), j0, weak[j0:j1])
+        touches = s.touches
     scale_w = max(float(np.max(np.abs(record.w))), 1e-300)
-    if float(np.max(np.abs(s.w - record.w[-1]))) > 1e-8 * scale_w:
+    if float(np.max(np.abs(w_end - record.w[-1]))) > 1e-8 * scale_w:
         raise CrawlsimError(f"{process.name}: the catch-up walk does not reproduce the limit "
                             "period (internal error)")
-    return s.result(G)
+    return Walk(W, L, D, lam, float(diss), w_end, G, [], np.zeros(q, dtype=bool), touches)
 
 
-class _GridOffsets:
-    """c, mu and their parameter derivatives at the catch-up grid's times u (G+1,): C, Mu
-    (G+1, m), dC, dMu (G+1, m, p), with the piece and the basis values of each time."""
-
-    def __init__(self, s: _Walker, u: np.ndarray):
-        co = s.co
-        u = np.mod(u, 1.0)  # the signals are periodic: c(1) is c(0), jumps included
-        self.pieces = np.minimum(np.searchsorted(co.edges, u, side="right") - 1, len(co.C) - 1)
-        self.Phi = s.basis.values(u)
-        self.C = np.einsum("gb,gbm->gm", self.Phi, co.C[self.pieces])
-        self.Mu = np.einsum("gb,gbm->gm", self.Phi, co.Mu[self.pieces])
-        self.dC = np.einsum("gb,gbmp->gmp", self.Phi, s.dC[self.pieces])
-        self.dMu = np.einsum("gb,gbmp->gmp", self.Phi, s.dMu[self.pieces])
-
-
-def _weak_steps(s: _Walker, grid: _GridOffsets, index: np.ndarray, j0: int,
+def _weak_steps(s: _Walker, grid: tuple[np.ndarray, np.ndarray], index: np.ndarray, j0: int,
                 weak: np.ndarray) -> None:
     """The tangents of the gaps of rows tight with a zero multiplier after steps j0 + r of a
-    run on A (``weak`` (r, m)): w_{j+1} is the piece formula at u_{j+1} from the run's start."""
+    run on A (``weak`` (r, m)): w_{j+1} is the piece formula at u_{j+1} from the run's start;
+    ``grid``: the piece and the basis values of each grid time."""
+    pieces, Phi = grid
     tangents = []
     for r, i in np.argwhere(weak):
         j = j0 + int(r) + 1
-        dW = s.solve_on(index, s.w, s.Wt, int(grid.pieces[j]), grid.Phi[j])[3] \
-            if index.size else s.Wt
-        tangents.append((s.B[i] @ dW - s.pad(grid.dC[j, i]))[None, :])
+        piece = int(pieces[j])
+        dW = s.solve_on(index, s.w, s.Wt, piece, Phi[j])[3] if index.size else s.Wt
+        dc = np.einsum("b,bp->p", Phi[j], s.dC[piece][:, i, :])
+        tangents.append((s.B[i] @ dW - s.pad(dc))[None, :])
     first = int(np.argwhere(weak)[0][0]) + j0 + 1
     s.touches.append((f"catch-up step(s) from {first}: constraint(s) "
                       f"{sorted(set(np.argwhere(weak)[:, 1].tolist()))} tight with a zero "
                       "multiplier", np.concatenate(tangents)))
-
-
-def _catch_up_run(s: _Walker, grid: _GridOffsets, index: np.ndarray, j0: int, j1: int) -> None:
-    """Steps j0 .. j1 - 1 on the active set A: the state and the slips over the run from the
-    piece formula at u_{j1}, the dissipation from each step's slips
-    Lambda_j = G_A^{-1} (B_A w_j - c_A(u_{j+1})), B_A w_j = c_A(u_j) after the first."""
-    BA, _, Gi = s.factor(index)
-    Lam, dLam, w_e, W_e = s.solve_on(index, s.w, s.Wt, int(grid.pieces[j1]), grid.Phi[j1])
-    c = grid.C[j0 + 1:j1 + 1][:, index]  # (r, a)
-    dc = s.pad(grid.dC[j0 + 1:j1 + 1][:, index, :])  # (r, a, q)
-    prev = np.concatenate([(BA @ s.w)[None, :], c[:-1]])
-    dprev = np.concatenate([(BA @ s.Wt)[None, :, :], dc[:-1]])
-    lam = (prev - c) @ Gi.T  # (r, a)
-    dGl = s.pad(np.einsum("ai,rip->rap", BA, (lam @ BA)[:, :, None] * s.dk[None, :, :]))
-    dlam = np.einsum("ab,rbq->raq", Gi, dprev - dc - dGl)
-    mu = grid.Mu[j0 + 1:j1 + 1][:, index]
-    dmu = grid.dMu[j0 + 1:j1 + 1][:, index, :]
-    s.diss += float(np.sum(mu * lam))
-    s.Dt += np.einsum("ra,raq->q", mu, dlam) + s.pad(np.einsum("ra,rap->p", lam, dmu))
-    s.lam[index] += Lam
-    s.Lt[index] += dLam
-    s.w, s.Wt = w_e, W_e

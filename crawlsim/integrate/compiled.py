@@ -60,6 +60,12 @@ class _Transitions(Sequence[Transition]):
     def __len__(self) -> int:
         return len(self._arrays[0])
 
+    @property
+    def arrays(self) -> tuple[np.ndarray, ...]:
+        """(u, piece, signs, cause, hit) as the compiled loop wrote them, with no set factored
+        (the tangent walk of `crawlsim.analysis.sensitivity_walk` reads these)."""
+        return self._arrays
+
     @overload
     def __getitem__(self, i: int) -> Transition: ...
 

@@ -25,9 +25,14 @@ _announced: set[str] = set()
 
 def _entries(integrator: str) -> tuple[Any, ...]:
     """The compiled entry point an integrator calls first (the exact integrator's closed
-    forms are small and compile with it only when its gait needs them)."""
+    forms are small and compile with it only when its gait needs them); ``"sensitivity"``:
+    the tangent walks of `crawlsim.kernel.tangent`."""
     from crawlsim.kernel import eventloop
 
+    if integrator == "sensitivity":
+        from crawlsim.kernel import tangent
+
+        return (tangent.walk_exact, tangent.walk_catch_up, tangent.implicit)
     return (chain.catch_up,) if integrator == "catch-up" else (eventloop.period,)
 
 

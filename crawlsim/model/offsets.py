@@ -186,17 +186,21 @@ class PiecewiseOffsets:
         cached = self._cache.get(p)
         if cached is not None:
             return cached
+        out = self.combine(self.signal_coefficients(p))
+        if len(self._cache) > 64:
+            self._cache.clear()
+        self._cache[p] = out
+        return out
+
+    def signal_coefficients(self, p: int) -> np.ndarray:
+        """The signals' own coefficients (nb, S) on piece p, which ``combine`` maps to C_p."""
         coef = self._smooth.copy()
         if self._piecewise.size:
             slope = self._slopes[p]
             coef[0, self._piecewise] = self._values[p] - slope * self._mids[p]
             if self.basis.linear:
                 coef[1, self._piecewise] = slope
-        out = self.combine(coef)
-        if len(self._cache) > 64:
-            self._cache.clear()
-        self._cache[p] = out
-        return out
+        return coef
 
     def piece_at(self, u: float) -> int:
         """The piece containing cycle u (right-continuous: an edge belongs to the next piece)."""

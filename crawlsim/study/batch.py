@@ -16,7 +16,7 @@ The period loop, the Poincare step and the classification of convergence are tho
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -29,7 +29,7 @@ from crawlsim.analysis.run import (
     poincare_step,
 )
 from crawlsim.errors import CrawlsimError, InputError
-from crawlsim.integrate.stepping import CatchUpStepper
+from crawlsim.integrate.stepping import CatchUpStepper, PeriodRecord
 from crawlsim.model.process import SweepingProcess
 from crawlsim.status import Convergence, PointStatus
 
@@ -55,15 +55,25 @@ class BatchRun:
     v0_error_estimate: float | None = None
     contraction_rate: float | None = None
     cost_of_transport: float | None = None
+    # with ``keep_limit``: the last period stepped and its process, walked by the sweep's
+    # --sensitivity (`crawlsim.analysis.sensitivity`) instead of stepping the point again
+    limit_record: PeriodRecord | None = field(default=None, repr=False, compare=False)
+    limit_process: SweepingProcess | None = field(default=None, repr=False, compare=False)
+    integrator: str = "catch-up"
+
+    @property
+    def converged(self) -> bool:
+        return self.convergence not in (None, Convergence.NOT_CONVERGED)
 
 
 def simulate_batch(processes, *, max_periods, tolerance, capacity: int = DEFAULT_CAPACITY,
-                   progress=None) -> list[BatchRun]:
+                   progress=None, keep_limit: bool = False) -> list[BatchRun]:
     """Run every crawler process to its periodic regime; results in the order given.
 
     ``max_periods`` and ``tolerance`` are numbers or one per process. ``capacity`` is accepted
     for the callers that size batches; each gait runs on its own compiled kernel step.
-    ``progress(k)`` is called whenever k more gaits have finished.
+    ``progress(k)`` is called whenever k more gaits have finished. ``keep_limit`` keeps each
+    run's last period (`BatchRun.limit_record`).
     """
     processes = list(processes)
     count = len(processes)
@@ -74,13 +84,13 @@ def simulate_batch(processes, *, max_periods, tolerance, capacity: int = DEFAULT
             raise ValueError(f"{p.name}: batched stepping measures v0 and needs a crawler")
     out = []
     for p, periods, tol in zip(processes, max_periods, tolerance):
-        out.append(_run(p, int(periods), effective_tolerance(float(tol))))
+        out.append(_run(p, int(periods), effective_tolerance(float(tol)), keep_limit))
         if progress is not None:
             progress(1)
     return out
 
 
-def _run(p: SweepingProcess, max_periods: int, tol: float) -> BatchRun:
+def _run(p: SweepingProcess, max_periods: int, tol: float, keep_limit: bool = False) -> BatchRun:
     """One gait to its periodic regime: periods of catch-up until the Poincare step is below
     ``tol`` or ``max_periods`` have run.
 
@@ -121,7 +131,9 @@ def _run(p: SweepingProcess, max_periods: int, tol: float) -> BatchRun:
     return BatchRun(p.name, status, d / p.period, d, convergence, q + 1, periodic_from,
                     (q + 1) * G, stepper.projector.clarabel_calls, dissipation_per_period=diss,
                     v0_error_estimate=err, contraction_rate=rate,
-                    cost_of_transport=cost_of_transport(paid, d, err, p.period))
+                    cost_of_transport=cost_of_transport(paid, d, err, p.period),
+                    limit_record=record if keep_limit else None,
+                    limit_process=p if keep_limit else None)
 
 
 def _friction(process: SweepingProcess) -> np.ndarray:

@@ -141,7 +141,7 @@ def evaluate(gaits, indices, *, capacity=None, progress=None,
     out: dict[int, PointResult] = {}
     batch, single = _compile(gaits, indices, out, tick)
     if batch:
-        _run_batch_safely(batch, single, out, capacity, tick)
+        _run_batch_safely(batch, single, out, capacity, tick, runs)
     for member in single:
         out[member[0]] = _run_single(member, runs)
         tick(1)
@@ -175,11 +175,11 @@ def _reraise_memory(exc: BaseException) -> None:
 
 
 def _run_batch_safely(batch: list[_Member], single: list[_Member], out: dict[int, PointResult],
-                      capacity, tick) -> None:
+                      capacity, tick, runs: dict | None = None) -> None:
     """`_run_batch`; when the batch raises, each point again alone (one bad point must not sink
     its batch)."""
     try:
-        _run_batch(batch, single, out, capacity, tick)
+        _run_batch(batch, single, out, capacity, tick, runs)
     except Exception as exc:
         _reraise_memory(exc)
         done = set(out) | {i for i, _, _ in single}
@@ -187,7 +187,7 @@ def _run_batch_safely(batch: list[_Member], single: list[_Member], out: dict[int
             if member[0] in done:
                 continue
             try:
-                _run_batch([member], single, out, capacity, tick)
+                _run_batch([member], single, out, capacity, tick, runs)
             except Exception as one:
                 _reraise_memory(one)
                 out[member[0]] = _failure(member[0], one)
@@ -195,9 +195,10 @@ def _run_batch_safely(batch: list[_Member], single: list[_Member], out: dict[int
 
 
 def _run_batch(members: list[_Member], single: list[_Member], out: dict[int, PointResult],
-               capacity, tick) -> None:
+               capacity, tick, kept: dict | None = None) -> None:
     """Catch-up points through the batched stepper; a ``newton`` point not converged within
-    `BATCH_PLAIN_PERIODS` goes to ``single`` (the periodic-limit solver finishes it)."""
+    `BATCH_PLAIN_PERIODS` goes to ``single`` (the periodic-limit solver finishes it). The
+    others' runs join ``kept`` when given, with their last period (--sensitivity)."""
     from crawlsim.study.batch import DEFAULT_CAPACITY, simulate_batch
 
     newton = [g.simulation.limit == "newton" for _, _, g in members]
@@ -206,12 +207,14 @@ def _run_batch(members: list[_Member], single: list[_Member], out: dict[int, Poi
         max_periods=[min(g.simulation.max_periods, BATCH_PLAIN_PERIODS) if n
                      else g.simulation.max_periods for (_, _, g), n in zip(members, newton)],
         tolerance=[g.simulation.tolerance for _, _, g in members],
-        capacity=capacity or DEFAULT_CAPACITY, progress=None)
+        capacity=capacity or DEFAULT_CAPACITY, progress=None, keep_limit=kept is not None)
     for (i, p, g), r, n in zip(members, runs, newton):
         if n and r.status == PointStatus.NOT_CONVERGED \
                 and g.simulation.max_periods > BATCH_PLAIN_PERIODS:
             single.append((i, p, g))
             continue
+        if kept is not None:
+            kept[i] = r
         out[i] = PointResult(
             i, r.status, v0=r.v0, v0_error_estimate=None,  # time-step error unmeasured
             displacement_per_period=r.displacement_per_period,
