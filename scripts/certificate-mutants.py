@@ -59,7 +59,7 @@ MUTANTS = [
      "        if primal <= tol_p and dual <= dual_tol and comp <= tol_p:", "        if True:",
      [KERNEL]),
     ("chain.on_set refinement", "crawlsim/kernel/chain.py",
-     "    if active and complementarity(signs, slack) > REFINE_FRACTION * tol_p:",
+     "    if active and comp > REFINE_FRACTION * tol_p:",
      "    if False:", [KERNEL]),
     ("chain.row_duals", "crawlsim/kernel/chain.py",
      "        bound = 2.0 * RTOL * s[i]\n", "        bound = np.inf\n", [KKT]),

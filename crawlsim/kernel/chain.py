@@ -111,12 +111,18 @@ def forces(w: np.ndarray, f: np.ndarray) -> None:
 
 @njit(cache=True, inline='always')
 def state(k: np.ndarray, w_trial: np.ndarray, dx: np.ndarray, signs: np.ndarray, w: np.ndarray,
-          lam: np.ndarray, slack: np.ndarray, c: np.ndarray) -> float:
+          lam: np.ndarray, slack: np.ndarray, c: np.ndarray,
+          fixed: np.ndarray) -> tuple[float, float, float, float]:
     """From the slips dx (0 on free blocks): the point w = w_trial - K D dx, the multipliers
     lambda (2N) and the slack B w - c, in one pass over the blocks (f_i = (D^T w)_i as in
-    `forces`). Returns max |lambda|."""
+    `forces`), with the step's certificate from the same numbers. Returns (max |lambda|,
+    primal, dual, complementarity): max(B w - c), max(0, -min lambda) over the rows not
+    ``fixed`` (equalities: multipliers of either sign), max |(B w - c)_A|."""
     N = signs.shape[0]
     lam_size = 0.0
+    primal = -np.inf
+    dual = 0.0
+    comp = 0.0
     for i in range(N):
         if i < N - 1:
             w[i] = w_trial[i] - (dx[i + 1] - dx[i]) * k[i]
@@ -126,57 +132,49 @@ def state(k: np.ndarray, w_trial: np.ndarray, dx: np.ndarray, signs: np.ndarray,
             fi = w[N - 2]
         else:
             fi = w[i - 1] - w[i]
-        slack[i] = fi - c[i]
-        slack[N + i] = -fi - c[N + i]
+        up = fi - c[i]
+        down = -fi - c[N + i]
+        slack[i] = up
+        slack[N + i] = down
+        if up > primal:
+            primal = up
+        if down > primal:
+            primal = down
         s = signs[i]
-        lam[i] = dx[i] if s > 0 else 0.0
-        lam[N + i] = -dx[i] if s < 0 else 0.0
-        if s != 0 and abs(dx[i]) > lam_size:
-            lam_size = abs(dx[i])
-    return lam_size
-
-
-@njit(cache=True, inline='always')
-def complementarity(signs: np.ndarray, slack: np.ndarray) -> float:
-    N = signs.shape[0]
-    comp = 0.0
-    for i in range(N):
-        if signs[i] > 0:
-            r = abs(slack[i])
-        elif signs[i] < 0:
-            r = abs(slack[N + i])
+        if s > 0:
+            lam[i] = dx[i]
+            lam[N + i] = 0.0
+            r = abs(up)
+            if -dx[i] > dual and not fixed[i]:
+                dual = -dx[i]
+        elif s < 0:
+            lam[i] = 0.0
+            lam[N + i] = -dx[i]
+            r = abs(down)
+            if dx[i] > dual and not fixed[N + i]:
+                dual = dx[i]
         else:
-            continue
+            lam[i] = 0.0
+            lam[N + i] = 0.0
+            r = 0.0
         if r > comp:
             comp = r
-    return comp
-
-
-@njit(cache=True, inline='always')
-def certificate(signs: np.ndarray, lam: np.ndarray, slack: np.ndarray, fixed: np.ndarray) -> tuple[float, float, float]:
-    """(primal, dual, complementarity): max(B w - c), max(0, -min lambda) over the rows not
-    ``fixed`` (equalities: multipliers of either sign), max |(B w - c)_A|."""
-    primal = -np.inf
-    for i in range(slack.shape[0]):
-        if slack[i] > primal:
-            primal = slack[i]
-    dual = 0.0
-    for i in range(lam.shape[0]):
-        if -lam[i] > dual and not fixed[i]:
-            dual = -lam[i]
-    return primal, dual, complementarity(signs, slack)
+        if s != 0 and abs(dx[i]) > lam_size:
+            lam_size = abs(dx[i])
+    return lam_size, primal, dual, comp
 
 
 @njit(cache=True, inline='always')
 def on_set(k: np.ndarray, kmax: float, c_scale: float, w_trial: np.ndarray, c: np.ndarray,
            signs: np.ndarray, D: np.ndarray, l: np.ndarray, inverse: float, gram: float,
            dx: np.ndarray, w: np.ndarray, lam: np.ndarray, slack: np.ndarray,
-           res: np.ndarray) -> tuple[float, float]:
+           res: np.ndarray, fixed: np.ndarray) -> tuple[float, float, float, float, float]:
     """The equality KKT system on the factored set ``signs``, with one step of iterative
-    refinement when its complementarity residual asks for it. Returns (tol_p, tol_d), the
-    scalar tolerances (each row's own dual tolerance is `row_duals`, computed by `settle`
-    where a sign is in doubt). The right-hand side r = f - f*, f = D^T w_trial (`forces`),
-    and the sizes of c and w_trial are gathered in one pass."""
+    refinement when its complementarity residual asks for it. Returns (tol_p, tol_d, primal,
+    dual, complementarity): the scalar tolerances and the certificate of the final point
+    (`state`); each row's own dual tolerance is `row_duals`, formed by `settle_from` where a
+    sign is in doubt. The right-hand side r = f - f*, f = D^T w_trial (`forces`), and the
+    sizes of c and w_trial are gathered in one pass."""
     N = signs.shape[0]
     active = False
     c_size = 0.0  # rows with an infinite offset are ignored (velocity problems)
@@ -206,11 +204,11 @@ def on_set(k: np.ndarray, kmax: float, c_scale: float, w_trial: np.ndarray, c: n
             w_size = abs(w_trial[i])
     if active:
         solve(D, l, dx)
-    lam_size = state(k, w_trial, dx, signs, w, lam, slack, c)
+    lam_size, primal, dual, comp = state(k, w_trial, dx, signs, w, lam, slack, c, fixed)
     size = max(max(c_scale, c_size), max(2.0 * w_size, 4.0 * kmax * lam_size))
     tol_p = RTOL * size
     tol_d = 2.0 * RTOL * inverse * (size + gram * lam_size)
-    if active and complementarity(signs, slack) > REFINE_FRACTION * tol_p:
+    if active and comp > REFINE_FRACTION * tol_p:
         for i in range(N):
             if signs[i] > 0:
                 res[i] = slack[i]
@@ -221,8 +219,8 @@ def on_set(k: np.ndarray, kmax: float, c_scale: float, w_trial: np.ndarray, c: n
         solve(D, l, res)
         for i in range(N):
             dx[i] += res[i]
-        state(k, w_trial, dx, signs, w, lam, slack, c)
-    return tol_p, tol_d
+        _, primal, dual, comp = state(k, w_trial, dx, signs, w, lam, slack, c, fixed)
+    return tol_p, tol_d, primal, dual, comp
 
 
 @njit(cache=True)
@@ -431,9 +429,9 @@ def settle_from(k: np.ndarray, kmax: float, c_scale: float, w_trial: np.ndarray,
             norms[0], norms[1] = factor_into(k, signs, D, l, res)
             for i in range(N):
                 factored[i] = signs[i]
-        tol_p, tol_d = on_set(k, kmax, c_scale, w_trial, c, signs, D, l, norms[0], norms[1],
-                              dx, w, lam, slack, res)
-        primal, negative, comp = certificate(signs, lam, slack, fixed)
+        tol_p, tol_d, primal, negative, comp = on_set(k, kmax, c_scale, w_trial, c, signs, D, l,
+                                                      norms[0], norms[1], dx, w, lam, slack,
+                                                      res, fixed)
         if duals or negative > 0.0 or not (primal <= tol_p and comp <= tol_p and 0.0 <= tol_d):
             row_duals(k, kmax, c_scale, w_trial, c, signs, D, l, dx, tol_d, res, told)
             dual, dual_tol = dual_excess(lam, told, fixed)
