@@ -25,6 +25,16 @@ multipliers, add the violated rows; the worst one alone, or the exchange of Gold
 where all at once would saturate every block). A certified KKT point of this strictly convex
 problem is the projection, so the steps agree with `crawlsim.kernel.kkt` to roundoff.
 
+A step at N = 4 costs a few hundred machine instructions, so its shape is its cost: after the
+solve, one pass over the blocks forms the point, the multipliers, the slack and the three
+numbers of the certificate (`state`); the sign of each multiplier is held to its own row's
+tolerance (`row_duals`, at most tol_d, one more solve), which is formed only where it can
+decide (a negative multiplier, or a step failing on its other numbers): a step whose
+multipliers are all >= 0 passes the sign check under any tolerance in [0, tol_d], so every
+step's certificate is the one above. The small functions of the step are inlined into the loop
+(``inline='always'``: a call with twenty array arguments costs as much as a pass), and the
+loop's scratch is allocated once per call of `catch_up`, not per step.
+
 Everything here is a function of plain arrays and scalars, compiled by numba; with
 ``NUMBA_DISABLE_JIT=1`` the same source runs as Python.
 """
