@@ -43,6 +43,29 @@ of this script on a 2-core machine shared with other jobs (load 9-13):
 for rows that can cross before the earliest event so far, contiguous phi @ coef, the energy
 terms of the slipping blocks only (medians of three runs, load 2-5).
 
+The catch-up step against the reference (catch-up/ref, bar <= 5; in brackets the certified step
+in us), medians of five interleaved runs of this script at f702eb5 and now, ``--clock cpu``, on a
+2-core machine shared with other jobs (load 5-7):
+
+    wave       N    before (f702eb5)    now
+    segments   4      6.8 (0.50)        3.1 (0.24)
+    segments  16      3.0 (0.97)        1.3 (0.42)
+    segments  64      2.5 (3.62)        1.1 (1.43)
+    segments 256      2.5 (14.0)        1.2 (6.55)
+    segments 1024     2.3 (53.9)        1.0 (22.9)
+    body       4      7.4 (0.59)        3.0 (0.22)
+    body      16      3.0 (1.00)        1.4 (0.42)
+    body      64      2.2 (2.94)        0.9 (1.06)
+    body     256      2.2 (11.1)        0.8 (4.25)
+    body    1024      2.2 (50.4)        0.7 (15.5)
+
+(the largest of the five runs now: 3.3 and 3.5 at N = 4, 1.7 at N = 16). "now": after the solve,
+one pass forms the point, multipliers, slack and the certificate's three numbers; the small
+functions of the step are inlined into the loop; each row's own dual tolerance is formed only
+where a multiplier's sign is in doubt; no allocation or slice copy per step; the period's block
+positions and visited sets are compiled passes rather than numpy temporaries. The trajectory is
+the same bit for bit.
+
 Before the kernel (commit 3423cad, 2-core machine shared with other jobs): 3.29, 3.21, 3.04 s,
 median 3.21 s (37 points/s). The catch-up step on the segments wave at 1000 steps per period was
 then 3.09, 10.1 and 24.2 us at N = 4, 16 and 64 (median of 3 runs of 3 periods, the in-process
