@@ -410,10 +410,8 @@ def settle(k: np.ndarray, kmax: float, c_scale: float, w_trial: np.ndarray, c: n
     certificate fails with nothing to change (``report``). Returns (status, tol_p); the scalar
     tolerances are also left in report[REPORT_TOLP:REPORT_TOLD+1]. (``f`` is not used: the
     forces are formed in the passes of `on_set`.)"""
-    N = signs.shape[0]
     return settle_from(k, kmax, c_scale, w_trial, c, signs, factored, D, l, norms, fixed, dx, w,
-                       lam, slack, res, new, seen, report, told,
-                       np.empty(2 * N, dtype=np.bool_), np.empty(2 * N, dtype=np.bool_), True)
+                       lam, slack, res, new, seen, report, told, fixed[:0], fixed[:0], True)
 
 
 @njit(cache=True, inline='always')
@@ -423,7 +421,8 @@ def settle_from(k: np.ndarray, kmax: float, c_scale: float, w_trial: np.ndarray,
                 lam: np.ndarray, slack: np.ndarray, res: np.ndarray, new: np.ndarray,
                 seen: np.ndarray, report: np.ndarray, told: np.ndarray, rows: np.ndarray,
                 member: np.ndarray, duals: bool) -> tuple[int, float]:
-    """`settle` with its scratch (``rows``, ``member``: 2N booleans) from the caller. The sign
+    """`settle` with its scratch (``rows``, ``member``: 2N booleans, or empty to have them made
+    when an update needs them) from the caller. The sign
     of each multiplier is held to its own row's tolerance (`row_duals`), which is at most the
     scalar tol_d; it is formed where it can decide the step: some multiplier is negative, or
     the step fails on its other numbers (the update and the report read it), or ``duals`` asks
@@ -452,6 +451,9 @@ def settle_from(k: np.ndarray, kmax: float, c_scale: float, w_trial: np.ndarray,
             return DONE, tol_p
         for i in range(N):
             seen[it, i] = signs[i]
+        if rows.shape[0] < 2 * N:
+            rows = np.empty(2 * N, dtype=np.bool_)
+            member = np.empty(2 * N, dtype=np.bool_)
         outcome = update(signs, lam, slack, tol_p, told, new, fixed, rows, member)
         if outcome == 1:
             report[REPORT_PRIMAL], report[REPORT_DUAL], report[REPORT_COMP] = primal, dual, comp
