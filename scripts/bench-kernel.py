@@ -43,6 +43,29 @@ of this script on a 2-core machine shared with other jobs (load 9-13):
 for rows that can cross before the earliest event so far, contiguous phi @ coef, the energy
 terms of the slipping blocks only (medians of three runs, load 2-5).
 
+The catch-up step against the reference (catch-up/ref, bar <= 5; in brackets the certified step
+in us), medians of five interleaved runs of this script at f702eb5 and now, ``--clock cpu``, on a
+2-core machine shared with other jobs (load 3.8-5):
+
+    wave       N    before (f702eb5)    now
+    segments   4      7.2 (0.53)        2.9 (0.21)
+    segments  16      2.7 (0.82)        1.2 (0.38)
+    segments  64      2.3 (3.18)        1.0 (1.30)
+    segments 256      2.4 (13.2)        1.1 (5.89)
+    segments 1024     2.2 (50.6)        0.9 (21.0)
+    body       4      6.6 (0.48)        2.8 (0.20)
+    body      16      2.8 (0.87)        1.2 (0.37)
+    body      64      2.1 (2.53)        0.7 (0.92)
+    body     256      2.1 (10.3)        0.8 (3.98)
+    body    1024      2.0 (42.6)        0.7 (14.7)
+
+(the largest of the five runs now: 3.0 and 2.9 at N = 4, 1.5 at N = 16). "now": after the solve,
+one pass forms the point, multipliers, slack and the certificate's three numbers; the small
+functions of the step are inlined into the loop; each row's own dual tolerance is formed only
+where a multiplier's sign is in doubt; no allocation or slice copy per step; the period's block
+positions and visited sets are compiled passes rather than numpy temporaries. The trajectory is
+the same bit for bit.
+
 Before the kernel (commit 3423cad, 2-core machine shared with other jobs): 3.29, 3.21, 3.04 s,
 median 3.21 s (37 points/s). The catch-up step on the segments wave at 1000 steps per period was
 then 3.09, 10.1 and 24.2 us at N = 4, 16 and 64 (median of 3 runs of 3 periods, the in-process

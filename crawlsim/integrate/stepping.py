@@ -250,9 +250,14 @@ class CatchUpStepper(PeriodStepper):
         X = None
         if self.x is not None:
             X = np.empty((G + 1, len(self.x)))
-            X[0] = self.x
-            np.cumsum(p.slips(LAM), axis=0, out=X[1:])
-            X[1:] += self.x
+            if self._kernel is not None:
+                from crawlsim.kernel import chain
+
+                chain.positions(LAM, self.x, X)
+            else:
+                X[0] = self.x
+                np.cumsum(p.slips(LAM), axis=0, out=X[1:])
+                X[1:] += self.x
             self.x = X[-1].copy()
         self.w = W[-1].copy()
         record = PeriodRecord(self.period_index, start, W, LAM, X,

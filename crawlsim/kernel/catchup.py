@@ -90,17 +90,29 @@ class ChainKernel:
         self.l = np.empty(max(N - 1, 0))
         self.norms = np.zeros(2)
         self.report = np.zeros(6)
+        # the set `active` last returned and the signs it was made from: a period that starts
+        # from the set the previous one ended on converts nothing (a few us a period, which at
+        # N = 4 is several percent of the period's steps)
+        self._active: ActiveSet | None = None
+        self._key = b""
         announce_compilation()
 
     def load(self, active: ActiveSet) -> None:
+        if active is self._active and self.signs.tobytes() == self._key:
+            return
         self.signs[:] = signs_of(active, len(self.signs))
 
     def active(self, fallback: ActiveSet) -> ActiveSet:
         """The current set, factored by `crawlsim.kernel.kkt` (cached there), or ``fallback``."""
+        key = self.signs.tobytes()
+        if self._active is not None and key == self._key:
+            return self._active
         try:
-            return self.polyhedron.factor(rows_of(self.signs))
+            A = self.polyhedron.factor(rows_of(self.signs))
         except Dependent:
             return fallback
+        self._active, self._key = A, key
+        return A
 
     def run(self, C: np.ndarray, W: np.ndarray, LAM: np.ndarray, S: np.ndarray,
             j0: int) -> tuple[int, int]:
@@ -129,11 +141,7 @@ class VisitedSets(Sequence[ActiveSet]):
 
     def __init__(self, polyhedron: Polyhedron, S: np.ndarray):
         self._polyhedron = polyhedron
-        if len(S):
-            starts = np.concatenate([[0], np.flatnonzero(np.any(S[1:] != S[:-1], axis=1)) + 1])
-            self._sets = S[starts]
-        else:
-            self._sets = S
+        self._sets = S[chain.set_starts(S)] if len(S) else S
         self._factored: list[ActiveSet] | None = None
 
     def _list(self) -> list[ActiveSet]:

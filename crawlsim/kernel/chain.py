@@ -25,6 +25,16 @@ multipliers, add the violated rows; the worst one alone, or the exchange of Gold
 where all at once would saturate every block). A certified KKT point of this strictly convex
 problem is the projection, so the steps agree with `crawlsim.kernel.kkt` to roundoff.
 
+A step at N = 4 costs a few hundred machine instructions, so its shape is its cost: after the
+solve, one pass over the blocks forms the point, the multipliers, the slack and the three
+numbers of the certificate (`state`); the sign of each multiplier is held to its own row's
+tolerance (`row_duals`, at most tol_d, one more solve), which is formed only where it can
+decide (a negative multiplier, or a step failing on its other numbers): a step whose
+multipliers are all >= 0 passes the sign check under any tolerance in [0, tol_d], so every
+step's certificate is the one above. The small functions of the step are inlined into the loop
+(``inline='always'``: a call with twenty array arguments costs as much as a pass), and the
+loop's scratch is allocated once per call of `catch_up`, not per step.
+
 Everything here is a function of plain arrays and scalars, compiled by numba; with
 ``NUMBA_DISABLE_JIT=1`` the same source runs as Python.
 """
@@ -54,6 +64,14 @@ def factor(k: np.ndarray, signs: np.ndarray, D: np.ndarray, l: np.ndarray) -> tu
     """LDL^T of the padded L~ (diagonal L_ii on saturated blocks, 1 on free ones; off-diagonal
     -k_i where blocks i and i+1 are both saturated) into the pivots D and unit subdiagonal l.
     Returns (||L_JJ^{-1}||_inf, ||L_JJ||_inf)."""
+    return factor_into(k, signs, D, l, np.empty(signs.shape[0]))
+
+
+@njit(cache=True)
+def factor_into(k: np.ndarray, signs: np.ndarray, D: np.ndarray, l: np.ndarray,
+                y: np.ndarray) -> tuple[float, float]:
+    """`factor` with the caller's scratch ``y`` (N) for the solve that gives ||L_JJ^{-1}||:
+    the catch-up loop refactors without allocating."""
     N = signs.shape[0]
     gram = 0.0
     for i in range(N):
@@ -69,7 +87,6 @@ def factor(k: np.ndarray, signs: np.ndarray, D: np.ndarray, l: np.ndarray) -> tu
         l[i - 1] = e / D[i - 1]
         D[i] -= l[i - 1] * e
     # L_JJ is an M-matrix: its inverse is non-negative, ||L_JJ^{-1}||_inf = max(L_JJ^{-1} 1)
-    y = np.empty(N)
     for i in range(N):
         y[i] = 1.0 if signs[i] != 0 else 0.0
     solve(D, l, y)
@@ -102,93 +119,106 @@ def forces(w: np.ndarray, f: np.ndarray) -> None:
     f[N - 1] = w[N - 2]
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def state(k: np.ndarray, w_trial: np.ndarray, dx: np.ndarray, signs: np.ndarray, w: np.ndarray,
-          lam: np.ndarray, slack: np.ndarray, c: np.ndarray, f: np.ndarray) -> None:
+          lam: np.ndarray, slack: np.ndarray, c: np.ndarray,
+          fixed: np.ndarray) -> tuple[float, float, float, float]:
     """From the slips dx (0 on free blocks): the point w = w_trial - K D dx, the multipliers
-    lambda (2N) and the slack B w - c."""
+    lambda (2N) and the slack B w - c, in one pass over the blocks (f_i = (D^T w)_i as in
+    `forces`), with the step's certificate from the same numbers. Returns (max |lambda|,
+    primal, dual, complementarity): max(B w - c), max(0, -min lambda) over the rows not
+    ``fixed`` (equalities: multipliers of either sign), max |(B w - c)_A|."""
     N = signs.shape[0]
-    for i in range(N - 1):
-        w[i] = w_trial[i] - (dx[i + 1] - dx[i]) * k[i]
-    for i in range(N):
-        lam[i] = dx[i] if signs[i] > 0 else 0.0
-        lam[N + i] = -dx[i] if signs[i] < 0 else 0.0
-    forces(w, f)
-    for i in range(N):
-        slack[i] = f[i] - c[i]
-        slack[N + i] = -f[i] - c[N + i]
-
-
-@njit(cache=True)
-def complementarity(signs: np.ndarray, slack: np.ndarray) -> float:
-    N = signs.shape[0]
+    lam_size = 0.0
+    primal = -np.inf
+    dual = 0.0
     comp = 0.0
     for i in range(N):
-        if signs[i] > 0:
-            r = abs(slack[i])
-        elif signs[i] < 0:
-            r = abs(slack[N + i])
+        if i < N - 1:
+            w[i] = w_trial[i] - (dx[i + 1] - dx[i]) * k[i]
+        if i == 0:
+            fi = -w[0]
+        elif i == N - 1:
+            fi = w[N - 2]
         else:
-            continue
+            fi = w[i - 1] - w[i]
+        up = fi - c[i]
+        down = -fi - c[N + i]
+        slack[i] = up
+        slack[N + i] = down
+        if up > primal:
+            primal = up
+        if down > primal:
+            primal = down
+        s = signs[i]
+        if s > 0:
+            lam[i] = dx[i]
+            lam[N + i] = 0.0
+            r = abs(up)
+            if -dx[i] > dual and not fixed[i]:
+                dual = -dx[i]
+        elif s < 0:
+            lam[i] = 0.0
+            lam[N + i] = -dx[i]
+            r = abs(down)
+            if dx[i] > dual and not fixed[N + i]:
+                dual = dx[i]
+        else:
+            lam[i] = 0.0
+            lam[N + i] = 0.0
+            r = 0.0
         if r > comp:
             comp = r
-    return comp
+        if s != 0 and abs(dx[i]) > lam_size:
+            lam_size = abs(dx[i])
+    return lam_size, primal, dual, comp
 
 
-@njit(cache=True)
-def certificate(signs: np.ndarray, lam: np.ndarray, slack: np.ndarray, fixed: np.ndarray) -> tuple[float, float, float]:
-    """(primal, dual, complementarity): max(B w - c), max(0, -min lambda) over the rows not
-    ``fixed`` (equalities: multipliers of either sign), max |(B w - c)_A|."""
-    primal = -np.inf
-    for i in range(slack.shape[0]):
-        if slack[i] > primal:
-            primal = slack[i]
-    dual = 0.0
-    for i in range(lam.shape[0]):
-        if -lam[i] > dual and not fixed[i]:
-            dual = -lam[i]
-    return primal, dual, complementarity(signs, slack)
-
-
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def on_set(k: np.ndarray, kmax: float, c_scale: float, w_trial: np.ndarray, c: np.ndarray,
            signs: np.ndarray, D: np.ndarray, l: np.ndarray, inverse: float, gram: float,
-           dx: np.ndarray, w: np.ndarray, lam: np.ndarray, slack: np.ndarray, f: np.ndarray,
-           res: np.ndarray, told: np.ndarray) -> tuple[float, float]:
+           dx: np.ndarray, w: np.ndarray, lam: np.ndarray, slack: np.ndarray,
+           res: np.ndarray, fixed: np.ndarray) -> tuple[float, float, float, float, float]:
     """The equality KKT system on the factored set ``signs``, with one step of iterative
-    refinement when its complementarity residual asks for it. Returns (tol_p, tol_d), the
-    scalar tolerances, and leaves each row's own dual tolerance in ``told`` (`row_duals`)."""
+    refinement when its complementarity residual asks for it. Returns (tol_p, tol_d, primal,
+    dual, complementarity): the scalar tolerances and the certificate of the final point
+    (`state`); each row's own dual tolerance is `row_duals`, formed by `settle_from` where a
+    sign is in doubt. The right-hand side r = f - f*, f = D^T w_trial (`forces`), and the
+    sizes of c and w_trial are gathered in one pass."""
     N = signs.shape[0]
-    forces(w_trial, f)
     active = False
+    c_size = 0.0  # rows with an infinite offset are ignored (velocity problems)
+    w_size = 0.0
     for i in range(N):
+        if i == 0:
+            fi = -w_trial[0]
+        elif i == N - 1:
+            fi = w_trial[N - 2]
+        else:
+            fi = w_trial[i - 1] - w_trial[i]
         if signs[i] > 0:
-            dx[i] = f[i] - c[i]
+            dx[i] = fi - c[i]
             active = True
         elif signs[i] < 0:
-            dx[i] = f[i] + c[N + i]
+            dx[i] = fi + c[N + i]
             active = True
         else:
             dx[i] = 0.0
+        a = abs(c[i])
+        if a > c_size and a < np.inf:
+            c_size = a
+        a = abs(c[N + i])
+        if a > c_size and a < np.inf:
+            c_size = a
+        if i < N - 1 and abs(w_trial[i]) > w_size:
+            w_size = abs(w_trial[i])
     if active:
         solve(D, l, dx)
-    state(k, w_trial, dx, signs, w, lam, slack, c, f)
-    c_size = 0.0
-    for i in range(c.shape[0]):  # rows with an infinite offset are ignored (velocity problems)
-        if abs(c[i]) > c_size and abs(c[i]) < np.inf:
-            c_size = abs(c[i])
-    w_size = 0.0
-    for i in range(w_trial.shape[0]):
-        if abs(w_trial[i]) > w_size:
-            w_size = abs(w_trial[i])
-    lam_size = 0.0
-    for i in range(lam.shape[0]):
-        if abs(lam[i]) > lam_size:
-            lam_size = abs(lam[i])
+    lam_size, primal, dual, comp = state(k, w_trial, dx, signs, w, lam, slack, c, fixed)
     size = max(max(c_scale, c_size), max(2.0 * w_size, 4.0 * kmax * lam_size))
     tol_p = RTOL * size
     tol_d = 2.0 * RTOL * inverse * (size + gram * lam_size)
-    if active and complementarity(signs, slack) > REFINE_FRACTION * tol_p:
+    if active and comp > REFINE_FRACTION * tol_p:
         for i in range(N):
             if signs[i] > 0:
                 res[i] = slack[i]
@@ -199,9 +229,8 @@ def on_set(k: np.ndarray, kmax: float, c_scale: float, w_trial: np.ndarray, c: n
         solve(D, l, res)
         for i in range(N):
             dx[i] += res[i]
-        state(k, w_trial, dx, signs, w, lam, slack, c, f)
-    row_duals(k, kmax, c_scale, w_trial, c, signs, D, l, dx, tol_d, res, told)
-    return tol_p, tol_d
+        _, primal, dual, comp = state(k, w_trial, dx, signs, w, lam, slack, c, fixed)
+    return tol_p, tol_d, primal, dual, comp
 
 
 @njit(cache=True)
@@ -282,17 +311,18 @@ def independent(rows: np.ndarray, N: int) -> bool:
 
 @njit(cache=True)
 def update(signs: np.ndarray, lam: np.ndarray, slack: np.ndarray, tol_p: float, told: np.ndarray,
-           new: np.ndarray, fixed: np.ndarray) -> int:
+           new: np.ndarray, fixed: np.ndarray, rows: np.ndarray, member: np.ndarray) -> int:
     """The next set of a primal-dual update into ``new`` (`crawlsim.kernel.polyhedron.Polyhedron.update_set`,
     then `exchange` where the set would fail LICQ); rows ``fixed`` never leave. Returns 0 with a
     new set, 1 when nothing is to change (the certificate failed on its own numbers), 2 when
-    no independent update exists (the Python projector decides)."""
+    no independent update exists (the Python projector decides). ``rows`` and ``member``
+    (2N booleans) are scratch."""
     N = signs.shape[0]
-    rows = np.zeros(2 * N, dtype=np.bool_)
-    member = np.zeros(2 * N, dtype=np.bool_)
     for i in range(N):
         member[i] = signs[i] > 0
         member[N + i] = signs[i] < 0
+        rows[i] = False
+        rows[N + i] = False
     change = False
     worst_drop, worst_lam = -1, np.inf
     worst_add, worst_slack = -1, -np.inf
@@ -357,7 +387,7 @@ def exchange(member: np.ndarray, lam: np.ndarray, slack: np.ndarray, fixed: np.n
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, inline='always')
 def same(a: np.ndarray, b: np.ndarray) -> bool:
     """a == b for two sets of signs, without the temporary array of np.array_equal (a step at
     N = 4 costs about as much as that allocation)."""
@@ -375,27 +405,56 @@ def settle(k: np.ndarray, kmax: float, c_scale: float, w_trial: np.ndarray, c: n
            report: np.ndarray, told: np.ndarray) -> tuple[int, float]:
     """One certified projection of ``w_trial`` onto {B w <= c} (rows ``fixed`` as equalities)
     from the set ``signs``, by primal-dual updates (`crawlsim.kernel.polyhedron.Polyhedron.refine`): DONE
-    with w, lam, slack and the set in place, HANDOFF when the updates cycle, run out or find
-    no independent set, FAILED when the certificate fails with nothing to change (``report``).
-    The sign of each multiplier is held to its own row's tolerance (``told``, `row_duals`).
-    Returns (status, tol_p); the scalar tolerances are also left in
-    report[REPORT_TOLP:REPORT_TOLD+1]."""
+    with w, lam, slack, the set and each row's own dual tolerance (``told``, `row_duals`) in
+    place, HANDOFF when the updates cycle, run out or find no independent set, FAILED when the
+    certificate fails with nothing to change (``report``). Returns (status, tol_p); the scalar
+    tolerances are also left in report[REPORT_TOLP:REPORT_TOLD+1]. (``f`` is not used: the
+    forces are formed in the passes of `on_set`.)"""
+    return settle_from(k, kmax, c_scale, w_trial, c, signs, factored, D, l, norms, fixed, dx, w,
+                       lam, slack, res, new, seen, report, told, fixed[:0], fixed[:0], True)
+
+
+@njit(cache=True, inline='always')
+def settle_from(k: np.ndarray, kmax: float, c_scale: float, w_trial: np.ndarray, c: np.ndarray,
+                signs: np.ndarray, factored: np.ndarray, D: np.ndarray, l: np.ndarray,
+                norms: np.ndarray, fixed: np.ndarray, dx: np.ndarray, w: np.ndarray,
+                lam: np.ndarray, slack: np.ndarray, res: np.ndarray, new: np.ndarray,
+                seen: np.ndarray, report: np.ndarray, told: np.ndarray, rows: np.ndarray,
+                member: np.ndarray, duals: bool) -> tuple[int, float]:
+    """`settle` with its scratch (``rows``, ``member``: 2N booleans, or empty to have them made
+    when an update needs them) from the caller. The sign
+    of each multiplier is held to its own row's tolerance (`row_duals`), which is at most the
+    scalar tol_d; it is formed where it can decide the step: some multiplier is negative, or
+    the step fails on its other numbers (the update and the report read it), or ``duals`` asks
+    for it (the exact integrator's velocity problems return it). A step with every multiplier
+    >= 0 (rows not ``fixed``) passes the sign check whatever the row tolerances are (each
+    lies in [0, tol_d]), so the certificate is the same on every step."""
+    N = signs.shape[0]
     for it in range(UPDATE_ITERATIONS):
         for q in range(it):  # a set seen before: the updates cycle
             if same(seen[q], signs):
                 return HANDOFF, 0.0
-        seen[it] = signs
         if not same(factored, signs):
-            norms[0], norms[1] = factor(k, signs, D, l)
-            factored[:] = signs
-        tol_p, tol_d = on_set(k, kmax, c_scale, w_trial, c, signs, D, l, norms[0], norms[1],
-                              dx, w, lam, slack, f, res, told)
-        primal, _, comp = certificate(signs, lam, slack, fixed)
-        dual, dual_tol = dual_excess(lam, told, fixed)
+            norms[0], norms[1] = factor_into(k, signs, D, l, res)
+            for i in range(N):
+                factored[i] = signs[i]
+        tol_p, tol_d, primal, negative, comp = on_set(k, kmax, c_scale, w_trial, c, signs, D, l,
+                                                      norms[0], norms[1], dx, w, lam, slack,
+                                                      res, fixed)
+        if duals or negative > 0.0 or not (primal <= tol_p and comp <= tol_p and 0.0 <= tol_d):
+            row_duals(k, kmax, c_scale, w_trial, c, signs, D, l, dx, tol_d, res, told)
+            dual, dual_tol = dual_excess(lam, told, fixed)
+        else:
+            dual, dual_tol = 0.0, tol_d
         report[REPORT_TOLP], report[REPORT_TOLD] = tol_p, tol_d
         if primal <= tol_p and dual <= dual_tol and comp <= tol_p:
             return DONE, tol_p
-        outcome = update(signs, lam, slack, tol_p, told, new, fixed)
+        for i in range(N):
+            seen[it, i] = signs[i]
+        if rows.shape[0] < 2 * N:
+            rows = np.empty(2 * N, dtype=np.bool_)
+            member = np.empty(2 * N, dtype=np.bool_)
+        outcome = update(signs, lam, slack, tol_p, told, new, fixed, rows, member)
         if outcome == 1:
             report[REPORT_PRIMAL], report[REPORT_DUAL], report[REPORT_COMP] = primal, dual, comp
             report[REPORT_TOLD] = dual_tol
@@ -403,7 +462,8 @@ def settle(k: np.ndarray, kmax: float, c_scale: float, w_trial: np.ndarray, c: n
             return FAILED, tol_p
         if outcome == 2:
             return HANDOFF, tol_p
-        signs[:] = new
+        for i in range(N):
+            signs[i] = new[i]
     return HANDOFF, 0.0
 
 
@@ -455,7 +515,6 @@ def catch_up(k: np.ndarray, c_scale: float, C: np.ndarray, W: np.ndarray, LAM: n
         if k[i] > kmax:
             kmax = k[i]
     dx = np.empty(N)
-    f = np.empty(N)
     res = np.empty(N)
     lam = np.empty(2 * N)
     slack = np.empty(2 * N)
@@ -464,11 +523,14 @@ def catch_up(k: np.ndarray, c_scale: float, C: np.ndarray, W: np.ndarray, LAM: n
     seen = np.empty((UPDATE_ITERATIONS, N), dtype=np.int8)
     fixed = np.zeros(2 * N, dtype=np.bool_)
     told = np.empty(2 * N)
+    rows = np.empty(2 * N, dtype=np.bool_)
+    member = np.empty(2 * N, dtype=np.bool_)
     for j in range(j0, G):
         c = C[j + 1]
         w_trial = W[j]
-        status, tol_p = settle(k, kmax, c_scale, w_trial, c, signs, factored, D, l, norms, fixed,
-                               dx, w, lam, slack, f, res, new, seen, report, told)
+        status, tol_p = settle_from(k, kmax, c_scale, w_trial, c, signs, factored, D, l, norms,
+                                    fixed, dx, w, lam, slack, res, new, seen, report, told, rows,
+                                    member, False)
         if status != DONE:
             return status, j
         # every block tight to roundoff with an inactive row among them: LICQ may fail and the
@@ -485,10 +547,46 @@ def catch_up(k: np.ndarray, c_scale: float, C: np.ndarray, W: np.ndarray, LAM: n
                 inactive_tight = True
         if all_tight and inactive_tight:
             return HANDOFF, j
-        W[j + 1] = w
-        LAM[j] = lam
-        S[j] = signs
+        for i in range(N - 1):
+            W[j + 1, i] = w[i]
+        for i in range(N):
+            LAM[j, i] = lam[i]
+            LAM[j, N + i] = lam[N + i]
+            S[j, i] = signs[i]
     return DONE, G
+
+
+@njit(cache=True)
+def set_starts(S: np.ndarray) -> np.ndarray:
+    """The steps where the set S[j] differs from S[j-1] (step 0 included): the index of the
+    first step of each run of one set (`crawlsim.kernel.catchup.VisitedSets`)."""
+    G, N = S.shape
+    starts = np.empty(G, dtype=np.int64)
+    count = 0
+    for j in range(G):
+        if j == 0 or not same(S[j], S[j - 1]):
+            starts[count] = j
+            count += 1
+    return starts[:count]
+
+
+@njit(cache=True)
+def positions(LAM: np.ndarray, x0: np.ndarray, X: np.ndarray) -> None:
+    """Block positions of a period (docs/model.md §3): X[0] = x0 and X[j+1] = x0 + dx_0 + ...
+    + dx_j, dx = lambda^+ - lambda^- of each step (`crawlsim.model.crawler.slips`). The running
+    sum is the one of np.cumsum along the steps, then shifted by x0: the same numbers, without
+    the period's temporary arrays."""
+    N = x0.shape[0]
+    G = LAM.shape[0]
+    total = np.empty(N)
+    for i in range(N):
+        X[0, i] = x0[i]
+    for j in range(G):
+        for i in range(N):
+            dx = LAM[j, i] - LAM[j, N + i]
+            t = dx if j == 0 else total[i] + dx
+            total[i] = t
+            X[j + 1, i] = t + x0[i]
 
 
 @njit(cache=True)
