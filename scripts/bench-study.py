@@ -1,0 +1,139 @@
+#!/usr/bin/env python
+"""Benchmark: exact sweeps and `crawlsim optimize` end to end, before the kernel and now.
+
+The bars of issue 20: an exact 1-D sweep of 120 points (``-j 1``) runs at least 30x faster than
+before the compiled kernel, a 2-D sweep of 120 points (12 x 10 over links.1.phase and
+links.2.phase) the same, and the optimize example of docs/optimize.md at least 20x faster.
+"Before" is commit 3423cad (the last commit before the kernel; its 1-D sweep took 3.21 s, measured
+under load). This script measures both in one run: it extracts that commit with ``git archive``
+into a temporary directory and runs the same commands there with ``PYTHONPATH=<that dir>`` (the
+same interpreter and the same installed dependencies; 3423cad needs nothing that the current
+tree does not), and here with ``PYTHONPATH=<this tree>``.
+
+Every command is a fresh ``python -m crawlsim`` process, its output written to a temporary
+directory; before and now are run in turns (round-robin, each round starting one command later),
+``--repeat`` times, and the median is reported with the load average. ``--clock cpu`` reports the
+child's user+system CPU time instead of the wall time (steadier on a shared machine; every
+command here runs in one process, ``-j 1``). The per-point cost is the sweep's time minus the same
+command on a 1-point sweep (start-up, gait loading and writing the table excluded), divided by the
+number of points. The numba cache of the current tree is warmed first (a cold cache is
+`scripts/bench-startup.py --cold`'s business).
+
+The end-to-end bars include the start-up of the process: importing numpy, scipy, clarabel, numba
+and loading the cached kernel costs about a second (`scripts/bench-startup.py`), more than 1/30 of
+the before figure, so the 30x end-to-end bar cannot be met by any per-point speed; the script
+prints that floor (the 1-point sweep now) against the bar's budget.
+
+    python scripts/bench-study.py [--repeat 3] [--clock cpu] [--skip-optimize]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import tarfile
+import tempfile
+import time
+from io import BytesIO
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+BEFORE = "3423cad"
+GAIT = "gaits/peristalsis-4.yaml"
+SWEEP_POINTS = 120
+
+#: name -> crawlsim arguments ({out} is the output directory of the run); the bar of each.
+COMMANDS: dict[str, list[str]] = {
+    "1-D sweep, 120 points": ["velocity", GAIT, "--sweep", "links.1.phase=0:1:120", "-j", "1",
+                              "-o", "{out}/sweep.csv"],
+    "2-D sweep, 12 x 10 points": ["velocity", GAIT, "--sweep", "links.1.phase=0:1:12",
+                                  "--sweep", "links.2.phase=0:1:10", "-j", "1",
+                                  "-o", "{out}/sweep.csv"],
+    "1-point sweep": ["velocity", GAIT, "--sweep", "links.1.phase=0:1:1", "-j", "1",
+                      "-o", "{out}/sweep.csv"],
+    "optimize example": ["optimize", GAIT, "--free", "links.1.phase=0:1",
+                         "--free", "links.2.phase=0:1", "--steps-per-period", "20",
+                         "--write-best", "{out}/best.yaml", "-o", "{out}/optimize.h5"],
+}
+BARS = {"1-D sweep, 120 points": 30.0, "2-D sweep, 12 x 10 points": 30.0,
+        "optimize example": 20.0}
+
+
+def extract(commit: str, into: Path) -> Path:
+    """The tree of ``commit`` (crawlsim, gaits) written into ``into``."""
+    archive = subprocess.run(["git", "archive", commit, "crawlsim", "gaits"], cwd=ROOT,
+                             check=True, capture_output=True).stdout
+    with tarfile.open(fileobj=BytesIO(archive)) as tar:
+        tar.extractall(into, filter="data")
+    return into
+
+
+def timed(tree: Path, arguments: list[str], clock: str, env: dict[str, str]) -> float:
+    """Seconds of ``python -m crawlsim arguments`` run in ``tree``, in a fresh output dir."""
+    with tempfile.TemporaryDirectory(prefix="crawlsim-bench-") as out:
+        argv = [sys.executable, "-m", "crawlsim", *(a.format(out=out) for a in arguments)]
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        began = time.perf_counter()
+        subprocess.run(argv, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                       cwd=tree, env={**env, "PYTHONPATH": str(tree)})
+        wall = time.perf_counter() - began
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if clock == "wall":
+        return wall
+    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=3, help="runs of each command (median)")
+    ap.add_argument("--clock", choices=("wall", "cpu"), default="wall")
+    ap.add_argument("--skip-optimize", action="store_true",
+                    help="leave out the optimize example (about 25 s before, per run)")
+    args = ap.parse_args()
+    env = dict(os.environ)
+    env.pop("PYTHONDONTWRITEBYTECODE", None)  # an installed package has its .pyc files
+    names = [n for n in COMMANDS if not (args.skip_optimize and n == "optimize example")]
+    with tempfile.TemporaryDirectory(prefix="crawlsim-before-") as old:
+        trees = {"before": extract(BEFORE, Path(old)), "now": ROOT}
+        runs = [(when, name) for name in names for when in trees]
+        for when, name in runs:  # warm .pyc files and, now, numba's cache
+            timed(trees[when], COMMANDS[name], args.clock, env)
+        times: dict[tuple[str, str], list[float]] = {run: [] for run in runs}
+        load = os.getloadavg()[0]
+        for round_ in range(args.repeat):
+            shift = round_ % len(runs)
+            for run in runs[shift:] + runs[:shift]:
+                times[run].append(timed(trees[run[0]], COMMANDS[run[1]], args.clock, env))
+                print(".", end="", file=sys.stderr, flush=True)
+        print(file=sys.stderr)
+    median = {run: statistics.median(t) for run, t in times.items()}
+
+    print(f"{args.clock} time of `python -m crawlsim ...`, median of {args.repeat} interleaved "
+          f"runs; load average {load:.2f} before, {os.getloadavg()[0]:.2f} after; before = "
+          f"{BEFORE}")
+    print(f"  {'command':<28} {'before s':>9} {'now s':>8} {'ratio':>7}  bar")
+    for name in names:
+        b, n = median[("before", name)], median[("now", name)]
+        bar = BARS.get(name)
+        verdict = "" if bar is None else f">= {bar:.0f}x: {'met' if b / n >= bar else 'NOT met'}"
+        print(f"  {name:<28} {b:>9.3f} {n:>8.3f} {b / n:>6.1f}x  {verdict}")
+    print(f"\nper point (the sweep minus the 1-point sweep, / {SWEEP_POINTS}):")
+    for name in names[:2]:
+        per = {when: (median[(when, name)] - median[(when, "1-point sweep")]) / SWEEP_POINTS
+               for when in trees}
+        print(f"  {name:<28} {per['before'] * 1e3:>7.2f} ms {per['now'] * 1e3:>7.2f} ms "
+              f"{per['before'] / per['now']:>6.1f}x")
+    floor = median[("now", "1-point sweep")]
+    budget = median[("before", "1-D sweep, 120 points")] / 30
+    print(f"\nfloor: a 1-point sweep now costs {floor:.3f} s (start-up, the cached kernel, the "
+          f"gait, the table); the 30x bar leaves {budget:.3f} s for the whole 120-point sweep"
+          f" ({floor / budget:.1f}x the budget before any point runs)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
