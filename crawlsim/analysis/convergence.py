@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 import tempfile
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -31,24 +32,46 @@ RATE_WINDOW = 8
 RATE_RELIABLE = 1e-10
 
 
+#: Bytes of periods kept in memory before the spill moves to a temporary file: creating and
+#: writing the file cost 0.5-1 ms per run, a quarter of a short run (a sweep point), while a long
+#: run's memory stays bounded by this.
+SPILL_BYTES = 1 << 25
+
+
 class _PeriodSpill:
-    """Each period's w and multipliers, spilled to an anonymous temporary file.
+    """Each period's w and multipliers, in memory up to `SPILL_BYTES`, then spilled to an
+    anonymous temporary file.
 
     The distances to the limit period need every period and the final one, which is known only at
     the end; keeping them on disk keeps a long run's memory bounded.
     """
 
     def __init__(self):
-        self._file = tempfile.TemporaryFile()
+        self._file: Any = None
+        self._memory: list[tuple[np.ndarray, np.ndarray]] = []
+        self._bytes = 0
         self._shapes: tuple[tuple[int, ...], tuple[int, ...]] | None = None
 
     def add(self, rec: PeriodRecord):
         self._shapes = (rec.w.shape, rec.multipliers.shape)
+        self._bytes += rec.w.nbytes + rec.multipliers.nbytes
+        if self._file is None and self._bytes <= SPILL_BYTES:
+            self._memory.append((rec.w.copy(), rec.multipliers.copy()))
+            return
+        if self._file is None:
+            self._file = tempfile.TemporaryFile()
+            for w, lam in self._memory:
+                w.tofile(self._file)
+                lam.tofile(self._file)
+            self._memory = []
         rec.w.tofile(self._file)
         rec.multipliers.tofile(self._file)
 
     def periods(self):
         assert self._shapes is not None, "no period was added"
+        if self._file is None:
+            yield from self._memory
+            return
         (wshape, lshape) = self._shapes
         nw, nl = math.prod(wshape), math.prod(lshape)
         self._file.seek(0)
@@ -60,7 +83,9 @@ class _PeriodSpill:
             yield w.reshape(wshape), lam.reshape(lshape)
 
     def close(self):
-        self._file.close()
+        if self._file is not None:
+            self._file.close()
+        self._memory = []
 
 
 class History:
