@@ -48,3 +48,25 @@ def test_a_period_edited_after_it_was_added_is_kept_as_added(monkeypatch):
     spill.add(records[1])
     first = next(iter(spill.periods()))
     assert np.array_equal(first[0], kept)
+
+
+def test_a_run_without_distances_is_the_same_run_with_empty_distances():
+    """``simulate(..., distances=False)`` (a sweep point) changes no number of the run: the same
+    periods are stepped; only the per-period distances to the limit are left out."""
+    from pathlib import Path
+
+    from crawlsim.analysis.run import simulate
+    from crawlsim.gait.document import load_gait
+    from crawlsim.model.process import compile_gait
+
+    gait = load_gait(Path(__file__).resolve().parents[1] / "gaits" / "peristalsis-4.yaml")
+    runs = {keep: simulate(compile_gait(gait), integrator="exact", history=False,
+                           distances=keep) for keep in (True, False)}
+    kept, left = runs[True], runs[False]
+    assert len(kept.history.w12_distance) == len(kept.history.period) >= 1
+    for key in convergence.DISTANCES:
+        assert getattr(left.history, key).size == 0
+    for name in ("v0", "v0_error_estimate", "periods", "limit_periods", "steps",
+                 "displacement_per_period", "dissipation_per_period", "cost_of_transport"):
+        assert getattr(left, name) == getattr(kept, name), name
+    assert np.array_equal(left.history.poincare_step, kept.history.poincare_step)

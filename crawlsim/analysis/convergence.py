@@ -32,6 +32,8 @@ RATE_WINDOW = 8
 RATE_RELIABLE = 1e-10
 
 
+#: The distances of a period to the limit period (`History.distances`).
+DISTANCES = ("w12_distance", "sup_distance", "slip_l2_distance")
 #: Bytes of periods kept in memory before the spill moves to a temporary file: creating and
 #: writing the file cost 0.5-1 ms per run, a quarter of a short run (a sweep point), while a long
 #: run's memory stays bounded by this.
@@ -92,17 +94,19 @@ class History:
     """The true iterates of a run: per-period measurements, and each period's w and multipliers
     (spilled to disk) for their distances to the limit period, measured at the end against the
     limit the run settles on (the solver's, or the iterates' own if they become periodic on
-    another member of a family of periodic solutions)."""
+    another member of a family of periodic solutions). ``keep_periods=False`` keeps no period
+    (a sweep point: its row holds no distance, and `distances` is not asked for)."""
 
-    def __init__(self, process: SweepingProcess):
+    def __init__(self, process: SweepingProcess, keep_periods: bool = True):
         self.process = process
+        self.keep_periods = keep_periods
         self.h = np.diff(process.times)
         self.steps: list[float] = []
         self.rel_steps: list[float] = []
         self.displacements: list[float] = []
         self.dissipations: list[float] = []
         self.last: PeriodRecord | None = None
-        self._spill: _PeriodSpill | None = _PeriodSpill()
+        self._spill: _PeriodSpill | None = _PeriodSpill() if keep_periods else None
         self._limit: PeriodRecord | None = None
         self._last_gap = np.inf
 
@@ -120,8 +124,9 @@ class History:
             assert record.x is not None
             self.displacements.append(float(np.mean(record.x[-1] - record.x[0])))
             self.dissipations.append(period_dissipation(p, record))
-        assert self._spill is not None
-        self._spill.add(record)
+        if self.keep_periods:
+            assert self._spill is not None
+            self._spill.add(record)
         self.last = record
         self._gap()
         if progress is not None:
@@ -150,8 +155,7 @@ class History:
 
     def distances(self) -> dict:
         """The distances of every period to the limit period (W^{1,2}, sup, slip rates)."""
-        out: dict[str, list[float]] = {"w12_distance": [], "sup_distance": [],
-                                       "slip_l2_distance": []}
+        out: dict[str, list[float]] = {key: [] for key in DISTANCES}
         assert self._limit is not None and self._spill is not None
         for w, lam in self._spill.periods():
             for key, value in _period_distances(w, lam, self._limit, self.h).items():
