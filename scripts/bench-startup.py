@@ -114,15 +114,19 @@ ENV = dict(os.environ)
 
 def timed(argv: list[str], clock: str, env: dict[str, str] | None = None) -> float:
     """Seconds of one fresh process: wall time, or its user+system CPU time."""
+    wall, cpu = run_clocked(argv, env)
+    return wall if clock == "wall" else cpu
+
+
+def run_clocked(argv: list[str], env: dict[str, str] | None = None) -> tuple[float, float]:
+    """(wall seconds, user+system CPU seconds) of one fresh process."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     began = time.perf_counter()
     subprocess.run(argv, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                    cwd=ROOT, env=env or ENV)
     wall = time.perf_counter() - began
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    if clock == "wall":
-        return wall
-    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 
 
 def probe(arguments: list[str]) -> dict[str, list[str]]:
@@ -144,13 +148,14 @@ def imported(argv: list[str]) -> set[str]:
     return {m.group(1).strip() for m in re.finditer(r"\|\s+\d+ \|\s*([\w.]+)", err)}
 
 
-def cold_runs(crawlsim: list[str], count: int) -> list[float]:
-    """Wall seconds of ``count`` velocity runs of peristalsis-4, each with an empty cache."""
+def cold_runs(crawlsim: list[str], count: int) -> list[tuple[float, float]]:
+    """(wall, CPU) seconds of ``count`` velocity runs of peristalsis-4, each with an empty
+    numba cache."""
     seconds = []
     for _ in range(count):
         with tempfile.TemporaryDirectory(prefix="crawlsim-cold-") as cache:
             env = {**ENV, "NUMBA_CACHE_DIR": cache}
-            seconds.append(timed([*crawlsim, "velocity", str(PERISTALSIS)], "wall", env))
+            seconds.append(run_clocked([*crawlsim, "velocity", str(PERISTALSIS)], env))
     return seconds
 
 
@@ -174,7 +179,8 @@ def main() -> int:
         subprocess.run([*crawlsim, *arguments], check=True, capture_output=True, cwd=ROOT,
                        env=ENV)
     loads = {name: probe(arguments) for name, arguments in velocity.items()}
-    needs = {name: f"{NEEDED} + kernel {sorted(loads[name])}" for name in velocity}
+    needs = {name: "libraries + numba + cached " + ", ".join(sorted(
+        entry.split(".")[-1] for entry in loads[name])) for name in velocity}
     commands = {
         "python -c pass": [sys.executable, "-c", "pass"],
         "crawlsim --version": [*crawlsim, "--version"],
@@ -202,7 +208,7 @@ def main() -> int:
           f"bytecode cached); load average {load_before[0]:.2f} before, "
           f"{os.getloadavg()[0]:.2f} after:")
     for name, t in median.items():
-        print(f"  {name:<100} {t * 1e3:8.1f} ms")
+        print(f"  {name:<72} {t * 1e3:8.1f} ms")
     base = median["python -c pass"]
     rows = [("crawlsim --version", "python -c pass", 3.0),
             ("crawlsim --help", "python -c pass", 3.0),
@@ -239,9 +245,13 @@ def main() -> int:
         from crawlsim.kernel.catchup import COLD_SECONDS
 
         cold = cold_runs(crawlsim, args.cold)
-        print(f"\ncold first run (empty numba cache), crawlsim velocity peristalsis-4, wall time: "
-              f"median {statistics.median(cold):.1f} s of {', '.join(f'{s:.1f}' for s in cold)} "
-              f"(load average {os.getloadavg()[0]:.2f}); COLD_SECONDS prints ~{COLD_SECONDS} s")
+        walls, cpus = [w for w, _ in cold], [c for _, c in cold]
+        print(f"\ncold first run (empty numba cache), crawlsim velocity peristalsis-4: wall "
+              f"median {statistics.median(walls):.1f} s of {', '.join(f'{s:.1f}' for s in walls)}"
+              f"; CPU median {statistics.median(cpus):.1f} s of "
+              f"{', '.join(f'{s:.1f}' for s in cpus)} (load average {os.getloadavg()[0]:.2f}; "
+              f"the compilation is one thread, so on an idle machine the wall time is the CPU "
+              f"time); COLD_SECONDS prints ~{COLD_SECONDS} s")
     return 0
 
 
