@@ -50,9 +50,10 @@ def test_a_period_edited_after_it_was_added_is_kept_as_added(monkeypatch):
     assert np.array_equal(first[0], kept)
 
 
-def test_a_run_without_distances_is_the_same_run_with_empty_distances():
-    """``simulate(..., distances=False)`` (a sweep point) changes no number of the run: the same
-    periods are stepped; only the per-period distances to the limit are left out."""
+def test_a_run_without_series_is_the_same_run_without_its_per_period_series():
+    """``simulate(..., series=False)`` (a sweep point) changes no number of the run: the same
+    periods are stepped; only the per-period distances to the limit (empty) and dissipations
+    (NaN) are left out."""
     from pathlib import Path
 
     from crawlsim.analysis.run import simulate
@@ -61,7 +62,7 @@ def test_a_run_without_distances_is_the_same_run_with_empty_distances():
 
     gait = load_gait(Path(__file__).resolve().parents[1] / "gaits" / "peristalsis-4.yaml")
     runs = {keep: simulate(compile_gait(gait), integrator="exact", history=False,
-                           distances=keep) for keep in (True, False)}
+                           series=keep) for keep in (True, False)}
     kept, left = runs[True], runs[False]
     assert len(kept.history.w12_distance) == len(kept.history.period) >= 1
     for key in convergence.DISTANCES:
@@ -70,3 +71,6 @@ def test_a_run_without_distances_is_the_same_run_with_empty_distances():
                  "displacement_per_period", "dissipation_per_period", "cost_of_transport"):
         assert getattr(left, name) == getattr(kept, name), name
     assert np.array_equal(left.history.poincare_step, kept.history.poincare_step)
+    assert np.array_equal(left.history.displacement, kept.history.displacement)
+    assert np.all(np.isnan(left.history.dissipation)) and np.all(np.isfinite(kept.history.dissipation))
+    assert kept.history.dissipation[-1] == left.dissipation_per_period  # the limit's, still made

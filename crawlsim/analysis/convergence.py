@@ -94,19 +94,20 @@ class History:
     """The true iterates of a run: per-period measurements, and each period's w and multipliers
     (spilled to disk) for their distances to the limit period, measured at the end against the
     limit the run settles on (the solver's, or the iterates' own if they become periodic on
-    another member of a family of periodic solutions). ``keep_periods=False`` keeps no period
-    (a sweep point: its row holds no distance, and `distances` is not asked for)."""
+    another member of a family of periodic solutions). ``series=False`` keeps neither the periods
+    nor the dissipation of each period (NaN): a sweep point's row holds only the limit period's,
+    and `distances` is not asked for."""
 
-    def __init__(self, process: SweepingProcess, keep_periods: bool = True):
+    def __init__(self, process: SweepingProcess, series: bool = True):
         self.process = process
-        self.keep_periods = keep_periods
+        self.series = series
         self.h = np.diff(process.times)
         self.steps: list[float] = []
         self.rel_steps: list[float] = []
         self.displacements: list[float] = []
         self.dissipations: list[float] = []
         self.last: PeriodRecord | None = None
-        self._spill: _PeriodSpill | None = _PeriodSpill() if keep_periods else None
+        self._spill: _PeriodSpill | None = _PeriodSpill() if series else None
         self._limit: PeriodRecord | None = None
         self._last_gap = np.inf
 
@@ -123,8 +124,10 @@ class History:
         if p.crawler is not None:
             assert record.x is not None
             self.displacements.append(float(np.mean(record.x[-1] - record.x[0])))
-            self.dissipations.append(period_dissipation(p, record))
-        if self.keep_periods:
+            # the exact integrator's ledger is made when first read: a sweep point reads the
+            # limit period's alone
+            self.dissipations.append(period_dissipation(p, record) if self.series else math.nan)
+        if self.series:
             assert self._spill is not None
             self._spill.add(record)
         self.last = record

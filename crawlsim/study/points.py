@@ -238,7 +238,7 @@ def _run_single(member: _Member, runs: dict | None = None) -> PointResult:
     try:
         run = simulate(process, max_periods=s.max_periods, tolerance=s.tolerance,
                        integrator=s.integrator, limit=s.limit, history=False,
-                       distances=runs is not None)  # the row holds no distance
+                       series=runs is not None)  # the row holds no per-period series
     except Exception as exc:
         _reraise_memory(exc)
         return _failure(i, exc)
