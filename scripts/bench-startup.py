@@ -18,7 +18,9 @@ signatures only (found in the dispatcher's cache index, so it is a cache load, n
 compilation). Loading a cached overload is not free: numba refreshes its target context
 (its typing and lowering registries, numba.np.arraymath, whose BLAS check imports
 scipy.linalg), and that is part of the cost of the compiled module. The strict ratio against the
-bare ``python -c "import numpy, scipy.sparse, clarabel, yaml"`` is printed too.
+bare ``python -c "import numpy, scipy.sparse, clarabel, yaml"`` is printed too, and so are the
+modules of the bar's list that a command does not import at all (a crawler's velocity needs
+neither clarabel nor scipy.sparse: its compiled kernel solves every step).
 
 Each command is a fresh process; ``--clock wall`` (default) times ``subprocess.run``,
 ``--clock cpu`` the child's user+system CPU time (steadier on a shared machine). The commands
@@ -235,11 +237,16 @@ def main() -> int:
     extra = imported(commands["crawlsim validate peristalsis-4"]) - baseline
     heavy = sorted(m for m in HEAVY if m in extra)
     print(f"  {'crawlsim validate peristalsis-4':<42} {', '.join(heavy) or 'none'}")
+    unused = {}
     for name in velocity:
         baseline = imported([sys.executable, "-c", LOAD, json.dumps(loads[name])])
-        extra = imported(commands[name]) - baseline
-        heavy = sorted(m for m in HEAVY if m in extra)
+        mine = imported(commands[name])
+        heavy = sorted(m for m in HEAVY if m in mine - baseline)
         print(f"  {name:<42} {', '.join(heavy) or 'none'}")
+        unused[name] = sorted(m for m in ("clarabel", "scipy.sparse") if m not in mine)
+    print("\nmodules of the bar's denominator that the command does not import at all:")
+    for name, modules in unused.items():
+        print(f"  {name:<42} {', '.join(modules) or 'none'}")
 
     if args.cold:
         from crawlsim.kernel.catchup import COLD_SECONDS
