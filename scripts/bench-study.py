@@ -16,7 +16,9 @@ directory; before and now are run in turns (round-robin, each round starting one
 child's user+system CPU time instead of the wall time (steadier on a shared machine; every
 command here runs in one process, ``-j 1``). The per-point cost is the sweep's time minus the same
 command on a 1-point sweep (start-up, gait loading and writing the table excluded), divided by the
-number of points. The numba cache of the current tree is warmed first (a cold cache is
+number of points; as the difference of two processes of a second or more it is noisy on a
+loaded machine, so it is also measured in-process (the sweeps as library calls, no start-up,
+CPU time, in turns before/now). The numba cache of the current tree is warmed first (a cold cache is
 `scripts/bench-startup.py --cold`'s business).
 
 The end-to-end bars include the start-up of the process: importing numpy, scipy, clarabel, numba
@@ -30,6 +32,7 @@ prints that floor (the 1-point sweep now) against the bar's budget.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import resource
 import statistics
@@ -61,6 +64,37 @@ COMMANDS: dict[str, list[str]] = {
 }
 BARS = {"1-D sweep, 120 points": 30.0, "2-D sweep, 12 x 10 points": 30.0,
         "optimize example": 20.0}
+
+
+#: The per-point cost in-process (no start-up in it): the sweeps as library calls, timed with
+#: the process's CPU clock; prints one line of JSON, {name: [seconds per round]}.
+IN_PROCESS = """
+import json, sys, time
+try:
+    from crawlsim.study.sweep import sweep
+except ImportError:  # 3423cad: one module
+    from crawlsim.sweep import sweep
+from crawlsim.api import load_gait
+gait = load_gait("gaits/peristalsis-4.yaml")
+cases = {"1-D": ["links.1.phase=0:1:120"], "2-D": ["links.1.phase=0:1:12", "links.2.phase=0:1:10"],
+         "1-point": ["links.1.phase=0:1:1"]}
+sweep(gait, ["links.1.phase=0:1:5"])  # warm: imports, numba's cache
+out = {name: [] for name in cases}
+for _ in range(int(sys.argv[1])):
+    for name, axes in cases.items():
+        began = time.process_time()
+        sweep(gait, axes)
+        out[name].append(time.process_time() - began)
+print(json.dumps(out))
+"""
+
+
+def in_process(tree: Path, rounds: int, env: dict[str, str]) -> dict[str, list[float]]:
+    """CPU seconds of each in-process sweep of `IN_PROCESS`, ``rounds`` times, in ``tree``."""
+    out = subprocess.run([sys.executable, "-c", IN_PROCESS, str(rounds)], cwd=tree, check=True,
+                         capture_output=True, text=True, env={**env, "PYTHONPATH": str(tree)})
+    result: dict[str, list[float]] = json.loads(out.stdout.splitlines()[-1])
+    return result
 
 
 def extract(commit: str, into: Path) -> Path:
@@ -110,6 +144,11 @@ def main() -> int:
                 times[run].append(timed(trees[run[0]], COMMANDS[run[1]], args.clock, env))
                 print(".", end="", file=sys.stderr, flush=True)
         print(file=sys.stderr)
+        inside: dict[str, dict[str, list[float]]] = {when: {} for when in trees}
+        for _ in range(args.repeat):  # in turns, a process of a few rounds each
+            for when, tree in trees.items():
+                for name, seconds in in_process(tree, 3, env).items():
+                    inside[when].setdefault(name, []).extend(seconds)
     median = {run: statistics.median(t) for run, t in times.items()}
 
     print(f"{args.clock} time of `python -m crawlsim ...`, median of {args.repeat} interleaved "
@@ -126,6 +165,14 @@ def main() -> int:
         per = {when: (median[(when, name)] - median[(when, "1-point sweep")]) / SWEEP_POINTS
                for when in trees}
         print(f"  {name:<28} {per['before'] * 1e3:>7.2f} ms {per['now'] * 1e3:>7.2f} ms "
+              f"{per['before'] / per['now']:>6.1f}x")
+    print(f"\nper point in-process (library calls, CPU time, median of {3 * args.repeat} rounds; "
+          f"the sweep minus the 1-point sweep, / {SWEEP_POINTS}):")
+    for name in ("1-D", "2-D"):
+        per = {when: (statistics.median(inside[when][name])
+                      - statistics.median(inside[when]["1-point"])) / SWEEP_POINTS
+               for when in trees}
+        print(f"  {name + ' sweep':<28} {per['before'] * 1e3:>7.2f} ms {per['now'] * 1e3:>7.2f} ms "
               f"{per['before'] / per['now']:>6.1f}x")
     floor = median[("now", "1-point sweep")]
     budget = median[("before", "1-D sweep, 120 points")] / 30
