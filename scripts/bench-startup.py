@@ -51,14 +51,14 @@ import argparse
 import json
 import os
 import re
-import resource
 import shutil
 import statistics
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
+
+from benchclock import run_clocked  # scripts/benchclock.py
 
 ROOT = Path(__file__).resolve().parents[1]
 PERISTALSIS = ROOT / "gaits" / "peristalsis-4.yaml"
@@ -116,19 +116,8 @@ ENV = dict(os.environ)
 
 def timed(argv: list[str], clock: str, env: dict[str, str] | None = None) -> float:
     """Seconds of one fresh process: wall time, or its user+system CPU time."""
-    wall, cpu = run_clocked(argv, env)
+    wall, cpu = run_clocked(argv, cwd=ROOT, env=env or ENV)
     return wall if clock == "wall" else cpu
-
-
-def run_clocked(argv: list[str], env: dict[str, str] | None = None) -> tuple[float, float]:
-    """(wall seconds, user+system CPU seconds) of one fresh process."""
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    began = time.perf_counter()
-    subprocess.run(argv, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                   cwd=ROOT, env=env or ENV)
-    wall = time.perf_counter() - began
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 
 
 def probe(arguments: list[str]) -> dict[str, list[str]]:
@@ -157,7 +146,8 @@ def cold_runs(crawlsim: list[str], count: int) -> list[tuple[float, float]]:
     for _ in range(count):
         with tempfile.TemporaryDirectory(prefix="crawlsim-cold-") as cache:
             env = {**ENV, "NUMBA_CACHE_DIR": cache}
-            seconds.append(run_clocked([*crawlsim, "velocity", str(PERISTALSIS)], env))
+            seconds.append(run_clocked([*crawlsim, "velocity", str(PERISTALSIS)], cwd=ROOT,
+                                       env=env))
     return seconds
 
 

@@ -51,15 +51,15 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import resource
 import statistics
 import subprocess
 import sys
 import tarfile
 import tempfile
-import time
 from io import BytesIO
 from pathlib import Path
+
+from benchclock import run_clocked  # scripts/benchclock.py
 
 ROOT = Path(__file__).resolve().parents[1]
 BEFORE = "3423cad"
@@ -127,15 +127,8 @@ def timed(tree: Path, arguments: list[str], clock: str, env: dict[str, str]) -> 
     """Seconds of ``python -m crawlsim arguments`` run in ``tree``, in a fresh output dir."""
     with tempfile.TemporaryDirectory(prefix="crawlsim-bench-") as out:
         argv = [sys.executable, "-m", "crawlsim", *(a.format(out=out) for a in arguments)]
-        before = resource.getrusage(resource.RUSAGE_CHILDREN)
-        began = time.perf_counter()
-        subprocess.run(argv, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                       cwd=tree, env={**env, "PYTHONPATH": str(tree)})
-        wall = time.perf_counter() - began
-        after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    if clock == "wall":
-        return wall
-    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+        wall, cpu = run_clocked(argv, cwd=tree, env={**env, "PYTHONPATH": str(tree)})
+    return wall if clock == "wall" else cpu
 
 
 def main() -> int:
