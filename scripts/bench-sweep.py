@@ -21,14 +21,17 @@ t(-j 2) (>= 1: -j 2 is not slower).
 
     python scripts/bench-sweep.py --jobs-check [--repeat 5]
 
-Measured (``--jobs-check --repeat 3``, medians of 3 interleaved runs, on the 2-core machine
-shared with other jobs at a load average of 11-14):
+Measured (``--jobs-check --repeat 5``, medians of 5 interleaved runs, on the 2-core machine
+shared with other jobs at a load average of 6.4-6.5, after the per-point cuts of issue 20):
 
     sweep                                                  -j 1 s   -j 2 s  ratio
-    exact, 20 steps, links.1.phase=0:1:12                   2.444    2.260   1.08
-    exact, 20 steps, links.1.phase=0:1:120                 31.451   30.258   1.04
-    catch-up, 400 steps, links.*.amplitude=0.05:0.45:40     3.857    4.593   0.84
-    catch-up, 400 steps, links.*.amplitude=0.05:0.45:1000   52.861   47.284   1.12
+    exact, 20 steps, links.1.phase=0:1:12                   0.046    0.046   0.99
+    exact, 20 steps, links.1.phase=0:1:120                  0.406    0.397   1.02
+    catch-up, 400 steps, links.*.amplitude=0.05:0.45:40     0.164    0.162   1.01
+    catch-up, 400 steps, links.*.amplitude=0.05:0.45:1000   5.379    5.318   1.01
+
+(earlier, ``--repeat 3`` at a load of 11-14: 1.08, 1.04, 0.84, 1.12; the 0.99 and 0.84 are the
+noise of the shared machine, the two runs being the same computation in this process.)
 
 At that load `free_cores` leaves no core free, so ``-j 2`` runs every one of these sweeps in
 this process, exactly as ``-j 1`` does: the ratios are the noise of the shared machine (the

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 import tempfile
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -31,24 +32,48 @@ RATE_WINDOW = 8
 RATE_RELIABLE = 1e-10
 
 
+#: The distances of a period to the limit period (`History.distances`).
+DISTANCES = ("w12_distance", "sup_distance", "slip_l2_distance")
+#: Bytes of periods kept in memory before the spill moves to a temporary file: creating and
+#: writing the file cost 0.5-1 ms per run, a quarter of a short run (a sweep point), while a long
+#: run's memory stays bounded by this.
+SPILL_BYTES = 1 << 25
+
+
 class _PeriodSpill:
-    """Each period's w and multipliers, spilled to an anonymous temporary file.
+    """Each period's w and multipliers, in memory up to `SPILL_BYTES`, then spilled to an
+    anonymous temporary file.
 
     The distances to the limit period need every period and the final one, which is known only at
     the end; keeping them on disk keeps a long run's memory bounded.
     """
 
     def __init__(self):
-        self._file = tempfile.TemporaryFile()
+        self._file: Any = None
+        self._memory: list[tuple[np.ndarray, np.ndarray]] = []
+        self._bytes = 0
         self._shapes: tuple[tuple[int, ...], tuple[int, ...]] | None = None
 
     def add(self, rec: PeriodRecord):
         self._shapes = (rec.w.shape, rec.multipliers.shape)
+        self._bytes += rec.w.nbytes + rec.multipliers.nbytes
+        if self._file is None and self._bytes <= SPILL_BYTES:
+            self._memory.append((rec.w.copy(), rec.multipliers.copy()))
+            return
+        if self._file is None:
+            self._file = tempfile.TemporaryFile()
+            for w, lam in self._memory:
+                w.tofile(self._file)
+                lam.tofile(self._file)
+            self._memory = []
         rec.w.tofile(self._file)
         rec.multipliers.tofile(self._file)
 
     def periods(self):
         assert self._shapes is not None, "no period was added"
+        if self._file is None:
+            yield from self._memory
+            return
         (wshape, lshape) = self._shapes
         nw, nl = math.prod(wshape), math.prod(lshape)
         self._file.seek(0)
@@ -60,24 +85,29 @@ class _PeriodSpill:
             yield w.reshape(wshape), lam.reshape(lshape)
 
     def close(self):
-        self._file.close()
+        if self._file is not None:
+            self._file.close()
+        self._memory = []
 
 
 class History:
     """The true iterates of a run: per-period measurements, and each period's w and multipliers
     (spilled to disk) for their distances to the limit period, measured at the end against the
     limit the run settles on (the solver's, or the iterates' own if they become periodic on
-    another member of a family of periodic solutions)."""
+    another member of a family of periodic solutions). ``series=False`` keeps neither the periods
+    nor the dissipation of each period (NaN): a sweep point's row holds only the limit period's,
+    and `distances` is not asked for."""
 
-    def __init__(self, process: SweepingProcess):
+    def __init__(self, process: SweepingProcess, series: bool = True):
         self.process = process
+        self.series = series
         self.h = np.diff(process.times)
         self.steps: list[float] = []
         self.rel_steps: list[float] = []
         self.displacements: list[float] = []
         self.dissipations: list[float] = []
         self.last: PeriodRecord | None = None
-        self._spill: _PeriodSpill | None = _PeriodSpill()
+        self._spill: _PeriodSpill | None = _PeriodSpill() if series else None
         self._limit: PeriodRecord | None = None
         self._last_gap = np.inf
 
@@ -94,9 +124,12 @@ class History:
         if p.crawler is not None:
             assert record.x is not None
             self.displacements.append(float(np.mean(record.x[-1] - record.x[0])))
-            self.dissipations.append(period_dissipation(p, record))
-        assert self._spill is not None
-        self._spill.add(record)
+            # the exact integrator's ledger is made when first read: a sweep point reads the
+            # limit period's alone
+            self.dissipations.append(period_dissipation(p, record) if self.series else math.nan)
+        if self.series:
+            assert self._spill is not None
+            self._spill.add(record)
         self.last = record
         self._gap()
         if progress is not None:
@@ -125,8 +158,7 @@ class History:
 
     def distances(self) -> dict:
         """The distances of every period to the limit period (W^{1,2}, sup, slip rates)."""
-        out: dict[str, list[float]] = {"w12_distance": [], "sup_distance": [],
-                                       "slip_l2_distance": []}
+        out: dict[str, list[float]] = {key: [] for key in DISTANCES}
         assert self._limit is not None and self._spill is not None
         for w, lam in self._spill.periods():
             for key, value in _period_distances(w, lam, self._limit, self.h).items():

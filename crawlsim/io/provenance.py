@@ -118,11 +118,18 @@ def python_call(function: str, *args: Any, **kwargs: Any) -> str:
     return f"{function}({', '.join(parts)})"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Provenance:
-    """The provenance attributes of one results file (see the module docstring)."""
+    """The provenance attributes of one results file (see the module docstring).
 
-    gait_yaml: str
+    ``gait`` is the effective gait document, or its YAML as a file recorded it; ``gait_yaml``
+    dumps a document when first read. A run that writes no file (``crawlsim velocity``, the
+    library's ``run(..., history=False)``) never pays for the dump, which took 40 % of such a
+    run (yaml's pure-Python emitter). A `Gait` is frozen and its document is never edited in
+    place (`Gait.replace` makes a new one), so dumping it later gives the same text.
+    """
+
+    gait: Mapping[str, Any] | str
     gait_file: str
     gait_file_text: str
     integrator: str
@@ -130,6 +137,19 @@ class Provenance:
     command_line: str = field(default_factory=command_line)
     versions: Mapping[str, str] = field(default_factory=_Versions)
     created: str = field(default_factory=now)
+
+    @functools.cached_property
+    def gait_yaml(self) -> str:
+        """The effective gait document as YAML (`effective_yaml`)."""
+        return self.gait if isinstance(self.gait, str) else effective_yaml(self.gait)
+
+    def __eq__(self, other: object) -> bool:
+        """Equal when every recorded attribute is (a document equals its YAML)."""
+        if not isinstance(other, Provenance):
+            return NotImplemented
+        return self.attrs() == other.attrs()
+
+    __hash__ = None  # type: ignore[assignment]  # mutable mappings inside, as before
 
     def attrs(self) -> dict[str, str]:
         """The HDF5 root attributes, all strings (mappings as JSON)."""
@@ -150,7 +170,7 @@ class Provenance:
         file written before provenance was recorded (format_version 1)."""
         if "gait_yaml" not in attrs or "integrator_json" not in attrs:
             return None
-        return cls(gait_yaml=str(attrs["gait_yaml"]), gait_file=str(attrs.get("gait_file", "")),
+        return cls(gait=str(attrs["gait_yaml"]), gait_file=str(attrs.get("gait_file", "")),
                    gait_file_text=str(attrs.get("gait_file_text", "")),
                    integrator=str(attrs.get("integrator", "")),
                    integrator_settings=json.loads(attrs["integrator_json"]),
@@ -169,7 +189,7 @@ def for_gait(gait: Any, *, check_every_step: bool = False) -> Provenance:
                 "max_periods": s.max_periods, "tolerance": s.tolerance,
                 "effective_tolerance": effective_tolerance(s.tolerance),
                 "check_every_step": bool(check_every_step)}
-    return Provenance(gait_yaml=effective_yaml(gait.document), gait_file=str(gait.source),
+    return Provenance(gait=gait.document, gait_file=str(gait.source),
                       gait_file_text=str(gait.source_text), integrator=s.integrator,
                       integrator_settings=settings)
 

@@ -157,7 +157,8 @@ def piece_edges(breakpoints) -> np.ndarray:
 def compile_gait(gait: Gait, steps_per_period: int | None = None) -> SweepingProcess:
     """The shape-space sweeping process of a crawler gait on its time grid (docs/model.md §2)."""
     G = steps_per_period or gait.simulation.steps_per_period
-    u = period_grid(G, gait.breakpoints())
+    breakpoints = gait.breakpoints()  # the union of every signal's: computed once
+    u = period_grid(G, breakpoints)
     k = np.asarray(gait.stiffness, dtype=float)
     L = evaluate_many(gait.links, u)  # (G+1, N-1)
     loads = gait.loads
@@ -190,7 +191,7 @@ def compile_gait(gait: Gait, steps_per_period: int | None = None) -> SweepingPro
 
     signals = gait.links + gait.forward + gait.backward + (
         () if loads is None else loads.forces)
-    pieces = PiecewiseOffsets(signals, combine, piece_edges(gait.breakpoints()))
+    pieces = PiecewiseOffsets(signals, combine, piece_edges(breakpoints))
     x0 = np.asarray(gait.initial_positions, dtype=float)
     w0 = -k * np.diff(x0)  # w = -K z, z = D x
     return SweepingProcess(
@@ -206,7 +207,7 @@ def compile_gait(gait: Gait, steps_per_period: int | None = None) -> SweepingPro
             load_constant=constant,
             slope_angle=None if loads is None or loads.weights is None else float(loads.angle)),
         offset_pieces=pieces,
-        breakpoints=np.asarray(gait.breakpoints(), dtype=float) * T,
+        breakpoints=np.asarray(breakpoints, dtype=float) * T,
         _cycles=u,
     )
 
@@ -217,7 +218,8 @@ def compile_process(spec: ProcessSpec, steps_per_period: int | None = None) -> S
     No change of variables: w is z, B and M are the file's normals and metric, c(t) its offsets.
     """
     G = steps_per_period or spec.simulation.steps_per_period
-    u = period_grid(G, spec.breakpoints())
+    breakpoints = spec.breakpoints()
+    u = period_grid(G, breakpoints)
     T = float(spec.period)
     offsets = evaluate_many(spec.offsets, u)
     initial = np.array(spec.initial, dtype=float)
@@ -229,8 +231,8 @@ def compile_process(spec: ProcessSpec, steps_per_period: int | None = None) -> S
         offsets=offsets,
         initial=initial,
         offset_pieces=PiecewiseOffsets(spec.offsets, lambda coef: coef,
-                                       piece_edges(spec.breakpoints())),
-        breakpoints=np.asarray(spec.breakpoints(), dtype=float) * T,
+                                       piece_edges(breakpoints)),
+        breakpoints=np.asarray(breakpoints, dtype=float) * T,
         _cycles=u,
     )
 
