@@ -54,8 +54,12 @@ DONE, HANDOFF, FAILED_PIECE, TOO_MANY, ZENO, OVERFLOW = range(6)
 #: Transition causes (`crawlsim.integrate.stepping.TransitionCause`), in this order.
 CAUSES = ("edge", "release", "hit", "jump")
 EDGE, RELEASE, HIT, JUMP = range(4)
-#: Entries of ``report``.
-R_U, R_INDEX, R_PRIMAL, R_DUAL, R_TOLP, R_TOLD, R_COMP = range(7)
+#: Entries of ``report`` (R_REASON: why a period was handed over, one of HANDOFF_REASONS).
+R_U, R_INDEX, R_PRIMAL, R_DUAL, R_TOLP, R_TOLD, R_COMP, R_REASON = range(8)
+#: Why the loop hands a period over: an event's active set (a velocity problem not settled by
+#: the kernel's updates, or a dependent set), a zero the loop cannot find, a jump projection.
+HANDOFF_REASONS = ("decide", "zero", "jump")
+H_DECIDE, H_ZERO, H_JUMP = range(3)
 #: Entries of ``counts``.
 C_EVENTS, C_TRANSITIONS, C_PIECES, C_JUMPS = range(4)
 
@@ -511,6 +515,7 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
         t_count = counts[C_TRANSITIONS]
         coef = COEF[p]
         if not decide(k, c_scale, linear, H, coef, u, w, forced, signs, chosen, phi, cvec, Bw):
+            report[R_U], report[R_REASON] = u, H_DECIDE
             return HANDOFF
         signs[:] = chosen
         TR_U[t_count], TR_PIECE[t_count], TR_SIGNS[t_count] = u, p, signs
@@ -521,6 +526,7 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
         u_e, handoff = next_event(c_scale, linear, H, coef, signs, base, Wc, Ydx, inverse, u,
                                   u_end, forced, Rdx, z)
         if handoff:
+            report[R_U], report[R_REASON] = u, H_ZERO
             return HANDOFF
         event = u_e < u_end
         if not event:
@@ -559,6 +565,7 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
         if jumps[edge]:
             report[R_U] = u
             if jump(k, c_scale, w, TARGET[edge], signs, w_next, lam_jump, inner) != DONE:
+                report[R_REASON] = H_JUMP
                 return HANDOFF
             q = counts[C_JUMPS]
             JUMP_PIECE[q], JUMP_U[q] = p, u
