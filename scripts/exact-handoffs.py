@@ -106,6 +106,8 @@ def main() -> int:
     parser.add_argument("--size", type=int, default=40, help="corpus gaits (seeds 0 ...)")
     parser.add_argument("--steps", type=int, default=1000, help="steps per period (corpus)")
     parser.add_argument("--max-blocks", type=int, default=40)
+    parser.add_argument("--stiffness-ratio", type=float, default=1e6)
+    parser.add_argument("--friction-ratio", type=float, default=1e3)
     parser.add_argument("--no-examples", action="store_true")
     parser.add_argument("--v0-tol", type=float, default=1e-12)
     args = parser.parse_args()
@@ -117,7 +119,8 @@ def main() -> int:
     for seed in range(args.size):
         small = seed % 4 != 0
         gait = random_gait(seed, blocks=(2, min(12, args.max_blocks)) if small else
-                           (2, args.max_blocks), stiffness_ratio=1e6, friction_ratio=1e3)
+                           (2, args.max_blocks), stiffness_ratio=args.stiffness_ratio,
+                           friction_ratio=args.friction_ratio)
         gaits.append((f"seed {seed}", gait))
     total: collections.Counter[str] = collections.Counter()
     worst, bad = 0.0, 0

@@ -5,19 +5,20 @@ code: at every event the next active set from Moreau's velocity problems, order 
 (`decide`); on the piece that follows, w(u) = base + phi(u) @ Wc and the block slips
 dx(u) = dx0 - phi(u) @ Ydx from one factorisation of the chain's tridiagonal KKT system
 (`piece`, O(N), the factor and solve of `crawlsim.kernel.chain`); the next zero crossing of every
-gap and slip rate in closed form (`next_event`, `crawlsim.kernel.events`); the grid samples and
-their certificate (`certify_samples`); and at a jump of c(t) the certified projection onto
-K(t+) (`jump`). The formulas, tolerances and decisions are those of the module docstring of
+gap and slip rate (`next_event`: in closed form, `crawlsim.kernel.events`, or by certified
+sampling, `crawlsim.kernel.sampling`); the grid samples and their certificate
+(`certify_samples`); and at a jump of c(t) the certified projection onto K(t+) (`jump`). The
+formulas, tolerances and decisions are those of the module docstring of
 `crawlsim.integrate.exact`, which documents them; the rows of a chain are those of
 `crawlsim.kernel.kkt.ChainPolyhedron` (row i < N: block i at its forward limit, row N + i at its
 backward one), and an active set is its signs (+1, -1, 0 per block).
 
 The loop returns a status. DONE: the period is in the output arrays. HANDOFF: a step the
 compiled code does not take (a velocity problem or projection whose updates do not settle, a
-dependent set, a zero with no closed form); the caller runs the period on its Python path,
-which decides with Clarabel. FAILED_PIECE: the certificate of a grid sample failed (``report``).
-TOO_MANY / ZENO: the event guards fired. OVERFLOW: the event arrays are full (the caller
-enlarges them and runs the period again).
+dependent set, a root search that does not converge; ``report[R_REASON]`` says which); the
+caller runs the period on its Python path, which decides with Clarabel. FAILED_PIECE: the
+certificate of a grid sample failed (``report``). TOO_MANY / ZENO: the event guards fired.
+OVERFLOW: the event arrays are full (the caller enlarges them and runs the period again).
 
 Every function takes plain arrays and scalars; with ``NUMBA_DISABLE_JIT=1`` the same source runs
 as Python.
@@ -30,7 +31,7 @@ import math
 import numpy as np
 from numba import njit
 
-from crawlsim.kernel import chain, events
+from crawlsim.kernel import chain, events, sampling
 from crawlsim.kernel.piece import (  # noqa: F401 - eventloop.piece etc. are its entry points too
     apply,
     basis_values,
@@ -155,36 +156,32 @@ def decide(k: np.ndarray, c_scale: float, linear: bool, H: int, coef: np.ndarray
 def crossing(z: np.ndarray, tol: float, u0: float, u1: float, linear: bool, H: int,
              phi0: np.ndarray, horizon: float) -> float:
     """The first upward zero crossing of f = phi @ z in (u0, u1) that goes on to exceed tol
-    (`crawlsim.kernel.events`); inf if none, NaN where the basis has no closed form for f.
-    inf also for a harmonic f that stays below zero on [u0, horizon] (phi0 = phi(u0)): its
-    crossing, where f = 0 or tol, is after horizon (the caller's earliest event so far)."""
+    (`crawlsim.kernel.events`); inf if none, NaN where the basis has no closed form for f
+    (several harmonics, or one and a linear part: `crawlsim.kernel.sampling`). inf also for an
+    f that stays below zero on [u0, horizon] (phi0 = phi(u0)): its crossing, where f = 0 or
+    tol, is after horizon (the caller's earliest event so far)."""
     nb = z.shape[0]
     if nb == 1:
         return np.inf
     if H == 0:
         return events.linear_crossing(z[0], z[1], tol, u0, u1)
-    # f <= a + max(s u0, s u1) + |alpha| + |beta| on the piece: a row that cannot reach its
+    # f <= top and |f'| <= slope on the piece (`sampling.reach`): a row that cannot reach its
     # tolerance has no event (the closed forms and the sampling agree), without their trig
     # (the bound's own roundoff is covered by 1e-12 of its terms' size)
-    top = z[0] + abs(z[nb - 2]) + abs(z[nb - 1])
-    size = abs(z[0]) + abs(z[nb - 2]) + abs(z[nb - 1])
-    if linear:
-        top += max(z[1] * u0, z[1] * u1)
-        size += abs(z[1]) * max(abs(u0), abs(u1))
+    top, size, slope = sampling.reach(z, u0, u1, linear, H)
     if top + 1e-12 * size < tol:
         return np.inf
-    if H != 1 or (linear and z[1] != 0.0):
-        return np.nan
-    alpha, beta = z[nb - 2], z[nb - 1]
-    # f(u) <= f(u0) + 2 pi (|alpha| + |beta|) (u - u0) on [u0, horizon], without trig: below
-    # zero there (by more than the roundoff of f(u0) and of the crossing's own closed form,
-    # 1e-12 of its terms' size), f has neither its zero nor its tolerance before horizon
+    # f(u) <= f(u0) + slope (u - u0) on [u0, horizon], without trig: below zero there (by
+    # more than the roundoff of f(u0) and of the crossing's own closed form, 1e-12 of its
+    # terms' size), f has neither its zero nor its tolerance before horizon
     f0 = 0.0
     for b in range(nb):
         f0 += z[b] * phi0[b]
-    if f0 + TWO_PI * (abs(alpha) + abs(beta)) * (horizon - u0) + 1e-12 * size < 0.0:
+    if f0 + slope * (horizon - u0) + 1e-12 * size < 0.0:
         return np.inf
-    return events.harmonic_crossing(z[0], alpha, beta, tol, u0, u1)
+    if H != 1 or (linear and z[1] != 0.0):
+        return np.nan
+    return events.harmonic_crossing(z[0], z[nb - 2], z[nb - 1], tol, u0, u1)
 
 
 @njit(cache=True)
@@ -212,10 +209,12 @@ def rate_tolerance(coef: np.ndarray, signs: np.ndarray, Rdx: np.ndarray, inverse
 @njit(cache=True)
 def next_event(c_scale: float, linear: bool, H: int, coef: np.ndarray, signs: np.ndarray,
                base: np.ndarray, Wc: np.ndarray, Ydx: np.ndarray, inverse: float, u0: float,
-               u1: float, hit: np.ndarray, Rdx: np.ndarray, z: np.ndarray) -> tuple[float, bool]:
+               u1: float, hit: np.ndarray, Rdx: np.ndarray, z: np.ndarray,
+               cells_per_cycle: int) -> tuple[float, bool]:
     """(u, handoff) of the first event in (u0, u1) (u = inf: none), the rows newly tight in
     ``hit`` (`EventStepper._next_event`): gaps phi @ (B Wc - coef + B base e_0) of the inactive
-    rows, slip rates -dLambda/du = phi @ derivative(Y) of the active ones."""
+    rows, slip rates -dLambda/du = phi @ derivative(Y) of the active ones. Zeros without a
+    closed form by `crawlsim.kernel.sampling.crossing`, on samples of (u0, u1) tabulated once."""
     N = signs.shape[0]
     m = 2 * N
     nb = coef.shape[0]
@@ -226,6 +225,7 @@ def next_event(c_scale: float, linear: bool, H: int, coef: np.ndarray, signs: np
     first = np.inf
     phi0 = np.empty(nb)
     basis_values(u0, 0, linear, H, phi0)
+    S, PHIS, filled = np.empty(0), np.empty((0, nb)), np.zeros(1, dtype=np.int64)
     for r in range(m):
         i = r % N
         s = signs[i]
@@ -234,14 +234,21 @@ def next_event(c_scale: float, linear: bool, H: int, coef: np.ndarray, signs: np
         if (r < N and s > 0) or (r >= N and s < 0):
             for b in range(nb):
                 z[b] = s * Rdx[b, i]
-            t = crossing(z, tol_rate, u0, u1, linear, H, phi0, horizon)
+            tol = tol_rate
         else:  # the gap of row r, B Wc - coef + B base e_0 (the entries of `apply`)
             for b in range(nb):
                 g = (Wc[b, i - 1] if i > 0 else 0.0) - (Wc[b, i] if i < N - 1 else 0.0)
                 z[b] = (g if r < N else -g) - coef[b, r]
             g = (base[i - 1] if i > 0 else 0.0) - (base[i] if i < N - 1 else 0.0)
             z[0] += g if r < N else -g
-            t = crossing(z, tol_gap, u0, u1, linear, H, phi0, horizon)
+            tol = tol_gap
+        t = crossing(z, tol, u0, u1, linear, H, phi0, horizon)
+        if np.isnan(t):
+            if S.shape[0] == 0:  # the samples of this piece, on first use
+                count = sampling.cells(u0, u1, cells_per_cycle, H)
+                S, PHIS = np.empty(count + 1), np.empty((count + 1, nb))
+                sampling.grid(u0, u1, count, S)
+            t = sampling.crossing(z, tol, u0, u1, linear, H, horizon, S, PHIS, filled)
         if np.isnan(t):
             return np.inf, True
         times[r] = t
@@ -477,7 +484,7 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
            TR_SIGNS: np.ndarray, TR_CAUSE: np.ndarray, TR_HIT: np.ndarray,
            PIECE_BOUNDS: np.ndarray, PIECE_TERMS: np.ndarray, JUMP_PIECE: np.ndarray,
            JUMP_U: np.ndarray, JUMP_W: np.ndarray, JUMP_LAM: np.ndarray, counts: np.ndarray,
-           report: np.ndarray) -> int:
+           report: np.ndarray, cells_per_cycle: int) -> int:
     """One period from w_start (in K(0)) with the warm set ``signs`` (left at the final set), on
     the grid ``grid`` (PHI: phi at its times):
     W and LAMC (cumulative slips) on the grid; the events, transitions, the pieces' energy
@@ -524,7 +531,7 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
         inverse, gram = piece(k, signs, w, coef, D, l, dx0, Ydx, base, Wc, f)
         u_end = edges[p + 1]
         u_e, handoff = next_event(c_scale, linear, H, coef, signs, base, Wc, Ydx, inverse, u,
-                                  u_end, forced, Rdx, z)
+                                  u_end, forced, Rdx, z, cells_per_cycle)
         if handoff:
             report[R_U], report[R_REASON] = u, H_ZERO
             return HANDOFF
