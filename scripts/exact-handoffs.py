@@ -143,10 +143,13 @@ def main() -> int:
         else:
             worst = max(worst, diff)
             bad += not diff <= args.v0_tol
-            note = f"|dv0| {diff:.2e}"
+            note = f"|dv0| {diff:.2e} rel {diff / max(abs(v0), 1e-300):.1e}"
         basis = process.offset_pieces.basis if process.offset_pieces is not None else None
         shape = "" if basis is None else f"linear {int(basis.linear)} H {basis.harmonics}"
-        print(f"{name:36s} N {process.blocks if process.crawler else '-':>3} {shape:14s} "
+        if process.crawler is not None:
+            k = np.asarray(process.stiffness, dtype=float)
+            shape += f" k ratio {np.max(k) / np.min(k):.0e}"
+        print(f"{name:36s} N {process.blocks if process.crawler else '-':>3} {shape:28s} "
               f"{note}  {dict(sorted(counts.items()))}", flush=True)
     print()
     print(f"periods by where they ran, {len(gaits)} gaits: {dict(sorted(total.items()))}")

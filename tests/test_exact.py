@@ -321,6 +321,29 @@ def test_sampled_crossing_finds_the_zero_before_the_tolerance():
     assert find(1e-12, horizon=expected - 0.05) == math.inf
 
 
+@pytest.mark.parametrize("seed", [18, 5, 4])
+def test_sampled_zeros_and_jumps_stay_in_the_compiled_loop(seed):
+    """Corpus gaits whose offsets need sampled zeros (a linear part and harmonics, or several
+    harmonics) and whose steps signals jump: every period runs in the compiled loop (no
+    handoff), and its states, slips and event times are those of the Python loop to roundoff
+    (the same certified KKT points and the same sampled zeros)."""
+    from crawlsim.gait.corpus import random_gait
+
+    process = compile_gait(random_gait(seed, blocks=(2, 5), stiffness_ratio=1e6,
+                                       friction_ratio=1e3), 100)
+    compiled, python = EventStepper(process), EventStepper(process, kernel=False)
+    assert compiled._loop is not None and compiled.basis.harmonics + compiled.basis.linear >= 2
+    assert compiled._jump.any()
+    for _ in range(2):
+        a, b = compiled.step_period(), python.step_period()
+        scale = max(1.0, float(np.max(np.abs(b.w))))
+        np.testing.assert_allclose(a.w, b.w, rtol=0, atol=1e-11 * scale)
+        np.testing.assert_allclose(a.multipliers, b.multipliers, rtol=0,
+                                   atol=1e-11 * max(1.0, float(np.max(np.abs(b.multipliers)))))
+        np.testing.assert_allclose(a.events.t, b.events.t, rtol=0, atol=1e-12)
+    assert compiled._loop is not None and compiled._loop.handoffs == 0
+
+
 # -- the paper's Section 5 maps ---------------------------------------------------------------
 
 @pytest.mark.parametrize("alpha", [0.5, 1.0, 2.0])

@@ -50,6 +50,10 @@ RTOL = chain.RTOL
 DECISION_ORDERS = 4
 #: Two rows hit within this many cycles of the first crossing are hit together.
 SIMULTANEOUS = 1e-13
+#: Restarts of the projection at a jump of c from the set where its primal-dual updates
+#: stopped: a jump may change more rows than `chain.UPDATE_ITERATIONS` updates do when the
+#: tight set, nearly every block, only admits them one at a time.
+JUMP_RESTARTS = 8
 
 DONE, HANDOFF, FAILED_PIECE, TOO_MANY, ZENO, OVERFLOW = range(6)
 #: Transition causes (`crawlsim.integrate.stepping.TransitionCause`), in this order.
@@ -386,13 +390,19 @@ def energy_terms(k: np.ndarray, linear: bool, H: int, signs: np.ndarray, base: n
 def jump(k: np.ndarray, c_scale: float, w: np.ndarray, target: np.ndarray, signs: np.ndarray,
          w_out: np.ndarray, lam: np.ndarray, report: np.ndarray) -> int:
     """The projection of w onto K(t+) = {B v <= target} from the set ``signs``, certified by
-    `crawlsim.kernel.chain.project` (DONE only with its certificate), and LICQ at its tight
-    rows (`crawlsim.kernel.projection.ExactProjector`: a tight set that may be dependent goes to
-    the projector, which decides whether the slips are unique). Returns DONE or HANDOFF."""
+    `crawlsim.kernel.chain.project` (DONE only with its certificate; restarted where its
+    updates run out, `JUMP_RESTARTS`), and LICQ at its tight rows
+    (`crawlsim.kernel.projection.ExactProjector`: a tight set that may be dependent goes to the
+    projector, which decides whether the slips are unique). Returns DONE or HANDOFF."""
     N = signs.shape[0]
     m = 2 * N
     fixed = np.zeros(m, dtype=np.bool_)
-    if chain.project(k, c_scale, w, target, signs, fixed, w_out, lam, report) != chain.DONE:
+    status = chain.project(k, c_scale, w, target, signs, fixed, w_out, lam, report)
+    for _ in range(JUMP_RESTARTS):  # the updates go on from the set where they stopped
+        if status != chain.HANDOFF:
+            break
+        status = chain.project(k, c_scale, w, target, signs, fixed, w_out, lam, report)
+    if status != chain.DONE:
         return HANDOFF
     tol_p = report[chain.REPORT_TOLP]
     slack = np.empty(m)
