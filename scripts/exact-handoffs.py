@@ -15,7 +15,8 @@ run counts its periods by where they ran:
 * ``abandoned``: a period after `exact.LOOP_HANDOFFS` handoffs, when the stepper stops trying.
 
 and prints per gait |v0(default) - v0(Python loop)| (the bar: <= 1e-12; for a generic process,
-which has no v0, the largest |w| of its limit period). The summary gives the
+which has no v0, the largest |w| of its limit period) and the CPU time of both runs (their
+ratio: what the compiled loop saves). The summary gives the
 counts per reason over all gaits. Exit status 1 when a v0 differs by more than ``--v0-tol``.
 
     python scripts/exact-handoffs.py --size 40
@@ -27,7 +28,9 @@ import argparse
 import collections
 import functools
 import math
+import statistics
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -110,6 +113,10 @@ def main() -> int:
     parser.add_argument("--friction-ratio", type=float, default=1e3)
     parser.add_argument("--no-examples", action="store_true")
     parser.add_argument("--v0-tol", type=float, default=1e-12)
+    parser.add_argument("--no-compare", action="store_true",
+                        help="count the periods only (no run in the Python loop)")
+    parser.add_argument("--loads", action="store_true",
+                        help="random loads and slopes on every corpus gait")
     args = parser.parse_args()
     _instrument()
     gaits: list[tuple[str, Any]] = []
@@ -119,21 +126,31 @@ def main() -> int:
     for seed in range(args.size):
         small = seed % 4 != 0
         gait = random_gait(seed, blocks=(2, min(12, args.max_blocks)) if small else
-                           (2, args.max_blocks), stiffness_ratio=args.stiffness_ratio,
-                           friction_ratio=args.friction_ratio)
+                           (2, args.max_blocks), loads=args.loads,
+                           stiffness_ratio=args.stiffness_ratio, friction_ratio=args.friction_ratio)
         gaits.append((f"seed {seed}", gait))
     total: collections.Counter[str] = collections.Counter()
     worst, bad = 0.0, 0
+    ratios: list[float] = []
     for name, gait in gaits:
         process = compile_spec(gait, None if name.startswith("gaits") else args.steps)
         sim = gait.simulation
         COUNTS.clear()
         FORCE_PYTHON = False
+        began = time.process_time()
         v0, err = _v0(process, sim.max_periods, sim.tolerance)
+        seconds = time.process_time() - began
         counts = dict(COUNTS)
-        FORCE_PYTHON = True
-        v0_py, err_py = _v0(process, sim.max_periods, sim.tolerance)
-        FORCE_PYTHON = False
+        if args.no_compare:
+            v0_py, err_py, ratio = v0, err, math.nan
+        else:
+            FORCE_PYTHON = True
+            began = time.process_time()
+            v0_py, err_py = _v0(process, sim.max_periods, sim.tolerance)
+            ratio = (time.process_time() - began) / max(seconds, 1e-9)
+            FORCE_PYTHON = False
+            if not (err or err_py):
+                ratios.append(ratio)
         total.update(counts)
         diff = abs(v0 - v0_py)
         if err or err_py:
@@ -150,11 +167,14 @@ def main() -> int:
             k = np.asarray(process.stiffness, dtype=float)
             shape += f" k ratio {np.max(k) / np.min(k):.0e}"
         print(f"{name:36s} N {process.blocks if process.crawler else '-':>3} {shape:28s} "
-              f"{note}  {dict(sorted(counts.items()))}", flush=True)
+              f"{note}  cpu {seconds:.2f} s (Python loop / default {ratio:.1f})  "
+              f"{dict(sorted(counts.items()))}", flush=True)
     print()
     print(f"periods by where they ran, {len(gaits)} gaits: {dict(sorted(total.items()))}")
-    print(f"largest |v0(default) - v0(Python loop)|: {worst:.2e}; gaits over "
-          f"{args.v0_tol:g}: {bad}")
+    if ratios:
+        print(f"largest |v0(default) - v0(Python loop)|: {worst:.2e}; gaits over "
+              f"{args.v0_tol:g}: {bad}; CPU time of a run, Python loop / default: median "
+              f"{statistics.median(ratios):.1f} (min {min(ratios):.1f}, max {max(ratios):.1f})")
     return 1 if bad else 0
 
 
