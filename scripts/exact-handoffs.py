@@ -106,7 +106,8 @@ def _v0(process: Any, max_periods: int, tolerance: float) -> tuple[float, str]:
 def main() -> int:
     global FORCE_PYTHON
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--size", type=int, default=40, help="corpus gaits (seeds 0 ...)")
+    parser.add_argument("--size", type=int, default=40, help="corpus gaits")
+    parser.add_argument("--first", type=int, default=0, help="first seed")
     parser.add_argument("--steps", type=int, default=1000, help="steps per period (corpus)")
     parser.add_argument("--max-blocks", type=int, default=40)
     parser.add_argument("--stiffness-ratio", type=float, default=1e6)
@@ -123,7 +124,7 @@ def main() -> int:
     if not args.no_examples:
         for path in sorted(ROOT.glob("gaits/*.yaml")) + sorted(ROOT.glob("gaits/paper/*.yaml")):
             gaits.append((path.relative_to(ROOT).as_posix(), load_gait(path)))
-    for seed in range(args.size):
+    for seed in range(args.first, args.first + args.size):
         small = seed % 4 != 0
         gait = random_gait(seed, blocks=(2, min(12, args.max_blocks)) if small else
                            (2, args.max_blocks), loads=args.loads,
