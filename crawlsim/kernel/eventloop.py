@@ -229,7 +229,7 @@ def next_event(c_scale: float, linear: bool, H: int, coef: np.ndarray, signs: np
     first = np.inf
     phi0 = np.empty(nb)
     basis_values(u0, 0, linear, H, phi0)
-    S, PHIS, filled = np.empty(0), np.empty((0, nb)), np.zeros(1, dtype=np.int64)
+    count = 0  # the samples of (u0, u1), made on first use (closed forms need none)
     for r in range(m):
         i = r % N
         s = signs[i]
@@ -248,9 +248,10 @@ def next_event(c_scale: float, linear: bool, H: int, coef: np.ndarray, signs: np
             tol = tol_gap
         t = crossing(z, tol, u0, u1, linear, H, phi0, horizon)
         if np.isnan(t):
-            if S.shape[0] == 0:  # the samples of this piece, on first use
+            if count == 0:
                 count = sampling.cells(u0, u1, cells_per_cycle, H)
                 S, PHIS = np.empty(count + 1), np.empty((count + 1, nb))
+                filled = np.zeros(1, dtype=np.int64)
                 sampling.grid(u0, u1, count, S)
             t = sampling.crossing(z, tol, u0, u1, linear, H, horizon, S, PHIS, filled)
         if np.isnan(t):
