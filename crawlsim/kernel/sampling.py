@@ -53,7 +53,7 @@ BOUNDED_ITERATIONS = 500
 @njit(cache=True)
 def scalar(x: float, z: np.ndarray, linear: bool, H: int) -> float:
     """f(x) = phi(x) @ z, the terms in the order of `crawlsim.model.offsets.Basis.scalar`."""
-    total = z[0]
+    total = float(z[0])
     if linear:
         total += z[1] * x
     h0 = 2 if linear else 1
