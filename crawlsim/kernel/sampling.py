@@ -19,8 +19,8 @@ has no closed form; it is found by the rule of `crawlsim.integrate.exact.EventSt
 
 `maximum` and `brentq` are scipy's algorithms (`scipy.optimize.minimize_scalar(method=
 "bounded")` and the C code of `scipy.optimize.brentq`) with the tolerances the Python loop
-gives them, step for step, on the same evaluation of f (`scalar`, that of `Basis.scalar`):
-the event times are those of the Python loop.
+used to give them, step for step, on the same evaluation of f (`scalar`, which is
+`Basis.scalar`): the same roots and maxima, bit for bit, without scipy or Python calls.
 
 `reach` bounds f and f' on a piece without trigonometry; `crawlsim.kernel.eventloop.crossing`
 uses it to rule out rows that cannot reach their tolerance, or not before the earliest event
@@ -52,7 +52,8 @@ BOUNDED_ITERATIONS = 500
 
 @njit(cache=True)
 def scalar(x: float, z: np.ndarray, linear: bool, H: int) -> float:
-    """f(x) = phi(x) @ z, the terms in the order of `crawlsim.model.offsets.Basis.scalar`."""
+    """f(x) = phi(x) @ z for one cycle x, term by term (`crawlsim.model.offsets.Basis.scalar`
+    is this function)."""
     total = float(z[0])
     if linear:
         total += z[1] * x
