@@ -1,11 +1,12 @@
-"""The zeros of the exact integrator that have no closed form, compiled (`crawlsim.kernel.eventloop`).
+"""The zeros of the exact integrator that have no closed form, compiled: used by both its event
+loops (`crawlsim.kernel.eventloop`, and the Python one of `crawlsim.integrate.exact`).
 
 On a piece every gap of an inactive row and every slip rate of an active one is a combination
 f(u) = phi(u) @ z of the offsets' basis, phi(u) = [1, (u,) cos 2 pi u, sin 2 pi u, ...,
 cos 2 pi H u, sin 2 pi H u] (`crawlsim.model.offsets.Basis`). Its event is the first u in
 (u0, u1) where f crosses zero upwards and goes on to exceed its tolerance
 (`crawlsim.kernel.events`). With several harmonics, or one harmonic and a linear part, that zero
-has no closed form; it is found by the rule of `crawlsim.integrate.exact.EventStepper._sampled`:
+has no closed form; it is found by certified sampling:
 
 * samples s_k every 1/(C H) cycle (C = ``cells_per_cycle``, at least 4 cells per piece);
 * on a cell of width h, f exceeds the larger of its end values by at most h^2/8 max|f''|
@@ -15,7 +16,8 @@ has no closed form; it is found by the rule of `crawlsim.integrate.exact.EventSt
 * in such a cell f reaches its tolerance at the right end, or at the maximum of f in the
   cell (Brent's bounded minimisation of -f, `maximum`), else not at all; the time ``over``
   where it does is a bracketed root of f - tol (`brentq`), and the zero crossing the bracketed
-  root of f between the last sample below zero and ``over``.
+  root of f between the last sample below zero and ``over`` (a crossing at or before u0,
+  roundoff of a row tight there, gives ``over``, strictly after u0).
 
 `maximum` and `brentq` are scipy's algorithms (`scipy.optimize.minimize_scalar(method=
 "bounded")` and the C code of `scipy.optimize.brentq`) with the tolerances the Python loop
