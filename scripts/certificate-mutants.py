@@ -28,6 +28,7 @@ ROOT = Path(__file__).resolve().parents[1]
 CERT = "tests/test_certificates.py"
 KERNEL = "tests/test_kernel.py"
 KKT = "tests/test_kkt.py"
+EXACT = "tests/test_exact.py"
 
 #: (name, file, the check's source, its replacement, tests that must catch it)
 MUTANTS = [
@@ -66,6 +67,12 @@ MUTANTS = [
      "    if False:", [KERNEL]),
     ("chain.row_duals", "crawlsim/kernel/chain.py",
      "        bound = 2.0 * RTOL * s[i]\n", "        bound = np.inf\n", [KKT]),
+    ("sampling.crossing curvature bound", "crawlsim/kernel/sampling.py",
+     "    bound = h * h / 8.0 * curvature(z, linear, H)\n", "    bound = 0.0\n",
+     [EXACT + "::test_tangential_contact_of_a_fourier_offset_between_samples"]),
+    ("eventloop.certify_samples", "crawlsim/kernel/eventloop.py",
+     "        if primal > tol_p or dual > tol_d or comp > tol_p:", "        if False:",
+     [KERNEL + "::test_compiled_loop_samples_taken_at_wrong_times_raise"]),
 ]
 
 

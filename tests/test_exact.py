@@ -231,29 +231,119 @@ def test_tangential_contact_of_a_fourier_offset_between_samples():
         assert np.sum(rec.multipliers) == pytest.approx(d, abs=1e-15)
 
 
-def test_sampled_crossing_survives_a_bracket_the_scalar_rounds_differently(monkeypatch):
+def test_sampled_crossing_survives_a_bracket_the_scalar_rounds_differently():
     """f = -cos 2 pi u (a two-harmonic basis) crosses t just below the sample F[k+1] > t; if
-    the scalar evaluation of f rounds below t at that sample (emulated by lowering it by
-    delta), the bracket [s_k, s_{k+1}] has no sign change: the crossing is taken at its end
-    and the zero reported is still the root of the scalar f, -cos 2 pi u = delta, not a brentq
-    error."""
+    the tabulated sample rounds above t but the scalar evaluation of f at it below (emulated by
+    raising the tabulated sample by delta), the bracket [s_k, s_{k+1}] has no sign change: the
+    crossing is taken at its end and the zero reported is still the root of the scalar f,
+    -cos 2 pi u = 0 at u = 1/4, not a failed brentq."""
+    from crawlsim.kernel import sampling
     from crawlsim.model.offsets import Basis
 
-    offset = {"kind": "fourier", "mean": 1.0, "cos": [0.25, 0.125]}
-    stepper = EventStepper(generic([[1.0]], [[1.0]], [offset], [0.0]))
-    b = stepper.basis
-    Z = np.zeros((b.size, 1))
-    Z[b.first_harmonic, 0] = -1.0
-    cells = max(4, int(math.ceil(stepper.cells_per_cycle * max(b.harmonics, 1))))
-    s = np.linspace(0.0, 1.0, cells + 1)
+    b = Basis(False, 2)
+    z = np.zeros(b.size)
+    z[b.first_harmonic] = -1.0
+    cells = sampling.cells(0.0, 1.0, 64, b.harmonics)
+    s = np.empty(cells + 1)
+    sampling.grid(0.0, 1.0, cells, s)
+    np.testing.assert_array_equal(s, np.linspace(0.0, 1.0, cells + 1))
     k = int(np.searchsorted(s, 1 / 3)) - 1  # the cell of the crossing of t ~ 1/2
     delta = 2e-3
-    tol = np.array([-math.cos(2 * math.pi * s[k + 1]) - delta / 2])
-    exact_scalar = Basis.scalar
-    monkeypatch.setattr(Basis, "scalar", lambda self, x, coef: exact_scalar(self, x, coef) - delta)
-    assert stepper.basis.scalar(float(s[k + 1]), Z[:, 0]) < tol[0]  # no sign change in the cell
-    found = stepper._sampled(Z, tol, 0.0, 1.0)
-    assert found[0] == pytest.approx(math.acos(-delta) / (2 * math.pi), abs=1e-13)
+    tol = b.scalar(float(s[k + 1]), z) + delta / 2
+    PHIS = b.values(s)
+    PHIS[k + 1, b.first_harmonic] -= delta  # F[k+1] = f(s_{k+1}) + delta > tol
+    assert PHIS[k + 1] @ z > tol > b.scalar(float(s[k + 1]), z)  # no sign change in the cell
+    filled = np.array([cells + 1])  # every sample tabulated (the perturbed ones)
+    found = sampling.crossing(z, tol, 0.0, 1.0, False, 2, 1.0, s, PHIS, filled)
+    assert found == pytest.approx(0.25, abs=1e-15)
+    # the same f and tol, the samples exact: the crossing is where f = 0 as well, and the
+    # time above tol (the zero counts) is after s_k
+    exact_found = sampling.crossing(z, tol, 0.0, 1.0, False, 2, 1.0, s, b.values(s),
+                                    np.array([cells + 1]))
+    assert exact_found == pytest.approx(0.25, abs=1e-15)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_compiled_brent_steps_are_scipys(seed):
+    """`crawlsim.kernel.sampling` runs scipy's brentq and bounded minimisation step for step:
+    on random sums of harmonics and a linear part, the roots and maxima are scipy's, bit for
+    bit (both evaluate f by `Basis.scalar`, which is `sampling.scalar`: phi(u) @ z to
+    roundoff)."""
+    from scipy.optimize import brentq, minimize_scalar
+
+    from crawlsim.kernel import sampling
+    from crawlsim.model.offsets import Basis
+
+    rng = np.random.default_rng(seed)
+    roots = 0
+    for _ in range(200):
+        linear, H = bool(rng.integers(2)), int(rng.integers(1, 4))
+        b = Basis(linear, H)
+        z = rng.normal(size=b.size) * 10.0 ** rng.uniform(-3, 3)
+        lo, hi = sorted(rng.uniform(0, 1, 2))
+        assert b.scalar(lo, z) == pytest.approx((b.values(lo) @ z)[0],
+                                                abs=1e-14 * float(np.sum(np.abs(z))))
+        res = minimize_scalar(lambda x, b=b, z=z: -b.scalar(x, z), bounds=(lo, hi),
+                              method="bounded", options={"xatol": 1e-15})
+        assert sampling.maximum(z, lo, hi, linear, H) == (res.x, -res.fun)
+        t = float(rng.uniform(-0.3, 0.3) * np.sum(np.abs(z)))
+        if (b.scalar(lo, z) - t) * (b.scalar(hi, z) - t) < 0:
+            roots += 1
+            expected = brentq(lambda x, b=b, z=z, t=t: b.scalar(x, z) - t, lo, hi, xtol=1e-15)
+            assert sampling.brentq(z, t, lo, hi, linear, H) == expected
+    assert roots >= 30
+
+
+def test_sampled_crossing_finds_the_zero_before_the_tolerance():
+    """f(u) = -1/2 + cos 2 pi (u - 0.6) + 0.2 cos 4 pi (u - 0.6) - 0.1 u has no closed form: its
+    first upward zero after u0 = 0.1 is the root of f (checked against a fine grid), and with a
+    tolerance above max f there is none; nor after a horizon before it."""
+    from crawlsim.kernel import sampling
+    from crawlsim.model.offsets import Basis
+
+    b = Basis(True, 2)
+    p = 2 * math.pi * 0.6
+    z = np.array([-0.5, -0.1, math.cos(p), math.sin(p), 0.2 * math.cos(2 * p),
+                  0.2 * math.sin(2 * p)])
+    u = np.linspace(0.1, 1.0, 2_000_001)
+    f = b.values(u) @ z
+    up = np.flatnonzero((f[:-1] < 0) & (f[1:] >= 0))
+    expected = u[up[0]]
+
+    def find(tol, horizon=1.0):
+        count = sampling.cells(0.1, 1.0, 64, 2)
+        S = np.empty(count + 1)
+        sampling.grid(0.1, 1.0, count, S)
+        return sampling.crossing(z, tol, 0.1, 1.0, True, 2, horizon, S,
+                                 np.empty((count + 1, b.size)), np.zeros(1, dtype=np.int64))
+
+    assert find(1e-12) == pytest.approx(expected, abs=1e-6)
+    assert abs(b.scalar(find(1e-12), z)) <= 1e-14
+    assert find(float(np.max(f)) + 1e-9) == math.inf
+    assert find(1e-12, horizon=expected - 0.05) == math.inf
+
+
+@pytest.mark.parametrize("seed", [18, 5, 4])
+def test_sampled_zeros_and_jumps_stay_in_the_compiled_loop(seed):
+    """Corpus gaits whose offsets need sampled zeros (a linear part and harmonics, or several
+    harmonics) and whose steps signals jump: every period runs in the compiled loop (no
+    handoff), and its states, slips and event times are those of the Python loop to roundoff
+    (the same certified KKT points and the same sampled zeros)."""
+    from crawlsim.gait.corpus import random_gait
+
+    process = compile_gait(random_gait(seed, blocks=(2, 5), stiffness_ratio=1e6,
+                                       friction_ratio=1e3), 100)
+    compiled, python = EventStepper(process), EventStepper(process, kernel=False)
+    assert compiled._loop is not None and compiled.basis.harmonics + compiled.basis.linear >= 2
+    assert compiled._jump.any()
+    for _ in range(2):
+        a, b = compiled.step_period(), python.step_period()
+        scale = max(1.0, float(np.max(np.abs(b.w))))
+        np.testing.assert_allclose(a.w, b.w, rtol=0, atol=1e-11 * scale)
+        np.testing.assert_allclose(a.multipliers, b.multipliers, rtol=0,
+                                   atol=1e-11 * max(1.0, float(np.max(np.abs(b.multipliers)))))
+        np.testing.assert_allclose(a.events.t, b.events.t, rtol=0, atol=1e-12)
+    assert compiled._loop is not None and compiled._loop.handoffs == 0
 
 
 # -- the paper's Section 5 maps ---------------------------------------------------------------

@@ -35,6 +35,10 @@ CRAWLERS = sorted(p for p in [*ROOT.glob("gaits/*.yaml"), *ROOT.glob("gaits/pape
                   if "sweeping-process" not in p.read_text())
 #: Few periods of short chains: the same steps run as Python in the subprocess.
 BITWISE = ("inching-2", "peristalsis-4", "smooth-friction-3", "anchoring-2")
+#: Corpus gaits (`crawlsim.gait.corpus`) whose offsets need sampled zeros and jump projections:
+#: a linear part and three harmonics (seed 18), a linear part and one harmonic (5), three
+#: harmonics (4), each with steps signals.
+BITWISE_SEEDS = (18, 5, 4)
 
 
 def test_kernel_constants_are_the_kkt_policy():
@@ -92,10 +96,11 @@ def test_compiled_event_loop_changes_nothing(path, monkeypatch):
 
 
 def test_example_crawlers_take_the_compiled_event_loop():
-    """Every example crawler whose offsets are linear or one harmonic runs compiled."""
+    """Every example crawler runs compiled, whatever its offsets' basis (linear, one harmonic,
+    or several: smooth-friction-3, whose zeros are sampled)."""
     names = {p.stem for p in CRAWLERS
              if EventStepper(compile_gait(load_gait(p)))._loop is not None}
-    assert {"inching-2", "peristalsis-4", "anchoring-2", "earthworm-100"} <= names
+    assert names == {p.stem for p in CRAWLERS} and "smooth-friction-3" in names
 
 
 def test_corrupted_piece_fails_the_sample_certificate():
@@ -147,8 +152,13 @@ from crawlsim.model.process import compile_gait
 from crawlsim.integrate.stepping import CatchUpStepper
 out = {}
 from crawlsim.integrate.exact import EventStepper
+from crawlsim.gait.corpus import random_gait
 for path in json.loads(sys.argv[1]):
-    process = compile_gait(load_gait(path))
+    if path.startswith("seed "):  # a corpus gait of 2-5 blocks at 100 steps per period
+        process = compile_gait(random_gait(int(path[5:]), blocks=(2, 5), stiffness_ratio=1e6,
+                                           friction_ratio=1e3), 100)
+    else:
+        process = compile_gait(load_gait(path))
     for stepper in (CatchUpStepper(process), EventStepper(process)):
         records = [stepper.step_period() for _ in range(2)]
         out[f"{path} {type(stepper).__name__}"] = [
@@ -171,10 +181,11 @@ def _periods(paths, out: Path, disable_jit: bool) -> dict:
 
 
 def test_compiled_and_python_kernels_agree_bit_for_bit(tmp_path):
-    """Two periods of catch-up and of the exact integrator (its compiled event loop on three
-    gaits, the Python loop with the kernel's velocity problems on smooth-friction-3): states,
-    slips, event times and energy ledgers, bit for bit."""
+    """Two periods of catch-up and of the exact integrator (its compiled event loop, with
+    closed-form and sampled zeros, `crawlsim.kernel.sampling`): states, slips, event times and
+    energy ledgers, bit for bit."""
     paths = [str(ROOT / "gaits" / f"{name}.yaml") for name in BITWISE]
+    paths += [f"seed {seed}" for seed in BITWISE_SEEDS]
     compiled = _periods(paths, tmp_path / "compiled.json", disable_jit=False)
     python = _periods(paths, tmp_path / "python.json", disable_jit=True)
     assert compiled.keys() == python.keys() and len(compiled) == 2 * len(paths)

@@ -139,10 +139,9 @@ class _CompiledLoop:
 
     @staticmethod
     def of(stepper: EventStepper) -> _CompiledLoop | None:
-        """The loop for crawlers whose offsets are linear, or one harmonic (with or without a
-        linear part); None where the Python loop is the only one."""
-        basis = stepper.basis
-        if not isinstance(stepper.poly, ChainPolyhedron) or basis.harmonics > 1:
+        """The loop for crawlers (every basis of offsets); None for a generic process, whose
+        only loop is the Python one."""
+        if not isinstance(stepper.poly, ChainPolyhedron):
             return None
         return _CompiledLoop(stepper)
 
@@ -214,7 +213,8 @@ class _CompiledLoop:
             self.terms[1], self.rows[0], self.rows[1], out["W"], out["LAMC"], out["ev_t"],
             out["ev_w"], out["ev_dx"], out["tr_u"], out["tr_piece"], out["tr_signs"],
             out["tr_cause"], out["tr_hit"], out["bounds"], out["products"], out["jump_piece"],
-            out["jump_u"], out["jump_w"], out["jump_lam"], out["counts"], out["report"])
+            out["jump_u"], out["jump_w"], out["jump_lam"], out["counts"], out["report"],
+            s.cells_per_cycle)
         return out
 
     def _record(self, s: EventStepper, out: dict[str, Any]) -> PeriodRecord:

@@ -36,13 +36,13 @@ level up. Rows still degenerate after `DECISION_ORDERS` orders stay tight withou
 (their gap and rate vanish identically, as for piecewise-linear offsets). Every such problem is
 solved by the kernel (Clarabel proposes only when its updates do not settle).
 
-**Where it runs.** For a crawler whose offsets are linear or one harmonic (with or without a
-linear part), the whole period, every step above and the certificate of every sample, runs in
-the compiled event loop `crawlsim.kernel.eventloop` (numba; one source, which runs as Python
-under ``NUMBA_DISABLE_JIT=1``). A period it cannot finish on its own (a velocity problem or a
-jump projection whose active-set updates do not settle, a dependent tight set, a zero that
-needs sampling) is handed over whole to the Python loop below, which decides with Clarabel;
-generic processes and offsets with several harmonics always take the Python loop. A failed
+**Where it runs.** For a crawler, the whole period, every step above and the certificate of
+every sample, runs in the compiled event loop `crawlsim.kernel.eventloop` (numba; one source,
+which runs as Python under ``NUMBA_DISABLE_JIT=1``), whatever the offsets' basis. A period it
+cannot finish on its own (a velocity problem or a jump projection whose active-set updates do
+not settle, a dependent tight set) is handed over whole to the Python loop below, which decides
+with Clarabel; generic processes always take the Python loop. Zeros without a closed form are
+found by the same compiled sampling (`crawlsim.kernel.sampling`) in both loops. A failed
 certificate is a `CertificateError` in both.
 
 **Robustness.** More than ``max_events`` events in one period, or `ZENO_EVENTS` events within
@@ -58,7 +58,6 @@ event times is in ``PeriodRecord.events``.
 
 from __future__ import annotations
 
-import math
 import warnings
 from collections import deque
 from dataclasses import dataclass
@@ -85,7 +84,7 @@ DECISION_ORDERS = 4
 #: Sampling cells per cycle and harmonic where no closed form gives the zeros.
 CELLS_PER_CYCLE = 64
 #: Periods the compiled event loop may hand over to the Python loop before a stepper stops
-#: trying it (a gait whose zeros need sampling, or whose velocity problems need Clarabel).
+#: trying it (a gait whose velocity problems or jumps need Clarabel).
 LOOP_HANDOFFS = 3
 
 
@@ -157,9 +156,9 @@ class EventStepper(PeriodStepper):
 
     # -- one period -------------------------------------------------------------------------
     def _step_impl(self) -> PeriodRecord:
-        """One period, sampled on ``process.times``: in the
-        compiled event loop (`crawlsim.kernel.eventloop`) for a crawler whose offsets have
-        closed-form zeros, else (or where that loop hands the period over) in Python."""
+        """One period, sampled on ``process.times``: in the compiled event loop
+        (`crawlsim.kernel.eventloop`) for a crawler, else (or where that loop hands the period
+        over) in Python."""
         if self._loop is not None:
             record = self._loop.period(self)
             if record is not None:
@@ -170,8 +169,8 @@ class EventStepper(PeriodStepper):
         return self._python_period()
 
     def _python_period(self) -> PeriodRecord:
-        """One period with the event loop in Python (generic processes, sampled zeros, and the
-        periods the compiled loop hands over)."""
+        """One period with the event loop in Python (generic processes, and the periods the
+        compiled loop hands over)."""
         p, T = self.process, self.process.period
         poly, pieces = self.poly, self.pieces
         G, n, m = p.steps, poly.n, poly.m
@@ -449,54 +448,18 @@ class EventStepper(PeriodStepper):
         return out
 
     def _sampled(self, Z: np.ndarray, tol: np.ndarray, u0: float, u1: float) -> np.ndarray:
-        """Certified sampling: samples every 1/(64 H) cycle; between two samples f can exceed
-        its tolerance only if the larger sample plus h^2/8 max|f''| does (the linear
-        interpolant's error bound), so only such cells are refined (brentq, or a bounded
-        maximisation for a touch between samples)."""
-        from scipy.optimize import brentq, minimize_scalar
+        """Certified sampling, compiled (`crawlsim.kernel.sampling`, the rule of its module
+        docstring): samples every 1/(64 H) cycle, and only the cells where the curvature bound
+        allows a crossing searched (Brent's bounded maximisation and brentq)."""
+        from crawlsim.kernel.sampling import crossings
 
         b = self.basis
-        out = np.full(Z.shape[1], np.inf)
-        cells = max(4, int(math.ceil((u1 - u0) * self.cells_per_cycle * max(b.harmonics, 1))))
-        s = np.linspace(u0, u1, cells + 1)
-        F = b.values(s) @ Z
-        h = (u1 - u0) / cells
-        bound = h * h / 8.0 * b.curvature_bound(Z)
-        suspect = np.maximum(F[:-1], F[1:]) + bound > tol
-        for r in np.flatnonzero(suspect.any(axis=0)):
-            z, t = Z[:, r], float(tol[r])
-
-            def f(x: float, z: np.ndarray = z) -> float:
-                return b.scalar(x, z)
-
-            for k in np.flatnonzero(suspect[:, r]):
-                left, right = float(s[k]), float(s[k + 1])
-                if F[k, r] > t:
-                    continue  # above its tolerance from the start of the cell: not a crossing
-                if F[k + 1, r] > t:
-                    top = right
-                else:
-                    res = minimize_scalar(lambda x, f=f: -f(x), bounds=(left, right),
-                                          method="bounded", options={"xatol": 1e-15})
-                    if -res.fun <= t:
-                        continue
-                    top = float(res.x)
-                # F (the tabulated samples) and f (the scalar evaluation) may round differently
-                # at the bracket's ends: a bracket without a sign change has its crossing at an
-                # end (left when f is already above t there, else top, where F is above t)
-                f_left, f_top = f(left) - t, f(top) - t
-                if f_left * f_top > 0.0:
-                    over = left if f_left > 0.0 else top
-                else:
-                    over = brentq(lambda x, f=f, t=t: f(x) - t, left, top, xtol=1e-15)
-                below = np.flatnonzero(F[:k + 1, r] < 0.0)
-                zero = u0
-                if below.size:
-                    a = float(s[below[-1]])
-                    zero = brentq(f, a, over, xtol=1e-15) if f(a) < 0.0 < f(over) else a
-                out[r] = zero if zero > u0 else max(over, np.nextafter(u0, u1))
-                break
-        out[out >= u1] = np.inf
+        out = np.empty(Z.shape[1])
+        crossings(np.ascontiguousarray(Z, dtype=float), np.ascontiguousarray(tol, dtype=float),
+                  float(u0), float(u1), b.linear, b.harmonics, self.cells_per_cycle, out)
+        if np.isnan(out).any():  # pragma: no cover - Brent's method converges on a bracket
+            raise EventError(f"{self.process.name}: no zero crossing found in a sampled cell of "
+                             f"the cycles ({u0:.15g}, {u1:.15g})")
         return out
 
     # -- certificate of the sampled trajectory ---------------------------------------------------

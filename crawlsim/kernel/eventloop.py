@@ -5,19 +5,20 @@ code: at every event the next active set from Moreau's velocity problems, order 
 (`decide`); on the piece that follows, w(u) = base + phi(u) @ Wc and the block slips
 dx(u) = dx0 - phi(u) @ Ydx from one factorisation of the chain's tridiagonal KKT system
 (`piece`, O(N), the factor and solve of `crawlsim.kernel.chain`); the next zero crossing of every
-gap and slip rate in closed form (`next_event`, `crawlsim.kernel.events`); the grid samples and
-their certificate (`certify_samples`); and at a jump of c(t) the certified projection onto
-K(t+) (`jump`). The formulas, tolerances and decisions are those of the module docstring of
+gap and slip rate (`next_event`: in closed form, `crawlsim.kernel.events`, or by certified
+sampling, `crawlsim.kernel.sampling`); the grid samples and their certificate
+(`certify_samples`); and at a jump of c(t) the certified projection onto K(t+) (`jump`). The
+formulas, tolerances and decisions are those of the module docstring of
 `crawlsim.integrate.exact`, which documents them; the rows of a chain are those of
 `crawlsim.kernel.kkt.ChainPolyhedron` (row i < N: block i at its forward limit, row N + i at its
 backward one), and an active set is its signs (+1, -1, 0 per block).
 
 The loop returns a status. DONE: the period is in the output arrays. HANDOFF: a step the
 compiled code does not take (a velocity problem or projection whose updates do not settle, a
-dependent set, a zero with no closed form); the caller runs the period on its Python path,
-which decides with Clarabel. FAILED_PIECE: the certificate of a grid sample failed (``report``).
-TOO_MANY / ZENO: the event guards fired. OVERFLOW: the event arrays are full (the caller
-enlarges them and runs the period again).
+dependent set, a root search that does not converge; ``report[R_REASON]`` says which); the
+caller runs the period on its Python path, which decides with Clarabel. FAILED_PIECE: the
+certificate of a grid sample failed (``report``). TOO_MANY / ZENO: the event guards fired.
+OVERFLOW: the event arrays are full (the caller enlarges them and runs the period again).
 
 Every function takes plain arrays and scalars; with ``NUMBA_DISABLE_JIT=1`` the same source runs
 as Python.
@@ -30,7 +31,7 @@ import math
 import numpy as np
 from numba import njit
 
-from crawlsim.kernel import chain, events
+from crawlsim.kernel import chain, events, sampling
 from crawlsim.kernel.piece import (  # noqa: F401 - eventloop.piece etc. are its entry points too
     apply,
     basis_values,
@@ -49,13 +50,21 @@ RTOL = chain.RTOL
 DECISION_ORDERS = 4
 #: Two rows hit within this many cycles of the first crossing are hit together.
 SIMULTANEOUS = 1e-13
+#: Restarts of the projection at a jump of c from the set where its primal-dual updates
+#: stopped: a jump may change more rows than `chain.UPDATE_ITERATIONS` updates do when the
+#: tight set, nearly every block, only admits them one at a time.
+JUMP_RESTARTS = 8
 
 DONE, HANDOFF, FAILED_PIECE, TOO_MANY, ZENO, OVERFLOW = range(6)
 #: Transition causes (`crawlsim.integrate.stepping.TransitionCause`), in this order.
 CAUSES = ("edge", "release", "hit", "jump")
 EDGE, RELEASE, HIT, JUMP = range(4)
-#: Entries of ``report``.
-R_U, R_INDEX, R_PRIMAL, R_DUAL, R_TOLP, R_TOLD, R_COMP = range(7)
+#: Entries of ``report`` (R_REASON: why a period was handed over, one of HANDOFF_REASONS).
+R_U, R_INDEX, R_PRIMAL, R_DUAL, R_TOLP, R_TOLD, R_COMP, R_REASON = range(8)
+#: Why the loop hands a period over: an event's active set (a velocity problem not settled by
+#: the kernel's updates, or a dependent set), a zero the loop cannot find, a jump projection.
+HANDOFF_REASONS = ("decide", "zero", "jump")
+H_DECIDE, H_ZERO, H_JUMP = range(3)
 #: Entries of ``counts``.
 C_EVENTS, C_TRANSITIONS, C_PIECES, C_JUMPS = range(4)
 
@@ -151,36 +160,32 @@ def decide(k: np.ndarray, c_scale: float, linear: bool, H: int, coef: np.ndarray
 def crossing(z: np.ndarray, tol: float, u0: float, u1: float, linear: bool, H: int,
              phi0: np.ndarray, horizon: float) -> float:
     """The first upward zero crossing of f = phi @ z in (u0, u1) that goes on to exceed tol
-    (`crawlsim.kernel.events`); inf if none, NaN where the basis has no closed form for f.
-    inf also for a harmonic f that stays below zero on [u0, horizon] (phi0 = phi(u0)): its
-    crossing, where f = 0 or tol, is after horizon (the caller's earliest event so far)."""
+    (`crawlsim.kernel.events`); inf if none, NaN where the basis has no closed form for f
+    (several harmonics, or one and a linear part: `crawlsim.kernel.sampling`). inf also for an
+    f that stays below zero on [u0, horizon] (phi0 = phi(u0)): its crossing, where f = 0 or
+    tol, is after horizon (the caller's earliest event so far)."""
     nb = z.shape[0]
     if nb == 1:
         return np.inf
     if H == 0:
         return events.linear_crossing(z[0], z[1], tol, u0, u1)
-    # f <= a + max(s u0, s u1) + |alpha| + |beta| on the piece: a row that cannot reach its
+    # f <= top and |f'| <= slope on the piece (`sampling.reach`): a row that cannot reach its
     # tolerance has no event (the closed forms and the sampling agree), without their trig
     # (the bound's own roundoff is covered by 1e-12 of its terms' size)
-    top = z[0] + abs(z[nb - 2]) + abs(z[nb - 1])
-    size = abs(z[0]) + abs(z[nb - 2]) + abs(z[nb - 1])
-    if linear:
-        top += max(z[1] * u0, z[1] * u1)
-        size += abs(z[1]) * max(abs(u0), abs(u1))
+    top, size, slope = sampling.reach(z, u0, u1, linear, H)
     if top + 1e-12 * size < tol:
         return np.inf
-    if H != 1 or (linear and z[1] != 0.0):
-        return np.nan
-    alpha, beta = z[nb - 2], z[nb - 1]
-    # f(u) <= f(u0) + 2 pi (|alpha| + |beta|) (u - u0) on [u0, horizon], without trig: below
-    # zero there (by more than the roundoff of f(u0) and of the crossing's own closed form,
-    # 1e-12 of its terms' size), f has neither its zero nor its tolerance before horizon
+    # f(u) <= f(u0) + slope (u - u0) on [u0, horizon], without trig: below zero there (by
+    # more than the roundoff of f(u0) and of the crossing's own closed form, 1e-12 of its
+    # terms' size), f has neither its zero nor its tolerance before horizon
     f0 = 0.0
     for b in range(nb):
         f0 += z[b] * phi0[b]
-    if f0 + TWO_PI * (abs(alpha) + abs(beta)) * (horizon - u0) + 1e-12 * size < 0.0:
+    if f0 + slope * (horizon - u0) + 1e-12 * size < 0.0:
         return np.inf
-    return events.harmonic_crossing(z[0], alpha, beta, tol, u0, u1)
+    if H != 1 or (linear and z[1] != 0.0):
+        return np.nan
+    return events.harmonic_crossing(z[0], z[nb - 2], z[nb - 1], tol, u0, u1)
 
 
 @njit(cache=True)
@@ -208,10 +213,12 @@ def rate_tolerance(coef: np.ndarray, signs: np.ndarray, Rdx: np.ndarray, inverse
 @njit(cache=True)
 def next_event(c_scale: float, linear: bool, H: int, coef: np.ndarray, signs: np.ndarray,
                base: np.ndarray, Wc: np.ndarray, Ydx: np.ndarray, inverse: float, u0: float,
-               u1: float, hit: np.ndarray, Rdx: np.ndarray, z: np.ndarray) -> tuple[float, bool]:
+               u1: float, hit: np.ndarray, Rdx: np.ndarray, z: np.ndarray,
+               cells_per_cycle: int) -> tuple[float, bool]:
     """(u, handoff) of the first event in (u0, u1) (u = inf: none), the rows newly tight in
     ``hit`` (`EventStepper._next_event`): gaps phi @ (B Wc - coef + B base e_0) of the inactive
-    rows, slip rates -dLambda/du = phi @ derivative(Y) of the active ones."""
+    rows, slip rates -dLambda/du = phi @ derivative(Y) of the active ones. Zeros without a
+    closed form by `crawlsim.kernel.sampling.crossing`, on samples of (u0, u1) tabulated once."""
     N = signs.shape[0]
     m = 2 * N
     nb = coef.shape[0]
@@ -222,6 +229,7 @@ def next_event(c_scale: float, linear: bool, H: int, coef: np.ndarray, signs: np
     first = np.inf
     phi0 = np.empty(nb)
     basis_values(u0, 0, linear, H, phi0)
+    count = 0  # the samples of (u0, u1), made on first use (closed forms need none)
     for r in range(m):
         i = r % N
         s = signs[i]
@@ -230,14 +238,22 @@ def next_event(c_scale: float, linear: bool, H: int, coef: np.ndarray, signs: np
         if (r < N and s > 0) or (r >= N and s < 0):
             for b in range(nb):
                 z[b] = s * Rdx[b, i]
-            t = crossing(z, tol_rate, u0, u1, linear, H, phi0, horizon)
+            tol = tol_rate
         else:  # the gap of row r, B Wc - coef + B base e_0 (the entries of `apply`)
             for b in range(nb):
                 g = (Wc[b, i - 1] if i > 0 else 0.0) - (Wc[b, i] if i < N - 1 else 0.0)
                 z[b] = (g if r < N else -g) - coef[b, r]
             g = (base[i - 1] if i > 0 else 0.0) - (base[i] if i < N - 1 else 0.0)
             z[0] += g if r < N else -g
-            t = crossing(z, tol_gap, u0, u1, linear, H, phi0, horizon)
+            tol = tol_gap
+        t = crossing(z, tol, u0, u1, linear, H, phi0, horizon)
+        if np.isnan(t):
+            if count == 0:
+                count = sampling.cells(u0, u1, cells_per_cycle, H)
+                S, PHIS = np.empty(count + 1), np.empty((count + 1, nb))
+                filled = np.zeros(1, dtype=np.int64)
+                sampling.grid(u0, u1, count, S)
+            t = sampling.crossing(z, tol, u0, u1, linear, H, horizon, S, PHIS, filled)
         if np.isnan(t):
             return np.inf, True
         times[r] = t
@@ -375,13 +391,19 @@ def energy_terms(k: np.ndarray, linear: bool, H: int, signs: np.ndarray, base: n
 def jump(k: np.ndarray, c_scale: float, w: np.ndarray, target: np.ndarray, signs: np.ndarray,
          w_out: np.ndarray, lam: np.ndarray, report: np.ndarray) -> int:
     """The projection of w onto K(t+) = {B v <= target} from the set ``signs``, certified by
-    `crawlsim.kernel.chain.project` (DONE only with its certificate), and LICQ at its tight
-    rows (`crawlsim.kernel.projection.ExactProjector`: a tight set that may be dependent goes to
-    the projector, which decides whether the slips are unique). Returns DONE or HANDOFF."""
+    `crawlsim.kernel.chain.project` (DONE only with its certificate; restarted where its
+    updates run out, `JUMP_RESTARTS`), and LICQ at its tight rows
+    (`crawlsim.kernel.projection.ExactProjector`: a tight set that may be dependent goes to the
+    projector, which decides whether the slips are unique). Returns DONE or HANDOFF."""
     N = signs.shape[0]
     m = 2 * N
     fixed = np.zeros(m, dtype=np.bool_)
-    if chain.project(k, c_scale, w, target, signs, fixed, w_out, lam, report) != chain.DONE:
+    status = chain.project(k, c_scale, w, target, signs, fixed, w_out, lam, report)
+    for _ in range(JUMP_RESTARTS):  # the updates go on from the set where they stopped
+        if status != chain.HANDOFF:
+            break
+        status = chain.project(k, c_scale, w, target, signs, fixed, w_out, lam, report)
+    if status != chain.DONE:
         return HANDOFF
     tol_p = report[chain.REPORT_TOLP]
     slack = np.empty(m)
@@ -473,7 +495,7 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
            TR_SIGNS: np.ndarray, TR_CAUSE: np.ndarray, TR_HIT: np.ndarray,
            PIECE_BOUNDS: np.ndarray, PIECE_TERMS: np.ndarray, JUMP_PIECE: np.ndarray,
            JUMP_U: np.ndarray, JUMP_W: np.ndarray, JUMP_LAM: np.ndarray, counts: np.ndarray,
-           report: np.ndarray) -> int:
+           report: np.ndarray, cells_per_cycle: int) -> int:
     """One period from w_start (in K(0)) with the warm set ``signs`` (left at the final set), on
     the grid ``grid`` (PHI: phi at its times):
     W and LAMC (cumulative slips) on the grid; the events, transitions, the pieces' energy
@@ -511,6 +533,7 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
         t_count = counts[C_TRANSITIONS]
         coef = COEF[p]
         if not decide(k, c_scale, linear, H, coef, u, w, forced, signs, chosen, phi, cvec, Bw):
+            report[R_U], report[R_REASON] = u, H_DECIDE
             return HANDOFF
         signs[:] = chosen
         TR_U[t_count], TR_PIECE[t_count], TR_SIGNS[t_count] = u, p, signs
@@ -519,8 +542,9 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
         inverse, gram = piece(k, signs, w, coef, D, l, dx0, Ydx, base, Wc, f)
         u_end = edges[p + 1]
         u_e, handoff = next_event(c_scale, linear, H, coef, signs, base, Wc, Ydx, inverse, u,
-                                  u_end, forced, Rdx, z)
+                                  u_end, forced, Rdx, z, cells_per_cycle)
         if handoff:
+            report[R_U], report[R_REASON] = u, H_ZERO
             return HANDOFF
         event = u_e < u_end
         if not event:
@@ -559,6 +583,7 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
         if jumps[edge]:
             report[R_U] = u
             if jump(k, c_scale, w, TARGET[edge], signs, w_next, lam_jump, inner) != DONE:
+                report[R_REASON] = H_JUMP
                 return HANDOFF
             q = counts[C_JUMPS]
             JUMP_PIECE[q], JUMP_U[q] = p, u

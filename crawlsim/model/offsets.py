@@ -72,16 +72,12 @@ class Basis:
         return out
 
     def scalar(self, x: float, coef: np.ndarray) -> float:
-        """f(x) = phi(x) @ coef for one cycle x and one coefficient vector (no arrays)."""
-        total = float(coef[0])
-        if self.linear:
-            total += float(coef[1]) * x
-        h0 = self.first_harmonic
-        for h in range(1, self.harmonics + 1):
-            angle = TWO_PI * h * x
-            total += float(coef[h0 + 2 * h - 2]) * math.cos(angle) \
-                + float(coef[h0 + 2 * h - 1]) * math.sin(angle)
-        return total
+        """f(x) = phi(x) @ coef for one cycle x and one coefficient vector (no arrays): the
+        compiled `crawlsim.kernel.sampling.scalar` that the event loops' root searches use."""
+        from crawlsim.kernel.sampling import scalar
+
+        return float(scalar(float(x), np.ascontiguousarray(coef, dtype=float), self.linear,
+                            self.harmonics))
 
     def derivative(self, coef: np.ndarray) -> np.ndarray:
         """Coefficients (nb, ...) of f' for f = phi @ coef."""
