@@ -37,8 +37,10 @@ from crawlsim.kernel.piece import (  # noqa: F401 - eventloop.piece etc. are its
     combine,
     derivative,
     dual_scale,
+    factored_set,
     max_abs,
     piece,
+    piece_on,
     solve_rows,
 )
 
@@ -62,10 +64,10 @@ C_EVENTS, C_TRANSITIONS, C_PIECES, C_JUMPS = range(4)
 
 @njit(cache=True)
 def tight_rows(c_scale: float, linear: bool, H: int, coef: np.ndarray, u: float, w: np.ndarray,
-               forced: np.ndarray, phi: np.ndarray, cvec: np.ndarray,
-               Bw: np.ndarray) -> np.ndarray:
+               forced: np.ndarray, phi: np.ndarray, cvec: np.ndarray, Bw: np.ndarray,
+               candidates: np.ndarray) -> None:
     """The rows tight at w to the primal tolerance of a step with no multipliers, and
-    ``forced`` (the rows an event hit): the candidates of `decide`."""
+    ``forced`` (the rows an event hit), into ``candidates``: the candidates of `decide`."""
     m = Bw.shape[0]
     basis_values(u, 0, linear, H, phi)
     combine(phi, coef, cvec)
@@ -75,10 +77,8 @@ def tight_rows(c_scale: float, linear: bool, H: int, coef: np.ndarray, u: float,
         if abs(cvec[r]) < np.inf:
             c_size = max(c_size, abs(cvec[r]))
     tol = RTOL * max(max(c_scale, c_size), 2.0 * max_abs(w))
-    candidates = np.zeros(m, dtype=np.bool_)
     for r in range(m):
         candidates[r] = Bw[r] - cvec[r] >= -tol or forced[r]
-    return candidates
 
 
 @njit(cache=True)
@@ -101,27 +101,31 @@ def settle_rows(candidates: np.ndarray, fixed: np.ndarray, lam: np.ndarray, Bv: 
 
 
 @njit(cache=True)
-def decide(k: np.ndarray, c_scale: float, linear: bool, H: int, coef: np.ndarray, u: float,
-           w: np.ndarray, forced: np.ndarray, warm: np.ndarray, out: np.ndarray, phi: np.ndarray,
-           cvec: np.ndarray, Bw: np.ndarray) -> bool:
+def decide(k: np.ndarray, kmax: float, c_scale: float, linear: bool, H: int, coef: np.ndarray,
+           u: float, w: np.ndarray, forced: np.ndarray, warm: np.ndarray, out: np.ndarray,
+           phi: np.ndarray, cvec: np.ndarray, Bw: np.ndarray, masks: np.ndarray,
+           rows_m: np.ndarray, rows_n: np.ndarray, sets: np.ndarray, factored: np.ndarray,
+           D: np.ndarray, l: np.ndarray, norms: np.ndarray, report: np.ndarray) -> bool:
     """The active set on (u, u + eps) into ``out`` (`EventStepper._decide`): the rows tight at
     w (and ``forced``), decided by the velocity problems of orders 1, 2, ...; False when one of
-    them is not settled by the kernel's updates or the result is dependent (HANDOFF)."""
-    candidates = tight_rows(c_scale, linear, H, coef, u, w, forced, phi, cvec, Bw)
+    them is not settled by the kernel's updates or the result is dependent (HANDOFF).
+
+    Each velocity problem is `crawlsim.kernel.chain.project_rows` (w_trial = 0) on the period's
+    scratch: ``masks`` (3, 2N), ``rows_m`` (4, 2N), ``rows_n`` (5, N; its last row stays 0),
+    ``sets`` (2 + UPDATE_ITERATIONS, N) and the factor of the last set (``factored``, D, l,
+    ``norms``, `crawlsim.kernel.piece.factored_set`), refactored only when the set changes."""
+    candidates = masks[0]
+    tight_rows(c_scale, linear, H, coef, u, w, forced, phi, cvec, Bw, candidates)
     out[:] = 0
     if not candidates.any():
         return True
     N = out.shape[0]
     m = 2 * N
-    fixed = np.zeros(m, dtype=np.bool_)
-    rows = np.zeros(m, dtype=np.bool_)
-    signs = np.empty(N, dtype=np.int8)
-    v = np.empty(N - 1)
-    lam = np.empty(m)
-    report = np.zeros(6)
-    zero = np.zeros(N - 1)
-    c = np.empty(m)
-    told = np.empty(m)
+    fixed, rows = masks[1], masks[2]
+    fixed[:] = False
+    signs = sets[0]
+    lam, c, told, slack = rows_m[0], rows_m[1], rows_m[2], rows_m[3]
+    dx, f, res, v, zero = rows_n[0], rows_n[1], rows_n[2], rows_n[3, :N - 1], rows_n[4, :N - 1]
     for order in range(1, DECISION_ORDERS + 1):
         basis_values(u, order, linear, H, phi)
         combine(phi, coef, cvec)
@@ -133,8 +137,9 @@ def decide(k: np.ndarray, c_scale: float, linear: bool, H: int, coef: np.ndarray
             return False
         for i in range(N):
             signs[i] = 1 if rows[i] else (-1 if rows[N + i] else 0)
-        if chain.project_rows(k, c_scale, zero, c, signs, fixed, v, lam, report,
-                              told) != chain.DONE:
+        status, _ = chain.settle(k, kmax, c_scale, zero, c, signs, factored, D, l, norms, fixed,
+                                 dx, v, lam, slack, f, res, sets[1], sets[2:], report, told)
+        if status != chain.DONE:
             return False
         apply(v, Bw)
         if not settle_rows(candidates, fixed, lam, Bw, cvec, report[chain.REPORT_TOLP], told):
@@ -512,6 +517,11 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
     forced = np.zeros(m, dtype=np.bool_)
     chosen = np.empty(N, dtype=np.int8)
     inner = np.zeros(8)
+    # the velocity problems' scratch and the factor of the last set (`decide`, `piece_on`)
+    masks = np.zeros((3, m), dtype=np.bool_)
+    rows_m, rows_n = np.empty((4, m)), np.zeros((5, N))
+    sets = np.empty((2 + chain.UPDATE_ITERATIONS, N), dtype=np.int8)
+    factored, norms = np.full(N, 2, dtype=np.int8), np.zeros(2)
     W[0] = w_start
     LAMC[0] = 0.0
     counts[:] = 0
@@ -524,13 +534,15 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
             return status
         t_count = counts[C_TRANSITIONS]
         coef = COEF[p]
-        if not decide(k, c_scale, linear, H, coef, u, w, forced, signs, chosen, phi, cvec, Bw):
+        if not decide(k, kmax, c_scale, linear, H, coef, u, w, forced, signs, chosen, phi, cvec,
+                      Bw, masks, rows_m, rows_n, sets, factored, D, l, norms, inner):
             return HANDOFF
         signs[:] = chosen
         TR_U[t_count], TR_PIECE[t_count], TR_SIGNS[t_count] = u, p, signs
         TR_CAUSE[t_count], TR_HIT[t_count] = cause, forced
         counts[C_TRANSITIONS] = t_count + 1
-        inverse, gram = piece(k, signs, w, coef, D, l, dx0, Ydx, base, Wc, f)
+        factored_set(k, signs, factored, D, l, norms)
+        inverse, gram = piece_on(k, signs, w, coef, D, l, norms, dx0, Ydx, base, Wc, f)
         u_end = edges[p + 1]
         u_e, handoff = next_event(c_scale, linear, H, coef, signs, base, Wc, Ydx, inverse, u,
                                   u_end, forced, Rdx, z)

@@ -116,6 +116,32 @@ def piece(k: np.ndarray, signs: np.ndarray, w0: np.ndarray, coef: np.ndarray, D:
     """w(u) = base + phi(u) @ Wc and dx(u) = dx0 - phi(u) @ Ydx on the set ``signs`` from w0:
     Lambda_A = G_A^{-1} (B_A w0 - c_A(u)) in the chain's block form L_JJ dx_J = f_J - f*_J.
     Returns (||L_JJ^{-1}||, ||L_JJ||) (zeros for the empty set)."""
+    norms = np.zeros(2)
+    for i in range(signs.shape[0]):
+        if signs[i] != 0:
+            norms[0], norms[1] = chain.factor(k, signs, D, l)
+            break
+    return piece_on(k, signs, w0, coef, D, l, norms, dx0, Ydx, base, Wc, f)
+
+
+@njit(cache=True)
+def factored_set(k: np.ndarray, signs: np.ndarray, factored: np.ndarray, D: np.ndarray,
+                 l: np.ndarray, norms: np.ndarray) -> None:
+    """The LDL^T of the set ``signs`` (`crawlsim.kernel.chain.factor`) in (D, l) and its norms
+    in ``norms``, factored only when ``factored`` (the set they hold, shared with the velocity
+    problems' `crawlsim.kernel.chain.settle`) is another set: an event's last velocity problem
+    is most often on the set of the piece that follows it."""
+    if not chain.same(factored, signs):
+        norms[0], norms[1] = chain.factor(k, signs, D, l)
+        factored[:] = signs
+
+
+@njit(cache=True)
+def piece_on(k: np.ndarray, signs: np.ndarray, w0: np.ndarray, coef: np.ndarray, D: np.ndarray,
+             l: np.ndarray, norms: np.ndarray, dx0: np.ndarray, Ydx: np.ndarray,
+             base: np.ndarray, Wc: np.ndarray, f: np.ndarray) -> tuple[float, float]:
+    """`piece` with the set already factored: (D, l) its LDL^T and ``norms`` its
+    (||L_JJ^{-1}||, ||L_JJ||)."""
     N = signs.shape[0]
     nb = coef.shape[0]
     active = False
@@ -128,7 +154,7 @@ def piece(k: np.ndarray, signs: np.ndarray, w0: np.ndarray, coef: np.ndarray, D:
     Ydx[:] = 0.0
     if not active:
         return 0.0, 0.0
-    inverse, gram = chain.factor(k, signs, D, l)
+    inverse, gram = norms[0], norms[1]
     chain.forces(w0, f)
     for i in range(N):
         dx0[i] = f[i] if signs[i] != 0 else 0.0
