@@ -135,6 +135,12 @@ def decide(k: np.ndarray, kmax: float, c_scale: float, linear: bool, H: int, coe
             rows[r] = fixed[r] or (candidates[r] and block_warm)
         if not chain.independent(rows, N):
             return False
+        if order == 1:  # the rows an event hit start in the set, where LICQ allows
+            for r in range(m):
+                if forced[r] and candidates[r] and not rows[r] and not rows[(r + N) % m]:
+                    rows[r] = True
+                    if not chain.independent(rows, N):
+                        rows[r] = False
         for i in range(N):
             signs[i] = 1 if rows[i] else (-1 if rows[N + i] else 0)
         status, _ = chain.settle(k, kmax, c_scale, zero, c, signs, factored, D, l, norms, fixed,
@@ -211,38 +217,69 @@ def rate_tolerance(coef: np.ndarray, signs: np.ndarray, Rdx: np.ndarray, inverse
 
 
 @njit(cache=True)
+def row_functions(linear: bool, H: int, coef: np.ndarray, signs: np.ndarray, base: np.ndarray,
+                  Wc: np.ndarray, Rdx: np.ndarray, tol_gap: float, tol_rate: float, u0: float,
+                  u1: float, Z: np.ndarray, reach: np.ndarray) -> None:
+    """Z[r] = the coefficients of the function of row r whose upward crossing is an event:
+    the gap phi @ (B Wc - coef + B base e_0) of an inactive row (the entries of `apply`), the
+    slip rate s phi @ Rdx of an active one; ``reach[r]``: whether it can reach its tolerance
+    on (u0, u1) by the bound `crossing` applies first for one harmonic (always True
+    otherwise), so that `next_event` calls `crossing` only for those rows, in one pass over
+    the blocks (each block's force enters its two rows)."""
+    N = signs.shape[0]
+    nb = coef.shape[0]
+    bound = H == 1 and nb > 1
+    for i in range(N):
+        s = signs[i]
+        for b in range(nb):
+            g = (Wc[b, i - 1] if i > 0 else 0.0) - (Wc[b, i] if i < N - 1 else 0.0)
+            Z[i, b] = s * Rdx[b, i] if s > 0 else g - coef[b, i]
+            Z[N + i, b] = s * Rdx[b, i] if s < 0 else -g - coef[b, N + i]
+        g = (base[i - 1] if i > 0 else 0.0) - (base[i] if i < N - 1 else 0.0)
+        if s <= 0:
+            Z[i, 0] += g
+        if s >= 0:
+            Z[N + i, 0] += -g
+    for r in range(2 * N):
+        reach[r] = True
+        if bound:  # the bound of `crossing`, the same operations
+            z = Z[r]
+            top = z[0] + abs(z[nb - 2]) + abs(z[nb - 1])
+            size = abs(z[0]) + abs(z[nb - 2]) + abs(z[nb - 1])
+            if linear:
+                top += max(z[1] * u0, z[1] * u1)
+                size += abs(z[1]) * max(abs(u0), abs(u1))
+            s = signs[r % N]
+            active = (r < N and s > 0) or (r >= N and s < 0)
+            reach[r] = not top + 1e-12 * size < (tol_rate if active else tol_gap)
+
+
+@njit(cache=True)
 def next_event(c_scale: float, linear: bool, H: int, coef: np.ndarray, signs: np.ndarray,
                base: np.ndarray, Wc: np.ndarray, Ydx: np.ndarray, inverse: float, u0: float,
-               u1: float, hit: np.ndarray, Rdx: np.ndarray, z: np.ndarray) -> tuple[float, bool]:
+               u1: float, hit: np.ndarray, Rdx: np.ndarray, Z: np.ndarray, times: np.ndarray,
+               reach: np.ndarray, phi0: np.ndarray) -> tuple[float, bool]:
     """(u, handoff) of the first event in (u0, u1) (u = inf: none), the rows newly tight in
     ``hit`` (`EventStepper._next_event`): gaps phi @ (B Wc - coef + B base e_0) of the inactive
-    rows, slip rates -dLambda/du = phi @ derivative(Y) of the active ones."""
+    rows, slip rates -dLambda/du = phi @ derivative(Y) of the active ones (`row_functions`;
+    Z, times, reach and phi0 are scratch)."""
     N = signs.shape[0]
     m = 2 * N
-    nb = coef.shape[0]
     derivative(Ydx, linear, H, Rdx)
     tol_gap = 0.5 * RTOL * c_scale
     tol_rate = rate_tolerance(coef, signs, Rdx, inverse)
-    times = np.full(m, np.inf)
+    row_functions(linear, H, coef, signs, base, Wc, Rdx, tol_gap, tol_rate, u0, u1, Z, reach)
     first = np.inf
-    phi0 = np.empty(nb)
     basis_values(u0, 0, linear, H, phi0)
     for r in range(m):
-        i = r % N
-        s = signs[i]
+        times[r] = np.inf
+        if not reach[r]:
+            continue
+        s = signs[r % N]
         # a row whose crossing is after first + SIMULTANEOUS is neither the first nor hit
         horizon = min(u1, first + SIMULTANEOUS)
-        if (r < N and s > 0) or (r >= N and s < 0):
-            for b in range(nb):
-                z[b] = s * Rdx[b, i]
-            t = crossing(z, tol_rate, u0, u1, linear, H, phi0, horizon)
-        else:  # the gap of row r, B Wc - coef + B base e_0 (the entries of `apply`)
-            for b in range(nb):
-                g = (Wc[b, i - 1] if i > 0 else 0.0) - (Wc[b, i] if i < N - 1 else 0.0)
-                z[b] = (g if r < N else -g) - coef[b, r]
-            g = (base[i - 1] if i > 0 else 0.0) - (base[i] if i < N - 1 else 0.0)
-            z[0] += g if r < N else -g
-            t = crossing(z, tol_gap, u0, u1, linear, H, phi0, horizon)
+        active = (r < N and s > 0) or (r >= N and s < 0)
+        t = crossing(Z[r], tol_rate if active else tol_gap, u0, u1, linear, H, phi0, horizon)
         if np.isnan(t):
             return np.inf, True
         times[r] = t
@@ -510,7 +547,8 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
                         np.empty(N))
     Ydx, Rdx = np.empty((nb, N)), np.empty((nb, N))
     base, Wc = np.empty(n), np.empty((nb, n))
-    z = np.empty(nb)
+    Z, times, phi0 = np.empty((m, nb)), np.empty(m), np.empty(nb)
+    reach = np.empty(m, dtype=np.bool_)
     phi, cvec, Bw = np.empty(nb), np.empty(m), np.empty(m)
     w, lam_cum = w_start.copy(), np.zeros(m)
     w_next, lam_jump = np.empty(n), np.empty(m)
@@ -545,7 +583,7 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
         inverse, gram = piece_on(k, signs, w, coef, D, l, norms, dx0, Ydx, base, Wc, f)
         u_end = edges[p + 1]
         u_e, handoff = next_event(c_scale, linear, H, coef, signs, base, Wc, Ydx, inverse, u,
-                                  u_end, forced, Rdx, z)
+                                  u_end, forced, Rdx, Z, times, reach, phi0)
         if handoff:
             return HANDOFF
         event = u_e < u_end
