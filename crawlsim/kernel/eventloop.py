@@ -39,6 +39,7 @@ from crawlsim.kernel.piece import (  # noqa: F401 - eventloop.piece etc. are its
     dual_scale,
     factored_set,
     max_abs,
+    offset_size,
     piece,
     piece_on,
     solve_rows,
@@ -195,17 +196,12 @@ def crossing(z: np.ndarray, tol: float, u0: float, u1: float, linear: bool, H: i
 
 
 @njit(cache=True)
-def rate_tolerance(coef: np.ndarray, signs: np.ndarray, Rdx: np.ndarray, inverse: float) -> float:
+def rate_tolerance(c_size: float, signs: np.ndarray, Rdx: np.ndarray, inverse: float) -> float:
     """The tolerance of the active rows' slip rates on a piece: RTOL times the larger of the
     rates' own size (sum_b |Rdx[b, i]| over the active blocks) and what the offsets' rates
-    carry through the inverse, ||L_JJ^{-1}|| 2 pi max_r sum_b |coef[b, r]|."""
-    nb = coef.shape[0]
-    c_size = 0.0
-    for r in range(2 * signs.shape[0]):
-        total = 0.0
-        for b in range(nb):
-            total += abs(coef[b, r])
-        c_size = max(c_size, total)
+    carry through the inverse, ||L_JJ^{-1}|| 2 pi max_r sum_b |coef[b, r]| (``c_size``,
+    `crawlsim.kernel.piece.offset_size`)."""
+    nb = Rdx.shape[0]
     scale = 0.0
     for i in range(signs.shape[0]):
         if signs[i] != 0:
@@ -219,13 +215,15 @@ def rate_tolerance(coef: np.ndarray, signs: np.ndarray, Rdx: np.ndarray, inverse
 @njit(cache=True)
 def row_functions(linear: bool, H: int, coef: np.ndarray, signs: np.ndarray, base: np.ndarray,
                   Wc: np.ndarray, Rdx: np.ndarray, tol_gap: float, tol_rate: float, u0: float,
-                  u1: float, Z: np.ndarray, reach: np.ndarray) -> None:
+                  u1: float, phi0: np.ndarray, Z: np.ndarray, reach: np.ndarray) -> int:
     """Z[r] = the coefficients of the function of row r whose upward crossing is an event:
     the gap phi @ (B Wc - coef + B base e_0) of an inactive row (the entries of `apply`), the
     slip rate s phi @ Rdx of an active one; ``reach[r]``: whether it can reach its tolerance
     on (u0, u1) by the bound `crossing` applies first for one harmonic (always True
     otherwise), so that `next_event` calls `crossing` only for those rows, in one pass over
-    the blocks (each block's force enters its two rows)."""
+    the blocks (each block's force enters its two rows). Returns the row that the slope bound
+    of `crossing`, f(u) <= f(u0) + 2 pi (|alpha| + |beta|) (u - u0) (phi0 = phi(u0)), lets
+    cross first (-1 if none): its crossing, sought first, bounds those of the others."""
     N = signs.shape[0]
     nb = coef.shape[0]
     bound = H == 1 and nb > 1
@@ -240,6 +238,7 @@ def row_functions(linear: bool, H: int, coef: np.ndarray, signs: np.ndarray, bas
             Z[i, 0] += g
         if s >= 0:
             Z[N + i, 0] += -g
+    best, soonest = -1, np.inf
     for r in range(2 * N):
         reach[r] = True
         if bound:  # the bound of `crossing`, the same operations
@@ -252,10 +251,22 @@ def row_functions(linear: bool, H: int, coef: np.ndarray, signs: np.ndarray, bas
             s = signs[r % N]
             active = (r < N and s > 0) or (r >= N and s < 0)
             reach[r] = not top + 1e-12 * size < (tol_rate if active else tol_gap)
+            if reach[r]:
+                f0 = 0.0
+                for b in range(nb):
+                    f0 += z[b] * phi0[b]
+                slope = TWO_PI * (abs(z[nb - 2]) + abs(z[nb - 1]))
+                if f0 >= 0.0:  # at its zero already
+                    if soonest > 0.0:
+                        best, soonest = r, 0.0
+                elif slope > 0.0 and -f0 < soonest * slope:
+                    best, soonest = r, -f0 / slope
+    return best
 
 
 @njit(cache=True)
-def next_event(c_scale: float, linear: bool, H: int, coef: np.ndarray, signs: np.ndarray,
+def next_event(c_scale: float, linear: bool, H: int, coef: np.ndarray, c_size: float,
+               signs: np.ndarray,
                base: np.ndarray, Wc: np.ndarray, Ydx: np.ndarray, inverse: float, u0: float,
                u1: float, hit: np.ndarray, Rdx: np.ndarray, Z: np.ndarray, times: np.ndarray,
                reach: np.ndarray, phi0: np.ndarray) -> tuple[float, bool]:
@@ -267,13 +278,21 @@ def next_event(c_scale: float, linear: bool, H: int, coef: np.ndarray, signs: np
     m = 2 * N
     derivative(Ydx, linear, H, Rdx)
     tol_gap = 0.5 * RTOL * c_scale
-    tol_rate = rate_tolerance(coef, signs, Rdx, inverse)
-    row_functions(linear, H, coef, signs, base, Wc, Rdx, tol_gap, tol_rate, u0, u1, Z, reach)
-    first = np.inf
+    tol_rate = rate_tolerance(c_size, signs, Rdx, inverse)
     basis_values(u0, 0, linear, H, phi0)
+    lead = row_functions(linear, H, coef, signs, base, Wc, Rdx, tol_gap, tol_rate, u0, u1, phi0,
+                         Z, reach)
+    first, t_lead = np.inf, np.inf
+    if lead >= 0:  # sought first: the horizon of the others is then short from the start
+        s = signs[lead % N]
+        active = (lead < N and s > 0) or (lead >= N and s < 0)
+        t_lead = crossing(Z[lead], tol_rate if active else tol_gap, u0, u1, linear, H, phi0, u1)
+        if np.isnan(t_lead):
+            return np.inf, True
+        first = t_lead
     for r in range(m):
-        times[r] = np.inf
-        if not reach[r]:
+        times[r] = t_lead if r == lead else np.inf
+        if not reach[r] or r == lead:
             continue
         s = signs[r % N]
         # a row whose crossing is after first + SIMULTANEOUS is neither the first nor hit
@@ -392,29 +411,25 @@ def state_at(u: float, linear: bool, H: int, signs: np.ndarray, dx0: np.ndarray,
 
 
 @njit(cache=True)
-def energy_terms(k: np.ndarray, linear: bool, H: int, signs: np.ndarray, base: np.ndarray,
-                 Wc: np.ndarray, Ydx: np.ndarray, KLc: np.ndarray, dLc: np.ndarray, Mc: np.ndarray,
-                 lc: np.ndarray, out: np.ndarray) -> None:
+def energy_terms(signs: np.ndarray, base: np.ndarray, Wc: np.ndarray, dY: np.ndarray,
+                 KLc: np.ndarray, dLc: np.ndarray, Mc: np.ndarray, lc: np.ndarray,
+                 out: np.ndarray) -> None:
     """The piece's products for `crawlsim.analysis.energy.ExactLedger` (its ``piece``):
-    (Wc + K Lc + base e_0) @ dLc^T, -Mc_A @ Y'^T and -lc_A @ Y'^T."""
+    (Wc + K Lc + base e_0) @ dLc^T, -Mc_A @ Y'^T and -lc_A @ Y'^T, dY = Y' the slips' rates
+    (`derivative` of Ydx). One pass over the links and one over the slipping blocks, each
+    product summed in ``out`` in the order of the index it sums over."""
     N = signs.shape[0]
     nb = Wc.shape[0]
-    dY = np.empty((nb, N))
-    derivative(Ydx, linear, H, dY)
     out[:] = 0.0
-    stress = np.empty(N - 1)
-    for a in range(nb):
-        # the stress coefficient a once, then its products (adding base to a = 0 only: the
-        # other terms are those of Wc + KLc + 0.0, the same numbers)
-        for i in range(N - 1):
-            stress[i] = Wc[a, i] + KLc[a, i]
+    for i in range(N - 1):
+        for a in range(nb):
+            # the stress coefficient a (adding base to a = 0 only: the other terms are those
+            # of Wc + KLc + 0.0, the same numbers)
+            stress = Wc[a, i] + KLc[a, i]
             if a == 0:
-                stress[i] += base[i]
-        for b in range(nb):
-            total = 0.0
-            for i in range(N - 1):
-                total += stress[i] * dLc[b, i]
-            out[0, a, b] = total
+                stress += base[i]
+            for b in range(nb):
+                out[0, a, b] += stress * dLc[b, i]
     for i in range(N):  # the slipping blocks only (the friction and load rows of the set)
         s = signs[i]
         if s == 0:
@@ -549,6 +564,9 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
     base, Wc = np.empty(n), np.empty((nb, n))
     Z, times, phi0 = np.empty((m, nb)), np.empty(m), np.empty(nb)
     reach = np.empty(m, dtype=np.bool_)
+    C_SIZE = np.empty(P)  # the size of each piece's offsets (`offset_size`)
+    for q in range(P):
+        C_SIZE[q] = offset_size(COEF[q])
     phi, cvec, Bw = np.empty(nb), np.empty(m), np.empty(m)
     w, lam_cum = w_start.copy(), np.zeros(m)
     w_next, lam_jump = np.empty(n), np.empty(m)
@@ -582,8 +600,8 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
         factored_set(k, signs, factored, D, l, norms)
         inverse, gram = piece_on(k, signs, w, coef, D, l, norms, dx0, Ydx, base, Wc, f)
         u_end = edges[p + 1]
-        u_e, handoff = next_event(c_scale, linear, H, coef, signs, base, Wc, Ydx, inverse, u,
-                                  u_end, forced, Rdx, Z, times, reach, phi0)
+        u_e, handoff = next_event(c_scale, linear, H, coef, C_SIZE[p], signs, base, Wc, Ydx,
+                                  inverse, u, u_end, forced, Rdx, Z, times, reach, phi0)
         if handoff:
             return HANDOFF
         event = u_e < u_end
@@ -592,10 +610,9 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
         if ledger and u_e > u:
             q = counts[C_PIECES]
             PIECE_BOUNDS[q, 0], PIECE_BOUNDS[q, 1] = u, u_e
-            energy_terms(k, linear, H, signs, base, Wc, Ydx, KLC[p], DLC[p], MC[p], LC[p],
-                         PIECE_TERMS[q])
+            energy_terms(signs, base, Wc, Rdx, KLC[p], DLC[p], MC[p], LC[p], PIECE_TERMS[q])
             counts[C_PIECES] = q + 1
-        own = dual_scale(k, kmax, c_scale, signs, coef, dx0, Ydx, base, Wc, inverse, gram)
+        own = dual_scale(k, kmax, c_scale, signs, C_SIZE[p], dx0, Ydx, base, Wc, inverse, gram)
         j_end = j
         while j_end < G1 and grid[j_end] <= u_e:
             j_end += 1

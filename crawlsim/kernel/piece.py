@@ -149,10 +149,10 @@ def piece_on(k: np.ndarray, signs: np.ndarray, w0: np.ndarray, coef: np.ndarray,
         if signs[i] != 0:
             active = True
     base[:] = w0
-    Wc[:] = 0.0
-    dx0[:] = 0.0
-    Ydx[:] = 0.0
-    if not active:
+    if not active:  # with a set, every entry below is written
+        Wc[:] = 0.0
+        dx0[:] = 0.0
+        Ydx[:] = 0.0
         return 0.0, 0.0
     inverse, gram = norms[0], norms[1]
     chain.forces(w0, f)
@@ -172,21 +172,28 @@ def piece_on(k: np.ndarray, signs: np.ndarray, w0: np.ndarray, coef: np.ndarray,
 
 
 @njit(cache=True)
-def dual_scale(k: np.ndarray, kmax: float, c_scale: float, signs: np.ndarray, coef: np.ndarray,
-               dx0: np.ndarray, Ydx: np.ndarray, base: np.ndarray, Wc: np.ndarray, inverse: float,
-               gram: float) -> float:
-    """The roundoff of the slips a piece adds (`EventStepper._dual_scale`): the dual tolerance of
-    its set at the size of its offsets, state and slips."""
-    if inverse == 0.0:
-        return 0.0
-    N = signs.shape[0]
-    nb = coef.shape[0]
+def offset_size(coef: np.ndarray) -> float:
+    """max_r sum_b |coef[b, r]|: the size of a piece's offsets and of their rates (a bound on
+    |c(u)| and |c'(u)| / 2 pi for one harmonic), once per piece of c."""
     c_size = 0.0
     for r in range(coef.shape[1]):
         total = 0.0
-        for b in range(nb):
+        for b in range(coef.shape[0]):
             total += abs(coef[b, r])
         c_size = max(c_size, total)
+    return c_size
+
+
+@njit(cache=True)
+def dual_scale(k: np.ndarray, kmax: float, c_scale: float, signs: np.ndarray, c_size: float,
+               dx0: np.ndarray, Ydx: np.ndarray, base: np.ndarray, Wc: np.ndarray, inverse: float,
+               gram: float) -> float:
+    """The roundoff of the slips a piece adds (`EventStepper._dual_scale`): the dual tolerance of
+    its set at the size of its offsets (``c_size``, `offset_size`), state and slips."""
+    if inverse == 0.0:
+        return 0.0
+    N = signs.shape[0]
+    nb = Ydx.shape[0]
     w_size = max_abs(base)
     lam_size = 0.0
     for i in range(N):
