@@ -7,6 +7,7 @@ the Python loop that takes the periods the compiled one hands back, are `crawlsi
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, NamedTuple, cast, overload
@@ -128,6 +129,8 @@ class _CompiledLoop:
         self.capacity = 64
         self.handoffs = 0
         self._scratch: dict[str, Any] = {}
+        self._spare: dict[str, np.ndarray] = {}
+        self._lamc = np.empty((0, 0))
         self._final: tuple[bytes, ActiveSet] = (b"", stepper.poly.empty)
         catchup.announce_compilation("exact")
 
@@ -179,12 +182,17 @@ class _CompiledLoop:
         N, n, m = p.blocks, s.poly.n, s.poly.m
         nb, P, G = s.basis.size, s.pieces.pieces, p.steps
         E = min(self.capacity, s.max_events + 1)
-        T2 = E + P + 2
         out = self._scratch
         # work arrays kept from period to period while they hold E events and are not more
-        # than twice that (a run's peak memory)
+        # than twice that (a run's peak memory); made with room for a quarter more, so that a
+        # period with a few more events than the last does not make them again
         if not E <= out.get("capacity", 0) <= 2 * E:
             out.clear()
+            E = min(E + E // 4, s.max_events + 1)
+        else:
+            E = out["capacity"]
+        T2 = E + P + 2
+        if "ev_t" not in out:
             out.update({
                 "capacity": E, "ev_t": np.empty(E), "ev_w": np.empty((E, n)),
                 "ev_dx": np.empty((E, N)), "tr_u": np.empty(T2),
@@ -196,9 +204,11 @@ class _CompiledLoop:
                 "jump_piece": np.empty(P + 1, dtype=np.int64), "jump_u": np.empty(P + 1),
                 "jump_w": np.empty((P + 1, 2, n)), "jump_lam": np.empty((P + 1, m)),
                 "counts": np.zeros(4, dtype=np.int64), "report": np.zeros(8)})
-        if "LAMC" not in out:  # the cumulative slips on the grid: scratch of the loop
-            out["LAMC"] = np.empty((G + 1, m))
-        out["W"] = np.empty((G + 1, n))
+        out["LAMC"] = self._lamc  # the cumulative slips on the grid: scratch of the loop
+        if out["LAMC"].shape != (G + 1, m):
+            out["LAMC"] = self._lamc = np.empty((G + 1, m))
+        out.pop("W", None)  # the last record's, which it may still hold
+        out["W"] = self._array("W", (G + 1, n))
         out["signs"] = catchup.signs_of(s.active, N)
         out["status"] = eventloop.period(
             self.k, self.c_scale, s.basis.linear, s.basis.harmonics, self.coef, s.pieces.edges,
@@ -210,6 +220,17 @@ class _CompiledLoop:
             out["tr_cause"], out["tr_hit"], out["bounds"], out["products"], out["jump_piece"],
             out["jump_u"], out["jump_w"], out["jump_lam"], out["counts"], out["report"])
         return out
+
+    def _array(self, name: str, shape: tuple[int, int]) -> np.ndarray:
+        """A new array for a period's record, or the one of an earlier record when nothing
+        refers to it any more (its reference count: this method's own two references), so
+        that a period writes its W, MU and X into memory already mapped rather than faulting
+        in fresh pages (32 MB a period at N = 1024)."""
+        a = self._spare.pop(name, None)
+        if a is None or a.shape != shape or sys.getrefcount(a) > 2:
+            a = np.empty(shape)
+        self._spare[name] = a
+        return a
 
     def _record(self, s: EventStepper, out: dict[str, Any]) -> PeriodRecord:
         from crawlsim.kernel import catchup, eventloop
@@ -226,9 +247,9 @@ class _CompiledLoop:
         if s.check_every_step:
             s._verify(W, start)
         X = x_events = None
-        MU = np.empty((LAMC.shape[0] - 1, LAMC.shape[1]))
+        MU = self._array("MU", (LAMC.shape[0] - 1, LAMC.shape[1]))
         if s.x is not None:
-            X = np.empty((LAMC.shape[0], s.x.shape[0]))
+            X = self._array("X", (LAMC.shape[0], s.x.shape[0]))
             eventloop.grid_record(LAMC, np.ascontiguousarray(s.x, dtype=float), MU, X)
             x_events = s.x + out["ev_dx"][:e]
             s.x = X[-1].copy()
