@@ -215,14 +215,17 @@ def rate_tolerance(c_size: float, signs: np.ndarray, Rdx: np.ndarray, inverse: f
 @njit(cache=True)
 def row_functions(linear: bool, H: int, coef: np.ndarray, signs: np.ndarray, base: np.ndarray,
                   Wc: np.ndarray, Rdx: np.ndarray, tol_gap: float, tol_rate: float, u0: float,
-                  u1: float, phi0: np.ndarray, Z: np.ndarray, reach: np.ndarray) -> int:
+                  u1: float, phi0: np.ndarray, Z: np.ndarray, reach: np.ndarray,
+                  slope_bound: np.ndarray) -> int:
     """Z[r] = the coefficients of the function of row r whose upward crossing is an event:
     the gap phi @ (B Wc - coef + B base e_0) of an inactive row (the entries of `apply`), the
-    slip rate s phi @ Rdx of an active one; ``reach[r]``: whether it can reach its tolerance
-    on (u0, u1) by the bound `crossing` applies first for one harmonic (always True
-    otherwise), so that `next_event` calls `crossing` only for those rows, in one pass over
-    the blocks (each block's force enters its two rows). Returns the row that the slope bound
-    of `crossing`, f(u) <= f(u0) + 2 pi (|alpha| + |beta|) (u - u0) (phi0 = phi(u0)), lets
+    slip rate s phi @ Rdx of an active one; ``reach[r]``: 0 where it cannot reach its
+    tolerance on (u0, u1) by the bound `crossing` applies first for one harmonic, 2 where
+    `crossing` then applies its slope bound f(u) <= f(u0) + 2 pi (|alpha| + |beta|) (u - u0)
+    (phi0 = phi(u0)), whose terms f(u0), 2 pi (|alpha| + |beta|) and its margin go to
+    ``slope_bound[r]``, 1 otherwise; so that `next_event` calls `crossing` only for the rows
+    that can cross before its horizon, with the same operations. One pass over the blocks
+    (each block's force enters its two rows). Returns the row that the slope bound lets
     cross first (-1 if none): its crossing, sought first, bounds those of the others."""
     N = signs.shape[0]
     nb = coef.shape[0]
@@ -240,8 +243,8 @@ def row_functions(linear: bool, H: int, coef: np.ndarray, signs: np.ndarray, bas
             Z[N + i, 0] += -g
     best, soonest = -1, np.inf
     for r in range(2 * N):
-        reach[r] = True
-        if bound:  # the bound of `crossing`, the same operations
+        reach[r] = 1
+        if bound:  # the bounds of `crossing`, the same operations
             z = Z[r]
             top = z[0] + abs(z[nb - 2]) + abs(z[nb - 1])
             size = abs(z[0]) + abs(z[nb - 2]) + abs(z[nb - 1])
@@ -250,12 +253,15 @@ def row_functions(linear: bool, H: int, coef: np.ndarray, signs: np.ndarray, bas
                 size += abs(z[1]) * max(abs(u0), abs(u1))
             s = signs[r % N]
             active = (r < N and s > 0) or (r >= N and s < 0)
-            reach[r] = not top + 1e-12 * size < (tol_rate if active else tol_gap)
-            if reach[r]:
+            if top + 1e-12 * size < (tol_rate if active else tol_gap):
+                reach[r] = 0
+            elif not (linear and z[1] != 0.0):  # else no closed form: `crossing` hands over
                 f0 = 0.0
                 for b in range(nb):
                     f0 += z[b] * phi0[b]
                 slope = TWO_PI * (abs(z[nb - 2]) + abs(z[nb - 1]))
+                reach[r] = 2
+                slope_bound[r, 0], slope_bound[r, 1], slope_bound[r, 2] = f0, slope, 1e-12 * size
                 if f0 >= 0.0:  # at its zero already
                     if soonest > 0.0:
                         best, soonest = r, 0.0
@@ -269,11 +275,12 @@ def next_event(c_scale: float, linear: bool, H: int, coef: np.ndarray, c_size: f
                signs: np.ndarray,
                base: np.ndarray, Wc: np.ndarray, Ydx: np.ndarray, inverse: float, u0: float,
                u1: float, hit: np.ndarray, Rdx: np.ndarray, Z: np.ndarray, times: np.ndarray,
-               reach: np.ndarray, phi0: np.ndarray) -> tuple[float, bool]:
+               reach: np.ndarray, slope_bound: np.ndarray,
+               phi0: np.ndarray) -> tuple[float, bool]:
     """(u, handoff) of the first event in (u0, u1) (u = inf: none), the rows newly tight in
     ``hit`` (`EventStepper._next_event`): gaps phi @ (B Wc - coef + B base e_0) of the inactive
     rows, slip rates -dLambda/du = phi @ derivative(Y) of the active ones (`row_functions`;
-    Z, times, reach and phi0 are scratch)."""
+    Z, times, reach, slope_bound and phi0 are scratch)."""
     N = signs.shape[0]
     m = 2 * N
     derivative(Ydx, linear, H, Rdx)
@@ -281,7 +288,7 @@ def next_event(c_scale: float, linear: bool, H: int, coef: np.ndarray, c_size: f
     tol_rate = rate_tolerance(c_size, signs, Rdx, inverse)
     basis_values(u0, 0, linear, H, phi0)
     lead = row_functions(linear, H, coef, signs, base, Wc, Rdx, tol_gap, tol_rate, u0, u1, phi0,
-                         Z, reach)
+                         Z, reach, slope_bound)
     first, t_lead = np.inf, np.inf
     if lead >= 0:  # sought first: the horizon of the others is then short from the start
         s = signs[lead % N]
@@ -292,11 +299,14 @@ def next_event(c_scale: float, linear: bool, H: int, coef: np.ndarray, c_size: f
         first = t_lead
     for r in range(m):
         times[r] = t_lead if r == lead else np.inf
-        if not reach[r] or r == lead:
+        if reach[r] == 0 or r == lead:
             continue
-        s = signs[r % N]
         # a row whose crossing is after first + SIMULTANEOUS is neither the first nor hit
         horizon = min(u1, first + SIMULTANEOUS)
+        if reach[r] == 2 and (slope_bound[r, 0] + slope_bound[r, 1] * (horizon - u0)
+                              + slope_bound[r, 2] < 0.0):
+            continue  # the slope bound of `crossing`: no crossing before horizon
+        s = signs[r % N]
         active = (r < N and s > 0) or (r >= N and s < 0)
         t = crossing(Z[r], tol_rate if active else tol_gap, u0, u1, linear, H, phi0, horizon)
         if np.isnan(t):
@@ -420,7 +430,7 @@ def energy_terms(signs: np.ndarray, base: np.ndarray, Wc: np.ndarray, dY: np.nda
     product summed in ``out`` in the order of the index it sums over."""
     N = signs.shape[0]
     nb = Wc.shape[0]
-    out[:] = 0.0
+    sums = np.zeros((3, nb, nb))  # local, so that the sums stay in registers
     for i in range(N - 1):
         for a in range(nb):
             # the stress coefficient a (adding base to a = 0 only: the other terms are those
@@ -429,7 +439,7 @@ def energy_terms(signs: np.ndarray, base: np.ndarray, Wc: np.ndarray, dY: np.nda
             if a == 0:
                 stress += base[i]
             for b in range(nb):
-                out[0, a, b] += stress * dLc[b, i]
+                sums[0, a, b] += stress * dLc[b, i]
     for i in range(N):  # the slipping blocks only (the friction and load rows of the set)
         s = signs[i]
         if s == 0:
@@ -437,8 +447,9 @@ def energy_terms(signs: np.ndarray, base: np.ndarray, Wc: np.ndarray, dY: np.nda
         r = i if s > 0 else N + i
         for a in range(nb):
             for b in range(nb):
-                out[1, a, b] -= Mc[a, r] * (s * dY[b, i])
-                out[2, a, b] -= lc[a, r] * (s * dY[b, i])
+                sums[1, a, b] -= Mc[a, r] * (s * dY[b, i])
+                sums[2, a, b] -= lc[a, r] * (s * dY[b, i])
+    out[:] = sums
 
 
 # -- a jump of c at a breakpoint ----------------------------------------------------------------
@@ -476,14 +487,14 @@ def grid_record(LAMC: np.ndarray, x0: np.ndarray, MU: np.ndarray, X: np.ndarray)
     X[j] = x0 + (lambda^+ - lambda^-)(t_j), the block positions (docs/model.md §3)."""
     G1, m = LAMC.shape
     N = m // 2
-    for j in range(G1 - 1):
-        for r in range(m):
-            MU[j, r] = LAMC[j + 1, r] - LAMC[j, r]
-    if x0.shape[0] == 0:
-        return
+    positions = x0.shape[0] != 0
     for j in range(G1):
-        for i in range(N):
-            X[j, i] = x0[i] + (LAMC[j, i] - LAMC[j, N + i])
+        if j < G1 - 1:
+            for r in range(m):
+                MU[j, r] = LAMC[j + 1, r] - LAMC[j, r]
+        if positions:
+            for i in range(N):
+                X[j, i] = x0[i] + (LAMC[j, i] - LAMC[j, N + i])
 
 
 # -- one period -----------------------------------------------------------------------------------
@@ -563,7 +574,7 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
     Ydx, Rdx = np.empty((nb, N)), np.empty((nb, N))
     base, Wc = np.empty(n), np.empty((nb, n))
     Z, times, phi0 = np.empty((m, nb)), np.empty(m), np.empty(nb)
-    reach = np.empty(m, dtype=np.bool_)
+    reach, slope_bound = np.empty(m, dtype=np.int8), np.empty((m, 3))
     C_SIZE = np.empty(P)  # the size of each piece's offsets (`offset_size`)
     for q in range(P):
         C_SIZE[q] = offset_size(COEF[q])
@@ -601,7 +612,8 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
         inverse, gram = piece_on(k, signs, w, coef, D, l, norms, dx0, Ydx, base, Wc, f)
         u_end = edges[p + 1]
         u_e, handoff = next_event(c_scale, linear, H, coef, C_SIZE[p], signs, base, Wc, Ydx,
-                                  inverse, u, u_end, forced, Rdx, Z, times, reach, phi0)
+                                  inverse, u, u_end, forced, Rdx, Z, times, reach,
+                                  slope_bound, phi0)
         if handoff:
             return HANDOFF
         event = u_e < u_end
