@@ -105,8 +105,11 @@ class _CompiledLoop:
     output arrays, sized to the events of the last period."""
 
     def __init__(self, stepper: EventStepper) -> None:
-        from crawlsim.kernel import catchup
+        from crawlsim.kernel import catchup, eventloop
 
+        # the kernel's modules, imported here (not with this module: `crawlsim validate` loads
+        # no kernel) and kept, since a period at N = 4 costs a few import look-ups
+        self._catchup, self._kernel = catchup, eventloop
         pieces, basis = stepper.pieces, stepper.basis
         P, n, m, nb = pieces.pieces, stepper.poly.n, stepper.poly.m, basis.size
         poly = stepper.poly
@@ -132,6 +135,7 @@ class _CompiledLoop:
         self._spare: dict[str, np.ndarray] = {}
         self._lamc = np.empty((0, 0))
         self._final: tuple[bytes, ActiveSet] = (b"", stepper.poly.empty)
+        self._final_signs = np.zeros(stepper.process.blocks, dtype=np.int8)
         catchup.announce_compilation("exact")
 
     @staticmethod
@@ -145,7 +149,7 @@ class _CompiledLoop:
 
     def period(self, s: EventStepper) -> PeriodRecord | None:
         """One period of ``s`` in the compiled loop, or None where it hands the period over."""
-        from crawlsim.kernel import eventloop as loop
+        loop = self._kernel
 
         while True:
             out = self._run(s)
@@ -176,8 +180,7 @@ class _CompiledLoop:
         return None  # HANDOFF
 
     def _run(self, s: EventStepper) -> dict[str, Any]:
-        from crawlsim.kernel import catchup, eventloop
-
+        catchup, eventloop = self._catchup, self._kernel
         p = s.process
         N, n, m = p.blocks, s.poly.n, s.poly.m
         nb, P, G = s.basis.size, s.pieces.pieces, p.steps
@@ -209,7 +212,9 @@ class _CompiledLoop:
             out["LAMC"] = self._lamc = np.empty((G + 1, m))
         out.pop("W", None)  # the last record's, which it may still hold
         out["W"] = self._array("W", (G + 1, n))
-        out["signs"] = catchup.signs_of(s.active, N)
+        # the set the last period ended on, when the stepper still has it (`_record`)
+        out["signs"] = (self._final_signs.copy() if s.active is self._final[1]
+                        else catchup.signs_of(s.active, N))
         out["status"] = eventloop.period(
             self.k, self.c_scale, s.basis.linear, s.basis.harmonics, self.coef, s.pieces.edges,
             s._jump, self.target, s._grid, self.phi, np.ascontiguousarray(s.w, dtype=float),
@@ -233,16 +238,16 @@ class _CompiledLoop:
         return a
 
     def _record(self, s: EventStepper, out: dict[str, Any]) -> PeriodRecord:
-        from crawlsim.kernel import catchup, eventloop
-
+        catchup, eventloop = self._catchup, self._kernel
         T = s.process.period
         start = s.period_index * T
-        e, t, q, nj = (int(v) for v in out["counts"])
+        e, t, q, nj = out["counts"].tolist()
         self.capacity = max(64, e + e // 4 + 16)  # room for a few more events next period
         W, LAMC = out["W"], out["LAMC"]
         key = out["signs"].tobytes()
         if key != self._final[0]:  # a periodic regime ends every period on the same set
             self._final = key, s.poly.factor(catchup.rows_of(out["signs"]))
+            self._final_signs = out["signs"].copy()
         s.active = self._final[1]
         if s.check_every_step:
             s._verify(W, start)
