@@ -25,26 +25,26 @@ measured before the compiled kernel by it (bar: >= 30):
     crawlsim velocity gaits/peristalsis-4.yaml --sweep 'links.1.phase=0:1:120' -j 1 -o OUT.csv
 
 The exact integrator's period against the reference (exact/ref, bar <= 3), medians of three runs
-of this script on a 2-core machine shared with other jobs (load 9-13; "start" and "fused": load
-0.5-3 and 8-9, ``--clock cpu``):
+of this script on a 2-core machine shared with other jobs (load 9-13; "start": load 0.5-3,
+"fused": five runs at load 3-9, ``--clock cpu``):
 
     wave       N    before (b994998, wall)   compiled event loop (wall / cpu)   now (cpu)   start   fused
-    segments   4          67.7                     3.3 / 3.7                      3.1       3.7     2.6
-    segments  16          55.0                     2.6 / 2.4                      1.8       2.2     1.8
-    segments  64          57.0                    13.9 / 3.3   (wall: preempted)  2.5       2.8     2.5
+    segments   4          67.7                     3.3 / 3.7                      3.1       3.7     2.2
+    segments  16          55.0                     2.6 / 2.4                      1.8       2.2     1.7
+    segments  64          57.0                    13.9 / 3.3   (wall: preempted)  2.5       2.8     2.0
     segments 256          29.1                     4.1 / 4.5                      3.5       5.2     2.5
     segments 1024         10.0                     4.0 / 3.8                      3.2       4.3     2.3
-    body       4          62.3                     3.6 / 3.3                      3.0       4.9     2.2
-    body      16          64.4                     2.4 / 2.5                      2.2       2.8     1.9
+    body       4          62.3                     3.6 / 3.3                      3.0       4.9     2.0
+    body      16          64.4                     2.4 / 2.5                      2.2       2.8     1.7
     body      64           9.4                     1.3 / 1.3                      1.0       1.4     0.9
-    body     256           3.3                     1.3 / 1.3                      0.9       1.2     1.0
+    body     256           3.3                     1.3 / 1.3                      0.9       1.2     0.7
     body    1024           5.6                     1.1 / 1.0                      0.9       1.2     0.7
 
 "now": the record's slips and positions in one compiled pass, the closed-form crossings only
 for rows that can cross before the earliest event so far, contiguous phi @ coef, the energy
 terms of the slipping blocks only (medians of three runs, load 2-5). "start": one run of that
-code (f702eb5) before the work of "fused", load 0.5-3. "fused" (medians of three runs, load
-8-9; one run at load 5 gave segments 2.1, 1.7, 1.9, 2.5, 2.4 and body 1.8, 1.8, 0.9, 0.7, 0.6):
+code (f702eb5) before the work of "fused", load 0.5-3. "fused" (medians of five runs, three at
+load 8-9 and two at load 3; segments N = 256 scattered from 2.4 to 3.2, the rest within 0.7):
 a grid sample formed and certified in one pass over the blocks; an event's velocity problems
 on the period's scratch, the first one from the warm set with the rows the event hit, the piece
 on the factor of the last velocity problem; the slope bound of every row before its crossing,
