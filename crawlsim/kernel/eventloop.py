@@ -422,10 +422,11 @@ def state_at(u: float, linear: bool, H: int, signs: np.ndarray, dx0: np.ndarray,
 
 @njit(cache=True)
 def energy_terms(signs: np.ndarray, base: np.ndarray, Wc: np.ndarray, dY: np.ndarray,
-                 KLc: np.ndarray, dLc: np.ndarray, Mc: np.ndarray, lc: np.ndarray,
+                 KLc: np.ndarray, dLc: np.ndarray, Mc: np.ndarray, lc: np.ndarray, loaded: bool,
                  out: np.ndarray) -> None:
     """The piece's products for `crawlsim.analysis.energy.ExactLedger` (its ``piece``):
-    (Wc + K Lc + base e_0) @ dLc^T, -Mc_A @ Y'^T and -lc_A @ Y'^T, dY = Y' the slips' rates
+    (Wc + K Lc + base e_0) @ dLc^T, -Mc_A @ Y'^T and, with loads (``loaded``; out[2] stays 0
+    without: the ledger reads two products then), -lc_A @ Y'^T, dY = Y' the slips' rates
     (`derivative` of Ydx). One pass over the links and one over the slipping blocks, each
     product summed in ``out`` in the order of the index it sums over."""
     N = signs.shape[0]
@@ -448,7 +449,10 @@ def energy_terms(signs: np.ndarray, base: np.ndarray, Wc: np.ndarray, dY: np.nda
         for a in range(nb):
             for b in range(nb):
                 sums[1, a, b] -= Mc[a, r] * (s * dY[b, i])
-                sums[2, a, b] -= lc[a, r] * (s * dY[b, i])
+        if loaded:
+            for a in range(nb):
+                for b in range(nb):
+                    sums[2, a, b] -= lc[a, r] * (s * dY[b, i])
     out[:] = sums
 
 
@@ -549,7 +553,7 @@ def after_jump(u: float, piece_after: int, w: np.ndarray, w_next: np.ndarray, la
 def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray,
            edges: np.ndarray, jumps: np.ndarray, TARGET: np.ndarray, grid: np.ndarray,
            PHI: np.ndarray, w_start: np.ndarray, signs: np.ndarray, max_events: int,
-           zeno_events: int, zeno_window: float, ledger: bool, KLC: np.ndarray, DLC: np.ndarray,
+           zeno_events: int, zeno_window: float, ledger: int, KLC: np.ndarray, DLC: np.ndarray,
            MC: np.ndarray, LC: np.ndarray, W: np.ndarray, LAMC: np.ndarray, EV_T: np.ndarray,
            EV_W: np.ndarray, EV_DX: np.ndarray, TR_U: np.ndarray, TR_PIECE: np.ndarray,
            TR_SIGNS: np.ndarray, TR_CAUSE: np.ndarray, TR_HIT: np.ndarray,
@@ -559,7 +563,8 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
     """One period from w_start (in K(0)) with the warm set ``signs`` (left at the final set), on
     the grid ``grid`` (PHI: phi at its times):
     W and LAMC (cumulative slips) on the grid; the events, transitions, the pieces' energy
-    terms (``ledger``) and the jumps into the other arrays, their numbers in ``counts``.
+    terms (``ledger``: the number of products the ledger keeps, 0 without one) and the jumps
+    into the other arrays, their numbers in ``counts``.
     Returns a status (module docstring)."""
     N = signs.shape[0]
     n, m = N - 1, 2 * N
@@ -619,10 +624,11 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
         event = u_e < u_end
         if not event:
             u_e = u_end
-        if ledger and u_e > u:
+        if ledger > 0 and u_e > u:
             q = counts[C_PIECES]
             PIECE_BOUNDS[q, 0], PIECE_BOUNDS[q, 1] = u, u_e
-            energy_terms(signs, base, Wc, Rdx, KLC[p], DLC[p], MC[p], LC[p], PIECE_TERMS[q])
+            energy_terms(signs, base, Wc, Rdx, KLC[p], DLC[p], MC[p], LC[p], ledger == 3,
+                         PIECE_TERMS[q])
             counts[C_PIECES] = q + 1
         own = dual_scale(k, kmax, c_scale, signs, C_SIZE[p], dx0, Ydx, base, Wc, inverse, gram)
         j_end = j
