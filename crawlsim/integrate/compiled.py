@@ -210,8 +210,12 @@ class _CompiledLoop:
         out["LAMC"] = self._lamc  # the cumulative slips on the grid: scratch of the loop
         if out["LAMC"].shape != (G + 1, m):
             out["LAMC"] = self._lamc = np.empty((G + 1, m))
-        out.pop("W", None)  # the last record's, which it may still hold
+        for name in ("W", "MU", "X"):  # the last record's, which it may still hold
+            out.pop(name, None)
         out["W"] = self._array("W", (G + 1, n))
+        out["MU"] = self._array("MU", (G, m))
+        out["X"] = self._array("X", (G + 1, N)) if s.x is not None else np.empty((0, 0))
+        x0 = np.ascontiguousarray(s.x, dtype=float) if s.x is not None else np.empty(0)
         # the set the last period ended on, when the stepper still has it (`_record`)
         out["signs"] = (self._final_signs.copy() if s.active is self._final[1]
                         else catchup.signs_of(s.active, N))
@@ -221,7 +225,8 @@ class _CompiledLoop:
             out["signs"],
             s.max_events, s.zeno_events, s.zeno_window,
             0 if s._ledger is None else s._ledger.products, self.terms[0],
-            self.terms[1], self.rows[0], self.rows[1], out["W"], out["LAMC"], out["ev_t"],
+            self.terms[1], self.rows[0], self.rows[1], out["W"], out["LAMC"], out["MU"], x0,
+            out["X"], out["ev_t"],
             out["ev_w"], out["ev_dx"], out["tr_u"], out["tr_piece"], out["tr_signs"],
             out["tr_cause"], out["tr_hit"], out["bounds"], out["products"], out["jump_piece"],
             out["jump_u"], out["jump_w"], out["jump_lam"], out["counts"], out["report"])
@@ -239,12 +244,12 @@ class _CompiledLoop:
         return a
 
     def _record(self, s: EventStepper, out: dict[str, Any]) -> PeriodRecord:
-        catchup, eventloop = self._catchup, self._kernel
+        catchup = self._catchup
         T = s.process.period
         start = s.period_index * T
         e, t, q, nj = out["counts"].tolist()
         self.capacity = max(64, e + e // 4 + 16)  # room for a few more events next period
-        W, LAMC = out["W"], out["LAMC"]
+        W = out["W"]
         key = out["signs"].tobytes()
         if key != self._final[0]:  # a periodic regime ends every period on the same set
             self._final = key, s.poly.factor(catchup.rows_of(out["signs"]))
@@ -253,14 +258,11 @@ class _CompiledLoop:
         if s.check_every_step:
             s._verify(W, start)
         X = x_events = None
-        MU = self._array("MU", (LAMC.shape[0] - 1, LAMC.shape[1]))
+        MU = out["MU"]  # the record's slips and positions, formed by the loop's samples
         if s.x is not None:
-            X = self._array("X", (LAMC.shape[0], s.x.shape[0]))
-            eventloop.grid_record(LAMC, np.ascontiguousarray(s.x, dtype=float), MU, X)
+            X = out["X"]
             x_events = s.x + out["ev_dx"][:e]
             s.x = X[-1].copy()
-        else:
-            eventloop.grid_record(LAMC, np.empty(0), MU, np.empty((0, 0)))
         s.w = W[-1].copy()
         energy = None
         if s._ledger is not None:

@@ -334,14 +334,32 @@ def certify_samples(k: np.ndarray, kmax: float, c_scale: float, coef: np.ndarray
     """W[j0:j1] and LAMC[j0:j1] at the grid times in the piece, each certified
     (`EventStepper._certify_piece`): in K(t_j), slip integrals >= 0 and complementary, to the
     kernel's tolerances; the first one carries the roundoff of earlier pieces (``carried``).
-    Returns False with ``report`` filled on a failure.
+    Returns False with ``report`` filled on a failure. (`sample_piece` without the record's
+    slips and positions; ``cvec``, ``Bw`` and ``dx`` are unused.)"""
+    return sample_piece(k, kmax, c_scale, coef, signs, PHI, j0, j1, W, LAMC, lam_cum, dx0, Ydx,
+                        base, Wc, inverse, gram, carried, own, report, np.empty((0, 0)),
+                        np.empty(0), np.empty((0, 0)))
+
+
+@njit(cache=True)
+def sample_piece(k: np.ndarray, kmax: float, c_scale: float, coef: np.ndarray,
+                 signs: np.ndarray, PHI: np.ndarray, j0: int, j1: int, W: np.ndarray,
+                 LAMC: np.ndarray, lam_cum: np.ndarray, dx0: np.ndarray, Ydx: np.ndarray,
+                 base: np.ndarray, Wc: np.ndarray, inverse: float, gram: float, carried: float,
+                 own: float, report: np.ndarray, MU: np.ndarray, x0: np.ndarray,
+                 X: np.ndarray) -> bool:
+    """`certify_samples`, with the record's arrays formed in the same pass where MU has rows:
+    MU[j-1] = LAMC[j] - LAMC[j-1] (the slips of step j - 1, the differences the certificate
+    checks) and, where x0 is not empty, X[j] = x0 + (lambda^+ - lambda^-)(t_j), the block
+    positions (docs/model.md §3).
 
     One pass over the blocks per sample: block i's force (B w)_i = w_{i-1} - w_i needs only
     the link state w_i formed in the same pass, so the state, the slips, the offsets, the
     slacks and the sizes of the tolerance are each formed once, with the operations (and so
-    the bits) of ``combine`` and ``apply``. ``cvec``, ``Bw`` and ``dx`` are unused scratch."""
+    the bits) of ``combine`` and ``apply``."""
     N = signs.shape[0]
     nb = coef.shape[0]
+    slips, positions = MU.shape[0] > 0, x0.shape[0] > 0
     for j in range(j0, j1):
         phi = PHI[j]  # phi at the grid times, tabulated once
         # sizes of the numbers summed, not of the sums: phi @ coef and base + phi @ Wc cancel
@@ -372,7 +390,12 @@ def certify_samples(k: np.ndarray, kmax: float, c_scale: float, coef: np.ndarray
                     lam_minus = lam_minus + -(dx0[i] - slip)
             LAMC[j, i], LAMC[j, N + i] = lam_plus, lam_minus
             lam_size = max(lam_size, max(abs(lam_plus), abs(lam_minus)))
-            dual = max(dual, max(-(lam_plus - LAMC[j - 1, i]), -(lam_minus - LAMC[j - 1, N + i])))
+            mu_plus, mu_minus = lam_plus - LAMC[j - 1, i], lam_minus - LAMC[j - 1, N + i]
+            dual = max(dual, max(-mu_plus, -mu_minus))
+            if slips:
+                MU[j - 1, i], MU[j - 1, N + i] = mu_plus, mu_minus
+            if positions:
+                X[j, i] = x0[i] + (lam_plus - lam_minus)
             c_plus, c_minus, size_plus, size_minus = 0.0, 0.0, 0.0, 0.0
             for b in range(nb):
                 c_plus += phi[b] * coef[b, i]
@@ -485,20 +508,17 @@ def jump(k: np.ndarray, c_scale: float, w: np.ndarray, target: np.ndarray, signs
 
 
 @njit(cache=True)
-def grid_record(LAMC: np.ndarray, x0: np.ndarray, MU: np.ndarray, X: np.ndarray) -> None:
-    """The record's arrays from the cumulative slips on the grid, in one pass:
-    MU[j] = LAMC[j+1] - LAMC[j] (the slips of step j) and, for a crawler (x0 not empty),
-    X[j] = x0 + (lambda^+ - lambda^-)(t_j), the block positions (docs/model.md §3)."""
-    G1, m = LAMC.shape
-    N = m // 2
-    positions = x0.shape[0] != 0
-    for j in range(G1):
-        if j < G1 - 1:
-            for r in range(m):
-                MU[j, r] = LAMC[j + 1, r] - LAMC[j, r]
-        if positions:
-            for i in range(N):
-                X[j, i] = x0[i] + (LAMC[j, i] - LAMC[j, N + i])
+def record_at(j: int, LAMC: np.ndarray, x0: np.ndarray, MU: np.ndarray, X: np.ndarray) -> None:
+    """The record's slips of the step ending at grid point j, MU[j-1] = LAMC[j] - LAMC[j-1]
+    (j > 0), and the positions X[j] = x0 + (lambda^+ - lambda^-)(t_j) (x0 not empty), as
+    `sample_piece` forms them: for the first grid point and for one a jump has moved."""
+    N = LAMC.shape[1] // 2
+    for i in range(N):
+        if j > 0:
+            MU[j - 1, i] = LAMC[j, i] - LAMC[j - 1, i]
+            MU[j - 1, N + i] = LAMC[j, N + i] - LAMC[j - 1, N + i]
+        if x0.shape[0] > 0:
+            X[j, i] = x0[i] + (LAMC[j, i] - LAMC[j, N + i])
 
 
 # -- one period -----------------------------------------------------------------------------------
@@ -533,9 +553,9 @@ def after_jump(u: float, piece_after: int, w: np.ndarray, w_next: np.ndarray, la
                lam_jump: np.ndarray, signs: np.ndarray, forced: np.ndarray, grid: np.ndarray,
                W: np.ndarray, LAMC: np.ndarray, TR_U: np.ndarray, TR_PIECE: np.ndarray,
                TR_SIGNS: np.ndarray, TR_CAUSE: np.ndarray, TR_HIT: np.ndarray,
-               counts: np.ndarray) -> None:
+               counts: np.ndarray) -> int:
     """The state after the projection at a jump: w and the cumulative slips, the transition,
-    and the grid point at the jump (signals are right-continuous)."""
+    and the grid point at the jump (signals are right-continuous), whose index it returns."""
     w[:] = w_next
     for r in range(lam_cum.shape[0]):
         lam_cum[r] += lam_jump[r]
@@ -547,6 +567,7 @@ def after_jump(u: float, piece_after: int, w: np.ndarray, w_next: np.ndarray, la
     while grid[je] < u:
         je += 1
     W[je], LAMC[je] = w, lam_cum
+    return je
 
 
 @njit(cache=True)
@@ -554,7 +575,8 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
            edges: np.ndarray, jumps: np.ndarray, TARGET: np.ndarray, grid: np.ndarray,
            PHI: np.ndarray, w_start: np.ndarray, signs: np.ndarray, max_events: int,
            zeno_events: int, zeno_window: float, ledger: int, KLC: np.ndarray, DLC: np.ndarray,
-           MC: np.ndarray, LC: np.ndarray, W: np.ndarray, LAMC: np.ndarray, EV_T: np.ndarray,
+           MC: np.ndarray, LC: np.ndarray, W: np.ndarray, LAMC: np.ndarray, MU: np.ndarray,
+           x0: np.ndarray, X: np.ndarray, EV_T: np.ndarray,
            EV_W: np.ndarray, EV_DX: np.ndarray, TR_U: np.ndarray, TR_PIECE: np.ndarray,
            TR_SIGNS: np.ndarray, TR_CAUSE: np.ndarray, TR_HIT: np.ndarray,
            PIECE_BOUNDS: np.ndarray, PIECE_TERMS: np.ndarray, JUMP_PIECE: np.ndarray,
@@ -562,7 +584,8 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
            report: np.ndarray) -> int:
     """One period from w_start (in K(0)) with the warm set ``signs`` (left at the final set), on
     the grid ``grid`` (PHI: phi at its times):
-    W and LAMC (cumulative slips) on the grid; the events, transitions, the pieces' energy
+    W and LAMC (cumulative slips) on the grid, and the record's slips MU and positions X from
+    x0 (x0 empty: none; `sample_piece`); the events, transitions, the pieces' energy
     terms (``ledger``: the number of products the ledger keeps, 0 without one) and the jumps
     into the other arrays, their numbers in ``counts``.
     Returns a status (module docstring)."""
@@ -596,6 +619,7 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
     factored, norms = np.full(N, 2, dtype=np.int8), np.zeros(2)
     W[0] = w_start
     LAMC[0] = 0.0
+    record_at(0, LAMC, x0, MU, X)
     counts[:] = 0
     u, j, p, cause = 0.0, 1, 0, EDGE
     carried = 0.0
@@ -635,9 +659,9 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
         while j_end < G1 and grid[j_end] <= u_e:
             j_end += 1
         if j_end > j:
-            if not certify_samples(k, kmax, c_scale, coef, signs, PHI, j, j_end, W, LAMC,
-                                   lam_cum, dx0, Ydx, base, Wc, inverse, gram, carried, own,
-                                   inner, cvec, Bw, dx):
+            if not sample_piece(k, kmax, c_scale, coef, signs, PHI, j, j_end, W, LAMC, lam_cum,
+                                dx0, Ydx, base, Wc, inverse, gram, carried, own, inner, MU, x0,
+                                X):
                 report[1:] = inner[1:]
                 return FAILED_PIECE
             carried = own
@@ -663,8 +687,9 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
             JUMP_PIECE[q], JUMP_U[q] = p, u
             JUMP_W[q, 0], JUMP_W[q, 1], JUMP_LAM[q] = w, w_next, lam_jump
             counts[C_JUMPS] = q + 1
-            after_jump(u, edge % P, w, w_next, lam_cum, lam_jump, signs, forced, grid, W, LAMC,
-                       TR_U, TR_PIECE, TR_SIGNS, TR_CAUSE, TR_HIT, counts)
+            je = after_jump(u, edge % P, w, w_next, lam_cum, lam_jump, signs, forced, grid, W,
+                            LAMC, TR_U, TR_PIECE, TR_SIGNS, TR_CAUSE, TR_HIT, counts)
+            record_at(je, LAMC, x0, MU, X)
         if edge == P:
             break
         p = edge
