@@ -55,6 +55,12 @@ the record's W, MU and X written into the arrays of a record nobody holds any mo
 the same bits (every example gait and the scaled waves, three periods; v0 of the 40-gait random
 corpus unchanged).
 
+These are periods 2 to 16. The segments wave's events per period keep growing after them (N =
+256: about 420 there, 533 from period 30; N = 1024: about 300, then 867), and an event costs
+O(N): in periods 31-35 the ratio is 4.1 at N = 256 and 6.0 at N = 1024 (f702eb5: 6.5 and 8.8;
+one run each, load 3.5, N = 64: 1.9). Events that touch only the rows that can change would
+close that gap.
+
 Before the kernel (commit 3423cad, 2-core machine shared with other jobs): 3.29, 3.21, 3.04 s,
 median 3.21 s (37 points/s). The catch-up step on the segments wave at 1000 steps per period was
 then 3.09, 10.1 and 24.2 us at N = 4, 16 and 64 (median of 3 runs of 3 periods, the in-process
