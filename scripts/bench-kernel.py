@@ -25,23 +25,41 @@ measured before the compiled kernel by it (bar: >= 30):
     crawlsim velocity gaits/peristalsis-4.yaml --sweep 'links.1.phase=0:1:120' -j 1 -o OUT.csv
 
 The exact integrator's period against the reference (exact/ref, bar <= 3), medians of three runs
-of this script on a 2-core machine shared with other jobs (load 9-13):
+of this script on a 2-core machine shared with other jobs (load 9-13; "start": load 0.5-3,
+"fused": five runs at load 2-3, ``--clock cpu``):
 
-    wave       N    before (b994998, wall)   compiled event loop (wall / --clock cpu)   now (cpu)
-    segments   4          67.7                     3.3 / 3.7                              3.1
-    segments  16          55.0                     2.6 / 2.4                              1.8
-    segments  64          57.0                    13.9 / 3.3   (wall: preempted)          2.5
-    segments 256          29.1                     4.1 / 4.5                              3.5
-    segments 1024         10.0                     4.0 / 3.8                              3.2
-    body       4          62.3                     3.6 / 3.3                              3.0
-    body      16          64.4                     2.4 / 2.5                              2.2
-    body      64           9.4                     1.3 / 1.3                              1.0
-    body     256           3.3                     1.3 / 1.3                              0.9
-    body    1024           5.6                     1.1 / 1.0                              0.9
+    wave       N    before (b994998, wall)   compiled event loop (wall / cpu)   now (cpu)   start   fused
+    segments   4          67.7                     3.3 / 3.7                      3.1       3.7     2.0
+    segments  16          55.0                     2.6 / 2.4                      1.8       2.2     1.7
+    segments  64          57.0                    13.9 / 3.3   (wall: preempted)  2.5       2.8     2.2
+    segments 256          29.1                     4.1 / 4.5                      3.5       5.2     2.3
+    segments 1024         10.0                     4.0 / 3.8                      3.2       4.3     2.6
+    body       4          62.3                     3.6 / 3.3                      3.0       4.9     1.7
+    body      16          64.4                     2.4 / 2.5                      2.2       2.8     1.6
+    body      64           9.4                     1.3 / 1.3                      1.0       1.4     0.8
+    body     256           3.3                     1.3 / 1.3                      0.9       1.2     0.7
+    body    1024           5.6                     1.1 / 1.0                      0.9       1.2     0.6
 
-"now": the record's slips and positions in one compiled pass, the closed-form crossings only
-for rows that can cross before the earliest event so far, contiguous phi @ coef, the energy
-terms of the slipping blocks only (medians of three runs, load 2-5).
+"now": the record's slips and positions in one compiled pass, the closed-form crossings only for
+rows that can cross before the earliest event so far, contiguous phi @ coef, the energy terms of
+the slipping blocks only (medians of three runs, load 2-5). "start": one run of that code
+(f702eb5) before the work of "fused", load 0.5-3. "fused" (medians of five runs at load 2-3 with
+the test suite on one core, each figure scattering by up to +-0.5; five earlier runs at load
+3-9, before the last two changes below, gave segments 2.2, 1.7, 2.0, 2.5, 2.3 and body 2.0, 1.7,
+0.9, 0.7, 0.7): a grid sample formed and certified in one pass over the blocks, which also forms
+the record's slips and positions; an event's velocity problems on the period's scratch, the
+first one from the warm set with the rows the event hit, the piece on the factor of the last
+velocity problem; the slope bound of every row before its crossing, the row it lets cross first
+sought first; the offsets' size once per piece; the load products of the ledger only with loads;
+the record's W, MU and X written into the arrays of a record nobody holds any more. Outputs are
+the same bits (every example gait and the scaled waves, three periods; v0 of the 40-gait random
+corpus unchanged).
+
+These are periods 2 to 16. The segments wave's events per period keep growing after them (N =
+256: about 420 there, 533 from period 30; N = 1024: about 300, then 867), and an event costs
+O(N): in periods 31-35 the ratio is 4.1 at N = 256 and 6.0 at N = 1024 (f702eb5: 6.5 and 8.8;
+one run each, load 3.5, N = 64: 1.9). Events that touch only the rows that can change would
+close that gap.
 
 The catch-up step against the reference (catch-up/ref, bar <= 5; in brackets the certified step
 in us), medians of five interleaved runs of this script at f702eb5 and now, ``--clock cpu``, on a

@@ -7,6 +7,7 @@ the Python loop that takes the periods the compiled one hands back, are `crawlsi
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, NamedTuple, cast, overload
@@ -110,8 +111,11 @@ class _CompiledLoop:
     output arrays, sized to the events of the last period."""
 
     def __init__(self, stepper: EventStepper) -> None:
-        from crawlsim.kernel import catchup
+        from crawlsim.kernel import catchup, eventloop
 
+        # the kernel's modules, imported here (not with this module: `crawlsim validate` loads
+        # no kernel) and kept, since a period at N = 4 costs a few import look-ups
+        self._catchup, self._kernel = catchup, eventloop
         pieces, basis = stepper.pieces, stepper.basis
         P, n, m, nb = pieces.pieces, stepper.poly.n, stepper.poly.m, basis.size
         poly = stepper.poly
@@ -134,7 +138,10 @@ class _CompiledLoop:
         self.capacity = 64
         self.handoffs = 0
         self._scratch: dict[str, Any] = {}
+        self._spare: dict[str, np.ndarray] = {}
+        self._lamc = np.empty((0, 0))
         self._final: tuple[bytes, ActiveSet] = (b"", stepper.poly.empty)
+        self._final_signs = np.zeros(stepper.process.blocks, dtype=np.int8)
         catchup.announce_compilation("exact")
 
     @staticmethod
@@ -147,7 +154,7 @@ class _CompiledLoop:
 
     def period(self, s: EventStepper) -> PeriodRecord | None:
         """One period of ``s`` in the compiled loop, or None where it hands the period over."""
-        from crawlsim.kernel import eventloop as loop
+        loop = self._kernel
 
         while True:
             out = self._run(s)
@@ -178,18 +185,22 @@ class _CompiledLoop:
         return None  # HANDOFF
 
     def _run(self, s: EventStepper) -> dict[str, Any]:
-        from crawlsim.kernel import catchup, eventloop
-
+        catchup, eventloop = self._catchup, self._kernel
         p = s.process
         N, n, m = p.blocks, s.poly.n, s.poly.m
         nb, P, G = s.basis.size, s.pieces.pieces, p.steps
         E = min(self.capacity, s.max_events + 1)
-        T2 = E + P + 2
         out = self._scratch
         # work arrays kept from period to period while they hold E events and are not more
-        # than twice that (a run's peak memory)
+        # than twice that (a run's peak memory); made with room for a quarter more, so that a
+        # period with a few more events than the last does not make them again
         if not E <= out.get("capacity", 0) <= 2 * E:
             out.clear()
+            E = min(E + E // 4, s.max_events + 1)
+        else:
+            E = out["capacity"]
+        T2 = E + P + 2
+        if "ev_t" not in out:
             out.update({
                 "capacity": E, "ev_t": np.empty(E), "ev_w": np.empty((E, n)),
                 "ev_dx": np.empty((E, N)), "tr_u": np.empty(T2),
@@ -201,45 +212,63 @@ class _CompiledLoop:
                 "jump_piece": np.empty(P + 1, dtype=np.int64), "jump_u": np.empty(P + 1),
                 "jump_w": np.empty((P + 1, 2, n)), "jump_lam": np.empty((P + 1, m)),
                 "counts": np.zeros(4, dtype=np.int64), "report": np.zeros(8)})
-        if "LAMC" not in out:  # the cumulative slips on the grid: scratch of the loop
-            out["LAMC"] = np.empty((G + 1, m))
-        out["W"] = np.empty((G + 1, n))
-        out["signs"] = catchup.signs_of(s.active, N)
+        out["LAMC"] = self._lamc  # the cumulative slips on the grid: scratch of the loop
+        if out["LAMC"].shape != (G + 1, m):
+            out["LAMC"] = self._lamc = np.empty((G + 1, m))
+        for name in ("W", "MU", "X"):  # the last record's, which it may still hold
+            out.pop(name, None)
+        out["W"] = self._array("W", (G + 1, n))
+        out["MU"] = self._array("MU", (G, m))
+        out["X"] = self._array("X", (G + 1, N)) if s.x is not None else np.empty((0, 0))
+        x0 = np.ascontiguousarray(s.x, dtype=float) if s.x is not None else np.empty(0)
+        # the set the last period ended on, when the stepper still has it (`_record`)
+        out["signs"] = (self._final_signs.copy() if s.active is self._final[1]
+                        else catchup.signs_of(s.active, N))
         out["status"] = eventloop.period(
             self.k, self.c_scale, s.basis.linear, s.basis.harmonics, self.coef, s.pieces.edges,
             s._jump, self.target, s._grid, self.phi, np.ascontiguousarray(s.w, dtype=float),
             out["signs"],
-            s.max_events, s.zeno_events, s.zeno_window, s._ledger is not None, self.terms[0],
-            self.terms[1], self.rows[0], self.rows[1], out["W"], out["LAMC"], out["ev_t"],
+            s.max_events, s.zeno_events, s.zeno_window,
+            0 if s._ledger is None else s._ledger.products, self.terms[0],
+            self.terms[1], self.rows[0], self.rows[1], out["W"], out["LAMC"], out["MU"], x0,
+            out["X"], out["ev_t"],
             out["ev_w"], out["ev_dx"], out["tr_u"], out["tr_piece"], out["tr_signs"],
             out["tr_cause"], out["tr_hit"], out["bounds"], out["products"], out["jump_piece"],
             out["jump_u"], out["jump_w"], out["jump_lam"], out["counts"], out["report"],
             s.cells_per_cycle)
         return out
 
-    def _record(self, s: EventStepper, out: dict[str, Any]) -> PeriodRecord:
-        from crawlsim.kernel import catchup, eventloop
+    def _array(self, name: str, shape: tuple[int, int]) -> np.ndarray:
+        """A new array for a period's record, or the one of an earlier record when nothing
+        refers to it any more (its reference count: this method's own two references), so
+        that a period writes its W, MU and X into memory already mapped rather than faulting
+        in fresh pages (32 MB a period at N = 1024)."""
+        a = self._spare.pop(name, None)
+        if a is None or a.shape != shape or sys.getrefcount(a) > 2:
+            a = np.empty(shape)
+        self._spare[name] = a
+        return a
 
+    def _record(self, s: EventStepper, out: dict[str, Any]) -> PeriodRecord:
+        catchup = self._catchup
         T = s.process.period
         start = s.period_index * T
-        e, t, q, nj = (int(v) for v in out["counts"])
+        e, t, q, nj = out["counts"].tolist()
         self.capacity = max(64, e + e // 4 + 16)  # room for a few more events next period
-        W, LAMC = out["W"], out["LAMC"]
+        W = out["W"]
         key = out["signs"].tobytes()
         if key != self._final[0]:  # a periodic regime ends every period on the same set
             self._final = key, s.poly.factor(catchup.rows_of(out["signs"]))
+            self._final_signs = out["signs"].copy()
         s.active = self._final[1]
         if s.check_every_step:
             s._verify(W, start)
         X = x_events = None
-        MU = np.empty((LAMC.shape[0] - 1, LAMC.shape[1]))
+        MU = out["MU"]  # the record's slips and positions, formed by the loop's samples
         if s.x is not None:
-            X = np.empty((LAMC.shape[0], s.x.shape[0]))
-            eventloop.grid_record(LAMC, np.ascontiguousarray(s.x, dtype=float), MU, X)
+            X = out["X"]
             x_events = s.x + out["ev_dx"][:e]
             s.x = X[-1].copy()
-        else:
-            eventloop.grid_record(LAMC, np.empty(0), MU, np.empty((0, 0)))
         s.w = W[-1].copy()
         energy = None
         if s._ledger is not None:

@@ -38,8 +38,11 @@ from crawlsim.kernel.piece import (  # noqa: F401 - eventloop.piece etc. are its
     combine,
     derivative,
     dual_scale,
+    factored_set,
     max_abs,
+    offset_size,
     piece,
+    piece_on,
     solve_rows,
 )
 
@@ -71,10 +74,10 @@ C_EVENTS, C_TRANSITIONS, C_PIECES, C_JUMPS = range(4)
 
 @njit(cache=True)
 def tight_rows(c_scale: float, linear: bool, H: int, coef: np.ndarray, u: float, w: np.ndarray,
-               forced: np.ndarray, phi: np.ndarray, cvec: np.ndarray,
-               Bw: np.ndarray) -> np.ndarray:
+               forced: np.ndarray, phi: np.ndarray, cvec: np.ndarray, Bw: np.ndarray,
+               candidates: np.ndarray) -> None:
     """The rows tight at w to the primal tolerance of a step with no multipliers, and
-    ``forced`` (the rows an event hit): the candidates of `decide`."""
+    ``forced`` (the rows an event hit), into ``candidates``: the candidates of `decide`."""
     m = Bw.shape[0]
     basis_values(u, 0, linear, H, phi)
     combine(phi, coef, cvec)
@@ -84,10 +87,8 @@ def tight_rows(c_scale: float, linear: bool, H: int, coef: np.ndarray, u: float,
         if abs(cvec[r]) < np.inf:
             c_size = max(c_size, abs(cvec[r]))
     tol = RTOL * max(max(c_scale, c_size), 2.0 * max_abs(w))
-    candidates = np.zeros(m, dtype=np.bool_)
     for r in range(m):
         candidates[r] = Bw[r] - cvec[r] >= -tol or forced[r]
-    return candidates
 
 
 @njit(cache=True)
@@ -110,27 +111,31 @@ def settle_rows(candidates: np.ndarray, fixed: np.ndarray, lam: np.ndarray, Bv: 
 
 
 @njit(cache=True)
-def decide(k: np.ndarray, c_scale: float, linear: bool, H: int, coef: np.ndarray, u: float,
-           w: np.ndarray, forced: np.ndarray, warm: np.ndarray, out: np.ndarray, phi: np.ndarray,
-           cvec: np.ndarray, Bw: np.ndarray) -> bool:
+def decide(k: np.ndarray, kmax: float, c_scale: float, linear: bool, H: int, coef: np.ndarray,
+           u: float, w: np.ndarray, forced: np.ndarray, warm: np.ndarray, out: np.ndarray,
+           phi: np.ndarray, cvec: np.ndarray, Bw: np.ndarray, masks: np.ndarray,
+           rows_m: np.ndarray, rows_n: np.ndarray, sets: np.ndarray, factored: np.ndarray,
+           D: np.ndarray, l: np.ndarray, norms: np.ndarray, report: np.ndarray) -> bool:
     """The active set on (u, u + eps) into ``out`` (`EventStepper._decide`): the rows tight at
     w (and ``forced``), decided by the velocity problems of orders 1, 2, ...; False when one of
-    them is not settled by the kernel's updates or the result is dependent (HANDOFF)."""
-    candidates = tight_rows(c_scale, linear, H, coef, u, w, forced, phi, cvec, Bw)
+    them is not settled by the kernel's updates or the result is dependent (HANDOFF).
+
+    Each velocity problem is `crawlsim.kernel.chain.project_rows` (w_trial = 0) on the period's
+    scratch: ``masks`` (3, 2N), ``rows_m`` (4, 2N), ``rows_n`` (5, N; its last row stays 0),
+    ``sets`` (2 + UPDATE_ITERATIONS, N) and the factor of the last set (``factored``, D, l,
+    ``norms``, `crawlsim.kernel.piece.factored_set`), refactored only when the set changes."""
+    candidates = masks[0]
+    tight_rows(c_scale, linear, H, coef, u, w, forced, phi, cvec, Bw, candidates)
     out[:] = 0
     if not candidates.any():
         return True
     N = out.shape[0]
     m = 2 * N
-    fixed = np.zeros(m, dtype=np.bool_)
-    rows = np.zeros(m, dtype=np.bool_)
-    signs = np.empty(N, dtype=np.int8)
-    v = np.empty(N - 1)
-    lam = np.empty(m)
-    report = np.zeros(6)
-    zero = np.zeros(N - 1)
-    c = np.empty(m)
-    told = np.empty(m)
+    fixed, rows = masks[1], masks[2]
+    fixed[:] = False
+    signs = sets[0]
+    lam, c, told, slack = rows_m[0], rows_m[1], rows_m[2], rows_m[3]
+    dx, f, res, v, zero = rows_n[0], rows_n[1], rows_n[2], rows_n[3, :N - 1], rows_n[4, :N - 1]
     for order in range(1, DECISION_ORDERS + 1):
         basis_values(u, order, linear, H, phi)
         combine(phi, coef, cvec)
@@ -140,10 +145,17 @@ def decide(k: np.ndarray, c_scale: float, linear: bool, H: int, coef: np.ndarray
             rows[r] = fixed[r] or (candidates[r] and block_warm)
         if not chain.independent(rows, N):
             return False
+        if order == 1:  # the rows an event hit start in the set, where LICQ allows
+            for r in range(m):
+                if forced[r] and candidates[r] and not rows[r] and not rows[(r + N) % m]:
+                    rows[r] = True
+                    if not chain.independent(rows, N):
+                        rows[r] = False
         for i in range(N):
             signs[i] = 1 if rows[i] else (-1 if rows[N + i] else 0)
-        if chain.project_rows(k, c_scale, zero, c, signs, fixed, v, lam, report,
-                              told) != chain.DONE:
+        status, _ = chain.settle(k, kmax, c_scale, zero, c, signs, factored, D, l, norms, fixed,
+                                 dx, v, lam, slack, f, res, sets[1], sets[2:], report, told)
+        if status != chain.DONE:
             return False
         apply(v, Bw)
         if not settle_rows(candidates, fixed, lam, Bw, cvec, report[chain.REPORT_TOLP], told):
@@ -189,17 +201,12 @@ def crossing(z: np.ndarray, tol: float, u0: float, u1: float, linear: bool, H: i
 
 
 @njit(cache=True)
-def rate_tolerance(coef: np.ndarray, signs: np.ndarray, Rdx: np.ndarray, inverse: float) -> float:
+def rate_tolerance(c_size: float, signs: np.ndarray, Rdx: np.ndarray, inverse: float) -> float:
     """The tolerance of the active rows' slip rates on a piece: RTOL times the larger of the
     rates' own size (sum_b |Rdx[b, i]| over the active blocks) and what the offsets' rates
-    carry through the inverse, ||L_JJ^{-1}|| 2 pi max_r sum_b |coef[b, r]|."""
-    nb = coef.shape[0]
-    c_size = 0.0
-    for r in range(2 * signs.shape[0]):
-        total = 0.0
-        for b in range(nb):
-            total += abs(coef[b, r])
-        c_size = max(c_size, total)
+    carry through the inverse, ||L_JJ^{-1}|| 2 pi max_r sum_b |coef[b, r]| (``c_size``,
+    `crawlsim.kernel.piece.offset_size`)."""
+    nb = Rdx.shape[0]
     scale = 0.0
     for i in range(signs.shape[0]):
         if signs[i] != 0:
@@ -211,49 +218,113 @@ def rate_tolerance(coef: np.ndarray, signs: np.ndarray, Rdx: np.ndarray, inverse
 
 
 @njit(cache=True)
-def next_event(c_scale: float, linear: bool, H: int, coef: np.ndarray, signs: np.ndarray,
+def row_functions(linear: bool, H: int, coef: np.ndarray, signs: np.ndarray, base: np.ndarray,
+                  Wc: np.ndarray, Rdx: np.ndarray, tol_gap: float, tol_rate: float, u0: float,
+                  u1: float, phi0: np.ndarray, Z: np.ndarray, reach: np.ndarray,
+                  slope_bound: np.ndarray) -> int:
+    """Z[r] = the coefficients of the function of row r whose upward crossing is an event:
+    the gap phi @ (B Wc - coef + B base e_0) of an inactive row (the entries of `apply`), the
+    slip rate s phi @ Rdx of an active one; ``reach[r]``: 0 where it cannot reach its
+    tolerance on (u0, u1) by the bound `crossing` applies first for one harmonic, 2 where
+    `crossing` then applies its slope bound f(u) <= f(u0) + 2 pi (|alpha| + |beta|) (u - u0)
+    (phi0 = phi(u0)), whose terms f(u0), 2 pi (|alpha| + |beta|) and its margin go to
+    ``slope_bound[r]``, 1 otherwise; so that `next_event` calls `crossing` only for the rows
+    that can cross before its horizon, with the same operations. One pass over the blocks
+    (each block's force enters its two rows). Returns the row that the slope bound lets
+    cross first (-1 if none): its crossing, sought first, bounds those of the others."""
+    N = signs.shape[0]
+    nb = coef.shape[0]
+    bound = H == 1 and nb > 1
+    for i in range(N):
+        s = signs[i]
+        for b in range(nb):
+            g = (Wc[b, i - 1] if i > 0 else 0.0) - (Wc[b, i] if i < N - 1 else 0.0)
+            Z[i, b] = s * Rdx[b, i] if s > 0 else g - coef[b, i]
+            Z[N + i, b] = s * Rdx[b, i] if s < 0 else -g - coef[b, N + i]
+        g = (base[i - 1] if i > 0 else 0.0) - (base[i] if i < N - 1 else 0.0)
+        if s <= 0:
+            Z[i, 0] += g
+        if s >= 0:
+            Z[N + i, 0] += -g
+    best, soonest = -1, np.inf
+    for r in range(2 * N):
+        reach[r] = 1
+        if bound:  # the bounds of `crossing`, the same operations
+            z = Z[r]
+            top = z[0] + abs(z[nb - 2]) + abs(z[nb - 1])
+            size = abs(z[0]) + abs(z[nb - 2]) + abs(z[nb - 1])
+            if linear:
+                top += max(z[1] * u0, z[1] * u1)
+                size += abs(z[1]) * max(abs(u0), abs(u1))
+            s = signs[r % N]
+            active = (r < N and s > 0) or (r >= N and s < 0)
+            if top + 1e-12 * size < (tol_rate if active else tol_gap):
+                reach[r] = 0
+            elif not (linear and z[1] != 0.0):  # else no closed form: `crossing` hands over
+                f0 = 0.0
+                for b in range(nb):
+                    f0 += z[b] * phi0[b]
+                slope = TWO_PI * (abs(z[nb - 2]) + abs(z[nb - 1]))
+                reach[r] = 2
+                slope_bound[r, 0], slope_bound[r, 1], slope_bound[r, 2] = f0, slope, 1e-12 * size
+                if f0 >= 0.0:  # at its zero already
+                    if soonest > 0.0:
+                        best, soonest = r, 0.0
+                elif slope > 0.0 and -f0 < soonest * slope:
+                    best, soonest = r, -f0 / slope
+    return best
+
+
+@njit(cache=True)
+def next_event(c_scale: float, linear: bool, H: int, coef: np.ndarray, c_size: float,
+               signs: np.ndarray,
                base: np.ndarray, Wc: np.ndarray, Ydx: np.ndarray, inverse: float, u0: float,
-               u1: float, hit: np.ndarray, Rdx: np.ndarray, z: np.ndarray,
-               cells_per_cycle: int) -> tuple[float, bool]:
+               u1: float, hit: np.ndarray, Rdx: np.ndarray, Z: np.ndarray, times: np.ndarray,
+               reach: np.ndarray, slope_bound: np.ndarray,
+               phi0: np.ndarray, cells_per_cycle: int) -> tuple[float, bool]:
     """(u, handoff) of the first event in (u0, u1) (u = inf: none), the rows newly tight in
     ``hit`` (`EventStepper._next_event`): gaps phi @ (B Wc - coef + B base e_0) of the inactive
-    rows, slip rates -dLambda/du = phi @ derivative(Y) of the active ones. Zeros without a
-    closed form by `crawlsim.kernel.sampling.crossing`, on samples of (u0, u1) tabulated once."""
+    rows, slip rates -dLambda/du = phi @ derivative(Y) of the active ones (`row_functions`;
+    Z, times, reach, slope_bound and phi0 are scratch). Zeros without a closed form by
+    `crawlsim.kernel.sampling.crossing`, on samples of (u0, u1) tabulated once, on first use."""
     N = signs.shape[0]
     m = 2 * N
-    nb = coef.shape[0]
     derivative(Ydx, linear, H, Rdx)
     tol_gap = 0.5 * RTOL * c_scale
-    tol_rate = rate_tolerance(coef, signs, Rdx, inverse)
-    times = np.full(m, np.inf)
-    first = np.inf
-    phi0 = np.empty(nb)
+    tol_rate = rate_tolerance(c_size, signs, Rdx, inverse)
     basis_values(u0, 0, linear, H, phi0)
-    count = 0  # the samples of (u0, u1), made on first use (closed forms need none)
+    lead = row_functions(linear, H, coef, signs, base, Wc, Rdx, tol_gap, tol_rate, u0, u1, phi0,
+                         Z, reach, slope_bound)
+    # the samples of (u0, u1) for `sampling.crossing`, made on first use (closed forms need none)
+    count = 0
+    first, t_lead = np.inf, np.inf
+    if lead >= 0:  # sought first: the horizon of the others is then short from the start
+        s = signs[lead % N]
+        active = (lead < N and s > 0) or (lead >= N and s < 0)
+        t_lead = crossing(Z[lead], tol_rate if active else tol_gap, u0, u1, linear, H, phi0, u1)
+        if np.isnan(t_lead):
+            return np.inf, True
+        first = t_lead
     for r in range(m):
-        i = r % N
-        s = signs[i]
+        times[r] = t_lead if r == lead else np.inf
+        if reach[r] == 0 or r == lead:
+            continue
         # a row whose crossing is after first + SIMULTANEOUS is neither the first nor hit
         horizon = min(u1, first + SIMULTANEOUS)
-        if (r < N and s > 0) or (r >= N and s < 0):
-            for b in range(nb):
-                z[b] = s * Rdx[b, i]
-            tol = tol_rate
-        else:  # the gap of row r, B Wc - coef + B base e_0 (the entries of `apply`)
-            for b in range(nb):
-                g = (Wc[b, i - 1] if i > 0 else 0.0) - (Wc[b, i] if i < N - 1 else 0.0)
-                z[b] = (g if r < N else -g) - coef[b, r]
-            g = (base[i - 1] if i > 0 else 0.0) - (base[i] if i < N - 1 else 0.0)
-            z[0] += g if r < N else -g
-            tol = tol_gap
-        t = crossing(z, tol, u0, u1, linear, H, phi0, horizon)
-        if np.isnan(t):
+        if reach[r] == 2 and (slope_bound[r, 0] + slope_bound[r, 1] * (horizon - u0)
+                              + slope_bound[r, 2] < 0.0):
+            continue  # the slope bound of `crossing`: no crossing before horizon
+        s = signs[r % N]
+        active = (r < N and s > 0) or (r >= N and s < 0)
+        tol = tol_rate if active else tol_gap
+        t = crossing(Z[r], tol, u0, u1, linear, H, phi0, horizon)
+        if np.isnan(t):  # no closed form: certified sampling
             if count == 0:
                 count = sampling.cells(u0, u1, cells_per_cycle, H)
-                S, PHIS = np.empty(count + 1), np.empty((count + 1, nb))
+                S, PHIS = np.empty(count + 1), np.empty((count + 1, coef.shape[0]))
                 filled = np.zeros(1, dtype=np.int64)
                 sampling.grid(u0, u1, count, S)
-            t = sampling.crossing(z, tol, u0, u1, linear, H, horizon, S, PHIS, filled)
+            t = sampling.crossing(Z[r], tol, u0, u1, linear, H, horizon, S, PHIS, filled)
         if np.isnan(t):
             return np.inf, True
         times[r] = t
@@ -279,52 +350,89 @@ def certify_samples(k: np.ndarray, kmax: float, c_scale: float, coef: np.ndarray
     """W[j0:j1] and LAMC[j0:j1] at the grid times in the piece, each certified
     (`EventStepper._certify_piece`): in K(t_j), slip integrals >= 0 and complementary, to the
     kernel's tolerances; the first one carries the roundoff of earlier pieces (``carried``).
-    Returns False with ``report`` filled on a failure."""
+    Returns False with ``report`` filled on a failure. (`sample_piece` without the record's
+    slips and positions; ``cvec``, ``Bw`` and ``dx`` are unused.)"""
+    return sample_piece(k, kmax, c_scale, coef, signs, PHI, j0, j1, W, LAMC, lam_cum, dx0, Ydx,
+                        base, Wc, inverse, gram, carried, own, report, np.empty((0, 0)),
+                        np.empty(0), np.empty((0, 0)))
+
+
+@njit(cache=True)
+def sample_piece(k: np.ndarray, kmax: float, c_scale: float, coef: np.ndarray,
+                 signs: np.ndarray, PHI: np.ndarray, j0: int, j1: int, W: np.ndarray,
+                 LAMC: np.ndarray, lam_cum: np.ndarray, dx0: np.ndarray, Ydx: np.ndarray,
+                 base: np.ndarray, Wc: np.ndarray, inverse: float, gram: float, carried: float,
+                 own: float, report: np.ndarray, MU: np.ndarray, x0: np.ndarray,
+                 X: np.ndarray) -> bool:
+    """`certify_samples`, with the record's arrays formed in the same pass where MU has rows:
+    MU[j-1] = LAMC[j] - LAMC[j-1] (the slips of step j - 1, the differences the certificate
+    checks) and, where x0 is not empty, X[j] = x0 + (lambda^+ - lambda^-)(t_j), the block
+    positions (docs/model.md §3).
+
+    One pass over the blocks per sample: block i's force (B w)_i = w_{i-1} - w_i needs only
+    the link state w_i formed in the same pass, so the state, the slips, the offsets, the
+    slacks and the sizes of the tolerance are each formed once, with the operations (and so
+    the bits) of ``combine`` and ``apply``."""
     N = signs.shape[0]
-    m = 2 * N
+    nb = coef.shape[0]
+    slips, positions = MU.shape[0] > 0, x0.shape[0] > 0
     for j in range(j0, j1):
         phi = PHI[j]  # phi at the grid times, tabulated once
-        combine(phi, Wc, W[j])
-        for i in range(N - 1):
-            W[j, i] += base[i]
-        combine(phi, Ydx, dx)
-        LAMC[j] = lam_cum
-        for i in range(N):
-            if signs[i] > 0:
-                LAMC[j, i] = lam_cum[i] + (dx0[i] - dx[i])
-            elif signs[i] < 0:
-                LAMC[j, N + i] = lam_cum[N + i] + -(dx0[i] - dx[i])
-        combine(phi, coef, cvec)
-        apply(W[j], Bw)
-        lam_size = max_abs(LAMC[j])
         # sizes of the numbers summed, not of the sums: phi @ coef and base + phi @ Wc cancel
         # on short pieces with steep offsets (`EventStepper._certify_piece`)
-        c_size = 0.0
-        for r in range(m):
-            total = 0.0
-            for b in range(coef.shape[0]):
-                total += abs(phi[b]) * abs(coef[b, r])
-            c_size = max(c_size, total)
-        w_size = 0.0
-        for i in range(N - 1):
-            total = abs(base[i])
-            for b in range(Wc.shape[0]):
-                total += abs(phi[b]) * abs(Wc[b, i])
-            w_size = max(w_size, total)
+        c_size, w_size, lam_size = 0.0, 0.0, 0.0
+        primal, dual, comp = -np.inf, 0.0, 0.0
+        w_left = 0.0  # w_{i-1}, 0 beyond the first block
+        for i in range(N):
+            w_right = 0.0
+            if i < N - 1:
+                acc = 0.0
+                total = abs(base[i])
+                for b in range(nb):
+                    acc += phi[b] * Wc[b, i]
+                    total += abs(phi[b]) * abs(Wc[b, i])
+                w_right = acc + base[i]
+                W[j, i] = w_right
+                w_size = max(w_size, total)
+            lam_plus, lam_minus = lam_cum[i], lam_cum[N + i]
+            s = signs[i]
+            if s != 0:
+                slip = 0.0
+                for b in range(nb):
+                    slip += phi[b] * Ydx[b, i]
+                if s > 0:
+                    lam_plus = lam_plus + (dx0[i] - slip)
+                else:
+                    lam_minus = lam_minus + -(dx0[i] - slip)
+            LAMC[j, i], LAMC[j, N + i] = lam_plus, lam_minus
+            lam_size = max(lam_size, max(abs(lam_plus), abs(lam_minus)))
+            mu_plus, mu_minus = lam_plus - LAMC[j - 1, i], lam_minus - LAMC[j - 1, N + i]
+            dual = max(dual, max(-mu_plus, -mu_minus))
+            if slips:
+                MU[j - 1, i], MU[j - 1, N + i] = mu_plus, mu_minus
+            if positions:
+                X[j, i] = x0[i] + (lam_plus - lam_minus)
+            c_plus, c_minus, size_plus, size_minus = 0.0, 0.0, 0.0, 0.0
+            for b in range(nb):
+                c_plus += phi[b] * coef[b, i]
+                c_minus += phi[b] * coef[b, N + i]
+                size_plus += abs(phi[b]) * abs(coef[b, i])
+                size_minus += abs(phi[b]) * abs(coef[b, N + i])
+            c_size = max(c_size, max(size_plus, size_minus))
+            f = w_left - w_right
+            slack_plus, slack_minus = f - c_plus, -f - c_minus
+            primal = max(primal, max(slack_plus, slack_minus))
+            if s > 0:
+                comp = max(comp, abs(slack_plus))
+            elif s < 0:
+                comp = max(comp, abs(slack_minus))
+            w_left = w_right
         size = max(max(c_scale, c_size), max(2.0 * w_size, 4.0 * kmax * lam_size))
         tol_p = RTOL * size
         tol_d = max(2.0 * RTOL * inverse * (size + gram * lam_size), own)
         tol_d = max(tol_d, 4 * RTOL * lam_size)
         if j == j0:
             tol_d = max(tol_d, carried)
-        primal, dual, comp = -np.inf, 0.0, 0.0
-        for r in range(m):
-            slack = Bw[r] - cvec[r]
-            primal = max(primal, slack)
-            dual = max(dual, -(LAMC[j, r] - LAMC[j - 1, r]))
-            s = signs[r % N]
-            if (r < N and s > 0) or (r >= N and s < 0):
-                comp = max(comp, abs(slack))
         if primal > tol_p or dual > tol_d or comp > tol_p:
             report[R_INDEX] = j
             report[R_PRIMAL], report[R_DUAL], report[R_COMP] = primal, dual, comp
@@ -352,29 +460,26 @@ def state_at(u: float, linear: bool, H: int, signs: np.ndarray, dx0: np.ndarray,
 
 
 @njit(cache=True)
-def energy_terms(k: np.ndarray, linear: bool, H: int, signs: np.ndarray, base: np.ndarray,
-                 Wc: np.ndarray, Ydx: np.ndarray, KLc: np.ndarray, dLc: np.ndarray, Mc: np.ndarray,
-                 lc: np.ndarray, out: np.ndarray) -> None:
+def energy_terms(signs: np.ndarray, base: np.ndarray, Wc: np.ndarray, dY: np.ndarray,
+                 KLc: np.ndarray, dLc: np.ndarray, Mc: np.ndarray, lc: np.ndarray, loaded: bool,
+                 out: np.ndarray) -> None:
     """The piece's products for `crawlsim.analysis.energy.ExactLedger` (its ``piece``):
-    (Wc + K Lc + base e_0) @ dLc^T, -Mc_A @ Y'^T and -lc_A @ Y'^T."""
+    (Wc + K Lc + base e_0) @ dLc^T, -Mc_A @ Y'^T and, with loads (``loaded``; out[2] stays 0
+    without: the ledger reads two products then), -lc_A @ Y'^T, dY = Y' the slips' rates
+    (`derivative` of Ydx). One pass over the links and one over the slipping blocks, each
+    product summed in ``out`` in the order of the index it sums over."""
     N = signs.shape[0]
     nb = Wc.shape[0]
-    dY = np.empty((nb, N))
-    derivative(Ydx, linear, H, dY)
-    out[:] = 0.0
-    stress = np.empty(N - 1)
-    for a in range(nb):
-        # the stress coefficient a once, then its products (adding base to a = 0 only: the
-        # other terms are those of Wc + KLc + 0.0, the same numbers)
-        for i in range(N - 1):
-            stress[i] = Wc[a, i] + KLc[a, i]
+    sums = np.zeros((3, nb, nb))  # local, so that the sums stay in registers
+    for i in range(N - 1):
+        for a in range(nb):
+            # the stress coefficient a (adding base to a = 0 only: the other terms are those
+            # of Wc + KLc + 0.0, the same numbers)
+            stress = Wc[a, i] + KLc[a, i]
             if a == 0:
-                stress[i] += base[i]
-        for b in range(nb):
-            total = 0.0
-            for i in range(N - 1):
-                total += stress[i] * dLc[b, i]
-            out[0, a, b] = total
+                stress += base[i]
+            for b in range(nb):
+                sums[0, a, b] += stress * dLc[b, i]
     for i in range(N):  # the slipping blocks only (the friction and load rows of the set)
         s = signs[i]
         if s == 0:
@@ -382,8 +487,12 @@ def energy_terms(k: np.ndarray, linear: bool, H: int, signs: np.ndarray, base: n
         r = i if s > 0 else N + i
         for a in range(nb):
             for b in range(nb):
-                out[1, a, b] -= Mc[a, r] * (s * dY[b, i])
-                out[2, a, b] -= lc[a, r] * (s * dY[b, i])
+                sums[1, a, b] -= Mc[a, r] * (s * dY[b, i])
+        if loaded:
+            for a in range(nb):
+                for b in range(nb):
+                    sums[2, a, b] -= lc[a, r] * (s * dY[b, i])
+    out[:] = sums
 
 
 # -- a jump of c at a breakpoint ----------------------------------------------------------------
@@ -421,19 +530,16 @@ def jump(k: np.ndarray, c_scale: float, w: np.ndarray, target: np.ndarray, signs
 
 
 @njit(cache=True)
-def grid_record(LAMC: np.ndarray, x0: np.ndarray, MU: np.ndarray, X: np.ndarray) -> None:
-    """The record's arrays from the cumulative slips on the grid, in one pass:
-    MU[j] = LAMC[j+1] - LAMC[j] (the slips of step j) and, for a crawler (x0 not empty),
-    X[j] = x0 + (lambda^+ - lambda^-)(t_j), the block positions (docs/model.md §3)."""
-    G1, m = LAMC.shape
-    N = m // 2
-    for j in range(G1 - 1):
-        for r in range(m):
-            MU[j, r] = LAMC[j + 1, r] - LAMC[j, r]
-    if x0.shape[0] == 0:
-        return
-    for j in range(G1):
-        for i in range(N):
+def record_at(j: int, LAMC: np.ndarray, x0: np.ndarray, MU: np.ndarray, X: np.ndarray) -> None:
+    """The record's slips of the step ending at grid point j, MU[j-1] = LAMC[j] - LAMC[j-1]
+    (j > 0), and the positions X[j] = x0 + (lambda^+ - lambda^-)(t_j) (x0 not empty), as
+    `sample_piece` forms them: for the first grid point and for one a jump has moved."""
+    N = LAMC.shape[1] // 2
+    for i in range(N):
+        if j > 0:
+            MU[j - 1, i] = LAMC[j, i] - LAMC[j - 1, i]
+            MU[j - 1, N + i] = LAMC[j, N + i] - LAMC[j - 1, N + i]
+        if x0.shape[0] > 0:
             X[j, i] = x0[i] + (LAMC[j, i] - LAMC[j, N + i])
 
 
@@ -469,9 +575,9 @@ def after_jump(u: float, piece_after: int, w: np.ndarray, w_next: np.ndarray, la
                lam_jump: np.ndarray, signs: np.ndarray, forced: np.ndarray, grid: np.ndarray,
                W: np.ndarray, LAMC: np.ndarray, TR_U: np.ndarray, TR_PIECE: np.ndarray,
                TR_SIGNS: np.ndarray, TR_CAUSE: np.ndarray, TR_HIT: np.ndarray,
-               counts: np.ndarray) -> None:
+               counts: np.ndarray) -> int:
     """The state after the projection at a jump: w and the cumulative slips, the transition,
-    and the grid point at the jump (signals are right-continuous)."""
+    and the grid point at the jump (signals are right-continuous), whose index it returns."""
     w[:] = w_next
     for r in range(lam_cum.shape[0]):
         lam_cum[r] += lam_jump[r]
@@ -483,14 +589,16 @@ def after_jump(u: float, piece_after: int, w: np.ndarray, w_next: np.ndarray, la
     while grid[je] < u:
         je += 1
     W[je], LAMC[je] = w, lam_cum
+    return je
 
 
 @njit(cache=True)
 def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray,
            edges: np.ndarray, jumps: np.ndarray, TARGET: np.ndarray, grid: np.ndarray,
            PHI: np.ndarray, w_start: np.ndarray, signs: np.ndarray, max_events: int,
-           zeno_events: int, zeno_window: float, ledger: bool, KLC: np.ndarray, DLC: np.ndarray,
-           MC: np.ndarray, LC: np.ndarray, W: np.ndarray, LAMC: np.ndarray, EV_T: np.ndarray,
+           zeno_events: int, zeno_window: float, ledger: int, KLC: np.ndarray, DLC: np.ndarray,
+           MC: np.ndarray, LC: np.ndarray, W: np.ndarray, LAMC: np.ndarray, MU: np.ndarray,
+           x0: np.ndarray, X: np.ndarray, EV_T: np.ndarray,
            EV_W: np.ndarray, EV_DX: np.ndarray, TR_U: np.ndarray, TR_PIECE: np.ndarray,
            TR_SIGNS: np.ndarray, TR_CAUSE: np.ndarray, TR_HIT: np.ndarray,
            PIECE_BOUNDS: np.ndarray, PIECE_TERMS: np.ndarray, JUMP_PIECE: np.ndarray,
@@ -498,8 +606,10 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
            report: np.ndarray, cells_per_cycle: int) -> int:
     """One period from w_start (in K(0)) with the warm set ``signs`` (left at the final set), on
     the grid ``grid`` (PHI: phi at its times):
-    W and LAMC (cumulative slips) on the grid; the events, transitions, the pieces' energy
-    terms (``ledger``) and the jumps into the other arrays, their numbers in ``counts``.
+    W and LAMC (cumulative slips) on the grid, and the record's slips MU and positions X from
+    x0 (x0 empty: none; `sample_piece`); the events, transitions, the pieces' energy
+    terms (``ledger``: the number of products the ledger keeps, 0 without one) and the jumps
+    into the other arrays, their numbers in ``counts``.
     Returns a status (module docstring)."""
     N = signs.shape[0]
     n, m = N - 1, 2 * N
@@ -513,15 +623,25 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
                         np.empty(N))
     Ydx, Rdx = np.empty((nb, N)), np.empty((nb, N))
     base, Wc = np.empty(n), np.empty((nb, n))
-    z = np.empty(nb)
+    Z, times, phi0 = np.empty((m, nb)), np.empty(m), np.empty(nb)
+    reach, slope_bound = np.empty(m, dtype=np.int8), np.empty((m, 3))
+    C_SIZE = np.empty(P)  # the size of each piece's offsets (`offset_size`)
+    for q in range(P):
+        C_SIZE[q] = offset_size(COEF[q])
     phi, cvec, Bw = np.empty(nb), np.empty(m), np.empty(m)
     w, lam_cum = w_start.copy(), np.zeros(m)
     w_next, lam_jump = np.empty(n), np.empty(m)
     forced = np.zeros(m, dtype=np.bool_)
     chosen = np.empty(N, dtype=np.int8)
     inner = np.zeros(8)
+    # the velocity problems' scratch and the factor of the last set (`decide`, `piece_on`)
+    masks = np.zeros((3, m), dtype=np.bool_)
+    rows_m, rows_n = np.empty((4, m)), np.zeros((5, N))
+    sets = np.empty((2 + chain.UPDATE_ITERATIONS, N), dtype=np.int8)
+    factored, norms = np.full(N, 2, dtype=np.int8), np.zeros(2)
     W[0] = w_start
     LAMC[0] = 0.0
+    record_at(0, LAMC, x0, MU, X)
     counts[:] = 0
     u, j, p, cause = 0.0, 1, 0, EDGE
     carried = 0.0
@@ -532,37 +652,40 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
             return status
         t_count = counts[C_TRANSITIONS]
         coef = COEF[p]
-        if not decide(k, c_scale, linear, H, coef, u, w, forced, signs, chosen, phi, cvec, Bw):
+        if not decide(k, kmax, c_scale, linear, H, coef, u, w, forced, signs, chosen, phi, cvec,
+                      Bw, masks, rows_m, rows_n, sets, factored, D, l, norms, inner):
             report[R_U], report[R_REASON] = u, H_DECIDE
             return HANDOFF
         signs[:] = chosen
         TR_U[t_count], TR_PIECE[t_count], TR_SIGNS[t_count] = u, p, signs
         TR_CAUSE[t_count], TR_HIT[t_count] = cause, forced
         counts[C_TRANSITIONS] = t_count + 1
-        inverse, gram = piece(k, signs, w, coef, D, l, dx0, Ydx, base, Wc, f)
+        factored_set(k, signs, factored, D, l, norms)
+        inverse, gram = piece_on(k, signs, w, coef, D, l, norms, dx0, Ydx, base, Wc, f)
         u_end = edges[p + 1]
-        u_e, handoff = next_event(c_scale, linear, H, coef, signs, base, Wc, Ydx, inverse, u,
-                                  u_end, forced, Rdx, z, cells_per_cycle)
+        u_e, handoff = next_event(c_scale, linear, H, coef, C_SIZE[p], signs, base, Wc, Ydx,
+                                  inverse, u, u_end, forced, Rdx, Z, times, reach,
+                                  slope_bound, phi0, cells_per_cycle)
         if handoff:
             report[R_U], report[R_REASON] = u, H_ZERO
             return HANDOFF
         event = u_e < u_end
         if not event:
             u_e = u_end
-        if ledger and u_e > u:
+        if ledger > 0 and u_e > u:
             q = counts[C_PIECES]
             PIECE_BOUNDS[q, 0], PIECE_BOUNDS[q, 1] = u, u_e
-            energy_terms(k, linear, H, signs, base, Wc, Ydx, KLC[p], DLC[p], MC[p], LC[p],
+            energy_terms(signs, base, Wc, Rdx, KLC[p], DLC[p], MC[p], LC[p], ledger == 3,
                          PIECE_TERMS[q])
             counts[C_PIECES] = q + 1
-        own = dual_scale(k, kmax, c_scale, signs, coef, dx0, Ydx, base, Wc, inverse, gram)
+        own = dual_scale(k, kmax, c_scale, signs, C_SIZE[p], dx0, Ydx, base, Wc, inverse, gram)
         j_end = j
         while j_end < G1 and grid[j_end] <= u_e:
             j_end += 1
         if j_end > j:
-            if not certify_samples(k, kmax, c_scale, coef, signs, PHI, j, j_end, W, LAMC,
-                                   lam_cum, dx0, Ydx, base, Wc, inverse, gram, carried, own,
-                                   inner, cvec, Bw, dx):
+            if not sample_piece(k, kmax, c_scale, coef, signs, PHI, j, j_end, W, LAMC, lam_cum,
+                                dx0, Ydx, base, Wc, inverse, gram, carried, own, inner, MU, x0,
+                                X):
                 report[1:] = inner[1:]
                 return FAILED_PIECE
             carried = own
@@ -589,8 +712,9 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
             JUMP_PIECE[q], JUMP_U[q] = p, u
             JUMP_W[q, 0], JUMP_W[q, 1], JUMP_LAM[q] = w, w_next, lam_jump
             counts[C_JUMPS] = q + 1
-            after_jump(u, edge % P, w, w_next, lam_cum, lam_jump, signs, forced, grid, W, LAMC,
-                       TR_U, TR_PIECE, TR_SIGNS, TR_CAUSE, TR_HIT, counts)
+            je = after_jump(u, edge % P, w, w_next, lam_cum, lam_jump, signs, forced, grid, W,
+                            LAMC, TR_U, TR_PIECE, TR_SIGNS, TR_CAUSE, TR_HIT, counts)
+            record_at(je, LAMC, x0, MU, X)
         if edge == P:
             break
         p = edge

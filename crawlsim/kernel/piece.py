@@ -116,6 +116,32 @@ def piece(k: np.ndarray, signs: np.ndarray, w0: np.ndarray, coef: np.ndarray, D:
     """w(u) = base + phi(u) @ Wc and dx(u) = dx0 - phi(u) @ Ydx on the set ``signs`` from w0:
     Lambda_A = G_A^{-1} (B_A w0 - c_A(u)) in the chain's block form L_JJ dx_J = f_J - f*_J.
     Returns (||L_JJ^{-1}||, ||L_JJ||) (zeros for the empty set)."""
+    norms = np.zeros(2)
+    for i in range(signs.shape[0]):
+        if signs[i] != 0:
+            norms[0], norms[1] = chain.factor(k, signs, D, l)
+            break
+    return piece_on(k, signs, w0, coef, D, l, norms, dx0, Ydx, base, Wc, f)
+
+
+@njit(cache=True)
+def factored_set(k: np.ndarray, signs: np.ndarray, factored: np.ndarray, D: np.ndarray,
+                 l: np.ndarray, norms: np.ndarray) -> None:
+    """The LDL^T of the set ``signs`` (`crawlsim.kernel.chain.factor`) in (D, l) and its norms
+    in ``norms``, factored only when ``factored`` (the set they hold, shared with the velocity
+    problems' `crawlsim.kernel.chain.settle`) is another set: an event's last velocity problem
+    is most often on the set of the piece that follows it."""
+    if not chain.same(factored, signs):
+        norms[0], norms[1] = chain.factor(k, signs, D, l)
+        factored[:] = signs
+
+
+@njit(cache=True)
+def piece_on(k: np.ndarray, signs: np.ndarray, w0: np.ndarray, coef: np.ndarray, D: np.ndarray,
+             l: np.ndarray, norms: np.ndarray, dx0: np.ndarray, Ydx: np.ndarray,
+             base: np.ndarray, Wc: np.ndarray, f: np.ndarray) -> tuple[float, float]:
+    """`piece` with the set already factored: (D, l) its LDL^T and ``norms`` its
+    (||L_JJ^{-1}||, ||L_JJ||)."""
     N = signs.shape[0]
     nb = coef.shape[0]
     active = False
@@ -123,12 +149,12 @@ def piece(k: np.ndarray, signs: np.ndarray, w0: np.ndarray, coef: np.ndarray, D:
         if signs[i] != 0:
             active = True
     base[:] = w0
-    Wc[:] = 0.0
-    dx0[:] = 0.0
-    Ydx[:] = 0.0
-    if not active:
+    if not active:  # with a set, every entry below is written
+        Wc[:] = 0.0
+        dx0[:] = 0.0
+        Ydx[:] = 0.0
         return 0.0, 0.0
-    inverse, gram = chain.factor(k, signs, D, l)
+    inverse, gram = norms[0], norms[1]
     chain.forces(w0, f)
     for i in range(N):
         dx0[i] = f[i] if signs[i] != 0 else 0.0
@@ -146,21 +172,28 @@ def piece(k: np.ndarray, signs: np.ndarray, w0: np.ndarray, coef: np.ndarray, D:
 
 
 @njit(cache=True)
-def dual_scale(k: np.ndarray, kmax: float, c_scale: float, signs: np.ndarray, coef: np.ndarray,
-               dx0: np.ndarray, Ydx: np.ndarray, base: np.ndarray, Wc: np.ndarray, inverse: float,
-               gram: float) -> float:
-    """The roundoff of the slips a piece adds (`EventStepper._dual_scale`): the dual tolerance of
-    its set at the size of its offsets, state and slips."""
-    if inverse == 0.0:
-        return 0.0
-    N = signs.shape[0]
-    nb = coef.shape[0]
+def offset_size(coef: np.ndarray) -> float:
+    """max_r sum_b |coef[b, r]|: the size of a piece's offsets and of their rates (a bound on
+    |c(u)| and |c'(u)| / 2 pi for one harmonic), once per piece of c."""
     c_size = 0.0
     for r in range(coef.shape[1]):
         total = 0.0
-        for b in range(nb):
+        for b in range(coef.shape[0]):
             total += abs(coef[b, r])
         c_size = max(c_size, total)
+    return c_size
+
+
+@njit(cache=True)
+def dual_scale(k: np.ndarray, kmax: float, c_scale: float, signs: np.ndarray, c_size: float,
+               dx0: np.ndarray, Ydx: np.ndarray, base: np.ndarray, Wc: np.ndarray, inverse: float,
+               gram: float) -> float:
+    """The roundoff of the slips a piece adds (`EventStepper._dual_scale`): the dual tolerance of
+    its set at the size of its offsets (``c_size``, `offset_size`), state and slips."""
+    if inverse == 0.0:
+        return 0.0
+    N = signs.shape[0]
+    nb = Ydx.shape[0]
     w_size = max_abs(base)
     lam_size = 0.0
     for i in range(N):
