@@ -203,7 +203,7 @@ def test_no_temporary_file_survives_sigterm_or_sigint(folder, signum):
     child.send_signal(signum)
     _, err = child.communicate(timeout=60)
     # the shell conventions for a process ended by a signal: 128 + 15 and 128 + 2
-    assert child.returncode == {signal.SIGTERM: 143, signal.SIGINT: 130}[signum]
+    assert child.returncode == {signal.SIGTERM: 143, signal.SIGINT: 130}[signum], err[-3000:]
     assert b"Traceback" not in err
     assert not glob.glob(str(folder / ".slow.h5*"))
     assert not (folder / "slow.h5").exists()
