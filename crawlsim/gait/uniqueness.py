@@ -37,6 +37,7 @@ about 2^20 sums of 4 samples, which is 40 blocks of distinct cosine friction; an
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 from collections.abc import Sequence
@@ -394,7 +395,12 @@ class _HalfSums:
         return out
 
 
-_HASH = np.random.default_rng(_KEY_WEIGHTS_SEED).integers(1, 1 << 63, size=64, dtype=np.uint64) | 1
+@functools.cache
+def _hash_words() -> np.ndarray:
+    """64 odd 64-bit multipliers of `_distinct_cells`'s row hash (drawn once, when first
+    needed: numpy.random is not imported by a validation that never hashes)."""
+    return np.random.default_rng(_KEY_WEIGHTS_SEED).integers(1, 1 << 63, size=64,
+                                                             dtype=np.uint64) | 1
 
 
 def _distinct_cells(cells: np.ndarray) -> np.ndarray:
@@ -407,10 +413,11 @@ def _distinct_cells(cells: np.ndarray) -> np.ndarray:
     n = len(cells)
     bits = max(1, int(n - 1).bit_length())
     words = cells.view(np.uint64)
+    weights = _hash_words()
     with np.errstate(over="ignore"):
-        hashes = words[:, 0] * _HASH[0]
+        hashes = words[:, 0] * weights[0]
         for k in range(1, cells.shape[1]):
-            hashes = (hashes ^ (hashes >> np.uint64(29))) + words[:, k] * _HASH[k % len(_HASH)]
+            hashes = (hashes ^ (hashes >> np.uint64(29))) + words[:, k] * weights[k % len(weights)]
     low = np.uint64((1 << bits) - 1)
     packed = np.sort((hashes & ~low) | np.arange(n, dtype=np.uint64))
     index = (packed & low).astype(np.int64)
