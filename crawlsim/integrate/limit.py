@@ -49,6 +49,7 @@ from typing import Literal
 import numpy as np
 
 from crawlsim.integrate.stepping import PeriodRecord, PeriodStepper
+from crawlsim.kernel.chain_polyhedron import ChainPolyhedron
 from crawlsim.kernel.kkt import ActiveSet, Dependent, Polyhedron
 from crawlsim.model.process import SweepingProcess
 
@@ -200,6 +201,67 @@ def apply_jacobian_transpose(poly: Polyhedron, visited: Sequence[Factor],
     return X
 
 
+@dataclass(frozen=True, eq=False)
+class PackedJacobian:
+    """The factors of J for a crawler chain packed into arrays once, for the compiled products
+    of `crawlsim.kernel.jacobian` (O(K N) each, one compiled call instead of K Python solves)."""
+
+    stiffness: np.ndarray
+    kinds: np.ndarray  # int8 (K,): PROJECTOR or SALTATION
+    starts: np.ndarray  # (K + 1,): projector p's saturated blocks are blocks[starts[p]:starts[p + 1]]
+    blocks: np.ndarray  # sorted saturated blocks of every projector
+    D: np.ndarray  # LDL^T of each projector's L_JJ, like ``blocks``
+    l: np.ndarray
+    slot: np.ndarray  # (K,): saltation p is row slot[p] of rows, rates, jumps
+    rows: np.ndarray
+    rates: np.ndarray
+    jumps: np.ndarray  # (S, n): v_b - v_a of each saltation
+
+    def apply(self, v: np.ndarray) -> np.ndarray:
+        """J v (`apply_jacobian` for one vector)."""
+        from crawlsim.kernel.jacobian import apply
+
+        x = np.array(v, dtype=float)
+        apply(self.stiffness, self.kinds, self.starts, self.blocks, self.D, self.l, self.slot,
+              self.rows, self.rates, self.jumps, x)
+        return x
+
+    def apply_transpose(self, v: np.ndarray) -> np.ndarray:
+        """J^T v (`apply_jacobian_transpose` for one vector)."""
+        from crawlsim.kernel.jacobian import apply_transpose
+
+        x = np.array(v, dtype=float)
+        apply_transpose(self.stiffness, self.kinds, self.starts, self.blocks, self.D, self.l,
+                        self.slot, self.rows, self.rates, self.jumps, x)
+        return x
+
+
+def packed_jacobian(poly: Polyhedron, visited: Sequence[Factor]) -> PackedJacobian | None:
+    """The factors ``visited`` packed for the compiled products, for a crawler chain
+    (`crawlsim.kernel.chain_polyhedron.ChainPolyhedron`: a projector depends on its saturated
+    blocks alone); None for another polyhedron."""
+    if not isinstance(poly, ChainPolyhedron):
+        return None
+    from crawlsim.kernel.jacobian import PROJECTOR, SALTATION, pack
+
+    N = poly.blocks
+    kinds = np.array([SALTATION if isinstance(A, Saltation) else PROJECTOR for A in visited],
+                     dtype=np.int8)
+    sets = [np.sort(A.index % N) for A in visited if not isinstance(A, Saltation)]
+    sizes = np.zeros(len(visited), dtype=np.int64)
+    sizes[kinds == PROJECTOR] = [len(J) for J in sets]
+    starts = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    blocks = np.concatenate(sets).astype(np.int64) if sets else np.zeros(0, dtype=np.int64)
+    salts = [A for A in visited if isinstance(A, Saltation)]
+    slot = np.cumsum(kinds == SALTATION).astype(np.int64) - 1
+    D, l = np.empty(len(blocks)), np.empty(len(blocks))
+    pack(poly.stiffness, kinds, starts, blocks, D, l)
+    return PackedJacobian(poly.stiffness, kinds, starts, blocks, D, l, slot,
+                          np.array([A.row for A in salts], dtype=np.int64),
+                          np.array([A.rate for A in salts], dtype=float),
+                          np.array([A.jump for A in salts], dtype=float).reshape(len(salts), poly.n))
+
+
 def subdominant_rate(J: np.ndarray) -> float:
     """The largest |eigenvalue| of J below 1 (eigenvalues at 1: the family of fixed points)."""
     moduli = np.abs(np.linalg.eigvals(J))
@@ -209,7 +271,8 @@ def subdominant_rate(J: np.ndarray) -> float:
 
 def newton_step(poly: Polyhedron, visited: Sequence[Factor], F: np.ndarray) -> np.ndarray:
     """The minimal-norm least-squares solution of (J - I) d = -F in the metric M: dense
-    ``lstsq`` up to `DENSE_JACOBIAN` state variables, matrix-free LSMR beyond."""
+    ``lstsq`` up to `DENSE_JACOBIAN` state variables, matrix-free LSMR beyond (with the
+    compiled products of `PackedJacobian` for a crawler chain)."""
     n = len(F)
     rhs = -poly.metric_root(F)
     if n <= DENSE_JACOBIAN:
@@ -220,13 +283,23 @@ def newton_step(poly: Polyhedron, visited: Sequence[Factor], F: np.ndarray) -> n
         return d
     from scipy.sparse.linalg import LinearOperator, lsmr
 
+    packed = packed_jacobian(poly, visited)
+    if packed is not None:
+        forward, backward = packed.apply, packed.apply_transpose
+    else:
+        def forward(v: np.ndarray) -> np.ndarray:
+            return apply_jacobian(poly, visited, v)
+
+        def backward(v: np.ndarray) -> np.ndarray:
+            return apply_jacobian_transpose(poly, visited, v)
+
     def matvec(x: np.ndarray) -> np.ndarray:
         x = np.ravel(x)
-        return poly.metric_root(apply_jacobian(poly, visited, x) - x)
+        return poly.metric_root(forward(x) - x)
 
     def rmatvec(y: np.ndarray) -> np.ndarray:
         y = poly.metric_root_transpose(np.ravel(y))
-        out: np.ndarray = apply_jacobian_transpose(poly, visited, y) - y
+        out: np.ndarray = backward(y) - y
         return out
 
     op = LinearOperator((n, n), matvec=matvec, rmatvec=rmatvec, dtype=float)
