@@ -210,7 +210,7 @@ class PackedJacobian:
     kinds: np.ndarray  # int8 (K,): PROJECTOR or SALTATION
     starts: np.ndarray  # (K + 1,): projector p's saturated blocks are blocks[starts[p]:starts[p + 1]]
     blocks: np.ndarray  # sorted saturated blocks of every projector
-    D: np.ndarray  # LDL^T of each projector's L_JJ, like ``blocks``
+    D: np.ndarray  # LDL^T of each projector's L_JJ, like ``blocks`` (D: reciprocal pivots)
     l: np.ndarray
     slot: np.ndarray  # (K,): saltation p is row slot[p] of rows, rates, jumps
     rows: np.ndarray
@@ -239,20 +239,26 @@ class PackedJacobian:
 def packed_jacobian(poly: Polyhedron, visited: Sequence[Factor]) -> PackedJacobian | None:
     """The factors ``visited`` packed for the compiled products, for a crawler chain
     (`crawlsim.kernel.chain_polyhedron.ChainPolyhedron`: a projector depends on its saturated
-    blocks alone); None for another polyhedron."""
+    blocks alone); None for another polyhedron.
+
+    Neighbouring projectors of nested sets are merged (`_merged`): P_A is the M-orthogonal
+    projector onto null B_A (M P_A = M - B_A^T G_A^{-1} B_A is symmetric), and for J(A) within
+    J(A') null B_A' lies in null B_A, so P_A' P_A = P_A P_A' = P_A'. The product is the same
+    to roundoff; an entry followed by its exit costs one projector instead of two (the
+    1000-block segments wave: 128 factors -> 17, their blocks 57725 -> 7385)."""
     if not isinstance(poly, ChainPolyhedron):
         return None
     from crawlsim.kernel.jacobian import PROJECTOR, SALTATION, pack
 
-    N = poly.blocks
-    kinds = np.array([SALTATION if isinstance(A, Saltation) else PROJECTOR for A in visited],
+    kept = _merged(poly.blocks, visited)
+    kinds = np.array([SALTATION if isinstance(A, Saltation) else PROJECTOR for A in kept],
                      dtype=np.int8)
-    sets = [np.sort(A.index % N) for A in visited if not isinstance(A, Saltation)]
-    sizes = np.zeros(len(visited), dtype=np.int64)
+    sets = [A for A in kept if not isinstance(A, Saltation)]
+    sizes = np.zeros(len(kept), dtype=np.int64)
     sizes[kinds == PROJECTOR] = [len(J) for J in sets]
     starts = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
     blocks = np.concatenate(sets).astype(np.int64) if sets else np.zeros(0, dtype=np.int64)
-    salts = [A for A in visited if isinstance(A, Saltation)]
+    salts = [A for A in kept if isinstance(A, Saltation)]
     slot = np.cumsum(kinds == SALTATION).astype(np.int64) - 1
     D, l = np.empty(len(blocks)), np.empty(len(blocks))
     pack(poly.stiffness, kinds, starts, blocks, D, l)
@@ -260,6 +266,27 @@ def packed_jacobian(poly: Polyhedron, visited: Sequence[Factor]) -> PackedJacobi
                           np.array([A.row for A in salts], dtype=np.int64),
                           np.array([A.rate for A in salts], dtype=float),
                           np.array([A.jump for A in salts], dtype=float).reshape(len(salts), poly.n))
+
+
+def _merged(N: int, visited: Sequence[Factor]) -> list[np.ndarray | Saltation]:
+    """The factors in turn, each projector as its sorted saturated blocks, with every projector
+    next to one of a superset (no saltation between) dropped (`packed_jacobian`)."""
+    out: list[np.ndarray | Saltation] = []
+    for A in visited:
+        if isinstance(A, Saltation):
+            out.append(A)
+            continue
+        J = np.unique(A.index % N)
+        while out and isinstance(out[-1], np.ndarray):
+            if np.isin(J, out[-1]).all():  # P_A P_last = P_last
+                break
+            if not np.isin(out[-1], J).all():
+                out.append(J)
+                break
+            out.pop()  # P_A P_last = P_A, and so on back
+        else:
+            out.append(J)
+    return out
 
 
 def subdominant_rate(J: np.ndarray) -> float:

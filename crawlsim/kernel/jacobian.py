@@ -18,9 +18,9 @@ vector b_i = s D e_b (entries +s at link b - 1, -s at link b), so
 The factors are packed once per Newton step (`pack`: the blocks of each projector and the LDL^T
 of its L_JJ, from `crawlsim.kernel.chain.factor` on the padded system, restricted to J), then
 a product by J or J^T is one compiled call over all of them (`apply`, `apply_transpose`),
-O(K N) for K factors, instead of K Python solves. Each entry is formed with the operations of
-the numpy products (`crawlsim.integrate.limit.apply_jacobian`), so the two agree to the
-roundoff of the tridiagonal solves.
+O(sum |J|) <= O(K N) for K factors, instead of K Python solves; a projector is two passes
+over its blocks (`_project`). The products agree with the numpy ones factor by factor
+(`crawlsim.integrate.limit.apply_jacobian`) to the roundoff of the tridiagonal solves.
 
 Everything here is a function of plain arrays and scalars, compiled by numba; with
 ``NUMBA_DISABLE_JIT=1`` the same source runs as Python.
@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from crawlsim.kernel.chain import factor, solve
+from crawlsim.kernel.chain import factor
 
 #: The kind of a packed factor: the projector of an active set, or a saltation.
 PROJECTOR, SALTATION = 0, 1
@@ -40,7 +40,8 @@ PROJECTOR, SALTATION = 0, 1
 @njit(cache=True)
 def pack(k: np.ndarray, kinds: np.ndarray, starts: np.ndarray, blocks: np.ndarray,
          D: np.ndarray, l: np.ndarray) -> None:
-    """Fill D and l (like ``blocks``) with the LDL^T of L_JJ of every projector: factor p's
+    """Fill D and l (like ``blocks``) with the LDL^T of L_JJ of every projector, D with the
+    reciprocals of its pivots (the solves multiply by them): factor p's
     saturated blocks are ``blocks[starts[p]:starts[p + 1]]`` (sorted). L_JJ is the padded L~
     of `crawlsim.kernel.chain.factor` restricted to J (the padding decouples every free
     block), so its pivots are L~'s at J and its subdiagonal L~'s between consecutive blocks
@@ -57,35 +58,47 @@ def pack(k: np.ndarray, kinds: np.ndarray, starts: np.ndarray, blocks: np.ndarra
         factor(k, signs, Dp, lp)
         for q in range(lo, hi):
             b = blocks[q]
-            D[q] = Dp[b]
+            D[q] = 1.0 / Dp[b]
             l[q] = lp[b] if b < N - 1 else 0.0
             signs[b] = 0.0
 
 
 @njit(cache=True, inline='always')
-def _force(x: np.ndarray, b: int) -> float:
-    """(D^T x)_b = x_{b-1} - x_b, with x_{-1} = x_{N-1} = 0."""
+def _project(k: np.ndarray, blocks: np.ndarray, D: np.ndarray, l: np.ndarray, lo: int, hi: int,
+             x: np.ndarray, y: np.ndarray, transpose: bool) -> None:
+    """x <- P_A x (or P_A^T x) for the projector of the blocks J = ``blocks[lo:hi]``, in two
+    passes over J: forward, f_J = (D^T x)_J (D^T K x with ``transpose``) and the unit lower
+    solve of the LDL^T of L_JJ (into ``y``); backward, the pivots and the unit upper solve
+    give the slips dx_J, and each link next to a block moves as soon as the slips on both its
+    sides are known: link j by (dx_{j+1} - dx_j) k_j, that is x - K D dx (or, divided by k_j,
+    x - D dx). Link j moves once: with block j if it is saturated (its right link), else with
+    block j + 1 (its left link). l is zero between blocks that are not neighbours, so the
+    recurrences run over J as over one tridiagonal system."""
     n = x.shape[0]
-    return (x[b - 1] if b > 0 else 0.0) - (x[b] if b < n else 0.0)
-
-
-@njit(cache=True, inline='always')
-def _respond(k: np.ndarray, blocks: np.ndarray, lo: int, hi: int, y: np.ndarray, x: np.ndarray,
-             metric: bool) -> None:
-    """x <- x - K D dx on the links next to the blocks ``blocks[lo:hi]`` (their slips
-    dx = y[:hi - lo], zero elsewhere): link j of a saturated block b = j + 1 or j moves by
-    (dx_{j+1} - dx_j) k_j, divided by k_j again with ``metric`` (M K D dx = D dx)."""
-    n = x.shape[0]
+    prev = 0.0
     for q in range(lo, hi):
         b = blocks[q]
-        dx = y[q - lo]
-        if b > 0 and not (q > lo and blocks[q - 1] == b - 1):  # link b-1, block b-1 free
-            r = (dx - 0.0) * k[b - 1]
-            x[b - 1] -= r / k[b - 1] if metric else r
+        if transpose:
+            f = ((x[b - 1] * k[b - 1]) if b > 0 else 0.0) - ((x[b] * k[b]) if b < n else 0.0)
+        else:
+            f = (x[b - 1] if b > 0 else 0.0) - (x[b] if b < n else 0.0)
+        if q > lo:
+            f -= l[q - 1] * prev
+        y[q - lo] = f
+        prev = f
+    right = 0.0  # the slip of the next saturated block, and whether it is block b + 1
+    for q in range(hi - 1, lo - 1, -1):
+        b = blocks[q]
+        dx = y[q - lo] * D[q]
+        beside = q + 1 < hi and blocks[q + 1] == b + 1
+        if beside:
+            dx -= l[q] * right
         if b < n:  # link b: dx_{b+1} - dx_b
-            right = y[q + 1 - lo] if (q + 1 < hi and blocks[q + 1] == b + 1) else 0.0
-            r = (right - dx) * k[b]
-            x[b] -= r / k[b] if metric else r
+            step = (right if beside else 0.0) - dx
+            x[b] -= step if transpose else step * k[b]
+        if b > 0 and not (q > lo and blocks[q - 1] == b - 1):  # link b - 1, block b - 1 free
+            x[b - 1] -= dx if transpose else dx * k[b - 1]
+        right = dx
 
 
 @njit(cache=True)
@@ -102,15 +115,13 @@ def apply(k: np.ndarray, kinds: np.ndarray, starts: np.ndarray, blocks: np.ndarr
         if kinds[p] == SALTATION:
             t = slot[p]
             row = rows[t]
-            f = _force(x, row) if row < N else -_force(x, row - N)
+            b, sign = (row, 1.0) if row < N else (row - N, -1.0)
+            f = sign * ((x[b - 1] if b > 0 else 0.0) - (x[b] if b < n else 0.0))  # (B x)_row
             s = f / rates[t]
             for j in range(n):
                 x[j] -= s * jumps[t, j]
             continue
-        for q in range(lo, hi):
-            y[q - lo] = _force(x, blocks[q])
-        solve(D[lo:hi], l[lo:hi], y[:hi - lo])
-        _respond(k, blocks, lo, hi, y, x, False)
+        _project(k, blocks, D, l, lo, hi, x, y, False)
 
 
 @njit(cache=True)
@@ -136,8 +147,4 @@ def apply_transpose(k: np.ndarray, kinds: np.ndarray, starts: np.ndarray, blocks
             if b < n:
                 x[b] -= s * -sign
             continue
-        for q in range(lo, hi):  # f = D^T (K x) on J
-            b = blocks[q]
-            y[q - lo] = ((x[b - 1] * k[b - 1]) if b > 0 else 0.0) - ((x[b] * k[b]) if b < n else 0.0)
-        solve(D[lo:hi], l[lo:hi], y[:hi - lo])
-        _respond(k, blocks, lo, hi, y, x, True)
+        _project(k, blocks, D, l, lo, hi, x, y, True)
