@@ -60,9 +60,14 @@ UNIT_EIGENVALUE = 1e-8
 #: What each period simulated by the solver was (`LimitSolution.kinds`): a plain iteration
 #: from the previous accepted point, an accepted Newton candidate, or a rejected one.
 PLAIN, NEWTON, REJECTED = 0, 1, -1
-#: Up to this many state variables J is formed densely; beyond, the Newton step is solved
-#: matrix-free (LSMR with products by J and J^T, O(K N) each).
+#: Up to this many state variables J is formed densely (and its contraction rate reported);
+#: beyond, the Newton step is solved matrix-free (LSMR with products by J and J^T, O(K N) each).
 DENSE_JACOBIAN = 400
+#: For a crawler chain, whose products are compiled (`PackedJacobian`), the Newton step is
+#: matrix-free beyond this many: measured on the bench-scale waves after 3 exact periods, the
+#: dense step costs 0.5-0.9 times LSMR's at n = 10-50, 1.3-1.4 times at n = 100, 4.7-11 at
+#: n = 200 and 18-200 at n = 400 (the steps agreeing to 5e-13 relative).
+DENSE_CHAIN_JACOBIAN = 100
 #: A Newton step that leaves more than this fraction of the residual is kept but counts as a
 #: failure of the model for the back-off (a random 11-block gait: 176 Newton steps of a few per
 #: cent each, where 25 plain periods converge).
@@ -298,11 +303,11 @@ def subdominant_rate(J: np.ndarray) -> float:
 
 def newton_step(poly: Polyhedron, visited: Sequence[Factor], F: np.ndarray) -> np.ndarray:
     """The minimal-norm least-squares solution of (J - I) d = -F in the metric M: dense
-    ``lstsq`` up to `DENSE_JACOBIAN` state variables, matrix-free LSMR beyond (with the
-    compiled products of `PackedJacobian` for a crawler chain)."""
+    ``lstsq`` up to `DENSE_JACOBIAN` state variables, matrix-free LSMR beyond (for a crawler
+    chain beyond `DENSE_CHAIN_JACOBIAN`, with the compiled products of `PackedJacobian`)."""
     n = len(F)
     rhs = -poly.metric_root(F)
-    if n <= DENSE_JACOBIAN:
+    if n <= DENSE_JACOBIAN and (n <= DENSE_CHAIN_JACOBIAN or not isinstance(poly, ChainPolyhedron)):
         J = jacobian(poly, visited)
         A = poly.metric_root((J - np.eye(n)).T).T  # L^T (J - I)
         d: np.ndarray
