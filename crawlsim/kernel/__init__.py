@@ -14,6 +14,7 @@
     eventloop    the exact integrator's compiled event loop: one period of a crawler, certified
     piece        a piece of the exact flow: the basis phi(u), the piece's coefficients (compiled)
     tangent      the compiled tangent walk of a limit period, for exact sensitivities
+    jacobian     the compiled products by the period map's Jacobian, for the limit's Newton step
 
 The compiled modules are not imported until a crawler is stepped: `crawlsim validate` and the
 CLI's start-up do not load numba. With ``NUMBA_DISABLE_JIT=1`` they run as Python.
