@@ -69,6 +69,37 @@ class Walk:
     touches: list[tuple[str, np.ndarray]] = field(default_factory=list)
 
 
+@dataclass(frozen=True, eq=False)
+class Prepared:
+    """What a walk reads that depends on the compiled gait and the parameters' columns alone,
+    not on the limit period: the normals B, K = M^{-1}, the coefficients of c' and dc'
+    (`_derivatives`), the Gauss-Legendre rule of the dissipation integrals and, for catch-up,
+    each grid time's cycle, piece and basis values (eq. (catch-up)). Built once per gait and
+    set of parameters (`crawlsim.analysis.sensitivity` keeps it), so that a walk costs the
+    period's own arithmetic."""
+
+    B: np.ndarray  # (m, n) dense normals
+    k: np.ndarray  # (n,)
+    derivative: tuple[np.ndarray, np.ndarray]  # c' (P, nb, m) and dc' (P, nb, m, p)
+    gauss: tuple[np.ndarray, np.ndarray]
+    # catch-up: u_j, the piece of each u_j, phi(u_j), the grid's offsets
+    grid: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
+
+
+def prepare(process: Any, co: Coefficients, dC: np.ndarray, catch_up: bool) -> Prepared:
+    """The `Prepared` data of a walk of ``process`` (compiled from the gait ``co`` is of)."""
+    B = np.ascontiguousarray(process.polyhedron.dense_normals(), dtype=float)
+    k = np.ascontiguousarray(co.k, dtype=float)
+    grid = None
+    if catch_up:
+        u = np.mod(np.asarray(process.times, dtype=float) / process.period, 1.0)  # c(1) is c(0)
+        pieces = np.minimum(np.searchsorted(co.edges, u, side="right") - 1, len(co.C) - 1)
+        grid = (u, pieces.astype(np.int64), co.basis.values(u),
+                np.ascontiguousarray(process.offsets, dtype=float))
+    return Prepared(B, k, _derivatives(co.basis, co.C, dC),
+                    _gauss(24 + 12 * co.basis.harmonics), grid)
+
+
 class _Walker:
     """The start of a flow or run that the compiled walk flagged (``w``, ``Wt``), the touches
     found there, and the kernel's formulas (`crawlsim.kernel.tangent`) called from Python."""
@@ -111,30 +142,31 @@ class _Walker:
 
 # -- the exact integrator ----------------------------------------------------------------------
 def walk_exact(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
-               dk: np.ndarray) -> Walk:
+               dk: np.ndarray, prep: Prepared | None = None) -> Walk:
     """Differentiate the exact integrator's limit period from its start (module docstring);
     dC (P, nb, m, p), dMu (P, nb, m, p), dk (n, p). The walk is the compiled
     `crawlsim.kernel.tangent.walk_exact`; the flows it flags as holding a possible touch are
-    examined here on the closed form, from the state and tangent it had at their start."""
+    examined here on the closed form, from the state and tangent it had at their start.
+    ``prep``: `prepare`'s data for these columns, built here when not given."""
     from crawlsim.kernel import tangent
     from crawlsim.kernel.catchup import announce_compilation
 
     announce_compilation("sensitivity")  # a first walk compiles the kernel (once per cache)
-    B = np.ascontiguousarray(lim.process.polyhedron.dense_normals(), dtype=float)
+    if prep is None:
+        prep = prepare(lim.process, co, dC, False)
+    B, k, derivative = prep.B, prep.k, prep.derivative
     m, n = B.shape
     q = n + dk.shape[1]
     u, piece, cause, act, hit = _transition_arrays(lim.record.transitions, m)
     K = len(u)
     basis = co.basis
-    derivative = _derivatives(basis, co.C, dC)
-    gx, gw = _gauss(24 + 12 * basis.harmonics)
+    gx, gw = prep.gauss
     W, L, D = np.empty((n, q)), np.empty((m, q)), np.empty(q)
     lam, w_end = np.empty(m), np.empty(n)
     kink = np.zeros(K, dtype=np.int64)
     column_kinks = np.zeros(q, dtype=np.bool_)
     gap_flag, rate_flag = np.zeros(K, dtype=np.bool_), np.zeros(K, dtype=np.bool_)
     w_start, W_start = np.empty((K, n)), np.empty((K, n, q))
-    k = np.ascontiguousarray(co.k, dtype=float)
     diss = tangent.walk_exact(
         B, k, co.C, co.Mu, dC, dMu, dk, derivative[0], derivative[1], basis.linear,
         basis.harmonics, co.edges, u, piece, cause, act, hit, gx, gw,
@@ -324,24 +356,26 @@ def _touching(f: np.ndarray, tol: float) -> np.ndarray:
 
 # -- catch-up ----------------------------------------------------------------------------------
 def walk_catch_up(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
-                  dk: np.ndarray) -> Walk:
+                  dk: np.ndarray, prep: Prepared | None = None) -> Walk:
     """Differentiate the catch-up scheme's discrete period map at its limit period (module
     docstring, eq. (catch-up)): runs of steps on one active set (the rows with a positive
     multiplier) telescope to the piece formula at the run's last grid time. The walk is the
     compiled `crawlsim.kernel.tangent.walk_catch_up`; the runs with a row tight at a zero
-    multiplier are examined here, from the state and tangent it had at their start."""
+    multiplier are examined here, from the state and tangent it had at their start.
+    ``prep``: `prepare`'s data (with the grid) for these columns, built here when not given."""
     from crawlsim.errors import CrawlsimError
     from crawlsim.kernel import tangent
     from crawlsim.kernel.catchup import announce_compilation
 
     announce_compilation("sensitivity")
     process, record = lim.process, lim.record
-    B = np.ascontiguousarray(process.polyhedron.dense_normals(), dtype=float)
+    if prep is None or prep.grid is None:
+        prep = prepare(process, co, dC, True)
+    assert prep.grid is not None
+    B = prep.B
     m, n = B.shape
     q = n + dk.shape[1]
-    u = np.mod(np.asarray(process.times, dtype=float) / process.period, 1.0)  # c(1) is c(0)
-    pieces = np.minimum(np.searchsorted(co.edges, u, side="right") - 1, len(co.C) - 1)
-    Phi = co.basis.values(u)
+    u, pieces, Phi, offsets = prep.grid
     LAM = np.asarray(record.multipliers, dtype=float)
     active = LAM > 0.0
     # rows tight at w_{j+1} with a zero multiplier: the map has a kink there for the
@@ -356,8 +390,7 @@ def walk_catch_up(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     lam, w_end = np.empty(m), np.empty(n)
     w_start, W_start = np.empty((R, n)), np.empty((R, n, q))
     diss, agrees = tangent.walk_catch_up(
-        B, np.ascontiguousarray(co.k, dtype=float), co.C, co.Mu, dC, dMu, dk, Phi,
-        pieces.astype(np.int64), np.ascontiguousarray(process.offsets, dtype=float), active,
+        B, prep.k, co.C, co.Mu, dC, dMu, dk, Phi, pieces, offsets, active,
         starts, np.array(record.w[0], dtype=float), 1e-9 * lim.scale, W, L, D, lam, w_end,
         w_start, W_start)
     if not agrees:
