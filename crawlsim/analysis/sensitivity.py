@@ -241,7 +241,7 @@ def _build_static(gait: Gait, process: SweepingProcess, paths: Sequence[str] | s
     params = tuple(parameter_of(gait, co, keys) for keys in _expand(gait, paths))
     active = tuple(i for i, prm in enumerate(params) if prm.dC is not None)
     dC, dMu, dk = _stack(co, [params[i] for i in active])
-    prep = prepare(process, co, dC, gait.simulation.integrator != "exact")
+    prep = prepare(process, co, dC, dMu, gait.simulation.integrator != "exact")
     size_c = max(float(np.max(np.abs(co.C))), 1e-300)
     moved = (np.max(np.abs(dC), axis=(0, 1, 2)) / size_c
              + np.max(np.abs(dk), axis=0) / np.min(co.k)) if dk.shape[1] else np.zeros(0)
@@ -263,7 +263,22 @@ def _limit_of_run(gait: Gait, run: Any) -> Limit:
         process = compile_gait(gait, steps_per_period=1 if exact else None)
     scale = _cached(gait, ("scale", process.steps),
                     lambda: breakpoint_scale(process)) if exact else None
-    return limit_of(process, record, scale)
+    return limit_of(process, record, scale, _known(run, process))
+
+
+def _known(run: Any, process: SweepingProcess) -> tuple[float, float, float | None] | None:
+    """What ``run`` measured of its limit period with `limit_of`'s own formulas: the
+    displacement and dissipation of the period (`crawlsim.analysis.run`'s motion), and v0's
+    error where the run took it as `verified_limit_error` does here (the periodic-limit
+    solver's period, on the grid of the record: else None, measured again)."""
+    from crawlsim.analysis.run import LimitMethod
+
+    d, dissipation = run.displacement_per_period, run.dissipation_per_period
+    if d is None or dissipation is None:
+        return None
+    same = (run.limit_method == LimitMethod.NEWTON and process is run.limit_process
+            and len(run.limit_record.w) - 1 == process.steps)
+    return d, dissipation, run.v0_error_period_iteration if same else None
 
 
 def _expand(gait: Gait, paths: Sequence[str] | str) -> list[tuple[Any, ...]]:

@@ -82,22 +82,35 @@ class Prepared:
     k: np.ndarray  # (n,)
     derivative: tuple[np.ndarray, np.ndarray]  # c' (P, nb, m) and dc' (P, nb, m, p)
     gauss: tuple[np.ndarray, np.ndarray]
-    # catch-up: u_j, the piece of each u_j, phi(u_j), the grid's offsets
-    grid: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
+    # catch-up: u_j, the piece of each u_j, phi(u_j), c, mu, dc and dmu at u_j
+    # (`crawlsim.kernel.tangent.grid_values`) and whether c's closed form reproduces the
+    # grid's offsets (`crawlsim.kernel.tangent.grid_agrees`)
+    grid: tuple[np.ndarray, np.ndarray, np.ndarray,
+                tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] | None = None
+    agrees: bool = True
 
 
-def prepare(process: Any, co: Coefficients, dC: np.ndarray, catch_up: bool) -> Prepared:
-    """The `Prepared` data of a walk of ``process`` (compiled from the gait ``co`` is of)."""
+def prepare(process: Any, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
+            catch_up: bool) -> Prepared:
+    """The `Prepared` data of a walk of ``process`` (compiled from the gait ``co`` is of) with
+    the parameter columns dC, dMu (P, nb, m, p)."""
+    from crawlsim.kernel import tangent
+
     B = np.ascontiguousarray(process.polyhedron.dense_normals(), dtype=float)
     k = np.ascontiguousarray(co.k, dtype=float)
-    grid = None
+    grid, agrees = None, True
     if catch_up:
         u = np.mod(np.asarray(process.times, dtype=float) / process.period, 1.0)  # c(1) is c(0)
-        pieces = np.minimum(np.searchsorted(co.edges, u, side="right") - 1, len(co.C) - 1)
-        grid = (u, pieces.astype(np.int64), co.basis.values(u),
-                np.ascontiguousarray(process.offsets, dtype=float))
+        pieces = np.minimum(np.searchsorted(co.edges, u, side="right") - 1,
+                            len(co.C) - 1).astype(np.int64)
+        Phi = co.basis.values(u)
+        grid = (u, pieces, Phi, tangent.grid_values(Phi, pieces, co.C, co.Mu, dC, dMu))
+        # the limit's scale of a catch-up walk is its process's (`limit_of`)
+        agrees = bool(tangent.grid_agrees(Phi, pieces, co.C,
+                                          np.ascontiguousarray(process.offsets, dtype=float),
+                                          1e-9 * process.scale))
     return Prepared(B, k, _derivatives(co.basis, co.C, dC),
-                    _gauss(24 + 12 * co.basis.harmonics), grid)
+                    _gauss(24 + 12 * co.basis.harmonics), grid, agrees)
 
 
 class _Walker:
@@ -153,7 +166,7 @@ def walk_exact(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
 
     announce_compilation("sensitivity")  # a first walk compiles the kernel (once per cache)
     if prep is None:
-        prep = prepare(lim.process, co, dC, False)
+        prep = prepare(lim.process, co, dC, dMu, False)
     B, k, derivative = prep.B, prep.k, prep.derivative
     m, n = B.shape
     q = n + dk.shape[1]
@@ -370,12 +383,18 @@ def walk_catch_up(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     announce_compilation("sensitivity")
     process, record = lim.process, lim.record
     if prep is None or prep.grid is None:
-        prep = prepare(process, co, dC, True)
+        prep = prepare(process, co, dC, dMu, True)
     assert prep.grid is not None
+    agrees = prep.agrees if lim.scale == process.scale else bool(tangent.grid_agrees(
+        prep.grid[2], prep.grid[1], co.C, np.ascontiguousarray(process.offsets, dtype=float),
+        1e-9 * lim.scale))
+    if not agrees:
+        raise CrawlsimError(f"{process.name}: the offsets' closed form does not reproduce the "
+                            "catch-up grid's; the catch-up map is not differentiated")
     B = prep.B
     m, n = B.shape
     q = n + dk.shape[1]
-    u, pieces, Phi, offsets = prep.grid
+    u, pieces, Phi, values = prep.grid
     LAM = np.asarray(record.multipliers, dtype=float)
     active = LAM > 0.0
     # rows tight at w_{j+1} with a zero multiplier: the map has a kink there for the
@@ -389,15 +408,12 @@ def walk_catch_up(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     W, L, D = np.empty((n, q)), np.empty((m, q)), np.empty(q)
     lam, w_end = np.empty(m), np.empty(n)
     w_start, W_start = np.empty((R, n)), np.empty((R, n, q))
-    diss, agrees = tangent.walk_catch_up(
-        B, prep.k, co.C, co.Mu, dC, dMu, dk, Phi, pieces, offsets, active,
-        starts, np.array(record.w[0], dtype=float), 1e-9 * lim.scale, W, L, D, lam, w_end,
-        w_start, W_start)
-    if not agrees:
-        raise CrawlsimError(f"{process.name}: the offsets' closed form does not reproduce the "
-                            "catch-up grid's; the catch-up map is not differentiated")
+    diss = tangent.walk_catch_up(
+        B, prep.k, co.C, dC, dk, Phi, pieces, values, active, starts,
+        np.array(record.w[0], dtype=float), W, L, D, lam, w_end, w_start, W_start)
     touches: list[tuple[str, np.ndarray]] = []
-    weak_runs = [r for r in range(R) if weak[starts[r]:starts[r + 1]].any()]
+    weak_runs = np.flatnonzero(np.logical_or.reduceat(np.any(weak, axis=1),
+                                                      starts[:-1])).tolist() if R else []
     if weak_runs:
         s = _Walker(lim, co, dC, dk)
         for r in weak_runs:
