@@ -267,16 +267,18 @@ def _limit_of_run(gait: Gait, run: Any) -> Limit:
 
 
 def _known(run: Any, process: SweepingProcess) -> tuple[float, float, float | None] | None:
-    """What ``run`` measured of its limit period with `limit_of`'s own formulas: the
-    displacement and dissipation of the period (`crawlsim.analysis.run`'s motion), and v0's
-    error where the run took it as `verified_limit_error` does here (the periodic-limit
+    """What ``run`` (a `crawlsim.analysis.run.RunResult` on ``process``) measured of its limit
+    period with `limit_of`'s own formulas: the displacement and dissipation of the period
+    (`crawlsim.analysis.run`'s motion), and v0's error where the run took it as `verified_limit_error` does here (the periodic-limit
     solver's period, on the grid of the record: else None, measured again)."""
-    from crawlsim.analysis.run import LimitMethod
+    from crawlsim.analysis.run import LimitMethod, RunResult
 
+    if not isinstance(run, RunResult) or process is not run.limit_process:
+        return None  # (a sweep's point: measured on its own terms)
     d, dissipation = run.displacement_per_period, run.dissipation_per_period
-    if d is None or dissipation is None:
+    if d is None or dissipation is None or run.limit_record is None:
         return None
-    same = (run.limit_method == LimitMethod.NEWTON and process is run.limit_process
+    same = (run.limit_method == LimitMethod.NEWTON
             and len(run.limit_record.w) - 1 == process.steps)
     return d, dissipation, run.v0_error_period_iteration if same else None
 

@@ -88,6 +88,7 @@ class Prepared:
     grid: tuple[np.ndarray, np.ndarray, np.ndarray,
                 tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] | None = None
     agrees: bool = True
+    offsets: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # catch-up: the grid's c
 
 
 def prepare(process: Any, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
@@ -106,9 +107,10 @@ def prepare(process: Any, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
         Phi = co.basis.values(u)
         grid = (u, pieces, Phi, tangent.grid_values(Phi, pieces, co.C, co.Mu, dC, dMu))
         # the limit's scale of a catch-up walk is its process's (`limit_of`)
-        agrees = bool(tangent.grid_agrees(Phi, pieces, co.C,
-                                          np.ascontiguousarray(process.offsets, dtype=float),
-                                          1e-9 * process.scale))
+        offsets = np.ascontiguousarray(process.offsets, dtype=float)
+        agrees = bool(tangent.grid_agrees(Phi, pieces, co.C, offsets, 1e-9 * process.scale))
+        return Prepared(B, k, _derivatives(co.basis, co.C, dC),
+                        _gauss(24 + 12 * co.basis.harmonics), grid, agrees, offsets)
     return Prepared(B, k, _derivatives(co.basis, co.C, dC),
                     _gauss(24 + 12 * co.basis.harmonics), grid, agrees)
 
@@ -386,8 +388,7 @@ def walk_catch_up(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
         prep = prepare(process, co, dC, dMu, True)
     assert prep.grid is not None
     agrees = prep.agrees if lim.scale == process.scale else bool(tangent.grid_agrees(
-        prep.grid[2], prep.grid[1], co.C, np.ascontiguousarray(process.offsets, dtype=float),
-        1e-9 * lim.scale))
+        prep.grid[2], prep.grid[1], co.C, prep.offsets, 1e-9 * lim.scale))
     if not agrees:
         raise CrawlsimError(f"{process.name}: the offsets' closed form does not reproduce the "
                             "catch-up grid's; the catch-up map is not differentiated")
@@ -395,15 +396,13 @@ def walk_catch_up(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     m, n = B.shape
     q = n + dk.shape[1]
     u, pieces, Phi, values = prep.grid
-    LAM = np.asarray(record.multipliers, dtype=float)
-    active = LAM > 0.0
-    # rows tight at w_{j+1} with a zero multiplier: the map has a kink there for the
-    # parameters that move that gap off zero (a touch, as in the exact walk)
-    gaps = record.w[1:] @ B.T - process.offsets[1:]
-    weak = ~active & (np.abs(gaps) <= TOUCH * lim.scale)
-    G = len(LAM)
-    starts = np.concatenate([[0], np.flatnonzero(np.any(active[1:] != active[:-1], axis=1)) + 1,
-                             [G]]).astype(np.int64)
+    # the active rows, and the rows tight at w_{j+1} with a zero multiplier ("weak"): the map
+    # has a kink there for the parameters that move that gap off zero (a touch, as in the
+    # exact walk)
+    active, weak, starts, runs_weak, scale_w = tangent.catch_up_runs(
+        np.ascontiguousarray(record.multipliers, dtype=float),
+        np.ascontiguousarray(record.w, dtype=float), B, prep.offsets, TOUCH * lim.scale)
+    G = len(active)
     R = len(starts) - 1
     W, L, D = np.empty((n, q)), np.empty((m, q)), np.empty(q)
     lam, w_end = np.empty(m), np.empty(n)
@@ -412,8 +411,7 @@ def walk_catch_up(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
         B, prep.k, co.C, dC, dk, Phi, pieces, values, active, starts,
         np.array(record.w[0], dtype=float), W, L, D, lam, w_end, w_start, W_start)
     touches: list[tuple[str, np.ndarray]] = []
-    weak_runs = np.flatnonzero(np.logical_or.reduceat(np.any(weak, axis=1),
-                                                      starts[:-1])).tolist() if R else []
+    weak_runs = np.flatnonzero(runs_weak).tolist()
     if weak_runs:
         s = _Walker(lim, co, dC, dk)
         for r in weak_runs:
@@ -421,8 +419,7 @@ def walk_catch_up(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
             s.w, s.Wt = w_start[r], W_start[r]
             _weak_steps(s, (pieces, Phi), np.flatnonzero(active[j0]), j0, weak[j0:j1])
         touches = s.touches
-    scale_w = max(float(np.max(np.abs(record.w))), 1e-300)
-    if float(np.max(np.abs(w_end - record.w[-1]))) > 1e-8 * scale_w:
+    if float(np.max(np.abs(w_end - record.w[-1]))) > 1e-8 * max(scale_w, 1e-300):
         raise CrawlsimError(f"{process.name}: the catch-up walk does not reproduce the limit "
                             "period (internal error)")
     return Walk(W, L, D, lam, float(diss), w_end, G, [], np.zeros(q, dtype=bool), touches)

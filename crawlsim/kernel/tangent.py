@@ -659,6 +659,49 @@ def grid_values(Phi: np.ndarray, pieces: np.ndarray, C: np.ndarray, Mu: np.ndarr
 
 
 @njit(cache=True)
+def catch_up_runs(multipliers: np.ndarray, w: np.ndarray, B: np.ndarray, offsets: np.ndarray,
+                  tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
+    """A catch-up limit period's runs (eq. (catch-up)): the active rows of each step (a
+    positive multiplier, (G, m)), the rows tight at w_{j+1} to ``tol`` with a zero multiplier
+    (``weak``, (G, m): a touch), the first step of each run on one active set (with G at the
+    end), whether each run holds a weak row, and max |w| over the period (the scale of the
+    walk's check of the end state); one pass over the record."""
+    G, m = multipliers.shape
+    n = B.shape[1]
+    active = np.empty((G, m), dtype=np.bool_)
+    weak = np.zeros((G, m), dtype=np.bool_)
+    for j in range(G):
+        for r in range(m):
+            active[j, r] = multipliers[j, r] > 0.0
+            if not active[j, r]:
+                t = 0.0
+                for i in range(n):
+                    t += w[j + 1, i] * B[r, i]
+                weak[j, r] = abs(t - offsets[j + 1, r]) <= tol
+    starts = np.empty(G + 1, dtype=np.int64)
+    starts[0] = 0
+    R = 1
+    for j in range(1, G):
+        for r in range(m):
+            if active[j, r] != active[j - 1, r]:
+                starts[R] = j
+                R += 1
+                break
+    starts[R] = G
+    runs_weak = np.zeros(R, dtype=np.bool_)
+    for r_ in range(R):
+        for j in range(starts[r_], starts[r_ + 1]):
+            for r in range(m):
+                if weak[j, r]:
+                    runs_weak[r_] = True
+    scale_w = 0.0
+    for j in range(w.shape[0]):
+        for i in range(n):
+            scale_w = max(scale_w, abs(w[j, i]))
+    return active, weak, starts[:R + 1].copy(), runs_weak, scale_w
+
+
+@njit(cache=True)
 def _steps(BA: np.ndarray, Gi: np.ndarray, idx: np.ndarray, k_moves: bool, dk: np.ndarray,
            values: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], j0: int, j1: int,
            D: np.ndarray,
