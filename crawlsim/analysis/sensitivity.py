@@ -269,8 +269,9 @@ def _limit_of_run(gait: Gait, run: Any) -> Limit:
 def _known(run: Any, process: SweepingProcess) -> tuple[float, float, float | None] | None:
     """What ``run`` (a `crawlsim.analysis.run.RunResult` on ``process``) measured of its limit
     period with `limit_of`'s own formulas: the displacement and dissipation of the period
-    (`crawlsim.analysis.run`'s motion), and v0's error where the run took it as `verified_limit_error` does here (the periodic-limit
-    solver's period, on the grid of the record: else None, measured again)."""
+    (`crawlsim.analysis.run`'s motion), and v0's error where the run took it as
+    `verified_limit_error` does here (the periodic-limit solver's period, on the grid of the
+    record: else None, measured again)."""
     from crawlsim.analysis.run import LimitMethod, RunResult
 
     if not isinstance(run, RunResult) or process is not run.limit_process:
