@@ -27,7 +27,8 @@ they could not be.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+import weakref
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -44,12 +45,13 @@ from crawlsim.analysis.sensitivity_terms import (
     parameter_of,
     uniqueness_touch,
 )
-from crawlsim.analysis.sensitivity_walk import Walk, walk_catch_up, walk_exact
+from crawlsim.analysis.sensitivity_walk import Prepared, Walk, prepare, walk_catch_up, walk_exact
 from crawlsim.errors import CrawlsimError, GaitError
 from crawlsim.gait.docpaths import resolve_path
 
 if TYPE_CHECKING:
     from crawlsim.gait.document import Gait
+    from crawlsim.model.process import SweepingProcess
 
 #: Relative step of the one-sided differences at a kink (h and 2 h, Richardson extrapolated).
 ONE_SIDED_STEP = 1e-5
@@ -159,14 +161,12 @@ def sensitivity(gait: Gait, paths: Sequence[str] | str, *, one_sided: bool = Tru
         raise GaitError(getattr(gait, "source", "<gait>"), "",
                         "sensitivities are defined for crawler gaits (kind: crawler)")
     lim = _limit_of_run(gait, run)
-    co = coefficients_of(gait, lim.process)
-    params = [parameter_of(gait, co, keys) for keys in _expand(gait, paths)]
-    active = [i for i, prm in enumerate(params) if prm.dC is not None]
-    dC, dMu, dk = _stack(co, [params[i] for i in active])
+    st = _static_of(gait, lim.process, paths)
+    co, params, active, dMu = st.co, st.params, st.active, st.dMu
     catch_up = gait.simulation.integrator != "exact"
-    walk = (walk_catch_up if catch_up else walk_exact)(lim, co, dC, dMu, dk)
-    ift = _Ift(lim, walk, co, dC, dk, gait.blocks)
-    friction_kink = uniqueness_touch(gait, co)
+    walk = (walk_catch_up if catch_up else walk_exact)(lim, co, st.dC, dMu, st.dk, st.prep)
+    ift = _Ift(lim, walk, st, gait.blocks)
+    friction_kink = st.friction_kink
     T = lim.process.period
     Y, D = lim.displacement, lim.dissipation
     cot = D / abs(Y) if abs(Y) > 10 * lim.v0_error * T + 1e-300 else None
@@ -189,6 +189,65 @@ def sensitivity(gait: Gait, paths: Sequence[str] | str, *, one_sided: bool = Tru
                              tuple(dict.fromkeys(walk.kinks)))
 
 
+# -- what depends on the gait alone, built once per gait ----------------------------------------
+#: Per gait (a frozen value, compared by identity): what a call derives from the gait and the
+#: grid its limit process is compiled on, not from the limit period; keyed by the kind of entry,
+#: the integrator, the grid's steps and (for `_Static`) the paths asked for.
+_CACHE: weakref.WeakKeyDictionary[Gait, dict[tuple[Any, ...], Any]] = weakref.WeakKeyDictionary()
+#: Most entries kept per gait (a long sweep of paths on one gait starts again when it is full).
+CACHE_ENTRIES = 32
+
+
+def _cached(gait: Gait, key: tuple[Any, ...], build: Callable[[], Any]) -> Any:
+    """``build()``, kept on ``gait`` under ``key``: a repeated `sensitivity` call on the same
+    gait (every `crawlsim velocity --sensitivity` run of it, a batch) does not derive again
+    what its limit period does not change."""
+    store = _CACHE.setdefault(gait, {})
+    if key not in store:
+        if len(store) >= CACHE_ENTRIES:
+            store.clear()
+        store[key] = build()
+    return store[key]
+
+
+@dataclass(frozen=True, eq=False)
+class _Static:
+    """The offsets' coefficients, the parameters with their columns dC, dMu (P, nb, m, p) and
+    dk (n, p) (`crawlsim.analysis.sensitivity_terms`), the friction's uniqueness touch, the
+    walk's `Prepared` data and each column's relative move of the slips (`_Ift`'s roundoff
+    floor): everything of a call that the limit period does not enter."""
+
+    co: Any
+    params: tuple[Parameter, ...]
+    active: tuple[int, ...]
+    dC: np.ndarray
+    dMu: np.ndarray
+    dk: np.ndarray
+    friction_kink: str | None
+    prep: Prepared
+    moved: np.ndarray  # (p,)
+
+
+def _static_of(gait: Gait, process: SweepingProcess, paths: Sequence[str] | str) -> _Static:
+    """`_Static` of ``gait`` on ``process``'s grid for ``paths``, built once."""
+    integrator = gait.simulation.integrator
+    key = ("static", integrator, process.steps,
+           (paths,) if isinstance(paths, str) else tuple(paths))
+    return _cached(gait, key, lambda: _build_static(gait, process, paths))
+
+
+def _build_static(gait: Gait, process: SweepingProcess, paths: Sequence[str] | str) -> _Static:
+    co = coefficients_of(gait, process)
+    params = tuple(parameter_of(gait, co, keys) for keys in _expand(gait, paths))
+    active = tuple(i for i, prm in enumerate(params) if prm.dC is not None)
+    dC, dMu, dk = _stack(co, [params[i] for i in active])
+    prep = prepare(process, co, dC, dMu, gait.simulation.integrator != "exact")
+    size_c = max(float(np.max(np.abs(co.C))), 1e-300)
+    moved = (np.max(np.abs(dC), axis=(0, 1, 2)) / size_c
+             + np.max(np.abs(dk), axis=0) / np.min(co.k)) if dk.shape[1] else np.zeros(0)
+    return _Static(co, params, active, dC, dMu, dk, uniqueness_touch(gait, co), prep, moved)
+
+
 def _limit_of_run(gait: Gait, run: Any) -> Limit:
     """The limit period of ``run`` (its ``limit_record``, on its ``limit_process``) when it is
     this gait's, else found. The exact walk needs the closed form of c only, not the run's
@@ -202,7 +261,27 @@ def _limit_of_run(gait: Gait, run: Any) -> Limit:
         from crawlsim.model.process import compile_gait
 
         process = compile_gait(gait, steps_per_period=1 if exact else None)
-    return limit_of(process, record, breakpoint_scale(process) if exact else None)
+    scale = _cached(gait, ("scale", process.steps),
+                    lambda: breakpoint_scale(process)) if exact else None
+    return limit_of(process, record, scale, _known(run, process))
+
+
+def _known(run: Any, process: SweepingProcess) -> tuple[float, float, float | None] | None:
+    """What ``run`` (a `crawlsim.analysis.run.RunResult` on ``process``) measured of its limit
+    period with `limit_of`'s own formulas: the displacement and dissipation of the period
+    (`crawlsim.analysis.run`'s motion), and v0's error where the run took it as
+    `verified_limit_error` does here (the periodic-limit solver's period, on the grid of the
+    record: else None, measured again)."""
+    from crawlsim.analysis.run import LimitMethod, RunResult
+
+    if not isinstance(run, RunResult) or process is not run.limit_process:
+        return None  # (a sweep's point: measured on its own terms)
+    d, dissipation = run.displacement_per_period, run.dissipation_per_period
+    if d is None or dissipation is None or run.limit_record is None:
+        return None
+    same = (run.limit_method == LimitMethod.NEWTON
+            and len(run.limit_record.w) - 1 == process.steps)
+    return d, dissipation, run.v0_error_period_iteration if same else None
 
 
 def _expand(gait: Gait, paths: Sequence[str] | str) -> list[tuple[Any, ...]]:
@@ -231,11 +310,10 @@ class _Ift:
     """(ift) solved for every parameter column at once: dw* = (I - dP/dw)^+ dP/dtheta (one
     least-squares solve, p right-hand sides), dY and dD with their error estimates."""
 
-    def __init__(self, lim: Limit, walk: Walk, co: Any, dC: np.ndarray, dk: np.ndarray,
-                 blocks: int):
+    def __init__(self, lim: Limit, walk: Walk, st: _Static, blocks: int):
         from crawlsim.kernel.tangent import implicit
 
-        n = len(co.k)
+        n = len(st.co.k)
         self.n, self.walk, self.scale_c = n, walk, lim.scale
         # error: roundoff of every term (pieces x eps x their sizes, times the conditioning of
         # the least-squares solve) plus the verified limit's distance, relative, on the same
@@ -245,10 +323,8 @@ class _Ift:
         rel = 64 * EPS * (walk.pieces + n) * cond + lim.residual
         # a floor at the roundoff of the slips themselves: a derivative that cancels to ~0 (a
         # common phase shift) is zero to eps times the sizes the period's slips are made of
-        size_c = max(float(np.max(np.abs(co.C))), 1e-300)
-        moved = (np.max(np.abs(dC), axis=(0, 1, 2)) / size_c
-                 + np.max(np.abs(dk), axis=0) / np.min(co.k)) if dk.shape[1] else np.zeros(0)
-        floor = 64 * EPS * walk.pieces * moved
+        # (``st.moved``: each column's largest relative move of c and k)
+        floor = 64 * EPS * walk.pieces * st.moved
         self.errY = rel * magY + floor * (float(np.sum(np.abs(walk.lam))) / blocks)
         self.errD = rel * magD + floor * abs(lim.dissipation)
 

@@ -87,25 +87,32 @@ def find_limit(gait: Gait) -> Limit:
     return limit_of(process, final)
 
 
-def limit_of(process: SweepingProcess, final: PeriodRecord, scale: float | None = None) -> Limit:
+def limit_of(process: SweepingProcess, final: PeriodRecord, scale: float | None = None,
+             known: tuple[float, float, float | None] | None = None) -> Limit:
     """v0, its error and the period's displacement and dissipation of a verified limit period
     (the error as `crawlsim.analysis.run.simulate` bounds it: the steps' roundoff and the
     residual |P(w) - w| as a shape mismatch over the smallest stiffness). ``scale``: the size
     of c of the walk's grid where it is not ``process``'s (`breakpoint_scale`); the relative
-    Poincare step is taken on it."""
+    Poincare step is taken on it. ``known``: the period's displacement, dissipation and v0's
+    error (None: not known) as the run that verified ``final`` measured them, with these
+    formulas on this period (`crawlsim.analysis.run`), not measured again."""
     from crawlsim.analysis.energy import period_dissipation
 
     assert final.x is not None
     T = process.period
-    d = float(np.mean(final.x[-1] - final.x[0]))
-    steps = len(final.w) - 1  # the run's grid (``process`` may be compiled on a coarser one)
-    err = verified_limit_error(process, final, steps)
+    if known is None:
+        d = float(np.mean(final.x[-1] - final.x[0]))
+        dissipation, err = period_dissipation(process, final), None
+    else:
+        d, dissipation, err = known
+    if err is None:
+        steps = len(final.w) - 1  # the run's grid (``process`` may be on a coarser one)
+        err = verified_limit_error(process, final, steps)
     scale = process.scale if scale is None else scale
     # the relative Poincare step (`crawlsim.integrate.limit.relative_step`) on that scale
     residual = float(np.linalg.norm(final.w[-1] - final.w[0])) / max(
         float(np.linalg.norm(final.w[-1])), scale)
-    return Limit(process, final, d / T, err, d, period_dissipation(process, final), residual,
-                 scale)
+    return Limit(process, final, d / T, err, d, dissipation, residual, scale)
 
 
 def breakpoint_scale(process: SweepingProcess) -> float:

@@ -69,6 +69,52 @@ class Walk:
     touches: list[tuple[str, np.ndarray]] = field(default_factory=list)
 
 
+@dataclass(frozen=True, eq=False)
+class Prepared:
+    """What a walk reads that depends on the compiled gait and the parameters' columns alone,
+    not on the limit period: the normals B, K = M^{-1}, the coefficients of c' and dc'
+    (`_derivatives`), the Gauss-Legendre rule of the dissipation integrals and, for catch-up,
+    each grid time's cycle, piece and basis values (eq. (catch-up)). Built once per gait and
+    set of parameters (`crawlsim.analysis.sensitivity` keeps it), so that a walk costs the
+    period's own arithmetic."""
+
+    B: np.ndarray  # (m, n) dense normals
+    k: np.ndarray  # (n,)
+    derivative: tuple[np.ndarray, np.ndarray]  # c' (P, nb, m) and dc' (P, nb, m, p)
+    gauss: tuple[np.ndarray, np.ndarray]
+    # catch-up: u_j, the piece of each u_j, phi(u_j), c, mu, dc and dmu at u_j
+    # (`crawlsim.kernel.tangent.grid_values`) and whether c's closed form reproduces the
+    # grid's offsets (`crawlsim.kernel.tangent.grid_agrees`)
+    grid: tuple[np.ndarray, np.ndarray, np.ndarray,
+                tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] | None = None
+    agrees: bool = True
+    offsets: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # catch-up: the grid's c
+
+
+def prepare(process: Any, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
+            catch_up: bool) -> Prepared:
+    """The `Prepared` data of a walk of ``process`` (compiled from the gait ``co`` is of) with
+    the parameter columns dC, dMu (P, nb, m, p)."""
+    from crawlsim.kernel import tangent
+
+    B = np.ascontiguousarray(process.polyhedron.dense_normals(), dtype=float)
+    k = np.ascontiguousarray(co.k, dtype=float)
+    grid, agrees = None, True
+    if catch_up:
+        u = np.mod(np.asarray(process.times, dtype=float) / process.period, 1.0)  # c(1) is c(0)
+        pieces = np.minimum(np.searchsorted(co.edges, u, side="right") - 1,
+                            len(co.C) - 1).astype(np.int64)
+        Phi = co.basis.values(u)
+        grid = (u, pieces, Phi, tangent.grid_values(Phi, pieces, co.C, co.Mu, dC, dMu))
+        # the limit's scale of a catch-up walk is its process's (`limit_of`)
+        offsets = np.ascontiguousarray(process.offsets, dtype=float)
+        agrees = bool(tangent.grid_agrees(Phi, pieces, co.C, offsets, 1e-9 * process.scale))
+        return Prepared(B, k, _derivatives(co.basis, co.C, dC),
+                        _gauss(24 + 12 * co.basis.harmonics), grid, agrees, offsets)
+    return Prepared(B, k, _derivatives(co.basis, co.C, dC),
+                    _gauss(24 + 12 * co.basis.harmonics), grid, agrees)
+
+
 class _Walker:
     """The start of a flow or run that the compiled walk flagged (``w``, ``Wt``), the touches
     found there, and the kernel's formulas (`crawlsim.kernel.tangent`) called from Python."""
@@ -111,30 +157,31 @@ class _Walker:
 
 # -- the exact integrator ----------------------------------------------------------------------
 def walk_exact(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
-               dk: np.ndarray) -> Walk:
+               dk: np.ndarray, prep: Prepared | None = None) -> Walk:
     """Differentiate the exact integrator's limit period from its start (module docstring);
     dC (P, nb, m, p), dMu (P, nb, m, p), dk (n, p). The walk is the compiled
     `crawlsim.kernel.tangent.walk_exact`; the flows it flags as holding a possible touch are
-    examined here on the closed form, from the state and tangent it had at their start."""
+    examined here on the closed form, from the state and tangent it had at their start.
+    ``prep``: `prepare`'s data for these columns, built here when not given."""
     from crawlsim.kernel import tangent
     from crawlsim.kernel.catchup import announce_compilation
 
     announce_compilation("sensitivity")  # a first walk compiles the kernel (once per cache)
-    B = np.ascontiguousarray(lim.process.polyhedron.dense_normals(), dtype=float)
+    if prep is None:
+        prep = prepare(lim.process, co, dC, dMu, False)
+    B, k, derivative = prep.B, prep.k, prep.derivative
     m, n = B.shape
     q = n + dk.shape[1]
     u, piece, cause, act, hit = _transition_arrays(lim.record.transitions, m)
     K = len(u)
     basis = co.basis
-    derivative = _derivatives(basis, co.C, dC)
-    gx, gw = _gauss(24 + 12 * basis.harmonics)
+    gx, gw = prep.gauss
     W, L, D = np.empty((n, q)), np.empty((m, q)), np.empty(q)
     lam, w_end = np.empty(m), np.empty(n)
     kink = np.zeros(K, dtype=np.int64)
     column_kinks = np.zeros(q, dtype=np.bool_)
     gap_flag, rate_flag = np.zeros(K, dtype=np.bool_), np.zeros(K, dtype=np.bool_)
     w_start, W_start = np.empty((K, n)), np.empty((K, n, q))
-    k = np.ascontiguousarray(co.k, dtype=float)
     diss = tangent.walk_exact(
         B, k, co.C, co.Mu, dC, dMu, dk, derivative[0], derivative[1], basis.linear,
         basis.harmonics, co.edges, u, piece, cause, act, hit, gx, gw,
@@ -324,47 +371,47 @@ def _touching(f: np.ndarray, tol: float) -> np.ndarray:
 
 # -- catch-up ----------------------------------------------------------------------------------
 def walk_catch_up(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
-                  dk: np.ndarray) -> Walk:
+                  dk: np.ndarray, prep: Prepared | None = None) -> Walk:
     """Differentiate the catch-up scheme's discrete period map at its limit period (module
     docstring, eq. (catch-up)): runs of steps on one active set (the rows with a positive
     multiplier) telescope to the piece formula at the run's last grid time. The walk is the
     compiled `crawlsim.kernel.tangent.walk_catch_up`; the runs with a row tight at a zero
-    multiplier are examined here, from the state and tangent it had at their start."""
+    multiplier are examined here, from the state and tangent it had at their start.
+    ``prep``: `prepare`'s data (with the grid) for these columns, built here when not given."""
     from crawlsim.errors import CrawlsimError
     from crawlsim.kernel import tangent
     from crawlsim.kernel.catchup import announce_compilation
 
     announce_compilation("sensitivity")
     process, record = lim.process, lim.record
-    B = np.ascontiguousarray(process.polyhedron.dense_normals(), dtype=float)
+    if prep is None or prep.grid is None:
+        prep = prepare(process, co, dC, dMu, True)
+    assert prep.grid is not None
+    agrees = prep.agrees if lim.scale == process.scale else bool(tangent.grid_agrees(
+        prep.grid[2], prep.grid[1], co.C, prep.offsets, 1e-9 * lim.scale))
+    if not agrees:
+        raise CrawlsimError(f"{process.name}: the offsets' closed form does not reproduce the "
+                            "catch-up grid's; the catch-up map is not differentiated")
+    B = prep.B
     m, n = B.shape
     q = n + dk.shape[1]
-    u = np.mod(np.asarray(process.times, dtype=float) / process.period, 1.0)  # c(1) is c(0)
-    pieces = np.minimum(np.searchsorted(co.edges, u, side="right") - 1, len(co.C) - 1)
-    Phi = co.basis.values(u)
-    LAM = np.asarray(record.multipliers, dtype=float)
-    active = LAM > 0.0
-    # rows tight at w_{j+1} with a zero multiplier: the map has a kink there for the
-    # parameters that move that gap off zero (a touch, as in the exact walk)
-    gaps = record.w[1:] @ B.T - process.offsets[1:]
-    weak = ~active & (np.abs(gaps) <= TOUCH * lim.scale)
-    G = len(LAM)
-    starts = np.concatenate([[0], np.flatnonzero(np.any(active[1:] != active[:-1], axis=1)) + 1,
-                             [G]]).astype(np.int64)
+    u, pieces, Phi, values = prep.grid
+    # the active rows, and the rows tight at w_{j+1} with a zero multiplier ("weak"): the map
+    # has a kink there for the parameters that move that gap off zero (a touch, as in the
+    # exact walk)
+    active, weak, starts, runs_weak, scale_w = tangent.catch_up_runs(
+        np.ascontiguousarray(record.multipliers, dtype=float),
+        np.ascontiguousarray(record.w, dtype=float), B, prep.offsets, TOUCH * lim.scale)
+    G = len(active)
     R = len(starts) - 1
     W, L, D = np.empty((n, q)), np.empty((m, q)), np.empty(q)
     lam, w_end = np.empty(m), np.empty(n)
     w_start, W_start = np.empty((R, n)), np.empty((R, n, q))
-    diss, agrees = tangent.walk_catch_up(
-        B, np.ascontiguousarray(co.k, dtype=float), co.C, co.Mu, dC, dMu, dk, Phi,
-        pieces.astype(np.int64), np.ascontiguousarray(process.offsets, dtype=float), active,
-        starts, np.array(record.w[0], dtype=float), 1e-9 * lim.scale, W, L, D, lam, w_end,
-        w_start, W_start)
-    if not agrees:
-        raise CrawlsimError(f"{process.name}: the offsets' closed form does not reproduce the "
-                            "catch-up grid's; the catch-up map is not differentiated")
+    diss = tangent.walk_catch_up(
+        B, prep.k, co.C, dC, dk, Phi, pieces, values, active, starts,
+        np.array(record.w[0], dtype=float), W, L, D, lam, w_end, w_start, W_start)
     touches: list[tuple[str, np.ndarray]] = []
-    weak_runs = [r for r in range(R) if weak[starts[r]:starts[r + 1]].any()]
+    weak_runs = np.flatnonzero(runs_weak).tolist()
     if weak_runs:
         s = _Walker(lim, co, dC, dk)
         for r in weak_runs:
@@ -372,8 +419,7 @@ def walk_catch_up(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
             s.w, s.Wt = w_start[r], W_start[r]
             _weak_steps(s, (pieces, Phi), np.flatnonzero(active[j0]), j0, weak[j0:j1])
         touches = s.touches
-    scale_w = max(float(np.max(np.abs(record.w))), 1e-300)
-    if float(np.max(np.abs(w_end - record.w[-1]))) > 1e-8 * scale_w:
+    if float(np.max(np.abs(w_end - record.w[-1]))) > 1e-8 * max(scale_w, 1e-300):
         raise CrawlsimError(f"{process.name}: the catch-up walk does not reproduce the limit "
                             "period (internal error)")
     return Walk(W, L, D, lam, float(diss), w_end, G, [], np.zeros(q, dtype=bool), touches)
