@@ -64,11 +64,15 @@ def gaits_dir():
 @pytest.fixture(scope="session", autouse=True)
 def compiled_kernel():
     """Compile the kernel (crawlsim/kernel, numba with cache=True) once, before any test: on a
-    fresh install the first run compiles it (about 25 s), and the tests that run crawlsim in a
-    subprocess under a hang guard should find the cache warm rather than pay for it."""
-    from crawlsim.api import simulate
+    fresh install the first run compiles it (about 35 s), and the tests that run crawlsim in a
+    subprocess under a hang guard should find the cache warm rather than pay for it; nor should
+    a documented command's output carry the one-line notice of a first compilation (the
+    sensitivities' tangent walk included)."""
+    from crawlsim.api import sensitivity, simulate
     from crawlsim.gait.document import load_gait, with_simulation
 
     gait = load_gait(GAITS / "inching-2.yaml")
     for integrator in ("catch-up", "exact"):
         simulate(with_simulation(gait, integrator=integrator, steps_per_period=20, max_periods=3))
+        sensitivity(with_simulation(gait, integrator=integrator, steps_per_period=20),
+                    "stiffness")

@@ -200,8 +200,8 @@ CACHE_ENTRIES = 32
 
 def _cached(gait: Gait, key: tuple[Any, ...], build: Callable[[], Any]) -> Any:
     """``build()``, kept on ``gait`` under ``key``: a repeated `sensitivity` call on the same
-    gait (every `crawlsim velocity --sensitivity` run of it, a batch) does not derive again
-    what its limit period does not change."""
+    `Gait` object (a notebook or a script that asks again, with other paths or after another
+    run) does not derive again what its limit period does not change. A first call builds it."""
     store = _CACHE.setdefault(gait, {})
     if key not in store:
         if len(store) >= CACHE_ENTRIES:
