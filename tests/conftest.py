@@ -7,6 +7,10 @@ counterexample found as an ``@example``.
 """
 
 import os
+import shutil
+import subprocess
+import sys
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -76,3 +80,13 @@ def compiled_kernel():
         simulate(with_simulation(gait, integrator=integrator, steps_per_period=20, max_periods=3))
         sensitivity(with_simulation(gait, integrator=integrator, steps_per_period=20),
                     "stiffness")
+    # the installed command may import another copy of crawlsim than the tests do (pytest run
+    # from a checkout with a non-editable install): numba caches each copy's kernel apart
+    command = shutil.which("crawlsim", path=str(Path(sys.executable).parent))
+    if command is not None:
+        with tempfile.TemporaryDirectory() as folder:
+            for integrator in ("catch-up", "exact"):
+                subprocess.run([command, "velocity", str(GAITS / "inching-2.yaml"),
+                                "--integrator", integrator, "--steps-per-period", "20",
+                                "--sensitivity", "stiffness"], cwd=folder, capture_output=True,
+                               timeout=1800, check=False)
