@@ -40,7 +40,7 @@ import crawlsim
 from crawlsim import api
 from crawlsim.analysis import sensitivity as S, sensitivity_terms as st
 from crawlsim.analysis.sensitivity_walk import walk_catch_up, walk_exact
-from crawlsim.kernel.tangent import implicit
+from crawlsim.kernel.implicit import implicit
 
 cases, out = json.loads(sys.argv[1]), sys.argv[2]
 result = {}

@@ -311,13 +311,13 @@ class _Ift:
     least-squares solve, p right-hand sides), dY and dD with their error estimates."""
 
     def __init__(self, lim: Limit, walk: Walk, st: _Static, blocks: int):
-        from crawlsim.kernel.tangent import implicit
+        from crawlsim.kernel.implicit import implicit
 
         n = len(st.co.k)
         self.n, self.walk, self.scale_c = n, walk, lim.scale
         # error: roundoff of every term (pieces x eps x their sizes, times the conditioning of
         # the least-squares solve) plus the verified limit's distance, relative, on the same
-        # sizes (`crawlsim.kernel.tangent.implicit` gives the sizes and the conditioning)
+        # sizes (`crawlsim.kernel.implicit.implicit` gives the sizes and the conditioning)
         self.dw, self.dY, self.dD, magY, magD, cond = implicit(
             walk.W, walk.L, walk.D, blocks)
         rel = 64 * EPS * (walk.pieces + n) * cond + lim.residual

@@ -83,8 +83,8 @@ class Prepared:
     derivative: tuple[np.ndarray, np.ndarray]  # c' (P, nb, m) and dc' (P, nb, m, p)
     gauss: tuple[np.ndarray, np.ndarray]
     # catch-up: u_j, the piece of each u_j, phi(u_j), c, mu, dc and dmu at u_j
-    # (`crawlsim.kernel.tangent.grid_values`) and whether c's closed form reproduces the
-    # grid's offsets (`crawlsim.kernel.tangent.grid_agrees`)
+    # (`crawlsim.kernel.tangent_catchup.grid_values`) and whether c's closed form reproduces the
+    # grid's offsets (`crawlsim.kernel.tangent_catchup.grid_agrees`)
     grid: tuple[np.ndarray, np.ndarray, np.ndarray,
                 tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] | None = None
     agrees: bool = True
@@ -95,7 +95,7 @@ def prepare(process: Any, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
             catch_up: bool) -> Prepared:
     """The `Prepared` data of a walk of ``process`` (compiled from the gait ``co`` is of) with
     the parameter columns dC, dMu (P, nb, m, p)."""
-    from crawlsim.kernel import tangent
+    from crawlsim.kernel import tangent_catchup
 
     B = np.ascontiguousarray(process.polyhedron.dense_normals(), dtype=float)
     k = np.ascontiguousarray(co.k, dtype=float)
@@ -105,10 +105,11 @@ def prepare(process: Any, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
         pieces = np.minimum(np.searchsorted(co.edges, u, side="right") - 1,
                             len(co.C) - 1).astype(np.int64)
         Phi = co.basis.values(u)
-        grid = (u, pieces, Phi, tangent.grid_values(Phi, pieces, co.C, co.Mu, dC, dMu))
+        grid = (u, pieces, Phi, tangent_catchup.grid_values(Phi, pieces, co.C, co.Mu, dC, dMu))
         # the limit's scale of a catch-up walk is its process's (`limit_of`)
         offsets = np.ascontiguousarray(process.offsets, dtype=float)
-        agrees = bool(tangent.grid_agrees(Phi, pieces, co.C, offsets, 1e-9 * process.scale))
+        agrees = bool(tangent_catchup.grid_agrees(Phi, pieces, co.C, offsets,
+                                                  1e-9 * process.scale))
         return Prepared(B, k, _derivatives(co.basis, co.C, dC),
                         _gauss(24 + 12 * co.basis.harmonics), grid, agrees, offsets)
     return Prepared(B, k, _derivatives(co.basis, co.C, dC),
@@ -375,11 +376,11 @@ def walk_catch_up(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     """Differentiate the catch-up scheme's discrete period map at its limit period (module
     docstring, eq. (catch-up)): runs of steps on one active set (the rows with a positive
     multiplier) telescope to the piece formula at the run's last grid time. The walk is the
-    compiled `crawlsim.kernel.tangent.walk_catch_up`; the runs with a row tight at a zero
+    compiled `crawlsim.kernel.tangent_catchup.walk_catch_up`; the runs with a row tight at a zero
     multiplier are examined here, from the state and tangent it had at their start.
     ``prep``: `prepare`'s data (with the grid) for these columns, built here when not given."""
     from crawlsim.errors import CrawlsimError
-    from crawlsim.kernel import tangent
+    from crawlsim.kernel import tangent_catchup
     from crawlsim.kernel.catchup import announce_compilation
 
     announce_compilation("sensitivity")
@@ -387,7 +388,7 @@ def walk_catch_up(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     if prep is None or prep.grid is None:
         prep = prepare(process, co, dC, dMu, True)
     assert prep.grid is not None
-    agrees = prep.agrees if lim.scale == process.scale else bool(tangent.grid_agrees(
+    agrees = prep.agrees if lim.scale == process.scale else bool(tangent_catchup.grid_agrees(
         prep.grid[2], prep.grid[1], co.C, prep.offsets, 1e-9 * lim.scale))
     if not agrees:
         raise CrawlsimError(f"{process.name}: the offsets' closed form does not reproduce the "
@@ -399,7 +400,7 @@ def walk_catch_up(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     # the active rows, and the rows tight at w_{j+1} with a zero multiplier ("weak"): the map
     # has a kink there for the parameters that move that gap off zero (a touch, as in the
     # exact walk)
-    active, weak, starts, runs_weak, scale_w = tangent.catch_up_runs(
+    active, weak, starts, runs_weak, scale_w = tangent_catchup.catch_up_runs(
         np.ascontiguousarray(record.multipliers, dtype=float),
         np.ascontiguousarray(record.w, dtype=float), B, prep.offsets, TOUCH * lim.scale)
     G = len(active)
@@ -407,7 +408,7 @@ def walk_catch_up(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     W, L, D = np.empty((n, q)), np.empty((m, q)), np.empty(q)
     lam, w_end = np.empty(m), np.empty(n)
     w_start, W_start = np.empty((R, n)), np.empty((R, n, q))
-    diss = tangent.walk_catch_up(
+    diss = tangent_catchup.walk_catch_up(
         B, prep.k, co.C, dC, dk, Phi, pieces, values, active, starts,
         np.array(record.w[0], dtype=float), W, L, D, lam, w_end, w_start, W_start)
     touches: list[tuple[str, np.ndarray]] = []

@@ -10,10 +10,13 @@
     chain        the compiled (numba) certified catch-up step of a crawler chain
     catchup      the driver that allocates the compiled step's arrays and turns its reports
                  into crawlsim's errors
-    events       the compiled closed forms of the exact integrator's next event
+    events       the exact integrator's next event on a piece: closed forms, the search
+    sampling     the next event where no closed form exists: certified sampling
     eventloop    the exact integrator's compiled event loop: one period of a crawler, certified
     piece        a piece of the exact flow: the basis phi(u), the piece's coefficients (compiled)
-    tangent      the compiled tangent walk of a limit period, for exact sensitivities
+    tangent      the compiled tangent walk of an exact limit period, for exact sensitivities
+    tangent_catchup  the same walk of a catch-up limit period
+    implicit     the implicit function theorem at the walked limit: the derivatives
     jacobian     the compiled products by the period map's Jacobian, for the limit's Newton step
 
 The compiled modules are not imported until a crawler is stepped: `crawlsim validate` and the

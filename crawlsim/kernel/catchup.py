@@ -32,9 +32,9 @@ def _entries(integrator: str) -> tuple[Any, ...]:
     from crawlsim.kernel import eventloop
 
     if integrator == "sensitivity":
-        from crawlsim.kernel import tangent
+        from crawlsim.kernel import implicit, tangent, tangent_catchup
 
-        return (tangent.walk_exact, tangent.walk_catch_up, tangent.implicit)
+        return (tangent.walk_exact, tangent_catchup.walk_catch_up, implicit.implicit)
     return (chain.catch_up,) if integrator == "catch-up" else (eventloop.period,)
 
 

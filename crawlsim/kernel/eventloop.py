@@ -31,7 +31,14 @@ import math
 import numpy as np
 from numba import njit
 
-from crawlsim.kernel import chain, events, sampling
+from crawlsim.kernel import chain
+from crawlsim.kernel.events import (  # noqa: F401 - eventloop.next_event etc. are entry points too
+    SIMULTANEOUS,
+    crossing,
+    next_event,
+    rate_tolerance,
+    row_functions,
+)
 from crawlsim.kernel.piece import (  # noqa: F401 - eventloop.piece etc. are its entry points too
     apply,
     basis_values,
@@ -51,8 +58,6 @@ RTOL = chain.RTOL
 #: Orders of the velocity problem used to decide degenerate rows at an event (the exact
 #: integrator's DECISION_ORDERS).
 DECISION_ORDERS = 4
-#: Two rows hit within this many cycles of the first crossing are hit together.
-SIMULTANEOUS = 1e-13
 #: Restarts of the projection at a jump of c from the set where its primal-dual updates
 #: stopped: a jump may change more rows than `chain.UPDATE_ITERATIONS` updates do when the
 #: tight set, nearly every block, only admits them one at a time.
@@ -165,178 +170,6 @@ def decide(k: np.ndarray, kmax: float, c_scale: float, linear: bool, H: int, coe
     for i in range(N):
         out[i] = 1 if fixed[i] else (-1 if fixed[N + i] else 0)
     return True
-
-
-# -- the next event on a piece ------------------------------------------------------------------
-@njit(cache=True)
-def crossing(z: np.ndarray, tol: float, u0: float, u1: float, linear: bool, H: int,
-             phi0: np.ndarray, horizon: float) -> float:
-    """The first upward zero crossing of f = phi @ z in (u0, u1) that goes on to exceed tol
-    (`crawlsim.kernel.events`); inf if none, NaN where the basis has no closed form for f
-    (several harmonics, or one and a linear part: `crawlsim.kernel.sampling`). inf also for an
-    f that stays below zero on [u0, horizon] (phi0 = phi(u0)): its crossing, where f = 0 or
-    tol, is after horizon (the caller's earliest event so far)."""
-    nb = z.shape[0]
-    if nb == 1:
-        return np.inf
-    if H == 0:
-        return events.linear_crossing(z[0], z[1], tol, u0, u1)
-    # f <= top and |f'| <= slope on the piece (`sampling.reach`): a row that cannot reach its
-    # tolerance has no event (the closed forms and the sampling agree), without their trig
-    # (the bound's own roundoff is covered by 1e-12 of its terms' size)
-    top, size, slope = sampling.reach(z, u0, u1, linear, H)
-    if top + 1e-12 * size < tol:
-        return np.inf
-    # f(u) <= f(u0) + slope (u - u0) on [u0, horizon], without trig: below zero there (by
-    # more than the roundoff of f(u0) and of the crossing's own closed form, 1e-12 of its
-    # terms' size), f has neither its zero nor its tolerance before horizon
-    f0 = 0.0
-    for b in range(nb):
-        f0 += z[b] * phi0[b]
-    if f0 + slope * (horizon - u0) + 1e-12 * size < 0.0:
-        return np.inf
-    if H != 1 or (linear and z[1] != 0.0):
-        return np.nan
-    return events.harmonic_crossing(z[0], z[nb - 2], z[nb - 1], tol, u0, u1)
-
-
-@njit(cache=True)
-def rate_tolerance(c_size: float, signs: np.ndarray, Rdx: np.ndarray, inverse: float) -> float:
-    """The tolerance of the active rows' slip rates on a piece: RTOL times the larger of the
-    rates' own size (sum_b |Rdx[b, i]| over the active blocks) and what the offsets' rates
-    carry through the inverse, ||L_JJ^{-1}|| 2 pi max_r sum_b |coef[b, r]| (``c_size``,
-    `crawlsim.kernel.piece.offset_size`)."""
-    nb = Rdx.shape[0]
-    scale = 0.0
-    for i in range(signs.shape[0]):
-        if signs[i] != 0:
-            total = 0.0
-            for b in range(nb):
-                total += abs(Rdx[b, i])
-            scale = max(scale, total)
-    return RTOL * max(scale, inverse * c_size * TWO_PI)
-
-
-@njit(cache=True)
-def row_functions(linear: bool, H: int, coef: np.ndarray, signs: np.ndarray, base: np.ndarray,
-                  Wc: np.ndarray, Rdx: np.ndarray, tol_gap: float, tol_rate: float, u0: float,
-                  u1: float, phi0: np.ndarray, Z: np.ndarray, reach: np.ndarray,
-                  slope_bound: np.ndarray) -> int:
-    """Z[r] = the coefficients of the function of row r whose upward crossing is an event:
-    the gap phi @ (B Wc - coef + B base e_0) of an inactive row (the entries of `apply`), the
-    slip rate s phi @ Rdx of an active one; ``reach[r]``: 0 where it cannot reach its
-    tolerance on (u0, u1) by the bound `crossing` applies first for one harmonic, 2 where
-    `crossing` then applies its slope bound f(u) <= f(u0) + 2 pi (|alpha| + |beta|) (u - u0)
-    (phi0 = phi(u0)), whose terms f(u0), 2 pi (|alpha| + |beta|) and its margin go to
-    ``slope_bound[r]``, 1 otherwise; so that `next_event` calls `crossing` only for the rows
-    that can cross before its horizon, with the same operations. One pass over the blocks
-    (each block's force enters its two rows). Returns the row that the slope bound lets
-    cross first (-1 if none): its crossing, sought first, bounds those of the others."""
-    N = signs.shape[0]
-    nb = coef.shape[0]
-    bound = H == 1 and nb > 1
-    for i in range(N):
-        s = signs[i]
-        for b in range(nb):
-            g = (Wc[b, i - 1] if i > 0 else 0.0) - (Wc[b, i] if i < N - 1 else 0.0)
-            Z[i, b] = s * Rdx[b, i] if s > 0 else g - coef[b, i]
-            Z[N + i, b] = s * Rdx[b, i] if s < 0 else -g - coef[b, N + i]
-        g = (base[i - 1] if i > 0 else 0.0) - (base[i] if i < N - 1 else 0.0)
-        if s <= 0:
-            Z[i, 0] += g
-        if s >= 0:
-            Z[N + i, 0] += -g
-    best, soonest = -1, np.inf
-    for r in range(2 * N):
-        reach[r] = 1
-        if bound:  # the bounds of `crossing`, the same operations
-            z = Z[r]
-            top = z[0] + abs(z[nb - 2]) + abs(z[nb - 1])
-            size = abs(z[0]) + abs(z[nb - 2]) + abs(z[nb - 1])
-            if linear:
-                top += max(z[1] * u0, z[1] * u1)
-                size += abs(z[1]) * max(abs(u0), abs(u1))
-            s = signs[r % N]
-            active = (r < N and s > 0) or (r >= N and s < 0)
-            if top + 1e-12 * size < (tol_rate if active else tol_gap):
-                reach[r] = 0
-            elif not (linear and z[1] != 0.0):  # else no closed form: `crossing` hands over
-                f0 = 0.0
-                for b in range(nb):
-                    f0 += z[b] * phi0[b]
-                slope = TWO_PI * (abs(z[nb - 2]) + abs(z[nb - 1]))
-                reach[r] = 2
-                slope_bound[r, 0], slope_bound[r, 1], slope_bound[r, 2] = f0, slope, 1e-12 * size
-                if f0 >= 0.0:  # at its zero already
-                    if soonest > 0.0:
-                        best, soonest = r, 0.0
-                elif slope > 0.0 and -f0 < soonest * slope:
-                    best, soonest = r, -f0 / slope
-    return best
-
-
-@njit(cache=True)
-def next_event(c_scale: float, linear: bool, H: int, coef: np.ndarray, c_size: float,
-               signs: np.ndarray,
-               base: np.ndarray, Wc: np.ndarray, Ydx: np.ndarray, inverse: float, u0: float,
-               u1: float, hit: np.ndarray, Rdx: np.ndarray, Z: np.ndarray, times: np.ndarray,
-               reach: np.ndarray, slope_bound: np.ndarray,
-               phi0: np.ndarray, cells_per_cycle: int) -> tuple[float, bool]:
-    """(u, handoff) of the first event in (u0, u1) (u = inf: none), the rows newly tight in
-    ``hit`` (`EventStepper._next_event`): gaps phi @ (B Wc - coef + B base e_0) of the inactive
-    rows, slip rates -dLambda/du = phi @ derivative(Y) of the active ones (`row_functions`;
-    Z, times, reach, slope_bound and phi0 are scratch). Zeros without a closed form by
-    `crawlsim.kernel.sampling.crossing`, on samples of (u0, u1) tabulated once, on first use."""
-    N = signs.shape[0]
-    m = 2 * N
-    derivative(Ydx, linear, H, Rdx)
-    tol_gap = 0.5 * RTOL * c_scale
-    tol_rate = rate_tolerance(c_size, signs, Rdx, inverse)
-    basis_values(u0, 0, linear, H, phi0)
-    lead = row_functions(linear, H, coef, signs, base, Wc, Rdx, tol_gap, tol_rate, u0, u1, phi0,
-                         Z, reach, slope_bound)
-    # the samples of (u0, u1) for `sampling.crossing`, made on first use (closed forms need none)
-    count = 0
-    first, t_lead = np.inf, np.inf
-    if lead >= 0:  # sought first: the horizon of the others is then short from the start
-        s = signs[lead % N]
-        active = (lead < N and s > 0) or (lead >= N and s < 0)
-        t_lead = crossing(Z[lead], tol_rate if active else tol_gap, u0, u1, linear, H, phi0, u1)
-        if np.isnan(t_lead):
-            return np.inf, True
-        first = t_lead
-    for r in range(m):
-        times[r] = t_lead if r == lead else np.inf
-        if reach[r] == 0 or r == lead:
-            continue
-        # a row whose crossing is after first + SIMULTANEOUS is neither the first nor hit
-        horizon = min(u1, first + SIMULTANEOUS)
-        if reach[r] == 2 and (slope_bound[r, 0] + slope_bound[r, 1] * (horizon - u0)
-                              + slope_bound[r, 2] < 0.0):
-            continue  # the slope bound of `crossing`: no crossing before horizon
-        s = signs[r % N]
-        active = (r < N and s > 0) or (r >= N and s < 0)
-        tol = tol_rate if active else tol_gap
-        t = crossing(Z[r], tol, u0, u1, linear, H, phi0, horizon)
-        if np.isnan(t):  # no closed form: certified sampling
-            if count == 0:
-                count = sampling.cells(u0, u1, cells_per_cycle, H)
-                S, PHIS = np.empty(count + 1), np.empty((count + 1, coef.shape[0]))
-                filled = np.zeros(1, dtype=np.int64)
-                sampling.grid(u0, u1, count, S)
-            t = sampling.crossing(Z[r], tol, u0, u1, linear, H, horizon, S, PHIS, filled)
-        if np.isnan(t):
-            return np.inf, True
-        times[r] = t
-        first = min(first, t)
-    hit[:] = False
-    if not first < u1:
-        return np.inf, False
-    for r in range(m):
-        s = signs[r % N]
-        inactive = not ((r < N and s > 0) or (r >= N and s < 0))
-        hit[r] = inactive and times[r] <= first + SIMULTANEOUS
-    return first, False
 
 
 # -- the grid samples of a piece and their certificate ------------------------------------------

@@ -24,7 +24,7 @@ has no closed form; it is found by certified sampling:
 used to give them, step for step, on the same evaluation of f (`scalar`, which is
 `Basis.scalar`): the same roots and maxima, bit for bit, without scipy or Python calls.
 
-`reach` bounds f and f' on a piece without trigonometry; `crawlsim.kernel.eventloop.crossing`
+`reach` bounds f and f' on a piece without trigonometry; `crawlsim.kernel.events.crossing`
 uses it to rule out rows that cannot reach their tolerance, or not before the earliest event
 found so far.
 
