@@ -70,7 +70,7 @@ MUTANTS = [
     ("sampling.crossing curvature bound", "crawlsim/kernel/sampling.py",
      "    bound = h * h / 8.0 * curvature(z, linear, H)\n", "    bound = 0.0\n",
      [EXACT + "::test_tangential_contact_of_a_fourier_offset_between_samples"]),
-    ("eventloop.certify_samples", "crawlsim/kernel/eventloop.py",
+    ("eventloop.sample_piece certificate", "crawlsim/kernel/eventloop.py",
      "        if primal > tol_p or dual > tol_d or comp > tol_p:", "        if False:",
      [KERNEL + "::test_compiled_loop_samples_taken_at_wrong_times_raise"]),
 ]

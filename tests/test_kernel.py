@@ -106,7 +106,7 @@ def test_example_crawlers_take_the_compiled_event_loop():
 def test_corrupted_piece_fails_the_sample_certificate():
     """The grid samples of a piece of peristalsis-4 pass their certificate as computed, and fail
     it (a constraint violated, complementarity lost) when the piece's state is shifted by 1e-9
-    relative: `certify_samples` is what stands between a wrong piece and the results. (Making
+    relative: `sample_piece` is what stands between a wrong piece and the results. (Making
     it return True lets the corrupted piece through.)"""
     process = compile_gait(load_gait(ROOT / "gaits" / "peristalsis-4.yaml"))
     stepper = EventStepper(process)
@@ -130,10 +130,10 @@ def test_corrupted_piece_fails_the_sample_certificate():
 
     def certify(base):
         W, LAMC, report = np.zeros((G, N - 1)), np.zeros((G, 2 * N)), np.zeros(8)
-        ok = eventloop.certify_samples(
+        ok = eventloop.sample_piece(
             loop.k, float(np.max(loop.k)), loop.c_scale, coef, signs, PHI, 1, G, W, LAMC,
-            lam_cum, dx0, Ydx, base, Wc, inverse, gram, 0.0, 0.0, report, np.empty(2 * N),
-            np.empty(2 * N), np.empty(N))
+            lam_cum, dx0, Ydx, base, Wc, inverse, gram, 0.0, 0.0, report, np.empty((0, 0)),
+            np.empty(0), np.empty((0, 0)))
         return ok, report
 
     ok, _ = certify(base)

@@ -7,7 +7,7 @@ dx(u) = dx0 - phi(u) @ Ydx from one factorisation of the chain's tridiagonal KKT
 (`piece`, O(N), the factor and solve of `crawlsim.kernel.chain`); the next zero crossing of every
 gap and slip rate (`next_event`: in closed form, `crawlsim.kernel.events`, or by certified
 sampling, `crawlsim.kernel.sampling`); the grid samples and their certificate
-(`certify_samples`); and at a jump of c(t) the certified projection onto K(t+) (`jump`). The
+(`sample_piece`); and at a jump of c(t) the certified projection onto K(t+) (`jump`). The
 formulas, tolerances and decisions are those of the module docstring of
 `crawlsim.integrate.exact`, which documents them; the rows of a chain are those of
 `crawlsim.kernel.kkt.ChainPolyhedron` (row i < N: block i at its forward limit, row N + i at its
@@ -174,30 +174,17 @@ def decide(k: np.ndarray, kmax: float, c_scale: float, linear: bool, H: int, coe
 
 # -- the grid samples of a piece and their certificate ------------------------------------------
 @njit(cache=True)
-def certify_samples(k: np.ndarray, kmax: float, c_scale: float, coef: np.ndarray,
-                    signs: np.ndarray, PHI: np.ndarray, j0: int, j1: int, W: np.ndarray,
-                    LAMC: np.ndarray, lam_cum: np.ndarray, dx0: np.ndarray, Ydx: np.ndarray,
-                    base: np.ndarray, Wc: np.ndarray, inverse: float, gram: float, carried: float,
-                    own: float, report: np.ndarray, cvec: np.ndarray, Bw: np.ndarray,
-                    dx: np.ndarray) -> bool:
-    """W[j0:j1] and LAMC[j0:j1] at the grid times in the piece, each certified
-    (`EventStepper._certify_piece`): in K(t_j), slip integrals >= 0 and complementary, to the
-    kernel's tolerances; the first one carries the roundoff of earlier pieces (``carried``).
-    Returns False with ``report`` filled on a failure. (`sample_piece` without the record's
-    slips and positions; ``cvec``, ``Bw`` and ``dx`` are unused.)"""
-    return sample_piece(k, kmax, c_scale, coef, signs, PHI, j0, j1, W, LAMC, lam_cum, dx0, Ydx,
-                        base, Wc, inverse, gram, carried, own, report, np.empty((0, 0)),
-                        np.empty(0), np.empty((0, 0)))
-
-
-@njit(cache=True)
 def sample_piece(k: np.ndarray, kmax: float, c_scale: float, coef: np.ndarray,
                  signs: np.ndarray, PHI: np.ndarray, j0: int, j1: int, W: np.ndarray,
                  LAMC: np.ndarray, lam_cum: np.ndarray, dx0: np.ndarray, Ydx: np.ndarray,
                  base: np.ndarray, Wc: np.ndarray, inverse: float, gram: float, carried: float,
                  own: float, report: np.ndarray, MU: np.ndarray, x0: np.ndarray,
                  X: np.ndarray) -> bool:
-    """`certify_samples`, with the record's arrays formed in the same pass where MU has rows:
+    """W[j0:j1] and LAMC[j0:j1] at the grid times in the piece, each certified
+    (`EventStepper._certify_piece`): in K(t_j), slip integrals >= 0 and complementary, to the
+    kernel's tolerances; the first one carries the roundoff of earlier pieces (``carried``).
+    Returns False with ``report`` filled on a failure. The record's arrays are formed in the
+    same pass where MU has rows (empty arrays: none):
     MU[j-1] = LAMC[j] - LAMC[j-1] (the slips of step j - 1, the differences the certificate
     checks) and, where x0 is not empty, X[j] = x0 + (lambda^+ - lambda^-)(t_j), the block
     positions (docs/model.md §3).
