@@ -422,3 +422,46 @@ def test_threshold_of_motion_is_one_sided():
         assert p.left is not None and p.right is not None
         assert abs(p.left.value) <= p.left.error_estimate + 1e-12
         assert p.right.value == pytest.approx(right, abs=p.right.error_estimate + 1e-8)
+
+
+@pytest.mark.parametrize("source", [1000, 1001, 1002, 1003, 1004, 1005, "peristalsis-4",
+                                    "smooth-friction-3", "climbing-3"])
+def test_closed_form_columns_match_differences_of_the_coefficients(source):
+    """The closed-form columns dC, dMu of a constant, cosine or fourier signal's number
+    (`_closed_form_change`) against the central difference of the coefficients of the gait
+    compiled with that number moved by +-h: exact for the affine numbers (mean, amplitude,
+    cos, sin, a constant) up to roundoff eps |C| / h, and to h^2 (2 pi n)^3 |a| / 6 for a
+    phase (h = 1e-5: below 3e-8 |C| for the harmonics of these gaits). Random gaits and three
+    example files: friction shared by every block, per block, and on a slope (scaled by the
+    cosine of its angle)."""
+    from crawlsim.analysis.sensitivity_terms import _closed_form_change, coefficients_of
+
+    gait = (random_gait(source, blocks=(2, 4), max_periods=300) if isinstance(source, int)
+            else crawlsim.load_gait(f"gaits/{source}.yaml"))
+    base = coefficients_of(gait)
+    size = float(np.max(np.abs(base.C))) + float(np.max(np.abs(base.Mu)))
+    closed = 0
+    for keys, value in _leaves(gait.document):
+        if keys[0] not in ("links", "friction") or "times" in keys:
+            continue
+        got = _closed_form_change(gait, base, keys)
+        kind = _kind_of(gait.document, keys)[0]
+        if kind in ("piecewise-linear", "steps"):
+            assert got is None, keys  # not a smooth signal: differenced, not closed
+            continue
+        assert got is not None, keys
+        path = ".".join(map(str, keys))
+        h = 1e-5 * max(abs(value), 1.0)
+        try:
+            plus = coefficients_of(gait.replace(path, value + h))
+            minus = coefficients_of(gait.replace(path, value - h))
+        except CrawlsimError:
+            continue  # the move leaves the valid gaits (a friction at its bound)
+        harmonics = max(base.basis.harmonics, 1)
+        tol = 3e-8 * harmonics ** 3 * size
+        np.testing.assert_allclose(got[0], (plus.C - minus.C) / (2 * h), rtol=0, atol=tol,
+                                   err_msg=path)
+        np.testing.assert_allclose(got[1], (plus.Mu - minus.Mu) / (2 * h), rtol=0, atol=tol,
+                                   err_msg=path)
+        closed += 1
+    assert closed >= 2

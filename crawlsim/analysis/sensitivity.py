@@ -297,6 +297,10 @@ def _expand(gait: Gait, paths: Sequence[str] | str) -> list[tuple[Any, ...]]:
 def _stack(co: Any, params: list[Parameter]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The parameters' dC, dMu (P, nb, m, p) and dk (n, p), one column each."""
     P, nb, m = co.C.shape
+    if len(params) == 1:  # one column: the parameter's own arrays, viewed as (..., 1)
+        prm = params[0]
+        assert prm.dC is not None and prm.dMu is not None and prm.dk is not None
+        return prm.dC[..., None], prm.dMu[..., None], prm.dk[:, None]
     dC = np.zeros((P, nb, m, len(params)))
     dMu = np.zeros((P, nb, m, len(params)))
     dk = np.zeros((len(co.k), len(params)))

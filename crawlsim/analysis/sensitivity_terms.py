@@ -28,6 +28,7 @@ if TYPE_CHECKING:
     from crawlsim.model.process import SweepingProcess
 
 EPS = float(np.finfo(float).eps)
+TWO_PI = 2.0 * math.pi
 #: Relative step of the difference quotient of the offsets' coefficients (exact for affine
 #: dependence, so only roundoff / h matters).
 COEFFICIENT_STEP = 2.0 ** -10
@@ -187,41 +188,105 @@ def _moved_coefficients(gait: Gait, base: Coefficients, keys: tuple[Any, ...],
     return coefficients_of(moved)
 
 
-def _smooth_change(gait: Gait, base: Coefficients, keys: tuple[Any, ...],
-                   value: float) -> tuple[np.ndarray, np.ndarray] | None:
-    """The change of C and of the friction weights (P, nb, m) when the number at ``keys`` of a
-    constant, cosine or fourier signal (a link's, a friction's) is set to ``value``: only that
-    signal's coefficients change, the same on every piece, and c is combined from the signals
-    by the base's own map, affine in them, so the change is that map's linear part applied to
-    the change of the signals (exact to roundoff, without building c anew); None for other
-    numbers and signals (`_moved_coefficients`)."""
+def _smooth_derivative(signal: Any, inside: tuple[Any, ...], basis: Any) -> np.ndarray | None:
+    """d/dtheta of the coefficients (nb,) of a constant, cosine or fourier signal
+    (`crawlsim.model.offsets._smooth_coefficients`) for its number at ``inside`` (the path in
+    its YAML form: ``()`` for a constant, ``("amplitude",)``, ``("cos", n - 1)``, ...), in
+    closed form; None for anything else. With v = 2 pi (u - phase), harmonic n of
+    a cos nv + b sin nv has the coefficients (a cos t_n - b sin t_n, a sin t_n + b cos t_n)
+    of (cos 2 pi n u, sin 2 pi n u), t_n = 2 pi n phase, so d/dphase is 2 pi n times the quarter
+    turn of them, d/da and d/db the columns of the rotation by t_n."""
     from crawlsim.gait.signals import Constant, Cosine, Fourier
-    from crawlsim.model.offsets import _smooth_coefficients
 
-    fields = _moved_fields(gait, keys, value)
-    if fields is None or not set(fields) <= {"links", "forward", "backward"}:
+    out = np.zeros(basis.size)
+    h0 = basis.first_harmonic
+    if isinstance(signal, Constant):
+        if inside:
+            return None
+        out[0] = 1.0
+        return out
+    if not isinstance(signal, (Cosine, Fourier)) or signal.harmonics > basis.harmonics:
         return None
-    old = _signals(gait)
-    new = _signals(gait, fields)
-    changed = [c for c, (a, b) in enumerate(zip(old, new)) if a is not b]
+    if inside == ("mean",):
+        out[0] = 1.0
+        return out
+    if isinstance(signal, Cosine):
+        angle = TWO_PI * math.fmod(signal.phase, 1.0)
+        ca, sa = math.cos(angle), math.sin(angle)
+        if inside == ("amplitude",):
+            out[h0], out[h0 + 1] = ca, sa
+        elif inside == ("phase",):
+            out[h0], out[h0 + 1] = -TWO_PI * signal.amplitude * sa, TWO_PI * signal.amplitude * ca
+        else:
+            return None
+        return out
+    phase = inside == ("phase",)
+    which = inside[0] if len(inside) == 2 and isinstance(inside[1], int) else None
+    if not phase and which not in ("cos", "sin"):
+        return None
+    for n in range(1, signal.harmonics + 1):
+        angle = TWO_PI * math.fmod(n * math.fmod(signal.phase, 1.0), 1.0)
+        ca, sa = math.cos(angle), math.sin(angle)
+        at = h0 + 2 * (n - 1)
+        if phase:
+            a = signal.cos[n - 1] if n <= len(signal.cos) else 0.0
+            b = signal.sin[n - 1] if n <= len(signal.sin) else 0.0
+            out[at] = -TWO_PI * n * (a * sa + b * ca)
+            out[at + 1] = TWO_PI * n * (a * ca - b * sa)
+        elif inside[1] == n - 1:
+            out[at], out[at + 1] = (ca, sa) if which == "cos" else (-sa, ca)
+    if which is not None and not 0 <= inside[1] < signal.harmonics:
+        return None
+    return out
+
+
+def _signal_columns(gait: Gait, keys: tuple[Any, ...]
+                    ) -> tuple[list[tuple[int, Any]], tuple[Any, ...]] | None:
+    """The signals a link's or a friction's number at ``keys`` belongs to, each with its column
+    in `_signals`' order (links, mu^+ per block, mu^- per block), and the path inside them;
+    None for other numbers."""
+    N = gait.blocks
+    if keys[0] == "links" and len(keys) >= 2 and isinstance(keys[1], int):
+        return [(keys[1], gait.links[keys[1]])], keys[2:]
+    if keys[0] != "friction" or len(keys) < 2:
+        return None
+    shared = isinstance(keys[1], str)
+    rest = keys[1:] if shared else keys[2:]
+    if not rest or rest[0] not in ("forward", "backward"):
+        return None
+    first, side = (N - 1, gait.forward) if rest[0] == "forward" else (2 * N - 1, gait.backward)
+    blocks = range(N) if shared else [keys[1]]
+    return [(first + j, side[j]) for j in blocks], rest[1:]
+
+
+def _closed_form_change(gait: Gait, base: Coefficients, keys: tuple[Any, ...]
+                        ) -> tuple[np.ndarray, np.ndarray] | None:
+    """dC and the friction weights' dMu (P, nb, m) for a number of a constant, cosine or
+    fourier signal (a link's, a friction's), in closed form (`_smooth_derivative`): c is
+    combined from the signals by the base's own map, affine in them, so dC is that map's
+    linear part applied to the signals' derivative, the same on every piece; None for other
+    numbers and signals (`parameter_of` then differences the coefficients)."""
+    found = _signal_columns(gait, keys)
+    if found is None:
+        return None
+    columns, inside = found
     basis = base.basis
-    for c in changed:
-        for signal in (old[c], new[c]):
-            if not isinstance(signal, (Constant, Cosine, Fourier)) or \
-                    signal.harmonics > basis.harmonics:
-                return None
     # a zero row first: ``combine`` adds its constant term (the loads') to row 0, the
     # coefficient of phi_0 = 1, so the rows after it are the linear part alone
-    dS = np.zeros((basis.size + 1, len(old)))
-    for c in changed:
-        dS[1:, c] = _smooth_coefficients(new[c], basis) - _smooth_coefficients(old[c], basis)
+    forces = 0 if gait.loads is None else len(gait.loads.forces)
+    dS = np.zeros((basis.size + 1, len(gait.links) + 2 * gait.blocks + forces))
+    for column, signal in columns:
+        d = _smooth_derivative(signal, inside, basis)
+        if d is None:
+            return None
+        dS[1:, column] = d
     dC = base.pieces.combine(dS)[1:]
-    dS = dS[1:]
     N = gait.blocks
-    dMu = dS[:, N - 1:3 * N - 1] * (1.0 if gait.loads is None else gait.loads.cos)
+    dMu = dS[1:, N - 1:3 * N - 1] * (1.0 if gait.loads is None else gait.loads.cos)
     P = base.C.shape[0]
-    return (np.broadcast_to(dC, (P, *dC.shape)).copy(),
-            np.broadcast_to(dMu, (P, *dMu.shape)).copy())
+    out_C, out_Mu = np.empty((P, *dC.shape)), np.empty((P, *dMu.shape))
+    out_C[:], out_Mu[:] = dC, dMu
+    return out_C, out_Mu
 
 
 def _rotation_inverse(delta: np.ndarray, basis: Any, shift: float) -> np.ndarray:
@@ -268,8 +333,8 @@ def _moved(gait: Gait, keys: tuple[Any, ...], value: float) -> Gait:
 def _moved_fields(gait: Gait, keys: tuple[Any, ...], value: float) -> dict[str, Any] | None:
     """The fields of the gait that setting the number at ``keys`` to ``value`` changes, when it
     is a link's signal, a friction signal or the stiffness (``parse_signal`` checks a signal);
-    None for anything else. The cheap path is what keeps a parameter's share of the cost small
-    (issue 22: <= 0.2 of a run each)."""
+    None for anything else: the gait is then not compiled anew where only its signals move
+    (a number of a smooth signal needs neither: `_closed_form_change`)."""
     if keys[0] == "links" and len(keys) >= 2 and isinstance(keys[1], int):
         i = keys[1]
         links = list(gait.links)
@@ -341,6 +406,9 @@ def parameter_of(gait: Gait, base: Coefficients, keys: tuple[Any, ...]) -> Param
     phase = keys[-1] == "phase"
     if keys[-1] == "angle":
         return _angle(gait, keys, path, value)
+    closed = _closed_form_change(gait, base, keys)
+    if closed is not None:
+        return Parameter(path, keys, value, closed[0], closed[1], np.zeros_like(base.k))
     H = max(base.basis.harmonics, 1)
     h = 0.25 / (2 * H + 1) * 1e-2 if phase else COEFFICIENT_STEP * max(abs(value), 1.0)
     try:
@@ -367,9 +435,6 @@ def _change(gait: Gait, base: Coefficients, keys: tuple[Any, ...], value: float,
             h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """The change of C, of the friction weights and of k when the number at ``keys`` moves
     from ``value`` by h; None when that moves the breakpoints of c or changes its form."""
-    smooth = _smooth_change(gait, base, keys, value + h)
-    if smooth is not None:
-        return smooth[0], smooth[1], np.zeros_like(base.k)
     moved = _moved_coefficients(gait, base, keys, value + h)
     if (moved.C.shape != base.C.shape or not np.array_equal(moved.edges, base.edges)
             or moved.basis != base.basis):

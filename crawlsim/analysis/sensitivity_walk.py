@@ -189,7 +189,7 @@ def walk_exact(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
         np.array(lim.record.w[0], dtype=float), float(lim.scale), COINCIDENT, TOUCH,
         W, L, D, lam, w_end, kink, column_kinks, gap_flag, rate_flag, w_start, W_start)
     kinks: list[str] = []
-    for at in np.flatnonzero(kink).tolist():
+    for at in np.flatnonzero(kink).tolist() if kink.any() else ():
         u_e, bits = u[at], int(kink[at])
         if bits & tangent.ZERO_RATE:
             kinks.append(f"a constraint is reached with zero rate at t/T = {u_e:.12g}")
@@ -201,8 +201,9 @@ def walk_exact(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
             kinks.append(f"a constraint is reached at t/T = {u_e:.12g}, at the time of another "
                          "event")
     touches: list[tuple[str, np.ndarray]] = []
-    flagged = np.flatnonzero(gap_flag | rate_flag)
-    if flagged.size:
+    flags = gap_flag | rate_flag
+    if flags.any():
+        flagged = np.flatnonzero(flags)
         s = _Walker(lim, co, dC, dk)
         for at in flagged.tolist():
             s.w, s.Wt = w_start[at], W_start[at]
@@ -212,10 +213,17 @@ def walk_exact(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     return Walk(W, L, D, lam, float(diss), w_end, K, kinks, column_kinks, touches)
 
 
+@functools.lru_cache(maxsize=16)
+def _derivative_matrix(basis: Any) -> np.ndarray:
+    """The matrix of d/du on the coefficients of ``basis`` (a frozen value): each entry a
+    single product, as `Basis.derivative`."""
+    return basis.derivative(np.eye(basis.size))
+
+
 def _derivatives(basis: Any, C: np.ndarray, dC: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The coefficients of c' and dc' on every piece: (P, nb, m) and (P, nb, m, p), by the
-    matrix of d/du on the basis (each entry a single product, as `Basis.derivative`)."""
-    d = basis.derivative(np.eye(basis.size))
+    matrix of d/du on the basis (`_derivative_matrix`)."""
+    d = _derivative_matrix(basis)
     P, nb, m, p = dC.shape
     return d @ C, (d @ dC.reshape(P, nb, m * p)).reshape(P, nb, m, p)
 

@@ -17,6 +17,7 @@ Lemma lem:licqstar).
 
 from __future__ import annotations
 
+import functools
 from typing import Any
 
 import numpy as np
@@ -200,9 +201,7 @@ class ChainPolyhedron(Polyhedron):
         return np.asarray(v, dtype=float) / np.sqrt(self.stiffness)
 
     def dense_normals(self) -> np.ndarray:
-        N = self.blocks
-        D = np.diff(np.eye(N), axis=0)
-        return np.vstack([D.T, -D.T])
+        return _dense_normals(self.blocks).copy()
 
     def dense_metric(self) -> np.ndarray:
         return np.diag(1.0 / self.stiffness)
@@ -223,3 +222,11 @@ class ChainPolyhedron(Polyhedron):
         import scipy.sparse as sp
 
         return sp.diags(1.0 / self.stiffness, format="csc"), self.sparse_normals()
+
+
+@functools.lru_cache(maxsize=8)
+def _dense_normals(N: int) -> np.ndarray:
+    """B = [D^T; -D^T] of a chain of N blocks, dense (2N, N - 1); kept for the sizes last seen,
+    callers get a copy."""
+    D = np.diff(np.eye(N), axis=0)
+    return np.vstack([D.T, -D.T])
