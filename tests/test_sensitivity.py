@@ -425,7 +425,7 @@ def test_threshold_of_motion_is_one_sided():
 
 
 @pytest.mark.parametrize("source", [1000, 1001, 1002, 1003, 1004, 1005, "peristalsis-4",
-                                    "smooth-friction-3", "climbing-3"])
+                                    "smooth-friction-3", "climbing-3", "inching-2-towing"])
 def test_closed_form_columns_match_differences_of_the_coefficients(source):
     """The closed-form columns dC, dMu of a constant, cosine or fourier signal's number
     (`_closed_form_change`) against the central difference of the coefficients of the gait
@@ -433,7 +433,7 @@ def test_closed_form_columns_match_differences_of_the_coefficients(source):
     cos, sin, a constant) up to roundoff eps |C| / h, and to h^2 (2 pi n)^3 |a| / 6 for a
     phase (h = 1e-5: below 3e-8 |C| for the harmonics of these gaits). Random gaits and three
     example files: friction shared by every block, per block, and on a slope (scaled by the
-    cosine of its angle)."""
+    cosine of its angle), and a force on each block."""
     from crawlsim.analysis.sensitivity_terms import _closed_form_change, coefficients_of
 
     gait = (random_gait(source, blocks=(2, 4), max_periods=300) if isinstance(source, int)
@@ -442,7 +442,8 @@ def test_closed_form_columns_match_differences_of_the_coefficients(source):
     size = float(np.max(np.abs(base.C))) + float(np.max(np.abs(base.Mu)))
     closed = 0
     for keys, value in _leaves(gait.document):
-        if keys[0] not in ("links", "friction") or "times" in keys:
+        signal = keys[0] in ("links", "friction") or keys[:2] == ("loads", "force")
+        if not signal or "times" in keys:
             continue
         got = _closed_form_change(gait, base, keys)
         kind = _kind_of(gait.document, keys)[0]

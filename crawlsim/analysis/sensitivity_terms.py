@@ -242,12 +242,17 @@ def _smooth_derivative(signal: Any, inside: tuple[Any, ...], basis: Any) -> np.n
 
 def _signal_columns(gait: Gait, keys: tuple[Any, ...]
                     ) -> tuple[list[tuple[int, Any]], tuple[Any, ...]] | None:
-    """The signals a link's or a friction's number at ``keys`` belongs to, each with its column
-    in `_signals`' order (links, mu^+ per block, mu^- per block), and the path inside them;
-    None for other numbers."""
+    """The signals a number at ``keys`` of a link, a friction or a force belongs to, each with
+    its column in `_signals`' order (links, mu^+ per block, mu^- per block, forces per block),
+    and the path inside them; None for other numbers."""
     N = gait.blocks
     if keys[0] == "links" and len(keys) >= 2 and isinstance(keys[1], int):
         return [(keys[1], gait.links[keys[1]])], keys[2:]
+    if keys[0] == "loads" and len(keys) >= 2 and keys[1] == "force" and gait.loads is not None:
+        each = len(keys) >= 3 and isinstance(keys[2], int)  # one signal per block
+        blocks = [keys[2]] if each else range(N)
+        return ([(3 * N - 1 + j, gait.loads.forces[j]) for j in blocks],
+                keys[3:] if each else keys[2:])
     if keys[0] != "friction" or len(keys) < 2:
         return None
     shared = isinstance(keys[1], str)
@@ -262,7 +267,7 @@ def _signal_columns(gait: Gait, keys: tuple[Any, ...]
 def _closed_form_change(gait: Gait, base: Coefficients, keys: tuple[Any, ...]
                         ) -> tuple[np.ndarray, np.ndarray] | None:
     """dC and the friction weights' dMu (P, nb, m) for a number of a constant, cosine or
-    fourier signal (a link's, a friction's), in closed form (`_smooth_derivative`): c is
+    fourier signal (a link's, a friction's, a force's), in closed form (`_smooth_derivative`): c is
     combined from the signals by the base's own map, affine in them, so dC is that map's
     linear part applied to the signals' derivative, the same on every piece; None for other
     numbers and signals (`parameter_of` then differences the coefficients)."""
@@ -287,25 +292,6 @@ def _closed_form_change(gait: Gait, base: Coefficients, keys: tuple[Any, ...]
     out_C, out_Mu = np.empty((P, *dC.shape)), np.empty((P, *dMu.shape))
     out_C[:], out_Mu[:] = dC, dMu
     return out_C, out_Mu
-
-
-def _rotation_inverse(delta: np.ndarray, basis: Any, shift: float) -> np.ndarray:
-    """d/dphase of coefficients from their change ``delta`` from phase to phase + shift:
-    harmonic n of every column is rotated by 2 pi n shift (rotations commute with the linear
-    combination of the signals), Delta_n = (R_n - I) Z_n, and dZ_n/dphase = 2 pi n J Z_n, J
-    the quarter turn."""
-    out = np.zeros_like(delta)
-    h0 = basis.first_harmonic
-    for n in range(1, basis.harmonics + 1):
-        a = 2.0 * math.pi * n * shift
-        # R_n - I = [[c, -s], [s, c]], c = cos a - 1, s = sin a, inverted in closed form
-        c, s = math.cos(a) - 1.0, math.sin(a)
-        det = c * c + s * s
-        d0, d1 = delta[..., h0 + 2 * (n - 1), :], delta[..., h0 + 2 * n - 1, :]
-        z0, z1 = (c * d0 + s * d1) / det, (c * d1 - s * d0) / det
-        out[..., h0 + 2 * (n - 1), :] = -2.0 * math.pi * n * z1
-        out[..., h0 + 2 * n - 1, :] = 2.0 * math.pi * n * z0
-    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -403,14 +389,16 @@ def parameter_of(gait: Gait, base: Coefficients, keys: tuple[Any, ...]) -> Param
     if keys[0] in STRUCTURAL:
         return Parameter(path, keys, value, reason=f"{path} is not a continuous parameter of "
                                                    "the gait")
-    phase = keys[-1] == "phase"
     if keys[-1] == "angle":
         return _angle(gait, keys, path, value)
     closed = _closed_form_change(gait, base, keys)
     if closed is not None:
         return Parameter(path, keys, value, closed[0], closed[1], np.zeros_like(base.k))
-    H = max(base.basis.harmonics, 1)
-    h = 0.25 / (2 * H + 1) * 1e-2 if phase else COEFFICIENT_STEP * max(abs(value), 1.0)
+    moves = (f"moving {path} moves the breakpoints of c(t) or changes its form: not "
+             "differentiated")
+    if keys[-1] == "phase":  # a smooth signal's is closed above, a piecewise one's moves
+        return Parameter(path, keys, value, reason=moves)  # its breakpoints
+    h = COEFFICIENT_STEP * max(abs(value), 1.0)
     try:
         change = _change(gait, base, keys, value, h)
     except CrawlsimError as exc:
@@ -421,13 +409,8 @@ def parameter_of(gait: Gait, base: Coefficients, keys: tuple[Any, ...]) -> Param
             return Parameter(path, keys, value, reason=f"the gait with {path} moved is "
                                                        f"refused: {exc}")
     if change is None:
-        return Parameter(path, keys, value, reason=f"moving {path} moves the breakpoints of "
-                                                   "c(t) or changes its form: not differentiated")
+        return Parameter(path, keys, value, reason=moves)
     dC, dMu, dk = change
-    if phase:
-        # (a link's phase leaves the friction: its rotation is of zeros, skipped)
-        return Parameter(path, keys, value, _rotation_inverse(dC, base.basis, h),
-                         _rotation_inverse(dMu, base.basis, h) if dMu.any() else dMu, dk / h)
     return Parameter(path, keys, value, dC / h, dMu / h, dk / h)
 
 
