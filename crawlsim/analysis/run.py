@@ -376,9 +376,9 @@ def verified_limit_error(process: SweepingProcess, final: PeriodRecord, steps: i
     """The error of v0 from a verified limit period of ``steps`` steps: the steps' roundoff,
     and the period's residual |P(w) - w|, periodic to which it is: a shape mismatch of
     |F| / k_min (a length) bounds the displacement's."""
-    c = process.crawler
-    assert c is not None and final.slips is not None
-    roundoff = float(np.sum(np.abs(final.slips))) / c.blocks
+    c, slips = process.crawler, final.slips  # (slips: a difference of the positions)
+    assert c is not None and slips is not None
+    roundoff = float(np.sum(np.abs(slips))) / c.blocks
     F = float(np.max(np.abs(final.w[-1] - final.w[0])))
     return float((steps * np.finfo(float).eps * roundoff
                   + F / float(np.min(c.stiffness))) / process.period)
