@@ -225,3 +225,36 @@ def test_thousand_identical_blocks_are_n_plus_one_candidates():
     the solution |J| = 600."""
     found = find_violation([Constant(1.0)] * 1000, [Constant(1.5)] * 1000)
     assert found is not None and found.subset.sum() == 600 and found.subset[:600].all()
+
+
+@given(st.lists(st.lists(st.sampled_from([0.0, -0.0, 1.0, 2.5, -1.0]), min_size=3, max_size=3),
+                min_size=1, max_size=25))
+@example([[0.0, 1.0, 2.5], [-0.0, 1.0, 2.5], [0.0, 1.0, -1.0]])
+def test_unique_rows_is_numpys_unique_along_an_axis(rows):
+    """`_unique_rows` (the search's grouping of equal samples and equal friction pairs) gives
+    np.unique's rows, lexicographic order and inverse, -0.0 and 0.0 one value."""
+    from crawlsim.gait.uniqueness import _unique_rows
+
+    x = np.array(rows)
+    values, inverse = _unique_rows(x)
+    want, want_inverse = np.unique(x, axis=0, return_inverse=True)
+    assert np.array_equal(values, want)
+    assert np.array_equal(inverse, np.ravel(want_inverse))
+    assert np.array_equal(values[inverse], x)
+
+
+def test_key_weights_are_a_fixed_sequence():
+    """The search's hash multipliers are odd and below 2^63, its key weights in [1, 2), and both
+    the same in every process (SplitMix64 from a fixed seed: its first word from seed 0 is
+    0xE220A8397B1DCDAF, the published reference value)."""
+    from crawlsim.gait import uniqueness
+
+    words = uniqueness._hash_words()
+    assert words.dtype == np.uint64 and len(np.unique(words)) == 64
+    assert np.all(words & np.uint64(1)) and np.all(words < np.uint64(1 << 63))
+    seed = uniqueness._KEY_WEIGHTS_SEED
+    try:
+        uniqueness._KEY_WEIGHTS_SEED = 0
+        assert int(uniqueness._splitmix64(1)[0]) == 0xE220A8397B1DCDAF
+    finally:
+        uniqueness._KEY_WEIGHTS_SEED = seed

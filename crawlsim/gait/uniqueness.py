@@ -306,6 +306,19 @@ def _subset(counts: np.ndarray, pair_of: np.ndarray, n: int) -> np.ndarray:
     return subset
 
 
+def _unique_rows(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct rows of ``x`` in lexicographic order, and the index of each row of ``x``
+    among them: ``np.unique(x, axis=0, return_inverse=True)``, without the import of numpy.ma
+    that it makes."""
+    order = np.lexsort(x.T[::-1])
+    ordered = x[order]
+    new = np.ones(len(x), dtype=bool)
+    new[1:] = np.any(ordered[1:] != ordered[:-1], axis=1)
+    inverse = np.empty(len(x), dtype=np.int64)
+    inverse[order] = np.cumsum(new) - 1
+    return ordered[new], inverse
+
+
 def _search_piece(a: np.ndarray, rest: np.ndarray, multiplicity: np.ndarray) -> np.ndarray | None:
     """Counts c_p (0 <= c_p <= multiplicity_p) of blocks of each friction pair with
     sum_p c_p a_p = rest to within the band, or None.
@@ -316,11 +329,10 @@ def _search_piece(a: np.ndarray, rest: np.ndarray, multiplicity: np.ndarray) -> 
     tolerance = TOLERANCE * (multiplicity @ a)
     # Identical samples are one condition (constant friction: every sample of the piece).
     table = np.vstack([a, rest, tolerance])
-    table = np.unique(table, axis=1)
+    table = _unique_rows(table.T)[0].T
     a, rest, tolerance = table[:-2], table[-2], table[-1]
     # Pairs equal on this piece are one group whose count is the sum of theirs.
-    values, group_of = np.unique(a, axis=0, return_inverse=True)
-    group_of = np.ravel(group_of)
+    values, group_of = _unique_rows(a)
     sizes = np.bincount(group_of, weights=multiplicity, minlength=len(values)).astype(np.int64)
     scaled = values / tolerance  # in tolerances: a match is |sum - target| <= _MATCH
     target = rest / tolerance
@@ -395,12 +407,22 @@ class _HalfSums:
         return out
 
 
+def _splitmix64(count: int) -> np.ndarray:
+    """The first ``count`` words of the SplitMix64 sequence from `_KEY_WEIGHTS_SEED` (Steele,
+    Lea and Flood 2014): fixed, well-mixed 64-bit words for the hash and the key weights below,
+    without importing numpy.random (a tenth of `crawlsim validate`'s start-up)."""
+    with np.errstate(over="ignore"):
+        z = np.uint64(_KEY_WEIGHTS_SEED) + (np.arange(1, count + 1, dtype=np.uint64)
+                                             * np.uint64(0x9E3779B97F4A7C15))
+        z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+        z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+        return z ^ (z >> np.uint64(31))
+
+
 @functools.cache
 def _hash_words() -> np.ndarray:
-    """64 odd 64-bit multipliers of `_distinct_cells`'s row hash (drawn once, when first
-    needed: numpy.random is not imported by a validation that never hashes)."""
-    return np.random.default_rng(_KEY_WEIGHTS_SEED).integers(1, 1 << 63, size=64,
-                                                             dtype=np.uint64) | 1
+    """64 odd 64-bit multipliers of `_distinct_cells`'s row hash, below 2^63."""
+    return (_splitmix64(64) >> np.uint64(1)) | np.uint64(1)
 
 
 def _distinct_cells(cells: np.ndarray) -> np.ndarray:
@@ -438,7 +460,7 @@ def _meet(left: np.ndarray, right: np.ndarray, target: np.ndarray) -> tuple[int,
     binary search; every pair in a window is then verified on all samples.
     """
     r = left.shape[1]
-    weights = np.asarray(1.0 + np.random.default_rng(_KEY_WEIGHTS_SEED).random(r))
+    weights = 1.0 + (_splitmix64(r) >> np.uint64(11)).astype(float) * 2.0 ** -53  # in [1, 2)
     key_left = left @ weights
     key_right = right @ weights
     right_order = np.argsort(key_right, kind="stable")
