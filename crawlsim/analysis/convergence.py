@@ -190,12 +190,27 @@ def settled_elsewhere(log: History, tol: float) -> bool:
     return log.gap > tol + 2.0 * travel
 
 
+def displacement_roundoff(process: SweepingProcess, steps_per_period: int,
+                          mean_abs_slip: float) -> float:
+    """The roundoff of a crawler's displacement per period (a length): summing the period's
+    slips (``mean_abs_slip``: the sum of |dx| over the period, averaged over the blocks),
+    steps x eps x mean_abs_slip, and reading positions off the state: w is exact to
+    eps |c| (``process.scale``), and the shape follows from it through the softest link,
+    z = -K^{-1} w (docs/model.md §2), so eps c_scale / k_min. The second term is what a stiff
+    chain adds (c_scale ~ k_max L): on a random corpus of 40 gaits with stiffness ratios up to
+    1e6, the v0 of the compiled and of the Python event loop (each exact, their roundoff apart)
+    differ by at most 0.62 of it over T, and by up to 150 times the first term alone."""
+    eps = float(np.finfo(float).eps)
+    k_min = float(np.min(process.stiffness)) if process.stiffness is not None else math.inf
+    return steps_per_period * eps * mean_abs_slip + eps * process.scale / k_min
+
+
 def period_iteration_error(displacements, convergence: Convergence, rate: float | None,
-                           steps_per_period: int, mean_abs_slip: float, period: float) -> float:
-    """Error bound of v0 from the period iteration: the roundoff of summing the period's slips
-    (``mean_abs_slip``: sum of |dx| over the period, averaged over the blocks), plus, when the
-    convergence is not finite-time, the geometric tail still to come."""
-    err = steps_per_period * np.finfo(float).eps * mean_abs_slip / period
+                           roundoff: float, period: float) -> float:
+    """Error bound of v0 from the period iteration: the displacement's roundoff
+    (`displacement_roundoff`) over the period, plus, when the convergence is not finite-time,
+    the geometric tail still to come."""
+    err = roundoff / period
     if convergence != Convergence.FINITE_TIME and len(displacements) >= 2:
         dv = abs(displacements[-1] - displacements[-2]) / period
         r = rate if rate is not None and rate < 1 else None

@@ -55,6 +55,7 @@ from crawlsim.analysis.convergence import (
     RateFit,
     classify_convergence,
     contraction_rate,
+    displacement_roundoff,
     effective_tolerance,
     fit_contraction_rate,
     period_iteration_error,
@@ -80,7 +81,7 @@ if TYPE_CHECKING:
 
 __all__ = ["ENERGY_KEYS", "FINITE_JUMP", "LIMIT_METHODS", "RATE_RELIABLE", "RATE_WINDOW",
            "ROUNDOFF_FLOOR", "ConvergenceHistory", "LimitPeriod", "RateFit", "RunResult",
-           "classify_convergence", "contraction_rate", "cost_of_transport",
+           "classify_convergence", "contraction_rate", "cost_of_transport", "displacement_roundoff",
            "effective_tolerance", "energy_lines", "fit_contraction_rate", "following",
            "limit_period", "not_converged_message", "period_iteration_error", "poincare_step",
            "simulate", "summary_text", "time_step_reference"]
@@ -378,10 +379,9 @@ def verified_limit_error(process: SweepingProcess, final: PeriodRecord, steps: i
     |F| / k_min (a length) bounds the displacement's."""
     c, slips = process.crawler, final.slips  # (slips: a difference of the positions)
     assert c is not None and slips is not None
-    roundoff = float(np.sum(np.abs(slips))) / c.blocks
+    roundoff = displacement_roundoff(process, steps, float(np.sum(np.abs(slips))) / c.blocks)
     F = float(np.max(np.abs(final.w[-1] - final.w[0])))
-    return float((steps * np.finfo(float).eps * roundoff
-                  + F / float(np.min(c.stiffness))) / process.period)
+    return float((roundoff + F / float(np.min(c.stiffness))) / process.period)
 
 
 def _motion(process: SweepingProcess, drive: _Drive, displacements: np.ndarray,
@@ -398,7 +398,8 @@ def _motion(process: SweepingProcess, drive: _Drive, displacements: np.ndarray,
     if drive.solution is not None:
         err = verified_limit_error(process, final, G)
     else:
-        err = period_iteration_error(displacements, convergence, rate, G, roundoff, T)
+        err = period_iteration_error(displacements, convergence, rate,
+                                     displacement_roundoff(process, G, roundoff), T)
     return _Motion(d_final, d_final / T, period_dissipation(process, final), err)
 
 

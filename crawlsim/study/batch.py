@@ -24,6 +24,7 @@ from crawlsim.analysis.run import (
     classify_convergence,
     contraction_rate,
     cost_of_transport,
+    displacement_roundoff,
     effective_tolerance,
     period_iteration_error,
     poincare_step,
@@ -124,8 +125,9 @@ def _run(p: SweepingProcess, max_periods: int, tol: float, keep_limit: bool = Fa
     convergence, periodic_from = classify_convergence(rel_steps, tol)
     status = PointStatus.NOT_CONVERGED if convergence == Convergence.NOT_CONVERGED else PointStatus.OK
     rate = None if convergence == Convergence.FINITE_TIME else contraction_rate(np.array(rel_steps))
-    err = period_iteration_error(displacements, convergence, rate, G,
-                                 float(np.sum(np.abs(LAM))) / N, p.period)
+    err = period_iteration_error(displacements, convergence, rate,
+                                 displacement_roundoff(p, G, float(np.sum(np.abs(LAM))) / N),
+                                 p.period)
     diss = float(np.einsum("km,km->", LAM, friction))
     paid = diss + (float(np.einsum("km,km->", LAM, load)) if load is not None else 0.0)
     return BatchRun(p.name, status, d / p.period, d, convergence, q + 1, periodic_from,
