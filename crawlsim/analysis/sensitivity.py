@@ -270,18 +270,30 @@ def _known(run: Any, process: SweepingProcess) -> tuple[float, float, float | No
     """What ``run`` (a `crawlsim.analysis.run.RunResult` on ``process``) measured of its limit
     period with `limit_of`'s own formulas: the displacement and dissipation of the period
     (`crawlsim.analysis.run`'s motion), and v0's error where the run took it as
-    `verified_limit_error` does here (the periodic-limit solver's period, on the grid of the
-    record: else None, measured again)."""
+    `verified_limit_error` does here, or all but its residual term (the periodic-limit
+    solver's period, or a finite-time limit, on the grid of the record: else None, measured
+    again)."""
     from crawlsim.analysis.run import LimitMethod, RunResult
+    from crawlsim.status import Convergence
 
     if not isinstance(run, RunResult) or process is not run.limit_process:
         return None  # (a sweep's point: measured on its own terms)
     d, dissipation = run.displacement_per_period, run.dissipation_per_period
-    if d is None or dissipation is None or run.limit_record is None:
+    final, err = run.limit_record, run.v0_error_period_iteration
+    if d is None or dissipation is None or final is None:
         return None
-    same = (run.limit_method == LimitMethod.NEWTON
-            and len(run.limit_record.w) - 1 == process.steps)
-    return d, dissipation, run.v0_error_period_iteration if same else None
+    if err is None or len(final.w) - 1 != process.steps:
+        return d, dissipation, None
+    if run.limit_method == LimitMethod.NEWTON:
+        return d, dissipation, err
+    if run.convergence == Convergence.FINITE_TIME:
+        # the period iteration's error is then the displacement's roundoff over T alone, to
+        # which `verified_limit_error` adds the period's residual, a shape mismatch
+        stiffness = process.stiffness
+        assert stiffness is not None
+        F = float(np.max(np.abs(final.w[-1] - final.w[0])))
+        return d, dissipation, err + F / float(np.min(stiffness)) / process.period
+    return d, dissipation, None
 
 
 def _expand(gait: Gait, paths: Sequence[str] | str) -> list[tuple[Any, ...]]:

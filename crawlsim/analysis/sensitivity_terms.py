@@ -123,7 +123,10 @@ def breakpoint_scale(process: SweepingProcess) -> float:
     from crawlsim.model.process import _scale
 
     assert process.offset_pieces is not None
-    cycles, edges = process.cycles, process.offset_pieces.edges
+    edges = process.offset_pieces.edges
+    if len(edges) == 2:  # one piece: the grid's first and last times are its edges, 0 and 1
+        return _scale(process.offsets[[0, -1]], process.initial)
+    cycles = process.cycles
     at = np.minimum(np.searchsorted(cycles, edges), len(cycles) - 1)
     return _scale(process.offsets[at[cycles[at] == edges]], process.initial)
 
