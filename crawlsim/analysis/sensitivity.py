@@ -34,6 +34,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
+from crawlsim.analysis.run import LimitMethod, RunResult
 from crawlsim.analysis.sensitivity_terms import (
     EPS,
     Limit,
@@ -48,6 +49,8 @@ from crawlsim.analysis.sensitivity_terms import (
 from crawlsim.analysis.sensitivity_walk import Prepared, Walk, prepare, walk_catch_up, walk_exact
 from crawlsim.errors import CrawlsimError, GaitError
 from crawlsim.gait.docpaths import resolve_path
+from crawlsim.kernel.implicit import implicit
+from crawlsim.status import Convergence
 
 if TYPE_CHECKING:
     from crawlsim.gait.document import Gait
@@ -273,9 +276,6 @@ def _known(run: Any, process: SweepingProcess) -> tuple[float, float, float | No
     `verified_limit_error` does here, or all but its residual term (the periodic-limit
     solver's period, or a finite-time limit, on the grid of the record: else None, measured
     again)."""
-    from crawlsim.analysis.run import LimitMethod, RunResult
-    from crawlsim.status import Convergence
-
     if not isinstance(run, RunResult) or process is not run.limit_process:
         return None  # (a sweep's point: measured on its own terms)
     d, dissipation = run.displacement_per_period, run.dissipation_per_period
@@ -327,8 +327,6 @@ class _Ift:
     least-squares solve, p right-hand sides), dY and dD with their error estimates."""
 
     def __init__(self, lim: Limit, walk: Walk, st: _Static, blocks: int):
-        from crawlsim.kernel.implicit import implicit
-
         n = len(st.co.k)
         self.n, self.walk, self.scale_c = n, walk, lim.scale
         # error: roundoff of every term (pieces x eps x their sizes, times the conditioning of

@@ -21,6 +21,7 @@ import numpy as np
 
 from crawlsim.analysis.run import verified_limit_error
 from crawlsim.errors import CrawlsimError, GaitError
+from crawlsim.gait.signals import Constant, Cosine, Fourier
 
 if TYPE_CHECKING:
     from crawlsim.gait.document import Gait
@@ -199,8 +200,6 @@ def _smooth_derivative(signal: Any, inside: tuple[Any, ...], basis: Any) -> np.n
     a cos nv + b sin nv has the coefficients (a cos t_n - b sin t_n, a sin t_n + b cos t_n)
     of (cos 2 pi n u, sin 2 pi n u), t_n = 2 pi n phase, so d/dphase is 2 pi n times the quarter
     turn of them, d/da and d/db the columns of the rotation by t_n."""
-    from crawlsim.gait.signals import Constant, Cosine, Fourier
-
     out = np.zeros(basis.size)
     h0 = basis.first_harmonic
     if isinstance(signal, Constant):

@@ -33,6 +33,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from crawlsim.analysis.sensitivity_terms import Coefficients, Limit
+from crawlsim.kernel import tangent, tangent_catchup
+from crawlsim.kernel.catchup import announce_compilation
 
 if TYPE_CHECKING:
     from crawlsim.integrate.stepping import Transition
@@ -95,8 +97,6 @@ def prepare(process: Any, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
             catch_up: bool) -> Prepared:
     """The `Prepared` data of a walk of ``process`` (compiled from the gait ``co`` is of) with
     the parameter columns dC, dMu (P, nb, m, p)."""
-    from crawlsim.kernel import tangent_catchup
-
     B = np.ascontiguousarray(process.polyhedron.dense_normals(), dtype=float)
     k = np.ascontiguousarray(co.k, dtype=float)
     grid, agrees = None, True
@@ -164,9 +164,6 @@ def walk_exact(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     `crawlsim.kernel.tangent.walk_exact`; the flows it flags as holding a possible touch are
     examined here on the closed form, from the state and tangent it had at their start.
     ``prep``: `prepare`'s data for these columns, built here when not given."""
-    from crawlsim.kernel import tangent
-    from crawlsim.kernel.catchup import announce_compilation
-
     announce_compilation("sensitivity")  # a first walk compiles the kernel (once per cache)
     if prep is None:
         prep = prepare(lim.process, co, dC, dMu, False)
@@ -232,8 +229,6 @@ def _transition_arrays(transitions: Sequence[Transition], m: int) -> tuple[np.nd
     """The transitions as arrays: u, piece, cause (`crawlsim.kernel.tangent.CAUSES`), the
     active rows after each (K, m) and the rows hit (K, m). A compiled period's are read off
     its loop's arrays, without factoring its sets."""
-    from crawlsim.kernel import tangent
-
     arrays = getattr(transitions, "arrays", None)
     if arrays is not None:  # `crawlsim.integrate.compiled`: signs per block, rows_of's order
         u, piece, signs, cause, hit = arrays
