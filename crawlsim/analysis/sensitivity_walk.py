@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from crawlsim.analysis.sensitivity_terms import Coefficients, Limit
+from crawlsim.errors import CrawlsimError
 from crawlsim.kernel import tangent, tangent_catchup
 from crawlsim.kernel.catchup import announce_compilation
 
@@ -382,10 +383,6 @@ def walk_catch_up(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     compiled `crawlsim.kernel.tangent_catchup.walk_catch_up`; the runs with a row tight at a zero
     multiplier are examined here, from the state and tangent it had at their start.
     ``prep``: `prepare`'s data (with the grid) for these columns, built here when not given."""
-    from crawlsim.errors import CrawlsimError
-    from crawlsim.kernel import tangent_catchup
-    from crawlsim.kernel.catchup import announce_compilation
-
     announce_compilation("sensitivity")
     process, record = lim.process, lim.record
     if prep is None or prep.grid is None:
