@@ -83,11 +83,12 @@ class Prepared:
 
     B: np.ndarray  # (m, n) dense normals
     k: np.ndarray  # (n,)
-    derivative: tuple[np.ndarray, np.ndarray]  # c' (P, nb, m) and dc' (P, nb, m, p)
-    gauss: tuple[np.ndarray, np.ndarray]
+    # the exact walk's: c' (P, nb, m) and dc' (P, nb, m, p), and the Gauss-Legendre rule
+    derivative: tuple[np.ndarray, np.ndarray] | None = None
+    gauss: tuple[np.ndarray, np.ndarray] | None = None
     # catch-up: u_j, the piece of each u_j, phi(u_j), c, mu, dc and dmu at u_j
     # (`crawlsim.kernel.tangent_catchup.grid_values`) and whether c's closed form reproduces the
-    # grid's offsets (`crawlsim.kernel.tangent_catchup.grid_agrees`)
+    # grid's offsets (`_agrees`)
     grid: tuple[np.ndarray, np.ndarray, np.ndarray,
                 tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] | None = None
     agrees: bool = True
@@ -100,21 +101,23 @@ def prepare(process: Any, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     the parameter columns dC, dMu (P, nb, m, p)."""
     B = np.ascontiguousarray(process.polyhedron.dense_normals(), dtype=float)
     k = np.ascontiguousarray(co.k, dtype=float)
-    grid, agrees = None, True
-    if catch_up:
-        u = np.mod(np.asarray(process.times, dtype=float) / process.period, 1.0)  # c(1) is c(0)
-        pieces = np.minimum(np.searchsorted(co.edges, u, side="right") - 1,
-                            len(co.C) - 1).astype(np.int64)
-        Phi = co.basis.values(u)
-        grid = (u, pieces, Phi, tangent_catchup.grid_values(Phi, pieces, co.C, co.Mu, dC, dMu))
-        # the limit's scale of a catch-up walk is its process's (`limit_of`)
-        offsets = np.ascontiguousarray(process.offsets, dtype=float)
-        agrees = bool(tangent_catchup.grid_agrees(Phi, pieces, co.C, offsets,
-                                                  1e-9 * process.scale))
+    if not catch_up:
         return Prepared(B, k, _derivatives(co.basis, co.C, dC),
-                        _gauss(24 + 12 * co.basis.harmonics), grid, agrees, offsets)
-    return Prepared(B, k, _derivatives(co.basis, co.C, dC),
-                    _gauss(24 + 12 * co.basis.harmonics), grid, agrees)
+                        _gauss(24 + 12 * co.basis.harmonics))
+    u, pieces, Phi, c, mu, dc, dmu = tangent_catchup.grid_values(
+        np.ascontiguousarray(process.times, dtype=float), float(process.period),
+        np.ascontiguousarray(co.edges, dtype=float), co.basis.linear, co.basis.harmonics,
+        co.C, co.Mu, dC, dMu)
+    # the limit's scale of a catch-up walk is its process's (`limit_of`)
+    offsets = np.ascontiguousarray(process.offsets, dtype=float)
+    return Prepared(B, k, grid=(u, pieces, Phi, (c, mu, dc, dmu)),
+                    agrees=_agrees(c, offsets, 1e-9 * process.scale), offsets=offsets)
+
+
+def _agrees(c: np.ndarray, offsets: np.ndarray, atol: float) -> bool:
+    """Whether the closed form of c (on the catch-up grid) reproduces the grid's offsets to
+    ``atol``."""
+    return bool(np.all(np.abs(c - offsets) <= atol))
 
 
 class _Walker:
@@ -169,6 +172,7 @@ def walk_exact(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     if prep is None:
         prep = prepare(lim.process, co, dC, dMu, False)
     B, k, derivative = prep.B, prep.k, prep.derivative
+    assert derivative is not None and prep.gauss is not None
     m, n = B.shape
     q = n + dk.shape[1]
     u, piece, cause, act, hit = _transition_arrays(lim.record.transitions, m)
@@ -388,8 +392,8 @@ def walk_catch_up(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     if prep is None or prep.grid is None:
         prep = prepare(process, co, dC, dMu, True)
     assert prep.grid is not None
-    agrees = prep.agrees if lim.scale == process.scale else bool(tangent_catchup.grid_agrees(
-        prep.grid[2], prep.grid[1], co.C, prep.offsets, 1e-9 * lim.scale))
+    agrees = prep.agrees if lim.scale == process.scale else _agrees(
+        prep.grid[3][0], prep.offsets, 1e-9 * lim.scale)
     if not agrees:
         raise CrawlsimError(f"{process.name}: the offsets' closed form does not reproduce the "
                             "catch-up grid's; the catch-up map is not differentiated")

@@ -1,9 +1,8 @@
 """The tangent walk of the catch-up scheme's limit period, compiled
 (`crawlsim.analysis.sensitivity_walk`, docs/sensitivity.md, eq. (catch-up)): the discrete period
 map walked run by run on its active sets, with the offsets and friction on the grid
-(`grid_values`), the runs and touches of the record (`catch_up_runs`) and the check that c's
-closed form reproduces the grid (`grid_agrees`). The formulas it shares with the exact walk
-(`factor`, `solve_on`) are those of `crawlsim.kernel.tangent`.
+(`grid_values`) and the runs and touches of the record (`catch_up_runs`). The formulas it shares
+with the exact walk (`factor`, `solve_on`) are those of `crawlsim.kernel.tangent`.
 
 Plain arrays and scalars; with ``NUMBA_DISABLE_JIT=1`` the same source runs as Python.
 """
@@ -13,59 +12,59 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from crawlsim.kernel.piece import basis_values
 from crawlsim.kernel.tangent import factor, solve_on
 
 
 @njit(cache=True)
-def grid_agrees(Phi: np.ndarray, pieces: np.ndarray, C: np.ndarray, offsets: np.ndarray,
-                atol: float) -> bool:
-    """Whether the closed form of c reproduces the catch-up grid's offsets to ``atol``."""
-    agrees = True
-    for g in range(Phi.shape[0]):
-        pc = pieces[g]
-        for i in range(offsets.shape[1]):
-            t = 0.0
-            for b in range(Phi.shape[1]):
-                t += Phi[g, b] * C[pc, b, i]
-            if not abs(t - offsets[g, i]) <= atol:
-                agrees = False
-    return agrees
-
-
-@njit(cache=True)
-def grid_values(Phi: np.ndarray, pieces: np.ndarray, C: np.ndarray, Mu: np.ndarray,
-                dC: np.ndarray, dMu: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
-                                                          np.ndarray]:
-    """c, mu (G+1, m) and their parameter columns dc, dmu (G+1, m, p) at every grid time of
-    the catch-up walk, phi(u_j) @ (C, Mu, dC, dMu) of u_j's piece, each a sum over the basis
-    in its order: what the steps of every run read (`_steps`), independent of the limit
-    period, so computed once per gait and parameters."""
-    G1, nb = Phi.shape
-    m = C.shape[2]
+def grid_values(times: np.ndarray, period: float, edges: np.ndarray, linear: bool, H: int,
+                C: np.ndarray, Mu: np.ndarray, dC: np.ndarray, dMu: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                           np.ndarray, np.ndarray]:
+    """What the steps of every run read at the catch-up grid's times (`_steps`), independent
+    of the limit period, so computed once per gait and parameters, in one pass: each time's
+    cycle u_j = t_j / T mod 1 (c(1) is c(0)), its piece (the last edge <= u_j), the basis
+    phi(u_j), and c, mu (G+1, m) with their parameter columns dc, dmu (G+1, m, p),
+    phi(u_j) @ (C, Mu, dC, dMu) of u_j's piece, each a sum over the basis in its order."""
+    G1 = times.shape[0]
+    P, nb, m = C.shape
     p = dC.shape[3]
-    c = np.empty((G1, m))
-    mu = np.empty((G1, m))
-    dc = np.empty((G1, m, p))
-    dmu = np.empty((G1, m, p))
+    u = np.empty(G1)
+    pieces = np.empty(G1, dtype=np.int64)
+    Phi = np.empty((G1, nb))
+    c = np.zeros((G1, m))
+    mu = np.zeros((G1, m))
+    dc = np.zeros((G1, m, p))
+    dmu = np.zeros((G1, m, p))
+    mu_moves = np.any(dMu != 0.0)  # (a link's number leaves the friction: its columns are 0)
     for j in range(G1):
-        pc = pieces[j]
-        for r_ in range(m):
-            t1 = 0.0
-            t2 = 0.0
-            for b in range(nb):
-                t1 += Phi[j, b] * C[pc, b, r_]
-                t2 += Phi[j, b] * Mu[pc, b, r_]
-            c[j, r_] = t1
-            mu[j, r_] = t2
-            for col in range(p):
-                t1 = 0.0
-                t2 = 0.0
-                for b in range(nb):
-                    t1 += Phi[j, b] * dC[pc, b, r_, col]
-                    t2 += Phi[j, b] * dMu[pc, b, r_, col]
-                dc[j, r_, col] = t1
-                dmu[j, r_, col] = t2
-    return c, mu, dc, dmu
+        x = (times[j] / period) % 1.0
+        u[j] = x
+        lo, hi = 0, edges.shape[0]  # the number of edges <= x, by bisection
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if edges[mid] <= x:
+                lo = mid + 1
+            else:
+                hi = mid
+        pc = min(lo - 1, P - 1)
+        pieces[j] = pc
+        phi = Phi[j]
+        basis_values(x, 0, linear, H, phi)
+        # each entry summed over the basis in its order, the rows innermost (contiguous)
+        cj, muj, dcj, dmuj = c[j], mu[j], dc[j], dmu[j]
+        for b in range(nb):
+            f = phi[b]
+            for r_ in range(m):
+                cj[r_] += f * C[pc, b, r_]
+                muj[r_] += f * Mu[pc, b, r_]
+                for col in range(p):
+                    dcj[r_, col] += f * dC[pc, b, r_, col]
+            if mu_moves:
+                for r_ in range(m):
+                    for col in range(p):
+                        dmuj[r_, col] += f * dMu[pc, b, r_, col]
+    return u, pieces, Phi, c, mu, dc, dmu
 
 
 @njit(cache=True)
@@ -196,7 +195,7 @@ def walk_catch_up(B: np.ndarray, k: np.ndarray, C: np.ndarray, dC: np.ndarray, d
     tangents, and the dissipation is sum_j mu(u_{j+1}) . Lambda_j (``values``: c, mu and their
     columns on the grid, `grid_values`). Fills the tangents and the start of each run (for the
     caller's touches); returns the dissipation. The caller checks once that c's closed form
-    reproduces the grid's offsets (`grid_agrees`)."""
+    reproduces the grid's offsets."""
     m, n = B.shape
     p = dk.shape[1]
     q = n + p
