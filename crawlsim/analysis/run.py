@@ -376,9 +376,9 @@ def verified_limit_error(process: SweepingProcess, final: PeriodRecord, steps: i
     """The error of v0 from a verified limit period of ``steps`` steps: the steps' roundoff,
     and the period's residual |P(w) - w|, periodic to which it is: a shape mismatch of
     |F| / k_min (a length) bounds the displacement's."""
-    c = process.crawler
-    assert c is not None and final.slips is not None
-    roundoff = float(np.sum(np.abs(final.slips))) / c.blocks
+    c, slips = process.crawler, final.slips
+    assert c is not None and slips is not None
+    roundoff = float(np.sum(np.abs(slips))) / c.blocks
     F = float(np.max(np.abs(final.w[-1] - final.w[0])))
     return float((steps * np.finfo(float).eps * roundoff
                   + F / float(np.min(c.stiffness))) / process.period)
@@ -392,9 +392,10 @@ def _motion(process: SweepingProcess, drive: _Drive, displacements: np.ndarray,
     if c is None:
         return None
     final, T, G = drive.final, process.period, process.steps
-    assert final.x is not None and final.slips is not None
+    slips = final.slips
+    assert final.x is not None and slips is not None
     d_final = float(np.mean(final.x[-1] - final.x[0]))
-    roundoff = float(np.sum(np.abs(final.slips))) / c.blocks
+    roundoff = float(np.sum(np.abs(slips))) / c.blocks
     if drive.solution is not None:
         err = verified_limit_error(process, final, G)
     else:
@@ -603,14 +604,15 @@ def limit_period(process: SweepingProcess, final: PeriodRecord, v0: float | None
     c = process.crawler
     if c is None:
         return LimitPeriod(final.start, t.copy(), final.w, final.multipliers)
-    assert final.x is not None and final.slips is not None and v0 is not None
+    dx = final.slips
+    assert final.x is not None and dx is not None and v0 is not None
     shape = c.shape(final.w)
     stress = c.stress(final.w)
     y0 = float(np.mean(final.x[0]))
     x_run = final.x - y0 - v0 * t[:, None]
-    dx = final.slips
     eps = 1e-12 * max(float(np.max(np.abs(dx))), 1e-300)
-    slip = np.where(dx > eps, 1, np.where(dx < -eps, -1, 0)).astype(np.int8)
+    # +1, -1 or 0 as int8: the two comparisons' bytes (True = 1) subtracted
+    slip = (dx > eps).view(np.int8) - (dx < -eps).view(np.int8)
     return LimitPeriod(final.start, t.copy(), final.w, final.multipliers, x=x_run, shape=shape,
                        stress=stress, slip=slip, slip_rate=dx / np.diff(t)[:, None])
 

@@ -49,8 +49,22 @@ class Basis:
         return 1 + int(self.linear)
 
     def values(self, u, order: int = 0) -> np.ndarray:
-        """The order-th derivative of phi at cycles u: (len(u), nb)."""
+        """The order-th derivative of phi at cycles u: (len(u), nb). A grid of at least
+        `_GRID_VALUES_MIN` cycles (a period's, tabulated once by every exact stepper) and of at
+        most `_GRID_VALUES_SIZE` values is remembered (`_GRID_VALUES`): a sweep's points share
+        it."""
         u = np.atleast_1d(np.asarray(u, dtype=float))
+        if not _GRID_VALUES_MIN <= u.size <= _GRID_VALUES_SIZE // self.size:
+            return self._values(u, order)
+        key = (self, order, u.tobytes())
+        kept = _GRID_VALUES.get(key)
+        if kept is None:
+            if len(_GRID_VALUES) >= _GRID_VALUES_MAX:
+                _GRID_VALUES.clear()
+            kept = _GRID_VALUES[key] = self._values(u, order)
+        return kept.copy()
+
+    def _values(self, u: np.ndarray, order: int) -> np.ndarray:
         out = np.zeros((u.size, self.size))
         if order == 0:
             out[:, 0] = 1.0
@@ -101,6 +115,14 @@ class Basis:
         for h in range(1, self.harmonics + 1):
             bound = bound + (TWO_PI * h) ** 2 * (coef[h0 + 2 * (h - 1)] + coef[h0 + 2 * (h - 1) + 1])
         return bound
+
+
+#: `Basis.values` on grids (arrays of at least `_GRID_VALUES_MIN` cycles, 2 MB of values at
+#: most), by basis, order and the cycles' bytes; a few grids at a time.
+_GRID_VALUES: dict[tuple[Basis, int, bytes], np.ndarray] = {}
+_GRID_VALUES_MIN = 64
+_GRID_VALUES_SIZE = 1 << 18
+_GRID_VALUES_MAX = 8
 
 
 def _signal_basis(signals: Sequence[Signal]) -> Basis:
