@@ -157,6 +157,10 @@ def _smooth_coefficients(signal: Signal, basis: Basis) -> np.ndarray:
     return out
 
 
+#: The signals (the sequence itself, kept), edges and tables of the last `PiecewiseOffsets`.
+_LAST_TABULATED: list = []
+
+
 @dataclass(eq=False)
 class PiecewiseOffsets:
     """c(u) = phi(u) @ C_p on the pieces [edges[p], edges[p+1]) of one cycle.
@@ -177,6 +181,21 @@ class PiecewiseOffsets:
     _cache: dict = field(init=False, repr=False, default_factory=dict)
 
     def __post_init__(self) -> None:
+        last = _LAST_TABULATED
+        if last and last[0] is self.signals and np.array_equal(last[1], self.edges):
+            # the same signals on the same pieces (an exact stepper's energy ledger tabulates
+            # its process's signals again): the tables are the last ones, read-only
+            self.basis, self._smooth, self._piecewise, self._values, self._slopes, \
+                self._mids = last[2:]
+            return
+        self._tabulate()
+        tables = (self.basis, self._smooth, self._piecewise, self._values, self._slopes,
+                  self._mids)
+        for table in tables[1:]:
+            table.setflags(write=False)
+        _LAST_TABULATED[:] = [self.signals, self.edges.copy(), *tables]
+
+    def _tabulate(self) -> None:
         self.basis = _signal_basis(self.signals)
         S = len(self.signals)
         smooth = np.zeros((self.basis.size, S))
