@@ -21,6 +21,7 @@ the constraints and the slip rates, as such combinations, and finds their zeros 
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -75,14 +76,17 @@ class Basis:
                 out[:, 1] = 1.0
         H = self.harmonics
         if H:
-            w = TWO_PI * np.arange(1, H + 1)
-            angle = u[:, None] * w  # (k, H)
+            w = _angular_rates(H)
             # d^k/du^k cos(w u) = w^k cos(w u + k pi/2), sin likewise
-            shift = order * (math.pi / 2)
-            scale = w ** order
+            angle = u[:, None] * w + order * (math.pi / 2)  # (k, H)
             h0 = self.first_harmonic
-            out[:, h0::2] = scale * np.cos(angle + shift)
-            out[:, h0 + 1::2] = scale * np.sin(angle + shift)
+            if order:
+                scale = w ** order
+                out[:, h0::2] = scale * np.cos(angle)
+                out[:, h0 + 1::2] = scale * np.sin(angle)
+            else:  # w^0 = 1: the values themselves
+                out[:, h0::2] = np.cos(angle)
+                out[:, h0 + 1::2] = np.sin(angle)
         return out
 
     def scalar(self, x: float, coef: np.ndarray) -> float:
@@ -115,6 +119,14 @@ class Basis:
         for h in range(1, self.harmonics + 1):
             bound = bound + (TWO_PI * h) ** 2 * (coef[h0 + 2 * (h - 1)] + coef[h0 + 2 * (h - 1) + 1])
         return bound
+
+
+@functools.lru_cache(maxsize=16)
+def _angular_rates(harmonics: int) -> np.ndarray:
+    """2 pi h for h = 1 .. harmonics (read-only)."""
+    w = TWO_PI * np.arange(1, harmonics + 1)
+    w.setflags(write=False)
+    return w
 
 
 #: `Basis.values` on grids (arrays of at least `_GRID_VALUES_MIN` cycles, 2 MB of values at
