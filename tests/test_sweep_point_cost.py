@@ -30,7 +30,6 @@ def _forget_shared() -> None:
     """Empty every table a sweep point shares with the points before it."""
     uniqueness._ANALYSED.clear()
     offsets._GRID_VALUES.clear()
-    offsets._LAST_TABULATED.clear()
     process_module._GRIDS.clear()
     process_module._ON_GRID.clear()
     limit_module._formed = None
@@ -109,21 +108,20 @@ def test_basis_values_on_a_grid_are_the_computed_ones_and_a_copy():
     assert np.array_equal(basis.values(u[:10]), basis._values(u[:10], 0))  # not shared
 
 
-def test_tables_of_the_same_signals_on_other_pieces_are_not_reused():
-    """The offsets' tables are reused for the same signals on the same pieces only: other
-    edges tabulate the piecewise signals at their own midpoints."""
-    signals = (Cosine(1.0, 0.3, 0.0), *load_gait(GAITS / "anchoring-2.yaml").links)
-    one = PiecewiseOffsets(signals, lambda c: c, np.array([0.0, 0.5, 1.0]))
-    other = PiecewiseOffsets(signals, lambda c: c, np.array([0.0, 0.25, 1.0]))
-    offsets._LAST_TABULATED.clear()
-    fresh = PiecewiseOffsets(signals, lambda c: c, np.array([0.0, 0.25, 1.0]))
-    same = PiecewiseOffsets(signals, lambda c: c, fresh.edges)
-    for p in range(2):
-        assert np.array_equal(other.coefficients(p), fresh.coefficients(p))
-        assert np.array_equal(same.coefficients(p), fresh.coefficients(p))
-    assert not np.array_equal(one._mids, other._mids)
+def test_recombined_offsets_share_the_tables_and_map_by_their_own_combine():
+    """The energy ledger's view of a process's offsets (`PiecewiseOffsets.recombined`): the
+    signals' own coefficients, equal to those of offsets tabulated anew, while the process's
+    keep theirs; the shared tables are read-only."""
+    gait = load_gait(GAITS / "anchoring-2.yaml")  # piecewise-linear link, steps friction
+    pieces = compile_gait(gait, 40).offset_pieces
+    signals = pieces.recombined(lambda c: c)
+    fresh = PiecewiseOffsets(pieces.signals, lambda c: c, pieces.edges)
+    for p in range(pieces.pieces):
+        assert np.array_equal(signals.coefficients(p), fresh.coefficients(p))
+        assert np.array_equal(pieces.coefficients(p), pieces.combine(fresh.coefficients(p)))
+        assert not np.array_equal(pieces.coefficients(p), signals.coefficients(p))
     with pytest.raises(ValueError):
-        same._smooth[0, 0] = 1.0  # shared tables are read-only
+        signals._values[0, 0] = 1.0
 
 
 def test_a_records_slips_are_formed_once_and_read_only():

@@ -16,7 +16,7 @@ import numpy.typing as npt
 
 from crawlsim.kernel.certificate import Floats
 from crawlsim.model.crawler import elastic_energy
-from crawlsim.model.offsets import TWO_PI, Basis, PiecewiseOffsets
+from crawlsim.model.offsets import TWO_PI, Basis
 from crawlsim.model.process import SweepingProcess
 
 #: Below this value of omega delta the closed form of int s sin(omega s) ds is summed as its
@@ -168,7 +168,7 @@ class ExactLedger:
         self.constant = crawler.load_constant
         # the signals themselves (links, then mu^+ and mu^- in the order of the rows of B),
         # in the basis and on the pieces of c(t)
-        self.signals = PiecewiseOffsets(pieces.signals, _identity, pieces.edges)
+        self.signals = pieces.recombined(_identity)
         # per piece of c: L, K L, dL/du and mu coefficients (a period revisits every piece)
         self._cache: dict[int, tuple[np.ndarray, ...]] = {}
         self.start()

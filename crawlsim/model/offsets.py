@@ -21,6 +21,7 @@ the constraints and the slip rates, as such combinations, and finds their zeros 
 
 from __future__ import annotations
 
+import copy
 import functools
 import math
 from collections.abc import Callable, Sequence
@@ -169,10 +170,6 @@ def _smooth_coefficients(signal: Signal, basis: Basis) -> np.ndarray:
     return out
 
 
-#: The signals (the sequence itself, kept), edges and tables of the last `PiecewiseOffsets`.
-_LAST_TABULATED: list = []
-
-
 @dataclass(eq=False)
 class PiecewiseOffsets:
     """c(u) = phi(u) @ C_p on the pieces [edges[p], edges[p+1]) of one cycle.
@@ -193,19 +190,18 @@ class PiecewiseOffsets:
     _cache: dict = field(init=False, repr=False, default_factory=dict)
 
     def __post_init__(self) -> None:
-        last = _LAST_TABULATED
-        if last and last[0] is self.signals and np.array_equal(last[1], self.edges):
-            # the same signals on the same pieces (an exact stepper's energy ledger tabulates
-            # its process's signals again): the tables are the last ones, read-only
-            self.basis, self._smooth, self._piecewise, self._values, self._slopes, \
-                self._mids = last[2:]
-            return
         self._tabulate()
-        tables = (self.basis, self._smooth, self._piecewise, self._values, self._slopes,
-                  self._mids)
-        for table in tables[1:]:
-            table.setflags(write=False)
-        _LAST_TABULATED[:] = [self.signals, self.edges.copy(), *tables]
+        for table in (self._smooth, self._piecewise, self._values, self._slopes, self._mids):
+            table.setflags(write=False)  # shared by `recombined`
+
+    def recombined(self, combine: Callable[[np.ndarray], np.ndarray]) -> PiecewiseOffsets:
+        """The same signals on the same pieces mapped by another ``combine`` (an exact
+        stepper's energy ledger reads the signals themselves): the tables are shared, not
+        formed again."""
+        other = copy.copy(self)
+        other.combine = combine
+        other._cache = {}
+        return other
 
     def _tabulate(self) -> None:
         self.basis = _signal_basis(self.signals)
