@@ -184,11 +184,15 @@ def analyse(forward: Sequence[Signal], backward: Sequence[Signal]) -> Uniqueness
     if len(forward) > _ANALYSED_BLOCKS:
         return _analyse(forward, backward)
     key = (tuple(forward), tuple(backward))
-    if key not in _ANALYSED:
-        if len(_ANALYSED) >= _ANALYSED_MAX:
-            _ANALYSED.clear()
-        _ANALYSED[key] = _analyse(forward, backward)
-    return _ANALYSED[key]
+    try:
+        return _ANALYSED[key]  # one look-up: another thread may empty the table
+    except KeyError:
+        pass
+    found = _analyse(forward, backward)
+    if len(_ANALYSED) >= _ANALYSED_MAX:
+        _ANALYSED.clear()
+    _ANALYSED[key] = found
+    return found
 
 
 def _analyse(forward: Sequence[Signal], backward: Sequence[Signal]) -> UniquenessAnalysis | None:

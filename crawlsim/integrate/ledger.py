@@ -66,7 +66,8 @@ def _cos_integral(nu: Floats, m: Floats, delta: Floats,
     """int_{m-delta}^{m+delta} cos(nu u) du = cos(nu m) 2 sin(nu delta)/nu (2 delta at nu = 0);
     ``even`` is `_even_integral` (nu, delta) when already formed."""
     c = _even_integral(nu, delta) if even is None else even
-    return np.cos(nu * m) * c
+    out: np.ndarray = np.cos(nu * m) * c
+    return out
 
 
 def _sin_integral(nu: Floats, m: Floats, delta: Floats,
@@ -74,7 +75,8 @@ def _sin_integral(nu: Floats, m: Floats, delta: Floats,
     """int_{m-delta}^{m+delta} sin(nu u) du = sin(nu m) 2 sin(nu delta)/nu (0 at nu = 0);
     ``even`` as in `_cos_integral`."""
     c = _even_integral(nu, delta) if even is None else even
-    return np.sin(nu * m) * c
+    out: np.ndarray = np.sin(nu * m) * c
+    return out
 
 
 def _s_sin(omega: Floats, delta: Floats) -> np.ndarray:

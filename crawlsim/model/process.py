@@ -163,9 +163,14 @@ def _on_grid(signals: Sequence[Signal], u: np.ndarray, key: GridKey) -> np.ndarr
     (`_shared_grid`'s ``key``) and remembered: a sweep point changes one signal or two.
     Columns holding a zero are not kept: signals equal as values may differ in the sign of a
     zero (0.0 == -0.0), and only columns that no such sign can change are shared."""
-    distinct = list(dict.fromkeys(signals))
-    columns = {s: _ON_GRID[(s, key)] for s in distinct if (s, key) in _ON_GRID}
-    missing = [s for s in distinct if s not in columns]
+    columns: dict[Signal, np.ndarray] = {}
+    missing = []
+    for s in dict.fromkeys(signals):
+        kept = _ON_GRID.get((s, key))  # one look-up: another thread may empty the table
+        if kept is None:
+            missing.append(s)
+        else:
+            columns[s] = kept
     fresh = evaluate_many(missing, u)
     for i, s in enumerate(missing):
         columns[s] = fresh[:, i]
