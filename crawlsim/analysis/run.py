@@ -257,7 +257,8 @@ class _Drive:
 def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: float = 1e-12,
              integrator: str = "catch-up", check_every_step: bool = False, sink: Any = None,
              progress: Progress | None = None, limit: str = "newton", history: bool = True,
-             time_step_error: bool = False, series: bool = True) -> RunResult:
+             time_step_error: bool = False, series: bool = True,
+             running_frame: bool = True) -> RunResult:
     """Step ``process`` to its periodic regime and analyse the run (module docstring).
 
     ``sink.add_period(record)`` receives every period of the history as it is computed (the
@@ -274,7 +275,9 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
     period (``w12_distance``, ``sup_distance``, ``slip_l2_distance``: empty) and the dissipation
     of each period (NaN); every other number is the same. A sweep's rows hold none of them, and
     keeping and measuring every period (each exact period's energy ledger) was a fifth of a
-    point's cost.
+    point's cost. ``running_frame=False`` leaves ``limit`` without the limit period in the
+    running frame (`limit_period`'s x, shape, stress, slip and slip_rate: None), which no row
+    reads either.
     """
     if limit not in LIMIT_METHODS:
         raise ValueError(f"limit must be one of {', '.join(LIMIT_METHODS)}, got {limit!r}")
@@ -285,7 +288,8 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
                    history=history, sink=sink, progress=progress, series=series)
     result = _analyse(process, drive, integrator=integrator, tol=tol,
                       reference=_reference(process, integrator, time_step_error,
-                                           max_periods=max_periods, tolerance=tolerance))
+                                           max_periods=max_periods, tolerance=tolerance),
+                      running_frame=running_frame)
     return replace(result, wall_time=_time.perf_counter() - began,
                    **_outcome(result, max_periods=max_periods, tolerance=tol, limit=limit))
 
@@ -377,7 +381,7 @@ def verified_limit_error(process: SweepingProcess, final: PeriodRecord, steps: i
     """The error of v0 from a verified limit period of ``steps`` steps: the steps' roundoff,
     and the period's residual |P(w) - w|, periodic to which it is: a shape mismatch of
     |F| / k_min (a length) bounds the displacement's."""
-    c, slips = process.crawler, final.slips  # (slips: a difference of the positions)
+    c, slips = process.crawler, final.slips
     assert c is not None and slips is not None
     roundoff = displacement_roundoff(process, steps, float(np.sum(np.abs(slips))) / c.blocks)
     F = float(np.max(np.abs(final.w[-1] - final.w[0])))
@@ -392,9 +396,10 @@ def _motion(process: SweepingProcess, drive: _Drive, displacements: np.ndarray,
     if c is None:
         return None
     final, T, G = drive.final, process.period, process.steps
-    assert final.x is not None and final.slips is not None
+    slips = final.slips
+    assert final.x is not None and slips is not None
     d_final = float(np.mean(final.x[-1] - final.x[0]))
-    roundoff = float(np.sum(np.abs(final.slips))) / c.blocks
+    roundoff = float(np.sum(np.abs(slips))) / c.blocks
     if drive.solution is not None:
         err = verified_limit_error(process, final, G)
     else:
@@ -493,7 +498,7 @@ def _solver_fields(solution: LimitSolution | None) -> dict[str, Any]:
 
 
 def _analyse(process: SweepingProcess, drive: _Drive, *, integrator: str, tol: float,
-             reference: RunResult | None | bool) -> RunResult:
+             reference: RunResult | None | bool, running_frame: bool = True) -> RunResult:
     """What the driver's periods measure: the convergence and its rate, v0 and its error
     (period iteration plus time step), the cost of transport and the energy ledger."""
     rel = np.array(drive.log.rel_steps)
@@ -521,7 +526,8 @@ def _analyse(process: SweepingProcess, drive: _Drive, *, integrator: str, tol: f
         displacement_per_period=None if motion is None else motion.displacement,
         dissipation_per_period=None if motion is None else motion.dissipation,
         history=hist,
-        limit=limit_period(process, drive.final, None if motion is None else motion.v0),
+        limit=limit_period(process, drive.final, None if motion is None else motion.v0,
+                           running_frame),
         clarabel_calls=drive.clarabel_calls, wall_time=0.0,
         steps=(len(drive.log) + drive.solver_periods) * G, integrator=integrator,
         v0_error_period_iteration=err_pi, v0_error_time_step=step.v0,
@@ -598,20 +604,23 @@ def following(process: SweepingProcess, limit: PeriodRecord, last: PeriodRecord)
     return replace(limit, index=last.index + 1, start=last.start + process.period, x=x)
 
 
-def limit_period(process: SweepingProcess, final: PeriodRecord, v0: float | None) -> LimitPeriod:
-    """The final period in the running frame: ``xbar(t) = xbar_0 + v0 (t - t0) + p(t)``."""
+def limit_period(process: SweepingProcess, final: PeriodRecord, v0: float | None,
+                 running_frame: bool = True) -> LimitPeriod:
+    """The final period in the running frame: ``xbar(t) = xbar_0 + v0 (t - t0) + p(t)`` (with
+    ``running_frame=False``, or for a generic process, the states and multipliers alone)."""
     t = process.times
     c = process.crawler
-    if c is None:
+    if c is None or not running_frame:
         return LimitPeriod(final.start, t.copy(), final.w, final.multipliers)
-    assert final.x is not None and final.slips is not None and v0 is not None
+    dx = final.slips
+    assert final.x is not None and dx is not None and v0 is not None
     shape = c.shape(final.w)
     stress = c.stress(final.w)
     y0 = float(np.mean(final.x[0]))
     x_run = final.x - y0 - v0 * t[:, None]
-    dx = final.slips
     eps = 1e-12 * max(float(np.max(np.abs(dx))), 1e-300)
-    slip = np.where(dx > eps, 1, np.where(dx < -eps, -1, 0)).astype(np.int8)
+    # +1, -1 or 0 as int8: the two comparisons' bytes (True = 1) subtracted
+    slip = (dx > eps).view(np.int8) - (dx < -eps).view(np.int8)
     return LimitPeriod(final.start, t.copy(), final.w, final.multipliers, x=x_run, shape=shape,
                        stress=stress, slip=slip, slip_rate=dx / np.diff(t)[:, None])
 

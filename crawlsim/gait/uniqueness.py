@@ -161,8 +161,19 @@ def find_violation(forward: Sequence[Signal], backward: Sequence[Signal]) -> Vio
     return None
 
 
+#: `analyse`'s answers by friction (the signals are frozen values, equal only when they are the
+#: same functions): a sweep validates every point like a file, and the points of a sweep over
+#: the links share the base's friction, whose analysis was a third of a point's validation.
+#: Bounded, and kept only for crawlers of at most `_ANALYSED_BLOCKS` blocks (a key holds the
+#: signals).
+_ANALYSED: dict[tuple[tuple[Signal, ...], tuple[Signal, ...]], UniquenessAnalysis | None] = {}
+_ANALYSED_MAX = 32
+_ANALYSED_BLOCKS = 4096
+
+
 def analyse(forward: Sequence[Signal], backward: Sequence[Signal]) -> UniquenessAnalysis | None:
-    """Every subset J violating the uniqueness condition, or None if there is none.
+    """Every subset J violating the uniqueness condition, or None if there is none (remembered
+    for the friction of the last few gaits: `_ANALYSED`).
 
     The exact search (`find_violation`) decides; when it finds a J and the count vectors
     c (0 <= c_p <= multiplicity_p blocks of each distinct friction pair p) number at most
@@ -170,6 +181,22 @@ def analyse(forward: Sequence[Signal], backward: Sequence[Signal]) -> Uniqueness
     depends on J only through c, so this lists every violating J, those alike grouped. The
     subset the search found comes first.
     """
+    if len(forward) > _ANALYSED_BLOCKS:
+        return _analyse(forward, backward)
+    key = (tuple(forward), tuple(backward))
+    try:
+        return _ANALYSED[key]  # one look-up: another thread may empty the table
+    except KeyError:
+        pass
+    found = _analyse(forward, backward)
+    if len(_ANALYSED) >= _ANALYSED_MAX:
+        _ANALYSED.clear()
+    _ANALYSED[key] = found
+    return found
+
+
+def _analyse(forward: Sequence[Signal], backward: Sequence[Signal]) -> UniquenessAnalysis | None:
+    """`analyse`, computed."""
     found = find_violation(forward, backward)
     if found is None:
         return None

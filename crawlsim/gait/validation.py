@@ -24,6 +24,8 @@ its validated object (None when ``errors`` collects and found some)."""
 
 def plain(value: Any) -> Any:
     """A deep copy with numpy scalars and arrays turned into Python numbers and lists."""
+    if type(value) in _SCALARS:  # immutable: its own copy (a sweep copies a document a point)
+        return value
     if isinstance(value, np.ndarray):
         return plain(value.tolist())
     if isinstance(value, np.generic):

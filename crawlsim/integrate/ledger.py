@@ -16,7 +16,7 @@ import numpy.typing as npt
 
 from crawlsim.kernel.certificate import Floats
 from crawlsim.model.crawler import elastic_energy
-from crawlsim.model.offsets import TWO_PI, Basis, PiecewiseOffsets
+from crawlsim.model.offsets import TWO_PI, Basis
 from crawlsim.model.process import SweepingProcess
 
 #: Below this value of omega delta the closed form of int s sin(omega s) ds is summed as its
@@ -53,18 +53,30 @@ class PeriodEnergy:
 
 
 # -- closed-form integrals -----------------------------------------------------------------------
-def _cos_integral(nu: Floats, m: Floats, delta: Floats) -> np.ndarray:
-    """int_{m-delta}^{m+delta} cos(nu u) du = cos(nu m) 2 sin(nu delta)/nu (2 delta at nu = 0)."""
+def _even_integral(nu: Floats, delta: Floats) -> np.ndarray:
+    """int_{-delta}^{delta} cos(nu s) ds = 2 sin(nu delta)/nu (2 delta at nu = 0): the factor
+    that `_cos_integral` and `_sin_integral` share, formed once where both are wanted."""
     with np.errstate(divide="ignore", invalid="ignore"):
-        c = np.where(nu == 0.0, 2.0 * delta, 2.0 * np.sin(nu * delta) / nu)
-    return np.cos(nu * m) * c
+        c: np.ndarray = np.where(nu == 0.0, 2.0 * delta, 2.0 * np.sin(nu * delta) / nu)
+    return c
 
 
-def _sin_integral(nu: Floats, m: Floats, delta: Floats) -> np.ndarray:
-    """int_{m-delta}^{m+delta} sin(nu u) du = sin(nu m) 2 sin(nu delta)/nu (0 at nu = 0)."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        c = np.where(nu == 0.0, 2.0 * delta, 2.0 * np.sin(nu * delta) / nu)
-    return np.sin(nu * m) * c
+def _cos_integral(nu: Floats, m: Floats, delta: Floats,
+                  even: np.ndarray | None = None) -> np.ndarray:
+    """int_{m-delta}^{m+delta} cos(nu u) du = cos(nu m) 2 sin(nu delta)/nu (2 delta at nu = 0);
+    ``even`` is `_even_integral` (nu, delta) when already formed."""
+    c = _even_integral(nu, delta) if even is None else even
+    out: np.ndarray = np.cos(nu * m) * c
+    return out
+
+
+def _sin_integral(nu: Floats, m: Floats, delta: Floats,
+                  even: np.ndarray | None = None) -> np.ndarray:
+    """int_{m-delta}^{m+delta} sin(nu u) du = sin(nu m) 2 sin(nu delta)/nu (0 at nu = 0);
+    ``even`` as in `_cos_integral`."""
+    c = _even_integral(nu, delta) if even is None else even
+    out: np.ndarray = np.sin(nu * m) * c
+    return out
 
 
 def _s_sin(omega: Floats, delta: Floats) -> np.ndarray:
@@ -109,8 +121,9 @@ def gram(basis: Basis, a: npt.ArrayLike, b: npt.ArrayLike) -> np.ndarray:
         ci = h0 + 2 * np.arange(H)  # columns of cos(w_h u)
         si = ci + 1
         m1, d1 = m[:, None], delta[:, None]  # (K, 1) against (H,)
-        P[:, 0, ci] = P[:, ci, 0] = _cos_integral(w, m1, d1)
-        P[:, 0, si] = P[:, si, 0] = _sin_integral(w, m1, d1)
+        even = _even_integral(w, d1)
+        P[:, 0, ci] = P[:, ci, 0] = _cos_integral(w, m1, d1, even)
+        P[:, 0, si] = P[:, si, 0] = _sin_integral(w, m1, d1, even)
         if lin is not None:
             cw = 2.0 * np.sin(w * d1) / w
             ss = _s_sin(w, d1)
@@ -119,9 +132,10 @@ def gram(basis: Basis, a: npt.ArrayLike, b: npt.ArrayLike) -> np.ndarray:
         m2, d2 = m[:, None, None], delta[:, None, None]  # (K, 1, 1) against (H, H)
         diff = w[:, None] - w[None, :]  # alpha - beta
         total = w[:, None] + w[None, :]
-        cd, ct = _cos_integral(diff, m2, d2), _cos_integral(total, m2, d2)
+        even_d, even_t = _even_integral(diff, d2), _even_integral(total, d2)
+        cd, ct = _cos_integral(diff, m2, d2, even_d), _cos_integral(total, m2, d2, even_t)
         # cos(alpha u) sin(beta u) = (sin((alpha + beta) u) - sin((alpha - beta) u)) / 2
-        cs = 0.5 * (_sin_integral(total, m2, d2) - _sin_integral(diff, m2, d2))
+        cs = 0.5 * (_sin_integral(total, m2, d2, even_t) - _sin_integral(diff, m2, d2, even_d))
         P[:, ci[:, None], ci[None, :]] = 0.5 * (cd + ct)
         P[:, si[:, None], si[None, :]] = 0.5 * (cd - ct)
         P[:, ci[:, None], si[None, :]] = cs
@@ -156,7 +170,7 @@ class ExactLedger:
         self.constant = crawler.load_constant
         # the signals themselves (links, then mu^+ and mu^- in the order of the rows of B),
         # in the basis and on the pieces of c(t)
-        self.signals = PiecewiseOffsets(pieces.signals, _identity, pieces.edges)
+        self.signals = pieces.recombined(_identity)
         # per piece of c: L, K L, dL/du and mu coefficients (a period revisits every piece)
         self._cache: dict[int, tuple[np.ndarray, ...]] = {}
         self.start()

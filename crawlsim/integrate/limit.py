@@ -305,10 +305,12 @@ def newton_step(poly: Polyhedron, visited: Sequence[Factor], F: np.ndarray) -> n
     """The minimal-norm least-squares solution of (J - I) d = -F in the metric M: dense
     ``lstsq`` up to `DENSE_JACOBIAN` state variables, matrix-free LSMR beyond (for a crawler
     chain beyond `DENSE_CHAIN_JACOBIAN`, with the compiled products of `PackedJacobian`)."""
+    global _formed
     n = len(F)
     rhs = -poly.metric_root(F)
     if n <= DENSE_JACOBIAN and (n <= DENSE_CHAIN_JACOBIAN or not isinstance(poly, ChainPolyhedron)):
         J = jacobian(poly, visited)
+        _formed = (poly, visited, J)
         A = poly.metric_root((J - np.eye(n)).T).T  # L^T (J - I)
         d: np.ndarray
         d, *_ = np.linalg.lstsq(A, rhs, rcond=None)
@@ -337,6 +339,19 @@ def newton_step(poly: Polyhedron, visited: Sequence[Factor], F: np.ndarray) -> n
     op = LinearOperator((n, n), matvec=matvec, rmatvec=rmatvec, dtype=float)
     d_lsmr: np.ndarray = lsmr(op, rhs, atol=1e-15, btol=1e-15, maxiter=20 * n)[0]
     return d_lsmr
+
+
+#: The dense Jacobian `newton_step` formed last, with its polyhedron and factors (the list
+#: itself, kept): the solver's contraction rate reads it when that step was the last accepted.
+_formed: tuple[Polyhedron, Sequence[Factor], np.ndarray] | None = None
+
+
+def _formed_jacobian(poly: Polyhedron, visited: Sequence[Factor]) -> np.ndarray:
+    """J of ``visited``: the one `newton_step` formed for this very list, else formed now."""
+    formed = _formed
+    if formed is not None and formed[0] is poly and formed[1] is visited:
+        return formed[2]
+    return jacobian(poly, visited)
 
 
 def relative_step(process: SweepingProcess, w_start: np.ndarray, w_end: np.ndarray) -> float:
@@ -404,8 +419,8 @@ def solve_limit(process: SweepingProcess, stepper: PeriodStepper, *, tolerance: 
     periods, kinds = search.periods, search.kinds
     converged = residuals[-1] <= tolerance
     if converged and method == "newton" and poly.n <= DENSE_JACOBIAN:
-        rate = subdominant_rate(jacobian(poly, factors(process, record) if approach is None
-                                         else approach))
+        rate = subdominant_rate(jacobian(poly, factors(process, record)) if approach is None
+                                else _formed_jacobian(poly, approach))
     return LimitSolution(converged, w, record, "newton" if used_newton else "iterate",
                          newton_steps, periods, np.array(residuals),
                          np.array(kinds, dtype=np.int8), rate)

@@ -126,10 +126,16 @@ class PeriodRecord:
 
     @property
     def slips(self) -> np.ndarray | None:
-        """Block increments of each step, ``dx = S lambda`` (G, N); None for generic processes."""
+        """Block increments of each step, ``dx = S lambda`` (G, N); None for generic processes.
+        Formed once and kept read-only (v0's error, the limit period and its slip signs each
+        read them)."""
         if self.x is None:
             return None
-        dx: np.ndarray = np.diff(self.x, axis=0)
+        dx: np.ndarray | None = self.__dict__.get("_slips")
+        if dx is None:
+            dx = np.diff(self.x, axis=0)
+            dx.setflags(write=False)
+            object.__setattr__(self, "_slips", dx)
         return dx
 
 

@@ -21,6 +21,8 @@ the constraints and the slip rates, as such combinations, and finds their zeros 
 
 from __future__ import annotations
 
+import copy
+import functools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -49,8 +51,22 @@ class Basis:
         return 1 + int(self.linear)
 
     def values(self, u, order: int = 0) -> np.ndarray:
-        """The order-th derivative of phi at cycles u: (len(u), nb)."""
+        """The order-th derivative of phi at cycles u: (len(u), nb). A grid of at least
+        `_GRID_VALUES_MIN` cycles (a period's, tabulated once by every exact stepper) and of at
+        most `_GRID_VALUES_SIZE` values is remembered (`_GRID_VALUES`): a sweep's points share
+        it."""
         u = np.atleast_1d(np.asarray(u, dtype=float))
+        if not _GRID_VALUES_MIN <= u.size <= _GRID_VALUES_SIZE // self.size:
+            return self._values(u, order)
+        key = (self, order, u.tobytes())
+        kept = _GRID_VALUES.get(key)
+        if kept is None:
+            if len(_GRID_VALUES) >= _GRID_VALUES_MAX:
+                _GRID_VALUES.clear()
+            kept = _GRID_VALUES[key] = self._values(u, order)
+        return kept.copy()
+
+    def _values(self, u: np.ndarray, order: int) -> np.ndarray:
         out = np.zeros((u.size, self.size))
         if order == 0:
             out[:, 0] = 1.0
@@ -61,14 +77,17 @@ class Basis:
                 out[:, 1] = 1.0
         H = self.harmonics
         if H:
-            w = TWO_PI * np.arange(1, H + 1)
-            angle = u[:, None] * w  # (k, H)
+            w = _angular_rates(H)
             # d^k/du^k cos(w u) = w^k cos(w u + k pi/2), sin likewise
-            shift = order * (math.pi / 2)
-            scale = w ** order
+            angle = u[:, None] * w + order * (math.pi / 2)  # (k, H)
             h0 = self.first_harmonic
-            out[:, h0::2] = scale * np.cos(angle + shift)
-            out[:, h0 + 1::2] = scale * np.sin(angle + shift)
+            if order:
+                scale = w ** order
+                out[:, h0::2] = scale * np.cos(angle)
+                out[:, h0 + 1::2] = scale * np.sin(angle)
+            else:  # w^0 = 1: the values themselves
+                out[:, h0::2] = np.cos(angle)
+                out[:, h0 + 1::2] = np.sin(angle)
         return out
 
     def scalar(self, x: float, coef: np.ndarray) -> float:
@@ -101,6 +120,22 @@ class Basis:
         for h in range(1, self.harmonics + 1):
             bound = bound + (TWO_PI * h) ** 2 * (coef[h0 + 2 * (h - 1)] + coef[h0 + 2 * (h - 1) + 1])
         return bound
+
+
+@functools.lru_cache(maxsize=16)
+def _angular_rates(harmonics: int) -> np.ndarray:
+    """2 pi h for h = 1 .. harmonics (read-only)."""
+    w = TWO_PI * np.arange(1, harmonics + 1)
+    w.setflags(write=False)
+    return w
+
+
+#: `Basis.values` on grids (arrays of at least `_GRID_VALUES_MIN` cycles, 2 MB of values at
+#: most), by basis, order and the cycles' bytes; a few grids at a time.
+_GRID_VALUES: dict[tuple[Basis, int, bytes], np.ndarray] = {}
+_GRID_VALUES_MIN = 64
+_GRID_VALUES_SIZE = 1 << 18
+_GRID_VALUES_MAX = 8
 
 
 def _signal_basis(signals: Sequence[Signal]) -> Basis:
@@ -155,6 +190,20 @@ class PiecewiseOffsets:
     _cache: dict = field(init=False, repr=False, default_factory=dict)
 
     def __post_init__(self) -> None:
+        self._tabulate()
+        for table in (self._smooth, self._piecewise, self._values, self._slopes, self._mids):
+            table.setflags(write=False)  # shared by `recombined`
+
+    def recombined(self, combine: Callable[[np.ndarray], np.ndarray]) -> PiecewiseOffsets:
+        """The same signals on the same pieces mapped by another ``combine`` (an exact
+        stepper's energy ledger reads the signals themselves): the tables are shared, not
+        formed again."""
+        other = copy.copy(self)
+        other.combine = combine
+        other._cache = {}
+        return other
+
+    def _tabulate(self) -> None:
         self.basis = _signal_basis(self.signals)
         S = len(self.signals)
         smooth = np.zeros((self.basis.size, S))

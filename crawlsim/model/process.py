@@ -21,12 +21,13 @@ Everything time-dependent is tabulated once on the period's grid, vectorised ove
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from crawlsim.gait.document import Gait, ProcessSpec
-from crawlsim.gait.signals import evaluate_many
+from crawlsim.gait.signals import Signal, evaluate_many
 from crawlsim.kernel.kkt import ChainPolyhedron, DensePolyhedron, Polyhedron
 from crawlsim.model.crawler import Crawler, block_forces, slips
 from crawlsim.model.offsets import PiecewiseOffsets
@@ -129,8 +130,60 @@ def period_grid(steps_per_period: int, breakpoints) -> np.ndarray:
     A uniform point within `GRID_MERGE` of a breakpoint is replaced by the breakpoint, so a
     jump of a `steps` signal is always exactly on the grid.
     """
-    uniform = np.linspace(0.0, 1.0, steps_per_period + 1)
+    return _shared_grid(steps_per_period, breakpoints)[0]
+
+
+GridKey = tuple[int, bytes]
+
+#: Grids and signal values a sweep's points share (`_shared_grid`, `_on_grid`): at most `_KEPT`
+#: of each, for grids of at most `_KEPT_SIZE` times.
+_GRIDS: dict[GridKey, np.ndarray] = {}
+_ON_GRID: dict[tuple[Signal, GridKey], np.ndarray] = {}
+_KEPT = 64
+_KEPT_SIZE = 1 << 14
+
+
+def _shared_grid(steps_per_period: int, breakpoints) -> tuple[np.ndarray, GridKey]:
+    """`period_grid` (a copy of its own) and the key of that grid: the last few are remembered
+    (`_GRIDS`), since a sweep's points mostly share theirs."""
     bp = np.asarray(breakpoints, dtype=float)
+    key = (int(steps_per_period), bp.tobytes())
+    grid = _GRIDS.get(key)
+    if grid is None:
+        grid = _period_grid(steps_per_period, bp)
+        if grid.size <= _KEPT_SIZE:
+            if len(_GRIDS) >= _KEPT:
+                _GRIDS.clear()
+            _GRIDS[key] = grid
+    return grid.copy(), key
+
+
+def _on_grid(signals: Sequence[Signal], u: np.ndarray, key: GridKey) -> np.ndarray:
+    """``evaluate_many(signals, u)``, each distinct signal evaluated once on the grid ``u``
+    (`_shared_grid`'s ``key``) and remembered: a sweep point changes one signal or two.
+    Columns holding a zero are not kept: signals equal as values may differ in the sign of a
+    zero (0.0 == -0.0), and only columns that no such sign can change are shared."""
+    columns: dict[Signal, np.ndarray] = {}
+    missing = []
+    for s in dict.fromkeys(signals):
+        kept = _ON_GRID.get((s, key))  # one look-up: another thread may empty the table
+        if kept is None:
+            missing.append(s)
+        else:
+            columns[s] = kept
+    fresh = evaluate_many(missing, u)
+    for i, s in enumerate(missing):
+        columns[s] = fresh[:, i]
+        if u.size <= _KEPT_SIZE and np.all(fresh[:, i]):
+            if len(_ON_GRID) >= _KEPT:
+                _ON_GRID.clear()
+            _ON_GRID[(s, key)] = fresh[:, i].copy()
+    return np.column_stack([columns[s] for s in signals]) if signals \
+        else np.empty((u.size, 0))
+
+
+def _period_grid(steps_per_period: int, bp: np.ndarray) -> np.ndarray:
+    uniform = np.linspace(0.0, 1.0, steps_per_period + 1)
     bp = bp[(bp > GRID_MERGE) & (bp < 1.0 - GRID_MERGE)]
     if bp.size:
         near = np.min(np.abs(uniform[:, None] - bp[None, :]), axis=1) <= GRID_MERGE
@@ -158,13 +211,13 @@ def compile_gait(gait: Gait, steps_per_period: int | None = None) -> SweepingPro
     """The shape-space sweeping process of a crawler gait on its time grid (docs/model.md §2)."""
     G = steps_per_period or gait.simulation.steps_per_period
     breakpoints = gait.breakpoints()  # the union of every signal's: computed once
-    u = period_grid(G, breakpoints)
+    u, key = _shared_grid(G, breakpoints)
     k = np.asarray(gait.stiffness, dtype=float)
-    L = evaluate_many(gait.links, u)  # (G+1, N-1)
+    L = _on_grid(gait.links, u, key)  # (G+1, N-1)
     loads = gait.loads
     scale = 1.0 if loads is None else loads.cos
-    mu_f = evaluate_many(gait.forward, u) * scale  # (G+1, N): friction mu cos(angle), §6
-    mu_b = evaluate_many(gait.backward, u) * scale
+    mu_f = _on_grid(gait.forward, u, key) * scale  # (G+1, N): friction mu cos(angle), §6
+    mu_b = _on_grid(gait.backward, u, key) * scale
     KL = L * k  # K L on the grid
     DtKL = block_forces(KL)  # D^T K L, O(N) per row
     load = None

@@ -21,7 +21,6 @@ path is an `InputError` (exit code 2) before anything runs.
 
 from __future__ import annotations
 
-import copy
 import hashlib
 import json
 import math
@@ -35,6 +34,7 @@ import yaml
 from crawlsim.errors import GaitError, InputError, SweepSpecError
 from crawlsim.gait.docpaths import path_keys, resolve_path, set_value
 from crawlsim.gait.document import Gait, gait_from_document, need_crawler
+from crawlsim.gait.validation import plain
 
 if TYPE_CHECKING:
     from crawlsim.study.points import PointQuantity
@@ -177,7 +177,9 @@ class SweepGrid:
         return tuple(a.values[multi[d]] for a, d in zip(self.axes, self.dims))
 
     def document(self, index: int) -> dict:
-        doc = copy.deepcopy(self.base.document)
+        """The base document with the point's values set: a copy (`crawlsim.gait.validation.
+        plain`: the base document is plain data already, which copies faster than deepcopy)."""
+        doc = plain(self.base.document)
         for targets, value in zip(self.targets, self.values(index)):
             for keys in targets:
                 set_value(doc, keys, value)

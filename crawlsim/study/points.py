@@ -241,7 +241,8 @@ def _run_single(member: _Member, runs: dict | None = None) -> PointResult:
     try:
         run = simulate(process, max_periods=s.max_periods, tolerance=s.tolerance,
                        integrator=s.integrator, limit=s.limit, history=False,
-                       series=runs is not None)  # the row holds no per-period series
+                       series=runs is not None,  # the row holds no per-period series,
+                       running_frame=runs is not None)  # nor the running frame
     except Exception as exc:
         _reraise_memory(exc)
         return _failure(i, exc)
