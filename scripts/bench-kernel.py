@@ -10,14 +10,16 @@ tolerance policy, refinement, fallback or record. It follows crawlsim's trajecto
 
 Printed, for the ``--wave segments`` and ``--wave body`` gaits of scripts/bench-scale.py at 1000
 steps per period and N = 4, 16, 64, 256, 1024, each a median over ``--repeats`` interleaved
-runs of ``--periods`` periods (after one period from the initial state, and after compiling):
+runs of ``--periods`` periods (after ``--skip-periods`` periods from the initial state, one by
+default, and after compiling):
 
 * catch-up: crawlsim's certified step (`crawlsim.integrate.stepping.CatchUpStepper.step_period`, per
   step) / the reference step (bar: <= 5);
 * exact: one period of the exact integrator / one period of the reference (bar: <= 3).
 
     python scripts/bench-kernel.py [--sizes 4,16,64,256,1024] [--waves segments,body]
-                                   [--periods 3] [--repeats 3] [--sweep] [--clock wall|cpu]
+                                   [--periods 3] [--repeats 3] [--skip-periods 1] [--sweep]
+                                   [--clock wall|cpu]
 
 ``--sweep`` also times the exact 1-D sweep of the bar (120 points, -j 1) and divides the figure
 measured before the compiled kernel by it (bar: >= 30):
@@ -189,16 +191,20 @@ def _process(N: int, wave: str):
 CLOCK = time.perf_counter
 
 
-def measure(N: int, wave: str, periods: int, repeats: int):
-    """(reference s/period, catch-up s/period, exact s/period, max |w - w_reference|)."""
+def measure(N: int, wave: str, periods: int, repeats: int, skip: int = 0):
+    """(reference s/period, catch-up s/period, exact s/period, max |w - w_reference|), the
+    periods timed after ``skip`` untimed ones of each integrator (the segments wave's events
+    per period grow over its first 30 periods: ``--skip-periods 30`` times the regime it
+    settles in)."""
     process = _process(N, wave)
     k = np.ascontiguousarray(process.polyhedron.stiffness)
     C = np.ascontiguousarray(process.offsets)
     G = process.steps
     catch_up = make_stepper(process, "catch-up")
     exact = make_stepper(process, "exact")
-    catch_up.step_period()
-    exact.step_period()
+    for _ in range(max(skip, 1)):
+        catch_up.step_period()
+        exact.step_period()
     ref_w = catch_up.w.copy()
     signs = np.zeros(N, dtype=np.int8)
     W = np.empty((G + 1, N - 1))
@@ -241,6 +247,8 @@ def main() -> int:
     parser.add_argument("--waves", default="segments,body")
     parser.add_argument("--periods", type=int, default=3)
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--skip-periods", type=int, default=1,
+                        help="untimed periods of each integrator before the timed ones")
     parser.add_argument("--sweep", action="store_true")
     parser.add_argument("--clock", choices=("wall", "cpu"), default="wall")
     args = parser.parse_args()
@@ -248,13 +256,14 @@ def main() -> int:
     CLOCK = time.process_time if args.clock == "cpu" else time.perf_counter
     sizes = [int(s) for s in args.sizes.split(",") if s]
     print(f"1000 steps per period; medians of {args.repeats} x {args.periods} interleaved periods "
-          f"({args.clock} clock)")
+          f"after {args.skip_periods} ({args.clock} clock)")
     print(f"{'wave':>9} {'N':>5} {'reference us/step':>18} {'catch-up us/step':>17} "
           f"{'catch-up/ref':>13} {'exact ms/period':>16} {'exact/ref period':>17} "
           f"{'max|dw|':>9}")
     for wave in args.waves.split(","):
         for N in sizes:
-            ref, cu, ex, diff = measure(N, wave, args.periods, args.repeats)
+            ref, cu, ex, diff = measure(N, wave, args.periods, args.repeats,
+                                        args.skip_periods)
             print(f"{wave:>9} {N:>5} {ref / 1000 * 1e6:>18.3f} {cu / 1000 * 1e6:>17.3f} "
                   f"{cu / ref:>13.1f} {ex * 1e3:>16.2f} {ex / ref:>17.1f} {diff:>9.2g}",
                   flush=True)
