@@ -34,8 +34,10 @@ from numba import njit
 from crawlsim.kernel import chain
 from crawlsim.kernel.events import (  # noqa: F401 - eventloop.next_event etc. are entry points too
     SIMULTANEOUS,
+    closed_forms,
     crossing,
     next_event,
+    next_event_kept,
     rate_tolerance,
     row_functions,
 )
@@ -50,6 +52,8 @@ from crawlsim.kernel.piece import (  # noqa: F401 - eventloop.piece etc. are its
     offset_size,
     piece,
     piece_on,
+    rebuild,
+    set_norms,
     solve_rows,
 )
 
@@ -264,8 +268,9 @@ def sample_piece(k: np.ndarray, kmax: float, c_scale: float, coef: np.ndarray,
 @njit(cache=True)
 def state_at(u: float, linear: bool, H: int, signs: np.ndarray, dx0: np.ndarray, Ydx: np.ndarray,
              base: np.ndarray, Wc: np.ndarray, lam_cum: np.ndarray, w: np.ndarray, phi: np.ndarray,
-             dx: np.ndarray) -> None:
-    """w(u) into ``w`` and the slips of the piece up to u added to ``lam_cum``."""
+             dx: np.ndarray, lam_now: np.ndarray) -> None:
+    """w(u) into ``w`` and the cumulative slips at u into ``lam_now``: ``lam_cum`` (the slips up
+    to the start of each block's piece, `rebuild_changed`) plus those of the piece up to u."""
     N = signs.shape[0]
     basis_values(u, 0, linear, H, phi)
     combine(phi, Wc, w)
@@ -273,10 +278,46 @@ def state_at(u: float, linear: bool, H: int, signs: np.ndarray, dx0: np.ndarray,
         w[i] += base[i]
     combine(phi, Ydx, dx)
     for i in range(N):
+        lam_now[i], lam_now[N + i] = lam_cum[i], lam_cum[N + i]
         if signs[i] > 0:
-            lam_cum[i] = lam_cum[i] + (dx0[i] - dx[i])
+            lam_now[i] = lam_cum[i] + (dx0[i] - dx[i])
         elif signs[i] < 0:
-            lam_cum[N + i] = lam_cum[N + i] + -(dx0[i] - dx[i])
+            lam_now[N + i] = lam_cum[N + i] + -(dx0[i] - dx[i])
+
+
+@njit(cache=True)
+def rebuild_changed(k: np.ndarray, old: np.ndarray, new: np.ndarray, w: np.ndarray,
+                    coef: np.ndarray, linear: bool, H: int, D: np.ndarray, l: np.ndarray,
+                    inv: np.ndarray, dx0: np.ndarray, Ydx: np.ndarray, Rdx: np.ndarray,
+                    base: np.ndarray, Wc: np.ndarray, lam_cum: np.ndarray,
+                    lam_now: np.ndarray, dirty: np.ndarray, full: bool) -> None:
+    """The piece of the set ``new`` at w (`crawlsim.kernel.piece.rebuild`) where it differs from
+    the piece of ``old`` (every block when ``full``): each block whose sign changes lies in a
+    range of blocks each saturated in one set or the other, ended by blocks free in both, and
+    only those ranges are factored and solved again, their slips so far committed to
+    ``lam_cum`` (the other runs go on with their own pieces, the same closed form from an
+    earlier start), their rates Rdx formed, and their blocks and the next ones marked
+    ``dirty`` (their rows' functions changed, `crawlsim.kernel.events.next_event_kept`)."""
+    N = new.shape[0]
+    i = 0
+    while i < N:
+        if not full and old[i] == new[i]:
+            i += 1
+            continue
+        lo, hi = i, i
+        if full:
+            lo, hi = 0, N - 1
+        while lo > 0 and (old[lo - 1] != 0 or new[lo - 1] != 0):
+            lo -= 1
+        while hi < N - 1 and (old[hi + 1] != 0 or new[hi + 1] != 0):
+            hi += 1
+        for b in range(lo, hi + 1):
+            lam_cum[b], lam_cum[N + b] = lam_now[b], lam_now[N + b]
+        rebuild(k, new, w, coef, lo, hi, D, l, inv, dx0, Ydx, base, Wc)
+        derivative(Ydx[:, lo:hi + 1], linear, H, Rdx[:, lo:hi + 1])
+        for b in range(max(lo - 1, 0), min(hi + 2, N)):
+            dirty[b] = True
+        i = hi + 1
 
 
 @njit(cache=True)
@@ -439,8 +480,7 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
     kmax = 0.0
     for i in range(n):
         kmax = max(kmax, k[i])
-    D, l, f, dx0, dx = (np.empty(N), np.empty(max(N - 1, 0)), np.empty(N), np.empty(N),
-                        np.empty(N))
+    D, l, dx0, dx = np.empty(N), np.empty(max(N - 1, 0)), np.empty(N), np.empty(N)
     Ydx, Rdx = np.empty((nb, N)), np.empty((nb, N))
     base, Wc = np.empty(n), np.empty((nb, n))
     Z, times, phi0 = np.empty((m, nb)), np.empty(m), np.empty(nb)
@@ -454,11 +494,22 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
     forced = np.zeros(m, dtype=np.bool_)
     chosen = np.empty(N, dtype=np.int8)
     inner = np.zeros(8)
-    # the velocity problems' scratch and the factor of the last set (`decide`, `piece_on`)
+    # the velocity problems' scratch and the factor of the last set (`decide`)
     masks = np.zeros((3, m), dtype=np.bool_)
     rows_m, rows_n = np.empty((4, m)), np.zeros((5, N))
     sets = np.empty((2 + chain.UPDATE_ITERATIONS, N), dtype=np.int8)
     factored, norms = np.full(N, 2, dtype=np.int8), np.zeros(2)
+    # the piece's own factor, L_JJ^{-1} 1, the slips at the last event and the rows' kept
+    # crossings (`rebuild_changed`, `next_event_kept`); built: the piece arrays hold the
+    # pieces of ``signs`` on COEF[p] (not at the start, nor after an edge). Where a row's
+    # zero has no closed form (``kept`` False), every event rebuilds the whole piece from the
+    # state there and seeks every row again (`next_event`): the sampled zeros are then those
+    # of the Python loop, which rebuilds at every event, to roundoff
+    Dp, lp, inv = np.ones(N), np.zeros(max(N - 1, 0)), np.zeros(N)
+    lam_now, dirty = np.zeros(m), np.ones(N, dtype=np.bool_)
+    tols = np.zeros(m)
+    kept = closed_forms(linear, H)
+    built = False
     W[0] = w_start
     LAMC[0] = 0.0
     record_at(0, LAMC, x0, MU, X)
@@ -466,7 +517,7 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
     u, j, p, cause = 0.0, 1, 0, EDGE
     carried = 0.0
     while True:
-        status = begin_event(u, w, lam_cum, forced, max_events, zeno_events, zeno_window, EV_T,
+        status = begin_event(u, w, lam_now, forced, max_events, zeno_events, zeno_window, EV_T,
                              EV_W, EV_DX, TR_HIT, counts, report)
         if status != DONE:
             return status
@@ -476,16 +527,23 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
                       Bw, masks, rows_m, rows_n, sets, factored, D, l, norms, inner):
             report[R_U], report[R_REASON] = u, H_DECIDE
             return HANDOFF
+        rebuild_changed(k, signs, chosen, w, coef, linear, H, Dp, lp, inv, dx0, Ydx, Rdx, base,
+                        Wc, lam_cum, lam_now, dirty, not (built and kept))
+        built = True
         signs[:] = chosen
         TR_U[t_count], TR_PIECE[t_count], TR_SIGNS[t_count] = u, p, signs
         TR_CAUSE[t_count], TR_HIT[t_count] = cause, forced
         counts[C_TRANSITIONS] = t_count + 1
-        factored_set(k, signs, factored, D, l, norms)
-        inverse, gram = piece_on(k, signs, w, coef, D, l, norms, dx0, Ydx, base, Wc, f)
+        inverse, gram = set_norms(k, signs, inv)
         u_end = edges[p + 1]
-        u_e, handoff = next_event(c_scale, linear, H, coef, C_SIZE[p], signs, base, Wc, Ydx,
-                                  inverse, u, u_end, forced, Rdx, Z, times, reach,
-                                  slope_bound, phi0, cells_per_cycle)
+        if kept:
+            u_e, handoff = next_event_kept(c_scale, linear, H, coef, C_SIZE[p], signs, base, Wc,
+                                           Rdx, inverse, u, u_end, dirty, forced, Z, times,
+                                           tols, phi0), False
+        else:
+            u_e, handoff = next_event(c_scale, linear, H, coef, C_SIZE[p], signs, base, Wc, Ydx,
+                                      inverse, u, u_end, forced, Rdx, Z, times, reach,
+                                      slope_bound, phi0, cells_per_cycle)
         if handoff:
             report[R_U], report[R_REASON] = u, H_ZERO
             return HANDOFF
@@ -512,7 +570,7 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
             j = j_end
         else:  # the grid interval spans this piece: its roundoff enters the next sample
             carried = max(carried, own)
-        state_at(u_e, linear, H, signs, dx0, Ydx, base, Wc, lam_cum, w, phi, dx)
+        state_at(u_e, linear, H, signs, dx0, Ydx, base, Wc, lam_cum, w, phi, dx, lam_now)
         u = u_e
         if event:
             any_hit = False
@@ -523,6 +581,8 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
         forced[:] = False
         cause = EDGE
         edge = p + 1
+        lam_cum[:] = lam_now  # the next piece is built anew (another piece of c)
+        built = False
         if jumps[edge]:
             report[R_U] = u
             if jump(k, c_scale, w, TARGET[edge], signs, w_next, lam_jump, inner) != DONE:
@@ -534,6 +594,7 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
             counts[C_JUMPS] = q + 1
             je = after_jump(u, edge % P, w, w_next, lam_cum, lam_jump, signs, forced, grid, W,
                             LAMC, TR_U, TR_PIECE, TR_SIGNS, TR_CAUSE, TR_HIT, counts)
+            lam_now[:] = lam_cum
             record_at(je, LAMC, x0, MU, X)
         if edge == P:
             break

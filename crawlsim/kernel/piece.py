@@ -97,16 +97,28 @@ def solve_rows(D: np.ndarray, l: np.ndarray, Y: np.ndarray) -> None:
     """Y[b] <- L~^{-1} Y[b] for every row b (`crawlsim.kernel.chain.solve`, the same operations
     on each row), the rows side by side: their recurrences overlap instead of waiting on one
     another."""
-    nb, N = Y.shape
-    for i in range(1, N):
-        for b in range(nb):
-            Y[b, i] -= l[i - 1] * Y[b, i - 1]
-    for i in range(N):
+    solve_rows_on(D, l, Y, 0, Y.shape[1] - 1)
+
+
+@njit(cache=True)
+def solve_rows_on(D: np.ndarray, l: np.ndarray, Y: np.ndarray, lo: int, hi: int) -> None:
+    """`solve_rows` on the blocks lo..hi, a union of runs of the set (blocks lo - 1 and hi + 1
+    free or absent: the padded system decouples there, so the other blocks are not read).
+    The terms with l = 0, between runs, are skipped, as in `crawlsim.kernel.chain.solve`."""
+    nb = Y.shape[0]
+    for i in range(lo + 1, hi + 1):
+        li = l[i - 1]
+        if li != 0.0:
+            for b in range(nb):
+                Y[b, i] -= li * Y[b, i - 1]
+    for i in range(lo, hi + 1):
         for b in range(nb):
             Y[b, i] /= D[i]
-    for i in range(N - 2, -1, -1):
-        for b in range(nb):
-            Y[b, i] -= l[i] * Y[b, i + 1]
+    for i in range(hi - 1, lo - 1, -1):
+        li = l[i]
+        if li != 0.0:
+            for b in range(nb):
+                Y[b, i] -= li * Y[b, i + 1]
 
 
 @njit(cache=True)
@@ -168,6 +180,68 @@ def piece_on(k: np.ndarray, signs: np.ndarray, w0: np.ndarray, coef: np.ndarray,
         base[i] = w0[i] - (dx0[i + 1] - dx0[i]) * k[i]
         for b in range(nb):
             Wc[b, i] = (Ydx[b, i + 1] - Ydx[b, i]) * k[i]
+    return inverse, gram
+
+
+@njit(cache=True)
+def rebuild(k: np.ndarray, signs: np.ndarray, w0: np.ndarray, coef: np.ndarray, lo: int, hi: int,
+            D: np.ndarray, l: np.ndarray, inv: np.ndarray, dx0: np.ndarray, Ydx: np.ndarray,
+            base: np.ndarray, Wc: np.ndarray) -> None:
+    """`piece_on` on the blocks lo..hi alone, a union of runs of the set ``signs`` (blocks
+    lo - 1 and hi + 1 free or absent), from the state w0: the padded L~ decouples at a free
+    block, so the factor (D, l), L_JJ^{-1} 1 (``inv``, whose largest entry over the set is
+    ||L_JJ^{-1}||, `set_norms`), dx0 and Ydx of these blocks and base, Wc of the links that
+    touch them (lo - 1..hi) are those of the whole set, with the operations of
+    `crawlsim.kernel.chain.factor` and `piece_on`; the other runs keep theirs. An event that
+    changes the set on a few blocks so rebuilds only the runs that hold them."""
+    N = signs.shape[0]
+    nb = coef.shape[0]
+    for i in range(lo, hi + 1):
+        s = signs[i]
+        if s != 0:
+            D[i] = (k[i - 1] if i > 0 else 0.0) + (k[i] if i < N - 1 else 0.0)
+            inv[i] = 1.0
+            dx0[i] = (w0[i - 1] if i > 0 else 0.0) - (w0[i] if i < N - 1 else 0.0)
+        else:
+            D[i] = 1.0
+            inv[i] = 0.0
+            dx0[i] = 0.0
+        for b in range(nb):
+            Ydx[b, i] = coef[b, i] if s > 0 else (-coef[b, N + i] if s < 0 else 0.0)
+    if lo > 0:
+        l[lo - 1] = 0.0
+    if hi < N - 1:
+        l[hi] = 0.0
+    for i in range(lo + 1, hi + 1):
+        if signs[i - 1] != 0 and signs[i] != 0:
+            e = -k[i - 1]
+            l[i - 1] = e / D[i - 1]
+            D[i] -= l[i - 1] * e
+        else:
+            l[i - 1] = 0.0
+    solve_rows_on(D, l, inv.reshape((1, N)), lo, hi)
+    solve_rows_on(D, l, dx0.reshape((1, N)), lo, hi)
+    solve_rows_on(D, l, Ydx, lo, hi)
+    for i in range(max(lo - 1, 0), min(hi + 1, N - 1)):
+        base[i] = w0[i] - (dx0[i + 1] - dx0[i]) * k[i]
+        for b in range(nb):
+            Wc[b, i] = (Ydx[b, i + 1] - Ydx[b, i]) * k[i]
+
+
+@njit(cache=True)
+def set_norms(k: np.ndarray, signs: np.ndarray, inv: np.ndarray) -> tuple[float, float]:
+    """(||L_JJ^{-1}||, ||L_JJ||) of the set (`crawlsim.kernel.chain.factor`) from
+    inv = L_JJ^{-1} 1 (`rebuild`): its largest entry (an M-matrix) and the largest row sum
+    2 L_ii."""
+    N = signs.shape[0]
+    inverse, gram = 0.0, 0.0
+    for i in range(N):
+        if signs[i] != 0:
+            d = (k[i - 1] if i > 0 else 0.0) + (k[i] if i < N - 1 else 0.0)
+            if 2.0 * d > gram:
+                gram = 2.0 * d
+            if inv[i] > inverse:
+                inverse = inv[i]
     return inverse, gram
 
 
