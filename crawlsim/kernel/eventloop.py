@@ -290,14 +290,16 @@ def rebuild_changed(k: np.ndarray, old: np.ndarray, new: np.ndarray, w: np.ndarr
                     coef: np.ndarray, linear: bool, H: int, D: np.ndarray, l: np.ndarray,
                     inv: np.ndarray, dx0: np.ndarray, Ydx: np.ndarray, Rdx: np.ndarray,
                     base: np.ndarray, Wc: np.ndarray, lam_cum: np.ndarray,
-                    lam_now: np.ndarray, dirty: np.ndarray, full: bool) -> None:
+                    lam_now: np.ndarray, dirty: np.ndarray, stale: np.ndarray,
+                    full: bool) -> None:
     """The piece of the set ``new`` at w (`crawlsim.kernel.piece.rebuild`) where it differs from
     the piece of ``old`` (every block when ``full``): each block whose sign changes lies in a
     range of blocks each saturated in one set or the other, ended by blocks free in both, and
     only those ranges are factored and solved again, their slips so far committed to
     ``lam_cum`` (the other runs go on with their own pieces, the same closed form from an
     earlier start), their rates Rdx formed, and their blocks and the next ones marked
-    ``dirty`` (their rows' functions changed, `crawlsim.kernel.events.next_event_kept`)."""
+    ``dirty`` (their rows' functions changed, `crawlsim.kernel.events.next_event_kept`), the
+    chunks of their links ``stale`` (`energy_terms`)."""
     N = new.shape[0]
     i = 0
     while i < N:
@@ -317,43 +319,59 @@ def rebuild_changed(k: np.ndarray, old: np.ndarray, new: np.ndarray, w: np.ndarr
         derivative(Ydx[:, lo:hi + 1], linear, H, Rdx[:, lo:hi + 1])
         for b in range(max(lo - 1, 0), min(hi + 2, N)):
             dirty[b] = True
+        for c in range(max(lo - 1, 0) // CHUNK, min(hi + 1, N - 1) // CHUNK + 1):
+            stale[c] = True  # links lo - 1..hi, blocks lo..hi (`energy_terms`)
         i = hi + 1
+
+
+#: Links (and blocks) per chunk of the energy terms' partial sums (`energy_terms`).
+CHUNK = 32
 
 
 @njit(cache=True)
 def energy_terms(signs: np.ndarray, base: np.ndarray, Wc: np.ndarray, dY: np.ndarray,
                  KLc: np.ndarray, dLc: np.ndarray, Mc: np.ndarray, lc: np.ndarray, loaded: bool,
-                 out: np.ndarray) -> None:
+                 out: np.ndarray, stale: np.ndarray, partial: np.ndarray) -> None:
     """The piece's products for `crawlsim.analysis.energy.ExactLedger` (its ``piece``):
     (Wc + K Lc + base e_0) @ dLc^T, -Mc_A @ Y'^T and, with loads (``loaded``; out[2] stays 0
     without: the ledger reads two products then), -lc_A @ Y'^T, dY = Y' the slips' rates
-    (`derivative` of Ydx). One pass over the links and one over the slipping blocks, each
-    product summed in ``out`` in the order of the index it sums over."""
+    (`derivative` of Ydx). Each product is a sum over the links and the slipping blocks,
+    summed by chunks of `CHUNK` links and blocks into ``partial`` (chunk, 3, nb, nb), and the
+    chunks' sums in order into ``out``: only the chunks ``stale`` (whose links or blocks an
+    event rebuilt, `rebuild_changed`; cleared here) are summed again, the others' pieces go
+    on unchanged."""
     N = signs.shape[0]
     nb = Wc.shape[0]
-    sums = np.zeros((3, nb, nb))  # local, so that the sums stay in registers
-    for i in range(N - 1):
-        for a in range(nb):
-            # the stress coefficient a (adding base to a = 0 only: the other terms are those
-            # of Wc + KLc + 0.0, the same numbers)
-            stress = Wc[a, i] + KLc[a, i]
-            if a == 0:
-                stress += base[i]
-            for b in range(nb):
-                sums[0, a, b] += stress * dLc[b, i]
-    for i in range(N):  # the slipping blocks only (the friction and load rows of the set)
-        s = signs[i]
-        if s == 0:
+    for c in range(stale.shape[0]):
+        if not stale[c]:
             continue
-        r = i if s > 0 else N + i
-        for a in range(nb):
-            for b in range(nb):
-                sums[1, a, b] -= Mc[a, r] * (s * dY[b, i])
-        if loaded:
+        stale[c] = False
+        sums = np.zeros((3, nb, nb))  # local, so that the sums stay in registers
+        for i in range(c * CHUNK, min((c + 1) * CHUNK, N - 1)):
+            for a in range(nb):
+                # the stress coefficient a (adding base to a = 0 only: the other terms are
+                # those of Wc + KLc + 0.0, the same numbers)
+                stress = Wc[a, i] + KLc[a, i]
+                if a == 0:
+                    stress += base[i]
+                for b in range(nb):
+                    sums[0, a, b] += stress * dLc[b, i]
+        for i in range(c * CHUNK, min((c + 1) * CHUNK, N)):  # the slipping blocks only
+            s = signs[i]
+            if s == 0:
+                continue
+            r = i if s > 0 else N + i
             for a in range(nb):
                 for b in range(nb):
-                    sums[2, a, b] -= lc[a, r] * (s * dY[b, i])
-    out[:] = sums
+                    sums[1, a, b] -= Mc[a, r] * (s * dY[b, i])
+            if loaded:
+                for a in range(nb):
+                    for b in range(nb):
+                        sums[2, a, b] -= lc[a, r] * (s * dY[b, i])
+        partial[c] = sums
+    out[:] = 0.0
+    for c in range(stale.shape[0]):
+        out += partial[c]
 
 
 # -- a jump of c at a breakpoint ----------------------------------------------------------------
@@ -508,6 +526,8 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
     Dp, lp, inv = np.ones(N), np.zeros(max(N - 1, 0)), np.zeros(N)
     lam_now, dirty = np.zeros(m), np.ones(N, dtype=np.bool_)
     tols = np.zeros(m)
+    stale = np.ones((N + CHUNK - 1) // CHUNK, dtype=np.bool_)
+    partial = np.zeros((stale.shape[0], 3, nb, nb))
     kept = closed_forms(linear, H)
     built = False
     W[0] = w_start
@@ -528,7 +548,7 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
             report[R_U], report[R_REASON] = u, H_DECIDE
             return HANDOFF
         rebuild_changed(k, signs, chosen, w, coef, linear, H, Dp, lp, inv, dx0, Ydx, Rdx, base,
-                        Wc, lam_cum, lam_now, dirty, not (built and kept))
+                        Wc, lam_cum, lam_now, dirty, stale, not (built and kept))
         built = True
         signs[:] = chosen
         TR_U[t_count], TR_PIECE[t_count], TR_SIGNS[t_count] = u, p, signs
@@ -554,7 +574,7 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
             q = counts[C_PIECES]
             PIECE_BOUNDS[q, 0], PIECE_BOUNDS[q, 1] = u, u_e
             energy_terms(signs, base, Wc, Rdx, KLC[p], DLC[p], MC[p], LC[p], ledger == 3,
-                         PIECE_TERMS[q])
+                         PIECE_TERMS[q], stale, partial)
             counts[C_PIECES] = q + 1
         own = dual_scale(k, kmax, c_scale, signs, C_SIZE[p], dx0, Ydx, base, Wc, inverse, gram)
         j_end = j
