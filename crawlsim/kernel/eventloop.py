@@ -133,8 +133,20 @@ def decide(k: np.ndarray, kmax: float, c_scale: float, linear: bool, H: int, coe
     scratch: ``masks`` (3, 2N), ``rows_m`` (4, 2N), ``rows_n`` (5, N; its last row stays 0),
     ``sets`` (2 + UPDATE_ITERATIONS, N) and the factor of the last set (``factored``, D, l,
     ``norms``, `crawlsim.kernel.piece.factored_set`), refactored only when the set changes."""
+    tight_rows(c_scale, linear, H, coef, u, w, forced, phi, cvec, Bw, masks[0])
+    return decide_from(k, kmax, c_scale, linear, H, coef, u, forced, warm, out, phi, cvec, Bw,
+                       masks, rows_m, rows_n, sets, factored, D, l, norms, report)
+
+
+@njit(cache=True)
+def decide_from(k: np.ndarray, kmax: float, c_scale: float, linear: bool, H: int,
+                coef: np.ndarray, u: float, forced: np.ndarray, warm: np.ndarray,
+                out: np.ndarray, phi: np.ndarray, cvec: np.ndarray, Bw: np.ndarray,
+                masks: np.ndarray, rows_m: np.ndarray, rows_n: np.ndarray, sets: np.ndarray,
+                factored: np.ndarray, D: np.ndarray, l: np.ndarray, norms: np.ndarray,
+                report: np.ndarray) -> bool:
+    """`decide` from its candidates, in masks[0] (`tight_rows`)."""
     candidates = masks[0]
-    tight_rows(c_scale, linear, H, coef, u, w, forced, phi, cvec, Bw, candidates)
     out[:] = 0
     if not candidates.any():
         return True
@@ -174,6 +186,117 @@ def decide(k: np.ndarray, kmax: float, c_scale: float, linear: bool, H: int, coe
     for i in range(N):
         out[i] = 1 if fixed[i] else (-1 if fixed[N + i] else 0)
     return True
+
+
+#: `decide_local` leaves a run of the set to its piece when each of its slip rates exceeds this
+#: many times the largest dual tolerance a velocity problem at the event could give it.
+CLEAR_MARGIN = 1e3
+
+
+@njit(cache=True)
+def decide_local(k: np.ndarray, kmax: float, c_scale: float, linear: bool, H: int,
+                 coef: np.ndarray, c_size: float, u: float, w: np.ndarray, forced: np.ndarray,
+                 warm: np.ndarray, out: np.ndarray, phi: np.ndarray, cvec: np.ndarray,
+                 Bw: np.ndarray, masks: np.ndarray, rows_m: np.ndarray, rows_n: np.ndarray,
+                 sets: np.ndarray, factored: np.ndarray, D: np.ndarray, l: np.ndarray,
+                 norms: np.ndarray, report: np.ndarray, Rdx: np.ndarray, inverse: float,
+                 rate: np.ndarray) -> bool:
+    """`decide` at an event of a piece of the set ``warm`` (its slip rates' coefficients Rdx,
+    its ||L_JJ^{-1}|| ``inverse``), solving the velocity problems only where the set can change.
+
+    The velocity problems decouple at a block with no candidate row (both its offsets are
+    infinite there: a free block of every set they try), so each run of candidate blocks is a
+    problem of its own. A run whose candidate rows are the rows of ``warm``, none of them hit,
+    each with a slip rate -s phi(u) @ Rdx above `CLEAR_MARGIN` times the dual tolerance
+    2 RTOL ||L_JJ^{-1}|| (size + ||L_JJ|| |lambda|) that a velocity problem could give it
+    (with 4 ||L_JJ^{-1}|| of the piece, ||L_JJ|| <= 4 max k, |c'| <= 2 pi max(H, 1) |c|),
+    has every multiplier of its order-1 problem positive beyond doubt: every row of it is
+    fixed at order 1, and it keeps its set. The other runs are decided by `decide_from` on the
+    chain of their blocks and the free block on either side (`decide_run`), with the same
+    candidates; the whole chain by `decide` where every block is a candidate."""
+    N = warm.shape[0]
+    nb = coef.shape[0]
+    candidates = masks[0]
+    tight_rows(c_scale, linear, H, coef, u, w, forced, phi, cvec, Bw, candidates)
+    # phi = phi(u): the slip rates of the piece's active blocks, and their size
+    lam_size = 0.0
+    count = 0
+    for i in range(N):
+        s = warm[i]
+        if candidates[i] or candidates[N + i]:
+            count += 1
+        if s != 0:
+            total = 0.0
+            for b in range(nb):
+                total += phi[b] * Rdx[b, i]
+            rate[i] = -s * total
+            lam_size = max(lam_size, abs(rate[i]))
+    if count == N:
+        return decide_from(k, kmax, c_scale, linear, H, coef, u, forced, warm, out, phi, cvec,
+                           Bw, masks, rows_m, rows_n, sets, factored, D, l, norms, report)
+    size = max(max(c_scale, TWO_PI * max(H, 1) * c_size), 4.0 * kmax * lam_size)
+    clear = CLEAR_MARGIN * 2.0 * RTOL * 4.0 * inverse * (size + 4.0 * kmax * lam_size)
+    hot = masks[1]
+    for i in range(N):
+        s = warm[i]
+        h = (forced[i] or forced[N + i] or candidates[i] != (s > 0)
+             or candidates[N + i] != (s < 0))
+        if not h and s != 0:
+            h = not rate[i] > clear
+        hot[i] = h
+    out[:] = warm
+    i = 0
+    while i < N:
+        if not hot[i]:
+            i += 1
+            continue
+        if not (candidates[i] or candidates[N + i]):
+            out[i] = 0  # an active block with no candidate row leaves the set
+            i += 1
+            continue
+        lo, hi = i, i
+        while lo > 0 and (candidates[lo - 1] or candidates[N + lo - 1]):
+            lo -= 1
+        while hi < N - 1 and (candidates[hi + 1] or candidates[N + hi + 1]):
+            hi += 1
+        if not decide_run(k, kmax, c_scale, linear, H, coef, u, forced, warm, candidates,
+                          max(lo - 1, 0), min(hi + 1, N - 1), out, report):
+            return False
+        i = hi + 1
+    count = 0
+    for i in range(N):
+        if out[i] != 0:
+            count += 1
+    return count < N  # LICQ of the whole set (`chain.independent`)
+
+
+@njit(cache=True)
+def decide_run(k: np.ndarray, kmax: float, c_scale: float, linear: bool, H: int,
+               coef: np.ndarray, u: float, forced: np.ndarray, warm: np.ndarray,
+               candidates: np.ndarray, a: int, b: int, out: np.ndarray,
+               report: np.ndarray) -> bool:
+    """`decide_from` on the chain of blocks a..b (links a..b-1), a run of candidate blocks
+    and the free blocks beside it, its result into out[a:b+1]."""
+    N = warm.shape[0]
+    n = b - a + 1
+    nb = coef.shape[0]
+    sub = np.empty((nb, 2 * n))
+    masks = np.zeros((3, 2 * n), dtype=np.bool_)
+    hit = np.empty(2 * n, dtype=np.bool_)
+    for j in range(n):
+        for q in range(nb):
+            sub[q, j], sub[q, n + j] = coef[q, a + j], coef[q, N + a + j]
+        masks[0, j], masks[0, n + j] = candidates[a + j], candidates[N + a + j]
+        hit[j], hit[n + j] = forced[a + j], forced[N + a + j]
+    result = np.empty(n, dtype=np.int8)
+    ok = decide_from(k[a:b], kmax, c_scale, linear, H, sub, u, hit, warm[a:b + 1], result,
+                     np.empty(nb), np.empty(2 * n), np.empty(2 * n), masks,
+                     np.empty((4, 2 * n)), np.zeros((5, n)),
+                     np.empty((2 + chain.UPDATE_ITERATIONS, n), dtype=np.int8),
+                     np.full(n, 2, dtype=np.int8), np.empty(n), np.empty(max(n - 1, 0)),
+                     np.zeros(2), report)
+    out[a:b + 1] = result
+    return ok
 
 
 # -- the grid samples of a piece and their certificate ------------------------------------------
@@ -525,11 +648,12 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
     # of the Python loop, which rebuilds at every event, to roundoff
     Dp, lp, inv = np.ones(N), np.zeros(max(N - 1, 0)), np.zeros(N)
     lam_now, dirty = np.zeros(m), np.ones(N, dtype=np.bool_)
-    tols = np.zeros(m)
+    tols, rate = np.zeros(m), np.zeros(N)
     stale = np.ones((N + CHUNK - 1) // CHUNK, dtype=np.bool_)
     partial = np.zeros((stale.shape[0], 3, nb, nb))
     kept = closed_forms(linear, H)
     built = False
+    inverse = 0.0
     W[0] = w_start
     LAMC[0] = 0.0
     record_at(0, LAMC, x0, MU, X)
@@ -543,8 +667,15 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
             return status
         t_count = counts[C_TRANSITIONS]
         coef = COEF[p]
-        if not decide(k, kmax, c_scale, linear, H, coef, u, w, forced, signs, chosen, phi, cvec,
-                      Bw, masks, rows_m, rows_n, sets, factored, D, l, norms, inner):
+        if built and kept:  # the piece of ``signs`` is in place: its runs that cannot change
+            decided = decide_local(k, kmax, c_scale, linear, H, coef, C_SIZE[p], u, w, forced,
+                                   signs, chosen, phi, cvec, Bw, masks, rows_m, rows_n, sets,
+                                   factored, D, l, norms, inner, Rdx, inverse, rate)
+        else:
+            decided = decide(k, kmax, c_scale, linear, H, coef, u, w, forced, signs, chosen,
+                             phi, cvec, Bw, masks, rows_m, rows_n, sets, factored, D, l, norms,
+                             inner)
+        if not decided:
             report[R_U], report[R_REASON] = u, H_DECIDE
             return HANDOFF
         rebuild_changed(k, signs, chosen, w, coef, linear, H, Dp, lp, inv, dx0, Ydx, Rdx, base,
