@@ -188,6 +188,9 @@ def decide_from(k: np.ndarray, kmax: float, c_scale: float, linear: bool, H: int
     return True
 
 
+#: Chains of fewer blocks decide an event over the whole chain (`decide`): a velocity problem
+#: of a few blocks costs less than the scratch of one on a run of its own (`decide_run`).
+LOCAL_BLOCKS = 16
 #: `decide_local` leaves a run of the set to its piece when each of its slip rates exceeds this
 #: many times the largest dual tolerance a velocity problem at the event could give it.
 CLEAR_MARGIN = 1e3
@@ -667,7 +670,7 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
             return status
         t_count = counts[C_TRANSITIONS]
         coef = COEF[p]
-        if built and kept:  # the piece of ``signs`` is in place: its runs that cannot change
+        if built and kept and N >= LOCAL_BLOCKS:  # the piece of ``signs`` is in place
             decided = decide_local(k, kmax, c_scale, linear, H, coef, C_SIZE[p], u, w, forced,
                                    signs, chosen, phi, cvec, Bw, masks, rows_m, rows_n, sets,
                                    factored, D, l, norms, inner, Rdx, inverse, rate)
