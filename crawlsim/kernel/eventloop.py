@@ -42,9 +42,15 @@ from crawlsim.kernel.events import (  # noqa: F401 - eventloop.next_event etc. a
     row_functions,
 )
 from crawlsim.kernel.piece import (  # noqa: F401 - eventloop.piece etc. are its entry points too
+    CLEAR_MARGIN,
+    DECISION_ORDERS,
+    LOCAL_BLOCKS,
     apply,
     basis_values,
     combine,
+    decide,
+    decide_from,
+    decide_local,
     derivative,
     dual_scale,
     factored_set,
@@ -54,14 +60,13 @@ from crawlsim.kernel.piece import (  # noqa: F401 - eventloop.piece etc. are its
     piece_on,
     rebuild,
     set_norms,
+    settle_rows,
     solve_rows,
+    tight_rows,
 )
 
 TWO_PI = 2.0 * math.pi
 RTOL = chain.RTOL
-#: Orders of the velocity problem used to decide degenerate rows at an event (the exact
-#: integrator's DECISION_ORDERS).
-DECISION_ORDERS = 4
 #: Restarts of the projection at a jump of c from the set where its primal-dual updates
 #: stopped: a jump may change more rows than `chain.UPDATE_ITERATIONS` updates do when the
 #: tight set, nearly every block, only admits them one at a time.
@@ -79,227 +84,6 @@ HANDOFF_REASONS = ("decide", "zero", "jump")
 H_DECIDE, H_ZERO, H_JUMP = range(3)
 #: Entries of ``counts``.
 C_EVENTS, C_TRANSITIONS, C_PIECES, C_JUMPS = range(4)
-
-
-@njit(cache=True)
-def tight_rows(c_scale: float, linear: bool, H: int, coef: np.ndarray, u: float, w: np.ndarray,
-               forced: np.ndarray, phi: np.ndarray, cvec: np.ndarray, Bw: np.ndarray,
-               candidates: np.ndarray) -> None:
-    """The rows tight at w to the primal tolerance of a step with no multipliers, and
-    ``forced`` (the rows an event hit), into ``candidates``: the candidates of `decide`."""
-    m = Bw.shape[0]
-    basis_values(u, 0, linear, H, phi)
-    combine(phi, coef, cvec)
-    apply(w, Bw)
-    c_size = 0.0
-    for r in range(m):
-        if abs(cvec[r]) < np.inf:
-            c_size = max(c_size, abs(cvec[r]))
-    tol = RTOL * max(max(c_scale, c_size), 2.0 * max_abs(w))
-    for r in range(m):
-        candidates[r] = Bw[r] - cvec[r] >= -tol or forced[r]
-
-
-@njit(cache=True)
-def settle_rows(candidates: np.ndarray, fixed: np.ndarray, lam: np.ndarray, Bv: np.ndarray,
-                ck: np.ndarray, tol_p: float, told: np.ndarray) -> bool:
-    """One order of `decide`: candidates with a multiplier above their own row's dual
-    tolerance ``told[r]`` (`chain.project_rows`) become fixed, those whose velocity opens their
-    gap leave. Returns whether candidates are left."""
-    left = False
-    for r in range(candidates.shape[0]):
-        if candidates[r]:
-            if lam[r] > told[r]:
-                fixed[r] = True
-                candidates[r] = False
-            elif Bv[r] - ck[r] < -tol_p:
-                candidates[r] = False
-            else:
-                left = True
-    return left
-
-
-@njit(cache=True)
-def decide(k: np.ndarray, kmax: float, c_scale: float, linear: bool, H: int, coef: np.ndarray,
-           u: float, w: np.ndarray, forced: np.ndarray, warm: np.ndarray, out: np.ndarray,
-           phi: np.ndarray, cvec: np.ndarray, Bw: np.ndarray, masks: np.ndarray,
-           rows_m: np.ndarray, rows_n: np.ndarray, sets: np.ndarray, factored: np.ndarray,
-           D: np.ndarray, l: np.ndarray, norms: np.ndarray, report: np.ndarray) -> bool:
-    """The active set on (u, u + eps) into ``out`` (`EventStepper._decide`): the rows tight at
-    w (and ``forced``), decided by the velocity problems of orders 1, 2, ...; False when one of
-    them is not settled by the kernel's updates or the result is dependent (HANDOFF).
-
-    Each velocity problem is `crawlsim.kernel.chain.project_rows` (w_trial = 0) on the period's
-    scratch: ``masks`` (3, 2N), ``rows_m`` (4, 2N), ``rows_n`` (5, N; its last row stays 0),
-    ``sets`` (2 + UPDATE_ITERATIONS, N) and the factor of the last set (``factored``, D, l,
-    ``norms``, `crawlsim.kernel.piece.factored_set`), refactored only when the set changes."""
-    tight_rows(c_scale, linear, H, coef, u, w, forced, phi, cvec, Bw, masks[0])
-    return decide_from(k, kmax, c_scale, linear, H, coef, u, forced, warm, out, phi, cvec, Bw,
-                       masks, rows_m, rows_n, sets, factored, D, l, norms, report)
-
-
-@njit(cache=True)
-def decide_from(k: np.ndarray, kmax: float, c_scale: float, linear: bool, H: int,
-                coef: np.ndarray, u: float, forced: np.ndarray, warm: np.ndarray,
-                out: np.ndarray, phi: np.ndarray, cvec: np.ndarray, Bw: np.ndarray,
-                masks: np.ndarray, rows_m: np.ndarray, rows_n: np.ndarray, sets: np.ndarray,
-                factored: np.ndarray, D: np.ndarray, l: np.ndarray, norms: np.ndarray,
-                report: np.ndarray) -> bool:
-    """`decide` from its candidates, in masks[0] (`tight_rows`)."""
-    candidates = masks[0]
-    out[:] = 0
-    if not candidates.any():
-        return True
-    N = out.shape[0]
-    m = 2 * N
-    fixed, rows = masks[1], masks[2]
-    fixed[:] = False
-    signs = sets[0]
-    lam, c, told, slack = rows_m[0], rows_m[1], rows_m[2], rows_m[3]
-    dx, f, res, v, zero = rows_n[0], rows_n[1], rows_n[2], rows_n[3, :N - 1], rows_n[4, :N - 1]
-    for order in range(1, DECISION_ORDERS + 1):
-        basis_values(u, order, linear, H, phi)
-        combine(phi, coef, cvec)
-        for r in range(m):
-            c[r] = cvec[r] if (fixed[r] or candidates[r]) else np.inf
-            block_warm = warm[r] > 0 if r < N else warm[r - N] < 0
-            rows[r] = fixed[r] or (candidates[r] and block_warm)
-        if not chain.independent(rows, N):
-            return False
-        if order == 1:  # the rows an event hit start in the set, where LICQ allows
-            for r in range(m):
-                if forced[r] and candidates[r] and not rows[r] and not rows[(r + N) % m]:
-                    rows[r] = True
-                    if not chain.independent(rows, N):
-                        rows[r] = False
-        for i in range(N):
-            signs[i] = 1 if rows[i] else (-1 if rows[N + i] else 0)
-        status, _ = chain.settle(k, kmax, c_scale, zero, c, signs, factored, D, l, norms, fixed,
-                                 dx, v, lam, slack, f, res, sets[1], sets[2:], report, told)
-        if status != chain.DONE:
-            return False
-        apply(v, Bw)
-        if not settle_rows(candidates, fixed, lam, Bw, cvec, report[chain.REPORT_TOLP], told):
-            break
-    if not chain.independent(fixed, N):
-        return False
-    for i in range(N):
-        out[i] = 1 if fixed[i] else (-1 if fixed[N + i] else 0)
-    return True
-
-
-#: Chains of fewer blocks decide an event over the whole chain (`decide`): a velocity problem
-#: of a few blocks costs less than the scratch of one on a run of its own (`decide_run`).
-LOCAL_BLOCKS = 16
-#: `decide_local` leaves a run of the set to its piece when each of its slip rates exceeds this
-#: many times the largest dual tolerance a velocity problem at the event could give it.
-CLEAR_MARGIN = 1e3
-
-
-@njit(cache=True)
-def decide_local(k: np.ndarray, kmax: float, c_scale: float, linear: bool, H: int,
-                 coef: np.ndarray, c_size: float, u: float, w: np.ndarray, forced: np.ndarray,
-                 warm: np.ndarray, out: np.ndarray, phi: np.ndarray, cvec: np.ndarray,
-                 Bw: np.ndarray, masks: np.ndarray, rows_m: np.ndarray, rows_n: np.ndarray,
-                 sets: np.ndarray, factored: np.ndarray, D: np.ndarray, l: np.ndarray,
-                 norms: np.ndarray, report: np.ndarray, Rdx: np.ndarray, inverse: float,
-                 rate: np.ndarray) -> bool:
-    """`decide` at an event of a piece of the set ``warm`` (its slip rates' coefficients Rdx,
-    its ||L_JJ^{-1}|| ``inverse``), solving the velocity problems only where the set can change.
-
-    The velocity problems decouple at a block with no candidate row (both its offsets are
-    infinite there: a free block of every set they try), so each run of candidate blocks is a
-    problem of its own. A run whose candidate rows are the rows of ``warm``, none of them hit,
-    each with a slip rate -s phi(u) @ Rdx above `CLEAR_MARGIN` times the dual tolerance
-    2 RTOL ||L_JJ^{-1}|| (size + ||L_JJ|| |lambda|) that a velocity problem could give it
-    (with 4 ||L_JJ^{-1}|| of the piece, ||L_JJ|| <= 4 max k, |c'| <= 2 pi max(H, 1) |c|),
-    has every multiplier of its order-1 problem positive beyond doubt: every row of it is
-    fixed at order 1, and it keeps its set. The other runs are decided by `decide_from` on the
-    chain of their blocks and the free block on either side (`decide_run`), with the same
-    candidates; the whole chain by `decide` where every block is a candidate."""
-    N = warm.shape[0]
-    nb = coef.shape[0]
-    candidates = masks[0]
-    tight_rows(c_scale, linear, H, coef, u, w, forced, phi, cvec, Bw, candidates)
-    # phi = phi(u): the slip rates of the piece's active blocks, and their size
-    lam_size = 0.0
-    count = 0
-    for i in range(N):
-        s = warm[i]
-        if candidates[i] or candidates[N + i]:
-            count += 1
-        if s != 0:
-            total = 0.0
-            for b in range(nb):
-                total += phi[b] * Rdx[b, i]
-            rate[i] = -s * total
-            lam_size = max(lam_size, abs(rate[i]))
-    if count == N:
-        return decide_from(k, kmax, c_scale, linear, H, coef, u, forced, warm, out, phi, cvec,
-                           Bw, masks, rows_m, rows_n, sets, factored, D, l, norms, report)
-    size = max(max(c_scale, TWO_PI * max(H, 1) * c_size), 4.0 * kmax * lam_size)
-    clear = CLEAR_MARGIN * 2.0 * RTOL * 4.0 * inverse * (size + 4.0 * kmax * lam_size)
-    hot = masks[1]
-    for i in range(N):
-        s = warm[i]
-        h = (forced[i] or forced[N + i] or candidates[i] != (s > 0)
-             or candidates[N + i] != (s < 0))
-        if not h and s != 0:
-            h = not rate[i] > clear
-        hot[i] = h
-    out[:] = warm
-    i = 0
-    while i < N:
-        if not hot[i]:
-            i += 1
-            continue
-        if not (candidates[i] or candidates[N + i]):
-            out[i] = 0  # an active block with no candidate row leaves the set
-            i += 1
-            continue
-        lo, hi = i, i
-        while lo > 0 and (candidates[lo - 1] or candidates[N + lo - 1]):
-            lo -= 1
-        while hi < N - 1 and (candidates[hi + 1] or candidates[N + hi + 1]):
-            hi += 1
-        if not decide_run(k, kmax, c_scale, linear, H, coef, u, forced, warm, candidates,
-                          max(lo - 1, 0), min(hi + 1, N - 1), out, report):
-            return False
-        i = hi + 1
-    count = 0
-    for i in range(N):
-        if out[i] != 0:
-            count += 1
-    return count < N  # LICQ of the whole set (`chain.independent`)
-
-
-@njit(cache=True)
-def decide_run(k: np.ndarray, kmax: float, c_scale: float, linear: bool, H: int,
-               coef: np.ndarray, u: float, forced: np.ndarray, warm: np.ndarray,
-               candidates: np.ndarray, a: int, b: int, out: np.ndarray,
-               report: np.ndarray) -> bool:
-    """`decide_from` on the chain of blocks a..b (links a..b-1), a run of candidate blocks
-    and the free blocks beside it, its result into out[a:b+1]."""
-    N = warm.shape[0]
-    n = b - a + 1
-    nb = coef.shape[0]
-    sub = np.empty((nb, 2 * n))
-    masks = np.zeros((3, 2 * n), dtype=np.bool_)
-    hit = np.empty(2 * n, dtype=np.bool_)
-    for j in range(n):
-        for q in range(nb):
-            sub[q, j], sub[q, n + j] = coef[q, a + j], coef[q, N + a + j]
-        masks[0, j], masks[0, n + j] = candidates[a + j], candidates[N + a + j]
-        hit[j], hit[n + j] = forced[a + j], forced[N + a + j]
-    result = np.empty(n, dtype=np.int8)
-    ok = decide_from(k[a:b], kmax, c_scale, linear, H, sub, u, hit, warm[a:b + 1], result,
-                     np.empty(nb), np.empty(2 * n), np.empty(2 * n), masks,
-                     np.empty((4, 2 * n)), np.zeros((5, n)),
-                     np.empty((2 + chain.UPDATE_ITERATIONS, n), dtype=np.int8),
-                     np.full(n, 2, dtype=np.int8), np.empty(n), np.empty(max(n - 1, 0)),
-                     np.zeros(2), report)
-    out[a:b + 1] = result
-    return ok
 
 
 # -- the grid samples of a piece and their certificate ------------------------------------------
@@ -548,6 +332,33 @@ def record_at(j: int, LAMC: np.ndarray, x0: np.ndarray, MU: np.ndarray, X: np.nd
             X[j, i] = x0[i] + (LAMC[j, i] - LAMC[j, N + i])
 
 
+@njit(cache=True)
+def at_jump(k: np.ndarray, c_scale: float, u: float, p: int, piece_after: int,
+            target: np.ndarray, w: np.ndarray, w_next: np.ndarray, lam_cum: np.ndarray,
+            lam_jump: np.ndarray, lam_now: np.ndarray, signs: np.ndarray, forced: np.ndarray,
+            grid: np.ndarray, W: np.ndarray, LAMC: np.ndarray, x0: np.ndarray, MU: np.ndarray,
+            X: np.ndarray, TR_U: np.ndarray, TR_PIECE: np.ndarray, TR_SIGNS: np.ndarray,
+            TR_CAUSE: np.ndarray, TR_HIT: np.ndarray, JUMP_PIECE: np.ndarray,
+            JUMP_U: np.ndarray, JUMP_W: np.ndarray, JUMP_LAM: np.ndarray, counts: np.ndarray,
+            inner: np.ndarray, report: np.ndarray) -> int:
+    """The jump of c at the end u of piece p onto K(t+) = {B v <= target} (`jump`), recorded:
+    the jump, the state after it (`after_jump`) and its grid point. Returns DONE, or HANDOFF
+    with ``report`` saying why."""
+    report[R_U] = u
+    if jump(k, c_scale, w, target, signs, w_next, lam_jump, inner) != DONE:
+        report[R_REASON] = H_JUMP
+        return HANDOFF
+    q = counts[C_JUMPS]
+    JUMP_PIECE[q], JUMP_U[q] = p, u
+    JUMP_W[q, 0], JUMP_W[q, 1], JUMP_LAM[q] = w, w_next, lam_jump
+    counts[C_JUMPS] = q + 1
+    je = after_jump(u, piece_after, w, w_next, lam_cum, lam_jump, signs, forced, grid, W, LAMC,
+                    TR_U, TR_PIECE, TR_SIGNS, TR_CAUSE, TR_HIT, counts)
+    lam_now[:] = lam_cum
+    record_at(je, LAMC, x0, MU, X)
+    return DONE
+
+
 # -- one period -----------------------------------------------------------------------------------
 @njit(cache=True)
 def begin_event(u: float, w: np.ndarray, lam_cum: np.ndarray, forced: np.ndarray, max_events: int,
@@ -727,29 +538,18 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
         state_at(u_e, linear, H, signs, dx0, Ydx, base, Wc, lam_cum, w, phi, dx, lam_now)
         u = u_e
         if event:
-            any_hit = False
-            for r in range(m):
-                any_hit = any_hit or forced[r]
-            cause = HIT if any_hit else RELEASE
+            cause = HIT if forced.any() else RELEASE
             continue
         forced[:] = False
         cause = EDGE
         edge = p + 1
         lam_cum[:] = lam_now  # the next piece is built anew (another piece of c)
         built = False
-        if jumps[edge]:
-            report[R_U] = u
-            if jump(k, c_scale, w, TARGET[edge], signs, w_next, lam_jump, inner) != DONE:
-                report[R_REASON] = H_JUMP
-                return HANDOFF
-            q = counts[C_JUMPS]
-            JUMP_PIECE[q], JUMP_U[q] = p, u
-            JUMP_W[q, 0], JUMP_W[q, 1], JUMP_LAM[q] = w, w_next, lam_jump
-            counts[C_JUMPS] = q + 1
-            je = after_jump(u, edge % P, w, w_next, lam_cum, lam_jump, signs, forced, grid, W,
-                            LAMC, TR_U, TR_PIECE, TR_SIGNS, TR_CAUSE, TR_HIT, counts)
-            lam_now[:] = lam_cum
-            record_at(je, LAMC, x0, MU, X)
+        if jumps[edge] and at_jump(k, c_scale, u, p, edge % P, TARGET[edge], w, w_next, lam_cum,
+                                   lam_jump, lam_now, signs, forced, grid, W, LAMC, x0, MU, X,
+                                   TR_U, TR_PIECE, TR_SIGNS, TR_CAUSE, TR_HIT, JUMP_PIECE,
+                                   JUMP_U, JUMP_W, JUMP_LAM, counts, inner, report) != DONE:
+            return HANDOFF
         if edge == P:
             break
         p = edge
