@@ -13,6 +13,17 @@ formulas, tolerances and decisions are those of the module docstring of
 `crawlsim.kernel.kkt.ChainPolyhedron` (row i < N: block i at its forward limit, row N + i at its
 backward one), and an active set is its signs (+1, -1, 0 per block).
 
+An event touches what can change. The padded KKT system decouples at a free block, so the
+piece is kept per run of active blocks: an event rebuilds only the ranges of blocks whose sign
+it changed (`rebuild_changed`), the other runs go on with their closed form from an earlier
+start (their slips so far in ``lam_cum``, the current ones in ``lam_now``). Where every row's
+crossing has a closed form, each row keeps its crossing until its function or tolerance
+changes (`crawlsim.kernel.events.next_event_kept`), and the velocity problems are solved only
+on the runs of candidate blocks that can change (`crawlsim.kernel.piece.decide_local`); the
+energy terms are summed by chunks, only the chunks an event rebuilt again (`energy_terms`).
+Offsets whose zeros need sampling rebuild the whole piece, seek every row and decide over the
+whole chain at every event, as the Python loop does.
+
 The loop returns a status. DONE: the period is in the output arrays. HANDOFF: a step the
 compiled code does not take (a velocity problem or projection whose updates do not settle, a
 dependent set, a root search that does not converge; ``report[R_REASON]`` says which); the
