@@ -82,13 +82,16 @@ tight row and every slip rate above 1e3 times any dual tolerance keeps its set; 
 `decide` at every event checked, 4320 at N = 1024 and 857 at N = 16 to 64), and the energy terms
 are summed by chunks of 32 links, only the chunks an event rebuilt again. Outputs change only by
 roundoff (the example gaits and the scaled waves, three periods: states within 6e-14, the same
-events; the 40-gait corpus's v0 unchanged to 1e-12); gaits whose zeros need sampling rebuild the
-whole piece at every event as before, so that they stay the Python loop's to roundoff. Where
-an event's time goes now at N = 1024 (periods 31-35, 885 events a period; a copy of the loop with
-timers): the velocity problems 19 us, the next event 12 us (4 of it the rows sought again when
-the rate tolerance changes, 37 times a period), the ranges rebuilt 4 us, the dual tolerance's
-scale 4.4 us, the energy terms 3.8 us, the event's record 2.7 us, the state 2.2 us; the 1000 grid
-samples 11.4 ms a period (11 us each, as the reference's steps are O(N) each).
+events; v0 of the example gaits and the 40 corpus seeds of scripts/exact-handoffs.py within
+1e-13 of 2bc9b42's, but seed 29, 12 blocks with stiffness spread 6e5: 2.6e-10, relative 9e-11,
+where 2bc9b42's own compiled and Python loops differ by 9.1e-11); gaits whose zeros need
+sampling rebuild the whole piece at every event as before, so that they stay the Python loop's
+to roundoff. Where an event's time goes now at N = 1024 (periods 31-35, 885 events a period; a
+copy of the loop with timers): the velocity problems 19 us, the next event 12 us (4 of it the
+rows sought again when the rate tolerance changes, 37 times a period), the ranges rebuilt 4 us,
+the dual tolerance's scale 4.4 us, the energy terms 3.8 us, the event's record 2.7 us, the state
+2.2 us; the 1000 grid samples 11.4 ms a period (11 us each, as the reference's steps are O(N)
+each).
 
 The catch-up step against the reference (catch-up/ref, bar <= 5; in brackets the certified step
 in us), medians of five interleaved runs of this script at f702eb5 and now, ``--clock cpu``, on a
