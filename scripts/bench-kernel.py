@@ -10,14 +10,16 @@ tolerance policy, refinement, fallback or record. It follows crawlsim's trajecto
 
 Printed, for the ``--wave segments`` and ``--wave body`` gaits of scripts/bench-scale.py at 1000
 steps per period and N = 4, 16, 64, 256, 1024, each a median over ``--repeats`` interleaved
-runs of ``--periods`` periods (after one period from the initial state, and after compiling):
+runs of ``--periods`` periods (after ``--skip-periods`` periods from the initial state, one by
+default, and after compiling):
 
 * catch-up: crawlsim's certified step (`crawlsim.integrate.stepping.CatchUpStepper.step_period`, per
   step) / the reference step (bar: <= 5);
 * exact: one period of the exact integrator / one period of the reference (bar: <= 3).
 
     python scripts/bench-kernel.py [--sizes 4,16,64,256,1024] [--waves segments,body]
-                                   [--periods 3] [--repeats 3] [--sweep] [--clock wall|cpu]
+                                   [--periods 3] [--repeats 3] [--skip-periods 1] [--sweep]
+                                   [--clock wall|cpu]
 
 ``--sweep`` also times the exact 1-D sweep of the bar (120 points, -j 1) and divides the figure
 measured before the compiled kernel by it (bar: >= 30):
@@ -26,19 +28,20 @@ measured before the compiled kernel by it (bar: >= 30):
 
 The exact integrator's period against the reference (exact/ref, bar <= 3), medians of three runs
 of this script on a 2-core machine shared with other jobs (load 9-13; "start": load 0.5-3,
-"fused": five runs at load 2-3, ``--clock cpu``):
+"fused": five runs at load 2-3, ``--clock cpu``; "2bc9b42" and "local": three runs each of the
+code before local events (below) and of this code, ``--repeats 3 --clock cpu``, load 2.2-2.5):
 
-    wave       N    before (b994998, wall)   compiled event loop (wall / cpu)   now (cpu)   start   fused
-    segments   4          67.7                     3.3 / 3.7                      3.1       3.7     2.0
-    segments  16          55.0                     2.6 / 2.4                      1.8       2.2     1.7
-    segments  64          57.0                    13.9 / 3.3   (wall: preempted)  2.5       2.8     2.2
-    segments 256          29.1                     4.1 / 4.5                      3.5       5.2     2.3
-    segments 1024         10.0                     4.0 / 3.8                      3.2       4.3     2.6
-    body       4          62.3                     3.6 / 3.3                      3.0       4.9     1.7
-    body      16          64.4                     2.4 / 2.5                      2.2       2.8     1.6
-    body      64           9.4                     1.3 / 1.3                      1.0       1.4     0.8
-    body     256           3.3                     1.3 / 1.3                      0.9       1.2     0.7
-    body    1024           5.6                     1.1 / 1.0                      0.9       1.2     0.6
+    wave       N  before (b994998, wall)  compiled loop (wall / cpu)  now (cpu)  start  fused  2bc9b42  local
+    segments    4          67.7             3.3 / 3.7                     3.1    3.7    2.0      1.8    2.0
+    segments   16          55.0             2.6 / 2.4                     1.8    2.2    1.7      1.4    1.4
+    segments   64          57.0            13.9 / 3.3 (wall: preempted)   2.5    2.8    2.2      1.8    1.6
+    segments  256          29.1             4.1 / 4.5                     3.5    5.2    2.3      2.3    1.7
+    segments 1024          10.0             4.0 / 3.8                     3.2    4.3    2.6      2.2    1.4
+    body        4          62.3             3.6 / 3.3                     3.0    4.9    1.7      1.6    1.8
+    body       16          64.4             2.4 / 2.5                     2.2    2.8    1.6      1.5    1.6
+    body       64           9.4             1.3 / 1.3                     1.0    1.4    0.8      0.7    0.7
+    body      256           3.3             1.3 / 1.3                     0.9    1.2    0.7      0.6    0.6
+    body     1024           5.6             1.1 / 1.0                     0.9    1.2    0.6      0.5    0.5
 
 "now": the record's slips and positions in one compiled pass, the closed-form crossings only for
 rows that can cross before the earliest event so far, contiguous phi @ coef, the energy terms of
@@ -56,10 +59,39 @@ the same bits (every example gait and the scaled waves, three periods; v0 of the
 corpus unchanged).
 
 These are periods 2 to 16. The segments wave's events per period keep growing after them (N =
-256: about 420 there, 533 from period 30; N = 1024: about 300, then 867), and an event costs
-O(N): in periods 31-35 the ratio is 4.1 at N = 256 and 6.0 at N = 1024 (f702eb5: 6.5 and 8.8;
-one run each, load 3.5, N = 64: 1.9). Events that touch only the rows that can change would
-close that gap.
+256: about 420 there, 533 from period 30; N = 1024: about 300, then 840-900), and at 2bc9b42 an
+event cost several O(N) passes (the piece's factor and solves, the gaps and rates of every row,
+the velocity problems over the whole chain, the energy terms of every link). In that regime,
+``--sizes 256,1024 --waves segments --skip-periods 30 --repeats 5 --clock cpu`` (periods 31-45,
+medians of three interleaved runs, load 1.7-2.3):
+
+    N      2bc9b42 exact ms/period   exact/ref     local exact ms/period   exact/ref
+    256          21.4                   3.8                11.4                 2.0
+    1024        134.4                   5.7                52.0                 2.2
+
+"local": an event touches what can change. The piece is kept per run of active blocks: only the
+ranges of blocks whose sign changed (each ended by blocks free in both sets) are factored and
+solved again (`crawlsim.kernel.piece.rebuild`), the other runs go on with their own closed form
+and their slips so far; the chain's factor and solves skip the l = 0 terms between runs (the same
+numbers, no recurrence across the whole chain; the catch-up step gains too). With closed-form
+crossings each row keeps its crossing until its function or tolerance changes
+(`crawlsim.kernel.events.next_event_kept`), so an event seeks the rows of the blocks it changed.
+The velocity problems are solved only on the runs of candidate blocks that can change
+(`crawlsim.kernel.eventloop.decide_local`: a run of the piece's set with no hit row, no other
+tight row and every slip rate above 1e3 times any dual tolerance keeps its set; the same sets as
+`decide` at every event checked, 4320 at N = 1024 and 857 at N = 16 to 64), and the energy terms
+are summed by chunks of 32 links, only the chunks an event rebuilt again. Outputs change only by
+roundoff (the example gaits and the scaled waves, three periods: states within 6e-14, the same
+events; v0 of the example gaits and the 40 corpus seeds of scripts/exact-handoffs.py within
+1e-13 of 2bc9b42's, but seed 29, 12 blocks with stiffness spread 6e5: 2.6e-10, relative 9e-11,
+where 2bc9b42's own compiled and Python loops differ by 9.1e-11); gaits whose zeros need
+sampling rebuild the whole piece at every event as before, so that they stay the Python loop's
+to roundoff. Where an event's time goes now at N = 1024 (periods 31-35, 885 events a period; a
+copy of the loop with timers): the velocity problems 19 us, the next event 12 us (4 of it the
+rows sought again when the rate tolerance changes, 37 times a period), the ranges rebuilt 4 us,
+the dual tolerance's scale 4.4 us, the energy terms 3.8 us, the event's record 2.7 us, the state
+2.2 us; the 1000 grid samples 11.4 ms a period (11 us each, as the reference's steps are O(N)
+each).
 
 The catch-up step against the reference (catch-up/ref, bar <= 5; in brackets the certified step
 in us), medians of five interleaved runs of this script at f702eb5 and now, ``--clock cpu``, on a
@@ -77,7 +109,9 @@ in us), medians of five interleaved runs of this script at f702eb5 and now, ``--
     body     256      2.1 (10.3)        0.8 (3.98)
     body    1024      2.0 (42.6)        0.7 (14.7)
 
-(the largest of the five runs now: 3.0 and 2.9 at N = 4, 1.5 at N = 16). "now": after the solve,
+(the largest of the five runs now: 3.0 and 2.9 at N = 4, 1.5 at N = 16; with the factor and
+solves that skip the l = 0 terms between runs, three runs at load 2.2-2.3: segments 3.0, 1.1,
+0.8, 1.2, 0.8 and body 2.8, 1.1, 0.7, 0.7, 0.8). "now": after the solve,
 one pass forms the point, multipliers, slack and the certificate's three numbers; the small
 functions of the step are inlined into the loop; each row's own dual tolerance is formed only
 where a multiplier's sign is in doubt; no allocation or slice copy per step; the period's block
@@ -189,16 +223,20 @@ def _process(N: int, wave: str):
 CLOCK = time.perf_counter
 
 
-def measure(N: int, wave: str, periods: int, repeats: int):
-    """(reference s/period, catch-up s/period, exact s/period, max |w - w_reference|)."""
+def measure(N: int, wave: str, periods: int, repeats: int, skip: int = 0):
+    """(reference s/period, catch-up s/period, exact s/period, max |w - w_reference|), the
+    periods timed after ``skip`` untimed ones of each integrator (the segments wave's events
+    per period grow over its first 30 periods: ``--skip-periods 30`` times the regime it
+    settles in)."""
     process = _process(N, wave)
     k = np.ascontiguousarray(process.polyhedron.stiffness)
     C = np.ascontiguousarray(process.offsets)
     G = process.steps
     catch_up = make_stepper(process, "catch-up")
     exact = make_stepper(process, "exact")
-    catch_up.step_period()
-    exact.step_period()
+    for _ in range(max(skip, 1)):
+        catch_up.step_period()
+        exact.step_period()
     ref_w = catch_up.w.copy()
     signs = np.zeros(N, dtype=np.int8)
     W = np.empty((G + 1, N - 1))
@@ -241,6 +279,8 @@ def main() -> int:
     parser.add_argument("--waves", default="segments,body")
     parser.add_argument("--periods", type=int, default=3)
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--skip-periods", type=int, default=1,
+                        help="untimed periods of each integrator before the timed ones")
     parser.add_argument("--sweep", action="store_true")
     parser.add_argument("--clock", choices=("wall", "cpu"), default="wall")
     args = parser.parse_args()
@@ -248,13 +288,14 @@ def main() -> int:
     CLOCK = time.process_time if args.clock == "cpu" else time.perf_counter
     sizes = [int(s) for s in args.sizes.split(",") if s]
     print(f"1000 steps per period; medians of {args.repeats} x {args.periods} interleaved periods "
-          f"({args.clock} clock)")
+          f"after {args.skip_periods} ({args.clock} clock)")
     print(f"{'wave':>9} {'N':>5} {'reference us/step':>18} {'catch-up us/step':>17} "
           f"{'catch-up/ref':>13} {'exact ms/period':>16} {'exact/ref period':>17} "
           f"{'max|dw|':>9}")
     for wave in args.waves.split(","):
         for N in sizes:
-            ref, cu, ex, diff = measure(N, wave, args.periods, args.repeats)
+            ref, cu, ex, diff = measure(N, wave, args.periods, args.repeats,
+                                        args.skip_periods)
             print(f"{wave:>9} {N:>5} {ref / 1000 * 1e6:>18.3f} {cu / 1000 * 1e6:>17.3f} "
                   f"{cu / ref:>13.1f} {ex * 1e3:>16.2f} {ex / ref:>17.1f} {diff:>9.2g}",
                   flush=True)

@@ -82,10 +82,13 @@ def factor_into(k: np.ndarray, signs: np.ndarray, D: np.ndarray, l: np.ndarray,
                 gram = 2.0 * d
         else:
             D[i] = 1.0
-    for i in range(1, N):
-        e = -k[i - 1] if (signs[i - 1] != 0 and signs[i] != 0) else 0.0
-        l[i - 1] = e / D[i - 1]
-        D[i] -= l[i - 1] * e
+    for i in range(1, N):  # l = 0 between runs (D[i] - 0 * 0 = D[i]): no chain across them
+        if signs[i - 1] != 0 and signs[i] != 0:
+            e = -k[i - 1]
+            l[i - 1] = e / D[i - 1]
+            D[i] -= l[i - 1] * e
+        else:
+            l[i - 1] = 0.0
     # L_JJ is an M-matrix: its inverse is non-negative, ||L_JJ^{-1}||_inf = max(L_JJ^{-1} 1)
     for i in range(N):
         y[i] = 1.0 if signs[i] != 0 else 0.0
@@ -99,14 +102,18 @@ def factor_into(k: np.ndarray, signs: np.ndarray, D: np.ndarray, l: np.ndarray,
 
 @njit(cache=True)
 def solve(D: np.ndarray, l: np.ndarray, y: np.ndarray) -> None:
-    """y <- L~^{-1} y in place with the LDL^T factor (D, l)."""
+    """y <- L~^{-1} y in place with the LDL^T factor (D, l). The terms with l = 0 (between
+    two runs of saturated blocks) are skipped: y - 0 y = y for finite y, and the recurrences
+    then chain only along a run, not along the whole chain."""
     N = y.shape[0]
     for i in range(1, N):
-        y[i] -= l[i - 1] * y[i - 1]
+        if l[i - 1] != 0.0:
+            y[i] -= l[i - 1] * y[i - 1]
     for i in range(N):
         y[i] /= D[i]
     for i in range(N - 2, -1, -1):
-        y[i] -= l[i] * y[i + 1]
+        if l[i] != 0.0:
+            y[i] -= l[i] * y[i + 1]
 
 
 @njit(cache=True)

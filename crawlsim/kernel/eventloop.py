@@ -13,6 +13,17 @@ formulas, tolerances and decisions are those of the module docstring of
 `crawlsim.kernel.kkt.ChainPolyhedron` (row i < N: block i at its forward limit, row N + i at its
 backward one), and an active set is its signs (+1, -1, 0 per block).
 
+An event touches what can change. The padded KKT system decouples at a free block, so the
+piece is kept per run of active blocks: an event rebuilds only the ranges of blocks whose sign
+it changed (`rebuild_changed`), the other runs go on with their closed form from an earlier
+start (their slips so far in ``lam_cum``, the current ones in ``lam_now``). Where every row's
+crossing has a closed form, each row keeps its crossing until its function or tolerance
+changes (`crawlsim.kernel.events.next_event_kept`), and the velocity problems are solved only
+on the runs of candidate blocks that can change (`crawlsim.kernel.piece.decide_local`); the
+energy terms are summed by chunks, only the chunks an event rebuilt again (`energy_terms`).
+Offsets whose zeros need sampling rebuild the whole piece, seek every row and decide over the
+whole chain at every event, as the Python loop does.
+
 The loop returns a status. DONE: the period is in the output arrays. HANDOFF: a step the
 compiled code does not take (a velocity problem or projection whose updates do not settle, a
 dependent set, a root search that does not converge; ``report[R_REASON]`` says which); the
@@ -34,15 +45,23 @@ from numba import njit
 from crawlsim.kernel import chain
 from crawlsim.kernel.events import (  # noqa: F401 - eventloop.next_event etc. are entry points too
     SIMULTANEOUS,
+    closed_forms,
     crossing,
     next_event,
+    next_event_kept,
     rate_tolerance,
     row_functions,
 )
 from crawlsim.kernel.piece import (  # noqa: F401 - eventloop.piece etc. are its entry points too
+    CLEAR_MARGIN,
+    DECISION_ORDERS,
+    LOCAL_BLOCKS,
     apply,
     basis_values,
     combine,
+    decide,
+    decide_from,
+    decide_local,
     derivative,
     dual_scale,
     factored_set,
@@ -50,14 +69,15 @@ from crawlsim.kernel.piece import (  # noqa: F401 - eventloop.piece etc. are its
     offset_size,
     piece,
     piece_on,
+    rebuild,
+    set_norms,
+    settle_rows,
     solve_rows,
+    tight_rows,
 )
 
 TWO_PI = 2.0 * math.pi
 RTOL = chain.RTOL
-#: Orders of the velocity problem used to decide degenerate rows at an event (the exact
-#: integrator's DECISION_ORDERS).
-DECISION_ORDERS = 4
 #: Restarts of the projection at a jump of c from the set where its primal-dual updates
 #: stopped: a jump may change more rows than `chain.UPDATE_ITERATIONS` updates do when the
 #: tight set, nearly every block, only admits them one at a time.
@@ -75,101 +95,6 @@ HANDOFF_REASONS = ("decide", "zero", "jump")
 H_DECIDE, H_ZERO, H_JUMP = range(3)
 #: Entries of ``counts``.
 C_EVENTS, C_TRANSITIONS, C_PIECES, C_JUMPS = range(4)
-
-
-@njit(cache=True)
-def tight_rows(c_scale: float, linear: bool, H: int, coef: np.ndarray, u: float, w: np.ndarray,
-               forced: np.ndarray, phi: np.ndarray, cvec: np.ndarray, Bw: np.ndarray,
-               candidates: np.ndarray) -> None:
-    """The rows tight at w to the primal tolerance of a step with no multipliers, and
-    ``forced`` (the rows an event hit), into ``candidates``: the candidates of `decide`."""
-    m = Bw.shape[0]
-    basis_values(u, 0, linear, H, phi)
-    combine(phi, coef, cvec)
-    apply(w, Bw)
-    c_size = 0.0
-    for r in range(m):
-        if abs(cvec[r]) < np.inf:
-            c_size = max(c_size, abs(cvec[r]))
-    tol = RTOL * max(max(c_scale, c_size), 2.0 * max_abs(w))
-    for r in range(m):
-        candidates[r] = Bw[r] - cvec[r] >= -tol or forced[r]
-
-
-@njit(cache=True)
-def settle_rows(candidates: np.ndarray, fixed: np.ndarray, lam: np.ndarray, Bv: np.ndarray,
-                ck: np.ndarray, tol_p: float, told: np.ndarray) -> bool:
-    """One order of `decide`: candidates with a multiplier above their own row's dual
-    tolerance ``told[r]`` (`chain.project_rows`) become fixed, those whose velocity opens their
-    gap leave. Returns whether candidates are left."""
-    left = False
-    for r in range(candidates.shape[0]):
-        if candidates[r]:
-            if lam[r] > told[r]:
-                fixed[r] = True
-                candidates[r] = False
-            elif Bv[r] - ck[r] < -tol_p:
-                candidates[r] = False
-            else:
-                left = True
-    return left
-
-
-@njit(cache=True)
-def decide(k: np.ndarray, kmax: float, c_scale: float, linear: bool, H: int, coef: np.ndarray,
-           u: float, w: np.ndarray, forced: np.ndarray, warm: np.ndarray, out: np.ndarray,
-           phi: np.ndarray, cvec: np.ndarray, Bw: np.ndarray, masks: np.ndarray,
-           rows_m: np.ndarray, rows_n: np.ndarray, sets: np.ndarray, factored: np.ndarray,
-           D: np.ndarray, l: np.ndarray, norms: np.ndarray, report: np.ndarray) -> bool:
-    """The active set on (u, u + eps) into ``out`` (`EventStepper._decide`): the rows tight at
-    w (and ``forced``), decided by the velocity problems of orders 1, 2, ...; False when one of
-    them is not settled by the kernel's updates or the result is dependent (HANDOFF).
-
-    Each velocity problem is `crawlsim.kernel.chain.project_rows` (w_trial = 0) on the period's
-    scratch: ``masks`` (3, 2N), ``rows_m`` (4, 2N), ``rows_n`` (5, N; its last row stays 0),
-    ``sets`` (2 + UPDATE_ITERATIONS, N) and the factor of the last set (``factored``, D, l,
-    ``norms``, `crawlsim.kernel.piece.factored_set`), refactored only when the set changes."""
-    candidates = masks[0]
-    tight_rows(c_scale, linear, H, coef, u, w, forced, phi, cvec, Bw, candidates)
-    out[:] = 0
-    if not candidates.any():
-        return True
-    N = out.shape[0]
-    m = 2 * N
-    fixed, rows = masks[1], masks[2]
-    fixed[:] = False
-    signs = sets[0]
-    lam, c, told, slack = rows_m[0], rows_m[1], rows_m[2], rows_m[3]
-    dx, f, res, v, zero = rows_n[0], rows_n[1], rows_n[2], rows_n[3, :N - 1], rows_n[4, :N - 1]
-    for order in range(1, DECISION_ORDERS + 1):
-        basis_values(u, order, linear, H, phi)
-        combine(phi, coef, cvec)
-        for r in range(m):
-            c[r] = cvec[r] if (fixed[r] or candidates[r]) else np.inf
-            block_warm = warm[r] > 0 if r < N else warm[r - N] < 0
-            rows[r] = fixed[r] or (candidates[r] and block_warm)
-        if not chain.independent(rows, N):
-            return False
-        if order == 1:  # the rows an event hit start in the set, where LICQ allows
-            for r in range(m):
-                if forced[r] and candidates[r] and not rows[r] and not rows[(r + N) % m]:
-                    rows[r] = True
-                    if not chain.independent(rows, N):
-                        rows[r] = False
-        for i in range(N):
-            signs[i] = 1 if rows[i] else (-1 if rows[N + i] else 0)
-        status, _ = chain.settle(k, kmax, c_scale, zero, c, signs, factored, D, l, norms, fixed,
-                                 dx, v, lam, slack, f, res, sets[1], sets[2:], report, told)
-        if status != chain.DONE:
-            return False
-        apply(v, Bw)
-        if not settle_rows(candidates, fixed, lam, Bw, cvec, report[chain.REPORT_TOLP], told):
-            break
-    if not chain.independent(fixed, N):
-        return False
-    for i in range(N):
-        out[i] = 1 if fixed[i] else (-1 if fixed[N + i] else 0)
-    return True
 
 
 # -- the grid samples of a piece and their certificate ------------------------------------------
@@ -264,8 +189,9 @@ def sample_piece(k: np.ndarray, kmax: float, c_scale: float, coef: np.ndarray,
 @njit(cache=True)
 def state_at(u: float, linear: bool, H: int, signs: np.ndarray, dx0: np.ndarray, Ydx: np.ndarray,
              base: np.ndarray, Wc: np.ndarray, lam_cum: np.ndarray, w: np.ndarray, phi: np.ndarray,
-             dx: np.ndarray) -> None:
-    """w(u) into ``w`` and the slips of the piece up to u added to ``lam_cum``."""
+             dx: np.ndarray, lam_now: np.ndarray) -> None:
+    """w(u) into ``w`` and the cumulative slips at u into ``lam_now``: ``lam_cum`` (the slips up
+    to the start of each block's piece, `rebuild_changed`) plus those of the piece up to u."""
     N = signs.shape[0]
     basis_values(u, 0, linear, H, phi)
     combine(phi, Wc, w)
@@ -273,46 +199,100 @@ def state_at(u: float, linear: bool, H: int, signs: np.ndarray, dx0: np.ndarray,
         w[i] += base[i]
     combine(phi, Ydx, dx)
     for i in range(N):
+        lam_now[i], lam_now[N + i] = lam_cum[i], lam_cum[N + i]
         if signs[i] > 0:
-            lam_cum[i] = lam_cum[i] + (dx0[i] - dx[i])
+            lam_now[i] = lam_cum[i] + (dx0[i] - dx[i])
         elif signs[i] < 0:
-            lam_cum[N + i] = lam_cum[N + i] + -(dx0[i] - dx[i])
+            lam_now[N + i] = lam_cum[N + i] + -(dx0[i] - dx[i])
+
+
+@njit(cache=True)
+def rebuild_changed(k: np.ndarray, old: np.ndarray, new: np.ndarray, w: np.ndarray,
+                    coef: np.ndarray, linear: bool, H: int, D: np.ndarray, l: np.ndarray,
+                    inv: np.ndarray, dx0: np.ndarray, Ydx: np.ndarray, Rdx: np.ndarray,
+                    base: np.ndarray, Wc: np.ndarray, lam_cum: np.ndarray,
+                    lam_now: np.ndarray, dirty: np.ndarray, stale: np.ndarray,
+                    full: bool) -> None:
+    """The piece of the set ``new`` at w (`crawlsim.kernel.piece.rebuild`) where it differs from
+    the piece of ``old`` (every block when ``full``): each block whose sign changes lies in a
+    range of blocks each saturated in one set or the other, ended by blocks free in both, and
+    only those ranges are factored and solved again, their slips so far committed to
+    ``lam_cum`` (the other runs go on with their own pieces, the same closed form from an
+    earlier start), their rates Rdx formed, and their blocks and the next ones marked
+    ``dirty`` (their rows' functions changed, `crawlsim.kernel.events.next_event_kept`), the
+    chunks of their links ``stale`` (`energy_terms`)."""
+    N = new.shape[0]
+    i = 0
+    while i < N:
+        if not full and old[i] == new[i]:
+            i += 1
+            continue
+        lo, hi = i, i
+        if full:
+            lo, hi = 0, N - 1
+        while lo > 0 and (old[lo - 1] != 0 or new[lo - 1] != 0):
+            lo -= 1
+        while hi < N - 1 and (old[hi + 1] != 0 or new[hi + 1] != 0):
+            hi += 1
+        for b in range(lo, hi + 1):
+            lam_cum[b], lam_cum[N + b] = lam_now[b], lam_now[N + b]
+        rebuild(k, new, w, coef, lo, hi, D, l, inv, dx0, Ydx, base, Wc)
+        derivative(Ydx[:, lo:hi + 1], linear, H, Rdx[:, lo:hi + 1])
+        for b in range(max(lo - 1, 0), min(hi + 2, N)):
+            dirty[b] = True
+        for c in range(max(lo - 1, 0) // CHUNK, min(hi + 1, N - 1) // CHUNK + 1):
+            stale[c] = True  # links lo - 1..hi, blocks lo..hi (`energy_terms`)
+        i = hi + 1
+
+
+#: Links (and blocks) per chunk of the energy terms' partial sums (`energy_terms`).
+CHUNK = 32
 
 
 @njit(cache=True)
 def energy_terms(signs: np.ndarray, base: np.ndarray, Wc: np.ndarray, dY: np.ndarray,
                  KLc: np.ndarray, dLc: np.ndarray, Mc: np.ndarray, lc: np.ndarray, loaded: bool,
-                 out: np.ndarray) -> None:
+                 out: np.ndarray, stale: np.ndarray, partial: np.ndarray) -> None:
     """The piece's products for `crawlsim.analysis.energy.ExactLedger` (its ``piece``):
     (Wc + K Lc + base e_0) @ dLc^T, -Mc_A @ Y'^T and, with loads (``loaded``; out[2] stays 0
     without: the ledger reads two products then), -lc_A @ Y'^T, dY = Y' the slips' rates
-    (`derivative` of Ydx). One pass over the links and one over the slipping blocks, each
-    product summed in ``out`` in the order of the index it sums over."""
+    (`derivative` of Ydx). Each product is a sum over the links and the slipping blocks,
+    summed by chunks of `CHUNK` links and blocks into ``partial`` (chunk, 3, nb, nb), and the
+    chunks' sums in order into ``out``: only the chunks ``stale`` (whose links or blocks an
+    event rebuilt, `rebuild_changed`; cleared here) are summed again, the others' pieces go
+    on unchanged."""
     N = signs.shape[0]
     nb = Wc.shape[0]
-    sums = np.zeros((3, nb, nb))  # local, so that the sums stay in registers
-    for i in range(N - 1):
-        for a in range(nb):
-            # the stress coefficient a (adding base to a = 0 only: the other terms are those
-            # of Wc + KLc + 0.0, the same numbers)
-            stress = Wc[a, i] + KLc[a, i]
-            if a == 0:
-                stress += base[i]
-            for b in range(nb):
-                sums[0, a, b] += stress * dLc[b, i]
-    for i in range(N):  # the slipping blocks only (the friction and load rows of the set)
-        s = signs[i]
-        if s == 0:
+    for c in range(stale.shape[0]):
+        if not stale[c]:
             continue
-        r = i if s > 0 else N + i
-        for a in range(nb):
-            for b in range(nb):
-                sums[1, a, b] -= Mc[a, r] * (s * dY[b, i])
-        if loaded:
+        stale[c] = False
+        sums = np.zeros((3, nb, nb))  # local, so that the sums stay in registers
+        for i in range(c * CHUNK, min((c + 1) * CHUNK, N - 1)):
+            for a in range(nb):
+                # the stress coefficient a (adding base to a = 0 only: the other terms are
+                # those of Wc + KLc + 0.0, the same numbers)
+                stress = Wc[a, i] + KLc[a, i]
+                if a == 0:
+                    stress += base[i]
+                for b in range(nb):
+                    sums[0, a, b] += stress * dLc[b, i]
+        for i in range(c * CHUNK, min((c + 1) * CHUNK, N)):  # the slipping blocks only
+            s = signs[i]
+            if s == 0:
+                continue
+            r = i if s > 0 else N + i
             for a in range(nb):
                 for b in range(nb):
-                    sums[2, a, b] -= lc[a, r] * (s * dY[b, i])
-    out[:] = sums
+                    sums[1, a, b] -= Mc[a, r] * (s * dY[b, i])
+            if loaded:
+                for a in range(nb):
+                    for b in range(nb):
+                        sums[2, a, b] -= lc[a, r] * (s * dY[b, i])
+        partial[c] = sums
+    out[:] = 0.0
+    for c in range(stale.shape[0]):
+        out += partial[c]
 
 
 # -- a jump of c at a breakpoint ----------------------------------------------------------------
@@ -361,6 +341,33 @@ def record_at(j: int, LAMC: np.ndarray, x0: np.ndarray, MU: np.ndarray, X: np.nd
             MU[j - 1, N + i] = LAMC[j, N + i] - LAMC[j - 1, N + i]
         if x0.shape[0] > 0:
             X[j, i] = x0[i] + (LAMC[j, i] - LAMC[j, N + i])
+
+
+@njit(cache=True)
+def at_jump(k: np.ndarray, c_scale: float, u: float, p: int, piece_after: int,
+            target: np.ndarray, w: np.ndarray, w_next: np.ndarray, lam_cum: np.ndarray,
+            lam_jump: np.ndarray, lam_now: np.ndarray, signs: np.ndarray, forced: np.ndarray,
+            grid: np.ndarray, W: np.ndarray, LAMC: np.ndarray, x0: np.ndarray, MU: np.ndarray,
+            X: np.ndarray, TR_U: np.ndarray, TR_PIECE: np.ndarray, TR_SIGNS: np.ndarray,
+            TR_CAUSE: np.ndarray, TR_HIT: np.ndarray, JUMP_PIECE: np.ndarray,
+            JUMP_U: np.ndarray, JUMP_W: np.ndarray, JUMP_LAM: np.ndarray, counts: np.ndarray,
+            inner: np.ndarray, report: np.ndarray) -> int:
+    """The jump of c at the end u of piece p onto K(t+) = {B v <= target} (`jump`), recorded:
+    the jump, the state after it (`after_jump`) and its grid point. Returns DONE, or HANDOFF
+    with ``report`` saying why."""
+    report[R_U] = u
+    if jump(k, c_scale, w, target, signs, w_next, lam_jump, inner) != DONE:
+        report[R_REASON] = H_JUMP
+        return HANDOFF
+    q = counts[C_JUMPS]
+    JUMP_PIECE[q], JUMP_U[q] = p, u
+    JUMP_W[q, 0], JUMP_W[q, 1], JUMP_LAM[q] = w, w_next, lam_jump
+    counts[C_JUMPS] = q + 1
+    je = after_jump(u, piece_after, w, w_next, lam_cum, lam_jump, signs, forced, grid, W, LAMC,
+                    TR_U, TR_PIECE, TR_SIGNS, TR_CAUSE, TR_HIT, counts)
+    lam_now[:] = lam_cum
+    record_at(je, LAMC, x0, MU, X)
+    return DONE
 
 
 # -- one period -----------------------------------------------------------------------------------
@@ -439,8 +446,7 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
     kmax = 0.0
     for i in range(n):
         kmax = max(kmax, k[i])
-    D, l, f, dx0, dx = (np.empty(N), np.empty(max(N - 1, 0)), np.empty(N), np.empty(N),
-                        np.empty(N))
+    D, l, dx0, dx = np.empty(N), np.empty(max(N - 1, 0)), np.empty(N), np.empty(N)
     Ydx, Rdx = np.empty((nb, N)), np.empty((nb, N))
     base, Wc = np.empty(n), np.empty((nb, n))
     Z, times, phi0 = np.empty((m, nb)), np.empty(m), np.empty(nb)
@@ -454,11 +460,25 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
     forced = np.zeros(m, dtype=np.bool_)
     chosen = np.empty(N, dtype=np.int8)
     inner = np.zeros(8)
-    # the velocity problems' scratch and the factor of the last set (`decide`, `piece_on`)
+    # the velocity problems' scratch and the factor of the last set (`decide`)
     masks = np.zeros((3, m), dtype=np.bool_)
     rows_m, rows_n = np.empty((4, m)), np.zeros((5, N))
     sets = np.empty((2 + chain.UPDATE_ITERATIONS, N), dtype=np.int8)
     factored, norms = np.full(N, 2, dtype=np.int8), np.zeros(2)
+    # the piece's own factor, L_JJ^{-1} 1, the slips at the last event and the rows' kept
+    # crossings (`rebuild_changed`, `next_event_kept`); built: the piece arrays hold the
+    # pieces of ``signs`` on COEF[p] (not at the start, nor after an edge). Where a row's
+    # zero has no closed form (``kept`` False), every event rebuilds the whole piece from the
+    # state there and seeks every row again (`next_event`): the sampled zeros are then those
+    # of the Python loop, which rebuilds at every event, to roundoff
+    Dp, lp, inv = np.ones(N), np.zeros(max(N - 1, 0)), np.zeros(N)
+    lam_now, dirty = np.zeros(m), np.ones(N, dtype=np.bool_)
+    tols, rate = np.zeros(m), np.zeros(N)
+    stale = np.ones((N + CHUNK - 1) // CHUNK, dtype=np.bool_)
+    partial = np.zeros((stale.shape[0], 3, nb, nb))
+    kept = closed_forms(linear, H)
+    built = False
+    inverse = 0.0
     W[0] = w_start
     LAMC[0] = 0.0
     record_at(0, LAMC, x0, MU, X)
@@ -466,26 +486,40 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
     u, j, p, cause = 0.0, 1, 0, EDGE
     carried = 0.0
     while True:
-        status = begin_event(u, w, lam_cum, forced, max_events, zeno_events, zeno_window, EV_T,
+        status = begin_event(u, w, lam_now, forced, max_events, zeno_events, zeno_window, EV_T,
                              EV_W, EV_DX, TR_HIT, counts, report)
         if status != DONE:
             return status
         t_count = counts[C_TRANSITIONS]
         coef = COEF[p]
-        if not decide(k, kmax, c_scale, linear, H, coef, u, w, forced, signs, chosen, phi, cvec,
-                      Bw, masks, rows_m, rows_n, sets, factored, D, l, norms, inner):
+        if built and kept and N >= LOCAL_BLOCKS:  # the piece of ``signs`` is in place
+            decided = decide_local(k, kmax, c_scale, linear, H, coef, C_SIZE[p], u, w, forced,
+                                   signs, chosen, phi, cvec, Bw, masks, rows_m, rows_n, sets,
+                                   factored, D, l, norms, inner, Rdx, inverse, rate)
+        else:
+            decided = decide(k, kmax, c_scale, linear, H, coef, u, w, forced, signs, chosen,
+                             phi, cvec, Bw, masks, rows_m, rows_n, sets, factored, D, l, norms,
+                             inner)
+        if not decided:
             report[R_U], report[R_REASON] = u, H_DECIDE
             return HANDOFF
+        rebuild_changed(k, signs, chosen, w, coef, linear, H, Dp, lp, inv, dx0, Ydx, Rdx, base,
+                        Wc, lam_cum, lam_now, dirty, stale, not (built and kept))
+        built = True
         signs[:] = chosen
         TR_U[t_count], TR_PIECE[t_count], TR_SIGNS[t_count] = u, p, signs
         TR_CAUSE[t_count], TR_HIT[t_count] = cause, forced
         counts[C_TRANSITIONS] = t_count + 1
-        factored_set(k, signs, factored, D, l, norms)
-        inverse, gram = piece_on(k, signs, w, coef, D, l, norms, dx0, Ydx, base, Wc, f)
+        inverse, gram = set_norms(k, signs, inv)
         u_end = edges[p + 1]
-        u_e, handoff = next_event(c_scale, linear, H, coef, C_SIZE[p], signs, base, Wc, Ydx,
-                                  inverse, u, u_end, forced, Rdx, Z, times, reach,
-                                  slope_bound, phi0, cells_per_cycle)
+        if kept:
+            u_e, handoff = next_event_kept(c_scale, linear, H, coef, C_SIZE[p], signs, base, Wc,
+                                           Rdx, inverse, u, u_end, dirty, forced, Z, times,
+                                           tols, phi0), False
+        else:
+            u_e, handoff = next_event(c_scale, linear, H, coef, C_SIZE[p], signs, base, Wc, Ydx,
+                                      inverse, u, u_end, forced, Rdx, Z, times, reach,
+                                      slope_bound, phi0, cells_per_cycle)
         if handoff:
             report[R_U], report[R_REASON] = u, H_ZERO
             return HANDOFF
@@ -496,7 +530,7 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
             q = counts[C_PIECES]
             PIECE_BOUNDS[q, 0], PIECE_BOUNDS[q, 1] = u, u_e
             energy_terms(signs, base, Wc, Rdx, KLC[p], DLC[p], MC[p], LC[p], ledger == 3,
-                         PIECE_TERMS[q])
+                         PIECE_TERMS[q], stale, partial)
             counts[C_PIECES] = q + 1
         own = dual_scale(k, kmax, c_scale, signs, C_SIZE[p], dx0, Ydx, base, Wc, inverse, gram)
         j_end = j
@@ -512,29 +546,21 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
             j = j_end
         else:  # the grid interval spans this piece: its roundoff enters the next sample
             carried = max(carried, own)
-        state_at(u_e, linear, H, signs, dx0, Ydx, base, Wc, lam_cum, w, phi, dx)
+        state_at(u_e, linear, H, signs, dx0, Ydx, base, Wc, lam_cum, w, phi, dx, lam_now)
         u = u_e
         if event:
-            any_hit = False
-            for r in range(m):
-                any_hit = any_hit or forced[r]
-            cause = HIT if any_hit else RELEASE
+            cause = HIT if forced.any() else RELEASE
             continue
         forced[:] = False
         cause = EDGE
         edge = p + 1
-        if jumps[edge]:
-            report[R_U] = u
-            if jump(k, c_scale, w, TARGET[edge], signs, w_next, lam_jump, inner) != DONE:
-                report[R_REASON] = H_JUMP
-                return HANDOFF
-            q = counts[C_JUMPS]
-            JUMP_PIECE[q], JUMP_U[q] = p, u
-            JUMP_W[q, 0], JUMP_W[q, 1], JUMP_LAM[q] = w, w_next, lam_jump
-            counts[C_JUMPS] = q + 1
-            je = after_jump(u, edge % P, w, w_next, lam_cum, lam_jump, signs, forced, grid, W,
-                            LAMC, TR_U, TR_PIECE, TR_SIGNS, TR_CAUSE, TR_HIT, counts)
-            record_at(je, LAMC, x0, MU, X)
+        lam_cum[:] = lam_now  # the next piece is built anew (another piece of c)
+        built = False
+        if jumps[edge] and at_jump(k, c_scale, u, p, edge % P, TARGET[edge], w, w_next, lam_cum,
+                                   lam_jump, lam_now, signs, forced, grid, W, LAMC, x0, MU, X,
+                                   TR_U, TR_PIECE, TR_SIGNS, TR_CAUSE, TR_HIT, JUMP_PIECE,
+                                   JUMP_U, JUMP_W, JUMP_LAM, counts, inner, report) != DONE:
+            return HANDOFF
         if edge == P:
             break
         p = edge

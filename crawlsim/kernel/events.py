@@ -138,6 +138,25 @@ def rate_tolerance(c_size: float, signs: np.ndarray, Rdx: np.ndarray, inverse: f
 
 
 @njit(cache=True)
+def block_functions(i: int, coef: np.ndarray, signs: np.ndarray, base: np.ndarray, Wc: np.ndarray,
+                    Rdx: np.ndarray, Z: np.ndarray) -> None:
+    """Z[i] and Z[N + i], the functions of block i's two rows (`row_functions`): the gap
+    phi @ (B Wc - coef + B base e_0) of an inactive row, the slip rate s phi @ Rdx of an active
+    one. Block i's force (B w)_i = w_{i-1} - w_i reads links i - 1 and i only."""
+    N = signs.shape[0]
+    s = signs[i]
+    for b in range(coef.shape[0]):
+        g = (Wc[b, i - 1] if i > 0 else 0.0) - (Wc[b, i] if i < N - 1 else 0.0)
+        Z[i, b] = s * Rdx[b, i] if s > 0 else g - coef[b, i]
+        Z[N + i, b] = s * Rdx[b, i] if s < 0 else -g - coef[b, N + i]
+    g = (base[i - 1] if i > 0 else 0.0) - (base[i] if i < N - 1 else 0.0)
+    if s <= 0:
+        Z[i, 0] += g
+    if s >= 0:
+        Z[N + i, 0] += -g
+
+
+@njit(cache=True)
 def row_functions(linear: bool, H: int, coef: np.ndarray, signs: np.ndarray, base: np.ndarray,
                   Wc: np.ndarray, Rdx: np.ndarray, tol_gap: float, tol_rate: float, u0: float,
                   u1: float, phi0: np.ndarray, Z: np.ndarray, reach: np.ndarray,
@@ -156,16 +175,7 @@ def row_functions(linear: bool, H: int, coef: np.ndarray, signs: np.ndarray, bas
     nb = coef.shape[0]
     bound = H == 1 and nb > 1
     for i in range(N):
-        s = signs[i]
-        for b in range(nb):
-            g = (Wc[b, i - 1] if i > 0 else 0.0) - (Wc[b, i] if i < N - 1 else 0.0)
-            Z[i, b] = s * Rdx[b, i] if s > 0 else g - coef[b, i]
-            Z[N + i, b] = s * Rdx[b, i] if s < 0 else -g - coef[b, N + i]
-        g = (base[i - 1] if i > 0 else 0.0) - (base[i] if i < N - 1 else 0.0)
-        if s <= 0:
-            Z[i, 0] += g
-        if s >= 0:
-            Z[N + i, 0] += -g
+        block_functions(i, coef, signs, base, Wc, Rdx, Z)
     best, soonest = -1, np.inf
     for r in range(2 * N):
         reach[r] = 1
@@ -257,3 +267,58 @@ def next_event(c_scale: float, linear: bool, H: int, coef: np.ndarray, c_size: f
         inactive = not ((r < N and s > 0) or (r >= N and s < 0))
         hit[r] = inactive and times[r] <= first + SIMULTANEOUS
     return first, False
+
+
+@njit(cache=True)
+def closed_forms(linear: bool, H: int) -> bool:
+    """Whether every row's crossing has a closed form (`crossing` never hands a row to the
+    sampling): a linear basis, or one harmonic without a linear part."""
+    return H == 0 or (H == 1 and not linear)
+
+
+@njit(cache=True)
+def next_event_kept(c_scale: float, linear: bool, H: int, coef: np.ndarray, c_size: float,
+                    signs: np.ndarray, base: np.ndarray, Wc: np.ndarray, Rdx: np.ndarray,
+                    inverse: float, u0: float, u1: float, dirty: np.ndarray, hit: np.ndarray,
+                    Z: np.ndarray, times: np.ndarray, tols: np.ndarray,
+                    phi0: np.ndarray) -> float:
+    """`next_event` for a basis with `closed_forms`, from the crossings kept per row: row r's
+    function Z[r] and its crossing ``times[r]`` (sought to the piece's end u1, with the
+    tolerance ``tols[r]``) stay valid while its block is not ``dirty`` (its function has not
+    changed: `crawlsim.kernel.piece.rebuild` left its links), its tolerance is the same and
+    the crossing is still ahead (times[r] > u0). The first crossing after an earlier u0 that
+    lies after u0 is the first after u0 (the closed forms of the module docstring pick the
+    same zero or arc), so only the rows of the blocks an event changed, and those it reached,
+    are sought again; the others cost a comparison. ``dirty`` is cleared. Returns the event
+    time (inf: none before u1), the rows newly tight in ``hit``."""
+    N = signs.shape[0]
+    tol_gap = 0.5 * RTOL * c_scale
+    tol_rate = rate_tolerance(c_size, signs, Rdx, inverse)
+    basis_values(u0, 0, linear, H, phi0)
+    first = np.inf
+    for i in range(N):
+        s = signs[i]
+        tol_plus = tol_rate if s > 0 else tol_gap
+        tol_minus = tol_rate if s < 0 else tol_gap
+        if dirty[i]:
+            block_functions(i, coef, signs, base, Wc, Rdx, Z)
+            times[i] = crossing(Z[i], tol_plus, u0, u1, linear, H, phi0, u1)
+            times[N + i] = crossing(Z[N + i], tol_minus, u0, u1, linear, H, phi0, u1)
+            tols[i], tols[N + i] = tol_plus, tol_minus
+            dirty[i] = False
+        else:
+            if tols[i] != tol_plus or not times[i] > u0:
+                times[i] = crossing(Z[i], tol_plus, u0, u1, linear, H, phi0, u1)
+                tols[i] = tol_plus
+            if tols[N + i] != tol_minus or not times[N + i] > u0:
+                times[N + i] = crossing(Z[N + i], tol_minus, u0, u1, linear, H, phi0, u1)
+                tols[N + i] = tol_minus
+        first = min(first, min(times[i], times[N + i]))
+    hit[:] = False
+    if not first < u1:
+        return np.inf
+    for i in range(N):
+        s = signs[i]
+        hit[i] = s <= 0 and times[i] <= first + SIMULTANEOUS
+        hit[N + i] = s >= 0 and times[N + i] <= first + SIMULTANEOUS
+    return first
