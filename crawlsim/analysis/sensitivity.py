@@ -49,7 +49,7 @@ from crawlsim.analysis.sensitivity_terms import (
 from crawlsim.analysis.sensitivity_walk import Prepared, Walk, prepare, walk_catch_up, walk_exact
 from crawlsim.errors import CrawlsimError, GaitError
 from crawlsim.gait.docpaths import resolve_path
-from crawlsim.kernel.implicit import implicit
+from crawlsim.kernel.implicit import column_moves, implicit
 from crawlsim.status import Convergence
 
 if TYPE_CHECKING:
@@ -245,10 +245,10 @@ def _build_static(gait: Gait, process: SweepingProcess, paths: Sequence[str] | s
     active = tuple(i for i, prm in enumerate(params) if prm.dC is not None)
     dC, dMu, dk = _stack(co, [params[i] for i in active])
     prep = prepare(process, co, dC, dMu, gait.simulation.integrator != "exact")
-    size_c = max(float(np.max(np.abs(co.C))), 1e-300)
-    moved = (np.max(np.abs(dC), axis=(0, 1, 2)) / size_c
-             + np.max(np.abs(dk), axis=0) / np.min(co.k)) if dk.shape[1] else np.zeros(0)
-    return _Static(co, params, active, dC, dMu, dk, uniqueness_touch(gait, co), prep, moved)
+    moved = column_moves(co.C, dC, np.ascontiguousarray(co.k, dtype=float), dk)
+    # the friction's uniqueness touch matters only to a column that moves the friction
+    touch = uniqueness_touch(gait, co) if dMu.any() else None
+    return _Static(co, params, active, dC, dMu, dk, touch, prep, moved)
 
 
 def _limit_of_run(gait: Gait, run: Any) -> Limit:

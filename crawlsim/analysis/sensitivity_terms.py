@@ -112,8 +112,8 @@ def limit_of(process: SweepingProcess, final: PeriodRecord, scale: float | None 
         err = verified_limit_error(process, final, steps)
     scale = process.scale if scale is None else scale
     # the relative Poincare step (`crawlsim.integrate.limit.relative_step`) on that scale
-    residual = float(np.linalg.norm(final.w[-1] - final.w[0])) / max(
-        float(np.linalg.norm(final.w[-1])), scale)
+    step, end = final.w[-1] - final.w[0], final.w[-1]  # 2-norms, as np.linalg.norm forms them
+    residual = math.sqrt(float(step.dot(step))) / max(math.sqrt(float(end.dot(end))), scale)
     return Limit(process, final, d / T, err, d, dissipation, residual, scale)
 
 

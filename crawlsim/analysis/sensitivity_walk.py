@@ -75,17 +75,15 @@ class Walk:
 @dataclass(frozen=True, eq=False)
 class Prepared:
     """What a walk reads that depends on the compiled gait and the parameters' columns alone,
-    not on the limit period: the normals B, K = M^{-1}, the coefficients of c' and dc'
-    (`_derivatives`), the Gauss-Legendre rule of the dissipation integrals and, for catch-up,
+    not on the limit period: the normals B, K = M^{-1}, the Gauss-Legendre rule of the exact
+    walk's dissipation integrals and, for catch-up,
     each grid time's cycle, piece and basis values (eq. (catch-up)). Built once per gait and
     set of parameters (`crawlsim.analysis.sensitivity` keeps it), so that a walk costs the
     period's own arithmetic."""
 
     B: np.ndarray  # (m, n) dense normals
     k: np.ndarray  # (n,)
-    # the exact walk's: c' (P, nb, m) and dc' (P, nb, m, p), and the Gauss-Legendre rule
-    derivative: tuple[np.ndarray, np.ndarray] | None = None
-    gauss: tuple[np.ndarray, np.ndarray] | None = None
+    gauss: tuple[np.ndarray, np.ndarray] | None = None  # the exact walk's Gauss-Legendre rule
     # catch-up: u_j, the piece of each u_j, phi(u_j), c, mu, dc and dmu at u_j
     # (`crawlsim.kernel.tangent_catchup.grid_values`) and whether c's closed form reproduces the
     # grid's offsets (`_agrees`)
@@ -102,8 +100,7 @@ def prepare(process: Any, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     B = np.ascontiguousarray(process.polyhedron.dense_normals(), dtype=float)
     k = np.ascontiguousarray(co.k, dtype=float)
     if not catch_up:
-        return Prepared(B, k, _derivatives(co.basis, co.C, dC),
-                        _gauss(24 + 12 * co.basis.harmonics))
+        return Prepared(B, k, _gauss(24 + 12 * co.basis.harmonics))
     u, pieces, Phi, c, mu, dc, dmu = tangent_catchup.grid_values(
         np.ascontiguousarray(process.times, dtype=float), float(process.period),
         np.ascontiguousarray(co.edges, dtype=float), co.basis.linear, co.basis.harmonics,
@@ -171,8 +168,8 @@ def walk_exact(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     announce_compilation("sensitivity")  # a first walk compiles the kernel (once per cache)
     if prep is None:
         prep = prepare(lim.process, co, dC, dMu, False)
-    B, k, derivative = prep.B, prep.k, prep.derivative
-    assert derivative is not None and prep.gauss is not None
+    B, k = prep.B, prep.k
+    assert prep.gauss is not None
     m, n = B.shape
     q = n + dk.shape[1]
     u, piece, cause, act, hit = _transition_arrays(lim.record.transitions, m)
@@ -186,7 +183,7 @@ def walk_exact(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     gap_flag, rate_flag = np.zeros(K, dtype=np.bool_), np.zeros(K, dtype=np.bool_)
     w_start, W_start = np.empty((K, n)), np.empty((K, n, q))
     diss = tangent.walk_exact(
-        B, k, co.C, co.Mu, dC, dMu, dk, derivative[0], derivative[1], basis.linear,
+        B, k, co.C, co.Mu, dC, dMu, dk, basis.linear,
         basis.harmonics, co.edges, u, piece, cause, act, hit, gx, gw,
         np.array(lim.record.w[0], dtype=float), float(lim.scale), COINCIDENT, TOUCH,
         W, L, D, lam, w_end, kink, column_kinks, gap_flag, rate_flag, w_start, W_start)
@@ -207,9 +204,10 @@ def walk_exact(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     if flags.any():
         flagged = np.flatnonzero(flags)
         s = _Walker(lim, co, dC, dk)
+        derivatives = _derivatives(basis, co.C, dC)  # c' and dc', as the kernel formed them
         for at in flagged.tolist():
             s.w, s.Wt = w_start[at], W_start[at]
-            _touches_of_flow(s, (u, piece, cause, act, hit), at, derivative, (gx, gw),
+            _touches_of_flow(s, (u, piece, cause, act, hit), at, derivatives, (gx, gw),
                              (bool(gap_flag[at]), bool(rate_flag[at])))
         touches = s.touches
     return Walk(W, L, D, lam, float(diss), w_end, K, kinks, column_kinks, touches)

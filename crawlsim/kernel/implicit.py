@@ -72,3 +72,33 @@ def implicit(W: np.ndarray, L: np.ndarray, D: np.ndarray,
         magY[c] = my
         magD[c] = md
     return dw, dY, dD, magY, magD, cond
+
+
+@njit(cache=True)
+def column_moves(C: np.ndarray, dC: np.ndarray, k: np.ndarray, dk: np.ndarray) -> np.ndarray:
+    """Each parameter column's largest relative move of the offsets and the stiffness,
+    max |dC[..., c]| / max(max |C|, 1e-300) + max |dk[:, c]| / min k, for C (P, nb, m), dC
+    (P, nb, m, p), k (n,) and dk (n, p): the relative roundoff floor of that column's
+    derivatives (the error terms of `crawlsim.analysis.sensitivity`)."""
+    P, nb, m, p = dC.shape
+    size_c = 1e-300
+    for a in range(P):
+        for b in range(nb):
+            for r in range(m):
+                size_c = max(size_c, abs(C[a, b, r]))
+    k_min = np.inf
+    for v in k:
+        k_min = min(k_min, v)
+    top_c = np.zeros(p)
+    for a in range(P):
+        for b in range(nb):
+            for r in range(m):
+                for c in range(p):
+                    top_c[c] = max(top_c[c], abs(dC[a, b, r, c]))
+    out = np.zeros(p)
+    for c in range(p):
+        top_k = 0.0
+        for i in range(dk.shape[0]):
+            top_k = max(top_k, abs(dk[i, c]))
+        out[c] = top_c[c] / size_c + top_k / k_min
+    return out

@@ -31,7 +31,7 @@ from numba import njit
 
 # the transition causes, coded as the compiled event loop codes them
 from crawlsim.kernel.eventloop import CAUSES, HIT, JUMP  # noqa: F401 - CAUSES for the callers
-from crawlsim.kernel.piece import basis_values
+from crawlsim.kernel.piece import basis_values, derivative
 
 TWO_PI = 2.0 * math.pi
 EPS = float(np.finfo(np.float64).eps)
@@ -500,20 +500,18 @@ def _rate_screen(Phi: np.ndarray, dcoef: np.ndarray, lam_x: np.ndarray, touch: f
 
 @njit(cache=True)
 def walk_exact(B: np.ndarray, k: np.ndarray, C: np.ndarray, Mu: np.ndarray, dC: np.ndarray,
-               dMu: np.ndarray, dk: np.ndarray, dcoef: np.ndarray, dC1: np.ndarray,
-               linear: bool, H: int, edges: np.ndarray, u: np.ndarray, piece: np.ndarray,
-               cause: np.ndarray, act: np.ndarray, hit: np.ndarray, gx: np.ndarray,
-               gw: np.ndarray, w0: np.ndarray, scale: float,
+               dMu: np.ndarray, dk: np.ndarray, linear: bool, H: int, edges: np.ndarray,
+               u: np.ndarray, piece: np.ndarray, cause: np.ndarray, act: np.ndarray,
+               hit: np.ndarray, gx: np.ndarray, gw: np.ndarray, w0: np.ndarray, scale: float,
                coincident: float, touch: float, W: np.ndarray, L: np.ndarray, D: np.ndarray,
                lam: np.ndarray, w_end: np.ndarray, kink: np.ndarray, column_kinks: np.ndarray,
                gap_flag: np.ndarray, rate_flag: np.ndarray, w_start: np.ndarray,
                W_start: np.ndarray) -> float:
     """The exact integrator's limit period walked from w0 along its transitions (module
-    docstring); C, Mu (P, nb, m), dC, dMu (P, nb, m, p), dk (n, p), dcoef and dC1 the
-    derivatives in u of C and dC; per transition its cycle u, piece, cause, the active rows
-    after it and the rows it hit (masks (K, m)). Fills the tangents W (n, q),
-    L (m, q), D (q,), the slips lam, the end state, the kink bits and the flags of flows to
-    examine for touches; returns the dissipation."""
+    docstring); C, Mu (P, nb, m), dC, dMu (P, nb, m, p), dk (n, p); per transition its cycle
+    u, piece, cause, the active rows after it and the rows it hit (masks (K, m)). Fills the
+    tangents W (n, q), L (m, q), D (q,), the slips lam, the end state, the kink bits and the
+    flags of flows to examine for touches; returns the dissipation."""
     m, n = B.shape
     p = dk.shape[1]
     q = n + p
@@ -523,6 +521,12 @@ def walk_exact(B: np.ndarray, k: np.ndarray, C: np.ndarray, Mu: np.ndarray, dC: 
     first = 2 if linear else 1
     k_moves = bool(np.any(dk != 0.0))
     mu_moves = bool(np.any(dMu != 0.0))
+    # the derivatives in u of C and dC, piece by piece (each entry a single product)
+    dcoef = np.empty_like(C)
+    dC1 = np.empty_like(dC)
+    for a_ in range(C.shape[0]):
+        derivative(C[a_], linear, H, dcoef[a_])
+        derivative(dC[a_], linear, H, dC1[a_])
     w = w0.copy()
     Wt = np.zeros((n, q))
     for i in range(n):
