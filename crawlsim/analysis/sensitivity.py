@@ -291,8 +291,8 @@ def _known(run: Any, process: SweepingProcess) -> tuple[float, float, float | No
         # which `verified_limit_error` adds the period's residual, a shape mismatch
         stiffness = process.stiffness
         assert stiffness is not None
-        F = float(np.max(np.abs(final.w[-1] - final.w[0])))
-        return d, dissipation, err + F / float(np.min(stiffness)) / process.period
+        F = float(np.abs(final.w[-1] - final.w[0]).max())
+        return d, dissipation, err + F / float(stiffness.min()) / process.period
     return d, dissipation, None
 
 
@@ -339,7 +339,7 @@ class _Ift:
         # common phase shift) is zero to eps times the sizes the period's slips are made of
         # (``st.moved``: each column's largest relative move of c and k)
         floor = 64 * EPS * walk.pieces * st.moved
-        self.errY = rel * magY + floor * (float(np.sum(np.abs(walk.lam))) / blocks)
+        self.errY = rel * magY + floor * (float(np.abs(walk.lam).sum()) / blocks)
         self.errD = rel * magD + floor * abs(lim.dissipation)
 
     def kinks(self, col: int) -> list[str]:
