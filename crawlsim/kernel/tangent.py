@@ -399,6 +399,18 @@ def _gap_screen(B: np.ndarray, k: np.ndarray, BA: np.ndarray, Gi: np.ndarray, id
         for hh in range(1, H + 1):
             curv += (TWO_PI * hh) ** 2 * (abs(g[first + 2 * (hh - 1)])
                                           + abs(g[first + 2 * (hh - 1) + 1]))
+        # first the ends: below its chord, a gap exceeds neither end by more than
+        # length^2/8 max|gap''|, so a row whose ends lie that far (plus the samples' own bound
+        # and their roundoff) below -2 tol cannot be flagged by the samples either
+        start, end, size = 0.0, 0.0, 0.0
+        for b in range(nb):
+            start += values_phi[0, b] * g[b]
+            end += values_phi[ns - 1, b] * g[b]
+            size += abs(g[b])
+        length = grid[ns - 1] - grid[0]
+        reach = (length * length + h * h) / 8.0 * curv + 8.0 * nb * EPS * size
+        if max(start, end) + reach < -2.0 * tol:
+            continue
         top = -np.inf
         inner_top = -np.inf
         inner_low = np.inf
