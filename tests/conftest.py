@@ -68,7 +68,7 @@ def gaits_dir():
 @pytest.fixture(scope="session", autouse=True)
 def compiled_kernel():
     """Compile the kernel (crawlsim/kernel, numba with cache=True) once, before any test: on a
-    fresh install the first run compiles it (about 35 s), and the tests that run crawlsim in a
+    fresh install the first run compiles it (about 50 s), and the tests that run crawlsim in a
     subprocess under a hang guard should find the cache warm rather than pay for it; nor should
     a documented command's output carry the one-line notice of a first compilation (the
     sensitivities' tangent walk included)."""
