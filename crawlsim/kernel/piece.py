@@ -466,7 +466,7 @@ def decide_local(k: np.ndarray, kmax: float, c_scale: float, linear: bool, H: in
     for i in range(N):
         if out[i] != 0:
             count += 1
-    return count < N  # LICQ of the whole set (`chain.independent`)
+    return bool(count < N)  # LICQ of the whole set (`chain.independent`)
 
 
 @njit(cache=True)
