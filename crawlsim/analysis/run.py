@@ -384,8 +384,14 @@ def verified_limit_error(process: SweepingProcess, final: PeriodRecord, steps: i
     c, slips = process.crawler, final.slips
     assert c is not None and slips is not None
     roundoff = displacement_roundoff(process, steps, float(np.sum(np.abs(slips))) / c.blocks)
-    F = float(np.max(np.abs(final.w[-1] - final.w[0])))
-    return float((roundoff + F / float(np.min(c.stiffness))) / process.period)
+    return float((roundoff + shape_mismatch(process, final)) / process.period)
+
+
+def shape_mismatch(process: SweepingProcess, final: PeriodRecord) -> float:
+    """A period's residual |P(w) - w| as a length, max |w(T) - w(0)| / k_min: a shape that
+    repeats to within it leaves the displacement uncertain by as much."""
+    assert process.stiffness is not None
+    return float(np.abs(final.w[-1] - final.w[0]).max()) / float(process.stiffness.min())
 
 
 def _motion(process: SweepingProcess, drive: _Drive, displacements: np.ndarray,

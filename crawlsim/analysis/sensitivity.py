@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
-from crawlsim.analysis.run import LimitMethod, RunResult
+from crawlsim.analysis.run import LimitMethod, RunResult, shape_mismatch
 from crawlsim.analysis.sensitivity_terms import (
     EPS,
     Limit,
@@ -288,11 +288,8 @@ def _known(run: Any, process: SweepingProcess) -> tuple[float, float, float | No
         return d, dissipation, err
     if run.convergence == Convergence.FINITE_TIME:
         # the period iteration's error is then the displacement's roundoff over T alone, to
-        # which `verified_limit_error` adds the period's residual, a shape mismatch
-        stiffness = process.stiffness
-        assert stiffness is not None
-        F = float(np.abs(final.w[-1] - final.w[0]).max())
-        return d, dissipation, err + F / float(stiffness.min()) / process.period
+        # which `verified_limit_error` adds the period's residual
+        return d, dissipation, err + shape_mismatch(process, final) / process.period
     return d, dissipation, None
 
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -252,18 +253,29 @@ def _signal_columns(gait: Gait, keys: tuple[Any, ...]
         return [(keys[1], gait.links[keys[1]])], keys[2:]
     if keys[0] == "loads" and len(keys) >= 2 and keys[1] == "force" and gait.loads is not None:
         each = len(keys) >= 3 and isinstance(keys[2], int)  # one signal per block
-        blocks = [keys[2]] if each else range(N)
-        return ([(3 * N - 1 + j, gait.loads.forces[j]) for j in blocks],
+        forced: Sequence[int] = [keys[2]] if each else range(N)
+        return ([(3 * N - 1 + j, gait.loads.forces[j]) for j in forced],
                 keys[3:] if each else keys[2:])
-    if keys[0] != "friction" or len(keys) < 2:
+    friction = _friction_keys(gait, keys) if keys[0] == "friction" else None
+    if friction is None:
+        return None
+    side, blocks, rest = friction
+    first, signals = (N - 1, gait.forward) if side == "forward" else (2 * N - 1, gait.backward)
+    return [(first + j, signals[j]) for j in blocks], rest[1:]
+
+
+def _friction_keys(gait: Gait, keys: tuple[Any, ...]
+                   ) -> tuple[str, Sequence[int], tuple[Any, ...]] | None:
+    """The side (``forward``/``backward``), the blocks and the keys from the side on of a
+    friction number: ``friction.forward...`` is every block's, ``friction.I.forward...`` block
+    I's; None for another form."""
+    if len(keys) < 2:
         return None
     shared = isinstance(keys[1], str)
     rest = keys[1:] if shared else keys[2:]
     if not rest or rest[0] not in ("forward", "backward"):
         return None
-    first, side = (N - 1, gait.forward) if rest[0] == "forward" else (2 * N - 1, gait.backward)
-    blocks = range(N) if shared else [keys[1]]
-    return [(first + j, side[j]) for j in blocks], rest[1:]
+    return rest[0], range(gait.blocks) if shared else [keys[1]], rest
 
 
 def _closed_form_change(gait: Gait, base: Coefficients, keys: tuple[Any, ...]
@@ -280,8 +292,7 @@ def _closed_form_change(gait: Gait, base: Coefficients, keys: tuple[Any, ...]
     basis = base.basis
     # a zero row first: ``combine`` adds its constant term (the loads') to row 0, the
     # coefficient of phi_0 = 1, so the rows after it are the linear part alone
-    forces = 0 if gait.loads is None else len(gait.loads.forces)
-    dS = np.zeros((basis.size + 1, len(gait.links) + 2 * gait.blocks + forces))
+    dS = np.zeros((basis.size + 1, len(_signals(gait))))
     for column, signal in columns:
         d = _smooth_derivative(signal, inside, basis)
         if d is None:
@@ -362,17 +373,17 @@ def _moved_friction(gait: Gait, keys: tuple[Any, ...], value: float
                     ) -> tuple[tuple[Any, ...], tuple[Any, ...]] | None:
     """mu^+ and mu^- per block with one friction number moved (``friction.forward...``, shared
     by every block, or ``friction.I.forward...``); None for another form of the block."""
-    shared = isinstance(keys[1], str)
-    rest = keys[1:] if shared else keys[2:]
-    if not rest or rest[0] not in ("forward", "backward"):
+    friction = _friction_keys(gait, keys)
+    if friction is None:
         return None
-    node: Any = gait.document["friction"] if shared else gait.document["friction"][keys[1]]
-    signal = _moved_signal(gait, node[rest[0]], rest[1:], value,
+    side, blocks, rest = friction
+    node: Any = gait.document["friction"]
+    node = node if isinstance(keys[1], str) else node[keys[1]]
+    signal = _moved_signal(gait, node[side], rest[1:], value,
                            ".".join(map(str, keys[:len(keys) - len(rest) + 1])))
     sides = {"forward": list(gait.forward), "backward": list(gait.backward)}
-    blocks = range(gait.blocks) if shared else [keys[1]]
     for j in blocks:
-        sides[rest[0]][j] = signal
+        sides[side][j] = signal
     return tuple(sides["forward"]), tuple(sides["backward"])
 
 

@@ -204,28 +204,14 @@ def walk_exact(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     if flags.any():
         flagged = np.flatnonzero(flags)
         s = _Walker(lim, co, dC, dk)
-        derivatives = _derivatives(basis, co.C, dC)  # c' and dc', as the kernel formed them
+        # c' and dc', as the kernel formed them
+        derivatives = tangent.coefficient_derivatives(co.C, dC, basis.linear, basis.harmonics)
         for at in flagged.tolist():
             s.w, s.Wt = w_start[at], W_start[at]
             _touches_of_flow(s, (u, piece, cause, act, hit), at, derivatives, (gx, gw),
                              (bool(gap_flag[at]), bool(rate_flag[at])))
         touches = s.touches
     return Walk(W, L, D, lam, float(diss), w_end, K, kinks, column_kinks, touches)
-
-
-@functools.lru_cache(maxsize=16)
-def _derivative_matrix(basis: Any) -> np.ndarray:
-    """The matrix of d/du on the coefficients of ``basis`` (a frozen value): each entry a
-    single product, as `Basis.derivative`."""
-    return basis.derivative(np.eye(basis.size))
-
-
-def _derivatives(basis: Any, C: np.ndarray, dC: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The coefficients of c' and dc' on every piece: (P, nb, m) and (P, nb, m, p), by the
-    matrix of d/du on the basis (`_derivative_matrix`)."""
-    d = _derivative_matrix(basis)
-    P, nb, m, p = dC.shape
-    return d @ C, (d @ dC.reshape(P, nb, m * p)).reshape(P, nb, m, p)
 
 
 def _transition_arrays(transitions: Sequence[Transition], m: int) -> tuple[np.ndarray, ...]:

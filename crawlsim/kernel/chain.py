@@ -82,13 +82,7 @@ def factor_into(k: np.ndarray, signs: np.ndarray, D: np.ndarray, l: np.ndarray,
                 gram = 2.0 * d
         else:
             D[i] = 1.0
-    for i in range(1, N):  # l = 0 between runs (D[i] - 0 * 0 = D[i]): no chain across them
-        if signs[i - 1] != 0 and signs[i] != 0:
-            e = -k[i - 1]
-            l[i - 1] = e / D[i - 1]
-            D[i] -= l[i - 1] * e
-        else:
-            l[i - 1] = 0.0
+    eliminate(k, signs, D, l, 0, N - 1)
     # L_JJ is an M-matrix: its inverse is non-negative, ||L_JJ^{-1}||_inf = max(L_JJ^{-1} 1)
     for i in range(N):
         y[i] = 1.0 if signs[i] != 0 else 0.0
@@ -98,6 +92,21 @@ def factor_into(k: np.ndarray, signs: np.ndarray, D: np.ndarray, l: np.ndarray,
         if signs[i] != 0 and y[i] > inverse:
             inverse = y[i]
     return inverse, gram
+
+
+@njit(cache=True, inline='always')
+def eliminate(k: np.ndarray, signs: np.ndarray, D: np.ndarray, l: np.ndarray, lo: int,
+              hi: int) -> None:
+    """The elimination of `factor` along blocks lo..hi, their pivots D on the diagonal: the
+    subdiagonal l and the pivots after it. l = 0 between runs (D[i] - 0 * 0 = D[i]): no chain
+    across them, so a run can be refactored alone (`crawlsim.kernel.piece.rebuild`)."""
+    for i in range(lo + 1, hi + 1):
+        if signs[i - 1] != 0 and signs[i] != 0:
+            e = -k[i - 1]
+            l[i - 1] = e / D[i - 1]
+            D[i] -= l[i - 1] * e
+        else:
+            l[i - 1] = 0.0
 
 
 @njit(cache=True)
@@ -116,14 +125,22 @@ def solve(D: np.ndarray, l: np.ndarray, y: np.ndarray) -> None:
             y[i] -= l[i] * y[i + 1]
 
 
+@njit(cache=True, inline='always')
+def force(w: np.ndarray, i: int, N: int) -> float:
+    """f_i = (D^T w)_i = w_{i-1} - w_i, with w_{-1} = w_{N-1} = 0: the net force on block i."""
+    if i == 0:
+        return float(-w[0])
+    if i == N - 1:
+        return float(w[N - 2])
+    return float(w[i - 1] - w[i])
+
+
 @njit(cache=True)
 def forces(w: np.ndarray, f: np.ndarray) -> None:
-    """f = D^T w: f_i = w_{i-1} - w_i with w_{-1} = w_{N-1} = 0."""
+    """f = D^T w (`force` of every block)."""
     N = f.shape[0]
-    f[0] = -w[0]
-    for i in range(1, N - 1):
-        f[i] = w[i - 1] - w[i]
-    f[N - 1] = w[N - 2]
+    for i in range(N):
+        f[i] = force(w, i, N)
 
 
 @njit(cache=True, inline='always')
@@ -143,12 +160,7 @@ def state(k: np.ndarray, w_trial: np.ndarray, dx: np.ndarray, signs: np.ndarray,
     for i in range(N):
         if i < N - 1:
             w[i] = w_trial[i] - (dx[i + 1] - dx[i]) * k[i]
-        if i == 0:
-            fi = -w[0]
-        elif i == N - 1:
-            fi = w[N - 2]
-        else:
-            fi = w[i - 1] - w[i]
+        fi = force(w, i, N)
         up = fi - c[i]
         down = -fi - c[N + i]
         slack[i] = up
@@ -197,12 +209,7 @@ def on_set(k: np.ndarray, kmax: float, c_scale: float, w_trial: np.ndarray, c: n
     c_size = 0.0  # rows with an infinite offset are ignored (velocity problems)
     w_size = 0.0
     for i in range(N):
-        if i == 0:
-            fi = -w_trial[0]
-        elif i == N - 1:
-            fi = w_trial[N - 2]
-        else:
-            fi = w_trial[i - 1] - w_trial[i]
+        fi = force(w_trial, i, N)
         if signs[i] > 0:
             dx[i] = fi - c[i]
             active = True

@@ -214,13 +214,7 @@ def rebuild(k: np.ndarray, signs: np.ndarray, w0: np.ndarray, coef: np.ndarray, 
         l[lo - 1] = 0.0
     if hi < N - 1:
         l[hi] = 0.0
-    for i in range(lo + 1, hi + 1):
-        if signs[i - 1] != 0 and signs[i] != 0:
-            e = -k[i - 1]
-            l[i - 1] = e / D[i - 1]
-            D[i] -= l[i - 1] * e
-        else:
-            l[i - 1] = 0.0
+    chain.eliminate(k, signs, D, l, lo, hi)
     solve_rows_on(D, l, inv.reshape((1, N)), lo, hi)
     solve_rows_on(D, l, dx0.reshape((1, N)), lo, hi)
     solve_rows_on(D, l, Ydx, lo, hi)

@@ -511,6 +511,19 @@ def _rate_screen(Phi: np.ndarray, dcoef: np.ndarray, lam_x: np.ndarray, touch: f
 
 
 @njit(cache=True)
+def coefficient_derivatives(C: np.ndarray, dC: np.ndarray, linear: bool,
+                            H: int) -> tuple[np.ndarray, np.ndarray]:
+    """The coefficients of c' and dc' on every piece, (P, nb, m) and (P, nb, m, p), from those
+    of c and dc (`crawlsim.kernel.piece.derivative`: each entry a single product)."""
+    dcoef = np.empty_like(C)
+    dC1 = np.empty_like(dC)
+    for a in range(C.shape[0]):
+        derivative(C[a], linear, H, dcoef[a])
+        derivative(dC[a], linear, H, dC1[a])
+    return dcoef, dC1
+
+
+@njit(cache=True)
 def walk_exact(B: np.ndarray, k: np.ndarray, C: np.ndarray, Mu: np.ndarray, dC: np.ndarray,
                dMu: np.ndarray, dk: np.ndarray, linear: bool, H: int, edges: np.ndarray,
                u: np.ndarray, piece: np.ndarray, cause: np.ndarray, act: np.ndarray,
@@ -533,12 +546,7 @@ def walk_exact(B: np.ndarray, k: np.ndarray, C: np.ndarray, Mu: np.ndarray, dC: 
     first = 2 if linear else 1
     k_moves = bool(np.any(dk != 0.0))
     mu_moves = bool(np.any(dMu != 0.0))
-    # the derivatives in u of C and dC, piece by piece (each entry a single product)
-    dcoef = np.empty_like(C)
-    dC1 = np.empty_like(dC)
-    for a_ in range(C.shape[0]):
-        derivative(C[a_], linear, H, dcoef[a_])
-        derivative(dC[a_], linear, H, dC1[a_])
+    dcoef, dC1 = coefficient_derivatives(C, dC, linear, H)
     w = w0.copy()
     Wt = np.zeros((n, q))
     for i in range(n):
