@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from crawlsim import interrupts
 from crawlsim.analysis.energy import period_dissipation
 from crawlsim.integrate.stepping import PeriodRecord
 from crawlsim.model.process import SweepingProcess
@@ -134,6 +135,7 @@ class History:
         self._gap()
         if progress is not None:
             progress(len(self.steps) - 1, rel)
+        interrupts.check()  # a Ctrl-C noted in another library's code stops the run here
         return record
 
     def set_limit(self, limit: PeriodRecord) -> None:

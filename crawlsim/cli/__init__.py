@@ -9,7 +9,8 @@ imported inside the commands that need them. ``tests/test_imports.py`` guards th
 
 Exit codes: 0 converged, 3 not converged within max_periods (results still written),
 2 bad input (no traceback, no file written), 1 internal failure (a failed certificate included),
-130 interrupted (Ctrl-C) and 143 terminated (SIGTERM), with a sweep's finished points kept.
+130 interrupted (Ctrl-C) and 143 terminated (SIGTERM), with a sweep's finished points kept
+(where the interrupt is raised: `crawlsim.interrupts`).
 """
 
 from __future__ import annotations
@@ -22,9 +23,10 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from crawlsim import __version__
+from crawlsim import __version__, interrupts
 from crawlsim.cli.guards import FiniteFloatRange
 from crawlsim.errors import CrawlsimError, InputError
+from crawlsim.interrupts import Terminated
 from crawlsim.status import Integrator
 
 if TYPE_CHECKING:  # json and pathlib are imported where used: `crawlsim --help` needs neither
@@ -72,15 +74,6 @@ def library_errors():
         raise InternalFailure(str(exc)) from None
 
 
-class Terminated(KeyboardInterrupt):
-    """SIGTERM (a batch system ending a job), raised like Ctrl-C so that the same clean-up runs:
-    temporary files removed, a sweep's journal flushed."""
-
-
-def _terminate(signum, frame):
-    raise Terminated()
-
-
 #: The command modules (``crawlsim.cli.<name>``, each attaching its command to `main`). Only
 #: the invoked one is imported (``--help`` imports them all, for their one-line help).
 COMMANDS = ("animate", "info", "merge", "optimize", "plot", "run", "stall", "validate", "velocity")
@@ -102,22 +95,15 @@ class CrawlsimGroup(click.Group):
         return self.commands.get(cmd_name)
 
     def invoke(self, ctx):
-        previous = None
         try:
-            previous = signal.signal(signal.SIGTERM, _terminate)
-        except ValueError:  # not the main thread: leave signals alone
-            pass
-        try:
-            return super().invoke(ctx)
+            with interrupts.installed():
+                return super().invoke(ctx)
         except Terminated:
             click.echo("Terminated.", err=True)
             raise click.exceptions.Exit(EXIT_TERMINATED) from None
         except KeyboardInterrupt:
             click.echo("Interrupted.", err=True)
             raise click.exceptions.Exit(EXIT_INTERRUPTED) from None
-        finally:
-            if previous is not None:
-                signal.signal(signal.SIGTERM, previous)
 
 
 def interrupt_exit(exc: BaseException) -> click.exceptions.Exit:

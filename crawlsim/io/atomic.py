@@ -4,8 +4,11 @@ A reader never sees a half-written file, and a failed write leaves nothing behin
 
 * the temporary file is removed when the write fails, on Ctrl-C (SIGINT raises
   KeyboardInterrupt, and the cleanup runs on the way out) and on SIGTERM (``timeout``, ``kill``,
-  a batch system's time limit: a handler removes the temporary files, then lets the signal's
-  default action end the process, so its status is still "killed by SIGTERM");
+  a batch system's time limit: a handler removes the temporary files, then does what the
+  previous handler does: the command line's raises like Ctrl-C, and without one the signal's
+  default action ends the process, so its status is still "killed by SIGTERM"). The command
+  line raises both where it is safe to (`crawlsim.interrupts`), and `publish` never renames a
+  file whose command was interrupted;
 * a process killed outright (SIGKILL, a power cut) cannot clean up, so temporary files carry
   the host and process id that wrote them, ``.NAME.HOST.PID.XXXX.tmp``, and the next write of
   the same target removes those whose process is gone (on this host: a process id means
@@ -36,6 +39,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+from crawlsim import interrupts
 from crawlsim.errors import OutputError
 
 _HOST = re.sub(r"[^A-Za-z0-9_-]", "_", socket.gethostname()) or "host"
@@ -114,7 +118,10 @@ def discard(tmp: Path) -> None:
 
 def publish(tmp: Path, target: Path) -> None:
     """Give a finished temporary file the usual permissions (mkstemp makes it 0600) and rename
-    it over ``target`` atomically, unless ``target`` has become a special file meanwhile."""
+    it over ``target`` atomically, unless ``target`` has become a special file meanwhile, or the
+    command has been interrupted (`crawlsim.interrupts`: a file it was told to abandon is not
+    published)."""
+    interrupts.check()
     target = Path(target)
     try:
         mode = os.stat(target).st_mode

@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from crawlsim import interrupts
 from crawlsim.errors import SweepSpecError
 from crawlsim.study.points import run_points
 
@@ -21,6 +22,8 @@ from crawlsim.study.points import run_points
 MIN_CHUNK = 8
 MAX_CHUNK = 256
 TASK_SECONDS = 2.0
+#: How often the wait for local workers looks for a Ctrl-C noted meanwhile (`crawlsim.interrupts`).
+WAIT_SECONDS = 0.2
 #: How long to wait for a Dask scheduler before giving up (exit code 2).
 SCHEDULER_TIMEOUT = "20s"
 #: Modules a fresh local worker imports before its first task.
@@ -226,7 +229,10 @@ def run_on_pool(grid, todo, pool: WorkerPool, collect, progress,
         for _ in range(2 * pool.jobs):
             submit()
         while pending:
-            ready, _ = wait(list(pending), return_when=FIRST_COMPLETED)
+            # a Ctrl-C noted while this thread waits (in concurrent.futures: another library's
+            # code) is raised here within WAIT_SECONDS, not when a task ends
+            ready, _ = wait(list(pending), timeout=WAIT_SECONDS, return_when=FIRST_COMPLETED)
+            interrupts.check()
             for fut in ready:
                 chunk = pending.pop(fut)
                 rows, seconds = fut.result()
@@ -302,6 +308,7 @@ def run_dask(grid, todo, scheduler, collect, progress) -> None:
         first = [f for f in (submit() for _ in range(2 * workers)) if f is not None]
         done = as_completed(first)
         for fut in done:
+            interrupts.check()  # noted while waiting for the cluster: at the latest a task later
             chunk = pending.pop(fut)
             rows, seconds = fut.result()
             chunker.record(len(chunk), seconds)

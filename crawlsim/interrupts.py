@@ -1,0 +1,96 @@
+"""Ctrl-C (SIGINT) and SIGTERM in the command-line program: where the exception is raised.
+
+Python raises KeyboardInterrupt at whatever bytecode runs when the signal arrives. Inside another
+library's code that can go wrong in ways no clean-up can repair: a ctypes callback (numba loading
+the compiled kernel from its cache) or a libhdf5 write callback reports the exception as
+"ignored" and carries on, so the command runs to its end and publishes a file it was told to
+abandon; an object interrupted half-built prints a traceback from its finalizer. So the command
+line's handlers (`installed`) raise at once only where crawlsim's own code is running, and
+otherwise note the signal (`pending`): it is raised at the next safe point (`check`: after every
+period, sweep point and Newton step, and before a finished file is renamed into place) or, at the
+latest, when the command returns. A second signal while one is pending is raised at once,
+wherever the program is (the way out of a long first compilation).
+
+Without `installed` (the Python API) nothing changes: Python's own handlers stay, and `check` is
+a no-op.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from types import FrameType
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (a batch system ending a job), raised like Ctrl-C so that the same clean-up runs:
+    temporary files removed, a sweep's journal flushed."""
+
+
+#: The signal noted but not yet raised (`pending`).
+_PENDING: int | None = None
+
+_PACKAGE = os.path.dirname(os.path.abspath(__file__)) + os.sep
+#: crawlsim's code that other libraries call back (h5py's file driver writes through
+#: `crawlsim.io.atomic.GuardedFile`): an exception raised there is theirs to swallow.
+_CALLED_BACK = frozenset({os.path.join(_PACKAGE, "io", "atomic.py")})
+
+
+def pending() -> int | None:
+    """The signal number noted and not yet raised, or None."""
+    return _PENDING
+
+
+def exception_for(signum: int) -> KeyboardInterrupt:
+    return Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
+
+
+def _ours(frame: FrameType | None) -> bool:
+    """Whether the interrupted frame is crawlsim's own code (not a callback of another library)."""
+    if frame is None:
+        return False
+    filename = frame.f_code.co_filename
+    return filename.startswith(_PACKAGE) and filename not in _CALLED_BACK
+
+
+def _handler(signum: int, frame: FrameType | None) -> None:
+    global _PENDING
+    if _PENDING is None and not _ours(frame):
+        _PENDING = signum
+        return
+    _PENDING = None
+    raise exception_for(signum)
+
+
+def check() -> None:
+    """Raise the pending signal's exception, if one is noted (in the main thread only)."""
+    global _PENDING
+    signum = _PENDING
+    if signum is not None and threading.current_thread() is threading.main_thread():
+        _PENDING = None
+        raise exception_for(signum)
+
+
+@contextmanager
+def installed() -> Iterator[None]:
+    """The handlers above for SIGINT and SIGTERM while the block runs (the main thread only;
+    elsewhere nothing changes), the previous ones restored after it; a signal still pending when
+    the block ends is raised then."""
+    global _PENDING
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    _PENDING = None
+    previous = {signum: signal.signal(signum, _handler)
+                for signum in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+        check()
+    finally:
+        for signum, handler in previous.items():
+            if handler is not None:  # None: a handler not installed from Python
+                signal.signal(signum, handler)
+        _PENDING = None
