@@ -38,10 +38,9 @@ def resolve_path(document: dict, path: Any, source: str) -> list[tuple[Key, ...]
         last = depth == len(keys) - 1
         nxt: list[tuple[tuple[Key, ...], Any]] = []
         for prefix, node in found:
-            where = ".".join(str(k) for k in prefix) or "the document"
             if key == "*":
                 if not isinstance(node, list):
-                    raise GaitError(source, path, f"'*' needs a list, but {where} is "
+                    raise GaitError(source, path, f"'*' needs a list, but {_where(prefix)} is "
                                                   f"{_kind(node)}")
                 nxt.extend((prefix + (i,), item) for i, item in enumerate(node))
             elif isinstance(node, list):
@@ -49,19 +48,19 @@ def resolve_path(document: dict, path: Any, source: str) -> list[tuple[Key, ...]
                     hint = (f"; use {'.'.join(map(str, prefix))}.*.{key} or an index 0.."
                             f"{len(node) - 1}")
                     raise GaitError(source, path,
-                                    f"{where} is a list, so the key {key!r} must be an index "
+                                    f"{_where(prefix)} is a list, so the key {key!r} must be an index "
                                     f"or '*'{hint}")
                 if not 0 <= key < len(node):
-                    raise GaitError(source, path, f"index {key} is out of range: {where} "
+                    raise GaitError(source, path, f"index {key} is out of range: {_where(prefix)} "
                                                   f"has {len(node)} elements (0..{len(node) - 1})")
                 nxt.append((prefix + (key,), node[key]))
             elif isinstance(node, dict):
                 if str(key) not in node and not last:
-                    raise GaitError(source, path, f"{where} has no key {str(key)!r} "
+                    raise GaitError(source, path, f"{_where(prefix)} has no key {str(key)!r} "
                                                   f"(keys: {', '.join(map(str, node))})")
                 nxt.append((prefix + (str(key),), node.get(str(key))))
             else:
-                raise GaitError(source, path, f"{where} is {_kind(node)}, it has no key "
+                raise GaitError(source, path, f"{_where(prefix)} is {_kind(node)}, it has no key "
                                               f"{key!r}")
         found = nxt
     for prefix, node in found:
@@ -70,6 +69,11 @@ def resolve_path(document: dict, path: Any, source: str) -> list[tuple[Key, ...]
                                           f"{_kind(node)}, not a number: sweep a number "
                                           "inside it")
     return [prefix for prefix, _ in found]
+
+
+def _where(prefix: tuple[Key, ...]) -> str:
+    """A key prefix as the messages name it (formed only for a message)."""
+    return ".".join(str(k) for k in prefix) or "the document"
 
 
 def _kind(node: Any) -> str:

@@ -197,7 +197,7 @@ def _period_grid(steps_per_period: int, bp: np.ndarray) -> np.ndarray:
 
 def _scale(offsets: np.ndarray, initial: np.ndarray) -> float:
     """A natural size of w and c, the floor of every certificate tolerance."""
-    return float(max(np.max(np.abs(offsets)), np.max(np.abs(initial)), 1e-300))
+    return float(max(np.abs(offsets).max(), np.abs(initial).max(), 1e-300))
 
 
 def piece_edges(breakpoints) -> np.ndarray:
