@@ -7,9 +7,11 @@ the compiled kernel from its cache) or a libhdf5 write callback reports the exce
 abandon; an object interrupted half-built prints a traceback from its finalizer. So the command
 line's handlers (`installed`) raise at once only where crawlsim's own code is running, and
 otherwise note the signal (`pending`): it is raised at the next safe point (`check`: after every
-period, sweep point and Newton step, and before a finished file is renamed into place) or, at the
-latest, when the command returns. A second signal while one is pending is raised at once,
-wherever the program is (the way out of a long first compilation).
+period of a run or of a batched sweep point, step of the limit search and frame of an animation, in the waits
+for local or Dask workers, and before a finished file is renamed into place) or, at the latest,
+when the command returns (an exit code or an error it ends with gives way to the signal's). A
+second signal while one is pending is raised at once wherever the program is (the way out of
+a long first compilation), but for a write libhdf5 calls back.
 
 Without `installed` (the Python API) nothing changes: Python's own handlers stay, and `check` is
 a no-op.
@@ -48,20 +50,31 @@ def exception_for(signum: int) -> KeyboardInterrupt:
     return Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
 
 
-def _ours(frame: FrameType | None) -> bool:
-    """Whether the interrupted frame is crawlsim's own code (not a callback of another library)."""
-    if frame is None:
-        return False
-    filename = frame.f_code.co_filename
-    return filename.startswith(_PACKAGE) and filename not in _CALLED_BACK
+def _called_back(frame: FrameType | None) -> bool:
+    """Whether ``frame`` runs inside a write libhdf5 called back (a `_CALLED_BACK` frame on
+    its stack)."""
+    while frame is not None:
+        if frame.f_code.co_filename in _CALLED_BACK:
+            return True
+        frame = frame.f_back
+    return False
 
 
 def _handler(signum: int, frame: FrameType | None) -> None:
+    """Raise now in crawlsim's own code; note the signal elsewhere, or raise a second one now,
+    but never inside a write that libhdf5 calls back (the write returns at once, and an
+    exception there is swallowed and leaves libhdf5 broken): a noted signal waits for `check`.
+    A second signal raised in another library's code stays noted as well, in case that
+    library swallows it too."""
     global _PENDING
-    if _PENDING is None and not _ours(frame):
+    if _called_back(frame):
         _PENDING = signum
         return
-    _PENDING = None
+    ours = frame is not None and frame.f_code.co_filename.startswith(_PACKAGE)
+    if not ours and _PENDING is None:
+        _PENDING = signum
+        return
+    _PENDING = None if ours else signum
     raise exception_for(signum)
 
 
@@ -89,6 +102,14 @@ def installed() -> Iterator[None]:
     try:
         yield
         check()
+    except KeyboardInterrupt:
+        raise
+    except BaseException as exc:
+        # the command ended otherwise (an error, an exit code) after a signal it was given:
+        # the signal's exit wins
+        if _PENDING is not None:
+            raise exception_for(_PENDING) from exc
+        raise
     finally:
         for signum, handler in previous.items():
             if handler is not None:  # None: a handler not installed from Python

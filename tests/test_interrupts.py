@@ -28,6 +28,14 @@ simulation: {steps_per_period: 50, max_periods: 20}
 """
 
 
+def load_gait(text):
+    import yaml
+
+    from crawlsim.gait.document import gait_from_document
+
+    return gait_from_document(yaml.safe_load(text), "g.yaml")
+
+
 def _frame_in(filename):
     code = compile("import sys\nframe = sys._getframe()", filename, "exec")
     scope = {}
@@ -68,10 +76,53 @@ def test_the_write_callback_counts_as_another_librarys_code(handlers):
         interrupts.check()
 
 
-def test_a_second_signal_is_raised_at_once_wherever_it_arrives(handlers):
+def test_a_second_signal_is_raised_at_once_and_stays_noted_in_another_librarys_code(handlers):
     interrupts._handler(signal.SIGINT, sys._getframe())
     with pytest.raises(KeyboardInterrupt):
         interrupts._handler(signal.SIGINT, sys._getframe())
+    assert interrupts.pending() == signal.SIGINT  # should that library swallow it
+    with pytest.raises(KeyboardInterrupt):
+        interrupts.check()
+
+
+def test_a_second_signal_in_crawlsims_own_code_is_raised_once(handlers):
+    interrupts._handler(signal.SIGINT, sys._getframe())
+    with pytest.raises(KeyboardInterrupt):
+        interrupts._handler(signal.SIGINT, _frame_in(os.path.join(
+            os.path.dirname(interrupts.__file__), "analysis", "run.py")))
+    assert interrupts.pending() is None
+
+
+def test_no_signal_is_ever_raised_inside_the_write_callback(handlers):
+    """Not even a second one: libhdf5 would swallow it and crash on the way out."""
+    for _ in range(3):
+        interrupts._handler(signal.SIGINT, _frame_in(atomic.__file__))
+    assert interrupts.pending() == signal.SIGINT
+    with pytest.raises(KeyboardInterrupt):
+        interrupts.check()
+
+
+@pytest.mark.parametrize("ending", [SystemExit(3), RuntimeError("a failure")])
+def test_a_noted_signal_wins_over_how_the_command_ends(ending):
+    with pytest.raises(interrupts.Terminated) as caught:
+        with interrupts.installed():
+            interrupts._handler(signal.SIGTERM, sys._getframe())
+            raise ending
+    assert caught.value.__cause__ is ending
+    assert interrupts.pending() is None
+
+
+def test_a_batched_catch_up_sweep_stops_at_a_noted_signal(handlers):
+    """Catch-up sweep points run in batches (crawlsim.study.batch): each period looks."""
+    from crawlsim.model.process import compile_gait
+    from crawlsim.study.batch import simulate_batch
+
+    gait = load_gait(GAIT)
+    process = compile_gait(gait)
+    assert len(simulate_batch([process], max_periods=5, tolerance=1e-12)) == 1
+    interrupts._handler(signal.SIGINT, sys._getframe())
+    with pytest.raises(KeyboardInterrupt):
+        simulate_batch([process], max_periods=5, tolerance=1e-12)
     assert interrupts.pending() is None
 
 
@@ -106,28 +157,30 @@ def test_without_the_command_line_nothing_is_noted():
     interrupts.check()
 
 
+@pytest.mark.parametrize("times", [1, 2], ids=["once", "twice"])
 @pytest.mark.parametrize("signum, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_a_signal_during_an_hdf5_write_stops_the_run_with_no_file(tmp_path, monkeypatch, signum,
-                                                                   code):
+                                                                   code, times):
     """The signal arrives inside the write libhdf5 calls back (where an exception would be
-    swallowed, the run would go on and its file would be published): the run stops at the end
-    of its period, with the signal's exit code and no file, temporary or final."""
+    swallowed, the run would go on and its file would be published, and a second one would
+    leave libhdf5 broken): the run stops at the end of its period, with the signal's exit code
+    and no file, temporary or final, whether the signal comes once or twice."""
     monkeypatch.chdir(tmp_path)
     (tmp_path / "g.yaml").write_text(GAIT)
-    write = atomic.GuardedFile.write
+    write = atomic.GuardedFile._write
     sent = []
 
-    def write_then_signal(self, data):
+    def write_then_signal(self, data):  # called by GuardedFile.write: the callback's frames
         n = write(self, data)
-        if not sent and os.path.basename(self.name).startswith(".r.h5."):
+        if len(sent) < times and os.path.basename(self.name).startswith(".r.h5."):
             sent.append(signum)
-            os.kill(os.getpid(), signum)  # handled in this frame: another library's callback
+            os.kill(os.getpid(), signum)  # handled here, inside the callback
             assert interrupts.pending() == signum
         return n
 
-    monkeypatch.setattr(atomic.GuardedFile, "write", write_then_signal)
+    monkeypatch.setattr(atomic.GuardedFile, "_write", write_then_signal)
     result = CliRunner().invoke(main, ["run", "g.yaml", "-o", "r.h5", "--quiet"])
-    assert sent == [signum]
+    assert sent == [signum] * times
     assert result.exit_code == code, result.output
     assert "Traceback" not in result.output
     assert not (tmp_path / "r.h5").exists()

@@ -48,6 +48,7 @@ from typing import Literal
 
 import numpy as np
 
+from crawlsim import interrupts
 from crawlsim.integrate.stepping import PeriodRecord, PeriodStepper
 from crawlsim.kernel.chain_polyhedron import ChainPolyhedron
 from crawlsim.kernel.kkt import ActiveSet, Dependent, Polyhedron
@@ -392,6 +393,7 @@ def solve_limit(process: SweepingProcess, stepper: PeriodStepper, *, tolerance: 
     rejected = wait = 0  # candidates rejected so far; plain periods before the next one
     used_newton = False
     while residuals[-1] > tolerance and search.periods < max_periods:
+        interrupts.check()  # a Ctrl-C noted in lstsq, LSMR or a period: stop the search here
         if method == "newton" and search.periods >= plain and wait == 0:
             current = residuals[-1]
             found = _newton(process, stepper, period, w, record, search, max_periods)

@@ -36,6 +36,7 @@ from matplotlib.colors import LinearSegmentedColormap, Normalize
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
+from crawlsim import interrupts
 from crawlsim.errors import ResultsFileError
 from crawlsim.io.atomic import atomic_path
 from crawlsim.plotting.source import need, run_name, run_period, takes_run
@@ -387,6 +388,7 @@ def write_animation(results: dict, target, *, periods: tuple[int, int] | None = 
             # The writer's own loop (`FuncAnimation.save` would draw every frame twice).
             with writer.saving(fig, str(named), dpi):
                 for k in range(count):
+                    interrupts.check()  # noted in matplotlib's or Pillow's code: stop here
                     draw(k)
                     writer.grab_frame()
             named.replace(tmp)

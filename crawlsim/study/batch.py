@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from crawlsim import interrupts
 from crawlsim.analysis.run import (
     classify_convergence,
     contraction_rate,
@@ -107,6 +108,7 @@ def _run(p: SweepingProcess, max_periods: int, tol: float, keep_limit: bool = Fa
     rel_steps: list[float] = []
     displacements: list[float] = []
     for q in range(max_periods):
+        interrupts.check()  # a Ctrl-C noted elsewhere (the first compilation) stops the batch
         w_start = stepper.w.copy()
         try:
             record = stepper.step_period()

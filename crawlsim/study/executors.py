@@ -279,9 +279,9 @@ def check_scheduler(address: str) -> None:
 
 def run_dask(grid, todo, scheduler, collect, progress) -> None:
     """Tasks on a Dask cluster, two in flight per worker thread, collected as each finishes
-    (`distributed.as_completed`): progress and the journal move with every task."""
+    (`distributed.wait`, first completed): progress and the journal move with every task."""
     try:
-        from distributed import Client, as_completed
+        from distributed import Client, wait
     except ImportError:
         raise SweepSpecError("--scheduler", "", "Dask is not installed: pip install "
                                                 "'crawlsim[dask]'") from None
@@ -305,19 +305,26 @@ def run_dask(grid, todo, scheduler, collect, progress) -> None:
             pending[fut] = chunk
             return fut
 
-        first = [f for f in (submit() for _ in range(2 * workers)) if f is not None]
-        done = as_completed(first)
-        for fut in done:
-            interrupts.check()  # noted while waiting for the cluster: at the latest a task later
-            chunk = pending.pop(fut)
-            rows, seconds = fut.result()
-            chunker.record(len(chunk), seconds)
-            collect(rows)
-            if progress is not None:
-                progress(len(rows))
-            nxt = submit()
-            if nxt is not None:
-                done.add(nxt)
+        for _ in range(2 * workers):
+            submit()
+        while pending:
+            # a Ctrl-C noted while this thread waits (in distributed: another library's code)
+            # is raised here within WAIT_SECONDS, not when a task ends (or never, on a stalled
+            # cluster)
+            try:
+                ready = wait(list(pending), timeout=WAIT_SECONDS,
+                             return_when="FIRST_COMPLETED").done
+            except TimeoutError:
+                ready = set()
+            interrupts.check()
+            for fut in ready:
+                chunk = pending.pop(fut)
+                rows, seconds = fut.result()
+                chunker.record(len(chunk), seconds)
+                collect(rows)
+                if progress is not None:
+                    progress(len(rows))
+                submit()
     except BaseException:
         if pending:
             client.cancel(list(pending))
