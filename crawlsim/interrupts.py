@@ -7,11 +7,11 @@ the compiled kernel from its cache) or a libhdf5 write callback reports the exce
 abandon; an object interrupted half-built prints a traceback from its finalizer. So the command
 line's handlers (`installed`) raise at once only where crawlsim's own code is running, and
 otherwise note the signal (`pending`): it is raised at the next safe point (`check`: after every
-period of a run or of a batched sweep point, step of the limit search and frame of an animation, in the waits
-for local or Dask workers, and before a finished file is renamed into place) or, at the latest,
-when the command returns (an exit code or an error it ends with gives way to the signal's). A
-second signal while one is pending is raised at once wherever the program is (the way out of
-a long first compilation), but for a write libhdf5 calls back.
+period of a run or of a batched sweep point, every step of the limit search and frame of an
+animation, in the waits for local or Dask workers, and before a finished file is renamed into
+place) or, at the latest, when the command returns (an exit code or an error it ends with gives
+way to the signal's). A second signal while one is pending is raised at once wherever the
+program is (the way out of a long first compilation), but for a write libhdf5 calls back.
 
 Without `installed` (the Python API) nothing changes: Python's own handlers stay, and `check` is
 a no-op.

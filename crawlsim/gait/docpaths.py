@@ -48,8 +48,8 @@ def resolve_path(document: dict, path: Any, source: str) -> list[tuple[Key, ...]
                     hint = (f"; use {'.'.join(map(str, prefix))}.*.{key} or an index 0.."
                             f"{len(node) - 1}")
                     raise GaitError(source, path,
-                                    f"{_where(prefix)} is a list, so the key {key!r} must be an index "
-                                    f"or '*'{hint}")
+                                    f"{_where(prefix)} is a list, so the key {key!r} must be an "
+                                    f"index or '*'{hint}")
                 if not 0 <= key < len(node):
                     raise GaitError(source, path, f"index {key} is out of range: {_where(prefix)} "
                                                   f"has {len(node)} elements (0..{len(node) - 1})")

@@ -22,7 +22,8 @@ from crawlsim.study.points import run_points
 MIN_CHUNK = 8
 MAX_CHUNK = 256
 TASK_SECONDS = 2.0
-#: How often the wait for local workers looks for a Ctrl-C noted meanwhile (`crawlsim.interrupts`).
+#: How often the wait for workers (local or Dask) looks for a Ctrl-C noted meanwhile
+#: (`crawlsim.interrupts`, `_collect_as_ready`).
 WAIT_SECONDS = 0.2
 #: How long to wait for a Dask scheduler before giving up (exit code 2).
 SCHEDULER_TIMEOUT = "20s"
@@ -228,22 +229,34 @@ def run_on_pool(grid, todo, pool: WorkerPool, collect, progress,
     try:
         for _ in range(2 * pool.jobs):
             submit()
-        while pending:
-            # a Ctrl-C noted while this thread waits (in concurrent.futures: another library's
-            # code) is raised here within WAIT_SECONDS, not when a task ends
-            ready, _ = wait(list(pending), timeout=WAIT_SECONDS, return_when=FIRST_COMPLETED)
-            interrupts.check()
-            for fut in ready:
-                chunk = pending.pop(fut)
-                rows, seconds = fut.result()
-                chunker.record(len(chunk), seconds)
-                collect(rows)
-                submit()
+        _collect_as_ready(
+            pending, lambda fs: wait(fs, timeout=WAIT_SECONDS, return_when=FIRST_COMPLETED)[0],
+            chunker, collect, submit)  # the workers report progress through the relay
     except BaseException:
         for fut in pending:
             fut.cancel()
         pool.stop()
         raise
+
+
+def _collect_as_ready(pending: dict, ready_within: Callable[[list], Any], chunker: Chunker,
+                      collect, submit: Callable[[], None], progress=None) -> None:
+    """Collect the tasks ``pending`` (future -> chunk) as they finish, submitting one more for
+    each: ``ready_within(futures)`` returns those done within `WAIT_SECONDS` (perhaps none), and
+    a Ctrl-C noted meanwhile, while this thread waited in another library's code, is raised
+    between waits (`crawlsim.interrupts`), not only when a task ends (or never, on a stalled
+    cluster). ``progress(k)`` is told of each task's rows, where the workers do not report."""
+    while pending:
+        ready = ready_within(list(pending))
+        interrupts.check()
+        for fut in ready:
+            chunk = pending.pop(fut)
+            rows, seconds = fut.result()
+            chunker.record(len(chunk), seconds)
+            collect(rows)
+            if progress is not None:
+                progress(len(rows))
+            submit()
 
 
 def _stop_pool(ex, pending) -> None:
@@ -297,34 +310,20 @@ def run_dask(grid, todo, scheduler, collect, progress) -> None:
         chunker = Chunker(todo, workers)
         shared = client.scatter(grid, broadcast=True)
 
-        def submit():
+        def submit() -> None:
             chunk = chunker.take()
-            if chunk is None:
-                return None
-            fut = client.submit(_dask_task, shared, chunk, pure=False)
-            pending[fut] = chunk
-            return fut
+            if chunk is not None:
+                pending[client.submit(_dask_task, shared, chunk, pure=False)] = chunk
+
+        def ready_within(futures):
+            try:
+                return wait(futures, timeout=WAIT_SECONDS, return_when="FIRST_COMPLETED").done
+            except TimeoutError:  # none finished meanwhile
+                return ()
 
         for _ in range(2 * workers):
             submit()
-        while pending:
-            # a Ctrl-C noted while this thread waits (in distributed: another library's code)
-            # is raised here within WAIT_SECONDS, not when a task ends (or never, on a stalled
-            # cluster)
-            try:
-                ready = wait(list(pending), timeout=WAIT_SECONDS,
-                             return_when="FIRST_COMPLETED").done
-            except TimeoutError:
-                ready = set()
-            interrupts.check()
-            for fut in ready:
-                chunk = pending.pop(fut)
-                rows, seconds = fut.result()
-                chunker.record(len(chunk), seconds)
-                collect(rows)
-                if progress is not None:
-                    progress(len(rows))
-                submit()
+        _collect_as_ready(pending, ready_within, chunker, collect, submit, progress)
     except BaseException:
         if pending:
             client.cancel(list(pending))
