@@ -57,14 +57,44 @@ _EXPORTS = {
     "stall": "crawlsim.study.stall",
 }
 
-_SUBPACKAGES = {"analysis", "api", "cli", "errors", "gait", "integrate", "io", "kernel", "model",
-                "plotting", "status", "study"}
+_SUBPACKAGES = {
+    "analysis",
+    "api",
+    "cli",
+    "errors",
+    "gait",
+    "integrate",
+    "io",
+    "kernel",
+    "model",
+    "plotting",
+    "status",
+    "study",
+}
 
-__all__ = ["load_gait", "simulate", "sweep", "run", "sensitivity", "open_run", "open_sweep",
-           "open_optimization",
-           "SimulationResult", "Trajectory", "RunStatus", "Convergence",
-           "Gait", "ProcessSpec", "Units", "CertificateError", "CrawlsimError", "GaitError", "InputError",
-           "stall", "__version__"]
+__all__ = [
+    "load_gait",
+    "simulate",
+    "sweep",
+    "run",
+    "sensitivity",
+    "open_run",
+    "open_sweep",
+    "open_optimization",
+    "SimulationResult",
+    "Trajectory",
+    "RunStatus",
+    "Convergence",
+    "Gait",
+    "ProcessSpec",
+    "Units",
+    "CertificateError",
+    "CrawlsimError",
+    "GaitError",
+    "InputError",
+    "stall",
+    "__version__",
+]
 
 
 def __getattr__(name: str) -> Any:

@@ -46,17 +46,35 @@ if TYPE_CHECKING:
     from crawlsim.study.optresult import OptimizationResult
     from crawlsim.study.sweep import SweepTable
 
-__all__ = ["Rerun", "SimulationResult", "Trajectory", "from_results", "load_gait",
-           "open_optimization", "open_run", "open_sweep", "run", "sensitivity", "simulate", "sweep"]
+__all__ = [
+    "Rerun",
+    "SimulationResult",
+    "Trajectory",
+    "from_results",
+    "load_gait",
+    "open_optimization",
+    "open_run",
+    "open_sweep",
+    "run",
+    "sensitivity",
+    "simulate",
+    "sweep",
+]
 
 
-def sweep(gait: Spec | str | Path | SweepGrid, axes: Mapping[str, Iterable[float]] | None = None,
-          *, jobs: int = 1,
-          integrator: str | None = None, steps_per_period: int | None = None,
-          max_periods: int | None = None, tolerance: float | None = None,
-          output: str | Path | None = None,
-          progress: Callable[[int], None] | None = None,
-          sensitivity: Sequence[str] = ()) -> xarray.Dataset | SweepTable:
+def sweep(
+    gait: Spec | str | Path | SweepGrid,
+    axes: Mapping[str, Iterable[float]] | None = None,
+    *,
+    jobs: int = 1,
+    integrator: str | None = None,
+    steps_per_period: int | None = None,
+    max_periods: int | None = None,
+    tolerance: float | None = None,
+    output: str | Path | None = None,
+    progress: Callable[[int], None] | None = None,
+    sensitivity: Sequence[str] = (),
+) -> xarray.Dataset | SweepTable:
     """v0 over the Cartesian grid of ``axes`` (``{"links.*.amplitude": [0.1, 0.2], ...}``: the
     dotted paths of ``--sweep``, in grid order, the last varying fastest).
 
@@ -74,26 +92,34 @@ def sweep(gait: Spec | str | Path | SweepGrid, axes: Mapping[str, Iterable[float
     from crawlsim.study import sweep as sweeps
 
     if isinstance(gait, sweeps.SweepGrid):
-        table = sweeps.sweep(gait, output=output, jobs=jobs, progress=progress,
-                             sensitivity=sensitivity)
+        table = sweeps.sweep(gait, output=output, jobs=jobs, progress=progress, sensitivity=sensitivity)
         return _sweep_dataset(table)
-    spec = _with_settings(_as_spec(gait), integrator=integrator,
-                          steps_per_period=steps_per_period, max_periods=max_periods,
-                          tolerance=tolerance)
+    spec = _with_settings(
+        _as_spec(gait),
+        integrator=integrator,
+        steps_per_period=steps_per_period,
+        max_periods=max_periods,
+        tolerance=tolerance,
+    )
     if not isinstance(spec, Gait):
-        raise SweepSpecError(spec.source, "", "sweeps run crawler gaits (kind: crawler), not "
-                                              "generic sweeping processes")
-    axis_list = [sweeps.Axis(path, _axis_values(path, values))
-                 for path, values in (axes or {}).items()]
-    call = _provenance.python_call("crawlsim.sweep", gait, {a.path: list(a.values)
-                                                            for a in axis_list},
-                                   jobs=jobs if jobs != 1 else None, integrator=integrator,
-                                   steps_per_period=steps_per_period, max_periods=max_periods,
-                                   tolerance=tolerance, output=output,
-                                   sensitivity=list(sensitivity) or None)
+        raise SweepSpecError(
+            spec.source, "", "sweeps run crawler gaits (kind: crawler), not generic sweeping processes"
+        )
+    axis_list = [sweeps.Axis(path, _axis_values(path, values)) for path, values in (axes or {}).items()]
+    call = _provenance.python_call(
+        "crawlsim.sweep",
+        gait,
+        {a.path: list(a.values) for a in axis_list},
+        jobs=jobs if jobs != 1 else None,
+        integrator=integrator,
+        steps_per_period=steps_per_period,
+        max_periods=max_periods,
+        tolerance=tolerance,
+        output=output,
+        sensitivity=list(sensitivity) or None,
+    )
     with _provenance.recording(call):
-        table = sweeps.sweep(spec, axis_list, output=output, jobs=jobs, progress=progress,
-                             sensitivity=sensitivity)
+        table = sweeps.sweep(spec, axis_list, output=output, jobs=jobs, progress=progress, sensitivity=sensitivity)
         return _sweep_dataset(table)
 
 
@@ -149,8 +175,7 @@ def _grid_dataset(source: Any) -> xarray.Dataset:
     attrs = read_attrs(source)
     if isinstance(source, io.IOBase):
         source.seek(0)
-    with xr.open_dataset(source, engine="h5netcdf", group="grid",
-                         decode_timedelta=False) as ds:
+    with xr.open_dataset(source, engine="h5netcdf", group="grid", decode_timedelta=False) as ds:
         grid = cast("xarray.Dataset", ds.load())
     grid.attrs = {**attrs, **grid.attrs}
     return grid
@@ -161,13 +186,15 @@ def _axis_values(path: str, values: Iterable[float]) -> tuple[float, ...]:
     array = np.asarray([] if isinstance(values, (str, bytes)) else list(values)).ravel()
     items: list[Any] = array.tolist() if array.dtype.kind in "iuf" else []
     if not items or not all(math.isfinite(v) for v in items):
-        raise SweepSpecError(f"crawlsim.sweep(..., {{{path!r}: ...}})", path,
-                             f"expected a non-empty list of finite numbers, got {values!r}")
+        raise SweepSpecError(
+            f"crawlsim.sweep(..., {{{path!r}: ...}})",
+            path,
+            f"expected a non-empty list of finite numbers, got {values!r}",
+        )
     return tuple(items)
 
 
-def sensitivity(gait: Spec | str | Path, paths: Sequence[str] | str, *,
-                one_sided: bool = True) -> SensitivityResult:
+def sensitivity(gait: Spec | str | Path, paths: Sequence[str] | str, *, one_sided: bool = True) -> SensitivityResult:
     """The exact derivatives of v0, of the displacement and dissipation per period and of the
     cost of transport with respect to the numbers ``paths`` name in ``gait`` (dotted paths with
     ``*`` as in ``--sweep``; each ``*`` expands to one parameter per element), at the verified
@@ -185,6 +212,9 @@ def sensitivity(gait: Spec | str | Path, paths: Sequence[str] | str, *,
 
     spec = _as_spec(gait)
     if not isinstance(spec, Gait):
-        raise SweepSpecError(spec.source, "", "sensitivities are defined for crawler gaits "
-                                              "(kind: crawler), not generic sweeping processes")
+        raise SweepSpecError(
+            spec.source,
+            "",
+            "sensitivities are defined for crawler gaits (kind: crawler), not generic sweeping processes",
+        )
     return _sensitivity(spec, paths, one_sided=one_sided)

@@ -35,8 +35,7 @@ def main() -> None:
 
         sys.stdout.write(f"crawlsim, version {__version__}\n")
         sys.exit(0)
-    if (sys.argv[1:] == ["--help"] and os.path.basename(sys.argv[0]) == "crawlsim"
-            and _columns() >= 80):
+    if sys.argv[1:] == ["--help"] and os.path.basename(sys.argv[0]) == "crawlsim" and _columns() >= 80:
         from crawlsim._help import TEXT
 
         sys.stdout.write(TEXT)

@@ -97,8 +97,7 @@ def installed() -> Iterator[None]:
         yield
         return
     _PENDING = None
-    previous = {signum: signal.signal(signum, _handler)
-                for signum in (signal.SIGINT, signal.SIGTERM)}
+    previous = {signum: signal.signal(signum, _handler) for signum in (signal.SIGINT, signal.SIGTERM)}
     try:
         yield
         check()

@@ -44,17 +44,16 @@ def main():
     fast_rates, naive_rates, diffs = [], [], []
     for _ in range(args.repeats):
         t_fast, fast = run(process, args.periods)
-        t_naive, naive = run(process, args.naive_periods, check_every_step=True,
-                             persistent_solver=False)
+        t_naive, naive = run(process, args.naive_periods, check_every_step=True, persistent_solver=False)
         fast_rates.append(args.periods * G / t_fast)
         naive_rates.append(args.naive_periods * G / t_naive)
         diffs.append(max(float(np.max(np.abs(a.x - b.x))) for a, b in zip(fast, naive)))
     fast_med, naive_med = statistics.median(fast_rates), statistics.median(naive_rates)
     print(f"gait: {GAIT.name}, {G} steps per period, {args.repeats} repeats (median)")
-    print(f"crawlsim (persistent solver, certified fast paths): {fast_med:12,.0f} steps/s "
-          f"({args.periods} periods)")
-    print(f"naive loop (fresh Clarabel solver every step):      {naive_med:12,.0f} steps/s "
-          f"({args.naive_periods} periods)")
+    print(f"crawlsim (persistent solver, certified fast paths): {fast_med:12,.0f} steps/s ({args.periods} periods)")
+    print(
+        f"naive loop (fresh Clarabel solver every step):      {naive_med:12,.0f} steps/s ({args.naive_periods} periods)"
+    )
     print(f"ratio: {fast_med / naive_med:.1f}x")
     print(f"largest difference in block positions: {max(diffs):.3g}")
 

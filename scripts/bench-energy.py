@@ -26,10 +26,14 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def wave(blocks: int):
     """A peristaltic wave of ``blocks`` blocks: link i lags link i-1 by 1/3 of a period."""
-    doc = {"name": f"wave-{blocks}", "blocks": blocks, "period": 1.0, "stiffness": 10.0,
-           "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": (i / 3) % 1}
-                     for i in range(blocks - 1)],
-           "friction": {"forward": 1.0, "backward": 2.0}}
+    doc = {
+        "name": f"wave-{blocks}",
+        "blocks": blocks,
+        "period": 1.0,
+        "stiffness": 10.0,
+        "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": (i / 3) % 1} for i in range(blocks - 1)],
+        "friction": {"forward": 1.0, "backward": 2.0},
+    }
     return parse_gait(yaml.safe_dump(doc), source="<wave>")
 
 

@@ -50,14 +50,19 @@ def timed(fn, repeats):
 
 
 def exact_v0(gait, steps):
-    result = simulate(compile_gait(gait, steps), max_periods=gait.simulation.max_periods,
-                      tolerance=gait.simulation.tolerance, integrator="exact")
+    result = simulate(
+        compile_gait(gait, steps),
+        max_periods=gait.simulation.max_periods,
+        tolerance=gait.simulation.tolerance,
+        integrator="exact",
+    )
     return result
 
 
 def catch_up_v0(gait, steps):
-    result = simulate(compile_gait(gait, steps), max_periods=gait.simulation.max_periods,
-                      tolerance=gait.simulation.tolerance)
+    result = simulate(
+        compile_gait(gait, steps), max_periods=gait.simulation.max_periods, tolerance=gait.simulation.tolerance
+    )
     return result
 
 
@@ -72,13 +77,13 @@ def main():
     exact_default, t_default = timed(lambda: exact_v0(gait, 1000), args.repeats)
     v0 = exact_small.v0
     print(f"gait {gait.name}: T = {gait.period:g}, target |error in v0| <= {TARGET:g}")
-    print(f"exact     v0 = {v0:.16f}  ({exact_small.periods} periods, "
-          f"{exact_small.convergence})")
-    print(f"          time, output grid 16 steps     {t_small * 1e3:8.2f} ms  (median of "
-          f"{args.repeats})")
+    print(f"exact     v0 = {v0:.16f}  ({exact_small.periods} periods, {exact_small.convergence})")
+    print(f"          time, output grid 16 steps     {t_small * 1e3:8.2f} ms  (median of {args.repeats})")
     print(f"          time, output grid 1000 steps   {t_default * 1e3:8.2f} ms")
-    print(f"          bar: v0 to 9 digits in < {BAR:g} s: "
-          f"{'met' if t_small < BAR else 'NOT met'} ({t_small / BAR:.2f} of the bar)")
+    print(
+        f"          bar: v0 to 9 digits in < {BAR:g} s: "
+        f"{'met' if t_small < BAR else 'NOT met'} ({t_small / BAR:.2f} of the bar)"
+    )
 
     spread = [abs(exact_default.v0 - v0)]
     for cells in (64, 8192):
@@ -86,11 +91,14 @@ def main():
         for _ in range(exact_small.periods):
             rec = stepper.step_period()
         spread.append(abs(np.mean(rec.x[-1] - rec.x[0]) / gait.period - v0))
-    print(f"          consistency over output grids 16/1000 and bracketing grids 64/1024/8192: "
-          f"max |dv0| = {max(spread):.2g}")
+    print(
+        f"          consistency over output grids 16/1000 and bracketing grids 64/1024/8192: "
+        f"max |dv0| = {max(spread):.2g}"
+    )
 
-    steps = ([1009, 2003, 4001, 8009, 16001] if args.quick else
-             [1009, 2003, 4001, 8009, 16001, 32003, 64007, 128021, 256019])
+    steps = (
+        [1009, 2003, 4001, 8009, 16001] if args.quick else [1009, 2003, 4001, 8009, 16001, 32003, 64007, 128021, 256019]
+    )
     print("\ncatch-up      G          v0                    error         error*G    time")
     values, costs = [], []
     for G in steps:
@@ -98,8 +106,7 @@ def main():
         error = result.v0 - v0
         values.append(result.v0)
         costs.append(seconds / (result.periods * G))
-        print(f"         {G:8d}   {result.v0:.15f}   {error:+.3e}   {error * G:+.4f}   "
-              f"{seconds * 1e3:8.1f} ms")
+        print(f"         {G:8d}   {result.v0:.15f}   {error:+.3e}   {error * G:+.4f}   {seconds * 1e3:8.1f} ms")
     G = np.array(steps, dtype=float)
     values = np.array(values)
     tail = slice(-5, None)  # the asymptotic end of the sequence, weighted by G (error ~ C/G)
@@ -107,20 +114,22 @@ def main():
     (v_inf, C), *_ = np.linalg.lstsq(design, values[tail] * G[tail], rcond=None)
     richardson = (steps[-1] * values[-1] - steps[-2] * values[-2]) / (steps[-1] - steps[-2])
     inside = bool(np.all(np.abs(values - v0) <= 0.3 / G))
-    print(f"cross-check: weighted least squares v_inf + C/G on the last 5: v_inf = {v_inf:.12f}"
-          f" (C = {C:+.4f}), |v_inf - v0_exact| = {abs(v_inf - v0):.2g}")
-    print(f"             Richardson on the last pair: {richardson:.12f}, "
-          f"|. - v0_exact| = {abs(richardson - v0):.2g}")
+    print(
+        f"cross-check: weighted least squares v_inf + C/G on the last 5: v_inf = {v_inf:.12f}"
+        f" (C = {C:+.4f}), |v_inf - v0_exact| = {abs(v_inf - v0):.2g}"
+    )
+    print(f"             Richardson on the last pair: {richardson:.12f}, |. - v0_exact| = {abs(richardson - v0):.2g}")
     print(f"             v0_exact within 0.3/G of every catch-up value: {inside}")
 
     envelope = float(np.max(np.abs(values - v0) * G))
     needed = envelope / TARGET
     per_step = costs[-1]
     t_catch_up = per_step * needed * exact_small.periods
-    print(f"\ncatch-up needs G ~ {needed:.2g} steps per period for {TARGET:g} "
-          f"(envelope |error| <= {envelope:.3f}/G)")
-    print(f"         at {per_step * 1e9:.1f} ns per step (measured at G = {steps[-1]}): "
-          f"{t_catch_up:.3g} s for {exact_small.periods} periods (extrapolated)")
+    print(f"\ncatch-up needs G ~ {needed:.2g} steps per period for {TARGET:g} (envelope |error| <= {envelope:.3f}/G)")
+    print(
+        f"         at {per_step * 1e9:.1f} ns per step (measured at G = {steps[-1]}): "
+        f"{t_catch_up:.3g} s for {exact_small.periods} periods (extrapolated)"
+    )
     print(f"ratio catch-up / exact time for v0 to {TARGET:g}: {t_catch_up / t_small:.3g}")
 
 

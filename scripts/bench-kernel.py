@@ -195,8 +195,11 @@ def reference_period(k, C, w0, signs, W):
                 prev = 0.0
                 for i in range(N):
                     nxt = y[i + 1] if i < N - 1 else 0.0
-                    fi = f[i] - (k[i - 1] * (y[i] - prev) if i > 0 else 0.0) \
+                    fi = (
+                        f[i]
+                        - (k[i - 1] * (y[i] - prev) if i > 0 else 0.0)
                         + (k[i] * (nxt - y[i]) if i < N - 1 else 0.0)
+                    )
                     prev = y[i]
                     if signs[i] == 0:
                         if fi - c[i] > 1e-13:
@@ -265,10 +268,23 @@ def sweep(repeats: int) -> float:
         for i in range(repeats):
             out = Path(tmp) / f"sweep{i}.csv"
             began = time.perf_counter()
-            subprocess.run([sys.executable, "-m", "crawlsim", "velocity",
-                            str(ROOT / "gaits" / "peristalsis-4.yaml"), "--sweep",
-                            "links.1.phase=0:1:120", "-j", "1", "-o", str(out)], check=True,
-                           capture_output=True)
+            subprocess.run(
+                [
+                    sys.executable,
+                    "-m",
+                    "crawlsim",
+                    "velocity",
+                    str(ROOT / "gaits" / "peristalsis-4.yaml"),
+                    "--sweep",
+                    "links.1.phase=0:1:120",
+                    "-j",
+                    "1",
+                    "-o",
+                    str(out),
+                ],
+                check=True,
+                capture_output=True,
+            )
             times.append(time.perf_counter() - began)
     return statistics.median(times)
 
@@ -279,31 +295,39 @@ def main() -> int:
     parser.add_argument("--waves", default="segments,body")
     parser.add_argument("--periods", type=int, default=3)
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--skip-periods", type=int, default=1,
-                        help="untimed periods of each integrator before the timed ones")
+    parser.add_argument(
+        "--skip-periods", type=int, default=1, help="untimed periods of each integrator before the timed ones"
+    )
     parser.add_argument("--sweep", action="store_true")
     parser.add_argument("--clock", choices=("wall", "cpu"), default="wall")
     args = parser.parse_args()
     global CLOCK
     CLOCK = time.process_time if args.clock == "cpu" else time.perf_counter
     sizes = [int(s) for s in args.sizes.split(",") if s]
-    print(f"1000 steps per period; medians of {args.repeats} x {args.periods} interleaved periods "
-          f"after {args.skip_periods} ({args.clock} clock)")
-    print(f"{'wave':>9} {'N':>5} {'reference us/step':>18} {'catch-up us/step':>17} "
-          f"{'catch-up/ref':>13} {'exact ms/period':>16} {'exact/ref period':>17} "
-          f"{'max|dw|':>9}")
+    print(
+        f"1000 steps per period; medians of {args.repeats} x {args.periods} interleaved periods "
+        f"after {args.skip_periods} ({args.clock} clock)"
+    )
+    print(
+        f"{'wave':>9} {'N':>5} {'reference us/step':>18} {'catch-up us/step':>17} "
+        f"{'catch-up/ref':>13} {'exact ms/period':>16} {'exact/ref period':>17} "
+        f"{'max|dw|':>9}"
+    )
     for wave in args.waves.split(","):
         for N in sizes:
-            ref, cu, ex, diff = measure(N, wave, args.periods, args.repeats,
-                                        args.skip_periods)
-            print(f"{wave:>9} {N:>5} {ref / 1000 * 1e6:>18.3f} {cu / 1000 * 1e6:>17.3f} "
-                  f"{cu / ref:>13.1f} {ex * 1e3:>16.2f} {ex / ref:>17.1f} {diff:>9.2g}",
-                  flush=True)
+            ref, cu, ex, diff = measure(N, wave, args.periods, args.repeats, args.skip_periods)
+            print(
+                f"{wave:>9} {N:>5} {ref / 1000 * 1e6:>18.3f} {cu / 1000 * 1e6:>17.3f} "
+                f"{cu / ref:>13.1f} {ex * 1e3:>16.2f} {ex / ref:>17.1f} {diff:>9.2g}",
+                flush=True,
+            )
     print("bars: catch-up/ref <= 5, exact/ref period <= 3")
     if args.sweep:
         t = sweep(args.repeats)
-        print(f"exact sweep of 120 points, -j 1: {t:.2f} s; before the kernel {SWEEP_BEFORE} s: "
-              f"{SWEEP_BEFORE / t:.2f}x faster (bar: >= 30)")
+        print(
+            f"exact sweep of 120 points, -j 1: {t:.2f} s; before the kernel {SWEEP_BEFORE} s: "
+            f"{SWEEP_BEFORE / t:.2f}x faster (bar: >= 30)"
+        )
     return 0
 
 

@@ -57,28 +57,38 @@ TOLERANCE = 1e-12
 
 def wave_document(N: int, steps: int) -> dict:
     """The retrograde cosine wave of N blocks (as in scripts/bench-scale.py)."""
-    return {"name": f"wave-{N}", "blocks": N, "period": 1.0, "stiffness": 10.0,
-            "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": i / (N - 1)}
-                      for i in range(N - 1)],
-            "friction": {"forward": 1.0, "backward": 2.13},
-            "simulation": {"steps_per_period": steps, "max_periods": 5000}}
+    return {
+        "name": f"wave-{N}",
+        "blocks": N,
+        "period": 1.0,
+        "stiffness": 10.0,
+        "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": i / (N - 1)} for i in range(N - 1)],
+        "friction": {"forward": 1.0, "backward": 2.13},
+        "simulation": {"steps_per_period": steps, "max_periods": 5000},
+    }
 
 
 def square_document(N: int, steps: int, amplitude: float = 0.3) -> dict:
     """Square-wave retrograde peristalsis: one link contracted at a time, link i during
     [i/(N-1), (i+1)/(N-1)) of the period (a `steps` signal), the others at rest length."""
     width = 1.0 / (N - 1)
-    return {"name": f"square-{N}", "blocks": N, "period": 1.0, "stiffness": 10.0,
-            "links": [{"kind": "steps", "times": [0.0, width], "values": [1.0 - amplitude, 1.0],
-                       "phase": i * width} for i in range(N - 1)],
-            "friction": {"forward": 1.0, "backward": 2.13},
-            "simulation": {"steps_per_period": steps, "max_periods": 5000}}
+    return {
+        "name": f"square-{N}",
+        "blocks": N,
+        "period": 1.0,
+        "stiffness": 10.0,
+        "links": [
+            {"kind": "steps", "times": [0.0, width], "values": [1.0 - amplitude, 1.0], "phase": i * width}
+            for i in range(N - 1)
+        ],
+        "friction": {"forward": 1.0, "backward": 2.13},
+        "simulation": {"steps_per_period": steps, "max_periods": 5000},
+    }
 
 
 def gaits(steps: int) -> list[tuple[str, object]]:
     out = [("wave-20", gait_from_document(wave_document(20, steps), "wave-20"))]
-    out += [(f"square-{N}", gait_from_document(square_document(N, steps), f"square-{N}"))
-            for N in range(4, 9)]
+    out += [(f"square-{N}", gait_from_document(square_document(N, steps), f"square-{N}")) for N in range(4, 9)]
     acute = acute_angle_document(alpha=0.5, steps=64, max_periods=5000)
     out.append(("acute-angle-0.5", gait_from_document(acute, "acute-angle-0.5")))
     out.append(("inching-2 (finite)", load_gait(ROOT / "gaits" / "inching-2.yaml")))
@@ -101,19 +111,26 @@ def timed(process, integrator: str, repeats: int):
     while count < repeats or (count < 15 and sum(walls["iterate"] + walls["newton"]) < 0.2 * count):
         for limit in ("iterate", "newton"):
             began = time.perf_counter()
-            results[limit] = simulate(process, max_periods=5000, tolerance=TOLERANCE,
-                                      integrator=integrator, limit=limit, history=False)
+            results[limit] = simulate(
+                process, max_periods=5000, tolerance=TOLERANCE, integrator=integrator, limit=limit, history=False
+            )
             walls[limit].append(time.perf_counter() - began)
         count += 1
-    return (results["iterate"], results["newton"], statistics.median(walls["iterate"]),
-            statistics.median(walls["newton"]))
+    return (
+        results["iterate"],
+        results["newton"],
+        statistics.median(walls["iterate"]),
+        statistics.median(walls["newton"]),
+    )
 
 
 def compare_gaits(args) -> list[str]:
     missed = []
-    header = (f"{'gait':<19} {'integrator':<9} {'rate':>6} {'J rate':>6} {'periods it/nt':>14} "
-              f"{'ratio':>6} {'wall it/nt s':>15} {'ratio':>6} {'|dv0|/v0':>9} {'v0 err it':>9} "
-              f"{'limit dist':>10} {'|dv0| 1e-13':>11}")
+    header = (
+        f"{'gait':<19} {'integrator':<9} {'rate':>6} {'J rate':>6} {'periods it/nt':>14} "
+        f"{'ratio':>6} {'wall it/nt s':>15} {'ratio':>6} {'|dv0|/v0':>9} {'v0 err it':>9} "
+        f"{'limit dist':>10} {'|dv0| 1e-13':>11}"
+    )
     print(header)
     print("-" * len(header))
     for name, gait in gaits(args.steps):
@@ -124,18 +141,23 @@ def compare_gaits(args) -> list[str]:
             p_it, p_nt = it.steps // G, nt.steps // G
             dv = (abs(nt.v0 - it.v0) / abs(it.v0)) if it.v0 else float("nan")
             err = (it.v0_error_estimate / abs(it.v0)) if it.v0 else float("nan")
-            dist = float(np.max(metric_norm(process, nt.limit.w - it.limit.w))
-                         / max(float(np.max(metric_norm(process, it.limit.w))), 1e-300))
+            dist = float(
+                np.max(metric_norm(process, nt.limit.w - it.limit.w))
+                / max(float(np.max(metric_norm(process, it.limit.w))), 1e-300)
+            )
             # plain iteration to the roundoff floor: the reference for the v0 of both
-            tight = simulate(process, max_periods=5000, tolerance=1e-13, integrator=integrator,
-                             limit="iterate", history=False)
+            tight = simulate(
+                process, max_periods=5000, tolerance=1e-13, integrator=integrator, limit="iterate", history=False
+            )
             dv_tight = (abs(nt.v0 - tight.v0) / abs(tight.v0)) if tight.v0 else float("nan")
             rate = it.contraction_rate
             jrate = nt.jacobian_rate
-            print(f"{name:<19} {integrator:<9} {_f(rate, 4):>6} {_f(jrate, 4):>6} "
-                  f"{p_it:>6} / {p_nt:<5} {p_it / p_nt:>6.1f} {t_it:>7.3f}/{t_nt:<7.3f} "
-                  f"{t_it / t_nt:>6.2f} {dv:>9.1e} {err:>9.1e} {dist:>10.1e} {dv_tight:>11.1e}",
-                  flush=True)
+            print(
+                f"{name:<19} {integrator:<9} {_f(rate, 4):>6} {_f(jrate, 4):>6} "
+                f"{p_it:>6} / {p_nt:<5} {p_it / p_nt:>6.1f} {t_it:>7.3f}/{t_nt:<7.3f} "
+                f"{t_it / t_nt:>6.2f} {dv:>9.1e} {err:>9.1e} {dist:>10.1e} {dv_tight:>11.1e}",
+                flush=True,
+            )
             if rate is not None and rate > 0.5 and p_it < 10 * p_nt:
                 missed.append(f"{name} {integrator}: {p_it / p_nt:.1f}x fewer periods (< 10x)")
             if p_it <= 3 and t_nt > 1.1 * t_it:
@@ -172,18 +194,20 @@ def compare_sweep(args) -> list[str]:
         # plain iteration stopped at a Poincare step of 1e-12 is off by its own error estimate
         # (the geometric tail): |dv0| is measured against it (exact rows; catch-up sweep rows
         # carry no estimate), and against the sweep's largest |v0| (v0 crosses 0 near lag 0)
-        e_it = np.array([np.nan if r.v0_error_estimate is None else r.v0_error_estimate
-                         for r in it])
+        e_it = np.array([np.nan if r.v0_error_estimate is None else r.v0_error_estimate for r in it])
         dv = float(np.nanmax(np.abs(v_nt - v_it)) / np.nanmax(np.abs(v_it)))
         ratio = np.abs(v_nt - v_it) / e_it
         dv_err = float(np.nanmax(ratio)) if np.any(np.isfinite(ratio)) else float("nan")
         counts = tables["newton"].counts()
-        print(f"sweep of the phase lag of wave-{N} ({P} points, {steps} steps, {integrator}, "
-              f"--jobs {args.jobs}, median of {args.sweep_repeats}): periods "
-              f"{p_it:.0f} / {p_nt:.0f} ({p_it / p_nt:.1f}x fewer), wall {t_it:.1f} / "
-              f"{t_nt:.1f} s ({t_it / t_nt:.2f}x faster), max |dv0| / max |v0| {dv:.1e}, max |dv0| / "
-              f"(error estimate of the iterate's v0) {dv_err:.2f}; newton "
-              f"points: {counts}", flush=True)
+        print(
+            f"sweep of the phase lag of wave-{N} ({P} points, {steps} steps, {integrator}, "
+            f"--jobs {args.jobs}, median of {args.sweep_repeats}): periods "
+            f"{p_it:.0f} / {p_nt:.0f} ({p_it / p_nt:.1f}x fewer), wall {t_it:.1f} / "
+            f"{t_nt:.1f} s ({t_it / t_nt:.2f}x faster), max |dv0| / max |v0| {dv:.1e}, max |dv0| / "
+            f"(error estimate of the iterate's v0) {dv_err:.2f}; newton "
+            f"points: {counts}",
+            flush=True,
+        )
         if t_it < 3 * t_nt:
             missed.append(f"sweep {integrator}: {t_it / t_nt:.2f}x faster end to end (< 3x)")
     return missed
@@ -203,9 +227,11 @@ def main() -> int:
     ap.add_argument("--only-sweep", action="store_true")
     args = ap.parse_args()
     args.integrators = [s for s in args.integrators.split(",") if s]
-    print(f"iterate (it) against newton (nt), tolerance {TOLERANCE:g}, median wall of "
-          f"{args.repeats} runs; rate: fitted to the true iterates, J rate: Jacobian at the "
-          "limit; v0 err it: the iterate's own error estimate of v0, relative\n")
+    print(
+        f"iterate (it) against newton (nt), tolerance {TOLERANCE:g}, median wall of "
+        f"{args.repeats} runs; rate: fitted to the true iterates, J rate: Jacobian at the "
+        "limit; v0 err it: the iterate's own error estimate of v0, relative\n"
+    )
     missed = [] if args.only_sweep else compare_gaits(args)
     if not args.no_sweep:
         print()

@@ -34,8 +34,8 @@ ROOT = Path(__file__).resolve().parents[1]
 def gaits(steps: int) -> list[tuple[str, object]]:
     """smooth-friction-3 and corpus gaits of 5 to 36 blocks (`crawlsim.gait.corpus`)."""
     out: list[tuple[str, object]] = [
-        ("smooth-friction-3", compile_gait(load_gait(ROOT / "gaits" / "smooth-friction-3.yaml"),
-                                           steps))]
+        ("smooth-friction-3", compile_gait(load_gait(ROOT / "gaits" / "smooth-friction-3.yaml"), steps))
+    ]
     for seed, blocks in ((18, (2, 5)), (5, (2, 5)), (13, (2, 12)), (20, (2, 40))):
         gait = random_gait(seed, blocks=blocks, stiffness_ratio=1e6, friction_ratio=1e3)
         out.append((f"corpus seed {seed} (N {gait.blocks})", compile_gait(gait, steps)))
@@ -52,8 +52,7 @@ def main() -> int:
     clock = time.process_time if args.clock == "cpu" else time.perf_counter
     print(f"{'gait':28s} {'basis':>22s} {'compiled ms':>12s} {'Python ms':>10s} {'ratio':>7s}")
     for name, process in gaits(args.steps):
-        steppers = {"compiled": EventStepper(process), "python": EventStepper(process,
-                                                                              kernel=False)}
+        steppers = {"compiled": EventStepper(process), "python": EventStepper(process, kernel=False)}
         for s in steppers.values():
             s.step_period()  # warm-up (compilation, caches)
         times: dict[str, list[float]] = {key: [] for key in steppers}
@@ -67,8 +66,11 @@ def main() -> int:
         assert loop is not None and loop.handoffs == 0, name
         fast, slow = (statistics.median(times[k]) for k in ("compiled", "python"))
         b = steppers["compiled"].basis
-        print(f"{name:28s} {f'linear {int(b.linear)} harmonics {b.harmonics}':>22s} "
-              f"{1e3 * fast:12.3f} {1e3 * slow:10.2f} {slow / fast:7.1f}", flush=True)
+        print(
+            f"{name:28s} {f'linear {int(b.linear)} harmonics {b.harmonics}':>22s} "
+            f"{1e3 * fast:12.3f} {1e3 * slow:10.2f} {slow / fast:7.1f}",
+            flush=True,
+        )
     return 0
 
 

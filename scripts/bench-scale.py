@@ -55,15 +55,18 @@ def wave_document(N: int, steps: int, periods: int = 1000, wave: str = "body") -
     def phase(i: int) -> float:
         return i / (N - 1) if wave == "body" else (i / 10) % 1
 
-    return {"name": f"wave-{N}", "blocks": N, "period": 1.0, "stiffness": 10.0,
-            "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": phase(i)}
-                      for i in range(N - 1)],
-            "friction": {"forward": 1.0, "backward": 2.13},
-            "simulation": {"steps_per_period": steps, "max_periods": periods}}
+    return {
+        "name": f"wave-{N}",
+        "blocks": N,
+        "period": 1.0,
+        "stiffness": 10.0,
+        "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": phase(i)} for i in range(N - 1)],
+        "friction": {"forward": 1.0, "backward": 2.13},
+        "simulation": {"steps_per_period": steps, "max_periods": periods},
+    }
 
 
-def measure(N: int, integrator: str, steps: int, periods: int, repeats: int = 1,
-            wave: str = "body"):
+def measure(N: int, integrator: str, steps: int, periods: int, repeats: int = 1, wave: str = "body"):
     """(seconds per period, events per period, v0): medians over the periods after the first of
     ``repeats`` fresh runs (the first period leaves the arbitrary initial state)."""
     gait = gait_from_document(wave_document(N, steps, wave=wave), f"wave-{N}")
@@ -106,16 +109,26 @@ def exponent(sizes, costs, lo=64, hi=1024) -> float:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--periods", type=int, default=5)
-    parser.add_argument("--repeats", type=int, default=1,
-                        help="fresh runs per measurement; times are medians over all of them")
+    parser.add_argument(
+        "--repeats", type=int, default=1, help="fresh runs per measurement; times are medians over all of them"
+    )
     parser.add_argument("--sizes", default="4,16,64,128,256,1024")
-    parser.add_argument("--wave", choices=WAVES, default="body",
-                        help="body: phase i/(N-1) (one wave over the body); segments: phase "
-                             "i/10 (a wave ten links long, every block slips)")
-    parser.add_argument("--big", action="store_true",
-                        help="also time the 1000-block, 20-period run with its results file")
-    parser.add_argument("--limit", choices=("newton", "iterate"), default="newton",
-                        help="how the --big run finds its periodic limit (the gait setting)")
+    parser.add_argument(
+        "--wave",
+        choices=WAVES,
+        default="body",
+        help="body: phase i/(N-1) (one wave over the body); segments: phase "
+        "i/10 (a wave ten links long, every block slips)",
+    )
+    parser.add_argument(
+        "--big", action="store_true", help="also time the 1000-block, 20-period run with its results file"
+    )
+    parser.add_argument(
+        "--limit",
+        choices=("newton", "iterate"),
+        default="newton",
+        help="how the --big run finds its periodic limit (the gait setting)",
+    )
     args = parser.parse_args()
     sizes = [int(s) for s in args.sizes.split(",") if s]  # --sizes "" --big: the big run alone
     if sizes:
@@ -130,8 +143,10 @@ def table(sizes: list[int], periods: int, repeats: int, wave: str) -> None:
     """The per-N table, the fitted exponents and the bars of the scaling work."""
     rows = []
     print(f"wave: {wave}; medians of {repeats} run(s) x {periods} periods")
-    print(f"{'N':>5} {'catch-up us/step':>17} {'exact ms/period':>16} {'events/period':>14} "
-          f"{'exact/catch-up @1000':>21} {'|dv0|*400':>10} {'peak MB':>8}")
+    print(
+        f"{'N':>5} {'catch-up us/step':>17} {'exact ms/period':>16} {'events/period':>14} "
+        f"{'exact/catch-up @1000':>21} {'|dv0|*400':>10} {'peak MB':>8}"
+    )
     for N in sizes:
         cu, _, v_cu = measure(N, "catch-up", 400, periods, repeats, wave)
         ex, ev, v_ex = measure(N, "exact", 400, periods, repeats, wave)
@@ -139,24 +154,29 @@ def table(sizes: list[int], periods: int, repeats: int, wave: str) -> None:
         ex1000, _, _ = measure(N, "exact", 1000, periods, repeats, wave)
         mem_cu = peak_memory(N, "catch-up", 400, wave)
         mem_ex = peak_memory(N, "exact", 400, wave)
-        rows.append((N, cu / 400 * 1e6, ex * 1e3, ev, ex1000 / cu1000, abs(v_ex - v_cu) * 400,
-                     max(mem_cu, mem_ex) / 2**20))
+        rows.append(
+            (N, cu / 400 * 1e6, ex * 1e3, ev, ex1000 / cu1000, abs(v_ex - v_cu) * 400, max(mem_cu, mem_ex) / 2**20)
+        )
         r = rows[-1]
-        print(f"{r[0]:>5} {r[1]:>17.2f} {r[2]:>16.2f} {r[3]:>14.0f} {r[4]:>21.2f} {r[5]:>10.3g} "
-              f"{r[6]:>8.1f}", flush=True)
+        print(
+            f"{r[0]:>5} {r[1]:>17.2f} {r[2]:>16.2f} {r[3]:>14.0f} {r[4]:>21.2f} {r[5]:>10.3g} {r[6]:>8.1f}", flush=True
+        )
     Ns = [r[0] for r in rows]
     print()
-    print(f"fitted exponent of cost in N, N = 64..1024: catch-up "
-          f"{exponent(Ns, [r[1] for r in rows]):.2f}, exact "
-          f"{exponent(Ns, [r[2] for r in rows]):.2f} (bar: <= 1.2)")
+    print(
+        f"fitted exponent of cost in N, N = 64..1024: catch-up "
+        f"{exponent(Ns, [r[1] for r in rows]):.2f}, exact "
+        f"{exponent(Ns, [r[2] for r in rows]):.2f} (bar: <= 1.2)"
+    )
     by_n = {r[0]: r for r in rows}
     if 4 in by_n and 128 in by_n:
-        print(f"catch-up steps per second, N = 128 / N = 4: {by_n[4][1] / by_n[128][1]:.3f} "
-              "(bar: >= 0.1)")
+        print(f"catch-up steps per second, N = 128 / N = 4: {by_n[4][1] / by_n[128][1]:.3f} (bar: >= 0.1)")
     for n in (64, 256):
         if n in by_n:
-            print(f"N = {n}: |v0 exact - v0 catch-up| x 400 = {by_n[n][5]:.3g} (bar: <= 1); "
-                  f"exact / catch-up at 1000 steps per period = {by_n[n][4]:.2f} (bar: <= 3)")
+            print(
+                f"N = {n}: |v0 exact - v0 catch-up| x 400 = {by_n[n][5]:.3g} (bar: <= 1); "
+                f"exact / catch-up at 1000 steps per period = {by_n[n][4]:.2f} (bar: <= 3)"
+            )
 
 
 def big(integrator: str, wave: str, limit: str = "newton") -> None:
@@ -174,14 +194,18 @@ def big(integrator: str, wave: str, limit: str = "newton") -> None:
         seconds = time.perf_counter() - began
         size = out.stat().st_size / 2**20
         began = time.perf_counter()
-        plot = subprocess.run([sys.executable, "-m", "crawlsim", "plot", str(out), "-o", tmp],
-                              capture_output=True, text=True)
+        plot = subprocess.run(
+            [sys.executable, "-m", "crawlsim", "plot", str(out), "-o", tmp], capture_output=True, text=True
+        )
         plot_seconds = time.perf_counter() - began
-    print(f"\n1000 blocks ({wave} wave), 20 periods x 400 steps, {integrator}, limit {limit}, "
-          "with its results file: "
-          f"{seconds:.1f} s (bar: < 60 s), file {size:.1f} MB, v0 {result.v0:.6g}; "
-          f"crawlsim plot: exit {plot.returncode} in {plot_seconds:.1f} s "
-          f"({len(plot.stdout.split())} figures)", flush=True)
+    print(
+        f"\n1000 blocks ({wave} wave), 20 periods x 400 steps, {integrator}, limit {limit}, "
+        "with its results file: "
+        f"{seconds:.1f} s (bar: < 60 s), file {size:.1f} MB, v0 {result.v0:.6g}; "
+        f"crawlsim plot: exit {plot.returncode} in {plot_seconds:.1f} s "
+        f"({len(plot.stdout.split())} figures)",
+        flush=True,
+    )
     if plot.returncode:
         print(plot.stderr)
 

@@ -52,18 +52,22 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def wave(blocks: int) -> crawlsim.Gait:
     """A cosine wave of blocks - 1 links, a lag of 1/(blocks - 1) period each."""
-    links = [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": i / (blocks - 1)}
-             for i in range(blocks - 1)]
-    doc = {"name": f"wave-{blocks}", "blocks": blocks, "period": 1.0, "stiffness": 10.0,
-           "links": links, "friction": {"forward": 1.0, "backward": 2.0},
-           "simulation": {"steps_per_period": 1000, "max_periods": 1000, "tolerance": 1e-12}}
+    links = [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": i / (blocks - 1)} for i in range(blocks - 1)]
+    doc = {
+        "name": f"wave-{blocks}",
+        "blocks": blocks,
+        "period": 1.0,
+        "stiffness": 10.0,
+        "links": links,
+        "friction": {"forward": 1.0, "backward": 2.0},
+        "simulation": {"steps_per_period": 1000, "max_periods": 1000, "tolerance": 1e-12},
+    }
     gait = gait_from_document(doc, f"wave-{blocks}")
     assert isinstance(gait, crawlsim.Gait)
     return gait
 
 
-def command_ratio(gait: crawlsim.Gait, paths: list[str], folder: Path, repeats: int,
-                  clock) -> float:
+def command_ratio(gait: crawlsim.Gait, paths: list[str], folder: Path, repeats: int, clock) -> float:
     """The median ratio of ``crawlsim velocity GAIT --sensitivity PATH...`` to ``crawlsim
     velocity GAIT`` (the gait written to a file), in this process, interleaved."""
     import yaml
@@ -94,25 +98,38 @@ def cases() -> list[tuple[crawlsim.Gait, dict[int, list[str]]]]:
     peristalsis = crawlsim.load_gait(ROOT / "gaits" / "peristalsis-4.yaml")
     assert isinstance(peristalsis, crawlsim.Gait)
     catch_up = peristalsis.replace("simulation.integrator", "catch-up")
-    four = {1: ["links.1.phase"], 2: ["links.1.phase", "links.2.phase"],
-            5: ["links.*.phase", "links.0.amplitude", "links.1.amplitude"],
-            10: ["links.*.phase", "links.*.amplitude", "links.*.mean", "stiffness"]}
-    eleven = {1: ["links.1.phase"], 2: ["links.1.phase", "links.2.phase"],
-              5: [f"links.{i}.phase" for i in range(5)], 10: ["links.*.phase"]}
+    four = {
+        1: ["links.1.phase"],
+        2: ["links.1.phase", "links.2.phase"],
+        5: ["links.*.phase", "links.0.amplitude", "links.1.amplitude"],
+        10: ["links.*.phase", "links.*.amplitude", "links.*.mean", "stiffness"],
+    }
+    eleven = {
+        1: ["links.1.phase"],
+        2: ["links.1.phase", "links.2.phase"],
+        5: [f"links.{i}.phase" for i in range(5)],
+        10: ["links.*.phase"],
+    }
     return [(peristalsis, four), (wave(11), eleven), (catch_up, four)]
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     parser.add_argument("--repeats", type=int, default=9)
-    parser.add_argument("--clock", choices=("wall", "cpu"), default="wall",
-                        help="wall time (perf_counter) or this process's CPU time "
-                             "(process_time: less sensitive to other load on the machine)")
+    parser.add_argument(
+        "--clock",
+        choices=("wall", "cpu"),
+        default="wall",
+        help="wall time (perf_counter) or this process's CPU time "
+        "(process_time: less sensitive to other load on the machine)",
+    )
     args = parser.parse_args()
     clock = time.perf_counter if args.clock == "wall" else time.process_time
-    print(f"{'gait':16s} {'integrator':10s} {'p':>3s} {'velocity':>10s} {'--sensitivity':>14s} "
-          f"{'ratio':>7s} {'first':>7s} {'command':>7s} {'bar':>5s} {'sens':>9s} "
-          f"{'stepping':>9s} {'sens/step':>9s}")
+    print(
+        f"{'gait':16s} {'integrator':10s} {'p':>3s} {'velocity':>10s} {'--sensitivity':>14s} "
+        f"{'ratio':>7s} {'first':>7s} {'command':>7s} {'bar':>5s} {'sens':>9s} "
+        f"{'stepping':>9s} {'sens/step':>9s}"
+    )
     folder = Path(tempfile.mkdtemp(prefix="bench-sensitivity-"))
     for gait, path_sets in cases():
         for p, paths in path_sets.items():
@@ -151,10 +168,12 @@ def main() -> int:
             first_ratio = statistics.median(y / x for x, y in zip(alone, first))
             fixed = statistics.median(x / y for x, y in zip(sens, stepping))
             command = command_ratio(gait, paths, folder, args.repeats, clock)
-            print(f"{gait.name:16s} {gait.simulation.integrator:10s} {p:3d} {a:9.4f}s "
-                  f"{b:13.4f}s {ratio:7.2f} {first_ratio:7.2f} {command:7.2f} {1 + 0.2 * p:5.1f} "
-                  f"{statistics.median(sens) * 1e3:7.3f}ms "
-                  f"{statistics.median(stepping) * 1e3:7.3f}ms {fixed:9.2f}")
+            print(
+                f"{gait.name:16s} {gait.simulation.integrator:10s} {p:3d} {a:9.4f}s "
+                f"{b:13.4f}s {ratio:7.2f} {first_ratio:7.2f} {command:7.2f} {1 + 0.2 * p:5.1f} "
+                f"{statistics.median(sens) * 1e3:7.3f}ms "
+                f"{statistics.median(stepping) * 1e3:7.3f}ms {fixed:9.2f}"
+            )
     shutil.rmtree(folder, ignore_errors=True)
     return 0
 

@@ -65,8 +65,21 @@ PERISTALSIS = ROOT / "gaits" / "peristalsis-4.yaml"
 INCHING = ROOT / "gaits" / "inching-2.yaml"
 NEEDED = "import numpy, scipy.sparse, clarabel, yaml"
 VALIDATE_NEEDS = "import numpy, yaml"
-HEAVY = ("jsonschema", "h5py", "matplotlib", "scipy.optimize", "scipy.linalg", "scipy.sparse",
-         "scipy", "numba", "tqdm", "distributed", "dask", "xarray", "pandas")
+HEAVY = (
+    "jsonschema",
+    "h5py",
+    "matplotlib",
+    "scipy.optimize",
+    "scipy.linalg",
+    "scipy.sparse",
+    "scipy",
+    "numba",
+    "tqdm",
+    "distributed",
+    "dask",
+    "xarray",
+    "pandas",
+)
 
 #: Run one crawlsim command in-process and print, on the last line, the kernel dispatchers that
 #: got a compiled overload and their signatures.
@@ -85,7 +98,9 @@ print("\\nPROBE " + json.dumps(used))
 
 #: The denominator: the libraries, numba, the kernel modules, and the cached machine code of
 #: the given dispatchers' given signatures (argv[1], the probe's JSON).
-LOAD = NEEDED + """
+LOAD = (
+    NEEDED
+    + """
 import importlib, json, sys
 wanted = json.loads(sys.argv[1])
 for name, signatures in wanted.items():
@@ -100,6 +115,7 @@ for name, signatures in wanted.items():
     if dispatcher._cache_hits.total() != len(keys) or dispatcher._cache_misses.total():
         sys.exit(f"{name}: not loaded from the cache")
 """
+)
 
 
 def crawlsim_command() -> list[str]:
@@ -122,10 +138,11 @@ def timed(argv: list[str], clock: str, env: dict[str, str] | None = None) -> flo
 
 def probe(arguments: list[str]) -> dict[str, list[str]]:
     """The kernel dispatchers and signatures the command ``crawlsim arguments`` calls."""
-    out = subprocess.run([sys.executable, "-c", PROBE, *arguments], capture_output=True,
-                         text=True, cwd=ROOT, env=ENV, check=True).stdout
+    out = subprocess.run(
+        [sys.executable, "-c", PROBE, *arguments], capture_output=True, text=True, cwd=ROOT, env=ENV, check=True
+    ).stdout
     line = [row for row in out.splitlines() if row.startswith("PROBE ")][-1]
-    used: dict[str, list[str]] = json.loads(line[len("PROBE "):])
+    used: dict[str, list[str]] = json.loads(line[len("PROBE ") :])
     return used
 
 
@@ -146,33 +163,37 @@ def cold_runs(crawlsim: list[str], count: int) -> list[tuple[float, float]]:
     for _ in range(count):
         with tempfile.TemporaryDirectory(prefix="crawlsim-cold-") as cache:
             env = {**ENV, "NUMBA_CACHE_DIR": cache}
-            seconds.append(run_clocked([*crawlsim, "velocity", str(PERISTALSIS)], cwd=ROOT,
-                                       env=env))
+            seconds.append(run_clocked([*crawlsim, "velocity", str(PERISTALSIS)], cwd=ROOT, env=env))
     return seconds
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=15, help="runs of each command (median)")
-    ap.add_argument("--clock", choices=("wall", "cpu"), default="wall",
-                    help="wall time of each process, or its CPU time (user + system)")
-    ap.add_argument("--cold", type=int, default=0, metavar="N",
-                    help="also time N first runs with an empty numba cache (median)")
+    ap.add_argument(
+        "--clock",
+        choices=("wall", "cpu"),
+        default="wall",
+        help="wall time of each process, or its CPU time (user + system)",
+    )
+    ap.add_argument(
+        "--cold", type=int, default=0, metavar="N", help="also time N first runs with an empty numba cache (median)"
+    )
     args = ap.parse_args()
     ENV.pop("PYTHONDONTWRITEBYTECODE", None)
     crawlsim = crawlsim_command()
     velocity = {
         "crawlsim velocity peristalsis-4 (exact)": ["velocity", str(PERISTALSIS)],
-        "crawlsim velocity inching-2 (catch-up)": ["velocity", str(INCHING),
-                                                   "--integrator", "catch-up"],
+        "crawlsim velocity inching-2 (catch-up)": ["velocity", str(INCHING), "--integrator", "catch-up"],
         "crawlsim velocity inching-2 (exact)": ["velocity", str(INCHING), "--integrator", "exact"],
     }
     for arguments in velocity.values():  # warm numba's cache (a cold one is --cold's business)
-        subprocess.run([*crawlsim, *arguments], check=True, capture_output=True, cwd=ROOT,
-                       env=ENV)
+        subprocess.run([*crawlsim, *arguments], check=True, capture_output=True, cwd=ROOT, env=ENV)
     loads = {name: probe(arguments) for name, arguments in velocity.items()}
-    needs = {name: "libraries + numba + cached " + ", ".join(sorted(
-        entry.split(".")[-1] for entry in loads[name])) for name in velocity}
+    needs = {
+        name: "libraries + numba + cached " + ", ".join(sorted(entry.split(".")[-1] for entry in loads[name]))
+        for name in velocity
+    }
     commands = {
         "python -c pass": [sys.executable, "-c", "pass"],
         "crawlsim --version": [*crawlsim, "--version"],
@@ -192,35 +213,45 @@ def main() -> int:
     for round_ in range(args.repeat):
         # each round starts one command later: a process run right after another pays for its
         # predecessor's exit (measured: up to 10%), and rotating spreads that over all commands
-        for name in names[round_ % len(names):] + names[:round_ % len(names)]:
+        for name in names[round_ % len(names) :] + names[: round_ % len(names)]:
             times[name].append(timed(commands[name], args.clock))
     median = {name: statistics.median(t) for name, t in times.items()}
 
-    print(f"start-up, median of {args.repeat} runs each ({args.clock} time of a fresh process, "
-          f"bytecode cached); load average {load_before[0]:.2f} before, "
-          f"{os.getloadavg()[0]:.2f} after:")
+    print(
+        f"start-up, median of {args.repeat} runs each ({args.clock} time of a fresh process, "
+        f"bytecode cached); load average {load_before[0]:.2f} before, "
+        f"{os.getloadavg()[0]:.2f} after:"
+    )
     for name, t in median.items():
         print(f"  {name:<72} {t * 1e3:8.1f} ms")
     base = median["python -c pass"]
-    rows = [("crawlsim --version", "python -c pass", 3.0),
-            ("crawlsim --help", "python -c pass", 3.0),
-            ("crawlsim validate peristalsis-4", f"python -c '{VALIDATE_NEEDS}'", 1.5)]
+    rows = [
+        ("crawlsim --version", "python -c pass", 3.0),
+        ("crawlsim --help", "python -c pass", 3.0),
+        ("crawlsim validate peristalsis-4", f"python -c '{VALIDATE_NEEDS}'", 1.5),
+    ]
     for name in velocity:
         rows.append((name, needs[name], 1.3))
     print("\nratios:")
     for name, reference, bar in rows:
         ratio = median[name] / median[reference]
-        against = ("python -c pass" if reference == "python -c pass"
-                   else "the libraries + cached kernel" if reference in needs.values()
-                   else "python -c 'import numpy, yaml'")
+        against = (
+            "python -c pass"
+            if reference == "python -c pass"
+            else "the libraries + cached kernel"
+            if reference in needs.values()
+            else "python -c 'import numpy, yaml'"
+        )
         verdict = "met" if ratio <= bar else "NOT met"
         print(f"  {name:<42} {ratio:5.2f}x {against:<30} (bar {bar}x: {verdict})")
     print("\nstrict ratios against the bare import of the libraries (no numba, no kernel):")
     for name in velocity:
         print(f"  {name:<42} {median[name] / median[f'python -c {NEEDED!r}']:5.2f}x")
-    print(f"  (the libraries + cached kernel of peristalsis-4 alone: "
-          f"{median[needs['crawlsim velocity peristalsis-4 (exact)']] / median[f'python -c {NEEDED!r}']:.2f}x"
-          f"; python -c pass {base * 1e3:.1f} ms)")
+    print(
+        f"  (the libraries + cached kernel of peristalsis-4 alone: "
+        f"{median[needs['crawlsim velocity peristalsis-4 (exact)']] / median[f'python -c {NEEDED!r}']:.2f}x"
+        f"; python -c pass {base * 1e3:.1f} ms)"
+    )
 
     print("\nheavy modules imported beyond the denominator:")
     baseline = imported([sys.executable, "-c", VALIDATE_NEEDS])
@@ -243,12 +274,14 @@ def main() -> int:
 
         cold = cold_runs(crawlsim, args.cold)
         walls, cpus = [w for w, _ in cold], [c for _, c in cold]
-        print(f"\ncold first run (empty numba cache), crawlsim velocity peristalsis-4: wall "
-              f"median {statistics.median(walls):.1f} s of {', '.join(f'{s:.1f}' for s in walls)}"
-              f"; CPU median {statistics.median(cpus):.1f} s of "
-              f"{', '.join(f'{s:.1f}' for s in cpus)} (load average {os.getloadavg()[0]:.2f}; "
-              f"the compilation is one thread, so on an idle machine the wall time is the CPU "
-              f"time); COLD_SECONDS prints ~{COLD_SECONDS} s")
+        print(
+            f"\ncold first run (empty numba cache), crawlsim velocity peristalsis-4: wall "
+            f"median {statistics.median(walls):.1f} s of {', '.join(f'{s:.1f}' for s in walls)}"
+            f"; CPU median {statistics.median(cpus):.1f} s of "
+            f"{', '.join(f'{s:.1f}' for s in cpus)} (load average {os.getloadavg()[0]:.2f}; "
+            f"the compilation is one thread, so on an idle machine the wall time is the CPU "
+            f"time); COLD_SECONDS prints ~{COLD_SECONDS} s"
+        )
     return 0
 
 

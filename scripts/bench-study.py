@@ -79,19 +79,36 @@ SWEEP_POINTS = 120
 
 #: name -> crawlsim arguments ({out} is the output directory of the run); the bar of each.
 COMMANDS: dict[str, list[str]] = {
-    "1-D sweep, 120 points": ["velocity", GAIT, "--sweep", "links.1.phase=0:1:120", "-j", "1",
-                              "-o", "{out}/sweep.csv"],
-    "2-D sweep, 12 x 10 points": ["velocity", GAIT, "--sweep", "links.1.phase=0:1:12",
-                                  "--sweep", "links.2.phase=0:1:10", "-j", "1",
-                                  "-o", "{out}/sweep.csv"],
-    "1-point sweep": ["velocity", GAIT, "--sweep", "links.1.phase=0:1:1", "-j", "1",
-                      "-o", "{out}/sweep.csv"],
-    "optimize example": ["optimize", GAIT, "--free", "links.1.phase=0:1",
-                         "--free", "links.2.phase=0:1", "--steps-per-period", "20",
-                         "--write-best", "{out}/best.yaml", "-o", "{out}/optimize.h5"],
+    "1-D sweep, 120 points": ["velocity", GAIT, "--sweep", "links.1.phase=0:1:120", "-j", "1", "-o", "{out}/sweep.csv"],
+    "2-D sweep, 12 x 10 points": [
+        "velocity",
+        GAIT,
+        "--sweep",
+        "links.1.phase=0:1:12",
+        "--sweep",
+        "links.2.phase=0:1:10",
+        "-j",
+        "1",
+        "-o",
+        "{out}/sweep.csv",
+    ],
+    "1-point sweep": ["velocity", GAIT, "--sweep", "links.1.phase=0:1:1", "-j", "1", "-o", "{out}/sweep.csv"],
+    "optimize example": [
+        "optimize",
+        GAIT,
+        "--free",
+        "links.1.phase=0:1",
+        "--free",
+        "links.2.phase=0:1",
+        "--steps-per-period",
+        "20",
+        "--write-best",
+        "{out}/best.yaml",
+        "-o",
+        "{out}/optimize.h5",
+    ],
 }
-BARS = {"1-D sweep, 120 points": 30.0, "2-D sweep, 12 x 10 points": 30.0,
-        "optimize example": 20.0}
+BARS = {"1-D sweep, 120 points": 30.0, "2-D sweep, 12 x 10 points": 30.0, "optimize example": 20.0}
 
 
 #: The per-point cost in-process (no start-up in it): the sweeps as library calls, and the
@@ -127,22 +144,27 @@ print(json.dumps(out))
 """
 
 
-def in_process(tree: Path, rounds: int, env: dict[str, str],
-               optimize: bool) -> dict[str, list[float]]:
+def in_process(tree: Path, rounds: int, env: dict[str, str], optimize: bool) -> dict[str, list[float]]:
     """CPU seconds of each in-process sweep of `IN_PROCESS` (and of the optimize example),
     ``rounds`` times, in ``tree``."""
     with tempfile.TemporaryDirectory(prefix="crawlsim-bench-") as out_dir:
-        out = subprocess.run([sys.executable, "-c", IN_PROCESS, str(rounds), out_dir,
-                              str(int(optimize))], cwd=tree, check=True, capture_output=True,
-                             text=True, env={**env, "PYTHONPATH": str(tree)})
+        out = subprocess.run(
+            [sys.executable, "-c", IN_PROCESS, str(rounds), out_dir, str(int(optimize))],
+            cwd=tree,
+            check=True,
+            capture_output=True,
+            text=True,
+            env={**env, "PYTHONPATH": str(tree)},
+        )
     result: dict[str, list[float]] = json.loads(out.stdout.splitlines()[-1])
     return result
 
 
 def extract(commit: str, into: Path) -> Path:
     """The tree of ``commit`` (crawlsim, gaits) written into ``into``."""
-    archive = subprocess.run(["git", "archive", commit, "crawlsim", "gaits"], cwd=ROOT,
-                             check=True, capture_output=True).stdout
+    archive = subprocess.run(
+        ["git", "archive", commit, "crawlsim", "gaits"], cwd=ROOT, check=True, capture_output=True
+    ).stdout
     with tarfile.open(fileobj=BytesIO(archive)) as tar:
         tar.extractall(into, filter="data")
     return into
@@ -160,8 +182,9 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3, help="runs of each command (median)")
     ap.add_argument("--clock", choices=("wall", "cpu"), default="wall")
-    ap.add_argument("--skip-optimize", action="store_true",
-                    help="leave out the optimize example (about 25 s before, per run)")
+    ap.add_argument(
+        "--skip-optimize", action="store_true", help="leave out the optimize example (about 25 s before, per run)"
+    )
     args = ap.parse_args()
     env = dict(os.environ)
     env.pop("PYTHONDONTWRITEBYTECODE", None)  # an installed package has its .pyc files
@@ -186,9 +209,11 @@ def main() -> int:
                     inside[when].setdefault(name, []).extend(seconds)
     median = {run: statistics.median(t) for run, t in times.items()}
 
-    print(f"{args.clock} time of `python -m crawlsim ...`, median of {args.repeat} interleaved "
-          f"runs; load average {load:.2f} before, {os.getloadavg()[0]:.2f} after; before = "
-          f"{BEFORE}")
+    print(
+        f"{args.clock} time of `python -m crawlsim ...`, median of {args.repeat} interleaved "
+        f"runs; load average {load:.2f} before, {os.getloadavg()[0]:.2f} after; before = "
+        f"{BEFORE}"
+    )
     print(f"  {'command':<28} {'before s':>9} {'now s':>8} {'ratio':>7}  bar")
     for name in names:
         b, n = median[("before", name)], median[("now", name)]
@@ -197,33 +222,43 @@ def main() -> int:
         print(f"  {name:<28} {b:>9.3f} {n:>8.3f} {b / n:>6.1f}x  {verdict}")
     print(f"\nper point (the sweep minus the 1-point sweep, / {SWEEP_POINTS}):")
     for name in names[:2]:
-        per = {when: (median[(when, name)] - median[(when, "1-point sweep")]) / SWEEP_POINTS
-               for when in trees}
-        print(f"  {name:<28} {per['before'] * 1e3:>7.2f} ms {per['now'] * 1e3:>7.2f} ms "
-              f"{per['before'] / per['now']:>6.1f}x")
-    print(f"\nIN-PROCESS, per point (library calls, no start-up, CPU time, median of "
-          f"{3 * args.repeat} rounds; the sweep minus the 1-point sweep, / {SWEEP_POINTS}), "
-          "against the 30x bar read per point (the end-to-end bars above are the issue's):")
+        per = {when: (median[(when, name)] - median[(when, "1-point sweep")]) / SWEEP_POINTS for when in trees}
+        print(
+            f"  {name:<28} {per['before'] * 1e3:>7.2f} ms {per['now'] * 1e3:>7.2f} ms "
+            f"{per['before'] / per['now']:>6.1f}x"
+        )
+    print(
+        f"\nIN-PROCESS, per point (library calls, no start-up, CPU time, median of "
+        f"{3 * args.repeat} rounds; the sweep minus the 1-point sweep, / {SWEEP_POINTS}), "
+        "against the 30x bar read per point (the end-to-end bars above are the issue's):"
+    )
     print(f"  {'sweep':<28} {'before':>10} {'now':>10} {'ratio':>7}  {'30x budget':>10}")
     for name in ("1-D", "2-D"):
-        per = {when: (statistics.median(inside[when][name])
-                      - statistics.median(inside[when]["1-point"])) / SWEEP_POINTS
-               for when in trees}
+        per = {
+            when: (statistics.median(inside[when][name]) - statistics.median(inside[when]["1-point"])) / SWEEP_POINTS
+            for when in trees
+        }
         ratio = per["before"] / per["now"]
-        print(f"  {name + ' sweep':<28} {per['before'] * 1e3:>7.2f} ms {per['now'] * 1e3:>7.2f} ms "
-              f"{ratio:>6.1f}x  {per['before'] / 30 * 1e3:>7.2f} ms: "
-              f"{'met' if ratio >= 30 else 'NOT met'} in-process")
+        print(
+            f"  {name + ' sweep':<28} {per['before'] * 1e3:>7.2f} ms {per['now'] * 1e3:>7.2f} ms "
+            f"{ratio:>6.1f}x  {per['before'] / 30 * 1e3:>7.2f} ms: "
+            f"{'met' if ratio >= 30 else 'NOT met'} in-process"
+        )
     if not args.skip_optimize:
         whole = {when: statistics.median(inside[when]["optimize"]) for when in trees}
         ratio = whole["before"] / whole["now"]
-        print(f"  {'optimize example (whole)':<28} {whole['before']:>8.3f} s {whole['now']:>8.3f} s "
-              f"{ratio:>6.1f}x  {whole['before'] / 20:>8.3f} s: "
-              f"{'met' if ratio >= 20 else 'NOT met'} in-process (20x)")
+        print(
+            f"  {'optimize example (whole)':<28} {whole['before']:>8.3f} s {whole['now']:>8.3f} s "
+            f"{ratio:>6.1f}x  {whole['before'] / 20:>8.3f} s: "
+            f"{'met' if ratio >= 20 else 'NOT met'} in-process (20x)"
+        )
     floor = median[("now", "1-point sweep")]
     budget = median[("before", "1-D sweep, 120 points")] / 30
-    print(f"\nfloor: a 1-point sweep now costs {floor:.3f} s (start-up, the cached kernel, the "
-          f"gait, the table); the 30x bar leaves {budget:.3f} s for the whole 120-point sweep"
-          f" ({floor / budget:.1f}x the budget before any point runs)")
+    print(
+        f"\nfloor: a 1-point sweep now costs {floor:.3f} s (start-up, the cached kernel, the "
+        f"gait, the table); the 30x bar leaves {budget:.3f} s for the whole 120-point sweep"
+        f" ({floor / budget:.1f}x the budget before any point runs)"
+    )
     return 0
 
 

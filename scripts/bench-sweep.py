@@ -55,11 +55,13 @@ GAIT = Path(__file__).resolve().parents[1] / "gaits" / "peristalsis-4.yaml"
 
 
 #: The --jobs-check cases: (integrator, steps per period, axis).
-JOB_CASES = (("exact", 20, "links.1.phase=0:1:12"),
-             ("exact", 20, "links.1.phase=0:1:120"),
-             ("catch-up", 400, "links.*.amplitude=0.05:0.45:40"),
-             ("catch-up", 400, "links.*.amplitude=0.05:0.45:1000"),
-             ("catch-up", 400, "links.*.amplitude=0.05:0.45:8000"))
+JOB_CASES = (
+    ("exact", 20, "links.1.phase=0:1:12"),
+    ("exact", 20, "links.1.phase=0:1:120"),
+    ("catch-up", 400, "links.*.amplitude=0.05:0.45:40"),
+    ("catch-up", 400, "links.*.amplitude=0.05:0.45:1000"),
+    ("catch-up", 400, "links.*.amplitude=0.05:0.45:8000"),
+)
 
 
 def jobs_check(repeat: int) -> None:
@@ -76,8 +78,10 @@ def jobs_check(repeat: int) -> None:
                 walls[jobs].append(time.perf_counter() - began)
         assert tables[1].to_csv() == tables[2].to_csv()  # the same rows, bit for bit
         one, two = statistics.median(walls[1]), statistics.median(walls[2])
-        print(f"{integrator + ', ' + str(steps) + ' steps, ' + axis:<52} {one:>8.3f} {two:>8.3f} "
-              f"{one / two:>6.2f}", flush=True)
+        print(
+            f"{integrator + ', ' + str(steps) + ' steps, ' + axis:<52} {one:>8.3f} {two:>8.3f} {one / two:>6.2f}",
+            flush=True,
+        )
 
 
 def main():
@@ -111,29 +115,39 @@ def main():
         for i in range(0, grid.size, args.loop_every):
             point = grid.gait(i)
             s = point.simulation
-            result = simulate(compile_gait(point), max_periods=s.max_periods,
-                              tolerance=s.tolerance)
+            result = simulate(compile_gait(point), max_periods=s.max_periods, tolerance=s.tolerance)
             assert abs(result.v0 - table.rows[i].v0) <= 1e-12
             loop_steps += result.steps
         loop_rates.append(loop_steps / (time.perf_counter() - began))
-        print(f"run {rep + 1}: sweep {steps} gait-steps in {wall:.3f} s = "
-              f"{sweep_rates[-1]:,.0f} gait-steps/s; loop of single runs "
-              f"{loop_rates[-1]:,.0f} gait-steps/s", flush=True)
+        print(
+            f"run {rep + 1}: sweep {steps} gait-steps in {wall:.3f} s = "
+            f"{sweep_rates[-1]:,.0f} gait-steps/s; loop of single runs "
+            f"{loop_rates[-1]:,.0f} gait-steps/s",
+            flush=True,
+        )
 
     counts = table.counts()
     sweep_rate, loop_rate = statistics.median(sweep_rates), statistics.median(loop_rates)
-    print(f"\nsweep: {args.points} points of {GAIT.name}, {axis}, {args.steps} steps/period, "
-          f"--jobs {args.jobs}: {counts['ok']} ok, {counts['not-converged']} not converged, "
-          f"{counts['failed']} failed; {steps} gait-steps "
-          f"(mean {steps / args.points / args.steps:.2f} periods per point)")
+    print(
+        f"\nsweep: {args.points} points of {GAIT.name}, {axis}, {args.steps} steps/period, "
+        f"--jobs {args.jobs}: {counts['ok']} ok, {counts['not-converged']} not converged, "
+        f"{counts['failed']} failed; {steps} gait-steps "
+        f"(mean {steps / args.points / args.steps:.2f} periods per point)"
+    )
     print(f"median of {args.repeat} runs:")
-    print(f"  sweep (--jobs {args.jobs})                 {sweep_rate:>14,.0f} gait-steps/s "
-          f"(wall {statistics.median(walls):.3f} s)")
-    print(f"  loop of single runs (in-process)   {loop_rate:>14,.0f} gait-steps/s "
-          f"(every {args.loop_every}th point, extrapolated per gait-step)")
+    print(
+        f"  sweep (--jobs {args.jobs})                 {sweep_rate:>14,.0f} gait-steps/s "
+        f"(wall {statistics.median(walls):.3f} s)"
+    )
+    print(
+        f"  loop of single runs (in-process)   {loop_rate:>14,.0f} gait-steps/s "
+        f"(every {args.loop_every}th point, extrapolated per gait-step)"
+    )
     print(f"  ratio                              {sweep_rate / loop_rate:>14.1f} x")
-    print(f"bar: >= 1,000,000 gait-steps/s and >= 10x: "
-          f"{'met' if sweep_rate >= 1e6 and sweep_rate >= 10 * loop_rate else 'NOT met'}")
+    print(
+        f"bar: >= 1,000,000 gait-steps/s and >= 10x: "
+        f"{'met' if sweep_rate >= 1e6 and sweep_rate >= 10 * loop_rate else 'NOT met'}"
+    )
 
 
 if __name__ == "__main__":

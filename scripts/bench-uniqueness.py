@@ -28,8 +28,10 @@ def distinct(n, cosine=False, seed=0):
     backward[0] += 2.0**-22
     if cosine:
         phases = rng.random(n)
-        return ([Cosine(mean=f + 0.5, amplitude=0.25, phase=p) for f, p in zip(forward, phases)],
-                [Constant(b) for b in backward])
+        return (
+            [Cosine(mean=f + 0.5, amplitude=0.25, phase=p) for f, p in zip(forward, phases)],
+            [Constant(b) for b in backward],
+        )
     return [Constant(f) for f in forward], [Constant(b) for b in backward]
 
 
@@ -63,8 +65,7 @@ def main():
     parser.add_argument("--repeats", type=int, default=5)
     args = parser.parse_args()
     cases = [(f"{n} identical blocks", [Constant(1.0)] * n, [Constant(2.0)] * n) for n in (21, 120, 1000)]
-    cases += [("40 distinct constant blocks", *distinct(40)),
-              ("40 distinct cosine blocks", *distinct(40, cosine=True))]
+    cases += [("40 distinct constant blocks", *distinct(40)), ("40 distinct cosine blocks", *distinct(40, cosine=True))]
     print(f"{'case':32s} {'median (s)':>10s}  result")
     for name, forward, backward in cases:
         seconds, found = timed(lambda f=forward, b=backward: find_violation(f, b), args.repeats)
@@ -73,8 +74,10 @@ def main():
     forward, backward = distinct(20)
     exact, _ = timed(lambda: find_violation(forward, backward), args.repeats)
     brute, _ = timed(lambda: enumerate_all(forward, backward), max(1, args.repeats // 2))
-    print(f"20 distinct blocks: exact check {exact:.4f} s, enumeration of 2^20 subsets "
-          f"{brute:.4f} s, ratio {brute / exact:.1f}")
+    print(
+        f"20 distinct blocks: exact check {exact:.4f} s, enumeration of 2^20 subsets "
+        f"{brute:.4f} s, ratio {brute / exact:.1f}"
+    )
 
 
 if __name__ == "__main__":

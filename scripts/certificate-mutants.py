@@ -32,47 +32,105 @@ EXACT = "tests/test_exact.py"
 
 #: (name, file, the check's source, its replacement, tests that must catch it)
 MUTANTS = [
-    ("exact._certify_piece", "crawlsim/integrate/exact.py",
-     "        bad = (primal > tol.primal) | (dual > dual_tol) | (comp > tol.primal)\n",
-     "        bad = np.zeros(len(primal), dtype=bool)\n", [CERT]),
-    ("exact._certify_jump", "crawlsim/integrate/exact.py",
-     "        cert = poly.certify(slack, proj.multipliers, proj.active, tol)\n        if not cert.ok:",
-     "        cert = poly.certify(slack, proj.multipliers, proj.active, tol)\n        if False:",
-     [CERT]),
-    ("exact._verify", "crawlsim/integrate/exact.py",
-     "            if moved > 100 * tol.primal:", "            if False:", [CERT]),
-    ("Certificate.ok", "crawlsim/kernel/certificate.py",
-     "        return (self.primal <= t.primal and self.dual <= self._dual_tol\n"
-     "                and self.complementarity <= t.primal)",
-     "        return True", [CERT]),
-    ("Polyhedron.solve_on refinement", "crawlsim/kernel/polyhedron.py",
-     "        if np.abs(slack[idx]).max() > REFINE_FRACTION * tol.primal:", "        if False:",
-     [CERT]),
-    ("Polyhedron.run certificate", "crawlsim/kernel/polyhedron.py",
-     "        ok = (primal <= tol.primal) & (dual <= tol.dual) & (comp <= tol.primal)",
-     "        ok = np.ones(len(primal), dtype=bool)", [CERT]),
-    ("Polyhedron.run refinement", "crawlsim/kernel/polyhedron.py",
-     "        if np.any(comp > REFINE_FRACTION * tol.primal):", "        if False:", [CERT]),
-    ("ChainPolyhedron.row_tolerance", "crawlsim/kernel/chain_polyhedron.py",
-     "        if not active.size:\n            return tol\n        N = self.blocks",
-     "        if True:\n            return tol\n        N = self.blocks", [KKT]),
-    ("chain.settle certificate", "crawlsim/kernel/chain.py",
-     "        if primal <= tol_p and dual <= dual_tol and comp <= tol_p:", "        if True:",
-     [KERNEL]),
-    ("chain.settle_from sign check", "crawlsim/kernel/chain.py",
-     "        if duals or negative > 0.0 or not (primal <= tol_p and comp <= tol_p and 0.0 <= tol_d):",
-     "        if duals:", [KERNEL]),
-    ("chain.on_set refinement", "crawlsim/kernel/chain.py",
-     "    if active and comp > REFINE_FRACTION * tol_p:",
-     "    if False:", [KERNEL]),
-    ("chain.row_duals", "crawlsim/kernel/chain.py",
-     "        bound = 2.0 * RTOL * s[i]\n", "        bound = np.inf\n", [KKT]),
-    ("sampling.crossing curvature bound", "crawlsim/kernel/sampling.py",
-     "    bound = h * h / 8.0 * curvature(z, linear, H)\n", "    bound = 0.0\n",
-     [EXACT + "::test_tangential_contact_of_a_fourier_offset_between_samples"]),
-    ("eventloop.sample_piece certificate", "crawlsim/kernel/eventloop.py",
-     "        if primal > tol_p or dual > tol_d or comp > tol_p:", "        if False:",
-     [KERNEL + "::test_compiled_loop_samples_taken_at_wrong_times_raise"]),
+    (
+        "exact._certify_piece",
+        "crawlsim/integrate/exact.py",
+        "        bad = (primal > tol.primal) | (dual > dual_tol) | (comp > tol.primal)\n",
+        "        bad = np.zeros(len(primal), dtype=bool)\n",
+        [CERT],
+    ),
+    (
+        "exact._certify_jump",
+        "crawlsim/integrate/exact.py",
+        "        cert = poly.certify(slack, proj.multipliers, proj.active, tol)\n        if not cert.ok:",
+        "        cert = poly.certify(slack, proj.multipliers, proj.active, tol)\n        if False:",
+        [CERT],
+    ),
+    (
+        "exact._verify",
+        "crawlsim/integrate/exact.py",
+        "            if moved > 100 * tol.primal:",
+        "            if False:",
+        [CERT],
+    ),
+    (
+        "Certificate.ok",
+        "crawlsim/kernel/certificate.py",
+        "        return (self.primal <= t.primal and self.dual <= self._dual_tol\n"
+        "                and self.complementarity <= t.primal)",
+        "        return True",
+        [CERT],
+    ),
+    (
+        "Polyhedron.solve_on refinement",
+        "crawlsim/kernel/polyhedron.py",
+        "        if np.abs(slack[idx]).max() > REFINE_FRACTION * tol.primal:",
+        "        if False:",
+        [CERT],
+    ),
+    (
+        "Polyhedron.run certificate",
+        "crawlsim/kernel/polyhedron.py",
+        "        ok = (primal <= tol.primal) & (dual <= tol.dual) & (comp <= tol.primal)",
+        "        ok = np.ones(len(primal), dtype=bool)",
+        [CERT],
+    ),
+    (
+        "Polyhedron.run refinement",
+        "crawlsim/kernel/polyhedron.py",
+        "        if np.any(comp > REFINE_FRACTION * tol.primal):",
+        "        if False:",
+        [CERT],
+    ),
+    (
+        "ChainPolyhedron.row_tolerance",
+        "crawlsim/kernel/chain_polyhedron.py",
+        "        if not active.size:\n            return tol\n        N = self.blocks",
+        "        if True:\n            return tol\n        N = self.blocks",
+        [KKT],
+    ),
+    (
+        "chain.settle certificate",
+        "crawlsim/kernel/chain.py",
+        "        if primal <= tol_p and dual <= dual_tol and comp <= tol_p:",
+        "        if True:",
+        [KERNEL],
+    ),
+    (
+        "chain.settle_from sign check",
+        "crawlsim/kernel/chain.py",
+        "        if duals or negative > 0.0 or not (primal <= tol_p and comp <= tol_p and 0.0 <= tol_d):",
+        "        if duals:",
+        [KERNEL],
+    ),
+    (
+        "chain.on_set refinement",
+        "crawlsim/kernel/chain.py",
+        "    if active and comp > REFINE_FRACTION * tol_p:",
+        "    if False:",
+        [KERNEL],
+    ),
+    (
+        "chain.row_duals",
+        "crawlsim/kernel/chain.py",
+        "        bound = 2.0 * RTOL * s[i]\n",
+        "        bound = np.inf\n",
+        [KKT],
+    ),
+    (
+        "sampling.crossing curvature bound",
+        "crawlsim/kernel/sampling.py",
+        "    bound = h * h / 8.0 * curvature(z, linear, H)\n",
+        "    bound = 0.0\n",
+        [EXACT + "::test_tangential_contact_of_a_fourier_offset_between_samples"],
+    ),
+    (
+        "eventloop.sample_piece certificate",
+        "crawlsim/kernel/eventloop.py",
+        "        if primal > tol_p or dual > tol_d or comp > tol_p:",
+        "        if False:",
+        [KERNEL + "::test_compiled_loop_samples_taken_at_wrong_times_raise"],
+    ),
 ]
 
 
@@ -83,9 +141,14 @@ def run(name, path, old, new, tests, workdir: Path, env) -> str:
     target = workdir / path
     target.write_text(source.replace(old, new))
     try:
-        proc = subprocess.run([sys.executable, "-m", "pytest", "-x", "-q", "-p",
-                               "no:cacheprovider", *tests], cwd=workdir, env=env,
-                              capture_output=True, text=True, timeout=3600)
+        proc = subprocess.run(
+            [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", *tests],
+            cwd=workdir,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=3600,
+        )
     finally:
         shutil.copy2(ROOT / path, target)
     if proc.returncode == 0:
@@ -104,12 +167,10 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as folder:
         workdir = Path(folder)
         for part in ("crawlsim", "tests", "gaits"):
-            shutil.copytree(ROOT / part, workdir / part,
-                            ignore=shutil.ignore_patterns("__pycache__"))
+            shutil.copytree(ROOT / part, workdir / part, ignore=shutil.ignore_patterns("__pycache__"))
         for name in ("pyproject.toml", "README.md"):
             shutil.copy2(ROOT / name, workdir / name)
-        env = dict(os.environ, PYTHONPATH=str(workdir),
-                   NUMBA_CACHE_DIR=str(workdir / ".numba-cache"))
+        env = dict(os.environ, PYTHONPATH=str(workdir), NUMBA_CACHE_DIR=str(workdir / ".numba-cache"))
         env.pop("NUMBA_DISABLE_JIT", None)
         for name, path, old, new, tests in MUTANTS:
             if args.only and args.only not in name:

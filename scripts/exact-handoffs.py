@@ -53,8 +53,11 @@ FORCE_PYTHON = False
 
 def _instrument() -> None:
     """Count the periods of every EventStepper by where they ran (module docstring)."""
-    init, step, loop_period = (exact.EventStepper.__init__, exact.EventStepper._step_impl,
-                               compiled._CompiledLoop.period)
+    init, step, loop_period = (
+        exact.EventStepper.__init__,
+        exact.EventStepper._step_impl,
+        compiled._CompiledLoop.period,
+    )
 
     @functools.wraps(init)
     def __init__(self: Any, process: Any, **options: Any) -> None:
@@ -94,8 +97,7 @@ def _instrument() -> None:
 
 def _v0(process: Any, max_periods: int, tolerance: float) -> tuple[float, str]:
     try:
-        r = simulate(process, max_periods=max_periods, tolerance=tolerance, integrator="exact",
-                     history=False)
+        r = simulate(process, max_periods=max_periods, tolerance=tolerance, integrator="exact", history=False)
     except CrawlsimError as exc:
         return math.nan, f"{type(exc).__name__}: {str(exc)[:160]}"
     if r.v0 is not None:
@@ -114,10 +116,8 @@ def main() -> int:
     parser.add_argument("--friction-ratio", type=float, default=1e3)
     parser.add_argument("--no-examples", action="store_true")
     parser.add_argument("--v0-tol", type=float, default=1e-12)
-    parser.add_argument("--no-compare", action="store_true",
-                        help="count the periods only (no run in the Python loop)")
-    parser.add_argument("--loads", action="store_true",
-                        help="random loads and slopes on every corpus gait")
+    parser.add_argument("--no-compare", action="store_true", help="count the periods only (no run in the Python loop)")
+    parser.add_argument("--loads", action="store_true", help="random loads and slopes on every corpus gait")
     args = parser.parse_args()
     _instrument()
     gaits: list[tuple[str, Any]] = []
@@ -126,9 +126,13 @@ def main() -> int:
             gaits.append((path.relative_to(ROOT).as_posix(), load_gait(path)))
     for seed in range(args.first, args.first + args.size):
         small = seed % 4 != 0
-        gait = random_gait(seed, blocks=(2, min(12, args.max_blocks)) if small else
-                           (2, args.max_blocks), loads=args.loads,
-                           stiffness_ratio=args.stiffness_ratio, friction_ratio=args.friction_ratio)
+        gait = random_gait(
+            seed,
+            blocks=(2, min(12, args.max_blocks)) if small else (2, args.max_blocks),
+            loads=args.loads,
+            stiffness_ratio=args.stiffness_ratio,
+            friction_ratio=args.friction_ratio,
+        )
         gaits.append((f"seed {seed}", gait))
     total: collections.Counter[str] = collections.Counter()
     worst, bad = 0.0, 0
@@ -167,15 +171,20 @@ def main() -> int:
         if process.crawler is not None:
             k = np.asarray(process.stiffness, dtype=float)
             shape += f" k ratio {np.max(k) / np.min(k):.0e}"
-        print(f"{name:36s} N {process.blocks if process.crawler else '-':>3} {shape:28s} "
-              f"{note}  cpu {seconds:.2f} s (Python loop / default {ratio:.1f})  "
-              f"{dict(sorted(counts.items()))}", flush=True)
+        print(
+            f"{name:36s} N {process.blocks if process.crawler else '-':>3} {shape:28s} "
+            f"{note}  cpu {seconds:.2f} s (Python loop / default {ratio:.1f})  "
+            f"{dict(sorted(counts.items()))}",
+            flush=True,
+        )
     print()
     print(f"periods by where they ran, {len(gaits)} gaits: {dict(sorted(total.items()))}")
     if ratios:
-        print(f"largest |v0(default) - v0(Python loop)|: {worst:.2e}; gaits over "
-              f"{args.v0_tol:g}: {bad}; CPU time of a run, Python loop / default: median "
-              f"{statistics.median(ratios):.1f} (min {min(ratios):.1f}, max {max(ratios):.1f})")
+        print(
+            f"largest |v0(default) - v0(Python loop)|: {worst:.2e}; gaits over "
+            f"{args.v0_tol:g}: {bad}; CPU time of a run, Python loop / default: median "
+            f"{statistics.median(ratios):.1f} (min {min(ratios):.1f}, max {max(ratios):.1f})"
+        )
     return 1 if bad else 0
 
 

@@ -36,7 +36,8 @@ def main():
         (folder / "valid.yaml").write_text(VALID)
         base = statistics.median(
             run_limited(["run", str(folder / "valid.yaml"), "-o", "v.h5"], folder)["seconds"]
-            for _ in range(args.repeats))
+            for _ in range(args.repeats)
+        )
         print(f"{'file':30s} {'exit':>4s} {'time (s)':>9s} {'/valid':>7s} {'peak RSS (MB)':>14s}")
         print(f"{'valid two-block run':30s} {0:4d} {base:9.2f} {1.0:7.2f}")
         made = folder / "made"
@@ -48,8 +49,7 @@ def main():
             seconds = statistics.median(r["seconds"] for r in results)
             peak = statistics.median(r["peak"] for r in results) / 1e6
             codes = sorted({r["code"] for r in results})
-            print(f"{name:30s} {','.join(map(str, codes)):>4s} {seconds:9.2f} {seconds / base:7.2f} "
-                  f"{peak:14.0f}")
+            print(f"{name:30s} {','.join(map(str, codes)):>4s} {seconds:9.2f} {seconds / base:7.2f} {peak:14.0f}")
 
 
 if __name__ == "__main__":

@@ -80,10 +80,12 @@ def main() -> None:
 def measure(args, free: list[str]) -> None:
     # 1. agreement with the grid
     grid_max, where, grid_wall = grid_maximum(args.grid, args.jobs)
-    size = args.grid ** 2
-    print(f"grid {args.grid} x {args.grid} ({size} points, -j {args.jobs}): max v0 "
-          f"{grid_max!r} at links.1.phase = {where[0]:.6g}, links.2.phase = {where[1]:.6g}; "
-          f"{grid_wall:.1f} s")
+    size = args.grid**2
+    print(
+        f"grid {args.grid} x {args.grid} ({size} points, -j {args.jobs}): max v0 "
+        f"{grid_max!r} at links.1.phase = {where[0]:.6g}, links.2.phase = {where[1]:.6g}; "
+        f"{grid_wall:.1f} s"
+    )
     problem = opt.make_problem(base(), LAGS)
     walls, counts, gaps = [], [], []
     for seed in range(args.seeds):
@@ -93,53 +95,84 @@ def measure(args, free: list[str]) -> None:
         counts.append(len(result.evaluations))
         gaps.append(gap)
         x = result.best_point.x
-        print(f"  seed {seed}: v0 {result.value!r} at ({x[0]:.9f}, {x[1]:.9f}), "
-              f"v0 - grid max = {gap:+.3e}, {len(result.evaluations)} evaluations "
-              f"({result.stage_counts()['polish']} polish), {result.wall_time:.1f} s")
-    print(f"optimize: {sum(g > -1e-4 for g in gaps)} of {args.seeds} seeds within 1e-4 of the "
-          f"grid maximum (or above it); median {statistics.median(counts):.0f} evaluations = "
-          f"{statistics.median(counts) / size:.3f} of the grid's (allowed: 0.2); median wall "
-          f"time {statistics.median(walls):.1f} s against {grid_wall:.1f} s for the grid "
-          f"(ratio {statistics.median(walls) / grid_wall:.3f})")
+        print(
+            f"  seed {seed}: v0 {result.value!r} at ({x[0]:.9f}, {x[1]:.9f}), "
+            f"v0 - grid max = {gap:+.3e}, {len(result.evaluations)} evaluations "
+            f"({result.stage_counts()['polish']} polish), {result.wall_time:.1f} s"
+        )
+    print(
+        f"optimize: {sum(g > -1e-4 for g in gaps)} of {args.seeds} seeds within 1e-4 of the "
+        f"grid maximum (or above it); median {statistics.median(counts):.0f} evaluations = "
+        f"{statistics.median(counts) / size:.3f} of the grid's (allowed: 0.2); median wall "
+        f"time {statistics.median(walls):.1f} s against {grid_wall:.1f} s for the grid "
+        f"(ratio {statistics.median(walls) / grid_wall:.3f})"
+    )
 
     # 2. --jobs
     if args.jobs > 1:
         one = opt.optimize(problem, opt.Method(seed=0))
         many = opt.optimize(problem, opt.Method(seed=0), jobs=args.jobs)
         assert many.best_point.x == one.best_point.x and many.value == one.value
-        print(f"-j 1: {one.wall_time:.1f} s, -j {args.jobs}: {many.wall_time:.1f} s, ratio "
-              f"{many.wall_time / one.wall_time:.2f} (same best point, bit for bit)")
+        print(
+            f"-j 1: {one.wall_time:.1f} s, -j {args.jobs}: {many.wall_time:.1f} s, ratio "
+            f"{many.wall_time / one.wall_time:.2f} (same best point, bit for bit)"
+        )
 
     # 3. phase lags and amplitude
     fast = opt.optimize(opt.make_problem(base(), free), opt.Method(seed=0), jobs=args.jobs)
-    print(f"max v0 over lags and amplitude: v0 {fast.value!r}, cost of transport "
-          f"{fast.best_point.row.cost_of_transport!r} at {fast.best_values}; "
-          f"{len(fast.evaluations)} evaluations, {fast.wall_time:.1f} s")
-    cheap = opt.optimize(opt.make_problem(base(), free,
-                                          objective=opt.Objective("cost_of_transport",
-                                                                  "minimize"),
-                                          constraints=["v0>=0.3"]),
-                         opt.Method(seed=0), jobs=args.jobs)
+    print(
+        f"max v0 over lags and amplitude: v0 {fast.value!r}, cost of transport "
+        f"{fast.best_point.row.cost_of_transport!r} at {fast.best_values}; "
+        f"{len(fast.evaluations)} evaluations, {fast.wall_time:.1f} s"
+    )
+    cheap = opt.optimize(
+        opt.make_problem(
+            base(), free, objective=opt.Objective("cost_of_transport", "minimize"), constraints=["v0>=0.3"]
+        ),
+        opt.Method(seed=0),
+        jobs=args.jobs,
+    )
     row = cheap.best_point.row
-    print(f"min cost of transport at v0 >= 0.3: {row.cost_of_transport!r} (v0 {row.v0!r}) at "
-          f"{cheap.best_values}; {len(cheap.evaluations)} evaluations, "
-          f"{cheap.wall_time:.1f} s; lower bound sum_j mu_j^+ = 4 (docs/optimize.md)")
-
+    print(
+        f"min cost of transport at v0 >= 0.3: {row.cost_of_transport!r} (v0 {row.v0!r}) at "
+        f"{cheap.best_values}; {len(cheap.evaluations)} evaluations, "
+        f"{cheap.wall_time:.1f} s; lower bound sum_j mu_j^+ = 4 (docs/optimize.md)"
+    )
 
 
 def figures(args, free: list[str]) -> None:
     out = ROOT / "docs" / "figures"
     with tempfile.TemporaryDirectory() as work:
         four = str(Path(work) / "optimize-four-block.h5")
-        cli("optimize", str(GAIT), *sum((["--free", f] for f in free), []),
-            "--steps-per-period", str(STEPS), "-j", str(args.jobs), "-q", "-o", four)
+        cli(
+            "optimize",
+            str(GAIT),
+            *sum((["--free", f] for f in free), []),
+            "--steps-per-period",
+            str(STEPS),
+            "-j",
+            str(args.jobs),
+            "-q",
+            "-o",
+            four,
+        )
         cli("plot", four, "-o", str(out))
         front = str(Path(work) / "optimize-four-block-cost.h5")
-        cli("optimize", str(GAIT), *sum((["--free", f] for f in free), []), "--pareto",
-            "--steps-per-period", str(STEPS), "-j", str(args.jobs), "-q", "-o", front)
+        cli(
+            "optimize",
+            str(GAIT),
+            *sum((["--free", f] for f in free), []),
+            "--pareto",
+            "--steps-per-period",
+            str(STEPS),
+            "-j",
+            str(args.jobs),
+            "-q",
+            "-o",
+            front,
+        )
         cli("plot", front, "-o", str(out), "--only", "pareto-front")
-    print(f"figures: {out}/optimize-four-block-objective.png, "
-          f"{out}/optimize-four-block-cost-pareto-front.png")
+    print(f"figures: {out}/optimize-four-block-objective.png, {out}/optimize-four-block-cost-pareto-front.png")
 
 
 if __name__ == "__main__":

@@ -67,11 +67,16 @@ def first_within(result: OptimizationResult, target: float, tol: float) -> int |
 
 
 def wave(blocks: int) -> crawlsim.Gait:
-    links = [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": i / (blocks - 1)}
-             for i in range(blocks - 1)]
-    doc = {"name": f"wave-{blocks}", "blocks": blocks, "period": 1.0, "stiffness": 10.0,
-           "links": links, "friction": {"forward": 1.0, "backward": 2.0},
-           "simulation": {"steps_per_period": 20, "max_periods": 1000, "tolerance": 1e-12}}
+    links = [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": i / (blocks - 1)} for i in range(blocks - 1)]
+    doc = {
+        "name": f"wave-{blocks}",
+        "blocks": blocks,
+        "period": 1.0,
+        "stiffness": 10.0,
+        "links": links,
+        "friction": {"forward": 1.0, "backward": 2.0},
+        "simulation": {"steps_per_period": 20, "max_periods": 1000, "tolerance": 1e-12},
+    }
     gait = gait_from_document(doc, f"wave-{blocks}")
     assert isinstance(gait, crawlsim.Gait)
     return gait
@@ -105,12 +110,15 @@ def two_lags() -> None:
     for search in ("evolution", "gradient"):
         result, wall, _ = timed(problem, Method(search=search))
         counts[search] = first_within(result, OPTIMUM, 1e-6)
-        print(f"  {search:<10} v0 {result.value!r} at {tuple(result.best_point.x)}, within 1e-6 "
-              f"at evaluation {counts[search]}, {len(result.evaluations)} evaluations, "
-              f"{wall:.2f} s")
+        print(
+            f"  {search:<10} v0 {result.value!r} at {tuple(result.best_point.x)}, within 1e-6 "
+            f"at evaluation {counts[search]}, {len(result.evaluations)} evaluations, "
+            f"{wall:.2f} s"
+        )
     if counts["evolution"] and counts["gradient"]:
-        print(f"  evaluations to 1e-6: gradient / evolution = "
-              f"{counts['gradient'] / counts['evolution']:.3f} (bar <= 0.2)")
+        print(
+            f"  evaluations to 1e-6: gradient / evolution = {counts['gradient'] / counts['evolution']:.3f} (bar <= 0.2)"
+        )
 
 
 def ten_lags(budget: int) -> None:
@@ -119,22 +127,20 @@ def ten_lags(budget: int) -> None:
     problem = make_problem(wave(11), [f"links.{i}.phase=0:1" for i in range(10)])
     print(f"ten lags, 11-block wave, budget {budget}")
     evolution, t_evolution, _ = timed(problem, Method(max_evaluations=budget))
-    print(f"  evolution  v0 {evolution.value!r}, {len(evolution.evaluations)} evaluations, "
-          f"{t_evolution:.1f} s")
-    gradient, t_gradient, line = timed(problem, Method(search="gradient",
-                                                       max_evaluations=budget))
+    print(f"  evolution  v0 {evolution.value!r}, {len(evolution.evaluations)} evaluations, {t_evolution:.1f} s")
+    gradient, t_gradient, line = timed(problem, Method(search="gradient", max_evaluations=budget))
     within = best_at(line, t_evolution)
-    print(f"  gradient   v0 {gradient.value!r}, {len(gradient.evaluations)} evaluations, "
-          f"{t_gradient:.1f} s; within the evolution's {t_evolution:.1f} s: v0 {within!r}")
-    print(f"  gradient - evolution v0 at the same wall time = {within - evolution.value:.3e} "
-          "(bar > 0)")
+    print(
+        f"  gradient   v0 {gradient.value!r}, {len(gradient.evaluations)} evaluations, "
+        f"{t_gradient:.1f} s; within the evolution's {t_evolution:.1f} s: v0 {within!r}"
+    )
+    print(f"  gradient - evolution v0 at the same wall time = {within - evolution.value:.3e} (bar > 0)")
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true")
-    parser.add_argument("--budget", type=int, default=550,
-                        help="evaluations of each search on the ten-lag problem")
+    parser.add_argument("--budget", type=int, default=550, help="evaluations of each search on the ten-lag problem")
     args = parser.parse_args()
     two_lags()
     if not args.quick:

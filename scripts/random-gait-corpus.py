@@ -62,30 +62,42 @@ def run_one(gait, integrator: str, steps: int, timeout: float) -> dict:
     signal.signal(signal.SIGALRM, _alarm)
     signal.setitimer(signal.ITIMER_REAL, timeout)
     try:
-        r = simulate(process, max_periods=gait.simulation.max_periods,
-                     tolerance=gait.simulation.tolerance, integrator=integrator, history=False)
+        r = simulate(
+            process,
+            max_periods=gait.simulation.max_periods,
+            tolerance=gait.simulation.tolerance,
+            integrator=integrator,
+            history=False,
+        )
     except _Overtime:
-        return {"exit": TIMEOUT, "message": f"stopped after {timeout:g} s",
-                "time": time.perf_counter() - began}
+        return {"exit": TIMEOUT, "message": f"stopped after {timeout:g} s", "time": time.perf_counter() - began}
     except InputError as exc:
         return {"exit": 2, "message": str(exc), "time": time.perf_counter() - began}
     except CrawlsimError as exc:
         return {"exit": 1, "message": str(exc), "time": time.perf_counter() - began}
     except Exception as exc:  # a crash: the CLI would exit 1 with a traceback
-        return {"exit": 1, "message": f"crash: {type(exc).__name__}: {exc}",
-                "time": time.perf_counter() - began}
+        return {"exit": 1, "message": f"crash: {type(exc).__name__}: {exc}", "time": time.perf_counter() - began}
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0.0)
-    return {"exit": 0 if r.converged else 3, "v0": r.v0, "periods": r.periods,
-            "convergence": str(r.convergence), "time": time.perf_counter() - began}
+    return {
+        "exit": 0 if r.converged else 3,
+        "v0": r.v0,
+        "periods": r.periods,
+        "convergence": str(r.convergence),
+        "time": time.perf_counter() - began,
+    }
 
 
 def corpus_gait(seed: int, args):
     """Three gaits in four have N <= 12, the rest up to ``--max-blocks``."""
     small = seed % 4 != 0
-    return random_gait(seed, blocks=(2, min(12, args.max_blocks)) if small else
-                       (2, args.max_blocks), loads=args.loads,
-                       stiffness_ratio=args.stiffness_ratio, friction_ratio=args.friction_ratio)
+    return random_gait(
+        seed,
+        blocks=(2, min(12, args.max_blocks)) if small else (2, args.max_blocks),
+        loads=args.loads,
+        stiffness_ratio=args.stiffness_ratio,
+        friction_ratio=args.friction_ratio,
+    )
 
 
 def summary(rows: list[dict], steps: int, timeout: float) -> int:
@@ -95,45 +107,59 @@ def summary(rows: list[dict], steps: int, timeout: float) -> int:
     for integrator in ("catch-up", "exact"):
         exits = [r[integrator]["exit"] for r in rows]
         slowest = max(r[integrator]["time"] for r in rows)
-        print(f"{integrator:9s}: {exits.count(0)} converged, {exits.count(3)} not converged, "
-              f"{exits.count(2)} refused (exit 2), {exits.count(1)} internal failures (exit 1), "
-              f"{exits.count(TIMEOUT)} over {timeout:g} s; slowest run {slowest:.2f} s")
+        print(
+            f"{integrator:9s}: {exits.count(0)} converged, {exits.count(3)} not converged, "
+            f"{exits.count(2)} refused (exit 2), {exits.count(1)} internal failures (exit 1), "
+            f"{exits.count(TIMEOUT)} over {timeout:g} s; slowest run {slowest:.2f} s"
+        )
         bad += exits.count(1) + exits.count(TIMEOUT)
         for r in rows:
             if r[integrator]["exit"] in (1, 2, TIMEOUT):
-                print(f"    seed {r['seed']} (N {r['blocks']}): "
-                      f"{r[integrator]['message'][:300]}")
+                print(f"    seed {r['seed']} (N {r['blocks']}): {r[integrator]['message'][:300]}")
     both = [r for r in rows if "v0" in r["catch-up"] and "v0" in r["exact"]]
     if both:
-        ratio = [abs(r["catch-up"]["v0"] - r["exact"]["v0"]) * steps
-                 / max(r["stroke_velocity"], 1e-300) for r in both]
+        ratio = [abs(r["catch-up"]["v0"] - r["exact"]["v0"]) * steps / max(r["stroke_velocity"], 1e-300) for r in both]
         above = sum(q > 1.0 for q in ratio)
-        print(f"|dv0| G / V over {len(both)} gaits: max {max(ratio):.3f}, median "
-              f"{statistics.median(ratio):.3f} (catch-up's error is first order in 1/G, so "
-              f"this stays of order 1; above 1 on {above})")
+        print(
+            f"|dv0| G / V over {len(both)} gaits: max {max(ratio):.3f}, median "
+            f"{statistics.median(ratio):.3f} (catch-up's error is first order in 1/G, so "
+            f"this stays of order 1; above 1 on {above})"
+        )
     timed = [r["exact"]["time"] / r["catch-up"]["time"] for r in both if r["blocks"] <= 12]
     if timed:
-        print(f"exact / catch-up time, N <= 12, {len(timed)} gaits: max {max(timed):.2f}, "
-              f"median {statistics.median(timed):.2f}")
+        print(
+            f"exact / catch-up time, N <= 12, {len(timed)} gaits: max {max(timed):.2f}, "
+            f"median {statistics.median(timed):.2f}"
+        )
     return bad
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--size", "--count", dest="size", type=int, default=CI_SIZE,
-                        help=f"number of gaits (default {CI_SIZE}, the CI size)")
+    parser.add_argument(
+        "--size",
+        "--count",
+        dest="size",
+        type=int,
+        default=CI_SIZE,
+        help=f"number of gaits (default {CI_SIZE}, the CI size)",
+    )
     parser.add_argument("--first", type=int, default=0, help="first seed")
     parser.add_argument("--steps", type=int, default=1000, help="steps per period")
     parser.add_argument("--max-blocks", type=int, default=40)
-    parser.add_argument("--stiffness-ratio", type=float, default=1e6,
-                        help="largest ratio of a link's stiffness to the smallest draw")
-    parser.add_argument("--friction-ratio", type=float, default=1e3,
-                        help="largest forward/backward friction ratio, either way")
-    parser.add_argument("--timeout", type=float, default=60.0,
-                        help="seconds after which a run is stopped and counted as a failure")
+    parser.add_argument(
+        "--stiffness-ratio", type=float, default=1e6, help="largest ratio of a link's stiffness to the smallest draw"
+    )
+    parser.add_argument(
+        "--friction-ratio", type=float, default=1e3, help="largest forward/backward friction ratio, either way"
+    )
+    parser.add_argument(
+        "--timeout", type=float, default=60.0, help="seconds after which a run is stopped and counted as a failure"
+    )
     parser.add_argument("--jsonl", help="also write one JSON line per gait to this file")
-    parser.add_argument("--loads", action="store_true",
-                        help="add random loads and slopes (docs/model.md §6) to every gait")
+    parser.add_argument(
+        "--loads", action="store_true", help="add random loads and slopes (docs/model.md §6) to every gait"
+    )
     args = parser.parse_args()
     out = open(args.jsonl, "w") if args.jsonl else None
     rows = []
@@ -143,14 +169,16 @@ def main() -> int:
         for integrator in ("catch-up", "exact"):
             row[integrator] = run_one(gait, integrator, args.steps, args.timeout)
         L = compile_gait(gait, args.steps).lengths
-        row["stroke_velocity"] = float(np.max(L.max(axis=0) - L.min(axis=0), initial=0.0)
-                                       / gait.period)
+        row["stroke_velocity"] = float(np.max(L.max(axis=0) - L.min(axis=0), initial=0.0) / gait.period)
         rows.append(row)
         a, b = row["catch-up"], row["exact"]
         dv = abs(a["v0"] - b["v0"]) if "v0" in a and "v0" in b else float("nan")
-        print(f"seed {seed:4d}  N {gait.blocks:3d}  catch-up exit {a['exit']} "
-              f"{a['time']:7.3f} s   exact exit {b['exit']} {b['time']:7.3f} s   "
-              f"|dv0| {dv:.2e}", flush=True)
+        print(
+            f"seed {seed:4d}  N {gait.blocks:3d}  catch-up exit {a['exit']} "
+            f"{a['time']:7.3f} s   exact exit {b['exit']} {b['time']:7.3f} s   "
+            f"|dv0| {dv:.2e}",
+            flush=True,
+        )
         if out:
             out.write(json.dumps(row) + "\n")
             out.flush()

@@ -19,14 +19,17 @@ from hypothesis import HealthCheck, settings
 
 from crawlsim.gait.document import parse_gait
 
-settings.register_profile("ci", derandomize=True, database=None, deadline=None,
-                          print_blob=True, suppress_health_check=[HealthCheck.too_slow])
+settings.register_profile(
+    "ci", derandomize=True, database=None, deadline=None, print_blob=True, suppress_health_check=[HealthCheck.too_slow]
+)
 # "seeded": Hypothesis's own example count, drawn from --hypothesis-seed (the check that the
 # suite holds under any seed: pytest --hypothesis-seed=N with HYPOTHESIS_PROFILE=seeded)
-settings.register_profile("seeded", derandomize=False, deadline=None, database=None,
-                          suppress_health_check=[HealthCheck.too_slow])
-settings.register_profile("explore", derandomize=False, deadline=None, max_examples=400,
-                          suppress_health_check=[HealthCheck.too_slow])
+settings.register_profile(
+    "seeded", derandomize=False, deadline=None, database=None, suppress_health_check=[HealthCheck.too_slow]
+)
+settings.register_profile(
+    "explore", derandomize=False, deadline=None, max_examples=400, suppress_health_check=[HealthCheck.too_slow]
+)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 
@@ -51,7 +54,9 @@ def make_gait(doc: dict, source: str = "<test>"):
 def two_block(amplitude=0.3, k=10.0, friction=None, steps=200, max_periods=20, **extra):
     """Two blocks, one link L(t) = 1 + amplitude cos(2 pi t / T)."""
     doc = {
-        "blocks": 2, "period": 1.0, "stiffness": k,
+        "blocks": 2,
+        "period": 1.0,
+        "stiffness": k,
         "links": [{"kind": "cosine", "mean": 1.0, "amplitude": amplitude}],
         "friction": friction or {"forward": 1.0, "backward": 2.0},
         "simulation": {"steps_per_period": steps, "max_periods": max_periods},
@@ -78,15 +83,27 @@ def compiled_kernel():
     gait = load_gait(GAITS / "inching-2.yaml")
     for integrator in ("catch-up", "exact"):
         simulate(with_simulation(gait, integrator=integrator, steps_per_period=20, max_periods=3))
-        sensitivity(with_simulation(gait, integrator=integrator, steps_per_period=20),
-                    "stiffness")
+        sensitivity(with_simulation(gait, integrator=integrator, steps_per_period=20), "stiffness")
     # the installed command may import another copy of crawlsim than the tests do (pytest run
     # from a checkout with a non-editable install): numba caches each copy's kernel apart
     command = shutil.which("crawlsim", path=str(Path(sys.executable).parent))
     if command is not None:
         with tempfile.TemporaryDirectory() as folder:
             for integrator in ("catch-up", "exact"):
-                subprocess.run([command, "velocity", str(GAITS / "inching-2.yaml"),
-                                "--integrator", integrator, "--steps-per-period", "20",
-                                "--sensitivity", "stiffness"], cwd=folder, capture_output=True,
-                               timeout=1800, check=False)
+                subprocess.run(
+                    [
+                        command,
+                        "velocity",
+                        str(GAITS / "inching-2.yaml"),
+                        "--integrator",
+                        integrator,
+                        "--steps-per-period",
+                        "20",
+                        "--sensitivity",
+                        "stiffness",
+                    ],
+                    cwd=folder,
+                    capture_output=True,
+                    timeout=1800,
+                    check=False,
+                )

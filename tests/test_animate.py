@@ -98,14 +98,17 @@ def test_periods_and_frames(p4, tmp_path):
     assert parse_periods("3:7") == (3, 7)
 
 
-@pytest.mark.parametrize("args, words", [
-    (["--periods", "0:9"], "the run holds 2 periods"),
-    (["--periods", "2:1"], "0 <= A < B"),
-    (["--periods", "a:b"], "expected A:B"),
-    (["-o", "{tmp}/crawl.avi"], "written as .gif or .mp4"),
-    (["--fps", "0"], "--fps"),
-    (["--frames-per-period", "1"], "--frames-per-period"),
-])
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (["--periods", "0:9"], "the run holds 2 periods"),
+        (["--periods", "2:1"], "0 <= A < B"),
+        (["--periods", "a:b"], "expected A:B"),
+        (["-o", "{tmp}/crawl.avi"], "written as .gif or .mp4"),
+        (["--fps", "0"], "--fps"),
+        (["--frames-per-period", "1"], "--frames-per-period"),
+    ],
+)
 def test_bad_requests_exit_2_and_write_nothing(p4, tmp_path, args, words):
     args = [a.format(tmp=tmp_path) for a in args]
     if "-o" not in args:
@@ -178,8 +181,7 @@ def test_length_panel_legend_names_its_artists(p4, tmp_path):
     from .test_plotting import wave_file
 
     assert _length_legend(read_results(p4)) == ["link $z_i$", "actuator $L_i$"]
-    assert _length_legend(read_results(wave_file(tmp_path, 41))) == ["link $z_i$",
-                                                                      "actuator $L_i$"]
+    assert _length_legend(read_results(wave_file(tmp_path, 41))) == ["link $z_i$", "actuator $L_i$"]
 
 
 def test_animation_of_a_result_object(p4, tmp_path):
@@ -190,10 +192,8 @@ def test_animation_of_a_result_object(p4, tmp_path):
 
     gait = with_simulation(load_gait(GAITS / "peristalsis-4.yaml"), steps_per_period=200)
     result = api.simulate(gait)
-    ours, stored = (animation_frames(run_data(result), None, 8),
-                    animation_frames(read_results(p4), None, 8))
+    ours, stored = (animation_frames(run_data(result), None, 8), animation_frames(read_results(p4), None, 8))
     for name in ("t", "x", "stress", "lengths", "slip"):
-        np.testing.assert_allclose(getattr(ours, name), getattr(stored, name), rtol=1e-12,
-                                   atol=1e-12, err_msg=name)
+        np.testing.assert_allclose(getattr(ours, name), getattr(stored, name), rtol=1e-12, atol=1e-12, err_msg=name)
     path, count = write_animation(result, tmp_path / "r.gif", frames_per_period=8)
     assert count == 8 and len(frames_of(path)) == 8

@@ -42,27 +42,35 @@ def test_load_gait_is_immutable_and_replace_returns_a_new_validated_gait():
     assert pairs.document["links"][1]["phase"] == 0.25
     steps = gait.replace("simulation.steps_per_period", 300.0)
     assert steps.simulation.steps_per_period == 300 and isinstance(
-        steps.document["simulation"]["steps_per_period"], int)
+        steps.document["simulation"]["steps_per_period"], int
+    )
 
 
 def test_replace_edits_exactly_as_a_sweep_point():
     """The same path syntax, the same edit: the document of a one-point sweep grid."""
     gait = crawlsim.load_gait(P4)
-    for path, value in (("links.*.amplitude", 0.25), ("friction.backward", 2.5),
-                        ("links.2.phase", 0.5), ("stiffness", 12)):
+    for path, value in (
+        ("links.*.amplitude", 0.25),
+        ("friction.backward", 2.5),
+        ("links.2.phase", 0.5),
+        ("stiffness", 12),
+    ):
         grid = make_grid(gait, [Axis(path, (value,))])
         assert gait.replace(path, value).document == grid.document(0)
 
 
-@pytest.mark.parametrize("args, error, message", [
-    (("links.*.amplitud", 0.2), GaitError, "did you mean 'amplitude'"),
-    (("links.7.phase", 0.2), GaitError, "index 7 is out of range"),
-    (("links", 0.2), GaitError, "not a number"),
-    (("friction.forward", -1.0), GaitError, "friction must be positive"),
-    (("links.*.amplitude", 0.2, "links.1.amplitude", 0.3), GaitError, "set each value once"),
-    (("period",), TypeError, "path, value pairs"),
-    ((3, 0.2), TypeError, "dotted string"),
-])
+@pytest.mark.parametrize(
+    "args, error, message",
+    [
+        (("links.*.amplitud", 0.2), GaitError, "did you mean 'amplitude'"),
+        (("links.7.phase", 0.2), GaitError, "index 7 is out of range"),
+        (("links", 0.2), GaitError, "not a number"),
+        (("friction.forward", -1.0), GaitError, "friction must be positive"),
+        (("links.*.amplitude", 0.2, "links.1.amplitude", 0.3), GaitError, "set each value once"),
+        (("period",), TypeError, "path, value pairs"),
+        ((3, 0.2), TypeError, "dotted string"),
+    ],
+)
 def test_replace_refuses_bad_changes_naming_them(args, error, message):
     gait = crawlsim.load_gait(P4)
     with pytest.raises(error, match=re.escape(message)) as info:
@@ -83,8 +91,7 @@ def test_simulate_keeps_the_trajectory_and_matches_the_closed_form():
     assert tr.t.shape == (r.periods * 20 + 1,) and tr.x.shape == (len(tr.t), 2)
     np.testing.assert_allclose(np.diff(tr.t), 0.05, rtol=1e-12)
     L = 1 + 0.25 * np.cos(2 * np.pi * tr.t)
-    np.testing.assert_allclose(tr.stress[:, 0], 10 * (L - (tr.x[:, 1] - tr.x[:, 0])),
-                               atol=1e-12)
+    np.testing.assert_allclose(tr.stress[:, 0], 10 * (L - (tr.x[:, 1] - tr.x[:, 0])), atol=1e-12)
     np.testing.assert_allclose(tr.shape[:, 0], tr.x[:, 1] - tr.x[:, 0], atol=1e-15)
     assert tr.reaction is None and tr.events is None
     exact = crawlsim.simulate(gait, integrator="exact", steps_per_period=40)
@@ -104,10 +111,13 @@ def test_keeping_the_trajectory_changes_no_number():
     assert cli.v0 == kept.v0
 
 
-@pytest.mark.parametrize("path, save_every, integrator", [
-    (GAITS / "smooth-friction-3.yaml", 1, "exact"),  # /events
-    (GAITS / "paper" / "triangle.yaml", 3, "catch-up"),  # reactions summed over 3 steps
-])
+@pytest.mark.parametrize(
+    "path, save_every, integrator",
+    [
+        (GAITS / "smooth-friction-3.yaml", 1, "exact"),  # /events
+        (GAITS / "paper" / "triangle.yaml", 3, "catch-up"),  # reactions summed over 3 steps
+    ],
+)
 def test_simulate_writes_no_hdf5_until_asked(monkeypatch, path, save_every, integrator):
     """`simulate` keeps its results in memory: no HDF5 file is opened while it runs, and the
     file written later, when `image` is asked for, holds exactly the trajectory (and events)
@@ -119,8 +129,7 @@ def test_simulate_writes_no_hdf5_until_asked(monkeypatch, path, save_every, inte
 
     opened = h5py.File
     monkeypatch.setattr(h5py, "File", refuse)
-    result = crawlsim.simulate(path, steps_per_period=60, integrator=integrator,
-                               save_every=save_every)
+    result = crawlsim.simulate(path, steps_per_period=60, integrator=integrator, save_every=save_every)
     monkeypatch.setattr(h5py, "File", opened)
     data = read_results(io.BytesIO(result.image))
     t = result.trajectory
@@ -180,22 +189,21 @@ def test_sweep_returns_a_dataset_on_the_grid():
     pytest.importorskip("h5netcdf")
     gait = crawlsim.load_gait(P4)
     amplitudes, phases = [0.2, 0.3], [0.25, 0.5, 0.75]
-    grid = crawlsim.sweep(gait, {"links.*.amplitude": amplitudes, "links.1.phase": phases},
-                          steps_per_period=80)
+    grid = crawlsim.sweep(gait, {"links.*.amplitude": amplitudes, "links.1.phase": phases}, steps_per_period=80)
     assert grid.v0.dims == ("links_all_amplitude", "links_1_phase")
     assert grid.links_1_phase.attrs["path"] == "links.1.phase"
     np.testing.assert_array_equal(grid.links_all_amplitude.values, amplitudes)
     assert (grid.status.values == 0).all() and (grid.message.values == "").all()
     for i, a in enumerate(amplitudes):
         for j, p in enumerate(phases):
-            single = crawlsim.simulate(gait.replace("links.*.amplitude", a, "links.1.phase", p),
-                                       steps_per_period=80, keep_trajectory=False)
+            single = crawlsim.simulate(
+                gait.replace("links.*.amplitude", a, "links.1.phase", p), steps_per_period=80, keep_trajectory=False
+            )
             assert float(grid.v0[i, j]) == pytest.approx(single.v0, abs=1e-12)
     assert grid.attrs["command_line"].startswith("crawlsim.sweep(")
     assert "steps_per_period: 80" in grid.attrs["gait_yaml"]
     assert grid.attrs["integrator"] == "exact"  # the integrator every point ran
-    catch_up = crawlsim.sweep(gait, {"links.*.amplitude": amplitudes}, steps_per_period=80,
-                              integrator="catch-up")
+    catch_up = crawlsim.sweep(gait, {"links.*.amplitude": amplitudes}, steps_per_period=80, integrator="catch-up")
     assert catch_up.attrs["integrator"] == "catch-up"
 
 
@@ -205,8 +213,9 @@ def test_sweep_without_xarray_returns_the_table(monkeypatch, tmp_path):
 
     monkeypatch.setattr(api, "_xarray", missing)
     out = tmp_path / "s.h5"
-    table = crawlsim.sweep(crawlsim.load_gait(INCHING), {"links.0.amplitude": [0.2, 0.3]},
-                           steps_per_period=20, output=out)
+    table = crawlsim.sweep(
+        crawlsim.load_gait(INCHING), {"links.0.amplitude": [0.2, 0.3]}, steps_per_period=20, output=out
+    )
     assert isinstance(table, crawlsim.study.sweep.SweepTable)
     np.testing.assert_allclose(table.columns()["v0"], [0.2, 0.4], atol=1e-13)
     assert out.exists()
@@ -223,25 +232,25 @@ def test_crawlsim_sweep_and_sensitivity_are_functions_with_signatures():
     their own docstrings), whichever of the package and the module `crawlsim.study.sweep` was
     imported first (checked in a fresh interpreter for each order)."""
     for first in ("import crawlsim.study.sweep", "import crawlsim"):
-        code = (f"{first}\nimport crawlsim, inspect, types\n"
-                "import crawlsim.api as api\n"
-                "assert crawlsim.sweep is api.sweep and crawlsim.sensitivity is api.sensitivity\n"
-                "import importlib\n"
-                "assert isinstance(importlib.import_module('crawlsim.study.sweep'), types.ModuleType)\n"
-                "for f in (crawlsim.sweep, crawlsim.sensitivity):\n"
-                "    params = inspect.signature(f).parameters\n"
-                "    assert 'gait' in params, params\n"
-                "    assert not any(p.kind is p.VAR_POSITIONAL for p in params.values())\n"
-                "    assert f.__doc__ and 'module' not in f.__doc__.splitlines()[0]\n")
-        done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                              check=False)
+        code = (
+            f"{first}\nimport crawlsim, inspect, types\n"
+            "import crawlsim.api as api\n"
+            "assert crawlsim.sweep is api.sweep and crawlsim.sensitivity is api.sensitivity\n"
+            "import importlib\n"
+            "assert isinstance(importlib.import_module('crawlsim.study.sweep'), types.ModuleType)\n"
+            "for f in (crawlsim.sweep, crawlsim.sensitivity):\n"
+            "    params = inspect.signature(f).parameters\n"
+            "    assert 'gait' in params, params\n"
+            "    assert not any(p.kind is p.VAR_POSITIONAL for p in params.values())\n"
+            "    assert f.__doc__ and 'module' not in f.__doc__.splitlines()[0]\n"
+        )
+        done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
         assert done.returncode == 0, done.stderr
 
 
 def test_import_crawlsim_stays_light():
     code = "import sys, crawlsim\nassert 'numpy' not in sys.modules, 'numpy'\nprint(crawlsim.__all__)"
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          check=False)
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=False)
     assert done.returncode == 0, done.stderr
     assert "simulate" in done.stdout and "load_gait" in done.stdout
 
@@ -277,8 +286,7 @@ def test_the_study_in_the_docs_runs_and_says_what_it_finds(tmp_path, monkeypatch
     amp = v0.links_all_amplitude.values
     still = v0.sel(lag=0.0, method="nearest").values
     assert np.all(np.abs(still[amp <= 0.2 + 1e-12]) < 1e-12)
-    np.testing.assert_allclose(still[amp > 0.2 + 1e-12], 2 * amp[amp > 0.2 + 1e-12] - 0.4,
-                               atol=1e-9)
+    np.testing.assert_allclose(still[amp > 0.2 + 1e-12], 2 * amp[amp > 0.2 + 1e-12] - 0.4, atol=1e-9)
     moving = v0.sel(lag=v0.lag[v0.lag > 0])
     assert np.all(moving.sel(links_all_amplitude=amp[amp >= 0.15]).values > 1e-3)
     assert abs(float(v0.sel(lag=0.1, links_all_amplitude=0.1, method="nearest"))) < 5e-5

@@ -61,29 +61,48 @@ def refused(folder, *args: str, phrase: str) -> str:
 OPT = ("optimize", "g.yaml", "--free", "links.0.phase=0:1", "--max-evaluations", "4")
 
 
-@pytest.mark.parametrize("args, phrase", [
-    (("run", "g.yaml", "--save-every", "99999999999999999999999"), "--save-every"),
-    (("velocity", "g.yaml", "--sweep", "period=1:2:9999999999999999999"), "at most 1,000,000"),
-    (("velocity", "g.yaml", "--sweep", "period=1:2:2000", "--sweep", "stiffness=1:2:2000"),
-     "the grid has 4,000,000 points"),
-    # (without the dask extra, "Dask is not installed": see the test below for the address)
-    (("velocity", "g.yaml", "--sweep", "period=1,2", "--scheduler", "notaurl"),
-     "--scheduler notaurl: "),
-    ((*OPT, "--scheduler", "notaurl"), "--scheduler notaurl: "),
-    ((*OPT, "--seed", str(2**70)), "--seed"),
-    (("run", "g.yaml", "-o", "nosuchdir/../x.h5"), "nosuchdir does not exist"),
-    (("velocity", "g.yaml", "--sweep", "period=1,2", "-o", "nosuchdir/../x.csv"),
-     "nosuchdir does not exist"),
-    ((*OPT, "-o", "nosuchdir/../x.h5"), "nosuchdir does not exist"),
-    ((*OPT, "--write-best", "nosuchdir/../best.yaml"), "nosuchdir does not exist"),
-    ((*OPT, "--write-best", "g.yaml"), "is the input file g.yaml"),
-    ((*OPT, "--write-best", "./g.yaml"), "is the input file g.yaml"),
-    ((*OPT, "-o", "o.h5", "--write-best", "o.h5"), "is the input file o.h5"),
-    (("velocity", "g.yaml", "--sweep", "period=1,2", "-o", "t.csv", "--plot", "t.csv"),
-     "is also the --output file"),
-], ids=["save-every", "sweep-num", "grid-size", "scheduler", "optimize-scheduler", "seed-2**70",
-        "run-dotdot", "velocity-dotdot", "optimize-dotdot", "write-best-dotdot",
-        "write-best-input", "write-best-input-path", "write-best-output", "plot-is-output"])
+@pytest.mark.parametrize(
+    "args, phrase",
+    [
+        (("run", "g.yaml", "--save-every", "99999999999999999999999"), "--save-every"),
+        (("velocity", "g.yaml", "--sweep", "period=1:2:9999999999999999999"), "at most 1,000,000"),
+        (
+            ("velocity", "g.yaml", "--sweep", "period=1:2:2000", "--sweep", "stiffness=1:2:2000"),
+            "the grid has 4,000,000 points",
+        ),
+        # (without the dask extra, "Dask is not installed": see the test below for the address)
+        (("velocity", "g.yaml", "--sweep", "period=1,2", "--scheduler", "notaurl"), "--scheduler notaurl: "),
+        ((*OPT, "--scheduler", "notaurl"), "--scheduler notaurl: "),
+        ((*OPT, "--seed", str(2**70)), "--seed"),
+        (("run", "g.yaml", "-o", "nosuchdir/../x.h5"), "nosuchdir does not exist"),
+        (("velocity", "g.yaml", "--sweep", "period=1,2", "-o", "nosuchdir/../x.csv"), "nosuchdir does not exist"),
+        ((*OPT, "-o", "nosuchdir/../x.h5"), "nosuchdir does not exist"),
+        ((*OPT, "--write-best", "nosuchdir/../best.yaml"), "nosuchdir does not exist"),
+        ((*OPT, "--write-best", "g.yaml"), "is the input file g.yaml"),
+        ((*OPT, "--write-best", "./g.yaml"), "is the input file g.yaml"),
+        ((*OPT, "-o", "o.h5", "--write-best", "o.h5"), "is the input file o.h5"),
+        (
+            ("velocity", "g.yaml", "--sweep", "period=1,2", "-o", "t.csv", "--plot", "t.csv"),
+            "is also the --output file",
+        ),
+    ],
+    ids=[
+        "save-every",
+        "sweep-num",
+        "grid-size",
+        "scheduler",
+        "optimize-scheduler",
+        "seed-2**70",
+        "run-dotdot",
+        "velocity-dotdot",
+        "optimize-dotdot",
+        "write-best-dotdot",
+        "write-best-input",
+        "write-best-input-path",
+        "write-best-output",
+        "plot-is-output",
+    ],
+)
 def test_refused_before_any_computation(folder, args, phrase):
     refused(folder, *args, phrase=phrase)
 
@@ -95,10 +114,19 @@ def test_the_largest_seed_is_accepted():
         crawlsim.study.optimize.Method(seed=2**63)
 
 
-@pytest.mark.parametrize("address, valid", [
-    ("notaurl", False), ("tcp://", False), ("tcp://host:x", False), ("foo://host:1", False),
-    ("tcp://host:0", False), ("tcp://127.0.0.1:8786", True), ("127.0.0.1:8786", True),
-    ("tls://scheduler.example:8786", True)])
+@pytest.mark.parametrize(
+    "address, valid",
+    [
+        ("notaurl", False),
+        ("tcp://", False),
+        ("tcp://host:x", False),
+        ("foo://host:1", False),
+        ("tcp://host:0", False),
+        ("tcp://127.0.0.1:8786", True),
+        ("127.0.0.1:8786", True),
+        ("tls://scheduler.example:8786", True),
+    ],
+)
 def test_scheduler_addresses(address, valid):
     """With Dask installed, an address is SCHEME://HOST:PORT (or HOST:PORT) with a known scheme
     and a port from 1 to 65535; anything else is refused before a connection is tried."""

@@ -31,10 +31,8 @@ def _assert_same(run, single):
     assert run.periods == single.periods
     assert run.periodic_from == single.periodic_from
     assert run.v0 == pytest.approx(single.v0, abs=1e-12, rel=0)
-    assert run.displacement_per_period == pytest.approx(single.displacement_per_period,
-                                                        abs=1e-12, rel=0)
-    assert run.dissipation_per_period == pytest.approx(single.dissipation_per_period,
-                                                       abs=1e-11, rel=1e-12)
+    assert run.displacement_per_period == pytest.approx(single.displacement_per_period, abs=1e-12, rel=0)
+    assert run.dissipation_per_period == pytest.approx(single.dissipation_per_period, abs=1e-11, rel=1e-12)
     if single.contraction_rate is None:
         assert run.contraction_rate is None
     else:
@@ -50,8 +48,11 @@ def test_every_gait_file_in_one_batch_matches_single_runs():
     """Gaits of different block counts are grouped; each agrees with its own single run."""
     gaits = [with_simulation(load_gait(p), steps_per_period=STEPS) for p in GAITS]
     processes = [compile_gait(g) for g in gaits]
-    runs = simulate_batch(processes, max_periods=[g.simulation.max_periods for g in gaits],
-                          tolerance=[g.simulation.tolerance for g in gaits])
+    runs = simulate_batch(
+        processes,
+        max_periods=[g.simulation.max_periods for g in gaits],
+        tolerance=[g.simulation.tolerance for g in gaits],
+    )
     assert len(runs) == len(GAITS)
     for run, process, gait in zip(runs, processes, gaits):
         _assert_same(run, _single(process, gait))
@@ -60,12 +61,10 @@ def test_every_gait_file_in_one_batch_matches_single_runs():
 def test_amplitude_family_with_refill_matches_single_runs():
     """A family with finite-time and asymptotic members, stepped 5 at a time so the batch is
     refilled at period boundaries; every member's v0 agrees with its single run to 1e-12."""
-    base = with_simulation(load_gait(GAITS[0].parent / "peristalsis-4.yaml"),
-                           steps_per_period=80)
+    base = with_simulation(load_gait(GAITS[0].parent / "peristalsis-4.yaml"), steps_per_period=80)
     gaits = []
     for a in np.linspace(0.08, 0.4, 12):
-        doc = base.document | {"links": [dict(l, amplitude=float(a))
-                                          for l in base.document["links"]]}
+        doc = base.document | {"links": [dict(l, amplitude=float(a)) for l in base.document["links"]]}
         gaits.append(gait_from_document(doc, "family"))
     processes = [compile_gait(g) for g in gaits]
     runs = simulate_batch(processes, max_periods=1000, tolerance=1e-12, capacity=5)
@@ -84,8 +83,9 @@ def test_two_block_closed_form():
     extension and contraction), for every stiffness k >= 4 the formula gives 0.6 - 2/k."""
     base = load_gait(GAITS[0].parent / "inching-2.yaml")
     ks = [5.0, 10.0, 20.0]
-    gaits = [with_simulation(gait_from_document(base.document | {"stiffness": k}, "inch"),
-                             steps_per_period=64) for k in ks]
+    gaits = [
+        with_simulation(gait_from_document(base.document | {"stiffness": k}, "inch"), steps_per_period=64) for k in ks
+    ]
     runs = simulate_batch([compile_gait(g) for g in gaits], max_periods=50, tolerance=1e-12)
     for k, run in zip(ks, runs):
         assert run.displacement_per_period == pytest.approx(0.6 - 2.0 / k, abs=1e-12)

@@ -52,8 +52,7 @@ class _Scaled(ActiveSet):
 
     def __init__(self, inner: ActiveSet, error: float):
         self.inner, self.error = inner, error
-        self.index, self.inverse_norm, self.gram_norm = (inner.index, inner.inverse_norm,
-                                                          inner.gram_norm)
+        self.index, self.inverse_norm, self.gram_norm = (inner.index, inner.inverse_norm, inner.gram_norm)
 
     def solve(self, R):
         return self.inner.solve(R) * (1.0 + self.error)
@@ -118,16 +117,18 @@ def test_a_corrupted_exact_piece_raises(name):
     stepper = make_stepper(process_of(name), "exact", kernel=False)
     periods(stepper)  # certified
     corrupt_pieces(stepper)
-    with pytest.raises(CertificateError, match=r"exact trajectory failed its certificate at "
-                       r"t = \d.*; rows J = \{\d.*; active set J = \{\d"):
+    with pytest.raises(
+        CertificateError,
+        match=r"exact trajectory failed its certificate at "
+        r"t = \d.*; rows J = \{\d.*; active set J = \{\d",
+    ):
         periods(stepper)
 
 
 def test_clarabel_check_of_every_step_catches_a_corrupted_piece_alone():
     """``check_every_step``: Clarabel must find a state outside K(t_j) by itself, with the
     kernel's certificate of the sampled trajectory switched off."""
-    stepper = make_stepper(process_of("peristalsis-4"), "exact", check_every_step=True,
-                           kernel=False)
+    stepper = make_stepper(process_of("peristalsis-4"), "exact", check_every_step=True, kernel=False)
     periods(stepper, 1)
     corrupt_pieces(stepper, relative=1e-6)
     stepper._certify_piece = lambda *args: 0.0
@@ -152,8 +153,11 @@ def test_a_corrupted_jump_raises():
         return proj
 
     stepper.projector.project = corrupted
-    with pytest.raises(CertificateError, match=r"projection at the jump of c at t = \d.*; rows "
-                       r"J = \{\d.*; active set J = \{\d"):
+    with pytest.raises(
+        CertificateError,
+        match=r"projection at the jump of c at t = \d.*; rows "
+        r"J = \{\d.*; active set J = \{\d",
+    ):
         periods(stepper)
     assert jumps
 

@@ -26,8 +26,7 @@ BIN = Path(sys.executable).parent
 
 def commands():
     ctx = main.make_context("crawlsim", ["--help"], resilient_parsing=True)
-    return [("crawlsim", main)] + [(name, main.get_command(ctx, name))
-                                   for name in main.list_commands(ctx)]
+    return [("crawlsim", main)] + [(name, main.get_command(ctx, name)) for name in main.list_commands(ctx)]
 
 
 def examples(help_text: str) -> list[str]:
@@ -61,15 +60,20 @@ def test_every_help_example_runs(name, command, tmp_path):
     env = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}"}
     for line in lines:
         assert line.startswith(("crawlsim ", "for ")), line
-        r = subprocess.run(["bash", "-c", f"set -eo pipefail; {line}"], cwd=tmp_path, env=env,
-                           capture_output=True, text=True, timeout=600)
+        r = subprocess.run(
+            ["bash", "-c", f"set -eo pipefail; {line}"],
+            cwd=tmp_path,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
         assert r.returncode == 0, (line, r.stdout[-2000:], r.stderr[-2000:])
 
 
 def test_the_examples_are_found():
     found = {name: examples(command.help) for name, command in commands()}
-    assert any("--shard $i/3" in line and "crawlsim merge" in line for line in
-               found["velocity"])
+    assert any("--shard $i/3" in line and "crawlsim merge" in line for line in found["velocity"])
     assert any("--link" in line for line in found["velocity"])
     assert all(found.values())
 
@@ -78,12 +82,16 @@ def test_defaults_in_the_help_are_the_gait_files_defaults():
     """The help says what wins: the gait file's value, else crawlsim's default, which is the
     default of `crawlsim.gait.document.Simulation`."""
     s = Simulation()
-    assert (DEFAULT_STEPS_PER_PERIOD, DEFAULT_MAX_PERIODS, DEFAULT_TOLERANCE,
-            str(DEFAULT_INTEGRATOR)) == (s.steps_per_period, s.max_periods, s.tolerance,
-                                          s.integrator)
+    assert (DEFAULT_STEPS_PER_PERIOD, DEFAULT_MAX_PERIODS, DEFAULT_TOLERANCE, str(DEFAULT_INTEGRATOR)) == (
+        s.steps_per_period,
+        s.max_periods,
+        s.tolerance,
+        s.integrator,
+    )
     for command in ("run", "velocity"):
-        text = " ".join(CliRunner().invoke(main, [command, "--help"], terminal_width=1000,
-                                           max_content_width=1000).output.split())
+        text = " ".join(
+            CliRunner().invoke(main, [command, "--help"], terminal_width=1000, max_content_width=1000).output.split()
+        )
         for value in (s.steps_per_period, s.max_periods, f"{s.tolerance:g}", s.integrator):
             assert f"(default: the gait file's value, else {value})" in text, (command, value)
 
@@ -96,23 +104,23 @@ def test_version_and_short_options():
 
 
 def _complete(words: str, cword: int, shell="bash"):
-    env = {**os.environ, "_CRAWLSIM_COMPLETE": f"{shell}_complete", "COMP_WORDS": words,
-           "COMP_CWORD": str(cword)}
-    return subprocess.run([sys.executable, "-m", "crawlsim"], env=env, capture_output=True,
-                          text=True, check=True).stdout
+    env = {**os.environ, "_CRAWLSIM_COMPLETE": f"{shell}_complete", "COMP_WORDS": words, "COMP_CWORD": str(cword)}
+    return subprocess.run(
+        [sys.executable, "-m", "crawlsim"], env=env, capture_output=True, text=True, check=True
+    ).stdout
 
 
 def test_shell_completion_as_documented():
     """The documented line makes a bash completion function, and completing answers with the
     commands, options and choices."""
     env = {**os.environ, "_CRAWLSIM_COMPLETE": "bash_source"}
-    source = subprocess.run([sys.executable, "-m", "crawlsim"], env=env, capture_output=True,
-                            text=True, check=True).stdout
+    source = subprocess.run(
+        [sys.executable, "-m", "crawlsim"], env=env, capture_output=True, text=True, check=True
+    ).stdout
     assert "_crawlsim_completion()" in source and "complete -o nosort -F" in source
     assert _complete("crawlsim ve", 1).split() == ["plain,velocity"]
     assert "plain,--integrator" in _complete("crawlsim run g.yaml --int", 3).split()
-    assert set(_complete("crawlsim run g.yaml --integrator ", 4).split()) == {
-        "plain,catch-up", "plain,exact"}
+    assert set(_complete("crawlsim run g.yaml --integrator ", 4).split()) == {"plain,catch-up", "plain,exact"}
 
 
 def test_citation_file():
@@ -128,5 +136,6 @@ def test_citation_file():
     assert paper["type"] == "article"
     assert " ".join(paper["title"].split()) == (
         "Stabilization of periodic sweeping processes and asymptotic average velocity for soft "
-        "locomotors with dry friction")
+        "locomotors with dry friction"
+    )
     assert [a["family-names"] for a in paper["authors"]] == ["Colombo", "Gidoni", "Vilches"]

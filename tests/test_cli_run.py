@@ -51,9 +51,19 @@ def test_run_json_keys_and_values(runner, tmp_path):
     result = runner.invoke(main, ["run", str(gait), "--json", "-o", "out.h5"])
     assert result.exit_code == 0
     data = json.loads(result.output)
-    for key in ("name", "v0", "displacement_per_period", "convergence", "periodic_from",
-                "contraction_rate", "periods", "steps_per_period", "v0_error_estimate",
-                "dissipation_per_period", "output"):
+    for key in (
+        "name",
+        "v0",
+        "displacement_per_period",
+        "convergence",
+        "periodic_from",
+        "contraction_rate",
+        "periods",
+        "steps_per_period",
+        "v0_error_estimate",
+        "dissipation_per_period",
+        "output",
+    ):
         assert key in data
     assert data["v0"] == pytest.approx(0.4, abs=1e-13)
     assert data["convergence"] == "finite-time" and data["periodic_from"] == 1
@@ -110,25 +120,29 @@ simulation: {steps_per_period: 100}
 
 def test_overrides_apply(runner, tmp_path):
     gait = write(tmp_path, INCHING)
-    result = runner.invoke(main, ["run", str(gait), "--json", "--steps-per-period", "40",
-                                  "--tolerance", "1e-10"])
+    result = runner.invoke(main, ["run", str(gait), "--json", "--steps-per-period", "40", "--tolerance", "1e-10"])
     assert json.loads(result.output)["steps_per_period"] == 40
 
 
 BAD = [
-    ("blocks: 2\nperiod: 1.0\nstiffness: 10.0\nlinks: [1.0, 1.0]\n"
-     "friction: {forward: 1.0, backward: 2.0}\n", "links"),
+    ("blocks: 2\nperiod: 1.0\nstiffness: 10.0\nlinks: [1.0, 1.0]\nfriction: {forward: 1.0, backward: 2.0}\n", "links"),
     (INCHING.replace("backward: 2.0", "backward: -2.0"), "friction.backward"),
     (INCHING.replace("stiffness: 10.0", "stiffness: 0"), "stiffness"),
     (INCHING.replace("period: 1.0", "period: -1"), "period"),
     (INCHING.replace("backward: 2.0", "backwrad: 2.0"), "did you mean 'backward'"),
-    (INCHING.replace("{kind: cosine, mean: 1.0, amplitude: 0.3}",
-                     "{kind: piecewise-linear, times: [0, 0.5, 1], values: [1, 1.3, 1.1]}"),
-     "links[0]"),
+    (
+        INCHING.replace(
+            "{kind: cosine, mean: 1.0, amplitude: 0.3}",
+            "{kind: piecewise-linear, times: [0, 0.5, 1], values: [1, 1.3, 1.1]}",
+        ),
+        "links[0]",
+    ),
     (INCHING.replace("backward: 2.0", "backward: 1.0"), "uniqueness"),
     (INCHING + "initial: {positions: [0.0, 2.0]}\n", "initial.positions"),
-    (INCHING.replace("friction: {forward: 1.0, backward: 2.0}",
-                     "friction: [{forward: 1.0, backward: 2.0}]"), "friction"),
+    (
+        INCHING.replace("friction: {forward: 1.0, backward: 2.0}", "friction: [{forward: 1.0, backward: 2.0}]"),
+        "friction",
+    ),
     ("blocks: [2\n", "line"),
 ]
 
@@ -146,9 +160,12 @@ def test_bad_input_exit_2_names_the_key_and_writes_nothing(runner, tmp_path, tex
 
 def test_bad_command_line(runner, tmp_path):
     gait = write(tmp_path, INCHING)
-    for args in (["run", "missing.yaml"], ["run", str(gait), "--steps-per-period", "0"],
-                 ["run", str(gait), "--tolerance", "-1"],
-                 ["run", str(gait), "-o", "no/such/folder/out.h5"]):
+    for args in (
+        ["run", "missing.yaml"],
+        ["run", str(gait), "--steps-per-period", "0"],
+        ["run", str(gait), "--tolerance", "-1"],
+        ["run", str(gait), "-o", "no/such/folder/out.h5"],
+    ):
         result = runner.invoke(main, args)
         assert result.exit_code == 2, (args, result.output)
         assert "Traceback" not in result.output
@@ -157,8 +174,7 @@ def test_bad_command_line(runner, tmp_path):
 
 def test_every_example_gait_runs_from_the_cli(runner, tmp_path):
     for path in iterated_examples():
-        result = runner.invoke(main, ["run", str(path), "--json", "--steps-per-period", "100",
-                                      "-o", f"{path.stem}.h5"])
+        result = runner.invoke(main, ["run", str(path), "--json", "--steps-per-period", "100", "-o", f"{path.stem}.h5"])
         assert result.exit_code == 0, (path, result.output)
         assert np.isfinite(json.loads(result.output)["v0"])
 
@@ -168,8 +184,12 @@ def test_python_dash_m_entry_point(tmp_path):
     import sys
 
     gait = write(tmp_path, INCHING)
-    out = subprocess.run([sys.executable, "-m", "crawlsim", "run", str(gait), "--json", "-o",
-                          str(tmp_path / "m.h5")], capture_output=True, text=True, check=True)
+    out = subprocess.run(
+        [sys.executable, "-m", "crawlsim", "run", str(gait), "--json", "-o", str(tmp_path / "m.h5")],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     assert json.loads(out.stdout)["v0"] == pytest.approx(0.4, abs=1e-13)
 
 
@@ -206,9 +226,21 @@ def test_info_summarises_a_run(runner, tmp_path):
 
 def test_info_summarises_a_sweep(runner, tmp_path):
     gait = write(tmp_path, INCHING, "inch.yaml")
-    r = runner.invoke(main, ["velocity", str(gait), "--sweep", "friction.backward=[0.5,1,2]",
-                             "--sweep", "period=1,2", "--link", "links.0.amplitude=0.3,0.2",
-                             "-o", "s.h5"])
+    r = runner.invoke(
+        main,
+        [
+            "velocity",
+            str(gait),
+            "--sweep",
+            "friction.backward=[0.5,1,2]",
+            "--sweep",
+            "period=1,2",
+            "--link",
+            "links.0.amplitude=0.3,0.2",
+            "-o",
+            "s.h5",
+        ],
+    )
     assert r.exit_code == 0, r.output
     text = runner.invoke(main, ["info", "s.h5"]).output.splitlines()
     assert text[0] == f"s.h5: sweep of gait inch, from {gait}"
@@ -227,7 +259,10 @@ def test_info_refuses_what_is_not_a_results_file(runner, tmp_path):
     (tmp_path / "notes.h5").write_text("not HDF5")
     with h5py.File(tmp_path / "other.h5", "w") as f:
         f["x"] = [1, 2]
-    for name, text in (("notes.h5", "not an HDF5 file"), ("other.h5", "not a crawlsim results"),
-                       ("missing.h5", "no such results file")):
+    for name, text in (
+        ("notes.h5", "not an HDF5 file"),
+        ("other.h5", "not a crawlsim results"),
+        ("missing.h5", "no such results file"),
+    ):
         r = runner.invoke(main, ["info", name])
         assert r.exit_code == 2 and text in r.output and "Traceback" not in r.output, name

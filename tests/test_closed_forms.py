@@ -34,8 +34,9 @@ from crawlsim.gait.document import admissibility_violation, load_gait, with_simu
 from .conftest import GAITS, make_gait, two_block
 
 
-@pytest.mark.parametrize("amplitude,k,mu_plus,mu_minus", [
-    (0.3, 10.0, 1.0, 2.0), (0.5, 4.0, 0.3, 0.7), (0.25, 25.0, 2.0, 5.0)])
+@pytest.mark.parametrize(
+    "amplitude,k,mu_plus,mu_minus", [(0.3, 10.0, 1.0, 2.0), (0.5, 4.0, 0.3, 0.7), (0.25, 25.0, 2.0, 5.0)]
+)
 def test_moving_gait(amplitude, k, mu_plus, mu_minus):
     gait = two_block(amplitude, k, {"forward": mu_plus, "backward": mu_minus})
     res = run(gait)
@@ -86,14 +87,25 @@ def test_two_blocks_are_periodic_from_period_one(seed):
     """Paper Theorem th:1dim: every two-block crawler is periodic from t0 + T."""
     rng = np.random.default_rng(seed)
     mu = rng.uniform(0.5, 3.0, size=4)
-    friction = [{"forward": float(mu[0]), "backward": float(mu[1])},
-                {"forward": float(mu[2]), "backward": float(mu[3])}]
+    friction = [
+        {"forward": float(mu[0]), "backward": float(mu[1])},
+        {"forward": float(mu[2]), "backward": float(mu[3])},
+    ]
     if abs(mu[0] - mu[3]) < 1e-3 or abs(mu[2] - mu[1]) < 1e-3:
         pytest.skip("too close to the uniqueness condition")
-    gait = two_block(float(rng.uniform(0.05, 0.4)), float(rng.uniform(2, 20)), friction,
-                     links=[{"kind": "fourier", "mean": 1.0,
-                             "cos": rng.uniform(-0.2, 0.2, 2).tolist(),
-                             "sin": rng.uniform(-0.2, 0.2, 2).tolist()}])
+    gait = two_block(
+        float(rng.uniform(0.05, 0.4)),
+        float(rng.uniform(2, 20)),
+        friction,
+        links=[
+            {
+                "kind": "fourier",
+                "mean": 1.0,
+                "cos": rng.uniform(-0.2, 0.2, 2).tolist(),
+                "sin": rng.uniform(-0.2, 0.2, 2).tolist(),
+            }
+        ],
+    )
     res = run(gait)
     assert res.convergence == "finite-time"
     assert res.periodic_from <= 1
@@ -128,8 +140,7 @@ def test_v0_does_not_depend_on_the_initial_state():
     assert np.ptp(v0s) < 1e-12
 
 
-@pytest.mark.parametrize("steps,coefficient", [(1000, -1.6), (500, -1.6), (999, -1.2),
-                                               (101, -1.2)])
+@pytest.mark.parametrize("steps,coefficient", [(1000, -1.6), (500, -1.6), (999, -1.2), (101, -1.2)])
 def test_anchoring_catch_up_error_depends_on_the_parity_of_the_step_count(steps, coefficient):
     """gaits/anchoring-2.yaml: catch-up's v0 is 0.3 + coefficient * h (h = T / steps, T = 1),
     coefficient -1.6 for an even step count and -1.2 for an odd one.
@@ -147,8 +158,7 @@ def test_anchoring_catch_up_error_depends_on_the_parity_of_the_step_count(steps,
     middle of a uniform step (`crawlsim.model.process.period_grid`), whose first half, h / 2, ends at
     the switch: -0.8 (h / 2 + h) = -1.2 h. Tolerance 1e-9 on the coefficient: v0's roundoff,
     1e-13, over h >= 1e-3."""
-    gait = with_simulation(load_gait(GAITS / "anchoring-2.yaml"), integrator="catch-up",
-                           steps_per_period=steps)
+    gait = with_simulation(load_gait(GAITS / "anchoring-2.yaml"), integrator="catch-up", steps_per_period=steps)
     res = run(gait)
     assert (res.v0 - 0.3) * steps == pytest.approx(coefficient, abs=1e-9)
 
@@ -169,9 +179,13 @@ def test_stiff_crawler_closed_form_up_to_the_largest_accepted_stiffness(k, integ
     within its printed estimate of the closed form (before the limit on the stress scale, k =
     1e12 gave 19 times the estimate and k = 1e18 a Clarabel failure)."""
     k = _largest_stiffness() * (1 - 1e-12) if k == "largest" else k
-    gait = two_block(0.3, k, {"forward": 1.0, "backward": 2.0}, steps=100,
-                     simulation={"steps_per_period": 100, "max_periods": 20,
-                                 "integrator": integrator})
+    gait = two_block(
+        0.3,
+        k,
+        {"forward": 1.0, "backward": 2.0},
+        steps=100,
+        simulation={"steps_per_period": 100, "max_periods": 20, "integrator": integrator},
+    )
     res = run(gait)
     assert res.converged
     closed = 0.6 - 2.0 / k
@@ -189,11 +203,12 @@ def test_stiffer_crawlers_are_refused_with_the_reason(factor, tmp_path):
 
     k = _largest_stiffness() * factor
     path = tmp_path / "stiff.yaml"
-    path.write_text(f"blocks: 2\nperiod: 1.0\nstiffness: {k!r}\n"
-                    "links: [{kind: cosine, mean: 1.0, amplitude: 0.3}]\n"
-                    "friction: {forward: 1.0, backward: 2.0}\n")
-    for args in (["run", str(path), "-o", str(tmp_path / "out.h5")],
-                 ["velocity", str(path)], ["validate", str(path)]):
+    path.write_text(
+        f"blocks: 2\nperiod: 1.0\nstiffness: {k!r}\n"
+        "links: [{kind: cosine, mean: 1.0, amplitude: 0.3}]\n"
+        "friction: {forward: 1.0, backward: 2.0}\n"
+    )
+    for args in (["run", str(path), "-o", str(tmp_path / "out.h5")], ["velocity", str(path)], ["validate", str(path)]):
         r = CliRunner().invoke(main, args)
         assert r.exit_code == 2, r.output
         assert "Traceback" not in r.output

@@ -40,14 +40,14 @@ SEEDS = range(40)
 def converges_with_both_integrators(gait) -> None:
     """Exact converges; catch-up with 16 times the steps has at most half the error."""
     process = compile_gait(gait, STEPS)
-    exact = simulate(process, integrator="exact", max_periods=300, tolerance=1e-11,
-                     history=False)
+    exact = simulate(process, integrator="exact", max_periods=300, tolerance=1e-11, history=False)
     assert exact.converged and exact.v0 is not None and exact.v0_error_estimate is not None
     errors = []
     for steps in (STEPS, 16 * STEPS):
         try:
-            catch_up = simulate(compile_gait(gait, steps), integrator="catch-up",
-                                max_periods=300, tolerance=1e-11, history=False)
+            catch_up = simulate(
+                compile_gait(gait, steps), integrator="catch-up", max_periods=300, tolerance=1e-11, history=False
+            )
         except DegenerateModelError:
             return  # a grid time on a degenerate instant: refused with its reason, not a crash
         assert catch_up.converged and catch_up.v0 is not None
@@ -58,8 +58,7 @@ def converges_with_both_integrators(gait) -> None:
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", SEEDS)
 def test_random_gait_runs_with_both_integrators(seed):
-    converges_with_both_integrators(random_gait(seed, blocks=(2, 8), steps_per_period=STEPS,
-                                                max_periods=300))
+    converges_with_both_integrators(random_gait(seed, blocks=(2, 8), steps_per_period=STEPS, max_periods=300))
 
 
 #: Seeds of the ill-conditioned corpus (N <= 12) whose exact run failed its certificate when the
@@ -70,8 +69,9 @@ ILL_CONDITIONED = (10, 22)
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", ILL_CONDITIONED)
 def test_ill_conditioned_gait_runs_with_both_integrators(seed):
-    converges_with_both_integrators(random_gait(seed, blocks=(2, 12), stiffness_ratio=1e6,
-                                                friction_ratio=1e3, max_periods=300))
+    converges_with_both_integrators(
+        random_gait(seed, blocks=(2, 12), stiffness_ratio=1e6, friction_ratio=1e3, max_periods=300)
+    )
 
 
 def knotted_gait(knots: int = 1000):
@@ -86,11 +86,18 @@ def knotted_gait(knots: int = 1000):
         v[-1] = v[0]
         return v.tolist()
 
-    doc = {"name": "knots", "blocks": 3, "period": 1.0, "stiffness": 10.0,
-           "links": [{"kind": "piecewise-linear", "times": times, "values": values(0.0)},
-                     {"kind": "piecewise-linear", "times": times, "values": values(0.33)}],
-           "friction": {"forward": 1.0, "backward": 1.5},
-           "simulation": {"steps_per_period": 1000, "max_periods": 50, "tolerance": 1e-12}}
+    doc = {
+        "name": "knots",
+        "blocks": 3,
+        "period": 1.0,
+        "stiffness": 10.0,
+        "links": [
+            {"kind": "piecewise-linear", "times": times, "values": values(0.0)},
+            {"kind": "piecewise-linear", "times": times, "values": values(0.33)},
+        ],
+        "friction": {"forward": 1.0, "backward": 1.5},
+        "simulation": {"steps_per_period": 1000, "max_periods": 50, "tolerance": 1e-12},
+    }
     return gait_from_document(doc, "knots", default_name="knots")
 
 
@@ -101,10 +108,8 @@ def test_a_thousand_knots_run_exactly():
     largest stroke velocity times a few steps."""
     gait = knotted_gait()
     process = compile_gait(gait)
-    exact = simulate(process, integrator="exact", max_periods=50, tolerance=1e-12,
-                     history=False)
-    catch_up = simulate(process, integrator="catch-up", max_periods=50, tolerance=1e-12,
-                        history=False)
+    exact = simulate(process, integrator="exact", max_periods=50, tolerance=1e-12, history=False)
+    catch_up = simulate(process, integrator="catch-up", max_periods=50, tolerance=1e-12, history=False)
     assert exact.converged and catch_up.converged
     assert exact.v0 is not None and catch_up.v0 is not None
     L = process.lengths

@@ -14,8 +14,9 @@ from tests.test_sweep import AMP, LAG, P4
 
 @pytest.fixture(scope="module")
 def scheduler():
-    with distributed.LocalCluster(host="127.0.0.1", n_workers=2, threads_per_worker=1,
-                                  processes=True, dashboard_address=None) as cluster:
+    with distributed.LocalCluster(
+        host="127.0.0.1", n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as cluster:
         yield cluster.scheduler_address
 
 
@@ -36,8 +37,14 @@ def test_dask_reports_progress_as_tasks_finish(scheduler, tmp_path):
     axes = ["friction.backward=[0,2,2.5]", "links.*.amplitude=0.1:0.3:9"]
     calls, journaled = [], []
     out = tmp_path / "d.csv"
-    table = sweeps.sweep(gait, axes, scheduler=scheduler, output=out, progress=calls.append,
-                         on_rows=lambda rows, resumed: journaled.append(len(rows)))
+    table = sweeps.sweep(
+        gait,
+        axes,
+        scheduler=scheduler,
+        output=out,
+        progress=calls.append,
+        on_rows=lambda rows, resumed: journaled.append(len(rows)),
+    )
     assert sum(calls) == 27 and max(calls) <= sweeps.MIN_CHUNK and len(calls) >= 4
     assert journaled == calls
     assert table.counts() == {"ok": 18, "not-converged": 0, "invalid": 9, "failed": 0}
@@ -50,16 +57,27 @@ def test_dask_cli_writes_the_local_file(scheduler, tmp_path):
     assert run.invoke(main, args + ["-o", str(tmp_path / "local.h5")]).exit_code == 0
     r = run.invoke(main, args + ["--scheduler", scheduler, "-o", str(tmp_path / "dask.h5")])
     assert r.exit_code == 0, r.output
-    assert (sweeps.read_table(tmp_path / "dask.h5").to_csv()
-            == sweeps.read_table(tmp_path / "local.h5").to_csv())
+    assert sweeps.read_table(tmp_path / "dask.h5").to_csv() == sweeps.read_table(tmp_path / "local.h5").to_csv()
     with h5py.File(tmp_path / "dask.h5") as f:
         assert f.attrs["integrator"] == "exact"  # what the rows ran
 
 
 def test_unreachable_scheduler_is_bad_input(tmp_path, monkeypatch):
     monkeypatch.setattr(sweeps, "SCHEDULER_TIMEOUT", "1s")
-    r = CliRunner().invoke(main, ["velocity", P4, "--steps-per-period", "40", "--sweep", AMP,
-                                  "--scheduler", "tcp://127.0.0.1:1", "-o",
-                                  str(tmp_path / "x.csv")])
+    r = CliRunner().invoke(
+        main,
+        [
+            "velocity",
+            P4,
+            "--steps-per-period",
+            "40",
+            "--sweep",
+            AMP,
+            "--scheduler",
+            "tcp://127.0.0.1:1",
+            "-o",
+            str(tmp_path / "x.csv"),
+        ],
+    )
     assert r.exit_code == 2 and "cannot reach the Dask scheduler" in r.output
     assert not (tmp_path / "x.csv").exists()

@@ -55,10 +55,8 @@ def links(path: Path) -> list[str]:
 
 def test_anchor_rule():
     assert anchor("`crawlsim run`") == "crawlsim-run"
-    assert anchor("Correction 2: the acute angle on [T/2, T]") == \
-        "correction-2-the-acute-angle-on-t2-t"
-    assert anchor("3. Catch-up stepping, slips and uniqueness") == \
-        "3-catch-up-stepping-slips-and-uniqueness"
+    assert anchor("Correction 2: the acute angle on [T/2, T]") == "correction-2-the-acute-angle-on-t2-t"
+    assert anchor("3. Catch-up stepping, slips and uniqueness") == "3-catch-up-stepping-slips-and-uniqueness"
 
 
 @pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(ROOT)))
@@ -101,8 +99,7 @@ def test_every_figure_is_shown():
     README shows one of them), and each image shown exists (test_links_resolve)."""
     made = {p.name for p in (DOCS / "figures").glob("*.png")}
     readme = {Path(t).name for t in links(ROOT / "README.md") if t.endswith(".png")}
-    docs = {Path(t).name for page in ("figures.md", "paper.md")
-            for t in links(DOCS / page) if t.endswith(".png")}
+    docs = {Path(t).name for page in ("figures.md", "paper.md") for t in links(DOCS / page) if t.endswith(".png")}
     assert made == docs
     assert len(readme) == 1 and readme <= made
 
@@ -111,7 +108,7 @@ def test_every_figure_is_shown():
 def _nav_pages(nav) -> list[str]:
     out: list[str] = []
     for item in nav:
-        for value in (item.values() if isinstance(item, dict) else [item]):
+        for value in item.values() if isinstance(item, dict) else [item]:
             out.extend(_nav_pages(value) if isinstance(value, list) else [value])
     return out
 
@@ -124,12 +121,28 @@ def test_the_site_navigation_holds_every_page():
     config = yaml.load((ROOT / "mkdocs.yml").read_text(), Loader=yaml.BaseLoader)
     nav = _nav_pages(config["nav"])
     assert len(nav) == len(set(nav))
-    pages = {p.relative_to(DOCS).as_posix() for p in DOCS.rglob("*")
-             if p.suffix in (".md", ".ipynb") and not p.name.startswith("_")
-             and "_hooks" not in p.parts and ".ipynb_checkpoints" not in p.parts}
+    pages = {
+        p.relative_to(DOCS).as_posix()
+        for p in DOCS.rglob("*")
+        if p.suffix in (".md", ".ipynb")
+        and not p.name.startswith("_")
+        and "_hooks" not in p.parts
+        and ".ipynb_checkpoints" not in p.parts
+    }
     assert set(nav) == pages
-    assert {"model.md", "gait-files.md", "commands.md", "hdf5.md", "integrators.md", "sweeps.md",
-            "optimize.md", "paper.md", "benchmarks.md", "api.md", "layout.md"} <= pages
+    assert {
+        "model.md",
+        "gait-files.md",
+        "commands.md",
+        "hdf5.md",
+        "integrators.md",
+        "sweeps.md",
+        "optimize.md",
+        "paper.md",
+        "benchmarks.md",
+        "api.md",
+        "layout.md",
+    } <= pages
     assert sum(p.endswith(".ipynb") for p in pages) >= 2
 
 
@@ -158,11 +171,14 @@ def test_the_layout_page_names_every_package_and_only_paths_that_exist():
 
 
 # -- every code block of docs/ runs --------------------------------------------------------------
-DOC_BLOCKS = {page.name: parse_blocks(page.read_text(encoding="utf-8"), f"docs/{page.name}")
-              for page in PAGES[1:]}
+DOC_BLOCKS = {page.name: parse_blocks(page.read_text(encoding="utf-8"), f"docs/{page.name}") for page in PAGES[1:]}
 #: The blocks that run (an illustration marked ``skip: REASON`` is checked by its marker alone).
-CASES = [(name, i) for name, blocks in DOC_BLOCKS.items() for i, block in enumerate(blocks)
-         if not (block.marker or "").startswith("skip:")]
+CASES = [
+    (name, i)
+    for name, blocks in DOC_BLOCKS.items()
+    for i, block in enumerate(blocks)
+    if not (block.marker or "").startswith("skip:")
+]
 
 
 @pytest.mark.parametrize("name", sorted(DOC_BLOCKS))
@@ -181,6 +197,7 @@ def folders(tmp_path_factory):
             shutil.copytree(ROOT / "gaits", path / "gaits")
             state[name] = (path, set(), {})
         return state[name]
+
     return folder
 
 
@@ -217,13 +234,19 @@ def test_every_object_of_the_api_reference_has_a_docstring():
     docstring where there is one."""
     hook = _hook()
     paths = hook.DIRECTIVE.findall((DOCS / "api.md").read_text(encoding="utf-8"))
-    assert {"crawlsim.api.simulate", "crawlsim.api.sweep", "crawlsim.api.SimulationResult",
-            "crawlsim.gait.document.Gait"} <= set(paths)
+    assert {
+        "crawlsim.api.simulate",
+        "crawlsim.api.sweep",
+        "crawlsim.api.SimulationResult",
+        "crawlsim.gait.document.Gait",
+    } <= set(paths)
     assert [name for path in paths for name in hook.undocumented(path)] == []
     assert hook.undocumented("tests.test_docs._hook") == ["tests.test_docs._hook"]
-    assert hook.undocumented("tests.test_readme.Block") == ["tests.test_readme.Block",
-                                                            "tests.test_readme.Block.id",
-                                                            "tests.test_readme.Block.where"]
+    assert hook.undocumented("tests.test_readme.Block") == [
+        "tests.test_readme.Block",
+        "tests.test_readme.Block.id",
+        "tests.test_readme.Block.where",
+    ]
 
 
 def test_the_site_builds_strictly(tmp_path):
@@ -235,9 +258,14 @@ def test_the_site_builds_strictly(tmp_path):
     pytest.importorskip("mkdocstrings_handlers.python")
     pytest.importorskip("mkdocs_jupyter")
     env = dict(os.environ, NO_MKDOCS_2_WARNING="1")
-    done = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir",
-                           str(tmp_path / "site")], cwd=ROOT, env=env, capture_output=True,
-                          text=True, timeout=600)
+    done = subprocess.run(
+        [sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", str(tmp_path / "site")],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert done.returncode == 0, done.stderr
     assert "WARNING" not in done.stderr, done.stderr
     notebook = (tmp_path / "site" / "examples" / "first-run" / "index.html").read_text(encoding="utf-8")

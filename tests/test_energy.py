@@ -33,14 +33,16 @@ from crawlsim.study.sweep import make_grid, run_points
 
 from .conftest import GAITS, make_gait
 
-CRAWLERS = sorted(p for p in list(GAITS.glob("*.yaml")) + list(GAITS.glob("paper/*.yaml"))
-                  if compile_any(load_gait(p)).is_crawler)
+CRAWLERS = sorted(
+    p for p in list(GAITS.glob("*.yaml")) + list(GAITS.glob("paper/*.yaml")) if compile_any(load_gait(p)).is_crawler
+)
 
 
 def _run(gait, integrator="exact", **options):
     s = gait.simulation
-    return simulate(compile_gait(gait), max_periods=s.max_periods, tolerance=s.tolerance,
-                    integrator=integrator, **options)
+    return simulate(
+        compile_gait(gait), max_periods=s.max_periods, tolerance=s.tolerance, integrator=integrator, **options
+    )
 
 
 # -- the balance on every example gait -----------------------------------------------------------
@@ -111,8 +113,7 @@ def test_catch_up_numerical_dissipation_is_first_order():
 
 
 # -- closed forms -----------------------------------------------------------------------------------
-@pytest.mark.parametrize("k, a, m1, m2", [(8.0, 0.35, 0.7, 1.1), (10.0, 0.3, 1.0, 1.0),
-                                          (25.0, 0.2, 0.4, 1.9)])
+@pytest.mark.parametrize("k, a, m1, m2", [(8.0, 0.35, 0.7, 1.1), (10.0, 0.3, 1.0, 1.0), (25.0, 0.2, 0.4, 1.9)])
 def test_two_block_inching_closed_form(k, a, m1, m2):
     """Two blocks, L = 1 + a cos(2 pi t/T), forward friction m1 (rear), m2 (front), backward 3.
 
@@ -128,11 +129,16 @@ def test_two_block_inching_closed_form(k, a, m1, m2):
     and each block slips forward only, at constant friction: the bound (m1 + m2) is attained
     and the efficiency is 1.
     """
-    gait = make_gait({"blocks": 2, "period": 1.0, "stiffness": k,
-                      "links": [{"kind": "cosine", "mean": 1.0, "amplitude": a}],
-                      "friction": [{"forward": m1, "backward": 3.0},
-                                   {"forward": m2, "backward": 3.0}],
-                      "simulation": {"steps_per_period": 200, "max_periods": 10}})
+    gait = make_gait(
+        {
+            "blocks": 2,
+            "period": 1.0,
+            "stiffness": k,
+            "links": [{"kind": "cosine", "mean": 1.0, "amplitude": a}],
+            "friction": [{"forward": m1, "backward": 3.0}, {"forward": m2, "backward": 3.0}],
+            "simulation": {"steps_per_period": 200, "max_periods": 10},
+        }
+    )
     run = _run(gait)
     d = 2 * a - (m1 + m2) / k
     assert run.displacement_per_period == pytest.approx(d, rel=1e-13)
@@ -146,18 +152,22 @@ def test_two_block_inching_closed_form(k, a, m1, m2):
 def jump_gait(k=8.0, A=0.5, m=0.9, mu=1.2, mu_after=0.5, steps=200):
     """Two blocks, L piecewise linear 1 -> 1 + A -> 1 on [0, T/2, T]; rear forward friction m,
     front forward friction mu on [0, T/2) switched to mu_after < mu at T/2; backward 3."""
-    return make_gait({
-        "blocks": 2, "period": 1.0, "stiffness": k,
-        "links": [{"kind": "piecewise-linear", "times": [0.0, 0.5, 1.0],
-                   "values": [1.0, 1.0 + A, 1.0]}],
-        "friction": [{"forward": m, "backward": 3.0},
-                     {"forward": {"kind": "steps", "times": [0.0, 0.5], "values": [mu, mu_after]},
-                      "backward": 3.0}],
-        "simulation": {"steps_per_period": steps, "max_periods": 10}})
+    return make_gait(
+        {
+            "blocks": 2,
+            "period": 1.0,
+            "stiffness": k,
+            "links": [{"kind": "piecewise-linear", "times": [0.0, 0.5, 1.0], "values": [1.0, 1.0 + A, 1.0]}],
+            "friction": [
+                {"forward": m, "backward": 3.0},
+                {"forward": {"kind": "steps", "times": [0.0, 0.5], "values": [mu, mu_after]}, "backward": 3.0},
+            ],
+            "simulation": {"steps_per_period": steps, "max_periods": 10},
+        }
+    )
 
 
-@pytest.mark.parametrize("k, A, m, mu, mu_after", [(8.0, 0.5, 0.9, 1.2, 0.5),
-                                                    (10.0, 0.6, 1.0, 1.0, 0.5)])
+@pytest.mark.parametrize("k, A, m, mu, mu_after", [(8.0, 0.5, 0.9, 1.2, 0.5), (10.0, 0.6, 1.0, 1.0, 0.5)])
 def test_jump_loss_at_a_friction_switch(k, A, m, mu, mu_after):
     """sigma lives in [-m, mu(t)]. Extending (first half), sigma climbs from -m to mu while both
     blocks stick (work (mu^2 - m^2)/(2k)), then the front slides at sigma = mu by A - (mu + m)/k.
@@ -216,14 +226,23 @@ def test_gram_matrix_is_the_integral_of_the_basis_products(linear, harmonics, a,
     assert np.array_equal(P, P.T)
     for i in range(basis.size):
         for j in range(basis.size):
-            ref, _ = quad(lambda u, i=i, j=j: basis.values(u)[0, i] * basis.values(u)[0, j],
-                          a, b, epsabs=1e-15, epsrel=1e-13, limit=200)
+            ref, _ = quad(
+                lambda u, i=i, j=j: basis.values(u)[0, i] * basis.values(u)[0, j],
+                a,
+                b,
+                epsabs=1e-15,
+                epsrel=1e-13,
+                limit=200,
+            )
             assert P[i, j] == pytest.approx(ref, rel=1e-11, abs=1e-15 * (b - a) + 1e-17)
 
 
 @settings(max_examples=40)
-@given(st.lists(st.floats(-2, 2), min_size=1, max_size=4),
-       st.lists(st.floats(-2, 2), min_size=0, max_size=4), st.floats(0, 1))
+@given(
+    st.lists(st.floats(-2, 2), min_size=1, max_size=4),
+    st.lists(st.floats(-2, 2), min_size=0, max_size=4),
+    st.floats(0, 1),
+)
 @example([1.0, 0.0, 0.0, 0.0], [], 0.0)  # zero top harmonics: a lower-degree polynomial
 @example([1.0], [2.0, 4.846239413359878e-85], 0.0)  # a harmonic below roundoff (found by Hypothesis)
 def test_fourier_friction_minimum_is_exact(cos, sin, phase):
@@ -236,8 +255,10 @@ def test_fourier_friction_minimum_is_exact(cos, sin, phase):
     assert low <= sampled + 1e-12
     # the grid's spacing bounds how far its best sample can be above the minimum
     H = signal.harmonics
-    curvature = sum((2 * math.pi * n) ** 2 * (abs(c) + abs(s)) for n, (c, s) in enumerate(
-        zip(list(cos) + [0.0] * H, list(sin) + [0.0] * H), start=1))
+    curvature = sum(
+        (2 * math.pi * n) ** 2 * (abs(c) + abs(s))
+        for n, (c, s) in enumerate(zip(list(cos) + [0.0] * H, list(sin) + [0.0] * H), start=1)
+    )
     assert low >= sampled - curvature * (0.5 / 200_000) ** 2 / 2 - 1e-12
 
 
@@ -251,12 +272,14 @@ def _bound_holds(gait, row) -> float:
 
 
 @pytest.mark.parametrize("integrator", ["exact", "catch-up"])
-@pytest.mark.parametrize("name, axes", [
-    ("peristalsis-3.yaml", ["friction.backward=1.3:2.6:3", "links.*.amplitude=[0.2,0.35]"]),
-    ("smooth-friction-3.yaml", ["friction.0.forward.amplitude=[0.2,0.6]",
-                                "links.1.phase=[0.25,0.5]"]),
-    ("anchoring-2.yaml", ["friction.0.forward.values.1=[0.5,0.7,1.1]"]),
-])
+@pytest.mark.parametrize(
+    "name, axes",
+    [
+        ("peristalsis-3.yaml", ["friction.backward=1.3:2.6:3", "links.*.amplitude=[0.2,0.35]"]),
+        ("smooth-friction-3.yaml", ["friction.0.forward.amplitude=[0.2,0.6]", "links.1.phase=[0.25,0.5]"]),
+        ("anchoring-2.yaml", ["friction.0.forward.values.1=[0.5,0.7,1.1]"]),
+    ],
+)
 def test_cost_of_transport_bound_holds_on_a_sweep(name, axes, integrator):
     """Every evaluated point of a small sweep, with either integrator: cost_of_transport >=
     sum_j min_t mu_j^{sign d}, so the efficiency is at most 1."""
@@ -277,8 +300,10 @@ def test_cost_of_transport_bound_holds_on_a_sweep(name, axes, integrator):
 def random_gaits(draw):
     N = draw(st.integers(2, 3))
     period = draw(st.sampled_from([0.5, 1.0, 2.0]))
-    links = [{"kind": "cosine", "mean": 1.0, "amplitude": draw(st.floats(0.05, 0.4)),
-              "phase": draw(st.floats(0.0, 1.0))} for _ in range(N - 1)]
+    links = [
+        {"kind": "cosine", "mean": 1.0, "amplitude": draw(st.floats(0.05, 0.4)), "phase": draw(st.floats(0.0, 1.0))}
+        for _ in range(N - 1)
+    ]
 
     def friction():
         kind = draw(st.sampled_from(["constant", "cosine", "steps", "fourier"]))
@@ -286,31 +311,47 @@ def random_gaits(draw):
         if kind == "constant":
             return mean
         if kind == "fourier":  # |cos| + |sin| coefficients < 0.9 mean: positive friction
-            return {"kind": "fourier", "mean": mean,
-                    "cos": [draw(st.floats(-0.3, 0.3)) * mean for _ in range(2)],
-                    "sin": [draw(st.floats(-0.3, 0.3)) * mean]}
+            return {
+                "kind": "fourier",
+                "mean": mean,
+                "cos": [draw(st.floats(-0.3, 0.3)) * mean for _ in range(2)],
+                "sin": [draw(st.floats(-0.3, 0.3)) * mean],
+            }
         if kind == "cosine":
-            return {"kind": "cosine", "mean": mean, "amplitude": draw(st.floats(0.0, 0.45)) * mean,
-                    "phase": draw(st.floats(0.0, 1.0))}
+            return {
+                "kind": "cosine",
+                "mean": mean,
+                "amplitude": draw(st.floats(0.0, 0.45)) * mean,
+                "phase": draw(st.floats(0.0, 1.0)),
+            }
         switch = draw(st.sampled_from([0.25, 0.5, 0.75]))
-        return {"kind": "steps", "times": [0.0, switch],
-                "values": [mean, draw(st.floats(0.3, 2.5))]}
+        return {"kind": "steps", "times": [0.0, switch], "values": [mean, draw(st.floats(0.3, 2.5))]}
 
-    return {"blocks": N, "period": period, "stiffness": draw(st.floats(5.0, 20.0)),
-            "links": links,
-            "friction": [{"forward": friction(), "backward": friction()} for _ in range(N)],
-            "simulation": {"steps_per_period": 64, "max_periods": 200}}
+    return {
+        "blocks": N,
+        "period": period,
+        "stiffness": draw(st.floats(5.0, 20.0)),
+        "links": links,
+        "friction": [{"forward": friction(), "backward": friction()} for _ in range(N)],
+        "simulation": {"steps_per_period": 64, "max_periods": 200},
+    }
 
 
 @settings(max_examples=30)
 @given(random_gaits())
-@example({"blocks": 2, "period": 1.0, "stiffness": 10.0,
-          "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": 0.0}],
-          "friction": [{"forward": 1.0, "backward": {"kind": "steps", "times": [0.0, 0.5],
-                                                     "values": [2.0, 0.6]}},
-                       {"forward": {"kind": "steps", "times": [0.0, 0.25], "values": [1.5, 0.4]},
-                        "backward": 2.0}],
-          "simulation": {"steps_per_period": 64, "max_periods": 200}})
+@example(
+    {
+        "blocks": 2,
+        "period": 1.0,
+        "stiffness": 10.0,
+        "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": 0.0}],
+        "friction": [
+            {"forward": 1.0, "backward": {"kind": "steps", "times": [0.0, 0.5], "values": [2.0, 0.6]}},
+            {"forward": {"kind": "steps", "times": [0.0, 0.25], "values": [1.5, 0.4]}, "backward": 2.0},
+        ],
+        "simulation": {"steps_per_period": 64, "max_periods": 200},
+    }
+)
 def test_balance_and_bound_on_random_gaits(doc):
     """Random two- and three-block gaits with constant, cosine, steps and Fourier friction: the
     balance W = D + J holds in the periodic regime and the efficiency is at most 1."""
@@ -327,8 +368,7 @@ def test_balance_and_bound_on_random_gaits(doc):
         assert run.efficiency <= 1 + 1e-12
         forward, backward = energy.friction_minima(compile_gait(gait))
         d = run.displacement_per_period
-        assert run.dissipation_per_period >= float(np.sum(forward if d > 0 else backward)) \
-            * abs(d) * (1 - 1e-12)
+        assert run.dissipation_per_period >= float(np.sum(forward if d > 0 else backward)) * abs(d) * (1 - 1e-12)
 
 
 # -- where the ledger is reported ------------------------------------------------------------------
@@ -340,8 +380,13 @@ def test_ledger_in_the_summary_and_the_results_file(tmp_path):
     out = tmp_path / "jump.h5"
     run = api_run(jump_gait(), output=out)
     summary = json.loads(json.dumps(run.summary()))
-    for key in ("actuator_work_per_period", "jump_loss_per_period", "energy_balance_residual",
-                "cost_of_transport_bound", "efficiency"):
+    for key in (
+        "actuator_work_per_period",
+        "jump_loss_per_period",
+        "energy_balance_residual",
+        "cost_of_transport_bound",
+        "efficiency",
+    ):
         assert summary[key] == getattr(run, key)
     text = summary_text(run)
     assert f"actuator work per period {run.actuator_work_per_period:.12g}" in text
@@ -355,8 +400,14 @@ def test_ledger_in_the_summary_and_the_results_file(tmp_path):
     units = json.loads(data["attrs"]["attribute_units_json"])
     assert units["actuator_work_per_period"] == units["dissipation_per_period"]
     with h5py.File(out, "r") as f:
-        assert set(f["energy"]) == {"actuator_work", "dissipation", "jump_loss",
-                                    "balance_residual", "cost_of_transport_bound", "efficiency"}
+        assert set(f["energy"]) == {
+            "actuator_work",
+            "dissipation",
+            "jump_loss",
+            "balance_residual",
+            "cost_of_transport_bound",
+            "efficiency",
+        }
         for name, ds in f["energy"].items():
             assert ds.attrs["long_name"] and ds.attrs["units"] == "1", name
 
@@ -366,17 +417,27 @@ def test_generic_process_has_no_ledger():
     spec = load_gait(GAITS / "paper" / "cell-3.yaml")
     run = simulate(compile_any(spec), max_periods=5, integrator="exact")
     summary = run.summary()
-    for key in ("actuator_work_per_period", "jump_loss_per_period", "energy_balance_residual",
-                "cost_of_transport_bound", "efficiency"):
+    for key in (
+        "actuator_work_per_period",
+        "jump_loss_per_period",
+        "energy_balance_residual",
+        "cost_of_transport_bound",
+        "efficiency",
+    ):
         assert summary[key] is None
     assert "actuator work" not in summary_text(run)
 
 
 def test_the_balance_covers_every_example_crawler():
     """The parametrized balance tests see every crawler gait shipped, steps friction included."""
-    assert {p.stem for p in CRAWLERS} >= {"anchoring-2", "inching-2", "peristalsis-3",
-                                          "peristalsis-4", "smooth-friction-3",
-                                          "speed-peristalsis-4"}
+    assert {p.stem for p in CRAWLERS} >= {
+        "anchoring-2",
+        "inching-2",
+        "peristalsis-3",
+        "peristalsis-4",
+        "smooth-friction-3",
+        "speed-peristalsis-4",
+    }
 
 
 @pytest.mark.parametrize("integrator", ["exact", "catch-up"])
@@ -396,11 +457,16 @@ def test_actuator_jumps_closed_form(integrator, k, a, p, q):
     jumps, gives the same numbers; every block slips forward only, at constant friction, so the
     efficiency is 1.
     """
-    gait = make_gait({"blocks": 2, "period": 1.0, "stiffness": k,
-                      "links": [{"kind": "steps", "times": [0.0, 0.5], "values": [1.0, 1.0 + a]}],
-                      "friction": [{"forward": q, "backward": 3.0},
-                                   {"forward": p, "backward": 3.0}],
-                      "simulation": {"steps_per_period": 50, "max_periods": 10}})
+    gait = make_gait(
+        {
+            "blocks": 2,
+            "period": 1.0,
+            "stiffness": k,
+            "links": [{"kind": "steps", "times": [0.0, 0.5], "values": [1.0, 1.0 + a]}],
+            "friction": [{"forward": q, "backward": 3.0}, {"forward": p, "backward": 3.0}],
+            "simulation": {"steps_per_period": 50, "max_periods": 10},
+        }
+    )
     run = _run(gait, integrator)
     s = a - (p + q) / k
     assert run.displacement_per_period == pytest.approx(s, rel=1e-13)

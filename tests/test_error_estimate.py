@@ -41,8 +41,9 @@ def test_two_exact_loops_agree_within_the_estimate(seed, monkeypatch):
     for python in (False, True):
         if python:
             _python_loop(monkeypatch)
-        runs.append(simulate(process, max_periods=s.max_periods, tolerance=s.tolerance,
-                             integrator="exact", history=False))
+        runs.append(
+            simulate(process, max_periods=s.max_periods, tolerance=s.tolerance, integrator="exact", history=False)
+        )
     compiled, python = runs
     assert compiled.v0 is not None and python.v0 is not None
     assert compiled.v0_error_estimate is not None and python.v0_error_estimate is not None

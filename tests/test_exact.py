@@ -42,14 +42,21 @@ from .conftest import GAITS, iterated_examples, two_block
 
 
 def exact(gait, steps=None, **options):
-    return simulate(compile_gait(gait, steps), max_periods=gait.simulation.max_periods,
-                    tolerance=gait.simulation.tolerance, integrator="exact", **options)
+    return simulate(
+        compile_gait(gait, steps),
+        max_periods=gait.simulation.max_periods,
+        tolerance=gait.simulation.tolerance,
+        integrator="exact",
+        **options,
+    )
 
 
 # -- two-block closed forms -----------------------------------------------------------------
 
-@pytest.mark.parametrize("amplitude,k,mu_plus,mu_minus", [
-    (0.3, 10.0, 1.0, 2.0), (0.5, 4.0, 0.3, 0.7), (0.25, 25.0, 2.0, 5.0)])
+
+@pytest.mark.parametrize(
+    "amplitude,k,mu_plus,mu_minus", [(0.3, 10.0, 1.0, 2.0), (0.5, 4.0, 0.3, 0.7), (0.25, 25.0, 2.0, 5.0)]
+)
 def test_two_block_inching_closed_form(amplitude, k, mu_plus, mu_minus):
     gait = two_block(amplitude, k, {"forward": mu_plus, "backward": mu_minus}, steps=7)
     process = compile_gait(gait)
@@ -61,8 +68,7 @@ def test_two_block_inching_closed_form(amplitude, k, mu_plus, mu_minus):
         assert np.max(np.abs(rec.w[-1] - rec.w[0])) <= 1e-13 * process.scale
     t1 = math.acos(1 - 2 * mu_plus / (k * amplitude)) / (2 * math.pi)
     events = records[-1].events
-    np.testing.assert_allclose(events.t - records[-1].start, [0.0, t1, 0.5, t1 + 0.5],
-                               rtol=0, atol=1e-13)
+    np.testing.assert_allclose(events.t - records[-1].start, [0.0, t1, 0.5, t1 + 0.5], rtol=0, atol=1e-13)
     # Block 1 slips from t1 to T/2, block 2 from t2 to T, each by delta.
     dx = np.diff(events.x, axis=0, append=records[-1].x[-1][None])
     np.testing.assert_allclose(dx, [[0, 0], [delta, 0], [0, 0], [0, delta]], atol=1e-13)
@@ -121,14 +127,12 @@ CONVERGENCE = [
 ]
 
 
-@pytest.mark.parametrize("name,steps,slope,bound", CONVERGENCE,
-                         ids=[f"{c[0]}-{c[1][0]}" for c in CONVERGENCE])
+@pytest.mark.parametrize("name,steps,slope,bound", CONVERGENCE, ids=[f"{c[0]}-{c[1][0]}" for c in CONVERGENCE])
 def test_catch_up_converges_to_the_exact_v0(name, steps, slope, bound):
     gait = load_gait(GAITS / f"{name}.yaml")
     reference = exact(gait, steps=10).v0
     h = gait.period / np.array(steps)
-    error = np.array([simulate(compile_gait(gait, G), max_periods=50).v0 - reference
-                      for G in steps])
+    error = np.array([simulate(compile_gait(gait, G), max_periods=50).v0 - reference for G in steps])
     if slope is None:
         assert np.max(np.abs(error)) <= bound
         return
@@ -169,12 +173,20 @@ def test_clarabel_confirms_every_sampled_state():
 
 # -- generic processes: tangential and simultaneous contacts ---------------------------------
 
+
 def generic(normals, metric, offsets, initial, steps=16):
     """A one-period process {w : B w <= c(t)} from a process document (T = 1)."""
-    doc = {"kind": "sweeping-process", "name": "test", "period": 1.0,
-           "normals": np.atleast_2d(normals).tolist(), "metric": np.atleast_2d(metric).tolist(),
-           "offsets": offsets, "initial": list(initial), "allow_unbounded": True,
-           "simulation": {"steps_per_period": steps}}
+    doc = {
+        "kind": "sweeping-process",
+        "name": "test",
+        "period": 1.0,
+        "normals": np.atleast_2d(normals).tolist(),
+        "metric": np.atleast_2d(metric).tolist(),
+        "offsets": offsets,
+        "initial": list(initial),
+        "allow_unbounded": True,
+        "simulation": {"steps_per_period": steps},
+    }
     return compile_any(parse_gait(yaml.safe_dump(doc), source="test.yaml"))
 
 
@@ -225,8 +237,7 @@ def test_tangential_contact_of_a_fourier_offset_between_samples():
     w ends at -d, whatever the sampling."""
     for d, cells in ((0.0, 64), (1e-6, 8), (1e-6, 64)):
         offset = {"kind": "fourier", "mean": 0.25 - 1 / 16 - d, "cos": [0.25, 0.125]}
-        rec = EventStepper(generic([[1.0]], [[1.0]], [offset], [0.0], steps=10),
-                           cells_per_cycle=cells).step_period()
+        rec = EventStepper(generic([[1.0]], [[1.0]], [offset], [0.0], steps=10), cells_per_cycle=cells).step_period()
         assert rec.w[-1, 0] == pytest.approx(-d, abs=1e-15)
         assert np.sum(rec.multipliers) == pytest.approx(d, abs=1e-15)
 
@@ -258,8 +269,7 @@ def test_sampled_crossing_survives_a_bracket_the_scalar_rounds_differently():
     assert found == pytest.approx(0.25, abs=1e-15)
     # the same f and tol, the samples exact: the crossing is where f = 0 as well, and the
     # time above tol (the zero counts) is after s_k
-    exact_found = sampling.crossing(z, tol, 0.0, 1.0, False, 2, 1.0, s, b.values(s),
-                                    np.array([cells + 1]))
+    exact_found = sampling.crossing(z, tol, 0.0, 1.0, False, 2, 1.0, s, b.values(s), np.array([cells + 1]))
     assert exact_found == pytest.approx(0.25, abs=1e-15)
 
 
@@ -281,10 +291,10 @@ def test_compiled_brent_steps_are_scipys(seed):
         b = Basis(linear, H)
         z = rng.normal(size=b.size) * 10.0 ** rng.uniform(-3, 3)
         lo, hi = sorted(rng.uniform(0, 1, 2))
-        assert b.scalar(lo, z) == pytest.approx((b.values(lo) @ z)[0],
-                                                abs=1e-14 * float(np.sum(np.abs(z))))
-        res = minimize_scalar(lambda x, b=b, z=z: -b.scalar(x, z), bounds=(lo, hi),
-                              method="bounded", options={"xatol": 1e-15})
+        assert b.scalar(lo, z) == pytest.approx((b.values(lo) @ z)[0], abs=1e-14 * float(np.sum(np.abs(z))))
+        res = minimize_scalar(
+            lambda x, b=b, z=z: -b.scalar(x, z), bounds=(lo, hi), method="bounded", options={"xatol": 1e-15}
+        )
         assert sampling.maximum(z, lo, hi, linear, H) == (res.x, -res.fun)
         t = float(rng.uniform(-0.3, 0.3) * np.sum(np.abs(z)))
         if (b.scalar(lo, z) - t) * (b.scalar(hi, z) - t) < 0:
@@ -303,8 +313,7 @@ def test_sampled_crossing_finds_the_zero_before_the_tolerance():
 
     b = Basis(True, 2)
     p = 2 * math.pi * 0.6
-    z = np.array([-0.5, -0.1, math.cos(p), math.sin(p), 0.2 * math.cos(2 * p),
-                  0.2 * math.sin(2 * p)])
+    z = np.array([-0.5, -0.1, math.cos(p), math.sin(p), 0.2 * math.cos(2 * p), 0.2 * math.sin(2 * p)])
     u = np.linspace(0.1, 1.0, 2_000_001)
     f = b.values(u) @ z
     up = np.flatnonzero((f[:-1] < 0) & (f[1:] >= 0))
@@ -314,8 +323,9 @@ def test_sampled_crossing_finds_the_zero_before_the_tolerance():
         count = sampling.cells(0.1, 1.0, 64, 2)
         S = np.empty(count + 1)
         sampling.grid(0.1, 1.0, count, S)
-        return sampling.crossing(z, tol, 0.1, 1.0, True, 2, horizon, S,
-                                 np.empty((count + 1, b.size)), np.zeros(1, dtype=np.int64))
+        return sampling.crossing(
+            z, tol, 0.1, 1.0, True, 2, horizon, S, np.empty((count + 1, b.size)), np.zeros(1, dtype=np.int64)
+        )
 
     assert find(1e-12) == pytest.approx(expected, abs=1e-6)
     assert abs(b.scalar(find(1e-12), z)) <= 1e-14
@@ -331,8 +341,7 @@ def test_sampled_zeros_and_jumps_stay_in_the_compiled_loop(seed):
     (the same certified KKT points and the same sampled zeros)."""
     from crawlsim.gait.corpus import random_gait
 
-    process = compile_gait(random_gait(seed, blocks=(2, 5), stiffness_ratio=1e6,
-                                       friction_ratio=1e3), 100)
+    process = compile_gait(random_gait(seed, blocks=(2, 5), stiffness_ratio=1e6, friction_ratio=1e3), 100)
     compiled, python = EventStepper(process), EventStepper(process, kernel=False)
     assert compiled._loop is not None and compiled.basis.harmonics + compiled.basis.linear >= 2
     assert compiled._jump.any()
@@ -340,13 +349,15 @@ def test_sampled_zeros_and_jumps_stay_in_the_compiled_loop(seed):
         a, b = compiled.step_period(), python.step_period()
         scale = max(1.0, float(np.max(np.abs(b.w))))
         np.testing.assert_allclose(a.w, b.w, rtol=0, atol=1e-11 * scale)
-        np.testing.assert_allclose(a.multipliers, b.multipliers, rtol=0,
-                                   atol=1e-11 * max(1.0, float(np.max(np.abs(b.multipliers)))))
+        np.testing.assert_allclose(
+            a.multipliers, b.multipliers, rtol=0, atol=1e-11 * max(1.0, float(np.max(np.abs(b.multipliers))))
+        )
         np.testing.assert_allclose(a.events.t, b.events.t, rtol=0, atol=1e-12)
     assert compiled._loop is not None and compiled._loop.handoffs == 0
 
 
 # -- the paper's Section 5 maps ---------------------------------------------------------------
+
 
 @pytest.mark.parametrize("alpha", [0.5, 1.0, 2.0])
 @pytest.mark.parametrize("fraction", [0.0, 0.4, 0.9, 1.5])
@@ -400,11 +411,16 @@ def test_dependent_normals_of_a_process_warn_and_the_point_is_right():
     catches the point at s = 0.1 (an event at t = 0.1) and carries it to (0.5, 0.5). Three tight
     normals in the plane are dependent: a LicqWarning naming the process's rows, not an error."""
     corner = {
-        "kind": "sweeping-process", "name": "corner", "period": 1.0,
+        "kind": "sweeping-process",
+        "name": "corner",
+        "period": 1.0,
         "normals": [[1, 0], [-1, 0], [0, 1], [0, -1], [1, 1]],
-        "offsets": [{"kind": "piecewise-linear", "times": [0, 0.5, 1], "values": v}
-                    for v in ([1, 0.5, 1], [1, 1.5, 1], [1, 0.5, 1], [1, 1.5, 1], [2, 1, 2])],
-        "initial": [0.9, 0.9], "simulation": {"steps_per_period": 10, "max_periods": 10},
+        "offsets": [
+            {"kind": "piecewise-linear", "times": [0, 0.5, 1], "values": v}
+            for v in ([1, 0.5, 1], [1, 1.5, 1], [1, 0.5, 1], [1, 1.5, 1], [2, 1, 2])
+        ],
+        "initial": [0.9, 0.9],
+        "simulation": {"steps_per_period": 10, "max_periods": 10},
     }
     stepper = EventStepper(compile_any(parse_gait(yaml.safe_dump(corner), source="c.yaml")))
     with pytest.warns(LicqWarning, match=r"LICQ fails at t = 0.1: .*\{0, 2, 4\}"):
@@ -415,6 +431,7 @@ def test_dependent_normals_of_a_process_warn_and_the_point_is_right():
 
 
 # -- guards ------------------------------------------------------------------------------------
+
 
 def test_event_bound_stops_with_a_clear_message():
     process = compile_gait(load_gait(GAITS / "peristalsis-4.yaml"), 10)
@@ -430,9 +447,9 @@ def test_accumulating_events_are_reported_not_looped():
 
 # -- integration: YAML, CLI, HDF5 -----------------------------------------------------------
 
+
 def test_gait_file_selects_the_exact_integrator():
-    gait = with_simulation(load_gait(GAITS / "anchoring-2.yaml"), integrator="exact",
-                           steps_per_period=20)
+    gait = with_simulation(load_gait(GAITS / "anchoring-2.yaml"), integrator="exact", steps_per_period=20)
     assert run(gait).v0 == pytest.approx(0.3, abs=1e-14)  # catch-up: 0.3 - 1.2 h
     with pytest.raises(GaitError, match="simulation.integrator"):
         with_simulation(gait, integrator="runge-kutta")
@@ -440,9 +457,20 @@ def test_gait_file_selects_the_exact_integrator():
 
 def test_cli_run_exact_writes_events(tmp_path):
     out = tmp_path / "inching.h5"
-    result = CliRunner().invoke(main, ["run", str(GAITS / "inching-2.yaml"), "--integrator",
-                                       "exact", "--steps-per-period", "20", "--json", "-o",
-                                       str(out)])
+    result = CliRunner().invoke(
+        main,
+        [
+            "run",
+            str(GAITS / "inching-2.yaml"),
+            "--integrator",
+            "exact",
+            "--steps-per-period",
+            "20",
+            "--json",
+            "-o",
+            str(out),
+        ],
+    )
     assert result.exit_code == 0, result.output
     assert '"v0": 0.4' in result.output or '"v0": 0.39999999999999' in result.output
     data = read_results(out)
@@ -450,8 +478,9 @@ def test_cli_run_exact_writes_events(tmp_path):
     ev = data["events"]
     assert ev["t"].shape[0] == ev["w"].shape[0] == ev["x"].shape[0]
     np.testing.assert_allclose(ev["t"][-4:] - ev["t"][-4], [0.0, t1, 0.5, t1 + 0.5], atol=1e-13)
-    bad = CliRunner().invoke(main, ["run", str(GAITS / "inching-2.yaml"), "--integrator", "rk4",
-                                    "-o", str(tmp_path / "bad.h5")])
+    bad = CliRunner().invoke(
+        main, ["run", str(GAITS / "inching-2.yaml"), "--integrator", "rk4", "-o", str(tmp_path / "bad.h5")]
+    )
     assert bad.exit_code == 2 and not (tmp_path / "bad.h5").exists()
 
 

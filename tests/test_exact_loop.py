@@ -33,28 +33,40 @@ def _every_row(loop, stepper, signs, base, Wc, Ydx, coef, inverse, u0, u1):
     Z, reach = np.empty((2 * N, nb)), np.empty(2 * N, dtype=np.int8)
     phi0 = np.empty(nb)
     eventloop.basis_values(u0, 0, linear, H, phi0)
-    eventloop.row_functions(linear, H, coef, signs, base, Wc, Rdx, tol_gap, tol_rate, u0, u1,
-                            phi0, Z, reach, np.empty((2 * N, 3)))
-    active = np.array([(r < N and signs[r % N] > 0) or (r >= N and signs[r % N] < 0)
-                       for r in range(2 * N)])
-    times = np.array([eventloop.crossing(Z[r], tol_rate if active[r] else tol_gap, u0, u1,
-                                         linear, H, phi0, u1) for r in range(2 * N)])
+    eventloop.row_functions(
+        linear, H, coef, signs, base, Wc, Rdx, tol_gap, tol_rate, u0, u1, phi0, Z, reach, np.empty((2 * N, 3))
+    )
+    active = np.array([(r < N and signs[r % N] > 0) or (r >= N and signs[r % N] < 0) for r in range(2 * N)])
+    times = np.array(
+        [
+            eventloop.crossing(Z[r], tol_rate if active[r] else tol_gap, u0, u1, linear, H, phi0, u1)
+            for r in range(2 * N)
+        ]
+    )
     if np.isnan(times).any():  # no closed form: the certified sampling over the whole piece
         count = sampling.cells(u0, u1, stepper.cells_per_cycle, H)
         S = np.empty(count + 1)
         sampling.grid(u0, u1, count, S)
         for r in np.flatnonzero(np.isnan(times)):
-            times[r] = sampling.crossing(Z[r], tol_rate if active[r] else tol_gap, u0, u1,
-                                         linear, H, u1, S, np.empty((count + 1, nb)),
-                                         np.zeros(1, dtype=np.int64))
+            times[r] = sampling.crossing(
+                Z[r],
+                tol_rate if active[r] else tol_gap,
+                u0,
+                u1,
+                linear,
+                H,
+                u1,
+                S,
+                np.empty((count + 1, nb)),
+                np.zeros(1, dtype=np.int64),
+            )
     first = float(np.min(times))
     if not first < u1:
         return np.inf, np.zeros(2 * N, dtype=bool)
     return first, (~active) & (times <= first + eventloop.SIMULTANEOUS)
 
 
-@pytest.mark.parametrize("name", ["peristalsis-4", "earthworm-100", "inching-2",
-                                  "smooth-friction-3"])
+@pytest.mark.parametrize("name", ["peristalsis-4", "earthworm-100", "inching-2", "smooth-friction-3"])
 def test_next_event_is_that_of_every_row(name):
     """At every transition of a period, the next event and its hit rows from `next_event` are
     those of the crossings of all rows over the whole piece (the piece rebuilt from the
@@ -78,19 +90,34 @@ def test_next_event_is_that_of_every_row(name):
         coef = loop.coef[tr.piece]
         D, l, dx0, Ydx = np.empty(N), np.empty(N - 1), np.empty(N), np.empty((nb, N))
         base, Wc = np.empty(N - 1), np.empty((nb, N - 1))
-        inverse, _ = eventloop.piece(loop.k, signs, w0, coef, D, l, dx0, Ydx, base, Wc,
-                                     np.empty(N))
+        inverse, _ = eventloop.piece(loop.k, signs, w0, coef, D, l, dx0, Ydx, base, Wc, np.empty(N))
         u0, u1 = tr.u, float(stepper.pieces.edges[tr.piece + 1])
         hit = np.zeros(2 * N, dtype=bool)
         m = 2 * N
         u, handoff = eventloop.next_event(
-            loop.c_scale, stepper.basis.linear, stepper.basis.harmonics, coef,
-            eventloop.offset_size(coef), signs, base, Wc, Ydx, inverse, u0, u1, hit,
-            np.empty((nb, N)), np.empty((m, nb)), np.empty(m), np.empty(m, dtype=np.int8),
-            np.empty((m, 3)), np.empty(nb), stepper.cells_per_cycle)
+            loop.c_scale,
+            stepper.basis.linear,
+            stepper.basis.harmonics,
+            coef,
+            eventloop.offset_size(coef),
+            signs,
+            base,
+            Wc,
+            Ydx,
+            inverse,
+            u0,
+            u1,
+            hit,
+            np.empty((nb, N)),
+            np.empty((m, nb)),
+            np.empty(m),
+            np.empty(m, dtype=np.int8),
+            np.empty((m, 3)),
+            np.empty(nb),
+            stepper.cells_per_cycle,
+        )
         assert not handoff
-        first, every_hit = _every_row(loop, stepper, signs, base, Wc, Ydx, coef, inverse, u0,
-                                      u1)
+        first, every_hit = _every_row(loop, stepper, signs, base, Wc, Ydx, coef, inverse, u0, u1)
         assert u == first
         if u < u1:
             assert np.array_equal(hit, every_hit)

@@ -30,9 +30,9 @@ def run_h5(tmp_path_factory):
     return out
 
 
-@pytest.mark.parametrize("suffix, magic", [(".pdf", b"%PDF-"), (".svg", b"<?xml"),
-                                           (".png", b"\x89PNG\r\n\x1a\n"),
-                                           (".PDF", b"%PDF-")])
+@pytest.mark.parametrize(
+    "suffix, magic", [(".pdf", b"%PDF-"), (".svg", b"<?xml"), (".png", b"\x89PNG\r\n\x1a\n"), (".PDF", b"%PDF-")]
+)
 def test_one_figure_by_the_extension_of_its_file(run_h5, tmp_path, suffix, magic):
     target = tmp_path / f"motion{suffix}"
     r = cli("plot", run_h5, "--only", "motion", "-o", target)
@@ -50,11 +50,9 @@ def test_figsize_and_dpi_give_the_pixels(run_h5, tmp_path):
     100, 2.5 x 300 by 1.5 x 300). Without --figsize the figure is cropped to its content, and
     its pixel size scales with the dpi: 300 dpi is twice 150 dpi, to the pixel of rounding."""
     a, b = tmp_path / "a.png", tmp_path / "b.png"
-    assert cli("plot", run_h5, "--only", "motion", "-o", a, "--figsize", "4,3",
-               "--dpi", "100").exit_code == 0
+    assert cli("plot", run_h5, "--only", "motion", "-o", a, "--figsize", "4,3", "--dpi", "100").exit_code == 0
     assert Image.open(a).size == (400, 300)
-    assert cli("plot", run_h5, "--only", "convergence", "-o", b, "--figsize", "2.5,1.5",
-               "--dpi", "300").exit_code == 0
+    assert cli("plot", run_h5, "--only", "convergence", "-o", b, "--figsize", "2.5,1.5", "--dpi", "300").exit_code == 0
     assert Image.open(b).size == (750, 450)
     low, high = tmp_path / "low.png", tmp_path / "high.png"
     assert cli("plot", run_h5, "--only", "motion", "-o", low).exit_code == 0
@@ -69,8 +67,7 @@ def test_pdf_page_is_the_figsize(run_h5, tmp_path):
     import re
 
     target = tmp_path / "m.pdf"
-    assert cli("plot", run_h5, "--only", "motion", "-o", target, "--figsize",
-               "3.5,2.6").exit_code == 0
+    assert cli("plot", run_h5, "--only", "motion", "-o", target, "--figsize", "3.5,2.6").exit_code == 0
     box = re.search(rb"/MediaBox \[\s*0 0 ([0-9.]+) ([0-9.]+)\s*\]", target.read_bytes())
     assert box is not None
     assert (float(box[1]), float(box[2])) == pytest.approx((252.0, 187.2))
@@ -83,29 +80,32 @@ def test_style_sheet_is_applied(run_h5, tmp_path):
     sheet = tmp_path / "red.mplstyle"
     sheet.write_text("figure.facecolor: red\nsavefig.facecolor: red\n")
     assert cli("plot", run_h5, "--only", "motion", "-o", plain).exit_code == 0
-    assert cli("plot", run_h5, "--only", "motion", "-o", dark, "--style",
-               "dark_background").exit_code == 0
+    assert cli("plot", run_h5, "--only", "motion", "-o", dark, "--style", "dark_background").exit_code == 0
     assert cli("plot", run_h5, "--only", "motion", "-o", own, "--style", sheet).exit_code == 0
     corner = [Image.open(p).convert("RGB").getpixel((1, 1)) for p in (plain, dark, own)]
     assert corner == [(255, 255, 255), (0, 0, 0), (255, 0, 0)]
 
 
-@pytest.mark.parametrize("args, words", [
-    (["--only", "motion", "-o", "{tmp}/m.jpg"], "extension .jpg"),
-    (["--only", "motion", "-o", "{tmp}/m.eps"], "a figure is written as .png, .pdf or .svg"),
-    (["-o", "{tmp}/all.pdf"], "names one figure"),
-    (["--only", "motion", "-o", "{tmp}/m.svg", "--format", "pdf"], "--format pdf"),
-    (["--only", "motion", "-o", "{tmp}/m.png", "--style", "{typo}"], "did you mean '{style}'"),
-    (["--only", "motion", "-o", "{tmp}/m.png", "--style", "{tmp}/missing.mplstyle"],
-     "no such matplotlib style sheet or file"),
-    (["--only", "motion", "-o", "{tmp}/m.png", "--style", "{tmp}/bad.mplstyle"],
-     "not a matplotlib style sheet"),
-    (["--only", "motion", "-o", "{tmp}/m.png", "--figsize", "3"], "--figsize"),
-    (["--only", "motion", "-o", "{tmp}/m.png", "--figsize", "0,2"], "--figsize"),
-    (["--only", "motion", "-o", "{tmp}/m.png", "--figsize", "nan,2"], "--figsize"),
-    (["--only", "motion", "-o", "{tmp}/m.png", "--dpi", "0"], "--dpi"),
-    (["--only", "motion", "-o", "{tmp}/m.png", "--dpi", "inf"], "--dpi"),
-])
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (["--only", "motion", "-o", "{tmp}/m.jpg"], "extension .jpg"),
+        (["--only", "motion", "-o", "{tmp}/m.eps"], "a figure is written as .png, .pdf or .svg"),
+        (["-o", "{tmp}/all.pdf"], "names one figure"),
+        (["--only", "motion", "-o", "{tmp}/m.svg", "--format", "pdf"], "--format pdf"),
+        (["--only", "motion", "-o", "{tmp}/m.png", "--style", "{typo}"], "did you mean '{style}'"),
+        (
+            ["--only", "motion", "-o", "{tmp}/m.png", "--style", "{tmp}/missing.mplstyle"],
+            "no such matplotlib style sheet or file",
+        ),
+        (["--only", "motion", "-o", "{tmp}/m.png", "--style", "{tmp}/bad.mplstyle"], "not a matplotlib style sheet"),
+        (["--only", "motion", "-o", "{tmp}/m.png", "--figsize", "3"], "--figsize"),
+        (["--only", "motion", "-o", "{tmp}/m.png", "--figsize", "0,2"], "--figsize"),
+        (["--only", "motion", "-o", "{tmp}/m.png", "--figsize", "nan,2"], "--figsize"),
+        (["--only", "motion", "-o", "{tmp}/m.png", "--dpi", "0"], "--dpi"),
+        (["--only", "motion", "-o", "{tmp}/m.png", "--dpi", "inf"], "--dpi"),
+    ],
+)
 def test_bad_figure_options_exit_2_and_write_nothing(run_h5, tmp_path, args, words):
     out = tmp_path / "out"
     out.mkdir()
@@ -127,12 +127,23 @@ def test_run_plot_takes_the_figure_options(tmp_path):
     options without --plot are refused (exit 2) before the run, with no results file."""
     gait = GAITS / "inching-2.yaml"
     out = tmp_path / "i.h5"
-    r = cli("run", gait, "-o", out, "--steps-per-period", "20", "--plot", "--plot-format", "svg",
-            "--figsize", "4,3", "--quiet")
+    r = cli(
+        "run",
+        gait,
+        "-o",
+        out,
+        "--steps-per-period",
+        "20",
+        "--plot",
+        "--plot-format",
+        "svg",
+        "--figsize",
+        "4,3",
+        "--quiet",
+    )
     assert r.exit_code == 0, r.output
     figures = sorted(p.name for p in tmp_path.glob("i-*"))
-    assert figures == ["i-convergence.svg", "i-gait-diagram.svg", "i-motion.svg",
-                       "i-shape-space.svg"]
+    assert figures == ["i-convergence.svg", "i-gait-diagram.svg", "i-motion.svg", "i-shape-space.svg"]
     head = (tmp_path / "i-motion.svg").read_text()[:1000]
     assert 'width="288pt" height="216pt"' in head  # 4 x 3 in, 72 pt to the inch
     for option in (["--dpi", "200"], ["--plot-format", "pdf"], ["--style", "ggplot"]):
@@ -146,7 +157,15 @@ def test_run_plot_takes_the_figure_options(tmp_path):
 
 
 def test_velocity_plot_refuses_other_extensions(tmp_path):
-    r = cli("velocity", GAITS / "inching-2.yaml", "--sweep", "friction.backward=2,3",
-            "--steps-per-period", "20", "--plot", tmp_path / "s.jpeg")
+    r = cli(
+        "velocity",
+        GAITS / "inching-2.yaml",
+        "--sweep",
+        "friction.backward=2,3",
+        "--steps-per-period",
+        "20",
+        "--plot",
+        tmp_path / "s.jpeg",
+    )
     assert r.exit_code == 2 and ".png, .pdf or .svg" in r.output
     assert list(tmp_path.iterdir()) == []

@@ -46,6 +46,7 @@ def folder(tmp_path, monkeypatch):
 
 def full_after(monkeypatch, budget: int) -> None:
     """HDF5 files (`crawlsim.io.atomic.GuardedFile`) on a disk that holds ``budget`` bytes."""
+
     class Full(atomic.GuardedFile):
         written = 0
 
@@ -81,12 +82,13 @@ def test_a_run_on_a_full_disk(folder, monkeypatch, budget):
 def test_sweep_and_optimisation_files_on_a_full_disk(folder, monkeypatch):
     full_after(monkeypatch, 2000)
     invoke = CliRunner().invoke
-    full_disk_refusal(invoke(main, ["velocity", "g.yaml", "--sweep", "period=1,2", "-o", "s.h5"]),
-                      "s.h5")
+    full_disk_refusal(invoke(main, ["velocity", "g.yaml", "--sweep", "period=1,2", "-o", "s.h5"]), "s.h5")
     assert left(folder) == ["g.yaml", "s.h5.journal"]  # the finished points are kept
     (folder / "s.h5.journal").unlink()
-    full_disk_refusal(invoke(main, ["optimize", "g.yaml", "--free", "links.0.phase=0:1",
-                                    "--max-evaluations", "3", "-o", "o.h5"]), "o.h5")
+    full_disk_refusal(
+        invoke(main, ["optimize", "g.yaml", "--free", "links.0.phase=0:1", "--max-evaluations", "3", "-o", "o.h5"]),
+        "o.h5",
+    )
     assert "o.h5" not in left(folder)
 
 
@@ -110,8 +112,7 @@ def test_a_journal_on_a_full_disk(folder, monkeypatch):
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
     monkeypatch.setattr(sweeps.os, "fsync", fsync)
-    result = CliRunner().invoke(main, ["velocity", "g.yaml", "--sweep", "period=1,2,3",
-                                       "-o", "s.csv"])
+    result = CliRunner().invoke(main, ["velocity", "g.yaml", "--sweep", "period=1,2,3", "-o", "s.csv"])
     full_disk_refusal(result, "s.csv.journal")
     assert "s.csv" not in left(folder)
 
@@ -119,8 +120,7 @@ def test_a_journal_on_a_full_disk(folder, monkeypatch):
 def _mount_tmpfs(where: Path) -> bool:
     if os.geteuid() != 0 or shutil.which("mount") is None:
         return False
-    done = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(where)],
-                          capture_output=True)
+    done = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(where)], capture_output=True)
     return done.returncode == 0
 
 
@@ -132,10 +132,22 @@ def test_a_run_on_a_real_one_megabyte_file_system(tmp_path):
     if not _mount_tmpfs(disk):
         pytest.skip("cannot mount a 1 MB tmpfs here (needs root and mount)")
     try:
-        done = subprocess.run([sys.executable, "-m", "crawlsim", "run",
-                               str(GAITS / "peristalsis-4.yaml"), "--steps-per-period", "2000",
-                               "-o", str(disk / "r.h5")],
-                              capture_output=True, text=True, timeout=600)
+        done = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "crawlsim",
+                "run",
+                str(GAITS / "peristalsis-4.yaml"),
+                "--steps-per-period",
+                "2000",
+                "-o",
+                str(disk / "r.h5"),
+            ],
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
         assert done.returncode == 2, (done.returncode, done.stderr[-2000:])
         assert "Traceback" not in done.stderr
         assert done.stderr.strip() == f"Error: {FULL}: {disk / 'r.h5'} (not written)"

@@ -74,9 +74,12 @@ def test_default_initial_positions_are_stress_free():
 def test_per_block_friction_and_per_link_stiffness():
     text = EXAMPLE.replace("stiffness: 10.0", "stiffness: [1, 2, 3]").replace(
         "friction: {forward: 1.0, backward: 2.0}",
-        "friction:\n" + "".join(
+        "friction:\n"
+        + "".join(
             f"  - {{forward: {f}, backward: {{kind: steps, times: [0, 0.5], values: [2, 3]}}}}\n"
-            for f in (1, 1.25, 2.1, 2.7)))
+            for f in (1, 1.25, 2.1, 2.7)
+        ),
+    )
     gait = parse_gait(text)
     np.testing.assert_array_equal(gait.stiffness, [1.0, 2.0, 3.0])
     np.testing.assert_array_equal(gait.mu_plus([0.0])[0], [1.0, 1.25, 2.1, 2.7])
@@ -134,24 +137,34 @@ def test_friction_entry_of_wrong_type():
     assert "expected a number or a signal mapping with 'kind'" in error.message
 
 
-@pytest.mark.parametrize("old, new, keypath, phrase", [
-    ("  - {kind: cosine, mean: 1.0, amplitude: 0.3, phase: 0.5}\n", "", "links", "expected 3 link signals"),
-    ("stiffness: 10.0", "stiffness: [10, 10]", "stiffness", "expected 3 stiffness values"),
-    ("friction: {forward: 1.0, backward: 2.0}", "friction: [{forward: 1.0, backward: 2.0}]", "friction",
-     "expected 4 friction mappings"),
-    ("positions: [0.0, 1.3, 2.3, 3.0]", "positions: [0.0, 1.3, 2.3]", "initial.positions", "expected 4 positions"),
-])
+@pytest.mark.parametrize(
+    "old, new, keypath, phrase",
+    [
+        ("  - {kind: cosine, mean: 1.0, amplitude: 0.3, phase: 0.5}\n", "", "links", "expected 3 link signals"),
+        ("stiffness: 10.0", "stiffness: [10, 10]", "stiffness", "expected 3 stiffness values"),
+        (
+            "friction: {forward: 1.0, backward: 2.0}",
+            "friction: [{forward: 1.0, backward: 2.0}]",
+            "friction",
+            "expected 4 friction mappings",
+        ),
+        ("positions: [0.0, 1.3, 2.3, 3.0]", "positions: [0.0, 1.3, 2.3]", "initial.positions", "expected 4 positions"),
+    ],
+)
 def test_wrong_counts(old, new, keypath, phrase):
     error = refused(EXAMPLE.replace(old, new))
     assert error.keypath == keypath and phrase in error.message
 
 
-@pytest.mark.parametrize("old, new, keypath", [
-    ("stiffness: 10.0", "stiffness: 0", "stiffness"),
-    ("stiffness: 10.0", "stiffness: [10, -1, 10]", "stiffness[1]"),
-    ("period: 1.0", "period: -1.0", "period"),
-    ("blocks: 4", "blocks: 1", "blocks"),
-])
+@pytest.mark.parametrize(
+    "old, new, keypath",
+    [
+        ("stiffness: 10.0", "stiffness: 0", "stiffness"),
+        ("stiffness: 10.0", "stiffness: [10, -1, 10]", "stiffness[1]"),
+        ("period: 1.0", "period: -1.0", "period"),
+        ("blocks: 4", "blocks: 1", "blocks"),
+    ],
+)
 def test_non_positive_parameters(old, new, keypath):
     error = refused(EXAMPLE.replace(old, new))
     assert error.keypath == keypath and "expected" in error.message
@@ -164,9 +177,11 @@ def test_non_positive_friction_names_minimum_and_time():
     assert "its minimum is -0.2 at t = 0.5 T" in error.message
     text = EXAMPLE.replace(
         "friction: {forward: 1.0, backward: 2.0}",
-        "friction:\n" + "  - {forward: 1.0, backward: 2.0}\n" * 2
+        "friction:\n"
+        + "  - {forward: 1.0, backward: 2.0}\n" * 2
         + "  - {forward: 1.0, backward: {kind: piecewise-linear, times: [0, 0.25, 1], values: [1, -0.2, 1]}}\n"
-        + "  - {forward: 1.0, backward: 2.0}\n")
+        + "  - {forward: 1.0, backward: 2.0}\n",
+    )
     error = refused(text)
     assert error.keypath == "friction[2].backward"
     assert "its minimum is -0.2 at t = 0.25 T" in error.message
@@ -175,19 +190,30 @@ def test_non_positive_friction_names_minimum_and_time():
 
 
 def test_non_periodic_piecewise_linear():
-    error = refused(EXAMPLE.replace("{kind: cosine, mean: 1.0, amplitude: 0.3, phase: 0.0}",
-                                    "{kind: piecewise-linear, times: [0, 0.5, 1], values: [1, 1.3, 1.1]}"))
+    error = refused(
+        EXAMPLE.replace(
+            "{kind: cosine, mean: 1.0, amplitude: 0.3, phase: 0.0}",
+            "{kind: piecewise-linear, times: [0, 0.5, 1], values: [1, 1.3, 1.1]}",
+        )
+    )
     assert error.keypath == "links[0].values" and "must be periodic" in error.message
 
 
-@pytest.mark.parametrize("times, keypath, phrase", [
-    ("[0, 0.5, 0.4, 1]", "links[0].times[2]", "strictly increasing"),
-    ("[0.1, 0.5, 0.7, 1]", "links[0].times[0]", "expected 0"),
-    ("[0, 0.5, 0.7, 0.9]", "links[0].times[3]", "expected 1"),
-])
+@pytest.mark.parametrize(
+    "times, keypath, phrase",
+    [
+        ("[0, 0.5, 0.4, 1]", "links[0].times[2]", "strictly increasing"),
+        ("[0.1, 0.5, 0.7, 1]", "links[0].times[0]", "expected 0"),
+        ("[0, 0.5, 0.7, 0.9]", "links[0].times[3]", "expected 1"),
+    ],
+)
 def test_bad_piecewise_linear_times(times, keypath, phrase):
-    error = refused(EXAMPLE.replace("{kind: cosine, mean: 1.0, amplitude: 0.3, phase: 0.0}",
-                                    f"{{kind: piecewise-linear, times: {times}, values: [1.3, 1, 1.2, 1.3]}}"))
+    error = refused(
+        EXAMPLE.replace(
+            "{kind: cosine, mean: 1.0, amplitude: 0.3, phase: 0.0}",
+            f"{{kind: piecewise-linear, times: {times}, values: [1.3, 1, 1.2, 1.3]}}",
+        )
+    )
     assert error.keypath == keypath and phrase in error.message
 
 
@@ -238,10 +264,16 @@ def test_uniqueness_isotropic_even_blocks_refused():
 
 def test_uniqueness_mu1_plus_equals_mu2_minus_on_part_of_the_period():
     doc = parse_gait(EXAMPLE).document
-    doc = dict(doc, blocks=2, links=[1.0], initial={"positions": [0.0, 1.0]}, friction=[
-        {"forward": {"kind": "steps", "times": [0, 0.5], "values": [1.0, 3.0]}, "backward": 2.0},
-        {"forward": 5.0, "backward": 1.0},
-    ])
+    doc = dict(
+        doc,
+        blocks=2,
+        links=[1.0],
+        initial={"positions": [0.0, 1.0]},
+        friction=[
+            {"forward": {"kind": "steps", "times": [0, 0.5], "values": [1.0, 3.0]}, "backward": 2.0},
+            {"forward": 5.0, "backward": 1.0},
+        ],
+    )
     with pytest.raises(GaitError) as info:
         gait_from_document(dict(doc, period=4.0), "doc")
     assert info.value.keypath == "friction"
@@ -251,22 +283,39 @@ def test_uniqueness_mu1_plus_equals_mu2_minus_on_part_of_the_period():
 
 @pytest.mark.parametrize("blocks, forward, backward", [(4, 1.0, 2.0), (3, 1.0, 1.0)])
 def test_uniqueness_passes(blocks, forward, backward):
-    doc = {"blocks": blocks, "period": 1.0, "stiffness": 1.0, "links": [1.0] * (blocks - 1),
-           "friction": {"forward": forward, "backward": backward}}
+    doc = {
+        "blocks": blocks,
+        "period": 1.0,
+        "stiffness": 1.0,
+        "links": [1.0] * (blocks - 1),
+        "friction": {"forward": forward, "backward": backward},
+    }
     gait = gait_from_document(doc, "doc")
     assert uniqueness_violation(gait) is None
 
 
 def test_uniqueness_allows_isolated_zero_crossings():
-    doc = {"blocks": 2, "period": 1.0, "stiffness": 1.0, "links": [1.0],
-           "friction": [{"forward": {"kind": "cosine", "mean": 2.0, "amplitude": 1.0}, "backward": 1.0},
-                        {"forward": 1.5, "backward": 2.0}]}
+    doc = {
+        "blocks": 2,
+        "period": 1.0,
+        "stiffness": 1.0,
+        "links": [1.0],
+        "friction": [
+            {"forward": {"kind": "cosine", "mean": 2.0, "amplitude": 1.0}, "backward": 1.0},
+            {"forward": 1.5, "backward": 2.0},
+        ],
+    }
     assert uniqueness_violation(gait_from_document(doc, "doc")) is None
 
 
 def test_uniqueness_twenty_blocks():
-    doc = {"blocks": 20, "period": 1.0, "stiffness": 1.0, "links": [1.0] * 19,
-           "friction": {"forward": 1.0, "backward": 1.0}}
+    doc = {
+        "blocks": 20,
+        "period": 1.0,
+        "stiffness": 1.0,
+        "links": [1.0] * 19,
+        "friction": {"forward": 1.0, "backward": 1.0},
+    }
     with pytest.raises(GaitError) as info:
         gait_from_document(doc, "doc")
     assert "J = {1, 2, 3, 4, 5, 6, 7, 8, 9, 10} (forward)" in info.value.message
@@ -287,25 +336,40 @@ def test_stiffness_ratios_too_wide_to_certify_are_refused_with_the_reason():
 
 def test_stiffness_ratio_1e6_with_40_blocks_is_accepted():
     n = 40
-    doc = {"blocks": n, "period": 1.0, "stiffness": [10.0 ** (6 * i / (n - 2)) for i in range(n - 1)],
-           "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.2, "phase": i / n} for i in range(n - 1)],
-           "friction": {"forward": 1.0, "backward": 2.5}}
+    doc = {
+        "blocks": n,
+        "period": 1.0,
+        "stiffness": [10.0 ** (6 * i / (n - 2)) for i in range(n - 1)],
+        "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.2, "phase": i / n} for i in range(n - 1)],
+        "friction": {"forward": 1.0, "backward": 2.5},
+    }
     gait = gait_from_document(doc, "doc")
     assert gait.stiffness.max() / gait.stiffness.min() == pytest.approx(1e6)
 
 
-@pytest.mark.parametrize("old, new, keypath, phrase", [
-    ("blocks: 4", "blocks: 1e308", "blocks", "magnitude at most 1e+100"),
-    ("blocks: 4", "blocks: 100001", "blocks", "an integer from 2 to 100,000"),
-    ("period: 1.0", "period: 1e10", "period", "from 1e-09 to 1e+09"),
-    ("period: 1.0", "period: 1e-12", "period", "from 1e-09 to 1e+09"),
-    ("phase: 0.5}", "phase: 2e6}", "links[2].phase", "at most 1e+06 in magnitude"),
-    ("mean: 1.0, amplitude: 0.3, phase: 0.0", "mean: 1e101, amplitude: 0.3", "links[0].mean",
-     "magnitude at most 1e+100"),
-    ("steps_per_period: 1000,", "steps_per_period: 1000000000,", "simulation.steps_per_period",
-     "from 1 to 100,000,000"),
-    ("max_periods: 1000,", "max_periods: 10000000,", "simulation.max_periods", "from 1 to 1,000,000"),
-])
+@pytest.mark.parametrize(
+    "old, new, keypath, phrase",
+    [
+        ("blocks: 4", "blocks: 1e308", "blocks", "magnitude at most 1e+100"),
+        ("blocks: 4", "blocks: 100001", "blocks", "an integer from 2 to 100,000"),
+        ("period: 1.0", "period: 1e10", "period", "from 1e-09 to 1e+09"),
+        ("period: 1.0", "period: 1e-12", "period", "from 1e-09 to 1e+09"),
+        ("phase: 0.5}", "phase: 2e6}", "links[2].phase", "at most 1e+06 in magnitude"),
+        (
+            "mean: 1.0, amplitude: 0.3, phase: 0.0",
+            "mean: 1e101, amplitude: 0.3",
+            "links[0].mean",
+            "magnitude at most 1e+100",
+        ),
+        (
+            "steps_per_period: 1000,",
+            "steps_per_period: 1000000000,",
+            "simulation.steps_per_period",
+            "from 1 to 100,000,000",
+        ),
+        ("max_periods: 1000,", "max_periods: 10000000,", "simulation.max_periods", "from 1 to 1,000,000"),
+    ],
+)
 def test_bounds_are_refused_naming_the_key(old, new, keypath, phrase):
     error = refused(EXAMPLE.replace(old, new))
     assert error.keypath == keypath and phrase in error.message
@@ -313,20 +377,29 @@ def test_bounds_are_refused_naming_the_key(old, new, keypath, phrase):
 
 def test_list_bounds_are_checked_before_the_items():
     coefficients = ", ".join(["0"] * 1001)
-    error = refused(EXAMPLE.replace("{kind: cosine, mean: 1.0, amplitude: 0.3, phase: 0.0}",
-                                    f"{{kind: fourier, mean: 1.0, cos: [{coefficients}]}}"))
+    error = refused(
+        EXAMPLE.replace(
+            "{kind: cosine, mean: 1.0, amplitude: 0.3, phase: 0.0}",
+            f"{{kind: fourier, mean: 1.0, cos: [{coefficients}]}}",
+        )
+    )
     assert error.keypath == "links[0].cos"
     assert "expected at most 1,000 entries" in error.message and "got 1,001" in error.message
 
 
-@pytest.mark.parametrize("text, phrase", [
-    ("a: " + "[" * 40 + "]" * 40, "nesting deeper than 32 levels"),
-    ("a: &a [*a]", "recursive alias *a"),
-    ("a: &a [1, 1, 1, 1, 1, 1, 1, 1, 1, 1]\n" + "".join(
-        f"{x}: &{x} [" + ", ".join([f"*{p}"] * 10) + "]\n" for p, x in zip("abcdef", "bcdefg")),
-     "more than 2,000,000 values once its aliases are expanded"),
-    ("blocks: " + "9" * 4400, "an integer of 4,400 digits; at most 4,300 are read"),
-])
+@pytest.mark.parametrize(
+    "text, phrase",
+    [
+        ("a: " + "[" * 40 + "]" * 40, "nesting deeper than 32 levels"),
+        ("a: &a [*a]", "recursive alias *a"),
+        (
+            "a: &a [1, 1, 1, 1, 1, 1, 1, 1, 1, 1]\n"
+            + "".join(f"{x}: &{x} [" + ", ".join([f"*{p}"] * 10) + "]\n" for p, x in zip("abcdef", "bcdefg")),
+            "more than 2,000,000 values once its aliases are expanded",
+        ),
+        ("blocks: " + "9" * 4400, "an integer of 4,400 digits; at most 4,300 are read"),
+    ],
+)
 def test_yaml_refused_before_it_is_built(text, phrase):
     error = refused(text)
     assert error.keypath == "" and phrase in error.message
@@ -334,10 +407,12 @@ def test_yaml_refused_before_it_is_built(text, phrase):
 
 def test_aliases_that_expand_moderately_are_fine():
     """Sharing one signal across links is what anchors are for."""
-    text = EXAMPLE.replace("links:\n  - {kind: cosine, mean: 1.0, amplitude: 0.3, phase: 0.0}\n"
-                           "  - {kind: cosine, mean: 1.0, amplitude: 0.3, phase: 0.25}\n"
-                           "  - {kind: cosine, mean: 1.0, amplitude: 0.3, phase: 0.5}\n",
-                           "links: [&w {kind: cosine, mean: 1.0, amplitude: 0.3}, *w, *w]\n")
+    text = EXAMPLE.replace(
+        "links:\n  - {kind: cosine, mean: 1.0, amplitude: 0.3, phase: 0.0}\n"
+        "  - {kind: cosine, mean: 1.0, amplitude: 0.3, phase: 0.25}\n"
+        "  - {kind: cosine, mean: 1.0, amplitude: 0.3, phase: 0.5}\n",
+        "links: [&w {kind: cosine, mean: 1.0, amplitude: 0.3}, *w, *w]\n",
+    )
     text = text.replace("initial: {positions: [0.0, 1.3, 2.3, 3.0]}\n", "")
     gait = parse_gait(text)
     assert gait.links[0] == gait.links[2] == Cosine(mean=1.0, amplitude=0.3)
@@ -373,10 +448,8 @@ def test_dotted_paths_are_below_the_document_no_cycle():
     import subprocess
     import sys
 
-    code = ("import sys, crawlsim.gait.docpaths; "
-            "print(sorted(m for m in sys.modules if m.startswith('crawlsim.gait.')))")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         check=True).stdout
+    code = "import sys, crawlsim.gait.docpaths; print(sorted(m for m in sys.modules if m.startswith('crawlsim.gait.')))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert "crawlsim.gait.docpaths" in out
     assert "crawlsim.gait.document" not in out and "crawlsim.gait.crawler_spec" not in out
     gait = load_gait(GAITS / "inching-2.yaml")

@@ -29,12 +29,19 @@ DATA = Path(__file__).resolve().parent / "data"
 NETCDF_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 
 UNITS_GAIT = {
-    "name": "units-3", "blocks": 3, "period": 2.0, "stiffness": [10.0, 12.0],
-    "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3},
-              {"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": 0.4}],
-    "friction": [{"forward": 1.0, "backward": 2.0}, {"forward": 1.5, "backward": 2.5},
-                 {"forward": {"kind": "cosine", "mean": 1.2, "amplitude": 0.5},
-                  "backward": 3.0}],
+    "name": "units-3",
+    "blocks": 3,
+    "period": 2.0,
+    "stiffness": [10.0, 12.0],
+    "links": [
+        {"kind": "cosine", "mean": 1.0, "amplitude": 0.3},
+        {"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": 0.4},
+    ],
+    "friction": [
+        {"forward": 1.0, "backward": 2.0},
+        {"forward": 1.5, "backward": 2.5},
+        {"forward": {"kind": "cosine", "mean": 1.2, "amplitude": 0.5}, "backward": 3.0},
+    ],
     "simulation": {"steps_per_period": 60},
     "units": {"length": "mm", "time": "s", "force": "N"},
 }
@@ -52,13 +59,19 @@ def files(tmp_path_factory):
     (d / "units.yaml").write_text(yaml.safe_dump(UNITS_GAIT, sort_keys=False))
     runs = {
         "units": ["run", d / "units.yaml"],
-        "exact": ["run", GAITS / "inching-2.yaml", "--integrator", "exact",
-                  "--steps-per-period", "40"],
+        "exact": ["run", GAITS / "inching-2.yaml", "--integrator", "exact", "--steps-per-period", "40"],
         "process": ["run", GAITS / "paper" / "triangle.yaml", "--steps-per-period", "60"],
-        "sweep": ["velocity", d / "units.yaml", "--sweep", "links.*.amplitude=0.2,0.3",
-                  "--sweep", "period=1,2,4"],
-        "shard": ["velocity", d / "units.yaml", "--sweep", "links.*.amplitude=0.2,0.3",
-                  "--sweep", "period=1,2,4", "--shard", "2/4"],
+        "sweep": ["velocity", d / "units.yaml", "--sweep", "links.*.amplitude=0.2,0.3", "--sweep", "period=1,2,4"],
+        "shard": [
+            "velocity",
+            d / "units.yaml",
+            "--sweep",
+            "links.*.amplitude=0.2,0.3",
+            "--sweep",
+            "period=1,2,4",
+            "--shard",
+            "2/4",
+        ],
     }
     out = {}
     for name, args in runs.items():
@@ -71,8 +84,11 @@ def files(tmp_path_factory):
 def _datasets(path):
     found = {}
     with h5py.File(path) as f:
-        f.visititems(lambda name, obj: found.setdefault(name, obj.attrs.keys().__len__())
-                     if isinstance(obj, h5py.Dataset) else None)
+        f.visititems(
+            lambda name, obj: (
+                found.setdefault(name, obj.attrs.keys().__len__()) if isinstance(obj, h5py.Dataset) else None
+            )
+        )
     return found
 
 
@@ -90,24 +106,23 @@ def test_xarray_opens_every_group_with_named_dimensions_and_units(files, name):
             for var in ds.variables.values():
                 assert "units" in var.attrs and var.attrs["long_name"], (node.path, var.name)
     with h5py.File(files[name]) as f:
+
         def check(path, obj):
             if isinstance(obj, h5py.Dataset):
                 assert "units" in obj.attrs and "long_name" in obj.attrs, path
                 for axis, dim in enumerate(obj.dims):
-                    assert len(dim) == 1 or obj.attrs.get("CLASS") == b"DIMENSION_SCALE", \
-                        (path, axis)
+                    assert len(dim) == 1 or obj.attrs.get("CLASS") == b"DIMENSION_SCALE", (path, axis)
+
         f.visititems(check)
 
 
 def test_run_file_dimensions(files):
     with xr.open_datatree(files["units"], engine="h5netcdf") as tree:
-        assert dict(tree["trajectory"].to_dataset().w.sizes) == {
-            "time": len(tree["trajectory"]["t"]), "state": 2}
+        assert dict(tree["trajectory"].to_dataset().w.sizes) == {"time": len(tree["trajectory"]["t"]), "state": 2}
         limit = tree["limit"].to_dataset()
         G = limit.sizes["step"]
         assert limit.sizes["limit_time"] == G + 1
-        assert limit.slip.dims == ("step", "block") and limit.multipliers.dims == (
-            "step", "constraint")
+        assert limit.slip.dims == ("step", "block") and limit.multipliers.dims == ("step", "constraint")
         assert limit.friction.dims == ("limit_time", "constraint")
         assert tree["convergence"]["velocity"].dims == ("period",)
         assert tree["process"]["stiffness"].dims == ("link",)  # B and M follow from k
@@ -148,14 +163,26 @@ def test_slip_is_a_cf_flag_variable_consistent_with_the_slip_rates(files):
 
 
 def test_units_of_the_datasets_follow_the_units_block(files):
-    expected = {"trajectory/t": "s", "trajectory/x": "mm", "trajectory/w": "N",
-                "trajectory/stress": "N", "trajectory/shape": "mm",
-                "convergence/velocity": "mm/s", "convergence/displacement": "mm",
-                "convergence/dissipation": "N mm", "convergence/poincare_step": "N",
-                "convergence/slip_l2_distance": "mm/s^(1/2)", "convergence/period": "1",
-                "limit/slip": "1", "limit/slip_rate": "mm/s", "limit/multipliers": "mm",
-                "limit/friction": "N", "limit/lengths": "mm", "limit/offsets": "N",
-                "process/stiffness": "N/mm"}
+    expected = {
+        "trajectory/t": "s",
+        "trajectory/x": "mm",
+        "trajectory/w": "N",
+        "trajectory/stress": "N",
+        "trajectory/shape": "mm",
+        "convergence/velocity": "mm/s",
+        "convergence/displacement": "mm",
+        "convergence/dissipation": "N mm",
+        "convergence/poincare_step": "N",
+        "convergence/slip_l2_distance": "mm/s^(1/2)",
+        "convergence/period": "1",
+        "limit/slip": "1",
+        "limit/slip_rate": "mm/s",
+        "limit/multipliers": "mm",
+        "limit/friction": "N",
+        "limit/lengths": "mm",
+        "limit/offsets": "N",
+        "process/stiffness": "N/mm",
+    }
     with h5py.File(files["units"]) as f:
         for path, unit in expected.items():
             assert f[path].attrs["units"] == unit, path
@@ -182,33 +209,44 @@ def test_units_in_json_and_summary_text(tmp_path):
     v0_line = next(line for line in r.output.splitlines() if line.strip().startswith("v0"))
     assert re.search(r"v0\s+[-0-9.e]+ mm/s ± [0-9.e-]+ mm/s \(", v0_line), v0_line
     assert "dissipation per period" in r.output and " N mm" in r.output
-    r = cli("run", GAITS / "inching-2.yaml", "--steps-per-period", "20", "--json", "-o",
-            tmp_path / "i.h5")
+    r = cli("run", GAITS / "inching-2.yaml", "--steps-per-period", "20", "--json", "-o", tmp_path / "i.h5")
     assert json.loads(r.output)["units"] == {}
 
 
-@pytest.mark.parametrize("block, message", [
-    ({"lenght": "mm"}, "unknown key 'lenght'"),
-    ({"length": 3}, "units.length"),
-    ({"time": ""}, "units.time"),
-    ("mm", "units"),
-])
+@pytest.mark.parametrize(
+    "block, message",
+    [
+        ({"lenght": "mm"}, "unknown key 'lenght'"),
+        ({"length": 3}, "units.length"),
+        ({"time": ""}, "units.time"),
+        ("mm", "units"),
+    ],
+)
 def test_units_block_is_validated(block, message):
     with pytest.raises(GaitError, match=re.escape(message)):
         make_gait({**UNITS_GAIT, "units": block})
 
 
-@pytest.mark.parametrize("block, message", [
-    ({"force": "Newtons"}, "units.force: expected a unit of force, one of N, kN, mN, uN, µN, "
-                           "nN, dyn, lbf; got 'Newtons': write its symbol, 'N'"),
-    ({"length": "millimetres"}, "got 'millimetres': write its symbol, 'mm'"),
-    ({"time": "sec"}, "units.time: expected a unit of time"),
-    ({"length": "s"}, "units.length: expected a unit of length, one of m, km, dm, cm, mm, um, "
-                      "µm, nm, in, ft; got 's', a unit of time"),
-    ({"force": "mm"}, "got 'mm', a unit of length"),
-    ({"length": "MM"}, "did you mean 'mm'"),
-    ({"force": "kgf"}, "got 'kgf'"),
-])
+@pytest.mark.parametrize(
+    "block, message",
+    [
+        (
+            {"force": "Newtons"},
+            "units.force: expected a unit of force, one of N, kN, mN, uN, µN, "
+            "nN, dyn, lbf; got 'Newtons': write its symbol, 'N'",
+        ),
+        ({"length": "millimetres"}, "got 'millimetres': write its symbol, 'mm'"),
+        ({"time": "sec"}, "units.time: expected a unit of time"),
+        (
+            {"length": "s"},
+            "units.length: expected a unit of length, one of m, km, dm, cm, mm, um, "
+            "µm, nm, in, ft; got 's', a unit of time",
+        ),
+        ({"force": "mm"}, "got 'mm', a unit of length"),
+        ({"length": "MM"}, "did you mean 'mm'"),
+        ({"force": "kgf"}, "got 'kgf'"),
+    ],
+)
 def test_unit_names_are_checked(block, message):
     """A unit string is one of `crawlsim.gait.units.UNIT_NAMES` for its dimension; a spelled-out name
     gets its symbol, a unit of another dimension is named as such, a typo gets the closest
@@ -243,9 +281,15 @@ def test_a_misspelt_unit_exits_2_naming_file_and_key(tmp_path):
 
 def test_unit_composition():
     u = Units(length="mm", time="s", force="N")
-    assert [u.of(q) for q in ("velocity", "stiffness", "dissipation", "compliance", "force",
-                              "velocity_l2", "1")] == ["mm/s", "N/mm", "N mm", "mm/N", "N",
-                                                       "mm/s^(1/2)", "1"]
+    assert [u.of(q) for q in ("velocity", "stiffness", "dissipation", "compliance", "force", "velocity_l2", "1")] == [
+        "mm/s",
+        "N/mm",
+        "N mm",
+        "mm/N",
+        "N",
+        "mm/s^(1/2)",
+        "1",
+    ]
     assert Units(length="mm").of("velocity") == "mm"  # time without a unit: dimensionless
     assert Units(time="s").of("velocity") == "1/s"
     assert Units(length="0.1 mm", time="s").of("velocity") == "(0.1 mm)/s"
@@ -288,11 +332,9 @@ def test_sweep_grid_holds_the_table_on_the_grid(files):
         np.testing.assert_array_equal(grid.v0.values.ravel(), table.columns()["v0"])
         np.testing.assert_array_equal(grid.periods.values.ravel(), table.columns()["periods"])
         assert (grid.status.values == 0).all()  # ok
-        assert set(grid.convergence.attrs["flag_meanings"].split()) >= {"finite_time",
-                                                                       "asymptotic"}
+        assert set(grid.convergence.attrs["flag_meanings"].split()) >= {"finite_time", "asymptotic"}
         assert tree["results"]["v0"].dims == ("point",)
-        np.testing.assert_array_equal(tree["results"]["links_all_amplitude"].values,
-                                      [0.2, 0.2, 0.2, 0.3, 0.3, 0.3])
+        np.testing.assert_array_equal(tree["results"]["links_all_amplitude"].values, [0.2, 0.2, 0.2, 0.3, 0.3, 0.3])
     shard = read_table(files["shard"])
     with xr.open_datatree(files["shard"], engine="h5netcdf") as tree:
         status = tree["grid"]["status"].values.ravel()
@@ -314,19 +356,36 @@ def test_v2_readers_keep_the_v1_keys(files):
     assert set(new["limit"]) - set(old["limit"]) == {"step"}
     # events: the exact integrator; energy: the energy ledger of crawlers; limit_solver:
     # /limit/solver, how the limit was found
-    assert set(new) - set(old) <= {"coordinates", "events", "energy", "limit_solver",
-                                   "limit_solver_attrs"}
+    assert set(new) - set(old) <= {"coordinates", "events", "energy", "limit_solver", "limit_solver_attrs"}
     assert set(old["attrs"]) <= set(new["attrs"])
     assert new["attrs"]["format_version"] == FORMAT_VERSION == 2
     old_sweep, new_sweep = read_sweep(DATA / "v1-sweep.h5"), read_sweep(files["sweep"])
     assert set(old_sweep) <= set(new_sweep)
-    assert set(old_sweep["columns"]) == {"links.*.amplitude", "v0", "displacement_per_period",
-                                         "convergence", "periods", "status", "message"}
-    assert set(new_sweep["columns"]) == {"links.*.amplitude", "period", "v0",
-                                         "displacement_per_period", "convergence", "periods",
-                                         "status", "message", "v0_error_estimate",
-                                         "dissipation_per_period", "cost_of_transport",
-                                         "integrator", "limit", "newton_steps"}
+    assert set(old_sweep["columns"]) == {
+        "links.*.amplitude",
+        "v0",
+        "displacement_per_period",
+        "convergence",
+        "periods",
+        "status",
+        "message",
+    }
+    assert set(new_sweep["columns"]) == {
+        "links.*.amplitude",
+        "period",
+        "v0",
+        "displacement_per_period",
+        "convergence",
+        "periods",
+        "status",
+        "message",
+        "v0_error_estimate",
+        "dissipation_per_period",
+        "cost_of_transport",
+        "integrator",
+        "limit",
+        "newton_steps",
+    }
 
 
 def test_format_1_files_still_read_and_plot(tmp_path):
@@ -376,5 +435,3 @@ def test_time_dimensions_are_indexed_by_their_times(files):
         picked = trajectory.sel(time=t[7])
         np.testing.assert_array_equal(picked.w.values, trajectory.w.values[7])
         assert "time" in trajectory.indexes and "event_time" in tree["events"].to_dataset().indexes
-
-

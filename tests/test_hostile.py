@@ -54,10 +54,10 @@ EXPECTED = {
     "steps-1e9.yaml": "simulation.steps_per_period: expected an integer from 1 to 100,000,000",
     "stiffness-wide.yaml": "stiffness: the stiffness ratio k_max / k_min = 1e+16",
     "wave-21.yaml": "friction: uniqueness condition violated: for J = {1, 2, 3, 4, 5, 6, 7, 8, 9, "
-                    "10, 11, 12, 13, 14} (forward) and the rest {15, 16, 17, 18, 19, 20, 21}",
+    "10, 11, 12, 13, 14} (forward) and the rest {15, 16, 17, 18, 19, 20, 21}",
     "wave-30.yaml": "(forward) and the rest {21, 22, 23, 24, 25, 26, 27, 28, 29, 30} (backward)",
     "wave-60.yaml": "(forward) and the rest {41, 42, 43, 44, 45, 46, 47, 48, 49, 50, 51, 52, 53, 54, "
-                    "55, 56, 57, 58, 59, 60} (backward)",
+    "55, 56, 57, 58, 59, 60} (backward)",
     "wave-120.yaml": "uniqueness condition violated: for J = {1, 2, 3",
     # made at run time
     "huge-file.yaml": "is larger than 1,048,576 bytes",
@@ -76,13 +76,18 @@ def corpus(folder: Path) -> list[tuple[str, Path]]:
     files = [(p.name, p) for p in sorted(HOSTILE.glob("*.yaml"))]
     made = {
         "huge-file.yaml": "description: '" + "x" * (1 << 20) + "'\n",
-        "fourier-100000.yaml": "blocks: 2\n" + GAIT_TAIL + "links: [{kind: fourier, mean: 1.0, cos: ["
-                               + ",".join(["0"] * 100_000) + "]}]\n",
+        "fourier-100000.yaml": "blocks: 2\n"
+        + GAIT_TAIL
+        + "links: [{kind: fourier, mean: 1.0, cos: ["
+        + ",".join(["0"] * 100_000)
+        + "]}]\n",
         "steps-1e7.yaml": "blocks: 4\n" + GAIT_TAIL + "links: [{kind: cosine, mean: 1.0, amplitude: "
-                          "0.3}, 1.0, 1.0]\nsimulation: {steps_per_period: 10000000}\n",
-        "blocks-10000.yaml": "blocks: 10000\n" + GAIT_TAIL.replace("backward: 2.0", "backward: 2.5")
-                             + "links: [" + ",".join(["1.0"] * 9999)
-                             + "]\nsimulation: {steps_per_period: 10, max_periods: 3}\n",
+        "0.3}, 1.0, 1.0]\nsimulation: {steps_per_period: 10000000}\n",
+        "blocks-10000.yaml": "blocks: 10000\n"
+        + GAIT_TAIL.replace("backward: 2.0", "backward: 2.5")
+        + "links: ["
+        + ",".join(["1.0"] * 9999)
+        + "]\nsimulation: {steps_per_period: 10, max_periods: 3}\n",
     }
     for name, text in made.items():
         path = folder / name
@@ -118,8 +123,14 @@ def run_limited(args: list[str], cwd: Path, timeout: float = HANG_GUARD) -> dict
     out, err = cwd / ".stdout", cwd / ".stderr"
     with open(out, "w") as o, open(err, "w") as e:
         began = time.perf_counter()
-        child = subprocess.Popen([sys.executable, "-m", "crawlsim", *args], cwd=cwd, stdout=o,
-                                 stderr=e, stdin=subprocess.DEVNULL, preexec_fn=_limit)
+        child = subprocess.Popen(
+            [sys.executable, "-m", "crawlsim", *args],
+            cwd=cwd,
+            stdout=o,
+            stderr=e,
+            stdin=subprocess.DEVNULL,
+            preexec_fn=_limit,
+        )
         while True:
             pid, status, usage = os.wait4(child.pid, os.WNOHANG)
             if pid:
@@ -131,8 +142,13 @@ def run_limited(args: list[str], cwd: Path, timeout: float = HANG_GUARD) -> dict
             time.sleep(0.01)
         seconds = time.perf_counter() - began
     child.returncode = os.waitstatus_to_exitcode(status)
-    return {"code": child.returncode, "seconds": seconds, "peak": usage.ru_maxrss * 1024,
-            "stdout": out.read_text(), "stderr": err.read_text()}
+    return {
+        "code": child.returncode,
+        "seconds": seconds,
+        "peak": usage.ru_maxrss * 1024,
+        "stdout": out.read_text(),
+        "stderr": err.read_text(),
+    }
 
 
 def run_hostile(name: str, path: Path, cwd: Path) -> dict:
@@ -186,9 +202,13 @@ def test_ten_thousand_blocks_run_within_their_own_estimate(tmp_path_factory, tmp
 
     folder = tmp_path_factory.mktemp("valid")
     path = folder / "blocks-10000.yaml"
-    path.write_text("blocks: 10000\n" + GAIT_TAIL.replace("backward: 2.0", "backward: 2.5")
-                    + "links: [" + ",".join(["1.0"] * 9999)
-                    + "]\nsimulation: {steps_per_period: 10, max_periods: 3}\n")
+    path.write_text(
+        "blocks: 10000\n"
+        + GAIT_TAIL.replace("backward: 2.0", "backward: 2.5")
+        + "links: ["
+        + ",".join(["1.0"] * 9999)
+        + "]\nsimulation: {steps_per_period: 10, max_periods: 3}\n"
+    )
     big = run_limited(["run", str(path), "-o", "out.h5"], tmp_path)
     assert big["code"] == 0, big
     assert "Traceback" not in big["stderr"]

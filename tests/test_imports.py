@@ -37,8 +37,9 @@ def modules_after(args, tmp_path) -> set[str]:
     """The modules a fresh interpreter holds after ``crawlsim ARGS`` (None: after importing
     crawlsim and crawlsim.cli only)."""
     out = tmp_path / "modules.json"
-    subprocess.run([sys.executable, "-c", DRIVER, json.dumps(args), str(out)], check=True,
-                   cwd=tmp_path, capture_output=True)
+    subprocess.run(
+        [sys.executable, "-c", DRIVER, json.dumps(args), str(out)], check=True, cwd=tmp_path, capture_output=True
+    )
     return set(json.loads(out.read_text()))
 
 
@@ -46,8 +47,18 @@ def loaded(modules: set[str], name: str) -> bool:
     return name in modules or any(m.startswith(name + ".") for m in modules)
 
 
-@pytest.mark.parametrize("args", [None, ["--version"], ["--help"], ["velocity", "--help"],
-                                  ["run", "--help"], ["info", "--help"], ["plot", "--help"]])
+@pytest.mark.parametrize(
+    "args",
+    [
+        None,
+        ["--version"],
+        ["--help"],
+        ["velocity", "--help"],
+        ["run", "--help"],
+        ["info", "--help"],
+        ["plot", "--help"],
+    ],
+)
 def test_import_and_help_load_no_numerical_module(args, tmp_path):
     modules = modules_after(args, tmp_path)
     assert not [m for m in HEAVY if loaded(modules, m)]
@@ -56,8 +67,7 @@ def test_import_and_help_load_no_numerical_module(args, tmp_path):
 def test_only_the_invoked_command_module_is_imported(tmp_path):
     modules = modules_after(["velocity", "--help"], tmp_path)
     assert "crawlsim.cli.velocity" in modules
-    assert not {"crawlsim.cli.run", "crawlsim.cli.plot", "crawlsim.cli.info",
-                "crawlsim.cli.merge"} & modules
+    assert not {"crawlsim.cli.run", "crawlsim.cli.plot", "crawlsim.cli.info", "crawlsim.cli.merge"} & modules
     every = modules_after(["--help"], tmp_path)  # the listing needs each command's help line
     assert {"crawlsim.cli.run", "crawlsim.cli.velocity", "crawlsim.cli.info"} <= every
 
@@ -73,9 +83,20 @@ def test_velocity_loads_what_it_needs_and_no_more(integrator, tmp_path):
     modules = modules_after(["velocity", str(GAIT), "--integrator", integrator], tmp_path)
     for name in ("numpy", "yaml", "crawlsim.kernel.projection", "crawlsim.kernel.kkt"):
         assert loaded(modules, name), name
-    for name in ("h5py", "matplotlib", "tqdm", "distributed", "dask", "crawlsim.study.sweep",
-                 "crawlsim.study.batch", "crawlsim.io.hdf5", "crawlsim.plotting.figures", "clarabel",
-                 "scipy.optimize", "jsonschema"):
+    for name in (
+        "h5py",
+        "matplotlib",
+        "tqdm",
+        "distributed",
+        "dask",
+        "crawlsim.study.sweep",
+        "crawlsim.study.batch",
+        "crawlsim.io.hdf5",
+        "crawlsim.plotting.figures",
+        "clarabel",
+        "scipy.optimize",
+        "jsonschema",
+    ):
         assert not loaded(modules, name), name
 
 
@@ -83,14 +104,17 @@ def test_velocity_reads_no_distribution_metadata(tmp_path):
     """The library versions (`crawlsim.io.provenance.versions`, 20-30 ms of metadata reading) are
     recorded in results files; printing v0 does not look them up, ``--json`` (whose summary
     holds no versions) neither."""
-    code = ("import sys\nfrom crawlsim.cli import main\n"
-            "for extra in ([], ['--json']):\n"
-            "    try:\n        main(['velocity', sys.argv[1], *extra], prog_name='crawlsim')\n"
-            "    except SystemExit:\n        pass\n"
-            "from crawlsim.io.provenance import _versions\n"
-            "info = _versions.cache_info()\nprint('LOOKUPS', info.hits + info.misses)")
-    out = subprocess.run([sys.executable, "-c", code, str(GAIT)], capture_output=True,
-                         text=True, check=True, cwd=tmp_path).stdout
+    code = (
+        "import sys\nfrom crawlsim.cli import main\n"
+        "for extra in ([], ['--json']):\n"
+        "    try:\n        main(['velocity', sys.argv[1], *extra], prog_name='crawlsim')\n"
+        "    except SystemExit:\n        pass\n"
+        "from crawlsim.io.provenance import _versions\n"
+        "info = _versions.cache_info()\nprint('LOOKUPS', info.hits + info.misses)"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code, str(GAIT)], capture_output=True, text=True, check=True, cwd=tmp_path
+    ).stdout
     assert out.splitlines()[-1] == "LOOKUPS 0"
 
 
@@ -103,8 +127,7 @@ def test_validate_of_crawler_gaits_loads_neither_scipy_nor_the_kernel(tmp_path):
     """Checking a crawler's gait file (structure, friction, admissible start, uniqueness) is
     numpy's work: scipy (its LPs check generic process files only), numba and the compiled
     kernel are for running."""
-    modules = modules_after(["validate", str(GAIT), str(ROOT / "gaits" / "earthworm-100.yaml")],
-                            tmp_path)
+    modules = modules_after(["validate", str(GAIT), str(ROOT / "gaits" / "earthworm-100.yaml")], tmp_path)
     for name in ("scipy", "numba", "crawlsim.kernel", "crawlsim.kernel.kkt", "clarabel", "h5py"):
         assert not loaded(modules, name), name
 
@@ -120,18 +143,20 @@ def test_an_invalid_gait_loads_jsonschema_for_its_message(tmp_path):
 def test_version_of_the_console_script_loads_no_click(tmp_path):
     """``crawlsim --version`` (the console script, `crawlsim.console`) answers before importing
     click, with click's own answer."""
-    code = ("import sys, json; sys.argv = ['crawlsim', '--version']\n"
-            "from crawlsim.console import main\n"
-            "try:\n    main()\nexcept SystemExit as e:\n    code = e.code\n"
-            "print(json.dumps([code, sorted(sys.modules)]))")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         check=True, cwd=tmp_path).stdout
+    code = (
+        "import sys, json; sys.argv = ['crawlsim', '--version']\n"
+        "from crawlsim.console import main\n"
+        "try:\n    main()\nexcept SystemExit as e:\n    code = e.code\n"
+        "print(json.dumps([code, sorted(sys.modules)]))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=tmp_path).stdout
     first, last = out.splitlines()[0], out.splitlines()[-1]
     code_, modules = json.loads(last)
     assert code_ == 0 and not loaded(set(modules), "click")
     assert not [m for m in HEAVY if loaded(set(modules), m)]
-    via_click = subprocess.run([sys.executable, "-m", "crawlsim", "--version"], cwd=tmp_path,
-                               capture_output=True, text=True, check=True).stdout
+    via_click = subprocess.run(
+        [sys.executable, "-m", "crawlsim", "--version"], cwd=tmp_path, capture_output=True, text=True, check=True
+    ).stdout
     assert first == via_click.strip()
 
 
@@ -145,15 +170,22 @@ def test_help_of_the_console_script_is_clicks_and_loads_no_click(tmp_path):
 
     rendered = CliRunner().invoke(cli, ["--help"], prog_name="crawlsim", terminal_width=78)
     assert rendered.exit_code == 0
-    assert TEXT == rendered.output, (
-        "crawlsim/_help.py is stale: its TEXT must be\n" + rendered.output)
-    code = ("import sys, json; sys.argv = ['crawlsim', '--help']\n"
-            "from crawlsim.console import main\n"
-            "try:\n    main()\nexcept SystemExit as e:\n    code = e.code\n"
-            "print(json.dumps([code, sorted(sys.modules)]))")
+    assert TEXT == rendered.output, "crawlsim/_help.py is stale: its TEXT must be\n" + rendered.output
+    code = (
+        "import sys, json; sys.argv = ['crawlsim', '--help']\n"
+        "from crawlsim.console import main\n"
+        "try:\n    main()\nexcept SystemExit as e:\n    code = e.code\n"
+        "print(json.dumps([code, sorted(sys.modules)]))"
+    )
     for columns, stored in (("120", True), ("80", True), ("60", False)):
-        done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                              check=True, cwd=tmp_path, env={**os.environ, "COLUMNS": columns})
+        done = subprocess.run(
+            [sys.executable, "-c", code],
+            capture_output=True,
+            text=True,
+            check=True,
+            cwd=tmp_path,
+            env={**os.environ, "COLUMNS": columns},
+        )
         *text, last = done.stdout.splitlines(keepends=True)
         code_, modules = json.loads(last)
         assert code_ == 0 and loaded(set(modules), "click") != stored, columns
@@ -162,10 +194,8 @@ def test_help_of_the_console_script_is_clicks_and_loads_no_click(tmp_path):
 
 
 def test_console_script_passes_everything_else_to_the_command_group(tmp_path):
-    code = ("import sys; sys.argv = ['crawlsim', 'validate', sys.argv[1]]\n"
-            "from crawlsim.console import main\nmain()")
-    done = subprocess.run([sys.executable, "-c", code, str(GAIT)], capture_output=True,
-                          text=True, cwd=tmp_path)
+    code = "import sys; sys.argv = ['crawlsim', 'validate', sys.argv[1]]\nfrom crawlsim.console import main\nmain()"
+    done = subprocess.run([sys.executable, "-c", code, str(GAIT)], capture_output=True, text=True, cwd=tmp_path)
     assert done.returncode == 0, done.stderr
 
 

@@ -50,8 +50,9 @@ def handlers():
     assert interrupts.pending() is None
 
 
-@pytest.mark.parametrize("signum, raised", [(signal.SIGINT, KeyboardInterrupt),
-                                            (signal.SIGTERM, interrupts.Terminated)])
+@pytest.mark.parametrize(
+    "signum, raised", [(signal.SIGINT, KeyboardInterrupt), (signal.SIGTERM, interrupts.Terminated)]
+)
 def test_a_signal_in_another_librarys_code_waits_for_the_next_safe_point(handlers, signum, raised):
     interrupts._handler(signum, sys._getframe())  # this test file: not crawlsim's code
     assert interrupts.pending() == signum
@@ -64,8 +65,9 @@ def test_a_signal_in_another_librarys_code_waits_for_the_next_safe_point(handler
 
 def test_a_signal_in_crawlsims_own_code_is_raised_at_once(handlers):
     with pytest.raises(interrupts.Terminated):
-        interrupts._handler(signal.SIGTERM, _frame_in(os.path.join(
-            os.path.dirname(interrupts.__file__), "analysis", "run.py")))
+        interrupts._handler(
+            signal.SIGTERM, _frame_in(os.path.join(os.path.dirname(interrupts.__file__), "analysis", "run.py"))
+        )
     assert interrupts.pending() is None
 
 
@@ -88,8 +90,9 @@ def test_a_second_signal_is_raised_at_once_and_stays_noted_in_another_librarys_c
 def test_a_second_signal_in_crawlsims_own_code_is_raised_once(handlers):
     interrupts._handler(signal.SIGINT, sys._getframe())
     with pytest.raises(KeyboardInterrupt):
-        interrupts._handler(signal.SIGINT, _frame_in(os.path.join(
-            os.path.dirname(interrupts.__file__), "analysis", "run.py")))
+        interrupts._handler(
+            signal.SIGINT, _frame_in(os.path.join(os.path.dirname(interrupts.__file__), "analysis", "run.py"))
+        )
     assert interrupts.pending() is None
 
 
@@ -159,8 +162,7 @@ def test_without_the_command_line_nothing_is_noted():
 
 @pytest.mark.parametrize("times", [1, 2], ids=["once", "twice"])
 @pytest.mark.parametrize("signum, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
-def test_a_signal_during_an_hdf5_write_stops_the_run_with_no_file(tmp_path, monkeypatch, signum,
-                                                                   code, times):
+def test_a_signal_during_an_hdf5_write_stops_the_run_with_no_file(tmp_path, monkeypatch, signum, code, times):
     """The signal arrives inside the write libhdf5 calls back (where an exception would be
     swallowed, the run would go on and its file would be published, and a second one would
     leave libhdf5 broken): the run stops at the end of its period, with the signal's exit code

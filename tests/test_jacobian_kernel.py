@@ -38,22 +38,25 @@ ROOT = Path(__file__).resolve().parents[1]
 def wave_document(N: int, steps: int, segments: bool) -> dict:
     """The retrograde cosine wave of scripts/bench-scale.py: phase i/(N-1) ("body") or
     (i/10) mod 1 ("segments", the 1000-block run's gait)."""
-    return {"name": f"wave-{N}", "blocks": N, "period": 1.0, "stiffness": 10.0,
-            "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3,
-                       "phase": (i / 10) % 1 if segments else i / (N - 1)}
-                      for i in range(N - 1)],
-            "friction": {"forward": 1.0, "backward": 2.13},
-            "simulation": {"steps_per_period": steps}}
+    return {
+        "name": f"wave-{N}",
+        "blocks": N,
+        "period": 1.0,
+        "stiffness": 10.0,
+        "links": [
+            {"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": (i / 10) % 1 if segments else i / (N - 1)}
+            for i in range(N - 1)
+        ],
+        "friction": {"forward": 1.0, "backward": 2.13},
+        "simulation": {"steps_per_period": steps},
+    }
 
 
 #: name -> (process, integrator, periods stepped before the period whose factors are taken)
 CASES = {
-    "wave-10 exact": (lambda: compile_gait(gait_from_document(wave_document(10, 100, False), "w")),
-                      "exact", 3),
-    "wave-10 catch-up": (lambda: compile_gait(gait_from_document(wave_document(10, 100, False),
-                                                                 "w")), "catch-up", 3),
-    "segments-64 exact": (lambda: compile_gait(gait_from_document(wave_document(64, 100, True),
-                                                                  "s")), "exact", 2),
+    "wave-10 exact": (lambda: compile_gait(gait_from_document(wave_document(10, 100, False), "w")), "exact", 3),
+    "wave-10 catch-up": (lambda: compile_gait(gait_from_document(wave_document(10, 100, False), "w")), "catch-up", 3),
+    "segments-64 exact": (lambda: compile_gait(gait_from_document(wave_document(64, 100, True), "s")), "exact", 2),
     "random-236 exact": (lambda: compile_gait(random_gait(236, blocks=(2, 16)), 1000), "exact", 5),
     "random-237 exact": (lambda: compile_gait(random_gait(237, blocks=(2, 12)), 1000), "exact", 2),
 }
@@ -84,8 +87,10 @@ def test_compiled_products_are_the_numpy_products(periods, name):
     assert len(fs) - salts > 0 and packed.blocks.size > 0
     V = np.random.default_rng(3).standard_normal((5, poly.n))
     for v in V:
-        for compiled, numpy_ in ((packed.apply(v), apply_jacobian(poly, fs, v)),
-                                 (packed.apply_transpose(v), apply_jacobian_transpose(poly, fs, v))):
+        for compiled, numpy_ in (
+            (packed.apply(v), apply_jacobian(poly, fs, v)),
+            (packed.apply_transpose(v), apply_jacobian_transpose(poly, fs, v)),
+        ):
             assert np.linalg.norm(compiled - numpy_) <= 1e-12 * np.linalg.norm(numpy_)
         # <J v, u> = <v, J^T u>: the two products are each other's transposes
         u = V[0]
@@ -118,11 +123,10 @@ def test_projectors_of_nested_sets_merge_into_the_larger():
     assert bounds == [[1, 2, 5, 6], [0, 3], [], [0], [4]]
     V = np.random.default_rng(2).standard_normal((4, poly.n))
     for v in V:
-        np.testing.assert_allclose(packed.apply(v), apply_jacobian(poly, fs, v), rtol=0,
-                                   atol=1e-13 * np.linalg.norm(v))
-        np.testing.assert_allclose(packed.apply_transpose(v),
-                                   apply_jacobian_transpose(poly, fs, v), rtol=0,
-                                   atol=1e-13 * np.linalg.norm(v))
+        np.testing.assert_allclose(packed.apply(v), apply_jacobian(poly, fs, v), rtol=0, atol=1e-13 * np.linalg.norm(v))
+        np.testing.assert_allclose(
+            packed.apply_transpose(v), apply_jacobian_transpose(poly, fs, v), rtol=0, atol=1e-13 * np.linalg.norm(v)
+        )
 
 
 def test_matrix_free_step_with_compiled_products_is_the_dense_step(periods, monkeypatch):
@@ -171,8 +175,14 @@ def _products(inputs: Path, out: Path, disable_jit: bool) -> dict:
     if disable_jit:
         env["NUMBA_DISABLE_JIT"] = "1"
     env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
-    subprocess.run([sys.executable, "-c", PRODUCTS, str(inputs), str(out)], check=True, env=env,
-                   cwd=ROOT, capture_output=True, timeout=900)
+    subprocess.run(
+        [sys.executable, "-c", PRODUCTS, str(inputs), str(out)],
+        check=True,
+        env=env,
+        cwd=ROOT,
+        capture_output=True,
+        timeout=900,
+    )
     return dict(np.load(out))
 
 
@@ -182,10 +192,17 @@ def test_compiled_and_python_products_agree_bit_for_bit(periods, tmp_path):
         process, fs = periods[name]
         p = packed_jacobian(process.polyhedron, fs)
         assert p is not None
-        for key, value in dict(k=p.stiffness, kinds=p.kinds, starts=p.starts, blocks=p.blocks,
-                               slot=p.slot, rows=p.rows, rates=p.rates, jumps=p.jumps,
-                               V=np.random.default_rng(11).standard_normal((3, process.polyhedron.n))
-                               ).items():
+        for key, value in dict(
+            k=p.stiffness,
+            kinds=p.kinds,
+            starts=p.starts,
+            blocks=p.blocks,
+            slot=p.slot,
+            rows=p.rows,
+            rates=p.rates,
+            jumps=p.jumps,
+            V=np.random.default_rng(11).standard_normal((3, process.polyhedron.n)),
+        ).items():
             inputs[f"{name}:{key}"] = value
     np.savez(tmp_path / "inputs.npz", **inputs)
     compiled = _products(tmp_path / "inputs.npz", tmp_path / "compiled.npz", disable_jit=False)

@@ -31,8 +31,9 @@ from crawlsim.kernel import catchup, chain, eventloop, kkt
 from crawlsim.model.process import compile_gait
 
 ROOT = Path(__file__).resolve().parents[1]
-CRAWLERS = sorted(p for p in [*ROOT.glob("gaits/*.yaml"), *ROOT.glob("gaits/paper/*.yaml")]
-                  if "sweeping-process" not in p.read_text())
+CRAWLERS = sorted(
+    p for p in [*ROOT.glob("gaits/*.yaml"), *ROOT.glob("gaits/paper/*.yaml")] if "sweeping-process" not in p.read_text()
+)
 #: Few periods of short chains: the same steps run as Python in the subprocess.
 BITWISE = ("inching-2", "peristalsis-4", "smooth-friction-3", "anchoring-2")
 #: Corpus gaits (`crawlsim.gait.corpus`) whose offsets need sampled zeros and jump projections:
@@ -43,7 +44,10 @@ BITWISE_SEEDS = (18, 5, 4)
 
 def test_kernel_constants_are_the_kkt_policy():
     assert (chain.RTOL, chain.REFINE_FRACTION, chain.UPDATE_ITERATIONS) == (
-        kkt.RTOL, kkt.REFINE_FRACTION, kkt.UPDATE_ITERATIONS)
+        kkt.RTOL,
+        kkt.REFINE_FRACTION,
+        kkt.UPDATE_ITERATIONS,
+    )
 
 
 @pytest.mark.parametrize("path", CRAWLERS, ids=lambda p: p.stem)
@@ -86,9 +90,9 @@ def test_compiled_event_loop_changes_nothing(path, monkeypatch):
         v_b = float(np.mean(b.x[-1] - b.x[0])) / process.period
         assert abs(v_a - v_b) <= 1e-12
         assert np.max(np.abs(a.events.t - b.events.t)) <= 1e-12
-        assert [(t.cause, t.piece, t.active.index.tolist(), t.hit.tolist())
-                for t in a.transitions] == [(t.cause, t.piece, t.active.index.tolist(),
-                                             t.hit.tolist()) for t in b.transitions]
+        assert [(t.cause, t.piece, t.active.index.tolist(), t.hit.tolist()) for t in a.transitions] == [
+            (t.cause, t.piece, t.active.index.tolist(), t.hit.tolist()) for t in b.transitions
+        ]
         assert [A.index.tolist() for A in a.visited] == [A.index.tolist() for A in b.visited]
         for name in ("work", "dissipation", "jump_loss"):
             x, y = getattr(a.energy, name), getattr(b.energy, name)
@@ -98,8 +102,7 @@ def test_compiled_event_loop_changes_nothing(path, monkeypatch):
 def test_example_crawlers_take_the_compiled_event_loop():
     """Every example crawler runs compiled, whatever its offsets' basis (linear, one harmonic,
     or several: smooth-friction-3, whose zeros are sampled)."""
-    names = {p.stem for p in CRAWLERS
-             if EventStepper(compile_gait(load_gait(p)))._loop is not None}
+    names = {p.stem for p in CRAWLERS if EventStepper(compile_gait(load_gait(p)))._loop is not None}
     assert names == {p.stem for p in CRAWLERS} and "smooth-friction-3" in names
 
 
@@ -122,8 +125,7 @@ def test_corrupted_piece_fails_the_sample_certificate():
     coef = loop.coef[tr.piece]
     D, l, dx0, Ydx = np.empty(N), np.empty(N - 1), np.empty(N), np.empty((nb, N))
     base, Wc = np.empty(N - 1), np.empty((nb, N - 1))
-    inverse, gram = eventloop.piece(loop.k, signs, w0, coef, D, l, dx0, Ydx, base, Wc,
-                                    np.empty(N))
+    inverse, gram = eventloop.piece(loop.k, signs, w0, coef, D, l, dx0, Ydx, base, Wc, np.empty(N))
     assert inverse > 0
     PHI = stepper.basis.values(np.linspace(tr.u, record.transitions[2].u, 6))
     G = len(PHI)
@@ -131,9 +133,30 @@ def test_corrupted_piece_fails_the_sample_certificate():
     def certify(base):
         W, LAMC, report = np.zeros((G, N - 1)), np.zeros((G, 2 * N)), np.zeros(8)
         ok = eventloop.sample_piece(
-            loop.k, float(np.max(loop.k)), loop.c_scale, coef, signs, PHI, 1, G, W, LAMC,
-            lam_cum, dx0, Ydx, base, Wc, inverse, gram, 0.0, 0.0, report, np.empty((0, 0)),
-            np.empty(0), np.empty((0, 0)))
+            loop.k,
+            float(np.max(loop.k)),
+            loop.c_scale,
+            coef,
+            signs,
+            PHI,
+            1,
+            G,
+            W,
+            LAMC,
+            lam_cum,
+            dx0,
+            Ydx,
+            base,
+            Wc,
+            inverse,
+            gram,
+            0.0,
+            0.0,
+            report,
+            np.empty((0, 0)),
+            np.empty(0),
+            np.empty((0, 0)),
+        )
         return ok, report
 
     ok, _ = certify(base)
@@ -175,8 +198,13 @@ def _periods(paths, out: Path, disable_jit: bool) -> dict:
     env.pop("NUMBA_DISABLE_JIT", None)
     if disable_jit:
         env["NUMBA_DISABLE_JIT"] = "1"
-    subprocess.run([sys.executable, "-c", RUN_PERIODS, json.dumps(paths), str(out)], check=True,
-                   env=env, capture_output=True, timeout=600)
+    subprocess.run(
+        [sys.executable, "-c", RUN_PERIODS, json.dumps(paths), str(out)],
+        check=True,
+        env=env,
+        capture_output=True,
+        timeout=600,
+    )
     return json.loads(out.read_text())
 
 
@@ -220,8 +248,11 @@ def test_corrupted_factor_raises_certificate_error():
     violated row), so no update applies: the step fails with its time and rows. (Switching
     off the certificate, or the refinement's trigger, lets the wrong step through.)"""
     stepper = _corrupted(1.0 + 1e-3)
-    with pytest.raises(CertificateError, match=r"failed its certificate at t = 1\.001: .*"
-                                               r"complementarity .*worst row 2 \(J = \{3\}"):
+    with pytest.raises(
+        CertificateError,
+        match=r"failed its certificate at t = 1\.001: .*"
+        r"complementarity .*worst row 2 \(J = \{3\}",
+    ):
         stepper.step_period()
 
 
@@ -246,8 +277,7 @@ catchup.announce_compilation()
 def test_cold_cache_is_announced_once(tmp_path):
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "empty"))
     env.pop("NUMBA_DISABLE_JIT", None)
-    run = subprocess.run([sys.executable, "-c", ANNOUNCE], env=env, capture_output=True,
-                         text=True, timeout=120)
+    run = subprocess.run([sys.executable, "-c", ANNOUNCE], env=env, capture_output=True, text=True, timeout=120)
     assert run.returncode == 0
     assert run.stderr.count("compiling the kernel once") == 1
 
@@ -284,14 +314,11 @@ def test_harmonic_crossing_closed_form():
     from crawlsim.kernel.events import harmonic_crossings
 
     out = np.empty(1)
-    harmonic_crossings(np.array([-0.5]), np.array([1.0]), np.array([0.0]),
-                       np.array([1e-14]), 0.3, 1.0, out)
+    harmonic_crossings(np.array([-0.5]), np.array([1.0]), np.array([0.0]), np.array([1e-14]), 0.3, 1.0, out)
     assert out[0] == pytest.approx(5 / 6, abs=1e-14)
-    harmonic_crossings(np.array([-0.5]), np.array([1.0]), np.array([0.0]),
-                       np.array([1e-14]), 0.9, 1.5, out)
+    harmonic_crossings(np.array([-0.5]), np.array([1.0]), np.array([0.0]), np.array([1e-14]), 0.9, 1.5, out)
     assert np.isinf(out[0])
-    harmonic_crossings(np.array([-0.5]), np.array([0.0]), np.array([1.0]),
-                       np.array([1e-14]), 0.0, 1.0, out)
+    harmonic_crossings(np.array([-0.5]), np.array([0.0]), np.array([1.0]), np.array([1e-14]), 0.0, 1.0, out)
     assert out[0] == pytest.approx(1 / 12, abs=1e-14)
 
 
@@ -307,6 +334,9 @@ def test_compiled_loop_samples_taken_at_wrong_times_raise(name):
     loop = stepper._loop
     assert loop is not None
     loop.phi = np.ascontiguousarray(stepper.basis.values(stepper._grid + 0.01))
-    with pytest.raises(CertificateError, match=r"exact trajectory failed its certificate at "
-                                               r"t = 1\.\d+: constraint violation"):
+    with pytest.raises(
+        CertificateError,
+        match=r"exact trajectory failed its certificate at "
+        r"t = 1\.\d+: constraint violation",
+    ):
         stepper.step_period()

@@ -26,8 +26,7 @@ def chain_problem(seed, blocks, stiffness_ratio, friction_ratio, push):
     rng = np.random.default_rng(seed)
     k = np.exp(rng.uniform(0, np.log(stiffness_ratio), blocks - 1))
     mu_plus = np.exp(rng.uniform(-1, 1, blocks))
-    mu_minus = mu_plus * np.exp(rng.uniform(-np.log(friction_ratio), np.log(friction_ratio),
-                                            blocks))
+    mu_minus = mu_plus * np.exp(rng.uniform(-np.log(friction_ratio), np.log(friction_ratio), blocks))
     L = 1.0 + 0.3 * rng.normal(size=blocks - 1)
     poly = ChainPolyhedron(k, 1.0)
     DtKL = poly.forces(k * L)
@@ -41,8 +40,7 @@ def assert_kkt(poly, c, w_trial, step, rtol=1e-12):
     B, M = poly.dense_normals(), poly.dense_metric()
     w, lam = step.point, step.multipliers
     lam_scale = np.max(np.abs(lam), initial=0.0)
-    size = max(1.0, np.max(np.abs(c)), 2 * np.max(np.abs(w_trial)),
-               np.max(np.abs(B.T @ lam)))
+    size = max(1.0, np.max(np.abs(c)), 2 * np.max(np.abs(w_trial)), np.max(np.abs(B.T @ lam)))
     slack = B @ w - c
     assert np.max(slack) <= rtol * size
     assert np.min(lam) >= -rtol * size * max(1.0, step.active.inverse_norm) - rtol * lam_scale
@@ -85,8 +83,7 @@ def test_chain_factor_solves_and_bounds_the_inverse(blocks):
     # forward error of a backward-stable solve: a few eps times the condition number
     cond = A.inverse_norm * A.gram_norm
     assert np.max(np.abs(x - ref)) <= 100 * EPS * cond * np.max(np.abs(ref))
-    assert A.inverse_norm == pytest.approx(np.max(np.sum(np.abs(np.linalg.inv(G)), axis=1)),
-                                           rel=1e-9)
+    assert A.inverse_norm == pytest.approx(np.max(np.sum(np.abs(np.linalg.inv(G)), axis=1)), rel=1e-9)
 
 
 def test_chain_licq_is_not_every_block_and_not_both_limits():
@@ -99,16 +96,19 @@ def test_chain_licq_is_not_every_block_and_not_both_limits():
 
 
 @settings(max_examples=120, deadline=None)
-@given(seed=st.integers(0, 2**32 - 1), blocks=st.integers(2, 40),
-       stiffness_ratio=st.sampled_from([1.0, 1e2, 1e4, 1e6]),
-       friction_ratio=st.sampled_from([1.0, 10.0, 1e3]), push=st.sampled_from([0.1, 1.0, 10.0]))
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    blocks=st.integers(2, 40),
+    stiffness_ratio=st.sampled_from([1.0, 1e2, 1e4, 1e6]),
+    friction_ratio=st.sampled_from([1.0, 10.0, 1e3]),
+    push=st.sampled_from([0.1, 1.0, 10.0]),
+)
 @example(seed=0, blocks=40, stiffness_ratio=1e6, friction_ratio=1e3, push=10.0)
 @example(seed=3, blocks=2, stiffness_ratio=1.0, friction_ratio=1.0, push=0.1)
 @example(seed=354367586, blocks=17, stiffness_ratio=1.0, friction_ratio=1.0, push=0.1)
 @example(seed=1987, blocks=2, stiffness_ratio=1.0, friction_ratio=1000.0, push=0.1)
 @example(seed=0, blocks=6, stiffness_ratio=1e4, friction_ratio=1.0, push=1.0)
-def test_chain_projection_satisfies_kkt_and_agrees_with_clarabel(seed, blocks, stiffness_ratio,
-                                                                 friction_ratio, push):
+def test_chain_projection_satisfies_kkt_and_agrees_with_clarabel(seed, blocks, stiffness_ratio, friction_ratio, push):
     """A crawler's certified step meets the KKT conditions to roundoff, and no point of
     Clarabel's beats it. With f(w) = |w - w_trial|_M^2 / 2 (strongly convex) and the certified
     (w*, lambda*), every w satisfies
@@ -128,17 +128,16 @@ def test_chain_projection_satisfies_kkt_and_agrees_with_clarabel(seed, blocks, s
     lam_ip, _ = projector._clarabel(w_trial, c)
     import clarabel
 
-    if projector.clarabel_status not in (clarabel.SolverStatus.Solved,
-                                         clarabel.SolverStatus.AlmostSolved):
+    if projector.clarabel_status not in (clarabel.SolverStatus.Solved, clarabel.SolverStatus.AlmostSolved):
         # Clarabel stopped early (MaxIterations on seed 1987: two blocks, an interior trial
         # point, limits from 0.39 to 223): no reference point, but its iterate is still a
         # proposal, and the kernel certifies the same projection from it
         again = projector.project(w_trial, c, verify=True)
         assert again.used_clarabel
-        assert_kkt(poly, c, w_trial, certificate.Step(again.point, again.multipliers, again.active,
-                                              None))  # type: ignore[arg-type]
-        np.testing.assert_allclose(again.point, proj.point, rtol=0, atol=1e-13 * max(
-            1.0, float(np.max(np.abs(w_trial)))))
+        assert_kkt(poly, c, w_trial, certificate.Step(again.point, again.multipliers, again.active, None))  # type: ignore[arg-type]
+        np.testing.assert_allclose(
+            again.point, proj.point, rtol=0, atol=1e-13 * max(1.0, float(np.max(np.abs(w_trial))))
+        )
         return
     w_ip = w_trial - poly.respond(lam_ip)
     B, M = poly.dense_normals(), poly.dense_metric()
@@ -225,8 +224,7 @@ def exact_slips(poly, w_trial, c, index):
     k = [Fraction(float(v)) for v in poly.stiffness]
     w = [Fraction(0)] + [Fraction(float(v)) for v in w_trial] + [Fraction(0)]
     f = [w[i] - w[i + 1] for i in range(N)]
-    rhs = [f[i] - (Fraction(float(c[r])) if r < N else -Fraction(float(c[r])))
-           for i, r in zip(J, rows)]
+    rhs = [f[i] - (Fraction(float(c[r])) if r < N else -Fraction(float(c[r]))) for i, r in zip(J, rows)]
     diag = [(k[i - 1] if i > 0 else 0) + (k[i] if i < N - 1 else 0) for i in J]
     off = [-k[J[q]] if J[q + 1] == J[q] + 1 else Fraction(0) for q in range(len(J) - 1)]
     for q in range(1, len(J)):  # Thomas, exactly
@@ -267,9 +265,9 @@ def test_row_dual_tolerances_bound_each_multiplier_and_follow_its_segment(seed):
     signs = np.zeros(poly.blocks, dtype=np.int8)
     signs[idx[idx < poly.blocks]] = 1
     signs[idx[idx >= poly.blocks] - poly.blocks] = -1
-    w, lam_k, report, told_k = (np.empty(poly.n), np.empty(poly.m), np.zeros(6),
-                                np.empty(poly.m))
-    status = chain.project_rows(poly.stiffness, poly.c_scale, w_trial, c, signs,
-                                np.zeros(poly.m, dtype=np.bool_), w, lam_k, report, told_k)
+    w, lam_k, report, told_k = (np.empty(poly.n), np.empty(poly.m), np.zeros(6), np.empty(poly.m))
+    status = chain.project_rows(
+        poly.stiffness, poly.c_scale, w_trial, c, signs, np.zeros(poly.m, dtype=np.bool_), w, lam_k, report, told_k
+    )
     assert status == chain.DONE
     np.testing.assert_allclose(told_k[idx], told[idx], rtol=1e-9)

@@ -42,28 +42,43 @@ INTEGRATORS = ("exact", "catch-up")
 
 def square_document(N, steps=20, max_periods=2000):
     width = 1.0 / (N - 1)
-    return {"name": f"square-{N}", "blocks": N, "period": 1.0, "stiffness": 10.0,
-            "links": [{"kind": "steps", "times": [0.0, width], "values": [0.7, 1.0],
-                       "phase": i * width} for i in range(N - 1)],
-            "friction": {"forward": 1.0, "backward": 2.13},
-            "simulation": {"steps_per_period": steps, "max_periods": max_periods}}
+    return {
+        "name": f"square-{N}",
+        "blocks": N,
+        "period": 1.0,
+        "stiffness": 10.0,
+        "links": [
+            {"kind": "steps", "times": [0.0, width], "values": [0.7, 1.0], "phase": i * width} for i in range(N - 1)
+        ],
+        "friction": {"forward": 1.0, "backward": 2.13},
+        "simulation": {"steps_per_period": steps, "max_periods": max_periods},
+    }
 
 
 def wave_document(N, steps=100, max_periods=2000):
-    return {"name": f"wave-{N}", "blocks": N, "period": 1.0, "stiffness": 10.0,
-            "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": i / (N - 1)}
-                      for i in range(N - 1)],
-            "friction": {"forward": 1.0, "backward": 2.13},
-            "simulation": {"steps_per_period": steps, "max_periods": max_periods}}
+    return {
+        "name": f"wave-{N}",
+        "blocks": N,
+        "period": 1.0,
+        "stiffness": 10.0,
+        "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": i / (N - 1)} for i in range(N - 1)],
+        "friction": {"forward": 1.0, "backward": 2.13},
+        "simulation": {"steps_per_period": steps, "max_periods": max_periods},
+    }
 
 
 def single_link_document(steps=100):
     """Three blocks, link 1 actuated (amplitude 0.12), link 2 passive: below the threshold of
     motion, so the crawler sticks in its limit period."""
-    return {"name": "single-link", "blocks": 3, "period": 1.0, "stiffness": 10.0,
-            "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.12}, 1.0],
-            "friction": {"forward": 1.0, "backward": 1.5},
-            "simulation": {"steps_per_period": steps, "max_periods": 400}}
+    return {
+        "name": "single-link",
+        "blocks": 3,
+        "period": 1.0,
+        "stiffness": 10.0,
+        "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.12}, 1.0],
+        "friction": {"forward": 1.0, "backward": 1.5},
+        "simulation": {"steps_per_period": steps, "max_periods": 400},
+    }
 
 
 GAITS = {
@@ -85,8 +100,10 @@ def periods_simulated(result):
 
 def metric_distance(process, a, b):
     """max over the grid of |a(t) - b(t)|_M, relative to max |b(t)|_M."""
+
     def norm(W):
         return np.sqrt(np.sum(W * process.polyhedron.metric_times(W), axis=-1))
+
     return float(np.max(norm(a - b)) / np.max(norm(b)))
 
 
@@ -104,7 +121,8 @@ def runs():
                 process,
                 simulate(process, tolerance=1e-12, limit="newton", **kw),
                 simulate(process, tolerance=1e-13, limit="iterate", **kw),
-                simulate(process, tolerance=1e-12, limit="iterate", **kw))
+                simulate(process, tolerance=1e-12, limit="iterate", **kw),
+            )
     return out
 
 
@@ -123,16 +141,14 @@ def test_newton_and_iteration_find_the_same_limit(runs, name, integrator):
 
 @pytest.mark.parametrize("integrator", INTEGRATORS)
 @pytest.mark.parametrize("name", ["square-7", "acute-0.5"])
-def test_newton_simulates_ten_times_fewer_periods_when_the_rate_exceeds_one_half(
-        runs, name, integrator):
+def test_newton_simulates_ten_times_fewer_periods_when_the_rate_exceeds_one_half(runs, name, integrator):
     _, newton, _, plain = runs[name, integrator]
     assert plain.contraction_rate > 0.5
     assert periods_simulated(plain) >= 10 * periods_simulated(newton)
 
 
 @pytest.mark.parametrize("integrator", INTEGRATORS)
-@pytest.mark.parametrize("name, rate", [("square-4", 0.25), ("square-5", 0.5),
-                                        ("square-7", 0.75), ("acute-0.5", 0.8)])
+@pytest.mark.parametrize("name, rate", [("square-4", 0.25), ("square-5", 0.5), ("square-7", 0.75), ("acute-0.5", 0.8)])
 def test_jacobian_rate_agrees_with_the_true_iterates(runs, name, rate, integrator):
     """The contraction rate of the true iterates is a least-squares fit of log(step) over the
     last periods whose relative steps exceed 1e-10 (each carries a roundoff of about
@@ -160,8 +176,7 @@ def test_fixed_point_on_a_kink_of_the_map(runs, integrator):
     stepper = make_stepper(process, integrator)
     stepper.reset(newton.limit.w[0])
     record = stepper.step_period()
-    assert subdominant_rate(jacobian(process.polyhedron, record.visited)) == pytest.approx(
-        0.0, abs=1e-12)
+    assert subdominant_rate(jacobian(process.polyhedron, record.visited)) == pytest.approx(0.0, abs=1e-12)
     assert newton.jacobian_rate == pytest.approx(0.8, rel=1e-12)
 
 
@@ -176,8 +191,7 @@ def test_a_family_of_periodic_solutions(integrator):
     document = single_link_document()
     process = process_of(document)
     newton = simulate(process, integrator=integrator, limit="newton", history=False)
-    plain = simulate(process, integrator=integrator, limit="iterate", history=False,
-                     tolerance=1e-13)
+    plain = simulate(process, integrator=integrator, limit="iterate", history=False, tolerance=1e-13)
     assert newton.limit_method == "newton" and newton.limit_residuals[-1] <= 1e-12
     assert abs(newton.v0) <= newton.v0_error_estimate and newton.v0_error_estimate < 1e-12
     # the family: the Jacobian of the limit period is the identity (J - I = 0, every
@@ -189,16 +203,14 @@ def test_a_family_of_periodic_solutions(integrator):
     # ... and the limit depends on the start: the solver from a shifted start finds another
     # periodic solution (in one plain period, then a Newton step that changes nothing)
     shifted = newton.limit.w[0] + np.array([1e-2, 0.0])
-    other = solve_limit(process, make_stepper(process, integrator), tolerance=1e-12,
-                        max_periods=10, start=shifted)
+    other = solve_limit(process, make_stepper(process, integrator), tolerance=1e-12, max_periods=10, start=shifted)
     assert other.converged and other.periods <= 3
     assert np.max(np.abs(other.w - newton.limit.w[0])) > 1e-3
     stepper.reset(other.w)
     np.testing.assert_allclose(stepper.step_period().w[-1], other.w, atol=1e-12)
     # with the same derivative (Theorem th:speed) as the true iterates' limit
     for a in (other.record.w, plain.limit.w):
-        np.testing.assert_allclose(np.diff(a, axis=0), np.diff(newton.limit.w, axis=0),
-                                   atol=1e-11)
+        np.testing.assert_allclose(np.diff(a, axis=0), np.diff(newton.limit.w, axis=0), atol=1e-11)
 
 
 @pytest.mark.parametrize("integrator", INTEGRATORS)
@@ -230,8 +242,7 @@ def test_iterates_periodic_on_another_member_of_a_family_stop_the_run(integrator
     stepper.reset(run.limit.w[0])
     np.testing.assert_allclose(stepper.step_period().w[-1], run.limit.w[0], atol=1e-10)
     # ... of a family: the solver alone (v0 only) verifies another member, with v0 = 0 as well
-    solver = simulate(process, integrator=integrator, max_periods=max_periods, tolerance=1e-12,
-                      history=False)
+    solver = simulate(process, integrator=integrator, max_periods=max_periods, tolerance=1e-12, history=False)
     assert solver.limit_method == "newton"
     assert np.max(np.abs(solver.limit.w[0] - run.limit.w[0])) > 1e-4
     for r in (run, solver):
@@ -247,8 +258,7 @@ def test_not_converged_within_max_periods_exits_3(tmp_path):
     gait.write_text(yaml.safe_dump(wave_document(20, steps=40)))
     for limit in ("newton", "iterate"):
         out = tmp_path / f"{limit}.h5"
-        r = CliRunner().invoke(main, ["run", str(gait), "--max-periods", "3", "--limit", limit,
-                                      "-o", str(out)])
+        r = CliRunner().invoke(main, ["run", str(gait), "--max-periods", "3", "--limit", limit, "-o", str(out)])
         assert r.exit_code == 3, r.output
         assert "NOT converged" in r.stdout
         assert_says_why(r.stderr, limit)
@@ -256,8 +266,7 @@ def test_not_converged_within_max_periods_exits_3(tmp_path):
         assert data["attrs"]["convergence"] == "not-converged"
         assert data["limit_solver_attrs"]["method"] == "iterate"  # no verified limit
         for extra in ([], ["--json"]):
-            r = CliRunner().invoke(main, ["velocity", str(gait), "--max-periods", "3",
-                                          "--limit", limit, *extra])
+            r = CliRunner().invoke(main, ["velocity", str(gait), "--max-periods", "3", "--limit", limit, *extra])
             assert r.exit_code == 3, r.output
             assert_says_why(r.stderr, limit)
 
@@ -452,12 +461,12 @@ def test_newton_through_a_kink_of_the_period_map():
 
     gait = random_gait(237, blocks=(2, 12))
     process = compile_gait(gait, 1000)
-    solution = solve_limit(process, make_stepper(process, "exact"), max_periods=300,
-                           tolerance=gait.simulation.tolerance)
+    solution = solve_limit(
+        process, make_stepper(process, "exact"), max_periods=300, tolerance=gait.simulation.tolerance
+    )
     assert solution.converged and solution.residuals[-1] <= gait.simulation.tolerance
     kinds = solution.kinds.tolist()
-    through = [i for i in range(1, len(kinds)) if kinds[i - 1] == REJECTED
-               and kinds[i] == NEWTON]
+    through = [i for i in range(1, len(kinds)) if kinds[i - 1] == REJECTED and kinds[i] == NEWTON]
     assert through
     assert solution.periods <= 12
 
@@ -472,10 +481,8 @@ def test_rejected_candidates_back_off_and_cost_at_most_log2_periods(monkeypatch)
 
     monkeypatch.setattr(limit_module, "newton_step", lambda poly, factors, F: -2.0 * F)
     process = process_of(square_document(5))
-    plain = solve_limit(process, make_stepper(process, "exact"), tolerance=1e-12,
-                        max_periods=500, method="iterate")
-    bad = solve_limit(process, make_stepper(process, "exact"), tolerance=1e-12,
-                      max_periods=500, plain=0)
+    plain = solve_limit(process, make_stepper(process, "exact"), tolerance=1e-12, max_periods=500, method="iterate")
+    bad = solve_limit(process, make_stepper(process, "exact"), tolerance=1e-12, max_periods=500, plain=0)
     assert bad.converged and bad.newton_steps == 0 and bad.method == "iterate"
     rejected = np.flatnonzero(bad.kinds == REJECTED)
     # each attempt is every candidate of `ATTEMPTS`, all rejected; the plain periods between
@@ -511,5 +518,4 @@ def test_matrix_free_products_and_step_match_the_dense_jacobian(monkeypatch):
     F = record.w[-1] - record.w[0]
     dense = newton_step(poly, fs, F)
     monkeypatch.setattr(limit_module, "DENSE_JACOBIAN", 0)
-    np.testing.assert_allclose(newton_step(poly, fs, F), dense, rtol=1e-8,
-                               atol=1e-10 * np.max(np.abs(dense)))
+    np.testing.assert_allclose(newton_step(poly, fs, F), dense, rtol=1e-8, atol=1e-10 * np.max(np.abs(dense)))

@@ -37,10 +37,13 @@ from crawlsim.gait.document import admissibility_violation, parse_gait
 from .conftest import make_gait
 
 
-def two_block_doc(amplitude=0.3, k=10.0, mu_plus=1.0, mu_minus=2.0, loads=None, link=None,
-                  period=1.0, integrator="exact", steps=400):
+def two_block_doc(
+    amplitude=0.3, k=10.0, mu_plus=1.0, mu_minus=2.0, loads=None, link=None, period=1.0, integrator="exact", steps=400
+):
     doc = {
-        "blocks": 2, "period": period, "stiffness": k,
+        "blocks": 2,
+        "period": period,
+        "stiffness": k,
         "links": [link or {"kind": "cosine", "mean": 1.0, "amplitude": amplitude}],
         "friction": {"forward": mu_plus, "backward": mu_minus},
         "simulation": {"steps_per_period": steps, "max_periods": 50, "integrator": integrator},
@@ -79,13 +82,11 @@ CASES = [
 
 @pytest.mark.parametrize("integrator", ["exact", "catch-up"])
 @pytest.mark.parametrize("amplitude, k, mu_plus, mu_minus, f1, f2", CASES)
-def test_two_blocks_constant_forces_closed_form(amplitude, k, mu_plus, mu_minus, f1, f2,
-                                                integrator):
+def test_two_blocks_constant_forces_closed_form(amplitude, k, mu_plus, mu_minus, f1, f2, integrator):
     """v0 T = d of the module docstring, to 1e-9, with the stroke Delta = 2 amplitude. Catch-up
     is exact here too: with constant thresholds the cosine stroke is monotone between the grid
     points 0 and T/2, and every slip is at the one threshold the closed form names."""
-    gait = make_gait(two_block_doc(amplitude, k, mu_plus, mu_minus, {"force": [f1, f2]},
-                                   integrator=integrator))
+    gait = make_gait(two_block_doc(amplitude, k, mu_plus, mu_minus, {"force": [f1, f2]}, integrator=integrator))
     result = run(gait, history=False)
     d = closed_form_d(2 * amplitude, k, mu_plus, mu_minus, (f1, f2))
     assert result.v0 * gait.period == pytest.approx(d, abs=1e-9)
@@ -140,18 +141,36 @@ def test_slope_is_forces_and_scaled_friction():
         return out
 
     def doc(friction, loads):
-        return {"blocks": 3, "period": 1.0, "stiffness": [10.0, 12.0],
-                "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3},
-                          {"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": 0.25}],
-                "friction": friction, "loads": loads,
-                "simulation": {"steps_per_period": 400, "max_periods": 200}}
+        return {
+            "blocks": 3,
+            "period": 1.0,
+            "stiffness": [10.0, 12.0],
+            "links": [
+                {"kind": "cosine", "mean": 1.0, "amplitude": 0.3},
+                {"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": 0.25},
+            ],
+            "friction": friction,
+            "loads": loads,
+            "simulation": {"steps_per_period": 400, "max_periods": 200},
+        }
 
-    slope = make_gait(doc([{"forward": f, "backward": b} for f, b in zip(forward, backward)],
-                          {"force": force, "slope": {"angle": alpha, "weight": weights}}))
-    flat_force = [{**force[0], "mean": force[0]["mean"] - weights[0] * sa},
-                  -weights[1] * sa, force[2] - weights[2] * sa]
-    flat = make_gait(doc([{"forward": scaled(f, ca), "backward": scaled(b, ca)}
-                          for f, b in zip(forward, backward)], {"force": flat_force}))
+    slope = make_gait(
+        doc(
+            [{"forward": f, "backward": b} for f, b in zip(forward, backward)],
+            {"force": force, "slope": {"angle": alpha, "weight": weights}},
+        )
+    )
+    flat_force = [
+        {**force[0], "mean": force[0]["mean"] - weights[0] * sa},
+        -weights[1] * sa,
+        force[2] - weights[2] * sa,
+    ]
+    flat = make_gait(
+        doc(
+            [{"forward": scaled(f, ca), "backward": scaled(b, ca)} for f, b in zip(forward, backward)],
+            {"force": flat_force},
+        )
+    )
     a, b = run(slope, history=False), run(flat, history=False)
     assert a.v0 == pytest.approx(b.v0, abs=1e-10)
     assert a.v0 != 0
@@ -171,26 +190,28 @@ def test_slope_closed_form_and_potential_energy():
     assert result.v0 == pytest.approx(d, abs=1e-12)
     assert closed_form_d(0.6, 10.0, 1.0, 2.0, (0.0, 0.0), 20.0, 1.0) == pytest.approx(d, abs=1e-15)
     assert result.load_work_per_period == pytest.approx(2 * sa * d, abs=1e-12)
-    assert result.efficiency == pytest.approx(result.load_work_per_period
-                                              / result.actuator_work_per_period, rel=1e-12)
+    assert result.efficiency == pytest.approx(result.load_work_per_period / result.actuator_work_per_period, rel=1e-12)
 
 
 @pytest.mark.parametrize("integrator", ["exact", "catch-up"])
 def test_energy_balance_with_loads_and_jumps(integrator):
     """W = D + J + W_load on the limit period to roundoff, for a gait with switched (steps)
     friction, which makes jumps (J > 0), a periodic force and a slope, on four blocks."""
-    doc = {"blocks": 4, "period": 2.0, "stiffness": 8.0,
-           "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.25, "phase": p}
-                     for p in (0.0, 0.25, 0.5)],
-           "friction": {"forward": {"kind": "steps", "times": [0.0, 0.5], "values": [1.0, 1.4]},
-                        "backward": 2.0},
-           "loads": {"force": [{"kind": "cosine", "mean": -0.2, "amplitude": 0.1}, 0.0, 0.0, 0.1],
-                     "slope": {"angle": 5.0, "weight": [0.5, 0.5, 1.0, 1.0]}},
-           "simulation": {"steps_per_period": 400, "max_periods": 400, "integrator": integrator}}
+    doc = {
+        "blocks": 4,
+        "period": 2.0,
+        "stiffness": 8.0,
+        "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.25, "phase": p} for p in (0.0, 0.25, 0.5)],
+        "friction": {"forward": {"kind": "steps", "times": [0.0, 0.5], "values": [1.0, 1.4]}, "backward": 2.0},
+        "loads": {
+            "force": [{"kind": "cosine", "mean": -0.2, "amplitude": 0.1}, 0.0, 0.0, 0.1],
+            "slope": {"angle": 5.0, "weight": [0.5, 0.5, 1.0, 1.0]},
+        },
+        "simulation": {"steps_per_period": 400, "max_periods": 400, "integrator": integrator},
+    }
     result = run(make_gait(doc), history=False)
     W = result.actuator_work_per_period
-    total = (result.dissipation_per_period + result.jump_loss_per_period
-             + result.load_work_per_period)
+    total = result.dissipation_per_period + result.jump_loss_per_period + result.load_work_per_period
     assert W > 0 and result.load_work_per_period != 0
     assert W - total == pytest.approx(0.0, abs=1e-11 * W)
     assert result.energy_balance_residual == pytest.approx(W - total, abs=1e-12 * W)
@@ -200,8 +221,10 @@ def test_rate_independence_with_loads():
     """v0 T does not depend on T (docs/model.md §4: the normal cone is a cone; the loads are
     signals of t/T like every other): T = 1 and T = 7.5 give the same displacement per period,
     load work and dissipation."""
-    loads = {"force": [{"kind": "cosine", "mean": -0.3, "amplitude": 0.2}, 0.1],
-             "slope": {"angle": 8.0, "weight": [1.0, 0.5]}}
+    loads = {
+        "force": [{"kind": "cosine", "mean": -0.3, "amplitude": 0.2}, 0.1],
+        "slope": {"angle": 8.0, "weight": [1.0, 0.5]},
+    }
     one = run(make_gait(two_block_doc(loads=loads)), history=False)
     slow = run(make_gait(two_block_doc(loads=loads, period=7.5)), history=False)
     assert slow.displacement_per_period == pytest.approx(one.displacement_per_period, abs=1e-12)
@@ -267,8 +290,7 @@ def test_sweep_paths_reach_the_loads(tmp_path):
     """``--sweep loads.force.0=...`` and ``loads.slope.angle=...`` edit the document; each point
     is the closed form."""
     gait = tmp_path / "gait.yaml"
-    gait.write_text(yaml.safe_dump(two_block_doc(loads={"force": [0.0, 0.0],
-                                                        "slope": {"angle": 0.0, "weight": 1.0}})))
+    gait.write_text(yaml.safe_dump(two_block_doc(loads={"force": [0.0, 0.0], "slope": {"angle": 0.0, "weight": 1.0}})))
     r = CliRunner().invoke(main, ["velocity", str(gait), "--sweep", "loads.force.0=0:-0.8:5"])
     assert r.exit_code == 0, r.output
     rows = list(csv.DictReader(io.StringIO(r.output.split("\n5 points")[0])))
@@ -299,14 +321,12 @@ def test_run_file_records_the_loads(tmp_path):
     holds the loads: block."""
     import h5py
 
-    gait = make_gait(two_block_doc(loads={"force": [-0.5, 0.0],
-                                          "slope": {"angle": 20.0, "weight": 1.0}}))
+    gait = make_gait(two_block_doc(loads={"force": [-0.5, 0.0], "slope": {"angle": 20.0, "weight": 1.0}}))
     result = run(gait, output=tmp_path / "r.h5")
     with h5py.File(tmp_path / "r.h5") as f:
         assert f.attrs["slope_angle"] == 20.0
         assert json.loads(f.attrs["attribute_units_json"])["slope_angle"] == "degree"
-        assert f.attrs["load_work_per_period"] == pytest.approx(result.load_work_per_period,
-                                                                abs=1e-15)
+        assert f.attrs["load_work_per_period"] == pytest.approx(result.load_work_per_period, abs=1e-15)
         assert f["energy/load_work"][()] == pytest.approx(result.load_work_per_period, abs=1e-15)
         load = f["limit/load"][()]
         total = -0.5 - math.sin(math.radians(20.0))
@@ -322,9 +342,19 @@ def test_sweep_file_records_the_swept_load_with_units(tmp_path):
     doc = two_block_doc(loads={"force": [0.0, 0.0], "slope": {"angle": 0.0, "weight": 1.0}})
     doc["units"] = {"length": "mm", "time": "s", "force": "N"}
     gait.write_text(yaml.safe_dump(doc))
-    r = CliRunner().invoke(main, ["velocity", str(gait), "--sweep", "loads.slope.angle=0:20:3",
-                                  "--sweep", "loads.force.0=0:-0.2:2", "-o",
-                                  str(tmp_path / "s.h5")])
+    r = CliRunner().invoke(
+        main,
+        [
+            "velocity",
+            str(gait),
+            "--sweep",
+            "loads.slope.angle=0:20:3",
+            "--sweep",
+            "loads.force.0=0:-0.2:2",
+            "-o",
+            str(tmp_path / "s.h5"),
+        ],
+    )
     assert r.exit_code == 0, r.output
     with h5py.File(tmp_path / "s.h5") as f:
         assert f["grid/loads_slope_angle"].attrs["units"] == "degree"
@@ -335,24 +365,38 @@ def test_sweep_file_records_the_swept_load_with_units(tmp_path):
 def test_a_load_that_cannot_be_held_part_of_the_cycle_is_refused_with_the_time():
     """F(t) = -1 + 1.5 cos 2 pi t on each of 3 blocks, mu- = 2: sum mu~^- = 6 + 3 F(t) is
     negative around t = T/2 (minimum -1.5 there): no quasistatic motion, refused naming t."""
-    doc = {"blocks": 3, "period": 2.0, "stiffness": 10.0,
-           "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3}, 1.0],
-           "friction": {"forward": 1.0, "backward": 2.0},
-           "loads": {"force": {"kind": "cosine", "mean": -1.0, "amplitude": 1.5}}}
-    with pytest.raises(GaitError, match=r"loads: the loads are too large .* at t = 1 "
-                                        r"the total load sum_j F~_j = -7.5"):
+    doc = {
+        "blocks": 3,
+        "period": 2.0,
+        "stiffness": 10.0,
+        "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3}, 1.0],
+        "friction": {"forward": 1.0, "backward": 2.0},
+        "loads": {"force": {"kind": "cosine", "mean": -1.0, "amplitude": 1.5}},
+    }
+    with pytest.raises(
+        GaitError,
+        match=r"loads: the loads are too large .* at t = 1 "
+        r"the total load sum_j F~_j = -7.5",
+    ):
         make_gait(doc)
     doc["loads"]["force"]["amplitude"] = 0.9  # minimum 6 - 5.7 = 0.3 > 0: held
     make_gait(doc)
 
 
-@pytest.mark.parametrize("signals", [
-    [1.0, {"kind": "steps", "times": [0.0, 0.3, 0.8], "values": [0.2, -0.7, 0.1]}],
-    [{"kind": "piecewise-linear", "times": [0.0, 0.4, 1.0], "values": [0.0, -1.0, 0.0]},
-     {"kind": "steps", "times": [0.0, 0.7], "values": [0.3, -0.2]}],
-    [{"kind": "cosine", "mean": 1.0, "amplitude": 0.5, "phase": 0.1},
-     {"kind": "steps", "times": [0.0, 0.25], "values": [0.0, -0.6]}],
-])
+@pytest.mark.parametrize(
+    "signals",
+    [
+        [1.0, {"kind": "steps", "times": [0.0, 0.3, 0.8], "values": [0.2, -0.7, 0.1]}],
+        [
+            {"kind": "piecewise-linear", "times": [0.0, 0.4, 1.0], "values": [0.0, -1.0, 0.0]},
+            {"kind": "steps", "times": [0.0, 0.7], "values": [0.3, -0.2]},
+        ],
+        [
+            {"kind": "cosine", "mean": 1.0, "amplitude": 0.5, "phase": 0.1},
+            {"kind": "steps", "times": [0.0, 0.25], "values": [0.0, -0.6]},
+        ],
+    ],
+)
 def test_combination_minimum(signals):
     """The least value of a sum of signals over the cycle (the body's hold condition): exact
     for constants, steps and piecewise-linear (affine between breakpoints: a one-sided limit at a
@@ -375,8 +419,7 @@ def test_square_wave_gait_under_a_uniform_force():
     the uniform force F = -0.2 on both blocks, mu+ = 1, mu- = 2, k = 10: a = 1.2, b = 1.8, e = c
     = +1 and each jump of L slips by Delta - 2a/k = 0.6 - 0.24 = 0.36 (the jump loss is the
     elastic energy of the jump beyond friction: the ledger still balances)."""
-    doc = two_block_doc(loads={"force": -0.2},
-                        link={"kind": "steps", "times": [0.0, 0.5], "values": [1.6, 1.0]})
+    doc = two_block_doc(loads={"force": -0.2}, link={"kind": "steps", "times": [0.0, 0.5], "values": [1.6, 1.0]})
     for integrator in ("exact", "catch-up"):
         doc["simulation"]["integrator"] = integrator
         result = run(make_gait(doc), history=False)
@@ -395,8 +438,7 @@ def test_climbing_3_closed_form():
     a = math.cos(math.radians(10)) + math.sin(math.radians(10))
     d = 2 * (0.6 - 3 * a / 10)
     assert result.v0 == pytest.approx(d, abs=1e-12)
-    assert result.load_work_per_period == pytest.approx(3 * math.sin(math.radians(10)) * d,
-                                                        abs=1e-12)
+    assert result.load_work_per_period == pytest.approx(3 * math.sin(math.radians(10)) * d, abs=1e-12)
 
 
 def test_inching_2_towing_header():
@@ -423,25 +465,30 @@ def test_random_gaits_with_loads_never_crash(seed):
 
     gait = random_gait(seed, blocks=(2, 8), steps_per_period=200, max_periods=300, loads=True)
     assert gait.loads is not None
-    exact = simulate(compile_gait(gait), integrator="exact", max_periods=300, tolerance=1e-11,
-                     history=False)
+    exact = simulate(compile_gait(gait), integrator="exact", max_periods=300, tolerance=1e-11, history=False)
     assert exact.converged and abs(exact.energy_balance_residual) <= 1e-9 * max(
-        1.0, abs(exact.actuator_work_per_period))
+        1.0, abs(exact.actuator_work_per_period)
+    )
     try:
-        catch_up = simulate(compile_gait(gait), integrator="catch-up", max_periods=300,
-                            tolerance=1e-11, history=False)
+        catch_up = simulate(compile_gait(gait), integrator="catch-up", max_periods=300, tolerance=1e-11, history=False)
     except DegenerateModelError:
         return
     assert catch_up.converged
 
 
-@given(mu_plus=st.floats(0.2, 3.0), mu_minus=st.floats(0.2, 3.0), k=st.floats(2.0, 50.0),
-       stroke=st.floats(0.05, 1.0), rise=st.floats(0.1, 0.9),
-       f1=st.floats(-2.0, 2.0), f2=st.floats(-2.0, 2.0), angle=st.floats(-40.0, 40.0),
-       weight=st.floats(0.0, 1.5))
+@given(
+    mu_plus=st.floats(0.2, 3.0),
+    mu_minus=st.floats(0.2, 3.0),
+    k=st.floats(2.0, 50.0),
+    stroke=st.floats(0.05, 1.0),
+    rise=st.floats(0.1, 0.9),
+    f1=st.floats(-2.0, 2.0),
+    f2=st.floats(-2.0, 2.0),
+    angle=st.floats(-40.0, 40.0),
+    weight=st.floats(0.0, 1.5),
+)
 @settings(max_examples=40)
-def test_two_blocks_closed_form_any_monotone_stroke(mu_plus, mu_minus, k, stroke, rise, f1, f2,
-                                                     angle, weight):
+def test_two_blocks_closed_form_any_monotone_stroke(mu_plus, mu_minus, k, stroke, rise, f1, f2, angle, weight):
     """The module docstring's d = s (e + c)/2 for random friction, stiffness, constant forces,
     slope and a piecewise-linear monotone stroke rising on [0, rise T] and falling back: the
     exact integrator's v0 T to 1e-9. Draws within 1e-3 of a degenerate case (the body barely
@@ -455,10 +502,14 @@ def test_two_blocks_closed_form_any_monotone_stroke(mu_plus, mu_minus, k, stroke
     assume(abs(a[1] - b[0]) > 1e-3 and abs(a[0] - b[1]) > 1e-3)
     s = stroke - (min(b[0], a[1]) + min(a[0], b[1])) / k
     assume(abs(s) > 1e-3)
-    link = {"kind": "piecewise-linear", "times": [0.0, rise, 1.0],
-            "values": [1.0, 1.0 + stroke, 1.0]}
-    doc = two_block_doc(k=k, mu_plus=mu_plus, mu_minus=mu_minus, link=link,
-                        loads={"force": [f1, f2], "slope": {"angle": angle, "weight": weight}})
+    link = {"kind": "piecewise-linear", "times": [0.0, rise, 1.0], "values": [1.0, 1.0 + stroke, 1.0]}
+    doc = two_block_doc(
+        k=k,
+        mu_plus=mu_plus,
+        mu_minus=mu_minus,
+        link=link,
+        loads={"force": [f1, f2], "slope": {"angle": angle, "weight": weight}},
+    )
     result = run(make_gait(doc), history=False)
     d = closed_form_d(stroke, k, mu_plus, mu_minus, (f1, f2), angle, weight)
     assert result.v0 == pytest.approx(d, abs=1e-9)

@@ -33,13 +33,11 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _wave(N: int, steps: int = 1000):
-    spec = importlib.util.spec_from_file_location("bench_scale",
-                                                  ROOT / "scripts" / "bench-scale.py")
+    spec = importlib.util.spec_from_file_location("bench_scale", ROOT / "scripts" / "bench-scale.py")
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    return compile_gait(gait_from_document(module.wave_document(N, steps, wave="segments"),
-                                           f"wave-{N}"))
+    return compile_gait(gait_from_document(module.wave_document(N, steps, wave="segments"), f"wave-{N}"))
 
 
 def _full_piece(k, signs, w0, coef):
@@ -65,18 +63,17 @@ def test_rebuilt_runs_are_the_whole_piece():
     old = np.zeros(N, dtype=np.int8)
     old[[2, 3, 4, 5, 9, 10, 12, 13, 20, 21, 22, 30]] = [1, 1, 1, 1, -1, -1, 1, 1, 1, -1, -1, 1]
     new = old.copy()
-    new[4] = 0      # the run 2..5 splits
-    new[11] = 1     # the runs 9..10 and 12..13 merge
-    new[21] = 1     # a sign reversed inside a run
-    new[35] = -1    # a run of its own
+    new[4] = 0  # the run 2..5 splits
+    new[11] = 1  # the runs 9..10 and 12..13 merge
+    new[21] = 1  # a sign reversed inside a run
+    new[35] = -1  # a run of its own
     D, l, inv = np.ones(N), np.zeros(N - 1), np.zeros(N)
     dx0, Ydx, Rdx = np.empty(N), np.empty((nb, N)), np.empty((nb, N))
     base, Wc = np.empty(N - 1), np.empty((nb, N - 1))
     lam_cum, lam_now = np.zeros(2 * N), rng.normal(size=2 * N)
     dirty = np.zeros(N, dtype=np.bool_)
     stale = np.zeros((N + eventloop.CHUNK - 1) // eventloop.CHUNK, dtype=np.bool_)
-    args = (w0, coef, False, 1, D, l, inv, dx0, Ydx, Rdx, base, Wc, lam_cum, lam_now, dirty,
-            stale)
+    args = (w0, coef, False, 1, D, l, inv, dx0, Ydx, Rdx, base, Wc, lam_cum, lam_now, dirty, stale)
     eventloop.rebuild_changed(k, old, old, *args, True)
     expected = _full_piece(k, old, w0, coef)
     for got, want in zip((D, l, dx0, Ydx, base, Wc), expected[:6]):
@@ -96,11 +93,11 @@ def test_rebuilt_runs_are_the_whole_piece():
     # the ranges: 2..5, 9..13, 20..22, 35 and their neighbours, nothing else
     touched = np.zeros(N, dtype=bool)
     for lo, hi in ((2, 5), (9, 13), (20, 22), (35, 35)):
-        touched[lo - 1:hi + 2] = True
+        touched[lo - 1 : hi + 2] = True
     assert np.array_equal(dirty, touched)
     committed = np.zeros(N, dtype=bool)
     for lo, hi in ((2, 5), (9, 13), (20, 22), (35, 35)):
-        committed[lo:hi + 1] = True
+        committed[lo : hi + 1] = True
     both = np.concatenate([committed, committed])
     assert np.array_equal(lam_cum[both], lam_now[both]) and not lam_cum[~both].any()
 
@@ -119,23 +116,54 @@ def _fresh(ctx, u0):
     m = 2 * N
     hit = np.zeros(m, dtype=bool)
     u, handoff = eventloop.next_event(
-        loop.c_scale, stepper.basis.linear, stepper.basis.harmonics, coef,
-        eventloop.offset_size(coef), signs, base, Wc, Ydx, inverse, u0, u1, hit,
-        np.empty((nb, N)), np.empty((m, nb)), np.empty(m), np.empty(m, dtype=np.int8),
-        np.empty((m, 3)), np.empty(nb), stepper.cells_per_cycle)
+        loop.c_scale,
+        stepper.basis.linear,
+        stepper.basis.harmonics,
+        coef,
+        eventloop.offset_size(coef),
+        signs,
+        base,
+        Wc,
+        Ydx,
+        inverse,
+        u0,
+        u1,
+        hit,
+        np.empty((nb, N)),
+        np.empty((m, nb)),
+        np.empty(m),
+        np.empty(m, dtype=np.int8),
+        np.empty((m, 3)),
+        np.empty(nb),
+        stepper.cells_per_cycle,
+    )
     assert not handoff
     return u, hit
 
 
 def _kept(ctx, u0):
     """`next_event_kept` from u0 on the piece ``ctx`` with its kept crossings."""
-    loop, stepper, N, nb, coef, signs, base, Wc, _, inverse, u1, Rdx, dirty, hit, Z, times, \
-        tols = ctx
-    return kernel_events.next_event_kept(loop.c_scale, stepper.basis.linear,
-                                         stepper.basis.harmonics, coef,
-                                         eventloop.offset_size(coef), signs, base, Wc, Rdx,
-                                         inverse, u0, u1, dirty, hit, Z, times, tols,
-                                         np.empty(nb))
+    loop, stepper, N, nb, coef, signs, base, Wc, _, inverse, u1, Rdx, dirty, hit, Z, times, tols = ctx
+    return kernel_events.next_event_kept(
+        loop.c_scale,
+        stepper.basis.linear,
+        stepper.basis.harmonics,
+        coef,
+        eventloop.offset_size(coef),
+        signs,
+        base,
+        Wc,
+        Rdx,
+        inverse,
+        u0,
+        u1,
+        dirty,
+        hit,
+        Z,
+        times,
+        tols,
+        np.empty(nb),
+    )
 
 
 def test_kept_crossings_are_the_crossings_sought_afresh():
@@ -155,14 +183,29 @@ def test_kept_crossings_are_the_crossings_sought_afresh():
         i = int(np.argmin(np.abs(u_events - tr.u)))
         signs = catchup.signs_of(tr.active, N)
         coef = loop.coef[tr.piece]
-        _, _, _, Ydx, base, Wc, inverse, _ = _full_piece(loop.k, signs, record.events.w[i],
-                                                         coef)
+        _, _, _, Ydx, base, Wc, inverse, _ = _full_piece(loop.k, signs, record.events.w[i], coef)
         Rdx = np.empty((nb, N))
         eventloop.derivative(Ydx, linear, H, Rdx)
         hit = np.zeros(m, dtype=np.bool_)
-        ctx = (loop, stepper, N, nb, coef, signs, base, Wc, Ydx, inverse,
-               float(stepper.pieces.edges[tr.piece + 1]), Rdx, np.ones(N, dtype=np.bool_), hit,
-               np.empty((m, nb)), np.empty(m), np.empty(m))
+        ctx = (
+            loop,
+            stepper,
+            N,
+            nb,
+            coef,
+            signs,
+            base,
+            Wc,
+            Ydx,
+            inverse,
+            float(stepper.pieces.edges[tr.piece + 1]),
+            Rdx,
+            np.ones(N, dtype=np.bool_),
+            hit,
+            np.empty((m, nb)),
+            np.empty(m),
+            np.empty(m),
+        )
         u, expected_hit = _fresh(ctx, tr.u)
         assert _kept(ctx, tr.u) == u and np.array_equal(hit, expected_hit)
         assert not ctx[12].any()  # nothing left dirty
@@ -202,19 +245,44 @@ def test_local_decisions_are_those_of_the_whole_chain():
         w, forced = record.events.w[i_now], hit_tr[e].copy()
 
         def scratch():
-            return (np.empty(nb), np.empty(m), np.empty(m), np.zeros((3, m), dtype=np.bool_),
-                    np.empty((4, m)), np.zeros((5, N)),
-                    np.empty((2 + chain.UPDATE_ITERATIONS, N), dtype=np.int8),
-                    np.full(N, 2, dtype=np.int8), np.empty(N), np.empty(N - 1), np.zeros(2),
-                    np.zeros(8))
+            return (
+                np.empty(nb),
+                np.empty(m),
+                np.empty(m),
+                np.zeros((3, m), dtype=np.bool_),
+                np.empty((4, m)),
+                np.zeros((5, N)),
+                np.empty((2 + chain.UPDATE_ITERATIONS, N), dtype=np.int8),
+                np.full(N, 2, dtype=np.int8),
+                np.empty(N),
+                np.empty(N - 1),
+                np.zeros(2),
+                np.zeros(8),
+            )
 
         whole, local = np.empty(N, dtype=np.int8), np.empty(N, dtype=np.int8)
-        ok = eventloop.decide(loop.k, kmax, loop.c_scale, linear, H, coef, float(u_tr[e]), w,
-                              forced, warm, whole, *scratch())
+        ok = eventloop.decide(
+            loop.k, kmax, loop.c_scale, linear, H, coef, float(u_tr[e]), w, forced, warm, whole, *scratch()
+        )
         parts = scratch()
         ok_local = eventloop.decide_local(
-            loop.k, kmax, loop.c_scale, linear, H, coef, eventloop.offset_size(coef),
-            float(u_tr[e]), w, forced, warm, local, *parts, Rdx, inverse, np.empty(N))
+            loop.k,
+            kmax,
+            loop.c_scale,
+            linear,
+            H,
+            coef,
+            eventloop.offset_size(coef),
+            float(u_tr[e]),
+            w,
+            forced,
+            warm,
+            local,
+            *parts,
+            Rdx,
+            inverse,
+            np.empty(N),
+        )
         assert ok and ok_local
         assert np.array_equal(local, whole), e
         hot = int(np.count_nonzero(parts[3][1, :N]))
@@ -243,16 +311,32 @@ def test_energy_terms_by_chunks():
     stress[0] += base
     rows = np.where(signs > 0, np.arange(N), N + np.arange(N))
     act = signs != 0
-    expected = np.stack([stress @ dLc.T,
-                         -(Mc[:, rows[act]] * signs[act]) @ dY[:, act].T,
-                         -(lc[:, rows[act]] * signs[act]) @ dY[:, act].T])
+    expected = np.stack(
+        [
+            stress @ dLc.T,
+            -(Mc[:, rows[act]] * signs[act]) @ dY[:, act].T,
+            -(lc[:, rows[act]] * signs[act]) @ dY[:, act].T,
+        ]
+    )
     np.testing.assert_allclose(out, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
     Wc[:, 40:50] += 1.0  # links of chunk 1 only
     stale[1] = True
     eventloop.energy_terms(signs, base, Wc, dY, KLc, dLc, Mc, lc, True, out, stale, partial)
     again = np.empty((3, nb, nb))
-    eventloop.energy_terms(signs, base, Wc, dY, KLc, dLc, Mc, lc, True, again,
-                           np.ones(chunks, dtype=np.bool_), np.zeros((chunks, 3, nb, nb)))
+    eventloop.energy_terms(
+        signs,
+        base,
+        Wc,
+        dY,
+        KLc,
+        dLc,
+        Mc,
+        lc,
+        True,
+        again,
+        np.ones(chunks, dtype=np.bool_),
+        np.zeros((chunks, 3, nb, nb)),
+    )
     assert np.array_equal(out, again)
 
 
@@ -280,7 +364,13 @@ def test_local_events_compiled_and_python_agree_bit_for_bit():
     for flag in ("0", "1"):
         env = dict(os.environ, NUMBA_DISABLE_JIT=flag)
         env.pop("PYTHONHASHSEED", None)
-        run = subprocess.run([sys.executable, "-c", RUN_WAVE, str(ROOT / "tests")], env=env,
-                             capture_output=True, text=True, check=True, cwd=ROOT)
+        run = subprocess.run(
+            [sys.executable, "-c", RUN_WAVE, str(ROOT / "tests")],
+            env=env,
+            capture_output=True,
+            text=True,
+            check=True,
+            cwd=ROOT,
+        )
         outputs.append(json.loads(run.stdout.splitlines()[-1]))
     assert outputs[0] == outputs[1]

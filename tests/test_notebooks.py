@@ -51,8 +51,12 @@ def _texts(notebook) -> list[list[str]]:
 
 
 def _figures(notebook) -> int:
-    return sum("image/png" in output.get("data", {}) for cell in notebook.cells
-               if cell.cell_type == "code" for output in cell.outputs)
+    return sum(
+        "image/png" in output.get("data", {})
+        for cell in notebook.cells
+        if cell.cell_type == "code"
+        for output in cell.outputs
+    )
 
 
 _RUN: dict[str, object] = {}
@@ -67,8 +71,9 @@ def executed(path: Path):
                 cell.outputs = []
         env = dict(os.environ)
         env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
-        client = nbclient.NotebookClient(notebook, timeout=600, kernel_name="python3",
-                                         resources={"metadata": {"path": str(EXAMPLES)}})
+        client = nbclient.NotebookClient(
+            notebook, timeout=600, kernel_name="python3", resources={"metadata": {"path": str(EXAMPLES)}}
+        )
         client.execute(env=env)
         _RUN[path.name] = notebook
     return _RUN[path.name]
@@ -77,7 +82,7 @@ def executed(path: Path):
 def _value(lines: list[str], label: str) -> float:
     for line in lines:
         if line.startswith(label):
-            return float(line[len(label):].split()[0].rstrip(","))
+            return float(line[len(label) :].split()[0].rstrip(","))
     raise AssertionError(f"no line starting with {label!r} in {lines}")
 
 
@@ -92,8 +97,9 @@ def test_stored_outputs_are_what_the_notebook_prints(path):
     stored = nbformat.read(path, as_version=4)
     fresh = executed(path)
     for k, (want, got) in enumerate(zip(_texts(stored), _texts(fresh), strict=True)):
-        assert output_matches(want, got), f"{path.name}, code cell {k + 1}: stored\n" + \
-            "\n".join(want) + "\nbut it prints\n" + "\n".join(got)
+        assert output_matches(want, got), (
+            f"{path.name}, code cell {k + 1}: stored\n" + "\n".join(want) + "\nbut it prints\n" + "\n".join(got)
+        )
     assert _figures(stored) == _figures(fresh) >= 1
     text = path.read_text(encoding="utf-8")
     assert "/tmp" not in text and "../shared" not in text and "/work/" not in text

@@ -58,19 +58,20 @@ def assert_reads_back(result, path):
     assert type(back) is OptimizationResult
     assert back.method == result.method and back.budget == result.budget
     p, q = back.problem, result.problem
-    assert (p.free, p.objective, p.constraints, p.pareto) == (q.free, q.objective,
-                                                              q.constraints, q.pareto)
+    assert (p.free, p.objective, p.constraints, p.pareto) == (q.free, q.objective, q.constraints, q.pareto)
     assert p.base.document == q.base.document and p.base.name == q.base.name
 
     def kept(e):
-        return dataclasses.replace(e, row=dataclasses.replace(e.row, limit="", newton_steps=None, extra=(),
-                                                              derivatives=None))
+        return dataclasses.replace(
+            e, row=dataclasses.replace(e.row, limit="", newton_steps=None, extra=(), derivatives=None)
+        )
 
     assert [kept(e) for e in back.evaluations] == [kept(e) for e in result.evaluations]
     assert back.front == result.front
     for mine, theirs in ((back.runs, result.runs), (back.history, result.history)):
-        np.testing.assert_equal([dataclasses.astuple(x) for x in mine],
-                                [dataclasses.astuple(x) for x in theirs])  # NaN == NaN here
+        np.testing.assert_equal(
+            [dataclasses.astuple(x) for x in mine], [dataclasses.astuple(x) for x in theirs]
+        )  # NaN == NaN here
     assert back.best_yaml().split("# command:")[0] == result.best_yaml().split("# command:")[0]
     assert {**back.summary(), "computed": 0} == {**result.summary(), "computed": 0}
 
@@ -81,8 +82,7 @@ def test_free_parameters_and_constraints_are_parsed_exactly():
     assert f.value(0.0) == 0.1 and f.value(1.0) == 0.4  # inclusive bounds, reached exactly
     assert f.value(-1.0) == 0.1 and f.value(2.0) == 0.4
     assert opt.parse_constraint("v0>=0.2") == opt.Constraint("v0", ">=", 0.2)
-    assert opt.parse_constraint(" cost-of-transport <= 6 ") == opt.Constraint(
-        "cost_of_transport", "<=", 6.0)
+    assert opt.parse_constraint(" cost-of-transport <= 6 ") == opt.Constraint("cost_of_transport", "<=", 6.0)
     assert opt.parse_constraint("v0=>1e-3") == opt.Constraint("v0", ">=", 1e-3)
     assert opt.quantity("Cost-Of-Transport", "--minimize") == "cost_of_transport"
     row = sweeps.PointResult(0, "ok", v0=0.25, cost_of_transport=7.0)
@@ -91,14 +91,20 @@ def test_free_parameters_and_constraints_are_parsed_exactly():
     assert opt.Constraint("cost_of_transport", "<=", 6.0).violation(row) == 1.0
     failed = sweeps.PointResult(0, "failed", message="boom")
     assert opt.Constraint("v0", ">=", 0.2).violation(failed) == math.inf
-    for bad in ("links.1.phase", "links.1.phase=", "links.1.phase=0:1:3", "links.1.phase=a:b",
-                "links..phase=0:1", "links.1.phase=0:inf", "=0:1"):
+    for bad in (
+        "links.1.phase",
+        "links.1.phase=",
+        "links.1.phase=0:1:3",
+        "links.1.phase=a:b",
+        "links..phase=0:1",
+        "links.1.phase=0:inf",
+        "=0:1",
+    ):
         with pytest.raises(SweepSpecError, match="--free"):
             opt.parse_free(bad)
     with pytest.raises(SweepSpecError, match="bounds reversed"):
         opt.parse_free("links.1.phase=1:0")
-    for bad in ("v0>>0.2", "v0>0.2", "v0==0.2", "v0 = 0.2", "speed>=1", "v0>=abc", "v0>=nan",
-                ">=1", "v0"):
+    for bad in ("v0>>0.2", "v0>0.2", "v0==0.2", "v0 = 0.2", "speed>=1", "v0>=abc", "v0>=nan", ">=1", "v0"):
         with pytest.raises(SweepSpecError, match="--subject-to"):
             opt.parse_constraint(bad)
 
@@ -148,8 +154,7 @@ def test_points_of_a_grid_evaluate_as_the_grid_does(lag_grid):
     coords = lag_grid.coordinates()
     k = 37
     x = (float(coords[0][k]), float(coords[1][k]))
-    ev = opt.Evaluator(lags_problem(), 10, jobs=1, scheduler=None, journal=None,
-                        progress=None, report=None)
+    ev = opt.Evaluator(lags_problem(), 10, jobs=1, scheduler=None, journal=None, progress=None, report=None)
     (e,) = ev.evaluate(np.array([x]), 0, opt.Stage.INITIAL)
     assert e.row.v0 == lag_grid.rows[k].v0
     assert e.row.cost_of_transport == lag_grid.rows[k].cost_of_transport
@@ -159,8 +164,23 @@ def test_points_of_a_grid_evaluate_as_the_grid_does(lag_grid):
 def test_write_best_is_a_gait_file_that_crawlsim_run_reproduces(tmp_path):
     best = tmp_path / "best.yaml"
     out = tmp_path / "opt.h5"
-    r = cli("optimize", P4, "--free", LAGS[0], "--free", LAGS[1], "--max-evaluations", 30,
-            *FAST, "--write-best", best, "-o", out, "--json", "-q")
+    r = cli(
+        "optimize",
+        P4,
+        "--free",
+        LAGS[0],
+        "--free",
+        LAGS[1],
+        "--max-evaluations",
+        30,
+        *FAST,
+        "--write-best",
+        best,
+        "-o",
+        out,
+        "--json",
+        "-q",
+    )
     assert r.exit_code == 0, r.output
     answer = json.loads(r.output)
     assert answer["integrator"] == "exact" and answer["evaluations"] <= 30
@@ -169,8 +189,7 @@ def test_write_best_is_a_gait_file_that_crawlsim_run_reproduces(tmp_path):
     assert document["links"][2]["phase"] == answer["best"]["links.2.phase"]
     assert document["simulation"]["integrator"] == "exact"
     original = yaml.safe_load(Path(P4).read_text())
-    assert document["links"][0] == original["links"][0] and document["friction"] == \
-        original["friction"]
+    assert document["links"][0] == original["links"][0] and document["friction"] == original["friction"]
     run = cli("run", best, "--json", "-o", tmp_path / "run.h5", "-q")
     assert run.exit_code == 0, run.output
     v0 = json.loads(run.output)["v0"]
@@ -179,8 +198,7 @@ def test_write_best_is_a_gait_file_that_crawlsim_run_reproduces(tmp_path):
 
 
 def test_the_same_seed_gives_the_same_result_with_one_or_two_jobs():
-    problem = lags_problem(objective=opt.Objective("cost_of_transport", "minimize"),
-                           constraints=["v0>=0.3"])
+    problem = lags_problem(objective=opt.Objective("cost_of_transport", "minimize"), constraints=["v0>=0.3"])
     method = opt.Method(seed=5, max_evaluations=40)
     first = opt.optimize(problem, method)
     again = opt.optimize(problem, method)
@@ -201,8 +219,7 @@ def test_constraints_and_the_cost_of_transport_bound():
     the lower bound of the issue: over a period of the periodic regime each block moves by the
     period displacement d, so the dissipation sum_j mu_j^+ (dx_j)^+ + mu_j^- (dx_j)^- is at
     least sum_j mu_j^+ d, and with mu^+ = 1 on four blocks the cost of transport is >= 4."""
-    problem = lags_problem(objective=opt.Objective("cost_of_transport", "minimize"),
-                           constraints=["v0>=0.3"])
+    problem = lags_problem(objective=opt.Objective("cost_of_transport", "minimize"), constraints=["v0>=0.3"])
     result = opt.optimize(problem, opt.Method(seed=1, max_evaluations=45))
     best = result.best_point.row
     assert result.feasible and best.v0 >= 0.3
@@ -220,8 +237,7 @@ def test_invalid_points_are_recorded_and_never_chosen(tmp_path):
     those points are recorded as invalid with their reason, the search goes on, and the best
     point is valid."""
     problem = opt.make_problem(base(INCHING), ["stiffness=-10:20"])
-    result = opt.optimize(problem, opt.Method(seed=0, max_evaluations=30),
-                          output=tmp_path / "o.h5")
+    result = opt.optimize(problem, opt.Method(seed=0, max_evaluations=30), output=tmp_path / "o.h5")
     invalid = [e for e in result.evaluations if e.row.status == "invalid"]
     assert invalid and all(e.x[0] <= 0 for e in invalid)
     assert all("stiffness" in e.row.message for e in invalid)
@@ -234,28 +250,29 @@ def test_invalid_points_are_recorded_and_never_chosen(tmp_path):
 
 
 # -- bad input ----------------------------------------------------------------------------------
-@pytest.mark.parametrize("args, words", [
-    (["--free", "links.9.phase=0:1"], ["--free links.9.phase=0:1", "index 9 is out of range"]),
-    (["--free", "links.1.phse=0:1"], ["--free", "phse"]),
-    (["--free", "links.1.phase=1:0"], ["--free", "bounds reversed", "LO = 1.0 > HI = 0.0"]),
-    (["--free", "links.1.phase=0:1", "--free", "links.*.phase=0:1"], ["free each value once"]),
-    (["--free", "links.1.phase=0:1", "--maximize", "speed"], ["--maximize speed",
-                                                             "expected one of v0"]),
-    (["--free", "links.1.phase=0:1", "--minimize", "cost"], ["--minimize cost"]),
-    (["--free", "links.1.phase=0:1", "--subject-to", "v0>>0.2"], ["--subject-to v0>>0.2",
-                                                                 "QUANTITY>=NUMBER"]),
-    (["--free", "links.1.phase=0:1", "--subject-to", "v0>0.2"], ["'>' is not allowed"]),
-    (["--free", "links.1.phase=0:1", "--subject-to", "cost_of_transport<=-1"],
-     ["never negative"]),
-    (["--free", "links.1.phase=0:1", "--subject-to", "v0>=0.5", "--subject-to", "v0<=0.2"],
-     ["cannot be at least 0.5 and at most 0.2"]),
-    (["--free", "links.1.phase=0:1", "--pareto", "--minimize", "v0"], ["--pareto"]),
-    (["--free", "stiffness=-5:-1"], ["no", "valid gait"]),
-    ([], ["--free PATH=LO:HI"]),
-    (["--free", "links.1.phase=0:1", "-o", "out.csv"], ["HDF5", ".h5"]),
-])
-def test_bad_input_exits_2_with_a_clear_message_and_writes_nothing(args, words, tmp_path,
-                                                                   monkeypatch):
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (["--free", "links.9.phase=0:1"], ["--free links.9.phase=0:1", "index 9 is out of range"]),
+        (["--free", "links.1.phse=0:1"], ["--free", "phse"]),
+        (["--free", "links.1.phase=1:0"], ["--free", "bounds reversed", "LO = 1.0 > HI = 0.0"]),
+        (["--free", "links.1.phase=0:1", "--free", "links.*.phase=0:1"], ["free each value once"]),
+        (["--free", "links.1.phase=0:1", "--maximize", "speed"], ["--maximize speed", "expected one of v0"]),
+        (["--free", "links.1.phase=0:1", "--minimize", "cost"], ["--minimize cost"]),
+        (["--free", "links.1.phase=0:1", "--subject-to", "v0>>0.2"], ["--subject-to v0>>0.2", "QUANTITY>=NUMBER"]),
+        (["--free", "links.1.phase=0:1", "--subject-to", "v0>0.2"], ["'>' is not allowed"]),
+        (["--free", "links.1.phase=0:1", "--subject-to", "cost_of_transport<=-1"], ["never negative"]),
+        (
+            ["--free", "links.1.phase=0:1", "--subject-to", "v0>=0.5", "--subject-to", "v0<=0.2"],
+            ["cannot be at least 0.5 and at most 0.2"],
+        ),
+        (["--free", "links.1.phase=0:1", "--pareto", "--minimize", "v0"], ["--pareto"]),
+        (["--free", "stiffness=-5:-1"], ["no", "valid gait"]),
+        ([], ["--free PATH=LO:HI"]),
+        (["--free", "links.1.phase=0:1", "-o", "out.csv"], ["HDF5", ".h5"]),
+    ],
+)
+def test_bad_input_exits_2_with_a_clear_message_and_writes_nothing(args, words, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     r = cli("optimize", P4, *args, "--write-best", "best.yaml", *FAST, "-q")
     assert r.exit_code == 2, r.output
@@ -269,8 +286,22 @@ def test_an_infeasible_problem_exits_2_and_writes_nothing(tmp_path, monkeypatch)
     """No point of the box moves this fast: the search runs its budget, finds no feasible point,
     says which constraint and the closest point, and leaves no results, gait or journal."""
     monkeypatch.chdir(tmp_path)
-    r = cli("optimize", P4, "--free", LAGS[0], "--subject-to", "v0>=5", "--max-evaluations", 12,
-            "--write-best", "best.yaml", "-o", "opt.h5", *FAST, "-q")
+    r = cli(
+        "optimize",
+        P4,
+        "--free",
+        LAGS[0],
+        "--subject-to",
+        "v0>=5",
+        "--max-evaluations",
+        12,
+        "--write-best",
+        "best.yaml",
+        "-o",
+        "opt.h5",
+        *FAST,
+        "-q",
+    )
     assert r.exit_code == 2, r.output
     assert "no evaluated point satisfies the constraints" in r.output
     assert "--subject-to 'v0>=5.0'" in r.output and "12 points" in r.output
@@ -279,24 +310,29 @@ def test_an_infeasible_problem_exits_2_and_writes_nothing(tmp_path, monkeypatch)
 
 # -- the Pareto front -------------------------------------------------------------------------
 def test_pareto_front_is_the_non_dominated_set_of_the_evaluated_points(tmp_path):
-    problem = opt.make_problem(base(P3), ["links.*.amplitude=0.1:0.4", "links.1.phase=0:1"],
-                               pareto=True)
-    result = opt.optimize(problem, opt.Method(seed=0, max_evaluations=120, front_points=2),
-                          output=tmp_path / "front.h5")
+    problem = opt.make_problem(base(P3), ["links.*.amplitude=0.1:0.4", "links.1.phase=0:1"], pareto=True)
+    result = opt.optimize(
+        problem, opt.Method(seed=0, max_evaluations=120, front_points=2), output=tmp_path / "front.h5"
+    )
     assert len(result.runs) == 4 and len(result.evaluations) <= 120
     assert [r.objective.text for r in result.runs] == [
-        "maximize v0", "minimize cost_of_transport", "minimize cost_of_transport",
-        "minimize cost_of_transport"]
+        "maximize v0",
+        "minimize cost_of_transport",
+        "minimize cost_of_transport",
+        "minimize cost_of_transport",
+    ]
     eps = [r.epsilon for r in result.runs[2:]]
     ends = [result.evaluations[r.best].row.v0 for r in result.runs[:2]]
-    np.testing.assert_allclose(eps, [ends[1] + k * (ends[0] - ends[1]) / 3 for k in (1, 2)],
-                               rtol=0, atol=1e-15)
+    np.testing.assert_allclose(eps, [ends[1] + k * (ends[0] - ends[1]) / 3 for k in (1, 2)], rtol=0, atol=1e-15)
     front = [result.evaluations[i].row for i in result.front]
     moving = [e.row for e in result.evaluations if e.runs and e.row.cost_of_transport is not None]
     for p in front:  # nothing evaluated dominates a front point
-        assert not any(q.v0 >= p.v0 and q.cost_of_transport <= p.cost_of_transport and
-                       (q.v0 > p.v0 or q.cost_of_transport < p.cost_of_transport)
-                       for q in moving)
+        assert not any(
+            q.v0 >= p.v0
+            and q.cost_of_transport <= p.cost_of_transport
+            and (q.v0 > p.v0 or q.cost_of_transport < p.cost_of_transport)
+            for q in moving
+        )
     for q in moving:  # every evaluated point is dominated by (or equal to) a front point
         assert any(p.v0 >= q.v0 and p.cost_of_transport <= q.cost_of_transport for p in front)
     assert [p.v0 for p in front] == sorted(p.v0 for p in front)
@@ -325,8 +361,19 @@ def test_pareto_reports_the_fastest_evaluated_gait_and_the_runs_out_of_budget(tm
     The text, --json, the results file and --write-best all give that point, and each run that
     ran out of its budget is printed with its stop reason."""
     out, best_yaml = tmp_path / "front.h5", tmp_path / "best.yaml"
-    args = [P3, "--free", "links.1.phase=0:1", "--pareto", "--front-points", "2",
-            "--max-evaluations", "120", "--seed", "0", *FAST]
+    args = [
+        P3,
+        "--free",
+        "links.1.phase=0:1",
+        "--pareto",
+        "--front-points",
+        "2",
+        "--max-evaluations",
+        "120",
+        "--seed",
+        "0",
+        *FAST,
+    ]
     r = cli("optimize", *args, "-o", out, "--write-best", best_yaml)
     assert r.exit_code == 0, r.output
     data = h5io.read_optimization(out)
@@ -382,9 +429,26 @@ def test_an_interrupted_optimisation_resumes_from_its_journal(tmp_path):
 
 def test_the_results_file_layout_and_its_figures(tmp_path):
     out = tmp_path / "opt.h5"
-    r = cli("optimize", P4, "--free", "links.*.amplitude=0.1:0.4", "--free", LAGS[0],
-            "--minimize", "cost-of-transport", "--subject-to", "v0>=0.3",
-            "--max-evaluations", 30, *FAST, "-o", out, "--seed", 3, "-q")
+    r = cli(
+        "optimize",
+        P4,
+        "--free",
+        "links.*.amplitude=0.1:0.4",
+        "--free",
+        LAGS[0],
+        "--minimize",
+        "cost-of-transport",
+        "--subject-to",
+        "v0>=0.3",
+        "--max-evaluations",
+        30,
+        *FAST,
+        "-o",
+        out,
+        "--seed",
+        3,
+        "-q",
+    )
     assert r.exit_code == 0, r.output
     assert "minimize cost_of_transport subject to v0>=0.3" in r.output
     data = h5io.read_optimization(out)
@@ -397,9 +461,21 @@ def test_the_results_file_layout_and_its_figures(tmp_path):
     evals = data["evaluations"]
     n = a["evaluations"]
     assert len(evals["evaluation"]) == n <= 30
-    for column in ("links_all_amplitude", "links_1_phase", "v0", "v0_error_estimate",
-                   "displacement_per_period", "dissipation_per_period", "cost_of_transport",
-                   "convergence", "periods", "status", "message", "integrator", "feasible"):
+    for column in (
+        "links_all_amplitude",
+        "links_1_phase",
+        "v0",
+        "v0_error_estimate",
+        "displacement_per_period",
+        "dissipation_per_period",
+        "cost_of_transport",
+        "convergence",
+        "periods",
+        "status",
+        "message",
+        "integrator",
+        "feasible",
+    ):
         assert len(evals[column]) == n, column
     best = a["best_evaluation"]
     assert evals["cost_of_transport"][best] == a["best_value"] and evals["feasible"][best] == 1
@@ -429,8 +505,9 @@ def test_a_dask_cluster_gives_the_same_result():
     problem = lags_problem()
     method = opt.Method(seed=4, max_evaluations=30)
     local = opt.optimize(problem, method)
-    with distributed.LocalCluster(host="127.0.0.1", n_workers=2, threads_per_worker=1,
-                                  processes=True, dashboard_address=None) as cluster:
+    with distributed.LocalCluster(
+        host="127.0.0.1", n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as cluster:
         remote = opt.optimize(problem, method, scheduler=cluster.scheduler_address)
     assert [e.x for e in remote.evaluations] == [e.x for e in local.evaluations]
     # workers on this machine run the same code on the same input: bit for bit is the point
@@ -488,13 +565,12 @@ def test_gradient_search_pareto_front_and_results_file(tmp_path):
     epsilon-constraint points); the front is non-dominated and the results file records the
     method."""
     out = tmp_path / "front.h5"
-    problem = opt.make_problem(base(), ["links.*.amplitude=0.1:0.4", "links.1.phase=0:1"],
-                               pareto=True)
-    result = opt.optimize(problem, opt.Method(search="gradient", front_points=1,
-                                              max_evaluations=120), output=out)
+    problem = opt.make_problem(base(), ["links.*.amplitude=0.1:0.4", "links.1.phase=0:1"], pareto=True)
+    result = opt.optimize(problem, opt.Method(search="gradient", front_points=1, max_evaluations=120), output=out)
     assert result.feasible and len(result.runs) == 3 and len(result.front) >= 3
-    points = np.array([[result.evaluations[i].row.v0, result.evaluations[i].row.cost_of_transport]
-                       for i in result.front])
+    points = np.array(
+        [[result.evaluations[i].row.v0, result.evaluations[i].row.cost_of_transport] for i in result.front]
+    )
     assert len(opt.non_dominated(points)) == len(points)
     assert result.best_point.row.v0 == max(p[0] for p in points)
     data = h5io.read_optimization(out)
@@ -548,13 +624,14 @@ def test_the_command_runs_the_gradient_search_where_it_is_the_default(tmp_path):
     assert gradient["method"] == "sample + quasi-Newton on exact gradients"
     assert gradient["v0"] == pytest.approx(7 / 15, abs=1e-6)
     assert gradient["stages"] == {"global": 16, "polish": gradient["evaluations"] - 16}
-    evolution = json.loads(cli("optimize", *args, "--method", "evolution", "--max-evaluations",
-                               "30", "-o", tmp_path / "e.h5").stdout)
+    evolution = json.loads(
+        cli("optimize", *args, "--method", "evolution", "--max-evaluations", "30", "-o", tmp_path / "e.h5").stdout
+    )
     assert evolution["method"] == "differential evolution + pattern search"
-    constrained = json.loads(cli("optimize", *args, "--subject-to", "v0<=0.3",
-                                 "--max-evaluations", "30", "-o", tmp_path / "c.h5").stdout)
+    constrained = json.loads(
+        cli("optimize", *args, "--subject-to", "v0<=0.3", "--max-evaluations", "30", "-o", tmp_path / "c.h5").stdout
+    )
     assert constrained["method"] == "differential evolution + pattern search"
     assert constrained["v0"] <= 0.3
-    r = cli("optimize", *args, "--method", "gradient", "--integrator", "catch-up", "-o",
-            tmp_path / "x.h5")
+    r = cli("optimize", *args, "--method", "gradient", "--integrator", "catch-up", "-o", tmp_path / "x.h5")
     assert r.exit_code == 2 and "--integrator exact" in r.output and not (tmp_path / "x.h5").exists()

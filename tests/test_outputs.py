@@ -65,8 +65,11 @@ def refused(result, *phrases):
 
 
 def test_the_gait_file_is_never_an_output(folder):
-    for args in (["run", "g.yaml", "-o", "g.yaml"], ["run", "g.yaml", "-o", "g.yaml", "--force"],
-                 ["velocity", "g.yaml", "--sweep", "period=1,2", "-o", "g.yaml", "--force"]):
+    for args in (
+        ["run", "g.yaml", "-o", "g.yaml"],
+        ["run", "g.yaml", "-o", "g.yaml", "--force"],
+        ["velocity", "g.yaml", "--sweep", "period=1,2", "-o", "g.yaml", "--force"],
+    ):
         refused(invoke(*args), "is the input file g.yaml", "even with --force")
     assert (folder / "g.yaml").read_text() == GAIT
 
@@ -81,10 +84,8 @@ def test_a_yaml_file_named_h5_is_not_overwritten_by_its_own_run(folder):
 
 def test_other_files_are_replaced_only_with_force(folder):
     (folder / "notes.txt").write_text("my notes\n")
-    refused(invoke("run", "g.yaml", "-o", "notes.txt"),
-            "exists and is not a crawlsim output", "--force")
-    refused(invoke("velocity", "g.yaml", "--sweep", "period=1,2", "-o", "notes.txt"),
-            "not a crawlsim sweep table")
+    refused(invoke("run", "g.yaml", "-o", "notes.txt"), "exists and is not a crawlsim output", "--force")
+    refused(invoke("velocity", "g.yaml", "--sweep", "period=1,2", "-o", "notes.txt"), "not a crawlsim sweep table")
     assert (folder / "notes.txt").read_text() == "my notes\n"
     assert invoke("run", "g.yaml", "-o", "notes.txt", "--force").exit_code == 0
     assert classify(folder / "notes.txt") == RUN
@@ -96,12 +97,10 @@ def test_outputs_of_the_same_kind_are_replaced_and_other_kinds_refused(folder):
     assert invoke("velocity", "g.yaml", "--sweep", "period=1,2", "-o", "s.csv").exit_code == 0
     assert invoke("velocity", "g.yaml", "--sweep", "period=1,2", "-o", "s.csv").exit_code == 0
     assert invoke("velocity", "g.yaml", "--sweep", "period=1,2", "-o", "s.h5").exit_code == 0
-    assert (classify(folder / "r.h5"), classify(folder / "s.csv"), classify(folder / "s.h5")) \
-        == (RUN, SWEEP, SWEEP)
+    assert (classify(folder / "r.h5"), classify(folder / "s.csv"), classify(folder / "s.h5")) == (RUN, SWEEP, SWEEP)
     refused(invoke("run", "g.yaml", "-o", "s.h5"), "is a crawlsim sweep table")
     refused(invoke("run", "g.yaml", "-o", "s.csv"), "is a crawlsim sweep table")
-    refused(invoke("velocity", "g.yaml", "--sweep", "period=1,2", "-o", "r.h5"),
-            "is a crawlsim run results file")
+    refused(invoke("velocity", "g.yaml", "--sweep", "period=1,2", "-o", "r.h5"), "is a crawlsim run results file")
     with h5py.File(folder / "plain.h5", "w") as f:
         f["x"] = [1.0]
     refused(invoke("run", "g.yaml", "-o", "plain.h5"), "not a crawlsim output")
@@ -116,8 +115,7 @@ def test_figures_replace_images_of_their_format_only(folder):
     assert invoke("plot", "r.h5", "--only", "motion", "--force").exit_code == 0
     assert classify(folder / "r-motion.png") == "figure:png"
     assert invoke("plot", "r.h5", "--only", "motion").exit_code == 0  # an image over an image
-    refused(invoke("velocity", "g.yaml", "--sweep", "period=1,2", "--plot", "g.yaml"),
-            "is the input file")
+    refused(invoke("velocity", "g.yaml", "--sweep", "period=1,2", "--plot", "g.yaml"), "is the input file")
 
 
 def test_special_files_are_refused_even_with_force(folder):
@@ -140,8 +138,7 @@ def test_publish_refuses_a_target_that_became_special(folder):
 
 
 def test_missing_or_unwritable_folder_is_exit_2_naming_it(folder, monkeypatch):
-    refused(invoke("run", "g.yaml", "-o", "no/such/out.h5"),
-            f"the folder {folder / 'no' / 'such'} does not exist")
+    refused(invoke("run", "g.yaml", "-o", "no/such/out.h5"), f"the folder {folder / 'no' / 'such'} does not exist")
     refused(invoke("velocity", "g.yaml", "--sweep", "period=1,2", "-o", "no/s.csv"), "does not exist")
     locked = folder / "locked"
     locked.mkdir()
@@ -152,6 +149,7 @@ def test_missing_or_unwritable_folder_is_exit_2_naming_it(folder, monkeypatch):
 
 def test_a_folder_that_refuses_the_temporary_file_is_an_output_error(folder, monkeypatch):
     """Root passes os.access everywhere; a read-only file system still fails at mkstemp."""
+
     def read_only(*args, **kwargs):
         raise OSError(30, "Read-only file system")
 
@@ -183,12 +181,31 @@ def start_slow_run(folder):
     (folder / "slow.yaml").write_text(SLOW)
     # the same run for two periods first, so that the compiled kernel is in numba's cache and
     # the signal below arrives while periods are written, not during the first compilation
-    subprocess.run([sys.executable, "-m", "crawlsim", "run", "slow.yaml", "-o", "warm.h5",
-                    "--check-every-step", "--max-periods", "2", "--quiet"], cwd=folder,
-                   capture_output=True, timeout=900, check=False)
-    child = subprocess.Popen([sys.executable, "-m", "crawlsim", "run", "slow.yaml", "-o", "slow.h5",
-                              "--check-every-step"], cwd=folder, stdout=subprocess.PIPE,
-                             stderr=subprocess.PIPE)
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "crawlsim",
+            "run",
+            "slow.yaml",
+            "-o",
+            "warm.h5",
+            "--check-every-step",
+            "--max-periods",
+            "2",
+            "--quiet",
+        ],
+        cwd=folder,
+        capture_output=True,
+        timeout=900,
+        check=False,
+    )
+    child = subprocess.Popen(
+        [sys.executable, "-m", "crawlsim", "run", "slow.yaml", "-o", "slow.h5", "--check-every-step"],
+        cwd=folder,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
     began = time.monotonic()
     while not glob.glob(str(folder / ".slow.h5.*.tmp")):
         assert child.poll() is None, child.communicate()
@@ -214,11 +231,17 @@ def test_unchecked_uniqueness_is_warned_and_recorded(folder):
     """50 blocks of distinct friction are beyond the exact check; the file opts in."""
     n = 50
     rng = np.random.default_rng(3)
-    friction = "".join(f"  - {{forward: {float(f)!r}, backward: {float(b)!r}}}\n"
-                       for f, b in zip(rng.uniform(1, 2, n), rng.uniform(2, 3, n)))
-    text = (f"blocks: {n}\nperiod: 1.0\nstiffness: 10.0\nlinks: [" + ", ".join(["1.0"] * (n - 1))
-            + "]\nfriction:\n" + friction
-            + "simulation: {steps_per_period: 4, max_periods: 3, unchecked_uniqueness: true}\n")
+    friction = "".join(
+        f"  - {{forward: {float(f)!r}, backward: {float(b)!r}}}\n"
+        for f, b in zip(rng.uniform(1, 2, n), rng.uniform(2, 3, n))
+    )
+    text = (
+        f"blocks: {n}\nperiod: 1.0\nstiffness: 10.0\nlinks: ["
+        + ", ".join(["1.0"] * (n - 1))
+        + "]\nfriction:\n"
+        + friction
+        + "simulation: {steps_per_period: 4, max_periods: 3, unchecked_uniqueness: true}\n"
+    )
     (folder / "wide.yaml").write_text(text)
     result = CliRunner().invoke(main, ["run", "wide.yaml", "-o", "wide.h5"])
     assert result.exit_code == 0, result.output
@@ -237,8 +260,9 @@ def test_check_target_kinds_directly(folder):
     assert check_target(folder / "old.png", FIGURE) == folder / "old.png"
     with pytest.raises(OutputError, match="a PNG image, not a crawlsim sweep table"):
         check_target(folder / "old.png", SWEEP)
-    (folder / "table.csv").write_text("period,v0,displacement_per_period,convergence,periods,"
-                                      "status,message\n1,0.4,0.4,finite-time,2,ok,\n")
+    (folder / "table.csv").write_text(
+        "period,v0,displacement_per_period,convergence,periods,status,message\n1,0.4,0.4,finite-time,2,ok,\n"
+    )
     assert classify(folder / "table.csv") == SWEEP
     (folder / "other.csv").write_text("a,b\n1,2\n")
     assert classify(folder / "other.csv") is None

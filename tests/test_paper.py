@@ -108,8 +108,7 @@ def test_exact_integrator_agrees_on_the_paper_maps():
         pytest.skip("integrator 'exact' not available")
     for row in paper.acute_angle_checks(alphas=(1.0,), periods=6, integrator="exact"):
         assert row.error <= 1e-15, row
-    edges = paper.triangle_edges(_triangle((0.1, 0.05)), periods=4, alpha=3.0,
-                                 integrator="exact")
+    edges = paper.triangle_edges(_triangle((0.1, 0.05)), periods=4, alpha=3.0, integrator="exact")
     assert np.max(np.abs(edges[1:, 0] - paper.phi(edges[:-1, 0]))) <= 1e-15
 
 
@@ -146,8 +145,7 @@ def test_speed_is_independent_of_the_start_and_periods_converge_in_w12():
     gait = with_simulation(load_gait(PAPER / "speed-peristalsis-4.yaml"), steps_per_period=100)
     starts = paper.admissible_starts(gait, 4)
     assert len({tuple(np.round(x, 12)) for x in starts}) == 4
-    results = [run(gait_from_document({**gait.document, "initial": {"positions": x.tolist()}},
-                                      "<s>")) for x in starts]
+    results = [run(gait_from_document({**gait.document, "initial": {"positions": x.tolist()}}, "<s>")) for x in starts]
     v0 = np.array([r.v0 for r in results])
     assert abs(v0[0]) > 0.3
     assert np.ptp(v0) <= 1e-13
@@ -164,7 +162,6 @@ def test_the_reproduction_table_passes_and_names_each_claim():
     rows = paper.all_checks(quick=True, folder=PAPER)
     assert all(row.ok for row in rows), [r for r in rows if not r.ok]
     table = paper.format_table(rows)
-    for words in ("cor:cell", "th:1dim", "acute angle alpha = 0.5", "phi(s) = (1 - s)/2",
-                  "1/8", "th:speed", "W^{1,2}"):
+    for words in ("cor:cell", "th:1dim", "acute angle alpha = 0.5", "phi(s) = (1 - s)/2", "1/8", "th:speed", "W^{1,2}"):
         assert words in table
     assert f"{len(rows)} of {len(rows)} checks pass." in table

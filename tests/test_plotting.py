@@ -154,12 +154,15 @@ def test_every_figure_of_every_gait(run_file, gait_file, tmp_path):
     for p in written:
         assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         assert p.stat().st_size < 400_000
-    draws = {"motion": motion_figure, "gait-diagram": gait_figure,
-             "convergence": convergence_figure, "shape-space": shape_space_figure}
+    draws = {
+        "motion": motion_figure,
+        "gait-diagram": gait_figure,
+        "convergence": convergence_figure,
+        "shape-space": shape_space_figure,
+    }
     for name in names:
         fig = draws[name](results)
-        titles = [ax.get_title() for ax in fig.axes] + [fig._suptitle.get_text()
-                                                        if fig._suptitle else ""]
+        titles = [ax.get_title() for ax in fig.axes] + [fig._suptitle.get_text() if fig._suptitle else ""]
         assert any(gait_file.stem in s for s in titles)
         _check_labels(fig)
         for ax in fig.axes:
@@ -177,8 +180,7 @@ def test_labels_without_and_with_units():
     plotted in periods); with units, in them; indices and phases carry no unit."""
     none = Units()
     assert label("time", "t", "time", none) == "time $t/T$"
-    assert label("time in the limit period", "t - t_0", "time") == \
-        "time in the limit period $(t - t_0)/T$"
+    assert label("time in the limit period", "t - t_0", "time") == "time in the limit period $(t - t_0)/T$"
     assert label("position", "x_j", "length", none) == "position $x_j/\\ell$"
     assert label("stress", "\\sigma_i", "force") == "stress $\\sigma_i/F$"
     assert label("stiffness", "k", "stiffness") == "stiffness $k\\ell/F$"
@@ -202,10 +204,8 @@ def test_labels_without_and_with_units():
 def test_units_from_results():
     """``units_json`` first, else the ``units:`` block of the stored gait, else none; malformed
     units never stop a figure."""
-    assert units_of({"attrs": {"units_json": '{"length": "mm", "time": "s"}'}}) == \
-        Units(length="mm", time="s")
-    assert units_of({"attrs": {"gait_yaml": "units: {force: N}\nblocks: 2\n"}}) == \
-        Units(force="N")
+    assert units_of({"attrs": {"units_json": '{"length": "mm", "time": "s"}'}}) == Units(length="mm", time="s")
+    assert units_of({"attrs": {"gait_yaml": "units: {force: N}\nblocks: 2\n"}}) == Units(force="N")
     assert units_of({"gait_yaml": "units: {length: cm}\n"}) == Units(length="cm")
     assert units_of({"attrs": {"units_json": "not json"}}) == Units()
     assert units_of({"attrs": {"gait_yaml": "blocks: 2\n"}}) == Units()
@@ -224,7 +224,7 @@ def test_palettes_are_disjoint():
     assert len(slip) == 3
 
     def lightness(colour):
-        rgb = np.array([int(colour[k:k + 2], 16) / 255 for k in (1, 3, 5)])
+        rgb = np.array([int(colour[k : k + 2], 16) / 255 for k in (1, 3, 5)])
         linear = np.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4)
         y = linear @ [0.2126, 0.7152, 0.0722]
         return 116 * y ** (1 / 3) - 16 if y > 0.008856 else 903.3 * y
@@ -258,8 +258,11 @@ def test_motion_lines_are_the_trajectory(run_file, name):
     y_t0 = np.interp(t0, t, x.mean(axis=1))
     assert np.interp(t0 / T, xs, ys) == pytest.approx(y_t0, abs=1e-12)
     (span,) = ax.patches  # axvspan: a Rectangle from matplotlib 3.9, a Polygon before
-    span_x = span.get_path().transformed(span.get_patch_transform()).vertices[:, 0] \
-        if hasattr(span, "get_width") else span.get_xy()[:, 0]
+    span_x = (
+        span.get_path().transformed(span.get_patch_transform()).vertices[:, 0]
+        if hasattr(span, "get_width")
+        else span.get_xy()[:, 0]
+    )
     assert (min(span_x), max(span_x)) == pytest.approx((t0 / T, t0 / T + 1))
     assert ax.get_xlim() == (t[0] / T, t[-1] / T)
     assert ax.get_xlabel() == "time $t/T$" and ax.get_ylabel() == "position $x_j/\\ell$"
@@ -281,8 +284,7 @@ def test_motion_in_the_files_units(run_file, tmp_path):
     assert ax.get_ylabel() == "position $x_j$ (mm)"
     assert f"{r['attrs']['v0']:.4g} mm/s" in ax.get_lines()[-1].get_label()
     fig = gait_figure(r)
-    assert [a.get_ylabel() for a in fig.axes[1:3]] == [
-        "length $L_i, z_i$ (mm)", "stress $\\sigma_i$ (N)"]
+    assert [a.get_ylabel() for a in fig.axes[1:3]] == ["length $L_i, z_i$ (mm)", "stress $\\sigma_i$ (N)"]
     assert [a.get_ylabel() for a in fig.axes[3:]] == ["$f_{1}$", "$f_{2}$", "$f_{3}$", "$f_{4}$"]
     assert "elastic force on\neach block $f_j$ (N)" in list(_all_texts(fig))
     assert fig.axes[-1].get_xlabel() == "time in the limit period $t - t_0$ (s)"
@@ -321,13 +323,17 @@ def test_shown_series_are_evenly_spaced_and_keep_both_ends(count):
 
 def wave_file(tmp_path, N: int, steps: int = 40) -> Path:
     """A results file of the retrograde cosine wave of N blocks (catch-up, a few periods)."""
-    doc = {"name": f"wave-{N}", "blocks": N, "period": 1.0, "stiffness": 10.0,
-           "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": -i / 10 % 1}
-                     for i in range(N - 1)],
-           # 1:2.5 keeps the uniqueness condition at every N (|J| = 2.5 (N - |J|) has no
-           # integer solution for the N used here, 12 and 41).
-           "friction": {"forward": 1.0, "backward": 2.5},
-           "simulation": {"steps_per_period": steps, "max_periods": 3, "integrator": "catch-up"}}
+    doc = {
+        "name": f"wave-{N}",
+        "blocks": N,
+        "period": 1.0,
+        "stiffness": 10.0,
+        "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": -i / 10 % 1} for i in range(N - 1)],
+        # 1:2.5 keeps the uniqueness condition at every N (|J| = 2.5 (N - |J|) has no
+        # integer solution for the N used here, 12 and 41).
+        "friction": {"forward": 1.0, "backward": 2.5},
+        "simulation": {"steps_per_period": steps, "max_periods": 3, "integrator": "catch-up"},
+    }
     out = tmp_path / f"wave-{N}.h5"
     api.run(gait_from_document(doc, f"wave-{N}"), output=out)
     return out
@@ -415,8 +421,7 @@ def test_figures_ask_the_crawler_of_the_run(run_file):
     assert gait_diagram.block_forces is crawler_module.block_forces
     res = read_results(run_file("peristalsis-4"))
     lim = res["limit"]
-    c = compile_gait(with_simulation(load_gait(GAITS / "peristalsis-4.yaml"),
-                                     steps_per_period=STEPS)).crawler
+    c = compile_gait(with_simulation(load_gait(GAITS / "peristalsis-4.yaml"), steps_per_period=STEPS)).crawler
     assert c is not None and c.blocks == 4
     np.testing.assert_allclose(lim["stress"], c.stress(lim["w"]), rtol=0, atol=1e-12)
     np.testing.assert_allclose(lim["shape"], c.shape(lim["w"]), rtol=0, atol=1e-12)
@@ -455,7 +460,7 @@ def test_gait_diagram_stress_bounds_in_link_colours(run_file):
     assert stresses.get_ylabel() == "stress $\\sigma_i/F$"
     lines = stresses.get_lines()
     for i in range(3):
-        sigma, high, low = lines[3 * i: 3 * i + 3]
+        sigma, high, low = lines[3 * i : 3 * i + 3]
         assert to_hex(sigma.get_color()) == to_hex(high.get_color()) == to_hex(low.get_color())
         assert to_hex(sigma.get_color()) == to_hex(PALETTE[i])
         assert high.get_linestyle() == low.get_linestyle() == ":"
@@ -536,8 +541,7 @@ def test_gait_diagram_content(run_file, name, integrator):
     for state, colour in SLIP_COLOURS.items():
         assert to_hex(mesh.cmap(mesh.norm(state))) == to_hex(colour)
     assert mesh.get_rasterized()
-    assert [tl.get_text() for tl in bands.get_yticklabels()] == [f"block {j + 1}"
-                                                                for j in range(N)]
+    assert [tl.get_text() for tl in bands.get_yticklabels()] == [f"block {j + 1}" for j in range(N)]
 
     # Lengths: L_i then z_i, the file's data.
     lines = lengths.get_lines()
@@ -579,8 +583,7 @@ def test_gait_diagram_content(run_file, name, integrator):
     # /limit/slip: the runs of slip_runs, stick left blank.
     for j, ax in enumerate(rows):
         spans = [(*_x_extent(p), to_hex(p.get_facecolor())) for p in ax.patches]
-        runs = [(a, b, to_hex(SLIP_COLOURS[state])) for state, a, b in
-                slip_runs(slip[:, j], t / T) if state != 0]
+        runs = [(a, b, to_hex(SLIP_COLOURS[state])) for state, a, b in slip_runs(slip[:, j], t / T) if state != 0]
         assert [(pytest.approx(a), pytest.approx(b), c) for a, b, c in spans] == runs
     end = f[1:]
     if integrator == "catch-up":
@@ -597,8 +600,7 @@ def test_gait_diagram_content(run_file, name, integrator):
     assert rows[-1].get_xlabel() == "time in the limit period $(t - t_0)/T$"
     assert stresses.get_ylabel() == "stress $\\sigma_i/F$"
     # The slip bands use none of the series colours of the lines.
-    line_colours = {to_hex(l.get_color()) for a in (lengths, stresses, *rows)
-                    for l in a.get_lines()}
+    line_colours = {to_hex(l.get_color()) for a in (lengths, stresses, *rows) for l in a.get_lines()}
     assert not line_colours & {to_hex(c) for c in SLIP_COLOURS.values()}
 
 
@@ -651,13 +653,14 @@ def test_convergence_asymptotic_rate_line(run_file):
     through the last step, no finite-time line, the exact 0 left out and no tick labelled 0."""
     r = results_of(run_file, "peristalsis-3")
     q = np.arange(12)
-    step = 0.5 ** q
+    step = 0.5**q
     w12 = 3 * step
     w12[-1] = 0.0
-    r = {**r, "attrs": {**r["attrs"], "convergence": "asymptotic", "periodic_from": -1,
-                        "contraction_rate": 0.5, "v0": 1.0},
-         "convergence": {"period": q, "poincare_step": step, "w12_distance": w12,
-                         "displacement": 1.0 + step / 7}}
+    r = {
+        **r,
+        "attrs": {**r["attrs"], "convergence": "asymptotic", "periodic_from": -1, "contraction_rate": 0.5, "v0": 1.0},
+        "convergence": {"period": q, "poincare_step": step, "w12_distance": w12, "displacement": 1.0 + step / 7},
+    }
     fig = convergence_figure(r)
     ax = fig.axes[0]
     assert ax.get_yscale() == "log"
@@ -797,15 +800,12 @@ def test_shape_space_acute_angle_every_polygon_seen(tmp_path):
     sit at 0, -0.1, ..., -0.5. The limit is the constant state (gamma, 0) = (1/2, 0), drawn as a
     marker (a zero-length line would be a legend entry with nothing to see)."""
     out = tmp_path / "acute.h5"
-    api.run(with_simulation(load_gait(GAITS / "paper/acute-angle.yaml"), steps_per_period=60),
-            output=out)
+    api.run(with_simulation(load_gait(GAITS / "paper/acute-angle.yaml"), steps_per_period=60), output=out)
     r = read_results(out)
     ax = shape_space_figure(r).axes[0]
     polys = [p for p in ax.patches if isinstance(p, Polygon)]
-    assert [p.get_label() for p in polys] == ["0", "1/10, 9/10", "1/5, 4/5", "3/10, 7/10",
-                                              "2/5, 3/5", "1/2"]
-    np.testing.assert_allclose([p.get_xy()[:, 1].min() for p in polys],
-                               -np.arange(6) / 10, atol=1e-12)
+    assert [p.get_label() for p in polys] == ["0", "1/10, 9/10", "1/5, 4/5", "3/10, 7/10", "2/5, 3/5", "1/2"]
+    np.testing.assert_allclose([p.get_xy()[:, 1].min() for p in polys], -np.arange(6) / 10, atol=1e-12)
     _distinct_polygons(polys)
     (limit,) = [l for l in ax.get_lines() if l.get_label().startswith("limit")]
     assert limit.get_label() == "limit (a constant state)" and limit.get_marker() == "o"
@@ -822,11 +822,10 @@ def test_shape_space_instants():
     7-step grid (no division but 1 holds) falls back to the grid times, labelled by value."""
     t = np.linspace(0.0, 1.0, 65)
     key = np.abs(np.sin(2 * np.pi * t)).round(12)
-    groups = shape_space_instants(t, 1.0, lambda k: key[k:k + 1])
-    assert groups == [([0, 32], "0, 1/2"), ([8, 24, 40, 56], "1/8, 3/8, 5/8, 7/8"),
-                      ([16, 48], "1/4, 3/4")]
+    groups = shape_space_instants(t, 1.0, lambda k: key[k : k + 1])
+    assert groups == [([0, 32], "0, 1/2"), ([8, 24, 40, 56], "1/8, 3/8, 5/8, 7/8"), ([16, 48], "1/4, 3/4")]
     t = np.linspace(0.0, 2.0, 8)
-    groups = shape_space_instants(t, 2.0, lambda k: t[k:k + 1])
+    groups = shape_space_instants(t, 2.0, lambda k: t[k : k + 1])
     kept = [0, 1, 2, 4, 5, 6]  # round(linspace(0, 7, 7)), 3.5 rounding to even
     assert groups == [([k], f"{k / 7:.4g}") for k in kept]
 
@@ -864,8 +863,7 @@ def test_shape_space_section_without_interior(run_file):
     lim, B = r["limit"], r["process"]["normals"]
     extreme = []
     for c in lim["offsets"]:
-        res = linprog([0.0, -1.0, 0.0], A_ub=B, b_ub=c, bounds=[(None, None)] * 3,
-                      method="highs")
+        res = linprog([0.0, -1.0, 0.0], A_ub=B, b_ub=c, bounds=[(None, None)] * 3, method="highs")
         assert res.status == 0
         extreme.append(res.x)
     lim["w"] = np.array(extreme)
@@ -916,11 +914,11 @@ def test_sweep_one_parameter():
     assert ax.get_ylabel() == "average velocity $v_0$"
     assert ax.get_title() == "inching-2: v0 sweep"
     # Given the displacement per period (and no time unit), that is what is drawn: v0 T / l.
-    fig = sweep_figure({"links.1.phase": values}, v0, status == "failed", "t",
-                       displacement=2 * v0)
+    fig = sweep_figure({"links.1.phase": values}, v0, status == "failed", "t", displacement=2 * v0)
     ax = fig.axes[0]
-    np.testing.assert_array_equal(ax.get_lines()[0].get_ydata(), np.where(
-        np.isin(status, ["ok", "not-converged"]), 2 * v0, np.nan))
+    np.testing.assert_array_equal(
+        ax.get_lines()[0].get_ydata(), np.where(np.isin(status, ["ok", "not-converged"]), 2 * v0, np.nan)
+    )
     assert ax.get_ylabel() == "displacement per period $v_0T/\\ell$"
     assert ax.get_xlabel() == "links.1.phase (cycles)"
 
@@ -933,8 +931,7 @@ def test_sweep_two_parameters_heatmap():
     v0 = np.array([[0.1, -0.2], [np.nan, 0.4], [0.5, np.nan]])
     status = np.array([["ok", "ok"], ["failed", "ok"], ["ok", "invalid"]], dtype=object)
     units = Units(length="mm", time="s", force="N")
-    fig = sweep_figure({"friction.backward": a, "links.0.amplitude": b}, v0, status, "sweep",
-                       units=units)
+    fig = sweep_figure({"friction.backward": a, "links.0.amplitude": b}, v0, status, "sweep", units=units)
     ax, bar = fig.axes
     (mesh,) = [c for c in ax.collections if isinstance(c, QuadMesh)]
     data = np.ma.filled(mesh.get_array(), np.nan).reshape(2, 3)
@@ -947,8 +944,10 @@ def test_sweep_two_parameters_heatmap():
     np.testing.assert_array_equal(ax.get_xticks(), a)
     np.testing.assert_array_equal(ax.get_yticks(), b)
     hatched = [p for p in ax.patches if isinstance(p, Rectangle) and p.get_hatch()]
-    assert sorted((p.get_x() + p.get_width() / 2, p.get_y() + p.get_height() / 2)
-                  for p in hatched) == [(2.0, 0.5), (3.0, 1.0)]
+    assert sorted((p.get_x() + p.get_width() / 2, p.get_y() + p.get_height() / 2) for p in hatched) == [
+        (2.0, 0.5),
+        (3.0, 1.0),
+    ]
     marks = {l.get_label(): l.get_xydata().tolist() for l in ax.get_lines()}
     assert marks == {"failed": [[2.0, 0.5]], "invalid gait": [[3.0, 1.0]]}
     # v0 changes sign between (1, 0.5) and (1, 1), but every square of the grid has a corner
@@ -957,8 +956,7 @@ def test_sweep_two_parameters_heatmap():
     assert ax.get_xlabel() == "friction.backward (N)"
     assert ax.get_ylabel() == "links.0.amplitude (mm)"
     assert bar.get_ylabel() == "average velocity $v_0$ (mm/s)"
-    one_sign = sweep_figure({"a": a, "b": b}, np.abs(np.nan_to_num(v0)), np.zeros((3, 2), bool),
-                            "s")
+    one_sign = sweep_figure({"a": a, "b": b}, np.abs(np.nan_to_num(v0)), np.zeros((3, 2), bool), "s")
     assert len(one_sign.axes[0].collections) == 1  # no contour when v0 keeps its sign
 
 
@@ -976,8 +974,7 @@ def test_jumps_closed_forms():
     assert not jumps(x, 1 - np.exp(-8 * x)).any()
     assert not jumps(x, np.where(x < 0.1, 0.0, 1.0)).any()
     # Each row of a 2-D array on its own; a log axis takes slopes in log space.
-    np.testing.assert_array_equal(jumps(x, np.vstack([step, 2 * x])), [x[:-1] == 0.375,
-                                                                      np.zeros(8, bool)])
+    np.testing.assert_array_equal(jumps(x, np.vstack([step, 2 * x])), [x[:-1] == 0.375, np.zeros(8, bool)])
     g = np.geomspace(1, 100, 7)
     assert not jumps(g, np.log(g), log=True).any()
 
@@ -1026,15 +1023,12 @@ def test_zero_contour_saddle_and_log_axes():
     x = np.array([1.0, 100.0])
     y = np.array([1.0, 2.0])
     v0 = np.log10(x)[:, None] - 1 + 0 * y[None, :]
-    (segment,) = zero_contour(x, y, v0, np.zeros((1, 2), bool), np.zeros((2, 1), bool),
-                              (True, False))
+    (segment,) = zero_contour(x, y, v0, np.zeros((1, 2), bool), np.zeros((2, 1), bool), (True, False))
     np.testing.assert_allclose(segment[:, 0], 10.0)
     v0 = np.array([[1.0, -1.0], [-1.0, 1.0]])
-    segments = zero_contour([0.0, 1.0], [0.0, 1.0], v0, np.zeros((1, 2), bool),
-                            np.zeros((2, 1), bool))
+    segments = zero_contour([0.0, 1.0], [0.0, 1.0], v0, np.zeros((1, 2), bool), np.zeros((2, 1), bool))
     assert len(segments) == 2
-    np.testing.assert_allclose(np.sort(np.concatenate(segments).ravel()), [0, 0, 0.5, 0.5,
-                                                                           0.5, 0.5, 1, 1])
+    np.testing.assert_allclose(np.sort(np.concatenate(segments).ravel()), [0, 0, 0.5, 0.5, 0.5, 0.5, 1, 1])
 
 
 def test_sweep_ticks_and_cells():
@@ -1050,8 +1044,9 @@ def test_sweep_ticks_and_cells():
     np.testing.assert_allclose(cell_edges(np.array([1.0, 2.0, 4.0])), [0.5, 1.5, 3.0, 5.0])
     edges = cell_edges(np.geomspace(1, 100, 3), log=True)
     np.testing.assert_allclose(edges, np.sqrt(10) * np.array([0.1, 1, 10, 100]))
-    fig = sweep_figure({"stiffness": np.geomspace(1, 100, 3), "period": [1.0, 2.0]},
-                       np.ones((3, 2)), np.zeros((3, 2), bool), "log")
+    fig = sweep_figure(
+        {"stiffness": np.geomspace(1, 100, 3), "period": [1.0, 2.0]}, np.ones((3, 2)), np.zeros((3, 2), bool), "log"
+    )
     ax = fig.axes[0]
     assert ax.get_xscale() == "log" and ax.get_yscale() == "linear"
     np.testing.assert_allclose(ax.get_xticks(), [1, 10, 100])
@@ -1067,15 +1062,26 @@ def test_sweep_file_plot(tmp_path):
     v0 = np.array([0.1, 0.2, np.nan, 0.4, 0.5, 0.6])
     status = np.array(["ok", "ok", "invalid", "ok", "ok", "not-converged"], dtype=object)
     path = tmp_path / "grid.h5"
-    write_sweep(path, paths=["friction.backward", "stiffness"], axes=[a, b],
-                points=np.arange(6), columns={
-                    "friction.backward": np.repeat(a, 2), "stiffness": np.tile(b, 3), "v0": v0,
-                    "displacement_per_period": 2 * v0,
-                    "convergence": np.array(["finite-time"] * 6, dtype=object),
-                    "periods": np.full(6, 2), "status": status,
-                    "message": np.array([""] * 6, dtype=object)},
-                gait_yaml="name: wave\nunits: {length: mm, force: N}\n", source="wave.yaml",
-                shard="", steps=np.full(6, 10))
+    write_sweep(
+        path,
+        paths=["friction.backward", "stiffness"],
+        axes=[a, b],
+        points=np.arange(6),
+        columns={
+            "friction.backward": np.repeat(a, 2),
+            "stiffness": np.tile(b, 3),
+            "v0": v0,
+            "displacement_per_period": 2 * v0,
+            "convergence": np.array(["finite-time"] * 6, dtype=object),
+            "periods": np.full(6, 2),
+            "status": status,
+            "message": np.array([""] * 6, dtype=object),
+        },
+        gait_yaml="name: wave\nunits: {length: mm, force: N}\n",
+        source="wave.yaml",
+        shard="",
+        steps=np.full(6, 10),
+    )
     result = CliRunner().invoke(main, ["plot", str(path), "-o", str(tmp_path / "figs")])
     assert result.exit_code == 0, result.output
     (out,) = (tmp_path / "figs").iterdir()
@@ -1099,8 +1105,7 @@ def test_sweep_file_plot(tmp_path):
 
 def test_sweep_bad_shapes():
     with pytest.raises(ValueError, match="one or two"):
-        sweep_figure({"a": [1], "b": [1], "c": [1]}, np.zeros((1, 1, 1)),
-                     np.zeros((1, 1, 1), bool), "t")
+        sweep_figure({"a": [1], "b": [1], "c": [1]}, np.zeros((1, 1, 1)), np.zeros((1, 1, 1), bool), "t")
     with pytest.raises(ValueError, match="grid's shape"):
         sweep_figure({"a": [1, 2]}, np.zeros(3), np.zeros(3, bool), "t")
 
@@ -1111,8 +1116,9 @@ def test_sweep_bad_shapes():
 
 def test_cli_plot_formats_and_only(run_file, tmp_path):
     path = run_file("peristalsis-3")
-    result = CliRunner().invoke(main, ["plot", str(path), "-o", str(tmp_path / "figs"),
-                                       "--format", "svg", "--only", "gait-diagram"])
+    result = CliRunner().invoke(
+        main, ["plot", str(path), "-o", str(tmp_path / "figs"), "--format", "svg", "--only", "gait-diagram"]
+    )
     assert result.exit_code == 0, result.output
     (out,) = (tmp_path / "figs").iterdir()
     assert out.name == "peristalsis-3-gait-diagram.svg"
@@ -1124,8 +1130,7 @@ def test_cli_run_plot(tmp_path):
     gait = tmp_path / "inching-2.yaml"
     gait.write_text((GAITS / "inching-2.yaml").read_text())
     out = tmp_path / "run.h5"
-    result = CliRunner().invoke(main, ["run", str(gait), "-o", str(out), "--plot",
-                                       "--steps-per-period", "50"])
+    result = CliRunner().invoke(main, ["run", str(gait), "-o", str(out), "--plot", "--steps-per-period", "50"])
     assert result.exit_code == 0, result.output
     for name in FIGURE_NAMES:
         assert (tmp_path / f"run-{name}.png").stat().st_size > 1000
@@ -1139,13 +1144,16 @@ def _without(src: Path, dst: Path, dataset: str) -> Path:
     return dst
 
 
-@pytest.mark.parametrize("dataset, only, message", [
-    ("limit/lengths", "gait-diagram", "/limit/lengths"),
-    ("limit/friction", None, "/limit/friction"),
-    ("process", "shape-space", "/process/normals"),
-    ("trajectory/x", "motion", "/trajectory/x"),
-    ("convergence", None, "missing group /convergence"),
-])
+@pytest.mark.parametrize(
+    "dataset, only, message",
+    [
+        ("limit/lengths", "gait-diagram", "/limit/lengths"),
+        ("limit/friction", None, "/limit/friction"),
+        ("process", "shape-space", "/process/normals"),
+        ("trajectory/x", "motion", "/trajectory/x"),
+        ("convergence", None, "missing group /convergence"),
+    ],
+)
 def test_cli_missing_data_exit_2(run_file, tmp_path, dataset, only, message):
     """A figure that cannot be drawn: exit 2, a message naming the file and what is missing, no
     traceback, and no figure written (not even the ones that could be drawn)."""
@@ -1163,8 +1171,11 @@ def test_cli_wrong_files_exit_2(tmp_path):
     not_h5.write_text("name: x\n")
     empty = tmp_path / "empty.h5"
     h5py.File(empty, "w").close()
-    for path, message in ((tmp_path / "none.h5", "no such results file"),
-                          (not_h5, "not an HDF5 file"), (empty, "not a crawlsim results file")):
+    for path, message in (
+        (tmp_path / "none.h5", "no such results file"),
+        (not_h5, "not an HDF5 file"),
+        (empty, "not a crawlsim results file"),
+    ):
         result = CliRunner().invoke(main, ["plot", str(path)])
         assert result.exit_code == 2 and message in result.output, result.output
 
@@ -1199,8 +1210,7 @@ def _x_extent(patch) -> tuple[float, float]:
 def _drawn(fig):
     """What a figure shows, in drawing order: every line's data, every polygon's vertices, and
     every text."""
-    lines = [np.asarray(line.get_xydata(), dtype=float) for ax in fig.axes
-             for line in ax.get_lines()]
+    lines = [np.asarray(line.get_xydata(), dtype=float) for ax in fig.axes for line in ax.get_lines()]
     polygons = [np.asarray(p.get_xy(), dtype=float) for p in fig.findobj(Polygon)]
     return lines, polygons, sorted(_all_texts(fig))
 
@@ -1218,24 +1228,33 @@ def test_figures_of_a_result_object_are_those_of_its_file(name, tmp_path):
     # A result that wrote a file is drawn from it (its object keeps no trajectory).
     assert run_data(written)["attrs"]["gait_yaml"] == stored["attrs"]["gait_yaml"]
     data = run_data(result)
-    for group, names in (("limit", ("t", "w", "offsets", "lengths", "friction", "x", "slip")),
-                         ("trajectory", ("t", "w", "x")),
-                         ("convergence", ("period", "poincare_step", "w12_distance")),
-                         ("process", ("normals",))):
+    for group, names in (
+        ("limit", ("t", "w", "offsets", "lengths", "friction", "x", "slip")),
+        ("trajectory", ("t", "w", "x")),
+        ("convergence", ("period", "poincare_step", "w12_distance")),
+        ("process", ("normals",)),
+    ):
         for key in names:
             if key in stored[group]:
-                np.testing.assert_allclose(data[group][key], stored[group][key], rtol=1e-12,
-                                           atol=1e-12, err_msg=f"{group}/{key}")
+                np.testing.assert_allclose(
+                    data[group][key], stored[group][key], rtol=1e-12, atol=1e-12, err_msg=f"{group}/{key}"
+                )
             else:
                 assert key not in data[group], f"{group}/{key}"
     for key in ("name", "kind", "convergence", "periodic_from"):
         assert data["attrs"][key] == stored["attrs"][key], key
     assert available_figures(data) == available_figures(stored)
     for figure in available_figures(stored):
-        function = {"motion": motion_figure, "gait-diagram": gait_figure,
-                    "convergence": convergence_figure, "shape-space": shape_space_figure}[figure]
+        function = {
+            "motion": motion_figure,
+            "gait-diagram": gait_figure,
+            "convergence": convergence_figure,
+            "shape-space": shape_space_figure,
+        }[figure]
         (lines, polygons, texts), (file_lines, file_polygons, file_texts) = (
-            _drawn(function(result)), _drawn(function(stored)))
+            _drawn(function(result)),
+            _drawn(function(stored)),
+        )
         assert texts == file_texts, figure
         assert len(lines) == len(file_lines) and len(polygons) == len(file_polygons), figure
         for a, b in zip(lines + polygons, file_lines + file_polygons):
@@ -1249,9 +1268,12 @@ def test_a_result_without_trajectory_says_what_to_do():
     get one; the gait diagram (limit period only) is drawn; anything else is a TypeError."""
     gait = with_simulation(load_gait(GAITS / "peristalsis-4.yaml"), steps_per_period=STEPS)
     result = api.run(gait)
-    with pytest.raises(ResultsFileError, match=r"needs /trajectory/t, which is missing \(this "
-                                               r"result keeps no trajectory: use crawlsim\."
-                                               r"simulate"):
+    with pytest.raises(
+        ResultsFileError,
+        match=r"needs /trajectory/t, which is missing \(this "
+        r"result keeps no trajectory: use crawlsim\."
+        r"simulate",
+    ):
         motion_figure(result)
     fig = gait_figure(result)
     assert fig._suptitle.get_text() == "peristalsis-4: gait diagram over the limit period"
@@ -1277,14 +1299,13 @@ def test_pareto_title_stays_within_its_axes():
     stays within the axes (one line ran past both ends of the axes)."""
     from crawlsim.plotting import pareto_figure
 
-    paths = ["links.1.phase", "links.2.phase", "links.*.amplitude", "friction.backward",
-             "loads.slope.angle"]
+    paths = ["links.1.phase", "links.2.phase", "links.*.amplitude", "friction.backward", "loads.slope.angle"]
     v0 = np.linspace(0.1, 0.7, 7)
-    data = {"attrs": {"name": "peristalsis-4", "units_json": "{}",
-                      "free_json": json.dumps([{"path": p} for p in paths])},
-            "evaluations": {"v0": v0, "cost_of_transport": 4 + v0, "status": ["ok"] * 7},
-            "front": {"v0": v0[::2], "cost_of_transport": 4 + v0[::2],
-                      "chosen": np.array([True, False, False, True])}}
+    data = {
+        "attrs": {"name": "peristalsis-4", "units_json": "{}", "free_json": json.dumps([{"path": p} for p in paths])},
+        "evaluations": {"v0": v0, "cost_of_transport": 4 + v0, "status": ["ok"] * 7},
+        "front": {"v0": v0[::2], "cost_of_transport": 4 + v0[::2], "chosen": np.array([True, False, False, True])},
+    }
     fig = pareto_figure(data)
     text = fig.axes[0].get_title()
     first, *rest = text.split("\n")

@@ -45,8 +45,7 @@ def test_a_process_file_builds_a_process_spec_and_compiles_to_its_own_data():
     assert not p.is_crawler and p.stiffness is None and p.friction is None
     assert 0.5 in p.times  # the kink of l(t) is a grid point although 7 is odd
     l2 = np.where(p.times <= 0.5, p.times, 1.0 - p.times)
-    assert np.allclose(p.offsets, np.column_stack([l2, -l2, np.full_like(l2, 1.0)]),
-                       atol=1e-15, rtol=0)
+    assert np.allclose(p.offsets, np.column_stack([l2, -l2, np.full_like(l2, 1.0)]), atol=1e-15, rtol=0)
     assert np.array_equal(p.metric, np.eye(2)) and np.array_equal(p.initial, [0.1, 0.0])
     assert np.allclose(p.offset_pieces.evaluate([0.25, 0.75]), [[0.25, -0.25, 1], [0.25, -0.25, 1]])
     assert np.allclose(p.offset_pieces.evaluate([0.25, 0.75], order=1), [[1, -1, 0], [-1, 1, 0]])
@@ -60,27 +59,40 @@ def test_compile_dispatches_on_the_kind(gaits_dir):
     assert not compile(load_gait(ACUTE)).is_crawler
 
 
-@pytest.mark.parametrize("changes, keypath, words", [
-    ({"normals": [[0, -1], [-1, 1], [1]]}, "normals[2]", "expected 2 numbers"),
-    ({"normals": [[0, -1], [-1, 1], [0, 0]]}, "normals[2]", "nonzero normal"),
-    ({"offsets": [0.0, 0.0]}, "offsets", "expected 3 offset signals"),
-    ({"initial": [0.1, 0.0, 0.0]}, "initial", "expected 2 coordinates"),
-    ({"metric": [[1, 0]]}, "metric", "expected 2 rows"),
-    ({"metric": [[1, 0], [0]]}, "metric[1]", "expected 2 numbers"),
-    ({"metric": [[1, 0.5], [0.4, 1]]}, "metric", "symmetric"),
-    ({"metric": [[1, 2], [2, 1]]}, "metric", "smallest eigenvalue is -1"),
-    ({"initial": [0.1, 0.3]}, "initial", "constraint 1 .* violated by 0.2"),
-    ({"initial": [1.5, 0.0]}, "initial", "constraint 2 .* violated by 0.5"),
-    ({"normals": [[0, -1], [-1, 1]], "offsets": [0.0, 0.0]}, "normals",
-     r"unbounded.*d = \(1, 0\).*compact.*allow_unbounded: true"),
-    ({"offsets": [0.0, 0.0, -1.0]}, "offsets", r"empty at t = 0 "),
-    ({"offsets": [{"kind": "piecewise-linear", "times": [0, 0.5, 1], "values": [0, 0.5, 0]},
-                  {"kind": "piecewise-linear", "times": [0, 0.5, 1], "values": [0, -0.5, 0]},
-                  {"kind": "piecewise-linear", "times": [0, 0.75, 1], "values": [2, -0.25, 2]}]},
-     "offsets", r"empty for t just after about 0.666667 .* and at t = 0.75 "),
-    ({"kind": "sweeping-proces"}, "kind", "did you mean 'sweeping-process'"),
-    ({"metrik": [[1, 0], [0, 1]]}, "metrik", "did you mean 'metric'"),
-])
+@pytest.mark.parametrize(
+    "changes, keypath, words",
+    [
+        ({"normals": [[0, -1], [-1, 1], [1]]}, "normals[2]", "expected 2 numbers"),
+        ({"normals": [[0, -1], [-1, 1], [0, 0]]}, "normals[2]", "nonzero normal"),
+        ({"offsets": [0.0, 0.0]}, "offsets", "expected 3 offset signals"),
+        ({"initial": [0.1, 0.0, 0.0]}, "initial", "expected 2 coordinates"),
+        ({"metric": [[1, 0]]}, "metric", "expected 2 rows"),
+        ({"metric": [[1, 0], [0]]}, "metric[1]", "expected 2 numbers"),
+        ({"metric": [[1, 0.5], [0.4, 1]]}, "metric", "symmetric"),
+        ({"metric": [[1, 2], [2, 1]]}, "metric", "smallest eigenvalue is -1"),
+        ({"initial": [0.1, 0.3]}, "initial", "constraint 1 .* violated by 0.2"),
+        ({"initial": [1.5, 0.0]}, "initial", "constraint 2 .* violated by 0.5"),
+        (
+            {"normals": [[0, -1], [-1, 1]], "offsets": [0.0, 0.0]},
+            "normals",
+            r"unbounded.*d = \(1, 0\).*compact.*allow_unbounded: true",
+        ),
+        ({"offsets": [0.0, 0.0, -1.0]}, "offsets", r"empty at t = 0 "),
+        (
+            {
+                "offsets": [
+                    {"kind": "piecewise-linear", "times": [0, 0.5, 1], "values": [0, 0.5, 0]},
+                    {"kind": "piecewise-linear", "times": [0, 0.5, 1], "values": [0, -0.5, 0]},
+                    {"kind": "piecewise-linear", "times": [0, 0.75, 1], "values": [2, -0.25, 2]},
+                ]
+            },
+            "offsets",
+            r"empty for t just after about 0.666667 .* and at t = 0.75 ",
+        ),
+        ({"kind": "sweeping-proces"}, "kind", "did you mean 'sweeping-process'"),
+        ({"metrik": [[1, 0], [0, 1]]}, "metrik", "did you mean 'metric'"),
+    ],
+)
 def test_bad_process_files_are_refused_naming_the_key(changes, keypath, words):
     with pytest.raises(GaitError) as info:
         process(acute(**changes))
@@ -94,9 +106,14 @@ def test_emptiness_is_decided_between_breakpoints_and_on_the_grid_for_smooth_off
     (the set {(t, z) : B z <= c(t)} is convex on a linear piece). A cosine offset is checked on
     the grid: z1 <= cos(2 pi t) - 0.5 and -z1 <= 0 is empty where cos(2 pi t) < 0.5, that is for
     t in (1/6, 5/6): the first grid time there with steps_per_period = 6 is 1/3."""
-    doc = {"kind": "sweeping-process", "period": 1.0, "normals": [[1.0], [-1.0]],
-           "offsets": [{"kind": "cosine", "mean": -0.5, "amplitude": 1.0}, 0.0],
-           "initial": [0.0], "simulation": {"steps_per_period": 6}}
+    doc = {
+        "kind": "sweeping-process",
+        "period": 1.0,
+        "normals": [[1.0], [-1.0]],
+        "offsets": [{"kind": "cosine", "mean": -0.5, "amplitude": 1.0}, 0.0],
+        "initial": [0.0],
+        "simulation": {"steps_per_period": 6},
+    }
     with pytest.raises(GaitError, match=r"empty at t = 0.333333333333 "):
         process(doc)
 
@@ -104,9 +121,14 @@ def test_emptiness_is_decided_between_breakpoints_and_on_the_grid_for_smooth_off
 def test_unbounded_sets_run_when_allowed():
     """One half-line z <= c(t), c = 1 - t on [0, 1/2] then back: the play operator, periodic
     after one period (Theorem th:1dim), with z(T) = min(z0, 1/2) = 1/2 from z0 = 0.8."""
-    doc = {"kind": "sweeping-process", "period": 1.0, "normals": [[1.0]],
-           "offsets": [{"kind": "piecewise-linear", "times": [0, 0.5, 1], "values": [1, 0.5, 1]}],
-           "initial": [0.8], "simulation": {"steps_per_period": 10, "max_periods": 5}}
+    doc = {
+        "kind": "sweeping-process",
+        "period": 1.0,
+        "normals": [[1.0]],
+        "offsets": [{"kind": "piecewise-linear", "times": [0, 0.5, 1], "values": [1, 0.5, 1]}],
+        "initial": [0.8],
+        "simulation": {"steps_per_period": 10, "max_periods": 5},
+    }
     with pytest.raises(GaitError, match="unbounded"):
         process(doc)
     result = run(process({**doc, "allow_unbounded": True}))
@@ -121,8 +143,14 @@ def test_process_run_reports_null_velocity_keys_on_the_command_line(tmp_path):
     res = runner.invoke(main, ["run", str(ACUTE), "-o", str(out), "--json"])
     assert res.exit_code == 0, res.output
     summary = json.loads(res.output)
-    for key in ("v0", "v0_error_estimate", "displacement_per_period", "dissipation_per_period",
-                "cost_of_transport", "periodic_from"):
+    for key in (
+        "v0",
+        "v0_error_estimate",
+        "displacement_per_period",
+        "dissipation_per_period",
+        "cost_of_transport",
+        "periodic_from",
+    ):
         assert summary[key] is None
     assert summary["convergence"] == "asymptotic"
     assert summary["contraction_rate"] == pytest.approx(0.5, rel=1e-4)
@@ -171,11 +199,16 @@ def test_crawler_files_say_crawler_and_have_no_reactions(tmp_path, gaits_dir):
 
 
 CORNER = {
-    "kind": "sweeping-process", "name": "corner", "period": 1.0,
+    "kind": "sweeping-process",
+    "name": "corner",
+    "period": 1.0,
     "normals": [[1, 0], [-1, 0], [0, 1], [0, -1], [1, 1]],
-    "offsets": [{"kind": "piecewise-linear", "times": [0, 0.5, 1], "values": v}
-                for v in ([1, 0.5, 1], [1, 1.5, 1], [1, 0.5, 1], [1, 1.5, 1], [2, 1, 2])],
-    "initial": [0.9, 0.9], "simulation": {"steps_per_period": 10, "max_periods": 10},
+    "offsets": [
+        {"kind": "piecewise-linear", "times": [0, 0.5, 1], "values": v}
+        for v in ([1, 0.5, 1], [1, 1.5, 1], [1, 0.5, 1], [1, 1.5, 1], [2, 1, 2])
+    ],
+    "initial": [0.9, 0.9],
+    "simulation": {"steps_per_period": 10, "max_periods": 10},
 }
 
 
@@ -221,8 +254,12 @@ def test_every_paper_file_runs(path):
 
     spec = with_simulation(load_gait(path), steps_per_period=60)
     result = run(spec)
-    expected = {"acute-angle": ("asymptotic", 0.5), "triangle": ("asymptotic", 0.125),
-                "cell-3": ("finite-time", None), "speed-peristalsis-4": ("finite-time", None)}
+    expected = {
+        "acute-angle": ("asymptotic", 0.5),
+        "triangle": ("asymptotic", 0.125),
+        "cell-3": ("finite-time", None),
+        "speed-peristalsis-4": ("finite-time", None),
+    }
     kind, rate = expected[Path(path).stem]
     assert result.convergence == kind
     if rate is not None:
@@ -246,10 +283,10 @@ def test_the_crawler_object_gives_stress_shape_forces_bounds_and_dissipation_in_
     record = CatchUpStepper(p).step_period()
     k = np.asarray(gait.stiffness)
     sigma = crawler.stress(record.w)
-    np.testing.assert_allclose(sigma, k * (gait.lengths(p.times) - crawler.shape(record.w)),
-                               rtol=0, atol=1e-12 * np.max(np.abs(sigma)))
-    np.testing.assert_allclose(crawler.shape(record.w), np.diff(record.x, axis=1), rtol=0,
-                               atol=1e-12)
+    np.testing.assert_allclose(
+        sigma, k * (gait.lengths(p.times) - crawler.shape(record.w)), rtol=0, atol=1e-12 * np.max(np.abs(sigma))
+    )
+    np.testing.assert_allclose(crawler.shape(record.w), np.diff(record.x, axis=1), rtol=0, atol=1e-12)
     f = crawler.block_forces(record.w)
     np.testing.assert_allclose(f.sum(axis=1), 0.0, atol=1e-12)
     np.testing.assert_array_equal(f[:, 0], -sigma[:, 0])
@@ -271,5 +308,4 @@ def test_the_crawler_object_gives_stress_shape_forces_bounds_and_dissipation_in_
     energy = catch_up_energy(p, record)
     assert energy.dissipation == crawler.dissipation(record.multipliers) > 0
     assert abs(energy.residual - energy.energy_change) <= 1e-12 * energy.scale
-    np.testing.assert_allclose(crawler.positions(record.w[-1], float(np.mean(record.x[-1]))),
-                               record.x[-1], atol=1e-12)
+    np.testing.assert_allclose(crawler.positions(record.w[-1], float(np.mean(record.x[-1]))), record.x[-1], atol=1e-12)

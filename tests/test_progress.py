@@ -19,9 +19,11 @@ from crawlsim.cli.progress import Progress, RunProgress, choose_mode, log_interv
 
 from .conftest import GAITS
 
-LINE = re.compile(r"^(?P<label>[\w.-]+): (?P<done>\d+)/(?P<about>~?)(?P<total>\d+) "
-                  r"(?P<unit>\w+)s \((?P<pct>\d+)%\), (?P<rate>[\d.e+-]+) \w+s/s, "
-                  r"elapsed \d+:\d\d:\d\d(, ETA \d+:\d\d:\d\d)?")
+LINE = re.compile(
+    r"^(?P<label>[\w.-]+): (?P<done>\d+)/(?P<about>~?)(?P<total>\d+) "
+    r"(?P<unit>\w+)s \((?P<pct>\d+)%\), (?P<rate>[\d.e+-]+) \w+s/s, "
+    r"elapsed \d+:\d\d:\d\d(, ETA \d+:\d\d:\d\d)?"
+)
 
 
 class Clock:
@@ -36,8 +38,7 @@ def test_log_lines_follow_the_clock():
     """No line before the interval; then done/total, rate and ETA from the clock; a final line
     when the log printed anything; none at all for work shorter than the interval."""
     clock, out = Clock(), io.StringIO()
-    p = Progress("velocity", "point", 10, mode="log", stream=out, interval=10, clock=clock,
-                 heartbeat=False)
+    p = Progress("velocity", "point", 10, mode="log", stream=out, interval=10, clock=clock, heartbeat=False)
     p.update(3)
     clock.now += 9.9
     assert not p.tick() and out.getvalue() == ""
@@ -56,8 +57,7 @@ def test_log_lines_follow_the_clock():
     assert last.startswith("velocity: 10/10 points (100%)") and last.endswith(", done")
 
     quiet = io.StringIO()
-    short = Progress("velocity", "point", 10, mode="log", stream=quiet, interval=10,
-                     clock=Clock(), heartbeat=False)
+    short = Progress("velocity", "point", 10, mode="log", stream=quiet, interval=10, clock=Clock(), heartbeat=False)
     short.update(10)
     short.close(complete=True)
     assert quiet.getvalue() == ""
@@ -65,8 +65,7 @@ def test_log_lines_follow_the_clock():
 
 def test_resumed_points_count_as_done_but_not_in_the_rate():
     clock, out = Clock(), io.StringIO()
-    p = Progress("velocity", "point", 100, mode="log", stream=out, interval=5, clock=clock,
-                 heartbeat=False)
+    p = Progress("velocity", "point", 100, mode="log", stream=out, interval=5, clock=clock, heartbeat=False)
     p.skip(60)
     p.update(4)
     clock.now += 5
@@ -118,7 +117,7 @@ def test_periods_to_tolerance_on_a_geometric_decay():
     three periods is exactly that (the fitted rate is r to roundoff)."""
     r, s0, tol = 0.5, 1.0, 1e-12
     total = math.ceil(math.log(tol / s0) / math.log(r)) + 1  # 41
-    steps = [s0 * r ** q for q in range(total)]
+    steps = [s0 * r**q for q in range(total)]
     assert steps[total - 1] <= tol < steps[total - 2]
     for done in range(3, total + 1):
         assert periods_to_tolerance(steps[:done], tol, 1000) == total, done
@@ -131,6 +130,7 @@ def test_periods_to_tolerance_on_a_geometric_decay():
 def test_run_progress_bar_total_follows_the_estimate():
     """On a terminal the bar's total is the estimate, updated every period, and a finite-time
     run that stops early ends with its count as the total."""
+
     class Tty(io.StringIO):
         def isatty(self):
             return True
@@ -139,7 +139,7 @@ def test_run_progress_bar_total_follows_the_estimate():
     run = RunProgress("gait", 1e-12, 1000, mode="bar", stream=stream)
     totals = []
     for q in range(5):
-        run(q, 0.5 ** q)
+        run(q, 0.5**q)
         totals.append(run.progress.total)
     assert totals[0] is None and totals[2:] == [41, 41, 41]
     run(5, 0.0)  # the step falls to 0: periodic from here
@@ -161,8 +161,7 @@ simulation: {steps_per_period: 100, max_periods: 120}
 
 def _crawlsim(*args, interval="0.02"):
     env = {**os.environ, "CRAWLSIM_PROGRESS_INTERVAL": interval}
-    return subprocess.run([sys.executable, "-m", "crawlsim", *map(str, args)],
-                          capture_output=True, text=True, env=env)
+    return subprocess.run([sys.executable, "-m", "crawlsim", *map(str, args)], capture_output=True, text=True, env=env)
 
 
 def test_a_run_without_a_terminal_logs_progress_lines(tmp_path):
@@ -184,8 +183,16 @@ def test_a_run_without_a_terminal_logs_progress_lines(tmp_path):
 
 
 def test_a_sweep_without_a_terminal_logs_points(tmp_path):
-    r = _crawlsim("velocity", GAITS / "peristalsis-4.yaml", "--steps-per-period", "40",
-                  "--sweep", "links.*.amplitude=0.1:0.3:40", "-o", tmp_path / "s.csv")
+    r = _crawlsim(
+        "velocity",
+        GAITS / "peristalsis-4.yaml",
+        "--steps-per-period",
+        "40",
+        "--sweep",
+        "links.*.amplitude=0.1:0.3:40",
+        "-o",
+        tmp_path / "s.csv",
+    )
     assert r.returncode == 0, r.stderr
     lines = [m for m in map(LINE.match, r.stderr.splitlines()) if m]
     assert lines and all(m["total"] == "40" and m["unit"] == "point" for m in lines)

@@ -29,8 +29,7 @@ RUNS = {
     "tolerance": ["peristalsis-3.yaml", "--steps-per-period", "250", "--tolerance", "1e-10"],
     "exact": ["peristalsis-4.yaml", "--integrator", "exact", "--steps-per-period", "300"],
     "max-periods": ["anchoring-2.yaml", "--max-periods", "3", "--save-every", "7"],
-    "check-every-step": ["smooth-friction-3.yaml", "--steps-per-period", "120",
-                         "--check-every-step"],
+    "check-every-step": ["smooth-friction-3.yaml", "--steps-per-period", "120", "--check-every-step"],
     "process": ["paper/acute-angle.yaml", "--steps-per-period", "100"],
 }
 
@@ -65,29 +64,29 @@ def test_rerun_from_results_reproduces_the_run_bit_for_bit(tmp_path, case):
     original = yaml.safe_load((GAITS / gait).read_text())
     overrides = dict(zip(options[::2], options[1::2]))
     simulation = recorded["simulation"]
-    for option, key, kind in (("--steps-per-period", "steps_per_period", int),
-                              ("--tolerance", "tolerance", float),
-                              ("--integrator", "integrator", str),
-                              ("--max-periods", "max_periods", int)):
+    for option, key, kind in (
+        ("--steps-per-period", "steps_per_period", int),
+        ("--tolerance", "tolerance", float),
+        ("--integrator", "integrator", str),
+        ("--max-periods", "max_periods", int),
+    ):
         if option in overrides:
             assert simulation[key] == kind(overrides[option])
             assert original.get("simulation", {}).get(key) != kind(overrides[option])
     settings = json.loads(a["attrs"]["integrator_json"])
     assert settings["check_every_step"] == ("--check-every-step" in options)
-    assert settings["integrator"] == a["attrs"]["integrator"] == simulation.get(
-        "integrator", "exact")  # the default integrator
+    assert (
+        settings["integrator"] == a["attrs"]["integrator"] == simulation.get("integrator", "exact")
+    )  # the default integrator
 
 
 def test_rerun_options_override_the_recorded_ones(tmp_path):
     first = tmp_path / "first.h5"
-    assert cli("run", GAITS / "inching-2.yaml", "--steps-per-period", "100", "-o",
-               first).exit_code == 0
-    r = cli("run", "--from", first, "--steps-per-period", "40", "--json", "-o",
-            tmp_path / "b.h5")
+    assert cli("run", GAITS / "inching-2.yaml", "--steps-per-period", "100", "-o", first).exit_code == 0
+    r = cli("run", "--from", first, "--steps-per-period", "40", "--json", "-o", tmp_path / "b.h5")
     assert r.exit_code == 0, r.output
     assert json.loads(r.output)["steps_per_period"] == 40
-    assert yaml.safe_load(read_results(tmp_path / "b.h5")["attrs"]["gait_yaml"])[
-        "simulation"]["steps_per_period"] == 40
+    assert yaml.safe_load(read_results(tmp_path / "b.h5")["attrs"]["gait_yaml"])["simulation"]["steps_per_period"] == 40
 
 
 def test_rerun_default_output_does_not_replace_the_source(tmp_path, monkeypatch):
@@ -98,12 +97,15 @@ def test_rerun_default_output_does_not_replace_the_source(tmp_path, monkeypatch)
     assert Path("inching-2-rerun.h5").exists() and Path("inching-2.h5").read_bytes() == before
 
 
-@pytest.mark.parametrize("args, message", [
-    (["--from", DATA / "v1-run.h5"], "format_version 1 files do not record"),
-    (["--from", DATA / "v1-sweep.h5"], "a sweep file"),
-    ([GAITS / "inching-2.yaml", "--from", DATA / "v1-run.h5"], "one of the two"),
-    ([], "one of the two"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--from", DATA / "v1-run.h5"], "format_version 1 files do not record"),
+        (["--from", DATA / "v1-sweep.h5"], "a sweep file"),
+        ([GAITS / "inching-2.yaml", "--from", DATA / "v1-run.h5"], "one of the two"),
+        ([], "one of the two"),
+    ],
+)
 def test_rerun_refusals_exit_2_and_write_nothing(tmp_path, args, message):
     r = cli("run", *args, "-o", tmp_path / "out.h5")
     assert r.exit_code == 2, r.output
@@ -115,14 +117,26 @@ def test_files_record_versions_time_and_the_command_line(tmp_path):
     """``sys.argv`` is the command line of a real process; the versions are those installed."""
     out = tmp_path / "r.h5"
     before = datetime.now(UTC).replace(microsecond=0)
-    done = subprocess.run([sys.executable, "-m", "crawlsim", "run", str(GAITS / "inching-2.yaml"),
-                           "--steps-per-period", "20", "-o", str(out)], capture_output=True,
-                          text=True, check=False)
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "crawlsim",
+            "run",
+            str(GAITS / "inching-2.yaml"),
+            "--steps-per-period",
+            "20",
+            "-o",
+            str(out),
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     assert done.returncode == 0, done.stderr
     after = datetime.now(UTC)
     a = read_results(out)["attrs"]
-    assert a["command_line"].endswith(f"run {GAITS / 'inching-2.yaml'} --steps-per-period 20 "
-                                      f"-o {out}")
+    assert a["command_line"].endswith(f"run {GAITS / 'inching-2.yaml'} --steps-per-period 20 -o {out}")
     created = datetime.fromisoformat(a["created"])
     assert created.tzinfo is not None and before <= created <= after
     versions = json.loads(a["versions_json"])
@@ -137,8 +151,11 @@ def test_files_record_versions_time_and_the_command_line(tmp_path):
 def test_the_api_records_the_call_and_its_result_reruns_from_the_cli(tmp_path):
     gait = crawlsim.load_gait(GAITS / "peristalsis-3.yaml").replace("links.*.amplitude", 0.25)
     result = crawlsim.simulate(gait, integrator="exact", steps_per_period=64)
-    call = ("crawlsim.simulate(<gait '" + str(GAITS / "peristalsis-3.yaml")
-            + " with links.*.amplitude=0.25'>, integrator='exact', steps_per_period=64)")
+    call = (
+        "crawlsim.simulate(<gait '"
+        + str(GAITS / "peristalsis-3.yaml")
+        + " with links.*.amplitude=0.25'>, integrator='exact', steps_per_period=64)"
+    )
     assert result.provenance.command_line == call
     saved = result.save(tmp_path / "api.h5")
     a = read_results(saved)["attrs"]
@@ -152,14 +169,23 @@ def test_the_api_records_the_call_and_its_result_reruns_from_the_cli(tmp_path):
 
 def test_sweep_files_record_the_base_document_specs_and_versions(tmp_path):
     out = tmp_path / "s.h5"
-    r = cli("velocity", GAITS / "peristalsis-3.yaml", "--steps-per-period", "60",
-            "--integrator", "catch-up", "--sweep", "links.1.phase=0.2,0.4", "-o", out)
+    r = cli(
+        "velocity",
+        GAITS / "peristalsis-3.yaml",
+        "--steps-per-period",
+        "60",
+        "--integrator",
+        "catch-up",
+        "--sweep",
+        "links.1.phase=0.2,0.4",
+        "-o",
+        out,
+    )
     assert r.exit_code == 0, r.output
     with h5py.File(out) as f:
         a = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
     assert yaml.safe_load(a["gait_yaml"])["simulation"]["steps_per_period"] == 60
-    assert json.loads(a["sweep_json"]) == [{"path": "links.1.phase", "name": "links_1_phase",
-                                            "values": [0.2, 0.4]}]
+    assert json.loads(a["sweep_json"]) == [{"path": "links.1.phase", "name": "links_1_phase", "values": [0.2, 0.4]}]
     assert json.loads(a["versions_json"])["numpy"] == metadata.version("numpy")
     assert a["integrator"] == "catch-up"
     assert datetime.fromisoformat(a["created"]).tzinfo is not None

@@ -83,11 +83,10 @@ def parse_blocks(text: str, page: str = "README.md") -> list[Block]:
         j = i + 1
         while j < len(lines) and lines[j].strip() != "```":
             line = lines[j]
-            body.append(line[len(indent):] if line.startswith(indent) else line.lstrip())
+            body.append(line[len(indent) :] if line.startswith(indent) else line.lstrip())
             j += 1
         assert j < len(lines), f"{page}:{i + 1}: unclosed code block"
-        blocks.append(Block(i + 1, language, "\n".join(body) + "\n",
-                            marker.group(1) if marker else None, page))
+        blocks.append(Block(i + 1, language, "\n".join(body) + "\n", marker.group(1) if marker else None, page))
         i = j + 1
     return blocks
 
@@ -117,7 +116,8 @@ def commands(block: Block) -> list[tuple[str, list[str] | None]]:
         return out
     assert all(line.startswith("crawlsim ") for line in lines if line.strip()), (
         f"{block.where}: a block that is neither commands ($ ... or crawlsim ...) nor "
-        "marked `<!-- readme-test: skip: REASON -->`")
+        "marked `<!-- readme-test: skip: REASON -->`"
+    )
     return [(line, None) for line in lines if line.strip()]
 
 
@@ -143,7 +143,7 @@ def _split(line: str) -> tuple[list[str], list[float]]:
     ``peristalsis-4.h5`` is text)."""
     texts, numbers, start = [], [], 0
     for match in NUMBER.finditer(line):
-        texts.append(line[start:match.start()])
+        texts.append(line[start : match.start()])
         numbers.append(float(match.group()))
         start = match.end()
     texts.append(line[start:])
@@ -154,6 +154,7 @@ def _split(line: str) -> tuple[list[str], list[float]]:
 class Roundoff:
     """One output's bound on its roundoff residuals: the estimate ``bound`` of the quantity of
     value ``scale`` that the residual balances."""
+
     bound: float
     scale: float
 
@@ -196,12 +197,15 @@ def _same_text_line(expected: str, actual: str, bounds: tuple[dict[str, Roundoff
             b = bound[label]
             # the absolute residual, then the relative one (printed to one digit: 1.5x)
             limits.append([b.bound, 1.5 * b.bound / max(b.scale, 1e-300)])
-        return all(abs(value) <= limit[min(i, 1)]
-                   for values, limit in zip((want, got), limits) for i, value in enumerate(values))
+        return all(
+            abs(value) <= limit[min(i, 1)]
+            for values, limit in zip((want, got), limits)
+            for i, value in enumerate(values)
+        )
     i = 0
     while i < len(want):
         if i + 1 < len(want) and want_text[i + 1] == PLUS_MINUS:
-            (a, e), (b, f) = want[i:i + 2], got[i:i + 2]
+            (a, e), (b, f) = want[i : i + 2], got[i : i + 2]
             if not (abs(a - b) <= e + f and _same_estimate(e, f)):
                 return False
             i += 2
@@ -219,8 +223,10 @@ def _same_json(want: dict, got: dict) -> bool:
     anything else equal."""
     if want.keys() != got.keys():
         return False
-    estimate_of = {"displacement_per_period": "v0_error_estimate",
-                   "actuator_work_per_period": "dissipation_error_estimate"}
+    estimate_of = {
+        "displacement_per_period": "v0_error_estimate",
+        "actuator_work_per_period": "dissipation_error_estimate",
+    }
     for key in want.keys() - VOLATILE_KEYS:
         a, b = want[key], got[key]
         if not (isinstance(a, float) and isinstance(b, (int, float)) and not isinstance(b, bool)):
@@ -242,8 +248,7 @@ def _same_json(want: dict, got: dict) -> bool:
     return True
 
 
-def _same_line(expected: str, actual: str,
-               bounds: tuple[dict[str, Roundoff], dict[str, Roundoff]] = ({}, {})) -> bool:
+def _same_line(expected: str, actual: str, bounds: tuple[dict[str, Roundoff], dict[str, Roundoff]] = ({}, {})) -> bool:
     if expected.startswith("{") and actual.startswith("{"):
         try:
             want, got = json.loads(expected), json.loads(actual)
@@ -264,8 +269,7 @@ def _matches(expected: list[str], actual: list[str], bounds) -> bool:
         return not actual
     if expected[0] == "...":
         return any(_matches(expected[1:], actual[k:], bounds) for k in range(len(actual) + 1))
-    return bool(actual) and _same_line(expected[0], actual[0], bounds) and \
-        _matches(expected[1:], actual[1:], bounds)
+    return bool(actual) and _same_line(expected[0], actual[0], bounds) and _matches(expected[1:], actual[1:], bounds)
 
 
 def test_output_matching_rules():
@@ -303,10 +307,16 @@ def test_numbers_match_to_the_digits_their_estimate_supports():
     assert not output_matches(["rate 0.9828, 3 steps"], ["rate 0.9828, 4 steps"])
     assert not output_matches(["written peristalsis-4.h5"], ["written peristalsis-5.h5"])
     # JSON: a value within its estimate, a roundoff residual within its bound
-    want = {"v0": 0.3999999999999998, "v0_error_estimate": 8.9e-14, "dissipation_error_estimate": 1.8e-13,
-            "energy_balance_residual": -1.1e-16, "periods": 2}
-    assert output_matches([json.dumps(want)],
-                          [json.dumps(want | {"v0": 0.4000000000000001, "energy_balance_residual": 0.0})])
+    want = {
+        "v0": 0.3999999999999998,
+        "v0_error_estimate": 8.9e-14,
+        "dissipation_error_estimate": 1.8e-13,
+        "energy_balance_residual": -1.1e-16,
+        "periods": 2,
+    }
+    assert output_matches(
+        [json.dumps(want)], [json.dumps(want | {"v0": 0.4000000000000001, "energy_balance_residual": 0.0})]
+    )
     assert not output_matches([json.dumps(want)], [json.dumps(want | {"v0": 0.4000001})])
     assert not output_matches([json.dumps(want)], [json.dumps(want | {"energy_balance_residual": 1e-12})])
     assert not output_matches([json.dumps(want)], [json.dumps(want | {"periods": 3})])
@@ -324,29 +334,34 @@ def check_markers(blocks: list[Block]) -> None:
             assert rest.strip(), f"{block.where}: a skip marker says why"
         if kind == "file":
             assert block.language == "yaml", f"{block.where}: `file` marks a gait"
-            later = " ".join(cmd for b in blocks if b.line > block.line and b.language == ""
-                             and not (b.marker or "").startswith(("skip:", "output"))
-                             for cmd, _ in commands(b))
+            later = " ".join(
+                cmd
+                for b in blocks
+                if b.line > block.line and b.language == "" and not (b.marker or "").startswith(("skip:", "output"))
+                for cmd, _ in commands(b)
+            )
             assert rest.strip() in later, f"{block.where}: {rest} is never used"
         if kind == "exit":
             assert block.language == "" and rest.strip().isdigit()
         if kind == "output":
-            assert block.language == "" and k > 0 and blocks[k - 1].language == "python" and \
-                blocks[k - 1].marker is None, f"{block.where}: `output` follows a Python block that runs"
+            assert (
+                block.language == "" and k > 0 and blocks[k - 1].language == "python" and blocks[k - 1].marker is None
+            ), f"{block.where}: `output` follows a Python block that runs"
     runnable = [b for b in blocks if not (b.marker or "").startswith("skip:")]
-    assert {b.language for b in runnable} <= {"", "yaml", "python"}, \
+    assert {b.language for b in runnable} <= {"", "yaml", "python"}, (
         "a block in another language needs a runner here or a skip marker"
+    )
 
 
 def test_every_block_is_run_or_marked_as_an_illustration():
     assert BLOCKS, "README.md has no code blocks"
     first = BLOCKS[0]
-    assert first.marker and first.marker.startswith("skip:") and "pip install" in first.text, \
+    assert first.marker and first.marker.startswith("skip:") and "pip install" in first.text, (
         "the first block (set-up: pip install) is marked as not run"
+    )
     assert "python -m pytest tests" in first.text, "the set-up runs the tests as .ci/run does"
     check_markers(BLOCKS)
-    shown = [cmd for b in BLOCKS if b.language == "" and b.marker is None
-             for cmd, expected in commands(b) if expected]
+    shown = [cmd for b in BLOCKS if b.language == "" and b.marker is None for cmd, expected in commands(b) if expected]
     assert "crawlsim run gaits/peristalsis-4.yaml" in shown, "the first run's output is shown"
 
 
@@ -357,9 +372,20 @@ def test_readme_fits_a_newcomer():
     images = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", text)
     assert len(images) == 1 and images[0].startswith("docs/figures/")
     linked = set(re.findall(r"\]\(docs/([\w\-/]+\.(?:md|ipynb))", text))
-    assert {"model.md", "gait-files.md", "commands.md", "hdf5.md", "integrators.md", "sweeps.md",
-            "optimize.md", "paper.md", "benchmarks.md", "api.md", "exact-step.md",
-            "layout.md"} <= linked
+    assert {
+        "model.md",
+        "gait-files.md",
+        "commands.md",
+        "hdf5.md",
+        "integrators.md",
+        "sweeps.md",
+        "optimize.md",
+        "paper.md",
+        "benchmarks.md",
+        "api.md",
+        "exact-step.md",
+        "layout.md",
+    } <= linked
 
 
 @pytest.fixture(scope="module")
@@ -390,8 +416,11 @@ def run_block(block: Block, folder: Path, printed: dict[str, str]) -> None:
         actual = [line.rstrip() for line in printed.pop("python").splitlines()]
         expected = block.text.rstrip("\n").splitlines()
         assert output_matches(expected, actual), (
-            f"{where}: the Python block above printed\n" + "\n".join(actual)
-            + f"\nbut {block.page} shows\n" + "\n".join(expected))
+            f"{where}: the Python block above printed\n"
+            + "\n".join(actual)
+            + f"\nbut {block.page} shows\n"
+            + "\n".join(expected)
+        )
         return
     if block.language == "yaml":
         if marker.startswith("file "):
@@ -399,31 +428,33 @@ def run_block(block: Block, folder: Path, printed: dict[str, str]) -> None:
             return
         path = folder / f"readme-block-{block.line}.yaml"
         path.write_text(block.text)
-        done = subprocess.run(["crawlsim", "validate", path.name], cwd=folder, env=env,
-                              capture_output=True, text=True, timeout=600)
+        done = subprocess.run(
+            ["crawlsim", "validate", path.name], cwd=folder, env=env, capture_output=True, text=True, timeout=600
+        )
         assert done.returncode == 0, f"{where}: {done.stdout}{done.stderr}"
         return
     if block.language == "python":
-        done = subprocess.run([sys.executable, "-c", block.text], cwd=folder, env=env,
-                              capture_output=True, text=True, timeout=600)
+        done = subprocess.run(
+            [sys.executable, "-c", block.text], cwd=folder, env=env, capture_output=True, text=True, timeout=600
+        )
         assert done.returncode == 0, f"{where}: {done.stderr}"
         printed["python"] = done.stdout
         return
     code = int(marker.split()[1]) if marker.startswith("exit ") else 0
     for command, expected in commands(block):
-        done = subprocess.run(command, shell=True, cwd=folder, env=env, capture_output=True,
-                              text=True, timeout=600)
-        assert done.returncode == code, \
-            f"{where}: `{command}` exited {done.returncode}\n{done.stdout}{done.stderr}"
+        done = subprocess.run(command, shell=True, cwd=folder, env=env, capture_output=True, text=True, timeout=600)
+        assert done.returncode == code, f"{where}: `{command}` exited {done.returncode}\n{done.stdout}{done.stderr}"
         if expected is not None:
             actual = [line.rstrip() for line in (done.stdout + done.stderr).splitlines()]
             assert output_matches(expected, actual), (
-                f"{where}: `{command}` printed\n" + "\n".join(actual)
-                + f"\nbut {block.page} shows\n" + "\n".join(expected))
+                f"{where}: `{command}` printed\n"
+                + "\n".join(actual)
+                + f"\nbut {block.page} shows\n"
+                + "\n".join(expected)
+            )
 
 
-def run_in_order(blocks: list[Block], index: int, folder: Path, done: set[int],
-                 printed: dict[str, str]) -> None:
+def run_in_order(blocks: list[Block], index: int, folder: Path, done: set[int], printed: dict[str, str]) -> None:
     """Block ``index``, after every earlier block not yet run (a later block may use an earlier
     one's files, as a reader following the page would); an earlier failure is reported by its
     own test."""

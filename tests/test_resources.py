@@ -30,13 +30,17 @@ from crawlsim.study import sweep as sweeps
 
 
 def crawler(n, steps, periods=4, integrator="catch-up"):
-    return gait_from_document({
-        "blocks": n, "period": 1.0, "stiffness": 10.0,
-        "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": (0.37 * i) % 1}
-                  for i in range(n - 1)],
-        "friction": {"forward": 1.0, "backward": 2.5 + 1e-3 * n},
-        "simulation": {"steps_per_period": steps, "max_periods": periods, "integrator": integrator},
-    }, "memory.yaml")
+    return gait_from_document(
+        {
+            "blocks": n,
+            "period": 1.0,
+            "stiffness": 10.0,
+            "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3, "phase": (0.37 * i) % 1} for i in range(n - 1)],
+            "friction": {"forward": 1.0, "backward": 2.5 + 1e-3 * n},
+            "simulation": {"steps_per_period": steps, "max_periods": periods, "integrator": integrator},
+        },
+        "memory.yaml",
+    )
 
 
 def peak_of(action):
@@ -56,10 +60,17 @@ def warm(tmp_path_factory):
     sweeps.sweep(crawler(3, 20, 2), ["period=1,2"])
 
 
-@pytest.mark.parametrize("n, steps, integrator", [
-    (2, 1000, "catch-up"), (4, 20000, "catch-up"), (50, 200, "catch-up"), (200, 20, "catch-up"),
-    (4, 2000, "exact"), (10, 200, "exact"),
-])
+@pytest.mark.parametrize(
+    "n, steps, integrator",
+    [
+        (2, 1000, "catch-up"),
+        (4, 20000, "catch-up"),
+        (50, 200, "catch-up"),
+        (200, 20, "catch-up"),
+        (4, 2000, "exact"),
+        (10, 200, "exact"),
+    ],
+)
 def test_estimate_bounds_the_measured_peak_of_a_run(n, steps, integrator, tmp_path):
     gait = crawler(n, steps, integrator=integrator)
     measured = peak_of(lambda: api.run(gait, output=tmp_path / "r.h5", save_every=3))
@@ -96,10 +107,18 @@ def test_estimate_grows_as_the_arrays_do():
     assert run_memory(10, 1001, batch=100).total > small.total
 
 
-@pytest.mark.parametrize("text, size", [
-    ("4GiB", 4 << 30), ("500MB", 500_000_000), ("2G", 2 << 30), ("1.5 MiB", 3 << 19),
-    ("1000000", 1_000_000), ("64k", 65536), ("3kb", 3000),
-])
+@pytest.mark.parametrize(
+    "text, size",
+    [
+        ("4GiB", 4 << 30),
+        ("500MB", 500_000_000),
+        ("2G", 2 << 30),
+        ("1.5 MiB", 3 << 19),
+        ("1000000", 1_000_000),
+        ("64k", 65536),
+        ("3kb", 3000),
+    ],
+)
 def test_parse_size(text, size):
     assert parse_size(text) == size
 
@@ -127,8 +146,7 @@ def test_default_limit_is_capped_and_follows_the_address_space_limit():
         resource.setrlimit(resource.RLIMIT_AS, (600 << 20, 600 << 20))
 
     code = "from crawlsim.integrate.resources import default_limit; print(default_limit())"
-    out = subprocess.run([sys.executable, "-c", code], preexec_fn=limit, capture_output=True,
-                         text=True, check=True)
+    out = subprocess.run([sys.executable, "-c", code], preexec_fn=limit, capture_output=True, text=True, check=True)
     assert 0 < int(out.stdout) <= 300 << 20  # half the headroom under 600 MB at most
 
 
@@ -136,20 +154,24 @@ def test_max_memory_option(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "g.yaml").write_text(
         "blocks: 3\nperiod: 1.0\nstiffness: 10.0\nlinks: [{kind: cosine, mean: 1.0, amplitude: 0.3}, 1.0]\n"
-        "friction: {forward: 1.0, backward: 2.5}\nsimulation: {steps_per_period: 100000}\n")
+        "friction: {forward: 1.0, backward: 2.5}\nsimulation: {steps_per_period: 100000}\n"
+    )
     runner = CliRunner()
-    for args in (["run", "g.yaml", "--max-memory", "10MB"], ["velocity", "g.yaml", "--max-memory", "10MB"],
-                 ["velocity", "g.yaml", "--sweep", "period=1,2", "--max-memory", "10MB"],
-                 ["velocity", "g.yaml", "--sweep", "simulation.steps_per_period=10,10000000",
-                  "--max-memory", "1GiB"]):
+    for args in (
+        ["run", "g.yaml", "--max-memory", "10MB"],
+        ["velocity", "g.yaml", "--max-memory", "10MB"],
+        ["velocity", "g.yaml", "--sweep", "period=1,2", "--max-memory", "10MB"],
+        ["velocity", "g.yaml", "--sweep", "simulation.steps_per_period=10,10000000", "--max-memory", "1GiB"],
+    ):
         result = runner.invoke(main, args)
         assert result.exit_code == 2, (args, result.output)
         assert "g.yaml: this" in result.output and "more than the memory limit" in result.output
     assert not (tmp_path / "g.h5").exists()
     result = runner.invoke(main, ["run", "g.yaml", "--max-memory", "lots"])
     assert result.exit_code == 2 and "expected a size such as 4GiB" in result.output
-    result = runner.invoke(main, ["velocity", "g.yaml", "--max-memory", "2GiB",
-                                  "--steps-per-period", "100", "--max-periods", "5"])
+    result = runner.invoke(
+        main, ["velocity", "g.yaml", "--max-memory", "2GiB", "--steps-per-period", "100", "--max-periods", "5"]
+    )
     assert result.exit_code in (0, 3), result.output
 
 
@@ -157,7 +179,8 @@ def test_max_memory_option(tmp_path, monkeypatch):
 @pytest.mark.parametrize("value", ["inf", "nan", "-inf", "1e999"])
 def test_float_options_refuse_non_finite_values(option, value, tmp_path):
     (tmp_path / "g.yaml").write_text(
-        "blocks: 2\nperiod: 1.0\nstiffness: 10.0\nlinks: [1.0]\nfriction: {forward: 1.0, backward: 2.0}\n")
+        "blocks: 2\nperiod: 1.0\nstiffness: 10.0\nlinks: [1.0]\nfriction: {forward: 1.0, backward: 2.0}\n"
+    )
     for command in ("run", "velocity"):
         result = CliRunner().invoke(main, [command, str(tmp_path / "g.yaml"), option, value])
         assert result.exit_code == 2, result.output
@@ -168,9 +191,14 @@ def test_float_options_refuse_non_finite_values(option, value, tmp_path):
 def fourier_gait(blocks, harmonics, integrator="exact"):
     """Every link a Fourier series of ``harmonics`` equal cosine terms (amplitude 0.3 in all)."""
     link = {"kind": "fourier", "mean": 1.0, "cos": [0.3 / harmonics] * harmonics}
-    return {"blocks": blocks, "period": 1.0, "stiffness": 10.0, "links": [link] * (blocks - 1),
-            "friction": {"forward": 1.0, "backward": 2.5},
-            "simulation": {"integrator": integrator}}
+    return {
+        "blocks": blocks,
+        "period": 1.0,
+        "stiffness": 10.0,
+        "links": [link] * (blocks - 1),
+        "friction": {"forward": 1.0, "backward": 2.5},
+        "simulation": {"integrator": integrator},
+    }
 
 
 def test_signal_work_grows_with_harmonics_and_blocks():
@@ -188,8 +216,7 @@ def test_signal_work_grows_with_harmonics_and_blocks():
 
 
 @pytest.mark.parametrize("blocks, integrator", [(2, "exact"), (2, "catch-up"), (40, "exact")])
-def test_a_gait_whose_signals_would_not_finish_is_refused_before_it_runs(tmp_path, monkeypatch,
-                                                                         blocks, integrator):
+def test_a_gait_whose_signals_would_not_finish_is_refused_before_it_runs(tmp_path, monkeypatch, blocks, integrator):
     """The issue's gaits: 2 blocks with a Fourier link of 1000 harmonics ran for over a minute
     with either integrator, 40 such blocks finished no period in 2 minutes. Both are refused by
     the estimate (exit 2, the signal's key, how to reduce the cost) before anything runs: the
@@ -211,9 +238,12 @@ def test_a_gait_whose_signals_would_not_finish_is_refused_before_it_runs(tmp_pat
     monkeypatch.setattr(api, "run", computed)
     monkeypatch.setattr(sweeps, "run_sweep", computed)
     monkeypatch.setattr(crawlsim.study.optimize, "optimize", computed)
-    for args in (["run", "f.yaml"], ["velocity", "f.yaml"],
-                 ["velocity", "f.yaml", "--sweep", "period=1,2", "-o", "s.csv"],
-                 ["optimize", "f.yaml", "--free", "period=1:2", "--max-evaluations", "2"]):
+    for args in (
+        ["run", "f.yaml"],
+        ["velocity", "f.yaml"],
+        ["velocity", "f.yaml", "--sweep", "period=1,2", "-o", "s.csv"],
+        ["optimize", "f.yaml", "--free", "period=1:2", "--max-evaluations", "2"],
+    ):
         result = CliRunner().invoke(main, args)
         assert result.exit_code == 2, result.output
         message = result.output.strip()
@@ -240,15 +270,32 @@ def test_a_journal_that_is_not_a_regular_file_is_refused(tmp_path):
     import os
 
     gait = tmp_path / "g.yaml"
-    gait.write_text("blocks: 2\nperiod: 1.0\nstiffness: 10.0\nlinks: [{kind: cosine, mean: 1.0, "
-                    "amplitude: 0.3}]\nfriction: {forward: 1.0, backward: 2.5}\n")
+    gait.write_text(
+        "blocks: 2\nperiod: 1.0\nstiffness: 10.0\nlinks: [{kind: cosine, mean: 1.0, "
+        "amplitude: 0.3}]\nfriction: {forward: 1.0, backward: 2.5}\n"
+    )
     os.mkfifo(tmp_path / "s.csv.journal")
-    done = subprocess.run([sys.executable, "-m", "crawlsim", "velocity", str(gait), "--sweep",
-                           "period=1,2", "-o", str(tmp_path / "s.csv")],
-                          capture_output=True, text=True, timeout=120)
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "crawlsim",
+            "velocity",
+            str(gait),
+            "--sweep",
+            "period=1,2",
+            "-o",
+            str(tmp_path / "s.csv"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert done.returncode == 2, done.stderr
     assert "Traceback" not in done.stderr
-    assert done.stderr.strip() == (f"Error: {tmp_path / 's.csv.journal'}: is a FIFO (named pipe), "
-                                   "not a regular file: the journal of a sweep must be a regular "
-                                   "file; remove it, or choose another output name")
+    assert done.stderr.strip() == (
+        f"Error: {tmp_path / 's.csv.journal'}: is a FIFO (named pipe), "
+        "not a regular file: the journal of a sweep must be a regular "
+        "file; remove it, or choose another output name"
+    )
     assert sorted(p.name for p in tmp_path.iterdir()) == ["g.yaml", "s.csv.journal"]

@@ -49,8 +49,10 @@ def test_repr_is_the_summary_in_at_most_25_lines(p4):
     assert abs(shown - p4.v0) <= error  # the digits printed are those the estimate supports
     assert "array(" not in text and "[[" not in text  # no arrays
     assert "  status                   successful" in lines
-    assert f"  trajectory               {len(p4.trajectory.t)} saved points (t, w, x, stress, " \
-           f"shape), {len(p4.trajectory.events['t'])} events" in lines
+    assert (
+        f"  trajectory               {len(p4.trajectory.t)} saved points (t, w, x, stress, "
+        f"shape), {len(p4.trajectory.events['t'])} events" in lines
+    )
 
 
 def test_repr_html_is_a_table_of_the_summary(p4):
@@ -62,8 +64,7 @@ def test_repr_html_is_a_table_of_the_summary(p4):
     assert abs(float(shown) - p4.v0) <= float(error)
     assert rows["convergence"] == "finite-time: periodic from period 1"
     summary = p4.summary()
-    assert float(html.unescape(rows["cost of transport bound"]).split()[0]) == \
-        summary["cost_of_transport_bound"]
+    assert float(html.unescape(rows["cost of transport bound"]).split()[0]) == summary["cost_of_transport_bound"]
 
 
 # -- status and message --------------------------------------------------------------------------
@@ -99,8 +100,7 @@ def test_the_rate_of_the_triangle_is_one_eighth_with_a_tiny_error(triangle):
     assert 0 < triangle.contraction_rate_error < 1e-6
     assert abs(triangle.contraction_rate - 0.125) <= 10 * triangle.contraction_rate_error + 1e-9
     line = next(x for x in repr(triangle).splitlines() if "convergence" in x)
-    assert f"fitted on {RATE_WINDOW} periods" in line and "contraction rate 0.125 per period" \
-        in line
+    assert f"fitted on {RATE_WINDOW} periods" in line and "contraction rate 0.125 per period" in line
 
 
 def test_the_rate_error_is_the_standard_error_of_the_fitted_slope():
@@ -109,7 +109,7 @@ def test_the_rate_error_is_the_standard_error_of_the_fitted_slope():
     weighted by the slope's coefficients)."""
     rng = np.random.default_rng(7)
     q = np.arange(12)
-    steps = 0.3 * 0.6 ** q * np.exp(0.05 * rng.standard_normal(q.size))
+    steps = 0.3 * 0.6**q * np.exp(0.05 * rng.standard_normal(q.size))
     fit = fit_contraction_rate(steps)
     chosen = q[-RATE_WINDOW:]
     reference = stats.linregress(chosen, np.log(steps[chosen]))
@@ -128,22 +128,27 @@ def test_catch_up_is_measured_against_the_exact_verdict():
     result = crawlsim.simulate(P4, integrator="catch-up", steps_per_period=100)
     assert result.exact_convergence == Convergence.FINITE_TIME  # the exact run's own verdict
     assert result.convergence == Convergence.FINITE_TIME and result.grid_note is None
-    disagree = dataclasses.replace(result, convergence=Convergence.ASYMPTOTIC,
-                                   contraction_rate=0.0013, contraction_rate_error=1e-4,
-                                   periodic_from=None)
+    disagree = dataclasses.replace(
+        result,
+        convergence=Convergence.ASYMPTOTIC,
+        contraction_rate=0.0013,
+        contraction_rate_error=1e-4,
+        periodic_from=None,
+    )
     note = grid_note(disagree)
-    assert note == ("catch-up's verdict depends on the time grid (100 steps per period); the "
-                    "exact integrator finds finite-time")
+    assert note == (
+        "catch-up's verdict depends on the time grid (100 steps per period); the exact integrator finds finite-time"
+    )
     shown = dataclasses.replace(disagree, grid_note=note)
     assert f"  grid                     {note}" in repr(shown)
 
 
 def test_grid_note_compares_the_rates_of_two_asymptotic_verdicts(triangle):
-    catch_up = dataclasses.replace(triangle, integrator="catch-up",
-                                   exact_convergence=Convergence.ASYMPTOTIC, exact_rate=0.125)
+    catch_up = dataclasses.replace(
+        triangle, integrator="catch-up", exact_convergence=Convergence.ASYMPTOTIC, exact_rate=0.125
+    )
     assert grid_note(catch_up) is None  # the same rate (the Jacobian's, 0.125)
-    slower = dataclasses.replace(catch_up, jacobian_rate=None, contraction_rate=0.097,
-                                 contraction_rate_error=1e-3)
+    slower = dataclasses.replace(catch_up, jacobian_rate=None, contraction_rate=0.097, contraction_rate_error=1e-3)
     assert grid_note(slower).endswith("the exact integrator finds asymptotic, rate 0.12")
     exact = dataclasses.replace(slower, integrator="exact")
     assert grid_note(exact) is None  # the exact integrator's verdict is the process's
@@ -169,8 +174,7 @@ def _assert_same_result(mine, read):
     assert read.summary() == mine.summary()
     assert read.status == mine.status and read.convergence == mine.convergence
     for f in dataclasses.fields(mine.history):
-        np.testing.assert_array_equal(getattr(read.history, f.name),
-                                      getattr(mine.history, f.name), err_msg=f.name)
+        np.testing.assert_array_equal(getattr(read.history, f.name), getattr(mine.history, f.name), err_msg=f.name)
     for f in dataclasses.fields(mine.limit):
         a, b = getattr(mine.limit, f.name), getattr(read.limit, f.name)
         assert (a is None) == (b is None), f.name
@@ -196,7 +200,8 @@ def _assert_same_result(mine, read):
 @pytest.mark.parametrize("which", ["p4", "triangle", "catch-up"])
 def test_open_run_gives_back_the_result_simulate_returned(which, p4, triangle, tmp_path):
     mine = {"p4": p4, "triangle": triangle}.get(which) or crawlsim.simulate(
-        SMOOTH, integrator="catch-up", steps_per_period=50)
+        SMOOTH, integrator="catch-up", steps_per_period=50
+    )
     path = mine.save(tmp_path / "run.h5")
     read = open_run(path)
     _assert_same_result(mine, read)
@@ -217,13 +222,13 @@ def test_open_sweep_gives_back_the_dataset_sweep_returned(tmp_path):
     xr = pytest.importorskip("xarray")
 
     out = tmp_path / "sweep.h5"
-    grid = crawlsim.sweep(P4, {"links.*.amplitude": [0.2, 0.3]}, steps_per_period=100,
-                          output=out)
+    grid = crawlsim.sweep(P4, {"links.*.amplitude": [0.2, 0.3]}, steps_per_period=100, output=out)
     read = open_sweep(out)
     xr.testing.assert_identical(read.drop_attrs(), grid.drop_attrs())
     skip = {"created"}
-    assert {k: v for k, v in read.attrs.items() if k not in skip} == \
-        {k: v for k, v in grid.attrs.items() if k not in skip}
+    assert {k: v for k, v in read.attrs.items() if k not in skip} == {
+        k: v for k, v in grid.attrs.items() if k not in skip
+    }
     np.testing.assert_array_equal(read.v0.values, grid.v0.values)
     with pytest.raises(ResultsFileError, match="not a crawlsim sweep file"):
         open_sweep(crawlsim.simulate(P4, steps_per_period=50).save(tmp_path / "run.h5"))
@@ -239,8 +244,10 @@ def test_info_prints_the_rate_with_its_evidence(triangle, tmp_path):
     assert r.exit_code == 0, r.output
     line = next(x for x in r.output.splitlines() if x.startswith("  convergence"))
     error = f"{triangle.contraction_rate_error:.1g}"
-    assert line == ("  convergence              asymptotic, contraction rate 0.125 per period "
-                    f"(± {error}, fitted on {RATE_WINDOW} periods)")
+    assert line == (
+        "  convergence              asymptotic, contraction rate 0.125 per period "
+        f"(± {error}, fitted on {RATE_WINDOW} periods)"
+    )
 
 
 def test_the_exact_verdict_is_claimed_only_where_the_reference_run_shows_it(p4, triangle):

@@ -69,8 +69,9 @@ def _collect(schema, keys, strings, numbers):
                 strings.update(v for v in value if isinstance(v, str))
             if key == "const" and isinstance(value, str):
                 strings.add(value)
-            if key in ("minimum", "maximum", "exclusiveMinimum", "minItems", "maxItems",
-                       "minLength") and isinstance(value, (int, float)):
+            if key in ("minimum", "maximum", "exclusiveMinimum", "minItems", "maxItems", "minLength") and isinstance(
+                value, (int, float)
+            ):
                 numbers.update({value, value - 1, value + 1, float(value)})
             _collect(value, keys, strings, numbers)
     elif isinstance(schema, list):
@@ -87,21 +88,22 @@ BOUNDARY_NUMBERS = sorted(n for n in NUMBERS if abs(n) < 1e300)
 
 # Whitespace is where regular-expression dialects differ (`\S` in the units' pattern): \x1c to
 # \x1f are whitespace to Python's re but not to Unicode's White_Space property.
-_text = st.text(alphabet=st.sampled_from(list("ab mN\t\n\x1c\x1f\u00a0\u2003\u180e")),
-                max_size=4)
+_text = st.text(alphabet=st.sampled_from(list("ab mN\t\n\x1c\x1f\u00a0\u2003\u180e")), max_size=4)
 _leaves = st.one_of(
-    st.none(), st.booleans(),
+    st.none(),
+    st.booleans(),
     st.integers(min_value=-(2**70), max_value=2**70),
     st.floats(allow_nan=True, allow_infinity=True),
     st.sampled_from(BOUNDARY_NUMBERS),
-    st.sampled_from(sorted(STRINGS)), _text,
+    st.sampled_from(sorted(STRINGS)),
+    _text,
 )
 _values = st.recursive(
     _leaves,
     lambda inner: st.one_of(
         st.lists(inner, max_size=4),
-        st.dictionaries(st.one_of(st.sampled_from(sorted(KEYS)), _text, st.integers(0, 2)),
-                        inner, max_size=5)),
+        st.dictionaries(st.one_of(st.sampled_from(sorted(KEYS)), _text, st.integers(0, 2)), inner, max_size=5),
+    ),
     max_leaves=12,
 )
 
@@ -116,17 +118,20 @@ def test_every_schema_of_the_project_compiles():
         compile_schema(schema)
 
 
-@pytest.mark.parametrize("schema", [
-    {"anyOf": [{"type": "number"}]},
-    {"patternProperties": {"a": True}},
-    {"type": "object", "properties": {"a": {"oneOf": [True]}}},
-    {"enum": [1, 2]},          # non-string constants compare with jsonschema's bool-aware ==
-    {"const": 0},
-    {"type": "decimal"},
-    {"minimum": "0"},
-    {"items": [{"type": "number"}]},
-    "not a schema",
-])
+@pytest.mark.parametrize(
+    "schema",
+    [
+        {"anyOf": [{"type": "number"}]},
+        {"patternProperties": {"a": True}},
+        {"type": "object", "properties": {"a": {"oneOf": [True]}}},
+        {"enum": [1, 2]},  # non-string constants compare with jsonschema's bool-aware ==
+        {"const": 0},
+        {"type": "decimal"},
+        {"minimum": "0"},
+        {"items": [{"type": "number"}]},
+        "not a schema",
+    ],
+)
 def test_what_is_not_implemented_is_refused_at_compile_time(schema):
     """A keyword the compiled check would otherwise ignore must not make it more lenient."""
     with pytest.raises(UnsupportedSchema):
@@ -188,8 +193,11 @@ def test_agrees_on_the_repository_gaits_and_their_broken_variants(name, document
     kind = document.get("kind", "crawler")
     if kind not in ("crawler", "sweeping-process"):
         return
-    schemas = ([gait_module.CRAWLER_SCHEMA, SCHEMAS["crawler structure"]] if kind == "crawler"
-               else [gait_module.PROCESS_SCHEMA, SCHEMAS["process structure"]])
+    schemas = (
+        [gait_module.CRAWLER_SCHEMA, SCHEMAS["crawler structure"]]
+        if kind == "crawler"
+        else [gait_module.PROCESS_SCHEMA, SCHEMAS["process structure"]]
+    )
     checks = [(schema, compile_schema(schema)) for schema in schemas]
     validators = [jsonschema.Draft202012Validator(schema) for schema in schemas]
     compared = 0
@@ -215,24 +223,56 @@ def test_agrees_with_jsonschema_on_random_values(index, instance):
     assert compile_schema(schema)(instance) == reference(schema, instance)
 
 
-@given(instance=st.fixed_dictionaries(
-    {"blocks": st.sampled_from([1, 2, 3.0, 2.5, True, 100_001]),
-     "period": st.sampled_from([1, 1e-10, 0, 1e9, 2e9, "1"]),
-     "stiffness": st.sampled_from([10, [10, 20], [0], [], -1, [True]]),
-     "links": st.lists(st.sampled_from([1.0, {"kind": "cosine", "mean": 1, "amplitude": 0.2},
-                                        {"kind": "cosine", "mean": 1}, {"kind": "sine"},
-                                        {"kind": "steps", "times": [0], "values": [1]},
-                                        "x"]), max_size=3),
-     "friction": st.sampled_from([{"forward": 1, "backward": 2}, {"forward": 1},
-                                  [{"forward": 1, "backward": 2}], {"forward": 1, "backwrd": 2},
-                                  {"forward": {"kind": "cosine", "mean": 1, "amplitude": 0.5},
-                                   "backward": 1}])},
-    optional={"simulation": st.dictionaries(
-        st.sampled_from(["steps_per_period", "max_periods", "tolerance", "integrator", "limit",
-                         "unchecked_uniqueness", "step"]),
-        st.sampled_from([1, 0, 1e-12, "exact", "catch-up", "newton", "euler", True, 2.0])),
-        "units": st.dictionaries(st.sampled_from(["length", "time", "force", "mass"]),
-                                 st.sampled_from(["mm", "", " ", "\x1c", 3]))}))
+@given(
+    instance=st.fixed_dictionaries(
+        {
+            "blocks": st.sampled_from([1, 2, 3.0, 2.5, True, 100_001]),
+            "period": st.sampled_from([1, 1e-10, 0, 1e9, 2e9, "1"]),
+            "stiffness": st.sampled_from([10, [10, 20], [0], [], -1, [True]]),
+            "links": st.lists(
+                st.sampled_from(
+                    [
+                        1.0,
+                        {"kind": "cosine", "mean": 1, "amplitude": 0.2},
+                        {"kind": "cosine", "mean": 1},
+                        {"kind": "sine"},
+                        {"kind": "steps", "times": [0], "values": [1]},
+                        "x",
+                    ]
+                ),
+                max_size=3,
+            ),
+            "friction": st.sampled_from(
+                [
+                    {"forward": 1, "backward": 2},
+                    {"forward": 1},
+                    [{"forward": 1, "backward": 2}],
+                    {"forward": 1, "backwrd": 2},
+                    {"forward": {"kind": "cosine", "mean": 1, "amplitude": 0.5}, "backward": 1},
+                ]
+            ),
+        },
+        optional={
+            "simulation": st.dictionaries(
+                st.sampled_from(
+                    [
+                        "steps_per_period",
+                        "max_periods",
+                        "tolerance",
+                        "integrator",
+                        "limit",
+                        "unchecked_uniqueness",
+                        "step",
+                    ]
+                ),
+                st.sampled_from([1, 0, 1e-12, "exact", "catch-up", "newton", "euler", True, 2.0]),
+            ),
+            "units": st.dictionaries(
+                st.sampled_from(["length", "time", "force", "mass"]), st.sampled_from(["mm", "", " ", "\x1c", 3])
+            ),
+        },
+    )
+)
 def test_agrees_on_near_valid_crawler_documents(instance):
     for schema in (gait_module.CRAWLER_SCHEMA, SCHEMAS["crawler structure"]):
         assert compile_schema(schema)(instance) == reference(schema, instance)
@@ -244,11 +284,12 @@ def test_a_valid_gait_is_accepted_without_importing_jsonschema():
     import subprocess
     import sys
 
-    code = ("import sys; from crawlsim.gait.document import load_gait; "
-            f"load_gait({str(GAITS / 'peristalsis-4.yaml')!r}); "
-            "print('jsonschema' in sys.modules)")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         check=True)
+    code = (
+        "import sys; from crawlsim.gait.document import load_gait; "
+        f"load_gait({str(GAITS / 'peristalsis-4.yaml')!r}); "
+        "print('jsonschema' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
 
 

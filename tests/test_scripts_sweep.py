@@ -29,8 +29,12 @@ def test_v0_folder(tmp_path):
     (folder / "broken.yaml").write_text("blocks: 1\n")
     (folder / "triangle.yaml").write_text((ROOT / "gaits" / "paper" / "triangle.yaml").read_text())
     out = tmp_path / "v0.csv"
-    done = subprocess.run(["bash", SCRIPTS / "v0-folder.sh", folder, out, "--steps-per-period",
-                           "80"], check=True, capture_output=True, text=True)
+    done = subprocess.run(
+        ["bash", SCRIPTS / "v0-folder.sh", folder, out, "--steps-per-period", "80"],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
     rows = list(csv.DictReader(out.open()))
     assert [r["gait"] for r in rows] == ["broken", "inching-2", "peristalsis-3", "triangle"]
     assert rows[0]["status"] == "failed" and rows[0]["v0"] == ""
@@ -40,8 +44,7 @@ def test_v0_folder(tmp_path):
     for row in rows[1:3]:
         assert row["status"] == "ok"
         # the script runs `crawlsim velocity` on this machine: the same printed digits
-        assert float(row["v0"]) == _v0(folder / f"{row['gait']}.yaml",
-                                       "--steps-per-period", "80")
+        assert float(row["v0"]) == _v0(folder / f"{row['gait']}.yaml", "--steps-per-period", "80")
     assert float(rows[1]["v0"]) == pytest.approx(0.4, abs=1e-12)  # inching closed form
 
 
@@ -49,8 +52,11 @@ def test_phase_lag_sweep(tmp_path):
     """Signals are periodic in cycles, so a lag of a whole period is the gait with lag 0: v0
     agrees at both ends of the sweep to roundoff. The table has the requested points and the
     plot is written."""
-    subprocess.run(["bash", SCRIPTS / "phase-lag-sweep.sh", tmp_path / "lag", "5",
-                    "--steps-per-period", "60"], check=True, capture_output=True)
+    subprocess.run(
+        ["bash", SCRIPTS / "phase-lag-sweep.sh", tmp_path / "lag", "5", "--steps-per-period", "60"],
+        check=True,
+        capture_output=True,
+    )
     rows = list(csv.DictReader((tmp_path / "lag" / "phase-lag.csv").open()))
     assert [float(r["links.1.phase"]) for r in rows] == [0.0, 0.25, 0.5, 0.75, 1.0]
     assert all(r["status"] == "ok" for r in rows)

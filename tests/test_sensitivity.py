@@ -40,30 +40,39 @@ from crawlsim.gait.document import gait_from_document
 
 
 def _two_block(a=0.3, k=10.0, mu1=1.0, mu2=1.0, T=1.0, integrator="exact"):
-    doc = {"name": "two-block", "blocks": 2, "period": T, "stiffness": k,
-           "links": [{"kind": "cosine", "mean": 1.0, "amplitude": a}],
-           "friction": [{"forward": mu1, "backward": 5.0}, {"forward": mu2, "backward": 5.0}],
-           "simulation": {"steps_per_period": 200, "max_periods": 50, "tolerance": 1e-12,
-                          "integrator": integrator}}
+    doc = {
+        "name": "two-block",
+        "blocks": 2,
+        "period": T,
+        "stiffness": k,
+        "links": [{"kind": "cosine", "mean": 1.0, "amplitude": a}],
+        "friction": [{"forward": mu1, "backward": 5.0}, {"forward": mu2, "backward": 5.0}],
+        "simulation": {"steps_per_period": 200, "max_periods": 50, "tolerance": 1e-12, "integrator": integrator},
+    }
     return gait_from_document(doc, "two-block")
 
 
-@pytest.mark.parametrize("a,k,mu1,mu2,T", [(0.3, 10.0, 1.0, 1.0, 1.0),
-                                           (0.25, 17.0, 0.7, 1.3, 2.5),
-                                           (0.4, 6.0, 1.1, 0.6, 0.8)])
+@pytest.mark.parametrize(
+    "a,k,mu1,mu2,T", [(0.3, 10.0, 1.0, 1.0, 1.0), (0.25, 17.0, 0.7, 1.3, 2.5), (0.4, 6.0, 1.1, 0.6, 0.8)]
+)
 @pytest.mark.parametrize("integrator", ["exact", "catch-up"])
 def test_two_block_closed_forms(a, k, mu1, mu2, T, integrator):
     """Both integrators meet the closed forms: the grid holds L's extremes, so catch-up's own
     discrete map has the exact derivatives too (and says it is catch-up's)."""
-    r = sensitivity(_two_block(a, k, mu1, mu2, T, integrator),
-                    ["links.0.amplitude", "stiffness", "friction.0.forward",
-                     "friction.1.forward", "period"])
+    r = sensitivity(
+        _two_block(a, k, mu1, mu2, T, integrator),
+        ["links.0.amplitude", "stiffness", "friction.0.forward", "friction.1.forward", "period"],
+    )
     mus = mu1 + mu2
     d = 2 * a - mus / k
     assert r.displacement_per_period == pytest.approx(d, abs=1e-12)
-    expected_v0 = {"links.0.amplitude": 2 / T, "stiffness": mus / (k * k * T),
-                   "friction.0.forward": -1 / (k * T), "friction.1.forward": -1 / (k * T),
-                   "period": -d / T / T}
+    expected_v0 = {
+        "links.0.amplitude": 2 / T,
+        "stiffness": mus / (k * k * T),
+        "friction.0.forward": -1 / (k * T),
+        "friction.1.forward": -1 / (k * T),
+        "period": -d / T / T,
+    }
     for path, value in expected_v0.items():
         p = r[path]
         assert p.smooth, (path, p.reason)
@@ -72,8 +81,7 @@ def test_two_block_closed_forms(a, k, mu1, mu2, T, integrator):
         assert p.v0.value == pytest.approx(value, abs=1e-8), path
         assert p.v0.error_estimate is not None and p.v0.error_estimate < 1e-10
     assert r["links.0.amplitude"].dissipation_per_period.value == pytest.approx(2 * mus, abs=1e-8)
-    assert r["friction.0.forward"].dissipation_per_period.value == pytest.approx(
-        d - mus / k, abs=1e-8)
+    assert r["friction.0.forward"].dissipation_per_period.value == pytest.approx(d - mus / k, abs=1e-8)
     assert r["friction.0.forward"].cost_of_transport.value == pytest.approx(1.0, abs=1e-8)
     assert r["links.0.amplitude"].cost_of_transport.value == pytest.approx(0.0, abs=1e-8)
     assert r["stiffness"].cost_of_transport.value == pytest.approx(0.0, abs=1e-8)
@@ -87,15 +95,22 @@ def test_rate_independence_multi_block():
     assert r["period"].v0.value == pytest.approx(-r.v0 / gait.period, rel=1e-14)
     # and the finite difference of crawlsim's own v0 agrees (central, h and h/2)
     T = gait.period
-    fd = [(_limit(gait.replace("period", T + h)).v0 - _limit(gait.replace("period", T - h)).v0)
-          / (2 * h) for h in (1e-3, 5e-4)]
+    fd = [
+        (_limit(gait.replace("period", T + h)).v0 - _limit(gait.replace("period", T - h)).v0) / (2 * h)
+        for h in (1e-3, 5e-4)
+    ]
     assert abs(fd[1] - r["period"].v0.value) <= 2 * abs(fd[0] - fd[1]) + 1e-10
 
 
 def test_common_phase_shift_is_invariant():
     gait = crawlsim.load_gait("gaits/smooth-friction-3.yaml")
-    phases = ["links.*.phase", "friction.0.forward.phase", "friction.0.backward.phase",
-              "friction.1.forward.phase", "friction.1.backward.phase"]
+    phases = [
+        "links.*.phase",
+        "friction.0.forward.phase",
+        "friction.0.backward.phase",
+        "friction.1.forward.phase",
+        "friction.1.backward.phase",
+    ]
     r = sensitivity(gait, phases)
     assert len(r.parameters) == 6
     assert all(p.smooth and p.method == "exact" for p in r.parameters)
@@ -140,8 +155,7 @@ def _candidates(gait):
         kind = _kind_of(gait.document, keys)
         if kind[0] in ("piecewise-linear", "steps") and kind[1] == "phase":
             continue  # moves the breakpoints: reported unsupported (test below)
-        if kind == ("piecewise-linear", "values") and keys[-1] in (0, len(
-                _node(gait.document, keys[:-1])) - 1):
+        if kind == ("piecewise-linear", "values") and keys[-1] in (0, len(_node(gait.document, keys[:-1])) - 1):
             continue  # values[0] = values[-1]: moving one alone is refused
         out.setdefault(kind, []).append(".".join(map(str, keys)))
     return out
@@ -155,8 +169,11 @@ def _node(doc, keys):
 
 def _central(gait, path, value, h):
     plus, minus = _limit(gait.replace(path, value + h)), _limit(gait.replace(path, value - h))
-    return ((plus.v0 - minus.v0) / (2 * h), (plus.dissipation - minus.dissipation) / (2 * h),
-            (plus.v0_error + minus.v0_error) / (2 * h))
+    return (
+        (plus.v0 - minus.v0) / (2 * h),
+        (plus.dissipation - minus.dissipation) / (2 * h),
+        (plus.v0_error + minus.v0_error) / (2 * h),
+    )
 
 
 def test_random_gaits_against_finite_differences():
@@ -188,27 +205,39 @@ def test_random_gaits_against_finite_differences():
             d2, D2, e2 = _central(gait, path, p.value, 5e-5 * scale)
             tol = 2 * abs(d1 - d2) + 4 * e2 + p.v0.error_estimate + 1e-13
             assert abs(p.v0.value - d2) <= tol, (gait.name, path, p.v0, d1, d2)
-            tolD = 2 * abs(D1 - D2) + 4 * e2 * max(r.dissipation_per_period, 1.0) / max(
-                abs(r.v0), 1e-3) + p.dissipation_per_period.error_estimate + 1e-12
-            assert abs(p.dissipation_per_period.value - D2) <= max(tolD, 1e-7 * abs(D2)), \
-                (gait.name, path, p.dissipation_per_period, D1, D2)
+            tolD = (
+                2 * abs(D1 - D2)
+                + 4 * e2 * max(r.dissipation_per_period, 1.0) / max(abs(r.v0), 1e-3)
+                + p.dissipation_per_period.error_estimate
+                + 1e-12
+            )
+            assert abs(p.dissipation_per_period.value - D2) <= max(tolD, 1e-7 * abs(D2)), (
+                gait.name,
+                path,
+                p.dissipation_per_period,
+                D1,
+                D2,
+            )
             covered.add(kd)
             checked = True
         checked_gaits += checked
     signal_kinds = {kd[0] for kd in covered}
     assert {"constant", "cosine", "fourier", "piecewise-linear", "steps"} <= signal_kinds
     param_kinds = {kd[1] for kd in covered}
-    assert {"mean", "amplitude", "phase", "cos", "sin", "values", "stiffness", "friction"} \
-        <= param_kinds, param_kinds
+    assert {"mean", "amplitude", "phase", "cos", "sin", "values", "stiffness", "friction"} <= param_kinds, param_kinds
 
 
 def test_breakpoint_parameters_are_reported_unsupported():
-    doc = {"name": "steps", "blocks": 2, "period": 1.0, "stiffness": 10.0,
-           "links": [{"kind": "steps", "times": [0.0, 0.5], "values": [0.8, 1.2]}],
-           "friction": {"forward": 1.0, "backward": 2.0},
-           "simulation": {"steps_per_period": 100, "max_periods": 50, "tolerance": 1e-12}}
-    r = sensitivity(gait_from_document(doc, "steps"), ["links.0.times.1", "links.0.phase",
-                                                        "links.0.values.1"])
+    doc = {
+        "name": "steps",
+        "blocks": 2,
+        "period": 1.0,
+        "stiffness": 10.0,
+        "links": [{"kind": "steps", "times": [0.0, 0.5], "values": [0.8, 1.2]}],
+        "friction": {"forward": 1.0, "backward": 2.0},
+        "simulation": {"steps_per_period": 100, "max_periods": 50, "tolerance": 1e-12},
+    }
+    r = sensitivity(gait_from_document(doc, "steps"), ["links.0.times.1", "links.0.phase", "links.0.values.1"])
     for path in ("links.0.times.1", "links.0.phase"):
         assert r[path].method == "unsupported"
         assert "breakpoints" in (r[path].reason or "")
@@ -219,14 +248,21 @@ def test_breakpoint_parameters_are_reported_unsupported():
     assert p.smooth and p.v0.value == pytest.approx(1.0, abs=1e-8)
     assert r.displacement_per_period == pytest.approx(0.4 - 0.2, abs=1e-12)
 
+
 #: Two blocks whose friction sums touch 0 at u = 1/2 without changing sign: on the boundary of
 #: the uniqueness condition (test_uniqueness_boundary_is_one_sided, test_piece_derivative_at_a_kink_is_one_side).
-BOUNDARY = {"name": "boundary", "blocks": 2, "period": 1.0, "stiffness": 10.0,
-            "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3}],
-            "friction": [{"forward": {"kind": "cosine", "mean": 2.0, "amplitude": 1.0},
-                          "backward": 3.0},
-                         {"forward": 1.0, "backward": 1.0}],
-            "simulation": {"steps_per_period": 200, "max_periods": 50, "tolerance": 1e-12}}
+BOUNDARY = {
+    "name": "boundary",
+    "blocks": 2,
+    "period": 1.0,
+    "stiffness": 10.0,
+    "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3}],
+    "friction": [
+        {"forward": {"kind": "cosine", "mean": 2.0, "amplitude": 1.0}, "backward": 3.0},
+        {"forward": 1.0, "backward": 1.0},
+    ],
+    "simulation": {"steps_per_period": 200, "max_periods": 50, "tolerance": 1e-12},
+}
 
 
 def test_uniqueness_boundary_is_one_sided():
@@ -244,8 +280,7 @@ def test_uniqueness_boundary_is_one_sided():
         assert p.left is not None and p.right is not None
         assert p.left.value is not None and p.right.value is not None
         # the two sides differ by far more than their errors: a kink, not a smooth point
-        assert abs(p.left.value - p.right.value) > 10 * (p.left.error_estimate
-                                                         + p.right.error_estimate)
+        assert abs(p.left.value - p.right.value) > 10 * (p.left.error_estimate + p.right.error_estimate)
     # the right derivative of mu_2^- is that of crawlsim's own v0 from above
     h = 1e-4
     above = (_limit(gait.replace("friction.1.backward", 1.0 + h)).v0 - r.v0) / h
@@ -304,8 +339,7 @@ def test_cli_json_and_star_paths():
         assert entry["smooth"] is True
         assert entry["error_estimate"] < 1e-10
     # a common phase shift of the three links (the friction is constant): gradient sum 0
-    assert abs(sum(e["value"] for e in sens.values())) <= sum(
-        e["error_estimate"] for e in sens.values())
+    assert abs(sum(e["value"] for e in sens.values())) <= sum(e["error_estimate"] for e in sens.values())
 
 
 def test_cli_not_smooth_prints_both_sides(tmp_path):
@@ -313,7 +347,8 @@ def test_cli_not_smooth_prints_both_sides(tmp_path):
     import textwrap
 
     gait = tmp_path / "boundary.yaml"
-    gait.write_text(textwrap.dedent("""\
+    gait.write_text(
+        textwrap.dedent("""\
         name: boundary
         blocks: 2
         period: 1.0
@@ -323,7 +358,8 @@ def test_cli_not_smooth_prints_both_sides(tmp_path):
           - {forward: {kind: cosine, mean: 2.0, amplitude: 1.0}, backward: 3.0}
           - {forward: 1.0, backward: 1.0}
         simulation: {steps_per_period: 200, max_periods: 50, tolerance: 1.0e-12}
-        """))
+        """)
+    )
     res = _cli(str(gait), "--sensitivity", "friction.1.backward")
     assert res.exit_code == 0, res.output
     assert "not smooth (the friction is on the boundary of the uniqueness" in res.output
@@ -338,8 +374,7 @@ def test_cli_bad_input():
     res = _cli("gaits/inching-2.yaml", "--sensitivity", "links.3.amplitude")
     assert res.exit_code == 2
     assert "links.3.amplitude" in res.output and "out of range" in res.output
-    res = _cli("gaits/inching-2.yaml", "--sensitivity", "links.3.amplitude", "--sweep",
-               "period=1:2:2")
+    res = _cli("gaits/inching-2.yaml", "--sensitivity", "links.3.amplitude", "--sweep", "period=1:2:2")
     assert res.exit_code == 2
     assert "links.3.amplitude" in res.output and "out of range" in res.output
     res = _cli("gaits/inching-2.yaml", "--sensitivity", "links")
@@ -364,8 +399,7 @@ def test_piece_derivative_at_a_kink_is_one_side():
     """At a kink the derivative on the limit period's own pieces is one of the one-sided
     derivatives (the uniqueness-boundary gait of the test above)."""
     doc = BOUNDARY
-    p = sensitivity(gait_from_document(doc, "boundary"), ["friction.1.backward"])[
-        "friction.1.backward"]
+    p = sensitivity(gait_from_document(doc, "boundary"), ["friction.1.backward"])["friction.1.backward"]
     assert not p.smooth and p.left is not None and p.right is not None
     assert p.v0_on_pieces is not None
     assert min(abs(p.v0_on_pieces - p.left.value), abs(p.v0_on_pieces - p.right.value)) <= 1e-6
@@ -379,29 +413,60 @@ def test_cli_optimize_gradient(tmp_path):
     from crawlsim.cli import main
 
     best = tmp_path / "best.yaml"
-    res = CliRunner().invoke(main, ["optimize", "gaits/peristalsis-4.yaml", "--free",
-                                    "links.1.phase=0:1", "--free", "links.2.phase=0:1",
-                                    "--method", "gradient", "--steps-per-period", "20",
-                                    "--json", "--write-best", str(best), "-q",
-                                    "-o", str(tmp_path / "gradient.h5")])
+    res = CliRunner().invoke(
+        main,
+        [
+            "optimize",
+            "gaits/peristalsis-4.yaml",
+            "--free",
+            "links.1.phase=0:1",
+            "--free",
+            "links.2.phase=0:1",
+            "--method",
+            "gradient",
+            "--steps-per-period",
+            "20",
+            "--json",
+            "--write-best",
+            str(best),
+            "-q",
+            "-o",
+            str(tmp_path / "gradient.h5"),
+        ],
+    )
     assert res.exit_code == 0, res.output
     out = json.loads(res.output)
     assert out["v0"] == pytest.approx(7 / 15, abs=1e-6)
     assert out["evaluations"] <= 72
     # the best gait file reproduces its v0
-    assert crawlsim.api.run(crawlsim.load_gait(best), history=False).v0 == pytest.approx(
-        out["v0"], abs=1e-12)
+    assert crawlsim.api.run(crawlsim.load_gait(best), history=False).v0 == pytest.approx(out["v0"], abs=1e-12)
     # the gradient search runs a Pareto front too (tests/test_optimize.py checks it)
-    res = CliRunner().invoke(main, ["optimize", "gaits/peristalsis-4.yaml", "--free",
-                                    "links.1.phase=0:1", "--method", "gradient", "--pareto",
-                                    "--front-points", "1", "--steps-per-period", "20", "-q",
-                                    "-o", str(tmp_path / "front.h5")])
+    res = CliRunner().invoke(
+        main,
+        [
+            "optimize",
+            "gaits/peristalsis-4.yaml",
+            "--free",
+            "links.1.phase=0:1",
+            "--method",
+            "gradient",
+            "--pareto",
+            "--front-points",
+            "1",
+            "--steps-per-period",
+            "20",
+            "-q",
+            "-o",
+            str(tmp_path / "front.h5"),
+        ],
+    )
     assert res.exit_code == 0, res.output
 
 
 def test_cli_catch_up_says_whose_derivative():
-    res = _cli("gaits/inching-2.yaml", "--integrator", "catch-up", "--steps-per-period", "100",
-               "--sensitivity", "stiffness")
+    res = _cli(
+        "gaits/inching-2.yaml", "--integrator", "catch-up", "--steps-per-period", "100", "--sensitivity", "stiffness"
+    )
     assert res.exit_code == 0, res.output
     assert "derivatives of the catch-up scheme's own discrete period map" in res.output
     res = _cli("gaits/paper/acute-angle.yaml", "--sensitivity", "period")
@@ -413,8 +478,7 @@ def test_threshold_of_motion_is_one_sided():
     mu^+ = 1): the stress just touches both forward limits and nothing slips. Below, v0 = 0;
     above, v0 = (2 a - 2/k)/T (the closed form of the module docstring). So dv0/da is 0 from
     the left and 2/T from the right, and dv0/dk is 0 and 2/(k^2 T) = 1/32."""
-    r = sensitivity(_two_block(a=0.125, k=8.0, mu1=1.0, mu2=1.0),
-                    ["links.0.amplitude", "stiffness"])
+    r = sensitivity(_two_block(a=0.125, k=8.0, mu1=1.0, mu2=1.0), ["links.0.amplitude", "stiffness"])
     assert r.v0 == 0.0
     for path, right in (("links.0.amplitude", 2.0), ("stiffness", 1 / 32)):
         p = r[path]
@@ -424,8 +488,10 @@ def test_threshold_of_motion_is_one_sided():
         assert p.right.value == pytest.approx(right, abs=p.right.error_estimate + 1e-8)
 
 
-@pytest.mark.parametrize("source", [1000, 1001, 1002, 1003, 1004, 1005, "peristalsis-4",
-                                    "smooth-friction-3", "climbing-3", "inching-2-towing"])
+@pytest.mark.parametrize(
+    "source",
+    [1000, 1001, 1002, 1003, 1004, 1005, "peristalsis-4", "smooth-friction-3", "climbing-3", "inching-2-towing"],
+)
 def test_closed_form_columns_match_differences_of_the_coefficients(source):
     """The closed-form columns dC, dMu of a constant, cosine or fourier signal's number
     (`_closed_form_change`) against the central difference of the coefficients of the gait
@@ -436,8 +502,11 @@ def test_closed_form_columns_match_differences_of_the_coefficients(source):
     cosine of its angle), and a force on each block."""
     from crawlsim.analysis.sensitivity_terms import _closed_form_change, coefficients_of
 
-    gait = (random_gait(source, blocks=(2, 4), max_periods=300) if isinstance(source, int)
-            else crawlsim.load_gait(f"gaits/{source}.yaml"))
+    gait = (
+        random_gait(source, blocks=(2, 4), max_periods=300)
+        if isinstance(source, int)
+        else crawlsim.load_gait(f"gaits/{source}.yaml")
+    )
     base = coefficients_of(gait)
     size = float(np.max(np.abs(base.C))) + float(np.max(np.abs(base.Mu)))
     closed = 0
@@ -459,10 +528,8 @@ def test_closed_form_columns_match_differences_of_the_coefficients(source):
         except CrawlsimError:
             continue  # the move leaves the valid gaits (a friction at its bound)
         harmonics = max(base.basis.harmonics, 1)
-        tol = 3e-8 * harmonics ** 3 * size
-        np.testing.assert_allclose(got[0], (plus.C - minus.C) / (2 * h), rtol=0, atol=tol,
-                                   err_msg=path)
-        np.testing.assert_allclose(got[1], (plus.Mu - minus.Mu) / (2 * h), rtol=0, atol=tol,
-                                   err_msg=path)
+        tol = 3e-8 * harmonics**3 * size
+        np.testing.assert_allclose(got[0], (plus.C - minus.C) / (2 * h), rtol=0, atol=tol, err_msg=path)
+        np.testing.assert_allclose(got[1], (plus.Mu - minus.Mu) / (2 * h), rtol=0, atol=tol, err_msg=path)
         closed += 1
     assert closed >= 2

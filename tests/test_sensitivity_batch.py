@@ -35,6 +35,5 @@ def test_batched_catch_up_points_are_stepped_once(monkeypatch):
     for row, k in zip(rows, (6.0, 12.0)):
         alone = sensitivity(gait.replace("stiffness", k), ["stiffness"])["stiffness"]
         assert row.derivatives["stiffness"] == pytest.approx(alone.v0.value, abs=1e-12)
-        assert row.derivatives["stiffness"] == pytest.approx(
-            _expected(k)["dv0/dstiffness"], abs=1e-10)
+        assert row.derivatives["stiffness"] == pytest.approx(_expected(k)["dv0/dstiffness"], abs=1e-10)
         assert row.derivatives["period"] == pytest.approx(-row.v0 / 2.0, abs=1e-12)

@@ -49,14 +49,26 @@ def _check(gait, paths) -> int:
 
 def test_corpus_gaits_against_finite_differences():
     per = crawlsim.load_gait("gaits/peristalsis-4.yaml").replace(
-        "simulation.integrator", "catch-up", "simulation.steps_per_period", 200)
-    assert _check(per, ["links.*.phase", "links.0.amplitude", "links.2.mean", "stiffness",
-                        "friction.forward"]) == 7
+        "simulation.integrator", "catch-up", "simulation.steps_per_period", 200
+    )
+    assert _check(per, ["links.*.phase", "links.0.amplitude", "links.2.mean", "stiffness", "friction.forward"]) == 7
     smooth = crawlsim.load_gait("gaits/smooth-friction-3.yaml").replace(
-        "simulation.integrator", "catch-up", "simulation.steps_per_period", 200)
-    assert _check(smooth, ["links.1.phase", "links.0.cos.1", "stiffness.1",
-                           "friction.0.forward.amplitude", "friction.1.backward.phase",
-                           "friction.2.forward"]) == 6
+        "simulation.integrator", "catch-up", "simulation.steps_per_period", 200
+    )
+    assert (
+        _check(
+            smooth,
+            [
+                "links.1.phase",
+                "links.0.cos.1",
+                "stiffness.1",
+                "friction.0.forward.amplitude",
+                "friction.1.backward.phase",
+                "friction.2.forward",
+            ],
+        )
+        == 6
+    )
 
 
 def test_random_gaits_against_finite_differences():
@@ -67,11 +79,19 @@ def test_random_gaits_against_finite_differences():
     while gaits < 10:
         gait = random_gait(5000 + seed, blocks=(2, 3), max_periods=300)
         seed += 1
-        gait = gait.replace("simulation.integrator", "catch-up",
-                            "simulation.steps_per_period", 160)
-        paths = [p for p in ("links.0.mean", "links.0.amplitude", "links.0.phase",
-                             "links.0.values.1", "links.0.cos.0", "stiffness")
-                 if _names(gait, p)]
+        gait = gait.replace("simulation.integrator", "catch-up", "simulation.steps_per_period", 160)
+        paths = [
+            p
+            for p in (
+                "links.0.mean",
+                "links.0.amplitude",
+                "links.0.phase",
+                "links.0.values.1",
+                "links.0.cos.0",
+                "stiffness",
+            )
+            if _names(gait, p)
+        ]
         try:
             n = _check(gait, paths)
         except CrawlsimError:
@@ -99,9 +119,20 @@ def test_cli_json_says_catch_up(tmp_path):
 
     from crawlsim.cli import main
 
-    res = CliRunner().invoke(main, ["velocity", "gaits/inching-2.yaml", "--integrator",
-                                    "catch-up", "--steps-per-period", "100", "--json",
-                                    "--sensitivity", "stiffness"])
+    res = CliRunner().invoke(
+        main,
+        [
+            "velocity",
+            "gaits/inching-2.yaml",
+            "--integrator",
+            "catch-up",
+            "--steps-per-period",
+            "100",
+            "--json",
+            "--sensitivity",
+            "stiffness",
+        ],
+    )
     assert res.exit_code == 0, res.output
     entry = json.loads(res.stdout)["sensitivity"]["stiffness"]
     assert entry["method"] == "catch-up" and entry["smooth"] is True
@@ -117,8 +148,7 @@ def test_towing_force_closed_form(integrator):
     (mu_1^+ + mu_2^+) d moves by (mu_1^+ + mu_2^+)/k = 0.2."""
     gait = crawlsim.load_gait("gaits/inching-2-towing.yaml")
     if integrator == "catch-up":
-        gait = gait.replace("simulation.integrator", "catch-up", "simulation.steps_per_period",
-                            200)
+        gait = gait.replace("simulation.integrator", "catch-up", "simulation.steps_per_period", 200)
     p = sensitivity(gait, ["loads.force.0"])["loads.force.0"]
     assert p.smooth and p.method == integrator
     assert p.v0.value == pytest.approx(0.1, abs=1e-10)
@@ -132,28 +162,34 @@ def test_slope_against_finite_differences(integrator):
     differences of the integrator's own v0 and dissipation."""
     gait = crawlsim.load_gait("gaits/climbing-3.yaml")
     if integrator == "catch-up":
-        gait = gait.replace("simulation.integrator", "catch-up", "simulation.steps_per_period",
-                            200)
-    r = sensitivity(gait, ["loads.slope.angle", "loads.slope.weight", "friction.forward"],
-                    one_sided=False)
+        gait = gait.replace("simulation.integrator", "catch-up", "simulation.steps_per_period", 200)
+    r = sensitivity(gait, ["loads.slope.angle", "loads.slope.weight", "friction.forward"], one_sided=False)
     for p in r.parameters:
         assert p.smooth and p.method == integrator, (p.path, p.reason)
         h = 1e-4 * max(abs(p.value), 1.0)
         d1, D1, e1 = _central(gait, p.path, p.value, h)
         d2, D2, e2 = _central(gait, p.path, p.value, h / 2)
         assert abs(p.v0.value - d2) <= 2 * abs(d1 - d2) + 4 * e2 + 1e-10, (p.path, p.v0, d2)
-        assert abs(p.dissipation_per_period.value - D2) <= 2 * abs(D1 - D2) + 1e-8, \
-            (p.path, p.dissipation_per_period, D2)
+        assert abs(p.dissipation_per_period.value - D2) <= 2 * abs(D1 - D2) + 1e-8, (
+            p.path,
+            p.dissipation_per_period,
+            D2,
+        )
 
 
 def _steps_gait(values0, values1, integrator="catch-up"):
-    doc = {"name": "steps", "blocks": 3, "period": 1.0, "stiffness": 10.0,
-           "links": [{"kind": "steps", "times": [0.0, 0.5], "values": values0},
-                     {"kind": "piecewise-linear", "times": [0.0, 0.3, 0.7, 1.0],
-                      "values": values1}],
-           "friction": {"forward": 1.0, "backward": 2.5},
-           "simulation": {"steps_per_period": 100, "max_periods": 50, "tolerance": 1e-12,
-                          "integrator": integrator}}
+    doc = {
+        "name": "steps",
+        "blocks": 3,
+        "period": 1.0,
+        "stiffness": 10.0,
+        "links": [
+            {"kind": "steps", "times": [0.0, 0.5], "values": values0},
+            {"kind": "piecewise-linear", "times": [0.0, 0.3, 0.7, 1.0], "values": values1},
+        ],
+        "friction": {"forward": 1.0, "backward": 2.5},
+        "simulation": {"steps_per_period": 100, "max_periods": 50, "tolerance": 1e-12, "integrator": integrator},
+    }
     return gait_from_document(doc, "steps")
 
 
@@ -162,8 +198,7 @@ def test_steps_and_piecewise_linear_signals():
     and a piecewise-linear one: each knot value against central differences, and the same
     values as the exact integrator (the jumps and the knots sit on the grid)."""
     gait = _steps_gait([0.83, 1.21], [1.0, 1.27, 0.93, 1.0])
-    paths = ["links.0.values.0", "links.0.values.1", "links.1.values.1", "links.1.values.2",
-             "stiffness"]
+    paths = ["links.0.values.0", "links.0.values.1", "links.1.values.1", "links.1.values.2", "stiffness"]
     assert _check(gait, paths) == 5
     exact = sensitivity(_steps_gait([0.83, 1.21], [1.0, 1.27, 0.93, 1.0], "exact"), paths)
     r = sensitivity(gait, paths)
@@ -175,8 +210,9 @@ def test_event_on_a_grid_time_is_a_kink():
     """With round numbers the third block's forward limit is reached exactly at a grid time
     (its gap falls by 0.1 a step from -0.4): a kink of the catch-up map for the numbers that
     move that gap, reported with the step; a number that does not move it stays smooth."""
-    r = sensitivity(_steps_gait([0.8, 1.2], [1.0, 1.3, 0.9, 1.0]),
-                    ["links.1.values.1", "friction.backward"], one_sided=False)
+    r = sensitivity(
+        _steps_gait([0.8, 1.2], [1.0, 1.3, 0.9, 1.0]), ["links.1.values.1", "friction.backward"], one_sided=False
+    )
     p = r["links.1.values.1"]
     assert not p.smooth and "tight with a zero multiplier" in (p.reason or "")
     assert p.left is None and "not requested" in (p.left_reason or "")

@@ -23,11 +23,15 @@ PATHS = ("stiffness", "friction.0.forward", "links.*.amplitude", "period")
 
 
 def _doc(units: bool = False, integrator: str = "exact") -> dict:
-    doc = {"name": "two-block", "blocks": 2, "period": 2.0, "stiffness": 10.0,
-           "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3}],
-           "friction": [{"forward": 1.0, "backward": 5.0}, {"forward": 0.5, "backward": 5.0}],
-           "simulation": {"steps_per_period": 200, "max_periods": 50, "tolerance": 1e-12,
-                          "integrator": integrator}}
+    doc = {
+        "name": "two-block",
+        "blocks": 2,
+        "period": 2.0,
+        "stiffness": 10.0,
+        "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3}],
+        "friction": [{"forward": 1.0, "backward": 5.0}, {"forward": 0.5, "backward": 5.0}],
+        "simulation": {"steps_per_period": 200, "max_periods": 50, "tolerance": 1e-12, "integrator": integrator},
+    }
     if units:
         doc["units"] = {"length": "mm", "time": "s", "force": "N"}
     return doc
@@ -39,8 +43,12 @@ def _gait(**kw):
 
 def _expected(k: float, T: float = 2.0, a: float = 0.3, mus: float = 1.5) -> dict[str, float]:
     v0 = (2 * a - mus / k) / T
-    return {"dv0/dstiffness": mus / (k * k * T), "dv0/dfriction.0.forward": -1 / (k * T),
-            "dv0/dlinks.0.amplitude": 2 / T, "dv0/dperiod": -v0 / T}
+    return {
+        "dv0/dstiffness": mus / (k * k * T),
+        "dv0/dfriction.0.forward": -1 / (k * T),
+        "dv0/dlinks.0.amplitude": 2 / T,
+        "dv0/dperiod": -v0 / T,
+    }
 
 
 def _yaml(tmp_path, doc) -> str:
@@ -86,26 +94,38 @@ def test_hdf5_and_xarray_carry_units(tmp_path):
     out = tmp_path / "s.h5"
     gait = _gait(units=True)
     table = sweeps.sweep(gait, ["stiffness=[5,10]"], output=out, sensitivity=PATHS)
-    expected_units = {"dv0_dstiffness": "mm^2/(N s)", "dv0_dfriction_0_forward": "mm/(N s)",
-                      "dv0_dlinks_0_amplitude": "1/s", "dv0_dperiod": "mm/s^2"}
+    expected_units = {
+        "dv0_dstiffness": "mm^2/(N s)",
+        "dv0_dfriction_0_forward": "mm/(N s)",
+        "dv0_dlinks_0_amplitude": "1/s",
+        "dv0_dperiod": "mm/s^2",
+    }
     with h5py.File(out) as f:
         for group in ("grid", "results"):
             for name, unit in expected_units.items():
                 ds = f[group][name]
                 assert ds.attrs["units"] == unit, (group, name)
-                assert ds.attrs["column"] == "dv0/d" + {
-                    "dv0_dstiffness": "stiffness", "dv0_dfriction_0_forward":
-                    "friction.0.forward", "dv0_dlinks_0_amplitude": "links.0.amplitude",
-                    "dv0_dperiod": "period"}[name]
+                assert (
+                    ds.attrs["column"]
+                    == "dv0/d"
+                    + {
+                        "dv0_dstiffness": "stiffness",
+                        "dv0_dfriction_0_forward": "friction.0.forward",
+                        "dv0_dlinks_0_amplitude": "links.0.amplitude",
+                        "dv0_dperiod": "period",
+                    }[name]
+                )
         assert f["grid"]["dv0_dstiffness"][()] == pytest.approx(
-            [_expected(5.0)["dv0/dstiffness"], _expected(10.0)["dv0/dstiffness"]], abs=1e-10)
+            [_expected(5.0)["dv0/dstiffness"], _expected(10.0)["dv0/dstiffness"]], abs=1e-10
+        )
     back = sweeps.read_table(out)
     for a, b in zip(back.rows, table.rows):
         assert a.derivatives == b.derivatives
     ds = crawlsim.sweep(gait, {"stiffness": [5.0, 10.0]}, sensitivity=["stiffness"])
     assert ds["dv0_dstiffness"].attrs["units"] == "mm^2/(N s)"
     assert ds["dv0_dstiffness"].values == pytest.approx(
-        [_expected(k)["dv0/dstiffness"] for k in (5.0, 10.0)], abs=1e-10)
+        [_expected(k)["dv0/dstiffness"] for k in (5.0, 10.0)], abs=1e-10
+    )
 
 
 def test_shards_merge_and_journal_keep_the_columns(tmp_path):
@@ -113,8 +133,7 @@ def test_shards_merge_and_journal_keep_the_columns(tmp_path):
     parts = []
     for i in (1, 2):
         part = tmp_path / f"part-{i}.h5"
-        sweeps.sweep(gait, ["stiffness=[5,10,20]"], output=part, shard=(i, 2),
-                     sensitivity=["stiffness"])
+        sweeps.sweep(gait, ["stiffness=[5,10,20]"], output=part, shard=(i, 2), sensitivity=["stiffness"])
         parts.append(sweeps.read_table(part))
     merged = sweeps.merge_tables(parts)
     column = merged.columns()["dv0/dstiffness"]
@@ -123,8 +142,7 @@ def test_shards_merge_and_journal_keep_the_columns(tmp_path):
     assert sweeps.PointResult.from_json(json.loads(json.dumps(row.to_json()))) == row
     # a journal of the same grid without --sensitivity is another sweep
     grid = sweeps.make_grid(gait, ["stiffness=[5,10,20]"])
-    with_paths = sweeps.make_grid(gait, ["stiffness=[5,10,20]"],
-                                   sensitivity=["stiffness"])
+    with_paths = sweeps.make_grid(gait, ["stiffness=[5,10,20]"], sensitivity=["stiffness"])
     assert grid.fingerprint(None) != with_paths.fingerprint(None)
 
 
@@ -140,10 +158,8 @@ def test_catch_up_points_differentiate_their_own_map():
         assert row.integrator == "catch-up"
         r = sensitivity(gait.replace("stiffness", k), ["stiffness"])
         assert r["stiffness"].method == "catch-up"
-        assert row.derivatives["stiffness"] == pytest.approx(r["stiffness"].v0.value,
-                                                             abs=1e-12)
-        assert row.derivatives["stiffness"] == pytest.approx(
-            _expected(k)["dv0/dstiffness"], abs=1e-10)
+        assert row.derivatives["stiffness"] == pytest.approx(r["stiffness"].v0.value, abs=1e-12)
+        assert row.derivatives["stiffness"] == pytest.approx(_expected(k)["dv0/dstiffness"], abs=1e-10)
         assert row.derivatives["period"] == pytest.approx(-row.v0 / 2.0, abs=1e-12)
 
 
@@ -168,12 +184,17 @@ def test_column_is_the_point_sensitivity():
     table = sweeps.sweep(gait, ["links.1.phase=[0.2,0.3]"], sensitivity=["links.*.phase"])
     cols = table.columns()
     assert [c for c in cols if c.startswith("dv0/d")] == [
-        "dv0/dlinks.0.phase", "dv0/dlinks.1.phase", "dv0/dlinks.2.phase"]
+        "dv0/dlinks.0.phase",
+        "dv0/dlinks.1.phase",
+        "dv0/dlinks.2.phase",
+    ]
     for n, lag in enumerate((0.2, 0.3)):
         r = sensitivity(gait.replace("links.1.phase", lag), ["links.*.phase"])
         for p in r.parameters:
             assert p.smooth
-            assert cols["dv0/d" + p.path][n] == pytest.approx(
-                p.v0.value, abs=10 * p.v0.error_estimate + 1e-12), (lag, p.path)
+            assert cols["dv0/d" + p.path][n] == pytest.approx(p.v0.value, abs=10 * p.v0.error_estimate + 1e-12), (
+                lag,
+                p.path,
+            )
         # a common phase shift: the three derivatives sum to zero
         assert abs(sum(cols[f"dv0/dlinks.{i}.phase"][n] for i in range(3))) <= 1e-10

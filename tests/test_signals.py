@@ -95,13 +95,16 @@ def test_steps_breakpoints_after_phase_wrap():
     assert Steps(times=(0.0,), values=(4.0,)).breakpoints().size == 0
 
 
-@pytest.mark.parametrize("signal", [
-    Constant(1.5),
-    Cosine(mean=1.0, amplitude=-0.2, phase=0.3),
-    Fourier(mean=2.0, cos=(0.1, 0.2), sin=(0.3,), phase=0.05),
-    PiecewiseLinear(times=(0.0, 0.4, 1.0), values=(1.0, 0.5, 1.0), phase=0.2),
-    Steps(times=(0.0, 0.6), values=(1.0, 2.0), phase=0.5),
-])
+@pytest.mark.parametrize(
+    "signal",
+    [
+        Constant(1.5),
+        Cosine(mean=1.0, amplitude=-0.2, phase=0.3),
+        Fourier(mean=2.0, cos=(0.1, 0.2), sin=(0.3,), phase=0.05),
+        PiecewiseLinear(times=(0.0, 0.4, 1.0), values=(1.0, 0.5, 1.0), phase=0.2),
+        Steps(times=(0.0, 0.6), values=(1.0, 2.0), phase=0.5),
+    ],
+)
 def test_to_dict_round_trips(signal):
     assert parse(signal.to_dict()) == signal
 
@@ -118,24 +121,33 @@ def test_union_breakpoints_merges_and_wraps():
     np.testing.assert_allclose(merged, [0.0, 0.25, 0.5])
 
 
-@pytest.mark.parametrize("value, keypath, phrase", [
-    (True, "links[0]", "expected a number or a signal mapping with 'kind', got a boolean (true)"),
-    ({"kind": "cosin", "mean": 1}, "links[0].kind", "did you mean 'cosine'?"),
-    ({"kind": "cosine", "mean": 1, "amplitud": 1}, "links[0].amplitud", "did you mean 'amplitude'?"),
-    ({"kind": "cosine", "mean": 1}, "links[0].amplitude", "required key is missing"),
-    ({"kind": "cosine", "mean": "1", "amplitude": 1}, "links[0].mean", "expected a number"),
-    ({"kind": "fourier", "mean": 1, "cos": [1, False]}, "links[0].cos[1]", "got a boolean"),
-    ({"kind": "piecewise-linear", "times": [0, 1], "values": [1, 2]}, "links[0].values", "must be periodic"),
-    ({"kind": "piecewise-linear", "times": [0, 0.5], "values": [1, 1]}, "links[0].times[1]", "expected 1"),
-    ({"kind": "piecewise-linear", "times": [0.1, 1], "values": [1, 1]}, "links[0].times[0]", "expected 0"),
-    ({"kind": "piecewise-linear", "times": [0, 0.5, 0.5, 1], "values": [1, 2, 3, 1]}, "links[0].times[2]",
-     "strictly increasing"),
-    ({"kind": "piecewise-linear", "times": [0, 0.5, 1], "values": [1, 1]}, "links[0].values",
-     "as many values as times (3)"),
-    ({"kind": "steps", "times": [0, 1.0], "values": [1, 2]}, "links[0].times[1]", "expected a time < 1"),
-    ({"kind": "steps", "times": [0.2], "values": [1]}, "links[0].times[0]", "expected 0"),
-    (float("inf"), "links[0]", "finite"),
-])
+@pytest.mark.parametrize(
+    "value, keypath, phrase",
+    [
+        (True, "links[0]", "expected a number or a signal mapping with 'kind', got a boolean (true)"),
+        ({"kind": "cosin", "mean": 1}, "links[0].kind", "did you mean 'cosine'?"),
+        ({"kind": "cosine", "mean": 1, "amplitud": 1}, "links[0].amplitud", "did you mean 'amplitude'?"),
+        ({"kind": "cosine", "mean": 1}, "links[0].amplitude", "required key is missing"),
+        ({"kind": "cosine", "mean": "1", "amplitude": 1}, "links[0].mean", "expected a number"),
+        ({"kind": "fourier", "mean": 1, "cos": [1, False]}, "links[0].cos[1]", "got a boolean"),
+        ({"kind": "piecewise-linear", "times": [0, 1], "values": [1, 2]}, "links[0].values", "must be periodic"),
+        ({"kind": "piecewise-linear", "times": [0, 0.5], "values": [1, 1]}, "links[0].times[1]", "expected 1"),
+        ({"kind": "piecewise-linear", "times": [0.1, 1], "values": [1, 1]}, "links[0].times[0]", "expected 0"),
+        (
+            {"kind": "piecewise-linear", "times": [0, 0.5, 0.5, 1], "values": [1, 2, 3, 1]},
+            "links[0].times[2]",
+            "strictly increasing",
+        ),
+        (
+            {"kind": "piecewise-linear", "times": [0, 0.5, 1], "values": [1, 1]},
+            "links[0].values",
+            "as many values as times (3)",
+        ),
+        ({"kind": "steps", "times": [0, 1.0], "values": [1, 2]}, "links[0].times[1]", "expected a time < 1"),
+        ({"kind": "steps", "times": [0.2], "values": [1]}, "links[0].times[0]", "expected 0"),
+        (float("inf"), "links[0]", "finite"),
+    ],
+)
 def test_invalid_signals(value, keypath, phrase):
     with pytest.raises(GaitError) as info:
         parse(value)
@@ -165,17 +177,23 @@ def test_fourier_evaluated_in_chunks_agrees_with_one_pass():
     b = np.concatenate([s.sin, np.zeros(100)])
     expected = 0.5 + np.cos(2 * np.pi * v) @ a + np.sin(2 * np.pi * v) @ b
     np.testing.assert_allclose(s(u), expected, atol=1e-10)
-    np.testing.assert_allclose(s(u[:5000].reshape(50, 100)), expected[:5000].reshape(50, 100),
-                               atol=1e-10)  # shapes are kept
+    np.testing.assert_allclose(
+        s(u[:5000].reshape(50, 100)), expected[:5000].reshape(50, 100), atol=1e-10
+    )  # shapes are kept
 
 
-@pytest.mark.parametrize("value, phrase", [
-    (1e101, "magnitude at most 1e+100"),
-    ({"kind": "cosine", "mean": 1.0, "amplitude": -2e100}, "magnitude at most 1e+100"),
-    ({"kind": "cosine", "mean": 1.0, "amplitude": 1.0, "phase": 1e7}, "at most 1e+06 in magnitude"),
-    ({"kind": "steps", "times": list(np.linspace(0, 0.99, 10001)), "values": [1.0] * 10001},
-     "expected at most 10,000 entries"),
-])
+@pytest.mark.parametrize(
+    "value, phrase",
+    [
+        (1e101, "magnitude at most 1e+100"),
+        ({"kind": "cosine", "mean": 1.0, "amplitude": -2e100}, "magnitude at most 1e+100"),
+        ({"kind": "cosine", "mean": 1.0, "amplitude": 1.0, "phase": 1e7}, "at most 1e+06 in magnitude"),
+        (
+            {"kind": "steps", "times": list(np.linspace(0, 0.99, 10001)), "values": [1.0] * 10001},
+            "expected at most 10,000 entries",
+        ),
+    ],
+)
 def test_signal_bounds(value, phrase):
     with pytest.raises(GaitError) as info:
         parse(value)

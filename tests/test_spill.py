@@ -10,8 +10,9 @@ from crawlsim.analysis import convergence
 
 def _periods(count: int) -> list[SimpleNamespace]:
     rng = np.random.default_rng(3)
-    return [SimpleNamespace(w=rng.standard_normal((21, 4)), multipliers=rng.standard_normal((20, 8)))
-            for _ in range(count)]
+    return [
+        SimpleNamespace(w=rng.standard_normal((21, 4)), multipliers=rng.standard_normal((20, 8))) for _ in range(count)
+    ]
 
 
 def _replay(records, monkeypatch, limit: int) -> tuple[list, object]:
@@ -61,14 +62,23 @@ def test_a_run_without_series_is_the_same_run_without_its_per_period_series():
     from crawlsim.model.process import compile_gait
 
     gait = load_gait(Path(__file__).resolve().parents[1] / "gaits" / "peristalsis-4.yaml")
-    runs = {keep: simulate(compile_gait(gait), integrator="exact", history=False,
-                           series=keep) for keep in (True, False)}
+    runs = {
+        keep: simulate(compile_gait(gait), integrator="exact", history=False, series=keep) for keep in (True, False)
+    }
     kept, left = runs[True], runs[False]
     assert len(kept.history.w12_distance) == len(kept.history.period) >= 1
     for key in convergence.DISTANCES:
         assert getattr(left.history, key).size == 0
-    for name in ("v0", "v0_error_estimate", "periods", "limit_periods", "steps",
-                 "displacement_per_period", "dissipation_per_period", "cost_of_transport"):
+    for name in (
+        "v0",
+        "v0_error_estimate",
+        "periods",
+        "limit_periods",
+        "steps",
+        "displacement_per_period",
+        "dissipation_per_period",
+        "cost_of_transport",
+    ):
         assert getattr(left, name) == getattr(kept, name), name
     assert np.array_equal(left.history.poincare_step, kept.history.poincare_step)
     assert np.array_equal(left.history.displacement, kept.history.displacement)

@@ -31,11 +31,15 @@ from .conftest import GAITS
 
 
 def towing(tmp_path, amplitude, force=0.0, name="g.yaml", extra=None):
-    doc = {"blocks": 2, "period": 1.0, "stiffness": 10.0,
-           "links": [{"kind": "cosine", "mean": 1.0, "amplitude": amplitude}],
-           "friction": {"forward": 1.0, "backward": 2.0},
-           "loads": {"force": [force, 0.0], **(extra or {})},
-           "simulation": {"steps_per_period": 200, "max_periods": 50}}
+    doc = {
+        "blocks": 2,
+        "period": 1.0,
+        "stiffness": 10.0,
+        "links": [{"kind": "cosine", "mean": 1.0, "amplitude": amplitude}],
+        "friction": {"forward": 1.0, "backward": 2.0},
+        "loads": {"force": [force, 0.0], **(extra or {})},
+        "simulation": {"steps_per_period": 200, "max_periods": 50},
+    }
     path = tmp_path / name
     path.write_text(yaml.safe_dump(doc))
     return path
@@ -103,9 +107,12 @@ def test_cli(tmp_path):
     # only the supported digits: the value is printed to the bracket's decimal place
     value = first.split(": ", 1)[1].split(" ")[0]
     assert abs(float(value) + 1.0) <= 1e-6 and len(value.split(".")[1]) <= 10
-    for args in (["stall", str(path)], ["stall", str(path), "--slope", "--force", "loads.force.0"],
-                 ["stall", str(path), "--slope"], ["stall", str(tmp_path / "missing.yaml"),
-                                                   "--slope"]):
+    for args in (
+        ["stall", str(path)],
+        ["stall", str(path), "--slope", "--force", "loads.force.0"],
+        ["stall", str(path), "--slope"],
+        ["stall", str(tmp_path / "missing.yaml"), "--slope"],
+    ):
         r = runner.invoke(main, args)
         assert r.exit_code == 2 and "Traceback" not in r.output, (args, r.output)
 

@@ -71,12 +71,16 @@ def test_stress_stays_admissible_and_slips_only_at_the_friction_limit():
 
 def _single_link(amplitude):
     """Three blocks, only link 1 actuated: below the threshold of motion."""
-    return make_gait({
-        "blocks": 3, "period": 1.0, "stiffness": 10.0,
-        "links": [{"kind": "cosine", "mean": 1.0, "amplitude": amplitude}, 1.0],
-        "friction": {"forward": 1.0, "backward": 1.5},
-        "simulation": {"steps_per_period": 200, "max_periods": 200},
-    })
+    return make_gait(
+        {
+            "blocks": 3,
+            "period": 1.0,
+            "stiffness": 10.0,
+            "links": [{"kind": "cosine", "mean": 1.0, "amplitude": amplitude}, 1.0],
+            "friction": {"forward": 1.0, "backward": 1.5},
+            "simulation": {"steps_per_period": 200, "max_periods": 200},
+        }
+    )
 
 
 def test_asymptotic_convergence_is_not_cut_short():
@@ -126,14 +130,19 @@ def _isolated_crossing_gait(steps):
     allowed by the uniqueness check. At t = 1/4 the link contracts at its fastest, the link is
     in tension at sigma = -1 and both block 1 (forward) and block 2 (backward) are at their
     friction limits: the two active normals are dependent and the slips are not determined."""
-    return make_gait({
-        "blocks": 2, "period": 1.0, "stiffness": 10.0,
-        "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3}],
-        "friction": [{"forward": {"kind": "cosine", "mean": 1.0, "amplitude": 0.5},
-                      "backward": 2.0},
-                     {"forward": 1.0, "backward": 1.0}],
-        "simulation": {"steps_per_period": steps, "max_periods": 5, "integrator": "catch-up"},
-    })
+    return make_gait(
+        {
+            "blocks": 2,
+            "period": 1.0,
+            "stiffness": 10.0,
+            "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3}],
+            "friction": [
+                {"forward": {"kind": "cosine", "mean": 1.0, "amplitude": 0.5}, "backward": 2.0},
+                {"forward": 1.0, "backward": 1.0},
+            ],
+            "simulation": {"steps_per_period": steps, "max_periods": 5, "integrator": "catch-up"},
+        }
+    )
 
 
 def test_isolated_uniqueness_crossing_on_a_grid_time_is_refused_with_time_and_blocks():
@@ -149,6 +158,7 @@ def test_isolated_uniqueness_crossing_on_a_grid_time_is_refused_with_time_and_bl
 
 
 # -- the stepper contract and the registry of integrators ---------------------------------------
+
 
 @pytest.mark.parametrize("name", sorted(STEPPERS))
 def test_registered_integrators_follow_the_contract(name):

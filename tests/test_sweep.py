@@ -56,10 +56,25 @@ def test_axis_specs():
     assert sweeps.parse_axis("period=[1,2.5, 3]").values == (1, 2.5, 3)
     assert sweeps.parse_axis("period=[0.5]").values == (0.5,)
     assert sweeps.parse_axis("period=2:2:1").values == (2.0,)
-    for bad in ("period", "period=", "=1,2", "period=1:2", "period=1:2:x", "period=0:1:0",
-                "period=a,b", "period=1,nan", "links..phase=1", "period=[1,2", "period=[]",
-                "period=1,2]", "period=log:0:1:3", "period=log:-1:1:3", "period=log:1:2",
-                "period=log:1:2:0", "period=log:1:inf:3"):
+    for bad in (
+        "period",
+        "period=",
+        "=1,2",
+        "period=1:2",
+        "period=1:2:x",
+        "period=0:1:0",
+        "period=a,b",
+        "period=1,nan",
+        "links..phase=1",
+        "period=[1,2",
+        "period=[]",
+        "period=1,2]",
+        "period=log:0:1:3",
+        "period=log:-1:1:3",
+        "period=log:1:2",
+        "period=log:1:2:0",
+        "period=log:1:inf:3",
+    ):
         with pytest.raises(InputError, match="--sweep"):
             sweeps.parse_axis(bad)
     with pytest.raises(InputError, match="--link period=1:2"):
@@ -72,17 +87,18 @@ def test_log_spaced_axis_is_geometric_with_exact_ends():
     v = np.array(a.values)
     assert len(v) == 10 and v[0] == 5 and v[-1] == 50
     np.testing.assert_allclose(v[1:] / v[:-1], 10 ** (1 / 9), rtol=1e-14, atol=0)
-    assert sweeps.parse_axis("period=log:1e-2:1e2:5").values == pytest.approx(
-        (0.01, 0.1, 1, 10, 100), rel=1e-15)
+    assert sweeps.parse_axis("period=log:1e-2:1e2:5").values == pytest.approx((0.01, 0.1, 1, 10, 100), rel=1e-15)
     assert sweeps.parse_axis("period=log:3:3:1").values == (3.0,)
 
 
 def test_paths_expand_and_refuse():
     doc = base().document
     assert resolve_path(doc, sweeps.parse_axis("links.*.phase=0"), "g") == [
-        ("links", 0, "phase"), ("links", 1, "phase"), ("links", 2, "phase")]
-    assert resolve_path(doc, sweeps.parse_axis("friction.backward=1"), "g") == [
-        ("friction", "backward")]
+        ("links", 0, "phase"),
+        ("links", 1, "phase"),
+        ("links", 2, "phase"),
+    ]
+    assert resolve_path(doc, sweeps.parse_axis("friction.backward=1"), "g") == [("friction", "backward")]
     messages = {
         "links.3.phase=0": "index 3 is out of range",
         "links.phase=0": "must be an index or '*'",
@@ -95,8 +111,7 @@ def test_paths_expand_and_refuse():
         with pytest.raises(GaitError, match=text):
             resolve_path(doc, sweeps.parse_axis(spec), "g")
     with pytest.raises(GaitError, match="sets links.1.phase, which --sweep links.1.phase"):
-        sweeps.make_grid(base(), [sweeps.parse_axis("links.1.phase=0"),
-                                  sweeps.parse_axis("links.*.phase=0")])
+        sweeps.make_grid(base(), [sweeps.parse_axis("links.1.phase=0"), sweeps.parse_axis("links.*.phase=0")])
 
 
 def test_grid_order_is_c_order_and_points_are_edited_documents():
@@ -116,14 +131,15 @@ def test_grid_order_is_c_order_and_points_are_edited_documents():
 
 def test_linked_paths_vary_together():
     """A linked group is one grid dimension: value k of every path goes with index k."""
-    grid = sweeps.make_grid(base(), [("links.0.phase=0:0.5:3", "links.1.phase=[0.3,0.6,0.9]"),
-                                     "period=1,2"])
+    grid = sweeps.make_grid(base(), [("links.0.phase=0:0.5:3", "links.1.phase=[0.3,0.6,0.9]"), "period=1,2"])
     assert grid.shape == (3, 2) and grid.size == 6 and grid.dims == (0, 0, 1)
     assert grid.values(0) == (0.0, 0.3, 1) and grid.values(5) == (0.5, 0.9, 2)
     doc = grid.document(3)  # dimension indices (1, 1)
     assert [l["phase"] for l in doc["links"]][:2] == [0.25, 0.6] and doc["period"] == 2
-    with pytest.raises(InputError, match="--link links.1.phase: links.1.phase: has 2 values, "
-                                         "but the path it is linked to .links.0.phase. has 3"):
+    with pytest.raises(
+        InputError,
+        match="--link links.1.phase: links.1.phase: has 2 values, but the path it is linked to .links.0.phase. has 3",
+    ):
         sweeps.make_grid(base(), [("links.0.phase=0:0.5:3", "links.1.phase=0,1")])
     with pytest.raises(GaitError, match="which --link links.*.phase sets too"):
         sweeps.make_grid(base(), [("period=1,2", "links.*.phase=0,1"), "links.1.phase=0"])
@@ -139,28 +155,42 @@ def test_linked_phase_shift_is_a_time_shift():
     roundoff along the linked axis. Unlinked, the same two paths make a 3 x 3 grid whose
     off-diagonal points are other gaits."""
     p3 = GAITS / "peristalsis-3.yaml"
-    linked = vel(p3, *FAST, "--sweep", "links.0.phase=0:0.5:3", "--link",
-                 "links.1.phase=[0.3333333333333333,0.5833333333333333,0.8333333333333333]")
+    linked = vel(
+        p3,
+        *FAST,
+        "--sweep",
+        "links.0.phase=0:0.5:3",
+        "--link",
+        "links.1.phase=[0.3333333333333333,0.5833333333333333,0.8333333333333333]",
+    )
     assert linked.exit_code == 0, linked.output
     rows = list(csv.DictReader(io.StringIO(linked.output)))
     assert [float(r["links.0.phase"]) for r in rows] == [0.0, 0.25, 0.5]
     v0 = [float(r["v0"]) for r in rows]
     assert max(v0) - min(v0) <= 1e-12 and abs(v0[0]) > 0.01
-    crossed = vel(p3, *FAST, "--sweep", "links.0.phase=0:0.5:3", "--sweep",
-                  "links.1.phase=[0.3333333333333333,0.5833333333333333,0.8333333333333333]")
+    crossed = vel(
+        p3,
+        *FAST,
+        "--sweep",
+        "links.0.phase=0:0.5:3",
+        "--sweep",
+        "links.1.phase=[0.3333333333333333,0.5833333333333333,0.8333333333333333]",
+    )
     cells = list(csv.DictReader(io.StringIO(crossed.output)))
     assert len(cells) == 9 and abs(float(cells[1]["v0"]) - v0[0]) > 1e-6
     first = vel(p3, *FAST, "--link", "links.1.phase=0,1", "--sweep", "links.0.phase=0,1")
     assert first.exit_code == 2 and "give a --sweep PATH=SPEC first" in first.output
 
 
-@pytest.mark.parametrize("spec, text", [
-    ("links.*.amplitud=0.1", "unknown key 'amplitud'; did you mean 'amplitude'"),
-    ("links.9.phase=0", "index 9 is out of range"),
-    ("friction.backward=0,-1", "no point of the grid is a valid gait: all 4 are refused"),
-])
-def test_bad_paths_and_grids_without_a_valid_point_are_refused_before_any_work(tmp_path, spec,
-                                                                               text):
+@pytest.mark.parametrize(
+    "spec, text",
+    [
+        ("links.*.amplitud=0.1", "unknown key 'amplitud'; did you mean 'amplitude'"),
+        ("links.9.phase=0", "index 9 is out of range"),
+        ("friction.backward=0,-1", "no point of the grid is a valid gait: all 4 are refused"),
+    ],
+)
+def test_bad_paths_and_grids_without_a_valid_point_are_refused_before_any_work(tmp_path, spec, text):
     out = tmp_path / "out.csv"
     r = vel(P4, *FAST, "--sweep", "period=1,2", "--sweep", spec, "-o", out)
     assert r.exit_code == 2
@@ -204,8 +234,15 @@ def test_300_point_sweep_with_10_invalid_points(tmp_path):
     backward = [round(0.5 + 0.1 * i, 10) for i in range(30)]  # 0.5 .. 3.4, with 1.0
     assert backward.count(1.0) == 1
     out = tmp_path / "s.h5"
-    r = vel(gait, "--sweep", f"friction.backward=[{','.join(map(str, backward))}]",
-            "--sweep", "stiffness=log:5:50:10", "-o", out)
+    r = vel(
+        gait,
+        "--sweep",
+        f"friction.backward=[{','.join(map(str, backward))}]",
+        "--sweep",
+        "stiffness=log:5:50:10",
+        "-o",
+        out,
+    )
     assert r.exit_code == 0, r.output
     assert "300 points: 290 ok, 10 invalid, 0 failed, 0 not converged" in r.output
     table = sweeps.read_table(out)
@@ -254,25 +291,29 @@ def test_velocity_single_run_output_and_exit_codes():
     # not equal to it bit for bit); --json has the full precision
     assert r.output.strip() == supported(s["v0"], s["v0_error_estimate"])[0]
     assert abs(v0 - s["v0"]) <= s["v0_error_estimate"]
-    slow = vel(GAITS / "peristalsis-4.yaml", "--steps-per-period", "40", "--sweep",
-               "links.*.amplitude=0.1", "--max-periods", "2")
+    slow = vel(
+        GAITS / "peristalsis-4.yaml",
+        "--steps-per-period",
+        "40",
+        "--sweep",
+        "links.*.amplitude=0.1",
+        "--max-periods",
+        "2",
+    )
     assert slow.exit_code == 0 and ",not-converged,2,exact,iterate,0,not-converged," in slow.output
-    assert vel(P4, "--steps-per-period", "40", "--max-periods", "1",
-               "--tolerance", "1e-15").exit_code == 3
+    assert vel(P4, "--steps-per-period", "40", "--max-periods", "1", "--tolerance", "1e-15").exit_code == 3
     dash = vel(P4, *FAST, "-o", "-")  # stdout, as without -o
     assert dash.exit_code == 0 and dash.stdout == r.stdout
 
 
-@pytest.mark.parametrize("extra", [[], ["--json"], ["--sweep", "period=1,2"],
-                                   ["--sweep", "period=1,2", "-o", "OUT"]])
+@pytest.mark.parametrize("extra", [[], ["--json"], ["--sweep", "period=1,2"], ["--sweep", "period=1,2", "-o", "OUT"]])
 def test_velocity_of_a_sweeping_process_is_refused(tmp_path, extra):
     """A sweeping process (kind: sweeping-process) has no velocity: exit code 2, one line naming
     the file and pointing to `crawlsim run`, no traceback, no file written, with or without a
     sweep."""
     triangle = GAITS / "paper" / "triangle.yaml"
     out = tmp_path / "t.csv"
-    r = CliRunner().invoke(main, ["velocity", str(triangle),
-                                  *[str(out) if a == "OUT" else a for a in extra]])
+    r = CliRunner().invoke(main, ["velocity", str(triangle), *[str(out) if a == "OUT" else a for a in extra]])
     assert r.exit_code == 2, r.output
     assert "Traceback" not in r.output and len(r.output.strip().splitlines()) == 1
     assert str(triangle) in r.output and "no velocity" in r.output
@@ -287,16 +328,18 @@ def test_failed_points_are_recorded_not_fatal(tmp_path):
 
     path = tmp_path / "licq.yaml"
     path.write_text(LICQ_GAIT)
-    r = vel(path, "--integrator", "catch-up", "--sweep", "simulation.steps_per_period=100,101,102",
-            "-o", tmp_path / "t.csv")
+    r = vel(
+        path, "--integrator", "catch-up", "--sweep", "simulation.steps_per_period=100,101,102", "-o", tmp_path / "t.csv"
+    )
     assert r.exit_code == 0
     assert "3 points: 2 ok, 1 invalid, 0 failed, 0 not converged" in r.output
     rows = (tmp_path / "t.csv").read_text().splitlines()
-    assert rows[0] == ("simulation.steps_per_period,v0,v0_error_estimate,displacement_per_period,"
-                       "dissipation_per_period,cost_of_transport,convergence,periods,integrator,"
-                       "limit,newton_steps,status,message")
-    assert rows[1].startswith("100,,,,,,,0,catch-up,,,invalid,\"the model does not determine the "
-                              "motion at t = 0.25")
+    assert rows[0] == (
+        "simulation.steps_per_period,v0,v0_error_estimate,displacement_per_period,"
+        "dissipation_per_period,cost_of_transport,convergence,periods,integrator,"
+        "limit,newton_steps,status,message"
+    )
+    assert rows[1].startswith('100,,,,,,,0,catch-up,,,invalid,"the model does not determine the motion at t = 0.25')
     for row in rows[2:]:  # no time-step error measured in a catch-up sweep: no estimate
         fields = row.split(",")
         assert fields[2] == "" and ",finite-time,2,catch-up,iterate,0,ok," in row
@@ -340,10 +383,10 @@ def test_more_columns_agree_with_single_runs():
             if integrator == "catch-up":  # the time-step error is not measured in sweeps
                 assert row.v0_error_estimate is None and single.v0_error_time_step is not None
             names = ("dissipation_per_period", "cost_of_transport") + (
-                ("v0_error_estimate",) if integrator == "exact" else ())
+                ("v0_error_estimate",) if integrator == "exact" else ()
+            )
             for name in names:
-                assert getattr(row, name) == pytest.approx(getattr(single, name), rel=1e-9,
-                                                           abs=1e-15), name
+                assert getattr(row, name) == pytest.approx(getattr(single, name), rel=1e-9, abs=1e-15), name
             assert row.dissipation_per_period > 0
 
 
@@ -367,22 +410,28 @@ def test_csv_and_hdf5_hold_the_same_table(tmp_path):
         np.testing.assert_array_equal(f["grid/links_1_phase"][()], [0.2, 0.33, 0.4])
         assert f["grid/links_1_phase"].attrs["path"] == "links.1.phase"
         assert len(f["results/v0"]) == 15
-        np.testing.assert_array_equal(f["results/links_all_amplitude"][()],
-                                      np.repeat([0.1, 0.15, 0.2, 0.25, 0.3], 3))
+        np.testing.assert_array_equal(f["results/links_all_amplitude"][()], np.repeat([0.1, 0.15, 0.2, 0.25, 0.3], 3))
         np.testing.assert_array_equal(f["grid/v0"][()].ravel(), f["results/v0"][()])
         assert list(f["results/status"].asstr()[()]) == ["ok"] * 15
         assert list(f["results/integrator"].asstr()[()]) == ["exact"] * 15
         for name in ("dissipation_per_period", "cost_of_transport", "v0_error_estimate"):
             assert np.all(np.isfinite(f[f"results/{name}"][()])), name
-    data = np.genfromtxt(tmp_path / "s.csv", delimiter=",", names=True, dtype=None,
-                         encoding="utf-8")
+    data = np.genfromtxt(tmp_path / "s.csv", delimiter=",", names=True, dtype=None, encoding="utf-8")
     np.testing.assert_array_equal(data["v0"], table.columns()["v0"])  # repr round-trips
     np.testing.assert_array_equal(data["cost_of_transport"], table.columns()["cost_of_transport"])
 
 
 def test_linked_sweep_round_trips_through_hdf5_and_merge(tmp_path):
-    args = [P4, *FAST, "--sweep", "links.1.phase=0.2:0.4:4", "--link",
-            "links.2.phase=0.5:0.7:4", "--sweep", "period=1,2"]
+    args = [
+        P4,
+        *FAST,
+        "--sweep",
+        "links.1.phase=0.2:0.4:4",
+        "--link",
+        "links.2.phase=0.5:0.7:4",
+        "--sweep",
+        "period=1,2",
+    ]
     assert vel(*args, "-o", tmp_path / "full.h5").exit_code == 0
     full = sweeps.read_table(tmp_path / "full.h5")
     assert full.dimensions == (0, 0, 1) and full.shape == (4, 2) and len(full.rows) == 8
@@ -512,23 +561,20 @@ def test_extra_columns_of_a_grid():
     cols = table.columns()
     ok = cols["status"] == "ok"
     assert list(ok) == [False, True, True]
-    np.testing.assert_allclose(cols["v0_times_period"][ok], cols["displacement_per_period"][ok],
-                               rtol=1e-12, atol=0)
+    np.testing.assert_allclose(cols["v0_times_period"][ok], cols["displacement_per_period"][ok], rtol=1e-12, atol=0)
     assert np.isnan(cols["v0_times_period"][0])
     assert table.to_csv().splitlines()[0].endswith(",message,v0_times_period")
     row = table.rows[1]
     assert sweeps.PointResult.from_json(row.to_json()) == row
     assert "extra" not in sweeps.sweep(base(), [LAG]).rows[0].to_json()  # journals unchanged
-    assert grid.fingerprint(None) != sweeps.make_grid(base(), ["friction.backward=[0,2,2.5]"]
-                                                      ).fingerprint(None)
+    assert grid.fingerprint(None) != sweeps.make_grid(base(), ["friction.backward=[0,2,2.5]"]).fingerprint(None)
 
 
 def test_workers_report_every_point(tmp_path, workers_always):
     """With --jobs 2 the progress moves point by point (each worker reports a finished point at
     once), including invalid points, and adds up to the grid."""
     calls = []
-    table = sweeps.sweep(base(), ["friction.backward=[0,2,2.5,3.5]", AMP], jobs=2,
-                         progress=calls.append)
+    table = sweeps.sweep(base(), ["friction.backward=[0,2,2.5,3.5]", AMP], jobs=2, progress=calls.append)
     assert sum(calls) == 20 and max(calls) <= sweeps.MIN_CHUNK and len(calls) >= 8
     assert table.counts() == {"ok": 15, "not-converged": 0, "invalid": 5, "failed": 0}
 
@@ -548,8 +594,7 @@ def test_chunks_grow_with_the_measured_rate_and_shrink_at_the_end():
     assert sizes[-1] == sweeps.MAX_CHUNK
     while (chunk := chunker.take()) is not None:
         left = 1000 - sum(sizes)
-        assert len(chunk) == min(max(sweeps.MIN_CHUNK, min(sweeps.MAX_CHUNK, -(-left // 2))),
-                                 left)
+        assert len(chunk) == min(max(sweeps.MIN_CHUNK, min(sweeps.MAX_CHUNK, -(-left // 2))), left)
         sizes.append(len(chunk))
     assert sum(sizes) == 1000 and sizes[-1] <= sweeps.MIN_CHUNK
 
@@ -560,8 +605,7 @@ def test_shards_merge_into_the_unsharded_file(tmp_path):
     parts = []
     for i in (1, 2, 3, 4):
         part = tmp_path / f"part-{i}.h5"
-        assert vel(P4, *FAST, "--sweep", AMP, "--sweep", LAG, "--shard", f"{i}/4",
-                   "-o", part).exit_code == 0
+        assert vel(P4, *FAST, "--sweep", AMP, "--sweep", LAG, "--shard", f"{i}/4", "-o", part).exit_code == 0
         assert len(sweeps.read_table(part).rows) == len(range(i - 1, 15, 4))
         parts.append(part)
     merged = tmp_path / "merged.h5"
@@ -569,7 +613,7 @@ def test_shards_merge_into_the_unsharded_file(tmp_path):
     assert r.exit_code == 0, r.output
     with h5py.File(full) as a, h5py.File(merged) as b:
         assert a.attrs["integrator"] == b.attrs["integrator"] == "exact"
-        assert dict(a.attrs) .keys() == dict(b.attrs).keys()
+        assert dict(a.attrs).keys() == dict(b.attrs).keys()
         for key in set(a.attrs) - {"created", "command_line"}:  # provenance of each command
             assert np.array_equal(a.attrs[key], b.attrs[key]), key
         names = []
@@ -617,9 +661,22 @@ def test_journal_flushes_on_a_clock_not_per_chunk(tmp_path):
     # a torn last line (a kill mid-write) is skipped; a journal of an older crawlsim (rows
     # without the later columns) is read with them missing
     with open(journal.path, "a") as f:
-        f.write(json.dumps({"index": 7, "v0": 1.0, "displacement_per_period": 1.0,
-                            "convergence": "finite-time", "periods": 2, "status": "ok",
-                            "message": "", "steps": 80}) + "\n" + '{"index": 9, "v0"')
+        f.write(
+            json.dumps(
+                {
+                    "index": 7,
+                    "v0": 1.0,
+                    "displacement_per_period": 1.0,
+                    "convergence": "finite-time",
+                    "periods": 2,
+                    "status": "ok",
+                    "message": "",
+                    "steps": 80,
+                }
+            )
+            + "\n"
+            + '{"index": 9, "v0"'
+        )
     loaded = journal.load()
     assert sorted(loaded) == [0, 1, 2, 3, 4, 7] and loaded[7].integrator == ""
 
@@ -650,8 +707,7 @@ def test_interrupted_sweep_resumes_without_recomputing(tmp_path):
     for index, row in rows.items():
         assert row == reference.rows[index]
     resumed_rows = []
-    resumed = sweeps.sweep(gait, axes, output=out,
-                           on_rows=lambda r, resumed: resumed and resumed_rows.extend(r))
+    resumed = sweeps.sweep(gait, axes, output=out, on_rows=lambda r, resumed: resumed and resumed_rows.extend(r))
     assert resumed.computed == 40 - kept and len(resumed_rows) == kept
     assert out.read_text() == reference.to_csv()
     assert not sweeps.journal_path(out).exists()
@@ -662,16 +718,29 @@ def test_interrupted_sweep_resumes_without_recomputing(tmp_path):
 
 
 # catch-up: the batched stepper makes 400 points quick (these tests are about interrupts)
-SWEEP_ARGS = [sys.executable, "-m", "crawlsim", "velocity", P4, "--steps-per-period", "40",
-              "--integrator", "catch-up", "--sweep", "links.*.amplitude=0.1:0.3:20",
-              "--sweep", "links.1.phase=0.2:0.45:20"]
+SWEEP_ARGS = [
+    sys.executable,
+    "-m",
+    "crawlsim",
+    "velocity",
+    P4,
+    "--steps-per-period",
+    "40",
+    "--integrator",
+    "catch-up",
+    "--sweep",
+    "links.*.amplitude=0.1:0.3:20",
+    "--sweep",
+    "links.1.phase=0.2:0.45:20",
+]
 
 
 def _start(out, *extra):
     """A sweep process whose progress lines (stderr is a pipe: log mode) come every 0.05 s."""
     env = {**os.environ, "CRAWLSIM_PROGRESS_INTERVAL": "0.05"}
-    return subprocess.Popen(SWEEP_ARGS + ["-o", str(out), *extra], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, env=env)
+    return subprocess.Popen(
+        SWEEP_ARGS + ["-o", str(out), *extra], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env
+    )
 
 
 def _wait_for_points(proc, at_least):
@@ -698,8 +767,11 @@ def test_interrupt_exits_130_and_the_rerun_resumes(tmp_path, sig, code):
     proc.send_signal(sig)
     rest = proc.stderr.read()
     assert proc.wait(30) == code, seen + [rest]
-    m = re.search(r"Interrupted: (\d+) of 400 points finished, kept in (\S+); run the same "
-                  r"command again to resume", rest)
+    m = re.search(
+        r"Interrupted: (\d+) of 400 points finished, kept in (\S+); run the same "
+        r"command again to resume",
+        rest,
+    )
     assert m, rest
     assert "Traceback" not in rest and not out.exists()
     kept = int(m.group(1))
@@ -714,8 +786,7 @@ def test_interrupt_exits_130_and_the_rerun_resumes(tmp_path, sig, code):
     assert again.returncode == 0, stderr
     assert f"resuming: {kept} of 400 points read from {journal}" in stderr
     assert not journal.exists()
-    fresh = sweeps.sweep(with_simulation(base(), integrator="catch-up"),
-                         [SWEEP_ARGS[-3], SWEEP_ARGS[-1]])
+    fresh = sweeps.sweep(with_simulation(base(), integrator="catch-up"), [SWEEP_ARGS[-3], SWEEP_ARGS[-1]])
     table = sweeps.read_table(out)
     assert [r.status for r in table.rows] == [r.status for r in fresh.rows]
     np.testing.assert_allclose(table.columns()["v0"], fresh.columns()["v0"], rtol=0, atol=1e-12)
@@ -724,13 +795,24 @@ def test_interrupt_exits_130_and_the_rerun_resumes(tmp_path, sig, code):
 def test_killed_process_resumes(tmp_path):
     """SIGKILL a sweep process once its journal holds finished points; the rerun of the same
     command completes the table, equal to an uninterrupted run's."""
-    args = [sys.executable, "-m", "crawlsim", "velocity", P4, "--steps-per-period", "40",
-            "--integrator", "catch-up", "--sweep", "links.*.amplitude=0.1:0.3:30",
-            "--sweep", "links.1.phase=0.2:0.45:20"]
+    args = [
+        sys.executable,
+        "-m",
+        "crawlsim",
+        "velocity",
+        P4,
+        "--steps-per-period",
+        "40",
+        "--integrator",
+        "catch-up",
+        "--sweep",
+        "links.*.amplitude=0.1:0.3:30",
+        "--sweep",
+        "links.1.phase=0.2:0.45:20",
+    ]
     out = tmp_path / "s.h5"
     journal = sweeps.journal_path(out)
-    proc = subprocess.Popen(args + ["-o", str(out)], stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(args + ["-o", str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.time() + 60
     while time.time() < deadline and proc.poll() is None:
         if journal.exists() and journal.read_text().count("\n") >= 2:
@@ -754,14 +836,12 @@ def test_plot_one_and_two_paths(tmp_path):
     import matplotlib.image as mpimg
 
     for axes, name in (([AMP], "one.png"), ([AMP, LAG], "two.png")):
-        args = [P4, *FAST] + [x for a in axes for x in ("--sweep", a)] + ["--plot",
-                                                                          tmp_path / name]
+        args = [P4, *FAST] + [x for a in axes for x in ("--sweep", a)] + ["--plot", tmp_path / name]
         assert vel(*args).exit_code == 0
         image = mpimg.imread(tmp_path / name)
         assert image.ndim == 3 and image.shape[0] > 200 and image.shape[1] > 300
         assert image[..., :3].std() > 0.05  # not blank
-    r = vel(P4, *FAST, "--sweep", AMP, "--sweep", LAG, "--sweep", "period=1,2", "--plot",
-            tmp_path / "three.png")
+    r = vel(P4, *FAST, "--sweep", AMP, "--sweep", LAG, "--sweep", "period=1,2", "--plot", tmp_path / "three.png")
     assert r.exit_code == 2 and "one or two swept dimensions" in r.output
     assert not (tmp_path / "three.png").exists()
 
@@ -773,18 +853,43 @@ def test_sweep_figures_of_files_mark_invalid_points_as_invalid(tmp_path, monkeyp
     import crawlsim.plotting.output as output
 
     one = tmp_path / "one.h5"
-    assert vel(P4, *FAST, "--sweep", "friction.backward=[0.5,1,2,3,4]", "--link",
-               "friction.forward=[0.5,1,1,1,1]", "-o", one).exit_code == 0
+    assert (
+        vel(
+            P4,
+            *FAST,
+            "--sweep",
+            "friction.backward=[0.5,1,2,3,4]",
+            "--link",
+            "friction.forward=[0.5,1,1,1,1]",
+            "-o",
+            one,
+        ).exit_code
+        == 0
+    )
     drawn = []
     monkeypatch.setattr(output, "save_figure", lambda fig, path, **kw: drawn.append(fig))
-    for args in (["plot", one, "-o", tmp_path / "s.png"],
-                 ["velocity", P4, *FAST, "--sweep", "friction.backward=[0.5,1,2,3,4]", "--link",
-                  "friction.forward=[0.5,1,1,1,1]", "--plot", tmp_path / "v.png"]):
+    for args in (
+        ["plot", one, "-o", tmp_path / "s.png"],
+        [
+            "velocity",
+            P4,
+            *FAST,
+            "--sweep",
+            "friction.backward=[0.5,1,2,3,4]",
+            "--link",
+            "friction.forward=[0.5,1,1,1,1]",
+            "--plot",
+            tmp_path / "v.png",
+        ],
+    ):
         assert cli(*args).exit_code == 0
     assert len(drawn) == 2
     for fig in drawn:
-        marks = {line.get_label(): line.get_xdata().tolist() for line in fig.axes[0].get_lines()
-                 if line.get_marker() in ("x", "+")}
+        marks = {
+            line.get_label(): line.get_xdata().tolist()
+            for line in fig.axes[0].get_lines()
+            if line.get_marker() in ("x", "+")
+        }
         assert marks == {"invalid gait": [0.5, 1.0, 3.0]}
         assert fig.axes[0].get_ylabel() == "displacement per period $v_0T/\\ell$"
 
@@ -802,8 +907,12 @@ def test_v0_jumps_at_equal_friction_are_walls_not_contours(tmp_path):
     from crawlsim.plotting import sweep_data_figure
 
     out = tmp_path / "jump.h5"
-    assert vel(P4, *FAST, "--sweep", "friction.backward=0.5:1.4:6", "--sweep",
-               "links.*.amplitude=0.2:0.3:4", "-o", out).exit_code == 0
+    assert (
+        vel(
+            P4, *FAST, "--sweep", "friction.backward=0.5:1.4:6", "--sweep", "links.*.amplitude=0.2:0.3:4", "-o", out
+        ).exit_code
+        == 0
+    )
     data = read_sweep(out)
     v0 = np.asarray(data["columns"]["v0"], dtype=float).reshape(6, 4)
     assert np.all(v0[:3] < 0) and np.all(v0[3:] > 0)
@@ -823,8 +932,19 @@ def test_crawlsim_plot_draws_sweep_files(tmp_path):
     import matplotlib.image as mpimg
 
     one = tmp_path / "one.h5"
-    assert vel(P4, *FAST, "--sweep", "friction.backward=[0.5,1,2,3,4]", "--link",
-               "friction.forward=[0.5,1,1,1,1]", "-o", one).exit_code == 0
+    assert (
+        vel(
+            P4,
+            *FAST,
+            "--sweep",
+            "friction.backward=[0.5,1,2,3,4]",
+            "--link",
+            "friction.forward=[0.5,1,1,1,1]",
+            "-o",
+            one,
+        ).exit_code
+        == 0
+    )
     table = sweeps.read_table(one)
     axes, v0, missing = sweeps.sweep_figure_data(table)
     assert list(axes) == ["friction.backward"] and v0.shape == (5,)
@@ -842,8 +962,7 @@ def test_crawlsim_plot_draws_sweep_files(tmp_path):
     assert r.exit_code == 0 and (tmp_path / "two-sweep.svg").read_text().startswith("<?xml")
     assert cli("plot", two, "--only", "motion").exit_code == 2
     three = tmp_path / "three.h5"
-    assert vel(P4, *FAST, "--sweep", AMP, "--sweep", LAG, "--sweep", "period=1,2", "-o",
-               three).exit_code == 0
+    assert vel(P4, *FAST, "--sweep", AMP, "--sweep", LAG, "--sweep", "period=1,2", "-o", three).exit_code == 0
     r = cli("plot", three)
     assert r.exit_code == 2 and "this sweep has 3" in r.output
     part = tmp_path / "part.h5"

@@ -39,9 +39,9 @@ def _rows(table) -> list:
     return [r.to_json() for r in table.rows]
 
 
-@pytest.mark.parametrize("axes", [["links.1.phase=0:1:9"],
-                                  ["links.1.phase=0:1:3", "links.2.phase=0:1:3"],
-                                  ["friction.backward=0.5:3:6"]])
+@pytest.mark.parametrize(
+    "axes", [["links.1.phase=0:1:9"], ["links.1.phase=0:1:3", "links.2.phase=0:1:3"], ["friction.backward=0.5:3:6"]]
+)
 def test_a_sweeps_rows_equal_each_point_computed_from_scratch(axes):
     """The rows of a sweep (exact integrator; the Newton points and the invalid ones of the
     friction axis, where g_J vanishes, included) equal those of the same points each computed
@@ -64,11 +64,11 @@ def test_a_run_without_the_running_frame_keeps_every_other_number():
     frame and changes no number of the summary."""
     process = compile_gait(with_simulation(load_gait(P4), steps_per_period=200))
     full = simulate(process, integrator="exact", history=False, series=False)
-    row = simulate(process, integrator="exact", history=False, series=False,
-                   running_frame=False)
+    row = simulate(process, integrator="exact", history=False, series=False, running_frame=False)
     drop = {"wall_time"}
-    assert ({k: v for k, v in full.summary().items() if k not in drop}
-            == {k: v for k, v in row.summary().items() if k not in drop})
+    assert {k: v for k, v in full.summary().items() if k not in drop} == {
+        k: v for k, v in row.summary().items() if k not in drop
+    }
     assert row.limit.x is None and row.limit.slip is None and full.limit.slip is not None
     assert np.array_equal(row.limit.w, full.limit.w)
 

@@ -26,11 +26,9 @@ ROOT = Path(__file__).resolve().parents[1]
 #: jumps of steps signals, a moving stiffness and friction).
 CASES = [
     ("peristalsis-4", "exact", ["links.*.phase", "stiffness", "friction.forward"]),
-    ("peristalsis-4", "catch-up", ["links.1.phase", "links.0.amplitude", "stiffness",
-                                   "friction.backward"]),
+    ("peristalsis-4", "catch-up", ["links.1.phase", "links.0.amplitude", "stiffness", "friction.backward"]),
     ("anchoring-2", "exact", ["links.0.values.1", "stiffness", "friction.0.forward.values.0"]),
-    ("smooth-friction-3", "exact", ["links.1.phase", "stiffness.1",
-                                    "friction.0.forward.amplitude"]),
+    ("smooth-friction-3", "exact", ["links.1.phase", "stiffness.1", "friction.0.forward.amplitude"]),
 ]
 
 WALKS = r"""
@@ -72,8 +70,14 @@ def _walks(out: Path, disable_jit: bool) -> dict:
     if disable_jit:
         env["NUMBA_DISABLE_JIT"] = "1"
     env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
-    subprocess.run([sys.executable, "-c", WALKS, json.dumps(CASES), str(out)], check=True,
-                   env=env, cwd=ROOT, capture_output=True, timeout=900)
+    subprocess.run(
+        [sys.executable, "-c", WALKS, json.dumps(CASES), str(out)],
+        check=True,
+        env=env,
+        cwd=ROOT,
+        capture_output=True,
+        timeout=900,
+    )
     return json.loads(out.read_text())
 
 

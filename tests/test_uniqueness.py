@@ -23,10 +23,13 @@ from crawlsim.gait.uniqueness import UniquenessUndecidable, find_violation
 
 def wave(n, forward=1.0, backward=2.0, **simulation):
     """An n-block peristaltic wave with uniform friction."""
-    doc = {"blocks": n, "period": 1.0, "stiffness": 10.0,
-           "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.2, "phase": i / n}
-                     for i in range(n - 1)],
-           "friction": {"forward": forward, "backward": backward}}
+    doc = {
+        "blocks": n,
+        "period": 1.0,
+        "stiffness": 10.0,
+        "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.2, "phase": i / n} for i in range(n - 1)],
+        "friction": {"forward": forward, "backward": backward},
+    }
     if simulation:
         doc["simulation"] = simulation
     return doc
@@ -34,8 +37,9 @@ def wave(n, forward=1.0, backward=2.0, **simulation):
 
 def exact_g(forward, backward, subset):
     """g_J in exact rational arithmetic (the floats' own values)."""
-    return (sum(Fraction(float(f)) for f, s in zip(forward, subset) if s)
-            - sum(Fraction(float(b)) for b, s in zip(backward, subset) if not s))
+    return sum(Fraction(float(f)) for f, s in zip(forward, subset) if s) - sum(
+        Fraction(float(b)) for b, s in zip(backward, subset) if not s
+    )
 
 
 def blocks(indices):
@@ -50,8 +54,9 @@ def test_waves_with_forward_1_backward_2_are_refused_naming_the_subset(n):
         gait_from_document(wave(n), "wave.yaml")
     k = 2 * n // 3
     assert info.value.keypath == "friction"
-    assert (f"for J = {blocks(range(1, k + 1))} (forward) and the rest "
-            f"{blocks(range(k + 1, n + 1))} (backward)") in info.value.message
+    assert (
+        f"for J = {blocks(range(1, k + 1))} (forward) and the rest {blocks(range(k + 1, n + 1))} (backward)"
+    ) in info.value.message
     assert "for t in [0, 1] (a whole interval)" in info.value.message
 
 
@@ -122,8 +127,9 @@ def test_small_integer_friction_agrees_with_enumerating_every_subset(pairs):
     """With integer friction, g_J is an exact integer: enumerate all 2^N subsets."""
     forward = [float(f) for f, _ in pairs]
     backward = [float(b) for _, b in pairs]
-    expected = any(exact_g(forward, backward, subset) == 0
-                   for subset in itertools.product([False, True], repeat=len(pairs)))
+    expected = any(
+        exact_g(forward, backward, subset) == 0 for subset in itertools.product([False, True], repeat=len(pairs))
+    )
     found = find_violation([Constant(f) for f in forward], [Constant(b) for b in backward])
     assert (found is not None) == expected
     if found is not None:
@@ -170,8 +176,7 @@ def test_cosine_friction_crossing_zero_at_isolated_times_passes():
     """g_J = 1 + 0.5 cos(2 pi u) - 1.25 (J = {1}) vanishes only where cos = 1/2: two instants,
     not an interval; no other J vanishes (g_J > 0 for J = {1, 2}, < 0 for J = {}, and
     J = {2}: 3 - 2 = 1)."""
-    found = find_violation([Cosine(mean=1.0, amplitude=0.5), Constant(3.0)],
-                           [Constant(2.0), Constant(1.25)])
+    found = find_violation([Cosine(mean=1.0, amplitude=0.5), Constant(3.0)], [Constant(2.0), Constant(1.25)])
     assert found is None
 
 
@@ -195,16 +200,18 @@ def test_beyond_the_bounds_refused_unless_the_file_opts_in():
     rng = np.random.default_rng(11)
     n = 50
     doc = wave(n)
-    doc["friction"] = [{"forward": float(f), "backward": float(b)}
-                       for f, b in zip(rng.uniform(1, 2, n), rng.uniform(2, 3, n))]
+    doc["friction"] = [
+        {"forward": float(f), "backward": float(b)} for f, b in zip(rng.uniform(1, 2, n), rng.uniform(2, 3, n))
+    ]
     with pytest.raises(GaitError) as info:
         gait_from_document(doc, "wide.yaml")
     assert info.value.keypath == "friction"
     assert "beyond an exact check" in info.value.message
     assert "unchecked_uniqueness: true" in info.value.message
     with pytest.raises(UniquenessUndecidable):
-        find_violation([Constant(f["forward"]) for f in doc["friction"]],
-                       [Constant(f["backward"]) for f in doc["friction"]])
+        find_violation(
+            [Constant(f["forward"]) for f in doc["friction"]], [Constant(f["backward"]) for f in doc["friction"]]
+        )
     doc["simulation"] = {"unchecked_uniqueness": True}
     gait = gait_from_document(doc, "wide.yaml")
     assert gait.uniqueness_unchecked and gait.simulation.unchecked_uniqueness
@@ -227,8 +234,9 @@ def test_thousand_identical_blocks_are_n_plus_one_candidates():
     assert found is not None and found.subset.sum() == 600 and found.subset[:600].all()
 
 
-@given(st.lists(st.lists(st.sampled_from([0.0, -0.0, 1.0, 2.5, -1.0]), min_size=3, max_size=3),
-                min_size=1, max_size=25))
+@given(
+    st.lists(st.lists(st.sampled_from([0.0, -0.0, 1.0, 2.5, -1.0]), min_size=3, max_size=3), min_size=1, max_size=25)
+)
 @example([[0.0, 1.0, 2.5], [-0.0, 1.0, 2.5], [0.0, 1.0, -1.0]])
 def test_unique_rows_is_numpys_unique_along_an_axis(rows):
     """`_unique_rows` (the search's grouping of equal samples and equal friction pairs) gives

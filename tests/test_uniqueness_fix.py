@@ -21,10 +21,14 @@ from crawlsim.gait.signals import Constant
 from crawlsim.gait.uniqueness import alike_subsets, analyse
 
 SIX = {
-    "blocks": 6, "period": 2.0, "stiffness": 10.0,
+    "blocks": 6,
+    "period": 2.0,
+    "stiffness": 10.0,
     "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.2, "phase": i / 6} for i in range(5)],
-    "friction": [{"forward": f, "backward": b} for f, b in
-                 [(1.0, 2.0), (1.0, 2.0), (1.0, 3.0), (2.0, 1.0), (2.0, 1.0), (3.0, 2.0)]],
+    "friction": [
+        {"forward": f, "backward": b}
+        for f, b in [(1.0, 2.0), (1.0, 2.0), (1.0, 3.0), (2.0, 1.0), (2.0, 1.0), (3.0, 2.0)]
+    ],
 }
 """Six blocks of anisotropic friction in round numbers, with a_j = mu_j^+ + mu_j^- =
 (3, 3, 4, 3, 3, 5) and sum mu^- = 11: g_J = 0 exactly for the six J of a-sum 11, which fall in
@@ -36,9 +40,11 @@ def brute_force(forward, backward):
     f = [Fraction(repr(float(x))) for x in forward]
     b = [Fraction(repr(float(x))) for x in backward]
     n = len(f)
-    return {frozenset(j + 1 for j in range(n) if mask >> j & 1) for mask in range(1 << n)
-            if sum(f[j] for j in range(n) if mask >> j & 1)
-            == sum(b[j] for j in range(n) if not mask >> j & 1)}
+    return {
+        frozenset(j + 1 for j in range(n) if mask >> j & 1)
+        for mask in range(1 << n)
+        if sum(f[j] for j in range(n) if mask >> j & 1) == sum(b[j] for j in range(n) if not mask >> j & 1)
+    }
 
 
 def thresholds(doc):
@@ -65,21 +71,24 @@ def test_three_violating_subsets_are_all_listed_and_fixed_in_one_round():
     assert len(expected) == 6
     message = refusal(SIX)
     assert "anisotropic" not in message
-    assert message.startswith("uniqueness condition violated: for J = {1, 2, 6} (forward) and "
-                              "the rest {3, 4, 5} (backward), sum mu+ over J - sum mu- over the "
-                              "rest = 0 for t in [0, 2] (a whole interval); and for 2 more "
-                              "subsets: J = {4, 5, 6} (forward) and the rest {1, 2, 3} (backward) "
-                              "for t in [0, 2]; J = {1, 4, 6} (forward) and the rest {2, 3, 5} "
-                              "(backward) (and 3 more subsets that exchange blocks of J for "
-                              "blocks of the same friction) for t in [0, 2]")
+    assert message.startswith(
+        "uniqueness condition violated: for J = {1, 2, 6} (forward) and "
+        "the rest {3, 4, 5} (backward), sum mu+ over J - sum mu- over the "
+        "rest = 0 for t in [0, 2] (a whole interval); and for 2 more "
+        "subsets: J = {4, 5, 6} (forward) and the rest {1, 2, 3} (backward) "
+        "for t in [0, 2]; J = {1, 4, 6} (forward) and the rest {2, 3, 5} "
+        "(backward) (and 3 more subsets that exchange blocks of J for "
+        "blocks of the same friction) for t in [0, 2]"
+    )
     # the fix, from the message alone: apply it, validate again, and it passes
     change = CHANGE.search(message)
     assert change is not None
     fixed = apply(SIX, change, "six.yaml")
     assert gait_from_document(fixed, "six-fixed.yaml").blocks == 6
     assert brute_force(*thresholds(fixed)) == set()
-    changed = [(j, d) for j in range(6) for d in ("forward", "backward")
-               if fixed["friction"][j][d] != SIX["friction"][j][d]]
+    changed = [
+        (j, d) for j in range(6) for d in ("forward", "backward") if fixed["friction"][j][d] != SIX["friction"][j][d]
+    ]
     assert len(changed) == 1  # one coefficient
     j, d = changed[0]
     assert change[1] == f"friction[{j}].{d}" and float(change[2]) == SIX["friction"][j][d]
@@ -113,8 +122,10 @@ def test_a_shared_friction_is_changed_once_for_all_blocks():
     C(6, 4) = 15 subsets alike; the fix changes friction.forward or friction.backward."""
     doc = dict(SIX, friction={"forward": 1.0, "backward": 2.0})
     message = refusal(doc)
-    assert ("for J = {1, 2, 3, 4} (forward) and the rest {5, 6} (backward) (and 14 more subsets "
-            "that exchange blocks of J for blocks of the same friction)") in message
+    assert (
+        "for J = {1, 2, 3, 4} (forward) and the rest {5, 6} (backward) (and 14 more subsets "
+        "that exchange blocks of J for blocks of the same friction)"
+    ) in message
     change = CHANGE.search(message)
     assert change is not None and change[1] in ("friction.forward", "friction.backward")
     fixed = apply(doc, change, "shared.yaml")
@@ -126,14 +137,21 @@ def test_a_shared_friction_is_changed_once_for_all_blocks():
 def test_steps_friction_names_the_value_and_the_interval():
     """Friction that switches halfway: mu_2^- = 1 on [0, T/2] makes g_{1} = mu_1^+ - mu_2^-
     vanish there only, and the fix is a value of the steps signal or a coefficient of g_{1}."""
-    doc = {"blocks": 2, "period": 4.0, "stiffness": 10.0,
-           "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3}],
-           "friction": [{"forward": 1.0, "backward": 2.0},
-                        {"forward": 1.5, "backward": {"kind": "steps", "times": [0.0, 0.5],
-                                                      "values": [1.0, 3.0]}}]}
+    doc = {
+        "blocks": 2,
+        "period": 4.0,
+        "stiffness": 10.0,
+        "links": [{"kind": "cosine", "mean": 1.0, "amplitude": 0.3}],
+        "friction": [
+            {"forward": 1.0, "backward": 2.0},
+            {"forward": 1.5, "backward": {"kind": "steps", "times": [0.0, 0.5], "values": [1.0, 3.0]}},
+        ],
+    }
     message = refusal(doc)
-    assert ("for J = {1} (forward) and the rest {2} (backward), sum mu+ over J - sum mu- over "
-            "the rest = 0 for t in [0, 2] (a whole interval):") in message
+    assert (
+        "for J = {1} (forward) and the rest {2} (backward), sum mu+ over J - sum mu- over "
+        "the rest = 0 for t in [0, 2] (a whole interval):"
+    ) in message
     change = CHANGE.search(message)
     assert change is not None
     assert change[4] in ("friction.0.forward", "friction.1.backward.values.0")
@@ -150,17 +168,23 @@ def test_validate_explain_prints_the_whole_analysis(tmp_path):
     broken.write_text(yaml.safe_dump(dict(SIX, stiffness=-1.0)))
     result = CliRunner().invoke(main, ["validate", "--explain", str(bad), str(good), str(broken)])
     assert result.exit_code == 2
-    listed = {frozenset(int(x) for x in m.split(", "))
-              for m in re.findall(rf"{re.escape(str(bad))}:     J = \{{([0-9, ]+)\}}: g_J = 0 "
-                                  r"for t in \[0, 2\]", result.output)}
+    listed = {
+        frozenset(int(x) for x in m.split(", "))
+        for m in re.findall(
+            rf"{re.escape(str(bad))}:     J = \{{([0-9, ]+)\}}: g_J = 0 "
+            r"for t in \[0, 2\]",
+            result.output,
+        )
+    }
     assert listed == brute_force(*thresholds(SIX))
     assert f"{bad}:   violated by 6 subsets:" in result.output
     assert f"{bad}:   To restore it, change friction[" in result.output
     assert f"{good}: valid" in result.output
     assert f"{good}:   holds: no g_J vanishes on an interval (decided exactly)" in result.output
     assert f"{broken}: stiffness: " in result.output
-    assert (f"{broken}: uniqueness condition (docs/model.md §3): not analysed until the errors "
-            "above are fixed") in result.output
+    assert (
+        f"{broken}: uniqueness condition (docs/model.md §3): not analysed until the errors above are fixed"
+    ) in result.output
     assert "Traceback" not in result.output
 
 
@@ -179,8 +203,11 @@ def test_analyse_lists_exactly_the_subsets_of_a_brute_force(seed):
         assert analysis is None
         return
     assert analysis is not None and analysis.complete
-    listed = [frozenset(int(j) + 1 for j in np.flatnonzero(s))
-              for v in analysis.violations for s in alike_subsets(v, f, b, limit=1 << 10)]
+    listed = [
+        frozenset(int(j) + 1 for j in np.flatnonzero(s))
+        for v in analysis.violations
+        for s in alike_subsets(v, f, b, limit=1 << 10)
+    ]
     assert len(listed) == len(set(listed)) == sum(v.alike for v in analysis.violations)
     assert set(listed) == expected
     assert all(v.intervals == ((0.0, 1.0),) for v in analysis.violations)

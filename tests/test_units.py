@@ -28,20 +28,25 @@ def test_a_spelled_out_unit_is_refused_with_its_symbol_suggested(tmp_path: Path,
     args = [command, str(path)] + (["-o", str(tmp_path / "out.h5")] if command == "run" else [])
     result = CliRunner().invoke(main, args)
     assert result.exit_code == 2
-    assert f"{path}: units.force: expected a unit of force, one of " \
-           f"{', '.join(UNIT_NAMES['force'])}; got 'Newtons'" in result.output
+    assert (
+        f"{path}: units.force: expected a unit of force, one of "
+        f"{', '.join(UNIT_NAMES['force'])}; got 'Newtons'" in result.output
+    )
     assert "did you mean 'N'?" in result.output
     assert "Traceback" not in result.output
     assert not (tmp_path / "out.h5").exists()
 
 
-@pytest.mark.parametrize("base, name, expected", [
-    ("force", "newton", "did you mean 'N'?"),
-    ("length", "millimetres", "did you mean 'mm'?"),
-    ("length", "MM", "did you mean 'mm'?"),
-    ("time", "N", "got 'N', a unit of force"),
-    ("force", "zorg", "got 'zorg'"),
-])
+@pytest.mark.parametrize(
+    "base, name, expected",
+    [
+        ("force", "newton", "did you mean 'N'?"),
+        ("length", "millimetres", "did you mean 'mm'?"),
+        ("length", "MM", "did you mean 'mm'?"),
+        ("time", "N", "got 'N', a unit of force"),
+        ("force", "zorg", "got 'zorg'"),
+    ],
+)
 def test_unit_problems_name_what_was_expected(base, name, expected):
     problem = unit_problem(base, name)
     assert problem is not None and expected in problem
@@ -49,8 +54,7 @@ def test_unit_problems_name_what_was_expected(base, name, expected):
 
 
 def test_every_listed_unit_is_accepted():
-    assert all(unit_problem(base, name) is None
-               for base, names in UNIT_NAMES.items() for name in names)
+    assert all(unit_problem(base, name) is None for base, names in UNIT_NAMES.items() for name in names)
 
 
 def test_units_are_parsed_leniently_from_files():

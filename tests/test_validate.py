@@ -49,8 +49,16 @@ def test_every_structural_error_is_listed(tmp_path):
     path = write(tmp_path, "broken.yaml", BROKEN)
     found = {(e.keypath, e.message.split(",")[0]) for e in validation_errors(path)}
     keys = {k for k, _ in found}
-    assert {"period", "stiffness[1]", "links[0].amplitud", "links[0].amplitude", "links[1].values",
-            "friction.backwrad", "friction.backward", "simulation.steps_per_period"} <= keys, found
+    assert {
+        "period",
+        "stiffness[1]",
+        "links[0].amplitud",
+        "links[0].amplitude",
+        "links[1].values",
+        "friction.backwrad",
+        "friction.backward",
+        "simulation.steps_per_period",
+    } <= keys, found
     result = CliRunner().invoke(main, ["validate", path])
     assert result.exit_code == 2
     lines = [line for line in result.output.splitlines() if line.startswith(path)]

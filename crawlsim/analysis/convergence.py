@@ -192,8 +192,7 @@ def settled_elsewhere(log: History, tol: float) -> bool:
     return log.gap > tol + 2.0 * travel
 
 
-def displacement_roundoff(process: SweepingProcess, steps_per_period: int,
-                          mean_abs_slip: float) -> float:
+def displacement_roundoff(process: SweepingProcess, steps_per_period: int, mean_abs_slip: float) -> float:
     """The roundoff of a crawler's displacement per period (a length): summing the period's
     slips (``mean_abs_slip``: the sum of |dx| over the period, averaged over the blocks),
     steps x eps x mean_abs_slip, and reading positions off the state: w is exact to
@@ -207,8 +206,9 @@ def displacement_roundoff(process: SweepingProcess, steps_per_period: int,
     return steps_per_period * eps * mean_abs_slip + eps * process.scale / k_min
 
 
-def period_iteration_error(displacements, convergence: Convergence, rate: float | None,
-                           roundoff: float, period: float) -> float:
+def period_iteration_error(
+    displacements, convergence: Convergence, rate: float | None, roundoff: float, period: float
+) -> float:
     """Error bound of v0 from the period iteration: the displacement's roundoff
     (`displacement_roundoff`) over the period, plus, when the convergence is not finite-time,
     the geometric tail still to come."""
@@ -246,8 +246,7 @@ def classify_convergence(rel_steps, tol: float) -> tuple[Convergence, int | None
     return Convergence.ASYMPTOTIC, None
 
 
-def _period_distances(w: np.ndarray, lam: np.ndarray, final: PeriodRecord,
-                      h: np.ndarray) -> dict[str, float]:
+def _period_distances(w: np.ndarray, lam: np.ndarray, final: PeriodRecord, h: np.ndarray) -> dict[str, float]:
     """W^{1,2} and sup distances of one period's w, and the L^2 distance of its multiplier
     rates, to the limit period ``final``.
 
@@ -261,8 +260,11 @@ def _period_distances(w: np.ndarray, lam: np.ndarray, final: PeriodRecord,
     de = np.diff(e, axis=0)
     h1 = float(np.sum(np.sum(de * de, axis=1) / h))
     dl = lam - final.multipliers
-    return {"w12_distance": math.sqrt(l2 + h1), "sup_distance": float(np.sqrt(np.max(e2))),
-            "slip_l2_distance": math.sqrt(float(np.sum(np.sum(dl * dl, axis=1) / h)))}
+    return {
+        "w12_distance": math.sqrt(l2 + h1),
+        "sup_distance": float(np.sqrt(np.max(e2))),
+        "slip_l2_distance": math.sqrt(float(np.sum(np.sum(dl * dl, axis=1) / h))),
+    }
 
 
 @dataclass(frozen=True)
@@ -307,9 +309,8 @@ def fit_contraction_rate(rel_steps: np.ndarray) -> RateFit | None:
         return RateFit(rate, None, int(chosen.size))
     residual = y - (slope * x + intercept)
     spread = float(np.sum((x - x.mean()) ** 2))
-    scatter = math.sqrt(float(np.sum(residual ** 2)) / (chosen.size - 2) / spread)
-    roundoff = float(np.sum(np.abs(x - x.mean()) / spread * np.finfo(float).eps
-                            / steps[chosen]))
+    scatter = math.sqrt(float(np.sum(residual**2)) / (chosen.size - 2) / spread)
+    roundoff = float(np.sum(np.abs(x - x.mean()) / spread * np.finfo(float).eps / steps[chosen]))
     return RateFit(rate, rate * (scatter + roundoff), int(chosen.size))
 
 

@@ -41,15 +41,15 @@ def with_error(value: float, error: float | None, unit: str = "") -> str:
     return f"{text}{unit}" if bound is None else f"{text}{unit} ± {bound}{unit}"
 
 
-def how_found(method: str | None, newton_steps: int | None, periods: int | None,
-              jacobian_rate: float | None = None) -> str:
+def how_found(
+    method: str | None, newton_steps: int | None, periods: int | None, jacobian_rate: float | None = None
+) -> str:
     """One line saying how a run's limit was found (``crawlsim run`` and ``crawlsim info``)."""
     if method == "newton":
         rate = "" if jacobian_rate is None else f", Jacobian rate {jacobian_rate:.4g}"
         steps = f"{newton_steps} Newton step{'' if newton_steps == 1 else 's'}"
         simulated = f"{periods} period{'' if periods == 1 else 's'}"
-        return (f"Newton on the period map: {steps} in {simulated}, "
-                f"verified by a plain period{rate}")
+        return f"Newton on the period map: {steps} in {simulated}, verified by a plain period{rate}"
     if method == "iterate":
         return "plain iteration of the periods"
     return "n/a (older file)"

@@ -125,8 +125,14 @@ def catch_up_energy(process: SweepingProcess, record: PeriodRecord) -> PeriodEne
     dissipation = period_dissipation(process, record)
     dw = np.diff(record.w, axis=0)
     loss = math.fsum(np.sum(dw * dw / (2.0 * k), axis=1))
-    return PeriodEnergy(work, dissipation, loss, crawler.elastic_energy(sigma[0]),
-                        crawler.elastic_energy(sigma[-1]), crawler.load_work(record.multipliers))
+    return PeriodEnergy(
+        work,
+        dissipation,
+        loss,
+        crawler.elastic_energy(sigma[0]),
+        crawler.elastic_energy(sigma[-1]),
+        crawler.load_work(record.multipliers),
+    )
 
 
 def period_energy(process: SweepingProcess, record: PeriodRecord) -> PeriodEnergy | None:
@@ -206,8 +212,8 @@ def friction_minimum(signal: Signal) -> float:
         H = signal.harmonics
         a = np.zeros(H)
         b = np.zeros(H)
-        a[:len(signal.cos)] = signal.cos
-        b[:len(signal.sin)] = signal.sin
+        a[: len(signal.cos)] = signal.cos
+        b[: len(signal.sin)] = signal.sin
         return signal.mean if H == 0 else _trig_minimum(signal.mean, a, b)
     raise TypeError(f"no exact minimum for the signal {signal!r}")  # pragma: no cover
 
@@ -217,8 +223,8 @@ def friction_minima(process: SweepingProcess) -> tuple[np.ndarray, np.ndarray]:
     assert process.offset_pieces is not None
     N = process.blocks
     signals = process.offset_pieces.signals
-    forward = np.array([friction_minimum(s) for s in signals[N - 1:2 * N - 1]])
-    backward = np.array([friction_minimum(s) for s in signals[2 * N - 1:3 * N - 1]])
+    forward = np.array([friction_minimum(s) for s in signals[N - 1 : 2 * N - 1]])
+    backward = np.array([friction_minimum(s) for s in signals[2 * N - 1 : 3 * N - 1]])
     assert process.crawler is not None
     scale = process.crawler.friction_scale
     return scale * forward, scale * backward
@@ -233,8 +239,9 @@ def cost_of_transport_bound(process: SweepingProcess, displacement: float) -> fl
     return float(math.fsum(forward if displacement > 0 else backward))
 
 
-def ledger(process: SweepingProcess, record: PeriodRecord, displacement: float,
-           cost_of_transport: float | None) -> EnergyLedger | None:
+def ledger(
+    process: SweepingProcess, record: PeriodRecord, displacement: float, cost_of_transport: float | None
+) -> EnergyLedger | None:
     """The ledger of the limit period ``record`` and the bound on the cost of transport; None
     for a generic sweeping process."""
     energy = period_energy(process, record)
@@ -244,11 +251,11 @@ def ledger(process: SweepingProcess, record: PeriodRecord, displacement: float,
         # with loads (docs/model.md §6): the efficiency is the share of the actuator work that
         # goes into the load, and the friction-only bound does not bound the cost of transport
         efficiency = energy.load_work / energy.work if energy.work > 0 else None
-        return EnergyLedger(energy.work, energy.dissipation, energy.jump_loss, energy.residual,
-                            None, efficiency, energy.load_work)
+        return EnergyLedger(
+            energy.work, energy.dissipation, energy.jump_loss, energy.residual, None, efficiency, energy.load_work
+        )
     bound = cost_of_transport_bound(process, displacement)
     efficiency = None
     if bound is not None and cost_of_transport is not None and cost_of_transport > 0:
         efficiency = bound / cost_of_transport
-    return EnergyLedger(energy.work, energy.dissipation, energy.jump_loss, energy.residual,
-                        bound, efficiency)
+    return EnergyLedger(energy.work, energy.dissipation, energy.jump_loss, energy.residual, bound, efficiency)

@@ -36,13 +36,14 @@ def run_message(result: RunResult, *, max_periods: int, tolerance: float, limit:
     advice = "raise `max_periods` (--max-periods)"
     if limit == LimitMethod.ITERATE:
         advice += " or let the periodic-limit solver find the limit (`--limit newton`)"
-    return (f"the maximum number of periods was reached: max_periods = {max_periods} periods "
-            f"ran out before the limit was found (final Poincare step {step:.3g}, tolerance "
-            f"{tolerance:.3g} relative); {advice}")
+    return (
+        f"the maximum number of periods was reached: max_periods = {max_periods} periods "
+        f"ran out before the limit was found (final Poincare step {step:.3g}, tolerance "
+        f"{tolerance:.3g} relative); {advice}"
+    )
 
 
-def not_converged_message(result: RunResult, max_periods: int, tolerance: float,
-                          limit: str) -> str:
+def not_converged_message(result: RunResult, max_periods: int, tolerance: float, limit: str) -> str:
     """The one line on stderr of a run that ended without a verified limit (exit code 3): why,
     and what to change (`run_message`)."""
     why = run_message(result, max_periods=max_periods, tolerance=tolerance, limit=limit)
@@ -73,8 +74,10 @@ def grid_note(result: RunResult) -> str | None:
         spread = RATE_AGREEMENT * max(abs(rate), abs(mine))
         if abs(mine - rate) <= spread + 3.0 * (result.contraction_rate_error or 0.0):
             return None
-    return (f"catch-up's verdict depends on the time grid ({result.steps_per_period} steps per "
-            f"period); the exact integrator finds {exact_text}")
+    return (
+        f"catch-up's verdict depends on the time grid ({result.steps_per_period} steps per "
+        f"period); the exact integrator finds {exact_text}"
+    )
 
 
 def _error_parts(result: RunResult) -> str:
@@ -86,8 +89,10 @@ def _error_parts(result: RunResult) -> str:
     step = result.v0_error_time_step
     if step is None:
         return " (period iteration only)"
-    return (f" (time step {step:.1g}, measured against the exact integrator; period iteration "
-            f"{result.v0_error_period_iteration:.1g})")
+    return (
+        f" (time step {step:.1g}, measured against the exact integrator; period iteration "
+        f"{result.v0_error_period_iteration:.1g})"
+    )
 
 
 def convergence_text(result: RunResult) -> str:
@@ -100,10 +105,11 @@ def convergence_text(result: RunResult) -> str:
             return "asymptotic, contraction rate n/a per period"
         error = result.contraction_rate_error
         spread = "" if error is None else f"± {error:.1g}, "
-        return (f"asymptotic, contraction rate {rate:.4g} per period ({spread}fitted on "
-                f"{result.contraction_rate_periods} periods)")
-    return (f"NOT converged: final Poincare step {result.history.poincare_step[-1]:.3g}. "
-            "Try increasing max_periods.")
+        return (
+            f"asymptotic, contraction rate {rate:.4g} per period ({spread}fitted on "
+            f"{result.contraction_rate_periods} periods)"
+        )
+    return f"NOT converged: final Poincare step {result.history.poincare_step[-1]:.3g}. Try increasing max_periods."
 
 
 def _units_of(result: RunResult) -> Unit:
@@ -111,6 +117,7 @@ def _units_of(result: RunResult) -> Unit:
 
     def unit(quantity: str) -> str:
         return "" if units is None else str(units.suffix(quantity))
+
     return unit
 
 
@@ -119,23 +126,35 @@ def summary_rows(result: RunResult) -> list[Row]:
     unit = _units_of(result)
     rows: list[Row] = []
     if result.v0 is not None:
-        rows.append(("v0", with_error(result.v0, result.v0_error_estimate, unit("velocity"))
-                     + _error_parts(result)))
+        rows.append(("v0", with_error(result.v0, result.v0_error_estimate, unit("velocity")) + _error_parts(result)))
     rows.append(("convergence", convergence_text(result)))
     if result.grid_note:
         rows.append(("grid", result.grid_note))
-    rows.append(("limit found by", how_found(result.limit_method, result.limit_newton_steps,
-                                             result.limit_periods, result.jacobian_rate)))
+    rows.append(
+        (
+            "limit found by",
+            how_found(result.limit_method, result.limit_newton_steps, result.limit_periods, result.jacobian_rate),
+        )
+    )
     if result.displacement_per_period is not None:
         assert result.dissipation_per_period is not None
-        rows.append(("displacement per period",
-                     with_error(result.displacement_per_period,
-                                result.displacement_error_estimate, unit("length"))))
-        rows.append(("dissipation per period",
-                     with_error(result.dissipation_per_period,
-                                result.dissipation_error_estimate, unit("dissipation"))))
-        cot = "n/a (no net motion)" if result.cost_of_transport is None else with_error(
-            result.cost_of_transport, result.cost_of_transport_error_estimate, unit("force"))
+        rows.append(
+            (
+                "displacement per period",
+                with_error(result.displacement_per_period, result.displacement_error_estimate, unit("length")),
+            )
+        )
+        rows.append(
+            (
+                "dissipation per period",
+                with_error(result.dissipation_per_period, result.dissipation_error_estimate, unit("dissipation")),
+            )
+        )
+        cot = (
+            "n/a (no net motion)"
+            if result.cost_of_transport is None
+            else with_error(result.cost_of_transport, result.cost_of_transport_error_estimate, unit("force"))
+        )
         rows.append(("cost of transport", cot))
         rows.extend(energy_rows(result, unit))
     return rows
@@ -178,19 +197,22 @@ def energy_rows(result: RunResult, unit: Unit) -> list[Row]:
     if err is not None and result.integrator != "exact":
         err += abs(loss)
     loads = " - load work" if result.load_work_per_period is not None else ""
-    rows = [("actuator work per period", with_error(work, err, unit("dissipation"))),
-            ("jump losses per period", f"{loss:.3g}{unit('dissipation')}"),
-            ("energy balance residual", f"{residual:.3g}{unit('dissipation')} (work - "
-                                        f"dissipation - jump losses{loads}; {relative:.1g} "
-                                        "relative)")]
+    rows = [
+        ("actuator work per period", with_error(work, err, unit("dissipation"))),
+        ("jump losses per period", f"{loss:.3g}{unit('dissipation')}"),
+        (
+            "energy balance residual",
+            f"{residual:.3g}{unit('dissipation')} (work - dissipation - jump losses{loads}; {relative:.1g} relative)",
+        ),
+    ]
     if result.load_work_per_period is not None:
         rows[2:2] = [_load_row(result, err, unit)]
         if result.efficiency is not None:
             load = result.load_work_per_period
-            eff_err = None if err is None or load == 0 else result.efficiency * 1.01 * (
-                err / abs(load) + err / abs(work))
-            rows.append(("efficiency", f"{with_error(result.efficiency, eff_err)} "
-                                       "(load work / actuator work)"))
+            eff_err = (
+                None if err is None or load == 0 else result.efficiency * 1.01 * (err / abs(load) + err / abs(work))
+            )
+            rows.append(("efficiency", f"{with_error(result.efficiency, eff_err)} (load work / actuator work)"))
     if result.cost_of_transport_bound is not None:
         rows.append(_bound_row(result, unit))
     return rows
@@ -199,32 +221,38 @@ def energy_rows(result: RunResult, unit: Unit) -> list[Row]:
 def _load_row(result: RunResult, err: float | None, unit: Unit) -> Row:
     # W_load carries the error of the work it is part of (W = D + J + W_load, §6)
     assert result.load_work_per_period is not None
-    return ("load work per period",
-            f"{with_error(result.load_work_per_period, err, unit('dissipation'))} "
-            "(against the loads, docs/model.md §6)")
+    return (
+        "load work per period",
+        f"{with_error(result.load_work_per_period, err, unit('dissipation'))} (against the loads, docs/model.md §6)",
+    )
 
 
 def _bound_row(result: RunResult, unit: Unit) -> Row:
     cot_err = result.cost_of_transport_error_estimate
-    eff = "n/a" if result.efficiency is None or result.cost_of_transport is None else (
-        with_error(result.efficiency, None if cot_err is None else
-                   1.01 * result.efficiency * cot_err / result.cost_of_transport))
-    return ("cost of transport bound",
-            f"{result.cost_of_transport_bound:.12g}{unit('force')} (efficiency {eff})")
+    eff = (
+        "n/a"
+        if result.efficiency is None or result.cost_of_transport is None
+        else (
+            with_error(
+                result.efficiency,
+                None if cot_err is None else 1.01 * result.efficiency * cot_err / result.cost_of_transport,
+            )
+        )
+    )
+    return ("cost of transport bound", f"{result.cost_of_transport_bound:.12g}{unit('force')} (efficiency {eff})")
 
 
 def _extra_rows(result: RunResult) -> list[Row]:
     """What a notebook result holds besides the summary: its status and message, the
     trajectory kept and the file written (`crawlsim.api.SimulationResult`)."""
-    rows: list[Row] = [("status", str(result.status)
-                        + ("" if result.status == RunStatus.SUCCESSFUL else f": {result.message}"))]
+    rows: list[Row] = [
+        ("status", str(result.status) + ("" if result.status == RunStatus.SUCCESSFUL else f": {result.message}"))
+    ]
     trajectory = getattr(result, "trajectory", None)
     if trajectory is not None:
         names = list(trajectory.columns())
-        events = "" if trajectory.events is None else (
-            f", {len(trajectory.events['t'])} events")
-        rows.append(("trajectory", f"{len(trajectory.t)} saved points ({', '.join(names)})"
-                                   f"{events}"))
+        events = "" if trajectory.events is None else (f", {len(trajectory.events['t'])} events")
+        rows.append(("trajectory", f"{len(trajectory.t)} saved points ({', '.join(names)}){events}"))
     output = getattr(result, "output", None)
     if output is not None:
         rows.append(("written", str(output)))
@@ -233,17 +261,18 @@ def _extra_rows(result: RunResult) -> list[Row]:
 
 def result_repr(result: RunResult) -> str:
     """A result's ``repr``: its type and the summary, at most `REPR_LINES` lines."""
-    lines = [f"<{type(result).__name__}> {headline(result)}",
-             *map(_line, summary_rows(result) + _extra_rows(result))]
+    lines = [f"<{type(result).__name__}> {headline(result)}", *map(_line, summary_rows(result) + _extra_rows(result))]
     if len(lines) > REPR_LINES:
-        lines = lines[:REPR_LINES - 1] + ["  ... (result.summary() has every number)"]
+        lines = lines[: REPR_LINES - 1] + ["  ... (result.summary() has every number)"]
     return "\n".join(lines)
 
 
 def result_html(result: RunResult) -> str:
     """A result as an HTML table for notebooks: the headline as caption, one row per value."""
-    cells = "".join(f"<tr><th style=\"text-align:left\">{html.escape(label)}</th>"
-                    f"<td style=\"text-align:left\">{html.escape(value)}</td></tr>"
-                    for label, value in summary_rows(result) + _extra_rows(result))
+    cells = "".join(
+        f'<tr><th style="text-align:left">{html.escape(label)}</th>'
+        f'<td style="text-align:left">{html.escape(value)}</td></tr>'
+        for label, value in summary_rows(result) + _extra_rows(result)
+    )
     caption = html.escape(f"{type(result).__name__}: {headline(result)}")
     return f"<table><caption>{caption}</caption>{cells}</table>"

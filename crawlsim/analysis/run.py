@@ -79,30 +79,80 @@ from crawlsim.status import Convergence, LimitMethod, RunStatus
 if TYPE_CHECKING:
     from crawlsim.integrate.limit import LimitSolution
 
-__all__ = ["ENERGY_KEYS", "FINITE_JUMP", "LIMIT_METHODS", "RATE_RELIABLE", "RATE_WINDOW",
-           "ROUNDOFF_FLOOR", "ConvergenceHistory", "LimitPeriod", "RateFit", "RunResult",
-           "classify_convergence", "contraction_rate", "cost_of_transport", "displacement_roundoff",
-           "effective_tolerance", "energy_lines", "fit_contraction_rate", "following",
-           "limit_period", "not_converged_message", "period_iteration_error", "poincare_step",
-           "simulate", "summary_text", "time_step_reference"]
+__all__ = [
+    "ENERGY_KEYS",
+    "FINITE_JUMP",
+    "LIMIT_METHODS",
+    "RATE_RELIABLE",
+    "RATE_WINDOW",
+    "ROUNDOFF_FLOOR",
+    "ConvergenceHistory",
+    "LimitPeriod",
+    "RateFit",
+    "RunResult",
+    "classify_convergence",
+    "contraction_rate",
+    "cost_of_transport",
+    "displacement_roundoff",
+    "effective_tolerance",
+    "energy_lines",
+    "fit_contraction_rate",
+    "following",
+    "limit_period",
+    "not_converged_message",
+    "period_iteration_error",
+    "poincare_step",
+    "simulate",
+    "summary_text",
+    "time_step_reference",
+]
 
 #: How the periodic limit is found: the solver of `crawlsim.integrate.limit`, or plain iteration.
 LIMIT_METHODS = tuple(LimitMethod)
 
 #: The energy ledger's entries of the summary (`crawlsim.analysis.energy`).
-ENERGY_KEYS = ("actuator_work_per_period", "jump_loss_per_period", "load_work_per_period",
-               "energy_balance_residual",
-               "cost_of_transport_bound", "efficiency")
+ENERGY_KEYS = (
+    "actuator_work_per_period",
+    "jump_loss_per_period",
+    "load_work_per_period",
+    "energy_balance_residual",
+    "cost_of_transport_bound",
+    "efficiency",
+)
 
 #: The keys of `RunResult.summary`, in order.
-SUMMARY_KEYS = ("name", "integrator", "status", "message", "v0", "v0_error_estimate",
-                "v0_error_period_iteration", "v0_error_time_step", "v0_error_reason",
-                "displacement_per_period", "dissipation_error_estimate", "convergence",
-                "periodic_from", "contraction_rate", "contraction_rate_error",
-                "contraction_rate_periods", "jacobian_rate", "exact_convergence", "exact_rate",
-                "grid_note", "periods", "steps_per_period", "dissipation_per_period",
-                "cost_of_transport", "limit_method", "limit_newton_steps", "limit_periods",
-                "clarabel_calls", "steps", "wall_time") + ENERGY_KEYS
+SUMMARY_KEYS = (
+    "name",
+    "integrator",
+    "status",
+    "message",
+    "v0",
+    "v0_error_estimate",
+    "v0_error_period_iteration",
+    "v0_error_time_step",
+    "v0_error_reason",
+    "displacement_per_period",
+    "dissipation_error_estimate",
+    "convergence",
+    "periodic_from",
+    "contraction_rate",
+    "contraction_rate_error",
+    "contraction_rate_periods",
+    "jacobian_rate",
+    "exact_convergence",
+    "exact_rate",
+    "grid_note",
+    "periods",
+    "steps_per_period",
+    "dissipation_per_period",
+    "cost_of_transport",
+    "limit_method",
+    "limit_newton_steps",
+    "limit_periods",
+    "clarabel_calls",
+    "steps",
+    "wall_time",
+) + ENERGY_KEYS
 
 
 @dataclass(frozen=True, eq=False)
@@ -254,11 +304,21 @@ class _Drive:
     solver_periods: int
 
 
-def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: float = 1e-12,
-             integrator: str = "catch-up", check_every_step: bool = False, sink: Any = None,
-             progress: Progress | None = None, limit: str = "newton", history: bool = True,
-             time_step_error: bool = False, series: bool = True,
-             running_frame: bool = True) -> RunResult:
+def simulate(
+    process: SweepingProcess,
+    *,
+    max_periods: int = 1000,
+    tolerance: float = 1e-12,
+    integrator: str = "catch-up",
+    check_every_step: bool = False,
+    sink: Any = None,
+    progress: Progress | None = None,
+    limit: str = "newton",
+    history: bool = True,
+    time_step_error: bool = False,
+    series: bool = True,
+    running_frame: bool = True,
+) -> RunResult:
     """Step ``process`` to its periodic regime and analyse the run (module docstring).
 
     ``sink.add_period(record)`` receives every period of the history as it is computed (the
@@ -284,19 +344,46 @@ def simulate(process: SweepingProcess, *, max_periods: int = 1000, tolerance: fl
     began = _time.perf_counter()
     options = {"check_every_step": True} if check_every_step else {}
     tol = effective_tolerance(tolerance)
-    drive = _drive(process, integrator, options, tol=tol, max_periods=max_periods, limit=limit,
-                   history=history, sink=sink, progress=progress, series=series)
-    result = _analyse(process, drive, integrator=integrator, tol=tol,
-                      reference=_reference(process, integrator, time_step_error,
-                                           max_periods=max_periods, tolerance=tolerance),
-                      running_frame=running_frame)
-    return replace(result, wall_time=_time.perf_counter() - began,
-                   **_outcome(result, max_periods=max_periods, tolerance=tol, limit=limit))
+    drive = _drive(
+        process,
+        integrator,
+        options,
+        tol=tol,
+        max_periods=max_periods,
+        limit=limit,
+        history=history,
+        sink=sink,
+        progress=progress,
+        series=series,
+    )
+    result = _analyse(
+        process,
+        drive,
+        integrator=integrator,
+        tol=tol,
+        reference=_reference(process, integrator, time_step_error, max_periods=max_periods, tolerance=tolerance),
+        running_frame=running_frame,
+    )
+    return replace(
+        result,
+        wall_time=_time.perf_counter() - began,
+        **_outcome(result, max_periods=max_periods, tolerance=tol, limit=limit),
+    )
 
 
-def _drive(process: SweepingProcess, integrator: str, options: dict[str, Any], *, tol: float,
-           max_periods: int, limit: str, history: bool, sink: Any,
-           progress: Progress | None, series: bool = True) -> _Drive:
+def _drive(
+    process: SweepingProcess,
+    integrator: str,
+    options: dict[str, Any],
+    *,
+    tol: float,
+    max_periods: int,
+    limit: str,
+    history: bool,
+    sink: Any,
+    progress: Progress | None,
+    series: bool = True,
+) -> _Drive:
     """The true iterates, period by period, and the limit: plain iteration, or a few plain
     periods and then the periodic-limit solver, with the history following the iterates to it."""
     from crawlsim.integrate.limit import PLAIN_PERIODS
@@ -310,9 +397,18 @@ def _drive(process: SweepingProcess, integrator: str, options: dict[str, Any], *
         budget = max_periods if limit == LimitMethod.ITERATE else min(max_periods, PLAIN_PERIODS)
         final = _iterate(log, stepper, budget, tol, sink, progress)
         if final is None and limit == LimitMethod.NEWTON and len(log) < max_periods:
-            final, solution, cost = _solve(process, integrator, options, log, stepper, tol=tol,
-                                           max_periods=max_periods, history=history,
-                                           sink=sink, progress=progress)
+            final, solution, cost = _solve(
+                process,
+                integrator,
+                options,
+                log,
+                stepper,
+                tol=tol,
+                max_periods=max_periods,
+                history=history,
+                sink=sink,
+                progress=progress,
+            )
         if final is None:  # plain iteration to the end (limit="iterate", or a solver failure)
             final = _iterate(log, stepper, max_periods, tol, sink, progress) or log.last
         assert final is not None, "max_periods >= 1"
@@ -323,12 +419,12 @@ def _drive(process: SweepingProcess, integrator: str, options: dict[str, Any], *
     if solution is not None:
         assert log.last is not None
         final = following(process, final, log.last)
-    return _Drive(log, final, solution, measured,
-                  stepper.projector.clarabel_calls + cost[1], cost[0])
+    return _Drive(log, final, solution, measured, stepper.projector.clarabel_calls + cost[1], cost[0])
 
 
-def _iterate(log: History, stepper: Any, budget: int, tol: float, sink: Any,
-             progress: Progress | None) -> PeriodRecord | None:
+def _iterate(
+    log: History, stepper: Any, budget: int, tol: float, sink: Any, progress: Progress | None
+) -> PeriodRecord | None:
     """Plain periods until the Poincare step reaches ``tol`` (that period, the limit) or the
     history holds ``budget`` periods (None)."""
     while len(log) < budget:
@@ -338,10 +434,19 @@ def _iterate(log: History, stepper: Any, budget: int, tol: float, sink: Any,
     return None
 
 
-def _solve(process: SweepingProcess, integrator: str, options: dict[str, Any], log: History,
-           stepper: Any, *, tol: float, max_periods: int, history: bool, sink: Any,
-           progress: Progress | None) -> tuple[PeriodRecord | None, LimitSolution | None,
-                                               tuple[int, int]]:
+def _solve(
+    process: SweepingProcess,
+    integrator: str,
+    options: dict[str, Any],
+    log: History,
+    stepper: Any,
+    *,
+    tol: float,
+    max_periods: int,
+    history: bool,
+    sink: Any,
+    progress: Progress | None,
+) -> tuple[PeriodRecord | None, LimitSolution | None, tuple[int, int]]:
     """The periodic-limit solver from the last true iterate, then the history up to its limit:
     (the limit period or None when the solver failed, the solution or None when the iterates
     settled elsewhere, the solver's (periods, Clarabel calls))."""
@@ -349,8 +454,7 @@ def _solve(process: SweepingProcess, integrator: str, options: dict[str, Any], l
 
     solver = make_stepper(process, integrator, **options)
     # the last true iterate is the solver's first period: not simulated twice
-    solution = solve_limit(process, solver, tolerance=tol, first=log.last,
-                           max_periods=max_periods - len(log), plain=0)
+    solution = solve_limit(process, solver, tolerance=tol, first=log.last, max_periods=max_periods - len(log), plain=0)
     cost = (solution.periods, solver.projector.clarabel_calls)
     if not solution.converged:  # the solver's periods count against max_periods
         return None, None, cost
@@ -394,8 +498,9 @@ def shape_mismatch(process: SweepingProcess, final: PeriodRecord) -> float:
     return float(np.abs(final.w[-1] - final.w[0]).max()) / float(process.stiffness.min())
 
 
-def _motion(process: SweepingProcess, drive: _Drive, displacements: np.ndarray,
-            convergence: Convergence, rate: float | None) -> _Motion | None:
+def _motion(
+    process: SweepingProcess, drive: _Drive, displacements: np.ndarray, convergence: Convergence, rate: float | None
+) -> _Motion | None:
     """v0 of the limit period and the error of the period iteration: the residual of the
     verified period, or the roundoff and geometric tail of the iterates (None: no crawler)."""
     c = process.crawler
@@ -409,8 +514,7 @@ def _motion(process: SweepingProcess, drive: _Drive, displacements: np.ndarray,
     if drive.solution is not None:
         err = verified_limit_error(process, final, G)
     else:
-        err = period_iteration_error(displacements, convergence, rate,
-                                     displacement_roundoff(process, G, roundoff), T)
+        err = period_iteration_error(displacements, convergence, rate, displacement_roundoff(process, G, roundoff), T)
     return _Motion(d_final, d_final / T, period_dissipation(process, final), err)
 
 
@@ -424,8 +528,9 @@ class _StepError:
     reason: str | None = None
 
 
-def _reference(process: SweepingProcess, integrator: str, wanted: bool, *, max_periods: int,
-               tolerance: float) -> RunResult | None | bool:
+def _reference(
+    process: SweepingProcess, integrator: str, wanted: bool, *, max_periods: int, tolerance: float
+) -> RunResult | None | bool:
     """The exact integrator's run a catch-up run is measured against (`time_step_reference`);
     False when none is wanted (the exact integrator, or ``time_step_error`` off)."""
     if integrator == "exact" or not wanted or process.crawler is None:
@@ -433,8 +538,9 @@ def _reference(process: SweepingProcess, integrator: str, wanted: bool, *, max_p
     return time_step_reference(process, max_periods=max_periods, tolerance=tolerance)
 
 
-def _step_error(process: SweepingProcess, motion: _Motion | None, integrator: str,
-                reference: RunResult | None | bool) -> _StepError:
+def _step_error(
+    process: SweepingProcess, motion: _Motion | None, integrator: str, reference: RunResult | None | bool
+) -> _StepError:
     if motion is None:
         return _StepError()
     if integrator == "exact":
@@ -445,18 +551,20 @@ def _step_error(process: SweepingProcess, motion: _Motion | None, integrator: st
         assert reference.dissipation_per_period is not None
         return _StepError(
             abs(motion.v0 - reference.v0) + (reference.v0_error_estimate or 0.0),
-            abs(motion.dissipation - reference.dissipation_per_period)
-            + (reference.dissipation_error_estimate or 0.0))
+            abs(motion.dissipation - reference.dissipation_per_period) + (reference.dissipation_error_estimate or 0.0),
+        )
     # the period iteration's part alone bounds nothing: catch-up is O(h)
-    reason = ("the exact integrator needs a closed form of c(t), which this gait has not"
-              if process.offset_pieces is None
-              else "the exact integrator's reference run failed")
-    return _StepError(reason="no error estimate: the catch-up time-step error could not be "
-                             f"measured; {reason}")
+    reason = (
+        "the exact integrator needs a closed form of c(t), which this gait has not"
+        if process.offset_pieces is None
+        else "the exact integrator's reference run failed"
+    )
+    return _StepError(reason=f"no error estimate: the catch-up time-step error could not be measured; {reason}")
 
 
-def _energy_fields(process: SweepingProcess, final: PeriodRecord, motion: _Motion | None,
-                   error: float | None) -> dict[str, Any]:
+def _energy_fields(
+    process: SweepingProcess, final: PeriodRecord, motion: _Motion | None, error: float | None
+) -> dict[str, Any]:
     """The cost of transport (with loads, counting the work against them: docs/model.md §6)
     and the energy ledger of the limit period (`crawlsim.analysis.energy`)."""
     if motion is None or process.crawler is None:
@@ -476,7 +584,8 @@ def _energy_fields(process: SweepingProcess, final: PeriodRecord, motion: _Motio
             load_work_per_period=ledger.load_work_per_period,
             energy_balance_residual=ledger.energy_balance_residual,
             cost_of_transport_bound=ledger.cost_of_transport_bound,
-            efficiency=ledger.efficiency)
+            efficiency=ledger.efficiency,
+        )
     return fields
 
 
@@ -489,22 +598,38 @@ def _history_arrays(process: SweepingProcess, drive: _Drive) -> ConvergenceHisto
     displacement = np.array(log.displacements) if crawler else np.full(Q + 1, np.nan)
     dissipation = np.array(log.dissipations) if crawler else np.full(Q + 1, np.nan)
     return ConvergenceHistory(
-        period=np.arange(Q + 1), displacement=displacement,
-        velocity=displacement / process.period, poincare_step=np.array(log.steps),
-        dissipation=dissipation, **drive.distances)
+        period=np.arange(Q + 1),
+        displacement=displacement,
+        velocity=displacement / process.period,
+        poincare_step=np.array(log.steps),
+        dissipation=dissipation,
+        **drive.distances,
+    )
 
 
 def _solver_fields(solution: LimitSolution | None) -> dict[str, Any]:
     """How the limit was found: the periodic-limit solver's numbers, or plain iteration."""
     if solution is None:
         return {"limit_method": LimitMethod.ITERATE}
-    return {"limit_method": LimitMethod.NEWTON, "limit_newton_steps": solution.newton_steps,
-            "limit_periods": solution.periods, "limit_residuals": solution.residuals,
-            "limit_kinds": solution.kinds, "jacobian_rate": solution.jacobian_rate}
+    return {
+        "limit_method": LimitMethod.NEWTON,
+        "limit_newton_steps": solution.newton_steps,
+        "limit_periods": solution.periods,
+        "limit_residuals": solution.residuals,
+        "limit_kinds": solution.kinds,
+        "jacobian_rate": solution.jacobian_rate,
+    }
 
 
-def _analyse(process: SweepingProcess, drive: _Drive, *, integrator: str, tol: float,
-             reference: RunResult | None | bool, running_frame: bool = True) -> RunResult:
+def _analyse(
+    process: SweepingProcess,
+    drive: _Drive,
+    *,
+    integrator: str,
+    tol: float,
+    reference: RunResult | None | bool,
+    running_frame: bool = True,
+) -> RunResult:
     """What the driver's periods measure: the convergence and its rate, v0 and its error
     (period iteration plus time step), the cost of transport and the energy ledger."""
     rel = np.array(drive.log.rel_steps)
@@ -525,25 +650,36 @@ def _analyse(process: SweepingProcess, drive: _Drive, *, integrator: str, tol: f
     G = process.steps
     exact = exact_verdict(reference) if isinstance(reference, RunResult) else (None, None)
     return RunResult(
-        name=process.name, period=process.period, steps_per_period=G, convergence=convergence,
-        periods=len(drive.log), periodic_from=periodic_from, contraction_rate=rate,
+        name=process.name,
+        period=process.period,
+        steps_per_period=G,
+        convergence=convergence,
+        periods=len(drive.log),
+        periodic_from=periodic_from,
+        contraction_rate=rate,
         v0=None if motion is None else motion.v0,
         v0_error_estimate=None if step.reason else err,
         displacement_per_period=None if motion is None else motion.displacement,
         dissipation_per_period=None if motion is None else motion.dissipation,
         history=hist,
-        limit=limit_period(process, drive.final, None if motion is None else motion.v0,
-                           running_frame),
-        clarabel_calls=drive.clarabel_calls, wall_time=0.0,
-        steps=(len(drive.log) + drive.solver_periods) * G, integrator=integrator,
-        v0_error_period_iteration=err_pi, v0_error_time_step=step.v0,
-        v0_error_reason=step.reason, dissipation_error_estimate=diss_err,
+        limit=limit_period(process, drive.final, None if motion is None else motion.v0, running_frame),
+        clarabel_calls=drive.clarabel_calls,
+        wall_time=0.0,
+        steps=(len(drive.log) + drive.solver_periods) * G,
+        integrator=integrator,
+        v0_error_period_iteration=err_pi,
+        v0_error_time_step=step.v0,
+        v0_error_reason=step.reason,
+        dissipation_error_estimate=diss_err,
         contraction_rate_error=None if fit is None else fit.error,
         contraction_rate_periods=0 if fit is None else fit.periods,
-        exact_convergence=exact[0], exact_rate=exact[1],
-        limit_record=drive.final, limit_process=process,
+        exact_convergence=exact[0],
+        exact_rate=exact[1],
+        limit_record=drive.final,
+        limit_process=process,
         **_solver_fields(drive.solution),
-        **_energy_fields(process, drive.final, motion, err))
+        **_energy_fields(process, drive.final, motion, err),
+    )
 
 
 def exact_verdict(reference: RunResult) -> tuple[Convergence | None, float | None]:
@@ -561,18 +697,18 @@ def exact_verdict(reference: RunResult) -> tuple[Convergence | None, float | Non
     return None, None
 
 
-def _outcome(result: RunResult, *, max_periods: int, tolerance: float,
-             limit: str) -> dict[str, Any]:
+def _outcome(result: RunResult, *, max_periods: int, tolerance: float, limit: str) -> dict[str, Any]:
     """The status, the message saying what to change, and the grid note of a catch-up run."""
-    status = (RunStatus.MAX_PERIODS_REACHED if result.convergence == Convergence.NOT_CONVERGED
-              else RunStatus.SUCCESSFUL)
-    message = "" if status == RunStatus.SUCCESSFUL else run_message(
-        result, max_periods=max_periods, tolerance=tolerance, limit=limit)
+    status = RunStatus.MAX_PERIODS_REACHED if result.convergence == Convergence.NOT_CONVERGED else RunStatus.SUCCESSFUL
+    message = (
+        ""
+        if status == RunStatus.SUCCESSFUL
+        else run_message(result, max_periods=max_periods, tolerance=tolerance, limit=limit)
+    )
     return {"status": status, "message": message, "grid_note": grid_note(result)}
 
 
-def time_step_reference(process: SweepingProcess, *, max_periods: int,
-                        tolerance: float) -> RunResult | None:
+def time_step_reference(process: SweepingProcess, *, max_periods: int, tolerance: float) -> RunResult | None:
     """The exact integrator's v0 for ``process`` (periodic-limit solver, no history): the
     reference a catch-up v0's time-step error is measured against; None where the exact
     integrator cannot run (no closed form of c(t), or it stops with an error)."""
@@ -581,15 +717,20 @@ def time_step_reference(process: SweepingProcess, *, max_periods: int,
     if process.offset_pieces is None:
         return None
     try:
-        return simulate(process, max_periods=max_periods, tolerance=tolerance,
-                        integrator="exact", limit="newton", history=False,
-                        time_step_error=False)
+        return simulate(
+            process,
+            max_periods=max_periods,
+            tolerance=tolerance,
+            integrator="exact",
+            limit="newton",
+            history=False,
+            time_step_error=False,
+        )
     except CrawlsimError:
         return None
 
 
-def cost_of_transport(dissipation: float, displacement: float, v0_error: float,
-                      period: float) -> float | None:
+def cost_of_transport(dissipation: float, displacement: float, v0_error: float, period: float) -> float | None:
     """Dissipation per distance travelled, or None when the net motion is not distinguishable
     from zero (within ten times its error)."""
     if abs(displacement) > 10 * v0_error * period + 1e-300:
@@ -610,8 +751,9 @@ def following(process: SweepingProcess, limit: PeriodRecord, last: PeriodRecord)
     return replace(limit, index=last.index + 1, start=last.start + process.period, x=x)
 
 
-def limit_period(process: SweepingProcess, final: PeriodRecord, v0: float | None,
-                 running_frame: bool = True) -> LimitPeriod:
+def limit_period(
+    process: SweepingProcess, final: PeriodRecord, v0: float | None, running_frame: bool = True
+) -> LimitPeriod:
     """The final period in the running frame: ``xbar(t) = xbar_0 + v0 (t - t0) + p(t)`` (with
     ``running_frame=False``, or for a generic process, the states and multipliers alone)."""
     t = process.times
@@ -627,7 +769,14 @@ def limit_period(process: SweepingProcess, final: PeriodRecord, v0: float | None
     eps = 1e-12 * max(float(np.max(np.abs(dx))), 1e-300)
     # +1, -1 or 0 as int8: the two comparisons' bytes (True = 1) subtracted
     slip = (dx > eps).view(np.int8) - (dx < -eps).view(np.int8)
-    return LimitPeriod(final.start, t.copy(), final.w, final.multipliers, x=x_run, shape=shape,
-                       stress=stress, slip=slip, slip_rate=dx / np.diff(t)[:, None])
-
-
+    return LimitPeriod(
+        final.start,
+        t.copy(),
+        final.w,
+        final.multipliers,
+        x=x_run,
+        shape=shape,
+        stress=stress,
+        slip=slip,
+        slip_rate=dx / np.diff(t)[:, None],
+    )

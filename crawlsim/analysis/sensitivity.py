@@ -96,8 +96,12 @@ class ParameterSensitivity:
 
     def summary(self) -> dict[str, Any]:
         out: dict[str, Any] = {
-            "value": self.v0.value, "error_estimate": self.v0.error_estimate,
-            "smooth": self.smooth, "method": self.method, "parameter_value": self.value}
+            "value": self.v0.value,
+            "error_estimate": self.v0.error_estimate,
+            "smooth": self.smooth,
+            "method": self.method,
+            "parameter_value": self.value,
+        }
         for key in ("displacement_per_period", "dissipation_per_period", "cost_of_transport"):
             d: Derivative = getattr(self, key)
             out[f"d_{key}"] = d.value
@@ -145,10 +149,10 @@ class SensitivityResult:
         return {p.path: p.summary() for p in self.parameters}
 
 
-
 # -- the public function ---------------------------------------------------------------------
-def sensitivity(gait: Gait, paths: Sequence[str] | str, *, one_sided: bool = True,
-                run: Any = None) -> SensitivityResult:
+def sensitivity(
+    gait: Gait, paths: Sequence[str] | str, *, one_sided: bool = True, run: Any = None
+) -> SensitivityResult:
     """dv0/dtheta (and of the displacement, dissipation and cost of transport per period) for
     every number ``paths`` name in ``gait`` (dotted paths with ``*``, as ``--sweep``; each
     ``*`` expands to one parameter per element), at the verified limit of the gait's own
@@ -161,8 +165,9 @@ def sensitivity(gait: Gait, paths: Sequence[str] | str, *, one_sided: bool = Tru
     from crawlsim.gait.document import Gait as _Gait
 
     if not isinstance(gait, _Gait):
-        raise GaitError(getattr(gait, "source", "<gait>"), "",
-                        "sensitivities are defined for crawler gaits (kind: crawler)")
+        raise GaitError(
+            getattr(gait, "source", "<gait>"), "", "sensitivities are defined for crawler gaits (kind: crawler)"
+        )
     lim = _limit_of_run(gait, run)
     st = _static_of(gait, lim.process, paths)
     co, params, active, dMu = st.co, st.params, st.active, st.dMu
@@ -179,17 +184,18 @@ def sensitivity(gait: Gait, paths: Sequence[str] | str, *, one_sided: bool = Tru
             out.append(_period_entry(prm, lim, cot))
         elif prm.dC is None:
             none = Derivative(None, None)
-            out.append(ParameterSensitivity(prm.path, prm.value, none, none, none, none, False,
-                                            "unsupported", prm.reason))
+            out.append(
+                ParameterSensitivity(prm.path, prm.value, none, none, none, none, False, "unsupported", prm.reason)
+            )
         else:
             col = active.index(i)
             reasons = ift.kinks(col)
             if friction_kink is not None and np.any(dMu[..., col] != 0.0):
                 reasons.append(friction_kink)
-            out.append(_entry(gait, prm, lim, ift, col, cot, reasons,
-                              "catch-up" if catch_up else "exact", one_sided))
-    return SensitivityResult(gait.name, T, lim.v0, lim.v0_error, Y, D, cot, tuple(out),
-                             tuple(dict.fromkeys(walk.kinks)))
+            out.append(_entry(gait, prm, lim, ift, col, cot, reasons, "catch-up" if catch_up else "exact", one_sided))
+    return SensitivityResult(
+        gait.name, T, lim.v0, lim.v0_error, Y, D, cot, tuple(out), tuple(dict.fromkeys(walk.kinks))
+    )
 
 
 # -- what depends on the gait alone, built once per gait ----------------------------------------
@@ -234,8 +240,7 @@ class _Static:
 def _static_of(gait: Gait, process: SweepingProcess, paths: Sequence[str] | str) -> _Static:
     """`_Static` of ``gait`` on ``process``'s grid for ``paths``, built once."""
     integrator = gait.simulation.integrator
-    key = ("static", integrator, process.steps,
-           (paths,) if isinstance(paths, str) else tuple(paths))
+    key = ("static", integrator, process.steps, (paths,) if isinstance(paths, str) else tuple(paths))
     return _cached(gait, key, lambda: _build_static(gait, process, paths))
 
 
@@ -264,8 +269,7 @@ def _limit_of_run(gait: Gait, run: Any) -> Limit:
         from crawlsim.model.process import compile_gait
 
         process = compile_gait(gait, steps_per_period=1 if exact else None)
-    scale = _cached(gait, ("scale", process.steps),
-                    lambda: breakpoint_scale(process)) if exact else None
+    scale = _cached(gait, ("scale", process.steps), lambda: breakpoint_scale(process)) if exact else None
     return limit_of(process, record, scale, _known(run, process))
 
 
@@ -329,8 +333,7 @@ class _Ift:
         # error: roundoff of every term (pieces x eps x their sizes, times the conditioning of
         # the least-squares solve) plus the verified limit's distance, relative, on the same
         # sizes (`crawlsim.kernel.implicit.implicit` gives the sizes and the conditioning)
-        self.dw, self.dY, self.dD, magY, magD, cond = implicit(
-            walk.W, walk.L, walk.D, blocks)
+        self.dw, self.dY, self.dD, magY, magD, cond = implicit(walk.W, walk.L, walk.D, blocks)
         rel = 64 * EPS * (walk.pieces + n) * cond + lim.residual
         # a floor at the roundoff of the slips themselves: a derivative that cancels to ~0 (a
         # common phase shift) is zero to eps times the sizes the period's slips are made of
@@ -360,13 +363,30 @@ def _period_entry(prm: Parameter, lim: Limit, cot: float | None) -> ParameterSen
     T = lim.process.period
     dv = Derivative(-lim.v0 / T, lim.v0_error / T)
     zero = Derivative(0.0, 0.0)
-    return ParameterSensitivity(prm.path, prm.value, dv, zero, zero,
-                                zero if cot is not None else Derivative(None, None), True,
-                                "rate-independence", v0_on_pieces=dv.value)
+    return ParameterSensitivity(
+        prm.path,
+        prm.value,
+        dv,
+        zero,
+        zero,
+        zero if cot is not None else Derivative(None, None),
+        True,
+        "rate-independence",
+        v0_on_pieces=dv.value,
+    )
 
 
-def _entry(gait: Gait, prm: Parameter, lim: Limit, ift: _Ift, col: int, cot: float | None,
-           reasons: list[str], method: Method, one_sided: bool) -> ParameterSensitivity:
+def _entry(
+    gait: Gait,
+    prm: Parameter,
+    lim: Limit,
+    ift: _Ift,
+    col: int,
+    cot: float | None,
+    reasons: list[str],
+    method: Method,
+    one_sided: bool,
+) -> ParameterSensitivity:
     """One parameter's derivatives: the walked ones where smooth, else one-sided values."""
     T = lim.process.period
     Y, D = lim.displacement, lim.dissipation
@@ -378,9 +398,17 @@ def _entry(gait: Gait, prm: Parameter, lim: Limit, ift: _Ift, col: int, cot: flo
         ecot = ed / abs(Y) + abs(D) * ey / (Y * Y) + abs(dcot) * lim.v0_error * T / abs(Y)
         dcot_d = Derivative(dcot, ecot)
     if not reasons:
-        return ParameterSensitivity(prm.path, prm.value, Derivative(y / T, ey / T),
-                                    Derivative(y, ey), Derivative(dd, ed), dcot_d, True, method,
-                                    v0_on_pieces=y / T)
+        return ParameterSensitivity(
+            prm.path,
+            prm.value,
+            Derivative(y / T, ey / T),
+            Derivative(y, ey),
+            Derivative(dd, ed),
+            dcot_d,
+            True,
+            method,
+            v0_on_pieces=y / T,
+        )
     left = right = None
     lr: str | None = "one-sided differences not requested"
     rr: str | None = lr
@@ -388,14 +416,25 @@ def _entry(gait: Gait, prm: Parameter, lim: Limit, ift: _Ift, col: int, cot: flo
         left, lr = _one_sided(gait, prm, lim.v0, -1)
         right, rr = _one_sided(gait, prm, lim.v0, +1)
     none = Derivative(None, None)
-    return ParameterSensitivity(prm.path, prm.value, none, none, none, none, False, "one-sided",
-                                "; ".join(dict.fromkeys(reasons)), left, right,
-                                None if left is not None else lr,
-                                None if right is not None else rr, y / T)
+    return ParameterSensitivity(
+        prm.path,
+        prm.value,
+        none,
+        none,
+        none,
+        none,
+        False,
+        "one-sided",
+        "; ".join(dict.fromkeys(reasons)),
+        left,
+        right,
+        None if left is not None else lr,
+        None if right is not None else rr,
+        y / T,
+    )
 
 
-def _one_sided(gait: Gait, prm: Parameter, v0: float,
-               side: int) -> tuple[Derivative | None, str | None]:
+def _one_sided(gait: Gait, prm: Parameter, v0: float, side: int) -> tuple[Derivative | None, str | None]:
     """The one-sided derivative of v0 from the integrator's v0 at theta + side h and
     theta + 2 side h: D(h) = (v(theta + s h) - v0) / (s h), extrapolated 2 D(h) - D(2 h); its
     error: the extrapolation's change |D(h) - D(2h)| plus the runs' roundoff over h."""

@@ -34,8 +34,9 @@ def check_paths(gait: Any, paths: Sequence[str]) -> tuple[str, ...]:
     return tuple(paths)
 
 
-def with_derivatives(paths: Sequence[str], gaits: Iterable[tuple[int, Any]],
-                     rows: Mapping[int, Any], runs: Mapping[int, Any]) -> dict[int, Any]:
+def with_derivatives(
+    paths: Sequence[str], gaits: Iterable[tuple[int, Any]], rows: Mapping[int, Any], runs: Mapping[int, Any]
+) -> dict[int, Any]:
     """The rows of the converged points among ``gaits`` ((index, Gait) pairs) with their
     ``derivatives``: {concrete path: dv0/dpath, None where not smooth}; a point whose
     derivatives fail keeps its row, with the failure in its message. ``runs``: the points' own
@@ -59,8 +60,9 @@ def with_derivatives(paths: Sequence[str], gaits: Iterable[tuple[int, Any]],
             message = f"{row.message}; " if row.message else ""
             out[i] = dataclasses.replace(row, message=f"{message}no derivatives: {exc}")
             continue
-        out[i] = dataclasses.replace(row, derivatives={
-            p.path: (p.v0.value if p.smooth else None) for p in result.parameters})
+        out[i] = dataclasses.replace(
+            row, derivatives={p.path: (p.v0.value if p.smooth else None) for p in result.parameters}
+        )
     return out
 
 
@@ -77,7 +79,7 @@ def columns(rows: Sequence[Any]) -> dict[str, np.ndarray]:
     """Each derivative column as floats, NaN where a point has no value."""
     out = {}
     for name in column_names(rows):
-        path = name[len(PREFIX):]
+        path = name[len(PREFIX) :]
         values = [(getattr(r, "derivatives", None) or {}).get(path) for r in rows]
         out[name] = np.array([np.nan if v is None else v for v in values], dtype=float)
     return out
@@ -89,7 +91,7 @@ def row_derivatives(cols: Mapping[str, Any], n: int) -> dict[str, float | None] 
     for name, values in cols.items():
         if name.startswith(PREFIX):
             value = float(values[n])
-            out[name[len(PREFIX):]] = None if np.isnan(value) else value
+            out[name[len(PREFIX) :]] = None if np.isnan(value) else value
     return out or None
 
 
@@ -104,7 +106,5 @@ def unit(units: Any, kind: str, path: str) -> str:
     if quantity == "angle":
         return f"{units.of('velocity')}/degree" if units.of("velocity") != "1" else "1/degree"
     below = QUANTITIES[quantity]
-    exponents = {b: Fraction(velocity.get(b, 0)) - Fraction(below.get(b, 0))
-                 for b in set(velocity) | set(below)}
+    exponents = {b: Fraction(velocity.get(b, 0)) - Fraction(below.get(b, 0)) for b in set(velocity) | set(below)}
     return str(units.compose(exponents))
-

@@ -33,7 +33,7 @@ EPS = float(np.finfo(float).eps)
 TWO_PI = 2.0 * math.pi
 #: Relative step of the difference quotient of the offsets' coefficients (exact for affine
 #: dependence, so only roundoff / h matters).
-COEFFICIENT_STEP = 2.0 ** -10
+COEFFICIENT_STEP = 2.0**-10
 #: Step in degrees of the central difference in a slope's angle (not affine: cos and sin).
 ANGLE_STEP = 1e-3
 #: Most blocks for which the uniqueness boundary is checked over every subset.
@@ -80,18 +80,29 @@ def find_limit(gait: Gait) -> Limit:
             final = record
             break
     if final is None:
-        solution = solve_limit(process, make_stepper(process, integrator), tolerance=tol,
-                               first=record, max_periods=max(s.max_periods - periods, 1),
-                               plain=0)
+        solution = solve_limit(
+            process,
+            make_stepper(process, integrator),
+            tolerance=tol,
+            first=record,
+            max_periods=max(s.max_periods - periods, 1),
+            plain=0,
+        )
         if not solution.converged:
-            raise CrawlsimError(f"{gait.source}: the periodic limit was not found within "
-                                f"max_periods = {s.max_periods}; sensitivities need it")
+            raise CrawlsimError(
+                f"{gait.source}: the periodic limit was not found within "
+                f"max_periods = {s.max_periods}; sensitivities need it"
+            )
         final = solution.record
     return limit_of(process, final)
 
 
-def limit_of(process: SweepingProcess, final: PeriodRecord, scale: float | None = None,
-             known: tuple[float, float, float | None] | None = None) -> Limit:
+def limit_of(
+    process: SweepingProcess,
+    final: PeriodRecord,
+    scale: float | None = None,
+    known: tuple[float, float, float | None] | None = None,
+) -> Limit:
     """v0, its error and the period's displacement and dissipation of a verified limit period
     (the error as `crawlsim.analysis.run.simulate` bounds it: the steps' roundoff and the
     residual |P(w) - w| as a shape mismatch over the smallest stiffness). ``scale``: the size
@@ -161,8 +172,12 @@ def _signals(gait: Gait, fields: dict[str, Any] | None = None) -> tuple[Any, ...
     gait's ``fields`` replaced by those given, `_moved_fields`)."""
     f = fields or {}
     forces = () if gait.loads is None else tuple(gait.loads.forces)
-    return (tuple(f.get("links", gait.links)) + tuple(f.get("forward", gait.forward))
-            + tuple(f.get("backward", gait.backward)) + forces)
+    return (
+        tuple(f.get("links", gait.links))
+        + tuple(f.get("forward", gait.forward))
+        + tuple(f.get("backward", gait.backward))
+        + forces
+    )
 
 
 def _assemble(gait: Gait, pieces: Any, k: np.ndarray) -> Coefficients:
@@ -172,13 +187,13 @@ def _assemble(gait: Gait, pieces: Any, k: np.ndarray) -> Coefficients:
     N = gait.blocks
     P = pieces.pieces
     C = np.array([pieces.coefficients(p) for p in range(P)])
-    Mu = np.array([pieces.signal_coefficients(p)[:, N - 1:3 * N - 1] for p in range(P)]) * (
-        1.0 if gait.loads is None else gait.loads.cos)
+    Mu = np.array([pieces.signal_coefficients(p)[:, N - 1 : 3 * N - 1] for p in range(P)]) * (
+        1.0 if gait.loads is None else gait.loads.cos
+    )
     return Coefficients(C, Mu, k, pieces.edges, pieces.basis, pieces)
 
 
-def _moved_coefficients(gait: Gait, base: Coefficients, keys: tuple[Any, ...],
-                        value: float) -> Coefficients:
+def _moved_coefficients(gait: Gait, base: Coefficients, keys: tuple[Any, ...], value: float) -> Coefficients:
     """The coefficients of the gait with one number moved. A signal's number (a link's, a
     friction's) changes the signals alone: they are combined by the base's own map into c
     (linear in them, docs/sensitivity.md), on the base's pieces when the breakpoints stay;
@@ -186,8 +201,7 @@ def _moved_coefficients(gait: Gait, base: Coefficients, keys: tuple[Any, ...],
     from crawlsim.model.offsets import PiecewiseOffsets
 
     moved = _moved(gait, keys, value)
-    if keys[0] in ("links", "friction") and np.array_equal(moved.breakpoints(),
-                                                           gait.breakpoints()):
+    if keys[0] in ("links", "friction") and np.array_equal(moved.breakpoints(), gait.breakpoints()):
         pieces = PiecewiseOffsets(_signals(moved), base.pieces.combine, base.pieces.edges)
         return _assemble(moved, pieces, base.k)
     return coefficients_of(moved)
@@ -243,8 +257,7 @@ def _smooth_derivative(signal: Any, inside: tuple[Any, ...], basis: Any) -> np.n
     return out
 
 
-def _signal_columns(gait: Gait, keys: tuple[Any, ...]
-                    ) -> tuple[list[tuple[int, Any]], tuple[Any, ...]] | None:
+def _signal_columns(gait: Gait, keys: tuple[Any, ...]) -> tuple[list[tuple[int, Any]], tuple[Any, ...]] | None:
     """The signals a number at ``keys`` of a link, a friction or a force belongs to, each with
     its column in `_signals`' order (links, mu^+ per block, mu^- per block, forces per block),
     and the path inside them; None for other numbers."""
@@ -254,8 +267,7 @@ def _signal_columns(gait: Gait, keys: tuple[Any, ...]
     if keys[0] == "loads" and len(keys) >= 2 and keys[1] == "force" and gait.loads is not None:
         each = len(keys) >= 3 and isinstance(keys[2], int)  # one signal per block
         forced: Sequence[int] = [keys[2]] if each else range(N)
-        return ([(3 * N - 1 + j, gait.loads.forces[j]) for j in forced],
-                keys[3:] if each else keys[2:])
+        return ([(3 * N - 1 + j, gait.loads.forces[j]) for j in forced], keys[3:] if each else keys[2:])
     friction = _friction_keys(gait, keys) if keys[0] == "friction" else None
     if friction is None:
         return None
@@ -264,8 +276,7 @@ def _signal_columns(gait: Gait, keys: tuple[Any, ...]
     return [(first + j, signals[j]) for j in blocks], rest[1:]
 
 
-def _friction_keys(gait: Gait, keys: tuple[Any, ...]
-                   ) -> tuple[str, Sequence[int], tuple[Any, ...]] | None:
+def _friction_keys(gait: Gait, keys: tuple[Any, ...]) -> tuple[str, Sequence[int], tuple[Any, ...]] | None:
     """The side (``forward``/``backward``), the blocks and the keys from the side on of a
     friction number: ``friction.forward...`` is every block's, ``friction.I.forward...`` block
     I's; None for another form."""
@@ -278,8 +289,7 @@ def _friction_keys(gait: Gait, keys: tuple[Any, ...]
     return rest[0], range(gait.blocks) if shared else [keys[1]], rest
 
 
-def _closed_form_change(gait: Gait, base: Coefficients, keys: tuple[Any, ...]
-                        ) -> tuple[np.ndarray, np.ndarray] | None:
+def _closed_form_change(gait: Gait, base: Coefficients, keys: tuple[Any, ...]) -> tuple[np.ndarray, np.ndarray] | None:
     """dC and the friction weights' dMu (P, nb, m) for a number of a constant, cosine or
     fourier signal (a link's, a friction's, a force's), in closed form (`_smooth_derivative`): c is
     combined from the signals by the base's own map, affine in them, so dC is that map's
@@ -300,7 +310,7 @@ def _closed_form_change(gait: Gait, base: Coefficients, keys: tuple[Any, ...]
         dS[1:, column] = d
     dC = base.pieces.combine(dS)[1:]
     N = gait.blocks
-    dMu = dS[1:, N - 1:3 * N - 1] * (1.0 if gait.loads is None else gait.loads.cos)
+    dMu = dS[1:, N - 1 : 3 * N - 1] * (1.0 if gait.loads is None else gait.loads.cos)
     P = base.C.shape[0]
     out_C, out_Mu = np.empty((P, *dC.shape)), np.empty((P, *dMu.shape))
     out_C[:], out_Mu[:] = dC, dMu
@@ -337,8 +347,7 @@ def _moved_fields(gait: Gait, keys: tuple[Any, ...], value: float) -> dict[str, 
     if keys[0] == "links" and len(keys) >= 2 and isinstance(keys[1], int):
         i = keys[1]
         links = list(gait.links)
-        links[i] = _moved_signal(gait, gait.document["links"][i], keys[2:], value,
-                                 f"links[{i}]")
+        links[i] = _moved_signal(gait, gait.document["links"][i], keys[2:], value, f"links[{i}]")
         return {"links": tuple(links)}
     if keys[0] == "friction" and value > 0:
         friction = _moved_friction(gait, keys, value)
@@ -354,8 +363,7 @@ def _moved_fields(gait: Gait, keys: tuple[Any, ...], value: float) -> dict[str, 
     return None
 
 
-def _moved_signal(gait: Gait, node: Any, inside: tuple[Any, ...], value: float,
-                  keypath: str) -> Any:
+def _moved_signal(gait: Gait, node: Any, inside: tuple[Any, ...], value: float, keypath: str) -> Any:
     """The signal of the document ``node`` with the number at ``inside`` it set to ``value``
     (the node itself when ``inside`` is empty: a constant), parsed and checked."""
     from crawlsim.gait.docpaths import set_value
@@ -369,8 +377,7 @@ def _moved_signal(gait: Gait, node: Any, inside: tuple[Any, ...], value: float,
     return parse_signal(node, keypath, gait.source)
 
 
-def _moved_friction(gait: Gait, keys: tuple[Any, ...], value: float
-                    ) -> tuple[tuple[Any, ...], tuple[Any, ...]] | None:
+def _moved_friction(gait: Gait, keys: tuple[Any, ...], value: float) -> tuple[tuple[Any, ...], tuple[Any, ...]] | None:
     """mu^+ and mu^- per block with one friction number moved (``friction.forward...``, shared
     by every block, or ``friction.I.forward...``); None for another form of the block."""
     friction = _friction_keys(gait, keys)
@@ -379,8 +386,7 @@ def _moved_friction(gait: Gait, keys: tuple[Any, ...], value: float
     side, blocks, rest = friction
     node: Any = gait.document["friction"]
     node = node if isinstance(keys[1], str) else node[keys[1]]
-    signal = _moved_signal(gait, node[side], rest[1:], value,
-                           ".".join(map(str, keys[:len(keys) - len(rest) + 1])))
+    signal = _moved_signal(gait, node[side], rest[1:], value, ".".join(map(str, keys[: len(keys) - len(rest) + 1])))
     sides = {"forward": list(gait.forward), "backward": list(gait.backward)}
     for j in blocks:
         sides[side][j] = signal
@@ -400,15 +406,13 @@ def parameter_of(gait: Gait, base: Coefficients, keys: tuple[Any, ...]) -> Param
     if keys == ("period",):
         return Parameter(path, keys, value, period=True)
     if keys[0] in STRUCTURAL:
-        return Parameter(path, keys, value, reason=f"{path} is not a continuous parameter of "
-                                                   "the gait")
+        return Parameter(path, keys, value, reason=f"{path} is not a continuous parameter of the gait")
     if keys[-1] == "angle":
         return _angle(gait, keys, path, value)
     closed = _closed_form_change(gait, base, keys)
     if closed is not None:
         return Parameter(path, keys, value, closed[0], closed[1], np.zeros_like(base.k))
-    moves = (f"moving {path} moves the breakpoints of c(t) or changes its form: not "
-             "differentiated")
+    moves = f"moving {path} moves the breakpoints of c(t) or changes its form: not differentiated"
     if keys[-1] == "phase":  # a smooth signal's is closed above, a piecewise one's moves
         return Parameter(path, keys, value, reason=moves)  # its breakpoints
     h = COEFFICIENT_STEP * max(abs(value), 1.0)
@@ -419,21 +423,20 @@ def parameter_of(gait: Gait, base: Coefficients, keys: tuple[Any, ...]) -> Param
             h = -h
             change = _change(gait, base, keys, value, h)
         except CrawlsimError:
-            return Parameter(path, keys, value, reason=f"the gait with {path} moved is "
-                                                       f"refused: {exc}")
+            return Parameter(path, keys, value, reason=f"the gait with {path} moved is refused: {exc}")
     if change is None:
         return Parameter(path, keys, value, reason=moves)
     dC, dMu, dk = change
     return Parameter(path, keys, value, dC / h, dMu / h, dk / h)
 
 
-def _change(gait: Gait, base: Coefficients, keys: tuple[Any, ...], value: float,
-            h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+def _change(
+    gait: Gait, base: Coefficients, keys: tuple[Any, ...], value: float, h: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """The change of C, of the friction weights and of k when the number at ``keys`` moves
     from ``value`` by h; None when that moves the breakpoints of c or changes its form."""
     moved = _moved_coefficients(gait, base, keys, value + h)
-    if (moved.C.shape != base.C.shape or not np.array_equal(moved.edges, base.edges)
-            or moved.basis != base.basis):
+    if moved.C.shape != base.C.shape or not np.array_equal(moved.edges, base.edges) or moved.basis != base.basis:
         return None
     return moved.C - base.C, moved.Mu - base.Mu, moved.k - base.k
 
@@ -446,11 +449,9 @@ def _angle(gait: Gait, keys: tuple[Any, ...], path: str, value: float) -> Parame
         plus = coefficients_of(gait.replace(path, value + ANGLE_STEP))
         minus = coefficients_of(gait.replace(path, value - ANGLE_STEP))
     except CrawlsimError as exc:
-        return Parameter(path, keys, value, reason=f"the gait with {path} moved is refused: "
-                                                   f"{exc}")
+        return Parameter(path, keys, value, reason=f"the gait with {path} moved is refused: {exc}")
     h2 = 2 * ANGLE_STEP
-    return Parameter(path, keys, value, (plus.C - minus.C) / h2, (plus.Mu - minus.Mu) / h2,
-                     (plus.k - minus.k) / h2)
+    return Parameter(path, keys, value, (plus.C - minus.C) / h2, (plus.Mu - minus.Mu) / h2, (plus.k - minus.k) / h2)
 
 
 def uniqueness_touch(gait: Gait, co: Coefficients) -> str | None:
@@ -461,7 +462,7 @@ def uniqueness_touch(gait: Gait, co: Coefficients) -> str | None:
     if N > UNIQUENESS_BLOCKS or not np.any(co.Mu[:, 1:, :]):
         return None  # friction constant on each piece: g_J = 0 there is refused by validation
     total = np.zeros(N)
-    J = ((np.arange(2 ** N)[:, None] >> np.arange(N)[None, :]) & 1).astype(float)  # (2^N, N)
+    J = ((np.arange(2**N)[:, None] >> np.arange(N)[None, :]) & 1).astype(float)  # (2^N, N)
     for p in range(co.Mu.shape[0]):
         Mu = co.Mu[p]
         if co.basis.size == 1:
@@ -484,14 +485,19 @@ def uniqueness_touch(gait: Gait, co: Coefficients) -> str | None:
                 coefs = (J[r] @ (Mu[:, :N] + Mu[:, N:]).T) - np.sum(Mu[:, N:], axis=1)
                 lo, hi = x[max(i - 1, 0)], x[min(i + 1, len(x) - 1)]
                 if hi > lo:
-                    res = minimize_scalar(lambda v, z=coefs: abs(co.basis.scalar(v, z)),
-                                          bounds=(lo, hi), method="bounded",
-                                          options={"xatol": 1e-12})
+                    res = minimize_scalar(
+                        lambda v, z=coefs: abs(co.basis.scalar(v, z)),
+                        bounds=(lo, hi),
+                        method="bounded",
+                        options={"xatol": 1e-12},
+                    )
                     val = float(res.fun)
                 else:
                     val = abs(float(gr[i]))
                 if val <= tol:
                     blocks = [j + 1 for j in range(N) if J[r, j]]
-                    return (f"the friction is on the boundary of the uniqueness condition: "
-                            f"g_J touches zero at t/T = {x[i]:.6g} for J = {blocks}")
+                    return (
+                        f"the friction is on the boundary of the uniqueness condition: "
+                        f"g_J touches zero at t/T = {x[i]:.6g} for J = {blocks}"
+                    )
     return None

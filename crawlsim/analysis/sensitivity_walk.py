@@ -87,14 +87,12 @@ class Prepared:
     # catch-up: u_j, the piece of each u_j, phi(u_j), c, mu, dc and dmu at u_j
     # (`crawlsim.kernel.tangent_catchup.grid_values`) and whether c's closed form reproduces the
     # grid's offsets (`_agrees`)
-    grid: tuple[np.ndarray, np.ndarray, np.ndarray,
-                tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] | None = None
+    grid: tuple[np.ndarray, np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] | None = None
     agrees: bool = True
     offsets: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))  # catch-up: the grid's c
 
 
-def prepare(process: Any, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
-            catch_up: bool) -> Prepared:
+def prepare(process: Any, co: Coefficients, dC: np.ndarray, dMu: np.ndarray, catch_up: bool) -> Prepared:
     """The `Prepared` data of a walk of ``process`` (compiled from the gait ``co`` is of) with
     the parameter columns dC, dMu (P, nb, m, p)."""
     B = np.ascontiguousarray(process.polyhedron.dense_normals(), dtype=float)
@@ -102,13 +100,21 @@ def prepare(process: Any, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     if not catch_up:
         return Prepared(B, k, _gauss(24 + 12 * co.basis.harmonics))
     u, pieces, Phi, c, mu, dc, dmu = tangent_catchup.grid_values(
-        np.ascontiguousarray(process.times, dtype=float), float(process.period),
-        np.ascontiguousarray(co.edges, dtype=float), co.basis.linear, co.basis.harmonics,
-        co.C, co.Mu, dC, dMu)
+        np.ascontiguousarray(process.times, dtype=float),
+        float(process.period),
+        np.ascontiguousarray(co.edges, dtype=float),
+        co.basis.linear,
+        co.basis.harmonics,
+        co.C,
+        co.Mu,
+        dC,
+        dMu,
+    )
     # the limit's scale of a catch-up walk is its process's (`limit_of`)
     offsets = np.ascontiguousarray(process.offsets, dtype=float)
-    return Prepared(B, k, grid=(u, pieces, Phi, (c, mu, dc, dmu)),
-                    agrees=_agrees(c, offsets, 1e-9 * process.scale), offsets=offsets)
+    return Prepared(
+        B, k, grid=(u, pieces, Phi, (c, mu, dc, dmu)), agrees=_agrees(c, offsets, 1e-9 * process.scale), offsets=offsets
+    )
 
 
 def _agrees(c: np.ndarray, offsets: np.ndarray, atol: float) -> bool:
@@ -142,24 +148,35 @@ class _Walker:
     def pad(self, X: np.ndarray) -> np.ndarray:
         """Parameter columns X (..., p) as full tangent columns (..., n + p)."""
         out = np.zeros(X.shape[:-1] + (self.q,))
-        out[..., self.n:] = X
+        out[..., self.n :] = X
         return out
 
-    def solve_on(self, index: np.ndarray, w_s: np.ndarray, W_s: np.ndarray, piece: int,
-                 phi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def solve_on(
+        self, index: np.ndarray, w_s: np.ndarray, W_s: np.ndarray, piece: int, phi: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Lambda_A(u), w(u) and their tangents for a flow (or projection) on A from w_s;
         phi = phi(u), the basis at u (eq. (piece), `crawlsim.kernel.tangent.solve_on`)."""
         from crawlsim.kernel.tangent import solve_on
 
         BA, Gi = self.factor(index)
-        return solve_on(BA, Gi, np.asarray(index, dtype=np.int64), self.k, self.dk,
-                        np.ascontiguousarray(w_s), np.ascontiguousarray(W_s),
-                        np.ascontiguousarray(phi), self.co.C[piece], self.dC[piece])
+        return solve_on(
+            BA,
+            Gi,
+            np.asarray(index, dtype=np.int64),
+            self.k,
+            self.dk,
+            np.ascontiguousarray(w_s),
+            np.ascontiguousarray(W_s),
+            np.ascontiguousarray(phi),
+            self.co.C[piece],
+            self.dC[piece],
+        )
 
 
 # -- the exact integrator ----------------------------------------------------------------------
-def walk_exact(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
-               dk: np.ndarray, prep: Prepared | None = None) -> Walk:
+def walk_exact(
+    lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray, dk: np.ndarray, prep: Prepared | None = None
+) -> Walk:
     """Differentiate the exact integrator's limit period from its start (module docstring);
     dC (P, nb, m, p), dMu (P, nb, m, p), dk (n, p). The walk is the compiled
     `crawlsim.kernel.tangent.walk_exact`; the flows it flags as holding a possible touch are
@@ -183,22 +200,48 @@ def walk_exact(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     gap_flag, rate_flag = np.zeros(K, dtype=np.bool_), np.zeros(K, dtype=np.bool_)
     w_start, W_start = np.empty((K, n)), np.empty((K, n, q))
     diss = tangent.walk_exact(
-        B, k, co.C, co.Mu, dC, dMu, dk, basis.linear,
-        basis.harmonics, co.edges, u, piece, cause, act, hit, gx, gw,
-        np.array(lim.record.w[0], dtype=float), float(lim.scale), COINCIDENT, TOUCH,
-        W, L, D, lam, w_end, kink, column_kinks, gap_flag, rate_flag, w_start, W_start)
+        B,
+        k,
+        co.C,
+        co.Mu,
+        dC,
+        dMu,
+        dk,
+        basis.linear,
+        basis.harmonics,
+        co.edges,
+        u,
+        piece,
+        cause,
+        act,
+        hit,
+        gx,
+        gw,
+        np.array(lim.record.w[0], dtype=float),
+        float(lim.scale),
+        COINCIDENT,
+        TOUCH,
+        W,
+        L,
+        D,
+        lam,
+        w_end,
+        kink,
+        column_kinks,
+        gap_flag,
+        rate_flag,
+        w_start,
+        W_start,
+    )
     kinks: list[str] = []
     for at in np.flatnonzero(kink).tolist() if kink.any() else ():
         u_e, bits = u[at], int(kink[at])
         if bits & tangent.ZERO_RATE:
             kinks.append(f"a constraint is reached with zero rate at t/T = {u_e:.12g}")
         if bits & tangent.APART:
-            kinks.append(f"{np.count_nonzero(hit[at])} constraints reached together at "
-                         f"t/T = {u_e:.12g} "
-                         "move apart")
+            kinks.append(f"{np.count_nonzero(hit[at])} constraints reached together at t/T = {u_e:.12g} move apart")
         if bits & tangent.COINCIDENT:
-            kinks.append(f"a constraint is reached at t/T = {u_e:.12g}, at the time of another "
-                         "event")
+            kinks.append(f"a constraint is reached at t/T = {u_e:.12g}, at the time of another event")
     touches: list[tuple[str, np.ndarray]] = []
     flags = gap_flag | rate_flag
     if flags.any():
@@ -208,8 +251,9 @@ def walk_exact(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
         derivatives = tangent.coefficient_derivatives(co.C, dC, basis.linear, basis.harmonics)
         for at in flagged.tolist():
             s.w, s.Wt = w_start[at], W_start[at]
-            _touches_of_flow(s, (u, piece, cause, act, hit), at, derivatives, (gx, gw),
-                             (bool(gap_flag[at]), bool(rate_flag[at])))
+            _touches_of_flow(
+                s, (u, piece, cause, act, hit), at, derivatives, (gx, gw), (bool(gap_flag[at]), bool(rate_flag[at]))
+            )
         touches = s.touches
     return Walk(W, L, D, lam, float(diss), w_end, K, kinks, column_kinks, touches)
 
@@ -222,22 +266,35 @@ def _transition_arrays(transitions: Sequence[Transition], m: int) -> tuple[np.nd
     if arrays is not None:  # `crawlsim.integrate.compiled`: signs per block, rows_of's order
         u, piece, signs, cause, hit = arrays
         act = np.concatenate([signs > 0, signs < 0], axis=1)
-        return (np.asarray(u, dtype=float), np.asarray(piece, dtype=np.int64),
-                np.asarray(cause, dtype=np.int64), act, np.asarray(hit, dtype=np.bool_))
+        return (
+            np.asarray(u, dtype=float),
+            np.asarray(piece, dtype=np.int64),
+            np.asarray(cause, dtype=np.int64),
+            act,
+            np.asarray(hit, dtype=np.bool_),
+        )
     K = len(transitions)
     act, hit = np.zeros((K, m), dtype=np.bool_), np.zeros((K, m), dtype=np.bool_)
     for j, tr in enumerate(transitions):
         act[j, np.asarray(tr.active.index, dtype=np.int64)] = True
         hit[j, np.asarray(tr.hit, dtype=np.int64)] = True
-    return (np.array([t.u for t in transitions], dtype=float),
-            np.array([t.piece for t in transitions], dtype=np.int64),
-            np.array([tangent.CAUSES.index(t.cause) for t in transitions], dtype=np.int64),
-            act, hit)
+    return (
+        np.array([t.u for t in transitions], dtype=float),
+        np.array([t.piece for t in transitions], dtype=np.int64),
+        np.array([tangent.CAUSES.index(t.cause) for t in transitions], dtype=np.int64),
+        act,
+        hit,
+    )
 
 
-def _touches_of_flow(s: _Walker, arrays: tuple[np.ndarray, ...], j: int,
-                     derivative: tuple[np.ndarray, np.ndarray],
-                     gauss: tuple[np.ndarray, np.ndarray], flags: tuple[bool, bool]) -> None:
+def _touches_of_flow(
+    s: _Walker,
+    arrays: tuple[np.ndarray, ...],
+    j: int,
+    derivative: tuple[np.ndarray, np.ndarray],
+    gauss: tuple[np.ndarray, np.ndarray],
+    flags: tuple[bool, bool],
+) -> None:
     """The touches of the flow from transition j (``arrays``: `_transition_arrays`), flagged
     by the compiled walk: an inactive gap (``flags[0]``) or a slip rate (``flags[1]``)
     reaching zero inside it."""
@@ -252,8 +309,7 @@ def _touches_of_flow(s: _Walker, arrays: tuple[np.ndarray, ...], j: int,
     x = u_s + 0.5 * (u_e - u_s) * (gx + 1.0)
     stacked = s.basis.values(np.concatenate([[u_s], x, [u_e]]))
     if flags[0]:
-        ends = np.flatnonzero(hit[j + 1]) if not last and cause[j + 1] == HIT \
-            else np.zeros(0, int)
+        ends = np.flatnonzero(hit[j + 1]) if not last and cause[j + 1] == HIT else np.zeros(0, int)
         _gap_touches(s, index, piece, x, stacked, (u_s, u_e), ends)
     if flags[1] and index.size:
         dcoef, dC1 = derivative[0][piece], derivative[1][piece]
@@ -263,8 +319,15 @@ def _touches_of_flow(s: _Walker, arrays: tuple[np.ndarray, ...], j: int,
         _rate_touches(s, index, rate, Phi, dcoef, dC1, (u_s, u_e))
 
 
-def _gap_touches(s: _Walker, index: np.ndarray, piece: int, x: np.ndarray,
-                 stacked: np.ndarray, span: tuple[float, float], hit_at_end: np.ndarray) -> None:
+def _gap_touches(
+    s: _Walker,
+    index: np.ndarray,
+    piece: int,
+    x: np.ndarray,
+    stacked: np.ndarray,
+    span: tuple[float, float],
+    hit_at_end: np.ndarray,
+) -> None:
     """Inactive constraints whose gap reaches zero inside the piece without crossing (or
     stays at zero), seen on the closed form of the gaps between the samples x, with the
     tangents of those gaps where they are zero. A touch is an interior maximum at zero (one at
@@ -279,8 +342,7 @@ def _gap_touches(s: _Walker, index: np.ndarray, piece: int, x: np.ndarray,
     outside[hit_at_end] = False
     # every row's gap(u) = phi(u) @ Gcoef (nb, m)
     BA, Gi = s.factor(index)
-    Gcoef = gap_coefficients(B, k, BA, Gi, np.asarray(index, dtype=np.int64),
-                             np.ascontiguousarray(s.w), s.co.C[piece])
+    Gcoef = gap_coefficients(B, k, BA, Gi, np.asarray(index, dtype=np.int64), np.ascontiguousarray(s.w), s.co.C[piece])
     tol = TOUCH * s.scale
     grid = np.concatenate([[u_s], x, [u_e]])
     values = stacked @ Gcoef  # (s + 2, m)
@@ -291,8 +353,7 @@ def _gap_touches(s: _Walker, index: np.ndarray, piece: int, x: np.ndarray,
     flat = np.min(values[1:-1], axis=0, initial=np.inf) >= -tol
     found: list[tuple[int, float]] = []
     for j in np.flatnonzero((reach | flat) & outside):
-        u_best = float(x[len(x) // 2]) if flat[j] else _interior_maximum(
-            basis, Gcoef[:, j], grid, values[:, j], tol)
+        u_best = float(x[len(x) // 2]) if flat[j] else _interior_maximum(basis, Gcoef[:, j], grid, values[:, j], tol)
         if u_best == u_best:  # not NaN: a touch
             found.append((int(j), u_best))
     if not found:
@@ -303,12 +364,15 @@ def _gap_touches(s: _Walker, index: np.ndarray, piece: int, x: np.ndarray,
         dW = s.solve_on(index, s.w, s.Wt, piece, phi)[3] if index.size else s.Wt
         dc = s.pad(np.einsum("b,bp->p", phi, s.dC[piece][:, r, :]))
         tangents.append((B[r] @ dW - dc)[None, :])
-    s.touches.append((f"constraint(s) {[r for r, _ in found]} touch zero gap without entering "
-                      f"in t/T in [{u_s:.9g}, {u_e:.9g}]", np.concatenate(tangents)))
+    s.touches.append(
+        (
+            f"constraint(s) {[r for r, _ in found]} touch zero gap without entering in t/T in [{u_s:.9g}, {u_e:.9g}]",
+            np.concatenate(tangents),
+        )
+    )
 
 
-def _interior_maximum(basis: Any, z: np.ndarray, grid: np.ndarray, values: np.ndarray,
-                      tol: float) -> float:
+def _interior_maximum(basis: Any, z: np.ndarray, grid: np.ndarray, values: np.ndarray, tol: float) -> float:
     """Where the gap phi(u) @ z, largest at an interior sample, reaches 0 to ``tol`` between
     the samples next to it; NaN where it does not (or its maximum is at an end)."""
     from scipy.optimize import minimize_scalar
@@ -316,16 +380,26 @@ def _interior_maximum(basis: Any, z: np.ndarray, grid: np.ndarray, values: np.nd
     i = int(np.argmax(values))
     if not 0 < i < len(grid) - 1:
         return float("nan")  # largest at an end: a release at the start, an event at the end
-    res = minimize_scalar(lambda v: -basis.scalar(v, z), bounds=(float(grid[i - 1]),
-                                                                 float(grid[i + 1])),
-                          method="bounded", options={"xatol": 1e-14})
+    res = minimize_scalar(
+        lambda v: -basis.scalar(v, z),
+        bounds=(float(grid[i - 1]), float(grid[i + 1])),
+        method="bounded",
+        options={"xatol": 1e-14},
+    )
     u_best, v_best = float(res.x), max(float(-res.fun), float(values[i]))
     inside = min(u_best - grid[0], grid[-1] - u_best) > 1e-6 * (grid[-1] - grid[0])
     return u_best if v_best >= -tol and inside else float("nan")
 
 
-def _rate_touches(s: _Walker, index: np.ndarray, rate: np.ndarray, Phi: np.ndarray,
-                  dcoef: np.ndarray, dC1: np.ndarray, span: tuple[float, float]) -> None:
+def _rate_touches(
+    s: _Walker,
+    index: np.ndarray,
+    rate: np.ndarray,
+    Phi: np.ndarray,
+    dcoef: np.ndarray,
+    dC1: np.ndarray,
+    span: tuple[float, float],
+) -> None:
     """Active constraints whose slip rate (``rate`` at the samples Phi) touches zero inside
     the piece without leaving, with the tangents of those rates where they are zero."""
     size = max(float(np.max(np.abs(Phi @ dcoef))), 1e-300)
@@ -340,8 +414,12 @@ def _rate_touches(s: _Walker, index: np.ndarray, rate: np.ndarray, Phi: np.ndarr
         dc1 = np.einsum("b,bap->ap", Phi[s_i], dC1[:, index, :])
         dG_rate = BA @ (s.dk * (BA.T @ rate[s_i])[:, None])
         tangents.append(s.pad((-Gi @ (dc1 + dG_rate))[low]))
-    s.touches.append((f"slip rate(s) of constraint(s) {index[low].tolist()} touch zero in t/T "
-                      f"in ({span[0]:.9g}, {span[1]:.9g})", np.concatenate(tangents)))
+    s.touches.append(
+        (
+            f"slip rate(s) of constraint(s) {index[low].tolist()} touch zero in t/T in ({span[0]:.9g}, {span[1]:.9g})",
+            np.concatenate(tangents),
+        )
+    )
 
 
 def _touching(f: np.ndarray, tol: float) -> np.ndarray:
@@ -361,10 +439,10 @@ def _touching(f: np.ndarray, tol: float) -> np.ndarray:
     return top & ((before & after) | flat)
 
 
-
 # -- catch-up ----------------------------------------------------------------------------------
-def walk_catch_up(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
-                  dk: np.ndarray, prep: Prepared | None = None) -> Walk:
+def walk_catch_up(
+    lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray, dk: np.ndarray, prep: Prepared | None = None
+) -> Walk:
     """Differentiate the catch-up scheme's discrete period map at its limit period (module
     docstring, eq. (catch-up)): runs of steps on one active set (the rows with a positive
     multiplier) telescope to the piece formula at the run's last grid time. The walk is the
@@ -376,11 +454,12 @@ def walk_catch_up(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     if prep is None or prep.grid is None:
         prep = prepare(process, co, dC, dMu, True)
     assert prep.grid is not None
-    agrees = prep.agrees if lim.scale == process.scale else _agrees(
-        prep.grid[3][0], prep.offsets, 1e-9 * lim.scale)
+    agrees = prep.agrees if lim.scale == process.scale else _agrees(prep.grid[3][0], prep.offsets, 1e-9 * lim.scale)
     if not agrees:
-        raise CrawlsimError(f"{process.name}: the offsets' closed form does not reproduce the "
-                            "catch-up grid's; the catch-up map is not differentiated")
+        raise CrawlsimError(
+            f"{process.name}: the offsets' closed form does not reproduce the "
+            "catch-up grid's; the catch-up map is not differentiated"
+        )
     B = prep.B
     m, n = B.shape
     q = n + dk.shape[1]
@@ -390,15 +469,36 @@ def walk_catch_up(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
     # exact walk)
     active, weak, starts, runs_weak, scale_w = tangent_catchup.catch_up_runs(
         np.ascontiguousarray(record.multipliers, dtype=float),
-        np.ascontiguousarray(record.w, dtype=float), B, prep.offsets, TOUCH * lim.scale)
+        np.ascontiguousarray(record.w, dtype=float),
+        B,
+        prep.offsets,
+        TOUCH * lim.scale,
+    )
     G = len(active)
     R = len(starts) - 1
     W, L, D = np.empty((n, q)), np.empty((m, q)), np.empty(q)
     lam, w_end = np.empty(m), np.empty(n)
     w_start, W_start = np.empty((R, n)), np.empty((R, n, q))
     diss = tangent_catchup.walk_catch_up(
-        B, prep.k, co.C, dC, dk, Phi, pieces, values, active, starts,
-        np.array(record.w[0], dtype=float), W, L, D, lam, w_end, w_start, W_start)
+        B,
+        prep.k,
+        co.C,
+        dC,
+        dk,
+        Phi,
+        pieces,
+        values,
+        active,
+        starts,
+        np.array(record.w[0], dtype=float),
+        W,
+        L,
+        D,
+        lam,
+        w_end,
+        w_start,
+        W_start,
+    )
     touches: list[tuple[str, np.ndarray]] = []
     weak_runs = np.flatnonzero(runs_weak).tolist()
     if weak_runs:
@@ -409,13 +509,11 @@ def walk_catch_up(lim: Limit, co: Coefficients, dC: np.ndarray, dMu: np.ndarray,
             _weak_steps(s, (pieces, Phi), np.flatnonzero(active[j0]), j0, weak[j0:j1])
         touches = s.touches
     if float(np.max(np.abs(w_end - record.w[-1]))) > 1e-8 * max(scale_w, 1e-300):
-        raise CrawlsimError(f"{process.name}: the catch-up walk does not reproduce the limit "
-                            "period (internal error)")
+        raise CrawlsimError(f"{process.name}: the catch-up walk does not reproduce the limit period (internal error)")
     return Walk(W, L, D, lam, float(diss), w_end, G, [], np.zeros(q, dtype=bool), touches)
 
 
-def _weak_steps(s: _Walker, grid: tuple[np.ndarray, np.ndarray], index: np.ndarray, j0: int,
-                weak: np.ndarray) -> None:
+def _weak_steps(s: _Walker, grid: tuple[np.ndarray, np.ndarray], index: np.ndarray, j0: int, weak: np.ndarray) -> None:
     """The tangents of the gaps of rows tight with a zero multiplier after steps j0 + r of a
     run on A (``weak`` (r, m)): w_{j+1} is the piece formula at u_{j+1} from the run's start;
     ``grid``: the piece and the basis values of each grid time."""
@@ -428,6 +526,11 @@ def _weak_steps(s: _Walker, grid: tuple[np.ndarray, np.ndarray], index: np.ndarr
         dc = np.einsum("b,bp->p", Phi[j], s.dC[piece][:, i, :])
         tangents.append((s.B[i] @ dW - s.pad(dc))[None, :])
     first = int(np.argwhere(weak)[0][0]) + j0 + 1
-    s.touches.append((f"catch-up step(s) from {first}: constraint(s) "
-                      f"{sorted(set(np.argwhere(weak)[:, 1].tolist()))} tight with a zero "
-                      "multiplier", np.concatenate(tangents)))
+    s.touches.append(
+        (
+            f"catch-up step(s) from {first}: constraint(s) "
+            f"{sorted(set(np.argwhere(weak)[:, 1].tolist()))} tight with a zero "
+            "multiplier",
+            np.concatenate(tangents),
+        )
+    )

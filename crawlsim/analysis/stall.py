@@ -41,7 +41,7 @@ def _vanishing_subset(gait: Gait) -> tuple[int, ...] | None:
     a, b = evaluate_many(plus, u), evaluate_many(minus, u)  # (samples, N)
     scale = float(np.max(np.sum(np.abs(a) + np.abs(b), axis=1)))
     best, best_value = None, math.inf
-    for mask in range(2 ** N):
+    for mask in range(2**N):
         inside = np.array([(mask >> j) & 1 for j in range(N)], dtype=bool)
         g = a[:, inside].sum(axis=1) - b[:, ~inside].sum(axis=1)
         value = float(np.min(np.abs(g)))
@@ -113,8 +113,7 @@ class _UniquenessSums:
         self.gait, self.path = gait, path
         self.u = np.linspace(0.0, 1.0, 17)[:-1]
         N = gait.blocks
-        self.masks = np.array([[(m >> j) & 1 for j in range(N)] for m in range(1, 2 ** N - 1)],
-                              dtype=bool)
+        self.masks = np.array([[(m >> j) & 1 for j in range(N)] for m in range(1, 2**N - 1)], dtype=bool)
 
     def __call__(self, s: float) -> np.ndarray | None:
         """g~_J at the sample times (subsets, samples), or None where the gait is refused for
@@ -163,8 +162,9 @@ class _UniquenessSums:
         return 0.5 * (lo + hi)
 
 
-def _first_stall(x: np.ndarray, v: np.ndarray, start: int, direction: int,
-                 jumps: list[float]) -> tuple[float | None, StallCause | None]:
+def _first_stall(
+    x: np.ndarray, v: np.ndarray, start: int, direction: int, jumps: list[float]
+) -> tuple[float | None, StallCause | None]:
     """Walking from ``start`` in ``direction``, the first interval where v0 loses its sign:
     a jump inside it (the nearest), else the zero of the secant (cause smooth-zero); (None,
     None) when v0 keeps its sign to the end of the sweep."""

@@ -145,8 +145,7 @@ def to_json(summary: dict) -> str:
     """One JSON object; NaN and infinities (HDF5's stand-ins for null) become null."""
     import json
 
-    clean = {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
-             for k, v in summary.items()}
+    clean = {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in summary.items()}
     return json.dumps(clean)
 
 
@@ -156,8 +155,7 @@ Shell completion (bash; zsh and fish alike with zsh_source, fish_source):
 """
 
 
-@click.group(cls=CrawlsimGroup, context_settings={"help_option_names": ["-h", "--help"]},
-             epilog=_COMPLETION)
+@click.group(cls=CrawlsimGroup, context_settings={"help_option_names": ["-h", "--help"]}, epilog=_COMPLETION)
 @click.version_option(__version__, prog_name="crawlsim")
 def main():
     """Exact simulation of soft crawlers with dry friction.
@@ -182,38 +180,60 @@ def simulation_options(f):
     """Options that override the gait file's ``simulation`` mapping: the command receives
     ``steps_per_period, max_periods, tolerance, integrator, limit`` (None when not given) and
     hands them to `load_with_overrides`."""
-    f = click.option("--tolerance", type=FiniteFloatRange(min=0, min_open=True),
-                     help="Stop when the Poincare step is at most this, relative to |w| "
-                          f"(default: the gait file's value, else {DEFAULT_TOLERANCE:g}).")(f)
-    f = click.option("--max-periods", type=click.IntRange(min=1),
-                     help="Give up after this many periods (default: the gait file's value, "
-                          f"else {DEFAULT_MAX_PERIODS}).")(f)
-    f = click.option("--steps-per-period", type=click.IntRange(min=1),
-                     help="Uniform catch-up steps per period; breakpoints are added (default: "
-                          f"the gait file's value, else {DEFAULT_STEPS_PER_PERIOD}). With "
-                          "--integrator exact, only the output grid.")(f)
-    f = click.option("--integrator", type=click.Choice([str(i) for i in Integrator]),
-                     help="exact: event-driven, v0 to roundoff. catch-up: the paper's time "
-                          "discretisation, first order in the step (its time-step error is "
-                          "measured against exact) (default: the gait file's value, else "
-                          f"{DEFAULT_INTEGRATOR}).")(f)
-    f = click.option("--limit", type=click.Choice(["newton", "iterate"]),
-                     help="How the periodic limit is found: newton, the periodic-limit solver "
-                          "(a few periods even when the iterates converge slowly), or iterate, "
-                          "period after period (default: the gait file's value, else "
-                          f"{DEFAULT_LIMIT}).")(f)
+    f = click.option(
+        "--tolerance",
+        type=FiniteFloatRange(min=0, min_open=True),
+        help="Stop when the Poincare step is at most this, relative to |w| "
+        f"(default: the gait file's value, else {DEFAULT_TOLERANCE:g}).",
+    )(f)
+    f = click.option(
+        "--max-periods",
+        type=click.IntRange(min=1),
+        help=f"Give up after this many periods (default: the gait file's value, else {DEFAULT_MAX_PERIODS}).",
+    )(f)
+    f = click.option(
+        "--steps-per-period",
+        type=click.IntRange(min=1),
+        help="Uniform catch-up steps per period; breakpoints are added (default: "
+        f"the gait file's value, else {DEFAULT_STEPS_PER_PERIOD}). With "
+        "--integrator exact, only the output grid.",
+    )(f)
+    f = click.option(
+        "--integrator",
+        type=click.Choice([str(i) for i in Integrator]),
+        help="exact: event-driven, v0 to roundoff. catch-up: the paper's time "
+        "discretisation, first order in the step (its time-step error is "
+        "measured against exact) (default: the gait file's value, else "
+        f"{DEFAULT_INTEGRATOR}).",
+    )(f)
+    f = click.option(
+        "--limit",
+        type=click.Choice(["newton", "iterate"]),
+        help="How the periodic limit is found: newton, the periodic-limit solver "
+        "(a few periods even when the iterates converge slowly), or iterate, "
+        "period after period (default: the gait file's value, else "
+        f"{DEFAULT_LIMIT}).",
+    )(f)
     return f
 
 
 def feedback_options(f):
     """``--quiet`` and ``--verbose``: how much goes to stderr besides errors and warnings."""
-    f = click.option("-v", "--verbose", is_flag=True,
-                     help="More detail on stderr: every period's Poincare step, every invalid "
-                          "or failed sweep point with its reason, resumed points.")(f)
-    f = click.option("-q", "--quiet", is_flag=True,
-                     help="No progress on stderr (warnings and errors are still printed). "
-                          "Progress is a bar on a terminal, else a line every 10 s "
-                          "(CRAWLSIM_PROGRESS_INTERVAL).")(f)
+    f = click.option(
+        "-v",
+        "--verbose",
+        is_flag=True,
+        help="More detail on stderr: every period's Poincare step, every invalid "
+        "or failed sweep point with its reason, resumed points.",
+    )(f)
+    f = click.option(
+        "-q",
+        "--quiet",
+        is_flag=True,
+        help="No progress on stderr (warnings and errors are still printed). "
+        "Progress is a bar on a terminal, else a line every 10 s "
+        "(CRAWLSIM_PROGRESS_INTERVAL).",
+    )(f)
     return f
 
 
@@ -222,16 +242,22 @@ def check_feedback(quiet: bool, verbose: bool) -> None:
         raise BadInput("--quiet and --verbose: choose one")
 
 
-def load_with_overrides(gait_file, steps_per_period, max_periods, tolerance, integrator=None,
-                        limit=None):
+def load_with_overrides(gait_file, steps_per_period, max_periods, tolerance, integrator=None, limit=None):
     """The gait file with the command line's simulation options applied (those not None)."""
     from crawlsim.gait.document import load_gait, with_simulation
 
     gait = load_gait(gait_file)
-    overrides = {k: v for k, v in dict(steps_per_period=steps_per_period,
-                                       max_periods=max_periods, tolerance=tolerance,
-                                       integrator=integrator, limit=limit).items()
-                 if v is not None}
+    overrides = {
+        k: v
+        for k, v in dict(
+            steps_per_period=steps_per_period,
+            max_periods=max_periods,
+            tolerance=tolerance,
+            integrator=integrator,
+            limit=limit,
+        ).items()
+        if v is not None
+    }
     return with_simulation(gait, **overrides) if overrides else gait
 
 
@@ -240,6 +266,4 @@ def run_progress(gait, quiet: bool, verbose: bool):
     from crawlsim.cli.progress import RunProgress, choose_mode
 
     s = gait.simulation
-    return RunProgress(gait.name, s.tolerance, s.max_periods, mode=choose_mode(quiet),
-                       verbose=verbose)
-
+    return RunProgress(gait.name, s.tolerance, s.max_periods, mode=choose_mode(quiet), verbose=verbose)

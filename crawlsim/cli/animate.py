@@ -10,19 +10,32 @@ from crawlsim.cli.guards import FiniteFloatRange, force_option
 
 @main.command()
 @click.argument("results_file", type=click.Path(exists=True, dir_okay=False))
-@click.option("-o", "--output", type=click.Path(dir_okay=False),
-              help="The animation: .gif, or .mp4 where ffmpeg is installed (default: "
-                   "<stem>.gif beside the results file).")
-@click.option("--periods", metavar="A:B",
-              help="Animate t from A T to B T (periods A to B-1 of the stored trajectory) "
-                   "instead of the limit period.")
-@click.option("--frames-per-period", type=click.IntRange(min=2, max=1000), default=40,
-              show_default=True, help="Frames per period (fewer when the periods are many: "
-                                      "at most 1200 frames).")
-@click.option("--fps", type=FiniteFloatRange(min=1, max=100), default=20, show_default=True,
-              help="Frames per second.")
-@click.option("--dpi", type=FiniteFloatRange(min=20, max=600), default=80, show_default=True,
-              help="Resolution of the frames (dots per inch; frames are 8 x 5.6 in).")
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(dir_okay=False),
+    help="The animation: .gif, or .mp4 where ffmpeg is installed (default: <stem>.gif beside the results file).",
+)
+@click.option(
+    "--periods",
+    metavar="A:B",
+    help="Animate t from A T to B T (periods A to B-1 of the stored trajectory) instead of the limit period.",
+)
+@click.option(
+    "--frames-per-period",
+    type=click.IntRange(min=2, max=1000),
+    default=40,
+    show_default=True,
+    help="Frames per period (fewer when the periods are many: at most 1200 frames).",
+)
+@click.option("--fps", type=FiniteFloatRange(min=1, max=100), default=20, show_default=True, help="Frames per second.")
+@click.option(
+    "--dpi",
+    type=FiniteFloatRange(min=20, max=600),
+    default=80,
+    show_default=True,
+    help="Resolution of the frames (dots per inch; frames are 8 x 5.6 in).",
+)
 @force_option
 def animate(results_file, output, periods, frames_per_period, fps, dpi, force):
     """Animate the run in RESULTS_FILE: the blocks and links move over the limit period.
@@ -55,12 +68,13 @@ def animate(results_file, output, periods, frames_per_period, fps, dpi, force):
         check_target(target, FIGURE, inputs=[results_file], force=force, option="--output")
         results = read_results(results_file)
         if results["attrs"].get("kind", "crawler") != "crawler":
-            raise BadInput(f"{results_file}: a generic sweeping process has no blocks to "
-                           "animate; animate a crawler's run")
+            raise BadInput(
+                f"{results_file}: a generic sweeping process has no blocks to animate; animate a crawler's run"
+            )
         try:
-            path, count = write_animation(results, target, periods=span,
-                                          frames_per_period=frames_per_period, fps=fps,
-                                          dpi=dpi)
+            path, count = write_animation(
+                results, target, periods=span, frames_per_period=frames_per_period, fps=fps, dpi=dpi
+            )
         except ValueError as exc:
             raise BadInput(f"{results_file}: {exc}") from None
     click.echo(f"{path} ({count} frames, {count / fps:.3g} s)")

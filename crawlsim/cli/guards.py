@@ -39,28 +39,33 @@ def _size(ctx, param, value):
 def max_memory_option(f):
     """``--max-memory SIZE``: the estimated peak memory a run may need."""
     return click.option(
-        "--max-memory", callback=_size, metavar="SIZE",
+        "--max-memory",
+        callback=_size,
+        metavar="SIZE",
         help="Refuse a run whose memory, estimated before it starts, exceeds SIZE (4GiB, 500MB, "
-             "2G). Default: the smaller of 8 GiB and half the memory available.")(f)
+        "2G). Default: the smaller of 8 GiB and half the memory available.",
+    )(f)
 
 
 def force_option(f):
     """``--force``: replace an output that is not a crawlsim output of the same kind."""
     return click.option(
-        "--force", is_flag=True,
+        "--force",
+        is_flag=True,
         help="Replace an existing output file even if it is not a crawlsim output of the same "
-             "kind (never the input file, nor a device or FIFO).")(f)
+        "kind (never the input file, nor a device or FIFO).",
+    )(f)
 
 
-def check_memory(gait, max_memory, *, save_every: int = 1, batch: int = 1,
-                 steps_per_period=None, blocks=None, what: str = "this run") -> None:
+def check_memory(
+    gait, max_memory, *, save_every: int = 1, batch: int = 1, steps_per_period=None, blocks=None, what: str = "this run"
+) -> None:
     """Refuse (ResourceError, exit 2) a gait whose run would not fit in ``max_memory`` bytes
     (None: the default limit), or whose signals would take too long (`resources.signal_work`)."""
     from crawlsim.integrate.resources import check_memory as check
     from crawlsim.integrate.resources import check_signal_work, default_limit, gait_memory, gait_signal_work
 
-    estimate = gait_memory(gait, save_every=save_every, batch=batch,
-                           steps_per_period=steps_per_period, blocks=blocks)
+    estimate = gait_memory(gait, save_every=save_every, batch=batch, steps_per_period=steps_per_period, blocks=blocks)
     check(estimate, default_limit() if max_memory is None else max_memory, gait.source, what)
     # and the time its signals would take (fewer blocks at a sweep point cost less; more
     # steps per period only add the tabulation)
@@ -70,9 +75,12 @@ def check_memory(gait, max_memory, *, save_every: int = 1, batch: int = 1,
 def warn_unchecked(gait) -> None:
     """Say on stderr that the gait runs without an exact uniqueness check (it opted in)."""
     if getattr(gait, "uniqueness_unchecked", False):
-        click.echo(f"Warning: {gait.source}: the uniqueness condition (docs/model.md §3) is beyond "
-                   "an exact check for this friction and was not checked (simulation: "
-                   "unchecked_uniqueness: true); the results file records it", err=True)
+        click.echo(
+            f"Warning: {gait.source}: the uniqueness condition (docs/model.md §3) is beyond "
+            "an exact check for this friction and was not checked (simulation: "
+            "unchecked_uniqueness: true); the results file records it",
+            err=True,
+        )
 
 
 def _figsize(ctx, param, value):
@@ -83,23 +91,33 @@ def _figsize(ctx, param, value):
     except ValueError:
         pair = ()
     if len(pair) != 2 or not all(math.isfinite(v) and 0.5 <= v <= 100 for v in pair):
-        raise click.BadParameter(f"{value!r}: expected the width and height in inches, each "
-                                 "between 0.5 and 100, such as 3.5,2.6")
+        raise click.BadParameter(
+            f"{value!r}: expected the width and height in inches, each between 0.5 and 100, such as 3.5,2.6"
+        )
     return pair
 
 
 def figure_options(f):
     """``--dpi``, ``--figsize W,H`` and ``--style``: how figures are written
     (`crawlsim.plotting.style.FigureOptions`)."""
-    f = click.option("--style", metavar="STYLE",
-                     help="A matplotlib style sheet laid over crawlsim's: a name of "
-                          "matplotlib.style.available (ggplot, seaborn-v0_8-paper, ...) or a "
-                          ".mplstyle file.")(f)
-    f = click.option("--figsize", callback=_figsize, metavar="W,H",
-                     help="Size of every figure in inches, such as 3.5,2.6 (default: each "
-                          "figure's own, cropped to its content).")(f)
-    f = click.option("--dpi", type=FiniteFloatRange(min=10, max=2400),
-                     help="Resolution of PNG figures in dots per inch (default: 150).")(f)
+    f = click.option(
+        "--style",
+        metavar="STYLE",
+        help="A matplotlib style sheet laid over crawlsim's: a name of "
+        "matplotlib.style.available (ggplot, seaborn-v0_8-paper, ...) or a "
+        ".mplstyle file.",
+    )(f)
+    f = click.option(
+        "--figsize",
+        callback=_figsize,
+        metavar="W,H",
+        help="Size of every figure in inches, such as 3.5,2.6 (default: each figure's own, cropped to its content).",
+    )(f)
+    f = click.option(
+        "--dpi",
+        type=FiniteFloatRange(min=10, max=2400),
+        help="Resolution of PNG figures in dots per inch (default: 150).",
+    )(f)
     return f
 
 
@@ -137,14 +155,18 @@ def check_sweep_memory(grid, points: int, jobs: int, scheduler, max_memory) -> N
     in a batch as large as the sweep's tasks, once per local worker."""
     from crawlsim.study.executors import MAX_CHUNK
 
-    largest = {a.path: int(max(a.values)) for a in grid.axes
-               if a.path in ("blocks", "simulation.steps_per_period")}
+    largest = {a.path: int(max(a.values)) for a in grid.axes if a.path in ("blocks", "simulation.steps_per_period")}
     blocks, steps = largest.get("blocks"), largest.get("simulation.steps_per_period")
     batch = min(points, MAX_CHUNK)
     gait = grid.base
-    check_memory(gait, max_memory, batch=batch, steps_per_period=steps, blocks=blocks,
-                 what=f"this sweep ({'one worker' if scheduler else f'{jobs} worker(s)'} with "
-                      f"batches of {batch} points)")
+    check_memory(
+        gait,
+        max_memory,
+        batch=batch,
+        steps_per_period=steps,
+        blocks=blocks,
+        what=f"this sweep ({'one worker' if scheduler else f'{jobs} worker(s)'} with batches of {batch} points)",
+    )
     if scheduler or jobs <= 1:
         return
     from crawlsim.integrate.resources import default_limit, format_size, gait_memory
@@ -154,8 +176,12 @@ def check_sweep_memory(grid, points: int, jobs: int, scheduler, max_memory) -> N
     if jobs * each.total > limit:
         from crawlsim.errors import ResourceError
 
-        raise ResourceError(gait.source, "", f"{jobs} local workers would need about "
-                                             f"{format_size(jobs * each.total)} together "
-                                             f"({each.describe()} each), more than the memory "
-                                             f"limit of {format_size(limit)} (--max-memory); "
-                                             "use fewer --jobs")
+        raise ResourceError(
+            gait.source,
+            "",
+            f"{jobs} local workers would need about "
+            f"{format_size(jobs * each.total)} together "
+            f"({each.describe()} each), more than the memory "
+            f"limit of {format_size(limit)} (--max-memory); "
+            "use fewer --jobs",
+        )

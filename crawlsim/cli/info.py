@@ -17,8 +17,7 @@ def _run_lines(d: dict) -> list[str]:
     from crawlsim.analysis.digits import how_found, with_error
 
     what = "gait" if d["kind"] == "crawler" else d["kind"]
-    lines = [f"{d['file']}: run of {what} {d['name']}",
-             f"  integrator               {d['integrator'] or 'n/a'}"]
+    lines = [f"{d['file']}: run of {what} {d['name']}", f"  integrator               {d['integrator'] or 'n/a'}"]
     if d["v0"] is not None:
         lines.append(f"  v0                       {with_error(d['v0'], d['v0_error_estimate'])}")
     conv = d["convergence"]
@@ -33,11 +32,13 @@ def _run_lines(d: dict) -> list[str]:
     lines.append(f"  convergence              {conv}")
     if d.get("grid_note"):
         lines.append(f"  grid                     {d['grid_note']}")
-    found = how_found(d.get("limit_method"), d.get("limit_newton_steps"),
-                      d.get("limit_periods"), d.get("jacobian_rate"))
+    found = how_found(
+        d.get("limit_method"), d.get("limit_newton_steps"), d.get("limit_periods"), d.get("jacobian_rate")
+    )
     lines.append(f"  limit found by           {found}")
-    lines.append(f"  periods                  {d['periods']} of {d['steps_per_period']} "
-                 f"steps (period {_g(d['period'])})")
+    lines.append(
+        f"  periods                  {d['periods']} of {d['steps_per_period']} steps (period {_g(d['period'])})"
+    )
     if d["displacement_per_period"] is not None:
         lines.append(f"  displacement per period  {_g(d['displacement_per_period'])}")
         lines.append(f"  dissipation per period   {_g(d['dissipation_per_period'])}")
@@ -51,19 +52,20 @@ def summary_lines(d: dict) -> list[str]:
     if d["file_kind"] == "run":
         lines.extend(_run_lines(d))
     elif d["file_kind"] == "optimization":
-        lines.append(f"{d['file']}: optimisation of gait {d['name']}, from {d['source']}: "
-                     f"{d['objective']}")
+        lines.append(f"{d['file']}: optimisation of gait {d['name']}, from {d['source']}: {d['objective']}")
         for c in d["constraints"]:
             lines.append(f"  subject to               {c}")
         for free in d["free"]:
-            lines.append(f"  free                     {free['path']} in [{_g(free['lo'])}, "
-                         f"{_g(free['hi'])}]: best {_g(d['best'].get(free['path']))}")
-        lines.append(f"  best v0                  {_g(d['v0'])} (cost of transport "
-                     f"{_g(d['cost_of_transport'], 6)})"
-                     + ("" if d["best_feasible"] else ", infeasible"))
+            lines.append(
+                f"  free                     {free['path']} in [{_g(free['lo'])}, "
+                f"{_g(free['hi'])}]: best {_g(d['best'].get(free['path']))}"
+            )
+        lines.append(
+            f"  best v0                  {_g(d['v0'])} (cost of transport "
+            f"{_g(d['cost_of_transport'], 6)})" + ("" if d["best_feasible"] else ", infeasible")
+        )
         counts = ", ".join(f"{v} {k}" for k, v in sorted(d["statuses"].items()))
-        lines.append(f"  evaluations              {d['evaluations']} of {d['max_evaluations']} "
-                     f"allowed: {counts}")
+        lines.append(f"  evaluations              {d['evaluations']} of {d['max_evaluations']} allowed: {counts}")
         if d["front_points"] is not None:
             lines.append(f"  Pareto front             {d['front_points']} points")
         lines.append(f"  integrator, seed         {d['integrator']}, {d['seed']}")
@@ -72,15 +74,15 @@ def summary_lines(d: dict) -> list[str]:
         lines.append(f"{d['file']}: sweep of gait {d['name']}{shard}, from {d['source']}")
         for n, dim in enumerate(d["grid"], 1):
             paths = " with ".join(dim["paths"])
-            lines.append(f"  dimension {n}              {paths}: {dim['values']} values in "
-                         f"[{_g(dim['min'])}, {_g(dim['max'])}]")
+            lines.append(
+                f"  dimension {n}              {paths}: {dim['values']} values in [{_g(dim['min'])}, {_g(dim['max'])}]"
+            )
         counts = ", ".join(f"{v} {k}" for k, v in sorted(d["statuses"].items()))
         lines.append(f"  points                   {d['points']}: {counts}")
         lines.append(f"  integrator               {d['integrator'] or 'n/a (older file)'}")
         if d["v0_min"] is not None:
             lines.append(f"  v0 of the ok points      {_g(d['v0_min'])} to {_g(d['v0_max'])}")
-    lines.append(f"  written by               crawlsim {d['crawlsim_version']} (format "
-                 f"{d['format_version']})")
+    lines.append(f"  written by               crawlsim {d['crawlsim_version']} (format {d['format_version']})")
     for key, value in sorted(d["attributes"].items()):
         lines.append(f"  {key:<24} {value}")
     return lines
@@ -109,7 +111,11 @@ def info(results_file, as_json):
     with library_errors():
         d = describe(results_file)
     if as_json:
-        click.echo(to_json({k: v for k, v in d.items() if k != "attributes"}
-                           | {"attributes": {k: str(v) for k, v in d["attributes"].items()}}))
+        click.echo(
+            to_json(
+                {k: v for k, v in d.items() if k != "attributes"}
+                | {"attributes": {k: str(v) for k, v in d["attributes"].items()}}
+            )
+        )
     else:
         click.echo("\n".join(summary_lines(d)))

@@ -10,8 +10,13 @@ from crawlsim.cli.guards import force_option
 
 @main.command()
 @click.argument("parts", nargs=-1, required=True, type=click.Path(dir_okay=False))
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, allow_dash=True),
-              help="The merged sweep: OUT.h5 (HDF5), OUT.csv, or - for CSV on stdout.")
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(dir_okay=False, allow_dash=True),
+    help="The merged sweep: OUT.h5 (HDF5), OUT.csv, or - for CSV on stdout.",
+)
 @force_option
 def merge(parts, output, force):
     """Join the shard files PART... of one sweep (written with --shard I/N) into OUTPUT.
@@ -31,8 +36,9 @@ def merge(parts, output, force):
     from crawlsim.study import sweep as sweeps
 
     if output != "-" and Path(output).suffix.lower() not in (".h5", ".hdf5", ".csv"):
-        raise BadInput(f"--output {output}: name the merged sweep OUT.h5 (HDF5) or OUT.csv, or "
-                       "give - for CSV on stdout")
+        raise BadInput(
+            f"--output {output}: name the merged sweep OUT.h5 (HDF5) or OUT.csv, or give - for CSV on stdout"
+        )
     with library_errors():
         if output != "-":
             from crawlsim.io.outputs import SWEEP, check_target

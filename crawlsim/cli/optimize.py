@@ -27,8 +27,10 @@ def _objective(maximize, minimize):
     from crawlsim.study import optimize as opt
 
     if maximize and minimize:
-        raise BadInput(f"--maximize {maximize} and --minimize {minimize}: give one objective "
-                       "(or --pareto for v0 against cost_of_transport)")
+        raise BadInput(
+            f"--maximize {maximize} and --minimize {minimize}: give one objective "
+            "(or --pareto for v0 against cost_of_transport)"
+        )
     if minimize:
         return opt.Objective(opt.quantity(minimize, "--minimize"), opt.Sense.MINIMIZE)
     if maximize:
@@ -38,49 +40,114 @@ def _objective(maximize, minimize):
 
 @main.command()
 @click.argument("gait_file", type=click.Path(exists=True, dir_okay=False))
-@click.option("--free", "free_specs", multiple=True, metavar="PATH=LO:HI",
-              help="A free parameter: a dotted path of the gait document (as in --sweep, "
-                   "wildcards included: links.*.phase) and its bounds, both included. Repeat "
-                   "for more.")
-@click.option("--maximize", metavar="QUANTITY",
-              help="Maximise v0 (the default), displacement-per-period, ...")
-@click.option("--minimize", metavar="QUANTITY",
-              help="Minimise cost-of-transport, dissipation-per-period, v0, ...")
-@click.option("--subject-to", "constraints", multiple=True, metavar="'QUANTITY>=NUMBER'",
-              help="A constraint, QUANTITY>=NUMBER or QUANTITY<=NUMBER (v0, cost_of_transport, "
-                   "dissipation_per_period, displacement_per_period). Repeat for more.")
-@click.option("--pareto", is_flag=True,
-              help="The front of v0 (maximised) against cost_of_transport (minimised): its two "
-                   "ends and --front-points epsilon-constraint points between them.")
-@click.option("--front-points", type=click.IntRange(min=0), default=5, show_default=True,
-              help="Points of the Pareto front between its two ends (--pareto).")
-@click.option("-o", "--output", type=click.Path(dir_okay=False),
-              help="HDF5 file of every evaluated point, the history of the best value, the "
-                   "runs and the settings (default: <gait stem>-optimize.h5). OUT.journal keeps "
-                   "finished points while it runs: rerun the same command to resume.")
-@click.option("--write-best", type=click.Path(dir_okay=False), metavar="BEST.yaml",
-              help="Write the best gait as a gait file (crawlsim run reproduces its v0).")
-@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
-              help="Seed of the search: the same seed gives the same result.")
-@click.option("--max-evaluations", type=click.IntRange(min=1),
-              help="Budget of simulated points [default: 150 (n + 1) for n free parameters; "
-                   "with --pareto, that times (front points + 2) / 2].")
-@click.option("-j", "--jobs", type=click.IntRange(min=1), default=1, show_default=True,
-              help="Local worker processes (each generation is one batch).")
-@click.option("--scheduler", metavar="ADDRESS",
-              help="Run on an existing Dask cluster (tcp://host:8786); needs "
-                   "pip install 'crawlsim[dask]'.")
+@click.option(
+    "--free",
+    "free_specs",
+    multiple=True,
+    metavar="PATH=LO:HI",
+    help="A free parameter: a dotted path of the gait document (as in --sweep, "
+    "wildcards included: links.*.phase) and its bounds, both included. Repeat "
+    "for more.",
+)
+@click.option("--maximize", metavar="QUANTITY", help="Maximise v0 (the default), displacement-per-period, ...")
+@click.option("--minimize", metavar="QUANTITY", help="Minimise cost-of-transport, dissipation-per-period, v0, ...")
+@click.option(
+    "--subject-to",
+    "constraints",
+    multiple=True,
+    metavar="'QUANTITY>=NUMBER'",
+    help="A constraint, QUANTITY>=NUMBER or QUANTITY<=NUMBER (v0, cost_of_transport, "
+    "dissipation_per_period, displacement_per_period). Repeat for more.",
+)
+@click.option(
+    "--pareto",
+    is_flag=True,
+    help="The front of v0 (maximised) against cost_of_transport (minimised): its two "
+    "ends and --front-points epsilon-constraint points between them.",
+)
+@click.option(
+    "--front-points",
+    type=click.IntRange(min=0),
+    default=5,
+    show_default=True,
+    help="Points of the Pareto front between its two ends (--pareto).",
+)
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(dir_okay=False),
+    help="HDF5 file of every evaluated point, the history of the best value, the "
+    "runs and the settings (default: <gait stem>-optimize.h5). OUT.journal keeps "
+    "finished points while it runs: rerun the same command to resume.",
+)
+@click.option(
+    "--write-best",
+    type=click.Path(dir_okay=False),
+    metavar="BEST.yaml",
+    help="Write the best gait as a gait file (crawlsim run reproduces its v0).",
+)
+@click.option(
+    "--seed",
+    type=click.IntRange(min=0),
+    default=0,
+    show_default=True,
+    help="Seed of the search: the same seed gives the same result.",
+)
+@click.option(
+    "--max-evaluations",
+    type=click.IntRange(min=1),
+    help="Budget of simulated points [default: 150 (n + 1) for n free parameters; "
+    "with --pareto, that times (front points + 2) / 2].",
+)
+@click.option(
+    "-j",
+    "--jobs",
+    type=click.IntRange(min=1),
+    default=1,
+    show_default=True,
+    help="Local worker processes (each generation is one batch).",
+)
+@click.option(
+    "--scheduler",
+    metavar="ADDRESS",
+    help="Run on an existing Dask cluster (tcp://host:8786); needs pip install 'crawlsim[dask]'.",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
-@click.option("--method", "search", type=click.Choice(["evolution", "gradient"]),
-              help="evolution: differential evolution, then a pattern search; gradient: a "
-                   "coarse sample, then quasi-Newton runs (L-BFGS-B, SLSQP with --subject-to) "
-                   "on the exact sensitivities from its best points (exact integrator). "
-                   "[default: gradient to maximise v0 without constraints, else evolution]")
+@click.option(
+    "--method",
+    "search",
+    type=click.Choice(["evolution", "gradient"]),
+    help="evolution: differential evolution, then a pattern search; gradient: a "
+    "coarse sample, then quasi-Newton runs (L-BFGS-B, SLSQP with --subject-to) "
+    "on the exact sensitivities from its best points (exact integrator). "
+    "[default: gradient to maximise v0 without constraints, else evolution]",
+)
 @simulation_options
 @feedback_options
-def optimize(gait_file, free_specs, maximize, minimize, constraints, pareto, front_points,
-             output, write_best, seed, max_evaluations, jobs, scheduler, as_json, search,
-             steps_per_period, max_periods, tolerance, integrator, limit, quiet, verbose):
+def optimize(
+    gait_file,
+    free_specs,
+    maximize,
+    minimize,
+    constraints,
+    pareto,
+    front_points,
+    output,
+    write_best,
+    seed,
+    max_evaluations,
+    jobs,
+    scheduler,
+    as_json,
+    search,
+    steps_per_period,
+    max_periods,
+    tolerance,
+    integrator,
+    limit,
+    quiet,
+    verbose,
+):
     """Find the gait parameters in a box that maximise v0 (or minimise the cost of transport,
     ...), under constraints, or the Pareto front of v0 against the cost of transport.
 
@@ -116,16 +183,19 @@ def optimize(gait_file, free_specs, maximize, minimize, constraints, pareto, fro
         objective = _objective(maximize, minimize)
         free = [opt.parse_free(spec) for spec in free_specs]
         cons = [opt.parse_constraint(text) for text in constraints]
-        gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance,
-                                   _integrator(gait_file, integrator), limit)
+        gait = load_with_overrides(
+            gait_file, steps_per_period, max_periods, tolerance, _integrator(gait_file, integrator), limit
+        )
         from crawlsim.integrate.resources import check_signal_work, gait_signal_work
 
         check_signal_work(gait_signal_work(gait), gait.source)  # before any evaluation
-        problem = opt.make_problem(gait, free, objective=objective, constraints=cons,
-                                   pareto=pareto)
-        method = opt.Method(seed=seed, max_evaluations=max_evaluations,
-                            front_points=front_points,
-                            search=opt.default_search(problem, search))
+        problem = opt.make_problem(gait, free, objective=objective, constraints=cons, pareto=pareto)
+        method = opt.Method(
+            seed=seed,
+            max_evaluations=max_evaluations,
+            front_points=front_points,
+            search=opt.default_search(problem, search),
+        )
         result = _search(problem, method, out, jobs, scheduler, quiet, verbose)
         result.check_feasible()
         if write_best is not None:
@@ -140,12 +210,13 @@ def optimize(gait_file, free_specs, maximize, minimize, constraints, pareto, fro
 
 def _check_options(free_specs, output) -> None:
     if not free_specs:
-        raise BadInput("give at least one free parameter: --free PATH=LO:HI, for example "
-                       "--free links.1.phase=0:1")
+        raise BadInput("give at least one free parameter: --free PATH=LO:HI, for example --free links.1.phase=0:1")
     if output == "-":
-        raise BadInput("--output -: the results of an optimisation are an HDF5 file, which "
-                       "cannot be streamed to stdout; give a file name (-o opt.h5), and --json "
-                       "prints the answer on stdout")
+        raise BadInput(
+            "--output -: the results of an optimisation are an HDF5 file, which "
+            "cannot be streamed to stdout; give a file name (-o opt.h5), and --json "
+            "prints the answer on stdout"
+        )
 
 
 def _targets(gait_file, output, write_best, scheduler, seed) -> Path:
@@ -160,8 +231,7 @@ def _targets(gait_file, output, write_best, scheduler, seed) -> Path:
     opt.Method(seed=seed)  # refuses a seed the results file cannot hold, before any work
     out = _output_path(output, Path(gait_file).stem + "-optimize", inputs=[gait_file])
     if out.suffix.lower() not in (".h5", ".hdf5"):
-        raise BadInput(f"--output {out}: an optimisation is written to HDF5: give a name "
-                       "ending in .h5")
+        raise BadInput(f"--output {out}: an optimisation is written to HDF5: give a name ending in .h5")
     if write_best is not None:
         from crawlsim.io.outputs import GAIT, check_target
 
@@ -192,24 +262,27 @@ def _search(problem, method, out, jobs, scheduler, quiet, verbose):
     def report(batch):
         run = f"run {batch.run + 1}/{runs}: " if problem.pareto else ""
         if batch.feasible:
-            what = ("v0" if batch.run == 0 else "cost_of_transport") if problem.pareto else \
-                problem.objective.quantity
+            what = ("v0" if batch.run == 0 else "cost_of_transport") if problem.pareto else problem.objective.quantity
             bar.set_note(f"{run}best {what} {batch.best:.10g}")
         else:
             bar.set_note(f"{run}no feasible point yet")
         if verbose:
-            bar.message(f"batch {batch.batch} (run {batch.run}, {batch.stage}): "
-                        f"{batch.evaluations} points, best "
-                        + (f"{batch.best!r}" if batch.feasible else "none feasible")
-                        + ("" if math.isnan(batch.step) else f", step {batch.step:.3g}"))
+            bar.message(
+                f"batch {batch.batch} (run {batch.run}, {batch.stage}): "
+                f"{batch.evaluations} points, best "
+                + (f"{batch.best!r}" if batch.feasible else "none feasible")
+                + ("" if math.isnan(batch.step) else f", step {batch.step:.3g}")
+            )
 
     try:
-        result = opt.optimize(problem, method, output=out, jobs=jobs, scheduler=scheduler,
-                              progress=bar.update, report=report)
+        result = opt.optimize(
+            problem, method, output=out, jobs=jobs, scheduler=scheduler, progress=bar.update, report=report
+        )
     except opt.OptimizationInterrupted as exc:
         bar.close()
-        where = (f"kept in {exc.journal}; run the same command again to resume"
-                 if exc.journal is not None else "not kept")
+        where = (
+            f"kept in {exc.journal}; run the same command again to resume" if exc.journal is not None else "not kept"
+        )
         click.echo(f"Interrupted: {exc.done} points finished, {where}.", err=True)
         cause: BaseException | None = exc
         while cause is not None and not isinstance(cause, Terminated):
@@ -229,10 +302,11 @@ def _search(problem, method, out, jobs, scheduler, quiet, verbose):
 def _text(result, summary, out, write_best) -> str:
     problem = result.problem
     best = result.best_point
-    what = "Pareto front of v0 against cost_of_transport" if problem.pareto else \
-        result.runs[0].text
-    lines = [f"{problem.base.name}: {what}",
-             f"  method                   {result.method.name}, seed {result.method.seed}"]
+    what = "Pareto front of v0 against cost_of_transport" if problem.pareto else result.runs[0].text
+    lines = [
+        f"{problem.base.name}: {what}",
+        f"  method                   {result.method.name}, seed {result.method.seed}",
+    ]
     for path, value in result.best_values.items():
         lines.append(f"  {path:<24} {value!r}")
     for name in ("v0", "cost_of_transport", "dissipation_per_period"):
@@ -254,22 +328,20 @@ def _evaluations_line(result) -> str:
     """How many points were simulated, by stage (the gradient search's sample and its
     evaluations with a gradient), and how many did not run."""
     counts, stages = result.counts(), result.stage_counts()
-    bad = ", ".join(f"{counts[k]} {k}" for k in ("invalid", "failed", "not-converged")
-                    if counts[k])
+    bad = ", ".join(f"{counts[k]} {k}" for k in ("invalid", "failed", "not-converged") if counts[k])
     kinds = ("global", "with gradient") if result.method.gradient else ("global", "polish")
-    return (f"  {'evaluations':<24} {len(result.evaluations)} of {result.budget} allowed: "
-            f"{stages['global']} {kinds[0]}, {stages['polish']} {kinds[1]}"
-            + (f"; {bad}" if bad else ""))
+    return (
+        f"  {'evaluations':<24} {len(result.evaluations)} of {result.budget} allowed: "
+        f"{stages['global']} {kinds[0]}, {stages['polish']} {kinds[1]}" + (f"; {bad}" if bad else "")
+    )
 
 
 def _front_lines(problem, summary) -> list[str]:
     chosen = [p for p in summary["front"] if p["chosen"]]
-    lines = [f"  {'front':<24} {len(summary['front'])} points, {len(chosen)} of them optima "
-             "of the runs:"]
+    lines = [f"  {'front':<24} {len(summary['front'])} points, {len(chosen)} of them optima of the runs:"]
     for point in chosen:
         values = ", ".join(f"{p}={point[p]:.6g}" for p in problem.paths)
-        lines.append(f"    v0 {point['v0']:.6g}  cost_of_transport "
-                     f"{point['cost_of_transport']:.6g}  ({values})")
+        lines.append(f"    v0 {point['v0']:.6g}  cost_of_transport {point['cost_of_transport']:.6g}  ({values})")
     return lines
 
 
@@ -279,7 +351,9 @@ def _budget_lines(result) -> list[str]:
     spent = [(k, r) for k, r in enumerate(result.runs, 1) if r.out_of_budget]
     if not spent:
         return []
-    lines = [f"  {'out of budget':<24} {len(spent)} of {len(result.runs)} run"
-             f"{'s' if len(result.runs) > 1 else ''} (--max-evaluations):"]
+    lines = [
+        f"  {'out of budget':<24} {len(spent)} of {len(result.runs)} run"
+        f"{'s' if len(result.runs) > 1 else ''} (--max-evaluations):"
+    ]
     lines += [f"    run {k}, {run.text}: {run.stop}" for k, run in spent]
     return lines

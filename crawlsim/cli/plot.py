@@ -21,24 +21,41 @@ def _coords(ctx, param, value):
     except ValueError:
         pair = ()
     if len(pair) != 2 or pair[0] == pair[1] or min(pair) < 1:
-        raise click.BadParameter(f"{value!r}: expected two different shape coordinates, "
-                                 "counted from 1, such as 1,3")
+        raise click.BadParameter(f"{value!r}: expected two different shape coordinates, counted from 1, such as 1,3")
     return pair[0] - 1, pair[1] - 1
 
 
 @main.command()
 @click.argument("results_file", type=click.Path(dir_okay=False))
-@click.option("-o", "--output", "--output-dir", "output", type=click.Path(),
-              help="A folder for the figures (default: the results file's folder; created if "
-                   "missing), or a file FIG.png, FIG.pdf or FIG.svg for one figure (--only, or "
-                   "a sweep file), its extension giving the format.")
-@click.option("--format", "fmt", type=click.Choice(["png", "pdf", "svg"]),
-              help="Image format of the figures written into a folder.  [default: png]")
-@click.option("--only", type=click.Choice(FIGURE_NAMES + OPTIMIZATION_FIGURES),
-              help="Draw this figure only (runs, optimisations).")
-@click.option("--coords", default="1,2", show_default=True, callback=_coords,
-              help="Shape coordinates i,j of the shape-space figure when there are more than "
-                   "two (four or more blocks): it shows sections of K(t) in that plane.")
+@click.option(
+    "-o",
+    "--output",
+    "--output-dir",
+    "output",
+    type=click.Path(),
+    help="A folder for the figures (default: the results file's folder; created if "
+    "missing), or a file FIG.png, FIG.pdf or FIG.svg for one figure (--only, or "
+    "a sweep file), its extension giving the format.",
+)
+@click.option(
+    "--format",
+    "fmt",
+    type=click.Choice(["png", "pdf", "svg"]),
+    help="Image format of the figures written into a folder.  [default: png]",
+)
+@click.option(
+    "--only",
+    type=click.Choice(FIGURE_NAMES + OPTIMIZATION_FIGURES),
+    help="Draw this figure only (runs, optimisations).",
+)
+@click.option(
+    "--coords",
+    default="1,2",
+    show_default=True,
+    callback=_coords,
+    help="Shape coordinates i,j of the shape-space figure when there are more than "
+    "two (four or more blocks): it shows sections of K(t) in that plane.",
+)
 @figure_options
 @force_option
 def plot(results_file, output, fmt, only, coords, dpi, figsize, style, force):
@@ -76,8 +93,9 @@ def plot(results_file, output, fmt, only, coords, dpi, figsize, style, force):
         target = Path(output)
         fmt_of_file = figure_format_of(target, "-o")
         if fmt is not None and fmt != fmt_of_file:
-            raise BadInput(f"--format {fmt} and -o {output}: the file's extension gives the "
-                           "format; give one of the two")
+            raise BadInput(
+                f"--format {fmt} and -o {output}: the file's extension gives the format; give one of the two"
+            )
         fmt = fmt_of_file
         output = None
     fmt = fmt or "png"
@@ -106,12 +124,16 @@ def _check_targets(results_file, output_dir, fmt, only, kind, force) -> None:
     folder = Path(output_dir) if output_dir else Path(results_file).parent
     if not folder.is_dir():
         return  # created by plot_results: nothing in it to protect
-    every = {"sweep": ["sweep"], "optimization": list(OPTIMIZATION_FIGURES)}.get(kind,
-                                                                                 FIGURE_NAMES)
+    every = {"sweep": ["sweep"], "optimization": list(OPTIMIZATION_FIGURES)}.get(kind, FIGURE_NAMES)
     names = [only] if only and only in every else every
     for name in names:
-        check_target(folder / f"{Path(results_file).stem}-{name}.{fmt}", FIGURE,
-                     inputs=[results_file], force=force, option="--output-dir")
+        check_target(
+            folder / f"{Path(results_file).stem}-{name}.{fmt}",
+            FIGURE,
+            inputs=[results_file],
+            force=force,
+            option="--output-dir",
+        )
 
 
 def _plot_file(results_file, output_dir, fmt, only, coords, options, target):
@@ -119,13 +141,13 @@ def _plot_file(results_file, output_dir, fmt, only, coords, options, target):
     from crawlsim.io.hdf5 import describe
     from crawlsim.plotting import plot_results
 
-    if only is not None and describe(results_file)["file_kind"] == "optimization" and \
-            only not in OPTIMIZATION_FIGURES:
-        raise BadInput(f"--only {only}: {results_file} is an optimisation file, whose figures "
-                       f"are {', '.join(OPTIMIZATION_FIGURES)}")
+    if only is not None and describe(results_file)["file_kind"] == "optimization" and only not in OPTIMIZATION_FIGURES:
+        raise BadInput(
+            f"--only {only}: {results_file} is an optimisation file, whose figures "
+            f"are {', '.join(OPTIMIZATION_FIGURES)}"
+        )
     try:
-        return plot_results(results_file, output_dir, fmt=fmt, only=only, coords=coords,
-                            options=options, target=target)
+        return plot_results(results_file, output_dir, fmt=fmt, only=only, coords=coords, options=options, target=target)
     except ValueError as exc:
         if isinstance(exc, CrawlsimError):
             raise
@@ -139,21 +161,26 @@ def _plot_sweep(results_file, output_dir, fmt, only, options, target) -> Path:
     from crawlsim.study import sweep as sweeps
 
     if only is not None:
-        raise BadInput(f"--only {only}: {results_file} is a sweep file, whose one figure is "
-                       "the sweep; --only chooses among the figures of a run")
+        raise BadInput(
+            f"--only {only}: {results_file} is a sweep file, whose one figure is "
+            "the sweep; --only chooses among the figures of a run"
+        )
     table = sweeps.read_table(results_file)
     if len(table.dimension_paths()) not in (1, 2):
-        raise BadInput(f"{results_file}: a sweep figure shows one or two swept dimensions, "
-                       f"this sweep has {len(table.dimension_paths())}")
+        raise BadInput(
+            f"{results_file}: a sweep figure shows one or two swept dimensions, "
+            f"this sweep has {len(table.dimension_paths())}"
+        )
     if table.shard is not None:
-        raise BadInput(f"{results_file}: is shard {table.shard[0]}/{table.shard[1]} of a "
-                       "sweep; plot the file `crawlsim merge` writes from all the shards")
+        raise BadInput(
+            f"{results_file}: is shard {table.shard[0]}/{table.shard[1]} of a "
+            "sweep; plot the file `crawlsim merge` writes from all the shards"
+        )
     path = Path(results_file)
     if target is None:
         folder = Path(output_dir) if output_dir is not None else path.resolve().parent
         target = folder / f"{path.stem}-sweep.{fmt}"
     target.parent.mkdir(parents=True, exist_ok=True)
     with user_style(options.style):
-        sweeps.plot_table(table, target, figure_options={"dpi": options.dpi,
-                                                         "figsize": options.figsize})
+        sweeps.plot_table(table, target, figure_options={"dpi": options.dpi, "figsize": options.figsize})
     return target

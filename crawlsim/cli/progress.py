@@ -60,10 +60,19 @@ class Progress:
     ``heartbeat=False`` let tests drive the log lines without sleeping (call `tick`).
     """
 
-    def __init__(self, label: str, unit: str, total: int | None = None, *, mode: str = "log",
-                 stream: IO[str] | None = None, interval: float | None = None,
-                 clock: Callable[[], float] = time.monotonic, heartbeat: bool = True,
-                 estimated: bool = False):
+    def __init__(
+        self,
+        label: str,
+        unit: str,
+        total: int | None = None,
+        *,
+        mode: str = "log",
+        stream: IO[str] | None = None,
+        interval: float | None = None,
+        clock: Callable[[], float] = time.monotonic,
+        heartbeat: bool = True,
+        estimated: bool = False,
+    ):
         self.label, self.unit = label, unit
         self.total, self.estimated = total, estimated
         self.mode = mode
@@ -83,8 +92,7 @@ class Progress:
         if mode == "log" and heartbeat:
             # A slow unit (a long period, a slow point) must not silence the log: a daemon
             # thread checks the clock between updates.
-            self._thread = threading.Thread(target=self._beat, name="crawlsim-progress",
-                                            daemon=True)
+            self._thread = threading.Thread(target=self._beat, name="crawlsim-progress", daemon=True)
             self._thread.start()
 
     # -- counting ----------------------------------------------------------------------------
@@ -94,8 +102,15 @@ class Progress:
         if self._bar is None and self.mode == "bar" and not self._closed:
             from tqdm import tqdm
 
-            self._bar = tqdm(total=self.total, initial=self.done, unit=self.unit,
-                             file=self.stream, leave=False, dynamic_ncols=True, desc=self.label)
+            self._bar = tqdm(
+                total=self.total,
+                initial=self.done,
+                unit=self.unit,
+                file=self.stream,
+                leave=False,
+                dynamic_ncols=True,
+                desc=self.label,
+            )
             if self.note:
                 self._bar.set_postfix_str(self.note)
         return self._bar
@@ -204,8 +219,7 @@ class Progress:
                 self._bar = None
             elif self.mode == "log" and self.lines:
                 self.lines += 1
-                print(self.line() + (", done" if complete else ", stopped"), file=self.stream,
-                      flush=True)
+                print(self.line() + (", done" if complete else ", stopped"), file=self.stream, flush=True)
 
     def __enter__(self) -> Progress:
         return self
@@ -247,16 +261,14 @@ class RunProgress:
     """Progress over the periods of one run: ``callback(q, rel_step)`` for
     `crawlsim.analysis.run.simulate`, with the total re-estimated after every period."""
 
-    def __init__(self, label: str, tolerance: float, max_periods: int, *, mode: str,
-                 verbose: bool = False, **options):
+    def __init__(self, label: str, tolerance: float, max_periods: int, *, mode: str, verbose: bool = False, **options):
         self.tolerance, self.max_periods, self.verbose = tolerance, max_periods, verbose
         self.steps: list[float] = []
         self.progress = Progress(label, "period", None, mode=mode, estimated=True, **options)
 
     def __call__(self, q: int, rel_step: float) -> None:
         self.steps.append(float(rel_step))
-        self.progress.set_total(periods_to_tolerance(self.steps, self.tolerance,
-                                                     self.max_periods))
+        self.progress.set_total(periods_to_tolerance(self.steps, self.tolerance, self.max_periods))
         self.progress.set_note(f"Poincare step {rel_step:.2e}")
         if self.verbose:
             self.progress.message(f"period {q}: relative Poincare step {rel_step:.3e}")

@@ -35,33 +35,65 @@ MAX_SAVE_EVERY = 2**62
 
 @main.command()
 @click.argument("gait_file", required=False, type=click.Path(exists=True, dir_okay=False))
-@click.option("--from", "from_results", type=click.Path(exists=True, dir_okay=False),
-              metavar="RESULT.h5",
-              help="Rerun the run recorded in a results file: its effective gait document "
-                   "and integrator settings (v0 is reproduced bit for bit); options given "
-                   "override them. Instead of GAIT_FILE.")
-@click.option("-o", "--output", type=click.Path(dir_okay=False, allow_dash=True),
-              help="HDF5 results file (default: <gait stem>.h5 in the current folder; "
-                   "<results stem>-rerun.h5 with --from). HDF5 cannot stream, so not '-': "
-                   "use --json for a summary on stdout.")
+@click.option(
+    "--from",
+    "from_results",
+    type=click.Path(exists=True, dir_okay=False),
+    metavar="RESULT.h5",
+    help="Rerun the run recorded in a results file: its effective gait document "
+    "and integrator settings (v0 is reproduced bit for bit); options given "
+    "override them. Instead of GAIT_FILE.",
+)
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(dir_okay=False, allow_dash=True),
+    help="HDF5 results file (default: <gait stem>.h5 in the current folder; "
+    "<results stem>-rerun.h5 with --from). HDF5 cannot stream, so not '-': "
+    "use --json for a summary on stdout.",
+)
 @simulation_options
-@click.option("--save-every", type=click.IntRange(min=1),
-              help="Write every K-th grid point of the trajectory (bounds the file size). "
-                   "[default: 1; with --from, the file's]")
-@click.option("--check-every-step", is_flag=True,
-              help="Run Clarabel at every step instead of the certified fast paths.")
+@click.option(
+    "--save-every",
+    type=click.IntRange(min=1),
+    help="Write every K-th grid point of the trajectory (bounds the file size). [default: 1; with --from, the file's]",
+)
+@click.option(
+    "--check-every-step", is_flag=True, help="Run Clarabel at every step instead of the certified fast paths."
+)
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
-@click.option("--plot", is_flag=True,
-              help="Also draw the figures next to the results file (<stem>-<figure>.png).")
-@click.option("--plot-format", type=click.Choice(["png", "pdf", "svg"]),
-              help="Image format of the --plot figures.  [default: png]")
+@click.option("--plot", is_flag=True, help="Also draw the figures next to the results file (<stem>-<figure>.png).")
+@click.option(
+    "--plot-format",
+    type=click.Choice(["png", "pdf", "svg"]),
+    help="Image format of the --plot figures.  [default: png]",
+)
 @figure_options
 @max_memory_option
 @force_option
 @feedback_options
-def run(gait_file, from_results, output, steps_per_period, max_periods, tolerance, integrator,
-        limit, save_every, check_every_step, as_json, plot, plot_format, dpi, figsize, style, max_memory, force,
-        quiet, verbose):
+def run(
+    gait_file,
+    from_results,
+    output,
+    steps_per_period,
+    max_periods,
+    tolerance,
+    integrator,
+    limit,
+    save_every,
+    check_every_step,
+    as_json,
+    plot,
+    plot_format,
+    dpi,
+    figsize,
+    style,
+    max_memory,
+    force,
+    quiet,
+    verbose,
+):
     """Simulate GAIT_FILE to its periodic regime; report v0 and write an HDF5 file.
 
     Progress goes to stderr: a bar on a terminal, whose total is the number of periods
@@ -80,12 +112,16 @@ def run(gait_file, from_results, output, steps_per_period, max_periods, toleranc
     if (gait_file is None) == (from_results is None):
         raise BadInput("give a gait file or --from RESULT.h5 (one of the two)")
     if output == "-":
-        raise BadInput("--output -: the results of a run are an HDF5 file, which cannot be "
-                       "streamed to stdout; give a file name (-o run.h5), and --json prints "
-                       "the summary on stdout")
-    given = [name for name, value in (("--plot-format", plot_format), ("--dpi", dpi),
-                                      ("--figsize", figsize), ("--style", style))
-             if value is not None]
+        raise BadInput(
+            "--output -: the results of a run are an HDF5 file, which cannot be "
+            "streamed to stdout; give a file name (-o run.h5), and --json prints "
+            "the summary on stdout"
+        )
+    given = [
+        name
+        for name, value in (("--plot-format", plot_format), ("--dpi", dpi), ("--figsize", figsize), ("--style", style))
+        if value is not None
+    ]
     if given and not plot:
         raise BadInput(f"{', '.join(given)} set how the figures are drawn: add --plot")
     options = figure_options_of(dpi, figsize, style) if plot else None
@@ -97,37 +133,42 @@ def run(gait_file, from_results, output, steps_per_period, max_periods, toleranc
 
     with library_errors():
         if from_results is not None:
-            gait, check_every_step, save_every = _rerun(from_results, steps_per_period,
-                                                        max_periods, tolerance, integrator,
-                                                        check_every_step, save_every)
-            out = _output_path(output, Path(from_results).stem + "-rerun", force,
-                               inputs=[from_results])
+            gait, check_every_step, save_every = _rerun(
+                from_results, steps_per_period, max_periods, tolerance, integrator, check_every_step, save_every
+            )
+            out = _output_path(output, Path(from_results).stem + "-rerun", force, inputs=[from_results])
         else:
-            gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance,
-                                       integrator, limit)
+            gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance, integrator, limit)
             out = _output_path(output, gait_file, force)
             save_every = save_every or 1
         if save_every > MAX_SAVE_EVERY:
-            raise BadInput(f"--save-every {save_every}: expected a number of steps from 1 to "
-                           f"{MAX_SAVE_EVERY:,} (the grid points are counted in 64-bit integers)")
+            raise BadInput(
+                f"--save-every {save_every}: expected a number of steps from 1 to "
+                f"{MAX_SAVE_EVERY:,} (the grid points are counted in 64-bit integers)"
+            )
         check_memory(gait, max_memory, save_every=save_every)
         if plot:
             from crawlsim.io.outputs import FIGURE, check_target
             from crawlsim.plotting import FIGURE_NAMES
 
             for name in FIGURE_NAMES:
-                check_target(out.parent / f"{out.stem}-{name}.{fmt}", FIGURE,
-                             inputs=[gait_file or from_results], force=force, option="--plot")
+                check_target(
+                    out.parent / f"{out.stem}-{name}.{fmt}",
+                    FIGURE,
+                    inputs=[gait_file or from_results],
+                    force=force,
+                    option="--plot",
+                )
         warn_unchecked(gait)
         with run_progress(gait, quiet, verbose) as progress:
-            result = api.run(gait, output=out, save_every=save_every,
-                             check_every_step=check_every_step, progress=progress)
+            result = api.run(
+                gait, output=out, save_every=save_every, check_every_step=check_every_step, progress=progress
+            )
         figures = []
         if plot:
             from crawlsim.plotting import plot_results
 
-            figures = [str(f) for f in plot_results(out, out.resolve().parent, fmt=fmt,
-                                                    options=options)]
+            figures = [str(f) for f in plot_results(out, out.resolve().parent, fmt=fmt, options=options)]
     if as_json:
         summary = result.summary()
         summary["output"] = str(out)
@@ -146,16 +187,18 @@ def run(gait_file, from_results, output, steps_per_period, max_periods, toleranc
         sys.exit(EXIT_NOT_CONVERGED)
 
 
-def _rerun(path, steps_per_period, max_periods, tolerance, integrator, check_every_step,
-           save_every):
+def _rerun(path, steps_per_period, max_periods, tolerance, integrator, check_every_step, save_every):
     """The gait and settings recorded in ``path``, with the options given on top."""
     from crawlsim import api
     from crawlsim.gait.document import with_simulation
 
     recorded = api.from_results(path)
-    overrides = {k: v for k, v in dict(steps_per_period=steps_per_period, max_periods=max_periods,
-                                       tolerance=tolerance, integrator=integrator).items()
-                 if v is not None}
+    overrides = {
+        k: v
+        for k, v in dict(
+            steps_per_period=steps_per_period, max_periods=max_periods, tolerance=tolerance, integrator=integrator
+        ).items()
+        if v is not None
+    }
     gait = with_simulation(recorded.gait, **overrides) if overrides else recorded.gait
-    return (gait, check_every_step or recorded.check_every_step,
-            save_every or recorded.save_every)
+    return (gait, check_every_step or recorded.check_every_step, save_every or recorded.save_every)

@@ -33,12 +33,13 @@ def lines(result: Any, integrator: str) -> list[str]:
             sides = []
             for side, why in (("left", p.left_reason), ("right", p.right_reason)):
                 d = getattr(p, side)
-                sides.append(f"{side} {with_error(d.value, d.error_estimate)}" if d is not None
-                             else f"{side}: {why}")
+                sides.append(f"{side} {with_error(d.value, d.error_estimate)}" if d is not None else f"{side}: {why}")
             out.append(f"{name}: not smooth ({p.reason}); " + ", ".join(sides))
     if integrator != "exact":
-        out.append(f"(derivatives of the {integrator} scheme's own discrete period map at its "
-                   f"v0 = {result.v0:.12g}, not of the exact v0: method {integrator})")
+        out.append(
+            f"(derivatives of the {integrator} scheme's own discrete period map at its "
+            f"v0 = {result.v0:.12g}, not of the exact v0: method {integrator})"
+        )
     return out
 
 

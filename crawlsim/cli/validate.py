@@ -11,10 +11,13 @@ from crawlsim.cli import main
 
 @main.command()
 @click.argument("gait_files", nargs=-1, required=True, type=click.Path(dir_okay=False))
-@click.option("--explain", is_flag=True,
-              help="Print the whole uniqueness analysis of each crawler: every subset J of "
-                   "blocks whose g_J vanishes on an interval, with its times, and the smallest "
-                   "change of one friction coefficient that restores the condition.")
+@click.option(
+    "--explain",
+    is_flag=True,
+    help="Print the whole uniqueness analysis of each crawler: every subset J of "
+    "blocks whose g_J vanishes on an interval, with its times, and the smallest "
+    "change of one friction coefficient that restores the condition.",
+)
 def validate(gait_files, explain):
     """Check each GAIT_FILE and list every error in it, one per line as FILE: KEY: message.
 

@@ -52,48 +52,95 @@ def _dimensions(sweep_specs, link_specs) -> list[list[str]]:
         elif name == "link_specs":
             spec = next(links_left)
             if not groups:
-                raise BadInput(f"--link {spec}: a linked path varies with the --sweep before "
-                               "it; give a --sweep PATH=SPEC first")
+                raise BadInput(
+                    f"--link {spec}: a linked path varies with the --sweep before it; give a --sweep PATH=SPEC first"
+                )
             groups[-1].append(spec)
     return groups
 
 
 @main.command(cls=OrderedCommand)
 @click.argument("gait_file", type=click.Path(exists=True, dir_okay=False))
-@click.option("--json", "as_json", is_flag=True,
-              help="Print the run's JSON summary instead of v0 alone (single gait only).")
-@click.option("--sweep", "sweep_specs", multiple=True, metavar="PATH=SPEC",
-              help="Sweep a dotted path of the gait document over SPEC: START:STOP:NUM "
-                   "(inclusive), log:LO:HI:NUM (log-spaced, inclusive), or a list [a,b,c] "
-                   "(or a,b,c). Repeat for a Cartesian grid, the last varying fastest.")
-@click.option("--link", "link_specs", multiple=True, metavar="PATH=SPEC",
-              help="Vary PATH together with the --sweep before it (same number of values): "
-                   "value k of each goes with value k of the other; no new grid dimension.")
-@click.option("--sensitivity", "sensitivity_paths", multiple=True, metavar="PATH",
-              help="Also print dv0/dPATH with its error estimate for every number PATH "
-                   "names (dotted, * for each element; repeatable): exact, or of the catch-up "
-                   "scheme's own map; with --sweep, a dv0/dPATH column per number.")
-@click.option("-o", "--output", type=click.Path(dir_okay=False, allow_dash=True),
-              help="Write the table to OUT.csv or OUT.h5; - or no -o: CSV on stdout (v0, or "
-                   "JSON with --json, without --sweep).")
-@click.option("-j", "--jobs", type=click.IntRange(min=1), default=1, show_default=True,
-              help="Local worker processes.")
-@click.option("--shard", callback=_shard, metavar="I/N",
-              help="Compute only the I-th of N disjoint parts of the grid (1 <= I <= N); "
-                   "needs -o PART.h5; join the parts with `crawlsim merge`.")
-@click.option("--scheduler", metavar="ADDRESS",
-              help="Run on an existing Dask cluster (tcp://host:8786); needs "
-                   "pip install 'crawlsim[dask]'.")
-@click.option("--plot", "plot_file", type=click.Path(dir_okay=False),
-              help="Draw v0 against one swept dimension, or a heat map over two (PNG); "
-                   "`crawlsim plot OUT.h5` draws it from a sweep file later.")
+@click.option(
+    "--json", "as_json", is_flag=True, help="Print the run's JSON summary instead of v0 alone (single gait only)."
+)
+@click.option(
+    "--sweep",
+    "sweep_specs",
+    multiple=True,
+    metavar="PATH=SPEC",
+    help="Sweep a dotted path of the gait document over SPEC: START:STOP:NUM "
+    "(inclusive), log:LO:HI:NUM (log-spaced, inclusive), or a list [a,b,c] "
+    "(or a,b,c). Repeat for a Cartesian grid, the last varying fastest.",
+)
+@click.option(
+    "--link",
+    "link_specs",
+    multiple=True,
+    metavar="PATH=SPEC",
+    help="Vary PATH together with the --sweep before it (same number of values): "
+    "value k of each goes with value k of the other; no new grid dimension.",
+)
+@click.option(
+    "--sensitivity",
+    "sensitivity_paths",
+    multiple=True,
+    metavar="PATH",
+    help="Also print dv0/dPATH with its error estimate for every number PATH "
+    "names (dotted, * for each element; repeatable): exact, or of the catch-up "
+    "scheme's own map; with --sweep, a dv0/dPATH column per number.",
+)
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(dir_okay=False, allow_dash=True),
+    help="Write the table to OUT.csv or OUT.h5; - or no -o: CSV on stdout (v0, or JSON with --json, without --sweep).",
+)
+@click.option("-j", "--jobs", type=click.IntRange(min=1), default=1, show_default=True, help="Local worker processes.")
+@click.option(
+    "--shard",
+    callback=_shard,
+    metavar="I/N",
+    help="Compute only the I-th of N disjoint parts of the grid (1 <= I <= N); "
+    "needs -o PART.h5; join the parts with `crawlsim merge`.",
+)
+@click.option(
+    "--scheduler",
+    metavar="ADDRESS",
+    help="Run on an existing Dask cluster (tcp://host:8786); needs pip install 'crawlsim[dask]'.",
+)
+@click.option(
+    "--plot",
+    "plot_file",
+    type=click.Path(dir_okay=False),
+    help="Draw v0 against one swept dimension, or a heat map over two (PNG); "
+    "`crawlsim plot OUT.h5` draws it from a sweep file later.",
+)
 @simulation_options
 @max_memory_option
 @force_option
 @feedback_options
-def velocity(gait_file, as_json, sweep_specs, sensitivity_paths, link_specs, output, jobs,
-             shard, scheduler, plot_file, steps_per_period, max_periods, tolerance, integrator,
-             limit, max_memory, force, quiet, verbose):
+def velocity(
+    gait_file,
+    as_json,
+    sweep_specs,
+    sensitivity_paths,
+    link_specs,
+    output,
+    jobs,
+    shard,
+    scheduler,
+    plot_file,
+    steps_per_period,
+    max_periods,
+    tolerance,
+    integrator,
+    limit,
+    max_memory,
+    force,
+    quiet,
+    verbose,
+):
     """Print v0 of GAIT_FILE, or sweep gait parameters and tabulate v0.
 
     Without --sweep, prints v0 alone on one line, with the digits its error estimate supports
@@ -131,8 +178,7 @@ def velocity(gait_file, as_json, sweep_specs, sensitivity_paths, link_specs, out
     with library_errors():
         _check_targets(gait_file, output, plot_file, scheduler, force)
         groups = _dimensions(sweep_specs, link_specs)
-        gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance,
-                                   integrator, limit)
+        gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance, integrator, limit)
         from crawlsim.gait.document import need_crawler
 
         need_crawler(gait)
@@ -154,9 +200,12 @@ def velocity(gait_file, as_json, sweep_specs, sensitivity_paths, link_specs, out
         click.echo(table.to_csv(), nl=False)
     counts = table.counts()
     if len(table.rows) != counts["ok"]:
-        click.echo(f"{len(table.rows)} points: {counts['ok']} ok, {counts['invalid']} invalid, "
-                   f"{counts['failed']} failed, {counts['not-converged']} not converged (see "
-                   "the status and message columns)", err=True)
+        click.echo(
+            f"{len(table.rows)} points: {counts['ok']} ok, {counts['invalid']} invalid, "
+            f"{counts['failed']} failed, {counts['not-converged']} not converged (see "
+            "the status and message columns)",
+            err=True,
+        )
 
 
 def _check_targets(gait_file, output, plot_file, scheduler, force) -> None:
@@ -168,21 +217,18 @@ def _check_targets(gait_file, output, plot_file, scheduler, force) -> None:
         from crawlsim.study.executors import check_scheduler
 
         check_scheduler(scheduler)
-    if output is not None and plot_file is not None and \
-            os.path.abspath(output) == os.path.abspath(plot_file):
+    if output is not None and plot_file is not None and os.path.abspath(output) == os.path.abspath(plot_file):
         raise BadInput(f"--plot {plot_file}: is also the --output file; give two names")
     for path, kind, option in ((output, SWEEP, "--output"), (plot_file, FIGURE, "--plot")):
         if path is not None:
             check_target(path, kind, inputs=[gait_file], force=force, option=option)
-    if plot_file is not None and \
-            os.path.splitext(plot_file)[1].lower() not in (".png", ".pdf", ".svg"):
+    if plot_file is not None and os.path.splitext(plot_file)[1].lower() not in (".png", ".pdf", ".svg"):
         raise BadInput(f"--plot {plot_file}: a figure is written as .png, .pdf or .svg")
 
 
 def _check_sweep_options(groups, as_json, plot_file, shard) -> None:
     if as_json and groups:
-        raise BadInput("--json prints one run's summary; with --sweep the table is CSV or "
-                       "HDF5 (-o)")
+        raise BadInput("--json prints one run's summary; with --sweep the table is CSV or HDF5 (-o)")
     if plot_file and shard:
         raise BadInput("--plot needs the whole grid: plot after `crawlsim merge`")
     if plot_file and len(groups) not in (1, 2):
@@ -233,22 +279,24 @@ def _sweep(grid, output, jobs, shard, scheduler, quiet, verbose):
         if resumed:
             bar.skip(len(rows))
             if verbose:
-                bar.message(f"resuming: {len(rows)} of {total} points read from "
-                            f"{sweeps.journal_path(output)}")
+                bar.message(f"resuming: {len(rows)} of {total} points read from {sweeps.journal_path(output)}")
         elif verbose:
             for r in rows:
                 if r.status in ("invalid", "failed"):
                     bar.message(f"point {r.index} {r.status}: {r.message}")
 
     try:
-        table = sweeps.sweep(grid, output=output, jobs=jobs, shard=shard, scheduler=scheduler,
-                             progress=bar.update, on_rows=on_rows)
+        table = sweeps.sweep(
+            grid, output=output, jobs=jobs, shard=shard, scheduler=scheduler, progress=bar.update, on_rows=on_rows
+        )
     except sweeps.SweepInterrupted as exc:
         bar.close()
-        where = (f"kept in {exc.journal}; run the same command again to resume"
-                 if exc.journal is not None else "not kept (no -o)")
-        click.echo(f"Interrupted: {exc.done} of {exc.total} points finished, {where}.",
-                   err=True)
+        where = (
+            f"kept in {exc.journal}; run the same command again to resume"
+            if exc.journal is not None
+            else "not kept (no -o)"
+        )
+        click.echo(f"Interrupted: {exc.done} of {exc.total} points finished, {where}.", err=True)
         raise interrupt_exit(exc) from None
     except BaseException:
         bar.close()

@@ -37,20 +37,26 @@ def _link_signal(rng: np.random.Generator, mean: float, amplitude: float) -> dic
     if kind == "fourier":
         h = int(rng.integers(1, 4))
         scale = amplitude / h
-        return {"kind": "fourier", "mean": mean,
-                "cos": [float(v) for v in rng.uniform(-scale, scale, h)],
-                "sin": [float(v) for v in rng.uniform(-scale, scale, h)], "phase": phase}
+        return {
+            "kind": "fourier",
+            "mean": mean,
+            "cos": [float(v) for v in rng.uniform(-scale, scale, h)],
+            "sin": [float(v) for v in rng.uniform(-scale, scale, h)],
+            "phase": phase,
+        }
     if kind == "piecewise-linear":
         knots = int(rng.integers(1, 4))
         times = sorted(float(t) for t in rng.uniform(0.05, 0.95, knots))
         values = [mean] + [mean + float(v) for v in rng.uniform(-amplitude, amplitude, knots)]
-        return {"kind": "piecewise-linear", "times": [0.0, *times, 1.0],
-                "values": [*values, mean], "phase": phase}
+        return {"kind": "piecewise-linear", "times": [0.0, *times, 1.0], "values": [*values, mean], "phase": phase}
     steps = int(rng.integers(2, 4))
     times = [0.0, *sorted(float(t) for t in rng.uniform(0.05, 0.95, steps - 1))]
-    return {"kind": "steps", "times": times,
-            "values": [mean + float(v) for v in rng.uniform(-amplitude, amplitude, steps)],
-            "phase": phase}
+    return {
+        "kind": "steps",
+        "times": times,
+        "values": [mean + float(v) for v in rng.uniform(-amplitude, amplitude, steps)],
+        "phase": phase,
+    }
 
 
 def _friction_signal(rng: np.random.Generator, level: float) -> dict | float:
@@ -58,19 +64,33 @@ def _friction_signal(rng: np.random.Generator, level: float) -> dict | float:
     if kind == "constant":
         return level
     if kind == "cosine":
-        return {"kind": "cosine", "mean": level, "amplitude": float(rng.uniform(0.1, 0.6)) * level,
-                "phase": float(rng.uniform(0, 1))}
+        return {
+            "kind": "cosine",
+            "mean": level,
+            "amplitude": float(rng.uniform(0.1, 0.6)) * level,
+            "phase": float(rng.uniform(0, 1)),
+        }
     steps = int(rng.integers(2, 4))
     times = [0.0, *sorted(float(t) for t in rng.uniform(0.05, 0.95, steps - 1))]
-    return {"kind": "steps", "times": times,
-            "values": [level * _log_uniform(rng, 0.3, 3.0) for _ in range(steps)],
-            "phase": float(rng.uniform(0, 1))}
+    return {
+        "kind": "steps",
+        "times": times,
+        "values": [level * _log_uniform(rng, 0.3, 3.0) for _ in range(steps)],
+        "phase": float(rng.uniform(0, 1)),
+    }
 
 
-def random_document(seed: int, *, blocks: tuple[int, int] = (2, 12),
-                    stiffness_ratio: float = 1e3, friction_ratio: float = 1e2,
-                    steps_per_period: int = 1000, max_periods: int = 300,
-                    tolerance: float = 1e-11, loads: bool = False) -> dict:
+def random_document(
+    seed: int,
+    *,
+    blocks: tuple[int, int] = (2, 12),
+    stiffness_ratio: float = 1e3,
+    friction_ratio: float = 1e2,
+    steps_per_period: int = 1000,
+    max_periods: int = 300,
+    tolerance: float = 1e-11,
+    loads: bool = False,
+) -> dict:
     """A random gait document (not yet validated) from ``seed``."""
     rng = np.random.default_rng(seed)
     N = int(rng.integers(blocks[0], blocks[1] + 1))
@@ -78,16 +98,14 @@ def random_document(seed: int, *, blocks: tuple[int, int] = (2, 12),
     stiffness = [k0 * _log_uniform(rng, 1.0, stiffness_ratio) for _ in range(N - 1)]
     mu0 = _log_uniform(rng, 0.2, 5.0)
     amplitude = float(rng.uniform(0.05, 0.5))
-    links = [_link_signal(rng, 1.0, amplitude * float(rng.uniform(0.3, 1.0)))
-             for _ in range(N - 1)]
+    links = [_link_signal(rng, 1.0, amplitude * float(rng.uniform(0.3, 1.0))) for _ in range(N - 1)]
     levels: list[tuple[float, float]] = []  # (forward, backward) level of each block
     # the draws keep their order (forward signal, ratio, backward signal): a seed's gait is the
     # same as before loads existed
     if rng.uniform() < 0.3:
         forward = _friction_signal(rng, mu0)
         backward = mu0 * _log_uniform(rng, 1 / friction_ratio, friction_ratio)
-        friction: dict | list = {"forward": forward,
-                                 "backward": _friction_signal(rng, backward)}
+        friction: dict | list = {"forward": forward, "backward": _friction_signal(rng, backward)}
         levels = [(mu0, backward)] * N
     else:
         friction = []
@@ -97,10 +115,15 @@ def random_document(seed: int, *, blocks: tuple[int, int] = (2, 12),
             backward = level * _log_uniform(rng, 1 / friction_ratio, friction_ratio)
             friction.append({"forward": forward, "backward": _friction_signal(rng, backward)})
             levels.append((level, backward))
-    doc = {"name": f"random-{seed}", "blocks": N, "period": _log_uniform(rng, 0.5, 5.0),
-           "stiffness": stiffness, "links": links, "friction": friction,
-           "simulation": {"steps_per_period": steps_per_period, "max_periods": max_periods,
-                          "tolerance": tolerance}}
+    doc = {
+        "name": f"random-{seed}",
+        "blocks": N,
+        "period": _log_uniform(rng, 0.5, 5.0),
+        "stiffness": stiffness,
+        "links": links,
+        "friction": friction,
+        "simulation": {"steps_per_period": steps_per_period, "max_periods": max_periods, "tolerance": tolerance},
+    }
     if loads:
         doc["loads"] = _random_loads(rng, levels)
     return doc
@@ -121,15 +144,23 @@ def _random_loads(rng: np.random.Generator, levels: list[tuple[float, float]]) -
             elif kind == "constant":
                 forces.append(size)
             elif kind == "cosine":
-                forces.append({"kind": "cosine", "mean": size / 2, "amplitude": size / 2,
-                               "phase": float(rng.uniform(0, 1))})
+                forces.append(
+                    {"kind": "cosine", "mean": size / 2, "amplitude": size / 2, "phase": float(rng.uniform(0, 1))}
+                )
             else:
-                forces.append({"kind": "steps", "times": [0.0, float(rng.uniform(0.1, 0.9))],
-                               "values": [size, float(rng.uniform(-0.5, 0.5)) * size]})
+                forces.append(
+                    {
+                        "kind": "steps",
+                        "times": [0.0, float(rng.uniform(0.1, 0.9))],
+                        "values": [size, float(rng.uniform(-0.5, 0.5)) * size],
+                    }
+                )
         out["force"] = forces
     if not out or rng.uniform() < 0.5:
-        out["slope"] = {"angle": float(rng.uniform(-30.0, 30.0)),
-                        "weight": [float(rng.uniform(0.0, 1.0)) * min(f, b) for f, b in levels]}
+        out["slope"] = {
+            "angle": float(rng.uniform(-30.0, 30.0)),
+            "weight": [float(rng.uniform(0.0, 1.0)) * min(f, b) for f, b in levels],
+        }
     return out
 
 

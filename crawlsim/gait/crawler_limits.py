@@ -42,13 +42,16 @@ def check_stiffness(k: np.ndarray, source: str) -> None:
     estimate = stiffness_condition(k)
     if estimate > STIFFNESS_CONDITION_LIMIT:
         ratio = float(np.max(k) / np.min(k))
-        raise GaitError(source, "stiffness",
-                        f"the stiffness ratio k_max / k_min = {ratio:.3g} is too wide for "
-                        f"N = {len(k) + 1} blocks: a step's Gram matrices would have an estimated "
-                        f"condition number (k_max / k_min) N^2 = {estimate:.3g}, above the "
-                        f"{STIFFNESS_CONDITION_LIMIT:g} at which a step can still be certified in "
-                        "double precision (docs/model.md §3). Narrow the range of the stiffnesses "
-                        "(only their ratio matters for conditioning).")
+        raise GaitError(
+            source,
+            "stiffness",
+            f"the stiffness ratio k_max / k_min = {ratio:.3g} is too wide for "
+            f"N = {len(k) + 1} blocks: a step's Gram matrices would have an estimated "
+            f"condition number (k_max / k_min) N^2 = {estimate:.3g}, above the "
+            f"{STIFFNESS_CONDITION_LIMIT:g} at which a step can still be certified in "
+            "double precision (docs/model.md §3). Narrow the range of the stiffnesses "
+            "(only their ratio matters for conditioning).",
+        )
 
 
 def _largest(signal: Signal) -> float:
@@ -64,8 +67,9 @@ def _largest(signal: Signal) -> float:
     return float(np.max(np.abs(values))) if values is not None else float("inf")
 
 
-def stress_scale(stiffness: np.ndarray, links: Sequence[Signal], initial_positions: np.ndarray,
-                 friction: Sequence[Signal]) -> float:
+def stress_scale(
+    stiffness: np.ndarray, links: Sequence[Signal], initial_positions: np.ndarray, friction: Sequence[Signal]
+) -> float:
     """max_i k_i max(|L_i(t)|, |z_i(0)|) / min_j min_t min(mu+_j(t), mu-_j(t)): how many times
     the largest elastic force of the offsets exceeds the smallest friction (`STRESS_SCALE_LIMIT`).
     Dimensionless: a change of units leaves it alone. ``friction`` holds every mu^+ and mu^-."""
@@ -77,19 +81,26 @@ def stress_scale(stiffness: np.ndarray, links: Sequence[Signal], initial_positio
     return force / least if least > 0 else float("inf")
 
 
-def check_stress_scale(stiffness: np.ndarray, links: Sequence[Signal],
-                       initial_positions: np.ndarray, friction: Sequence[Signal],
-                       source: str) -> None:
+def check_stress_scale(
+    stiffness: np.ndarray,
+    links: Sequence[Signal],
+    initial_positions: np.ndarray,
+    friction: Sequence[Signal],
+    source: str,
+) -> None:
     """Refuse links too stiff for the friction (`stress_scale` above `STRESS_SCALE_LIMIT`)."""
     ratio = stress_scale(stiffness, links, initial_positions, friction)
     if ratio > STRESS_SCALE_LIMIT:
         k = np.asarray(stiffness, dtype=float)
-        raise GaitError(source, "stiffness",
-                        f"the links are too stiff for this friction: the largest elastic force "
-                        f"k L is {ratio:.3g} times the smallest friction, above the "
-                        f"{STRESS_SCALE_LIMIT:g} that crawlsim supports. In double precision the "
-                        f"friction would be resolved only to about {1e-14 * ratio:.1g} of itself, "
-                        "so which blocks slip, and v0, could be wrong beyond their error "
-                        "estimate. Lower the stiffness (here up to "
-                        f"{float(np.max(k)) * STRESS_SCALE_LIMIT / ratio:.3g}), or raise the "
-                        "friction (the ratio does not depend on the units)")
+        raise GaitError(
+            source,
+            "stiffness",
+            f"the links are too stiff for this friction: the largest elastic force "
+            f"k L is {ratio:.3g} times the smallest friction, above the "
+            f"{STRESS_SCALE_LIMIT:g} that crawlsim supports. In double precision the "
+            f"friction would be resolved only to about {1e-14 * ratio:.1g} of itself, "
+            "so which blocks slip, and v0, could be wrong beyond their error "
+            "estimate. Lower the stiffness (here up to "
+            f"{float(np.max(k)) * STRESS_SCALE_LIMIT / ratio:.3g}), or raise the "
+            "friction (the ratio does not depend on the units)",
+        )

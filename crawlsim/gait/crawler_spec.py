@@ -63,9 +63,13 @@ CRAWLER_SCHEMA: dict = {
         "kind": {"enum": ["crawler"]},
         "name": {"type": "string"},
         "description": {"type": "string"},
-        "blocks": {"type": "integer", "minimum": 2, "maximum": MAX_BLOCKS,
-                   "x-expected": f"an integer from 2 to {MAX_BLOCKS:,} (the number of blocks N)",
-                   "description": "N, the number of blocks."},
+        "blocks": {
+            "type": "integer",
+            "minimum": 2,
+            "maximum": MAX_BLOCKS,
+            "x-expected": f"an integer from 2 to {MAX_BLOCKS:,} (the number of blocks N)",
+            "description": "N, the number of blocks.",
+        },
         "period": PERIOD_SCHEMA,
         "stiffness": {
             "type": ["number", "array"],
@@ -75,7 +79,7 @@ CRAWLER_SCHEMA: dict = {
             "maxItems": MAX_BLOCKS - 1,
             "items": positive_schema("the spring stiffness k > 0 of one link"),
             "description": "k, one value for every link or one per link. The ratio k_max / k_min "
-                           "times N^2 estimates the conditioning of a step and must stay below 1e12.",
+            "times N^2 estimates the conditioning of a step and must stay below 1e12.",
         },
         "links": list_schema(MAX_BLOCKS - 1, "a list of N-1 signals (actuator lengths)", SIGNAL_SCHEMA),
         "friction": {
@@ -90,8 +94,11 @@ CRAWLER_SCHEMA: dict = {
             "x-expected": "a mapping {positions: [...]}",
             "required": ["positions"],
             "additionalProperties": False,
-            "properties": {"positions": list_schema(MAX_BLOCKS, "a list of N numbers",
-                                              {"type": "number", "x-expected": "a number"})},
+            "properties": {
+                "positions": list_schema(
+                    MAX_BLOCKS, "a list of N numbers", {"type": "number", "x-expected": "a number"}
+                )
+            },
         },
         "simulation": SIMULATION_SCHEMA,
         "units": UNITS_SCHEMA,
@@ -132,14 +139,14 @@ class Gait:
         ``gait.replace({"period": 2.0})`` (`crawlsim.gait.docpaths`)."""
         label, document = replacement(self.source, self.document, changes)
         # a path cannot change the kind: `kind` is not a number
-        return validated(document, CRAWLER_SCHEMA, build_crawler, label,
-                         source_text=self.source_text, default_name=self.name)
+        return validated(
+            document, CRAWLER_SCHEMA, build_crawler, label, source_text=self.source_text, default_name=self.name
+        )
 
     def breakpoints(self) -> np.ndarray:
         """Union of all signals' breakpoints, in cycles in [0, 1): the stepping grid needs them."""
         forces = self.loads.forces if self.loads is not None else ()
-        return union_breakpoints([s.breakpoints()
-                                  for s in self.links + self.forward + self.backward + forces])
+        return union_breakpoints([s.breakpoints() for s in self.links + self.forward + self.backward + forces])
 
     def thresholds(self) -> tuple[tuple[Signal, ...], tuple[Signal, ...]]:
         """The friction thresholds in the elastic force, as signals: (mu^+, mu^-), shifted by
@@ -163,13 +170,13 @@ class Gait:
 
 def _signals(values: list, keypath: str, source: str, errors: ErrorSink) -> list[Signal] | None:
     """Each value parsed as a signal at ``keypath[i]``; None if any is invalid (each reported)."""
-    parsed = [errors.attempt(parse_signal, value, f"{keypath}[{i}]", source)
-              for i, value in enumerate(values)]
+    parsed = [errors.attempt(parse_signal, value, f"{keypath}[{i}]", source) for i, value in enumerate(values)]
     return None if any(p is None for p in parsed) else parsed
 
 
-def _friction_signals(document: dict, n: int, source: str, errors: ErrorSink
-                      ) -> tuple[list[Signal], list[Signal], list[str]] | None:
+def _friction_signals(
+    document: dict, n: int, source: str, errors: ErrorSink
+) -> tuple[list[Signal], list[Signal], list[str]] | None:
     """mu^+ and mu^- per block and, per block, the key path prefix to blame."""
     friction = document["friction"]
     if isinstance(friction, dict):
@@ -182,17 +189,16 @@ def _friction_signals(document: dict, n: int, source: str, errors: ErrorSink
         errors.add(count_error(source, "friction", n, "friction mappings (one per block)", len(friction)))
         return None
     paths = [f"friction[{j}]" for j in range(n)]
-    forward = [errors.attempt(parse_signal, f["forward"], f"{p}.forward", source)
-               for f, p in zip(friction, paths)]
-    backward = [errors.attempt(parse_signal, f["backward"], f"{p}.backward", source)
-                for f, p in zip(friction, paths)]
+    forward = [errors.attempt(parse_signal, f["forward"], f"{p}.forward", source) for f, p in zip(friction, paths)]
+    backward = [errors.attempt(parse_signal, f["backward"], f"{p}.backward", source) for f, p in zip(friction, paths)]
     if any(s is None for s in forward + backward):
         return None
     return forward, backward, paths
 
 
-def _check_friction_positive(signals: list[Signal], paths: list[str], direction: str,
-                             period: float, source: str, errors: ErrorSink) -> bool:
+def _check_friction_positive(
+    signals: list[Signal], paths: list[str], direction: str, period: float, source: str, errors: ErrorSink
+) -> bool:
     minima: dict[Signal, tuple[float, float]] = {}
     checked: set[tuple[Signal, str]] = set()
     ok = True
@@ -205,10 +211,15 @@ def _check_friction_positive(signals: list[Signal], paths: list[str], direction:
         value, at = minima[signal]
         if not value > 0:
             ok = False
-            errors.add(GaitError(source, f"{path}.{direction}",
-                                 f"friction must be positive (mu > 0: a block at rest must resist "
-                                 f"sliding both ways, docs/model.md §1), but its minimum is {value:g} "
-                                 f"at t = {at:g} T" + (f" = {at * period:g}" if period != 1.0 else "")))
+            errors.add(
+                GaitError(
+                    source,
+                    f"{path}.{direction}",
+                    f"friction must be positive (mu > 0: a block at rest must resist "
+                    f"sliding both ways, docs/model.md §1), but its minimum is {value:g} "
+                    f"at t = {at:g} T" + (f" = {at * period:g}" if period != 1.0 else ""),
+                )
+            )
     return ok
 
 
@@ -221,8 +232,9 @@ def _stiffness(document: dict, n: int, source: str) -> np.ndarray:
     return np.full(n - 1, float(stiffness))
 
 
-def build_crawler(document: dict, source: str, source_text: str, default_name: str,
-                  errors: ErrorSink, unique: bool = True) -> Gait | None:
+def build_crawler(
+    document: dict, source: str, source_text: str, default_name: str, errors: ErrorSink, unique: bool = True
+) -> Gait | None:
     """The `Gait` of a schema-checked crawler document, after every semantic check (module
     docstring); None when ``errors`` collects and found some. ``unique=False`` skips the
     uniqueness condition and what follows it (`uniqueness_report` analyses it instead)."""
@@ -271,15 +283,15 @@ def build_crawler(document: dict, source: str, source_text: str, default_name: s
 def _links(document: dict, n: int, source: str, errors: ErrorSink) -> tuple[Signal, ...] | None:
     """The N-1 actuator lengths L_i(t), or None after reporting why not."""
     if len(document["links"]) != n - 1:
-        errors.add(count_error(source, "links", n - 1, "link signals (one per link, N-1)",
-                               len(document["links"])))
+        errors.add(count_error(source, "links", n - 1, "link signals (one per link, N-1)", len(document["links"])))
         return None
     parsed = _signals(document["links"], "links", source, errors)
     return None if parsed is None else tuple(parsed)
 
 
-def _friction_positive(friction: tuple[list[Signal], list[Signal], list[str]], period: float,
-                       source: str, errors: ErrorSink) -> bool:
+def _friction_positive(
+    friction: tuple[list[Signal], list[Signal], list[str]], period: float, source: str, errors: ErrorSink
+) -> bool:
     """mu^+ > 0 and mu^- > 0 on every block at every time, each direction's failures reported."""
     forward, backward, paths = friction
     ok_forward = _check_friction_positive(forward, paths, "forward", period, source, errors)
@@ -287,14 +299,14 @@ def _friction_positive(friction: tuple[list[Signal], list[Signal], list[str]], p
     return ok_forward and ok_backward
 
 
-def _positions(document: dict, n: int, links: tuple[Signal, ...] | None, source: str,
-               errors: ErrorSink) -> np.ndarray | None:
+def _positions(
+    document: dict, n: int, links: tuple[Signal, ...] | None, source: str, errors: ErrorSink
+) -> np.ndarray | None:
     """x(0): the file's ``initial.positions``, else the stress-free start z(0) = L(0)."""
     if "initial" in document:
         given = np.array(document["initial"]["positions"], dtype=float)
         if given.shape != (n,):
-            errors.add(count_error(source, "initial.positions", n, "positions (one per block)",
-                                   given.size))
+            errors.add(count_error(source, "initial.positions", n, "positions (one per block)", given.size))
             return None
         return given
     if links is None:
@@ -313,15 +325,16 @@ def _admissible_start(gait: Gait, positive: bool, errors: ErrorSink) -> Gait | N
         if problem is not None:
             errors.add(GaitError(source, "loads", problem))
             return None
-        if "initial" not in gait.document and \
-                admissibility_violation(gait, gait.initial_positions) is not None:
+        if "initial" not in gait.document and admissibility_violation(gait, gait.initial_positions) is not None:
             gait = dataclasses.replace(gait, initial_positions=readonly(_held_positions(gait)))
     problem = admissibility_violation(gait, gait.initial_positions)
     if problem is not None:
         if loads is not None and positive:
-            problem += (f". With these loads an admissible start is, for instance, initial: "
-                        f"{{positions: [{', '.join(f'{x:.12g}' for x in _held_positions(gait))}]}} "
-                        "(docs/model.md §6)")
+            problem += (
+                f". With these loads an admissible start is, for instance, initial: "
+                f"{{positions: [{', '.join(f'{x:.12g}' for x in _held_positions(gait))}]}} "
+                "(docs/model.md §6)"
+            )
         errors.add(GaitError(source, "initial.positions", problem))
     return gait
 
@@ -335,22 +348,27 @@ def _unique(gait: Gait, errors: ErrorSink) -> Gait | None:
         problem = uniqueness_violation(gait)
     except UniquenessUndecidable as why:
         if not gait.simulation.unchecked_uniqueness:
-            errors.add(GaitError(source, "friction",
-                                 f"the uniqueness condition (docs/model.md §3) is beyond an exact "
-                                 f"check for this friction: {why}. To run it anyway, unchecked, "
-                                 "add 'unchecked_uniqueness: true' under 'simulation' (the run "
-                                 "then warns and its results file records "
-                                 "unchecked_uniqueness = 1)"))
+            errors.add(
+                GaitError(
+                    source,
+                    "friction",
+                    f"the uniqueness condition (docs/model.md §3) is beyond an exact "
+                    f"check for this friction: {why}. To run it anyway, unchecked, "
+                    "add 'unchecked_uniqueness: true' under 'simulation' (the run "
+                    "then warns and its results file records "
+                    "unchecked_uniqueness = 1)",
+                )
+            )
             return None
         gait = dataclasses.replace(gait, uniqueness_unchecked=True)
     else:
         if problem is not None:
-            errors.add(GaitError(source, "loads" if gait.loads is not None else "friction",
-                                 problem))
+            errors.add(GaitError(source, "loads" if gait.loads is not None else "friction", problem))
             return None
     if not errors.found:  # stiffness and friction each valid: their ratio (`stress_scale`)
-        errors.attempt(check_stress_scale, gait.stiffness, gait.links, gait.initial_positions,
-                       gait.forward + gait.backward, source)
+        errors.attempt(
+            check_stress_scale, gait.stiffness, gait.links, gait.initial_positions, gait.forward + gait.backward, source
+        )
     return None if errors.found else gait
 
 
@@ -358,9 +376,13 @@ def need_crawler(spec, command: str = "crawlsim velocity") -> None:
     """v0 is the velocity of a crawler: a generic sweeping process (docs/model.md §5) has none,
     and is refused with the command that does run it."""
     if not isinstance(spec, Gait):
-        raise GaitError(spec.source, "kind", f"a sweeping process has no velocity v0: "
-                        f"{command} needs a crawler gait (kind: crawler); `crawlsim run "
-                        f"{spec.source}` finds the process's periodic limit")
+        raise GaitError(
+            spec.source,
+            "kind",
+            f"a sweeping process has no velocity v0: "
+            f"{command} needs a crawler gait (kind: crawler); `crawlsim run "
+            f"{spec.source}` finds the process's periodic limit",
+        )
 
 
 def _held_positions(gait: Gait) -> np.ndarray:
@@ -368,8 +390,12 @@ def _held_positions(gait: Gait) -> np.ndarray:
     the same fraction of its shifted friction interval at t = 0 (docs/model.md §6)."""
     plus, minus = gait.thresholds()
     zero = np.zeros(1)
-    return held_positions(gait.lengths(zero)[0], np.asarray(gait.stiffness, dtype=float),
-                          evaluate_many(plus, zero)[0], evaluate_many(minus, zero)[0])
+    return held_positions(
+        gait.lengths(zero)[0],
+        np.asarray(gait.stiffness, dtype=float),
+        evaluate_many(plus, zero)[0],
+        evaluate_many(minus, zero)[0],
+    )
 
 
 def admissibility_violation(gait: Gait, positions: np.ndarray, t: float = 0.0) -> str | None:
@@ -396,15 +422,19 @@ def admissibility_violation(gait: Gait, positions: np.ndarray, t: float = 0.0) -
     under = -mu_minus - force
     for j in range(gait.blocks):
         if over[j] > ROUNDOFF * (1.0 + abs(mu_plus[j])):
-            return (f"block {j + 1} is not held by friction at t = {t:g}: its elastic force "
-                    f"f_{j + 1} = {force[j]:.6g} exceeds the forward friction limit "
-                    f"mu_{j + 1}^+ = {mu_plus[j]:.6g} by {over[j]:.6g}; an admissible initial state "
-                    "needs -mu^- <= f <= mu^+ on every block (docs/model.md §1" + shifted + ")")
+            return (
+                f"block {j + 1} is not held by friction at t = {t:g}: its elastic force "
+                f"f_{j + 1} = {force[j]:.6g} exceeds the forward friction limit "
+                f"mu_{j + 1}^+ = {mu_plus[j]:.6g} by {over[j]:.6g}; an admissible initial state "
+                "needs -mu^- <= f <= mu^+ on every block (docs/model.md §1" + shifted + ")"
+            )
         if under[j] > ROUNDOFF * (1.0 + abs(mu_minus[j])):
-            return (f"block {j + 1} is not held by friction at t = {t:g}: its elastic force "
-                    f"f_{j + 1} = {force[j]:.6g} is below the backward friction limit "
-                    f"-mu_{j + 1}^- = {-mu_minus[j]:.6g} by {under[j]:.6g}; an admissible initial "
-                    "state needs -mu^- <= f <= mu^+ on every block (docs/model.md §1" + shifted + ")")
+            return (
+                f"block {j + 1} is not held by friction at t = {t:g}: its elastic force "
+                f"f_{j + 1} = {force[j]:.6g} is below the backward friction limit "
+                f"-mu_{j + 1}^- = {-mu_minus[j]:.6g} by {under[j]:.6g}; an admissible initial "
+                "state needs -mu^- <= f <= mu^+ on every block (docs/model.md §1" + shifted + ")"
+            )
     return None
 
 
@@ -422,9 +452,16 @@ def uniqueness_violation(gait: Gait) -> str | None:
     analysis = analyse(*gait.thresholds())
     if analysis is None:
         return None
-    return uniqueness_message(gait.document, gait.forward, gait.backward, analysis,
-                              gait.period, lambda f, b: _valid_friction(gait, f, b),
-                              loaded=gait.loads is not None, source=gait.source)
+    return uniqueness_message(
+        gait.document,
+        gait.forward,
+        gait.backward,
+        analysis,
+        gait.period,
+        lambda f, b: _valid_friction(gait, f, b),
+        loaded=gait.loads is not None,
+        source=gait.source,
+    )
 
 
 def uniqueness_report(document: dict, source: str) -> list[str]:
@@ -433,15 +470,15 @@ def uniqueness_report(document: dict, source: str) -> list[str]:
     which g_J vanishes, and the smallest change of one coefficient that restores the condition.
     A document that fails a check that comes before gets one line saying so."""
     try:
-        gait = validated(plain(document), CRAWLER_SCHEMA,
-                         functools.partial(build_crawler, unique=False), source)
+        gait = validated(plain(document), CRAWLER_SCHEMA, functools.partial(build_crawler, unique=False), source)
     except GaitError:
-        return ["uniqueness condition (docs/model.md §3): not analysed until the errors above "
-                "are fixed"]
+        return ["uniqueness condition (docs/model.md §3): not analysed until the errors above are fixed"]
     plus, minus = gait.thresholds()
-    lines = [f"uniqueness condition (docs/model.md §3): g_J(t) = sum of mu+ over J - sum of mu- "
-             f"over the rest, for each of the 2^{gait.blocks} subsets J of blocks, must not "
-             "vanish on an interval" + (" (mu shifted by the loads, §6)" if gait.loads else "")]
+    lines = [
+        f"uniqueness condition (docs/model.md §3): g_J(t) = sum of mu+ over J - sum of mu- "
+        f"over the rest, for each of the 2^{gait.blocks} subsets J of blocks, must not "
+        "vanish on an interval" + (" (mu shifted by the loads, §6)" if gait.loads else "")
+    ]
     try:
         analysis = analyse(plus, minus)
     except UniquenessUndecidable as why:
@@ -449,15 +486,19 @@ def uniqueness_report(document: dict, source: str) -> list[str]:
     if analysis is None:
         return lines + ["  holds: no g_J vanishes on an interval (decided exactly)"]
     subsets = [(s, v) for v in analysis.violations for s in alike_subsets(v, plus, minus)]
-    lines.append(f"  violated by {sum(v.alike for v in analysis.violations):,} subsets"
-                 + ("" if analysis.complete else " at least") + ":")
+    lines.append(
+        f"  violated by {sum(v.alike for v in analysis.violations):,} subsets"
+        + ("" if analysis.complete else " at least")
+        + ":"
+    )
     for subset, violation in subsets:
         inside = ", ".join(str(j + 1) for j in np.flatnonzero(subset))
         lines.append(f"    J = {{{inside}}}: g_J = 0 for t in {violation.where(gait.period)}")
     if len(subsets) < sum(v.alike for v in analysis.violations):
         lines.append("    ... and the other subsets alike (blocks of the same friction exchanged)")
-    change = smallest_change(gait.document, (gait.forward, gait.backward), analysis,
-                             lambda f, b: _valid_friction(gait, f, b), source)
+    change = smallest_change(
+        gait.document, (gait.forward, gait.backward), analysis, lambda f, b: _valid_friction(gait, f, b), source
+    )
     return lines + ["  " + remedy_text(change)]
 
 

@@ -40,34 +40,35 @@ def resolve_path(document: dict, path: Any, source: str) -> list[tuple[Key, ...]
         for prefix, node in found:
             if key == "*":
                 if not isinstance(node, list):
-                    raise GaitError(source, path, f"'*' needs a list, but {_where(prefix)} is "
-                                                  f"{_kind(node)}")
+                    raise GaitError(source, path, f"'*' needs a list, but {_where(prefix)} is {_kind(node)}")
                 nxt.extend((prefix + (i,), item) for i, item in enumerate(node))
             elif isinstance(node, list):
                 if not isinstance(key, int):
-                    hint = (f"; use {'.'.join(map(str, prefix))}.*.{key} or an index 0.."
-                            f"{len(node) - 1}")
-                    raise GaitError(source, path,
-                                    f"{_where(prefix)} is a list, so the key {key!r} must be an "
-                                    f"index or '*'{hint}")
+                    hint = f"; use {'.'.join(map(str, prefix))}.*.{key} or an index 0..{len(node) - 1}"
+                    raise GaitError(
+                        source, path, f"{_where(prefix)} is a list, so the key {key!r} must be an index or '*'{hint}"
+                    )
                 if not 0 <= key < len(node):
-                    raise GaitError(source, path, f"index {key} is out of range: {_where(prefix)} "
-                                                  f"has {len(node)} elements (0..{len(node) - 1})")
+                    raise GaitError(
+                        source,
+                        path,
+                        f"index {key} is out of range: {_where(prefix)} has {len(node)} elements (0..{len(node) - 1})",
+                    )
                 nxt.append((prefix + (key,), node[key]))
             elif isinstance(node, dict):
                 if str(key) not in node and not last:
-                    raise GaitError(source, path, f"{_where(prefix)} has no key {str(key)!r} "
-                                                  f"(keys: {', '.join(map(str, node))})")
+                    raise GaitError(
+                        source, path, f"{_where(prefix)} has no key {str(key)!r} (keys: {', '.join(map(str, node))})"
+                    )
                 nxt.append((prefix + (str(key),), node.get(str(key))))
             else:
-                raise GaitError(source, path, f"{_where(prefix)} is {_kind(node)}, it has no key "
-                                              f"{key!r}")
+                raise GaitError(source, path, f"{_where(prefix)} is {_kind(node)}, it has no key {key!r}")
         found = nxt
     for prefix, node in found:
         if isinstance(node, (dict, list)):
-            raise GaitError(source, path, f"{'.'.join(map(str, prefix))} is "
-                                          f"{_kind(node)}, not a number: sweep a number "
-                                          "inside it")
+            raise GaitError(
+                source, path, f"{'.'.join(map(str, prefix))} is {_kind(node)}, not a number: sweep a number inside it"
+            )
     return [prefix for prefix, _ in found]
 
 
@@ -99,8 +100,13 @@ def set_value(document: dict, keys: Sequence[Key], value: Any) -> None:
 
 def typed(value: Any, old: Any) -> Any:
     """``value``, as an int when it is integral and replaces an int."""
-    if (isinstance(old, int) and not isinstance(old, bool) and isinstance(value, (int, float))
-            and not isinstance(value, bool) and float(value).is_integer()):
+    if (
+        isinstance(old, int)
+        and not isinstance(old, bool)
+        and isinstance(value, (int, float))
+        and not isinstance(value, bool)
+        and float(value).is_integer()
+    ):
         return int(value)
     return value
 
@@ -113,12 +119,13 @@ def changes_of(args: Sequence[Any]) -> list[tuple[str, Any]]:
     elif len(args) % 2 == 0 and args:
         pairs = [(args[i], args[i + 1]) for i in range(0, len(args), 2)]
     else:
-        raise TypeError("replace() takes path, value pairs (replace('period', 2.0, "
-                        "'links.1.phase', 0.25)) or one mapping (replace({'period': 2.0}))")
+        raise TypeError(
+            "replace() takes path, value pairs (replace('period', 2.0, "
+            "'links.1.phase', 0.25)) or one mapping (replace({'period': 2.0}))"
+        )
     for path, _ in pairs:
         if not isinstance(path, str):
-            raise TypeError(f"replace(): a path is a dotted string such as 'links.*.amplitude', "
-                            f"got {path!r}")
+            raise TypeError(f"replace(): a path is a dotted string such as 'links.*.amplitude', got {path!r}")
     return pairs
 
 
@@ -130,8 +137,11 @@ def edited(document: dict, pairs: Sequence[tuple[str, Any]], source: str) -> dic
     for path, value in pairs:
         for keys in resolve_path(document, path, source):
             if keys in seen:
-                raise GaitError(source, path, f"this path sets {'.'.join(map(str, keys))}, "
-                                              f"which {seen[keys]} sets too: set each value once")
+                raise GaitError(
+                    source,
+                    path,
+                    f"this path sets {'.'.join(map(str, keys))}, which {seen[keys]} sets too: set each value once",
+                )
             seen[keys] = path
             set_value(doc, keys, value)
     return doc

@@ -66,13 +66,36 @@ from crawlsim.gait.validation import Builder, ErrorSink, plain, structure, valid
 from crawlsim.gait.yamlsafe import load_yaml, read_limited
 
 __all__ = [
-    "CRAWLER_SCHEMA", "MAX_BLOCKS", "MAX_PERIOD", "MAX_PERIODS", "MAX_PROCESS_DIMENSION",
-    "MAX_PROCESS_FACES", "MAX_STEPS_PER_PERIOD", "MIN_PERIOD", "PROCESS_SCHEMA", "ROUNDOFF",
-    "SIMULATION_SCHEMA", "STIFFNESS_CONDITION_LIMIT", "STRESS_SCALE_LIMIT", "Gait", "ProcessSpec",
-    "Simulation", "admissibility_violation", "document_errors", "emptiness_violation",
-    "gait_from_document", "load_gait", "need_crawler", "parse_gait",
-    "process_admissibility_violation", "recession_direction", "stiffness_condition",
-    "stress_scale", "uniqueness_explanation", "uniqueness_violation", "validation_errors",
+    "CRAWLER_SCHEMA",
+    "MAX_BLOCKS",
+    "MAX_PERIOD",
+    "MAX_PERIODS",
+    "MAX_PROCESS_DIMENSION",
+    "MAX_PROCESS_FACES",
+    "MAX_STEPS_PER_PERIOD",
+    "MIN_PERIOD",
+    "PROCESS_SCHEMA",
+    "ROUNDOFF",
+    "SIMULATION_SCHEMA",
+    "STIFFNESS_CONDITION_LIMIT",
+    "STRESS_SCALE_LIMIT",
+    "Gait",
+    "ProcessSpec",
+    "Simulation",
+    "admissibility_violation",
+    "document_errors",
+    "emptiness_violation",
+    "gait_from_document",
+    "load_gait",
+    "need_crawler",
+    "parse_gait",
+    "process_admissibility_violation",
+    "recession_direction",
+    "stiffness_condition",
+    "stress_scale",
+    "uniqueness_explanation",
+    "uniqueness_violation",
+    "validation_errors",
     "with_simulation",
 ]
 
@@ -117,8 +140,9 @@ def _prepare(doc: Any, source: str) -> tuple[dict, dict, Builder]:
     return document, schema, build
 
 
-def gait_from_document(doc: dict, source: str, source_text: str | None = None,
-                       default_name: str = "gait") -> Gait | ProcessSpec:
+def gait_from_document(
+    doc: dict, source: str, source_text: str | None = None, default_name: str = "gait"
+) -> Gait | ProcessSpec:
     """Validate a parsed document (for instance one edited by a parameter sweep) into a Gait,
     or a ProcessSpec for ``kind: sweeping-process``."""
     document, schema, build = _prepare(doc, source)
@@ -155,8 +179,9 @@ def uniqueness_explanation(path: str | Path) -> list[str]:
     return uniqueness_report(document, source)
 
 
-def document_errors(doc: Any, source: str, source_text: str | None = None,
-                    default_name: str = "gait") -> list[GaitError]:
+def document_errors(
+    doc: Any, source: str, source_text: str | None = None, default_name: str = "gait"
+) -> list[GaitError]:
     """Every error of a parsed document (see `validation_errors`)."""
     try:
         document, schema, build = _prepare(doc, source)
@@ -164,11 +189,9 @@ def document_errors(doc: Any, source: str, source_text: str | None = None,
         return [error]
     errors = finite_errors(document, source)
     reported = {e.keypath for e in errors}
-    errors += [e for e in schema_errors(document, structure(schema), source)
-               if e.keypath not in reported]
+    errors += [e for e in schema_errors(document, structure(schema), source) if e.keypath not in reported]
     for keypath, value in _signal_slots(document):
-        found = [e for e in schema_errors(value, SIGNAL_SCHEMA, source, keypath)
-                 if e.keypath not in reported]
+        found = [e for e in schema_errors(value, SIGNAL_SCHEMA, source, keypath) if e.keypath not in reported]
         if not found and not any(e.keypath.startswith(keypath) for e in errors):
             try:
                 parse_signal(value, keypath, source)
@@ -179,8 +202,7 @@ def document_errors(doc: Any, source: str, source_text: str | None = None,
         return _distinct(errors)
     collected = ErrorSink(collect=True)
     try:
-        build(document, source, source_text or yaml.safe_dump(document, sort_keys=False),
-              default_name, collected)
+        build(document, source, source_text or yaml.safe_dump(document, sort_keys=False), default_name, collected)
     except GaitError as error:  # a check whose failure stops the others
         collected.found.append(error)
     return _distinct(collected.found)
@@ -198,6 +220,7 @@ def _distinct(errors: list[GaitError]) -> list[GaitError]:
 
 def _signal_slots(document: dict):
     """(key path, value) of every place a signal goes, where the structure around it is right."""
+
     def items(key):
         value = document.get(key)
         return enumerate(value) if isinstance(value, list) else ()
@@ -209,8 +232,11 @@ def _signal_slots(document: dict):
     for i, value in items("links"):
         yield f"links[{i}]", value
     friction = document.get("friction")
-    entries = [("friction", friction)] if isinstance(friction, dict) else [
-        (f"friction[{j}]", f) for j, f in items("friction")]
+    entries = (
+        [("friction", friction)]
+        if isinstance(friction, dict)
+        else [(f"friction[{j}]", f) for j, f in items("friction")]
+    )
     for path, entry in entries:
         if isinstance(entry, dict):
             for direction in ("forward", "backward"):

@@ -36,8 +36,7 @@ from crawlsim.gait.signals import (
 
 MAX_BLOCKS = 100_000  # the gait schema's bound (crawlsim.gait.document.MAX_BLOCKS), repeated: no cycle
 
-_WEIGHT = {"type": "number", "minimum": 0, "maximum": LARGEST,
-           "x-expected": "a weight W >= 0 (a force)"}
+_WEIGHT = {"type": "number", "minimum": 0, "maximum": LARGEST, "x-expected": "a weight W >= 0 (a force)"}
 
 LOADS_SCHEMA: dict = {
     "type": "object",
@@ -50,8 +49,7 @@ LOADS_SCHEMA: dict = {
             "x-expected": "a signal F(t) for every block, or a list of N signals (forward positive)",
             "maxItems": MAX_BLOCKS,
             "items": SIGNAL_SCHEMA,
-            "description": "F_j(t), the force on block j, forward positive: one signal for every "
-                           "block or a list of N.",
+            "description": "F_j(t), the force on block j, forward positive: one signal for every block or a list of N.",
         },
         "slope": {
             "type": "object",
@@ -59,12 +57,21 @@ LOADS_SCHEMA: dict = {
             "required": ["angle", "weight"],
             "additionalProperties": False,
             "properties": {
-                "angle": {"type": "number", "exclusiveMinimum": -90, "exclusiveMaximum": 90,
-                          "x-expected": "an angle in degrees strictly between -90 and 90 "
-                                        "(positive: the crawler heads uphill)"},
-                "weight": {"type": ["number", "array"], "minimum": 0, "maximum": LARGEST,
-                           "maxItems": MAX_BLOCKS, "items": _WEIGHT,
-                           "x-expected": "a weight W >= 0 for every block, or a list of N"},
+                "angle": {
+                    "type": "number",
+                    "exclusiveMinimum": -90,
+                    "exclusiveMaximum": 90,
+                    "x-expected": "an angle in degrees strictly between -90 and 90 "
+                    "(positive: the crawler heads uphill)",
+                },
+                "weight": {
+                    "type": ["number", "array"],
+                    "minimum": 0,
+                    "maximum": LARGEST,
+                    "maxItems": MAX_BLOCKS,
+                    "items": _WEIGHT,
+                    "x-expected": "a weight W >= 0 for every block, or a list of N",
+                },
             },
         },
     },
@@ -181,8 +188,9 @@ class Loads:
         """F~(u) = F(u) - W sin alpha at cycles u: (len(u), N)."""
         return evaluate_many(self.forces, u) + self.gravity
 
-    def shifted(self, forward: Sequence[Signal], backward: Sequence[Signal]
-                ) -> tuple[tuple[Signal, ...], tuple[Signal, ...]]:
+    def shifted(
+        self, forward: Sequence[Signal], backward: Sequence[Signal]
+    ) -> tuple[tuple[Signal, ...], tuple[Signal, ...]]:
         """(mu~^+, mu~^-) as signals, one per block (docs/model.md §6)."""
         c, g = self.cos, self.gravity
         memo: dict[tuple[Any, ...], Signal] = {}
@@ -203,8 +211,7 @@ def parse_loads(block: dict, n: int, source: str) -> Loads:
     force = block.get("force", 0.0)
     if isinstance(force, list):
         if len(force) != n:
-            raise GaitError(source, "loads.force",
-                            f"expected {n} force signals (one per block), got {len(force)}")
+            raise GaitError(source, "loads.force", f"expected {n} force signals (one per block), got {len(force)}")
         forces = tuple(parse_signal(f, f"loads.force[{j}]", source) for j, f in enumerate(force))
     else:
         forces = (parse_signal(force, "loads.force", source),) * n
@@ -215,8 +222,9 @@ def parse_loads(block: dict, n: int, source: str) -> Loads:
         weight = slope["weight"]
         if isinstance(weight, list):
             if len(weight) != n:
-                raise GaitError(source, "loads.slope.weight",
-                                f"expected {n} weights (one per block), got {len(weight)}")
+                raise GaitError(
+                    source, "loads.slope.weight", f"expected {n} weights (one per block), got {len(weight)}"
+                )
             weights = np.array(weight, dtype=float)
         else:
             weights = np.full(n, float(weight))
@@ -224,8 +232,7 @@ def parse_loads(block: dict, n: int, source: str) -> Loads:
     return Loads(forces, angle, weights)
 
 
-def hold_violation(forward: Sequence[Signal], backward: Sequence[Signal], loads: Loads,
-                   period: float) -> str | None:
+def hold_violation(forward: Sequence[Signal], backward: Sequence[Signal], loads: Loads, period: float) -> str | None:
     """Why the body as a whole cannot hold its loads, or None (docs/model.md §6): C(t) is
     nonempty with room iff min_t sum_j mu~_j^+ > 0 and min_t sum_j mu~_j^- > 0."""
     plus, minus = loads.shifted(forward, backward)
@@ -237,14 +244,16 @@ def hold_violation(forward: Sequence[Signal], backward: Sequence[Signal], loads:
         if not value > 1e-12 * max(mu_sum, 1e-300):
             load = float(np.sum(loads.total(np.array([at]))[0]))
             what = "forces and gravity" if loads.weights is not None else "forces"
-            return (f"the loads are too large for any quasistatic motion: at t = {at * period:.6g} "
-                    f"the total load sum_j F~_j = {load:.6g} ({what}) "
-                    f"{'is at or above' if sign > 0 else 'is at or below'} "
-                    f"{'-' if sign < 0 else ''}{mu_sum:.6g}, {'minus ' if sign < 0 else ''}the total "
-                    f"{word} friction sum_j {limit}{' cos(angle)' if loads.angle else ''}, so the "
-                    f"whole crawler is dragged {'forward' if sign > 0 else 'backward'} by it (the set of admissible "
-                    f"stresses C(t) has no interior; docs/model.md §6, {n} blocks). Reduce the load"
-                    f"{' or the slope' if loads.angle else ''}")
+            return (
+                f"the loads are too large for any quasistatic motion: at t = {at * period:.6g} "
+                f"the total load sum_j F~_j = {load:.6g} ({what}) "
+                f"{'is at or above' if sign > 0 else 'is at or below'} "
+                f"{'-' if sign < 0 else ''}{mu_sum:.6g}, {'minus ' if sign < 0 else ''}the total "
+                f"{word} friction sum_j {limit}{' cos(angle)' if loads.angle else ''}, so the "
+                f"whole crawler is dragged {'forward' if sign > 0 else 'backward'} by it (the set of admissible "
+                f"stresses C(t) has no interior; docs/model.md §6, {n} blocks). Reduce the load"
+                f"{' or the slope' if loads.angle else ''}"
+            )
     return None
 
 
@@ -269,8 +278,7 @@ def _sum(signals: Sequence[Signal]) -> Signal:
     return combination(terms, constant)
 
 
-def held_positions(lengths0: np.ndarray, stiffness: np.ndarray, plus0: np.ndarray,
-                   minus0: np.ndarray) -> np.ndarray:
+def held_positions(lengths0: np.ndarray, stiffness: np.ndarray, plus0: np.ndarray, minus0: np.ndarray) -> np.ndarray:
     """Positions whose elastic forces put every block at the same fraction theta of its
     friction interval at t = 0 (docs/model.md §6): f_j = -mu~_j^- + theta (mu~_j^+ + mu~_j^-),
     theta = sum mu~^- / sum (mu~^+ + mu~^-); sigma_i = -(f_1 + ... + f_i), z = L(0) - sigma/k."""

@@ -48,8 +48,9 @@ class ProcessSpec:
     def replace(self, *changes: Any) -> ProcessSpec:
         """A new validated process with values set at dotted paths (see `Gait.replace`)."""
         label, document = replacement(self.source, self.document, changes)
-        return validated(document, PROCESS_SCHEMA, build_process, label,
-                         source_text=self.source_text, default_name=self.name)
+        return validated(
+            document, PROCESS_SCHEMA, build_process, label, source_text=self.source_text, default_name=self.name
+        )
 
     def breakpoints(self) -> np.ndarray:
         """Union of the offsets' breakpoints, in cycles in [0, 1): the stepping grid needs them."""
@@ -66,9 +67,13 @@ MAX_PROCESS_DIMENSION = 1000
 MAX_PROCESS_FACES = 10_000
 """Most faces (rows of the normals) of a generic process."""
 
-_MATRIX_ROW = {"type": "array", "minItems": 1, "maxItems": MAX_PROCESS_DIMENSION,
-               "x-expected": "a list of numbers (one row)",
-               "items": {"type": "number", "x-expected": "a number"}}
+_MATRIX_ROW = {
+    "type": "array",
+    "minItems": 1,
+    "maxItems": MAX_PROCESS_DIMENSION,
+    "x-expected": "a list of numbers (one row)",
+    "items": {"type": "number", "x-expected": "a number"},
+}
 
 PROCESS_SCHEMA: dict = {
     "$schema": "https://json-schema.org/draft/2020-12/schema",
@@ -81,20 +86,30 @@ PROCESS_SCHEMA: dict = {
         "name": {"type": "string"},
         "description": {"type": "string"},
         "period": PERIOD_SCHEMA,
-        "normals": {"type": "array", "minItems": 1, "maxItems": MAX_PROCESS_FACES,
-                    "x-expected": "a list of m rows b_i, each a list of n numbers",
-                    "description": f"B: at most {MAX_PROCESS_FACES:,} rows of at most "
-                                   f"{MAX_PROCESS_DIMENSION:,} numbers.",
-                    "items": _MATRIX_ROW},
-        "offsets": {"type": "array", "minItems": 1, "maxItems": MAX_PROCESS_FACES,
-                    "x-expected": "a list of m signals c_i(t), one per row of normals",
-                    "items": SIGNAL_SCHEMA},
-        "metric": {"type": "array", "minItems": 1, "maxItems": MAX_PROCESS_DIMENSION,
-                   "x-expected": "an n x n symmetric positive definite matrix (a list of rows)",
-                   "items": _MATRIX_ROW},
+        "normals": {
+            "type": "array",
+            "minItems": 1,
+            "maxItems": MAX_PROCESS_FACES,
+            "x-expected": "a list of m rows b_i, each a list of n numbers",
+            "description": f"B: at most {MAX_PROCESS_FACES:,} rows of at most {MAX_PROCESS_DIMENSION:,} numbers.",
+            "items": _MATRIX_ROW,
+        },
+        "offsets": {
+            "type": "array",
+            "minItems": 1,
+            "maxItems": MAX_PROCESS_FACES,
+            "x-expected": "a list of m signals c_i(t), one per row of normals",
+            "items": SIGNAL_SCHEMA,
+        },
+        "metric": {
+            "type": "array",
+            "minItems": 1,
+            "maxItems": MAX_PROCESS_DIMENSION,
+            "x-expected": "an n x n symmetric positive definite matrix (a list of rows)",
+            "items": _MATRIX_ROW,
+        },
         "initial": {**_MATRIX_ROW, "x-expected": "a list of n numbers (the initial point z(0))"},
-        "allow_unbounded": {"type": "boolean",
-                            "x-expected": "true or false (accept an unbounded C(t))"},
+        "allow_unbounded": {"type": "boolean", "x-expected": "true or false (accept an unbounded C(t))"},
         "simulation": SIMULATION_SCHEMA,
         "units": UNITS_SCHEMA,
     },
@@ -102,24 +117,24 @@ PROCESS_SCHEMA: dict = {
 """JSON Schema (Draft 2020-12) of a generic polyhedral sweeping-process document (docs/model.md §5)."""
 
 
-def build_process(document: dict, source: str, source_text: str, default_name: str,
-                   errors: ErrorSink) -> ProcessSpec:
+def build_process(document: dict, source: str, source_text: str, default_name: str, errors: ErrorSink) -> ProcessSpec:
     check_units(document, source, errors)
     rows = document["normals"]
     n = len(rows[0])
     for i, row in enumerate(rows):
         if len(row) != n:
-            raise GaitError(source, f"normals[{i}]",
-                            f"expected {n} numbers (the dimension n set by normals[0]), got {len(row)}")
+            raise GaitError(
+                source, f"normals[{i}]", f"expected {n} numbers (the dimension n set by normals[0]), got {len(row)}"
+            )
     B = np.array(rows, dtype=float)
     m = len(rows)
     for i in range(m):
         if not np.any(B[i]):
-            raise GaitError(source, f"normals[{i}]",
-                            "expected a nonzero normal b_i: a zero row does not describe a face")
+            raise GaitError(
+                source, f"normals[{i}]", "expected a nonzero normal b_i: a zero row does not describe a face"
+            )
     if len(document["offsets"]) != m:
-        raise count_error(source, "offsets", m, "offset signals (one per row of normals)",
-                           len(document["offsets"]))
+        raise count_error(source, "offsets", m, "offset signals (one per row of normals)", len(document["offsets"]))
     offsets = tuple(parse_signal(s, f"offsets[{i}]", source) for i, s in enumerate(document["offsets"]))
 
     if "metric" in document:
@@ -132,8 +147,7 @@ def build_process(document: dict, source: str, source_text: str, default_name: s
 
     initial = np.array(document["initial"], dtype=float)
     if initial.shape != (n,):
-        raise count_error(source, "initial", n, "coordinates (the dimension n of the normals)",
-                           initial.size)
+        raise count_error(source, "initial", n, "coordinates (the dimension n of the normals)", initial.size)
 
     simulation = simulation_from(document.get("simulation", {}))
     spec = ProcessSpec(
@@ -156,11 +170,14 @@ def build_process(document: dict, source: str, source_text: str, default_name: s
         raise GaitError(source, "offsets", problem)
     direction = recession_direction(B)
     if direction is not None and not spec.allow_unbounded:
-        raise GaitError(source, "normals",
-                        "C(t) is unbounded: it contains the ray z + s d, s >= 0, for d = "
-                        f"{_vector_text(direction)} (B d <= 0). The convergence theorem of the paper "
-                        "needs a compact C(t); add a face that closes it, or set "
-                        "'allow_unbounded: true' to run anyway")
+        raise GaitError(
+            source,
+            "normals",
+            "C(t) is unbounded: it contains the ray z + s d, s >= 0, for d = "
+            f"{_vector_text(direction)} (B d <= 0). The convergence theorem of the paper "
+            "needs a compact C(t); add a face that closes it, or set "
+            "'allow_unbounded: true' to run anyway",
+        )
     problem = process_admissibility_violation(spec, initial)
     if problem is not None:
         raise GaitError(source, "initial", problem)
@@ -182,12 +199,16 @@ def _metric_violation(metric: np.ndarray) -> str | None:
     asymmetry = float(np.max(np.abs(metric - metric.T)))
     if asymmetry > ROUNDOFF * scale:
         i, j = np.unravel_index(int(np.argmax(np.abs(metric - metric.T))), metric.shape)
-        return (f"expected a symmetric matrix, but metric[{i}][{j}] = {metric[i, j]:g} and "
-                f"metric[{j}][{i}] = {metric[j, i]:g}")
+        return (
+            f"expected a symmetric matrix, but metric[{i}][{j}] = {metric[i, j]:g} and "
+            f"metric[{j}][{i}] = {metric[j, i]:g}"
+        )
     eigenvalues = np.linalg.eigvalsh(metric)
     if not eigenvalues[0] > ROUNDOFF * max(scale, 1e-300):
-        return (f"expected a positive definite matrix, but its smallest eigenvalue is "
-                f"{eigenvalues[0]:.6g}: |z|_M^2 = z^T M z must be a norm")
+        return (
+            f"expected a positive definite matrix, but its smallest eigenvalue is "
+            f"{eigenvalues[0]:.6g}: |z|_M^2 = z^T M z must be a norm"
+        )
     return None
 
 
@@ -231,10 +252,14 @@ def emptiness_violation(spec: ProcessSpec) -> str | None:
             where = f"at t = {u[j] * spec.period:.12g} (cycle {u[j]:.12g})"
             if j > 0 and all(not s.is_smooth or isinstance(s, Constant) for s in spec.offsets):
                 first = _first_empty(spec, Bs, u[j - 1], u[j])
-                where = (f"for t just after about {first * spec.period:.6g} (cycle {first:.6g}; "
-                         f"to the LP's feasibility tolerance) and {where}")
-            return (f"C(t) = {{z : B z <= c(t)}} is empty {where}: no point satisfies every "
-                    "constraint there. Check the offsets' signs: C(t) = {z : <b_i, z> <= c_i(t)}")
+                where = (
+                    f"for t just after about {first * spec.period:.6g} (cycle {first:.6g}; "
+                    f"to the LP's feasibility tolerance) and {where}"
+                )
+            return (
+                f"C(t) = {{z : B z <= c(t)}} is empty {where}: no point satisfies every "
+                "constraint there. Check the offsets' signs: C(t) = {z : <b_i, z> <= c_i(t)}"
+            )
     return None  # pragma: no cover - the joint LP and the per-time LPs agree
 
 
@@ -260,8 +285,11 @@ def _feasible(A, b: np.ndarray, n: int, source: str) -> bool:
     if result.status == 2:
         return False
     if result.status != 0:
-        raise GaitError(source, "offsets", f"cannot decide whether C(t) is empty: the LP solver "
-                        f"(HiGHS) stopped with: {result.message}")
+        raise GaitError(
+            source,
+            "offsets",
+            f"cannot decide whether C(t) is empty: the LP solver (HiGHS) stopped with: {result.message}",
+        )
     return True
 
 
@@ -279,8 +307,7 @@ def recession_direction(normals: np.ndarray) -> np.ndarray | None:
         for sign in (1.0, -1.0):
             cost = np.zeros(n)
             cost[k] = -sign
-            result = linprog(cost, A_ub=normals, b_ub=np.zeros(m), bounds=[(-1.0, 1.0)] * n,
-                             method="highs")
+            result = linprog(cost, A_ub=normals, b_ub=np.zeros(m), bounds=[(-1.0, 1.0)] * n, method="highs")
             if result.status == 0 and -result.fun > 1e-9:
                 d = np.asarray(result.x)
                 return d / np.linalg.norm(d) + 0.0
@@ -295,6 +322,8 @@ def process_admissibility_violation(spec: ProcessSpec, point: np.ndarray, t: flo
     i = int(np.argmax(excess))
     if excess[i] <= 0:
         return None
-    return (f"the initial point {_vector_text(point)} is outside C({t:g}): constraint {i} "
-            f"(normals[{i}] . z <= offsets[{i}]) reads {slack[i] + c[i]:.12g} <= {c[i]:.12g}, "
-            f"violated by {slack[i]:.6g}; the sweeping process must start in C(0)")
+    return (
+        f"the initial point {_vector_text(point)} is outside C({t:g}): constraint {i} "
+        f"(normals[{i}] . z <= offsets[{i}]) reads {slack[i] + c[i]:.12g} <= {c[i]:.12g}, "
+        f"violated by {slack[i]:.6g}; the sweeping process must start in C(0)"
+    )

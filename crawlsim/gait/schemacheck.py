@@ -38,8 +38,7 @@ _ANNOTATIONS = frozenset({"$schema", "description", "title", "x-expected", "defa
 #: jsonschema's type checker for Draft 2020-12, keyword by keyword.
 _TYPES: dict[str, Check] = {
     "number": lambda x: isinstance(x, Number) and not isinstance(x, bool),
-    "integer": lambda x: (isinstance(x, int) and not isinstance(x, bool))
-    or (isinstance(x, float) and x.is_integer()),
+    "integer": lambda x: (isinstance(x, int) and not isinstance(x, bool)) or (isinstance(x, float) and x.is_integer()),
     "object": lambda x: isinstance(x, dict),
     "array": lambda x: isinstance(x, list),
     "string": lambda x: isinstance(x, str),
@@ -109,13 +108,14 @@ def _bound(test: Callable[[Any, Any], bool]) -> Callable[[Any, dict], Check]:
         if not _is_number(value):
             raise UnsupportedSchema(f"a bound that is not a number: {value!r}")
         return lambda x: not _is_number(x) or test(x, value)
+
     return build
 
 
-def _count(kind: type[list] | type[str],
-           test: Callable[[int, int], bool]) -> Callable[[Any, dict], Check]:
+def _count(kind: type[list] | type[str], test: Callable[[int, int], bool]) -> Callable[[Any, dict], Check]:
     def build(value: Any, schema: dict) -> Check:  # jsonschema: len(), code points for strings
         return lambda x: not isinstance(x, kind) or test(len(x), value)
+
     return build
 
 
@@ -135,8 +135,7 @@ def _properties(value: Any, schema: dict) -> Check | None:
     checks = [(key, compile_schema(sub)) for key, sub in value.items() if sub is not True]
     if not checks:
         return None
-    return lambda x: not isinstance(x, dict) or all(check(x[key]) for key, check in checks
-                                                    if key in x)
+    return lambda x: not isinstance(x, dict) or all(check(x[key]) for key, check in checks if key in x)
 
 
 def _additional(value: Any, schema: dict) -> Check | None:
@@ -146,8 +145,7 @@ def _additional(value: Any, schema: dict) -> Check | None:
     if value is False:
         return lambda x: not isinstance(x, dict) or all(key in declared for key in x)
     extra = compile_schema(value)
-    return lambda x: not isinstance(x, dict) or all(extra(x[key]) for key in x
-                                                    if key not in declared)
+    return lambda x: not isinstance(x, dict) or all(extra(x[key]) for key in x if key not in declared)
 
 
 def _all_of(value: Any, schema: dict) -> Check:

@@ -58,8 +58,15 @@ def _describe(instance: Any) -> str:
     return f"a {type(instance).__name__}"
 
 
-_TYPE_NAMES = {"number": "a number", "integer": "an integer", "object": "a mapping", "array": "a list",
-               "string": "a string", "boolean": "a boolean", "null": "null"}
+_TYPE_NAMES = {
+    "number": "a number",
+    "integer": "an integer",
+    "object": "a mapping",
+    "array": "a list",
+    "string": "a string",
+    "boolean": "a boolean",
+    "null": "null",
+}
 
 
 def _suggestion(word: Any, choices: Sequence[str]) -> str:
@@ -77,21 +84,24 @@ def _schema_error(error: jsonschema.ValidationError, source: str, keypath: str) 
     if validator == "additionalProperties":
         allowed = sorted(schema.get("properties", {}))
         extra = next(key for key in instance if key not in allowed)
-        return GaitError(source, join_keypath(path, str(extra)),
-                         f"unknown key {extra!r}{_suggestion(extra, allowed)} "
-                         f"(allowed here: {', '.join(allowed)})")
+        return GaitError(
+            source,
+            join_keypath(path, str(extra)),
+            f"unknown key {extra!r}{_suggestion(extra, allowed)} (allowed here: {', '.join(allowed)})",
+        )
     if validator in ("enum", "const"):
         choices = error.validator_value if validator == "enum" else [error.validator_value]
         listed = ", ".join(repr(c) for c in choices)
-        return GaitError(source, path, f"expected one of {listed}, got {_describe(instance)}"
-                         f"{_suggestion(instance, choices)}")
+        return GaitError(
+            source, path, f"expected one of {listed}, got {_describe(instance)}{_suggestion(instance, choices)}"
+        )
     if validator == "minItems":
-        return GaitError(source, path, f"expected at least {error.validator_value} entries, "
-                         f"got {len(instance)}")
+        return GaitError(source, path, f"expected at least {error.validator_value} entries, got {len(instance)}")
     if validator == "maxItems":
         what = f" ({schema['x-expected']})" if "x-expected" in schema else ""
-        return GaitError(source, path, f"expected at most {error.validator_value:,} entries{what}, "
-                         f"got {len(instance):,}")
+        return GaitError(
+            source, path, f"expected at most {error.validator_value:,} entries{what}, got {len(instance):,}"
+        )
     expected = schema.get("x-expected")
     if expected is None and validator == "type":
         types = error.validator_value if isinstance(error.validator_value, list) else [error.validator_value]
@@ -146,8 +156,7 @@ def check_schema(instance: Any, schema: dict, source: str, keypath: str = "") ->
     if first.validator == "maxItems":  # a list over its bound: its items are not worth checking
         raise _schema_error(first, source, keypath)
     relevance = by_relevance(strong={"additionalProperties"})
-    error = best_match(itertools.chain([first], itertools.islice(errors, _BEST_OF - 1)),
-                       key=relevance)
+    error = best_match(itertools.chain([first], itertools.islice(errors, _BEST_OF - 1)), key=relevance)
     raise _schema_error(error if error is not None else first, source, keypath)
 
 
@@ -193,8 +202,9 @@ def check_finite(instance: Any, source: str, keypath: str = "") -> None:
     elif isinstance(instance, list):
         if all(type(item) is float or type(item) is int for item in instance):
             # a list of numbers (the common long list): one pass without a call per entry
-            bad = next((i for i, item in enumerate(instance)
-                        if not -LARGEST <= item <= LARGEST), None)  # nan compares false too
+            bad = next(
+                (i for i, item in enumerate(instance) if not -LARGEST <= item <= LARGEST), None
+            )  # nan compares false too
             if bad is not None:
                 check_finite(instance[bad], source, join_keypath(keypath, bad))
             return
@@ -223,6 +233,8 @@ def _number_problem(value: Any) -> str | None:
     if isinstance(value, float) and not math.isfinite(value):
         return f"expected a finite number, got {value!r}"
     if abs(value) > LARGEST:
-        return (f"expected a number of magnitude at most {LARGEST:g}, got {_describe(value)}: "
-                "products of such numbers overflow (see the schema's descriptions)")
+        return (
+            f"expected a number of magnitude at most {LARGEST:g}, got {_describe(value)}: "
+            "products of such numbers overflow (see the schema's descriptions)"
+        )
     return None

@@ -44,14 +44,23 @@ every rate (up to amplitude x 2 pi x harmonics / T) is far from overflow and res
 
 
 def positive_schema(what: str, description: str = "") -> dict:
-    return {"type": "number", "exclusiveMinimum": 0, "maximum": LARGEST,
-            "x-expected": f"a positive number ({what})",
-            **({"description": description} if description else {})}
+    return {
+        "type": "number",
+        "exclusiveMinimum": 0,
+        "maximum": LARGEST,
+        "x-expected": f"a positive number ({what})",
+        **({"description": description} if description else {}),
+    }
 
 
 def count_schema(what: str, most: int, description: str) -> dict:
-    return {"type": "integer", "minimum": 1, "maximum": most,
-            "x-expected": f"an integer from 1 to {most:,} ({what})", "description": description}
+    return {
+        "type": "integer",
+        "minimum": 1,
+        "maximum": most,
+        "x-expected": f"an integer from 1 to {most:,} ({what})",
+        "description": description,
+    }
 
 
 def list_schema(most: int, what: str, items: Any) -> dict:
@@ -64,34 +73,47 @@ SIMULATION_SCHEMA: dict = {
     "x-expected": "a mapping of simulation settings",
     "additionalProperties": False,
     "properties": {
-        "steps_per_period": count_schema("time steps per period", MAX_STEPS_PER_PERIOD,
-                                   "Uniform catch-up steps per period (the breakpoints are added). "
-                                   "Memory grows with it; the run estimates it before starting."),
-        "max_periods": count_schema("the most periods to simulate", MAX_PERIODS,
-                              "Give up after this many periods."),
-        "tolerance": positive_schema("the convergence tolerance",
-                               "Stop when the Poincare step is at most this, relative to |w|."),
-        "integrator": {"enum": ["exact", "catch-up"],
-                       "description": "exact: event-driven, v0 to roundoff (the default). "
-                                      "catch-up: the paper's time discretisation, first order in "
-                                      "the step."},
-        "limit": {"enum": ["newton", "iterate"],
-                  "description": "How the periodic limit is found: newton, the periodic-limit "
-                                 "solver (the default), or iterate, plain period after period."},
+        "steps_per_period": count_schema(
+            "time steps per period",
+            MAX_STEPS_PER_PERIOD,
+            "Uniform catch-up steps per period (the breakpoints are added). "
+            "Memory grows with it; the run estimates it before starting.",
+        ),
+        "max_periods": count_schema("the most periods to simulate", MAX_PERIODS, "Give up after this many periods."),
+        "tolerance": positive_schema(
+            "the convergence tolerance", "Stop when the Poincare step is at most this, relative to |w|."
+        ),
+        "integrator": {
+            "enum": ["exact", "catch-up"],
+            "description": "exact: event-driven, v0 to roundoff (the default). "
+            "catch-up: the paper's time discretisation, first order in "
+            "the step.",
+        },
+        "limit": {
+            "enum": ["newton", "iterate"],
+            "description": "How the periodic limit is found: newton, the periodic-limit "
+            "solver (the default), or iterate, plain period after period.",
+        },
         "unchecked_uniqueness": {
-            "type": "boolean", "x-expected": "true or false",
+            "type": "boolean",
+            "x-expected": "true or false",
             "description": "Run a crawler whose friction is beyond an exact check of the uniqueness "
-                           "condition (docs/model.md §3) instead of refusing it. The condition is "
-                           "still checked where it can be; the run warns and its results file "
-                           "records unchecked_uniqueness = 1."},
+            "condition (docs/model.md §3) instead of refusing it. The condition is "
+            "still checked where it can be; the run warns and its results file "
+            "records unchecked_uniqueness = 1.",
+        },
     },
 }
 
 
 _SIMULATION_TYPES: dict[str, Callable[[Any], Any]] = {
-    "steps_per_period": int, "max_periods": int, "tolerance": float, "integrator": str,
+    "steps_per_period": int,
+    "max_periods": int,
+    "tolerance": float,
+    "integrator": str,
     "limit": str,
-    "unchecked_uniqueness": bool}
+    "unchecked_uniqueness": bool,
+}
 
 
 def simulation_from(settings: Mapping[str, Any]) -> Simulation:
@@ -99,10 +121,13 @@ def simulation_from(settings: Mapping[str, Any]) -> Simulation:
     return Simulation(**{key: _SIMULATION_TYPES[key](value) for key, value in settings.items()})
 
 
-PERIOD_SCHEMA: dict = {**positive_schema("the period T of the gait"), "minimum": MIN_PERIOD,
-                   "maximum": MAX_PERIOD,
-                   "x-expected": f"a positive number from {MIN_PERIOD:g} to {MAX_PERIOD:g} (the period T)",
-                   "description": "T, the period of the gait. The model is rate-independent, so T "
-                                  "only rescales time; within [1e-9, 1e9] every time and rate of "
-                                  "a run is representable to a step's resolution."}
+PERIOD_SCHEMA: dict = {
+    **positive_schema("the period T of the gait"),
+    "minimum": MIN_PERIOD,
+    "maximum": MAX_PERIOD,
+    "x-expected": f"a positive number from {MIN_PERIOD:g} to {MAX_PERIOD:g} (the period T)",
+    "description": "T, the period of the gait. The model is rate-independent, so T "
+    "only rescales time; within [1e-9, 1e9] every time and rate of "
+    "a run is representable to a step's resolution.",
+}
 """The schema of a document's period T, the same for every kind."""

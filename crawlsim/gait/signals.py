@@ -230,24 +230,25 @@ class Fourier(Signal):
             return part(u)
         out = np.empty(flat.size)
         for start in range(0, flat.size, step):
-            out[start:start + step] = part(flat[start:start + step])
+            out[start : start + step] = part(flat[start : start + step])
         return out.reshape(u.shape)
 
     def __call__(self, u: np.ndarray) -> np.ndarray:
         def part(v):
             c, s, a, b, _ = self._terms(v)
             return self.mean + c @ a + s @ b
+
         return self._chunked(u, part)
 
     def rate(self, u: np.ndarray) -> np.ndarray:
         def part(v):
             c, s, a, b, n = self._terms(v)
             return 2.0 * np.pi * (c @ (n * b) - s @ (n * a))
+
         return self._chunked(u, part)
 
     def to_dict(self) -> dict:
-        return {"kind": self.kind, "mean": self.mean, "cos": list(self.cos), "sin": list(self.sin),
-                "phase": self.phase}
+        return {"kind": self.kind, "mean": self.mean, "cos": list(self.cos), "sin": list(self.sin), "phase": self.phase}
 
 
 def _check_knots(times: tuple[float, ...], values: tuple[float, ...], last_time_allowed: bool) -> None:
@@ -255,21 +256,30 @@ def _check_knots(times: tuple[float, ...], values: tuple[float, ...], last_time_
     if len(values) != len(times):
         raise GaitError("signal", "values", f"expected as many values as times ({len(times)}), got {len(values)}")
     if times[0] != 0.0:
-        raise GaitError("signal", "times[0]",
-                        f"expected 0, got {times[0]:g}: the times are in cycles and cover one cycle from 0")
+        raise GaitError(
+            "signal", "times[0]", f"expected 0, got {times[0]:g}: the times are in cycles and cover one cycle from 0"
+        )
     for i in range(1, len(times)):
         if not times[i] > times[i - 1]:
-            raise GaitError("signal", f"times[{i}]",
-                            f"expected times strictly increasing, but times[{i}] = {times[i]:g} "
-                            f"<= times[{i - 1}] = {times[i - 1]:g}")
+            raise GaitError(
+                "signal",
+                f"times[{i}]",
+                f"expected times strictly increasing, but times[{i}] = {times[i]:g} "
+                f"<= times[{i - 1}] = {times[i - 1]:g}",
+            )
     last = len(times) - 1
     if last_time_allowed and times[last] != 1.0:
-        raise GaitError("signal", f"times[{last}]",
-                        f"expected 1, got {times[last]:g}: a piecewise-linear signal spans one cycle [0, 1]")
+        raise GaitError(
+            "signal",
+            f"times[{last}]",
+            f"expected 1, got {times[last]:g}: a piecewise-linear signal spans one cycle [0, 1]",
+        )
     if not last_time_allowed and times[last] >= 1.0:
-        raise GaitError("signal", f"times[{last}]",
-                        f"expected a time < 1 cycle, got {times[last]:g}: a step at 1 is the step at 0 "
-                        "of the next cycle")
+        raise GaitError(
+            "signal",
+            f"times[{last}]",
+            f"expected a time < 1 cycle, got {times[last]:g}: a step at 1 is the step at 0 of the next cycle",
+        )
 
 
 @dataclass(frozen=True)
@@ -295,10 +305,13 @@ class PiecewiseLinear(Signal):
             raise GaitError("signal", "times", "expected at least two knots (times 0 and 1)")
         _check_knots(self.times, self.values, last_time_allowed=True)
         if self.values[0] != self.values[-1]:
-            raise GaitError("signal", "values",
-                            f"a piecewise-linear signal must be periodic: values[0] = {self.values[0]:g} "
-                            f"and values[-1] = {self.values[-1]:g} must be equal (the last knot at 1 "
-                            "is the first knot of the next cycle)")
+            raise GaitError(
+                "signal",
+                "values",
+                f"a piecewise-linear signal must be periodic: values[0] = {self.values[0]:g} "
+                f"and values[-1] = {self.values[-1]:g} must be equal (the last knot at 1 "
+                "is the first knot of the next cycle)",
+            )
 
     def _local(self, u: np.ndarray) -> np.ndarray:
         return _wrap(_cycles(u) - self.phase)
@@ -374,38 +387,61 @@ class Steps(Signal):
 KINDS: dict[str, type[Signal]] = {cls.kind: cls for cls in (Cosine, Fourier, PiecewiseLinear, Steps)}
 """Signal kinds written as a mapping with 'kind' (constants are plain numbers)."""
 
-_NUMBER = {"type": "number", "minimum": -LARGEST, "maximum": LARGEST, "x-expected": "a number",
-           "description": "A finite number of magnitude at most 1e100 (every number of a gait is: "
-                          "within it no product the model forms overflows a double)."}
+_NUMBER = {
+    "type": "number",
+    "minimum": -LARGEST,
+    "maximum": LARGEST,
+    "x-expected": "a number",
+    "description": "A finite number of magnitude at most 1e100 (every number of a gait is: "
+    "within it no product the model forms overflows a double).",
+}
 _NUMBERS = {"type": "array", "items": _NUMBER, "x-expected": "a list of numbers"}
-_PHASE = {"type": "number", "minimum": -MAX_PHASE, "maximum": MAX_PHASE,
-          "x-expected": f"a phase in cycles, at most {MAX_PHASE:g} in magnitude",
-          "description": "Shift in cycles: s(t) = profile(t/T - phase). Whole cycles change nothing; "
-                         "|phase| <= 1e6, since a double that large holds almost no fraction of a "
-                         "cycle (from 2^52 on, none)."}
+_PHASE = {
+    "type": "number",
+    "minimum": -MAX_PHASE,
+    "maximum": MAX_PHASE,
+    "x-expected": f"a phase in cycles, at most {MAX_PHASE:g} in magnitude",
+    "description": "Shift in cycles: s(t) = profile(t/T - phase). Whole cycles change nothing; "
+    "|phase| <= 1e6, since a double that large holds almost no fraction of a "
+    "cycle (from 2^52 on, none).",
+}
 # maxItems before items: a refused huge list is refused before its items are validated
-_COEFFICIENTS = {"type": "array", "maxItems": MAX_HARMONICS, **_NUMBERS,
-                 "description": f"Fourier coefficients of harmonics 1, 2, ...; at most {MAX_HARMONICS}."}
-_KNOTS = {"type": "array", "maxItems": MAX_KNOTS, **_NUMBERS,
-          "description": f"At most {MAX_KNOTS} knots: each is a breakpoint the stepping grid must contain."}
+_COEFFICIENTS = {
+    "type": "array",
+    "maxItems": MAX_HARMONICS,
+    **_NUMBERS,
+    "description": f"Fourier coefficients of harmonics 1, 2, ...; at most {MAX_HARMONICS}.",
+}
+_KNOTS = {
+    "type": "array",
+    "maxItems": MAX_KNOTS,
+    **_NUMBERS,
+    "description": f"At most {MAX_KNOTS} knots: each is a breakpoint the stepping grid must contain.",
+}
 _KIND_SCHEMAS: dict[str, dict[str, Any]] = {
-    "cosine": {"required": ["mean", "amplitude"],
-               "properties": {"mean": _NUMBER, "amplitude": _NUMBER, "phase": _PHASE}},
-    "fourier": {"required": ["mean"],
-                "properties": {"mean": _NUMBER, "cos": _COEFFICIENTS, "sin": _COEFFICIENTS,
-                               "phase": _PHASE}},
-    "piecewise-linear": {"required": ["times", "values"],
-                         "properties": {"times": {"minItems": 2, **_KNOTS}, "values": _KNOTS,
-                                        "phase": _PHASE}},
-    "steps": {"required": ["times", "values"],
-              "properties": {"times": {"minItems": 1, **_KNOTS}, "values": _KNOTS, "phase": _PHASE}},
+    "cosine": {
+        "required": ["mean", "amplitude"],
+        "properties": {"mean": _NUMBER, "amplitude": _NUMBER, "phase": _PHASE},
+    },
+    "fourier": {
+        "required": ["mean"],
+        "properties": {"mean": _NUMBER, "cos": _COEFFICIENTS, "sin": _COEFFICIENTS, "phase": _PHASE},
+    },
+    "piecewise-linear": {
+        "required": ["times", "values"],
+        "properties": {"times": {"minItems": 2, **_KNOTS}, "values": _KNOTS, "phase": _PHASE},
+    },
+    "steps": {
+        "required": ["times", "values"],
+        "properties": {"times": {"minItems": 1, **_KNOTS}, "values": _KNOTS, "phase": _PHASE},
+    },
 }
 
 SIGNAL_SCHEMA: dict = {
     "type": ["number", "object"],
     "x-expected": "a number or a signal mapping with 'kind'",
     "description": "A T-periodic signal of the cycle u = t/T: a constant (a plain number) or a "
-                   "mapping with 'kind' (cosine, fourier, piecewise-linear, steps).",
+    "mapping with 'kind' (cosine, fourier, piecewise-linear, steps).",
     "minimum": -LARGEST,
     "maximum": LARGEST,
     "if": {"type": "object"},
@@ -413,9 +449,14 @@ SIGNAL_SCHEMA: dict = {
         "required": ["kind"],
         "properties": {"kind": {"enum": list(KINDS)}},
         "allOf": [
-            {"if": {"properties": {"kind": {"const": kind}}, "required": ["kind"]},
-             "then": {**schema, "properties": {"kind": {"const": kind}, **schema["properties"]},
-                      "additionalProperties": False}}
+            {
+                "if": {"properties": {"kind": {"const": kind}}, "required": ["kind"]},
+                "then": {
+                    **schema,
+                    "properties": {"kind": {"const": kind}, **schema["properties"]},
+                    "additionalProperties": False,
+                },
+            }
             for kind, schema in _KIND_SCHEMAS.items()
         ],
     },

@@ -90,14 +90,12 @@ class Violation:
     alike: int = 1
 
     def subsets_text(self) -> str:
-        """"J = {1, 2} (forward) and the rest {3} (backward)", and the subsets alike."""
+        """ "J = {1, 2} (forward) and the rest {3} (backward)", and the subsets alike."""
         inside = np.nonzero(self.subset)[0]
         outside = np.nonzero(~self.subset)[0]
-        text = (f"J = {_blocks_text(inside)} (forward) and the rest {_blocks_text(outside)} "
-                "(backward)")
+        text = f"J = {_blocks_text(inside)} (forward) and the rest {_blocks_text(outside)} (backward)"
         if self.alike > 1:
-            text += (f" (and {self.alike - 1:,} more subsets that exchange blocks of J for "
-                     "blocks of the same friction)")
+            text += f" (and {self.alike - 1:,} more subsets that exchange blocks of J for blocks of the same friction)"
         return text
 
     def where(self, period: float) -> str:
@@ -120,16 +118,17 @@ class UniquenessAnalysis:
         """The refusal text: names every J with the rest and its intervals in units of time,
         then ``remedy``, the change that fixes them."""
         first, *others = self.violations
-        text = (f"uniqueness condition violated: for {first.subsets_text()}, sum mu+ over J - "
-                f"sum mu- over the rest = 0 for t in {first.where(period)} (a whole interval)")
+        text = (
+            f"uniqueness condition violated: for {first.subsets_text()}, sum mu+ over J - "
+            f"sum mu- over the rest = 0 for t in {first.where(period)} (a whole interval)"
+        )
         if others:
-            text += f"; and for {len(others)} more subset{'s' if len(others) > 1 else ''}: " + \
-                "; ".join(f"{v.subsets_text()} for t in {v.where(period)}" for v in others)
+            text += f"; and for {len(others)} more subset{'s' if len(others) > 1 else ''}: " + "; ".join(
+                f"{v.subsets_text()} for t in {v.where(period)}" for v in others
+            )
         if not self.complete:
-            text += ("; other subsets may violate it too (too many combinations of friction "
-                     "to list them all)")
-        text += (": the model does not determine how the crawler moves (docs/model.md §3, "
-                 "paper eq. (uniqueness)).")
+            text += "; other subsets may violate it too (too many combinations of friction to list them all)"
+        text += ": the model does not determine how the crawler moves (docs/model.md §3, paper eq. (uniqueness))."
         return text + (f" {remedy}" if remedy else "")
 
 
@@ -149,13 +148,14 @@ def find_violation(forward: Sequence[Signal], backward: Sequence[Signal]) -> Vio
     for first, last, mu_plus, mu_minus in samples.chunks():
         for k in range(last - first):
             columns = slice(k * per_piece, (k + 1) * per_piece)
-            counts = _search_piece(mu_plus[:, columns] + mu_minus[:, columns],
-                                   friction.multiplicity @ mu_minus[:, columns],
-                                   friction.multiplicity)
+            counts = _search_piece(
+                mu_plus[:, columns] + mu_minus[:, columns],
+                friction.multiplicity @ mu_minus[:, columns],
+                friction.multiplicity,
+            )
             if counts is None:
                 continue
-            violation = friction.violation(samples, _subset(counts, friction.pair_of,
-                                                            friction.blocks))
+            violation = friction.violation(samples, _subset(counts, friction.pair_of, friction.blocks))
             if violation is not None:
                 return violation
     return None
@@ -213,9 +213,9 @@ def _analyse(forward: Sequence[Signal], backward: Sequence[Signal]) -> Uniquenes
         band = _MATCH * TOLERANCE * (friction.multiplicity @ a)
         rows = max(1, MAX_SAMPLE_ENTRIES // a.shape[1])
         for start in range(0, len(counts), rows):
-            g = counts[start:start + rows] @ a - rest  # (rows, samples)
+            g = counts[start : start + rows] @ a - rest  # (rows, samples)
             zero = (np.abs(g) <= band).reshape(len(g), -1, per_piece)
-            hit[start:start + rows] |= np.any(np.all(zero, axis=2), axis=1)
+            hit[start : start + rows] |= np.any(np.all(zero, axis=2), axis=1)
     violations = [found]
     key = tuple(friction.counts_of(found.subset))
     for c in counts[hit].astype(np.int64):
@@ -227,14 +227,14 @@ def _analyse(forward: Sequence[Signal], backward: Sequence[Signal]) -> Uniquenes
     return UniquenessAnalysis(tuple(violations), complete=True, pair_of=friction.pair_of)
 
 
-def alike_subsets(violation: Violation, forward: Sequence[Signal], backward: Sequence[Signal],
-                  limit: int = 64) -> list[np.ndarray]:
+def alike_subsets(
+    violation: Violation, forward: Sequence[Signal], backward: Sequence[Signal], limit: int = 64
+) -> list[np.ndarray]:
     """J and the subsets that exchange its blocks for blocks of the same friction pair (the same
     g_J), in lexicographic order of their blocks; at most ``limit`` of them."""
     friction = _Friction(forward, backward)
     counts = friction.counts_of(violation.subset)
-    choices = [itertools.combinations(np.flatnonzero(friction.pair_of == p), int(c))
-               for p, c in enumerate(counts)]
+    choices = [itertools.combinations(np.flatnonzero(friction.pair_of == p), int(c)) for p, c in enumerate(counts)]
     out = []
     for chosen in itertools.islice(itertools.product(*choices), limit):
         subset = np.zeros(friction.blocks, dtype=bool)
@@ -251,19 +251,16 @@ class _Friction:
     def __init__(self, forward: Sequence[Signal], backward: Sequence[Signal]):
         self.blocks = len(forward)
         pairs: dict[tuple[Signal, Signal], int] = {}
-        self.pair_of = np.array([pairs.setdefault((f, b), len(pairs))
-                                 for f, b in zip(forward, backward)])
+        self.pair_of = np.array([pairs.setdefault((f, b), len(pairs)) for f, b in zip(forward, backward)])
         self.distinct = list(pairs)
         self.multiplicity = np.bincount(self.pair_of, minlength=len(self.distinct))
 
     def samples(self) -> tuple[_Samples, int]:
         """The sampled pieces (module docstring, "Sampling") and the samples per piece."""
         signals = [s for pair in self.distinct for s in pair]
-        edges = np.append(union_breakpoints([s.breakpoints() for s in signals] + [np.zeros(1)]),
-                          1.0)
+        edges = np.append(union_breakpoints([s.breakpoints() for s in signals] + [np.zeros(1)]), 1.0)
         degree = max(s.harmonics for s in signals)
-        linear = any(isinstance(s, PiecewiseLinear) or getattr(s, "has_linear", False)
-                     for s in signals)
+        linear = any(isinstance(s, PiecewiseLinear) or getattr(s, "has_linear", False) for s in signals)
         per_piece = 2 * degree + 2 + int(linear)
         fractions = (np.arange(per_piece) + 1.0) / (per_piece + 1.0)
         fractions = fractions + 0.3 * np.sin(7.0 * fractions) / (per_piece + 1.0)
@@ -287,8 +284,7 @@ class _Friction:
 class _Samples:
     """The distinct friction pairs sampled on the pieces, a bounded number of pieces at a time."""
 
-    def __init__(self, distinct: list[tuple[Signal, Signal]], edges: np.ndarray,
-                 fractions: np.ndarray):
+    def __init__(self, distinct: list[tuple[Signal, Signal]], edges: np.ndarray, fractions: np.ndarray):
         self.distinct, self.edges, self.fractions = distinct, edges, fractions
         self.pieces = len(edges) - 1
         self.step = max(1, MAX_SAMPLE_ENTRIES // (2 * len(distinct) * len(fractions)))
@@ -297,13 +293,16 @@ class _Samples:
         """(first piece, end piece, mu^+ (pairs, samples), mu^- (pairs, samples))."""
         for first in range(0, self.pieces, self.step):
             last = min(self.pieces, first + self.step)
-            lo, width = self.edges[first:last], np.diff(self.edges[first:last + 1])
+            lo, width = self.edges[first:last], np.diff(self.edges[first : last + 1])
             u = (lo[:, None] + width[:, None] * self.fractions).ravel()
-            yield (first, last, evaluate_many([f for f, _ in self.distinct], u).T,
-                   evaluate_many([b for _, b in self.distinct], u).T)
+            yield (
+                first,
+                last,
+                evaluate_many([f for f, _ in self.distinct], u).T,
+                evaluate_many([b for _, b in self.distinct], u).T,
+            )
 
-    def vanishing_intervals(self, inside: np.ndarray, outside: np.ndarray
-                            ) -> tuple[tuple[float, float], ...]:
+    def vanishing_intervals(self, inside: np.ndarray, outside: np.ndarray) -> tuple[tuple[float, float], ...]:
         """The unions of pieces on which g_J vanishes at every sample, for J holding ``inside[p]``
         blocks of friction pair p and leaving out ``outside[p]``: the search's answer verified
         from the signals themselves."""
@@ -415,7 +414,8 @@ class _HalfSums:
                     f"the search would hold more than {MAX_HALF_ENTRIES:,} values for one half "
                     f"({size:,} distinct sums of friction coefficients x {r} samples per "
                     f"piece): {len(scaled)} groups of blocks with distinct friction are too many "
-                    "to check exactly")
+                    "to check exactly"
+                )
             grown = np.concatenate([sums, sums + weight * scaled[g]])
             keep = _distinct_cells(np.floor(grown / quantum).astype(np.int64))
             self.parents.append(keep % len(sums))
@@ -426,8 +426,7 @@ class _HalfSums:
     def counts(self, index: int) -> np.ndarray:
         """The count of each group in the sum ``self.sums[index]``."""
         out = np.zeros(self.groups, dtype=np.int64)
-        for (g, weight), parents, taken in zip(reversed(self.items), reversed(self.parents),
-                                               reversed(self.taken)):
+        for (g, weight), parents, taken in zip(reversed(self.items), reversed(self.parents), reversed(self.taken)):
             if taken[index]:
                 out[g] += weight
             index = int(parents[index])
@@ -439,8 +438,7 @@ def _splitmix64(count: int) -> np.ndarray:
     Lea and Flood 2014): fixed, well-mixed 64-bit words for the hash and the key weights below,
     without importing numpy.random (a tenth of `crawlsim validate`'s start-up)."""
     with np.errstate(over="ignore"):
-        z = np.uint64(_KEY_WEIGHTS_SEED) + (np.arange(1, count + 1, dtype=np.uint64)
-                                             * np.uint64(0x9E3779B97F4A7C15))
+        z = np.uint64(_KEY_WEIGHTS_SEED) + (np.arange(1, count + 1, dtype=np.uint64) * np.uint64(0x9E3779B97F4A7C15))
         z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
         z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
         return z ^ (z >> np.uint64(31))
@@ -487,7 +485,7 @@ def _meet(left: np.ndarray, right: np.ndarray, target: np.ndarray) -> tuple[int,
     binary search; every pair in a window is then verified on all samples.
     """
     r = left.shape[1]
-    weights = 1.0 + (_splitmix64(r) >> np.uint64(11)).astype(float) * 2.0 ** -53  # in [1, 2)
+    weights = 1.0 + (_splitmix64(r) >> np.uint64(11)).astype(float) * 2.0**-53  # in [1, 2)
     key_left = left @ weights
     key_right = right @ weights
     right_order = np.argsort(key_right, kind="stable")
@@ -509,7 +507,8 @@ def _meet(left: np.ndarray, right: np.ndarray, target: np.ndarray) -> tuple[int,
         raise UniquenessUndecidable(
             f"{total:,} candidate subsets would have to be verified (more than "
             f"{MAX_CANDIDATES:,}): the friction coefficients have too many nearly equal sums to "
-            "check exactly")
+            "check exactly"
+        )
     rights = np.nonzero(width)[0]
     cumulative = np.cumsum(width[rights])
     start = 0

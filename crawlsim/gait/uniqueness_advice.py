@@ -84,9 +84,11 @@ class Change:
 
     def text(self) -> str:
         path = "" if self.slot.dotted == self.slot.keypath else f" (path {self.slot.dotted})"
-        return (f"To restore it, change {self.slot.keypath} from {self.slot.value:g} to "
-                f"{self.new!r}{path}: the smallest change of one friction coefficient that does, "
-                "in round steps from 1 % of it")
+        return (
+            f"To restore it, change {self.slot.keypath} from {self.slot.value:g} to "
+            f"{self.new!r}{path}: the smallest change of one friction coefficient that does, "
+            "in round steps from 1 % of it"
+        )
 
 
 def friction_slots(document: dict, blocks: int) -> list[Slot]:
@@ -122,8 +124,7 @@ def _steps(value: float, scale: float) -> list[Decimal]:
     """Round steps 1, 2, 5 x 10^e from 1 % of |value| (of ``scale`` for a zero) up to it."""
     size = abs(value) or scale
     low = math.floor(math.log10(0.01 * size))
-    steps = [Decimal(m) * Decimal(10) ** e for e in range(low, math.floor(math.log10(size)) + 1)
-             for m in _MANTISSAS]
+    steps = [Decimal(m) * Decimal(10) ** e for e in range(low, math.floor(math.log10(size)) + 1) for m in _MANTISSAS]
     return [s for s in steps if 0.01 * size * (1 - 1e-9) <= float(s) <= size * (1 + 1e-9)]
 
 
@@ -140,8 +141,11 @@ def _enters_every(slot: Slot, analysis: UniquenessAnalysis) -> bool:
     multiplicity = np.bincount(pair_of, minlength=pairs)
     for violation in analysis.violations:
         inside = np.bincount(pair_of[violation.subset], minlength=pairs)
-        least = (np.maximum(0, inside - multiplicity + owned) if slot.direction == "forward"
-                 else np.maximum(0, owned - inside))
+        least = (
+            np.maximum(0, inside - multiplicity + owned)
+            if slot.direction == "forward"
+            else np.maximum(0, owned - inside)
+        )
         if not least.sum() > 0:
             return False
     return True
@@ -155,8 +159,9 @@ class NoChange:
     impossible: bool
 
 
-def smallest_change(document: dict, friction: Friction, analysis: UniquenessAnalysis,
-                    acceptable: FrictionTest, source: str) -> Change | NoChange:
+def smallest_change(
+    document: dict, friction: Friction, analysis: UniquenessAnalysis, acceptable: FrictionTest, source: str
+) -> Change | NoChange:
     """The smallest change of one coefficient (module docstring) after which ``acceptable``
     holds for the changed friction, or why there is none within `MAX_TRIALS`
     (`MAX_TRIALS_LARGE`) tests."""
@@ -165,10 +170,11 @@ def smallest_change(document: dict, friction: Friction, analysis: UniquenessAnal
     if not slots:
         return NoChange(impossible=True)
     scale = max((abs(s.value) for s in slots), default=1.0) or 1.0
-    candidates = sorted(((step, i, sign) for i, slot in enumerate(slots)
-                         for step in _steps(slot.value, scale) for sign in (1, -1)),
-                        key=lambda c: (c[0], c[1], -c[2]))
-    for step, i, sign in candidates[:MAX_TRIALS if analysis.complete else MAX_TRIALS_LARGE]:
+    candidates = sorted(
+        ((step, i, sign) for i, slot in enumerate(slots) for step in _steps(slot.value, scale) for sign in (1, -1)),
+        key=lambda c: (c[0], c[1], -c[2]),
+    )
+    for step, i, sign in candidates[: MAX_TRIALS if analysis.complete else MAX_TRIALS_LARGE]:
         slot = slots[i]
         new = float(Decimal(repr(slot.value)) + sign * step)
         changed = _changed(document, slot, new, source)
@@ -177,8 +183,7 @@ def smallest_change(document: dict, friction: Friction, analysis: UniquenessAnal
         signals = list(forward if slot.direction == "forward" else backward)
         for j in slot.blocks:
             signals[j] = changed
-        trial = (tuple(signals), backward) if slot.direction == "forward" else (forward,
-                                                                               tuple(signals))
+        trial = (tuple(signals), backward) if slot.direction == "forward" else (forward, tuple(signals))
         if acceptable(*trial):
             return Change(slot, new)
     return NoChange(impossible=False)
@@ -188,7 +193,7 @@ def _changed(document: dict, slot: Slot, new: float, source: str) -> Signal | No
     """The slot's signal with its number set to ``new``; None if that is not a valid signal."""
     head, _, direction = slot.signal_path.rpartition(".")
     friction = document["friction"]
-    entry = friction if head == "friction" else friction[int(head[len("friction["):-1])]
+    entry = friction if head == "friction" else friction[int(head[len("friction[") : -1])]
     signal = copy.deepcopy(entry[direction])
     if not slot.inner:
         signal = new
@@ -203,14 +208,24 @@ def _changed(document: dict, slot: Slot, new: float, source: str) -> Signal | No
         return None
 
 
-def uniqueness_message(document: dict, forward: Sequence[Signal], backward: Sequence[Signal],
-                       analysis: UniquenessAnalysis, period: float, acceptable: FrictionTest,
-                       loaded: bool = False, source: str = "") -> str:
+def uniqueness_message(
+    document: dict,
+    forward: Sequence[Signal],
+    backward: Sequence[Signal],
+    analysis: UniquenessAnalysis,
+    period: float,
+    acceptable: FrictionTest,
+    loaded: bool = False,
+    source: str = "",
+) -> str:
     """The refusal: every violating J with its intervals, then the fix (`smallest_change`)."""
-    note = (" Here mu+ and mu- are the thresholds shifted by the loads, mu cos(angle) -+ F "
-            "(docs/model.md §6): change the load or the friction." if loaded else "")
-    change = smallest_change(document, (tuple(forward), tuple(backward)), analysis, acceptable,
-                             source)
+    note = (
+        " Here mu+ and mu- are the thresholds shifted by the loads, mu cos(angle) -+ F "
+        "(docs/model.md §6): change the load or the friction."
+        if loaded
+        else ""
+    )
+    change = smallest_change(document, (tuple(forward), tuple(backward)), analysis, acceptable, source)
     return analysis.message(period, remedy_text(change)) + note
 
 
@@ -219,12 +234,16 @@ def remedy_text(change: Change | NoChange) -> str:
     if isinstance(change, Change):
         return change.text() + "."
     if change.impossible:
-        return ("No single friction coefficient of the file enters the g_J of every subset "
-                "above (blocks of the same friction are exchanged between them), so no change "
-                "of one coefficient restores it: change the friction of those blocks together "
-                "(one shared 'friction: {forward: ..., backward: ...}' moves all blocks at "
-                "once), or one coefficient in the g_J of each subset (mu+ of a block in J or mu- "
-                "of a block outside it).")
-    return ("No change of one friction coefficient among the smallest tried restores it: "
-            "change one coefficient in the g_J of each subset above (mu+ of a block in J "
-            "or mu- of a block outside it).")
+        return (
+            "No single friction coefficient of the file enters the g_J of every subset "
+            "above (blocks of the same friction are exchanged between them), so no change "
+            "of one coefficient restores it: change the friction of those blocks together "
+            "(one shared 'friction: {forward: ..., backward: ...}' moves all blocks at "
+            "once), or one coefficient in the g_J of each subset (mu+ of a block in J or mu- "
+            "of a block outside it)."
+        )
+    return (
+        "No change of one friction coefficient among the smallest tried restores it: "
+        "change one coefficient in the g_J of each subset above (mu+ of a block in J "
+        "or mu- of a block outside it)."
+    )

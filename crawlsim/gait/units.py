@@ -29,12 +29,17 @@ BASES = ("length", "time", "force")
 UNITS_SCHEMA: dict[str, Any] = {
     "type": "object",
     "x-expected": "a mapping {length: ..., time: ..., force: ...} of unit names, for example "
-                  "{length: mm, time: s, force: N}",
+    "{length: mm, time: s, force: N}",
     "additionalProperties": False,
-    "properties": {base: {"type": "string", "minLength": 1, "pattern": r"\S",
-                          "x-expected": f"a non-blank unit name for {base} (a string such "
-                                        f"as {example!r})"}
-                   for base, example in zip(BASES, ("mm", "s", "N"))},
+    "properties": {
+        base: {
+            "type": "string",
+            "minLength": 1,
+            "pattern": r"\S",
+            "x-expected": f"a non-blank unit name for {base} (a string such as {example!r})",
+        }
+        for base, example in zip(BASES, ("mm", "s", "N"))
+    },
 }
 """JSON Schema of the ``units:`` block (unknown keys are refused like everywhere else)."""
 
@@ -66,14 +71,41 @@ UNIT_NAMES: dict[str, tuple[str, ...]] = {
 #: Names written out (lower case, singular or plural, British or American), and the symbol
 #: they stand for: suggested, never accepted, so that every file spells a unit one way.
 _SPELLED_OUT = {
-    "meter": "m", "metre": "m", "kilometer": "km", "kilometre": "km", "centimeter": "cm",
-    "centimetre": "cm", "millimeter": "mm", "millimetre": "mm", "micrometer": "um",
-    "micrometre": "um", "micron": "um", "nanometer": "nm", "nanometre": "nm", "inch": "in",
-    "inches": "in", "foot": "ft", "feet": "ft", "second": "s", "sec": "s",
-    "millisecond": "ms", "msec": "ms", "microsecond": "us", "nanosecond": "ns", "minute": "min",
-    "hour": "h", "hr": "h", "newton": "N", "kilonewton": "kN", "millinewton": "mN",
-    "micronewton": "uN", "nanonewton": "nN", "dyne": "dyn", "pound-force": "lbf",
-    "pound force": "lbf", "lb": "lbf",
+    "meter": "m",
+    "metre": "m",
+    "kilometer": "km",
+    "kilometre": "km",
+    "centimeter": "cm",
+    "centimetre": "cm",
+    "millimeter": "mm",
+    "millimetre": "mm",
+    "micrometer": "um",
+    "micrometre": "um",
+    "micron": "um",
+    "nanometer": "nm",
+    "nanometre": "nm",
+    "inch": "in",
+    "inches": "in",
+    "foot": "ft",
+    "feet": "ft",
+    "second": "s",
+    "sec": "s",
+    "millisecond": "ms",
+    "msec": "ms",
+    "microsecond": "us",
+    "nanosecond": "ns",
+    "minute": "min",
+    "hour": "h",
+    "hr": "h",
+    "newton": "N",
+    "kilonewton": "kN",
+    "millinewton": "mN",
+    "micronewton": "uN",
+    "nanonewton": "nN",
+    "dyne": "dyn",
+    "pound-force": "lbf",
+    "pound force": "lbf",
+    "lb": "lbf",
 }
 
 
@@ -90,8 +122,7 @@ def unit_problem(base: str, name: str) -> str | None:
     if singular in _SPELLED_OUT:
         symbol = _SPELLED_OUT[singular]
         if symbol in accepted:
-            return (f"expected {expected}; got {name!r}: write its symbol, {symbol!r} "
-                    f"(did you mean {symbol!r}?)")
+            return f"expected {expected}; got {name!r}: write its symbol, {symbol!r} (did you mean {symbol!r}?)"
     for other, names in UNIT_NAMES.items():
         if name in names or _SPELLED_OUT.get(singular) in names:
             return f"expected {expected}; got {name!r}, a unit of {other}"
@@ -99,8 +130,9 @@ def unit_problem(base: str, name: str) -> str | None:
     if len(same_letters) == 1:  # "MM": the case is wrong, not the unit
         return f"expected {expected}; got {name!r}; did you mean {same_letters[0]!r}?"
     pool = list(accepted) + [k for k, v in _SPELLED_OUT.items() if v in accepted]
-    close = difflib.get_close_matches(name, pool, n=3, cutoff=0.5) or \
-        difflib.get_close_matches(word, pool, n=3, cutoff=0.5)
+    close = difflib.get_close_matches(name, pool, n=3, cutoff=0.5) or difflib.get_close_matches(
+        word, pool, n=3, cutoff=0.5
+    )
     suggestions = list(dict.fromkeys(_SPELLED_OUT.get(c, c) for c in close))
     hint = f"; did you mean {' or '.join(map(repr, suggestions))}?" if suggestions else ""
     return f"expected {expected}; got {name!r}{hint}"
@@ -151,8 +183,7 @@ class Units:
                 return cls()
         if not isinstance(value, Mapping):
             return cls()
-        return cls(**{k: str(value[k]) for k in BASES
-                      if isinstance(value.get(k), str) and value[k].strip()})
+        return cls(**{k: str(value[k]) for k in BASES if isinstance(value.get(k), str) and value[k].strip()})
 
     def to_json(self) -> dict[str, str]:
         """The block as given: only the base dimensions that have a unit."""
@@ -188,7 +219,7 @@ class Units:
         return text
 
     def suffix(self, quantity: str) -> str:
-        """" mm/s" to append to a printed number, or "" when the quantity is dimensionless."""
+        """ " mm/s" to append to a printed number, or "" when the quantity is dimensionless."""
         unit = self.of(quantity)
         return "" if unit == "1" else f" {unit}"
 
@@ -217,5 +248,4 @@ def path_quantity(kind: str, keys: tuple[str | int, ...]) -> str:
         return "length" if first in ("offsets", "initial") else "1"
     if first == "loads":  # forces and weights; a slope's angle in degrees (docs/model.md §6)
         return "angle" if names[-1] == "angle" else "force"
-    return {"stiffness": "stiffness", "links": "length", "friction": "force",
-            "initial": "length"}.get(first, "1")
+    return {"stiffness": "stiffness", "links": "length", "friction": "force", "initial": "length"}.get(first, "1")

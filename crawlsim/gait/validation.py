@@ -54,8 +54,14 @@ def structure(schema: dict) -> dict:
 _SKELETONS: dict[int, dict] = {}
 
 
-def validated(document: dict, schema: dict, build: Builder, source: str,
-              source_text: str | None = None, default_name: str = "gait") -> Any:
+def validated(
+    document: dict,
+    schema: dict,
+    build: Builder,
+    source: str,
+    source_text: str | None = None,
+    default_name: str = "gait",
+) -> Any:
     """A plain document checked (finite numbers, then the structure of ``schema``) and built by
     ``build``, whose first error is raised."""
     check_finite(document, source)

@@ -103,8 +103,12 @@ def _guard_events(text: str, parser_class: Any) -> None:
             added = 0
             if isinstance(event, (SequenceStartEvent, MappingStartEvent)):
                 if len(stack) >= MAX_DEPTH:
-                    raise _Refused(None, None, f"nesting deeper than {MAX_DEPTH} levels; a gait file "
-                                               "needs at most 5", event.start_mark)
+                    raise _Refused(
+                        None,
+                        None,
+                        f"nesting deeper than {MAX_DEPTH} levels; a gait file needs at most 5",
+                        event.start_mark,
+                    )
                 stack.append([event.anchor, 1])
                 if event.anchor is not None:
                     open_anchors.add(event.anchor)
@@ -119,17 +123,25 @@ def _guard_events(text: str, parser_class: Any) -> None:
                     sizes[event.anchor] = 1
             elif isinstance(event, AliasEvent):
                 if event.anchor in open_anchors:
-                    raise _Refused(None, None, f"recursive alias *{event.anchor}: the anchor is "
-                                               "used inside itself", event.start_mark)
+                    raise _Refused(
+                        None,
+                        None,
+                        f"recursive alias *{event.anchor}: the anchor is used inside itself",
+                        event.start_mark,
+                    )
                 added = sizes.get(event.anchor, 1)  # an undefined alias is the composer's error
             elif isinstance(event, DocumentStartEvent):
                 sizes.clear()
             if added and stack:
                 stack[-1][1] += added
                 if stack[-1][1] > MAX_NODES:
-                    raise _Refused(None, None, f"the document holds more than {MAX_NODES:,} values "
-                                               "once its aliases are expanded (an alias bomb?)",
-                                   event.start_mark)
+                    raise _Refused(
+                        None,
+                        None,
+                        f"the document holds more than {MAX_NODES:,} values "
+                        "once its aliases are expanded (an alias bomb?)",
+                        event.start_mark,
+                    )
     finally:
         parser.dispose()
 
@@ -155,8 +167,9 @@ class _Constructor(SafeConstructor):
         no number of a gait needs more than a few)."""
         digits = sum(c.isalnum() for c in str(node.value))
         if digits > MAX_INT_DIGITS:
-            raise _Refused(None, None, f"an integer of {digits:,} digits; at most "
-                                       f"{MAX_INT_DIGITS:,} are read", node.start_mark)
+            raise _Refused(
+                None, None, f"an integer of {digits:,} digits; at most {MAX_INT_DIGITS:,} are read", node.start_mark
+            )
         return super().construct_yaml_int(node)
 
 
@@ -187,6 +200,7 @@ _Resolver.add_implicit_resolver(
     re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
     list("-+0123456789"),
 )
+
 
 class _PythonParser(Reader, Scanner, Parser):
     """PyYAML's pure-Python event parser (no nesting limit of its own, reads only as far as it
@@ -271,8 +285,11 @@ def read_limited(path: str | Path, limit: int = MAX_GAIT_BYTES) -> str:
         raise GaitError(source, "", "is a device, not a gait file")
     if stat.S_ISSOCK(mode):
         raise GaitError(source, "", "is a socket, not a gait file")
-    too_big = GaitError(source, "", f"is larger than {limit:,} bytes: a gait file is a small text "
-                                    "file (see the size limits in the gait schema)")
+    too_big = GaitError(
+        source,
+        "",
+        f"is larger than {limit:,} bytes: a gait file is a small text file (see the size limits in the gait schema)",
+    )
     if stat.S_ISREG(mode) and info.st_size > limit:
         raise too_big
     try:
@@ -300,5 +317,4 @@ def read_limited(path: str | Path, limit: int = MAX_GAIT_BYTES) -> str:
     try:
         return b"".join(chunks).decode("utf-8")
     except UnicodeDecodeError as error:
-        raise GaitError(source, "", f"is not UTF-8 text (byte {error.start}): a gait file is "
-                                    "YAML text") from None
+        raise GaitError(source, "", f"is not UTF-8 text (byte {error.start}): a gait file is YAML text") from None

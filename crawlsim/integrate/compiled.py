@@ -40,8 +40,9 @@ class _Transitions(Sequence[Transition]):
     factored by `crawlsim.kernel.kkt` only when they are read (`crawlsim.integrate.limit`,
     sensitivities)."""
 
-    def __init__(self, poly: Polyhedron, u: np.ndarray, piece: np.ndarray, signs: np.ndarray,
-                 cause: np.ndarray, hit: np.ndarray) -> None:
+    def __init__(
+        self, poly: Polyhedron, u: np.ndarray, piece: np.ndarray, signs: np.ndarray, cause: np.ndarray, hit: np.ndarray
+    ) -> None:
         self._poly = poly
         self._arrays = (u, piece, signs, cause, hit)
         self._built: list[Transition] | None = None
@@ -53,9 +54,15 @@ class _Transitions(Sequence[Transition]):
 
             u, piece, signs, cause, hit = self._arrays
             self._built = [
-                Transition(float(u[i]), int(piece[i]), self._poly.factor(rows_of(signs[i])),
-                           cast(TransitionCause, CAUSES[int(cause[i])]), np.flatnonzero(hit[i]))
-                for i in range(len(u))]
+                Transition(
+                    float(u[i]),
+                    int(piece[i]),
+                    self._poly.factor(rows_of(signs[i])),
+                    cast(TransitionCause, CAUSES[int(cause[i])]),
+                    np.flatnonzero(hit[i]),
+                )
+                for i in range(len(u))
+            ]
         return self._built
 
     def __len__(self) -> int:
@@ -125,8 +132,7 @@ class _CompiledLoop:
         self.coef = np.ascontiguousarray([pieces.coefficients(q) for q in range(P)], dtype=float)
         self.target = np.zeros((P + 1, m))
         for edge in map(int, np.flatnonzero(stepper._jump)):
-            self.target[edge] = pieces.evaluate(pieces.edges[edge] if edge < P else 0.0,
-                                                piece=edge % P)[0]
+            self.target[edge] = pieces.evaluate(pieces.edges[edge] if edge < P else 0.0, piece=edge % P)[0]
         self.terms = np.zeros((4, P, nb, n))
         self.rows = np.zeros((2, P, nb, m))
         if stepper._ledger is not None:
@@ -181,7 +187,8 @@ class _CompiledLoop:
                 f"{start + s._grid[j] * s.process.period:.12g}: constraint violation "
                 f"{report[loop.R_PRIMAL]:.3g}, negative slip integral {report[loop.R_DUAL]:.3g} "
                 f"(tolerance {report[loop.R_TOLP]:.3g} / {report[loop.R_TOLD]:.3g}), "
-                f"complementarity {report[loop.R_COMP]:.3g}")
+                f"complementarity {report[loop.R_COMP]:.3g}"
+            )
         return None  # HANDOFF
 
     def _run(self, s: EventStepper) -> dict[str, Any]:
@@ -201,17 +208,27 @@ class _CompiledLoop:
             E = out["capacity"]
         T2 = E + P + 2
         if "ev_t" not in out:
-            out.update({
-                "capacity": E, "ev_t": np.empty(E), "ev_w": np.empty((E, n)),
-                "ev_dx": np.empty((E, N)), "tr_u": np.empty(T2),
-                "tr_piece": np.empty(T2, dtype=np.int64),
-                "tr_signs": np.empty((T2, N), dtype=np.int8),
-                "tr_cause": np.empty(T2, dtype=np.int8),
-                "tr_hit": np.zeros((T2, m), dtype=np.bool_), "bounds": np.empty((E, 2)),
-                "products": np.empty((E, 3, nb, nb)),
-                "jump_piece": np.empty(P + 1, dtype=np.int64), "jump_u": np.empty(P + 1),
-                "jump_w": np.empty((P + 1, 2, n)), "jump_lam": np.empty((P + 1, m)),
-                "counts": np.zeros(4, dtype=np.int64), "report": np.zeros(8)})
+            out.update(
+                {
+                    "capacity": E,
+                    "ev_t": np.empty(E),
+                    "ev_w": np.empty((E, n)),
+                    "ev_dx": np.empty((E, N)),
+                    "tr_u": np.empty(T2),
+                    "tr_piece": np.empty(T2, dtype=np.int64),
+                    "tr_signs": np.empty((T2, N), dtype=np.int8),
+                    "tr_cause": np.empty(T2, dtype=np.int8),
+                    "tr_hit": np.zeros((T2, m), dtype=np.bool_),
+                    "bounds": np.empty((E, 2)),
+                    "products": np.empty((E, 3, nb, nb)),
+                    "jump_piece": np.empty(P + 1, dtype=np.int64),
+                    "jump_u": np.empty(P + 1),
+                    "jump_w": np.empty((P + 1, 2, n)),
+                    "jump_lam": np.empty((P + 1, m)),
+                    "counts": np.zeros(4, dtype=np.int64),
+                    "report": np.zeros(8),
+                }
+            )
         out["LAMC"] = self._lamc  # the cumulative slips on the grid: scratch of the loop
         if out["LAMC"].shape != (G + 1, m):
             out["LAMC"] = self._lamc = np.empty((G + 1, m))
@@ -222,20 +239,51 @@ class _CompiledLoop:
         out["X"] = self._array("X", (G + 1, N)) if s.x is not None else np.empty((0, 0))
         x0 = np.ascontiguousarray(s.x, dtype=float) if s.x is not None else np.empty(0)
         # the set the last period ended on, when the stepper still has it (`_record`)
-        out["signs"] = (self._final_signs.copy() if s.active is self._final[1]
-                        else catchup.signs_of(s.active, N))
+        out["signs"] = self._final_signs.copy() if s.active is self._final[1] else catchup.signs_of(s.active, N)
         out["status"] = eventloop.period(
-            self.k, self.c_scale, s.basis.linear, s.basis.harmonics, self.coef, s.pieces.edges,
-            s._jump, self.target, s._grid, self.phi, np.ascontiguousarray(s.w, dtype=float),
+            self.k,
+            self.c_scale,
+            s.basis.linear,
+            s.basis.harmonics,
+            self.coef,
+            s.pieces.edges,
+            s._jump,
+            self.target,
+            s._grid,
+            self.phi,
+            np.ascontiguousarray(s.w, dtype=float),
             out["signs"],
-            s.max_events, s.zeno_events, s.zeno_window,
-            0 if s._ledger is None else s._ledger.products, self.terms[0],
-            self.terms[1], self.rows[0], self.rows[1], out["W"], out["LAMC"], out["MU"], x0,
-            out["X"], out["ev_t"],
-            out["ev_w"], out["ev_dx"], out["tr_u"], out["tr_piece"], out["tr_signs"],
-            out["tr_cause"], out["tr_hit"], out["bounds"], out["products"], out["jump_piece"],
-            out["jump_u"], out["jump_w"], out["jump_lam"], out["counts"], out["report"],
-            s.cells_per_cycle)
+            s.max_events,
+            s.zeno_events,
+            s.zeno_window,
+            0 if s._ledger is None else s._ledger.products,
+            self.terms[0],
+            self.terms[1],
+            self.rows[0],
+            self.rows[1],
+            out["W"],
+            out["LAMC"],
+            out["MU"],
+            x0,
+            out["X"],
+            out["ev_t"],
+            out["ev_w"],
+            out["ev_dx"],
+            out["tr_u"],
+            out["tr_piece"],
+            out["tr_signs"],
+            out["tr_cause"],
+            out["tr_hit"],
+            out["bounds"],
+            out["products"],
+            out["jump_piece"],
+            out["jump_u"],
+            out["jump_w"],
+            out["jump_lam"],
+            out["counts"],
+            out["report"],
+            s.cells_per_cycle,
+        )
         return out
 
     def _array(self, name: str, shape: tuple[int, int]) -> np.ndarray:
@@ -272,19 +320,45 @@ class _CompiledLoop:
         s.w = W[-1].copy()
         energy = None
         if s._ledger is not None:
-            energy = _Energy(s._ledger, out["bounds"][:q].copy(),
-                             out["products"][:q, :s._ledger.products].copy(),
-                             [(int(out["jump_piece"][i]), float(out["jump_u"][i]),
-                               out["jump_w"][i, 0].copy(), out["jump_w"][i, 1].copy(),
-                               out["jump_lam"][i].copy()) for i in range(nj)],
-                             W[0], W[-1])
+            energy = _Energy(
+                s._ledger,
+                out["bounds"][:q].copy(),
+                out["products"][:q, : s._ledger.products].copy(),
+                [
+                    (
+                        int(out["jump_piece"][i]),
+                        float(out["jump_u"][i]),
+                        out["jump_w"][i, 0].copy(),
+                        out["jump_w"][i, 1].copy(),
+                        out["jump_lam"][i].copy(),
+                    )
+                    for i in range(nj)
+                ],
+                W[0],
+                W[-1],
+            )
         signs = out["tr_signs"][:t].copy()
-        transitions = _Transitions(s.poly, out["tr_u"][:t].copy(), out["tr_piece"][:t].copy(),
-                                   signs, out["tr_cause"][:t].copy(), out["tr_hit"][:t].copy())
+        transitions = _Transitions(
+            s.poly,
+            out["tr_u"][:t].copy(),
+            out["tr_piece"][:t].copy(),
+            signs,
+            out["tr_cause"][:t].copy(),
+            out["tr_hit"][:t].copy(),
+        )
         events = EventTrajectory(start + out["ev_t"][:e] * T, out["ev_w"][:e].copy(), x_events)
-        record = PeriodRecord(s.period_index, start, W, MU, X, 0,
-                              events=events, visited=_Visited(s.poly, signs),
-                              transitions=transitions, energy_of=energy)
+        record = PeriodRecord(
+            s.period_index,
+            start,
+            W,
+            MU,
+            X,
+            0,
+            events=events,
+            visited=_Visited(s.poly, signs),
+            transitions=transitions,
+            energy_of=energy,
+        )
         return record
 
 

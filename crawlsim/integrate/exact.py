@@ -123,14 +123,23 @@ class EventStepper(PeriodStepper):
     needs_admissible_start = True
     pieces: PiecewiseOffsets
 
-    def __init__(self, process: SweepingProcess, *, check_every_step: bool = False,
-                 max_events: int = MAX_EVENTS, zeno_events: int = ZENO_EVENTS,
-                 zeno_window: float = ZENO_WINDOW, cells_per_cycle: int = CELLS_PER_CYCLE,
-                 kernel: bool = True):
+    def __init__(
+        self,
+        process: SweepingProcess,
+        *,
+        check_every_step: bool = False,
+        max_events: int = MAX_EVENTS,
+        zeno_events: int = ZENO_EVENTS,
+        zeno_window: float = ZENO_WINDOW,
+        cells_per_cycle: int = CELLS_PER_CYCLE,
+        kernel: bool = True,
+    ):
         if process.offset_pieces is None:
-            raise EventError(f"{process.name}: the exact integrator needs the closed form of "
-                             "c(t) that gait and process files provide; use --integrator "
-                             "catch-up")
+            raise EventError(
+                f"{process.name}: the exact integrator needs the closed form of "
+                "c(t) that gait and process files provide; use --integrator "
+                "catch-up"
+            )
         super().__init__(process, check_every_step=check_every_step)
         self.poly = process.polyhedron
         self.pieces = process.offset_pieces
@@ -207,8 +216,7 @@ class EventStepper(PeriodStepper):
             event = self._next_event(piece, piece_index, u, u_end)
             u_e = u_end if event is None else event[0]
             if ledger is not None:
-                ledger.piece(piece_index, u, u_e, piece.base, piece.Wc, piece.active.index,
-                             piece.Y)
+                ledger.piece(piece_index, u, u_e, piece.base, piece.Wc, piece.active.index, piece.Y)
             # sample the grid times in (u, u_e]
             j_end = int(np.searchsorted(self._grid, u_e, side="right"))
             if j_end > j:
@@ -216,8 +224,9 @@ class EventStepper(PeriodStepper):
                 Wg, Lg = piece.at(phi, m)
                 W[j:j_end] = Wg
                 LAMC[j:j_end] = lam_cum + Lg
-                carried = self._certify_piece(Wg, LAMC[j - 1:j_end], piece, phi, piece_index,
-                                              start + self._grid[j:j_end] * T, carried)
+                carried = self._certify_piece(
+                    Wg, LAMC[j - 1 : j_end], piece, phi, piece_index, start + self._grid[j:j_end] * T, carried
+                )
                 j = j_end
             else:  # the grid interval spans this piece: its roundoff enters the next sample
                 carried = max(carried, self._dual_scale(piece, piece_index))
@@ -232,8 +241,7 @@ class EventStepper(PeriodStepper):
             cause = "edge"
             edge = piece_index + 1
             if self._jump[edge]:
-                target = pieces.evaluate(u if edge < pieces.pieces else 0.0,
-                                         piece=edge % pieces.pieces)[0]
+                target = pieces.evaluate(u if edge < pieces.pieces else 0.0, piece=edge % pieces.pieces)[0]
                 proj = self.projector.project(w, target, time=start + u * T, warm=self.active)
                 self._certify_jump(w, target, proj, start + u * T)
                 if ledger is not None:
@@ -241,8 +249,7 @@ class EventStepper(PeriodStepper):
                 w, lam_cum = proj.point, lam_cum + proj.multipliers
                 self.active = proj.active
                 self._visit(proj.active)
-                transitions.append(Transition(u, edge % pieces.pieces, proj.active, "jump",
-                                              forced))
+                transitions.append(Transition(u, edge % pieces.pieces, proj.active, "jump", forced))
                 je = self._edge_index[edge]
                 W[je], LAMC[je] = w, lam_cum
             if edge == pieces.pieces:
@@ -261,14 +268,21 @@ class EventStepper(PeriodStepper):
             self.x = X[-1].copy()
         self.w = W[-1].copy()
         events = EventTrajectory(start + np.array(ev_t) * T, np.array(ev_w), x_events)
-        record = PeriodRecord(self.period_index, start, W, multipliers, X,
-                              self.projector.clarabel_calls - calls0, events=events,
-                              visited=tuple(self._visited), transitions=tuple(transitions),
-                              energy_of=None if ledger is None else ledger.finish(W[0], W[-1]))
+        record = PeriodRecord(
+            self.period_index,
+            start,
+            W,
+            multipliers,
+            X,
+            self.projector.clarabel_calls - calls0,
+            events=events,
+            visited=tuple(self._visited),
+            transitions=tuple(transitions),
+            energy_of=None if ledger is None else ledger.finish(W[0], W[-1]),
+        )
         return record
 
-    def _guard(self, count: int, recent: deque[float], u: float, start: float,
-               rows: np.ndarray) -> None:
+    def _guard(self, count: int, recent: deque[float], u: float, start: float, rows: np.ndarray) -> None:
         """Stop on too many events in a period or on Zeno-like accumulation."""
         if count > self.max_events:
             raise self._too_many(u, start)
@@ -281,7 +295,8 @@ class EventStepper(PeriodStepper):
         return EventError(
             f"{p.name}: more than {self.max_events} events in period {self.period_index} "
             f"(at t = {start + u * p.period:.12g}); the active set keeps changing. Raise "
-            "max_events, or use --integrator catch-up")
+            "max_events, or use --integrator catch-up"
+        )
 
     def _zeno(self, width: float, u: float, start: float, rows: np.ndarray) -> EventError:
         p = self.process
@@ -290,11 +305,11 @@ class EventStepper(PeriodStepper):
             f"{width * p.period:.3g} time units near t = "
             f"{start + u * p.period:.15g} (last constraints involved: "
             f"{p.describe_active(rows)}). The exact integrator cannot pass this point; use "
-            "--integrator catch-up")
+            "--integrator catch-up"
+        )
 
     # -- an event: the next active set, order by order ----------------------------------------
-    def _decide(self, u: float, w: np.ndarray, piece_index: int, forced: np.ndarray,
-                time: float) -> ActiveSet:
+    def _decide(self, u: float, w: np.ndarray, piece_index: int, forced: np.ndarray, time: float) -> ActiveSet:
         """The active set on (u, u + eps) from the velocity problems (module docstring)."""
         poly = self.poly
         coef = self.pieces.coefficients(piece_index)
@@ -314,8 +329,7 @@ class EventStepper(PeriodStepper):
         for order in range(1, DECISION_ORDERS + 1):
             ck = (self.basis.values(u, order) @ coef)[0]
             c = np.where(fixed | candidates, ck, np.inf)
-            step = self._velocity(c, np.flatnonzero(fixed | (candidates & warm)),
-                                  np.flatnonzero(fixed), time)
+            step = self._velocity(c, np.flatnonzero(fixed | (candidates & warm)), np.flatnonzero(fixed), time)
             opening = poly.apply(step.point) - ck
             positive = candidates & (step.multipliers > step.tolerance.dual)
             leaving = candidates & (opening < -step.tolerance.primal)
@@ -326,11 +340,9 @@ class EventStepper(PeriodStepper):
         try:
             return poly.factor(np.flatnonzero(fixed))
         except Dependent:
-            raise DegenerateModelError(
-                "", "", self.projector.degenerate_message(np.flatnonzero(fixed), time)) from None
+            raise DegenerateModelError("", "", self.projector.degenerate_message(np.flatnonzero(fixed), time)) from None
 
-    def _velocity(self, c: np.ndarray, warm: np.ndarray, fixed: np.ndarray,
-                  time: float) -> _Velocity:
+    def _velocity(self, c: np.ndarray, warm: np.ndarray, fixed: np.ndarray, time: float) -> _Velocity:
         """argmin 1/2 |v|_M^2 over {B_fixed v = c_fixed, B_i v <= c_i (finite c_i)}: the
         kernel's updates from ``warm``, Clarabel's proposal when they do not settle."""
         from crawlsim.kernel.catchup import velocity  # crawlers: the compiled, certified step
@@ -355,8 +367,7 @@ class EventStepper(PeriodStepper):
         coef = self.pieces.coefficients(piece_index)
         nb = self.basis.size
         if not active.size:
-            return _Piece(u0, active, w0.copy(), np.zeros((nb, poly.n)), np.zeros(0),
-                          np.zeros((nb, 0)))
+            return _Piece(u0, active, w0.copy(), np.zeros((nb, poly.n)), np.zeros(0), np.zeros((nb, 0)))
         idx = active.index
         lam0 = active.solve(poly.apply(w0)[idx])
         Y = active.solve(coef[:, idx])
@@ -367,8 +378,7 @@ class EventStepper(PeriodStepper):
         padY[:, idx] = Y
         return _Piece(u0, active, base, poly.respond(padY), lam0, Y)
 
-    def _next_event(self, piece: _Piece, piece_index: int, u0: float,
-                    u1: float) -> tuple[float, np.ndarray] | None:
+    def _next_event(self, piece: _Piece, piece_index: int, u0: float, u1: float) -> tuple[float, np.ndarray] | None:
         """(u, rows newly tight) of the first event in (u0, u1), or None if there is none."""
         poly, basis = self.poly, self.basis
         coef = self.pieces.coefficients(piece_index)
@@ -419,8 +429,7 @@ class EventStepper(PeriodStepper):
             return self._harmonic(Z[0], lin, Z[1], Z[2], tol, u0, u1)
         if b.harmonics == 1 and b.linear:
             pure = Z[1] == 0.0  # no linear part in this function: closed form
-            out[pure] = self._harmonic(Z[0, pure], Z[1, pure], Z[2, pure], Z[3, pure],
-                                       tol[pure], u0, u1)
+            out[pure] = self._harmonic(Z[0, pure], Z[1, pure], Z[2, pure], Z[3, pure], tol[pure], u0, u1)
             rest = np.flatnonzero(~pure)
             if rest.size:
                 out[rest] = self._sampled(Z[:, rest], tol[rest], u0, u1)
@@ -431,13 +440,19 @@ class EventStepper(PeriodStepper):
         from crawlsim.kernel.events import linear_crossings  # compiled closed form
 
         out = np.empty(Z.shape[1])
-        linear_crossings(np.ascontiguousarray(Z[0], dtype=float),
-                         np.ascontiguousarray(Z[1], dtype=float),
-                         np.ascontiguousarray(tol, dtype=float), float(u0), float(u1), out)
+        linear_crossings(
+            np.ascontiguousarray(Z[0], dtype=float),
+            np.ascontiguousarray(Z[1], dtype=float),
+            np.ascontiguousarray(tol, dtype=float),
+            float(u0),
+            float(u1),
+            out,
+        )
         return out
 
-    def _harmonic(self, a: np.ndarray, lin: np.ndarray, alpha: np.ndarray, beta: np.ndarray,
-                  tol: np.ndarray, u0: float, u1: float) -> np.ndarray:
+    def _harmonic(
+        self, a: np.ndarray, lin: np.ndarray, alpha: np.ndarray, beta: np.ndarray, tol: np.ndarray, u0: float, u1: float
+    ) -> np.ndarray:
         """f(u) = a + alpha cos 2 pi u + beta sin 2 pi u = a + rho cos(theta - phi)
         (`crawlsim.kernel.events.harmonic_crossings`, compiled)."""
         from crawlsim.kernel.events import harmonic_crossings
@@ -455,11 +470,20 @@ class EventStepper(PeriodStepper):
 
         b = self.basis
         out = np.empty(Z.shape[1])
-        crossings(np.ascontiguousarray(Z, dtype=float), np.ascontiguousarray(tol, dtype=float),
-                  float(u0), float(u1), b.linear, b.harmonics, self.cells_per_cycle, out)
+        crossings(
+            np.ascontiguousarray(Z, dtype=float),
+            np.ascontiguousarray(tol, dtype=float),
+            float(u0),
+            float(u1),
+            b.linear,
+            b.harmonics,
+            self.cells_per_cycle,
+            out,
+        )
         if np.isnan(out).any():  # pragma: no cover - Brent's method converges on a bracket
-            raise EventError(f"{self.process.name}: no zero crossing found in a sampled cell of "
-                             f"the cycles ({u0:.15g}, {u1:.15g})")
+            raise EventError(
+                f"{self.process.name}: no zero crossing found in a sampled cell of the cycles ({u0:.15g}, {u1:.15g})"
+            )
         return out
 
     # -- certificate of the sampled trajectory ---------------------------------------------------
@@ -474,8 +498,16 @@ class EventStepper(PeriodStepper):
         lam_size = float(np.max(np.abs(piece.lam0)) + np.sum(np.max(np.abs(piece.Y), axis=1)))
         return float(self.poly.tolerance(piece.active, c_size, w_size, lam_size).dual)
 
-    def _certify_piece(self, Wg: np.ndarray, LAMC: np.ndarray, piece: _Piece, phi: np.ndarray,
-                       piece_index: int, times: np.ndarray, carried: float) -> float:
+    def _certify_piece(
+        self,
+        Wg: np.ndarray,
+        LAMC: np.ndarray,
+        piece: _Piece,
+        phi: np.ndarray,
+        piece_index: int,
+        times: np.ndarray,
+        carried: float,
+    ) -> float:
         """Every sampled state is in K(t_j) and the slip integrals between samples are >= 0,
         to roundoff (the kernel's tolerance policy). A grid interval that began on earlier
         pieces carries their roundoff (``carried``); returns this piece's, for the next one."""
@@ -484,16 +516,18 @@ class EventStepper(PeriodStepper):
         slack = poly.apply(Wg) - C
         lam = np.diff(LAMC, axis=0)
         # sizes of the numbers summed (phi @ coef cancels on short pieces with steep offsets)
-        tol = poly.tolerance(piece.active, np.max(np.abs(phi) @ np.abs(self.pieces.coefficients(
-            piece_index)), axis=1), np.max(np.abs(piece.base) + np.abs(phi) @ np.abs(piece.Wc),
-            axis=1), np.max(np.abs(LAMC[1:]), axis=1))
+        tol = poly.tolerance(
+            piece.active,
+            np.max(np.abs(phi) @ np.abs(self.pieces.coefficients(piece_index)), axis=1),
+            np.max(np.abs(piece.base) + np.abs(phi) @ np.abs(piece.Wc), axis=1),
+            np.max(np.abs(LAMC[1:]), axis=1),
+        )
         primal = np.max(slack, axis=1)
         dual = -np.min(lam, axis=1, initial=0.0)
         # slip integrals are differences of cumulative slips, which carry their own roundoff,
         # and the first one also that of the pieces since the previous sample
         own = self._dual_scale(piece, piece_index)
-        dual_tol = np.maximum(np.maximum(tol.dual, own),
-                              4 * RTOL * np.max(np.abs(LAMC), axis=1)[1:])
+        dual_tol = np.maximum(np.maximum(tol.dual, own), 4 * RTOL * np.max(np.abs(LAMC), axis=1)[1:])
         dual_tol[0] = max(dual_tol[0], carried)
         idx = piece.active.index
         comp = np.max(np.abs(slack[:, idx]), axis=1, initial=0.0)
@@ -507,7 +541,8 @@ class EventStepper(PeriodStepper):
                 f"integral {dual[i]:.3g} (tolerance {float(tol.primal[i]):.3g} / "
                 f"{float(dual_tol[i]):.3g}), complementarity {comp[i]:.3g}; rows "
                 f"{self.process.describe_active(rows)}; active set "
-                f"{self.process.describe_active(idx)}")
+                f"{self.process.describe_active(idx)}"
+            )
         return own
 
     def _certify_jump(self, w: np.ndarray, c: np.ndarray, proj: Projection, time: float) -> None:
@@ -518,22 +553,24 @@ class EventStepper(PeriodStepper):
         tol = poly._tolerance1(proj.active, c, w, proj.multipliers)
         cert = poly.certify(slack, proj.multipliers, proj.active, tol)
         if not cert.ok:
-            raise CertificateError(f"{self.process.name}: the projection at the jump of c at "
-                                   f"t = {time:.12g} failed its certificate: {cert}; rows "
-                                   f"{self.process.describe_active(np.flatnonzero(slack > tol.primal))}"
-                                   f"; active set {self.process.describe_active(proj.active.index)}")
+            raise CertificateError(
+                f"{self.process.name}: the projection at the jump of c at "
+                f"t = {time:.12g} failed its certificate: {cert}; rows "
+                f"{self.process.describe_active(np.flatnonzero(slack > tol.primal))}"
+                f"; active set {self.process.describe_active(proj.active.index)}"
+            )
 
     def _verify(self, W: np.ndarray, start: float) -> None:
         """``check_every_step``: Clarabel confirms every sampled state is its own projection."""
         p = self.process
         for j in range(len(W)):
-            proj = self.projector.project(W[j], p.offsets[j], time=start + p.times[j],
-                                          verify=True)
+            proj = self.projector.project(W[j], p.offsets[j], time=start + p.times[j], verify=True)
             moved = float(np.max(np.abs(proj.point - W[j])))
             tol = self.poly._tolerance1(proj.active, p.offsets[j], W[j], proj.multipliers)
             if moved > 100 * tol.primal:
-                raise CertificateError(f"{p.name}: Clarabel moves the exact state at t = "
-                                       f"{start + p.times[j]:.12g} by {moved:.3g}")
+                raise CertificateError(
+                    f"{p.name}: Clarabel moves the exact state at t = {start + p.times[j]:.12g} by {moved:.3g}"
+                )
 
 
 @dataclass(frozen=True, eq=False)

@@ -48,8 +48,15 @@ class PeriodEnergy:
     @property
     def scale(self) -> float:
         """The size of the ledger's terms, for relative residuals."""
-        return max(abs(self.work), abs(self.dissipation), abs(self.jump_loss),
-                   abs(self.load_work), self.energy_start, self.energy_end, 1e-300)
+        return max(
+            abs(self.work),
+            abs(self.dissipation),
+            abs(self.jump_loss),
+            abs(self.load_work),
+            self.energy_start,
+            self.energy_end,
+            1e-300,
+        )
 
 
 # -- closed-form integrals -----------------------------------------------------------------------
@@ -61,8 +68,7 @@ def _even_integral(nu: Floats, delta: Floats) -> np.ndarray:
     return c
 
 
-def _cos_integral(nu: Floats, m: Floats, delta: Floats,
-                  even: np.ndarray | None = None) -> np.ndarray:
+def _cos_integral(nu: Floats, m: Floats, delta: Floats, even: np.ndarray | None = None) -> np.ndarray:
     """int_{m-delta}^{m+delta} cos(nu u) du = cos(nu m) 2 sin(nu delta)/nu (2 delta at nu = 0);
     ``even`` is `_even_integral` (nu, delta) when already formed."""
     c = _even_integral(nu, delta) if even is None else even
@@ -70,8 +76,7 @@ def _cos_integral(nu: Floats, m: Floats, delta: Floats,
     return out
 
 
-def _sin_integral(nu: Floats, m: Floats, delta: Floats,
-                  even: np.ndarray | None = None) -> np.ndarray:
+def _sin_integral(nu: Floats, m: Floats, delta: Floats, even: np.ndarray | None = None) -> np.ndarray:
     """int_{m-delta}^{m+delta} sin(nu u) du = sin(nu m) 2 sin(nu delta)/nu (0 at nu = 0);
     ``even`` as in `_cos_integral`."""
     c = _even_integral(nu, delta) if even is None else even
@@ -86,7 +91,7 @@ def _s_sin(omega: Floats, delta: Floats) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         closed = 2.0 * (np.sin(x) - x * np.cos(x)) / (omega * omega)
     x2 = x * x
-    series = 2.0 * delta * delta * x * (1 / 3 - x2 / 30 + x2 * x2 / 840 - x2 ** 3 / 45360)
+    series = 2.0 * delta * delta * x * (1 / 3 - x2 / 30 + x2 * x2 / 840 - x2**3 / 45360)
     return np.where(np.abs(x) < _SERIES, series, closed)
 
 
@@ -113,7 +118,7 @@ def gram(basis: Basis, a: npt.ArrayLike, b: npt.ArrayLike) -> np.ndarray:
     lin = 1 if basis.linear else None
     if lin is not None:
         P[:, 0, lin] = P[:, lin, 0] = 2.0 * delta * m
-        P[:, lin, lin] = 2.0 * delta * m * m + 2.0 * delta ** 3 / 3.0
+        P[:, lin, lin] = 2.0 * delta * m * m + 2.0 * delta**3 / 3.0
     H = basis.harmonics
     if H:
         h0 = basis.first_harmonic
@@ -178,8 +183,7 @@ class ExactLedger:
     def start(self) -> None:
         self._bounds: list[tuple[float, float]] = []
         self._products: list[np.ndarray] = []  # (2 or 3, nb, nb): work, dissipation, load work
-        self._jumps: dict[str, list[float]] = {"work": [], "dissipation": [], "jump_loss": [],
-                                               "load_work": []}
+        self._jumps: dict[str, list[float]] = {"work": [], "dissipation": [], "jump_loss": [], "load_work": []}
 
     def _split(self, p: int) -> tuple[np.ndarray, ...]:
         """(Lc, K Lc, Lc', Mc, lc) of piece p: Mc the friction of the 2N rows, lc the load's
@@ -188,12 +192,12 @@ class ExactLedger:
         if cached is None:
             coef = self.signals.coefficients(p)
             N = self.N
-            Lc = coef[:, :N - 1]
-            Mc = self.scale * coef[:, N - 1:3 * N - 1]
+            Lc = coef[:, : N - 1]
+            Mc = self.scale * coef[:, N - 1 : 3 * N - 1]
             if self.constant is None:
                 lc = np.zeros_like(Mc)
             else:
-                force = coef[:, 3 * N - 1:].copy()
+                force = coef[:, 3 * N - 1 :].copy()
                 force[0] += self.constant
                 lc = np.hstack([-force, force])
             cached = (Lc, Lc * self.k, self.basis.derivative(Lc), Mc, lc)
@@ -217,8 +221,9 @@ class ExactLedger:
         self._bounds.extend((float(a), float(b)) for a, b in bounds)
         self._products.extend(products)
 
-    def piece(self, p: int, u0: float, u1: float, base: np.ndarray, Wc: np.ndarray,
-              active: np.ndarray, Y: np.ndarray) -> None:
+    def piece(
+        self, p: int, u0: float, u1: float, base: np.ndarray, Wc: np.ndarray, active: np.ndarray, Y: np.ndarray
+    ) -> None:
         """Add the piece [u0, u1] of piece p of c(t): w(u) = base + phi(u) @ Wc, slips of the
         active rows Lambda(u) = lam0 - phi(u) @ Y."""
         if not u1 > u0:
@@ -241,14 +246,12 @@ class ExactLedger:
         phi = self.basis.values(u)[0]
         return phi @ Lc, phi @ Mc, phi @ lc
 
-    def jump(self, p_before: int, u: float, w_before: np.ndarray, w_after: np.ndarray,
-             multipliers: np.ndarray) -> None:
+    def jump(self, p_before: int, u: float, w_before: np.ndarray, w_after: np.ndarray, multipliers: np.ndarray) -> None:
         """Add the jump at the end u of piece ``p_before`` (at u = 1 the signals after it are
         those of u = 0): the actuators' jump work, the slip's friction work and the jump loss."""
         p_after = (p_before + 1) % self.pieces
         L_before, _, _ = self._signals_at(u, p_before)
-        L_after, mu_after, load_after = self._signals_at(
-            u if p_before + 1 < self.pieces else 0.0, p_after)
+        L_after, mu_after, load_after = self._signals_at(u if p_before + 1 < self.pieces else 0.0, p_after)
         dL = L_after - L_before
         sigma = w_before + self.k * L_before
         self._jumps["work"].append(float(np.sum((sigma + 0.5 * self.k * dL) * dL)))
@@ -271,6 +274,10 @@ class ExactLedger:
                 load_work.extend(terms[2].tolist())
         L0, _, _ = self._signals_at(0.0, 0)
         return PeriodEnergy(
-            math.fsum(work), math.fsum(dissipation), math.fsum(self._jumps["jump_loss"]),
+            math.fsum(work),
+            math.fsum(dissipation),
+            math.fsum(self._jumps["jump_loss"]),
             elastic_energy(w_start + self.k * L0, self.k),
-            elastic_energy(w_end + self.k * L0, self.k), math.fsum(load_work))
+            elastic_energy(w_end + self.k * L0, self.k),
+            math.fsum(load_work),
+        )

@@ -78,8 +78,7 @@ SUFFICIENT_DECREASE = 0.5
 #: period ("through": the full step crossed a kink of P, and the fixed point may lie on the
 #: piece beyond, where this step is exact; a random 10-block gait of rate 0.975: 43 periods ->
 #: 9); and the step shortened to a quarter.
-ATTEMPTS: tuple[tuple[Literal["step", "through"], float], ...] = (
-    ("step", 1.0), ("through", 1.0), ("step", 0.25))
+ATTEMPTS: tuple[tuple[Literal["step", "through"], float], ...] = (("step", 1.0), ("through", 1.0), ("step", 0.25))
 
 
 @dataclass(frozen=True, eq=False)
@@ -191,8 +190,7 @@ def apply_jacobian(poly: Polyhedron, visited: Sequence[Factor], V: np.ndarray) -
     return X
 
 
-def apply_jacobian_transpose(poly: Polyhedron, visited: Sequence[Factor],
-                             V: np.ndarray) -> np.ndarray:
+def apply_jacobian_transpose(poly: Polyhedron, visited: Sequence[Factor], V: np.ndarray) -> np.ndarray:
     """J^T v for the rows v of V: P_A^T = I - B_A^T G_A^{-1} B_A M^{-1} and
     S^T = I - b_i (v_b - v_a)^T / rate, in reverse order."""
     X = np.array(V, dtype=float)
@@ -228,8 +226,19 @@ class PackedJacobian:
         from crawlsim.kernel.jacobian import apply
 
         x = np.array(v, dtype=float)
-        apply(self.stiffness, self.kinds, self.starts, self.blocks, self.D, self.l, self.slot,
-              self.rows, self.rates, self.jumps, x)
+        apply(
+            self.stiffness,
+            self.kinds,
+            self.starts,
+            self.blocks,
+            self.D,
+            self.l,
+            self.slot,
+            self.rows,
+            self.rates,
+            self.jumps,
+            x,
+        )
         return x
 
     def apply_transpose(self, v: np.ndarray) -> np.ndarray:
@@ -237,8 +246,19 @@ class PackedJacobian:
         from crawlsim.kernel.jacobian import apply_transpose
 
         x = np.array(v, dtype=float)
-        apply_transpose(self.stiffness, self.kinds, self.starts, self.blocks, self.D, self.l,
-                        self.slot, self.rows, self.rates, self.jumps, x)
+        apply_transpose(
+            self.stiffness,
+            self.kinds,
+            self.starts,
+            self.blocks,
+            self.D,
+            self.l,
+            self.slot,
+            self.rows,
+            self.rates,
+            self.jumps,
+            x,
+        )
         return x
 
 
@@ -257,8 +277,7 @@ def packed_jacobian(poly: Polyhedron, visited: Sequence[Factor]) -> PackedJacobi
     from crawlsim.kernel.jacobian import PROJECTOR, SALTATION, pack
 
     kept = _merged(poly.blocks, visited)
-    kinds = np.array([SALTATION if isinstance(A, Saltation) else PROJECTOR for A in kept],
-                     dtype=np.int8)
+    kinds = np.array([SALTATION if isinstance(A, Saltation) else PROJECTOR for A in kept], dtype=np.int8)
     sets = [A for A in kept if not isinstance(A, Saltation)]
     sizes = np.zeros(len(kept), dtype=np.int64)
     sizes[kinds == PROJECTOR] = [len(J) for J in sets]
@@ -268,10 +287,18 @@ def packed_jacobian(poly: Polyhedron, visited: Sequence[Factor]) -> PackedJacobi
     slot = np.cumsum(kinds == SALTATION).astype(np.int64) - 1
     D, l = np.empty(len(blocks)), np.empty(len(blocks))
     pack(poly.stiffness, kinds, starts, blocks, D, l)
-    return PackedJacobian(poly.stiffness, kinds, starts, blocks, D, l, slot,
-                          np.array([A.row for A in salts], dtype=np.int64),
-                          np.array([A.rate for A in salts], dtype=float),
-                          np.array([A.jump for A in salts], dtype=float).reshape(len(salts), poly.n))
+    return PackedJacobian(
+        poly.stiffness,
+        kinds,
+        starts,
+        blocks,
+        D,
+        l,
+        slot,
+        np.array([A.row for A in salts], dtype=np.int64),
+        np.array([A.rate for A in salts], dtype=float),
+        np.array([A.jump for A in salts], dtype=float).reshape(len(salts), poly.n),
+    )
 
 
 def _merged(N: int, visited: Sequence[Factor]) -> list[np.ndarray | Saltation]:
@@ -322,6 +349,7 @@ def newton_step(poly: Polyhedron, visited: Sequence[Factor], F: np.ndarray) -> n
     if packed is not None:
         forward, backward = packed.apply, packed.apply_transpose
     else:
+
         def forward(v: np.ndarray) -> np.ndarray:
             return apply_jacobian(poly, visited, v)
 
@@ -361,9 +389,17 @@ def relative_step(process: SweepingProcess, w_start: np.ndarray, w_end: np.ndarr
     return step / max(float(np.linalg.norm(w_end)), process.scale)
 
 
-def solve_limit(process: SweepingProcess, stepper: PeriodStepper, *, tolerance: float, max_periods: int,
-                start: np.ndarray | None = None, plain: int = PLAIN_PERIODS,
-                method: str = "newton", first: PeriodRecord | None = None) -> LimitSolution:
+def solve_limit(
+    process: SweepingProcess,
+    stepper: PeriodStepper,
+    *,
+    tolerance: float,
+    max_periods: int,
+    start: np.ndarray | None = None,
+    plain: int = PLAIN_PERIODS,
+    method: str = "newton",
+    first: PeriodRecord | None = None,
+) -> LimitSolution:
     """Find the periodic limit of ``process`` from ``start`` (default: the stepper's state)
     with ``stepper`` (a `crawlsim.integrate.stepping` integrator), simulating at most ``max_periods``
     periods; ``method="iterate"`` takes plain iterations only (the reference). The exact
@@ -406,7 +442,7 @@ def solve_limit(process: SweepingProcess, stepper: PeriodStepper, *, tolerance: 
             # back off: 1, 2, 4, ... plain periods before the next candidate, so that a
             # solver whose candidates keep failing costs at most 2 log2 more periods than plain
             # iteration; a step kept for a small decrease (the model is off here) counts too
-            wait = 2 ** rejected
+            wait = 2**rejected
             rejected += 1
             if found is not None:
                 continue
@@ -421,11 +457,20 @@ def solve_limit(process: SweepingProcess, stepper: PeriodStepper, *, tolerance: 
     periods, kinds = search.periods, search.kinds
     converged = residuals[-1] <= tolerance
     if converged and method == "newton" and poly.n <= DENSE_JACOBIAN:
-        rate = subdominant_rate(jacobian(poly, factors(process, record)) if approach is None
-                                else _formed_jacobian(poly, approach))
-    return LimitSolution(converged, w, record, "newton" if used_newton else "iterate",
-                         newton_steps, periods, np.array(residuals),
-                         np.array(kinds, dtype=np.int8), rate)
+        rate = subdominant_rate(
+            jacobian(poly, factors(process, record)) if approach is None else _formed_jacobian(poly, approach)
+        )
+    return LimitSolution(
+        converged,
+        w,
+        record,
+        "newton" if used_newton else "iterate",
+        newton_steps,
+        periods,
+        np.array(residuals),
+        np.array(kinds, dtype=np.int8),
+        rate,
+    )
 
 
 @dataclass
@@ -438,9 +483,15 @@ class _Search:
     periods: int
 
 
-def _newton(process: SweepingProcess, stepper: PeriodStepper,
-            period: Callable[[np.ndarray], PeriodRecord], w: np.ndarray, record: PeriodRecord,
-            search: _Search, max_periods: int) -> tuple[np.ndarray, PeriodRecord, list[Factor]] | None:
+def _newton(
+    process: SweepingProcess,
+    stepper: PeriodStepper,
+    period: Callable[[np.ndarray], PeriodRecord],
+    w: np.ndarray,
+    record: PeriodRecord,
+    search: _Search,
+    max_periods: int,
+) -> tuple[np.ndarray, PeriodRecord, list[Factor]] | None:
     """One Newton step from w (its period ``record``): the candidates of `ATTEMPTS` in turn,
     each one period; (candidate, its period, the model's factors) of the first that lowers
     the residual, or None. The affine model holds on the map's current piece only."""

@@ -58,9 +58,22 @@ DENSE_SQUARES = 64
 DEFAULT_CAP = 8 << 30
 DEFAULT_FRACTION = 0.5
 
-_UNITS = {"": 1, "b": 1, "k": 1 << 10, "m": 1 << 20, "g": 1 << 30, "t": 1 << 40,
-          "kib": 1 << 10, "mib": 1 << 20, "gib": 1 << 30, "tib": 1 << 40,
-          "kb": 10**3, "mb": 10**6, "gb": 10**9, "tb": 10**12}
+_UNITS = {
+    "": 1,
+    "b": 1,
+    "k": 1 << 10,
+    "m": 1 << 20,
+    "g": 1 << 30,
+    "t": 1 << 40,
+    "kib": 1 << 10,
+    "mib": 1 << 20,
+    "gib": 1 << 30,
+    "tib": 1 << 40,
+    "kb": 10**3,
+    "mb": 10**6,
+    "gb": 10**9,
+    "tb": 10**12,
+}
 
 
 @dataclass(frozen=True)
@@ -75,9 +88,15 @@ class MemoryEstimate:
         return f"about {format_size(self.total)} ({top})"
 
 
-def run_memory(blocks: int, grid_points: int, *, save_every: int = 1,
-               integrator: str = "catch-up", batch: int = 1,
-               dense: bool = False) -> MemoryEstimate:
+def run_memory(
+    blocks: int,
+    grid_points: int,
+    *,
+    save_every: int = 1,
+    integrator: str = "catch-up",
+    batch: int = 1,
+    dense: bool = False,
+) -> MemoryEstimate:
     """Estimated peak memory of simulating a crawler of ``blocks`` blocks on a period grid of
     ``grid_points`` points (G + 1: the steps per period plus the breakpoints, plus one).
 
@@ -106,8 +125,7 @@ def run_memory(blocks: int, grid_points: int, *, save_every: int = 1,
         parts.append(("dense matrices of the projector", BYTES * DENSE_SQUARES * n * n))
     else:
         # a set per step at most, until the cache's bound
-        parts.append(("the cache of factored active sets",
-                      BYTES * min(CACHE_NUMBERS, 2 * p * (6 * n + 8))))
+        parts.append(("the cache of factored active sets", BYTES * min(CACHE_NUMBERS, 2 * p * (6 * n + 8))))
         if n - 1 <= DENSE_JACOBIAN:
             parts.append(("the periodic-limit solver's Jacobian", BYTES * 4 * (n - 1) ** 2))
     if batch > 1:
@@ -118,17 +136,25 @@ def run_memory(blocks: int, grid_points: int, *, save_every: int = 1,
     return MemoryEstimate(sum(size for _, size in parts), tuple(parts))
 
 
-def process_memory(dimension: int, faces: int, grid_points: int, *, save_every: int = 1,
-                   integrator: str = "catch-up") -> MemoryEstimate:
+def process_memory(
+    dimension: int, faces: int, grid_points: int, *, save_every: int = 1, integrator: str = "catch-up"
+) -> MemoryEstimate:
     """As `run_memory`, for a generic process of ``faces`` constraints in ``dimension``
     variables: a crawler of N blocks has 2N faces in N - 1 variables, so the same arrays are
     counted with N the larger of n + 1 and m / 2."""
-    return run_memory(max(dimension + 1, (faces + 1) // 2), grid_points, save_every=save_every,
-                      integrator=integrator, dense=True)
+    return run_memory(
+        max(dimension + 1, (faces + 1) // 2), grid_points, save_every=save_every, integrator=integrator, dense=True
+    )
 
 
-def gait_memory(gait: Gait | ProcessSpec, *, save_every: int = 1, batch: int = 1, steps_per_period: int | None = None,
-                blocks: int | None = None) -> MemoryEstimate:
+def gait_memory(
+    gait: Gait | ProcessSpec,
+    *,
+    save_every: int = 1,
+    batch: int = 1,
+    steps_per_period: int | None = None,
+    blocks: int | None = None,
+) -> MemoryEstimate:
     """`run_memory` of a validated `Gait` or `ProcessSpec` with its simulation settings (the
     grid is its steps per period plus its breakpoints); ``steps_per_period`` and ``blocks``
     override the gait's, for the largest point of a sweep."""
@@ -137,18 +163,20 @@ def gait_memory(gait: Gait | ProcessSpec, *, save_every: int = 1, batch: int = 1
     integrator = gait.simulation.integrator
     if hasattr(gait, "normals"):
         faces, dimension = gait.normals.shape
-        return process_memory(dimension, faces, points, save_every=save_every,
-                              integrator=integrator)
-    return run_memory(blocks or gait.blocks, points, save_every=save_every,
-                      integrator=integrator, batch=batch)
+        return process_memory(dimension, faces, points, save_every=save_every, integrator=integrator)
+    return run_memory(blocks or gait.blocks, points, save_every=save_every, integrator=integrator, batch=batch)
 
 
 def check_memory(estimate: MemoryEstimate, limit: int, source: str, what: str = "this run") -> None:
     """Refuse with a `ResourceError` when ``estimate`` exceeds ``limit`` bytes."""
     if estimate.total > limit:
-        raise ResourceError(source, "", f"{what} would need {estimate.describe()}, more than the "
-                                        f"memory limit of {format_size(limit)} (--max-memory; "
-                                        "fewer steps per period or blocks need less)")
+        raise ResourceError(
+            source,
+            "",
+            f"{what} would need {estimate.describe()}, more than the "
+            f"memory limit of {format_size(limit)} (--max-memory; "
+            "fewer steps per period or blocks need less)",
+        )
 
 
 def parse_size(text: str) -> int:
@@ -212,7 +240,6 @@ def _read(path: str) -> str | None:
             return f.read(1 << 16)
     except (OSError, UnicodeDecodeError):
         return None
-
 
 
 #: Cost of one cos or sin in the units of `signal_work` (a multiply-add of numpy's matrix
@@ -282,9 +309,14 @@ def check_signal_work(work: SignalWork, source: str) -> None:
     time)."""
     if work.run <= MAX_SIGNAL_WORK:
         return
-    raise ResourceError(source, work.key, (
-        f"a signal of {work.harmonics:,} harmonics with {work.faces // 2:,} blocks would cost "
-        f"at least {work.run:.1g} operations over the two periods a run needs (events are found "
-        f"by sampling every cycle of the highest harmonic), more than crawlsim runs "
-        f"({MAX_SIGNAL_WORK:.0e}, about a minute): use fewer harmonics (the cost grows as their "
-        "square), fewer blocks or steps per period, or a piecewise-linear signal"))
+    raise ResourceError(
+        source,
+        work.key,
+        (
+            f"a signal of {work.harmonics:,} harmonics with {work.faces // 2:,} blocks would cost "
+            f"at least {work.run:.1g} operations over the two periods a run needs (events are found "
+            f"by sampling every cycle of the highest harmonic), more than crawlsim runs "
+            f"({MAX_SIGNAL_WORK:.0e}, about a minute): use fewer harmonics (the cost grows as their "
+            "square), fewer blocks or steps per period, or a piecewise-linear signal"
+        ),
+    )

@@ -35,6 +35,7 @@ from crawlsim.model.process import SweepingProcess
 
 _FIRST_BLOCK = 8
 
+
 class Registered(NamedTuple):
     """An integrator of `STEPPERS`: where its class is (``module:name``, imported lazily), the
     order of its error in the step (a step h = T / steps_per_period; 0: exact, the error is
@@ -58,14 +59,12 @@ def stepper_class(integrator: str) -> type[PeriodStepper]:
     try:
         module, name = STEPPERS[integrator].target.split(":")
     except KeyError:
-        raise ValueError(f"unknown integrator {integrator!r}; expected one of "
-                         f"{', '.join(STEPPERS)}") from None
+        raise ValueError(f"unknown integrator {integrator!r}; expected one of {', '.join(STEPPERS)}") from None
     cls: type[PeriodStepper] = getattr(importlib.import_module(module), name)
     return cls
 
 
-def make_stepper(process: SweepingProcess, integrator: str = "catch-up",
-                 **options: Any) -> PeriodStepper:
+def make_stepper(process: SweepingProcess, integrator: str = "catch-up", **options: Any) -> PeriodStepper:
     """Build the stepper registered under ``integrator``."""
     return stepper_class(integrator)(process, **options)
 
@@ -157,19 +156,22 @@ class PeriodStepper:
     #: Whether a period must start in K(0) (the exact integrator's closed forms need it).
     needs_admissible_start = False
 
-    def __init__(self, process: SweepingProcess, *, check_every_step: bool = False,
-                 persistent_solver: bool = True) -> None:
+    def __init__(
+        self, process: SweepingProcess, *, check_every_step: bool = False, persistent_solver: bool = True
+    ) -> None:
         self.process = process
         self.polyhedron = process.polyhedron
         self.check_every_step = check_every_step
         # Crawlers: non-unique slips are a DegenerateModelError (docs/model.md §3); generic
         # processes keep their unique point with a LicqWarning.
         self.projector = ExactProjector(
-            process.polyhedron, describe_active=process.describe_active,
-            persistent=persistent_solver, on_dependent="raise" if process.crawler is not None else "warn")
+            process.polyhedron,
+            describe_active=process.describe_active,
+            persistent=persistent_solver,
+            on_dependent="raise" if process.crawler is not None else "warn",
+        )
         self.w = np.array(process.initial, dtype=float)
-        self.x = None if process.initial_positions is None else np.array(
-            process.initial_positions, dtype=float)
+        self.x = None if process.initial_positions is None else np.array(process.initial_positions, dtype=float)
         self.active = self.polyhedron.empty
         self.period_index = 0
         self._visited: list[ActiveSet] = []
@@ -192,8 +194,9 @@ class PeriodStepper:
         (`crawlsim.integrate.limit` projects it first)."""
         self.w = np.array(w, dtype=float)
         if self.x is not None:
-            self.x = positions_of(self.process, self.w, float(np.mean(self.x))) if x is None \
-                else np.array(x, dtype=float)
+            self.x = (
+                positions_of(self.process, self.w, float(np.mean(self.x))) if x is None else np.array(x, dtype=float)
+            )
 
     def _visit(self, active: ActiveSet) -> None:
         if active.size and (not self._visited or self._visited[-1] is not active):
@@ -203,10 +206,15 @@ class PeriodStepper:
 class CatchUpStepper(PeriodStepper):
     """Steps a `SweepingProcess` period by period from its initial state."""
 
-    def __init__(self, process: SweepingProcess, *, check_every_step: bool = False,
-                 persistent_solver: bool = True, kernel: bool = True) -> None:
-        super().__init__(process, check_every_step=check_every_step,
-                         persistent_solver=persistent_solver)
+    def __init__(
+        self,
+        process: SweepingProcess,
+        *,
+        check_every_step: bool = False,
+        persistent_solver: bool = True,
+        kernel: bool = True,
+    ) -> None:
+        super().__init__(process, check_every_step=check_every_step, persistent_solver=persistent_solver)
         self._kernel = None
         self._lazy_visited: Sequence[ActiveSet] | None = None  # the kernel's record (`VisitedSets`)
         if kernel and not check_every_step and process.crawler is not None:
@@ -235,12 +243,12 @@ class CatchUpStepper(PeriodStepper):
                 j += 1
                 continue
             length = min(G - j, block)
-            run = self.polyhedron.run(self.active, W[j], p.offsets[j + 1:j + 1 + length])
+            run = self.polyhedron.run(self.active, W[j], p.offsets[j + 1 : j + 1 + length])
             k = run.accepted
             if k:
                 self._visit(self.active)
-            W[j + 1:j + 1 + k] = run.w[:k]
-            LAM[j:j + k] = run.multipliers[:k]
+            W[j + 1 : j + 1 + k] = run.w[:k]
+            LAM[j : j + k] = run.multipliers[:k]
             j += k
             if k < length:
                 if run.next_set is not None:
@@ -266,10 +274,15 @@ class CatchUpStepper(PeriodStepper):
                 X[1:] += self.x
             self.x = X[-1].copy()
         self.w = W[-1].copy()
-        record = PeriodRecord(self.period_index, start, W, LAM, X,
-                              self.projector.clarabel_calls - calls0,
-                              visited=(tuple(self._visited) if self._lazy_visited is None
-                                       else self._lazy_visited))
+        record = PeriodRecord(
+            self.period_index,
+            start,
+            W,
+            LAM,
+            X,
+            self.projector.clarabel_calls - calls0,
+            visited=(tuple(self._visited) if self._lazy_visited is None else self._lazy_visited),
+        )
         return record
 
     def _kernel_period(self, W: np.ndarray, LAM: np.ndarray, start: float) -> None:
@@ -287,8 +300,7 @@ class CatchUpStepper(PeriodStepper):
             if status == chain.DONE:
                 break
             if status == chain.FAILED:
-                raise CertificateError(kernel.failure(p.name, start + p.times[j + 1],
-                                                      p.describe_active))
+                raise CertificateError(kernel.failure(p.name, start + p.times[j + 1], p.describe_active))
             self.active = kernel.active(self.active)
             self._full_step(j, W, LAM, start, warm=True)
             S[j] = catchup.signs_of(self.active, p.blocks)
@@ -297,13 +309,12 @@ class CatchUpStepper(PeriodStepper):
         self.active = kernel.active(self.active)
         self._lazy_visited = catchup.VisitedSets(self.polyhedron, S)
 
-    def _full_step(self, j: int, W: np.ndarray, LAM: np.ndarray, start: float, *,
-                   warm: bool) -> None:
+    def _full_step(self, j: int, W: np.ndarray, LAM: np.ndarray, start: float, *, warm: bool) -> None:
         p = self.process
-        proj = self.projector.project(W[j], p.offsets[j + 1], time=start + p.times[j + 1],
-                                      warm=self.active if warm else None, verify=not warm)
+        proj = self.projector.project(
+            W[j], p.offsets[j + 1], time=start + p.times[j + 1], warm=self.active if warm else None, verify=not warm
+        )
         W[j + 1] = proj.point
         LAM[j] = proj.multipliers
         self.active = proj.active
         self._visit(proj.active)
-

@@ -95,13 +95,11 @@ def temporary_beside(target: Path) -> Path:
     folder = Path(os.path.abspath(target)).parent
     remove_stale(target)
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.{_HOST}.{os.getpid()}.", suffix=".tmp",
-                                   dir=folder)
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.{_HOST}.{os.getpid()}.", suffix=".tmp", dir=folder)
     except FileNotFoundError:
         raise OutputError(str(target), "", f"the folder {folder} does not exist") from None
     except OSError as error:
-        raise OutputError(str(target), "", f"cannot write in the folder {folder}: "
-                                           f"{error.strerror}") from None
+        raise OutputError(str(target), "", f"cannot write in the folder {folder}: {error.strerror}") from None
     os.close(fd)
     path = Path(tmp)
     _register(path)
@@ -130,8 +128,9 @@ def publish(tmp: Path, target: Path) -> None:
     if mode is not None and not stat.S_ISREG(mode):
         from crawlsim.io.outputs import special_kind
 
-        raise OutputError(str(target), "", f"is {special_kind(mode)}, not a regular file: "
-                                           "crawlsim never replaces special files")
+        raise OutputError(
+            str(target), "", f"is {special_kind(mode)}, not a regular file: crawlsim never replaces special files"
+        )
     umask = os.umask(0)
     os.umask(umask)
     os.chmod(tmp, 0o666 & ~umask)
@@ -236,8 +235,7 @@ def _forget(path: Path) -> None:
     global _PREVIOUS_HANDLER
     with _LOCK:
         _LIVE.discard(path)
-        if not _LIVE and _PREVIOUS_HANDLER is not None and \
-                threading.current_thread() is threading.main_thread():
+        if not _LIVE and _PREVIOUS_HANDLER is not None and threading.current_thread() is threading.main_thread():
             signal.signal(signal.SIGTERM, _PREVIOUS_HANDLER)  # type: ignore[arg-type]
             _PREVIOUS_HANDLER = None
 

@@ -14,19 +14,54 @@ from crawlsim.io.layout import counts, number, open_h5, plain, read_column, root
 
 #: Root attributes that `describe` reports under their own names (the others, provenance
 #: included, are listed under "attributes" when they are short).
-_DESCRIBED = {"crawlsim_version", "format_version", "kind", "name", "convergence",
-              "periodic_from", "v0", "contraction_rate", "v0_error_estimate",
-              "displacement_per_period", "dissipation_per_period", "cost_of_transport",
-              "period", "steps_per_period", "periods", "save_every", "gait_yaml",
-              "summary_json", "source", "paths", "shape", "shard", "dimensions", "integrator"}
+_DESCRIBED = {
+    "crawlsim_version",
+    "format_version",
+    "kind",
+    "name",
+    "convergence",
+    "periodic_from",
+    "v0",
+    "contraction_rate",
+    "v0_error_estimate",
+    "displacement_per_period",
+    "dissipation_per_period",
+    "cost_of_transport",
+    "period",
+    "steps_per_period",
+    "periods",
+    "save_every",
+    "gait_yaml",
+    "summary_json",
+    "source",
+    "paths",
+    "shape",
+    "shard",
+    "dimensions",
+    "integrator",
+}
 
 
 #: Root attributes of an optimisation file that `describe` reports under its own keys (or that
 #: repeat them).
-_OPTIMIZATION_DESCRIBED = {"objective", "constraints_json", "free_json", "seed", "evaluations",
-                           "max_evaluations", "best_json", "best_feasible", "best_value",
-                           "best_v0", "best_cost_of_transport", "axis_names", "title",
-                           "objective_quantity", "objective_sense", "gait_file"}
+_OPTIMIZATION_DESCRIBED = {
+    "objective",
+    "constraints_json",
+    "free_json",
+    "seed",
+    "evaluations",
+    "max_evaluations",
+    "best_json",
+    "best_feasible",
+    "best_value",
+    "best_v0",
+    "best_cost_of_transport",
+    "axis_names",
+    "title",
+    "objective_quantity",
+    "objective_sense",
+    "gait_file",
+}
 
 
 def describe(path: Any) -> dict[str, Any]:
@@ -38,17 +73,21 @@ def describe(path: Any) -> dict[str, Any]:
     with open_h5(path, "results file") as f:
         attrs = root_attrs(f)
         if "format_version" not in attrs:
-            raise ResultsFileError(f"{path}: not a crawlsim results file (no format_version "
-                                   "attribute)")
-        described = _DESCRIBED | (_OPTIMIZATION_DESCRIBED if attrs.get("kind") == "optimization"
-                                  else set())
-        other = {k: v for k, v in attrs.items()
-                 if k not in described and (not isinstance(v, str) or len(v) <= 200)
-                 and np.ndim(v) == 0}
+            raise ResultsFileError(f"{path}: not a crawlsim results file (no format_version attribute)")
+        described = _DESCRIBED | (_OPTIMIZATION_DESCRIBED if attrs.get("kind") == "optimization" else set())
+        other = {
+            k: v
+            for k, v in attrs.items()
+            if k not in described and (not isinstance(v, str) or len(v) <= 200) and np.ndim(v) == 0
+        }
         if "provenance" in f:
             other.update({k: plain(v) for k, v in f["provenance"].attrs.items()})
-        out = {"file": str(path), "crawlsim_version": attrs.get("crawlsim_version"),
-               "format_version": attrs.get("format_version"), "attributes": other}
+        out = {
+            "file": str(path),
+            "crawlsim_version": attrs.get("crawlsim_version"),
+            "format_version": attrs.get("format_version"),
+            "attributes": other,
+        }
         if attrs.get("kind") == "sweep":
             out.update(_describe_sweep(path, f, attrs))
         elif attrs.get("kind") == "optimization":
@@ -64,16 +103,21 @@ def _describe_run(path: Path, f: h5py.File, attrs: dict[str, Any]) -> dict[str, 
     except json.JSONDecodeError:
         summary = {}
     periodic_from = attrs.get("periodic_from", -1)
-    solver = ({k: plain(v) for k, v in f["limit"]["solver"].attrs.items()}
-              if "limit" in f and "solver" in f["limit"] else {})
+    solver = (
+        {k: plain(v) for k, v in f["limit"]["solver"].attrs.items()} if "limit" in f and "solver" in f["limit"] else {}
+    )
     return {
-        "file_kind": "run", "kind": attrs.get("kind", "crawler"), "name": attrs.get("name"),
+        "file_kind": "run",
+        "kind": attrs.get("kind", "crawler"),
+        "name": attrs.get("name"),
         "integrator": attrs.get("integrator", summary.get("integrator")),
-        "v0": number(attrs.get("v0")), "v0_error_estimate": number(attrs.get("v0_error_estimate")),
+        "v0": number(attrs.get("v0")),
+        "v0_error_estimate": number(attrs.get("v0_error_estimate")),
         "convergence": attrs.get("convergence"),
         "periodic_from": None if periodic_from is None or periodic_from < 0 else periodic_from,
         "contraction_rate": number(attrs.get("contraction_rate")),
-        "periods": attrs.get("periods"), "steps_per_period": attrs.get("steps_per_period"),
+        "periods": attrs.get("periods"),
+        "steps_per_period": attrs.get("steps_per_period"),
         "period": attrs.get("period"),
         "displacement_per_period": number(attrs.get("displacement_per_period")),
         "dissipation_per_period": number(attrs.get("dissipation_per_period")),
@@ -85,7 +129,8 @@ def _describe_run(path: Path, f: h5py.File, attrs: dict[str, Any]) -> dict[str, 
         "jacobian_rate": number(solver.get("jacobian_rate", summary.get("jacobian_rate"))),
         "contraction_rate_error": summary.get("contraction_rate_error"),
         "contraction_rate_periods": summary.get("contraction_rate_periods"),
-        "status": summary.get("status"), "message": summary.get("message"),
+        "status": summary.get("status"),
+        "message": summary.get("message"),
         "grid_note": summary.get("grid_note"),
     }
 
@@ -98,14 +143,16 @@ def _describe_sweep(path: Path, f: h5py.File, attrs: dict[str, Any]) -> dict[str
     v0 = results["v0"][()] if "v0" in results else np.array([])
     ok = np.array([s == "ok" for s in status], dtype=bool)
     good = v0[ok & np.isfinite(v0)] if v0.size == ok.size else np.array([])
-    integrators = (sorted({str(s) for s in read_column(results["integrator"])} - {""})
-                   if "integrator" in results else [])
+    integrators = sorted({str(s) for s in read_column(results["integrator"])} - {""}) if "integrator" in results else []
     return {
-        "file_kind": "sweep", "kind": "sweep",
+        "file_kind": "sweep",
+        "kind": "sweep",
         "name": _sweep_name(attrs) or Path(str(attrs.get("source", path))).stem,
         "source": attrs.get("source"),
-        "shard": attrs.get("shard") or None, "grid": _sweep_grid(f, attrs),
-        "points": len(status), "statuses": counts(status),
+        "shard": attrs.get("shard") or None,
+        "grid": _sweep_grid(f, attrs),
+        "points": len(status),
+        "statuses": counts(status),
         "integrator": ", ".join(integrators) or None,
         "v0_min": float(good.min()) if good.size else None,
         "v0_max": float(good.max()) if good.size else None,
@@ -122,8 +169,7 @@ def _sweep_grid(f: h5py.File, attrs: dict[str, Any]) -> list[dict[str, Any]]:
         grouped.setdefault(int(d), []).append(p)
     if "axis_names" in attrs:  # format 2: the values are the coordinates of /grid
         names = json.loads(attrs["axis_names"])
-        values = {p: f["grid"][n][()] for p, n in zip(paths, names)
-                  if "grid" in f and n in f["grid"]}
+        values = {p: f["grid"][n][()] for p, n in zip(paths, names) if "grid" in f and n in f["grid"]}
     else:
         values = {p: f["axes"][p][()] for p in paths if "axes" in f and p in f["axes"]}
 
@@ -131,8 +177,8 @@ def _sweep_grid(f: h5py.File, attrs: dict[str, Any]) -> list[dict[str, Any]]:
         if first not in values:
             return {"values": 0, "min": None, "max": None}
         v = values[first]
-        return {"values": len(v), "min": number(float(np.min(v))),
-                "max": number(float(np.max(v)))}
+        return {"values": len(v), "min": number(float(np.min(v))), "max": number(float(np.max(v)))}
+
     return [{"paths": grouped[d], **extent(grouped[d][0])} for d in sorted(grouped)]
 
 
@@ -152,16 +198,22 @@ def _describe_optimization(path: Path, f: h5py.File, attrs: dict[str, Any]) -> d
         raise ResultsFileError(f"{path}: missing /evaluations/status")
     status = [str(s) for s in read_column(f["evaluations"]["status"])]
     return {
-        "file_kind": "optimization", "kind": "optimization", "name": attrs.get("name"),
-        "source": attrs.get("source"), "objective": attrs.get("objective"),
+        "file_kind": "optimization",
+        "kind": "optimization",
+        "name": attrs.get("name"),
+        "source": attrs.get("source"),
+        "objective": attrs.get("objective"),
         "constraints": json.loads(attrs.get("constraints_json", "[]")),
         "free": json.loads(attrs.get("free_json", "[]")),
-        "integrator": attrs.get("integrator"), "seed": attrs.get("seed"),
-        "evaluations": len(status), "max_evaluations": attrs.get("max_evaluations"),
-        "statuses": counts(status), "best": json.loads(attrs.get("best_json", "{}")),
+        "integrator": attrs.get("integrator"),
+        "seed": attrs.get("seed"),
+        "evaluations": len(status),
+        "max_evaluations": attrs.get("max_evaluations"),
+        "statuses": counts(status),
+        "best": json.loads(attrs.get("best_json", "{}")),
         "best_feasible": bool(attrs.get("best_feasible", 0)),
-        "best_value": number(attrs.get("best_value")), "v0": number(attrs.get("best_v0")),
+        "best_value": number(attrs.get("best_value")),
+        "v0": number(attrs.get("best_v0")),
         "cost_of_transport": number(attrs.get("best_cost_of_transport")),
         "front_points": int(f["front"]["front_point"].shape[0]) if "front" in f else None,
     }
-

@@ -37,12 +37,12 @@ SLIP_FLAGS = ((-1, "backward_slip"), (0, "stick"), (1, "forward_slip"))
 LIMIT_FLAGS = ((-1, "backward_limit"), (1, "forward_limit"))
 CONVERGENCE_FLAGS = ((-1, "none"), (0, "finite_time"), (1, "asymptotic"), (2, "not_converged"))
 SOLVER_PERIOD_FLAGS = ((-1, "rejected_newton"), (0, "plain"), (1, "newton"))
-STATUS_FLAGS = ((-1, "not_computed"), (0, "ok"), (1, "not_converged"), (2, "invalid"),
-                (3, "failed"))
+STATUS_FLAGS = ((-1, "not_computed"), (0, "ok"), (1, "not_converged"), (2, "invalid"), (3, "failed"))
 
 #: The metadata conventions the files follow (the root attribute ``Conventions``): netCDF's
 #: dimension scales and the CF attributes (units, long_name, flag_values and flag_meanings).
 CONVENTIONS = "CF-1.10"
+
 
 @dataclass(frozen=True)
 class Var:
@@ -59,6 +59,7 @@ class Var:
 
 #: Quantities that depend on the kind of run: (crawler, generic sweeping process). A crawler's w
 #: is -K z, a force; a generic process's state z is taken as a length, with dimensionless
+
 
 class Scales:
     """The dimension scales of one file, by name, with their netCDF dimension ids."""
@@ -120,9 +121,7 @@ def atomic_h5(path: Any) -> Iterator[h5py.File]:
 
 def json_ready(summary: Mapping[str, Any]) -> dict[str, Any]:
     """NaN and infinities (not JSON) become null."""
-    return {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
-            for k, v in summary.items()}
-
+    return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in summary.items()}
 
 
 def open_h5(path: Path, what: str) -> h5py.File:
@@ -137,14 +136,15 @@ def open_h5(path: Path, what: str) -> h5py.File:
 
 def check_version(f: h5py.File, path: Any) -> int:
     if "format_version" not in f.attrs:
-        raise ResultsFileError(f"{path}: not a crawlsim results file (no format_version "
-                               "attribute)")
+        raise ResultsFileError(f"{path}: not a crawlsim results file (no format_version attribute)")
     version = int(plain(f.attrs["format_version"]))
     if version not in READABLE_VERSIONS:
-        raise ResultsFileError(f"{path}: format_version {version} was written by a newer crawlsim "
-                               f"({plain(f.attrs.get('crawlsim_version', '?'))}); this crawlsim "
-                               f"({__version__}) reads format_version "
-                               f"{', '.join(map(str, READABLE_VERSIONS))}: upgrade crawlsim")
+        raise ResultsFileError(
+            f"{path}: format_version {version} was written by a newer crawlsim "
+            f"({plain(f.attrs.get('crawlsim_version', '?'))}); this crawlsim "
+            f"({__version__}) reads format_version "
+            f"{', '.join(map(str, READABLE_VERSIONS))}: upgrade crawlsim"
+        )
     return version
 
 
@@ -172,7 +172,6 @@ def plain(value: Any) -> Any:
     return value
 
 
-
 def number(value: Any) -> Any:
     """NaN and -1 (null in the attributes) become None."""
     if value is None or (isinstance(value, float) and not np.isfinite(value)):
@@ -180,16 +179,14 @@ def number(value: Any) -> Any:
     return value
 
 
-
-
 def write_column(group: h5py.Group, name: str, values: Any) -> h5py.Dataset:
     """A one-dimensional dataset of numbers, or of strings (variable-length UTF-8) when
     ``values`` holds text."""
     values = np.asarray(values)
     if values.dtype == object or values.dtype.kind in "US":
-        return group.create_dataset(name, data=values.astype(str).tolist(),
-                                    dtype=h5py.string_dtype(), shape=values.shape,
-                                    track_order=True)
+        return group.create_dataset(
+            name, data=values.astype(str).tolist(), dtype=h5py.string_dtype(), shape=values.shape, track_order=True
+        )
     return group.create_dataset(name, data=values, track_order=True)
 
 

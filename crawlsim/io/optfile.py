@@ -41,71 +41,84 @@ _OPTIMIZATION_COMMENT = (
     "of a sweep table, /history the best value of each run after every batch, /runs the "
     "single-objective runs (one, or the ends and epsilon-constraint runs of a Pareto front), "
     "/front the non-dominated points of v0 against cost_of_transport (--pareto). Units: "
-    "units_json; every dataset has units and long_name.")
+    "units_json; every dataset has units and long_name."
+)
 
 #: Units of the optimisable quantities (`crawlsim.study.optimize.QUANTITIES`).
-OBJECTIVE_QUANTITIES = {"v0": "velocity", "cost_of_transport": "force",
-                        "dissipation_per_period": "dissipation",
-                        "displacement_per_period": "length"}
+OBJECTIVE_QUANTITIES = {
+    "v0": "velocity",
+    "cost_of_transport": "force",
+    "dissipation_per_period": "dissipation",
+    "displacement_per_period": "length",
+}
 
 STAGE_FLAGS = ((0, "initial"), (1, "generation"), (2, "polish"))
 
 OPTIMIZATION_VARIABLES: dict[str, dict[str, Var]] = {
     "evaluations": {
-        "evaluation": Var(("evaluation",), "evaluation number, in the order the points were "
-                                           "simulated", "1"),
+        "evaluation": Var(("evaluation",), "evaluation number, in the order the points were simulated", "1"),
         "run": Var(("evaluation",), "the run that asked for the point (see /runs)", "1"),
-        "stage": Var(("evaluation",), "what asked for the point: the first population of its "
-                                      "run, a generation of differential evolution, or a poll "
-                                      "of the pattern search", "1", STAGE_FLAGS),
-        "batch": Var(("evaluation",), "the batch the point was simulated in (see /history)",
-                     "1"),
-        "feasible": Var(("evaluation",), "1 when the point runs and satisfies the constraints "
-                                         "of its run, else 0", "1"),
-        "constraint_violation": Var(("evaluation",), "total violation of the constraints of "
-                                                     "its run (0 when satisfied, inf when the "
-                                                     "point does not run)", "1"),
+        "stage": Var(
+            ("evaluation",),
+            "what asked for the point: the first population of its "
+            "run, a generation of differential evolution, or a poll "
+            "of the pattern search",
+            "1",
+            STAGE_FLAGS,
+        ),
+        "batch": Var(("evaluation",), "the batch the point was simulated in (see /history)", "1"),
+        "feasible": Var(("evaluation",), "1 when the point runs and satisfies the constraints of its run, else 0", "1"),
+        "constraint_violation": Var(
+            ("evaluation",),
+            "total violation of the constraints of its run (0 when satisfied, inf when the point does not run)",
+            "1",
+        ),
     },
     "history": {
-        "batch": Var(("batch",), "batch number (a generation, or a poll of the pattern "
-                                 "search)", "1"),
+        "batch": Var(("batch",), "batch number (a generation, or a poll of the pattern search)", "1"),
         "run": Var(("batch",), "the run of the batch (see /runs)", "1"),
         "stage": Var(("batch",), "what the batch was", "1", STAGE_FLAGS),
         "evaluations": Var(("batch",), "points simulated so far, all runs", "1"),
-        "best": Var(("batch",), "best value of the run's objective so far (NaN while no point "
-                                "of the run is feasible)", "objective"),
-        "best_evaluation": Var(("batch",), "evaluation number of the run's best point so far "
-                                           "(-1 before any)", "1"),
+        "best": Var(
+            ("batch",),
+            "best value of the run's objective so far (NaN while no point of the run is feasible)",
+            "objective",
+        ),
+        "best_evaluation": Var(("batch",), "evaluation number of the run's best point so far (-1 before any)", "1"),
         "feasible": Var(("batch",), "1 when the run's best point so far is feasible", "1"),
-        "step": Var(("batch",), "step of the pattern search after the batch, in units of the "
-                                "box width (NaN for differential evolution)", "1"),
-        "hypervolume": Var(("batch",), "area dominated by the Pareto front of the points "
-                                       "evaluated so far, from the nadir of the final front "
-                                       "(--pareto)", "dissipation_rate"),
+        "step": Var(
+            ("batch",),
+            "step of the pattern search after the batch, in units of the box width (NaN for differential evolution)",
+            "1",
+        ),
+        "hypervolume": Var(
+            ("batch",),
+            "area dominated by the Pareto front of the points "
+            "evaluated so far, from the nadir of the final front "
+            "(--pareto)",
+            "dissipation_rate",
+        ),
     },
     "runs": {
         "run": Var(("run",), "run number", "1"),
         "objective": Var(("run",), "objective of the run", "1"),
         "constraints": Var(("run",), "constraints of the run, comma separated", "1"),
-        "epsilon": Var(("run",), "lower bound on v0 of an epsilon-constraint run (NaN "
-                                 "otherwise)", "velocity"),
+        "epsilon": Var(("run",), "lower bound on v0 of an epsilon-constraint run (NaN otherwise)", "velocity"),
         "best_evaluation": Var(("run",), "evaluation number of the run's optimum", "1"),
         "feasible": Var(("run",), "1 when the run's optimum satisfies its constraints", "1"),
         "evaluations": Var(("run",), "points simulated for the run", "1"),
         "stop": Var(("run",), "why the run stopped", "1"),
     },
     "front": {
-        "front_point": Var(("front_point",), "point of the Pareto front, by increasing v0",
-                           "1"),
+        "front_point": Var(("front_point",), "point of the Pareto front, by increasing v0", "1"),
         "evaluation": Var(("front_point",), "evaluation number of the point", "1"),
         "v0": Var(("front_point",), "asymptotic average velocity v0", "velocity"),
         "cost_of_transport": Var(("front_point",), "cost of transport", "force"),
-        "chosen": Var(("front_point",), "1 for the optimum of a run (an end of the front or an "
-                                        "epsilon-constraint point)", "1"),
+        "chosen": Var(
+            ("front_point",), "1 for the optimum of a run (an end of the front or an epsilon-constraint point)", "1"
+        ),
     },
 }
-
-
 
 
 def write_optimization(path: Any, result: Any) -> None:
@@ -121,8 +134,7 @@ def _write_optimization(f: h5py.File, result: Any) -> None:
         names.append(axis_name(p, [*names, *OPTIMIZATION_VARIABLES["evaluations"]]))
     units = Units.from_block(problem.base.document.get("units"))
     _write_attributes(f, result, names, units)
-    columns = _Columns(Scales(), units, problem.pareto,
-                       units.of(OBJECTIVE_QUANTITIES[problem.objective.quantity]))
+    columns = _Columns(Scales(), units, problem.pareto, units.of(OBJECTIVE_QUANTITIES[problem.objective.quantity]))
     _write_evaluations(f, columns, result, names)
     _write_history(f, columns, result)
     _write_runs(f, columns, result)
@@ -137,8 +149,7 @@ def _write_attributes(f: h5py.File, result: Any, names: Sequence[str], units: Un
     problem, method = result.problem, result.method
     base, objective = problem.base, problem.objective
     best = result.evaluations[result.best]
-    write_header(f, title=f"crawlsim optimisation of {base.name}",
-                 comment=_OPTIMIZATION_COMMENT, kind="optimization")
+    write_header(f, title=f"crawlsim optimisation of {base.name}", comment=_OPTIMIZATION_COMMENT, kind="optimization")
     s = base.simulation
     a = f.attrs
     a["name"] = base.name
@@ -147,13 +158,19 @@ def _write_attributes(f: h5py.File, result: Any, names: Sequence[str], units: Un
     a["gait_file"] = str(base.source)
     a["gait_file_text"] = str(base.source_text)
     a["integrator"] = s.integrator
-    a["integrator_json"] = json.dumps({"integrator": s.integrator,
-                                       "steps_per_period": s.steps_per_period,
-                                       "max_periods": s.max_periods, "tolerance": s.tolerance})
+    a["integrator_json"] = json.dumps(
+        {
+            "integrator": s.integrator,
+            "steps_per_period": s.steps_per_period,
+            "max_periods": s.max_periods,
+            "tolerance": s.tolerance,
+        }
+    )
     a["paths"] = json.dumps(list(problem.paths))
     a["axis_names"] = json.dumps(list(names))
-    a["free_json"] = json.dumps([{"path": fr.path, "name": n, "lo": fr.lo, "hi": fr.hi}
-                                 for fr, n in zip(problem.free, names)])
+    a["free_json"] = json.dumps(
+        [{"path": fr.path, "name": n, "lo": fr.lo, "hi": fr.hi} for fr, n in zip(problem.free, names)]
+    )
     a["objective"] = "pareto v0 cost_of_transport" if problem.pareto else objective.text
     a["objective_quantity"] = objective.quantity
     a["objective_sense"] = str(objective.sense)
@@ -190,30 +207,25 @@ class _Columns:
         if var.quantity == "objective":
             return "1" if self.pareto else self.objective_unit
         if var.quantity == "dissipation_rate":  # v0 times a cost of transport
-            return self.units.compose({"force": Fraction(1), "length": Fraction(1),
-                                       "time": Fraction(-1)})
+            return self.units.compose({"force": Fraction(1), "length": Fraction(1), "time": Fraction(-1)})
         return self.units.of(var.quantity)
 
     def index(self, group: h5py.Group, var: Var, values: Any) -> None:
         """The group's dimension coordinate."""
         dim = var.dims[0]
-        describe_var(self.scales.coordinate(group, dim, np.asarray(values, dtype=np.int64)),
-                     var, "1")
+        describe_var(self.scales.coordinate(group, dim, np.asarray(values, dtype=np.int64)), var, "1")
 
     def column(self, group: h5py.Group, name: str, values: Any, var: Var, dim: str) -> None:
         ds = write_column(group, name, values)
         self.scales.attach(ds, (dim,))
-        describe_var(ds, Var((dim,), var.long_name, var.quantity, var.flags, var.comment),
-                     self.unit_of(var))
+        describe_var(ds, Var((dim,), var.long_name, var.quantity, var.flags, var.comment), self.unit_of(var))
 
     def free(self, group: h5py.Group, name: str, path: str, values: Any, dim: str) -> None:
         """The values of one free parameter, its path in the attribute ``path``."""
-        quantity = path_quantity("crawler", tuple(int(k) if k.isdigit() else k
-                                                  for k in path.split(".")))
+        quantity = path_quantity("crawler", tuple(int(k) if k.isdigit() else k for k in path.split(".")))
         ds = group.create_dataset(name, data=np.asarray(values, dtype=float), track_order=True)
         self.scales.attach(ds, (dim,))
-        describe_var(ds, Var((dim,), f"free parameter {path}", quantity),
-                     self.units.of(quantity))
+        describe_var(ds, Var((dim,), f"free parameter {path}", quantity), self.units.of(quantity))
         ds.attrs["path"] = path
 
 
@@ -229,17 +241,30 @@ def _write_evaluations(f: h5py.File, c: _Columns, result: Any, names: Sequence[s
     c.index(group, table["evaluation"], np.arange(len(evals)))
     for k, (name, path) in enumerate(zip(names, result.problem.paths)):
         c.free(group, name, path, [e.x[k] for e in evals], "evaluation")
-    for name in ("v0", "v0_error_estimate", "displacement_per_period", "dissipation_per_period",
-                 "cost_of_transport"):
-        c.column(group, name, np.array([np.nan if getattr(e.row, name) is None
-                                        else getattr(e.row, name) for e in evals], dtype=float),
-                 SWEEP_VARIABLES[name], "evaluation")
+    for name in ("v0", "v0_error_estimate", "displacement_per_period", "dissipation_per_period", "cost_of_transport"):
+        c.column(
+            group,
+            name,
+            np.array([np.nan if getattr(e.row, name) is None else getattr(e.row, name) for e in evals], dtype=float),
+            SWEEP_VARIABLES[name],
+            "evaluation",
+        )
     for name in ("convergence", "status", "message", "integrator"):
-        c.column(group, name, np.array([str(getattr(e.row, name)) for e in evals], dtype=object),
-                 worded(SWEEP_VARIABLES[name], name), "evaluation")
+        c.column(
+            group,
+            name,
+            np.array([str(getattr(e.row, name)) for e in evals], dtype=object),
+            worded(SWEEP_VARIABLES[name], name),
+            "evaluation",
+        )
     for name in ("periods", "steps"):
-        c.column(group, name, np.array([getattr(e.row, name) for e in evals], dtype=np.int64),
-                 SWEEP_VARIABLES[name], "evaluation")
+        c.column(
+            group,
+            name,
+            np.array([getattr(e.row, name) for e in evals], dtype=np.int64),
+            SWEEP_VARIABLES[name],
+            "evaluation",
+        )
     feasible, violation = result.feasibility()
     for name, values in {
         "run": np.array([e.run for e in evals], dtype=np.int64),
@@ -256,8 +281,7 @@ def _write_history(f: h5py.File, c: _Columns, result: Any) -> None:
     hist = result.history
     table = OPTIMIZATION_VARIABLES["history"]
     group = f.create_group("history", track_order=True)
-    group.attrs["comment"] = ("the best value of each run after every batch; the runs' "
-                              "objectives are in /runs")
+    group.attrs["comment"] = "the best value of each run after every batch; the runs' objectives are in /runs"
     c.index(group, table["batch"], [b.batch for b in hist])
     columns: dict[str, Any] = {
         "run": np.array([b.run for b in hist], dtype=np.int64),
@@ -282,8 +306,7 @@ def _write_runs(f: h5py.File, c: _Columns, result: Any) -> None:
     c.index(group, table["run"], [r.index for r in runs])
     for name, values in {
         "objective": np.array([r.objective.text for r in runs], dtype=object),
-        "constraints": np.array([", ".join(k.text for k in r.constraints) for r in runs],
-                                dtype=object),
+        "constraints": np.array([", ".join(k.text for k in r.constraints) for r in runs], dtype=object),
         "epsilon": np.array([r.epsilon for r in runs], dtype=float),
         "best_evaluation": np.array([r.best for r in runs], dtype=np.int64),
         "feasible": np.array([r.feasible for r in runs], dtype=np.int8),
@@ -300,18 +323,19 @@ def _write_front(f: h5py.File, c: _Columns, result: Any, names: Sequence[str]) -
     group = f.create_group("front", track_order=True)
     front = list(result.front)
     c.index(group, table["front_point"], np.arange(len(front)))
-    c.column(group, "evaluation", np.array(front, dtype=np.int64), table["evaluation"],
-             "front_point")
+    c.column(group, "evaluation", np.array(front, dtype=np.int64), table["evaluation"], "front_point")
     for k, (name, path) in enumerate(zip(names, result.problem.paths)):
         c.free(group, name, path, [evals[i].x[k] for i in front], "front_point")
-    c.column(group, "v0", np.array([evals[i].row.v0 for i in front], dtype=float),
-             table["v0"], "front_point")
-    c.column(group, "cost_of_transport",
-             np.array([evals[i].row.cost_of_transport for i in front], dtype=float),
-             table["cost_of_transport"], "front_point")
+    c.column(group, "v0", np.array([evals[i].row.v0 for i in front], dtype=float), table["v0"], "front_point")
+    c.column(
+        group,
+        "cost_of_transport",
+        np.array([evals[i].row.cost_of_transport for i in front], dtype=float),
+        table["cost_of_transport"],
+        "front_point",
+    )
     chosen = set(result.chosen)
-    c.column(group, "chosen", np.array([i in chosen for i in front], dtype=np.int8),
-             table["chosen"], "front_point")
+    c.column(group, "chosen", np.array([i in chosen for i in front], dtype=np.int8), table["chosen"], "front_point")
 
 
 def read_optimization(path: Any) -> dict[str, Any]:
@@ -327,17 +351,13 @@ def read_optimization(path: Any) -> dict[str, Any]:
     with f:
         check_version(f, source)
         if plain(f.attrs.get("kind", "")) != "optimization":
-            raise ResultsFileError(f"{source}: not a crawlsim optimisation file (attribute kind "
-                                   "is not 'optimization')")
+            raise ResultsFileError(f"{source}: not a crawlsim optimisation file (attribute kind is not 'optimization')")
         out: dict[str, Any] = {"attrs": root_attrs(f)}
         for group in ("evaluations", "history", "runs", "front"):
             if group not in f:
                 if group == "front":
                     continue
                 raise ResultsFileError(f"{source}: missing group /{group}")
-            out[group] = {name: read_column(ds) for name, ds in f[group].items()
-                          if isinstance(ds, h5py.Dataset)}
+            out[group] = {name: read_column(ds) for name, ds in f[group].items() if isinstance(ds, h5py.Dataset)}
         out["free"] = json.loads(out["attrs"].get("free_json", "[]"))
     return out
-
-

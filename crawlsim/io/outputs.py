@@ -30,16 +30,19 @@ from pathlib import Path
 from crawlsim.errors import OutputError
 
 RUN, SWEEP, FIGURE, GAIT = "run", "sweep", "figure", "gait"
-_WHAT = {RUN: "crawlsim run results file (HDF5)", SWEEP: "crawlsim sweep table (CSV or HDF5)",
-         FIGURE: "figure", GAIT: "gait file"}
+_WHAT = {
+    RUN: "crawlsim run results file (HDF5)",
+    SWEEP: "crawlsim sweep table (CSV or HDF5)",
+    FIGURE: "figure",
+    GAIT: "gait file",
+}
 _HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 _IMAGES = {b"\x89PNG\r\n\x1a\n": "png", b"%PDF-": "pdf", b"GIF87a": "gif", b"GIF89a": "gif"}
 #: Columns every crawlsim sweep table has (CSV header), whatever else it holds.
 SWEEP_COLUMNS = frozenset({"v0", "convergence", "status", "message"})
 
 
-def check_target(path, kind: str, *, inputs: Iterable = (), force: bool = False,
-                 option: str = "--output") -> Path:
+def check_target(path, kind: str, *, inputs: Iterable = (), force: bool = False, option: str = "--output") -> Path:
     """Refuse ``path`` as an output of ``kind`` (`RUN`, `SWEEP` or `FIGURE`) for the reasons
     in the module docstring; return it as a Path when it may be written."""
     target = Path(path)
@@ -60,32 +63,45 @@ def check_target(path, kind: str, *, inputs: Iterable = (), force: bool = False,
     except FileNotFoundError:  # nothing there (or a dangling symbolic link, which holds no data)
         for given in inputs:  # another output of the command, not written yet
             if os.path.abspath(target) == os.path.abspath(given):
-                raise OutputError(source, "", f"is the input file {given}: refusing to replace "
-                                              "it, even with --force; choose another output "
-                                              "name") from None
+                raise OutputError(
+                    source,
+                    "",
+                    f"is the input file {given}: refusing to replace it, even with --force; choose another output name",
+                ) from None
         return target
     except OSError as error:
         raise OutputError(source, "", f"cannot inspect the target: {error.strerror}") from None
     if stat.S_ISDIR(info.st_mode):
         raise OutputError(source, "", "is a folder; give a file name such as run.h5")
     if not stat.S_ISREG(info.st_mode):
-        raise OutputError(source, "", f"is {special_kind(info.st_mode)}, not a regular file: "
-                                      "crawlsim never replaces special files, even with --force")
+        raise OutputError(
+            source,
+            "",
+            f"is {special_kind(info.st_mode)}, not a regular file: "
+            "crawlsim never replaces special files, even with --force",
+        )
     for given in inputs:
         try:
             same = os.path.samefile(target, given)
         except OSError:
             same = False
         if same:
-            raise OutputError(source, "", f"is the input file {given}: refusing to replace it, "
-                                          "even with --force; choose another output name")
+            raise OutputError(
+                source,
+                "",
+                f"is the input file {given}: refusing to replace it, even with --force; choose another output name",
+            )
     if force or info.st_size == 0 or kind == GAIT:
         return target
     found = classify(target)
     if found != (FIGURE + ":" + _suffix(target) if kind == FIGURE else kind):
-        raise OutputError(source, "", f"exists and is {_describe(found)}, not a {_WHAT[kind]}: "
-                                      "refusing to replace it. Choose another name, remove it, "
-                                      "or pass --force to replace it")
+        raise OutputError(
+            source,
+            "",
+            f"exists and is {_describe(found)}, not a {_WHAT[kind]}: "
+            "refusing to replace it. Choose another name, remove it, "
+            "or pass --force to replace it",
+        )
     return target
 
 

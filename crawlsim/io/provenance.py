@@ -100,21 +100,20 @@ def now() -> str:
 def session_attrs() -> dict[str, str]:
     """The attributes every results file records whatever it holds (runs, sweeps, and later
     optimisations): ``command_line``, ``versions_json`` and ``created``."""
-    return {"command_line": command_line(), "versions_json": json.dumps(versions()),
-            "created": now()}
+    return {"command_line": command_line(), "versions_json": json.dumps(versions()), "created": now()}
 
 
 def python_call(function: str, *args: Any, **kwargs: Any) -> str:
     """``crawlsim.simulate('gaits/x.yaml', integrator='exact')``: a call as text, for
     `recording`. A gait is shown by its source."""
+
     def show(value: Any) -> str:
         source = getattr(value, "source", None)
         if source is not None and hasattr(value, "document"):
             return f"<gait {source!r}>"
         return repr(value if not hasattr(value, "__fspath__") else str(value))
 
-    parts = [show(a) for a in args] + [f"{k}={show(v)}" for k, v in kwargs.items()
-                                       if v is not None]
+    parts = [show(a) for a in args] + [f"{k}={show(v)}" for k, v in kwargs.items() if v is not None]
     return f"{function}({', '.join(parts)})"
 
 
@@ -170,13 +169,16 @@ class Provenance:
         file written before provenance was recorded (format_version 1)."""
         if "gait_yaml" not in attrs or "integrator_json" not in attrs:
             return None
-        return cls(gait=str(attrs["gait_yaml"]), gait_file=str(attrs.get("gait_file", "")),
-                   gait_file_text=str(attrs.get("gait_file_text", "")),
-                   integrator=str(attrs.get("integrator", "")),
-                   integrator_settings=json.loads(attrs["integrator_json"]),
-                   command_line=str(attrs.get("command_line", "")),
-                   versions=json.loads(attrs.get("versions_json", "{}")),
-                   created=str(attrs.get("created", "")))
+        return cls(
+            gait=str(attrs["gait_yaml"]),
+            gait_file=str(attrs.get("gait_file", "")),
+            gait_file_text=str(attrs.get("gait_file_text", "")),
+            integrator=str(attrs.get("integrator", "")),
+            integrator_settings=json.loads(attrs["integrator_json"]),
+            command_line=str(attrs.get("command_line", "")),
+            versions=json.loads(attrs.get("versions_json", "{}")),
+            created=str(attrs.get("created", "")),
+        )
 
 
 def for_gait(gait: Any, *, check_every_step: bool = False) -> Provenance:
@@ -185,13 +187,21 @@ def for_gait(gait: Any, *, check_every_step: bool = False) -> Provenance:
     from crawlsim.analysis.run import effective_tolerance
 
     s = gait.simulation
-    settings = {"integrator": s.integrator, "steps_per_period": s.steps_per_period,
-                "max_periods": s.max_periods, "tolerance": s.tolerance,
-                "effective_tolerance": effective_tolerance(s.tolerance),
-                "check_every_step": bool(check_every_step)}
-    return Provenance(gait=gait.document, gait_file=str(gait.source),
-                      gait_file_text=str(gait.source_text), integrator=s.integrator,
-                      integrator_settings=settings)
+    settings = {
+        "integrator": s.integrator,
+        "steps_per_period": s.steps_per_period,
+        "max_periods": s.max_periods,
+        "tolerance": s.tolerance,
+        "effective_tolerance": effective_tolerance(s.tolerance),
+        "check_every_step": bool(check_every_step),
+    }
+    return Provenance(
+        gait=gait.document,
+        gait_file=str(gait.source),
+        gait_file_text=str(gait.source_text),
+        integrator=s.integrator,
+        integrator_settings=settings,
+    )
 
 
 def effective_yaml(document: Mapping[str, Any]) -> str:

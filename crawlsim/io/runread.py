@@ -67,11 +67,14 @@ def _open_run(path: Any) -> tuple[Any, h5py.File]:
         check_version(f, source)
         kind = plain(f.attrs.get("kind", ""))
         if kind == "sweep":
-            raise ResultsFileError(f"{source}: a sweep file, not a run's results file: read it "
-                                   "with crawlsim.study.sweep.read_table")
+            raise ResultsFileError(
+                f"{source}: a sweep file, not a run's results file: read it with crawlsim.study.sweep.read_table"
+            )
         if kind == "optimization":
-            raise ResultsFileError(f"{source}: an optimisation file, not a run's results file: "
-                                   "read it with crawlsim.io.hdf5.read_optimization")
+            raise ResultsFileError(
+                f"{source}: an optimisation file, not a run's results file: "
+                "read it with crawlsim.io.hdf5.read_optimization"
+            )
     except BaseException:
         f.close()
         raise
@@ -96,21 +99,32 @@ def read_provenance(path: Any) -> dict[str, Any]:
         version = check_version(f, path)
         a = {k: plain(v) for k, v in f.attrs.items()}
     if a.get("kind") == "optimization":
-        raise ResultsFileError(f"{path}: an optimisation file; --from reruns a run's results "
-                               "file. Write the best gait with crawlsim optimize --write-best "
-                               "BEST.yaml and run that (its command line was: "
-                               f"{a.get('command_line', 'not recorded')})")
+        raise ResultsFileError(
+            f"{path}: an optimisation file; --from reruns a run's results "
+            "file. Write the best gait with crawlsim optimize --write-best "
+            "BEST.yaml and run that (its command line was: "
+            f"{a.get('command_line', 'not recorded')})"
+        )
     if a.get("kind") == "sweep":
-        raise ResultsFileError(f"{path}: a sweep file; --from reruns a run's results file (the "
-                               f"sweep's command line was: {a.get('command_line', 'not recorded')})")
+        raise ResultsFileError(
+            f"{path}: a sweep file; --from reruns a run's results file (the "
+            f"sweep's command line was: {a.get('command_line', 'not recorded')})"
+        )
     if version < 2 or "integrator_json" not in a:
-        raise ResultsFileError(f"{path}: format_version {version} files do not record the "
-                               "command-line overrides or the integrator, so the run cannot be "
-                               "reproduced from it; rerun from the gait file (crawlsim run "
-                               "GAIT.yaml with the same options)")
-    return {"kind": a["kind"], "name": a["name"], "gait_yaml": a["gait_yaml"],
-            "integrator_settings": json.loads(a["integrator_json"]),
-            "save_every": int(a.get("save_every", 1)) or 1, "format_version": version}
+        raise ResultsFileError(
+            f"{path}: format_version {version} files do not record the "
+            "command-line overrides or the integrator, so the run cannot be "
+            "reproduced from it; rerun from the gait file (crawlsim run "
+            "GAIT.yaml with the same options)"
+        )
+    return {
+        "kind": a["kind"],
+        "name": a["name"],
+        "gait_yaml": a["gait_yaml"],
+        "integrator_settings": json.loads(a["integrator_json"]),
+        "save_every": int(a.get("save_every", 1)) or 1,
+        "format_version": version,
+    }
 
 
 def read_attrs(path: Any) -> dict[str, Any]:
@@ -120,5 +134,3 @@ def read_attrs(path: Any) -> dict[str, Any]:
             return {k: plain(v) for k, v in f.attrs.items()}
     with open_h5(Path(path), "results file") as f:
         return {k: plain(v) for k, v in f.attrs.items()}
-
-

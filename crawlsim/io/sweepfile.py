@@ -39,40 +39,37 @@ _SWEEP_COMMENT = (
     "with the swept values of i (the paths in attribute paths, their dimensions in axis_names; "
     "C order, the last path varying fastest). /grid holds the numbers on the grid, /results one "
     "entry per computed point. Units: units_json (the gait file's units block); every dataset "
-    "has units and long_name.")
+    "has units and long_name."
+)
 
 
 #: /grid and /results variables of a sweep file besides the swept paths.
 SWEEP_VARIABLES: dict[str, Var] = {
-    "v0": Var(("point",), "asymptotic average velocity v0 (NaN where the point failed)",
-              "velocity"),
-    "displacement_per_period": Var(("point",), "barycentre displacement per period of the "
-                                               "limit period", "length"),
-    "convergence": Var(("point",), "how the point reached its periodic regime", "1",
-                       CONVERGENCE_FLAGS),
+    "v0": Var(("point",), "asymptotic average velocity v0 (NaN where the point failed)", "velocity"),
+    "displacement_per_period": Var(("point",), "barycentre displacement per period of the limit period", "length"),
+    "convergence": Var(("point",), "how the point reached its periodic regime", "1", CONVERGENCE_FLAGS),
     "periods": Var(("point",), "periods simulated", "1"),
-    "status": Var(("point",), "outcome of the point (message says why it failed)", "1",
-                  STATUS_FLAGS),
+    "status": Var(("point",), "outcome of the point (message says why it failed)", "1", STATUS_FLAGS),
     "message": Var(("point",), "the reason of a failure, else empty", "1"),
     "point": Var(("point",), "grid index of the point (C order over the swept paths)", "1"),
     "steps": Var(("point",), "catch-up steps simulated (periods x steps per period)", "1"),
     "v0_error_estimate": Var(("point",), "error bound of v0", "velocity"),
-    "dissipation_per_period": Var(("point",), "energy dissipated by friction in the limit "
-                                              "period", "dissipation"),
-    "cost_of_transport": Var(("point",), "dissipation per distance travelled (NaN without net "
-                                         "motion)", "force"),
+    "dissipation_per_period": Var(("point",), "energy dissipated by friction in the limit period", "dissipation"),
+    "cost_of_transport": Var(("point",), "dissipation per distance travelled (NaN without net motion)", "force"),
     "integrator": Var(("point",), "integrator of the point: catch-up or exact", "1"),
-    "limit": Var(("point",), "how the periodic limit was found: newton (periodic-limit "
-                             "solver) or iterate (plain periods)", "1"),
-    "newton_steps": Var(("point",), "Newton iterations of the periodic-limit solver (-1: the "
-                                    "point did not run)", "1"),
+    "limit": Var(
+        ("point",), "how the periodic limit was found: newton (periodic-limit solver) or iterate (plain periods)", "1"
+    ),
+    "newton_steps": Var(("point",), "Newton iterations of the periodic-limit solver (-1: the point did not run)", "1"),
 }
 #: Numeric columns written on the grid when a table has them (files of crawlsim 0.1 do not).
 _OPTIONAL_GRID = ("v0_error_estimate", "dissipation_per_period", "cost_of_transport")
 
 
-_WORDS = {"convergence": "finite-time, asymptotic or not-converged; empty when the point failed",
-          "status": "ok, not-converged, invalid or failed"}
+_WORDS = {
+    "convergence": "finite-time, asymptotic or not-converged; empty when the point failed",
+    "status": "ok, not-converged, invalid or failed",
+}
 
 
 def axis_name(path: str, taken: Sequence[str] = ()) -> str:
@@ -91,22 +88,28 @@ def axis_name(path: str, taken: Sequence[str] = ()) -> str:
 def _flag_codes(values: Any, flags: tuple[tuple[int, str], ...]) -> np.ndarray:
     """Strings (``finite-time``, ``not-converged``, "") as their CF flag codes; "" -> -1."""
     code = {m: v for v, m in flags}
-    return np.array([code.get(str(s).replace("-", "_"), -1) if s else -1 for s in values],
-                    dtype=np.int8)
+    return np.array([code.get(str(s).replace("-", "_"), -1) if s else -1 for s in values], dtype=np.int8)
 
 
-
-
-def write_sweep(path: Any, *, paths: Sequence[str], axes: Sequence[Any], points: Any,
-                columns: Mapping[str, Any], gait_yaml: str, source: str, shard: str,
-                steps: Any, dimensions: Sequence[int] | None = None) -> None:
+def write_sweep(
+    path: Any,
+    *,
+    paths: Sequence[str],
+    axes: Sequence[Any],
+    points: Any,
+    columns: Mapping[str, Any],
+    gait_yaml: str,
+    source: str,
+    shard: str,
+    steps: Any,
+    dimensions: Sequence[int] | None = None,
+) -> None:
     """Write a sweep table atomically (`crawlsim.io.atomic`); ``path`` may be a binary file
     object (an in-memory image). ``dimensions`` gives the grid dimension of each swept path
     (linked paths share one; default: each path its own)."""
     dims = list(range(len(paths))) if dimensions is None else [int(d) for d in dimensions]
     layout = _SweepLayout.of(paths, axes, points, dims, gait_yaml)
-    write_file(path, lambda f: _write_sweep(f, layout, columns, gait_yaml, source, shard,
-                                            steps))
+    write_file(path, lambda f: _write_sweep(f, layout, columns, gait_yaml, source, shard, steps))
 
 
 @dataclass(frozen=True)
@@ -127,8 +130,9 @@ class _SweepLayout:
     document: Mapping[str, Any]
 
     @classmethod
-    def of(cls, paths: Sequence[str], axes: Sequence[Any], points: Any, dims: Sequence[int],
-           gait_yaml: str) -> _SweepLayout:
+    def of(
+        cls, paths: Sequence[str], axes: Sequence[Any], points: Any, dims: Sequence[int], gait_yaml: str
+    ) -> _SweepLayout:
         import yaml
 
         document = yaml.safe_load(gait_yaml) or {}
@@ -137,9 +141,18 @@ class _SweepLayout:
             names.append(axis_name(p, names))
         first = {d: i for i, d in reversed(list(enumerate(dims)))}
         order = sorted(first, key=lambda d: first[d])
-        return cls(paths, names, axes, dims, first, order, np.asarray(points, dtype=np.int64),
-                   document.get("kind", "crawler"), Units.from_block(document.get("units")),
-                   document)
+        return cls(
+            paths,
+            names,
+            axes,
+            dims,
+            first,
+            order,
+            np.asarray(points, dtype=np.int64),
+            document.get("kind", "crawler"),
+            Units.from_block(document.get("units")),
+            document,
+        )
 
     @property
     def dim_names(self) -> list[str]:
@@ -150,8 +163,7 @@ class _SweepLayout:
         return tuple(len(self.axes[self.first[d]]) for d in self.order)
 
     def axis_var(self, path: str) -> Var:
-        quantity = path_quantity(self.kind, tuple(int(k) if k.isdigit() else k
-                                                  for k in path.split(".")))
+        quantity = path_quantity(self.kind, tuple(int(k) if k.isdigit() else k for k in path.split(".")))
         return Var((), f"swept value of {path}", quantity)
 
     def integrator(self, columns: Mapping[str, Any]) -> str:
@@ -164,12 +176,12 @@ class _SweepLayout:
         simulation = self.document.get("simulation")
         if not isinstance(simulation, dict):
             simulation = {}
-        return ",".join(used) if used else str(simulation.get("integrator",
-                                                              Simulation.integrator))
+        return ",".join(used) if used else str(simulation.get("integrator", Simulation.integrator))
 
 
-def _write_sweep(f: h5py.File, layout: _SweepLayout, columns: Mapping[str, Any],
-                 gait_yaml: str, source: str, shard: str, steps: Any) -> None:
+def _write_sweep(
+    f: h5py.File, layout: _SweepLayout, columns: Mapping[str, Any], gait_yaml: str, source: str, shard: str, steps: Any
+) -> None:
     from crawlsim.io import provenance
 
     paths, names = layout.paths, layout.names
@@ -184,8 +196,9 @@ def _write_sweep(f: h5py.File, layout: _SweepLayout, columns: Mapping[str, Any],
     a["dimensions"] = json.dumps([layout.order.index(d) for d in layout.dims])
     a["units_json"] = json.dumps(layout.units.to_json())
     a["integrator"] = layout.integrator(columns)
-    a["sweep_json"] = json.dumps([{"path": p, "name": n, "values": np.asarray(v).tolist()}
-                                  for p, n, v in zip(paths, names, layout.axes)])
+    a["sweep_json"] = json.dumps(
+        [{"path": p, "name": n, "values": np.asarray(v).tolist()} for p, n, v in zip(paths, names, layout.axes)]
+    )
     for key, value in provenance.session_attrs().items():
         a[key] = value
     scales = Scales()
@@ -194,14 +207,14 @@ def _write_sweep(f: h5py.File, layout: _SweepLayout, columns: Mapping[str, Any],
     _write_derivatives(f, scales, layout, columns)
 
 
-def _write_grid(f: h5py.File, scales: Scales, layout: _SweepLayout,
-                columns: Mapping[str, Any], steps: Any) -> None:
+def _write_grid(f: h5py.File, scales: Scales, layout: _SweepLayout, columns: Mapping[str, Any], steps: Any) -> None:
     """/grid: the swept values as coordinates, and the numbers on the grid (NaN, or the flag
     not_computed, where another shard computed the point)."""
     units, dim_names, shape = layout.units, layout.dim_names, layout.shape
     grid = f.create_group("grid", track_order=True)
-    grid.attrs["comment"] = ("the sweep's numbers on the grid; points not computed (another "
-                             "shard's) are NaN, status not_computed")
+    grid.attrs["comment"] = (
+        "the sweep's numbers on the grid; points not computed (another shard's) are NaN, status not_computed"
+    )
     for p, n, values, d in zip(layout.paths, layout.names, layout.axes, layout.dims):
         if n in dim_names:
             ds = scales.coordinate(grid, n, np.asarray(values))
@@ -214,15 +227,15 @@ def _write_grid(f: h5py.File, scales: Scales, layout: _SweepLayout,
     gridded = ["v0", "displacement_per_period", "convergence", "status", "periods", "steps"]
     gridded += [c for c in _OPTIONAL_GRID if c in columns]
     for name in gridded:
-        data = _on_grid(steps if name == "steps" else columns[name], SWEEP_VARIABLES[name],
-                        name, size, layout.points)
+        data = _on_grid(steps if name == "steps" else columns[name], SWEEP_VARIABLES[name], name, size, layout.points)
         ds = grid.create_dataset(name, data=data.reshape(shape), track_order=True)
         scales.attach(ds, dim_names)
         describe_var(ds, SWEEP_VARIABLES[name], units.of(SWEEP_VARIABLES[name].quantity))
     messages = np.full(size, "", dtype=object)
     messages[layout.points] = np.asarray(columns["message"], dtype=object).astype(str)
-    ds = grid.create_dataset("message", data=messages.reshape(shape).tolist(),
-                             dtype=h5py.string_dtype(), shape=shape, track_order=True)
+    ds = grid.create_dataset(
+        "message", data=messages.reshape(shape).tolist(), dtype=h5py.string_dtype(), shape=shape, track_order=True
+    )
     scales.attach(ds, dim_names)
     describe_var(ds, SWEEP_VARIABLES["message"], "1")
 
@@ -242,8 +255,7 @@ def _on_grid(values: Any, var: Var, name: str, size: int, points: np.ndarray) ->
     return data
 
 
-def _write_results(f: h5py.File, scales: Scales, layout: _SweepLayout,
-                   columns: Mapping[str, Any], steps: Any) -> None:
+def _write_results(f: h5py.File, scales: Scales, layout: _SweepLayout, columns: Mapping[str, Any], steps: Any) -> None:
     """/results: one entry per computed point, the table's words kept (as in the CSV table;
     /grid has the CF flags)."""
     units = layout.units
@@ -257,8 +269,7 @@ def _write_results(f: h5py.File, scales: Scales, layout: _SweepLayout,
         describe_var(ds, layout.axis_var(p), units.of(layout.axis_var(p).quantity))
         ds.attrs["path"] = p
     table = ["v0", "displacement_per_period", "convergence", "periods", "status", "message"]
-    table += [c for c in (*_OPTIONAL_GRID, "integrator", "limit", "newton_steps")
-              if c in columns]
+    table += [c for c in (*_OPTIONAL_GRID, "integrator", "limit", "newton_steps") if c in columns]
     for name, values in [(k, columns[k]) for k in table] + [("steps", steps)]:
         ds = write_column(results, name, values)
         var = SWEEP_VARIABLES[name]
@@ -266,26 +277,26 @@ def _write_results(f: h5py.File, scales: Scales, layout: _SweepLayout,
         describe_var(ds, worded(var, name), units.of(var.quantity))
 
 
-def _write_derivatives(f: h5py.File, scales: Scales, layout: _SweepLayout,
-                       columns: Mapping[str, Any]) -> None:
+def _write_derivatives(f: h5py.File, scales: Scales, layout: _SweepLayout, columns: Mapping[str, Any]) -> None:
     """The dv0/dPATH columns of ``--sensitivity`` (`crawlsim.analysis.sensitivity_sweep`), on
     the grid and in the table, with the units of v0 over PATH; the column in ``column``."""
     shape, dim_names = layout.shape, layout.dim_names
     for column, name, unit, long_name in _derivative_variables(
-            columns, layout.units, layout.kind, [*layout.names, *SWEEP_VARIABLES]):
+        columns, layout.units, layout.kind, [*layout.names, *SWEEP_VARIABLES]
+    ):
         values = np.asarray(columns[column], dtype=float)
         data = np.full(math.prod(shape), np.nan)
         data[layout.points] = values
-        for group, array, dims in ((f["grid"], data.reshape(shape), dim_names),
-                                   (f["results"], values, ("point",))):
+        for group, array, dims in ((f["grid"], data.reshape(shape), dim_names), (f["results"], values, ("point",))):
             ds = group.create_dataset(name, data=array, track_order=True)
             scales.attach(ds, dims)
             describe_var(ds, Var(tuple(dims), long_name, "1"), unit)
             ds.attrs["column"] = column
 
 
-def _derivative_variables(cols: Mapping[str, Any], units: Units, kind: str,
-                          taken: Sequence[str]) -> list[tuple[str, str, str, str]]:
+def _derivative_variables(
+    cols: Mapping[str, Any], units: Units, kind: str, taken: Sequence[str]
+) -> list[tuple[str, str, str, str]]:
     """(column, dataset name, units, long_name) of each derivative column of a sweep file: the
     name netCDF-safe (``dv0_dlinks_1_phase``), the column itself in the attribute ``column``."""
     from crawlsim.analysis.sensitivity_sweep import PREFIX, unit
@@ -295,12 +306,17 @@ def _derivative_variables(cols: Mapping[str, Any], units: Units, kind: str,
     for column in cols:
         if not column.startswith(PREFIX):
             continue
-        path = column[len(PREFIX):]
+        path = column[len(PREFIX) :]
         name = axis_name("dv0_d" + path.replace(".", "_"), names)
         names.append(name)
-        out.append((column, name, unit(units, kind, path),
-                    f"derivative of v0 with respect to {path} (NaN where not smooth or not "
-                    "computed)"))
+        out.append(
+            (
+                column,
+                name,
+                unit(units, kind, path),
+                f"derivative of v0 with respect to {path} (NaN where not smooth or not computed)",
+            )
+        )
     return out
 
 
@@ -310,8 +326,7 @@ def worded(var: Var, name: str) -> Var:
 
 
 #: The columns every sweep file's /results has, besides the swept paths.
-_REQUIRED = ("v0", "displacement_per_period", "convergence", "periods", "status", "message",
-             "point", "steps")
+_REQUIRED = ("v0", "displacement_per_period", "convergence", "periods", "status", "message", "point", "steps")
 
 
 def read_sweep(path: Any) -> dict[str, Any]:
@@ -323,8 +338,7 @@ def read_sweep(path: Any) -> dict[str, Any]:
     path = Path(path)
     with open_h5(path, "sweep file") as f:
         if plain(f.attrs.get("kind", "")) != "sweep":
-            raise ResultsFileError(f"{path}: not a crawlsim sweep file (attribute kind is not "
-                                   "'sweep')")
+            raise ResultsFileError(f"{path}: not a crawlsim sweep file (attribute kind is not 'sweep')")
         version = check_version(f, path)
         paths = json.loads(plain(f.attrs["paths"]))
         if version == 1:
@@ -338,19 +352,24 @@ def read_sweep(path: Any) -> dict[str, Any]:
         if missing:
             raise ResultsFileError(f"{path}: missing /{axes_group}/{missing[0]}")
         columns = _read_columns(path, f["results"], names, paths)
-        dimensions = (json.loads(plain(f.attrs["dimensions"])) if "dimensions" in f.attrs
-                      else None)
-        out = dict(paths=paths, axes=[f[axes_group][n][()] for n in names],
-                   points=columns.pop("point"), steps=columns.pop("steps"), columns=columns,
-                   gait_yaml=plain(f.attrs["gait_yaml"]), source=plain(f.attrs["source"]),
-                   shard=plain(f.attrs["shard"]), dimensions=dimensions)
+        dimensions = json.loads(plain(f.attrs["dimensions"])) if "dimensions" in f.attrs else None
+        out = dict(
+            paths=paths,
+            axes=[f[axes_group][n][()] for n in names],
+            points=columns.pop("point"),
+            steps=columns.pop("steps"),
+            columns=columns,
+            gait_yaml=plain(f.attrs["gait_yaml"]),
+            source=plain(f.attrs["source"]),
+            shard=plain(f.attrs["shard"]),
+            dimensions=dimensions,
+        )
         if version >= 2:
             out["attrs"] = root_attrs(f)
         return out
 
 
-def _read_columns(path: Path, results: h5py.Group, names: Sequence[str],
-                  paths: Sequence[str]) -> dict[str, Any]:
+def _read_columns(path: Path, results: h5py.Group, names: Sequence[str], paths: Sequence[str]) -> dict[str, Any]:
     """The /results columns by key (the swept paths by their path), the required ones first,
     then the later ones (v0_error_estimate, ...) when the file has them."""
     columns = {}

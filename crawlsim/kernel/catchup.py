@@ -43,8 +43,7 @@ def cache_is_cold(integrator: str = "catch-up") -> bool:
     ``integrator`` calls, for this source (an index file missing or stale). False when the JIT
     is disabled or the cache cannot be inspected: then nothing is announced."""
     try:
-        return any(not entry._cache._cache_file._load_index()
-                   for entry in _entries(integrator))
+        return any(not entry._cache._cache_file._load_index() for entry in _entries(integrator))
     except Exception:
         return False
 
@@ -54,8 +53,7 @@ def announce_compilation(integrator: str = "catch-up") -> None:
     first time in this cache."""
     if integrator not in _announced:
         if cache_is_cold(integrator) and "printed" not in _announced:
-            print(f"crawlsim: compiling the kernel once, ~{COLD_SECONDS} s", file=sys.stderr,
-                  flush=True)
+            print(f"crawlsim: compiling the kernel once, ~{COLD_SECONDS} s", file=sys.stderr, flush=True)
             _announced.add("printed")
         _announced.add(integrator)
 
@@ -116,24 +114,26 @@ class ChainKernel:
         self._active, self._key = A, key
         return A
 
-    def run(self, C: np.ndarray, W: np.ndarray, LAM: np.ndarray, S: np.ndarray,
-            j0: int) -> tuple[int, int]:
+    def run(self, C: np.ndarray, W: np.ndarray, LAM: np.ndarray, S: np.ndarray, j0: int) -> tuple[int, int]:
         """Steps j0, j0+1, ... until the period ends or a step needs the projector
         (`chain.catch_up`)."""
-        status, j = chain.catch_up(self.k, self.c_scale, C, W, LAM, S, self.signs, self.factored,
-                                   self.D, self.l, self.norms, j0, self.report)
+        status, j = chain.catch_up(
+            self.k, self.c_scale, C, W, LAM, S, self.signs, self.factored, self.D, self.l, self.norms, j0, self.report
+        )
         return int(status), int(j)
 
     def failure(self, name: str, when: float, describe: Callable[[np.ndarray], str]) -> str:
         """The message of a step whose certificate failed with no update left (FAILED)."""
         r = self.report
         row = int(r[chain.REPORT_ROW])
-        return (f"{name}: the catch-up step failed its certificate at t = {when:.12g}: primal "
-                f"violation {r[chain.REPORT_PRIMAL]:.3g}, negative multiplier "
-                f"{r[chain.REPORT_DUAL]:.3g}, complementarity {r[chain.REPORT_COMP]:.3g} "
-                f"(tolerances {r[chain.REPORT_TOLP]:.3g} / {r[chain.REPORT_TOLD]:.3g}); worst "
-                f"row {row} ({describe(np.array([row]))}), active set "
-                f"{describe(rows_of(self.signs))}")
+        return (
+            f"{name}: the catch-up step failed its certificate at t = {when:.12g}: primal "
+            f"violation {r[chain.REPORT_PRIMAL]:.3g}, negative multiplier "
+            f"{r[chain.REPORT_DUAL]:.3g}, complementarity {r[chain.REPORT_COMP]:.3g} "
+            f"(tolerances {r[chain.REPORT_TOLP]:.3g} / {r[chain.REPORT_TOLD]:.3g}); worst "
+            f"row {row} ({describe(np.array([row]))}), active set "
+            f"{describe(rows_of(self.signs))}"
+        )
 
 
 class VisitedSets(Sequence[ActiveSet]):
@@ -174,8 +174,9 @@ class VisitedSets(Sequence[ActiveSet]):
         return self._list()[i]
 
 
-def velocity(polyhedron: Polyhedron, c: np.ndarray, warm: np.ndarray,
-             fixed: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, np.ndarray] | None:
+def velocity(
+    polyhedron: Polyhedron, c: np.ndarray, warm: np.ndarray, fixed: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, float, np.ndarray] | None:
     """The exact integrator's velocity problem argmin 1/2 |v|_M^2 over {B_fixed v = c_fixed,
     B_i v <= c_i (finite c_i)} of a crawler, certified in the compiled kernel from the rows
     ``warm`` (`chain.project_rows`): (v, lambda, tol_p, tol_d), tol_d each row's own dual
@@ -199,10 +200,18 @@ def velocity(polyhedron: Polyhedron, c: np.ndarray, warm: np.ndarray,
     lam = np.empty(2 * N)
     report = np.zeros(6)
     told = np.empty(2 * N)
-    status = chain.project_rows(np.ascontiguousarray(polyhedron.stiffness, dtype=float),
-                                float(polyhedron.c_scale), np.zeros(N - 1),
-                                np.ascontiguousarray(c, dtype=float), signs, mask, w, lam, report,
-                                told)
+    status = chain.project_rows(
+        np.ascontiguousarray(polyhedron.stiffness, dtype=float),
+        float(polyhedron.c_scale),
+        np.zeros(N - 1),
+        np.ascontiguousarray(c, dtype=float),
+        signs,
+        mask,
+        w,
+        lam,
+        report,
+        told,
+    )
     if status != chain.DONE:
         return None
     return w, lam, float(report[chain.REPORT_TOLP]), told

@@ -71,14 +71,15 @@ class Certificate:
     @property
     def ok(self) -> bool:
         t = self.tolerance
-        return (self.primal <= t.primal and self.dual <= self._dual_tol
-                and self.complementarity <= t.primal)
+        return self.primal <= t.primal and self.dual <= self._dual_tol and self.complementarity <= t.primal
 
     def __str__(self) -> str:
         t = self.tolerance
-        return (f"primal violation {self.primal:.3g} (tolerance {t.primal:.3g}), negative "
-                f"multiplier {self.dual:.3g} (tolerance {self._dual_tol:.3g}), complementarity "
-                f"{self.complementarity:.3g} (tolerance {t.primal:.3g})")
+        return (
+            f"primal violation {self.primal:.3g} (tolerance {t.primal:.3g}), negative "
+            f"multiplier {self.dual:.3g} (tolerance {self._dual_tol:.3g}), complementarity "
+            f"{self.complementarity:.3g} (tolerance {t.primal:.3g})"
+        )
 
 
 @dataclass(frozen=True, eq=False)

@@ -68,8 +68,7 @@ def factor(k: np.ndarray, signs: np.ndarray, D: np.ndarray, l: np.ndarray) -> tu
 
 
 @njit(cache=True)
-def factor_into(k: np.ndarray, signs: np.ndarray, D: np.ndarray, l: np.ndarray,
-                y: np.ndarray) -> tuple[float, float]:
+def factor_into(k: np.ndarray, signs: np.ndarray, D: np.ndarray, l: np.ndarray, y: np.ndarray) -> tuple[float, float]:
     """`factor` with the caller's scratch ``y`` (N) for the solve that gives ||L_JJ^{-1}||:
     the catch-up loop refactors without allocating."""
     N = signs.shape[0]
@@ -94,9 +93,8 @@ def factor_into(k: np.ndarray, signs: np.ndarray, D: np.ndarray, l: np.ndarray,
     return inverse, gram
 
 
-@njit(cache=True, inline='always')
-def eliminate(k: np.ndarray, signs: np.ndarray, D: np.ndarray, l: np.ndarray, lo: int,
-              hi: int) -> None:
+@njit(cache=True, inline="always")
+def eliminate(k: np.ndarray, signs: np.ndarray, D: np.ndarray, l: np.ndarray, lo: int, hi: int) -> None:
     """The elimination of `factor` along blocks lo..hi, their pivots D on the diagonal: the
     subdiagonal l and the pivots after it. l = 0 between runs (D[i] - 0 * 0 = D[i]): no chain
     across them, so a run can be refactored alone (`crawlsim.kernel.piece.rebuild`)."""
@@ -125,7 +123,7 @@ def solve(D: np.ndarray, l: np.ndarray, y: np.ndarray) -> None:
             y[i] -= l[i] * y[i + 1]
 
 
-@njit(cache=True, inline='always')
+@njit(cache=True, inline="always")
 def force(w: np.ndarray, i: int, N: int) -> float:
     """f_i = (D^T w)_i = w_{i-1} - w_i, with w_{-1} = w_{N-1} = 0: the net force on block i."""
     if i == 0:
@@ -143,10 +141,18 @@ def forces(w: np.ndarray, f: np.ndarray) -> None:
         f[i] = force(w, i, N)
 
 
-@njit(cache=True, inline='always')
-def state(k: np.ndarray, w_trial: np.ndarray, dx: np.ndarray, signs: np.ndarray, w: np.ndarray,
-          lam: np.ndarray, slack: np.ndarray, c: np.ndarray,
-          fixed: np.ndarray) -> tuple[float, float, float, float]:
+@njit(cache=True, inline="always")
+def state(
+    k: np.ndarray,
+    w_trial: np.ndarray,
+    dx: np.ndarray,
+    signs: np.ndarray,
+    w: np.ndarray,
+    lam: np.ndarray,
+    slack: np.ndarray,
+    c: np.ndarray,
+    fixed: np.ndarray,
+) -> tuple[float, float, float, float]:
     """From the slips dx (0 on free blocks): the point w = w_trial - K D dx, the multipliers
     lambda (2N) and the slack B w - c, in one pass over the blocks (f_i = (D^T w)_i as in
     `forces`), with the step's certificate from the same numbers. Returns (max |lambda|,
@@ -193,11 +199,25 @@ def state(k: np.ndarray, w_trial: np.ndarray, dx: np.ndarray, signs: np.ndarray,
     return lam_size, primal, dual, comp
 
 
-@njit(cache=True, inline='always')
-def on_set(k: np.ndarray, kmax: float, c_scale: float, w_trial: np.ndarray, c: np.ndarray,
-           signs: np.ndarray, D: np.ndarray, l: np.ndarray, inverse: float, gram: float,
-           dx: np.ndarray, w: np.ndarray, lam: np.ndarray, slack: np.ndarray,
-           res: np.ndarray, fixed: np.ndarray) -> tuple[float, float, float, float, float]:
+@njit(cache=True, inline="always")
+def on_set(
+    k: np.ndarray,
+    kmax: float,
+    c_scale: float,
+    w_trial: np.ndarray,
+    c: np.ndarray,
+    signs: np.ndarray,
+    D: np.ndarray,
+    l: np.ndarray,
+    inverse: float,
+    gram: float,
+    dx: np.ndarray,
+    w: np.ndarray,
+    lam: np.ndarray,
+    slack: np.ndarray,
+    res: np.ndarray,
+    fixed: np.ndarray,
+) -> tuple[float, float, float, float, float]:
     """The equality KKT system on the factored set ``signs``, with one step of iterative
     refinement when its complementarity residual asks for it. Returns (tol_p, tol_d, primal,
     dual, complementarity): the scalar tolerances and the certificate of the final point
@@ -248,9 +268,20 @@ def on_set(k: np.ndarray, kmax: float, c_scale: float, w_trial: np.ndarray, c: n
 
 
 @njit(cache=True)
-def row_duals(k: np.ndarray, kmax: float, c_scale: float, w_trial: np.ndarray, c: np.ndarray,
-              signs: np.ndarray, D: np.ndarray, l: np.ndarray, dx: np.ndarray, tol_d: float,
-              s: np.ndarray, told: np.ndarray) -> None:
+def row_duals(
+    k: np.ndarray,
+    kmax: float,
+    c_scale: float,
+    w_trial: np.ndarray,
+    c: np.ndarray,
+    signs: np.ndarray,
+    D: np.ndarray,
+    l: np.ndarray,
+    dx: np.ndarray,
+    tol_d: float,
+    s: np.ndarray,
+    told: np.ndarray,
+) -> None:
     """Each row's own dual tolerance into ``told`` (2N), from the magnitudes of the numbers its
     multiplier is computed from (a componentwise, Skeel-type bound).
 
@@ -324,8 +355,17 @@ def independent(rows: np.ndarray, N: int) -> bool:
 
 
 @njit(cache=True)
-def update(signs: np.ndarray, lam: np.ndarray, slack: np.ndarray, tol_p: float, told: np.ndarray,
-           new: np.ndarray, fixed: np.ndarray, rows: np.ndarray, member: np.ndarray) -> int:
+def update(
+    signs: np.ndarray,
+    lam: np.ndarray,
+    slack: np.ndarray,
+    tol_p: float,
+    told: np.ndarray,
+    new: np.ndarray,
+    fixed: np.ndarray,
+    rows: np.ndarray,
+    member: np.ndarray,
+) -> int:
     """The next set of a primal-dual update into ``new`` (`crawlsim.kernel.polyhedron.Polyhedron.update_set`,
     then `exchange` where the set would fail LICQ); rows ``fixed`` never leave. Returns 0 with a
     new set, 1 when nothing is to change (the certificate failed on its own numbers), 2 when
@@ -370,8 +410,7 @@ def update(signs: np.ndarray, lam: np.ndarray, slack: np.ndarray, tol_p: float, 
 
 
 @njit(cache=True)
-def exchange(member: np.ndarray, lam: np.ndarray, slack: np.ndarray, fixed: np.ndarray,
-             rows: np.ndarray) -> bool:
+def exchange(member: np.ndarray, lam: np.ndarray, slack: np.ndarray, fixed: np.ndarray, rows: np.ndarray) -> bool:
     """The exchange of Goldfarb and Idnani into ``rows`` (`crawlsim.kernel.polyhedron.Polyhedron.exchange`):
     the most violated row r enters although it depends on the active ones, which happens only
     when every block would be saturated (a block at both limits has no leaving row); along the
@@ -401,7 +440,7 @@ def exchange(member: np.ndarray, lam: np.ndarray, slack: np.ndarray, fixed: np.n
     return True
 
 
-@njit(cache=True, inline='always')
+@njit(cache=True, inline="always")
 def same(a: np.ndarray, b: np.ndarray) -> bool:
     """a == b for two sets of signs, without the temporary array of np.array_equal (a step at
     N = 4 costs about as much as that allocation)."""
@@ -412,11 +451,29 @@ def same(a: np.ndarray, b: np.ndarray) -> bool:
 
 
 @njit(cache=True)
-def settle(k: np.ndarray, kmax: float, c_scale: float, w_trial: np.ndarray, c: np.ndarray,
-           signs: np.ndarray, factored: np.ndarray, D: np.ndarray, l: np.ndarray,
-           norms: np.ndarray, fixed: np.ndarray, dx: np.ndarray, w: np.ndarray, lam: np.ndarray,
-           slack: np.ndarray, f: np.ndarray, res: np.ndarray, new: np.ndarray, seen: np.ndarray,
-           report: np.ndarray, told: np.ndarray) -> tuple[int, float]:
+def settle(
+    k: np.ndarray,
+    kmax: float,
+    c_scale: float,
+    w_trial: np.ndarray,
+    c: np.ndarray,
+    signs: np.ndarray,
+    factored: np.ndarray,
+    D: np.ndarray,
+    l: np.ndarray,
+    norms: np.ndarray,
+    fixed: np.ndarray,
+    dx: np.ndarray,
+    w: np.ndarray,
+    lam: np.ndarray,
+    slack: np.ndarray,
+    f: np.ndarray,
+    res: np.ndarray,
+    new: np.ndarray,
+    seen: np.ndarray,
+    report: np.ndarray,
+    told: np.ndarray,
+) -> tuple[int, float]:
     """One certified projection of ``w_trial`` onto {B w <= c} (rows ``fixed`` as equalities)
     from the set ``signs``, by primal-dual updates (`crawlsim.kernel.polyhedron.Polyhedron.refine`): DONE
     with w, lam, slack, the set and each row's own dual tolerance (``told``, `row_duals`) in
@@ -424,17 +481,59 @@ def settle(k: np.ndarray, kmax: float, c_scale: float, w_trial: np.ndarray, c: n
     certificate fails with nothing to change (``report``). Returns (status, tol_p); the scalar
     tolerances are also left in report[REPORT_TOLP:REPORT_TOLD+1]. (``f`` is not used: the
     forces are formed in the passes of `on_set`.)"""
-    return settle_from(k, kmax, c_scale, w_trial, c, signs, factored, D, l, norms, fixed, dx, w,
-                       lam, slack, res, new, seen, report, told, fixed[:0], fixed[:0], True)
+    return settle_from(
+        k,
+        kmax,
+        c_scale,
+        w_trial,
+        c,
+        signs,
+        factored,
+        D,
+        l,
+        norms,
+        fixed,
+        dx,
+        w,
+        lam,
+        slack,
+        res,
+        new,
+        seen,
+        report,
+        told,
+        fixed[:0],
+        fixed[:0],
+        True,
+    )
 
 
-@njit(cache=True, inline='always')
-def settle_from(k: np.ndarray, kmax: float, c_scale: float, w_trial: np.ndarray, c: np.ndarray,
-                signs: np.ndarray, factored: np.ndarray, D: np.ndarray, l: np.ndarray,
-                norms: np.ndarray, fixed: np.ndarray, dx: np.ndarray, w: np.ndarray,
-                lam: np.ndarray, slack: np.ndarray, res: np.ndarray, new: np.ndarray,
-                seen: np.ndarray, report: np.ndarray, told: np.ndarray, rows: np.ndarray,
-                member: np.ndarray, duals: bool) -> tuple[int, float]:
+@njit(cache=True, inline="always")
+def settle_from(
+    k: np.ndarray,
+    kmax: float,
+    c_scale: float,
+    w_trial: np.ndarray,
+    c: np.ndarray,
+    signs: np.ndarray,
+    factored: np.ndarray,
+    D: np.ndarray,
+    l: np.ndarray,
+    norms: np.ndarray,
+    fixed: np.ndarray,
+    dx: np.ndarray,
+    w: np.ndarray,
+    lam: np.ndarray,
+    slack: np.ndarray,
+    res: np.ndarray,
+    new: np.ndarray,
+    seen: np.ndarray,
+    report: np.ndarray,
+    told: np.ndarray,
+    rows: np.ndarray,
+    member: np.ndarray,
+    duals: bool,
+) -> tuple[int, float]:
     """`settle` with its scratch (``rows``, ``member``: 2N booleans, or empty to have them made
     when an update needs them) from the caller. The sign
     of each multiplier is held to its own row's tolerance (`row_duals`), which is at most the
@@ -452,9 +551,9 @@ def settle_from(k: np.ndarray, kmax: float, c_scale: float, w_trial: np.ndarray,
             norms[0], norms[1] = factor_into(k, signs, D, l, res)
             for i in range(N):
                 factored[i] = signs[i]
-        tol_p, tol_d, primal, negative, comp = on_set(k, kmax, c_scale, w_trial, c, signs, D, l,
-                                                      norms[0], norms[1], dx, w, lam, slack,
-                                                      res, fixed)
+        tol_p, tol_d, primal, negative, comp = on_set(
+            k, kmax, c_scale, w_trial, c, signs, D, l, norms[0], norms[1], dx, w, lam, slack, res, fixed
+        )
         if duals or negative > 0.0 or not (primal <= tol_p and comp <= tol_p and 0.0 <= tol_d):
             row_duals(k, kmax, c_scale, w_trial, c, signs, D, l, dx, tol_d, res, told)
             dual, dual_tol = dual_excess(lam, told, fixed)
@@ -482,20 +581,37 @@ def settle_from(k: np.ndarray, kmax: float, c_scale: float, w_trial: np.ndarray,
 
 
 @njit(cache=True)
-def project(k: np.ndarray, c_scale: float, w_trial: np.ndarray, c: np.ndarray, signs: np.ndarray,
-            fixed: np.ndarray, w: np.ndarray, lam: np.ndarray, report: np.ndarray) -> int:
+def project(
+    k: np.ndarray,
+    c_scale: float,
+    w_trial: np.ndarray,
+    c: np.ndarray,
+    signs: np.ndarray,
+    fixed: np.ndarray,
+    w: np.ndarray,
+    lam: np.ndarray,
+    report: np.ndarray,
+) -> int:
     """One certified projection (`settle`) for the exact integrator's velocity problems:
     w_trial = 0, c infinite on the rows to ignore, ``fixed`` the rows held with equality.
     Returns the status; w, lam, signs and report[REPORT_TOLP], report[REPORT_TOLD] hold the
     step when it is DONE (`project_rows` also gives each row's own dual tolerance)."""
-    return project_rows(k, c_scale, w_trial, c, signs, fixed, w, lam, report,
-                        np.empty(2 * signs.shape[0]))
+    return project_rows(k, c_scale, w_trial, c, signs, fixed, w, lam, report, np.empty(2 * signs.shape[0]))
 
 
 @njit(cache=True)
-def project_rows(k: np.ndarray, c_scale: float, w_trial: np.ndarray, c: np.ndarray,
-                 signs: np.ndarray, fixed: np.ndarray, w: np.ndarray, lam: np.ndarray,
-                 report: np.ndarray, told: np.ndarray) -> int:
+def project_rows(
+    k: np.ndarray,
+    c_scale: float,
+    w_trial: np.ndarray,
+    c: np.ndarray,
+    signs: np.ndarray,
+    fixed: np.ndarray,
+    w: np.ndarray,
+    lam: np.ndarray,
+    report: np.ndarray,
+    told: np.ndarray,
+) -> int:
     """`project`, leaving each row's own dual tolerance in ``told`` (2N, `row_duals`): the
     threshold above which a multiplier is positive beyond its roundoff."""
     N = signs.shape[0]
@@ -507,17 +623,48 @@ def project_rows(k: np.ndarray, c_scale: float, w_trial: np.ndarray, c: np.ndarr
     D = np.empty(N)
     l = np.empty(max(N - 1, 0))
     norms = np.zeros(2)
-    status, _ = settle(k, kmax, c_scale, w_trial, c, signs, factored, D, l, norms, fixed,
-                       np.empty(N), w, lam, np.empty(2 * N), np.empty(N), np.empty(N),
-                       np.empty(N, dtype=np.int8), np.empty((UPDATE_ITERATIONS, N), dtype=np.int8),
-                       report, told)
+    status, _ = settle(
+        k,
+        kmax,
+        c_scale,
+        w_trial,
+        c,
+        signs,
+        factored,
+        D,
+        l,
+        norms,
+        fixed,
+        np.empty(N),
+        w,
+        lam,
+        np.empty(2 * N),
+        np.empty(N),
+        np.empty(N),
+        np.empty(N, dtype=np.int8),
+        np.empty((UPDATE_ITERATIONS, N), dtype=np.int8),
+        report,
+        told,
+    )
     return status
 
 
 @njit(cache=True)
-def catch_up(k: np.ndarray, c_scale: float, C: np.ndarray, W: np.ndarray, LAM: np.ndarray,
-             S: np.ndarray, signs: np.ndarray, factored: np.ndarray, D: np.ndarray, l: np.ndarray,
-             norms: np.ndarray, j0: int, report: np.ndarray) -> tuple[int, int]:
+def catch_up(
+    k: np.ndarray,
+    c_scale: float,
+    C: np.ndarray,
+    W: np.ndarray,
+    LAM: np.ndarray,
+    S: np.ndarray,
+    signs: np.ndarray,
+    factored: np.ndarray,
+    D: np.ndarray,
+    l: np.ndarray,
+    norms: np.ndarray,
+    j0: int,
+    report: np.ndarray,
+) -> tuple[int, int]:
     """Catch-up steps j = j0, j0+1, ... of a period: W[j+1] and LAM[j] from W[j] and C[j+1],
     each certified; S[j] the set it settled on. ``signs`` (the current set) and ``factored``,
     ``D``, ``l``, ``norms`` (its factor and (||L_JJ^{-1}||, ||L_JJ||)) carry over between calls.
@@ -542,9 +689,31 @@ def catch_up(k: np.ndarray, c_scale: float, C: np.ndarray, W: np.ndarray, LAM: n
     for j in range(j0, G):
         c = C[j + 1]
         w_trial = W[j]
-        status, tol_p = settle_from(k, kmax, c_scale, w_trial, c, signs, factored, D, l, norms,
-                                    fixed, dx, w, lam, slack, res, new, seen, report, told, rows,
-                                    member, False)
+        status, tol_p = settle_from(
+            k,
+            kmax,
+            c_scale,
+            w_trial,
+            c,
+            signs,
+            factored,
+            D,
+            l,
+            norms,
+            fixed,
+            dx,
+            w,
+            lam,
+            slack,
+            res,
+            new,
+            seen,
+            report,
+            told,
+            rows,
+            member,
+            False,
+        )
         if status != DONE:
             return status, j
         # every block tight to roundoff with an inactive row among them: LICQ may fail and the

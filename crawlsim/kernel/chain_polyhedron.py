@@ -106,8 +106,8 @@ class ChainPolyhedron(Polyhedron):
         out = np.empty(W.shape[:-1] + (2 * N,))
         f = out[..., :N]
         f[..., 0] = W[..., 0]
-        f[..., 1:N - 1] = W[..., 1:]
-        f[..., 1:N - 1] -= W[..., :-1]
+        f[..., 1 : N - 1] = W[..., 1:]
+        f[..., 1 : N - 1] -= W[..., :-1]
         f[..., N - 1] = -W[..., -1]
         out[..., N:] = f  # rows N.. are -f; rows ..N are f = D^T w
         np.negative(f, out=f)
@@ -159,8 +159,9 @@ class ChainPolyhedron(Polyhedron):
         lower = -np.min(lam[signs > 0], initial=np.inf)  # s >= -lam_j for s_j = +1
         return bool(upper - lower > float(np.max(tol.dual)))
 
-    def row_tolerance(self, active: ActiveSet, w_trial: np.ndarray, c: np.ndarray,
-                      lam: np.ndarray, tol: Tolerance) -> Tolerance:
+    def row_tolerance(
+        self, active: ActiveSet, w_trial: np.ndarray, c: np.ndarray, lam: np.ndarray, tol: Tolerance
+    ) -> Tolerance:
         """Each active row's own dual tolerance, the componentwise bound of
         `crawlsim.kernel.chain.row_duals` (same formula, numpy): with L_JJ^{-1} >= 0,
 
@@ -180,9 +181,14 @@ class ChainPolyhedron(Polyhedron):
         wpad = np.abs(np.concatenate([[0.0], np.asarray(w_trial, dtype=float), [0.0]]))
         left, right = kpad[blocks], kpad[blocks + 1]
         floor = self.c_scale * np.maximum(left, right) / float(np.max(self.stiffness))
-        s = (2.0 * (wpad[blocks] + wpad[blocks + 1]) + np.abs(c[idx]) + floor
-             + (left + right) * absdx[blocks + 1] + left * absdx[blocks]
-             + right * absdx[blocks + 2])
+        s = (
+            2.0 * (wpad[blocks] + wpad[blocks + 1])
+            + np.abs(c[idx])
+            + floor
+            + (left + right) * absdx[blocks + 1]
+            + left * absdx[blocks]
+            + right * absdx[blocks + 2]
+        )
         y = sign * active.solve(sign * s)
         told = np.full(self.m, float(tol.dual))
         told[idx] = np.minimum(2.0 * RTOL * y, float(tol.dual))

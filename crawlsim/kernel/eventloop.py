@@ -99,12 +99,31 @@ C_EVENTS, C_TRANSITIONS, C_PIECES, C_JUMPS = range(4)
 
 # -- the grid samples of a piece and their certificate ------------------------------------------
 @njit(cache=True)
-def sample_piece(k: np.ndarray, kmax: float, c_scale: float, coef: np.ndarray,
-                 signs: np.ndarray, PHI: np.ndarray, j0: int, j1: int, W: np.ndarray,
-                 LAMC: np.ndarray, lam_cum: np.ndarray, dx0: np.ndarray, Ydx: np.ndarray,
-                 base: np.ndarray, Wc: np.ndarray, inverse: float, gram: float, carried: float,
-                 own: float, report: np.ndarray, MU: np.ndarray, x0: np.ndarray,
-                 X: np.ndarray) -> bool:
+def sample_piece(
+    k: np.ndarray,
+    kmax: float,
+    c_scale: float,
+    coef: np.ndarray,
+    signs: np.ndarray,
+    PHI: np.ndarray,
+    j0: int,
+    j1: int,
+    W: np.ndarray,
+    LAMC: np.ndarray,
+    lam_cum: np.ndarray,
+    dx0: np.ndarray,
+    Ydx: np.ndarray,
+    base: np.ndarray,
+    Wc: np.ndarray,
+    inverse: float,
+    gram: float,
+    carried: float,
+    own: float,
+    report: np.ndarray,
+    MU: np.ndarray,
+    x0: np.ndarray,
+    X: np.ndarray,
+) -> bool:
     """W[j0:j1] and LAMC[j0:j1] at the grid times in the piece, each certified
     (`EventStepper._certify_piece`): in K(t_j), slip integrals >= 0 and complementary, to the
     kernel's tolerances; the first one carries the roundoff of earlier pieces (``carried``).
@@ -187,9 +206,21 @@ def sample_piece(k: np.ndarray, kmax: float, c_scale: float, coef: np.ndarray,
 
 
 @njit(cache=True)
-def state_at(u: float, linear: bool, H: int, signs: np.ndarray, dx0: np.ndarray, Ydx: np.ndarray,
-             base: np.ndarray, Wc: np.ndarray, lam_cum: np.ndarray, w: np.ndarray, phi: np.ndarray,
-             dx: np.ndarray, lam_now: np.ndarray) -> None:
+def state_at(
+    u: float,
+    linear: bool,
+    H: int,
+    signs: np.ndarray,
+    dx0: np.ndarray,
+    Ydx: np.ndarray,
+    base: np.ndarray,
+    Wc: np.ndarray,
+    lam_cum: np.ndarray,
+    w: np.ndarray,
+    phi: np.ndarray,
+    dx: np.ndarray,
+    lam_now: np.ndarray,
+) -> None:
     """w(u) into ``w`` and the cumulative slips at u into ``lam_now``: ``lam_cum`` (the slips up
     to the start of each block's piece, `rebuild_changed`) plus those of the piece up to u."""
     N = signs.shape[0]
@@ -207,12 +238,28 @@ def state_at(u: float, linear: bool, H: int, signs: np.ndarray, dx0: np.ndarray,
 
 
 @njit(cache=True)
-def rebuild_changed(k: np.ndarray, old: np.ndarray, new: np.ndarray, w: np.ndarray,
-                    coef: np.ndarray, linear: bool, H: int, D: np.ndarray, l: np.ndarray,
-                    inv: np.ndarray, dx0: np.ndarray, Ydx: np.ndarray, Rdx: np.ndarray,
-                    base: np.ndarray, Wc: np.ndarray, lam_cum: np.ndarray,
-                    lam_now: np.ndarray, dirty: np.ndarray, stale: np.ndarray,
-                    full: bool) -> None:
+def rebuild_changed(
+    k: np.ndarray,
+    old: np.ndarray,
+    new: np.ndarray,
+    w: np.ndarray,
+    coef: np.ndarray,
+    linear: bool,
+    H: int,
+    D: np.ndarray,
+    l: np.ndarray,
+    inv: np.ndarray,
+    dx0: np.ndarray,
+    Ydx: np.ndarray,
+    Rdx: np.ndarray,
+    base: np.ndarray,
+    Wc: np.ndarray,
+    lam_cum: np.ndarray,
+    lam_now: np.ndarray,
+    dirty: np.ndarray,
+    stale: np.ndarray,
+    full: bool,
+) -> None:
     """The piece of the set ``new`` at w (`crawlsim.kernel.piece.rebuild`) where it differs from
     the piece of ``old`` (every block when ``full``): each block whose sign changes lies in a
     range of blocks each saturated in one set or the other, ended by blocks free in both, and
@@ -237,7 +284,7 @@ def rebuild_changed(k: np.ndarray, old: np.ndarray, new: np.ndarray, w: np.ndarr
         for b in range(lo, hi + 1):
             lam_cum[b], lam_cum[N + b] = lam_now[b], lam_now[N + b]
         rebuild(k, new, w, coef, lo, hi, D, l, inv, dx0, Ydx, base, Wc)
-        derivative(Ydx[:, lo:hi + 1], linear, H, Rdx[:, lo:hi + 1])
+        derivative(Ydx[:, lo : hi + 1], linear, H, Rdx[:, lo : hi + 1])
         for b in range(max(lo - 1, 0), min(hi + 2, N)):
             dirty[b] = True
         for c in range(max(lo - 1, 0) // CHUNK, min(hi + 1, N - 1) // CHUNK + 1):
@@ -250,9 +297,20 @@ CHUNK = 32
 
 
 @njit(cache=True)
-def energy_terms(signs: np.ndarray, base: np.ndarray, Wc: np.ndarray, dY: np.ndarray,
-                 KLc: np.ndarray, dLc: np.ndarray, Mc: np.ndarray, lc: np.ndarray, loaded: bool,
-                 out: np.ndarray, stale: np.ndarray, partial: np.ndarray) -> None:
+def energy_terms(
+    signs: np.ndarray,
+    base: np.ndarray,
+    Wc: np.ndarray,
+    dY: np.ndarray,
+    KLc: np.ndarray,
+    dLc: np.ndarray,
+    Mc: np.ndarray,
+    lc: np.ndarray,
+    loaded: bool,
+    out: np.ndarray,
+    stale: np.ndarray,
+    partial: np.ndarray,
+) -> None:
     """The piece's products for `crawlsim.analysis.energy.ExactLedger` (its ``piece``):
     (Wc + K Lc + base e_0) @ dLc^T, -Mc_A @ Y'^T and, with loads (``loaded``; out[2] stays 0
     without: the ledger reads two products then), -lc_A @ Y'^T, dY = Y' the slips' rates
@@ -297,8 +355,16 @@ def energy_terms(signs: np.ndarray, base: np.ndarray, Wc: np.ndarray, dY: np.nda
 
 # -- a jump of c at a breakpoint ----------------------------------------------------------------
 @njit(cache=True)
-def jump(k: np.ndarray, c_scale: float, w: np.ndarray, target: np.ndarray, signs: np.ndarray,
-         w_out: np.ndarray, lam: np.ndarray, report: np.ndarray) -> int:
+def jump(
+    k: np.ndarray,
+    c_scale: float,
+    w: np.ndarray,
+    target: np.ndarray,
+    signs: np.ndarray,
+    w_out: np.ndarray,
+    lam: np.ndarray,
+    report: np.ndarray,
+) -> int:
     """The projection of w onto K(t+) = {B v <= target} from the set ``signs``, certified by
     `crawlsim.kernel.chain.project` (DONE only with its certificate; restarted where its
     updates run out, `JUMP_RESTARTS`), and LICQ at its tight rows
@@ -344,14 +410,39 @@ def record_at(j: int, LAMC: np.ndarray, x0: np.ndarray, MU: np.ndarray, X: np.nd
 
 
 @njit(cache=True)
-def at_jump(k: np.ndarray, c_scale: float, u: float, p: int, piece_after: int,
-            target: np.ndarray, w: np.ndarray, w_next: np.ndarray, lam_cum: np.ndarray,
-            lam_jump: np.ndarray, lam_now: np.ndarray, signs: np.ndarray, forced: np.ndarray,
-            grid: np.ndarray, W: np.ndarray, LAMC: np.ndarray, x0: np.ndarray, MU: np.ndarray,
-            X: np.ndarray, TR_U: np.ndarray, TR_PIECE: np.ndarray, TR_SIGNS: np.ndarray,
-            TR_CAUSE: np.ndarray, TR_HIT: np.ndarray, JUMP_PIECE: np.ndarray,
-            JUMP_U: np.ndarray, JUMP_W: np.ndarray, JUMP_LAM: np.ndarray, counts: np.ndarray,
-            inner: np.ndarray, report: np.ndarray) -> int:
+def at_jump(
+    k: np.ndarray,
+    c_scale: float,
+    u: float,
+    p: int,
+    piece_after: int,
+    target: np.ndarray,
+    w: np.ndarray,
+    w_next: np.ndarray,
+    lam_cum: np.ndarray,
+    lam_jump: np.ndarray,
+    lam_now: np.ndarray,
+    signs: np.ndarray,
+    forced: np.ndarray,
+    grid: np.ndarray,
+    W: np.ndarray,
+    LAMC: np.ndarray,
+    x0: np.ndarray,
+    MU: np.ndarray,
+    X: np.ndarray,
+    TR_U: np.ndarray,
+    TR_PIECE: np.ndarray,
+    TR_SIGNS: np.ndarray,
+    TR_CAUSE: np.ndarray,
+    TR_HIT: np.ndarray,
+    JUMP_PIECE: np.ndarray,
+    JUMP_U: np.ndarray,
+    JUMP_W: np.ndarray,
+    JUMP_LAM: np.ndarray,
+    counts: np.ndarray,
+    inner: np.ndarray,
+    report: np.ndarray,
+) -> int:
     """The jump of c at the end u of piece p onto K(t+) = {B v <= target} (`jump`), recorded:
     the jump, the state after it (`after_jump`) and its grid point. Returns DONE, or HANDOFF
     with ``report`` saying why."""
@@ -363,8 +454,25 @@ def at_jump(k: np.ndarray, c_scale: float, u: float, p: int, piece_after: int,
     JUMP_PIECE[q], JUMP_U[q] = p, u
     JUMP_W[q, 0], JUMP_W[q, 1], JUMP_LAM[q] = w, w_next, lam_jump
     counts[C_JUMPS] = q + 1
-    je = after_jump(u, piece_after, w, w_next, lam_cum, lam_jump, signs, forced, grid, W, LAMC,
-                    TR_U, TR_PIECE, TR_SIGNS, TR_CAUSE, TR_HIT, counts)
+    je = after_jump(
+        u,
+        piece_after,
+        w,
+        w_next,
+        lam_cum,
+        lam_jump,
+        signs,
+        forced,
+        grid,
+        W,
+        LAMC,
+        TR_U,
+        TR_PIECE,
+        TR_SIGNS,
+        TR_CAUSE,
+        TR_HIT,
+        counts,
+    )
     lam_now[:] = lam_cum
     record_at(je, LAMC, x0, MU, X)
     return DONE
@@ -372,10 +480,21 @@ def at_jump(k: np.ndarray, c_scale: float, u: float, p: int, piece_after: int,
 
 # -- one period -----------------------------------------------------------------------------------
 @njit(cache=True)
-def begin_event(u: float, w: np.ndarray, lam_cum: np.ndarray, forced: np.ndarray, max_events: int,
-                zeno_events: int, zeno_window: float, EV_T: np.ndarray, EV_W: np.ndarray,
-                EV_DX: np.ndarray, TR_HIT: np.ndarray, counts: np.ndarray,
-                report: np.ndarray) -> int:
+def begin_event(
+    u: float,
+    w: np.ndarray,
+    lam_cum: np.ndarray,
+    forced: np.ndarray,
+    max_events: int,
+    zeno_events: int,
+    zeno_window: float,
+    EV_T: np.ndarray,
+    EV_W: np.ndarray,
+    EV_DX: np.ndarray,
+    TR_HIT: np.ndarray,
+    counts: np.ndarray,
+    report: np.ndarray,
+) -> int:
     """Record the state at an event and apply the guards (`EventStepper._guard`): DONE, or
     OVERFLOW (the arrays are full), TOO_MANY or ZENO (the rows hit in TR_HIT at the count of
     transitions)."""
@@ -398,11 +517,25 @@ def begin_event(u: float, w: np.ndarray, lam_cum: np.ndarray, forced: np.ndarray
 
 
 @njit(cache=True)
-def after_jump(u: float, piece_after: int, w: np.ndarray, w_next: np.ndarray, lam_cum: np.ndarray,
-               lam_jump: np.ndarray, signs: np.ndarray, forced: np.ndarray, grid: np.ndarray,
-               W: np.ndarray, LAMC: np.ndarray, TR_U: np.ndarray, TR_PIECE: np.ndarray,
-               TR_SIGNS: np.ndarray, TR_CAUSE: np.ndarray, TR_HIT: np.ndarray,
-               counts: np.ndarray) -> int:
+def after_jump(
+    u: float,
+    piece_after: int,
+    w: np.ndarray,
+    w_next: np.ndarray,
+    lam_cum: np.ndarray,
+    lam_jump: np.ndarray,
+    signs: np.ndarray,
+    forced: np.ndarray,
+    grid: np.ndarray,
+    W: np.ndarray,
+    LAMC: np.ndarray,
+    TR_U: np.ndarray,
+    TR_PIECE: np.ndarray,
+    TR_SIGNS: np.ndarray,
+    TR_CAUSE: np.ndarray,
+    TR_HIT: np.ndarray,
+    counts: np.ndarray,
+) -> int:
     """The state after the projection at a jump: w and the cumulative slips, the transition,
     and the grid point at the jump (signals are right-continuous), whose index it returns."""
     w[:] = w_next
@@ -420,17 +553,50 @@ def after_jump(u: float, piece_after: int, w: np.ndarray, w_next: np.ndarray, la
 
 
 @njit(cache=True)
-def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray,
-           edges: np.ndarray, jumps: np.ndarray, TARGET: np.ndarray, grid: np.ndarray,
-           PHI: np.ndarray, w_start: np.ndarray, signs: np.ndarray, max_events: int,
-           zeno_events: int, zeno_window: float, ledger: int, KLC: np.ndarray, DLC: np.ndarray,
-           MC: np.ndarray, LC: np.ndarray, W: np.ndarray, LAMC: np.ndarray, MU: np.ndarray,
-           x0: np.ndarray, X: np.ndarray, EV_T: np.ndarray,
-           EV_W: np.ndarray, EV_DX: np.ndarray, TR_U: np.ndarray, TR_PIECE: np.ndarray,
-           TR_SIGNS: np.ndarray, TR_CAUSE: np.ndarray, TR_HIT: np.ndarray,
-           PIECE_BOUNDS: np.ndarray, PIECE_TERMS: np.ndarray, JUMP_PIECE: np.ndarray,
-           JUMP_U: np.ndarray, JUMP_W: np.ndarray, JUMP_LAM: np.ndarray, counts: np.ndarray,
-           report: np.ndarray, cells_per_cycle: int) -> int:
+def period(
+    k: np.ndarray,
+    c_scale: float,
+    linear: bool,
+    H: int,
+    COEF: np.ndarray,
+    edges: np.ndarray,
+    jumps: np.ndarray,
+    TARGET: np.ndarray,
+    grid: np.ndarray,
+    PHI: np.ndarray,
+    w_start: np.ndarray,
+    signs: np.ndarray,
+    max_events: int,
+    zeno_events: int,
+    zeno_window: float,
+    ledger: int,
+    KLC: np.ndarray,
+    DLC: np.ndarray,
+    MC: np.ndarray,
+    LC: np.ndarray,
+    W: np.ndarray,
+    LAMC: np.ndarray,
+    MU: np.ndarray,
+    x0: np.ndarray,
+    X: np.ndarray,
+    EV_T: np.ndarray,
+    EV_W: np.ndarray,
+    EV_DX: np.ndarray,
+    TR_U: np.ndarray,
+    TR_PIECE: np.ndarray,
+    TR_SIGNS: np.ndarray,
+    TR_CAUSE: np.ndarray,
+    TR_HIT: np.ndarray,
+    PIECE_BOUNDS: np.ndarray,
+    PIECE_TERMS: np.ndarray,
+    JUMP_PIECE: np.ndarray,
+    JUMP_U: np.ndarray,
+    JUMP_W: np.ndarray,
+    JUMP_LAM: np.ndarray,
+    counts: np.ndarray,
+    report: np.ndarray,
+    cells_per_cycle: int,
+) -> int:
     """One period from w_start (in K(0)) with the warm set ``signs`` (left at the final set), on
     the grid ``grid`` (PHI: phi at its times):
     W and LAMC (cumulative slips) on the grid, and the record's slips MU and positions X from
@@ -486,25 +652,94 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
     u, j, p, cause = 0.0, 1, 0, EDGE
     carried = 0.0
     while True:
-        status = begin_event(u, w, lam_now, forced, max_events, zeno_events, zeno_window, EV_T,
-                             EV_W, EV_DX, TR_HIT, counts, report)
+        status = begin_event(
+            u, w, lam_now, forced, max_events, zeno_events, zeno_window, EV_T, EV_W, EV_DX, TR_HIT, counts, report
+        )
         if status != DONE:
             return status
         t_count = counts[C_TRANSITIONS]
         coef = COEF[p]
         if built and kept and N >= LOCAL_BLOCKS:  # the piece of ``signs`` is in place
-            decided = decide_local(k, kmax, c_scale, linear, H, coef, C_SIZE[p], u, w, forced,
-                                   signs, chosen, phi, cvec, Bw, masks, rows_m, rows_n, sets,
-                                   factored, D, l, norms, inner, Rdx, inverse, rate)
+            decided = decide_local(
+                k,
+                kmax,
+                c_scale,
+                linear,
+                H,
+                coef,
+                C_SIZE[p],
+                u,
+                w,
+                forced,
+                signs,
+                chosen,
+                phi,
+                cvec,
+                Bw,
+                masks,
+                rows_m,
+                rows_n,
+                sets,
+                factored,
+                D,
+                l,
+                norms,
+                inner,
+                Rdx,
+                inverse,
+                rate,
+            )
         else:
-            decided = decide(k, kmax, c_scale, linear, H, coef, u, w, forced, signs, chosen,
-                             phi, cvec, Bw, masks, rows_m, rows_n, sets, factored, D, l, norms,
-                             inner)
+            decided = decide(
+                k,
+                kmax,
+                c_scale,
+                linear,
+                H,
+                coef,
+                u,
+                w,
+                forced,
+                signs,
+                chosen,
+                phi,
+                cvec,
+                Bw,
+                masks,
+                rows_m,
+                rows_n,
+                sets,
+                factored,
+                D,
+                l,
+                norms,
+                inner,
+            )
         if not decided:
             report[R_U], report[R_REASON] = u, H_DECIDE
             return HANDOFF
-        rebuild_changed(k, signs, chosen, w, coef, linear, H, Dp, lp, inv, dx0, Ydx, Rdx, base,
-                        Wc, lam_cum, lam_now, dirty, stale, not (built and kept))
+        rebuild_changed(
+            k,
+            signs,
+            chosen,
+            w,
+            coef,
+            linear,
+            H,
+            Dp,
+            lp,
+            inv,
+            dx0,
+            Ydx,
+            Rdx,
+            base,
+            Wc,
+            lam_cum,
+            lam_now,
+            dirty,
+            stale,
+            not (built and kept),
+        )
         built = True
         signs[:] = chosen
         TR_U[t_count], TR_PIECE[t_count], TR_SIGNS[t_count] = u, p, signs
@@ -513,13 +748,52 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
         inverse, gram = set_norms(k, signs, inv)
         u_end = edges[p + 1]
         if kept:
-            u_e, handoff = next_event_kept(c_scale, linear, H, coef, C_SIZE[p], signs, base, Wc,
-                                           Rdx, inverse, u, u_end, dirty, forced, Z, times,
-                                           tols, phi0), False
+            u_e, handoff = (
+                next_event_kept(
+                    c_scale,
+                    linear,
+                    H,
+                    coef,
+                    C_SIZE[p],
+                    signs,
+                    base,
+                    Wc,
+                    Rdx,
+                    inverse,
+                    u,
+                    u_end,
+                    dirty,
+                    forced,
+                    Z,
+                    times,
+                    tols,
+                    phi0,
+                ),
+                False,
+            )
         else:
-            u_e, handoff = next_event(c_scale, linear, H, coef, C_SIZE[p], signs, base, Wc, Ydx,
-                                      inverse, u, u_end, forced, Rdx, Z, times, reach,
-                                      slope_bound, phi0, cells_per_cycle)
+            u_e, handoff = next_event(
+                c_scale,
+                linear,
+                H,
+                coef,
+                C_SIZE[p],
+                signs,
+                base,
+                Wc,
+                Ydx,
+                inverse,
+                u,
+                u_end,
+                forced,
+                Rdx,
+                Z,
+                times,
+                reach,
+                slope_bound,
+                phi0,
+                cells_per_cycle,
+            )
         if handoff:
             report[R_U], report[R_REASON] = u, H_ZERO
             return HANDOFF
@@ -529,17 +803,40 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
         if ledger > 0 and u_e > u:
             q = counts[C_PIECES]
             PIECE_BOUNDS[q, 0], PIECE_BOUNDS[q, 1] = u, u_e
-            energy_terms(signs, base, Wc, Rdx, KLC[p], DLC[p], MC[p], LC[p], ledger == 3,
-                         PIECE_TERMS[q], stale, partial)
+            energy_terms(
+                signs, base, Wc, Rdx, KLC[p], DLC[p], MC[p], LC[p], ledger == 3, PIECE_TERMS[q], stale, partial
+            )
             counts[C_PIECES] = q + 1
         own = dual_scale(k, kmax, c_scale, signs, C_SIZE[p], dx0, Ydx, base, Wc, inverse, gram)
         j_end = j
         while j_end < G1 and grid[j_end] <= u_e:
             j_end += 1
         if j_end > j:
-            if not sample_piece(k, kmax, c_scale, coef, signs, PHI, j, j_end, W, LAMC, lam_cum,
-                                dx0, Ydx, base, Wc, inverse, gram, carried, own, inner, MU, x0,
-                                X):
+            if not sample_piece(
+                k,
+                kmax,
+                c_scale,
+                coef,
+                signs,
+                PHI,
+                j,
+                j_end,
+                W,
+                LAMC,
+                lam_cum,
+                dx0,
+                Ydx,
+                base,
+                Wc,
+                inverse,
+                gram,
+                carried,
+                own,
+                inner,
+                MU,
+                x0,
+                X,
+            ):
                 report[1:] = inner[1:]
                 return FAILED_PIECE
             carried = own
@@ -556,10 +853,43 @@ def period(k: np.ndarray, c_scale: float, linear: bool, H: int, COEF: np.ndarray
         edge = p + 1
         lam_cum[:] = lam_now  # the next piece is built anew (another piece of c)
         built = False
-        if jumps[edge] and at_jump(k, c_scale, u, p, edge % P, TARGET[edge], w, w_next, lam_cum,
-                                   lam_jump, lam_now, signs, forced, grid, W, LAMC, x0, MU, X,
-                                   TR_U, TR_PIECE, TR_SIGNS, TR_CAUSE, TR_HIT, JUMP_PIECE,
-                                   JUMP_U, JUMP_W, JUMP_LAM, counts, inner, report) != DONE:
+        if (
+            jumps[edge]
+            and at_jump(
+                k,
+                c_scale,
+                u,
+                p,
+                edge % P,
+                TARGET[edge],
+                w,
+                w_next,
+                lam_cum,
+                lam_jump,
+                lam_now,
+                signs,
+                forced,
+                grid,
+                W,
+                LAMC,
+                x0,
+                MU,
+                X,
+                TR_U,
+                TR_PIECE,
+                TR_SIGNS,
+                TR_CAUSE,
+                TR_HIT,
+                JUMP_PIECE,
+                JUMP_U,
+                JUMP_W,
+                JUMP_LAM,
+                counts,
+                inner,
+                report,
+            )
+            != DONE
+        ):
             return HANDOFF
         if edge == P:
             break

@@ -47,8 +47,7 @@ def linear_crossing(a: float, s: float, tol: float, u0: float, u1: float) -> flo
 
 
 @njit(cache=True)
-def harmonic_crossing(a: float, alpha: float, beta: float, tol: float, u0: float,
-                      u1: float) -> float:
+def harmonic_crossing(a: float, alpha: float, beta: float, tol: float, u0: float, u1: float) -> float:
     """Event time of f = a + alpha cos 2 pi u + beta sin 2 pi u (inf where there is none)."""
     rho = np.hypot(alpha, beta)
     if not rho > 0:
@@ -72,16 +71,16 @@ def harmonic_crossing(a: float, alpha: float, beta: float, tol: float, u0: float
 
 
 @njit(cache=True)
-def linear_crossings(a: np.ndarray, s: np.ndarray, tol: np.ndarray, u0: float, u1: float,
-                     out: np.ndarray) -> None:
+def linear_crossings(a: np.ndarray, s: np.ndarray, tol: np.ndarray, u0: float, u1: float, out: np.ndarray) -> None:
     """`linear_crossing` of every row into ``out``."""
     for r in range(a.shape[0]):
         out[r] = linear_crossing(a[r], s[r], tol[r], u0, u1)
 
 
 @njit(cache=True)
-def harmonic_crossings(a: np.ndarray, alpha: np.ndarray, beta: np.ndarray, tol: np.ndarray,
-                       u0: float, u1: float, out: np.ndarray) -> None:
+def harmonic_crossings(
+    a: np.ndarray, alpha: np.ndarray, beta: np.ndarray, tol: np.ndarray, u0: float, u1: float, out: np.ndarray
+) -> None:
     """`harmonic_crossing` of every row into ``out``."""
     for r in range(a.shape[0]):
         out[r] = harmonic_crossing(a[r], alpha[r], beta[r], tol[r], u0, u1)
@@ -89,8 +88,9 @@ def harmonic_crossings(a: np.ndarray, alpha: np.ndarray, beta: np.ndarray, tol: 
 
 # -- the next event on a piece ------------------------------------------------------------------
 @njit(cache=True)
-def crossing(z: np.ndarray, tol: float, u0: float, u1: float, linear: bool, H: int,
-             phi0: np.ndarray, horizon: float) -> float:
+def crossing(
+    z: np.ndarray, tol: float, u0: float, u1: float, linear: bool, H: int, phi0: np.ndarray, horizon: float
+) -> float:
     """The first upward zero crossing of f = phi @ z in (u0, u1) that goes on to exceed tol
     (`crawlsim.kernel.events`); inf if none, NaN where the basis has no closed form for f
     (several harmonics, or one and a linear part: `crawlsim.kernel.sampling`). inf also for an
@@ -138,8 +138,9 @@ def rate_tolerance(c_size: float, signs: np.ndarray, Rdx: np.ndarray, inverse: f
 
 
 @njit(cache=True)
-def block_functions(i: int, coef: np.ndarray, signs: np.ndarray, base: np.ndarray, Wc: np.ndarray,
-                    Rdx: np.ndarray, Z: np.ndarray) -> None:
+def block_functions(
+    i: int, coef: np.ndarray, signs: np.ndarray, base: np.ndarray, Wc: np.ndarray, Rdx: np.ndarray, Z: np.ndarray
+) -> None:
     """Z[i] and Z[N + i], the functions of block i's two rows (`row_functions`): the gap
     phi @ (B Wc - coef + B base e_0) of an inactive row, the slip rate s phi @ Rdx of an active
     one. Block i's force (B w)_i = w_{i-1} - w_i reads links i - 1 and i only."""
@@ -157,10 +158,23 @@ def block_functions(i: int, coef: np.ndarray, signs: np.ndarray, base: np.ndarra
 
 
 @njit(cache=True)
-def row_functions(linear: bool, H: int, coef: np.ndarray, signs: np.ndarray, base: np.ndarray,
-                  Wc: np.ndarray, Rdx: np.ndarray, tol_gap: float, tol_rate: float, u0: float,
-                  u1: float, phi0: np.ndarray, Z: np.ndarray, reach: np.ndarray,
-                  slope_bound: np.ndarray) -> int:
+def row_functions(
+    linear: bool,
+    H: int,
+    coef: np.ndarray,
+    signs: np.ndarray,
+    base: np.ndarray,
+    Wc: np.ndarray,
+    Rdx: np.ndarray,
+    tol_gap: float,
+    tol_rate: float,
+    u0: float,
+    u1: float,
+    phi0: np.ndarray,
+    Z: np.ndarray,
+    reach: np.ndarray,
+    slope_bound: np.ndarray,
+) -> int:
     """Z[r] = the coefficients of the function of row r whose upward crossing is an event:
     the gap phi @ (B Wc - coef + B base e_0) of an inactive row (the entries of `apply`), the
     slip rate s phi @ Rdx of an active one; ``reach[r]``: 0 where it cannot reach its
@@ -206,12 +220,28 @@ def row_functions(linear: bool, H: int, coef: np.ndarray, signs: np.ndarray, bas
 
 
 @njit(cache=True)
-def next_event(c_scale: float, linear: bool, H: int, coef: np.ndarray, c_size: float,
-               signs: np.ndarray,
-               base: np.ndarray, Wc: np.ndarray, Ydx: np.ndarray, inverse: float, u0: float,
-               u1: float, hit: np.ndarray, Rdx: np.ndarray, Z: np.ndarray, times: np.ndarray,
-               reach: np.ndarray, slope_bound: np.ndarray,
-               phi0: np.ndarray, cells_per_cycle: int) -> tuple[float, bool]:
+def next_event(
+    c_scale: float,
+    linear: bool,
+    H: int,
+    coef: np.ndarray,
+    c_size: float,
+    signs: np.ndarray,
+    base: np.ndarray,
+    Wc: np.ndarray,
+    Ydx: np.ndarray,
+    inverse: float,
+    u0: float,
+    u1: float,
+    hit: np.ndarray,
+    Rdx: np.ndarray,
+    Z: np.ndarray,
+    times: np.ndarray,
+    reach: np.ndarray,
+    slope_bound: np.ndarray,
+    phi0: np.ndarray,
+    cells_per_cycle: int,
+) -> tuple[float, bool]:
     """(u, handoff) of the first event in (u0, u1) (u = inf: none), the rows newly tight in
     ``hit`` (`EventStepper._next_event`): gaps phi @ (B Wc - coef + B base e_0) of the inactive
     rows, slip rates -dLambda/du = phi @ derivative(Y) of the active ones (`row_functions`;
@@ -223,8 +253,7 @@ def next_event(c_scale: float, linear: bool, H: int, coef: np.ndarray, c_size: f
     tol_gap = 0.5 * RTOL * c_scale
     tol_rate = rate_tolerance(c_size, signs, Rdx, inverse)
     basis_values(u0, 0, linear, H, phi0)
-    lead = row_functions(linear, H, coef, signs, base, Wc, Rdx, tol_gap, tol_rate, u0, u1, phi0,
-                         Z, reach, slope_bound)
+    lead = row_functions(linear, H, coef, signs, base, Wc, Rdx, tol_gap, tol_rate, u0, u1, phi0, Z, reach, slope_bound)
     # the samples of (u0, u1) for `sampling.crossing`, made on first use (closed forms need none)
     count = 0
     first, t_lead = np.inf, np.inf
@@ -241,8 +270,7 @@ def next_event(c_scale: float, linear: bool, H: int, coef: np.ndarray, c_size: f
             continue
         # a row whose crossing is after first + SIMULTANEOUS is neither the first nor hit
         horizon = min(u1, first + SIMULTANEOUS)
-        if reach[r] == 2 and (slope_bound[r, 0] + slope_bound[r, 1] * (horizon - u0)
-                              + slope_bound[r, 2] < 0.0):
+        if reach[r] == 2 and (slope_bound[r, 0] + slope_bound[r, 1] * (horizon - u0) + slope_bound[r, 2] < 0.0):
             continue  # the slope bound of `crossing`: no crossing before horizon
         s = signs[r % N]
         active = (r < N and s > 0) or (r >= N and s < 0)
@@ -277,11 +305,26 @@ def closed_forms(linear: bool, H: int) -> bool:
 
 
 @njit(cache=True)
-def next_event_kept(c_scale: float, linear: bool, H: int, coef: np.ndarray, c_size: float,
-                    signs: np.ndarray, base: np.ndarray, Wc: np.ndarray, Rdx: np.ndarray,
-                    inverse: float, u0: float, u1: float, dirty: np.ndarray, hit: np.ndarray,
-                    Z: np.ndarray, times: np.ndarray, tols: np.ndarray,
-                    phi0: np.ndarray) -> float:
+def next_event_kept(
+    c_scale: float,
+    linear: bool,
+    H: int,
+    coef: np.ndarray,
+    c_size: float,
+    signs: np.ndarray,
+    base: np.ndarray,
+    Wc: np.ndarray,
+    Rdx: np.ndarray,
+    inverse: float,
+    u0: float,
+    u1: float,
+    dirty: np.ndarray,
+    hit: np.ndarray,
+    Z: np.ndarray,
+    times: np.ndarray,
+    tols: np.ndarray,
+    phi0: np.ndarray,
+) -> float:
     """`next_event` for a basis with `closed_forms`, from the crossings kept per row: row r's
     function Z[r] and its crossing ``times[r]`` (sought to the piece's end u1, with the
     tolerance ``tols[r]``) stay valid while its block is not ``dirty`` (its function has not

@@ -12,9 +12,9 @@ from numba import njit
 
 
 @njit(cache=True)
-def implicit(W: np.ndarray, L: np.ndarray, D: np.ndarray,
-             blocks: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
-                                   float]:
+def implicit(
+    W: np.ndarray, L: np.ndarray, D: np.ndarray, blocks: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
     """The implicit function theorem at the limit for every parameter column of a walk (W, L,
     D over n + p columns): dw* = (I - dP/dw)^+ dP/dtheta, the least-squares solution of minimal
     norm from one SVD, singular values below 1e-12 of the largest dropped (a family of periodic

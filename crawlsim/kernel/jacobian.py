@@ -38,8 +38,9 @@ PROJECTOR, SALTATION = 0, 1
 
 
 @njit(cache=True)
-def pack(k: np.ndarray, kinds: np.ndarray, starts: np.ndarray, blocks: np.ndarray,
-         D: np.ndarray, l: np.ndarray) -> None:
+def pack(
+    k: np.ndarray, kinds: np.ndarray, starts: np.ndarray, blocks: np.ndarray, D: np.ndarray, l: np.ndarray
+) -> None:
     """Fill D and l (like ``blocks``) with the LDL^T of L_JJ of every projector, D with the
     reciprocals of its pivots (the solves multiply by them): factor p's
     saturated blocks are ``blocks[starts[p]:starts[p + 1]]`` (sorted). L_JJ is the padded L~
@@ -63,9 +64,18 @@ def pack(k: np.ndarray, kinds: np.ndarray, starts: np.ndarray, blocks: np.ndarra
             signs[b] = 0.0
 
 
-@njit(cache=True, inline='always')
-def _project(k: np.ndarray, blocks: np.ndarray, D: np.ndarray, l: np.ndarray, lo: int, hi: int,
-             x: np.ndarray, y: np.ndarray, transpose: bool) -> None:
+@njit(cache=True, inline="always")
+def _project(
+    k: np.ndarray,
+    blocks: np.ndarray,
+    D: np.ndarray,
+    l: np.ndarray,
+    lo: int,
+    hi: int,
+    x: np.ndarray,
+    y: np.ndarray,
+    transpose: bool,
+) -> None:
     """x <- P_A x (or P_A^T x) for the projector of the blocks J = ``blocks[lo:hi]``, in two
     passes over J: forward, f_J = (D^T x)_J (D^T K x with ``transpose``) and the unit lower
     solve of the LDL^T of L_JJ (into ``y``); backward, the pivots and the unit upper solve
@@ -102,9 +112,19 @@ def _project(k: np.ndarray, blocks: np.ndarray, D: np.ndarray, l: np.ndarray, lo
 
 
 @njit(cache=True)
-def apply(k: np.ndarray, kinds: np.ndarray, starts: np.ndarray, blocks: np.ndarray,
-          D: np.ndarray, l: np.ndarray, slot: np.ndarray, rows: np.ndarray, rates: np.ndarray,
-          jumps: np.ndarray, x: np.ndarray) -> None:
+def apply(
+    k: np.ndarray,
+    kinds: np.ndarray,
+    starts: np.ndarray,
+    blocks: np.ndarray,
+    D: np.ndarray,
+    l: np.ndarray,
+    slot: np.ndarray,
+    rows: np.ndarray,
+    rates: np.ndarray,
+    jumps: np.ndarray,
+    x: np.ndarray,
+) -> None:
     """x <- J x, the packed factors (module docstring) in turn. Saltation p is number
     ``slot[p]`` of ``rows``, ``rates`` and ``jumps`` (one jump v_b - v_a a row)."""
     N = k.shape[0] + 1
@@ -125,9 +145,19 @@ def apply(k: np.ndarray, kinds: np.ndarray, starts: np.ndarray, blocks: np.ndarr
 
 
 @njit(cache=True)
-def apply_transpose(k: np.ndarray, kinds: np.ndarray, starts: np.ndarray, blocks: np.ndarray,
-                    D: np.ndarray, l: np.ndarray, slot: np.ndarray, rows: np.ndarray,
-                    rates: np.ndarray, jumps: np.ndarray, x: np.ndarray) -> None:
+def apply_transpose(
+    k: np.ndarray,
+    kinds: np.ndarray,
+    starts: np.ndarray,
+    blocks: np.ndarray,
+    D: np.ndarray,
+    l: np.ndarray,
+    slot: np.ndarray,
+    rows: np.ndarray,
+    rates: np.ndarray,
+    jumps: np.ndarray,
+    x: np.ndarray,
+) -> None:
     """x <- J^T x: the transposed factors (module docstring) in reverse order."""
     N = k.shape[0] + 1
     n = x.shape[0]

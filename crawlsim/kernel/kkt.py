@@ -62,7 +62,21 @@ from crawlsim.kernel.polyhedron import ActiveSet, Polyhedron
 from crawlsim.kernel.tridiagonal import ldl_solve, ldl_tridiagonal
 
 __all__ = [
-    "CACHE_NUMBERS", "GENERIC_RCOND", "REFINE_FRACTION", "RTOL", "SMALL_CHAIN",
-    "UPDATE_ITERATIONS", "ActiveSet", "Certificate", "ChainPolyhedron", "DensePolyhedron",
-    "Dependent", "Polyhedron", "Run", "Step", "Tolerance", "ldl_solve", "ldl_tridiagonal",
+    "CACHE_NUMBERS",
+    "GENERIC_RCOND",
+    "REFINE_FRACTION",
+    "RTOL",
+    "SMALL_CHAIN",
+    "UPDATE_ITERATIONS",
+    "ActiveSet",
+    "Certificate",
+    "ChainPolyhedron",
+    "DensePolyhedron",
+    "Dependent",
+    "Polyhedron",
+    "Run",
+    "Step",
+    "Tolerance",
+    "ldl_solve",
+    "ldl_tridiagonal",
 ]

@@ -41,7 +41,7 @@ def basis_values(u: float, order: int, linear: bool, H: int, out: np.ndarray) ->
     shift = order * (math.pi / 2)
     for h in range(1, H + 1):
         w = TWO_PI * h
-        scale = w ** order
+        scale = w**order
         angle = u * w
         out[h0 + 2 * (h - 1)] = scale * math.cos(angle + shift)
         out[h0 + 2 * (h - 1) + 1] = scale * math.sin(angle + shift)
@@ -124,9 +124,19 @@ def solve_rows_on(D: np.ndarray, l: np.ndarray, Y: np.ndarray, lo: int, hi: int)
 
 
 @njit(cache=True)
-def piece(k: np.ndarray, signs: np.ndarray, w0: np.ndarray, coef: np.ndarray, D: np.ndarray,
-          l: np.ndarray, dx0: np.ndarray, Ydx: np.ndarray, base: np.ndarray, Wc: np.ndarray,
-          f: np.ndarray) -> tuple[float, float]:
+def piece(
+    k: np.ndarray,
+    signs: np.ndarray,
+    w0: np.ndarray,
+    coef: np.ndarray,
+    D: np.ndarray,
+    l: np.ndarray,
+    dx0: np.ndarray,
+    Ydx: np.ndarray,
+    base: np.ndarray,
+    Wc: np.ndarray,
+    f: np.ndarray,
+) -> tuple[float, float]:
     """w(u) = base + phi(u) @ Wc and dx(u) = dx0 - phi(u) @ Ydx on the set ``signs`` from w0:
     Lambda_A = G_A^{-1} (B_A w0 - c_A(u)) in the chain's block form L_JJ dx_J = f_J - f*_J.
     Returns (||L_JJ^{-1}||, ||L_JJ||) (zeros for the empty set)."""
@@ -139,8 +149,9 @@ def piece(k: np.ndarray, signs: np.ndarray, w0: np.ndarray, coef: np.ndarray, D:
 
 
 @njit(cache=True)
-def factored_set(k: np.ndarray, signs: np.ndarray, factored: np.ndarray, D: np.ndarray,
-                 l: np.ndarray, norms: np.ndarray) -> None:
+def factored_set(
+    k: np.ndarray, signs: np.ndarray, factored: np.ndarray, D: np.ndarray, l: np.ndarray, norms: np.ndarray
+) -> None:
     """The LDL^T of the set ``signs`` (`crawlsim.kernel.chain.factor`) in (D, l) and its norms
     in ``norms``, factored only when ``factored`` (the set they hold, shared with the velocity
     problems' `crawlsim.kernel.chain.settle`) is another set: an event's last velocity problem
@@ -151,9 +162,20 @@ def factored_set(k: np.ndarray, signs: np.ndarray, factored: np.ndarray, D: np.n
 
 
 @njit(cache=True)
-def piece_on(k: np.ndarray, signs: np.ndarray, w0: np.ndarray, coef: np.ndarray, D: np.ndarray,
-             l: np.ndarray, norms: np.ndarray, dx0: np.ndarray, Ydx: np.ndarray,
-             base: np.ndarray, Wc: np.ndarray, f: np.ndarray) -> tuple[float, float]:
+def piece_on(
+    k: np.ndarray,
+    signs: np.ndarray,
+    w0: np.ndarray,
+    coef: np.ndarray,
+    D: np.ndarray,
+    l: np.ndarray,
+    norms: np.ndarray,
+    dx0: np.ndarray,
+    Ydx: np.ndarray,
+    base: np.ndarray,
+    Wc: np.ndarray,
+    f: np.ndarray,
+) -> tuple[float, float]:
     """`piece` with the set already factored: (D, l) its LDL^T and ``norms`` its
     (||L_JJ^{-1}||, ||L_JJ||)."""
     N = signs.shape[0]
@@ -186,9 +208,21 @@ def piece_on(k: np.ndarray, signs: np.ndarray, w0: np.ndarray, coef: np.ndarray,
 
 
 @njit(cache=True)
-def rebuild(k: np.ndarray, signs: np.ndarray, w0: np.ndarray, coef: np.ndarray, lo: int, hi: int,
-            D: np.ndarray, l: np.ndarray, inv: np.ndarray, dx0: np.ndarray, Ydx: np.ndarray,
-            base: np.ndarray, Wc: np.ndarray) -> None:
+def rebuild(
+    k: np.ndarray,
+    signs: np.ndarray,
+    w0: np.ndarray,
+    coef: np.ndarray,
+    lo: int,
+    hi: int,
+    D: np.ndarray,
+    l: np.ndarray,
+    inv: np.ndarray,
+    dx0: np.ndarray,
+    Ydx: np.ndarray,
+    base: np.ndarray,
+    Wc: np.ndarray,
+) -> None:
     """`piece_on` on the blocks lo..hi alone, a union of runs of the set ``signs`` (blocks
     lo - 1 and hi + 1 free or absent), from the state w0: the padded L~ decouples at a free
     block, so the factor (D, l), L_JJ^{-1} 1 (``inv``, whose largest entry over the set is
@@ -255,9 +289,19 @@ def offset_size(coef: np.ndarray) -> float:
 
 
 @njit(cache=True)
-def dual_scale(k: np.ndarray, kmax: float, c_scale: float, signs: np.ndarray, c_size: float,
-               dx0: np.ndarray, Ydx: np.ndarray, base: np.ndarray, Wc: np.ndarray, inverse: float,
-               gram: float) -> float:
+def dual_scale(
+    k: np.ndarray,
+    kmax: float,
+    c_scale: float,
+    signs: np.ndarray,
+    c_size: float,
+    dx0: np.ndarray,
+    Ydx: np.ndarray,
+    base: np.ndarray,
+    Wc: np.ndarray,
+    inverse: float,
+    gram: float,
+) -> float:
     """The roundoff of the slips a piece adds (`EventStepper._dual_scale`): the dual tolerance of
     its set at the size of its offsets (``c_size``, `offset_size`), state and slips."""
     if inverse == 0.0:
@@ -287,9 +331,19 @@ DECISION_ORDERS = 4
 
 
 @njit(cache=True)
-def tight_rows(c_scale: float, linear: bool, H: int, coef: np.ndarray, u: float, w: np.ndarray,
-               forced: np.ndarray, phi: np.ndarray, cvec: np.ndarray, Bw: np.ndarray,
-               candidates: np.ndarray) -> None:
+def tight_rows(
+    c_scale: float,
+    linear: bool,
+    H: int,
+    coef: np.ndarray,
+    u: float,
+    w: np.ndarray,
+    forced: np.ndarray,
+    phi: np.ndarray,
+    cvec: np.ndarray,
+    Bw: np.ndarray,
+    candidates: np.ndarray,
+) -> None:
     """The rows tight at w to the primal tolerance of a step with no multipliers, and
     ``forced`` (the rows an event hit), into ``candidates``: the candidates of `decide`."""
     m = Bw.shape[0]
@@ -306,8 +360,15 @@ def tight_rows(c_scale: float, linear: bool, H: int, coef: np.ndarray, u: float,
 
 
 @njit(cache=True)
-def settle_rows(candidates: np.ndarray, fixed: np.ndarray, lam: np.ndarray, Bv: np.ndarray,
-                ck: np.ndarray, tol_p: float, told: np.ndarray) -> bool:
+def settle_rows(
+    candidates: np.ndarray,
+    fixed: np.ndarray,
+    lam: np.ndarray,
+    Bv: np.ndarray,
+    ck: np.ndarray,
+    tol_p: float,
+    told: np.ndarray,
+) -> bool:
     """One order of `decide`: candidates with a multiplier above their own row's dual
     tolerance ``told[r]`` (`chain.project_rows`) become fixed, those whose velocity opens their
     gap leave. Returns whether candidates are left."""
@@ -325,11 +386,31 @@ def settle_rows(candidates: np.ndarray, fixed: np.ndarray, lam: np.ndarray, Bv: 
 
 
 @njit(cache=True)
-def decide(k: np.ndarray, kmax: float, c_scale: float, linear: bool, H: int, coef: np.ndarray,
-           u: float, w: np.ndarray, forced: np.ndarray, warm: np.ndarray, out: np.ndarray,
-           phi: np.ndarray, cvec: np.ndarray, Bw: np.ndarray, masks: np.ndarray,
-           rows_m: np.ndarray, rows_n: np.ndarray, sets: np.ndarray, factored: np.ndarray,
-           D: np.ndarray, l: np.ndarray, norms: np.ndarray, report: np.ndarray) -> bool:
+def decide(
+    k: np.ndarray,
+    kmax: float,
+    c_scale: float,
+    linear: bool,
+    H: int,
+    coef: np.ndarray,
+    u: float,
+    w: np.ndarray,
+    forced: np.ndarray,
+    warm: np.ndarray,
+    out: np.ndarray,
+    phi: np.ndarray,
+    cvec: np.ndarray,
+    Bw: np.ndarray,
+    masks: np.ndarray,
+    rows_m: np.ndarray,
+    rows_n: np.ndarray,
+    sets: np.ndarray,
+    factored: np.ndarray,
+    D: np.ndarray,
+    l: np.ndarray,
+    norms: np.ndarray,
+    report: np.ndarray,
+) -> bool:
     """The active set on (u, u + eps) into ``out`` (`EventStepper._decide`): the rows tight at
     w (and ``forced``), decided by the velocity problems of orders 1, 2, ...; False when one of
     them is not settled by the kernel's updates or the result is dependent (HANDOFF).
@@ -339,17 +420,57 @@ def decide(k: np.ndarray, kmax: float, c_scale: float, linear: bool, H: int, coe
     ``sets`` (2 + UPDATE_ITERATIONS, N) and the factor of the last set (``factored``, D, l,
     ``norms``, `crawlsim.kernel.piece.factored_set`), refactored only when the set changes."""
     tight_rows(c_scale, linear, H, coef, u, w, forced, phi, cvec, Bw, masks[0])
-    return decide_from(k, kmax, c_scale, linear, H, coef, u, forced, warm, out, phi, cvec, Bw,
-                       masks, rows_m, rows_n, sets, factored, D, l, norms, report)
+    return decide_from(
+        k,
+        kmax,
+        c_scale,
+        linear,
+        H,
+        coef,
+        u,
+        forced,
+        warm,
+        out,
+        phi,
+        cvec,
+        Bw,
+        masks,
+        rows_m,
+        rows_n,
+        sets,
+        factored,
+        D,
+        l,
+        norms,
+        report,
+    )
 
 
 @njit(cache=True)
-def decide_from(k: np.ndarray, kmax: float, c_scale: float, linear: bool, H: int,
-                coef: np.ndarray, u: float, forced: np.ndarray, warm: np.ndarray,
-                out: np.ndarray, phi: np.ndarray, cvec: np.ndarray, Bw: np.ndarray,
-                masks: np.ndarray, rows_m: np.ndarray, rows_n: np.ndarray, sets: np.ndarray,
-                factored: np.ndarray, D: np.ndarray, l: np.ndarray, norms: np.ndarray,
-                report: np.ndarray) -> bool:
+def decide_from(
+    k: np.ndarray,
+    kmax: float,
+    c_scale: float,
+    linear: bool,
+    H: int,
+    coef: np.ndarray,
+    u: float,
+    forced: np.ndarray,
+    warm: np.ndarray,
+    out: np.ndarray,
+    phi: np.ndarray,
+    cvec: np.ndarray,
+    Bw: np.ndarray,
+    masks: np.ndarray,
+    rows_m: np.ndarray,
+    rows_n: np.ndarray,
+    sets: np.ndarray,
+    factored: np.ndarray,
+    D: np.ndarray,
+    l: np.ndarray,
+    norms: np.ndarray,
+    report: np.ndarray,
+) -> bool:
     """`decide` from its candidates, in masks[0] (`tight_rows`)."""
     candidates = masks[0]
     out[:] = 0
@@ -361,7 +482,7 @@ def decide_from(k: np.ndarray, kmax: float, c_scale: float, linear: bool, H: int
     fixed[:] = False
     signs = sets[0]
     lam, c, told, slack = rows_m[0], rows_m[1], rows_m[2], rows_m[3]
-    dx, f, res, v, zero = rows_n[0], rows_n[1], rows_n[2], rows_n[3, :N - 1], rows_n[4, :N - 1]
+    dx, f, res, v, zero = rows_n[0], rows_n[1], rows_n[2], rows_n[3, : N - 1], rows_n[4, : N - 1]
     for order in range(1, DECISION_ORDERS + 1):
         basis_values(u, order, linear, H, phi)
         combine(phi, coef, cvec)
@@ -379,8 +500,29 @@ def decide_from(k: np.ndarray, kmax: float, c_scale: float, linear: bool, H: int
                         rows[r] = False
         for i in range(N):
             signs[i] = 1 if rows[i] else (-1 if rows[N + i] else 0)
-        status, _ = chain.settle(k, kmax, c_scale, zero, c, signs, factored, D, l, norms, fixed,
-                                 dx, v, lam, slack, f, res, sets[1], sets[2:], report, told)
+        status, _ = chain.settle(
+            k,
+            kmax,
+            c_scale,
+            zero,
+            c,
+            signs,
+            factored,
+            D,
+            l,
+            norms,
+            fixed,
+            dx,
+            v,
+            lam,
+            slack,
+            f,
+            res,
+            sets[1],
+            sets[2:],
+            report,
+            told,
+        )
         if status != chain.DONE:
             return False
         apply(v, Bw)
@@ -402,13 +544,35 @@ CLEAR_MARGIN = 1e3
 
 
 @njit(cache=True)
-def decide_local(k: np.ndarray, kmax: float, c_scale: float, linear: bool, H: int,
-                 coef: np.ndarray, c_size: float, u: float, w: np.ndarray, forced: np.ndarray,
-                 warm: np.ndarray, out: np.ndarray, phi: np.ndarray, cvec: np.ndarray,
-                 Bw: np.ndarray, masks: np.ndarray, rows_m: np.ndarray, rows_n: np.ndarray,
-                 sets: np.ndarray, factored: np.ndarray, D: np.ndarray, l: np.ndarray,
-                 norms: np.ndarray, report: np.ndarray, Rdx: np.ndarray, inverse: float,
-                 rate: np.ndarray) -> bool:
+def decide_local(
+    k: np.ndarray,
+    kmax: float,
+    c_scale: float,
+    linear: bool,
+    H: int,
+    coef: np.ndarray,
+    c_size: float,
+    u: float,
+    w: np.ndarray,
+    forced: np.ndarray,
+    warm: np.ndarray,
+    out: np.ndarray,
+    phi: np.ndarray,
+    cvec: np.ndarray,
+    Bw: np.ndarray,
+    masks: np.ndarray,
+    rows_m: np.ndarray,
+    rows_n: np.ndarray,
+    sets: np.ndarray,
+    factored: np.ndarray,
+    D: np.ndarray,
+    l: np.ndarray,
+    norms: np.ndarray,
+    report: np.ndarray,
+    Rdx: np.ndarray,
+    inverse: float,
+    rate: np.ndarray,
+) -> bool:
     """`decide` at an event of a piece of the set ``warm`` (its slip rates' coefficients Rdx,
     its ||L_JJ^{-1}|| ``inverse``), solving the velocity problems only where the set can change.
 
@@ -440,21 +604,41 @@ def decide_local(k: np.ndarray, kmax: float, c_scale: float, linear: bool, H: in
             rate[i] = -s * total
             lam_size = max(lam_size, abs(rate[i]))
     if count == N:
-        return decide_from(k, kmax, c_scale, linear, H, coef, u, forced, warm, out, phi, cvec,
-                           Bw, masks, rows_m, rows_n, sets, factored, D, l, norms, report)
+        return decide_from(
+            k,
+            kmax,
+            c_scale,
+            linear,
+            H,
+            coef,
+            u,
+            forced,
+            warm,
+            out,
+            phi,
+            cvec,
+            Bw,
+            masks,
+            rows_m,
+            rows_n,
+            sets,
+            factored,
+            D,
+            l,
+            norms,
+            report,
+        )
     size = max(max(c_scale, TWO_PI * max(H, 1) * c_size), 4.0 * kmax * lam_size)
     clear = CLEAR_MARGIN * 2.0 * RTOL * 4.0 * inverse * (size + 4.0 * kmax * lam_size)
     hot = masks[1]
     for i in range(N):
         s = warm[i]
-        h = (forced[i] or forced[N + i] or candidates[i] != (s > 0)
-             or candidates[N + i] != (s < 0))
+        h = forced[i] or forced[N + i] or candidates[i] != (s > 0) or candidates[N + i] != (s < 0)
         if not h and s != 0:
             h = not rate[i] > clear
         hot[i] = h
     out[:] = warm
-    if not decide_hot_runs(k, kmax, c_scale, linear, H, coef, u, forced, warm, candidates, hot,
-                           out, report):
+    if not decide_hot_runs(k, kmax, c_scale, linear, H, coef, u, forced, warm, candidates, hot, out, report):
         return False
     count = 0
     for i in range(N):
@@ -464,10 +648,21 @@ def decide_local(k: np.ndarray, kmax: float, c_scale: float, linear: bool, H: in
 
 
 @njit(cache=True)
-def decide_hot_runs(k: np.ndarray, kmax: float, c_scale: float, linear: bool, H: int,
-                    coef: np.ndarray, u: float, forced: np.ndarray, warm: np.ndarray,
-                    candidates: np.ndarray, hot: np.ndarray, out: np.ndarray,
-                    report: np.ndarray) -> bool:
+def decide_hot_runs(
+    k: np.ndarray,
+    kmax: float,
+    c_scale: float,
+    linear: bool,
+    H: int,
+    coef: np.ndarray,
+    u: float,
+    forced: np.ndarray,
+    warm: np.ndarray,
+    candidates: np.ndarray,
+    hot: np.ndarray,
+    out: np.ndarray,
+    report: np.ndarray,
+) -> bool:
     """The runs of candidate blocks that hold a ``hot`` block (`decide_local`), each decided on
     its own chain (`decide_run`) into ``out``; a hot block with no candidate row leaves the
     set. False where one of them is not settled (HANDOFF)."""
@@ -486,18 +681,44 @@ def decide_hot_runs(k: np.ndarray, kmax: float, c_scale: float, linear: bool, H:
             lo -= 1
         while hi < N - 1 and (candidates[hi + 1] or candidates[N + hi + 1]):
             hi += 1
-        if not decide_run(k, kmax, c_scale, linear, H, coef, u, forced, warm, candidates,
-                          max(lo - 1, 0), min(hi + 1, N - 1), out, report):
+        if not decide_run(
+            k,
+            kmax,
+            c_scale,
+            linear,
+            H,
+            coef,
+            u,
+            forced,
+            warm,
+            candidates,
+            max(lo - 1, 0),
+            min(hi + 1, N - 1),
+            out,
+            report,
+        ):
             return False
         i = hi + 1
     return True
 
 
 @njit(cache=True)
-def decide_run(k: np.ndarray, kmax: float, c_scale: float, linear: bool, H: int,
-               coef: np.ndarray, u: float, forced: np.ndarray, warm: np.ndarray,
-               candidates: np.ndarray, a: int, b: int, out: np.ndarray,
-               report: np.ndarray) -> bool:
+def decide_run(
+    k: np.ndarray,
+    kmax: float,
+    c_scale: float,
+    linear: bool,
+    H: int,
+    coef: np.ndarray,
+    u: float,
+    forced: np.ndarray,
+    warm: np.ndarray,
+    candidates: np.ndarray,
+    a: int,
+    b: int,
+    out: np.ndarray,
+    report: np.ndarray,
+) -> bool:
     """`decide_from` on the chain of blocks a..b (links a..b-1), a run of candidate blocks
     and the free blocks beside it, its result into out[a:b+1]."""
     N = warm.shape[0]
@@ -512,11 +733,29 @@ def decide_run(k: np.ndarray, kmax: float, c_scale: float, linear: bool, H: int,
         masks[0, j], masks[0, n + j] = candidates[a + j], candidates[N + a + j]
         hit[j], hit[n + j] = forced[a + j], forced[N + a + j]
     result = np.empty(n, dtype=np.int8)
-    ok = decide_from(k[a:b], kmax, c_scale, linear, H, sub, u, hit, warm[a:b + 1], result,
-                     np.empty(nb), np.empty(2 * n), np.empty(2 * n), masks,
-                     np.empty((4, 2 * n)), np.zeros((5, n)),
-                     np.empty((2 + chain.UPDATE_ITERATIONS, n), dtype=np.int8),
-                     np.full(n, 2, dtype=np.int8), np.empty(n), np.empty(max(n - 1, 0)),
-                     np.zeros(2), report)
-    out[a:b + 1] = result
+    ok = decide_from(
+        k[a:b],
+        kmax,
+        c_scale,
+        linear,
+        H,
+        sub,
+        u,
+        hit,
+        warm[a : b + 1],
+        result,
+        np.empty(nb),
+        np.empty(2 * n),
+        np.empty(2 * n),
+        masks,
+        np.empty((4, 2 * n)),
+        np.zeros((5, n)),
+        np.empty((2 + chain.UPDATE_ITERATIONS, n), dtype=np.int8),
+        np.full(n, 2, dtype=np.int8),
+        np.empty(n),
+        np.empty(max(n - 1, 0)),
+        np.zeros(2),
+        report,
+    )
+    out[a : b + 1] = result
     return ok

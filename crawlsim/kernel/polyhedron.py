@@ -147,8 +147,9 @@ class Polyhedron:
         return cached
 
     # -- the one tolerance policy --------------------------------------------------------------
-    def tolerance(self, active: ActiveSet, c_size: npt.ArrayLike, w_size: npt.ArrayLike,
-                  lam_size: npt.ArrayLike) -> Tolerance:
+    def tolerance(
+        self, active: ActiveSet, c_size: npt.ArrayLike, w_size: npt.ArrayLike, lam_size: npt.ArrayLike
+    ) -> Tolerance:
         """Certificate tolerances for a step (or arrays of steps) whose offsets, states and
         cumulative multipliers have these sup norms.
 
@@ -157,16 +158,21 @@ class Polyhedron:
         G_A^{-1} times such a residual, so their roundoff is ||G_A^{-1}|| times it, plus the
         solve's own, ||G_A^{-1}|| ||G_A|| |lambda| eps.
         """
-        size = np.maximum(np.maximum(np.maximum(self.c_scale, c_size),
-                                     self.row_norm * np.asarray(w_size)),
-                          self.row_norm * self.response_norm * np.asarray(lam_size))
+        size = np.maximum(
+            np.maximum(np.maximum(self.c_scale, c_size), self.row_norm * np.asarray(w_size)),
+            self.row_norm * self.response_norm * np.asarray(lam_size),
+        )
         primal = RTOL * size
         dual = RTOL * active.inverse_norm * (size + active.gram_norm * np.asarray(lam_size))
         return Tolerance(primal, 2.0 * dual)
 
     # -- one step on an active set --------------------------------------------------------------
-    def solve_on(self, active: ActiveSet, w_trial: np.ndarray, c: np.ndarray,
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, Tolerance]:
+    def solve_on(
+        self,
+        active: ActiveSet,
+        w_trial: np.ndarray,
+        c: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, Tolerance]:
         """(w, lambda (m,), B w - c, tolerance) of the equality KKT system on ``active``."""
         Bw = self.apply(w_trial)
         lam = np.zeros(self.m)
@@ -187,25 +193,30 @@ class Polyhedron:
             slack = self.apply(w) - c
         return w, lam, slack, self.row_tolerance(active, w_trial, c, lam, tol)
 
-    def row_tolerance(self, active: ActiveSet, w_trial: np.ndarray, c: np.ndarray,
-                      lam: np.ndarray, tol: Tolerance) -> Tolerance:
+    def row_tolerance(
+        self, active: ActiveSet, w_trial: np.ndarray, c: np.ndarray, lam: np.ndarray, tol: Tolerance
+    ) -> Tolerance:
         """``tol`` with each row's own dual tolerance where the structure gives one (chains:
         `ChainPolyhedron.row_tolerance`); generic processes keep the scalar bound."""
         return tol
 
-    def _tolerance1(self, active: ActiveSet, c: np.ndarray, w: np.ndarray,
-                    lam: np.ndarray) -> Tolerance:
+    def _tolerance1(self, active: ActiveSet, c: np.ndarray, w: np.ndarray, lam: np.ndarray) -> Tolerance:
         """`tolerance` for one step, in Python floats."""
         # rows with an infinite offset are ignored (velocity problems of the exact integrator)
         c_size = float(np.max(np.abs(c), initial=0.0, where=np.isfinite(c)))
         lam_size = float(np.abs(lam).max(initial=0.0))
-        size = max(self.c_scale, c_size, self.row_norm * float(np.abs(w).max(initial=0.0)),
-                   self.row_norm * self.response_norm * lam_size)
+        size = max(
+            self.c_scale,
+            c_size,
+            self.row_norm * float(np.abs(w).max(initial=0.0)),
+            self.row_norm * self.response_norm * lam_size,
+        )
         dual = RTOL * active.inverse_norm * (size + active.gram_norm * lam_size)
         return Tolerance(RTOL * size, 2.0 * dual)
 
-    def certify(self, slack: np.ndarray, lam: np.ndarray, active: ActiveSet,
-                tol: Tolerance, fixed: np.ndarray | None = None) -> Certificate:
+    def certify(
+        self, slack: np.ndarray, lam: np.ndarray, active: ActiveSet, tol: Tolerance, fixed: np.ndarray | None = None
+    ) -> Certificate:
         """The certificate of one step from its slack B w - c and multipliers. Rows ``fixed``
         are equalities: their multipliers may have either sign."""
         comp = float(np.abs(slack[active.index]).max(initial=0.0))
@@ -221,8 +232,7 @@ class Polyhedron:
         ratio = np.divide(neg, told, out=np.where(neg > 0, np.inf, 0.0), where=told > 0)
         r = int(np.argmax(ratio)) if len(ratio) else 0
         value = float(neg[r]) if len(neg) else 0.0
-        return Certificate(primal, value, comp, tol,
-                           float(told[r]) if len(told) else 0.0)
+        return Certificate(primal, value, comp, tol, float(told[r]) if len(told) else 0.0)
 
     def tight_rows(self, slack: np.ndarray, active: ActiveSet, tol: Tolerance) -> np.ndarray:
         """Rows tight to roundoff at a certified point: the active ones and any inactive row
@@ -232,9 +242,16 @@ class Polyhedron:
         return np.flatnonzero(tight)
 
     # -- primal-dual active-set updates ------------------------------------------------------
-    def refine(self, w_trial: np.ndarray, c: np.ndarray, start: ActiveSet | tuple[int, ...] | np.ndarray,
-               *, iterations: int = UPDATE_ITERATIONS, single: bool = False,
-               fixed: np.ndarray | None = None) -> Step | None:
+    def refine(
+        self,
+        w_trial: np.ndarray,
+        c: np.ndarray,
+        start: ActiveSet | tuple[int, ...] | np.ndarray,
+        *,
+        iterations: int = UPDATE_ITERATIONS,
+        single: bool = False,
+        fixed: np.ndarray | None = None,
+    ) -> Step | None:
         """A certified step from the active set ``start``, by primal-dual active-set updates,
         or None when they do not settle (then Clarabel proposes a set).
 
@@ -279,8 +296,9 @@ class Polyhedron:
                 return None
         return None
 
-    def exchange(self, active: ActiveSet, lam: np.ndarray, slack: np.ndarray,
-                 fixed: np.ndarray | None = None) -> np.ndarray | None:
+    def exchange(
+        self, active: ActiveSet, lam: np.ndarray, slack: np.ndarray, fixed: np.ndarray | None = None
+    ) -> np.ndarray | None:
         """The most violated row r enters although its normal depends on the active ones: the
         dual step of Goldfarb and Idnani. With z the dependency (B_{A+r}^T z = 0, z_r > 0),
         the multipliers lambda + t z stay non-negative until the active row j with z_j < 0 and
@@ -299,8 +317,7 @@ class Polyhedron:
             leaving &= ~np.isin(idx, fixed)
         if not leaving.any():
             return None
-        ratio = np.where(leaving, np.maximum(lam[idx], 0.0) / np.where(leaving, -zA, 1.0),
-                         np.inf)
+        ratio = np.where(leaving, np.maximum(lam[idx], 0.0) / np.where(leaving, -zA, 1.0), np.inf)
         j = int(np.argmin(ratio))
         return np.sort(np.append(np.delete(idx, j), r))
 
@@ -315,8 +332,16 @@ class Polyhedron:
             return z
         return None
 
-    def update_set(self, active: ActiveSet, lam: np.ndarray, slack: np.ndarray, tol: Tolerance,
-                   *, single: bool = False, fixed: np.ndarray | None = None) -> np.ndarray | None:
+    def update_set(
+        self,
+        active: ActiveSet,
+        lam: np.ndarray,
+        slack: np.ndarray,
+        tol: Tolerance,
+        *,
+        single: bool = False,
+        fixed: np.ndarray | None = None,
+    ) -> np.ndarray | None:
         """The next active set of a primal-dual update: drop the rows whose multiplier is
         negative beyond tolerance (never a ``fixed`` row), add the rows violated beyond
         tolerance (``single``: only the worst one); None when nothing is to change."""
@@ -363,8 +388,7 @@ class Polyhedron:
                 t = Tolerance(float(tol.primal[acc]), float(tol.dual[acc]))
                 failed = Certificate(float(primal[acc]), 0.0, 0.0, t)
                 next_set = np.flatnonzero(slack[acc] > t.primal)
-            return Run(acc, W, np.zeros((k, self.m)), failed, bool(acc < k and ok[acc]),
-                       next_set)
+            return Run(acc, W, np.zeros((k, self.m)), failed, bool(acc < k and ok[acc]), next_set)
         idx = active.index
         Bw = self.apply(w)
         R = Bw[idx][None, :] - C[:, idx]
@@ -372,8 +396,7 @@ class Polyhedron:
         LAMC[:, idx] = active.solve(R)
         W = w - self.respond(LAMC)
         slack = self.apply(W) - C
-        tol = self.tolerance(active, np.abs(C).max(axis=1), np.abs(W).max(axis=1),
-                             np.abs(LAMC).max(axis=1))
+        tol = self.tolerance(active, np.abs(C).max(axis=1), np.abs(W).max(axis=1), np.abs(LAMC).max(axis=1))
         comp = np.abs(slack[:, idx]).max(axis=1)
         if np.any(comp > REFINE_FRACTION * tol.primal):
             delta = np.zeros((k, self.m))

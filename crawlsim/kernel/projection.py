@@ -69,9 +69,14 @@ class ExactProjector:
     ``licq_failures`` as {row indices: (first time, occurrences)}).
     """
 
-    def __init__(self, polyhedron: Polyhedron, *,
-                 describe_active: Callable[[np.ndarray], str] | None = None,
-                 persistent: bool = True, on_dependent: str = "raise") -> None:
+    def __init__(
+        self,
+        polyhedron: Polyhedron,
+        *,
+        describe_active: Callable[[np.ndarray], str] | None = None,
+        persistent: bool = True,
+        on_dependent: str = "raise",
+    ) -> None:
         if on_dependent not in ("raise", "warn"):
             raise ValueError(f"on_dependent must be 'raise' or 'warn', got {on_dependent!r}")
         self.polyhedron = polyhedron
@@ -85,8 +90,9 @@ class ExactProjector:
         self.licq_failures: dict[tuple[int, ...], tuple[float | None, int]] = {}
 
     @classmethod
-    def dense(cls, normals: npt.ArrayLike, metric: npt.ArrayLike, c_scale: float = 1.0,
-              **options: Any) -> ExactProjector:
+    def dense(
+        cls, normals: npt.ArrayLike, metric: npt.ArrayLike, c_scale: float = 1.0, **options: Any
+    ) -> ExactProjector:
         """A projector for dense normals B and metric M (a generic polyhedron)."""
         return cls(DensePolyhedron(normals, metric, c_scale), **options)
 
@@ -125,17 +131,23 @@ class ExactProjector:
         self.clarabel_calls += 1
         self.clarabel_status = solution.status
         lam, slack = np.asarray(solution.z, dtype=float), np.asarray(solution.s, dtype=float)
-        if solution.status in _infeasible() or not (np.isfinite(lam).all()
-                                                   and np.isfinite(slack).all()):
+        if solution.status in _infeasible() or not (np.isfinite(lam).all() and np.isfinite(slack).all()):
             raise CertificateError(
-                f"Clarabel could not solve {problem} (status {solution.status}); the set may be "
-                "empty at this time")
+                f"Clarabel could not solve {problem} (status {solution.status}); the set may be empty at this time"
+            )
         return lam, slack
 
     # -- the projection ----------------------------------------------------------------------
-    def project(self, w_trial: npt.ArrayLike, c: npt.ArrayLike, *, time: float | None = None,
-                warm: ActiveSet | np.ndarray | None = None, verify: bool = False,
-                fixed: np.ndarray | None = None) -> Projection:
+    def project(
+        self,
+        w_trial: npt.ArrayLike,
+        c: npt.ArrayLike,
+        *,
+        time: float | None = None,
+        warm: ActiveSet | np.ndarray | None = None,
+        verify: bool = False,
+        fixed: np.ndarray | None = None,
+    ) -> Projection:
         """Certified projection of ``w_trial`` onto ``{B w <= c}`` (module docstring): an
         elastic step if the trial point is admissible, else the kernel's updates from ``warm``,
         else Clarabel's proposal. ``verify=True`` always asks Clarabel (no shortcut). Rows
@@ -161,25 +173,27 @@ class ExactProjector:
         # interior-point identification: a row is proposed active when its multiplier dominates
         # its slack, each in its natural scale
         finite = np.isfinite(c)
-        c_size = max(poly.c_scale, float(np.max(np.abs(c[finite]), initial=0.0)),
-                     poly.row_norm * float(np.max(np.abs(w_trial), initial=0.0)))
+        c_size = max(
+            poly.c_scale,
+            float(np.max(np.abs(c[finite]), initial=0.0)),
+            poly.row_norm * float(np.max(np.abs(w_trial), initial=0.0)),
+        )
         lam_ref = c_size / max(poly.row_norm * poly.response_norm, 1e-300)
         proposed = np.flatnonzero(finite & (lam_ip / lam_ref > np.maximum(slack_ip, 0.0) / c_size))
         proposed = self._independent(np.union1d(proposed, fixed), lam_ip, fixed)
         step = poly.refine(w_trial, c, proposed, fixed=fixed)
         if step is None:
-            step = poly.refine(w_trial, c, proposed, single=True, iterations=4 * self.m + 4,
-                               fixed=fixed)
+            step = poly.refine(w_trial, c, proposed, single=True, iterations=4 * self.m + 4, fixed=fixed)
         if step is None:
             last = self._last_attempt(w_trial, c, proposed)
             raise CertificateError(
                 f"exact projection failed its certificate{_at(time)}: {last}; active set "
                 f"proposed by Clarabel (status {self.clarabel_status}): "
-                f"{self._describe(proposed)}")
+                f"{self._describe(proposed)}"
+            )
         return self._finish(step, c, True, time)
 
-    def _independent(self, proposed: np.ndarray, lam_ip: np.ndarray,
-                     fixed: np.ndarray) -> np.ndarray:
+    def _independent(self, proposed: np.ndarray, lam_ip: np.ndarray, fixed: np.ndarray) -> np.ndarray:
         """Clarabel's proposal reduced to independent rows: while LICQ fails, drop the row
         with the smallest interior-point multiplier (a dependent set has a representation
         with non-negative multipliers on an independent subset, Caratheodory); equality rows
@@ -192,8 +206,7 @@ class ExactProjector:
             rows.remove(min(free, key=lambda i: lam_ip[i]))
         return np.array(sorted(rows), dtype=int)
 
-    def _clarabel_mixed(self, w_trial: np.ndarray, c: np.ndarray,
-                        fixed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _clarabel_mixed(self, w_trial: np.ndarray, c: np.ndarray, fixed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Clarabel on the finite rows with the rows ``fixed`` as equalities (a one-off solver:
         the cone structure changes with ``fixed``)."""
         import clarabel
@@ -224,8 +237,7 @@ class ExactProjector:
         _, lam, slack, tol = self.polyhedron.solve_on(active, w_trial, c)
         return str(self.polyhedron.certify(slack, lam, active, tol))
 
-    def _finish(self, step: Step, c: np.ndarray, used_clarabel: bool,
-                time: float | None) -> Projection:
+    def _finish(self, step: Step, c: np.ndarray, used_clarabel: bool, time: float | None) -> Projection:
         """LICQ of the rows tight at the certified point (module docstring)."""
         poly = self.polyhedron
         active = step.active
@@ -253,20 +265,26 @@ class ExactProjector:
                 "not unique there. The projected point is unique and was certified on an "
                 "independent subset; the paper's theorem does not need LICQ. Later occurrences "
                 "of this set are counted in `licq_failures`, not repeated.",
-                LicqWarning, stacklevel=3)
+                LicqWarning,
+                stacklevel=3,
+            )
 
     def degenerate_message(self, index: np.ndarray, time: float | None) -> str:
         if not hasattr(self.polyhedron, "blocks"):
-            return (f"the normals of the tight constraints {_label(index)} are linearly "
-                    f"dependent{_at(time)}: LICQ fails there, so the multipliers (the reactions) "
-                    "are not unique")
-        return (f"the model does not determine the motion{_at(time)}: "
-                f"{self._describe(np.asarray(index))}, so every block is at a friction limit "
-                "and the active normals are linearly dependent (LICQ fails): the slips are "
-                "unique only up to a rigid translation of the crawler. This is the instant "
-                "where the uniqueness condition of docs/model.md §3 fails (sum of mu+ over the "
-                "forward blocks = sum of mu- over the others). Change steps_per_period so that "
-                "no grid time falls on this instant, or change the friction coefficients.")
+            return (
+                f"the normals of the tight constraints {_label(index)} are linearly "
+                f"dependent{_at(time)}: LICQ fails there, so the multipliers (the reactions) "
+                "are not unique"
+            )
+        return (
+            f"the model does not determine the motion{_at(time)}: "
+            f"{self._describe(np.asarray(index))}, so every block is at a friction limit "
+            "and the active normals are linearly dependent (LICQ fails): the slips are "
+            "unique only up to a rigid translation of the crawler. This is the instant "
+            "where the uniqueness condition of docs/model.md §3 fails (sum of mu+ over the "
+            "forward blocks = sum of mu- over the others). Change steps_per_period so that "
+            "no grid time falls on this instant, or change the friction coefficients."
+        )
 
 
 def _solver(P: Any, q: np.ndarray, A: Any, b: np.ndarray, cones: list[Any]) -> Any:
@@ -290,8 +308,7 @@ def _infeasible() -> frozenset[Any]:
     import clarabel
 
     S = clarabel.SolverStatus
-    return frozenset({S.PrimalInfeasible, S.DualInfeasible, S.AlmostPrimalInfeasible,
-                      S.AlmostDualInfeasible})
+    return frozenset({S.PrimalInfeasible, S.DualInfeasible, S.AlmostPrimalInfeasible, S.AlmostDualInfeasible})
 
 
 def _at(time: float | None) -> str:

@@ -241,8 +241,7 @@ def grid(u0: float, u1: float, count: int, S: np.ndarray) -> None:
 
 
 @njit(cache=True)
-def _sample(z: np.ndarray, k: int, S: np.ndarray, PHIS: np.ndarray, filled: np.ndarray,
-            linear: bool, H: int) -> float:
+def _sample(z: np.ndarray, k: int, S: np.ndarray, PHIS: np.ndarray, filled: np.ndarray, linear: bool, H: int) -> float:
     """f(s_k), the basis at the samples tabulated on first use (PHIS[:filled[0]] hold it)."""
     while filled[0] <= k:
         basis_values(S[filled[0]], 0, linear, H, PHIS[filled[0]])
@@ -254,8 +253,18 @@ def _sample(z: np.ndarray, k: int, S: np.ndarray, PHIS: np.ndarray, filled: np.n
 
 
 @njit(cache=True)
-def crossing(z: np.ndarray, tol: float, u0: float, u1: float, linear: bool, H: int,
-             horizon: float, S: np.ndarray, PHIS: np.ndarray, filled: np.ndarray) -> float:
+def crossing(
+    z: np.ndarray,
+    tol: float,
+    u0: float,
+    u1: float,
+    linear: bool,
+    H: int,
+    horizon: float,
+    S: np.ndarray,
+    PHIS: np.ndarray,
+    filled: np.ndarray,
+) -> float:
     """The first upward zero crossing of f = phi @ z in (u0, u1) that goes on to exceed tol, by
     certified sampling (module docstring) on the samples S of (u0, u1) (`grid`); inf if there
     is none, or if it is after ``horizon`` (the caller's earliest event so far, at most u1);
@@ -282,8 +291,7 @@ def crossing(z: np.ndarray, tol: float, u0: float, u1: float, linear: bool, H: i
                 # bracket without a sign change has its crossing at an end
                 f_left = scalar(left, z, linear, H) - tol
                 f_top = scalar(top, z, linear, H) - tol
-                if f_left * f_top > 0.0 or (_negative(f_left) == _negative(f_top)
-                                            and f_left != 0.0 and f_top != 0.0):
+                if f_left * f_top > 0.0 or (_negative(f_left) == _negative(f_top) and f_left != 0.0 and f_top != 0.0):
                     over = left if f_left > 0.0 else top
                 else:
                     over = brentq(z, tol, left, top, linear, H)
@@ -304,8 +312,9 @@ def crossing(z: np.ndarray, tol: float, u0: float, u1: float, linear: bool, H: i
 
 
 @njit(cache=True)
-def crossings(Z: np.ndarray, tol: np.ndarray, u0: float, u1: float, linear: bool, H: int,
-              cells_per_cycle: int, out: np.ndarray) -> None:
+def crossings(
+    Z: np.ndarray, tol: np.ndarray, u0: float, u1: float, linear: bool, H: int, cells_per_cycle: int, out: np.ndarray
+) -> None:
     """`crossing` of every column of Z (nb, k) into ``out``, on one set of samples (the Python
     loop of `crawlsim.integrate.exact`)."""
     count = cells(u0, u1, cells_per_cycle, H)

@@ -126,9 +126,18 @@ def _at_p(phi: np.ndarray, coef: np.ndarray, idx: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True)
-def solve_on(BA: np.ndarray, Gi: np.ndarray, idx: np.ndarray, k: np.ndarray, dk: np.ndarray,
-             w_s: np.ndarray, W_s: np.ndarray, phi: np.ndarray, C: np.ndarray,
-             dC: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def solve_on(
+    BA: np.ndarray,
+    Gi: np.ndarray,
+    idx: np.ndarray,
+    k: np.ndarray,
+    dk: np.ndarray,
+    w_s: np.ndarray,
+    W_s: np.ndarray,
+    phi: np.ndarray,
+    C: np.ndarray,
+    dC: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Lambda_A(u), d Lambda_A, w(u) and its tangent for a flow (or projection) on A from w_s,
     phi the basis at u (eq. (piece)); C (nb, m), dC (nb, m, p) of the piece. With dK:
     d(G_A Lambda) carries B_A dK B_A^T Lambda, and dw carries -dK B_A^T Lambda."""
@@ -175,10 +184,21 @@ def solve_on(BA: np.ndarray, Gi: np.ndarray, idx: np.ndarray, k: np.ndarray, dk:
 
 
 @njit(cache=True)
-def _saltation(B: np.ndarray, rows: np.ndarray, phi_e: np.ndarray, dcoef: np.ndarray,
-               dC: np.ndarray, W_e: np.ndarray, v_b: np.ndarray, u_e: float, times: np.ndarray,
-               edges: np.ndarray, coincident: float, touch: float,
-               column_kinks: np.ndarray) -> tuple[np.ndarray, int]:
+def _saltation(
+    B: np.ndarray,
+    rows: np.ndarray,
+    phi_e: np.ndarray,
+    dcoef: np.ndarray,
+    dC: np.ndarray,
+    W_e: np.ndarray,
+    v_b: np.ndarray,
+    u_e: float,
+    times: np.ndarray,
+    edges: np.ndarray,
+    coincident: float,
+    touch: float,
+    column_kinks: np.ndarray,
+) -> tuple[np.ndarray, int]:
     """du of a hit of ``rows`` at u_e (eq. (saltation)) and its kink bits."""
     m, n = B.shape
     q = W_e.shape[1]
@@ -248,11 +268,25 @@ def _rate(Gi: np.ndarray, phi: np.ndarray, dcoef: np.ndarray, idx: np.ndarray) -
 
 
 @njit(cache=True)
-def _dissipation(BA: np.ndarray, Gi: np.ndarray, idx: np.ndarray, k_moves: bool, mu_moves: bool,
-                 dk: np.ndarray, weights: np.ndarray, Phi: np.ndarray, Mu: np.ndarray,
-                 dMu: np.ndarray, dcoef: np.ndarray, dC1: np.ndarray, phi_s: np.ndarray,
-                 phi_e: np.ndarray, du_s: np.ndarray, du_e: np.ndarray,
-                 D: np.ndarray) -> tuple[float, np.ndarray]:
+def _dissipation(
+    BA: np.ndarray,
+    Gi: np.ndarray,
+    idx: np.ndarray,
+    k_moves: bool,
+    mu_moves: bool,
+    dk: np.ndarray,
+    weights: np.ndarray,
+    Phi: np.ndarray,
+    Mu: np.ndarray,
+    dMu: np.ndarray,
+    dcoef: np.ndarray,
+    dC1: np.ndarray,
+    phi_s: np.ndarray,
+    phi_e: np.ndarray,
+    du_s: np.ndarray,
+    du_e: np.ndarray,
+    D: np.ndarray,
+) -> tuple[float, np.ndarray]:
     """int mu_A . lambda_A over a flow, lambda_A = -G_A^{-1} c_A' (Gauss-Legendre ``weights``
     at the samples Phi), its tangent into D and the slip rates at the samples. With
     v = G_A^{-T} (weights mu_A) at each sample, int mu_A . dlambda_A = -sum v . (dc_A' +
@@ -335,8 +369,9 @@ def _dissipation(BA: np.ndarray, Gi: np.ndarray, idx: np.ndarray, k_moves: bool,
 
 
 @njit(cache=True)
-def gap_coefficients(B: np.ndarray, k: np.ndarray, BA: np.ndarray, Gi: np.ndarray,
-                     idx: np.ndarray, w: np.ndarray, coef: np.ndarray) -> np.ndarray:
+def gap_coefficients(
+    B: np.ndarray, k: np.ndarray, BA: np.ndarray, Gi: np.ndarray, idx: np.ndarray, w: np.ndarray, coef: np.ndarray
+) -> np.ndarray:
     """Every row's gap on a flow on A from w as coefficients of phi (nb, m): gap(u) =
     phi(u) @ out = B w(u) - c(u), w(u) = w - K B_A^T G_A^{-1} (B_A w - c_A(u)); coef = C_p."""
     m, n = B.shape
@@ -373,9 +408,21 @@ def gap_coefficients(B: np.ndarray, k: np.ndarray, BA: np.ndarray, Gi: np.ndarra
 
 
 @njit(cache=True)
-def _gap_screen(B: np.ndarray, k: np.ndarray, BA: np.ndarray, Gi: np.ndarray, idx: np.ndarray,
-                ends: np.ndarray, w: np.ndarray, coef: np.ndarray, grid: np.ndarray,
-                values_phi: np.ndarray, H: int, first: int, tol: float) -> bool:
+def _gap_screen(
+    B: np.ndarray,
+    k: np.ndarray,
+    BA: np.ndarray,
+    Gi: np.ndarray,
+    idx: np.ndarray,
+    ends: np.ndarray,
+    w: np.ndarray,
+    coef: np.ndarray,
+    grid: np.ndarray,
+    values_phi: np.ndarray,
+    H: int,
+    first: int,
+    tol: float,
+) -> bool:
     """Whether an inactive row's gap may touch zero inside the flow: it comes within 2 tol of
     zero (between the samples by the interpolant's bound h^2/8 max|gap''|) and is largest
     inside, or it stays within 2 tol of zero (the caller decides on the closed form)."""
@@ -397,8 +444,7 @@ def _gap_screen(B: np.ndarray, k: np.ndarray, BA: np.ndarray, Gi: np.ndarray, id
         g = Gc[:, r]
         curv = 0.0
         for hh in range(1, H + 1):
-            curv += (TWO_PI * hh) ** 2 * (abs(g[first + 2 * (hh - 1)])
-                                          + abs(g[first + 2 * (hh - 1) + 1]))
+            curv += (TWO_PI * hh) ** 2 * (abs(g[first + 2 * (hh - 1)]) + abs(g[first + 2 * (hh - 1) + 1]))
         # first the ends: below its chord, a gap exceeds neither end by more than
         # length^2/8 max|gap''|, so a row whose ends lie that far (plus the samples' own bound
         # and their roundoff) below -2 tol cannot be flagged by the samples either
@@ -430,10 +476,23 @@ def _gap_screen(B: np.ndarray, k: np.ndarray, BA: np.ndarray, Gi: np.ndarray, id
 
 
 @njit(cache=True)
-def _jump(B: np.ndarray, k: np.ndarray, dk: np.ndarray, C: np.ndarray, Mu: np.ndarray,
-          dC: np.ndarray, dMu: np.ndarray, mu_moves: bool, idx: np.ndarray, phi: np.ndarray,
-          w: np.ndarray, Wt: np.ndarray, lam: np.ndarray, L: np.ndarray,
-          D: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+def _jump(
+    B: np.ndarray,
+    k: np.ndarray,
+    dk: np.ndarray,
+    C: np.ndarray,
+    Mu: np.ndarray,
+    dC: np.ndarray,
+    dMu: np.ndarray,
+    mu_moves: bool,
+    idx: np.ndarray,
+    phi: np.ndarray,
+    w: np.ndarray,
+    Wt: np.ndarray,
+    lam: np.ndarray,
+    L: np.ndarray,
+    D: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, float]:
     """A jump of c (a ``steps`` signal): the projection on its active set A with phi the basis
     at the jump; the slips and their tangents join lam and L, mu . Lambda and its tangent D.
     Returns the state, its tangent and mu . Lambda."""
@@ -458,8 +517,17 @@ def _jump(B: np.ndarray, k: np.ndarray, dk: np.ndarray, C: np.ndarray, Mu: np.nd
 
 
 @njit(cache=True)
-def _samples(u_s: float, u_e: float, gx: np.ndarray, gw: np.ndarray, linear: bool, H: int,
-             grid: np.ndarray, weights: np.ndarray, stacked: np.ndarray) -> None:
+def _samples(
+    u_s: float,
+    u_e: float,
+    gx: np.ndarray,
+    gw: np.ndarray,
+    linear: bool,
+    H: int,
+    grid: np.ndarray,
+    weights: np.ndarray,
+    stacked: np.ndarray,
+) -> None:
     """A flow's samples: its ends and Gauss-Legendre nodes (``grid``), the weights of the
     nodes and the basis at all of them (``stacked``, ends first and last)."""
     nq = gx.shape[0]
@@ -511,8 +579,7 @@ def _rate_screen(Phi: np.ndarray, dcoef: np.ndarray, lam_x: np.ndarray, touch: f
 
 
 @njit(cache=True)
-def coefficient_derivatives(C: np.ndarray, dC: np.ndarray, linear: bool,
-                            H: int) -> tuple[np.ndarray, np.ndarray]:
+def coefficient_derivatives(C: np.ndarray, dC: np.ndarray, linear: bool, H: int) -> tuple[np.ndarray, np.ndarray]:
     """The coefficients of c' and dc' on every piece, (P, nb, m) and (P, nb, m, p), from those
     of c and dc (`crawlsim.kernel.piece.derivative`: each entry a single product)."""
     dcoef = np.empty_like(C)
@@ -524,14 +591,40 @@ def coefficient_derivatives(C: np.ndarray, dC: np.ndarray, linear: bool,
 
 
 @njit(cache=True)
-def walk_exact(B: np.ndarray, k: np.ndarray, C: np.ndarray, Mu: np.ndarray, dC: np.ndarray,
-               dMu: np.ndarray, dk: np.ndarray, linear: bool, H: int, edges: np.ndarray,
-               u: np.ndarray, piece: np.ndarray, cause: np.ndarray, act: np.ndarray,
-               hit: np.ndarray, gx: np.ndarray, gw: np.ndarray, w0: np.ndarray, scale: float,
-               coincident: float, touch: float, W: np.ndarray, L: np.ndarray, D: np.ndarray,
-               lam: np.ndarray, w_end: np.ndarray, kink: np.ndarray, column_kinks: np.ndarray,
-               gap_flag: np.ndarray, rate_flag: np.ndarray, w_start: np.ndarray,
-               W_start: np.ndarray) -> float:
+def walk_exact(
+    B: np.ndarray,
+    k: np.ndarray,
+    C: np.ndarray,
+    Mu: np.ndarray,
+    dC: np.ndarray,
+    dMu: np.ndarray,
+    dk: np.ndarray,
+    linear: bool,
+    H: int,
+    edges: np.ndarray,
+    u: np.ndarray,
+    piece: np.ndarray,
+    cause: np.ndarray,
+    act: np.ndarray,
+    hit: np.ndarray,
+    gx: np.ndarray,
+    gw: np.ndarray,
+    w0: np.ndarray,
+    scale: float,
+    coincident: float,
+    touch: float,
+    W: np.ndarray,
+    L: np.ndarray,
+    D: np.ndarray,
+    lam: np.ndarray,
+    w_end: np.ndarray,
+    kink: np.ndarray,
+    column_kinks: np.ndarray,
+    gap_flag: np.ndarray,
+    rate_flag: np.ndarray,
+    w_start: np.ndarray,
+    W_start: np.ndarray,
+) -> float:
     """The exact integrator's limit period walked from w0 along its transitions (module
     docstring); C, Mu (P, nb, m), dC, dMu (P, nb, m, p), dk (n, p); per transition its cycle
     u, piece, cause, the active rows after it and the rows it hit (masks (K, m)). Fills the
@@ -576,8 +669,7 @@ def walk_exact(B: np.ndarray, k: np.ndarray, C: np.ndarray, Mu: np.ndarray, dC: 
                 if pc == 0 and uj >= 1.0 - 1e-15:
                     uj = 0.0
                 basis_values(uj, 0, linear, H, phi)
-                w, Wt, part = _jump(B, k, dk, C[pc], Mu[pc], dC[pc], dMu[pc], mu_moves, idx,
-                                    phi, w, Wt, lam, L, D)
+                w, Wt, part = _jump(B, k, dk, C[pc], Mu[pc], dC[pc], dMu[pc], mu_moves, idx, phi, w, Wt, lam, L, D)
                 diss += part
                 du_start = np.zeros(q)
             continue
@@ -587,7 +679,7 @@ def walk_exact(B: np.ndarray, k: np.ndarray, C: np.ndarray, Mu: np.ndarray, dC: 
         length = u_e - u_s
         _samples(u_s, u_e, gx, gw, linear, H, grid, weights, stacked)
         phi_s, phi_e = stacked[0], stacked[nq + 1]
-        Phi = stacked[1:nq + 1]
+        Phi = stacked[1 : nq + 1]
         if a:
             BA, Gi = factor(B, k, idx)
             Lam, dLam, w_e, W_e = solve_on(BA, Gi, idx, k, dk, w, Wt, phi_e, C[pc], dC[pc])
@@ -604,8 +696,9 @@ def walk_exact(B: np.ndarray, k: np.ndarray, C: np.ndarray, Mu: np.ndarray, dC: 
         hits = has_next and cause[j + 1] == HIT
         rows = np.flatnonzero(hit[j + 1]) if hits else np.zeros(0, dtype=np.int64)
         if hits:
-            du, bits = _saltation(B, rows, phi_e, dcoef[pc], dC[pc], W_e, v_b, u_e, u,
-                                  edges, coincident, touch, column_kinks)
+            du, bits = _saltation(
+                B, rows, phi_e, dcoef[pc], dC[pc], W_e, v_b, u_e, u, edges, coincident, touch, column_kinks
+            )
             kink[j + 1] = bits
             _outer_add(W_e, v_b, du)
             _outer_add(dLam, rate_e, du)
@@ -614,15 +707,30 @@ def walk_exact(B: np.ndarray, k: np.ndarray, C: np.ndarray, Mu: np.ndarray, dC: 
                 lam[idx[s]] += Lam[s]
                 L[idx[s]] += dLam[s]
             if length > 0:
-                part, lam_x = _dissipation(BA, Gi, idx, k_moves, mu_moves, dk, weights, Phi, Mu[pc],
-                                           dMu[pc], dcoef[pc], dC1[pc], phi_s, phi_e,
-                                           du_start, du, D)
+                part, lam_x = _dissipation(
+                    BA,
+                    Gi,
+                    idx,
+                    k_moves,
+                    mu_moves,
+                    dk,
+                    weights,
+                    Phi,
+                    Mu[pc],
+                    dMu[pc],
+                    dcoef[pc],
+                    dC1[pc],
+                    phi_s,
+                    phi_e,
+                    du_start,
+                    du,
+                    D,
+                )
                 diss += part
                 if length > 4 * coincident:
                     rate_flag[j] = _rate_screen(Phi, dcoef[pc], lam_x, touch)
         if length > 4 * coincident:
-            gap_flag[j] = _gap_screen(B, k, BA, Gi, idx, rows, w, C[pc], grid, stacked, H,
-                                      first, touch * scale)
+            gap_flag[j] = _gap_screen(B, k, BA, Gi, idx, rows, w, C[pc], grid, stacked, H, first, touch * scale)
         w, Wt = w_e, W_e
         du_start = du
     W[:] = Wt

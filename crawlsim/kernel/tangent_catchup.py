@@ -17,10 +17,17 @@ from crawlsim.kernel.tangent import factor, solve_on
 
 
 @njit(cache=True)
-def grid_values(times: np.ndarray, period: float, edges: np.ndarray, linear: bool, H: int,
-                C: np.ndarray, Mu: np.ndarray, dC: np.ndarray, dMu: np.ndarray
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
-                           np.ndarray, np.ndarray]:
+def grid_values(
+    times: np.ndarray,
+    period: float,
+    edges: np.ndarray,
+    linear: bool,
+    H: int,
+    C: np.ndarray,
+    Mu: np.ndarray,
+    dC: np.ndarray,
+    dMu: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """What the steps of every run read at the catch-up grid's times (`_steps`), independent
     of the limit period, so computed once per gait and parameters, in one pass: each time's
     cycle u_j = t_j / T mod 1 (c(1) is c(0)), its piece (the last edge <= u_j), the basis
@@ -68,8 +75,9 @@ def grid_values(times: np.ndarray, period: float, edges: np.ndarray, linear: boo
 
 
 @njit(cache=True)
-def catch_up_runs(multipliers: np.ndarray, w: np.ndarray, B: np.ndarray, offsets: np.ndarray,
-                  tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
+def catch_up_runs(
+    multipliers: np.ndarray, w: np.ndarray, B: np.ndarray, offsets: np.ndarray, tol: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
     """A catch-up limit period's runs (eq. (catch-up)): the active rows of each step (a
     positive multiplier, (G, m)), the rows tight at w_{j+1} to ``tol`` with a zero multiplier
     (``weak``, (G, m): a touch), the first step of each run on one active set (with G at the
@@ -107,15 +115,24 @@ def catch_up_runs(multipliers: np.ndarray, w: np.ndarray, B: np.ndarray, offsets
     for j in range(w.shape[0]):
         for i in range(n):
             scale_w = max(scale_w, abs(w[j, i]))
-    return active, weak, starts[:R + 1].copy(), runs_weak, scale_w
+    return active, weak, starts[: R + 1].copy(), runs_weak, scale_w
 
 
 @njit(cache=True)
-def _steps(BA: np.ndarray, Gi: np.ndarray, idx: np.ndarray, k_moves: bool, dk: np.ndarray,
-           values: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], j0: int, j1: int,
-           D: np.ndarray,
-           buffers: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
-                          np.ndarray, np.ndarray, np.ndarray, np.ndarray]) -> float:
+def _steps(
+    BA: np.ndarray,
+    Gi: np.ndarray,
+    idx: np.ndarray,
+    k_moves: bool,
+    dk: np.ndarray,
+    values: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    j0: int,
+    j1: int,
+    D: np.ndarray,
+    buffers: tuple[
+        np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray
+    ],
+) -> float:
     """The steps j0 + 1 .. j1 of a run on A: each step's slips
     Lambda_j = G_A^{-1} (B_A w_j - c_A(u_{j+1})) with their tangents, their dissipation
     mu(u_{j+1}) . Lambda_j returned and its tangent into D; ``values``: c, mu, dc and dmu at the
@@ -181,12 +198,26 @@ def _steps(BA: np.ndarray, Gi: np.ndarray, idx: np.ndarray, k_moves: bool, dk: n
 
 
 @njit(cache=True)
-def walk_catch_up(B: np.ndarray, k: np.ndarray, C: np.ndarray, dC: np.ndarray, dk: np.ndarray,
-                  Phi: np.ndarray, pieces: np.ndarray,
-                  values: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
-                  active: np.ndarray, starts: np.ndarray, w0: np.ndarray, W: np.ndarray,
-                  L: np.ndarray, D: np.ndarray, lam: np.ndarray, w_end: np.ndarray,
-                  w_start: np.ndarray, W_start: np.ndarray) -> float:
+def walk_catch_up(
+    B: np.ndarray,
+    k: np.ndarray,
+    C: np.ndarray,
+    dC: np.ndarray,
+    dk: np.ndarray,
+    Phi: np.ndarray,
+    pieces: np.ndarray,
+    values: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    active: np.ndarray,
+    starts: np.ndarray,
+    w0: np.ndarray,
+    W: np.ndarray,
+    L: np.ndarray,
+    D: np.ndarray,
+    lam: np.ndarray,
+    w_end: np.ndarray,
+    w_start: np.ndarray,
+    W_start: np.ndarray,
+) -> float:
     """The catch-up scheme's discrete period map walked from w0 (eq. (catch-up)): the grid's
     basis values Phi (G+1, nb) and pieces, the active rows of each step (G, m), the first step
     of each run on one active set (``starts``, G at the end). A run on A telescopes to the
@@ -234,8 +265,7 @@ def walk_catch_up(B: np.ndarray, k: np.ndarray, C: np.ndarray, dC: np.ndarray, d
                 for i in range(n):
                     t += BA[s, i] * Wt[i, c]
                 dprev[s, c] = t
-        diss += _steps(BA, Gi, idx, k_moves, dk, values, j0, j1, D,
-                       (prev, c_j, mu_j, lam_j, dprev, R, dc_j, dmu_j, Bl))
+        diss += _steps(BA, Gi, idx, k_moves, dk, values, j0, j1, D, (prev, c_j, mu_j, lam_j, dprev, R, dc_j, dmu_j, Bl))
         for s in range(a):
             lam[idx[s]] += Lam[s]
             L[idx[s]] += dLam[s]

@@ -72,9 +72,11 @@ def describe_subset(rows, N: int) -> str:
     rows 0..N-1 at the forward limit and N..2N-1 at the backward one."""
     fwd = [int(i) + 1 for i in rows if i < N]
     bwd = [int(i) - N + 1 for i in rows if i >= N]
-    return (f"J = {{{', '.join(map(str, sorted(fwd + bwd)))}}}: blocks "
-            f"{fwd or 'none'} at their forward friction limit, "
-            f"{bwd or 'none'} at their backward limit")
+    return (
+        f"J = {{{', '.join(map(str, sorted(fwd + bwd)))}}}: blocks "
+        f"{fwd or 'none'} at their forward friction limit, "
+        f"{bwd or 'none'} at their backward limit"
+    )
 
 
 @dataclass(frozen=True, eq=False)

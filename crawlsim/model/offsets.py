@@ -82,12 +82,12 @@ class Basis:
             angle = u[:, None] * w + order * (math.pi / 2)  # (k, H)
             h0 = self.first_harmonic
             if order:
-                scale = w ** order
+                scale = w**order
                 out[:, h0::2] = scale * np.cos(angle)
-                out[:, h0 + 1::2] = scale * np.sin(angle)
+                out[:, h0 + 1 :: 2] = scale * np.sin(angle)
             else:  # w^0 = 1: the values themselves
                 out[:, h0::2] = np.cos(angle)
-                out[:, h0 + 1::2] = np.sin(angle)
+                out[:, h0 + 1 :: 2] = np.sin(angle)
         return out
 
     def scalar(self, x: float, coef: np.ndarray) -> float:
@@ -95,8 +95,7 @@ class Basis:
         compiled `crawlsim.kernel.sampling.scalar` that the event loops' root searches use."""
         from crawlsim.kernel.sampling import scalar
 
-        return float(scalar(float(x), np.ascontiguousarray(coef, dtype=float), self.linear,
-                            self.harmonics))
+        return float(scalar(float(x), np.ascontiguousarray(coef, dtype=float), self.linear, self.harmonics))
 
     def derivative(self, coef: np.ndarray) -> np.ndarray:
         """Coefficients (nb, ...) of f' for f = phi @ coef."""
@@ -216,10 +215,12 @@ class PiecewiseOffsets:
         self._smooth = smooth
         self._piecewise = np.array(piecewise, dtype=int)
         mids = 0.5 * (self.edges[:-1] + self.edges[1:])
-        self._values = np.column_stack([self.signals[i](mids) for i in piecewise]) \
-            if piecewise else np.zeros((len(mids), 0))
-        self._slopes = np.column_stack([self.signals[i].rate(mids) for i in piecewise]) \
-            if piecewise else np.zeros((len(mids), 0))
+        self._values = (
+            np.column_stack([self.signals[i](mids) for i in piecewise]) if piecewise else np.zeros((len(mids), 0))
+        )
+        self._slopes = (
+            np.column_stack([self.signals[i].rate(mids) for i in piecewise]) if piecewise else np.zeros((len(mids), 0))
+        )
         self._mids = mids
 
     @property

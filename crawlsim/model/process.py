@@ -178,8 +178,7 @@ def _on_grid(signals: Sequence[Signal], u: np.ndarray, key: GridKey) -> np.ndarr
             if len(_ON_GRID) >= _KEPT:
                 _ON_GRID.clear()
             _ON_GRID[(s, key)] = fresh[:, i].copy()
-    return np.column_stack([columns[s] for s in signals]) if signals \
-        else np.empty((u.size, 0))
+    return np.column_stack([columns[s] for s in signals]) if signals else np.empty((u.size, 0))
 
 
 def _period_grid(steps_per_period: int, bp: np.ndarray) -> np.ndarray:
@@ -234,16 +233,15 @@ def compile_gait(gait: Gait, steps_per_period: int | None = None) -> SweepingPro
     def combine(coef):
         """c = [mu~^+ - D^T K L; mu~^- + D^T K L] from the signals' coefficients (nb, S):
         mu~^+ = mu^+ cos - F~, mu~^- = mu^- cos + F~ with F~ = F - W sin (docs/model.md §6)."""
-        DtKL_c = block_forces(coef[:, :N - 1] * k)
-        plus, minus = coef[:, N - 1:2 * N - 1], coef[:, 2 * N - 1:3 * N - 1]
+        DtKL_c = block_forces(coef[:, : N - 1] * k)
+        plus, minus = coef[:, N - 1 : 2 * N - 1], coef[:, 2 * N - 1 : 3 * N - 1]
         if constant is None:
             return np.hstack([plus - DtKL_c, minus + DtKL_c])
-        force = coef[:, 3 * N - 1:].copy()
+        force = coef[:, 3 * N - 1 :].copy()
         force[0] += constant
         return np.hstack([scale * plus - force - DtKL_c, scale * minus + force + DtKL_c])
 
-    signals = gait.links + gait.forward + gait.backward + (
-        () if loads is None else loads.forces)
+    signals = gait.links + gait.forward + gait.backward + (() if loads is None else loads.forces)
     pieces = PiecewiseOffsets(signals, combine, piece_edges(breakpoints))
     x0 = np.asarray(gait.initial_positions, dtype=float)
     w0 = -k * np.diff(x0)  # w = -K z, z = D x
@@ -255,10 +253,16 @@ def compile_gait(gait: Gait, steps_per_period: int | None = None) -> SweepingPro
         offsets=offsets,
         initial=w0,
         crawler=Crawler(
-            stiffness=k, initial_positions=x0, stress_offset=KL,
-            friction=np.hstack([mu_f, mu_b]), lengths=L, load=load, friction_scale=scale,
+            stiffness=k,
+            initial_positions=x0,
+            stress_offset=KL,
+            friction=np.hstack([mu_f, mu_b]),
+            lengths=L,
+            load=load,
+            friction_scale=scale,
             load_constant=constant,
-            slope_angle=None if loads is None or loads.weights is None else float(loads.angle)),
+            slope_angle=None if loads is None or loads.weights is None else float(loads.angle),
+        ),
         offset_pieces=pieces,
         breakpoints=np.asarray(breakpoints, dtype=float) * T,
         _cycles=u,
@@ -283,8 +287,7 @@ def compile_process(spec: ProcessSpec, steps_per_period: int | None = None) -> S
         times=u * T,
         offsets=offsets,
         initial=initial,
-        offset_pieces=PiecewiseOffsets(spec.offsets, lambda coef: coef,
-                                       piece_edges(breakpoints)),
+        offset_pieces=PiecewiseOffsets(spec.offsets, lambda coef: coef, piece_edges(breakpoints)),
         breakpoints=np.asarray(breakpoints, dtype=float) * T,
         _cycles=u,
     )

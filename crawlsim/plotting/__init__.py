@@ -46,10 +46,26 @@ _LAZY = {
     "FigureOptions": "style",
 }
 
-__all__ = ["CRAWLER_FIGURES", "FIGURES", "FIGURE_NAMES", "OPTIMIZATION_FIGURES", "objective_figure",
-           "pareto_figure", "convergence_figure", "gait_figure", "motion_figure",
-           "SWEEP_FIGURE", "plot_results", "save_figure", "shape_space_figure", "sweep_data_figure",
-           "sweep_figure", "write_animation", "FigureOptions", "run_data"]
+__all__ = [
+    "CRAWLER_FIGURES",
+    "FIGURES",
+    "FIGURE_NAMES",
+    "OPTIMIZATION_FIGURES",
+    "objective_figure",
+    "pareto_figure",
+    "convergence_figure",
+    "gait_figure",
+    "motion_figure",
+    "SWEEP_FIGURE",
+    "plot_results",
+    "save_figure",
+    "shape_space_figure",
+    "sweep_data_figure",
+    "sweep_figure",
+    "write_animation",
+    "FigureOptions",
+    "run_data",
+]
 
 
 def __getattr__(name):

@@ -88,15 +88,18 @@ def parse_periods(text: str) -> tuple[int, int]:
     try:
         a, b = (int(p) for p in parts)
     except ValueError:
-        raise ValueError(f"--periods {text}: expected A:B, two whole numbers of periods with "
-                         "0 <= A < B, such as 0:3 (from t = 0 to t = 3T)") from None
+        raise ValueError(
+            f"--periods {text}: expected A:B, two whole numbers of periods with "
+            "0 <= A < B, such as 0:3 (from t = 0 to t = 3T)"
+        ) from None
     if not 0 <= a < b:
         raise ValueError(f"--periods {text}: need 0 <= A < B (from t = A T to t = B T)")
     return a, b
 
 
-def animation_frames(results: dict, periods: tuple[int, int] | None = None,
-                     frames_per_period: int = FRAMES_PER_PERIOD) -> Frames:
+def animation_frames(
+    results: dict, periods: tuple[int, int] | None = None, frames_per_period: int = FRAMES_PER_PERIOD
+) -> Frames:
     """The instants of the animation and what each shows: the limit period, or the periods
     ``(A, B)`` of the stored trajectory (`parse_periods`). ValueError for periods the file
     does not hold."""
@@ -120,9 +123,11 @@ def animation_frames(results: dict, periods: tuple[int, int] | None = None,
         a, b = periods
         end = (t_abs[-1] - t_abs[0]) / T
         if b > round(end, 9) + 1e-9:
-            raise ValueError(f"--periods {a}:{b}: the run holds {end:.4g} periods (t from "
-                             f"{t_abs[0]:.4g} to {t_abs[-1]:.4g}), so B is at most "
-                             f"{int(np.floor(end + 1e-9))}")
+            raise ValueError(
+                f"--periods {a}:{b}: the run holds {end:.4g} periods (t from "
+                f"{t_abs[0]:.4g} to {t_abs[-1]:.4g}), so B is at most "
+                f"{int(np.floor(end + 1e-9))}"
+            )
         x = np.asarray(tr["x"], dtype=float)
         stress = np.asarray(tr["stress"], dtype=float)
         lengths = None
@@ -140,10 +145,16 @@ def animation_frames(results: dict, periods: tuple[int, int] | None = None,
     before = np.clip(index - 1, 0, len(t) - 1)
     index = np.where(np.abs(t[before] - wanted) <= np.abs(t[index] - wanted), before, index)
     step = np.clip(index, 0, len(slip) - 1)
-    return Frames(t=t_abs[index] if periods is None else t[index], x=x[index],
-                  stress=stress[index],
-                  lengths=None if lengths is None else np.asarray(lengths, float)[index],
-                  slip=np.asarray(slip)[step], period=T, start=start, limit=periods is None)
+    return Frames(
+        t=t_abs[index] if periods is None else t[index],
+        x=x[index],
+        stress=stress[index],
+        lengths=None if lengths is None else np.asarray(lengths, float)[index],
+        slip=np.asarray(slip)[step],
+        period=T,
+        start=start,
+        limit=periods is None,
+    )
 
 
 def limit_positions(results: dict) -> np.ndarray:
@@ -167,8 +178,7 @@ def limit_positions(results: dict) -> np.ndarray:
     y0 = 0.0
     tr = results.get("trajectory") or {}
     if "x" in tr and "t" in tr and len(tr["t"]):
-        y0 = float(np.interp(start, np.asarray(tr["t"], float),
-                             np.asarray(tr["x"], float).mean(axis=1)))
+        y0 = float(np.interp(start, np.asarray(tr["t"], float), np.asarray(tr["x"], float).mean(axis=1)))
     y = y0 + v0 * t + running.mean(axis=1)
     return body + y[:, None]
 
@@ -177,8 +187,15 @@ def _block_boxes(x: np.ndarray, width: float, height: float) -> np.ndarray:
     """The corners of one rectangle per block, centred on x_j, (N, 4, 2)."""
     left, right = x - width / 2, x + width / 2
     low, high = np.full_like(x, -height / 2), np.full_like(x, height / 2)
-    return np.stack([np.stack([left, low], -1), np.stack([right, low], -1),
-                     np.stack([right, high], -1), np.stack([left, high], -1)], axis=1)
+    return np.stack(
+        [
+            np.stack([left, low], -1),
+            np.stack([right, low], -1),
+            np.stack([right, high], -1),
+            np.stack([left, high], -1),
+        ],
+        axis=1,
+    )
 
 
 def _lengths_panel(ax, frames: Frames, links: np.ndarray, units):
@@ -193,19 +210,23 @@ def _lengths_panel(ax, frames: Frames, links: np.ndarray, units):
         bars = ax.bar(links, np.diff(x_all[0]), color=FAINT, width=0.7, label="link $z_i$")
         z_artists, handles = list(bars), [bars]  # the container carries the legend label
     else:
-        (z_line,) = ax.plot(links, np.diff(x_all[0]), color=FAINT, linewidth=1.6,
-                            label="link $z_i$")
+        (z_line,) = ax.plot(links, np.diff(x_all[0]), color=FAINT, linewidth=1.6, label="link $z_i$")
         z_artists, handles = [z_line], [z_line]
     actuator = None
     if frames.lengths is not None:
-        (actuator,) = ax.plot(links, frames.lengths[0], linestyle="none",
-                              marker="_" if N > 12 else "o", markersize=8, color=REFERENCE,
-                              label="actuator $L_i$")
+        (actuator,) = ax.plot(
+            links,
+            frames.lengths[0],
+            linestyle="none",
+            marker="_" if N > 12 else "o",
+            markersize=8,
+            color=REFERENCE,
+            label="actuator $L_i$",
+        )
         handles.append(actuator)
     z_all = np.diff(x_all, axis=1)
     given = frames.lengths if frames.lengths is not None else z_all
-    top = max(float(z_all.max()), float(np.max(frames.lengths)) if frames.lengths is not None
-              else 0.0)
+    top = max(float(z_all.max()), float(np.max(frames.lengths)) if frames.lengths is not None else 0.0)
     if N > 12:
         low = min(float(z_all.min()), float(np.min(given)))
         pad = 0.08 * max(top - low, 1e-12 * max(abs(top), 1.0))
@@ -225,31 +246,33 @@ def animation_figure(results: dict, frames: Frames):
     N = frames.x.shape[1]
     x_all = frames.x
     spacing = float(np.median(np.abs(np.diff(x_all[0])))) if N > 1 else 1.0
-    width = min(0.35 * spacing, 0.02 * max(float(np.ptp(x_all)), spacing)) if N > 12 \
-        else 0.35 * spacing
+    width = min(0.35 * spacing, 0.02 * max(float(np.ptp(x_all)), spacing)) if N > 12 else 0.35 * spacing
     height = 1.0
     # Stresses in a diverging map of two series colours through light grey (tension blue,
     # compression vermilion): a link never takes a slip colour, and the sign reads at a glance.
-    cmap = LinearSegmentedColormap.from_list(
-        "crawlsim-stress", [OKABE_ITO["blue"], "#EDEDED", OKABE_ITO["vermillion"]])
+    cmap = LinearSegmentedColormap.from_list("crawlsim-stress", [OKABE_ITO["blue"], "#EDEDED", OKABE_ITO["vermillion"]])
     s_max = float(np.max(np.abs(frames.stress), initial=0.0)) or 1.0
     norm = Normalize(-s_max, s_max)
     links = np.arange(1, N)
     labelled = N - 1 <= MAX_LABELLED_LINKS
     with figure_style():
         fig = Figure(figsize=ANIMATION_SIZE, layout="constrained")
-        body, lengths_ax, stress_ax = fig.subplots(
-            3, 1, gridspec_kw={"height_ratios": [1.1, 1.0, 1.0]})
+        body, lengths_ax, stress_ax = fig.subplots(3, 1, gridspec_kw={"height_ratios": [1.1, 1.0, 1.0]})
         # The crawler: links under blocks.
-        segments = list(np.stack([np.stack([x_all[0, :-1], np.zeros(N - 1)], -1),
-                                  np.stack([x_all[0, 1:], np.zeros(N - 1)], -1)], axis=1))
-        link_lines = LineCollection(segments, cmap=cmap, norm=norm,
-                                    linewidths=4.0 if N <= 12 else 2.0, zorder=1)
+        segments = list(
+            np.stack(
+                [np.stack([x_all[0, :-1], np.zeros(N - 1)], -1), np.stack([x_all[0, 1:], np.zeros(N - 1)], -1)], axis=1
+            )
+        )
+        link_lines = LineCollection(segments, cmap=cmap, norm=norm, linewidths=4.0 if N <= 12 else 2.0, zorder=1)
         link_lines.set_array(frames.stress[0])
         body.add_collection(link_lines)
-        boxes = PolyCollection(list(_block_boxes(x_all[0], width, height)),
-                               edgecolors=REFERENCE if N <= 12 else "none",
-                               linewidths=0.8, zorder=2)
+        boxes = PolyCollection(
+            list(_block_boxes(x_all[0], width, height)),
+            edgecolors=REFERENCE if N <= 12 else "none",
+            linewidths=0.8,
+            zorder=2,
+        )
         body.add_collection(boxes)
         margin = max(0.6 * spacing, 0.02 * float(np.ptp(x_all)))
         body.set_xlim(float(x_all.min()) - margin, float(x_all.max()) + margin)
@@ -260,20 +283,25 @@ def animation_figure(results: dict, frames: Frames):
         body.set_xlabel(label("position", "x_j", "length", units))
         bar = fig.colorbar(link_lines, ax=body, pad=0.01, fraction=0.04)
         bar.set_label(label("stress", "\\sigma_i", "force", units))
-        body.legend(handles=[Patch(facecolor=SLIP_COLOURS[k], edgecolor=REFERENCE,
-                                   linewidth=0.6, label=SLIP_NAMES[k]) for k in (0, 1, -1)],
-                    loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=3, borderaxespad=0.2)
+        body.legend(
+            handles=[
+                Patch(facecolor=SLIP_COLOURS[k], edgecolor=REFERENCE, linewidth=0.6, label=SLIP_NAMES[k])
+                for k in (0, 1, -1)
+            ],
+            loc="lower left",
+            bbox_to_anchor=(0.0, 1.0),
+            ncol=3,
+            borderaxespad=0.2,
+        )
         texts = []
         if labelled:
-            texts = [body.text(0, 0.75 * height, "", ha="center", va="bottom", fontsize=8)
-                     for _ in links]
+            texts = [body.text(0, 0.75 * height, "", ha="center", va="bottom", fontsize=8) for _ in links]
         clock = body.set_title("", loc="right")
         fig.suptitle(title(run_name(results), "the crawler in motion"))
 
         z_bars, actuator = _lengths_panel(lengths_ax, frames, links, units)
 
-        s_bars = stress_ax.bar(links, frames.stress[0], width=0.7,
-                               color=cmap(norm(frames.stress[0])))
+        s_bars = stress_ax.bar(links, frames.stress[0], width=0.7, color=cmap(norm(frames.stress[0])))
         stress_ax.axhline(0.0, color=REFERENCE, linewidth=0.6)
         stress_ax.set_ylim(-1.08 * s_max, 1.08 * s_max)
         stress_ax.set_ylabel(label("stress", "\\sigma_i", "force", units))
@@ -294,8 +322,9 @@ def animation_figure(results: dict, frames: Frames):
         sigma = frames.stress[k]
         boxes.set_verts(list(_block_boxes(x, width, height)))
         boxes.set_facecolor([SLIP_COLOURS[int(v)] for v in frames.slip[k]])
-        link_lines.set_segments(list(np.stack([np.stack([x[:-1], np.zeros(N - 1)], -1),
-                                               np.stack([x[1:], np.zeros(N - 1)], -1)], axis=1)))
+        link_lines.set_segments(
+            list(np.stack([np.stack([x[:-1], np.zeros(N - 1)], -1), np.stack([x[1:], np.zeros(N - 1)], -1)], axis=1))
+        )
         link_lines.set_array(sigma)
         z = np.diff(x)
         if N <= 12:
@@ -350,8 +379,7 @@ def _blitting_pillow_writer():
             for artist in self._animated:
                 self.fig.draw_artist(artist)
             width, height = canvas.get_width_height()
-            frame = Image.frombuffer("RGBA", (width, height), bytes(canvas.buffer_rgba()),
-                                     "raw", "RGBA", 0, 1)
+            frame = Image.frombuffer("RGBA", (width, height), bytes(canvas.buffer_rgba()), "raw", "RGBA", 0, 1)
             cast(Any, self)._frames.append(frame)  # PillowWriter's own list of frames
 
     return BlittingPillowWriter
@@ -362,9 +390,15 @@ def _BlittingPillowWriter(fps: float):
 
 
 @takes_run
-def write_animation(results: dict, target, *, periods: tuple[int, int] | None = None,
-                    frames_per_period: int = FRAMES_PER_PERIOD, fps: float = FPS,
-                    dpi: float = ANIMATION_DPI) -> tuple[Path, int]:
+def write_animation(
+    results: dict,
+    target,
+    *,
+    periods: tuple[int, int] | None = None,
+    frames_per_period: int = FRAMES_PER_PERIOD,
+    fps: float = FPS,
+    dpi: float = ANIMATION_DPI,
+) -> tuple[Path, int]:
     """Write the animation of ``results`` to ``target`` (.gif, or .mp4 where ffmpeg is on the
     PATH), atomically: an error leaves no file. Returns (path, number of frames)."""
     from matplotlib import animation
@@ -374,13 +408,11 @@ def write_animation(results: dict, target, *, periods: tuple[int, int] | None = 
     if fmt not in ANIMATION_FORMATS:
         raise ValueError(f"{target}: an animation is written as .gif or .mp4")
     if fmt == "mp4" and not animation.writers.is_available("ffmpeg"):
-        raise ValueError(f"{target}: writing MP4 needs ffmpeg on the PATH, which is not there; "
-                         "write a .gif instead")
+        raise ValueError(f"{target}: writing MP4 needs ffmpeg on the PATH, which is not there; write a .gif instead")
     frames = animation_frames(results, periods, frames_per_period)
     count = len(frames.t)
     fig, draw = animation_figure(results, frames)
-    writer = (_BlittingPillowWriter(fps=fps) if fmt == "gif" else
-              animation.FFMpegWriter(fps=round(fps)))
+    writer = _BlittingPillowWriter(fps=fps) if fmt == "gif" else animation.FFMpegWriter(fps=round(fps))
     with figure_style(), atomic_path(target) as tmp:
         # The writers choose the container by the file's name: the temporary keeps the suffix.
         named = tmp.with_name(tmp.name + f".{fmt}")
@@ -397,5 +429,12 @@ def write_animation(results: dict, target, *, periods: tuple[int, int] | None = 
     return target, count
 
 
-__all__ = ["ANIMATION_FORMATS", "Frames", "ResultsFileError", "animation_figure",
-           "animation_frames", "parse_periods", "write_animation"]
+__all__ = [
+    "ANIMATION_FORMATS",
+    "Frames",
+    "ResultsFileError",
+    "animation_figure",
+    "animation_frames",
+    "parse_periods",
+    "write_animation",
+]

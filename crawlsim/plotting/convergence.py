@@ -48,7 +48,7 @@ def convergence_series(results: dict) -> dict[str, np.ndarray]:
 
 
 def convergence_scale(results: dict) -> str:
-    """"linear" for a finite-time run (its distances drop to exactly 0, which a linear axis
+    """ "linear" for a finite-time run (its distances drop to exactly 0, which a linear axis
     shows as 0), "log" otherwise (a geometric decay is a straight line there)."""
     positive = [v[v > 0] for v in convergence_series(results).values()]
     finite = results["attrs"].get("convergence", "") == "finite-time"
@@ -69,8 +69,7 @@ def convergence_figure(results) -> Figure:
     linear axis against v0 T (or the velocity of each period against v0, when the file gives a
     time unit), which shows the transient of the velocity even when it lasts one period.
     """
-    need(results, "convergence", "convergence/period", "convergence/poincare_step",
-          "convergence/w12_distance")
+    need(results, "convergence", "convergence/period", "convergence/poincare_step", "convergence/w12_distance")
     units = units_of(results)
     conv, attrs = results["convergence"], results["attrs"]
     q = np.asarray(conv["period"], dtype=float)
@@ -85,8 +84,7 @@ def convergence_figure(results) -> Figure:
     finite = verdict == "finite-time" and periodic_from is not None and periodic_from >= 0
     with figure_style():
         if motion:
-            fig, axs = new_figure(2, 1, height=4.8, sharex=True,
-                                  gridspec_kw={"height_ratios": [1.25, 1.0]})
+            fig, axs = new_figure(2, 1, height=4.8, sharex=True, gridspec_kw={"height_ratios": [1.25, 1.0]})
         else:
             fig, axs = new_figure(height=3.4)
         state = axs[0, 0]
@@ -94,24 +92,26 @@ def convergence_figure(results) -> Figure:
         markers = marked_periods(len(q))
         # The Poincare step's dots above the distance's open squares, which are larger: at the
         # last period both are 0, and the dot shows inside the square.
-        for (name, value), colour, style in zip(series.items(), colours(2), [
+        for (name, value), colour, style in zip(
+            series.items(),
+            colours(2),
+            [
                 {"marker": "o", "markersize": 5, "zorder": 2.5},
-                {"marker": "s", "markersize": 7.5, "markerfacecolor": "none",
-                 "markeredgewidth": 1.2}]):
+                {"marker": "s", "markersize": 7.5, "markerfacecolor": "none", "markeredgewidth": 1.2},
+            ],
+        ):
             shown = value if scale == "linear" else np.where(value > 0, value, np.nan)
-            state.plot(q, shown, color=colour, linewidth=1.0, label=name, clip_on=False,
-                       markevery=markers, **style)
+            state.plot(q, shown, color=colour, linewidth=1.0, label=name, clip_on=False, markevery=markers, **style)
         _mark_the_limit(axs[:, 0], q, series, attrs, scale, finite)
         if verdict == "not-converged":
-            state.text(0.98, 0.95, "not converged", transform=state.transAxes, ha="right",
-                       va="top", color=REFERENCE)
+            state.text(0.98, 0.95, "not converged", transform=state.transAxes, ha="right", va="top", color=REFERENCE)
         if scale == "log":
             state.yaxis.set_minor_formatter(NullFormatter())
-        state.set_ylabel(label("distance", "\\Delta w" if crawler else "\\Delta z",
-                               "force" if crawler else None, units))
+        state.set_ylabel(
+            label("distance", "\\Delta w" if crawler else "\\Delta z", "force" if crawler else None, units)
+        )
         # Two lines, so that a long name keeps the title within the axes.
-        state.set_title(f"{title(run_name(results), 'convergence to the limit period')}\n"
-                        f"({verdict})")
+        state.set_title(f"{title(run_name(results), 'convergence to the limit period')}\n({verdict})")
         legend_right(state)
 
         if motion:
@@ -135,21 +135,35 @@ def _mark_the_limit(axes, q, series, attrs, scale, finite) -> None:
     if finite:
         periodic_from = attrs["periodic_from"]
         for ax in axes:
-            ax.axvline(periodic_from, color=REFERENCE, linestyle="--", linewidth=1.0,
-                       label=f"periodic from period {periodic_from}" if ax is state
-                       else None)
+            ax.axvline(
+                periodic_from,
+                color=REFERENCE,
+                linestyle="--",
+                linewidth=1.0,
+                label=f"periodic from period {periodic_from}" if ax is state else None,
+            )
         right = periodic_from >= q[-1] - 0.5 * (q[-1] - q[0])
-        state.text(periodic_from, 0.97, f" periodic from period {periodic_from} "
-                   if right else f" periodic from period {periodic_from}",
-                   transform=state.get_xaxis_transform(), ha="right" if right else "left",
-                   va="top", color=REFERENCE)
+        state.text(
+            periodic_from,
+            0.97,
+            f" periodic from period {periodic_from} " if right else f" periodic from period {periodic_from}",
+            transform=state.get_xaxis_transform(),
+            ha="right" if right else "left",
+            va="top",
+            color=REFERENCE,
+        )
         state.set_ylim(bottom=0.0)
-    elif (scale == "log" and rate is not None and np.isfinite(rate)
-          and np.any(poincare > 0)):
+    elif scale == "log" and rate is not None and np.isfinite(rate) and np.any(poincare > 0):
         last = np.flatnonzero(poincare > 0)[-1]
-        state.plot(q, poincare[last] * rate ** (q - q[last]), color=REFERENCE,
-                   linestyle="--", linewidth=1.0, zorder=3,
-                   label=f"fitted rate {rate:.3g}\nper period")
+        state.plot(
+            q,
+            poincare[last] * rate ** (q - q[last]),
+            color=REFERENCE,
+            linestyle="--",
+            linewidth=1.0,
+            zorder=3,
+            label=f"fitted rate {rate:.3g}\nper period",
+        )
 
 
 def _period_displacements(ax, q, conv, v0, T, units) -> None:
@@ -163,10 +177,17 @@ def _period_displacements(ax, q, conv, v0, T, units) -> None:
     else:
         value, target, symbol, each = displacement / T, v0, "v_0", "v_q"
         what = label("velocity", "v_q", "velocity", units)
-    ax.plot(q, value, color=colours(3)[2], marker="^", markersize=5, linewidth=1.0,
-            markevery=marked_periods(len(q)), label=f"${each}$, period $q$")
-    ax.axhline(target, color=REFERENCE, linestyle=":", linewidth=1.2,
-               label=f"${symbol}$ = {format_number(target)}")
+    ax.plot(
+        q,
+        value,
+        color=colours(3)[2],
+        marker="^",
+        markersize=5,
+        linewidth=1.0,
+        markevery=marked_periods(len(q)),
+        label=f"${each}$, period $q$",
+    )
+    ax.axhline(target, color=REFERENCE, linestyle=":", linewidth=1.2, label=f"${symbol}$ = {format_number(target)}")
     ax.margins(y=0.15)
     ax.set_ylabel(what)
     legend_right(ax)

@@ -73,7 +73,7 @@ def relative_stress(sigma: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.
 
 
 def stress_mode(sigma: np.ndarray, low: np.ndarray, high: np.ndarray) -> str:
-    """"relative" when the friction bounds dwarf the stresses (the largest bound more than
+    """ "relative" when the friction bounds dwarf the stresses (the largest bound more than
     `RELATIVE_STRESS_RATIO` times the largest stress: a long crawler, whose bounds grow with the
     number of blocks behind and ahead of a link, while its stresses do not), else "absolute"."""
     largest = float(np.max(np.abs(sigma), initial=0.0))
@@ -110,13 +110,20 @@ def gait_figure(results, stress: str = "auto") -> Figure:
     """
     if stress not in ("auto", "absolute", "relative"):
         raise ValueError(f"stress={stress!r}: choose auto, absolute or relative")
-    need(results, "gait diagram", "limit/t", "limit/slip", "limit/shape", "limit/stress",
-          "limit/lengths", "limit/friction")
+    need(
+        results,
+        "gait diagram",
+        "limit/t",
+        "limit/slip",
+        "limit/shape",
+        "limit/stress",
+        "limit/lengths",
+        "limit/friction",
+    )
     units = units_of(results)
     lim = results["limit"]
     t = np.asarray(lim["t"], dtype=float)
-    factor, time_label = time_axis(units, run_period(results), symbol="t - t_0",
-                                   name="time in the limit period")
+    factor, time_label = time_axis(units, run_period(results), symbol="t - t_0", name="time in the limit period")
     s = t * factor
     slip = np.asarray(lim["slip"])
     L = np.asarray(lim["lengths"], dtype=float)
@@ -132,20 +139,28 @@ def gait_figure(results, stress: str = "auto") -> Figure:
         stress = stress_mode(sigma[:, links], low[:, links], high[:, links])
     nb = len(blocks)
     with figure_style():
-        fig, axs = new_figure(3 + nb, 1, height=1.0 + 0.3 * rows + 3.9 + FORCE_ROW_HEIGHT * nb,
-                              sharex=True,
-                              gridspec_kw={"height_ratios": [0.2 * rows + 0.1, 1.0, 1.0]
-                                           + [FORCE_ROW_HEIGHT / 1.65] * nb})
+        fig, axs = new_figure(
+            3 + nb,
+            1,
+            height=1.0 + 0.3 * rows + 3.9 + FORCE_ROW_HEIGHT * nb,
+            sharex=True,
+            gridspec_kw={"height_ratios": [0.2 * rows + 0.1, 1.0, 1.0] + [FORCE_ROW_HEIGHT / 1.65] * nb},
+        )
         bands, lengths, stresses = axs[:3, 0]
         force_rows = list(axs[3:, 0])
 
         # One cell per block and step, coloured by its slip state: an image (rasterized in
         # vector formats), so its cost is that of G x N pixels, not of G x N patches.
         states = (-1, 0, 1)
-        bands.pcolormesh(s, np.arange(N + 1) - 0.5, slip.T.astype(float),
-                         cmap=ListedColormap([SLIP_COLOURS[k] for k in states]),
-                         norm=BoundaryNorm([-1.5, -0.5, 0.5, 1.5], len(states)), shading="flat",
-                         rasterized=True)
+        bands.pcolormesh(
+            s,
+            np.arange(N + 1) - 0.5,
+            slip.T.astype(float),
+            cmap=ListedColormap([SLIP_COLOURS[k] for k in states]),
+            norm=BoundaryNorm([-1.5, -0.5, 0.5, 1.5], len(states)),
+            shading="flat",
+            rasterized=True,
+        )
         if N <= MAX_BAND_LABELS:
             bands.set_yticks(range(N), [f"block {j + 1}" for j in range(N)])
         else:
@@ -156,16 +171,19 @@ def gait_figure(results, stress: str = "auto") -> Figure:
         bands.grid(False)
         bands.tick_params(axis="y", length=0)
         bands.spines["left"].set_visible(False)
-        bands.legend(handles=[Patch(facecolor=SLIP_COLOURS[s_], edgecolor="none",
-                                    label=SLIP_NAMES[s_]) for s_ in (0, 1, -1)],
-                     loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=3, borderaxespad=0.2)
+        bands.legend(
+            handles=[Patch(facecolor=SLIP_COLOURS[s_], edgecolor="none", label=SLIP_NAMES[s_]) for s_ in (0, 1, -1)],
+            loc="lower left",
+            bbox_to_anchor=(0.0, 1.0),
+            ncol=3,
+            borderaxespad=0.2,
+        )
 
         links_title = shown_title(links, N - 1, "links")
         for i, colour in zip(links, link_colours):
             lengths.plot(s, L[:, i], color=colour, label=f"$L_{{{i + 1}}}$ actuator")
         for i, colour in zip(links, link_colours):
-            lengths.plot(s, z[:, i], color=colour, linestyle="--",
-                         label=f"$z_{{{i + 1}}}$ link")
+            lengths.plot(s, z[:, i], color=colour, linestyle="--", label=f"$z_{{{i + 1}}}$ link")
         lengths.set_ylabel(label("length", "L_i, z_i", "length", units))
         legend_right(lengths, ncol=2, title=links_title)
 
@@ -173,8 +191,7 @@ def gait_figure(results, stress: str = "auto") -> Figure:
             ratio = relative_stress(sigma, low, high)
             for i, colour in zip(links, link_colours):
                 stresses.plot(s, ratio[:, i], color=colour, label=f"$\\sigma_{{{i + 1}}}$")
-            bound_lines = [stresses.axhline(v, color=REFERENCE, linestyle=":", linewidth=1.0)
-                           for v in (1.0, -1.0)]
+            bound_lines = [stresses.axhline(v, color=REFERENCE, linestyle=":", linewidth=1.0) for v in (1.0, -1.0)]
             handles, names = stresses.get_legend_handles_labels()
             handles.append(bound_lines[0])
             names.append("friction bounds")
@@ -184,18 +201,24 @@ def gait_figure(results, stress: str = "auto") -> Figure:
             bound_handles = []
             for i, colour in zip(links, link_colours):
                 stresses.plot(s, sigma[:, i], color=colour, label=f"$\\sigma_{{{i + 1}}}$")
-                bound_handles += stresses.plot(s, high[:, i], color=colour, linestyle=":",
-                                               linewidth=1.0)
+                bound_handles += stresses.plot(s, high[:, i], color=colour, linestyle=":", linewidth=1.0)
                 stresses.plot(s, low[:, i], color=colour, linestyle=":", linewidth=1.0)
             handles, names = stresses.get_legend_handles_labels()
             # One entry for the bounds, drawn in the colours of the links they bound.
-            handles.append(tuple(Line2D([], [], color=h.get_color(), linestyle=":",
-                                        linewidth=1.0) for h in bound_handles))
+            handles.append(
+                tuple(Line2D([], [], color=h.get_color(), linestyle=":", linewidth=1.0) for h in bound_handles)
+            )
             names.append("friction bounds")
             stresses.set_ylabel(label("stress", "\\sigma_i", "force", units))
         stresses.axhline(0.0, color=REFERENCE, linewidth=0.6)
-        legend_right(stresses, handles=handles, labels=names, title=links_title,
-                      handlelength=3.2, handler_map={tuple: HandlerTuple(ndivide=None, pad=0.0)})
+        legend_right(
+            stresses,
+            handles=handles,
+            labels=names,
+            title=links_title,
+            handlelength=3.2,
+            handler_map={tuple: HandlerTuple(ndivide=None, pad=0.0)},
+        )
 
         f = block_forces(sigma)
         plus, minus = friction[:, :N], friction[:, N:]
@@ -204,8 +227,7 @@ def gait_figure(results, stress: str = "auto") -> Figure:
         for ax, j, colour in zip(force_rows, blocks, block_colours):
             for state, start, stop in slip_runs(slip[:, j], s):
                 if state != 0:
-                    ax.axvspan(start, stop, color=SLIP_COLOURS[state], alpha=0.35,
-                               linewidth=0)
+                    ax.axvspan(start, stop, color=SLIP_COLOURS[state], alpha=0.35, linewidth=0)
             ax.plot(s, f[:, j], color=colour, label=f"$f_{{{j + 1}}}$")
             ax.plot(s, plus[:, j], color=REFERENCE, linestyle=":", linewidth=1.0)
             ax.plot(s, -minus[:, j], color=REFERENCE, linestyle=":", linewidth=1.0)
@@ -218,14 +240,24 @@ def gait_figure(results, stress: str = "auto") -> Figure:
         force_rows[0].yaxis.set_major_locator(FixedLocator(sorted({bottom, 0.0, top})))
         force_rows[0].yaxis.set_major_formatter(FuncFormatter(lambda v, _: format_number(v)))
         first = force_rows[0]
-        first.legend(handles=[Line2D([], [], color=REFERENCE, linestyle=":", linewidth=1.0)],
-                     labels=["$\\mu_j^+$, $-\\mu_j^-$"], loc="upper left",
-                     bbox_to_anchor=(1.01, 1.0), borderaxespad=0,
-                     title=shown_title(blocks, N, "blocks"))
+        first.legend(
+            handles=[Line2D([], [], color=REFERENCE, linestyle=":", linewidth=1.0)],
+            labels=["$\\mu_j^+$, $-\\mu_j^-$"],
+            loc="upper left",
+            bbox_to_anchor=(1.01, 1.0),
+            borderaxespad=0,
+            title=shown_title(blocks, N, "blocks"),
+        )
         middle = force_rows[(nb - 1) // 2]
-        middle.text(1.02, 0.5 if nb % 2 else 0.0,
-                    label("elastic force on\neach block", "f_j", "force", units),
-                    transform=middle.transAxes, rotation=0, ha="left", va="center")
+        middle.text(
+            1.02,
+            0.5 if nb % 2 else 0.0,
+            label("elastic force on\neach block", "f_j", "force", units),
+            transform=middle.transAxes,
+            rotation=0,
+            ha="left",
+            va="center",
+        )
         force_rows[-1].set_xlim(s[0], s[-1])
         force_rows[-1].set_xlabel(time_label)
         fig.suptitle(title(run_name(results), "gait diagram over the limit period"))

@@ -49,8 +49,11 @@ def motion_figure(results) -> Figure:
     y = x.mean(axis=1)
     per_period, _ = velocity_axis(units)
     if per_period:
-        speed = (f"$v_0T$ = {format_number(v0 * T)} {units.length}" if units.length
-                 else f"$v_0T/\\ell$ = {format_number(v0 * T)}")
+        speed = (
+            f"$v_0T$ = {format_number(v0 * T)} {units.length}"
+            if units.length
+            else f"$v_0T/\\ell$ = {format_number(v0 * T)}"
+        )
     else:
         length = units.length or r"$\ell$"
         speed = f"$v_0$ = {format_number(v0)} {length}/{units.time}"
@@ -61,17 +64,22 @@ def motion_figure(results) -> Figure:
         for j, colour in zip(drawn, colours(len(drawn))):
             shown = N <= 8 or j in (0, N - 1)
             ax.plot(t * factor, x[:, j], color=colour, label=f"block {j + 1}" if shown else None)
-        ax.plot(t * factor, y, color=REFERENCE, linestyle="--", linewidth=1.2,
-                label="barycentre $y$", zorder=3)
+        ax.plot(t * factor, y, color=REFERENCE, linestyle="--", linewidth=1.2, label="barycentre $y$", zorder=3)
         # The v0 line meets the barycentre at every period start of the limit, so a thin line
         # would hide under it: it is a wide translucent band beneath the blocks instead. A limit
         # found by the solver is the period after the history (`analysis.following`).
         ends = np.array([t[0], max(t[-1], t0 + T)])
-        ax.plot(ends * factor, np.interp(t0, t, y) + v0 * (ends - t0), color=REFERENCE,
-                alpha=0.22, linewidth=6.0, solid_capstyle="butt", zorder=1,
-                label=f"slope {speed}")
-        span = ax.axvspan(t0 * factor, (t0 + T) * factor, color=FAINT, alpha=0.15, linewidth=0,
-                          label="limit period")
+        ax.plot(
+            ends * factor,
+            np.interp(t0, t, y) + v0 * (ends - t0),
+            color=REFERENCE,
+            alpha=0.22,
+            linewidth=6.0,
+            solid_capstyle="butt",
+            zorder=1,
+            label=f"slope {speed}",
+        )
+        span = ax.axvspan(t0 * factor, (t0 + T) * factor, color=FAINT, alpha=0.15, linewidth=0, label="limit period")
         ax.set_xlim(ends[0] * factor, ends[1] * factor)
         if units.time is None and (ends[1] - ends[0]) / T <= 12:
             ax.xaxis.set_major_locator(MaxNLocator(integer=True))

@@ -48,8 +48,7 @@ def quantity_label(name: str, units: Units) -> str:
 def _need(data: dict, group: str, *names: str) -> None:
     for name in names:
         if name not in (data.get(group) or {}):
-            raise ResultsFileError(f"the optimisation figures need /{group}/{name}, which is "
-                                   "missing")
+            raise ResultsFileError(f"the optimisation figures need /{group}/{name}, which is missing")
 
 
 def objective_figure(data: dict) -> Figure:
@@ -76,30 +75,51 @@ def objective_figure(data: dict) -> Figure:
             for k, s in enumerate(starts):
                 first = n[s] - _batch_size(hist, s)
                 ax.axvline(first, color=FAINT, linewidth=0.8, linestyle="--")
-                ax.text(first, 1.0, f" {k + 1}", transform=ax.get_xaxis_transform(),
-                        va="top", ha="left", color=REFERENCE, fontsize=8)
+                ax.text(
+                    first,
+                    1.0,
+                    f" {k + 1}",
+                    transform=ax.get_xaxis_transform(),
+                    va="top",
+                    ha="left",
+                    color=REFERENCE,
+                    fontsize=8,
+                )
             ax.set_ylabel("hypervolume (v0 × cost of transport)")
             what = "Pareto front of v0 against cost of transport: convergence"
-            ax.text(0.0, -0.2, "runs: " + "; ".join(labels), transform=ax.transAxes,
-                    fontsize=7.5, color=REFERENCE, va="top", wrap=True)
+            ax.text(
+                0.0,
+                -0.2,
+                "runs: " + "; ".join(labels),
+                transform=ax.transAxes,
+                fontsize=7.5,
+                color=REFERENCE,
+                va="top",
+                wrap=True,
+            )
         else:
             quantity = str(attrs.get("objective_quantity", "v0"))
             values = np.asarray(evals[quantity], dtype=float)
             ok = np.asarray(evals["feasible"], dtype=bool) & np.isfinite(values)
             index = np.arange(1, len(values) + 1)
-            ax.plot(index[ok], values[ok], linestyle="none", marker=".", markersize=3,
-                    color=FAINT, label="evaluated point (feasible)")
+            ax.plot(
+                index[ok],
+                values[ok],
+                linestyle="none",
+                marker=".",
+                markersize=3,
+                color=FAINT,
+                label="evaluated point (feasible)",
+            )
             best = np.asarray(hist["best"], dtype=float)
             ax.step(n, best, where="post", color=blue, linewidth=1.8, label="best so far")
             polish = stage == 2
             if np.any(polish):
                 first = n[np.argmax(polish)] - _batch_size(hist, int(np.argmax(polish)))
-                ax.axvspan(first, n[-1], color="#E6E6E6", zorder=-1, linewidth=0,
-                           label="pattern search (polish)")
+                ax.axvspan(first, n[-1], color="#E6E6E6", zorder=-1, linewidth=0, label="pattern search (polish)")
             final = best[np.isfinite(best)]
             if final.size:
-                ax.axhline(final[-1], color=REFERENCE, linestyle=":", linewidth=1.0,
-                           label=f"best {final[-1]:.6g}")
+                ax.axhline(final[-1], color=REFERENCE, linestyle=":", linewidth=1.0, label=f"best {final[-1]:.6g}")
                 _zoom(ax, values[ok], final[-1], str(attrs.get("objective_sense")))
             ax.set_ylabel(quantity_label(quantity, units))
             what = f"{attrs.get('objective', '')}: convergence"
@@ -146,8 +166,7 @@ def _zoom(ax, values: np.ndarray, best: float, sense: str) -> None:
 def pareto_figure(data: dict) -> Figure:
     """The Pareto front of v0 against the cost of transport (see the module docstring)."""
     if "front" not in data:
-        raise ResultsFileError("the pareto-front figure needs /front: the file was written "
-                               "without --pareto")
+        raise ResultsFileError("the pareto-front figure needs /front: the file was written without --pareto")
     _need(data, "front", "v0", "cost_of_transport", "chosen")
     _need(data, "evaluations", "v0", "cost_of_transport", "status")
     attrs = data["attrs"]
@@ -163,17 +182,24 @@ def pareto_figure(data: dict) -> Figure:
         fig, axs = new_figure(height=4.0)
         ax = axs[0, 0]
         blue, vermillion = colours(2)
-        ax.plot(v0[ok], cot[ok], linestyle="none", marker=".", markersize=3, color=FAINT,
-                label="evaluated point")
+        ax.plot(v0[ok], cot[ok], linestyle="none", marker=".", markersize=3, color=FAINT, label="evaluated point")
         ax.step(fv, fc, where="post", color=blue, linewidth=1.2)
-        ax.plot(fv, fc, linestyle="none", marker="o", markersize=4, color=blue,
-                label=f"Pareto front ({len(fv)} points)")
-        ax.plot(fv[chosen], fc[chosen], linestyle="none", marker="D", markersize=7,
-                markerfacecolor="none", markeredgecolor=vermillion, markeredgewidth=1.6,
-                label="chosen gait (optimum of a run)")
+        ax.plot(
+            fv, fc, linestyle="none", marker="o", markersize=4, color=blue, label=f"Pareto front ({len(fv)} points)"
+        )
+        ax.plot(
+            fv[chosen],
+            fc[chosen],
+            linestyle="none",
+            marker="D",
+            markersize=7,
+            markerfacecolor="none",
+            markeredgecolor=vermillion,
+            markeredgewidth=1.6,
+            label="chosen gait (optimum of a run)",
+        )
         for k, (x, y) in enumerate(zip(fv[chosen], fc[chosen]), 1):
-            ax.annotate(str(k), (x, y), textcoords="offset points", xytext=(6, 5),
-                        color=vermillion, fontsize=8.5)
+            ax.annotate(str(k), (x, y), textcoords="offset points", xytext=(6, 5), color=vermillion, fontsize=8.5)
         if np.any(ok):
             # the cost of transport grows without bound as v0 goes to 0: show the front and the
             # better nine tenths of the points
@@ -185,10 +211,11 @@ def pareto_figure(data: dict) -> Figure:
         ax.set_ylabel(quantity_label("cost_of_transport", units))
         # The free parameters on lines of their own, wrapped, so that the title stays within
         # the axes however many there are.
-        free_text = textwrap.fill(", ".join(f["path"] for f in free), width=TITLE_WIDTH,
-                                  break_on_hyphens=False)
-        ax.set_title(title(str(attrs.get("name", "gait")), "cost of transport against $v_0$")
-                     + (f"\nover {free_text}" if free_text else ""))
+        free_text = textwrap.fill(", ".join(f["path"] for f in free), width=TITLE_WIDTH, break_on_hyphens=False)
+        ax.set_title(
+            title(str(attrs.get("name", "gait")), "cost of transport against $v_0$")
+            + (f"\nover {free_text}" if free_text else "")
+        )
         ax.legend(loc="upper left")
     return fig
 

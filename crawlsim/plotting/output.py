@@ -54,9 +54,16 @@ def read_plottable(path: Path) -> tuple[str, dict]:
             raise exc from None
 
 
-def plot_results(path, out_dir=None, fmt: str = "png", only: str | None = None, *,
-                 coords=(0, 1), options: FigureOptions | None = None,
-                 target=None) -> list[Path]:
+def plot_results(
+    path,
+    out_dir=None,
+    fmt: str = "png",
+    only: str | None = None,
+    *,
+    coords=(0, 1),
+    options: FigureOptions | None = None,
+    target=None,
+) -> list[Path]:
     """Draw the figures of the results file ``path`` into ``out_dir`` (default: its folder) as
     ``<stem>-<figure>.<fmt>``; return the paths written.
 
@@ -78,19 +85,20 @@ def plot_results(path, out_dir=None, fmt: str = "png", only: str | None = None, 
     if fmt not in FORMATS:
         raise ValueError(f"format {fmt!r}: choose one of {', '.join(FORMATS)}")
     kind, results = read_plottable(path)
-    choices = {"run": FIGURE_NAMES, "sweep": (SWEEP_FIGURE,),
-               "optimization": optimization_figures(results)}[kind]
+    choices = {"run": FIGURE_NAMES, "sweep": (SWEEP_FIGURE,), "optimization": optimization_figures(results)}[kind]
     if only is not None and only not in choices:
         article = "an" if kind[0] in "aeiou" else "a"
-        raise ValueError(f"unknown figure {only!r} for {article} {kind} file; choose one of "
-                         f"{', '.join(choices)}")
+        raise ValueError(f"unknown figure {only!r} for {article} {kind} file; choose one of {', '.join(choices)}")
     if target is not None:
-        count = 1 if (only is not None or kind == "sweep") else len(
-            optimization_figures(results) if kind == "optimization" else
-            available_figures(results))
+        count = (
+            1
+            if (only is not None or kind == "sweep")
+            else len(optimization_figures(results) if kind == "optimization" else available_figures(results))
+        )
         if count != 1:
-            raise ValueError(f"{target} names one figure, and this {kind} file has {count}; "
-                             "choose one with --only, or give a folder")
+            raise ValueError(
+                f"{target} names one figure, and this {kind} file has {count}; choose one with --only, or give a folder"
+            )
     try:
         with user_style(options.style):
             drawn = _draw(results, kind, choices, only, coords)
@@ -120,8 +128,9 @@ def _draw(results, kind, choices, only, coords) -> dict:
     if kind == "optimization":
         from crawlsim.plotting.optimization import OPTIMIZATION_FIGURE_FUNCTIONS
 
-        return {name: OPTIMIZATION_FIGURE_FUNCTIONS[name](results)
-                for name in ([only] if only is not None else choices)}
+        return {
+            name: OPTIMIZATION_FIGURE_FUNCTIONS[name](results) for name in ([only] if only is not None else choices)
+        }
     names = [only] if only is not None else available_figures(results)
     return {name: draw_figure(results, name, coords=coords) for name in names}
 
@@ -132,8 +141,9 @@ def optimization_figures(data: dict) -> tuple[str, ...]:
     return OPTIMIZATION_FIGURES if "front" in data else OPTIMIZATION_FIGURES[:1]
 
 
-def save_figure(fig, target, fmt: str | None = None, *, dpi: float | None = None,
-                figsize: tuple[float, float] | None = None) -> Path:
+def save_figure(
+    fig, target, fmt: str | None = None, *, dpi: float | None = None, figsize: tuple[float, float] | None = None
+) -> Path:
     """Save ``fig`` atomically in the shared style (`crawlsim.io.atomic`) and close it.
 
     ``dpi`` (default `style.DPI`) is the resolution of a PNG. Without ``figsize`` the file is
@@ -153,9 +163,13 @@ def save_figure(fig, target, fmt: str | None = None, *, dpi: float | None = None
         # bbox_inches of None would fall back to the style's "tight").
         whole: dict = {"savefig.bbox": "standard"} if figsize is not None else {}
         with atomic_path(target) as tmp, figure_style(), matplotlib.rc_context(whole):
-            fig.savefig(tmp, format=fmt, dpi=dpi or DPI,
-                        bbox_inches=None if figsize is not None else "tight",
-                        metadata=_metadata(fmt))
+            fig.savefig(
+                tmp,
+                format=fmt,
+                dpi=dpi or DPI,
+                bbox_inches=None if figsize is not None else "tight",
+                metadata=_metadata(fmt),
+            )
     finally:
         plt.close(fig)
     return target

@@ -52,18 +52,27 @@ def polygon(normals: np.ndarray, offsets: np.ndarray, box=None) -> np.ndarray:
         A = np.vstack([A, np.eye(2), -np.eye(2)])
         b = np.concatenate([b, hi, -lo])
         norms = np.concatenate([norms, np.ones(4)])
-    res = linprog(c=[0.0, 0.0, -1.0], A_ub=np.hstack([A, norms[:, None]]), b_ub=b,
-                  bounds=[(None, None), (None, None), (0, None)], method="highs")
+    res = linprog(
+        c=[0.0, 0.0, -1.0],
+        A_ub=np.hstack([A, norms[:, None]]),
+        b_ub=b,
+        bounds=[(None, None), (None, None), (0, None)],
+        method="highs",
+    )
     if res.status != 0 or res.x[2] <= 1e-12 * max(np.abs(b).max(), 1.0):
-        raise ValueError("the polygon has an empty interior" if res.status == 0 else
-                         "the polygon is unbounded or empty; give a bounding box")
+        raise ValueError(
+            "the polygon has an empty interior"
+            if res.status == 0
+            else "the polygon is unbounded or empty; give a bounding box"
+        )
     hs = HalfspaceIntersection(np.hstack([A, -b[:, None]]), res.x[:2])
     vertices = hs.intersections
     centre = vertices.mean(axis=0)
     order = np.argsort(np.arctan2(vertices[:, 1] - centre[1], vertices[:, 0] - centre[0]))
     vertices = vertices[order]
-    distinct = np.concatenate([[True], np.linalg.norm(np.diff(vertices, axis=0), axis=1) >
-                               1e-12 * max(np.abs(vertices).max(), 1.0)])
+    distinct = np.concatenate(
+        [[True], np.linalg.norm(np.diff(vertices, axis=0), axis=1) > 1e-12 * max(np.abs(vertices).max(), 1.0)]
+    )
     return vertices[distinct]
 
 
@@ -79,8 +88,9 @@ def _fraction_text(value: Fraction) -> str:
     return "0" if value == 0 else str(value)
 
 
-def shape_space_instants(t: np.ndarray, period: float, keys: Callable[[int], np.ndarray],
-                         target: int = SHAPE_SPACE_TIMES) -> list[tuple[list[int], str]]:
+def shape_space_instants(
+    t: np.ndarray, period: float, keys: Callable[[int], np.ndarray], target: int = SHAPE_SPACE_TIMES
+) -> list[tuple[list[int], str]]:
     """The instants of the limit period at which the shape-space figure draws its sets.
 
     Instants are grid times j T / n for a division n of `NICE_DIVISIONS` that the grid holds
@@ -153,8 +163,9 @@ def shape_space_figure(results, coords=(0, 1), times: int = SHAPE_SPACE_TIMES) -
     periods (when they have any extent), the limit cycle (a marker when the limit is a constant
     state) and the start w(0).
     """
-    need(results, "shape space", "trajectory/t", "trajectory/w", "limit/t", "limit/w",
-          "limit/offsets", "process/normals")
+    need(
+        results, "shape space", "trajectory/t", "trajectory/w", "limit/t", "limit/w", "limit/offsets", "process/normals"
+    )
     units = units_of(results)
     B = np.asarray(results["process"]["normals"], dtype=float)
     lim = results["limit"]
@@ -171,8 +182,9 @@ def shape_space_figure(results, coords=(0, 1), times: int = SHAPE_SPACE_TIMES) -
         return _shape_space_line(results, B, c, tl, wl, tt, wt, t0, crawler, units)
     coords = tuple(int(k) for k in coords)
     if len(coords) != 2 or coords[0] == coords[1] or not all(0 <= k < n for k in coords):
-        raise ValueError(f"shape coordinates {[k + 1 for k in coords]}: need two different "
-                         f"coordinates between 1 and {n}")
+        raise ValueError(
+            f"shape coordinates {[k + 1 for k in coords]}: need two different coordinates between 1 and {n}"
+        )
     i, j = coords
 
     def drawn(k):
@@ -201,17 +213,33 @@ def shape_space_figure(results, coords=(0, 1), times: int = SHAPE_SPACE_TIMES) -
                 # w(t) on a face of K(t) that is extreme in the other coordinates (a vertex or
                 # an edge, common for long crawlers with many blocks at their friction limits):
                 # the section through it is a segment or a point, with no polygon to draw.
-                handles += ax.plot([], [], marker="o", markersize=5.5, color=colour,
-                                   linestyle="none", label=f"{text} (section without interior)")
+                handles += ax.plot(
+                    [],
+                    [],
+                    marker="o",
+                    markersize=5.5,
+                    color=colour,
+                    linestyle="none",
+                    label=f"{text} (section without interior)",
+                )
             else:
-                patch = Polygon(vertices, closed=True, linewidth=1.3,
-                                facecolor=to_rgba(colour, 0.07), edgecolor=colour, label=text)
+                patch = Polygon(
+                    vertices, closed=True, linewidth=1.3, facecolor=to_rgba(colour, 0.07), edgecolor=colour, label=text
+                )
                 ax.add_patch(patch)
                 handles.append(patch)
             for k in members:
-                ax.plot(wl[k, i], wl[k, j], marker="o", markersize=5.5, color=colour,
-                        markeredgecolor="white", markeredgewidth=0.6, linestyle="none",
-                        zorder=4)
+                ax.plot(
+                    wl[k, i],
+                    wl[k, j],
+                    marker="o",
+                    markersize=5.5,
+                    color=colour,
+                    markeredgecolor="white",
+                    markeredgewidth=0.6,
+                    linestyle="none",
+                    zorder=4,
+                )
         handles += _orbit(ax, wt[:, [i, j]], wl[:, [i, j]], earlier, span, state)
         ax.autoscale_view()
         ax.set_aspect("equal", adjustable="datalim")
@@ -219,8 +247,13 @@ def shape_space_figure(results, coords=(0, 1), times: int = SHAPE_SPACE_TIMES) -
         ax.set_xlabel(label("shape coordinate", f"{state}_{{{i + 1}}}", dimension, units))
         ax.set_ylabel(label("shape coordinate", f"{state}_{{{j + 1}}}", dimension, units))
         ax.set_title(_title(run_name(results), n, (i, j), crawler))
-        ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0),
-                  borderaxespad=0, title=f"${where}$ at $(t - t_0)/T$ =")
+        ax.legend(
+            handles=handles,
+            loc="upper left",
+            bbox_to_anchor=(1.01, 1.0),
+            borderaxespad=0,
+            title=f"${where}$ at $(t - t_0)/T$ =",
+        )
     return fig
 
 
@@ -230,17 +263,37 @@ def _orbit(ax, trajectory, limit, earlier, span, state) -> list:
     constant state), the start w(0) a cross. Returns the legend handles."""
     handles = []
     if np.count_nonzero(earlier) > 1 and np.ptp(trajectory[earlier], axis=0).max() > 0:
-        handles += ax.plot(trajectory[earlier, 0], trajectory[earlier, 1], color=FAINT,
-                           linewidth=0.8, alpha=0.9, label="earlier periods")
+        handles += ax.plot(
+            trajectory[earlier, 0],
+            trajectory[earlier, 1],
+            color=FAINT,
+            linewidth=0.8,
+            alpha=0.9,
+            label="earlier periods",
+        )
     if np.ptp(limit, axis=0).max() <= 1e-9 * span:
-        handles += ax.plot(limit[0, 0], limit[0, 1], marker="o", markersize=8, color=REFERENCE,
-                           markerfacecolor="none", markeredgewidth=1.6, linestyle="none",
-                           label="limit (a constant state)")
+        handles += ax.plot(
+            limit[0, 0],
+            limit[0, 1],
+            marker="o",
+            markersize=8,
+            color=REFERENCE,
+            markerfacecolor="none",
+            markeredgewidth=1.6,
+            linestyle="none",
+            label="limit (a constant state)",
+        )
     else:
-        handles += ax.plot(limit[:, 0], limit[:, 1], color=REFERENCE, linewidth=2.2,
-                           label="limit cycle")
-    handles += ax.plot(trajectory[0, 0], trajectory[0, 1], marker="x", markersize=7,
-                       color=REFERENCE, linestyle="none", label=f"start ${state}(0)$")
+        handles += ax.plot(limit[:, 0], limit[:, 1], color=REFERENCE, linewidth=2.2, label="limit cycle")
+    handles += ax.plot(
+        trajectory[0, 0],
+        trajectory[0, 1],
+        marker="x",
+        markersize=7,
+        color=REFERENCE,
+        linestyle="none",
+        label=f"start ${state}(0)$",
+    )
     return handles
 
 
@@ -252,8 +305,9 @@ def _title(name: str, n: int, coords: tuple[int, int], crawler: bool) -> str:
     if n == 2:
         what = f"${where}$ and the orbit of ${state}(t)$" + (", $w = -Kz$" if crawler else "")
     else:
-        what = (f"sections of ${where}$ through ${state}(t)$\ncoordinates ({i + 1}, {j + 1}) "
-                f"of {n}" + (", $w = -Kz$" if crawler else ""))
+        what = f"sections of ${where}$ through ${state}(t)$\ncoordinates ({i + 1}, {j + 1}) of {n}" + (
+            ", $w = -Kz$" if crawler else ""
+        )
     return f"{title(name, 'shape space')}\n{what}"
 
 
@@ -277,8 +331,7 @@ def _shape_space_line(results, B, c, tl, wl, tt, wt, t0, crawler, units):
     with figure_style():
         fig, axs = new_figure(height=3.4)
         ax = axs[0, 0]
-        ax.fill_between(tl * factor, low, high, color=band, alpha=0.15, linewidth=0,
-                        label=f"${where}$")
+        ax.fill_between(tl * factor, low, high, color=band, alpha=0.15, linewidth=0, label=f"${where}$")
         ax.plot(tl * factor, high, color=band, linewidth=1.0)
         ax.plot(tl * factor, low, color=band, linewidth=1.0)
         if np.count_nonzero(earlier) > 1:
@@ -288,8 +341,7 @@ def _shape_space_line(results, B, c, tl, wl, tt, wt, t0, crawler, units):
         ax.plot(tl * factor, wl[:, 0], color=REFERENCE, linewidth=2.2, label="limit cycle")
         ax.set_xlim(tl[0] * factor, tl[-1] * factor)
         ax.set_xlabel(time_label)
-        ax.set_ylabel(label("shape coordinate", f"{state}_1", "force" if crawler else None,
-                            units))
+        ax.set_ylabel(label("shape coordinate", f"{state}_1", "force" if crawler else None, units))
         what = f"the interval ${where}$ and ${state}(t)$" + (", $w = -kz$" if crawler else "")
         ax.set_title(f"{title(run_name(results), 'shape space')}\n{what}")
         legend_right(ax)

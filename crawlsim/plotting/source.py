@@ -58,9 +58,11 @@ def run_data(source: Any) -> dict[str, Any]:
 
             return read_results(written)
         return from_result(source)
-    raise TypeError(f"a figure of a run takes a results file, the dict of "
-                    f"crawlsim.io.hdf5.read_results or the result of crawlsim.simulate; got "
-                    f"{type(source).__name__}")
+    raise TypeError(
+        f"a figure of a run takes a results file, the dict of "
+        f"crawlsim.io.hdf5.read_results or the result of crawlsim.simulate; got "
+        f"{type(source).__name__}"
+    )
 
 
 def takes_run(function: F) -> F:
@@ -92,15 +94,17 @@ def from_result(result: Any) -> dict[str, Any]:
         from crawlsim.gait.document import parse_gait
         from crawlsim.model.process import compile
 
-        spec = parse_gait(provenance.gait_yaml, source=f"{result.name} (provenance)",
-                          default_name=str(result.name))
+        spec = parse_gait(provenance.gait_yaml, source=f"{result.name} (provenance)", default_name=str(result.name))
         process = compile(spec)
     limit, history = result.limit, result.history
     kind = "crawler" if getattr(limit, "x", None) is not None else "sweeping-process"
     units = getattr(result, "units", None)
     attrs = {
-        "name": str(result.name), "kind": kind, "period": float(result.period),
-        "steps_per_period": int(result.steps_per_period), "periods": int(result.periods),
+        "name": str(result.name),
+        "kind": kind,
+        "period": float(result.period),
+        "steps_per_period": int(result.steps_per_period),
+        "periods": int(result.periods),
         "convergence": str(result.convergence),
         "periodic_from": -1 if result.periodic_from is None else int(result.periodic_from),
         "v0": _number_or_nan(result.v0),
@@ -143,8 +147,7 @@ def need(results: dict, figure: str, *paths: str) -> None:
         if group in ("trajectory", "limit") and name in ("x", "stress", "shape", "slip"):
             hint = " (only crawler runs have it)"
         elif from_object and group == "trajectory":
-            hint = (" (this result keeps no trajectory: use crawlsim.simulate(gait), which "
-                    "keeps it by default)")
+            hint = " (this result keeps no trajectory: use crawlsim.simulate(gait), which keeps it by default)"
         elif from_object and (group == "process" or name in PROCESS_SERIES):
             hint = " (this result records no provenance, whose gait document gives it)"
         elif path in ("limit/lengths", "limit/friction", "limit/offsets", "process/normals"):

@@ -55,16 +55,21 @@ OKABE_ITO = {
     "yellow": "#F0E442",
     "black": "#000000",
 }
-PALETTE = [OKABE_ITO[k] for k in ("blue", "vermillion", "bluish green", "reddish purple",
-                                  "orange", "sky blue", "black", "yellow")]
+PALETTE = [
+    OKABE_ITO[k]
+    for k in ("blue", "vermillion", "bluish green", "reddish purple", "orange", "sky blue", "black", "yellow")
+]
 
 #: The one colour map of every continuous colouring.
 COLOUR_MAP = "cividis"
 
 #: Colours of the slip states, keyed by the int8 code of ``/limit/slip``: light grey for stick,
 #: and the dark and light-olive ends of the colour map for forward and backward slip.
-SLIP_COLOURS = {0: "#E6E6E6", 1: to_hex(matplotlib.colormaps[COLOUR_MAP](0.0)),
-                -1: to_hex(matplotlib.colormaps[COLOUR_MAP](0.7))}
+SLIP_COLOURS = {
+    0: "#E6E6E6",
+    1: to_hex(matplotlib.colormaps[COLOUR_MAP](0.0)),
+    -1: to_hex(matplotlib.colormaps[COLOUR_MAP](0.7)),
+}
 SLIP_NAMES = {0: "stick", 1: "forward slip", -1: "backward slip"}
 
 #: Reference lines (barycentre, limits, fitted rates) and faint context (early periods).
@@ -186,8 +191,7 @@ def check_style(style: str) -> str:
         hint = f"; did you mean {' or '.join(map(repr, close))}?"
     else:
         hint = f"; the names are {', '.join(available)}"
-    raise ValueError(f"--style {style}: no such matplotlib style sheet or file{hint} (or give "
-                     "a .mplstyle file)")
+    raise ValueError(f"--style {style}: no such matplotlib style sheet or file{hint} (or give a .mplstyle file)")
 
 
 def figure_format(path, option: str = "-o") -> str:
@@ -304,8 +308,7 @@ def _scaled(symbol: str, dimension: str) -> str:
     return f"{symbol}{times}/{over}" if over else f"{symbol}{times}"
 
 
-def label(name: str, symbol: str | None = None, dimension: str | None = None,
-          units: Units | None = None) -> str:
+def label(name: str, symbol: str | None = None, dimension: str | None = None, units: Units | None = None) -> str:
     """An axis label: name, symbol in mathtext, and unit.
 
     ``dimension`` is None (a pure number or an index), ``"cycles"`` (a phase), or one of
@@ -345,8 +348,7 @@ def mixed_unit(dimension: str, units: Units) -> str:
     return f"{num}{'/' + den if den else ''}"
 
 
-def time_axis(units: Units, period: float, *, symbol: str = "t",
-              name: str = "time") -> tuple[float, str]:
+def time_axis(units: Units, period: float, *, symbol: str = "t", name: str = "time") -> tuple[float, str]:
     """How a figure draws times: (factor, label). Times are plotted as ``factor * t``:
     in the file's time unit when it is given (factor 1), else in periods, t/T (factor 1/T)."""
     if units.time is not None:
@@ -364,7 +366,10 @@ def velocity_axis(units: Units, *, name: str = "average velocity") -> tuple[bool
 
 #: Units of the swept gait parameters, by the keys of their dotted paths.
 _PATH_DIMENSIONS = {
-    "phase": "cycles", "times": "cycles", "stiffness": "stiffness", "period": "time",
+    "phase": "cycles",
+    "times": "cycles",
+    "stiffness": "stiffness",
+    "period": "time",
     "positions": "length",
 }
 
@@ -374,8 +379,7 @@ def path_dimension(path: str) -> str | None:
     ``friction.backward`` a force, ``links.1.phase`` a phase in cycles, ``simulation.*`` a pure
     number)."""
     keys = [k for k in path.split(".") if not (k == "*" or k.isdigit())]
-    if not keys or keys[0] in ("simulation", "normals", "offsets", "metric", "initial") and \
-            keys[-1] != "positions":
+    if not keys or keys[0] in ("simulation", "normals", "offsets", "metric", "initial") and keys[-1] != "positions":
         return None
     if keys[-1] in _PATH_DIMENSIONS:
         return _PATH_DIMENSIONS[keys[-1]]

@@ -91,8 +91,9 @@ def _status_grid(status, shape) -> np.ndarray:
     return np.asarray(status, dtype=object).reshape(shape).astype(str)
 
 
-def sweep_figure(axes: dict, v0, status, title: str, *, units: Units | None = None,
-                 displacement=None, marks=None) -> Figure:
+def sweep_figure(
+    axes: dict, v0, status, title: str, *, units: Units | None = None, displacement=None, marks=None
+) -> Figure:
     """v0 over a sweep of one or two gait parameters, named by their dotted paths.
 
     ``axes`` maps each swept dotted path (``"friction.backward"``) to its values, in the order of
@@ -119,13 +120,11 @@ def sweep_figure(axes: dict, v0, status, title: str, *, units: Units | None = No
     values = [np.asarray(axes[k], dtype=float) for k in names]
     grid = tuple(len(v) for v in values)
     if len(names) not in (1, 2):
-        raise ValueError(f"sweep_figure draws one or two swept parameters, got {len(names)}: "
-                         f"{', '.join(names)}")
+        raise ValueError(f"sweep_figure draws one or two swept parameters, got {len(names)}: {', '.join(names)}")
     v0 = np.asarray(v0, dtype=float)
     statuses = np.asarray(status)
     if v0.shape != grid or statuses.shape != grid:
-        raise ValueError(f"v0 {v0.shape} and status {statuses.shape} must have the grid's shape "
-                         f"{grid}")
+        raise ValueError(f"v0 {v0.shape} and status {statuses.shape} must have the grid's shape {grid}")
     statuses = _status_grid(statuses, grid)
     per_period, value_label = velocity_axis(units)
     if per_period and displacement is not None:
@@ -160,8 +159,7 @@ def _status_handles(ax, statuses, where) -> list:
         if not np.any(mask):
             continue
         x, y, extra = where(mask)
-        style: dict[str, object] = dict(linestyle="none", marker=marker, color=REFERENCE,
-                                        label=name)
+        style: dict[str, object] = dict(linestyle="none", marker=marker, color=REFERENCE, label=name)
         if marker == "o":
             style.update(markerfacecolor="none", markersize=9, markeredgewidth=1.2)
         else:
@@ -197,19 +195,20 @@ def jumps(values, data, log: bool = False) -> np.ndarray:
         return out  # fewer than four values: too few to tell a jump from a steep slope
     slope = np.abs(change) / h
     finite = np.where(np.isfinite(slope), slope, -np.inf)
-    before = np.concatenate([np.full(finite.shape[:-1] + (1,), -np.inf), finite[..., :-1]],
-                            axis=-1)
-    after = np.concatenate([finite[..., 1:], np.full(finite.shape[:-1] + (1,), -np.inf)],
-                           axis=-1)
+    before = np.concatenate([np.full(finite.shape[:-1] + (1,), -np.inf), finite[..., :-1]], axis=-1)
+    after = np.concatenate([finite[..., 1:], np.full(finite.shape[:-1] + (1,), -np.inf)], axis=-1)
     # Both neighbours are needed: at an end of the axis a saturating curve changes more over its
     # first interval than over the next, by any ratio, without a jump.
     local = np.where(np.isfinite(before) & np.isfinite(after), np.maximum(before, after), np.nan)
     scale = np.nanmax(np.abs(d)) if np.any(np.isfinite(d)) else 0.0
     span = (np.nanmax(d) - np.nanmin(d)) if np.any(np.isfinite(d)) else 0.0
     with np.errstate(invalid="ignore"):
-        out = (np.isfinite(change) & np.isfinite(local)
-               & (np.abs(change) > JUMP_RATIO * local * h)
-               & (np.abs(change) > JUMP_FLOOR * max(span, 1e-12 * scale)))
+        out = (
+            np.isfinite(change)
+            & np.isfinite(local)
+            & (np.abs(change) > JUMP_RATIO * local * h)
+            & (np.abs(change) > JUMP_FLOOR * max(span, 1e-12 * scale))
+        )
     return out
 
 
@@ -225,8 +224,9 @@ def _sweep_line(ax, x, data, statuses, log, marks=None):
     stall; without them the jumps are found from the samples (`jumps`)."""
     exact = marks is not None and bool(marks.jumps)
     if exact:
-        jump = np.array([any(min(a, b) <= s <= max(a, b) for s in marks.jumps)
-                         for a, b in zip(x[:-1], x[1:])], dtype=bool)
+        jump = np.array(
+            [any(min(a, b) <= s <= max(a, b) for s in marks.jumps) for a, b in zip(x[:-1], x[1:])], dtype=bool
+        )
     else:
         jump = jumps(x, data, log)
     xs, ys = _break_at_jumps(x, data, jump)
@@ -239,10 +239,14 @@ def _sweep_line(ax, x, data, statuses, log, marks=None):
         ax.set_xscale("log")
     ax.axhline(0.0, color=REFERENCE, linewidth=0.6)
     handles = _status_handles(
-        ax, statuses,
-        lambda mask: (x[mask], data[mask], {}) if np.all(np.isfinite(data[mask])) else
-        (x[mask], np.zeros(np.count_nonzero(mask)),
-         {"transform": ax.get_xaxis_transform(), "clip_on": False}))
+        ax,
+        statuses,
+        lambda mask: (
+            (x[mask], data[mask], {})
+            if np.all(np.isfinite(data[mask]))
+            else (x[mask], np.zeros(np.count_nonzero(mask)), {"transform": ax.get_xaxis_transform(), "clip_on": False})
+        ),
+    )
     _set_swept_ticks(ax.xaxis, x, log)
     pad = 0.04 * (np.log(x[-1] / x[0]) if log else x[-1] - x[0]) if x.size > 1 else 0.5
     if log:
@@ -256,11 +260,15 @@ def _sweep_line(ax, x, data, statuses, log, marks=None):
 def _draw_marks(ax, marks) -> None:
     """The stall load (dashed) and the exact jumps of a swept load (dotted verticals)."""
     if marks.stall is not None:
-        ax.axvline(marks.stall, color=REFERENCE, linestyle="--", linewidth=1.2,
-                   label=f"{marks.label} {marks.stall:.6g} ({marks.cause})")
+        ax.axvline(
+            marks.stall,
+            color=REFERENCE,
+            linestyle="--",
+            linewidth=1.2,
+            label=f"{marks.label} {marks.stall:.6g} ({marks.cause})",
+        )
     for k, s in enumerate(marks.jumps or ()):
-        ax.axvline(s, color=FAINT, linestyle=":", linewidth=1.0,
-                   label="jump of $v_0$" if k == 0 else None)
+        ax.axvline(s, color=FAINT, linestyle=":", linewidth=1.0, label="jump of $v_0$" if k == 0 else None)
 
 
 def _draw_sampled_jumps(ax, x, data, jump, log) -> None:
@@ -269,15 +277,20 @@ def _draw_sampled_jumps(ax, x, data, jump, log) -> None:
     sampled = np.flatnonzero(jump)
     for k in sampled:
         middle = np.sqrt(x[k] * x[k + 1]) if log else (x[k] + x[k + 1]) / 2
-        ax.plot([middle, middle], [data[k], data[k + 1]], color=FAINT, linestyle=":",
-                linewidth=1.0, label="jump of $v_0$" if k == sampled[0] else None)
+        ax.plot(
+            [middle, middle],
+            [data[k], data[k + 1]],
+            color=FAINT,
+            linestyle=":",
+            linewidth=1.0,
+            label="jump of $v_0$" if k == sampled[0] else None,
+        )
 
 
 def _sweep_map(fig, ax, values, data, statuses, logs, value_label):
     x, y = values
     cmap = colour_map().with_extremes(bad="white")
-    mesh = ax.pcolormesh(cell_edges(x, logs[0]), cell_edges(y, logs[1]), data.T, cmap=cmap,
-                         shading="flat")
+    mesh = ax.pcolormesh(cell_edges(x, logs[0]), cell_edges(y, logs[1]), data.T, cmap=cmap, shading="flat")
     bar = fig.colorbar(mesh, ax=ax)
     bar.set_label(value_label)
     if logs[0]:
@@ -289,11 +302,19 @@ def _sweep_map(fig, ax, values, data, statuses, logs, value_label):
     if np.any(empty):
         xe, ye = cell_edges(x, logs[0]), cell_edges(y, logs[1])
         for a, b in zip(*np.nonzero(empty)):
-            ax.add_patch(Rectangle((xe[a], ye[b]), xe[a + 1] - xe[a], ye[b + 1] - ye[b],
-                                   facecolor="white", edgecolor=FAINT, hatch="////",
-                                   linewidth=0.0, label="_no value"))
-        handles.append(Patch(facecolor="white", edgecolor=FAINT, hatch="////",
-                             label="no value"))
+            ax.add_patch(
+                Rectangle(
+                    (xe[a], ye[b]),
+                    xe[a + 1] - xe[a],
+                    ye[b + 1] - ye[b],
+                    facecolor="white",
+                    edgecolor=FAINT,
+                    hatch="////",
+                    linewidth=0.0,
+                    label="_no value",
+                )
+            )
+        handles.append(Patch(facecolor="white", edgecolor=FAINT, hatch="////", label="no value"))
     finite = data[np.isfinite(data)]
     jump_x, jump_y = jumps(x, data.T, logs[0]).T, jumps(y, data, logs[1])
     if finite.size and finite.min() < 0 < finite.max() and min(data.shape) >= 2:
@@ -304,17 +325,16 @@ def _sweep_map(fig, ax, values, data, statuses, logs, value_label):
             bar.ax.axhline(0.0, color=REFERENCE, linewidth=1.2)
     walls = jump_walls(x, y, jump_x, jump_y, logs)
     if walls:
-        ax.add_collection(LineCollection(walls, colors=REFERENCE, linewidths=2.4,
-                                         linestyles="solid"))
+        ax.add_collection(LineCollection(walls, colors=REFERENCE, linewidths=2.4, linestyles="solid"))
         handles.append(Line2D([], [], color=REFERENCE, linewidth=2.4, label="jump of $v_0$"))
-    handles += _status_handles(ax, statuses, lambda mask: (
-        x[np.nonzero(mask)[0]], y[np.nonzero(mask)[1]], {}))
+    handles += _status_handles(ax, statuses, lambda mask: (x[np.nonzero(mask)[0]], y[np.nonzero(mask)[1]], {}))
     _set_swept_ticks(ax.xaxis, x, logs[0])
     _set_swept_ticks(ax.yaxis, y, logs[1])
     ax.grid(False)
     if handles:
-        ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.16),
-                  ncol=min(len(handles), 3), borderaxespad=0)
+        ax.legend(
+            handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=min(len(handles), 3), borderaxespad=0
+        )
 
 
 def zero_contour(x, y, data, jump_x, jump_y, logs=(False, False)) -> list[np.ndarray]:
@@ -370,10 +390,8 @@ def jump_walls(x, y, jump_x, jump_y, logs=(False, False)) -> list[np.ndarray]:
     """The jumps of a heat map as segments on the cell boundaries between the two points v0
     jumps between (`jumps`, `cell_edges`): a wall, where the map changes colour abruptly."""
     xe, ye = cell_edges(x, logs[0]), cell_edges(y, logs[1])
-    walls = [np.array([[xe[a + 1], ye[b]], [xe[a + 1], ye[b + 1]]])
-             for a, b in zip(*np.nonzero(jump_x))]
-    walls += [np.array([[xe[a], ye[b + 1]], [xe[a + 1], ye[b + 1]]])
-              for a, b in zip(*np.nonzero(jump_y))]
+    walls = [np.array([[xe[a + 1], ye[b]], [xe[a + 1], ye[b + 1]]]) for a, b in zip(*np.nonzero(jump_x))]
+    walls += [np.array([[xe[a], ye[b + 1]], [xe[a + 1], ye[b + 1]]]) for a, b in zip(*np.nonzero(jump_y))]
     return walls
 
 
@@ -401,8 +419,9 @@ def sweep_data_figure(data: dict, title: str | None = None) -> Figure:
         from crawlsim.analysis.stall import curve_marks
 
         marks = curve_marks(data["gait_yaml"], paths[0], data["axes"][0], v0)
-    return sweep_figure(dict(zip(paths, data["axes"])), v0, status, title,
-                        units=units_of(data), displacement=displacement, marks=marks)
+    return sweep_figure(
+        dict(zip(paths, data["axes"])), v0, status, title, units=units_of(data), displacement=displacement, marks=marks
+    )
 
 
 def _sweep_name(data: dict) -> str:

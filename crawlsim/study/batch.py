@@ -68,8 +68,9 @@ class BatchRun:
         return self.convergence not in (None, Convergence.NOT_CONVERGED)
 
 
-def simulate_batch(processes, *, max_periods, tolerance, capacity: int = DEFAULT_CAPACITY,
-                   progress=None, keep_limit: bool = False) -> list[BatchRun]:
+def simulate_batch(
+    processes, *, max_periods, tolerance, capacity: int = DEFAULT_CAPACITY, progress=None, keep_limit: bool = False
+) -> list[BatchRun]:
     """Run every crawler process to its periodic regime; results in the order given.
 
     ``max_periods`` and ``tolerance`` are numbers or one per process. ``capacity`` is accepted
@@ -114,8 +115,9 @@ def _run(p: SweepingProcess, max_periods: int, tol: float, keep_limit: bool = Fa
             record = stepper.step_period()
         except CrawlsimError as exc:
             status = PointStatus.INVALID if isinstance(exc, InputError) else PointStatus.FAILED
-            return BatchRun(p.name, status, None, None, None, q, None, q * G,
-                            stepper.projector.clarabel_calls, str(exc))
+            return BatchRun(
+                p.name, status, None, None, None, q, None, q * G, stepper.projector.clarabel_calls, str(exc)
+            )
         LAM = record.multipliers
         total = LAM.sum(axis=0)
         d = float(np.mean(total[:N] - total[N:]))
@@ -127,17 +129,28 @@ def _run(p: SweepingProcess, max_periods: int, tol: float, keep_limit: bool = Fa
     convergence, periodic_from = classify_convergence(rel_steps, tol)
     status = PointStatus.NOT_CONVERGED if convergence == Convergence.NOT_CONVERGED else PointStatus.OK
     rate = None if convergence == Convergence.FINITE_TIME else contraction_rate(np.array(rel_steps))
-    err = period_iteration_error(displacements, convergence, rate,
-                                 displacement_roundoff(p, G, float(np.sum(np.abs(LAM))) / N),
-                                 p.period)
+    err = period_iteration_error(
+        displacements, convergence, rate, displacement_roundoff(p, G, float(np.sum(np.abs(LAM))) / N), p.period
+    )
     diss = float(np.einsum("km,km->", LAM, friction))
     paid = diss + (float(np.einsum("km,km->", LAM, load)) if load is not None else 0.0)
-    return BatchRun(p.name, status, d / p.period, d, convergence, q + 1, periodic_from,
-                    (q + 1) * G, stepper.projector.clarabel_calls, dissipation_per_period=diss,
-                    v0_error_estimate=err, contraction_rate=rate,
-                    cost_of_transport=cost_of_transport(paid, d, err, p.period),
-                    limit_record=record if keep_limit else None,
-                    limit_process=p if keep_limit else None)
+    return BatchRun(
+        p.name,
+        status,
+        d / p.period,
+        d,
+        convergence,
+        q + 1,
+        periodic_from,
+        (q + 1) * G,
+        stepper.projector.clarabel_calls,
+        dissipation_per_period=diss,
+        v0_error_estimate=err,
+        contraction_rate=rate,
+        cost_of_transport=cost_of_transport(paid, d, err, p.period),
+        limit_record=record if keep_limit else None,
+        limit_process=p if keep_limit else None,
+    )
 
 
 def _friction(process: SweepingProcess) -> np.ndarray:

@@ -58,9 +58,10 @@ class _LocalEnd(Exception):
 def parameter_groups(problem: Problem) -> list[set[str]]:
     """The concrete dotted paths each free parameter sets (a ``*`` path sets several)."""
     base = problem.base
-    return [{".".join(str(k) for k in keys)
-             for keys in resolve_path(base.document, f.path, base.source)}
-            for f in problem.free]
+    return [
+        {".".join(str(k) for k in keys) for keys in resolve_path(base.document, f.path, base.source)}
+        for f in problem.free
+    ]
 
 
 def gradient_row(problem: Problem, groups: Sequence[set[str]], x: Sequence[float]) -> PointResult:
@@ -86,18 +87,24 @@ def gradient_row(problem: Problem, groups: Sequence[set[str]], x: Sequence[float
                     d = p.v0_on_pieces if name == "v0" else getattr(p, name).value
                     total += math.nan if d is None else float(d)
             extra.append(total)
-    return PointResult(0, PointStatus.OK, v0=r.v0, v0_error_estimate=r.v0_error_estimate,
-                       displacement_per_period=r.displacement_per_period,
-                       dissipation_per_period=r.dissipation_per_period,
-                       cost_of_transport=r.cost_of_transport, integrator="exact",
-                       limit="newton", extra=tuple(extra))
+    return PointResult(
+        0,
+        PointStatus.OK,
+        v0=r.v0,
+        v0_error_estimate=r.v0_error_estimate,
+        displacement_per_period=r.displacement_per_period,
+        dissipation_per_period=r.dissipation_per_period,
+        cost_of_transport=r.cost_of_transport,
+        integrator="exact",
+        limit="newton",
+        extra=tuple(extra),
+    )
 
 
 def derivative(row: PointResult, name: str, n: int) -> np.ndarray:
     """d(name)/dx of a gradient row (zeros where it has none: a kink of that quantity)."""
     k = DERIVED.index(name)
-    values = np.array([math.nan if v is None else v for v in row.extra[k * n:(k + 1) * n]],
-                      dtype=float)
+    values = np.array([math.nan if v is None else v for v in row.extra[k * n : (k + 1) * n]], dtype=float)
     return np.nan_to_num(values, nan=0.0)
 
 
@@ -116,14 +123,13 @@ class Descent(Search):
         self.groups = parameter_groups(problem)
         try:
             starts = self._starts(problem.dimension)
-            for u0 in starts[:self.method.restarts]:
+            for u0 in starts[: self.method.restarts]:
                 self._local(u0)
-            self.stop = f"{min(len(starts), self.method.restarts)} quasi-Newton runs converged " \
-                        "or stalled" + (f" (differential evolution: {self.stop})"
-                                        if self.stop else "")
+            self.stop = f"{min(len(starts), self.method.restarts)} quasi-Newton runs converged or stalled" + (
+                f" (differential evolution: {self.stop})" if self.stop else ""
+            )
         except BudgetSpent:
-            self.stop = f"{BUDGET_SPENT} in the quasi-Newton runs" if self.best >= 0 else \
-                BUDGET_SPENT
+            self.stop = f"{BUDGET_SPENT} in the quasi-Newton runs" if self.best >= 0 else BUDGET_SPENT
         return self._finished()
 
     def _sample(self, n: int) -> np.ndarray:
@@ -139,15 +145,17 @@ class Descent(Search):
         most basins of a multimodal v0 unvisited in many dimensions (ten phase lags:
         scripts/optimize-gradient.py)."""
         problem = self.ev.problem
-        if self.init is None and self.method.sample ** n > SAMPLE_GRID:
+        if self.init is None and self.method.sample**n > SAMPLE_GRID:
             self._global(n)
-            evaluations = self.ev.evaluations[self.start:]
+            evaluations = self.ev.evaluations[self.start :]
         else:
-            X = np.asarray(self.init, dtype=float) if self.init is not None else \
-                np.array([problem.values(u) for u in self._sample(n)])
-            evaluations = self.evaluate(X[:max(self.left(), 1)], Stage.INITIAL)
-        ranked = sorted({e.index: e for e in evaluations if self.rank(e)[0] < 2}.values(),
-                        key=self.rank)
+            X = (
+                np.asarray(self.init, dtype=float)
+                if self.init is not None
+                else np.array([problem.values(u) for u in self._sample(n)])
+            )
+            evaluations = self.evaluate(X[: max(self.left(), 1)], Stage.INITIAL)
+        ranked = sorted({e.index: e for e in evaluations if self.rank(e)[0] < 2}.values(), key=self.rank)
         return [np.array([f.unit(v) for f, v in zip(problem.free, e.x)]) for e in ranked]
 
     def _point(self, u: np.ndarray, memo: dict[tuple[float, ...], Evaluation]) -> Evaluation:
@@ -158,8 +166,7 @@ class Descent(Search):
         if key not in memo:
             if self.left() < 1:
                 raise BudgetSpent
-            e = self.ev.evaluate_one(x, self.run, Stage.POLISH,
-                                     lambda k: gradient_row(problem, self.groups, k))
+            e = self.ev.evaluate_one(x, self.run, Stage.POLISH, lambda k: gradient_row(problem, self.groups, k))
             memo[key] = e
             before = self.best
             self.consider([e])
@@ -170,7 +177,8 @@ class Descent(Search):
     def _stalled(self, e: Evaluation, improved: bool) -> None:
         value = self.objective.energy(self.objective.value(e.row))
         better = math.isfinite(value) and value < self._local_best - STALL_IMPROVEMENT * max(
-            abs(self._local_best) if math.isfinite(self._local_best) else 0.0, 1e-300)
+            abs(self._local_best) if math.isfinite(self._local_best) else 0.0, 1e-300
+        )
         if better:
             self._local_best, self._since = value, 0
         else:
@@ -196,8 +204,7 @@ class Descent(Search):
 
         def fun(u: np.ndarray) -> tuple[float, np.ndarray]:
             value, grad = quantity(u, self.objective.quantity)
-            return self.objective.energy(value), (grad if self.objective.energy(1.0) > 0
-                                                   else -grad)
+            return self.objective.energy(value), (grad if self.objective.energy(1.0) > 0 else -grad)
 
         constraints = [_slsqp(c, quantity) for c in self.constraints]
         options: dict[str, Any] = {"maxiter": 200}
@@ -206,14 +213,20 @@ class Descent(Search):
         else:
             options.update(gtol=self.method.gradient_tol, ftol=1e-15)
         try:
-            minimize(fun, u0, jac=True, method="SLSQP" if constraints else "L-BFGS-B",
-                     bounds=[(0.0, 1.0)] * n, constraints=constraints, options=options)
+            minimize(
+                fun,
+                u0,
+                jac=True,
+                method="SLSQP" if constraints else "L-BFGS-B",
+                bounds=[(0.0, 1.0)] * n,
+                constraints=constraints,
+                options=options,
+            )
         except _LocalEnd:
             pass
 
 
-def _slsqp(c: Constraint, quantity: Callable[[np.ndarray, str], tuple[float, np.ndarray]]
-           ) -> dict[str, Any]:
+def _slsqp(c: Constraint, quantity: Callable[[np.ndarray, str], tuple[float, np.ndarray]]) -> dict[str, Any]:
     """A constraint as SLSQP takes it: ``fun(u) >= 0`` with its gradient."""
     sign = 1.0 if c.op == ">=" else -1.0
 

@@ -55,7 +55,7 @@ class Chunker:
         if self.seconds > 0:
             size = round(self.points / self.seconds * TASK_SECONDS)
         size = max(MIN_CHUNK, min(MAX_CHUNK, size, math.ceil(left / self.workers)))
-        chunk = self.todo[self.pos:self.pos + size]
+        chunk = self.todo[self.pos : self.pos + size]
         self.pos += len(chunk)
         return chunk
 
@@ -120,8 +120,9 @@ def run_local(grid, todo, jobs: int, collect, progress) -> None:
     workers = free_cores(jobs) if jobs > 1 and left else 1
     if worth_workers(left * each, workers, warm):
         with WorkerPool(workers) as pool:
-            run_on_pool(grid, chunker.todo[chunker.pos:], pool, collect, progress,
-                        rate=(len(second), each * len(second)))
+            run_on_pool(
+                grid, chunker.todo[chunker.pos :], pool, collect, progress, rate=(len(second), each * len(second))
+            )
     else:
         while (chunk := chunker.take()) is not None:
             _run_chunk(grid, chunk, chunker, collect, progress)
@@ -179,11 +180,13 @@ class WorkerPool:
             context.set_forkserver_preload(_PRELOAD)
         self.progress: Callable[[int], None] | None = None
         self._queue = context.SimpleQueue()
-        self._relay = threading.Thread(target=_relay, args=(self._queue, self._report),
-                                       name="crawlsim-relay", daemon=True)
+        self._relay = threading.Thread(
+            target=_relay, args=(self._queue, self._report), name="crawlsim-relay", daemon=True
+        )
         self._relay.start()
-        self.executor = ProcessPoolExecutor(self.jobs, mp_context=context,
-                                            initializer=_init_worker, initargs=(self._queue,))
+        self.executor = ProcessPoolExecutor(
+            self.jobs, mp_context=context, initializer=_init_worker, initargs=(self._queue,)
+        )
 
     def _report(self, k: int) -> None:
         if self.progress is not None:
@@ -210,8 +213,7 @@ class WorkerPool:
             self.close()
 
 
-def run_on_pool(grid, todo, pool: WorkerPool, collect, progress,
-                rate: tuple[int, float] = (0, 0.0)) -> None:
+def run_on_pool(grid, todo, pool: WorkerPool, collect, progress, rate: tuple[int, float] = (0, 0.0)) -> None:
     """The points ``todo`` on the workers of ``pool``, two tasks in flight per worker, sized at
     the measured ``rate`` (points, seconds) while the workers have reported none."""
     from concurrent.futures import FIRST_COMPLETED, wait
@@ -230,8 +232,8 @@ def run_on_pool(grid, todo, pool: WorkerPool, collect, progress,
         for _ in range(2 * pool.jobs):
             submit()
         _collect_as_ready(
-            pending, lambda fs: wait(fs, timeout=WAIT_SECONDS, return_when=FIRST_COMPLETED)[0],
-            chunker, collect, submit)  # the workers report progress through the relay
+            pending, lambda fs: wait(fs, timeout=WAIT_SECONDS, return_when=FIRST_COMPLETED)[0], chunker, collect, submit
+        )  # the workers report progress through the relay
     except BaseException:
         for fut in pending:
             fut.cancel()
@@ -239,8 +241,14 @@ def run_on_pool(grid, todo, pool: WorkerPool, collect, progress,
         raise
 
 
-def _collect_as_ready(pending: dict, ready_within: Callable[[list], Any], chunker: Chunker,
-                      collect, submit: Callable[[], None], progress=None) -> None:
+def _collect_as_ready(
+    pending: dict,
+    ready_within: Callable[[list], Any],
+    chunker: Chunker,
+    collect,
+    submit: Callable[[], None],
+    progress=None,
+) -> None:
     """Collect the tasks ``pending`` (future -> chunk) as they finish, submitting one more for
     each: ``ready_within(futures)`` returns those done within `WAIT_SECONDS` (perhaps none), and
     a Ctrl-C noted meanwhile, while this thread waited in another library's code, is raised
@@ -286,8 +294,9 @@ def check_scheduler(address: str) -> None:
     except (ValueError, TypeError):
         valid = False
     if not valid:
-        raise SweepSpecError(source, "", "expected the address of a Dask scheduler, "
-                                         "SCHEME://HOST:PORT such as tcp://127.0.0.1:8786")
+        raise SweepSpecError(
+            source, "", "expected the address of a Dask scheduler, SCHEME://HOST:PORT such as tcp://127.0.0.1:8786"
+        )
 
 
 def run_dask(grid, todo, scheduler, collect, progress) -> None:
@@ -296,14 +305,12 @@ def run_dask(grid, todo, scheduler, collect, progress) -> None:
     try:
         from distributed import Client, wait
     except ImportError:
-        raise SweepSpecError("--scheduler", "", "Dask is not installed: pip install "
-                                                "'crawlsim[dask]'") from None
+        raise SweepSpecError("--scheduler", "", "Dask is not installed: pip install 'crawlsim[dask]'") from None
     check_scheduler(scheduler)
     try:
         client = Client(scheduler, timeout=SCHEDULER_TIMEOUT)
     except OSError as exc:
-        raise SweepSpecError(f"--scheduler {scheduler}", "", f"cannot reach the Dask scheduler "
-                                                             f"({exc})") from None
+        raise SweepSpecError(f"--scheduler {scheduler}", "", f"cannot reach the Dask scheduler ({exc})") from None
     pending: dict = {}
     try:
         workers = _workers(client)
@@ -337,4 +344,3 @@ def _workers(client) -> int:
         return max(1, sum(client.nthreads().values()))
     except Exception:
         return 1
-

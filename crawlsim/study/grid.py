@@ -57,7 +57,7 @@ class Axis:
         return path_keys(self.path)
 
 
-_SPECS = ("START:STOP:NUM, log:LO:HI:NUM, [a,b,c] or a,b,c")
+_SPECS = "START:STOP:NUM, log:LO:HI:NUM, [a,b,c] or a,b,c"
 
 
 def parse_axis(text: str, option: str = "--sweep") -> Axis:
@@ -67,8 +67,9 @@ def parse_axis(text: str, option: str = "--sweep") -> Axis:
     path, sep, spec = text.partition("=")
     path, spec = path.strip(), spec.strip()
     if not sep or not path or not spec:
-        raise SweepSpecError(source, "", f"expected PATH=SPEC with SPEC one of {_SPECS}, for "
-                                         "example links.*.amplitude=0.1:0.4:7")
+        raise SweepSpecError(
+            source, "", f"expected PATH=SPEC with SPEC one of {_SPECS}, for example links.*.amplitude=0.1:0.4:7"
+        )
     if any(part == "" for part in path.split(".")):
         raise SweepSpecError(source, path, "empty key in the dotted path")
     if spec.startswith("[") or spec.endswith("]"):
@@ -78,8 +79,7 @@ def parse_axis(text: str, option: str = "--sweep") -> Axis:
     elif spec.lower().startswith("log:"):
         lo, hi, num = _range(spec[4:], source, path, "log:LO:HI:NUM")
         if not (lo > 0 and hi > 0):
-            raise SweepSpecError(source, path, f"log-spaced values need LO > 0 and HI > 0, got "
-                                               f"{spec!r}")
+            raise SweepSpecError(source, path, f"log-spaced values need LO > 0 and HI > 0, got {spec!r}")
         values = tuple(float(v) for v in np.geomspace(lo, hi, num))
         values = (lo, *values[1:-1], hi) if num > 1 else (lo,)  # both ends exactly as given
     elif ":" in spec:
@@ -99,13 +99,16 @@ def _range(spec: str, source: str, path: str, form: str) -> tuple[float, float, 
             raise ValueError
         start, stop, num = float(parts[0]), float(parts[1]), int(parts[2])
     except ValueError:
-        raise SweepSpecError(source, path, f"expected {form} with NUM an integer, got "
-                                           f"{spec!r}") from None
+        raise SweepSpecError(source, path, f"expected {form} with NUM an integer, got {spec!r}") from None
     if num < 1:
         raise SweepSpecError(source, path, f"NUM must be at least 1, got {num}")
     if num > MAX_AXIS_POINTS:
-        raise SweepSpecError(source, path, f"NUM must be at most {MAX_AXIS_POINTS:,}, got {num:,}; "
-                                           "a sweep that large would not finish: sweep fewer points")
+        raise SweepSpecError(
+            source,
+            path,
+            f"NUM must be at most {MAX_AXIS_POINTS:,}, got {num:,}; "
+            "a sweep that large would not finish: sweep fewer points",
+        )
     if not (math.isfinite(start) and math.isfinite(stop)):
         raise SweepSpecError(source, path, f"values must be finite numbers, got {spec!r}")
     return start, stop, num
@@ -115,8 +118,7 @@ def _list(text: str, source: str, path: str) -> tuple:
     try:
         return tuple(_number(v) for v in text.split(","))
     except ValueError:
-        raise SweepSpecError(source, path, f"expected a comma list of numbers, got {text!r}") \
-            from None
+        raise SweepSpecError(source, path, f"expected a comma list of numbers, got {text!r}") from None
 
 
 def _number(text: str):
@@ -146,9 +148,13 @@ class SweepGrid:
         if not self.dims:
             object.__setattr__(self, "dims", tuple(range(len(self.axes))))
         if self.size > MAX_AXIS_POINTS:
-            raise SweepSpecError("--sweep", "", f"the grid has {self.size:,} points (the product of "
-                                                f"its axes), more than {MAX_AXIS_POINTS:,}; a sweep "
-                                                "that large would not finish: sweep fewer points")
+            raise SweepSpecError(
+                "--sweep",
+                "",
+                f"the grid has {self.size:,} points (the product of "
+                f"its axes), more than {MAX_AXIS_POINTS:,}; a sweep "
+                "that large would not finish: sweep fewer points",
+            )
 
     @property
     def shape(self) -> tuple[int, ...]:
@@ -192,9 +198,9 @@ class SweepGrid:
 
     def gait(self, index: int) -> Gait:
         """Grid point ``index`` validated into a Gait (a GaitError names the point)."""
-        gait = gait_from_document(self.document(index), self.label(index),
-                                  source_text=self.base.source_text,
-                                  default_name=self.base.name)
+        gait = gait_from_document(
+            self.document(index), self.label(index), source_text=self.base.source_text, default_name=self.base.name
+        )
         assert isinstance(gait, Gait)  # the base is a crawler, and sweeps keep the kind
         return gait
 
@@ -236,12 +242,12 @@ def _group(item) -> tuple[Axis, ...]:
         items = list(item)
         if not items:
             raise SweepSpecError("--sweep", "", "an empty group of linked paths")
-    return tuple(a if isinstance(a, Axis) else parse_axis(a, "--sweep" if k == 0 else "--link")
-                 for k, a in enumerate(items))
+    return tuple(
+        a if isinstance(a, Axis) else parse_axis(a, "--sweep" if k == 0 else "--link") for k, a in enumerate(items)
+    )
 
 
-def make_grid(base: Gait, axes, quantities: Sequence[PointQuantity] = (),
-              sensitivity: Sequence[str] = ()) -> SweepGrid:
+def make_grid(base: Gait, axes, quantities: Sequence[PointQuantity] = (), sensitivity: Sequence[str] = ()) -> SweepGrid:
     """The grid of ``base`` over ``axes``: each item is one dimension, an `Axis` (or its
     ``PATH=SPEC`` text) or a sequence of them that vary together (linked paths, the same
     number of values each). Every path is checked against the base document; overlapping or
@@ -256,10 +262,13 @@ def make_grid(base: Gait, axes, quantities: Sequence[PointQuantity] = (),
     for d, group in enumerate(groups):
         for axis in group[1:]:
             if len(axis.values) != len(group[0].values):
-                raise SweepSpecError(f"--link {axis.path}", axis.path,
-                                     f"has {len(axis.values)} values, but the path it is linked "
-                                     f"to ({group[0].path}) has {len(group[0].values)}: linked "
-                                     "paths vary together and need the same number of values")
+                raise SweepSpecError(
+                    f"--link {axis.path}",
+                    axis.path,
+                    f"has {len(axis.values)} values, but the path it is linked "
+                    f"to ({group[0].path}) has {len(group[0].values)}: linked "
+                    "paths vary together and need the same number of values",
+                )
         flat.extend(group)
         dims.extend([d] * len(group))
     source = base.source
@@ -269,14 +278,15 @@ def make_grid(base: Gait, axes, quantities: Sequence[PointQuantity] = (),
         option = "--link" if k and dims[k] == dims[k - 1] else "--sweep"
         for key in keys:
             if key in seen:
-                raise GaitError(source, axis.path, f"this path sets {'.'.join(map(str, key))}, "
-                                                   f"which {seen[key]} sets too: sweep each "
-                                                   "value once")
+                raise GaitError(
+                    source,
+                    axis.path,
+                    f"this path sets {'.'.join(map(str, key))}, which {seen[key]} sets too: sweep each value once",
+                )
             seen[key] = f"{option} {axis.path}"
     from crawlsim.analysis.sensitivity_sweep import check_paths
 
-    return SweepGrid(base, tuple(flat), targets, tuple(dims), tuple(quantities),
-                     check_paths(base, sensitivity))
+    return SweepGrid(base, tuple(flat), targets, tuple(dims), tuple(quantities), check_paths(base, sensitivity))
 
 
 def parse_shard(text: str) -> tuple[int, int]:
@@ -286,8 +296,7 @@ def parse_shard(text: str) -> tuple[int, int]:
     except ValueError:
         raise SweepSpecError(f"--shard {text}", "", "expected I/N, for example 3/16") from None
     if not 1 <= i <= n:
-        raise SweepSpecError(f"--shard {text}", "", f"expected 1 <= I <= N, got I = {i}, "
-                                                    f"N = {n}")
+        raise SweepSpecError(f"--shard {text}", "", f"expected 1 <= I <= N, got I = {i}, N = {n}")
     return i, n
 
 
@@ -304,7 +313,8 @@ def check_some_point_runs(grid: SweepGrid) -> None:
         else:
             return
     if first is not None:
-        raise SweepSpecError(first.source, first.keypath,
-                             f"{first.message} (no point of the grid is a valid gait: "
-                             f"all {grid.size} are refused, this is the first)")
-
+        raise SweepSpecError(
+            first.source,
+            first.keypath,
+            f"{first.message} (no point of the grid is a valid gait: all {grid.size} are refused, this is the first)",
+        )

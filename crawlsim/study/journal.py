@@ -29,8 +29,14 @@ class Journal:
     ``interval`` seconds. A torn last line (a kill mid-write) is ignored on reading.
     """
 
-    def __init__(self, path: Path, fingerprint: str, *, interval: float | None = None,
-                 clock: Callable[[], float] = time.monotonic):
+    def __init__(
+        self,
+        path: Path,
+        fingerprint: str,
+        *,
+        interval: float | None = None,
+        clock: Callable[[], float] = time.monotonic,
+    ):
         self.path = Path(path)
         self.fingerprint = fingerprint
         self.interval = JOURNAL_SECONDS if interval is None else float(interval)
@@ -51,9 +57,13 @@ class Journal:
         if not stat.S_ISREG(mode):
             from crawlsim.io.outputs import special_kind
 
-            raise OutputError(str(self.path), "", f"is {special_kind(mode)}, not a regular file: "
-                                                  "the journal of a sweep must be a regular file; "
-                                                  "remove it, or choose another output name")
+            raise OutputError(
+                str(self.path),
+                "",
+                f"is {special_kind(mode)}, not a regular file: "
+                "the journal of a sweep must be a regular file; "
+                "remove it, or choose another output name",
+            )
 
     def load(self) -> dict[int, PointResult]:
         """Finished points of an earlier run of the same sweep ({} when there is none)."""
@@ -68,9 +78,13 @@ class Journal:
         except (json.JSONDecodeError, IndexError):
             header = {}
         if not isinstance(header, dict) or header.get("fingerprint") != self.fingerprint:
-            raise GaitError(str(self.path), "", "this journal belongs to a different sweep (other "
-                                                "gait, paths, values or shard); delete it to start "
-                                                "afresh, or rerun the sweep that wrote it")
+            raise GaitError(
+                str(self.path),
+                "",
+                "this journal belongs to a different sweep (other "
+                "gait, paths, values or shard); delete it to start "
+                "afresh, or rerun the sweep that wrote it",
+            )
         for line in lines[1:]:
             try:
                 row = PointResult.from_json(json.loads(line))
@@ -103,8 +117,9 @@ class Journal:
         except OSError as error:
             self._abandon()
             if error.errno in DISK_ERRORS:
-                raise disk_error(self.path, error, "the sweep stopped; the journal keeps the "
-                                                   "points written before") from None
+                raise disk_error(
+                    self.path, error, "the sweep stopped; the journal keeps the points written before"
+                ) from None
             raise
 
     def _abandon(self) -> None:
@@ -134,4 +149,3 @@ class Journal:
 
 def journal_path(output) -> Path:
     return Path(str(output) + ".journal")
-

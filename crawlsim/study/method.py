@@ -71,20 +71,22 @@ class Method:
 
     def __post_init__(self) -> None:
         if not 0 <= self.seed <= MAX_SEED:
-            raise SweepSpecError("--seed", "", f"expected an integer from 0 to 2**63 - 1 (the "
-                                               f"results file stores it as a 64-bit integer), "
-                                               f"got {self.seed}")
+            raise SweepSpecError(
+                "--seed",
+                "",
+                f"expected an integer from 0 to 2**63 - 1 (the "
+                f"results file stores it as a 64-bit integer), "
+                f"got {self.seed}",
+            )
         if self.max_evaluations is not None and self.max_evaluations < 1:
-            raise SweepSpecError("--max-evaluations", "", f"expected a positive number, got "
-                                                          f"{self.max_evaluations}")
+            raise SweepSpecError("--max-evaluations", "", f"expected a positive number, got {self.max_evaluations}")
         if self.front_points < 0:
             raise SweepSpecError("--front-points", "", "expected 0 or more")
         if self.search not in ("evolution", "gradient"):
             raise SweepSpecError("--method", self.search, "expected evolution or gradient")
 
     def budget(self, problem: Problem) -> int:
-        return self.max_evaluations or default_budget(problem.dimension, problem.pareto,
-                                                      self.front_points)
+        return self.max_evaluations or default_budget(problem.dimension, problem.pareto, self.front_points)
 
     def population(self, dimension: int) -> int:
         """SciPy's population size for ``latinhypercube`` and ``random`` initialisation."""
@@ -105,28 +107,40 @@ class Method:
 
     def settings(self) -> dict:
         if self.gradient:
-            return {"global": "grid of sample points per parameter, or "
-                              "scipy.optimize.differential_evolution when the grid would exceed "
-                              "sample_grid points",
-                    "sample_per_parameter": self.sample, "sample_grid": SAMPLE_GRID,
-                    "strategy": self.strategy, "popsize_per_parameter": self.popsize,
-                    "polish_share": self.polish_share,
-                    "local": "scipy.optimize.minimize: L-BFGS-B in the box, SLSQP with "
-                             "constraints; exact gradients (crawlsim.sensitivity)",
-                    "restarts": self.restarts, "gradient_tol": self.gradient_tol,
-                    "stall": self.stall,
-                    "constraints": "SLSQP on the constraints' exact gradients; a point that "
-                                   "does not run is infeasible",
-                    "front_points": self.front_points}
-        return {"global": "scipy.optimize.differential_evolution", "strategy": self.strategy,
-                "popsize_per_parameter": self.popsize, "mutation": list(self.mutation),
-                "recombination": self.recombination, "init": self.init, "tol": self.tol,
-                "updating": "deferred", "vectorized": True,
-                "constraints": "feasibility rules (Lampinen); a point that does not run is "
-                               "infeasible",
-                "polish": "pattern search, 2n rotated directions per poll (batched)",
-                "polish_share": self.polish_share, "polish_step": self.polish_step,
-                "polish_xtol": self.polish_xtol, "front_points": self.front_points}
+            return {
+                "global": "grid of sample points per parameter, or "
+                "scipy.optimize.differential_evolution when the grid would exceed "
+                "sample_grid points",
+                "sample_per_parameter": self.sample,
+                "sample_grid": SAMPLE_GRID,
+                "strategy": self.strategy,
+                "popsize_per_parameter": self.popsize,
+                "polish_share": self.polish_share,
+                "local": "scipy.optimize.minimize: L-BFGS-B in the box, SLSQP with "
+                "constraints; exact gradients (crawlsim.sensitivity)",
+                "restarts": self.restarts,
+                "gradient_tol": self.gradient_tol,
+                "stall": self.stall,
+                "constraints": "SLSQP on the constraints' exact gradients; a point that does not run is infeasible",
+                "front_points": self.front_points,
+            }
+        return {
+            "global": "scipy.optimize.differential_evolution",
+            "strategy": self.strategy,
+            "popsize_per_parameter": self.popsize,
+            "mutation": list(self.mutation),
+            "recombination": self.recombination,
+            "init": self.init,
+            "tol": self.tol,
+            "updating": "deferred",
+            "vectorized": True,
+            "constraints": "feasibility rules (Lampinen); a point that does not run is infeasible",
+            "polish": "pattern search, 2n rotated directions per poll (batched)",
+            "polish_share": self.polish_share,
+            "polish_step": self.polish_step,
+            "polish_xtol": self.polish_xtol,
+            "front_points": self.front_points,
+        }
 
     @property
     def name(self) -> str:
@@ -150,9 +164,13 @@ def default_search(problem: Problem, search: str | None = None) -> str:
     gait."""
     exact = problem.base.simulation.integrator == "exact"
     if search == "gradient" and not exact:
-        raise SweepSpecError("--method gradient", "", "the gradient search follows the exact "
-                                                      "integrator's sensitivities: use "
-                                                      "--integrator exact, or --method evolution")
+        raise SweepSpecError(
+            "--method gradient",
+            "",
+            "the gradient search follows the exact "
+            "integrator's sensitivities: use "
+            "--integrator exact, or --method evolution",
+        )
     if search is not None:
         return search
     plain = problem.objective.quantity == "v0" and problem.objective.sense == "maximize"

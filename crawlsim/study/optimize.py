@@ -102,16 +102,32 @@ from crawlsim.study.search import Evaluator, OptimizationInterrupted, Search
 # -- the driver -------------------------------------------------------------------------------
 def fingerprint(problem: Problem, method: Method, budget: int) -> str:
     """Identity of an optimisation (its journal is refused by any other)."""
-    spec = json.dumps(["optimize", problem.base.document, [f.text for f in problem.free],
-                       problem.objective.text, [c.text for c in problem.constraints],
-                       problem.pareto, method.identity(), budget], default=str)
+    spec = json.dumps(
+        [
+            "optimize",
+            problem.base.document,
+            [f.text for f in problem.free],
+            problem.objective.text,
+            [c.text for c in problem.constraints],
+            problem.pareto,
+            method.identity(),
+            budget,
+        ],
+        default=str,
+    )
     return hashlib.sha256(spec.encode()).hexdigest()
 
 
-def optimize(problem: Problem, method: Method | None = None, *, output: Path | str | None = None,
-             jobs: int = 1, scheduler: str | None = None,
-             progress: Callable[[int], None] | None = None,
-             report: Callable[[Batch], None] | None = None) -> OptimizationResult:
+def optimize(
+    problem: Problem,
+    method: Method | None = None,
+    *,
+    output: Path | str | None = None,
+    jobs: int = 1,
+    scheduler: str | None = None,
+    progress: Callable[[int], None] | None = None,
+    report: Callable[[Batch], None] | None = None,
+) -> OptimizationResult:
     """Solve ``problem``: the library entry point behind ``crawlsim optimize``.
 
     ``jobs`` and ``scheduler`` run each batch as `crawlsim.study.sweep.run_sweep` does. With
@@ -137,21 +153,25 @@ def optimize(problem: Problem, method: Method | None = None, *, output: Path | s
         try:
             book.load()
         except GaitError:
-            raise SweepSpecError(str(book.path), "", "this journal belongs to a different "
-                                                     "optimisation (other gait, parameters, "
-                                                     "objective, constraints, settings or "
-                                                     "seed); delete it to start afresh, or "
-                                                     "rerun the command that wrote it") from None
-    ev = Evaluator(problem, budget, jobs=jobs, scheduler=scheduler, journal=book,
-                    progress=progress, report=report)
+            raise SweepSpecError(
+                str(book.path),
+                "",
+                "this journal belongs to a different "
+                "optimisation (other gait, parameters, "
+                "objective, constraints, settings or "
+                "seed); delete it to start afresh, or "
+                "rerun the command that wrote it",
+            ) from None
+    ev = Evaluator(problem, budget, jobs=jobs, scheduler=scheduler, journal=book, progress=progress, report=report)
     try:
         if jobs > 1 and not scheduler:
             ev.pool = WorkerPool(jobs)
         if problem.pareto:
             runs = _pareto(ev, problem, method)
         else:
-            runs = [_runner(method)(ev, method, 0, problem.objective, problem.constraints,
-                                    budget, (method.seed, 0)).solve()]
+            runs = [
+                _runner(method)(ev, method, 0, problem.objective, problem.constraints, budget, (method.seed, 0)).solve()
+            ]
     except BaseException:
         if ev.pool is not None:
             ev.pool.stop()
@@ -175,8 +195,19 @@ def optimize(problem: Problem, method: Method | None = None, *, output: Path | s
             best = fastest(evaluations, problem.constraints)
     else:  # the least infeasible point of the first run, for the record
         best, ok = max(runs[0].best, 0), False
-    result = OptimizationResult(problem, method, budget, evaluations, history, tuple(runs), best,
-                                ok, front, time.perf_counter() - began, ev.computed)
+    result = OptimizationResult(
+        problem,
+        method,
+        budget,
+        evaluations,
+        history,
+        tuple(runs),
+        best,
+        ok,
+        front,
+        time.perf_counter() - began,
+        ev.computed,
+    )
     if book is not None:
         if ok and evaluations:
             from crawlsim.io.hdf5 import write_optimization
@@ -184,7 +215,6 @@ def optimize(problem: Problem, method: Method | None = None, *, output: Path | s
             write_optimization(output, result)
         book.remove()
     return result
-
 
 
 def _runner(method: Method) -> type[Search]:
@@ -204,10 +234,8 @@ def _pareto(ev: Evaluator, problem: Problem, method: Method) -> list[Run]:
     runs: list[Run] = []
     total = 2 + method.front_points
     share = ev.budget // total
-    runs.append(_runner(method)(ev, method, 0, Objective(), problem.constraints, share,
-                        (method.seed, 0)).solve())
-    runs.append(_runner(method)(ev, method, 1, cot, problem.constraints, share,
-                        (method.seed, 1)).solve())
+    runs.append(_runner(method)(ev, method, 0, Objective(), problem.constraints, share, (method.seed, 0)).solve())
+    runs.append(_runner(method)(ev, method, 1, cot, problem.constraints, share, (method.seed, 1)).solve())
     if not (runs[0].feasible and runs[1].feasible):
         return runs
     v_max = ev.evaluations[runs[0].best].row.v0
@@ -218,10 +246,12 @@ def _pareto(ev: Evaluator, problem: Problem, method: Method) -> list[Run]:
         eps = v_cheap + k * (v_max - v_cheap) / (method.front_points + 1)
         left = ev.remaining // (total - len(runs))
         constraints = (*problem.constraints, Constraint("v0", ">=", float(eps)))
-        init = _seed_population(ev, problem, method.population(n), constraints, cot,
-                                np.random.default_rng([method.seed, len(runs), 1]))
-        run = _runner(method)(ev, method, len(runs), cot, constraints, left, (method.seed, len(runs)),
-                      init=init).solve()
+        init = _seed_population(
+            ev, problem, method.population(n), constraints, cot, np.random.default_rng([method.seed, len(runs), 1])
+        )
+        run = _runner(method)(
+            ev, method, len(runs), cot, constraints, left, (method.seed, len(runs)), init=init
+        ).solve()
         runs.append(dataclasses.replace(run, epsilon=float(eps)))
     return runs
 
@@ -236,14 +266,18 @@ def fastest(evaluations: Sequence[Evaluation], constraints: Sequence[Constraint]
     return ok[k].index
 
 
-def _seed_population(ev: Evaluator, problem: Problem, size: int,
-                     constraints: tuple[Constraint, ...], objective: Objective,
-                     rng: np.random.Generator) -> np.ndarray:
+def _seed_population(
+    ev: Evaluator,
+    problem: Problem,
+    size: int,
+    constraints: tuple[Constraint, ...],
+    objective: Objective,
+    rng: np.random.Generator,
+) -> np.ndarray:
     """A first population for an epsilon-constraint run: the best evaluated points for it (the
     front found so far is among them), the rest drawn uniformly in the box (seeded)."""
-    ranked = sorted((e for e in ev.evaluations if e.runs),
-                    key=lambda e: rank(e.row, objective, constraints))
-    keep = [e.x for e in ranked[:size // 2]]
+    ranked = sorted((e for e in ev.evaluations if e.runs), key=lambda e: rank(e.row, objective, constraints))
+    keep = [e.x for e in ranked[: size // 2]]
     fresh = [problem.values(u) for u in rng.random((size - len(keep), problem.dimension))]
     return np.array(keep + fresh, dtype=float)
 
@@ -259,33 +293,70 @@ def _front(evaluations: Sequence[Evaluation], constraints: Sequence[Constraint])
     return tuple(ok[i].index for i in non_dominated(points))
 
 
-def _with_hypervolume(history: Sequence[Batch], evaluations: Sequence[Evaluation],
-                      constraints: Sequence[Constraint], front: Sequence[int]) -> tuple[Batch, ...]:
+def _with_hypervolume(
+    history: Sequence[Batch], evaluations: Sequence[Evaluation], constraints: Sequence[Constraint], front: Sequence[int]
+) -> tuple[Batch, ...]:
     """The history with the hypervolume of the front of the points evaluated so far, measured
     from the nadir of the final front (its smallest v0 and largest cost of transport)."""
     if len(front) < 2:
         return tuple(history)
-    final = np.array([[evaluations[i].row.v0, evaluations[i].row.cost_of_transport]
-                      for i in front], dtype=float)
+    final = np.array([[evaluations[i].row.v0, evaluations[i].row.cost_of_transport] for i in front], dtype=float)
     reference = (float(final[:, 0].min()), float(final[:, 1].max()))
     cot = Objective("cost_of_transport", Sense.MINIMIZE)
-    ok = np.array([feasible(e.row, cot, constraints) and e.row.v0 is not None
-                   for e in evaluations])
-    points = np.array([[e.row.v0 if e.row.v0 is not None else np.nan,
-                        e.row.cost_of_transport if e.row.cost_of_transport is not None
-                        else np.nan] for e in evaluations], dtype=float)
+    ok = np.array([feasible(e.row, cot, constraints) and e.row.v0 is not None for e in evaluations])
+    points = np.array(
+        [
+            [
+                e.row.v0 if e.row.v0 is not None else np.nan,
+                e.row.cost_of_transport if e.row.cost_of_transport is not None else np.nan,
+            ]
+            for e in evaluations
+        ],
+        dtype=float,
+    )
     out = []
     for b in history:
-        upto = ok[:b.evaluations]
-        out.append(dataclasses.replace(
-            b, hypervolume=hypervolume(points[:b.evaluations][upto], reference)))
+        upto = ok[: b.evaluations]
+        out.append(dataclasses.replace(b, hypervolume=hypervolume(points[: b.evaluations][upto], reference)))
     return tuple(out)
 
 
-__all__ = ["BUDGET_PER_DIMENSION", "BUDGET_SPENT", "FRONT_POINTS", "MAX_SEED", "NON_NEGATIVE",
-           "POLISH_SHARE", "POLISH_STEP", "POLISH_XTOL", "POPSIZE", "QUANTITIES", "Batch",
-           "Constraint", "Evaluation", "Evaluator", "Free", "InfeasibleError", "Method",
-           "Objective", "OptimizationInterrupted", "OptimizationResult", "Problem", "Run", "Sense",
-           "Stage", "check_constraints", "default_budget", "default_search", "feasible",
-           "fingerprint", "hypervolume", "infeasible_error", "make_problem", "non_dominated",
-           "optimize", "parse_constraint", "parse_free", "quantity"]
+__all__ = [
+    "BUDGET_PER_DIMENSION",
+    "BUDGET_SPENT",
+    "FRONT_POINTS",
+    "MAX_SEED",
+    "NON_NEGATIVE",
+    "POLISH_SHARE",
+    "POLISH_STEP",
+    "POLISH_XTOL",
+    "POPSIZE",
+    "QUANTITIES",
+    "Batch",
+    "Constraint",
+    "Evaluation",
+    "Evaluator",
+    "Free",
+    "InfeasibleError",
+    "Method",
+    "Objective",
+    "OptimizationInterrupted",
+    "OptimizationResult",
+    "Problem",
+    "Run",
+    "Sense",
+    "Stage",
+    "check_constraints",
+    "default_budget",
+    "default_search",
+    "feasible",
+    "fingerprint",
+    "hypervolume",
+    "infeasible_error",
+    "make_problem",
+    "non_dominated",
+    "optimize",
+    "parse_constraint",
+    "parse_free",
+    "quantity",
+]

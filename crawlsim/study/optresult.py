@@ -38,7 +38,6 @@ class Stage(StrEnum):
     POLISH = "polish"
 
 
-
 @dataclass(frozen=True)
 class Evaluation:
     """One evaluated point: its number in evaluation order, the free parameters, the run and
@@ -191,14 +190,15 @@ class OptimizationResult:
         what = self.runs[e.run].text
         if self.problem.pareto and e.index == self.best:
             what = f"the fastest gait of the Pareto front (found by {what})"
-        head = [f"# written by crawlsim optimize: {what}",
-                f"# from {self.problem.base.source}, evaluation {e.index} of "
-                f"{len(self.evaluations)}, seed {self.method.seed}",
-                f"# v0 = {e.row.v0!r}, cost_of_transport = {e.row.cost_of_transport!r}",
-                *(f"# {p} = {v!r}" for p, v in zip(self.problem.paths, e.x)),
-                f"# command: {command_line()}"]
-        return "\n".join(line.replace("\n", " ") for line in head) + "\n" + \
-            effective_yaml(self.problem.document(e.x))
+        head = [
+            f"# written by crawlsim optimize: {what}",
+            f"# from {self.problem.base.source}, evaluation {e.index} of "
+            f"{len(self.evaluations)}, seed {self.method.seed}",
+            f"# v0 = {e.row.v0!r}, cost_of_transport = {e.row.cost_of_transport!r}",
+            *(f"# {p} = {v!r}" for p, v in zip(self.problem.paths, e.x)),
+            f"# command: {command_line()}",
+        ]
+        return "\n".join(line.replace("\n", " ") for line in head) + "\n" + effective_yaml(self.problem.document(e.x))
 
     @classmethod
     def from_file(cls, path: Path | str) -> OptimizationResult:
@@ -216,29 +216,59 @@ class OptimizationResult:
         """The JSON-ready answer (``crawlsim optimize --json``)."""
         best = self.best_point
         out: dict[str, Any] = {
-            "name": self.problem.base.name, "objective": self.problem.objective.text,
+            "name": self.problem.base.name,
+            "objective": self.problem.objective.text,
             "pareto": self.problem.pareto,
             "constraints": [c.text for c in self.problem.constraints],
             "free": [{"path": f.path, "lo": f.lo, "hi": f.hi} for f in self.problem.free],
-            "best": self.best_values, "best_evaluation": best.index, "feasible": self.feasible,
+            "best": self.best_values,
+            "best_evaluation": best.index,
+            "feasible": self.feasible,
             "value": self.value,
-            **{name: getattr(best.row, name) for name in
-               ("v0", "v0_error_estimate", "displacement_per_period", "dissipation_per_period",
-                "cost_of_transport", "convergence", "periods", "integrator")},
-            "evaluations": len(self.evaluations), "budget": self.budget,
-            "computed": self.computed, "stages": self.stage_counts(), "statuses": self.counts(),
-            "method": self.method.name, "seed": self.method.seed,
-            "runs": [{"run": r.text, "best_evaluation": r.best, "evaluations": r.evaluations,
-                      "stop": r.stop, "out_of_budget": r.out_of_budget} for r in self.runs],
+            **{
+                name: getattr(best.row, name)
+                for name in (
+                    "v0",
+                    "v0_error_estimate",
+                    "displacement_per_period",
+                    "dissipation_per_period",
+                    "cost_of_transport",
+                    "convergence",
+                    "periods",
+                    "integrator",
+                )
+            },
+            "evaluations": len(self.evaluations),
+            "budget": self.budget,
+            "computed": self.computed,
+            "stages": self.stage_counts(),
+            "statuses": self.counts(),
+            "method": self.method.name,
+            "seed": self.method.seed,
+            "runs": [
+                {
+                    "run": r.text,
+                    "best_evaluation": r.best,
+                    "evaluations": r.evaluations,
+                    "stop": r.stop,
+                    "out_of_budget": r.out_of_budget,
+                }
+                for r in self.runs
+            ],
             "wall_time": self.wall_time,
         }
         if self.problem.pareto:
-            out["front"] = [{**dict(zip(self.problem.paths, self.evaluations[i].x)),
-                             "evaluation": i, "v0": self.evaluations[i].row.v0,
-                             "cost_of_transport": self.evaluations[i].row.cost_of_transport,
-                             "chosen": i in self.chosen} for i in self.front]
+            out["front"] = [
+                {
+                    **dict(zip(self.problem.paths, self.evaluations[i].x)),
+                    "evaluation": i,
+                    "v0": self.evaluations[i].row.v0,
+                    "cost_of_transport": self.evaluations[i].row.cost_of_transport,
+                    "chosen": i in self.chosen,
+                }
+                for i in self.front
+            ]
         return out
-
 
 
 def _result_of_file(data: dict[str, Any]) -> OptimizationResult:
@@ -249,16 +279,19 @@ def _result_of_file(data: dict[str, Any]) -> OptimizationResult:
     from crawlsim.study.problem import parse_constraint
 
     a = data["attrs"]
-    base = gait_from_document(load_yaml(a["gait_yaml"], a["source"]), a["source"],
-                              source_text=a.get("gait_file_text") or None,
-                              default_name=a["name"])
+    base = gait_from_document(
+        load_yaml(a["gait_yaml"], a["source"]),
+        a["source"],
+        source_text=a.get("gait_file_text") or None,
+        default_name=a["name"],
+    )
     assert isinstance(base, Gait)
     free = tuple(Free(f["path"], float(f["lo"]), float(f["hi"])) for f in data["free"])
     pareto = bool(a["pareto"])
     objective = Objective(a["objective_quantity"], Sense(a["objective_sense"]))
-    problem = Problem(base, free, objective,
-                      tuple(parse_constraint(c) for c in json.loads(a["constraints_json"])),
-                      pareto)
+    problem = Problem(
+        base, free, objective, tuple(parse_constraint(c) for c in json.loads(a["constraints_json"])), pareto
+    )
     stages = dict(STAGE_FLAGS)
     ev = data["evaluations"]
     names = [f["name"] for f in data["free"]]
@@ -267,36 +300,72 @@ def _result_of_file(data: dict[str, Any]) -> OptimizationResult:
         value = float(ev[column][n])
         return None if math.isnan(value) else value
 
-    evaluations = tuple(Evaluation(
-        n, tuple(float(ev[name][n]) for name in names), int(ev["run"][n]),
-        Stage(stages[int(ev["stage"][n])]), int(ev["batch"][n]),
-        PointResult(n, PointStatus(str(ev["status"][n])), v0=number("v0", n),
-                    v0_error_estimate=number("v0_error_estimate", n),
-                    displacement_per_period=number("displacement_per_period", n),
-                    dissipation_per_period=number("dissipation_per_period", n),
-                    cost_of_transport=number("cost_of_transport", n),
-                    convergence=str(ev["convergence"][n]), periods=int(ev["periods"][n]),
-                    integrator=str(ev["integrator"][n]), message=str(ev["message"][n]),
-                    steps=int(ev["steps"][n])))
-        for n in range(len(ev["run"])))
+    evaluations = tuple(
+        Evaluation(
+            n,
+            tuple(float(ev[name][n]) for name in names),
+            int(ev["run"][n]),
+            Stage(stages[int(ev["stage"][n])]),
+            int(ev["batch"][n]),
+            PointResult(
+                n,
+                PointStatus(str(ev["status"][n])),
+                v0=number("v0", n),
+                v0_error_estimate=number("v0_error_estimate", n),
+                displacement_per_period=number("displacement_per_period", n),
+                dissipation_per_period=number("dissipation_per_period", n),
+                cost_of_transport=number("cost_of_transport", n),
+                convergence=str(ev["convergence"][n]),
+                periods=int(ev["periods"][n]),
+                integrator=str(ev["integrator"][n]),
+                message=str(ev["message"][n]),
+                steps=int(ev["steps"][n]),
+            ),
+        )
+        for n in range(len(ev["run"]))
+    )
     hist = data["history"]
-    history = tuple(Batch(
-        int(hist["batch"][n]), int(hist["run"][n]), Stage(stages[int(hist["stage"][n])]),
-        int(hist["evaluations"][n]), float(hist["best"][n]), int(hist["best_evaluation"][n]),
-        bool(hist["feasible"][n]), float(hist["step"][n]),
-        float(hist["hypervolume"][n]) if "hypervolume" in hist else math.nan)
-        for n in range(len(hist["batch"])))
+    history = tuple(
+        Batch(
+            int(hist["batch"][n]),
+            int(hist["run"][n]),
+            Stage(stages[int(hist["stage"][n])]),
+            int(hist["evaluations"][n]),
+            float(hist["best"][n]),
+            int(hist["best_evaluation"][n]),
+            bool(hist["feasible"][n]),
+            float(hist["step"][n]),
+            float(hist["hypervolume"][n]) if "hypervolume" in hist else math.nan,
+        )
+        for n in range(len(hist["batch"]))
+    )
     r = data["runs"]
-    runs = tuple(Run(
-        int(r["run"][n]), _objective_of(str(r["objective"][n])),
-        tuple(parse_constraint(c) for c in str(r["constraints"][n]).split(", ") if c),
-        int(r["best_evaluation"][n]), bool(r["feasible"][n]), int(r["evaluations"][n]),
-        str(r["stop"][n]), float(r["epsilon"][n]))
-        for n in range(len(r["run"])))
+    runs = tuple(
+        Run(
+            int(r["run"][n]),
+            _objective_of(str(r["objective"][n])),
+            tuple(parse_constraint(c) for c in str(r["constraints"][n]).split(", ") if c),
+            int(r["best_evaluation"][n]),
+            bool(r["feasible"][n]),
+            int(r["evaluations"][n]),
+            str(r["stop"][n]),
+            float(r["epsilon"][n]),
+        )
+        for n in range(len(r["run"]))
+    )
     front = tuple(int(i) for i in data["front"]["evaluation"]) if "front" in data else ()
-    return OptimizationResult(problem, _method_of(a), int(a["max_evaluations"]), evaluations,
-                              history, runs, int(a["best_evaluation"]), bool(a["best_feasible"]),
-                              front, float(a["wall_time"]))
+    return OptimizationResult(
+        problem,
+        _method_of(a),
+        int(a["max_evaluations"]),
+        evaluations,
+        history,
+        runs,
+        int(a["best_evaluation"]),
+        bool(a["best_feasible"]),
+        front,
+        float(a["wall_time"]),
+    )
 
 
 def _objective_of(text: str) -> Objective:
@@ -311,20 +380,30 @@ def _method_of(attrs: dict[str, Any]) -> Method:
     settings = json.loads(attrs["method_json"])
     gradient = "sample_per_parameter" in settings
     fields: dict[str, Any] = {
-        "seed": int(attrs["seed"]), "max_evaluations": int(attrs["max_evaluations"]),
-        "search": "gradient" if gradient else "evolution", "strategy": settings["strategy"],
+        "seed": int(attrs["seed"]),
+        "max_evaluations": int(attrs["max_evaluations"]),
+        "search": "gradient" if gradient else "evolution",
+        "strategy": settings["strategy"],
         "popsize": int(settings["popsize_per_parameter"]),
         "polish_share": float(settings["polish_share"]),
-        "front_points": int(settings["front_points"])}
+        "front_points": int(settings["front_points"]),
+    }
     if gradient:
-        fields.update(sample=int(settings["sample_per_parameter"]),
-                      restarts=int(settings["restarts"]),
-                      gradient_tol=float(settings["gradient_tol"]), stall=int(settings["stall"]))
+        fields.update(
+            sample=int(settings["sample_per_parameter"]),
+            restarts=int(settings["restarts"]),
+            gradient_tol=float(settings["gradient_tol"]),
+            stall=int(settings["stall"]),
+        )
     else:
-        fields.update(mutation=tuple(float(m) for m in settings["mutation"]),
-                      recombination=float(settings["recombination"]), init=settings["init"],
-                      tol=float(settings["tol"]), polish_step=float(settings["polish_step"]),
-                      polish_xtol=float(settings["polish_xtol"]))
+        fields.update(
+            mutation=tuple(float(m) for m in settings["mutation"]),
+            recombination=float(settings["recombination"]),
+            init=settings["init"],
+            tol=float(settings["tol"]),
+            polish_step=float(settings["polish_step"]),
+            polish_xtol=float(settings["polish_xtol"]),
+        )
     return Method(**fields)
 
 
@@ -357,26 +436,28 @@ def hypervolume(points: np.ndarray, reference: tuple[float, float]) -> float:
     return float(area)
 
 
-
 def infeasible_error(problem: Problem, evaluations: Sequence[Evaluation]) -> InfeasibleError:
     """The error of a search in which no point satisfies the constraints: it names them and
     the closest point found."""
     runs = [e for e in evaluations if e.runs]
     if not runs:
         first = evaluations[0].row.message if evaluations else "nothing ran"
-        return InfeasibleError("--free", "", f"none of the {len(evaluations)} evaluated points "
-                                             f"ran (the first: {first})")
+        return InfeasibleError(
+            "--free", "", f"none of the {len(evaluations)} evaluated points ran (the first: {first})"
+        )
     if not problem.constraints:
-        return InfeasibleError(f"--{problem.objective.sense} {problem.objective.quantity}", "",
-                               f"no evaluated point has a value of {problem.objective.quantity} "
-                               "(the cost of transport needs net motion)")
+        return InfeasibleError(
+            f"--{problem.objective.sense} {problem.objective.quantity}",
+            "",
+            f"no evaluated point has a value of {problem.objective.quantity} (the cost of transport needs net motion)",
+        )
     what = " --subject-to ".join(repr(c.text) for c in problem.constraints)
     closest = min(runs, key=lambda e: sum(c.violation(e.row) for c in problem.constraints))
-    values = ", ".join(f"{c.quantity} = {getattr(closest.row, c.quantity)!r}"
-                       for c in problem.constraints)
-    return InfeasibleError(f"--subject-to {what}", "",
-                           f"no evaluated point satisfies the constraints ({len(evaluations)} "
-                           f"points; the closest, {problem.label(closest.x)}, has {values}); "
-                           "relax the constraints or widen the --free bounds")
-
-
+    values = ", ".join(f"{c.quantity} = {getattr(closest.row, c.quantity)!r}" for c in problem.constraints)
+    return InfeasibleError(
+        f"--subject-to {what}",
+        "",
+        f"no evaluated point satisfies the constraints ({len(evaluations)} "
+        f"points; the closest, {problem.label(closest.x)}, has {values}); "
+        "relax the constraints or widen the --free bounds",
+    )

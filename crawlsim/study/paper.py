@@ -79,9 +79,14 @@ class Check:
 # Example documents
 
 
-def acute_angle_document(alpha: float = 1.0, period: float = 1.0, start: float = 0.1,
-                         beta: float | None = None, steps: int = 64,
-                         max_periods: int = 400) -> dict:
+def acute_angle_document(
+    alpha: float = 1.0,
+    period: float = 1.0,
+    start: float = 0.1,
+    beta: float | None = None,
+    steps: int = 64,
+    max_periods: int = 400,
+) -> dict:
     """The process of Section 5.2 with the corrected l(t) (docs/model.md, Correction 2).
 
     C0 = {0 <= z2 <= alpha z1, z1 <= beta} has rows b = (0, -1), (-alpha, 1), (1, 0) with
@@ -123,8 +128,14 @@ def triangle_vertices(side: float = 1.0) -> np.ndarray:
     return np.array([[-side / 2, -r], [side / 2, -r], [0.0, 2 * r]])
 
 
-def triangle_document(alpha: float = 3.0, period: float = 1.0, side: float = 1.0,
-                      start=(0.1, 0.05), steps: int = 60, max_periods: int = 100) -> dict:
+def triangle_document(
+    alpha: float = 3.0,
+    period: float = 1.0,
+    side: float = 1.0,
+    start=(0.1, 0.05),
+    steps: int = 60,
+    max_periods: int = 100,
+) -> dict:
     """The process of Section 5.3 as a moving set C(t) = PQR - F(t).
 
     PQR = {z : <nu_i, z> <= r} (r the inradius), so z in C(t) iff <nu_i, z> <= r - <nu_i, F(t)>.
@@ -142,11 +153,10 @@ def triangle_document(alpha: float = 3.0, period: float = 1.0, side: float = 1.0
         "kind": "sweeping-process",
         "name": "equilateral-triangle",
         "description": f"paper Section 5.3: equilateral triangle of side {side:g} swept by "
-                       f"f = alpha nu_k on each third, alpha = {alpha:g}, T = {period:g}",
+        f"f = alpha nu_k on each third, alpha = {alpha:g}, T = {period:g}",
         "period": period,
         "normals": _NU.tolist(),
-        "offsets": [{"kind": "piecewise-linear", "times": knots, "values": [r - s for s in shift]}
-                    for shift in shifts],
+        "offsets": [{"kind": "piecewise-linear", "times": knots, "values": [r - s for s in shift]} for shift in shifts],
         "initial": [float(x) for x in start],
         "simulation": {"steps_per_period": steps, "max_periods": max_periods, "tolerance": 1e-12},
     }
@@ -209,14 +219,14 @@ def _exact_available() -> bool:
 # Theorem th:1dim / Corollary cor:cell
 
 
-def cell_checks(path: Path | None = None, starts=None, steps: int | None = None,
-                periods: int = 4) -> list[Check]:
+def cell_checks(path: Path | None = None, starts=None, steps: int | None = None, periods: int = 4) -> list[Check]:
     """Periodic after one period from several starts: every later period's trajectory equals
     period 1's (sup distance 0), while period 0 moved the point; `crawlsim run` calls it
     finite-time from period 1 at the latest."""
     spec = _steps(load_gait(path or PAPER_GAITS / "cell-3.yaml"), steps)
-    starts = starts if starts is not None else [spec.initial.tolist(), [0.1, -0.9, 0.0],
-                                                [0.45, 0.9, -0.5], [0.35, 0.0, 0.5]]
+    starts = (
+        starts if starts is not None else [spec.initial.tolist(), [0.1, -0.9, 0.0], [0.45, 0.9, -0.5], [0.35, 0.0, 0.5]]
+    )
     rows = []
     for start in starts:
         started = _with(spec, initial=list(start))
@@ -225,17 +235,20 @@ def cell_checks(path: Path | None = None, starts=None, steps: int | None = None,
         later = max(float(np.max(np.abs(r.w - records[1].w))) for r in records[2:])
         result = run(started)
         verdict = result.periodic_from is not None and result.periodic_from <= 1
-        rows.append(Check(
-            f"cor:cell ({spec.name}, z(0) = {_vec(start)}): T-periodic on [T, oo)",
-            f"|z(T) - z(0)| = {moved:.3g}; sup |z(t + qT) - z(t + T)| over periods q = "
-            f"2..{periods - 1} = {later:.3g}; crawlsim run: {result.convergence} from period "
-            f"{result.periodic_from}",
-            later + (0.0 if verdict else math.inf), ROUNDOFF_MATCH * _size(result)))
+        rows.append(
+            Check(
+                f"cor:cell ({spec.name}, z(0) = {_vec(start)}): T-periodic on [T, oo)",
+                f"|z(T) - z(0)| = {moved:.3g}; sup |z(t + qT) - z(t + T)| over periods q = "
+                f"2..{periods - 1} = {later:.3g}; crawlsim run: {result.convergence} from period "
+                f"{result.periodic_from}",
+                later + (0.0 if verdict else math.inf),
+                ROUNDOFF_MATCH * _size(result),
+            )
+        )
     return rows
 
 
-def two_block_checks(path: Path | None = None, shapes=(1.2, 1.25, 1.3, 1.4),
-                     steps: int | None = None) -> list[Check]:
+def two_block_checks(path: Path | None = None, shapes=(1.2, 1.25, 1.3, 1.4), steps: int | None = None) -> list[Check]:
     """Theorem th:1dim for a two-block crawler (one link): periodic from T for several starts,
     given as the initial link length z = x2 - x1 (admissible: |k (L(0) - z)| within friction)."""
     gait = _steps(load_gait(path or PAPER_GAITS.parent / "inching-2.yaml"), steps)
@@ -244,13 +257,16 @@ def two_block_checks(path: Path | None = None, shapes=(1.2, 1.25, 1.3, 1.4),
         result = run(_with(gait, initial={"positions": [0.0, float(z)]}))
         steps_ = result.history.poincare_step
         error = float(steps_[1]) if len(steps_) > 1 else 0.0
-        rows.append(Check(
-            f"th:1dim ({gait.name}, two blocks, z(0) = {z:g}): periodic from T",
-            f"|w(T) - w(0)| = {steps_[0]:.3g}, |w(2T) - w(T)| = {error:.3g}; "
-            f"{result.convergence} from period "
-            f"{result.periodic_from}; v0 = {result.v0:.12g}",
-            error + (0.0 if result.periodic_from is not None and result.periodic_from <= 1
-                     else math.inf), ROUNDOFF_MATCH * _size(result)))
+        rows.append(
+            Check(
+                f"th:1dim ({gait.name}, two blocks, z(0) = {z:g}): periodic from T",
+                f"|w(T) - w(0)| = {steps_[0]:.3g}, |w(2T) - w(T)| = {error:.3g}; "
+                f"{result.convergence} from period "
+                f"{result.periodic_from}; v0 = {result.v0:.12g}",
+                error + (0.0 if result.periodic_from is not None and result.periodic_from <= 1 else math.inf),
+                ROUNDOFF_MATCH * _size(result),
+            )
+        )
     return rows
 
 
@@ -258,18 +274,23 @@ def two_block_checks(path: Path | None = None, shapes=(1.2, 1.25, 1.3, 1.4),
 # Section 5.2: the acute angle
 
 
-def acute_angle_iterates(alpha: float, start: float, periods: int, period: float = 1.0,
-                         steps: int = 64, integrator: str = "catch-up") -> np.ndarray:
+def acute_angle_iterates(
+    alpha: float, start: float, periods: int, period: float = 1.0, steps: int = 64, integrator: str = "catch-up"
+) -> np.ndarray:
     """z(qT), q = 0..periods, computed by crawlsim (shape (periods + 1, 2))."""
-    spec = gait_from_document(acute_angle_document(alpha, period, start, steps=steps),
-                              "<acute-angle>")
+    spec = gait_from_document(acute_angle_document(alpha, period, start, steps=steps), "<acute-angle>")
     records = _periods(spec, periods, integrator)
     return np.vstack([records[0].w[0]] + [r.w[-1] for r in records])
 
 
-def acute_angle_checks(alphas=(0.5, 1.0, 2.0), fractions=(0.0, 0.4, 0.9, 1.5),
-                       periods: int = 12, period: float = 1.0, steps: int = 64,
-                       integrator: str = "catch-up") -> list[Check]:
+def acute_angle_checks(
+    alphas=(0.5, 1.0, 2.0),
+    fractions=(0.0, 0.4, 0.9, 1.5),
+    periods: int = 12,
+    period: float = 1.0,
+    steps: int = 64,
+    integrator: str = "catch-up",
+) -> list[Check]:
     """Iterate by iterate against the paper's map, for several alpha and starts z1 = f gamma
     (f >= 1: a fixed point), and the contraction rate 1/(1 + alpha^2)."""
     rows = []
@@ -284,12 +305,16 @@ def acute_angle_checks(alphas=(0.5, 1.0, 2.0), fractions=(0.0, 0.4, 0.9, 1.5),
             worst = max(worst, float(np.max(np.abs(z[:, 0] - expected))))
             worst_z2 = max(worst_z2, float(np.max(np.abs(z[:, 1]))))
         label = "" if integrator == "catch-up" else f" [integrator {integrator}]"
-        rows.append(Check(
-            f"acute angle alpha = {alpha:g}, T = {period:g}{label}: z1(qT) = P^q(z1(0)) with "
-            f"P(z1) = (alpha^2 gamma + z1)/(alpha^2 + 1), z2(qT) = 0; {periods} iterates from "
-            f"z1(0)/gamma = {', '.join(f'{f:g}' for f in fractions)}",
-            f"max |z1 - P^q| = {worst:.2g}, max |z2| = {worst_z2:.2g}",
-            max(worst, worst_z2), ROUNDOFF_MATCH * max(gamma, 1.0)))
+        rows.append(
+            Check(
+                f"acute angle alpha = {alpha:g}, T = {period:g}{label}: z1(qT) = P^q(z1(0)) with "
+                f"P(z1) = (alpha^2 gamma + z1)/(alpha^2 + 1), z2(qT) = 0; {periods} iterates from "
+                f"z1(0)/gamma = {', '.join(f'{f:g}' for f in fractions)}",
+                f"max |z1 - P^q| = {worst:.2g}, max |z2| = {worst_z2:.2g}",
+                max(worst, worst_z2),
+                ROUNDOFF_MATCH * max(gamma, 1.0),
+            )
+        )
         if integrator != "catch-up":
             continue
         result = acute_angle_run(alpha, 0.0, period, steps)
@@ -297,26 +322,31 @@ def acute_angle_checks(alphas=(0.5, 1.0, 2.0), fractions=(0.0, 0.4, 0.9, 1.5),
         usable = poincare[poincare > 1e-6 * poincare[0]]
         ratios = usable[1:] / usable[:-1]
         rate = 1 / (1 + alpha**2)
-        rows.append(Check(
-            f"acute angle alpha = {alpha:g}: the Poincare step contracts by 1/(1 + alpha^2) = "
-            f"{rate:.6g} per period (z1(0) = 0)",
-            f"ratios of successive Poincare steps {np.min(ratios):.12g}..{np.max(ratios):.12g} "
-            f"({len(ratios)} periods)",
-            float(np.max(np.abs(ratios - rate))), 1e-8))
+        rows.append(
+            Check(
+                f"acute angle alpha = {alpha:g}: the Poincare step contracts by 1/(1 + alpha^2) = "
+                f"{rate:.6g} per period (z1(0) = 0)",
+                f"ratios of successive Poincare steps {np.min(ratios):.12g}..{np.max(ratios):.12g} "
+                f"({len(ratios)} periods)",
+                float(np.max(np.abs(ratios - rate))),
+                1e-8,
+            )
+        )
         fitted = result.contraction_rate
-        rows.append(Check(
-            f"acute angle alpha = {alpha:g}: convergence is asymptotic only, rate {rate:.6g}",
-            f"crawlsim run: {result.convergence} after {result.periods} periods, reported "
-            f"contraction rate {_num(fitted)}",
-            (math.inf if fitted is None or result.convergence != "asymptotic"
-             else abs(fitted - rate) / rate), 1e-3))
+        rows.append(
+            Check(
+                f"acute angle alpha = {alpha:g}: convergence is asymptotic only, rate {rate:.6g}",
+                f"crawlsim run: {result.convergence} after {result.periods} periods, reported "
+                f"contraction rate {_num(fitted)}",
+                (math.inf if fitted is None or result.convergence != "asymptotic" else abs(fitted - rate) / rate),
+                1e-3,
+            )
+        )
     return rows
 
 
-def acute_angle_run(alpha: float, start: float = 0.0, period: float = 1.0,
-                    steps: int = 64) -> RunResult:
-    spec = gait_from_document(acute_angle_document(alpha, period, start, steps=steps),
-                              "<acute-angle>")
+def acute_angle_run(alpha: float, start: float = 0.0, period: float = 1.0, steps: int = 64) -> RunResult:
+    spec = gait_from_document(acute_angle_document(alpha, period, start, steps=steps), "<acute-angle>")
     return run(spec)
 
 
@@ -324,8 +354,9 @@ def acute_angle_run(alpha: float, start: float = 0.0, period: float = 1.0,
 # Section 5.3: the triangle
 
 
-def triangle_edges(spec: ProcessSpec, periods: int, alpha: float, side: float = 1.0,
-                   integrator: str = "catch-up") -> np.ndarray:
+def triangle_edges(
+    spec: ProcessSpec, periods: int, alpha: float, side: float = 1.0, integrator: str = "catch-up"
+) -> np.ndarray:
     """Arc parameters and distances on the edge reached at the end of each third:
     rows (s, distance) at T/3 on PQ, 2T/3 on QR, T on RP, then the next period..."""
     records = _periods(spec, periods, integrator)
@@ -340,19 +371,18 @@ def triangle_edges(spec: ProcessSpec, periods: int, alpha: float, side: float = 
     return np.array(out)
 
 
-def triangle_checks(path: Path | None = None, starts=None, periods: int = 10,
-                    steps: int | None = None, integrator: str = "catch-up") -> list[Check]:
+def triangle_checks(
+    path: Path | None = None, starts=None, periods: int = 10, steps: int | None = None, integrator: str = "catch-up"
+) -> list[Check]:
     """phi on every third, the 1/8 contraction of phi^3 and its unique fixed point 1/3."""
     spec = _steps(load_gait(path or PAPER_GAITS / "triangle.yaml"), steps)
     alpha = _triangle_alpha(spec)
-    starts = starts if starts is not None else [spec.initial.tolist(), [-0.3, -0.2],
-                                                [0.0, 0.5], [0.45, -0.25]]
+    starts = starts if starts is not None else [spec.initial.tolist(), [-0.3, -0.2], [0.0, 0.5], [0.45, -0.25]]
     label = "" if integrator == "catch-up" else f" [integrator {integrator}]"
     phi_error, on_edge, contraction = 0.0, 0.0, 0.0
     ratios = []
     for start in starts:
-        edges = triangle_edges(_with(spec, initial=list(start)), periods, alpha,
-                               integrator=integrator)
+        edges = triangle_edges(_with(spec, initial=list(start)), periods, alpha, integrator=integrator)
         s = edges[:, 0]
         on_edge = max(on_edge, float(np.max(np.abs(edges[:, 1]))))
         phi_error = max(phi_error, float(np.max(np.abs(s[1:] - phi(s[:-1])))))
@@ -364,13 +394,19 @@ def triangle_checks(path: Path | None = None, starts=None, periods: int = 10,
             ratios.extend(r.tolist())
             contraction = max(contraction, float(np.max(np.abs(r - 1 / 8))))
     rows = [
-        Check(f"triangle{label}: edge map phi(s) = (1 - s)/2 at every third, the point on the "
-              f"edge ({len(starts)} starts, {periods} periods)",
-              f"max |s' - phi(s)| = {phi_error:.2g}, max distance to the edge = {on_edge:.2g}",
-              max(phi_error, on_edge), ROUNDOFF_MATCH),
-        Check(f"triangle{label}: one period is phi^3, |s - 1/3| contracts by 1/8",
-              f"ratios {min(ratios):.12g}..{max(ratios):.12g} ({len(ratios)} periods)",
-              contraction, 1e-8),
+        Check(
+            f"triangle{label}: edge map phi(s) = (1 - s)/2 at every third, the point on the "
+            f"edge ({len(starts)} starts, {periods} periods)",
+            f"max |s' - phi(s)| = {phi_error:.2g}, max distance to the edge = {on_edge:.2g}",
+            max(phi_error, on_edge),
+            ROUNDOFF_MATCH,
+        ),
+        Check(
+            f"triangle{label}: one period is phi^3, |s - 1/3| contracts by 1/8",
+            f"ratios {min(ratios):.12g}..{max(ratios):.12g} ({len(ratios)} periods)",
+            contraction,
+            1e-8,
+        ),
     ]
     if integrator != "catch-up":
         return rows
@@ -382,13 +418,16 @@ def triangle_checks(path: Path | None = None, starts=None, periods: int = 10,
         rate = result.contraction_rate
     s_limit = edge_parameter(limits[0], 2)[0]
     spread = float(max(np.linalg.norm(w - limits[0]) for w in limits))
-    rows.append(Check(
-        "triangle: phi^3 has the unique fixed point s = 1/3; every start converges to it, only "
-        "asymptotically",
-        f"limit s on RP = {s_limit:.15g} (|s - 1/3| = {abs(s_limit - 1 / 3):.2g}), spread of "
-        f"the limits over starts = {spread:.2g}; fitted rate {_num(rate)}; all asymptotic: "
-        f"{converged}",
-        max(abs(s_limit - 1 / 3), spread) + (0.0 if converged else math.inf), 1e-10))
+    rows.append(
+        Check(
+            "triangle: phi^3 has the unique fixed point s = 1/3; every start converges to it, only asymptotically",
+            f"limit s on RP = {s_limit:.15g} (|s - 1/3| = {abs(s_limit - 1 / 3):.2g}), spread of "
+            f"the limits over starts = {spread:.2g}; fitted rate {_num(rate)}; all asymptotic: "
+            f"{converged}",
+            max(abs(s_limit - 1 / 3), spread) + (0.0 if converged else math.inf),
+            1e-10,
+        )
+    )
     return rows
 
 
@@ -437,13 +476,11 @@ def w12_distances(records, times: np.ndarray) -> np.ndarray:
     return np.array(out)
 
 
-def speed_checks(path: Path | None = None, count: int = 4, steps: int | None = None,
-                 periods: int = 6) -> list[Check]:
+def speed_checks(path: Path | None = None, count: int = 4, steps: int | None = None, periods: int = 6) -> list[Check]:
     """Theorem th:speed: one v0 from several starts; the periods converge in W^{1,2}; the limit
     periods from different starts share their derivative."""
     gait = _steps(load_gait(path or PAPER_GAITS / "speed-peristalsis-4.yaml"), steps)
-    results = [run(_with(gait, initial={"positions": x.tolist()}))
-               for x in admissible_starts(gait, count)]
+    results = [run(_with(gait, initial={"positions": x.tolist()})) for x in admissible_starts(gait, count)]
     v0 = np.array([r.v0 for r in results])
     bound = max(max(r.v0_error_estimate or 0.0 for r in results), ROUNDOFF_MATCH * np.max(np.abs(v0)))
     spread = float(np.ptp(v0))
@@ -452,23 +489,33 @@ def speed_checks(path: Path | None = None, count: int = 4, steps: int | None = N
     derivative = max(math.sqrt(float(np.sum(np.sum((d - dw[0]) ** 2, axis=1) / h))) for d in dw)
     scale = math.sqrt(float(np.sum(np.sum(dw[0] ** 2, axis=1) / h)))
     times = compile(gait).times
-    distances = np.array([w12_distances(_periods(_with(gait, initial={"positions": x.tolist()}),
-                                                 periods), times)
-                          for x in admissible_starts(gait, count)])  # (starts, periods)
+    distances = np.array(
+        [
+            w12_distances(_periods(_with(gait, initial={"positions": x.tolist()}), periods), times)
+            for x in admissible_starts(gait, count)
+        ]
+    )  # (starts, periods)
     tail = float(np.max(distances[:, -2]))
     shown = ", ".join(f"{d:.3g}" for d in np.max(distances, axis=0))
     return [
-        Check(f"th:speed ({gait.name}): v0 does not depend on the start ({count} admissible "
-              "starts)",
-              f"v0 = {', '.join(f'{v:.12g}' for v in v0)}; spread {spread:.2g} (error "
-              f"estimate {bound:.2g})", spread, 2 * bound + ROUNDOFF_MATCH * np.max(np.abs(v0))),
-        Check(f"th:speed ({gait.name}): w(. + qT) converges in W^{{1,2}}(0, T)",
-              f"W12 distance of periods q = 0..{periods - 1} to period {periods - 1}, worst over "
-              f"the starts: {shown}", tail,
-              ROUNDOFF_MATCH * max(float(np.max(distances[:, 0])), 1.0)),
-        Check(f"th:speed ({gait.name}): all periodic solutions share one derivative",
-              f"max ||d/dt (wbar_i - wbar_0)||_L2 = {derivative:.2g} (||d/dt wbar_0||_L2 = "
-              f"{scale:.3g})", derivative, 1e-9 * max(scale, 1.0)),
+        Check(
+            f"th:speed ({gait.name}): v0 does not depend on the start ({count} admissible starts)",
+            f"v0 = {', '.join(f'{v:.12g}' for v in v0)}; spread {spread:.2g} (error estimate {bound:.2g})",
+            spread,
+            2 * bound + ROUNDOFF_MATCH * np.max(np.abs(v0)),
+        ),
+        Check(
+            f"th:speed ({gait.name}): w(. + qT) converges in W^{{1,2}}(0, T)",
+            f"W12 distance of periods q = 0..{periods - 1} to period {periods - 1}, worst over the starts: {shown}",
+            tail,
+            ROUNDOFF_MATCH * max(float(np.max(distances[:, 0])), 1.0),
+        ),
+        Check(
+            f"th:speed ({gait.name}): all periodic solutions share one derivative",
+            f"max ||d/dt (wbar_i - wbar_0)||_L2 = {derivative:.2g} (||d/dt wbar_0||_L2 = {scale:.3g})",
+            derivative,
+            1e-9 * max(scale, 1.0),
+        ),
     ]
 
 
@@ -502,8 +549,9 @@ def format_table(rows: list[Check]) -> str:
     lines.append("")
     lines.append(f"{passed} of {len(rows)} checks pass.")
     if not _exact_available():
-        lines.append("The event-driven integrator (`integrator: exact`) is not available; its "
-                     "comparison rows were skipped.")
+        lines.append(
+            "The event-driven integrator (`integrator: exact`) is not available; its comparison rows were skipped."
+        )
     return "\n".join(lines)
 
 
@@ -524,10 +572,12 @@ def main(argv=None) -> int:
 
     parser = argparse.ArgumentParser(
         prog="python -m crawlsim.study.paper",
-        description="Reproduce the paper's Section 5 and Theorem th:speed; print the table.")
+        description="Reproduce the paper's Section 5 and Theorem th:speed; print the table.",
+    )
     parser.add_argument("--quick", action="store_true", help="coarser grids (seconds)")
-    parser.add_argument("--gaits", type=Path, default=PAPER_GAITS,
-                        help="folder of the paper's example files (default: gaits/paper)")
+    parser.add_argument(
+        "--gaits", type=Path, default=PAPER_GAITS, help="folder of the paper's example files (default: gaits/paper)"
+    )
     args = parser.parse_args(argv)
     rows = all_checks(quick=args.quick, folder=args.gaits)
     print(format_table(rows))

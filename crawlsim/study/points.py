@@ -75,13 +75,26 @@ class PointResult:
     @classmethod
     def from_json(cls, row: dict) -> PointResult:
         """A journal line (older journals lack the later columns: they stay missing)."""
-        return cls(**{k: v for k, v in row.items()
-                      if k in (*_POINT_FIELDS, "extra", "derivatives")})
+        return cls(**{k: v for k, v in row.items() if k in (*_POINT_FIELDS, "extra", "derivatives")})
 
 
-_POINT_FIELDS = ("index", "status", "v0", "v0_error_estimate", "displacement_per_period",
-                 "dissipation_per_period", "cost_of_transport", "convergence", "periods",
-                 "integrator", "message", "steps", "limit", "newton_steps")
+_POINT_FIELDS = (
+    "index",
+    "status",
+    "v0",
+    "v0_error_estimate",
+    "displacement_per_period",
+    "dissipation_per_period",
+    "cost_of_transport",
+    "convergence",
+    "periods",
+    "integrator",
+    "message",
+    "steps",
+    "limit",
+    "newton_steps",
+)
+
 
 def _failure(index: int, exc: BaseException) -> PointResult:
     """An invalid point (bad input: exit code 2 for a single run) or a failed one."""
@@ -89,7 +102,6 @@ def _failure(index: int, exc: BaseException) -> PointResult:
         return PointResult(int(index), PointStatus.INVALID, message=str(exc))
     text = str(exc) if isinstance(exc, CrawlsimError) else f"{type(exc).__name__}: {exc}"
     return PointResult(int(index), PointStatus.FAILED, message=text)
-
 
 
 def run_points(grid: SweepGrid, indices, *, capacity=None, progress=None) -> list[PointResult]:
@@ -109,8 +121,14 @@ def run_points(grid: SweepGrid, indices, *, capacity=None, progress=None) -> lis
                 progress(1)
     if valid:
         runs: dict | None = {} if grid.sensitivity else None  # their limits, for derivatives
-        for row in evaluate([g for _, g in valid], [i for i, _ in valid], capacity=capacity,
-                            progress=progress, quantities=grid.quantities, runs=runs):
+        for row in evaluate(
+            [g for _, g in valid],
+            [i for i, _ in valid],
+            capacity=capacity,
+            progress=progress,
+            quantities=grid.quantities,
+            runs=runs,
+        ):
             rows[row.index] = row
         if runs is not None:
             from crawlsim.analysis.sensitivity_sweep import with_derivatives
@@ -122,8 +140,9 @@ def run_points(grid: SweepGrid, indices, *, capacity=None, progress=None) -> lis
 _Member = tuple[int, Any, Gait]  # grid index, compiled process, gait
 
 
-def evaluate(gaits, indices, *, capacity=None, progress=None,
-             quantities: Sequence[PointQuantity] = (), runs=None) -> list[PointResult]:
+def evaluate(
+    gaits, indices, *, capacity=None, progress=None, quantities: Sequence[PointQuantity] = (), runs=None
+) -> list[PointResult]:
     """v0 of validated gaits (module docstring), one row per gait, in the order given.
 
     A row's ``v0_error_estimate`` bounds the true error of its v0. Catch-up rows leave it
@@ -149,8 +168,7 @@ def evaluate(gaits, indices, *, capacity=None, progress=None,
     return [_with_quantities(out[int(i)], by_index[int(i)], quantities) for i in indices]
 
 
-def _compile(gaits, indices, out: dict[int, PointResult], tick) -> tuple[list[_Member],
-                                                                          list[_Member]]:
+def _compile(gaits, indices, out: dict[int, PointResult], tick) -> tuple[list[_Member], list[_Member]]:
     """The compiled processes, catch-up ones (for the batch) apart from exact ones; a gait
     that cannot be compiled is its row at once."""
     from crawlsim.model.process import compile_gait
@@ -174,8 +192,9 @@ def _reraise_memory(exc: BaseException) -> None:
         raise exc
 
 
-def _run_batch_safely(batch: list[_Member], single: list[_Member], out: dict[int, PointResult],
-                      capacity, tick, runs: dict | None = None) -> None:
+def _run_batch_safely(
+    batch: list[_Member], single: list[_Member], out: dict[int, PointResult], capacity, tick, runs: dict | None = None
+) -> None:
     """`_run_batch`; when the batch raises, each point again alone (one bad point must not sink
     its batch)."""
     try:
@@ -194,8 +213,9 @@ def _run_batch_safely(batch: list[_Member], single: list[_Member], out: dict[int
                 tick(1)
 
 
-def _run_batch(members: list[_Member], single: list[_Member], out: dict[int, PointResult],
-               capacity, tick, kept: dict | None = None) -> None:
+def _run_batch(
+    members: list[_Member], single: list[_Member], out: dict[int, PointResult], capacity, tick, kept: dict | None = None
+) -> None:
     """Catch-up points through the batched stepper; a ``newton`` point not converged within
     `BATCH_PLAIN_PERIODS` goes to ``single`` (the periodic-limit solver finishes it). The
     others' runs join ``kept`` when given, with their last period (--sensitivity)."""
@@ -204,24 +224,36 @@ def _run_batch(members: list[_Member], single: list[_Member], out: dict[int, Poi
     newton = [g.simulation.limit == "newton" for _, _, g in members]
     runs = simulate_batch(
         [p for _, p, _ in members],
-        max_periods=[min(g.simulation.max_periods, BATCH_PLAIN_PERIODS) if n
-                     else g.simulation.max_periods for (_, _, g), n in zip(members, newton)],
+        max_periods=[
+            min(g.simulation.max_periods, BATCH_PLAIN_PERIODS) if n else g.simulation.max_periods
+            for (_, _, g), n in zip(members, newton)
+        ],
         tolerance=[g.simulation.tolerance for _, _, g in members],
-        capacity=capacity or DEFAULT_CAPACITY, progress=None, keep_limit=kept is not None)
+        capacity=capacity or DEFAULT_CAPACITY,
+        progress=None,
+        keep_limit=kept is not None,
+    )
     for (i, p, g), r, n in zip(members, runs, newton):
-        if n and r.status == PointStatus.NOT_CONVERGED \
-                and g.simulation.max_periods > BATCH_PLAIN_PERIODS:
+        if n and r.status == PointStatus.NOT_CONVERGED and g.simulation.max_periods > BATCH_PLAIN_PERIODS:
             single.append((i, p, g))
             continue
         if kept is not None:
             kept[i] = r
         out[i] = PointResult(
-            i, r.status, v0=r.v0, v0_error_estimate=None,  # time-step error unmeasured
+            i,
+            r.status,
+            v0=r.v0,
+            v0_error_estimate=None,  # time-step error unmeasured
             displacement_per_period=r.displacement_per_period,
             dissipation_per_period=r.dissipation_per_period,
-            cost_of_transport=r.cost_of_transport, convergence=str(r.convergence or ""),
-            periods=r.periods, integrator="catch-up", message=r.message, steps=r.steps,
-            **_limit_of(r.v0))
+            cost_of_transport=r.cost_of_transport,
+            convergence=str(r.convergence or ""),
+            periods=r.periods,
+            integrator="catch-up",
+            message=r.message,
+            steps=r.steps,
+            **_limit_of(r.v0),
+        )
         tick(1)
 
 
@@ -239,10 +271,16 @@ def _run_single(member: _Member, runs: dict | None = None) -> PointResult:
     i, process, g = member
     s = g.simulation
     try:
-        run = simulate(process, max_periods=s.max_periods, tolerance=s.tolerance,
-                       integrator=s.integrator, limit=s.limit, history=False,
-                       series=runs is not None,  # the row holds no per-period series,
-                       running_frame=runs is not None)  # nor the running frame
+        run = simulate(
+            process,
+            max_periods=s.max_periods,
+            tolerance=s.tolerance,
+            integrator=s.integrator,
+            limit=s.limit,
+            history=False,
+            series=runs is not None,  # the row holds no per-period series,
+            running_frame=runs is not None,
+        )  # nor the running frame
     except Exception as exc:
         _reraise_memory(exc)
         return _failure(i, exc)
@@ -250,17 +288,23 @@ def _run_single(member: _Member, runs: dict | None = None) -> PointResult:
     if runs is not None:
         runs[i] = run
     return PointResult(
-        i, status, v0=run.v0,
+        i,
+        status,
+        v0=run.v0,
         v0_error_estimate=run.v0_error_estimate if run.integrator == "exact" else None,
         displacement_per_period=run.displacement_per_period,
         dissipation_per_period=run.dissipation_per_period,
-        cost_of_transport=run.cost_of_transport, convergence=str(run.convergence),
-        periods=run.periods + run.limit_periods, integrator=run.integrator,
-        steps=run.steps, limit=run.limit_method, newton_steps=run.limit_newton_steps)
+        cost_of_transport=run.cost_of_transport,
+        convergence=str(run.convergence),
+        periods=run.periods + run.limit_periods,
+        integrator=run.integrator,
+        steps=run.steps,
+        limit=run.limit_method,
+        newton_steps=run.limit_newton_steps,
+    )
 
 
-def _with_quantities(row: PointResult, gait: Gait,
-                     quantities: Sequence[PointQuantity]) -> PointResult:
+def _with_quantities(row: PointResult, gait: Gait, quantities: Sequence[PointQuantity]) -> PointResult:
     """The row with its extra columns (missing where the point did not run, or where a quantity
     raises: the reason joins the row's message)."""
     if not quantities:

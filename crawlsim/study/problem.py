@@ -34,15 +34,14 @@ class Sense(StrEnum):
     MINIMIZE = "minimize"
 
 
-
-
 def quantity(text: str, option: str) -> str:
     """A quantity of `QUANTITIES` from its name (``cost-of-transport`` or ``cost_of_transport``);
     anything else is a `SweepSpecError` naming ``option``."""
     name = text.strip().replace("-", "_").lower()
     if name not in QUANTITIES:
-        raise SweepSpecError(f"{option} {text}", "", "expected one of "
-                             + ", ".join(n.replace("_", "-") for n in QUANTITIES))
+        raise SweepSpecError(
+            f"{option} {text}", "", "expected one of " + ", ".join(n.replace("_", "-") for n in QUANTITIES)
+        )
     return name
 
 
@@ -59,13 +58,17 @@ class Free:
         if not (math.isfinite(self.lo) and math.isfinite(self.hi)):
             raise SweepSpecError(f"--free {self.text}", self.path, "bounds must be finite numbers")
         if self.lo > self.hi:
-            raise SweepSpecError(f"--free {self.text}", self.path,
-                                 f"bounds reversed: LO = {self.lo!r} > HI = {self.hi!r}; give "
-                                 "LO:HI with LO < HI")
+            raise SweepSpecError(
+                f"--free {self.text}",
+                self.path,
+                f"bounds reversed: LO = {self.lo!r} > HI = {self.hi!r}; give LO:HI with LO < HI",
+            )
         if self.lo == self.hi:
-            raise SweepSpecError(f"--free {self.text}", self.path,
-                                 f"LO = HI = {self.lo!r} leaves nothing free; set the value in "
-                                 "the gait file, or give LO < HI")
+            raise SweepSpecError(
+                f"--free {self.text}",
+                self.path,
+                f"LO = HI = {self.lo!r} leaves nothing free; set the value in the gait file, or give LO < HI",
+            )
 
     @property
     def text(self) -> str:
@@ -88,8 +91,7 @@ def parse_free(text: str) -> Free:
     path, sep, spec = text.partition("=")
     path, spec = path.strip(), spec.strip()
     if not sep or not path or not spec:
-        raise SweepSpecError(f"--free {text}", "", "expected PATH=LO:HI, for example "
-                                                   "links.1.phase=0:1")
+        raise SweepSpecError(f"--free {text}", "", "expected PATH=LO:HI, for example links.1.phase=0:1")
     if any(part == "" for part in path.split(".")):
         raise SweepSpecError(f"--free {text}", path, "empty key in the dotted path")
     parts = spec.split(":")
@@ -98,14 +100,13 @@ def parse_free(text: str) -> Free:
             raise ValueError
         lo, hi = float(parts[0]), float(parts[1])
     except ValueError:
-        raise SweepSpecError(f"--free {text}", path, f"expected LO:HI, two numbers, got "
-                                                     f"{spec!r}") from None
+        raise SweepSpecError(f"--free {text}", path, f"expected LO:HI, two numbers, got {spec!r}") from None
     if not (math.isfinite(lo) and math.isfinite(hi)):
-        raise SweepSpecError(f"--free {text}", path, f"bounds must be finite numbers, got "
-                                                     f"{spec!r}")
+        raise SweepSpecError(f"--free {text}", path, f"bounds must be finite numbers, got {spec!r}")
     if lo > hi:
-        raise SweepSpecError(f"--free {text}", path, f"bounds reversed: LO = {lo!r} > HI = "
-                                                     f"{hi!r}; give LO:HI with LO < HI")
+        raise SweepSpecError(
+            f"--free {text}", path, f"bounds reversed: LO = {lo!r} > HI = {hi!r}; give LO:HI with LO < HI"
+        )
     return Free(path, lo, hi, text.strip())
 
 
@@ -119,8 +120,7 @@ class Objective:
     def __post_init__(self) -> None:
         object.__setattr__(self, "sense", Sense(self.sense))
         if self.quantity not in QUANTITIES:
-            raise SweepSpecError(f"--{self.sense}", self.quantity,
-                                 "expected one of " + ", ".join(QUANTITIES))
+            raise SweepSpecError(f"--{self.sense}", self.quantity, "expected one of " + ", ".join(QUANTITIES))
 
     @property
     def text(self) -> str:
@@ -168,25 +168,27 @@ class Constraint:
 def parse_constraint(text: str, option: str = "--subject-to") -> Constraint:
     """``QUANTITY>=NUMBER`` or ``QUANTITY<=NUMBER`` (quantities as in `quantity`); anything
     else is a `SweepSpecError` naming ``option`` and saying what was expected."""
-    expected = ("expected QUANTITY>=NUMBER or QUANTITY<=NUMBER with QUANTITY one of "
-                + ", ".join(QUANTITIES) + ", for example 'v0>=0.2'")
+    expected = (
+        "expected QUANTITY>=NUMBER or QUANTITY<=NUMBER with QUANTITY one of "
+        + ", ".join(QUANTITIES)
+        + ", for example 'v0>=0.2'"
+    )
     match = _CONSTRAINT.match(text)
     if match is None:
         raise SweepSpecError(f"{option} {text}", "", expected)
     name, op, number = match.groups()
     op = {"=>": ">=", "=<": "<="}.get(op, op)
     if op not in (">=", "<="):
-        raise SweepSpecError(f"{option} {text}", "", f"the comparison {op!r} is not allowed "
-                                                     f"(a bound is >= or <=); {expected}")
+        raise SweepSpecError(
+            f"{option} {text}", "", f"the comparison {op!r} is not allowed (a bound is >= or <=); {expected}"
+        )
     name = quantity(name, option)
     try:
         bound = float(number)
     except ValueError:
-        raise SweepSpecError(f"{option} {text}", "", f"{number!r} is not a number; "
-                                                     f"{expected}") from None
+        raise SweepSpecError(f"{option} {text}", "", f"{number!r} is not a number; {expected}") from None
     if not math.isfinite(bound):
-        raise SweepSpecError(f"{option} {text}", "", f"the bound must be a finite number, got "
-                                                     f"{number!r}")
+        raise SweepSpecError(f"{option} {text}", "", f"the bound must be a finite number, got {number!r}")
     return Constraint(name, op, bound)
 
 
@@ -196,14 +198,17 @@ def check_constraints(constraints: Sequence[Constraint]) -> None:
     negative (`InfeasibleError`)."""
     for c in constraints:
         if c.op == "<=" and c.quantity in NON_NEGATIVE and c.bound < 0:
-            raise InfeasibleError(f"--subject-to {c.text}", "",
-                                  f"{c.quantity} is never negative, so no gait satisfies this")
+            raise InfeasibleError(
+                f"--subject-to {c.text}", "", f"{c.quantity} is never negative, so no gait satisfies this"
+            )
     for lower in (c for c in constraints if c.op == ">="):
         for upper in (c for c in constraints if c.op == "<=" and c.quantity == lower.quantity):
             if lower.bound > upper.bound:
-                raise InfeasibleError(f"--subject-to {lower.text} --subject-to {upper.text}", "",
-                                      f"{lower.quantity} cannot be at least {lower.bound!r} and "
-                                      f"at most {upper.bound!r}")
+                raise InfeasibleError(
+                    f"--subject-to {lower.text} --subject-to {upper.text}",
+                    "",
+                    f"{lower.quantity} cannot be at least {lower.bound!r} and at most {upper.bound!r}",
+                )
 
 
 class InfeasibleError(SweepSpecError):
@@ -242,19 +247,24 @@ class Problem:
         return doc
 
     def label(self, x: Sequence[float]) -> str:
-        return f"{self.base.source} with " + ", ".join(f"{p}={v!r}"
-                                                        for p, v in zip(self.paths, x))
+        return f"{self.base.source} with " + ", ".join(f"{p}={v!r}" for p, v in zip(self.paths, x))
 
     def gait(self, x: Sequence[float]) -> Gait:
-        gait = gait_from_document(self.document(x), self.label(x),
-                                  source_text=self.base.source_text,
-                                  default_name=self.base.name)
+        gait = gait_from_document(
+            self.document(x), self.label(x), source_text=self.base.source_text, default_name=self.base.name
+        )
         assert isinstance(gait, Gait)
         return gait
 
 
-def make_problem(base: Gait, free: Sequence[Free | str], *, objective: Objective | None = None,
-                 constraints: Sequence[Constraint | str] = (), pareto: bool = False) -> Problem:
+def make_problem(
+    base: Gait,
+    free: Sequence[Free | str],
+    *,
+    objective: Objective | None = None,
+    constraints: Sequence[Constraint | str] = (),
+    pareto: bool = False,
+) -> Problem:
     """Check and build a `Problem`: every path resolves in the base document and names a number,
     no two paths set the same value, the constraints can be satisfied (`check_constraints`), and
     some point of the box is a valid gait (its centre or a corner). ``free`` items are `Free`
@@ -262,9 +272,11 @@ def make_problem(base: Gait, free: Sequence[Free | str], *, objective: Objective
     ``pareto`` the objectives are v0 and the cost of transport, so no other ``objective`` is
     taken."""
     if not isinstance(base, Gait):
-        raise SweepSpecError(str(getattr(base, "source", "gait")), "",
-                             "crawlsim optimize designs crawler gaits; a generic sweeping "
-                             "process has no velocity to optimise")
+        raise SweepSpecError(
+            str(getattr(base, "source", "gait")),
+            "",
+            "crawlsim optimize designs crawler gaits; a generic sweeping process has no velocity to optimise",
+        )
     items = tuple(parse_free(f) if isinstance(f, str) else f for f in free)
     if not items:
         raise SweepSpecError("--free", "", "give at least one free parameter, PATH=LO:HI")
@@ -273,20 +285,24 @@ def make_problem(base: Gait, free: Sequence[Free | str], *, objective: Objective
         try:
             targets = resolve_path(base.document, f.path, base.source)
         except GaitError as exc:
-            raise SweepSpecError(f"--free {f.text}", f.path,
-                                 f"{exc.message} (in {base.source})") from None
+            raise SweepSpecError(f"--free {f.text}", f.path, f"{exc.message} (in {base.source})") from None
         for keys in targets:
             if keys in seen:
-                raise SweepSpecError(f"--free {f.text}", f.path,
-                                     f"this path sets {'.'.join(map(str, keys))}, which --free "
-                                     f"{seen[keys]} sets too: free each value once")
+                raise SweepSpecError(
+                    f"--free {f.text}",
+                    f.path,
+                    f"this path sets {'.'.join(map(str, keys))}, which --free "
+                    f"{seen[keys]} sets too: free each value once",
+                )
             seen[keys] = f.path
     cons = tuple(parse_constraint(c) if isinstance(c, str) else c for c in constraints)
     check_constraints(cons)
     if pareto and objective is not None and objective != Objective():
-        raise SweepSpecError(f"--{objective.sense} {objective.quantity}", "",
-                             "--pareto optimises v0 and cost_of_transport together; drop the "
-                             "objective option")
+        raise SweepSpecError(
+            f"--{objective.sense} {objective.quantity}",
+            "",
+            "--pareto optimises v0 and cost_of_transport together; drop the objective option",
+        )
     problem = Problem(base, items, objective or Objective(), cons, pareto)
     _check_some_point_is_valid(problem)
     return problem
@@ -296,7 +312,7 @@ def _check_some_point_is_valid(problem: Problem) -> None:
     """Refuse a box in which neither the centre nor any corner is a valid gait (a free path that
     the schema refuses, a box outside the valid values): nothing could run."""
     n = problem.dimension
-    corners = [tuple((k >> i) & 1 for i in range(n)) for k in range(min(2 ** n, 64))]
+    corners = [tuple((k >> i) & 1 for i in range(n)) for k in range(min(2**n, 64))]
     first: InputError | None = None
     for u in [(0.5,) * n, *corners]:
         try:
@@ -306,14 +322,14 @@ def _check_some_point_is_valid(problem: Problem) -> None:
         else:
             return
     assert first is not None
-    raise SweepSpecError(first.source, first.keypath,
-                         f"{first.message} (neither the centre nor a corner of the box of "
-                         "--free is a valid gait; this is the first)")
+    raise SweepSpecError(
+        first.source,
+        first.keypath,
+        f"{first.message} (neither the centre nor a corner of the box of --free is a valid gait; this is the first)",
+    )
 
 
-
-def rank(row: PointResult, objective: Objective, constraints: Sequence[Constraint]
-          ) -> tuple[int, float]:
+def rank(row: PointResult, objective: Objective, constraints: Sequence[Constraint]) -> tuple[int, float]:
     """Deb's feasibility rules as a sort key, smaller is better: (0, objective to minimise) for
     a feasible point, (1, total violation) for a point that runs but violates a constraint, and
     (2, inf) for a point that does not run or has no value of the objective."""
@@ -328,5 +344,3 @@ def rank(row: PointResult, objective: Objective, constraints: Sequence[Constrain
 
 def feasible(row: PointResult, objective: Objective, constraints: Sequence[Constraint]) -> bool:
     return rank(row, objective, constraints)[0] == 0
-
-

@@ -49,12 +49,14 @@ class _Window(Journal):
         self._journal, self._done, self._start, self._size = journal, done, start, size
 
     def load(self) -> dict[int, PointResult]:
-        return {i - self._start: dataclasses.replace(r, index=i - self._start)
-                for i, r in self._done.items() if self._start <= i < self._start + self._size}
+        return {
+            i - self._start: dataclasses.replace(r, index=i - self._start)
+            for i, r in self._done.items()
+            if self._start <= i < self._start + self._size
+        }
 
     def append(self, results) -> None:
-        self._journal.append([dataclasses.replace(r, index=r.index + self._start)
-                              for r in results])
+        self._journal.append([dataclasses.replace(r, index=r.index + self._start) for r in results])
 
     def flush(self) -> None:
         self._journal.flush()
@@ -74,9 +76,17 @@ class Evaluator:
     """Evaluates batches of points through the sweep engine: a cache of the points met so far
     (bit-identical parameters are simulated once), the budget, the journal and the history."""
 
-    def __init__(self, problem: Problem, budget: int, *, jobs: int, scheduler: str | None,
-                 journal: Journal | None, progress: Callable[[int], None] | None,
-                 report: Callable[[Batch], None] | None):
+    def __init__(
+        self,
+        problem: Problem,
+        budget: int,
+        *,
+        jobs: int,
+        scheduler: str | None,
+        journal: Journal | None,
+        progress: Callable[[int], None] | None,
+        report: Callable[[Batch], None] | None,
+    ):
         self.problem, self.budget = problem, budget
         self.jobs, self.scheduler, self.journal = jobs, scheduler, journal
         self.progress, self.report = progress, report
@@ -112,12 +122,12 @@ class Evaluator:
             for k, row in zip(new, rows):
                 n = len(self.evaluations)
                 self.cache[k] = n
-                self.evaluations.append(Evaluation(n, k, run, stage, batch,
-                                                   dataclasses.replace(row, index=n)))
+                self.evaluations.append(Evaluation(n, k, run, stage, batch, dataclasses.replace(row, index=n)))
         return [self.evaluations[self.cache[k]] for k in keys]
 
-    def evaluate_one(self, x: Sequence[float], run: int, stage: Stage,
-                     compute: Callable[[tuple[float, ...]], PointResult]) -> Evaluation:
+    def evaluate_one(
+        self, x: Sequence[float], run: int, stage: Stage, compute: Callable[[tuple[float, ...]], PointResult]
+    ) -> Evaluation:
         """One point evaluated here by ``compute`` (a row with extra columns: the gradient
         search's derivatives), always a new evaluation even if the point was met before;
         journaled, and replayed from the journal on a rerun. `BudgetSpent` when none is left."""
@@ -129,24 +139,25 @@ class Evaluator:
             try:
                 row = compute(k)
             except KeyboardInterrupt:
-                raise OptimizationInterrupted(self._finished(), None if self.journal is None
-                                              else self.journal.path) from None
+                raise OptimizationInterrupted(
+                    self._finished(), None if self.journal is None else self.journal.path
+                ) from None
             self.computed += 1
             if self.journal is not None:
                 self.journal.append([dataclasses.replace(row, index=n)])
         if self.progress is not None:
             self.progress(1)
         self.cache.setdefault(k, n)
-        self.evaluations.append(Evaluation(n, k, run, stage, len(self.history),
-                                           dataclasses.replace(row, index=n)))
+        self.evaluations.append(Evaluation(n, k, run, stage, len(self.history), dataclasses.replace(row, index=n)))
         return self.evaluations[-1]
 
     def _simulate(self, points: list[tuple[float, ...]]) -> list[PointResult]:
         start = len(self.evaluations)
-        grid = make_grid(self.problem.base, [tuple(Axis(f.path, tuple(p[a] for p in points))
-                                                   for a, f in enumerate(self.problem.free))])
-        window = None if self.journal is None else _Window(self.journal, self.done, start,
-                                                           len(points))
+        grid = make_grid(
+            self.problem.base,
+            [tuple(Axis(f.path, tuple(p[a] for p in points)) for a, f in enumerate(self.problem.free))],
+        )
+        window = None if self.journal is None else _Window(self.journal, self.done, start, len(points))
         try:
             check_some_point_runs(grid)
         except SweepSpecError:
@@ -160,13 +171,19 @@ class Evaluator:
                 self.progress(len(rows))
             return rows
         try:
-            table = run_sweep(grid, jobs=self.jobs, scheduler=self.scheduler,
-                              journal=cast(Journal, window), progress=self.progress,
-                              on_rows=self._skipped, pool=self.pool)
+            table = run_sweep(
+                grid,
+                jobs=self.jobs,
+                scheduler=self.scheduler,
+                journal=cast(Journal, window),
+                progress=self.progress,
+                on_rows=self._skipped,
+                pool=self.pool,
+            )
         except SweepInterrupted:
-            raise OptimizationInterrupted(self._finished(),
-                                          None if self.journal is None else self.journal.path
-                                          ) from None
+            raise OptimizationInterrupted(
+                self._finished(), None if self.journal is None else self.journal.path
+            ) from None
         self.computed += table.computed
         return list(table.rows)
 
@@ -181,11 +198,27 @@ class Evaluator:
         if resumed and self.progress is not None:
             self.progress(len(rows))
 
-    def record(self, run: int, stage: Stage, best: int, rank: tuple[int, float],
-               objective: Objective, *, step: float = math.nan) -> None:
+    def record(
+        self,
+        run: int,
+        stage: Stage,
+        best: int,
+        rank: tuple[int, float],
+        objective: Objective,
+        *,
+        step: float = math.nan,
+    ) -> None:
         value = objective.value(self.evaluations[best].row) if best >= 0 else math.nan
-        entry = Batch(len(self.history), run, stage, len(self.evaluations),
-                      value if rank[0] == 0 else math.nan, best, rank[0] == 0, step)
+        entry = Batch(
+            len(self.history),
+            run,
+            stage,
+            len(self.evaluations),
+            value if rank[0] == 0 else math.nan,
+            best,
+            rank[0] == 0,
+            step,
+        )
         self.history.append(entry)
         if self.report is not None:
             self.report(entry)
@@ -195,9 +228,17 @@ class Evaluator:
 class Search:
     """One single-objective run on the shared evaluator."""
 
-    def __init__(self, ev: Evaluator, method: Method, run: int, objective: Objective,
-                 constraints: tuple[Constraint, ...], budget: int, seed: Sequence[int],
-                 init: np.ndarray | None = None):
+    def __init__(
+        self,
+        ev: Evaluator,
+        method: Method,
+        run: int,
+        objective: Objective,
+        constraints: tuple[Constraint, ...],
+        budget: int,
+        seed: Sequence[int],
+        init: np.ndarray | None = None,
+    ):
         self.ev, self.method, self.run = ev, method, run
         self.objective, self.constraints = objective, constraints
         self.start = len(ev.evaluations)
@@ -241,8 +282,9 @@ class Search:
             self._global(n)
             self._polish(n)
         except BudgetSpent:  # the polish (or the one point of a tiny budget) was cut short
-            before = "" if not self.stop or self.stop.startswith(BUDGET_SPENT) else \
-                f" (differential evolution: {self.stop})"
+            before = (
+                "" if not self.stop or self.stop.startswith(BUDGET_SPENT) else f" (differential evolution: {self.stop})"
+            )
             self.stop = f"{BUDGET_SPENT} in the polish{before}" if self.stop else BUDGET_SPENT
         return self._finished()
 
@@ -250,10 +292,15 @@ class Search:
         """The run's record once its search stopped (a budget spent before any point says so)."""
         if self.best < 0:
             self.stop = BUDGET_SPENT + " before the first point"
-        return Run(self.run, self.objective, self.constraints, self.best,
-                   self.best_rank[0] == 0,
-                   sum(1 for e in self.ev.evaluations[self.start:] if e.run == self.run),
-                   self.stop)
+        return Run(
+            self.run,
+            self.objective,
+            self.constraints,
+            self.best,
+            self.best_rank[0] == 0,
+            sum(1 for e in self.ev.evaluations[self.start :] if e.run == self.run),
+            self.stop,
+        )
 
     # differential evolution --------------------------------------------------------------
     def _global(self, n: int) -> None:
@@ -281,9 +328,12 @@ class Search:
             return np.array([self._violations(e) for e in evaluations]).T
 
         def energy(X):
-            return np.array([self.rank(e)[1] if self.rank(e)[0] == 0 else math.inf
-                             for e in self.ev.evaluate(np.atleast_2d(X.T), self.run,
-                                                       Stage.GENERATION)])
+            return np.array(
+                [
+                    self.rank(e)[1] if self.rank(e)[0] == 0 else math.inf
+                    for e in self.ev.evaluate(np.atleast_2d(X.T), self.run, Stage.GENERATION)
+                ]
+            )
 
         def callback(intermediate_result):
             return self.left() < population  # the next generation would not fit
@@ -292,13 +342,23 @@ class Search:
         maxiter = share // population - 1
         try:
             result = differential_evolution(
-                energy, [(f.lo, f.hi) for f in problem.free], strategy=method.strategy,
+                energy,
+                [(f.lo, f.hi) for f in problem.free],
+                strategy=method.strategy,
                 maxiter=maxiter,
                 popsize=popsize,
-                tol=method.tol, atol=0, mutation=method.mutation,
-                recombination=method.recombination, rng=self.rng, callback=callback,
-                polish=False, init=init, updating="deferred", vectorized=True,
-                constraints=NonlinearConstraint(constraint, -np.inf, 0.0))
+                tol=method.tol,
+                atol=0,
+                mutation=method.mutation,
+                recombination=method.recombination,
+                rng=self.rng,
+                callback=callback,
+                polish=False,
+                init=init,
+                updating="deferred",
+                vectorized=True,
+                constraints=NonlinearConstraint(constraint, -np.inf, 0.0),
+            )
         except BudgetSpent:
             self.stop = BUDGET_SPENT
             return
@@ -314,8 +374,7 @@ class Search:
         objective" (0 or 1), then each constraint's violation (infinite where the point does not
         run)."""
         runs = e.row.status == PointStatus.OK and math.isfinite(self.objective.value(e.row))
-        return [0.0 if runs else 1.0, *((c.violation(e.row) if runs else math.inf)
-                                        for c in self.constraints)]
+        return [0.0 if runs else 1.0, *((c.violation(e.row) if runs else math.inf) for c in self.constraints)]
 
     # the pattern search ------------------------------------------------------------------
     def _polish(self, n: int) -> None:
@@ -329,20 +388,18 @@ class Search:
         u = np.array([f.unit(v) for f, v in zip(problem.free, self.ev.evaluations[self.best].x)])
         step, directions = method.polish_step, np.eye(n)
         while step >= method.polish_xtol:
-            poll = np.clip(np.concatenate([u + step * directions.T, u - step * directions.T]),
-                           0.0, 1.0)
+            poll = np.clip(np.concatenate([u + step * directions.T, u - step * directions.T]), 0.0, 1.0)
             X = [problem.values(p) for p in poll]
             new = self.ev.new_points(np.array(X))
             if len(new) > self.left():  # the budget ends inside this poll: poll what fits
                 if self.left() <= 0:
                     raise BudgetSpent
-                fits = set(new[:self.left()])
+                fits = set(new[: self.left()])
                 X = [x for x in X if self.ev.key(x) in fits or self.ev.key(x) in self.ev.cache]
             before = self.best
             self.evaluate(np.array(X), Stage.POLISH, step)
             if self.best != before:
-                u = np.array([f.unit(v) for f, v in
-                              zip(problem.free, self.ev.evaluations[self.best].x)])
+                u = np.array([f.unit(v) for f, v in zip(problem.free, self.ev.evaluations[self.best].x)])
             else:
                 step /= 2
                 directions = _rotation(self.rng, n)
@@ -354,5 +411,3 @@ def _rotation(rng: np.random.Generator, n: int) -> np.ndarray:
     R's diagonal moved into Q)."""
     q, r = np.linalg.qr(rng.standard_normal((n, n)))
     return q * np.sign(np.diag(r))
-
-

@@ -82,15 +82,22 @@ class SimulationResult(RunResult):
     _write: Writer | None = field(default=None, repr=False)
 
     @classmethod
-    def from_run(cls, run: RunResult, *, units: Units | None = None,
-                 provenance: _provenance.Provenance | None = None,
-                 trajectory: Trajectory | None = None, output: Path | None = None,
-                 write: Writer | None = None) -> SimulationResult:
+    def from_run(
+        cls,
+        run: RunResult,
+        *,
+        units: Units | None = None,
+        provenance: _provenance.Provenance | None = None,
+        trajectory: Trajectory | None = None,
+        output: Path | None = None,
+        write: Writer | None = None,
+    ) -> SimulationResult:
         """The result of a run in memory (`crawlsim.analysis.run.simulate`), with what the
         caller kept besides."""
         fields = {f.name: getattr(run, f.name) for f in dataclasses.fields(RunResult)}
-        return cls(**fields, trajectory=trajectory, units=units or Units(), provenance=provenance,
-                   output=output, _write=write)
+        return cls(
+            **fields, trajectory=trajectory, units=units or Units(), provenance=provenance, output=output, _write=write
+        )
 
     @classmethod
     def from_file(cls, path: str | Path) -> SimulationResult:
@@ -121,8 +128,9 @@ class SimulationResult(RunResult):
                 with atomic_path(target) as tmp:
                     tmp.write_bytes(data)
         else:
-            raise ValueError("this result holds no results file: use crawlsim.simulate, or "
-                             "crawlsim.api.run with output=")
+            raise ValueError(
+                "this result holds no results file: use crawlsim.simulate, or crawlsim.api.run with output="
+            )
 
     def summary(self) -> dict[str, Any]:
         """The JSON-ready numbers of `RunResult.summary`, plus ``units`` (the gait file's
@@ -144,8 +152,9 @@ class SimulationResult(RunResult):
         xr = _xarray()
         source: Any = self.output if self._write is None else io.BytesIO(self.image)
         if source is None:
-            raise ValueError("this result keeps no results file: use crawlsim.simulate, or "
-                             "crawlsim.api.run with output=")
+            raise ValueError(
+                "this result keeps no results file: use crawlsim.simulate, or crawlsim.api.run with output="
+            )
         with xr.open_datatree(source, engine="h5netcdf", decode_timedelta=False) as tree:
             return cast("xarray.DataTree", tree.load())
 
@@ -177,21 +186,30 @@ def _fields_of_file(data: Mapping[str, Any]) -> dict[str, Any]:
         fields[key] = attrs[key]
     fields["convergence"] = Convergence(attrs["convergence"])
     fields["periodic_from"] = None if attrs["periodic_from"] < 0 else int(attrs["periodic_from"])
-    for key in ("v0", "v0_error_estimate", "displacement_per_period", "dissipation_per_period",
-                "cost_of_transport", "contraction_rate"):
+    for key in (
+        "v0",
+        "v0_error_estimate",
+        "displacement_per_period",
+        "dissipation_per_period",
+        "cost_of_transport",
+        "contraction_rate",
+    ):
         fields[key] = _none(attrs.get(key, math.nan))
     fields["status"] = RunStatus(summary.get("status", RunStatus.SUCCESSFUL))
-    fields["limit_method"] = LimitMethod(data.get("limit_solver_attrs", {}).get(
-        "method", summary.get("limit_method", LimitMethod.ITERATE)))
+    fields["limit_method"] = LimitMethod(
+        data.get("limit_solver_attrs", {}).get("method", summary.get("limit_method", LimitMethod.ITERATE))
+    )
     if summary.get("exact_convergence") is not None:
         fields["exact_convergence"] = Convergence(summary["exact_convergence"])
     conv, lim = data["convergence"], data["limit"]
-    fields["history"] = ConvergenceHistory(
-        **{f.name: conv[f.name] for f in dataclasses.fields(ConvergenceHistory)})
-    fields["limit"] = LimitPeriod(start=float(data["limit_attrs"]["start"]), t=lim["t"],
-                                  w=lim["w"], multipliers=lim["multipliers"],
-                                  **{k: lim.get(k) for k in ("x", "shape", "stress", "slip",
-                                                             "slip_rate")})
+    fields["history"] = ConvergenceHistory(**{f.name: conv[f.name] for f in dataclasses.fields(ConvergenceHistory)})
+    fields["limit"] = LimitPeriod(
+        start=float(data["limit_attrs"]["start"]),
+        t=lim["t"],
+        w=lim["w"],
+        multipliers=lim["multipliers"],
+        **{k: lim.get(k) for k in ("x", "shape", "stress", "slip", "slip_rate")},
+    )
     solver = data.get("limit_solver", {})
     if len(solver.get("residual", ())):
         fields.update(limit_residuals=solver["residual"], limit_kinds=solver["kind"])
@@ -205,8 +223,15 @@ def _fields_of_file(data: Mapping[str, Any]) -> dict[str, Any]:
 
 def _trajectory_of_file(data: Mapping[str, Any]) -> Trajectory:
     t = data["trajectory"]
-    return Trajectory(t=t["t"], w=t["w"], x=t.get("x"), stress=t.get("stress"),
-                      shape=t.get("shape"), reaction=t.get("reaction"), events=data.get("events"))
+    return Trajectory(
+        t=t["t"],
+        w=t["w"],
+        x=t.get("x"),
+        stress=t.get("stress"),
+        shape=t.get("shape"),
+        reaction=t.get("reaction"),
+        events=data.get("events"),
+    )
 
 
 def _xarray() -> Any:
@@ -230,8 +255,15 @@ def _with_settings(spec: Spec, **overrides: Any) -> Spec:
     return cast(Spec, with_simulation(cast(Gait, spec), **given))
 
 
-def _execute(spec: Spec, target: Any, *, save_every: int, check_every_step: bool,
-             progress: Progress | None, keep_trajectory: bool) -> SimulationResult:
+def _execute(
+    spec: Spec,
+    target: Any,
+    *,
+    save_every: int,
+    check_every_step: bool,
+    progress: Progress | None,
+    keep_trajectory: bool,
+) -> SimulationResult:
     """Run ``spec`` with its settings, writing its results file into ``target``."""
     from crawlsim.io.hdf5 import ResultsWriter  # h5py only when a results file is written
 
@@ -239,21 +271,32 @@ def _execute(spec: Spec, target: Any, *, save_every: int, check_every_step: bool
     s = spec.simulation
     record = _provenance.for_gait(spec, check_every_step=check_every_step)
     kind = str(spec.document.get("kind", "crawler"))
-    with ResultsWriter(target, process, save_every=save_every, units=spec.units,
-                       trajectory=keep_trajectory) as writer:
-        run = _simulate_process(process, max_periods=s.max_periods, tolerance=s.tolerance,
-                                integrator=s.integrator, check_every_step=check_every_step,
-                                sink=writer, progress=progress, limit=s.limit,
-                                time_step_error=True)
+    with ResultsWriter(target, process, save_every=save_every, units=spec.units, trajectory=keep_trajectory) as writer:
+        run = _simulate_process(
+            process,
+            max_periods=s.max_periods,
+            tolerance=s.tolerance,
+            integrator=s.integrator,
+            check_every_step=check_every_step,
+            sink=writer,
+            progress=progress,
+            limit=s.limit,
+            time_step_error=True,
+        )
         result = SimulationResult.from_run(run, units=spec.units, provenance=record)
-        writer.finish(result, record, kind=kind,
-                      unchecked_uniqueness=getattr(spec, "uniqueness_unchecked", False))
+        writer.finish(result, record, kind=kind, unchecked_uniqueness=getattr(spec, "uniqueness_unchecked", False))
     return result
 
 
-def run(gait: Spec | str | Path, *, output: str | Path | None = None, save_every: int = 1,
-        check_every_step: bool = False, progress: Progress | None = None,
-        history: bool = True) -> SimulationResult:
+def run(
+    gait: Spec | str | Path,
+    *,
+    output: str | Path | None = None,
+    save_every: int = 1,
+    check_every_step: bool = False,
+    progress: Progress | None = None,
+    history: bool = True,
+) -> SimulationResult:
     """Simulate a gait to its periodic regime; write the HDF5 results file if ``output`` is given
     (the command line's ``crawlsim run``).
 
@@ -267,24 +310,43 @@ def run(gait: Spec | str | Path, *, output: str | Path | None = None, save_every
     spec = _as_spec(gait)
     if output is None:
         s = spec.simulation
-        run_ = _simulate_process(compile(spec), max_periods=s.max_periods, tolerance=s.tolerance,
-                                 integrator=s.integrator, check_every_step=check_every_step,
-                                 progress=progress, limit=s.limit, history=history,
-                                 time_step_error=True)
+        run_ = _simulate_process(
+            compile(spec),
+            max_periods=s.max_periods,
+            tolerance=s.tolerance,
+            integrator=s.integrator,
+            check_every_step=check_every_step,
+            progress=progress,
+            limit=s.limit,
+            history=history,
+            time_step_error=True,
+        )
         return SimulationResult.from_run(
-            run_, units=spec.units,
-            provenance=_provenance.for_gait(spec, check_every_step=check_every_step))
-    result = _execute(spec, Path(output), save_every=save_every,
-                      check_every_step=check_every_step, progress=progress,
-                      keep_trajectory=True)
+            run_, units=spec.units, provenance=_provenance.for_gait(spec, check_every_step=check_every_step)
+        )
+    result = _execute(
+        spec,
+        Path(output),
+        save_every=save_every,
+        check_every_step=check_every_step,
+        progress=progress,
+        keep_trajectory=True,
+    )
     return dataclasses.replace(result, output=Path(output))
 
 
-def simulate(gait: Spec | str | Path, *, integrator: str | None = None,
-             steps_per_period: int | None = None, max_periods: int | None = None,
-             tolerance: float | None = None, keep_trajectory: bool = True,
-             save_every: int = 1, check_every_step: bool = False,
-             progress: Progress | None = None) -> SimulationResult:
+def simulate(
+    gait: Spec | str | Path,
+    *,
+    integrator: str | None = None,
+    steps_per_period: int | None = None,
+    max_periods: int | None = None,
+    tolerance: float | None = None,
+    keep_trajectory: bool = True,
+    save_every: int = 1,
+    check_every_step: bool = False,
+    progress: Progress | None = None,
+) -> SimulationResult:
     """Simulate ``gait`` (a `Gait`, a `ProcessSpec` or a file) to its periodic regime.
 
     The keyword settings override the gait's ``simulation`` block (None keeps it). The result is
@@ -294,21 +356,36 @@ def simulate(gait: Spec | str | Path, *, integrator: str | None = None,
     results file it holds.
     """
     call = _provenance.python_call(
-        "crawlsim.simulate", gait, integrator=integrator, steps_per_period=steps_per_period,
-        max_periods=max_periods, tolerance=tolerance,
+        "crawlsim.simulate",
+        gait,
+        integrator=integrator,
+        steps_per_period=steps_per_period,
+        max_periods=max_periods,
+        tolerance=tolerance,
         keep_trajectory=None if keep_trajectory else False,
         save_every=None if save_every == 1 else save_every,
-        check_every_step=check_every_step or None)
-    spec = _with_settings(_as_spec(gait), integrator=integrator,
-                          steps_per_period=steps_per_period, max_periods=max_periods,
-                          tolerance=tolerance)
+        check_every_step=check_every_step or None,
+    )
+    spec = _with_settings(
+        _as_spec(gait),
+        integrator=integrator,
+        steps_per_period=steps_per_period,
+        max_periods=max_periods,
+        tolerance=tolerance,
+    )
     with _provenance.recording(call):
-        return _in_memory(spec, save_every=save_every, check_every_step=check_every_step,
-                          progress=progress, keep_trajectory=keep_trajectory)
+        return _in_memory(
+            spec,
+            save_every=save_every,
+            check_every_step=check_every_step,
+            progress=progress,
+            keep_trajectory=keep_trajectory,
+        )
 
 
-def _in_memory(spec: Spec, *, save_every: int, check_every_step: bool,
-               progress: Progress | None, keep_trajectory: bool) -> SimulationResult:
+def _in_memory(
+    spec: Spec, *, save_every: int, check_every_step: bool, progress: Progress | None, keep_trajectory: bool
+) -> SimulationResult:
     """Run ``spec`` keeping the rows of its results file in memory (`RowsRecorder`): the
     trajectory holds them, and the file is written from it only when it is asked for."""
     from crawlsim.io.runfile import RowsRecorder
@@ -317,27 +394,40 @@ def _in_memory(spec: Spec, *, save_every: int, check_every_step: bool,
     s = spec.simulation
     record = _provenance.for_gait(spec, check_every_step=check_every_step)
     recorder = RowsRecorder(process, save_every=save_every, trajectory=keep_trajectory)
-    run = _simulate_process(process, max_periods=s.max_periods, tolerance=s.tolerance,
-                            integrator=s.integrator, check_every_step=check_every_step,
-                            sink=recorder, progress=progress, limit=s.limit,
-                            time_step_error=True)
+    run = _simulate_process(
+        process,
+        max_periods=s.max_periods,
+        tolerance=s.tolerance,
+        integrator=s.integrator,
+        check_every_step=check_every_step,
+        sink=recorder,
+        progress=progress,
+        limit=s.limit,
+        time_step_error=True,
+    )
     trajectory = None
     if keep_trajectory:
         t = recorder.trajectory()
-        trajectory = Trajectory(t=t["t"], w=t["w"], x=t.get("x"), stress=t.get("stress"),
-                                shape=t.get("shape"), reaction=t.get("reaction"),
-                                events=recorder.events())
+        trajectory = Trajectory(
+            t=t["t"],
+            w=t["w"],
+            x=t.get("x"),
+            stress=t.get("stress"),
+            shape=t.get("shape"),
+            reaction=t.get("reaction"),
+            events=recorder.events(),
+        )
     del recorder  # its rows are the trajectory's now
-    result = SimulationResult.from_run(run, units=spec.units, provenance=record,
-                                       trajectory=trajectory)
+    result = SimulationResult.from_run(run, units=spec.units, provenance=record, trajectory=trajectory)
     kind = str(spec.document.get("kind", "crawler"))
     unchecked = bool(getattr(spec, "uniqueness_unchecked", False))
 
     def write(target: Any) -> None:
         from crawlsim.io.runfile import ResultsWriter
 
-        with ResultsWriter(target, process, save_every=save_every, units=spec.units,
-                           trajectory=keep_trajectory) as writer:
+        with ResultsWriter(
+            target, process, save_every=save_every, units=spec.units, trajectory=keep_trajectory
+        ) as writer:
             if trajectory is not None:
                 writer.write_rows(trajectory.columns(), trajectory.events)
             writer.finish(result, record, kind=kind, unchecked_uniqueness=unchecked)
@@ -363,7 +453,6 @@ def from_results(path: str | Path) -> Rerun:
     from crawlsim.io.hdf5 import read_provenance
 
     info = read_provenance(path)
-    spec = parse_gait(info["gait_yaml"], source=f"{path} (gait_yaml)",
-                      default_name=str(info["name"]))
+    spec = parse_gait(info["gait_yaml"], source=f"{path} (gait_yaml)", default_name=str(info["name"]))
     settings = info["integrator_settings"]
     return Rerun(spec, bool(settings.get("check_every_step", False)), int(info["save_every"]))

@@ -43,7 +43,6 @@ certificate can fail at roundoff (`CertificateError`); such a load counts as not
 moves the boundary by no more than that distance."""
 
 
-
 @dataclass(frozen=True)
 class StallResult:
     """The stall load and how it was found."""
@@ -70,12 +69,23 @@ class StallResult:
     def summary(self) -> dict[str, Any]:
         """The numbers of ``crawlsim stall --json``, JSON-ready."""
         named = "steepest_slope" if self.quantity == "slope" else "stall_force"
-        return {"quantity": self.quantity, "path": self.path, "stall": self.value, named: self.value,
-                "error_estimate": self.error_estimate, "bracket": list(self.bracket),
-                "cause": str(self.cause), "start": self.start, "v0_start": self.v0_start,
-                "v0_moving_side": self.v0_moving, "v0_stopped_side": self.v0_stopped,
-                "subset": None if self.subset is None else list(self.subset),
-                "reason": self.reason, "unit": self.unit, "evaluations": self.evaluations}
+        return {
+            "quantity": self.quantity,
+            "path": self.path,
+            "stall": self.value,
+            named: self.value,
+            "error_estimate": self.error_estimate,
+            "bracket": list(self.bracket),
+            "cause": str(self.cause),
+            "start": self.start,
+            "v0_start": self.v0_start,
+            "v0_moving_side": self.v0_moving,
+            "v0_stopped_side": self.v0_stopped,
+            "subset": None if self.subset is None else list(self.subset),
+            "reason": self.reason,
+            "unit": self.unit,
+            "evaluations": self.evaluations,
+        }
 
 
 @dataclass
@@ -96,7 +106,10 @@ class _Probe:
             gait = self.gait.replace(self.path, float(s))
         except GaitError as error:
             out: tuple[float | None, str | None, bool] = (
-                None, str(error), "too large for any quasistatic motion" in str(error))
+                None,
+                str(error),
+                "too large for any quasistatic motion" in str(error),
+            )
         else:
             try:
                 result = run(gait, history=False)
@@ -105,9 +118,11 @@ class _Probe:
                 self.cache[s] = out
                 return out
             if not result.converged:
-                raise InputError(self.gait.source, self.path,
-                                 f"the run at {self.path} = {s:.12g} did not converge within "
-                                 f"max_periods; raise --max-periods")
+                raise InputError(
+                    self.gait.source,
+                    self.path,
+                    f"the run at {self.path} = {s:.12g} did not converge within max_periods; raise --max-periods",
+                )
             out = (result.v0, None, False)
         self.cache[s] = out
         return out
@@ -121,8 +136,7 @@ def _natural_range(gait: Gait, quantity: str, path: str) -> float:
     zero = np.zeros(1)
     width = gait.mu_plus(zero)[0] + gait.mu_minus(zero)[0]
     last = path.rsplit(".", 1)[-1]
-    return float(width[int(last)]) if last.isdigit() and int(last) < len(width) \
-        else float(np.mean(width))
+    return float(width[int(last)]) if last.isdigit() and int(last) < len(width) else float(np.mean(width))
 
 
 def stall(gait: Gait | str, *, force: str | None = None, slope: bool = False) -> StallResult:
@@ -138,8 +152,11 @@ def stall(gait: Gait | str, *, force: str | None = None, slope: bool = False) ->
     scale = _natural_range(spec, quantity, path)
     tolerance_v = 1e-9 * abs(v_start)
     if not abs(v_start) > 1e-12 * max(scale, 1.0):
-        raise InputError(spec.source, path, f"the gait does not move at {path} = {s0:g} (v0 = "
-                                            f"{v_start:.3g}): there is no motion to stall")
+        raise InputError(
+            spec.source,
+            path,
+            f"the gait does not move at {path} = {s0:g} (v0 = {v_start:.3g}): there is no motion to stall",
+        )
     sign = math.copysign(1.0, v_start)
     # a forward force helps forward motion; a steeper slope hinders climbing
     direction = -sign if quantity == "force" else sign
@@ -150,8 +167,11 @@ def stall(gait: Gait | str, *, force: str | None = None, slope: bool = False) ->
 
     lo, hi = _scan(moving, s0, direction, scale, quantity)
     if hi is None:
-        raise InputError(spec.source, path, f"the gait still moves at {path} = {lo:.12g}, the "
-                                            "end of the range searched: no stall load found")
+        raise InputError(
+            spec.source,
+            path,
+            f"the gait still moves at {path} = {lo:.12g}, the end of the range searched: no stall load found",
+        )
     lo, hi = _bisect(moving, lo, hi, RELATIVE_WIDTH * scale)
     v_lo, _, _ = probe(lo)
     v_hi, reason, no_hold = probe(hi)
@@ -167,8 +187,9 @@ def stall(gait: Gait | str, *, force: str | None = None, slope: bool = False) ->
         cause = StallCause.JUMP
         subset = _vanishing_subset(spec.replace(path, lo))
     unit = "degree" if quantity == "slope" else spec.units.suffix("force").strip()
-    return StallResult(quantity, path, value, (lo, hi), cause, v_start, v_lo, v_hi,
-                       s0, probe.evaluations, subset, reason, unit)
+    return StallResult(
+        quantity, path, value, (lo, hi), cause, v_start, v_lo, v_hi, s0, probe.evaluations, subset, reason, unit
+    )
 
 
 def _stall_problem(gait: Gait | str, force: str | None, slope: bool) -> tuple[Gait, str, str]:
@@ -184,22 +205,27 @@ def _stall_problem(gait: Gait | str, force: str | None, slope: bool) -> tuple[Ga
         raise InputError(spec.source, "", "give exactly one of force=PATH and slope=True")
     if slope:
         if spec.loads is None or spec.loads.weights is None:
-            raise InputError(spec.source, "loads.slope",
-                             "the slope search needs the blocks' weights: add "
-                             "'loads: {slope: {angle: 0.0, weight: W}}' to the gait")
+            raise InputError(
+                spec.source,
+                "loads.slope",
+                "the slope search needs the blocks' weights: add 'loads: {slope: {angle: 0.0, weight: W}}' to the gait",
+            )
         return spec, "loads.slope.angle", "slope"
     assert force is not None
     path = force
     if not path.startswith("loads.force"):
-        raise InputError(spec.source, path, "expected a path into loads.force, such as "
-                                            "loads.force.0 (the force on block 1) or "
-                                            "loads.force (one force on every block)")
+        raise InputError(
+            spec.source,
+            path,
+            "expected a path into loads.force, such as "
+            "loads.force.0 (the force on block 1) or "
+            "loads.force (one force on every block)",
+        )
     loads = spec.document.get("loads") or {}
     if "force" not in loads:  # no force yet: start from zero forces on every block
         zero: Any = 0.0 if path == "loads.force" else [0.0] * spec.blocks
         document = {**spec.document, "loads": {**loads, "force": zero}}
-        rebuilt = gait_from_document(document, spec.source, source_text=spec.source_text,
-                                     default_name=spec.name)
+        rebuilt = gait_from_document(document, spec.source, source_text=spec.source_text, default_name=spec.name)
         assert isinstance(rebuilt, Gait)
         spec = rebuilt
     if len(resolve_path(spec.document, path, spec.source)) != 1:
@@ -216,13 +242,15 @@ def _start_load(spec: Gait, path: str) -> float:
     for key in keys:
         node = node[key]
     if not isinstance(node, (int, float)) or isinstance(node, bool):
-        raise InputError(spec.source, path, f"expected a number at {path}, got {node!r}: the "
-                                            "stall search varies a constant load")
+        raise InputError(
+            spec.source, path, f"expected a number at {path}, got {node!r}: the stall search varies a constant load"
+        )
     return float(node)
 
 
-def _scan(moving: Callable[[float], bool], s0: float, direction: float, scale: float,
-          quantity: str) -> tuple[float, float | None]:
+def _scan(
+    moving: Callable[[float], bool], s0: float, direction: float, scale: float, quantity: str
+) -> tuple[float, float | None]:
     """(the last load still moving, the first load stopped or None): uniform steps of
     `SCAN_STEPS`-ths of the range, then 5 % longer each (a force on one block of many may have
     to reach the whole body's friction), up to 90 degrees for a slope."""
@@ -244,8 +272,7 @@ def _scan(moving: Callable[[float], bool], s0: float, direction: float, scale: f
     return lo, None
 
 
-def _bisect(moving: Callable[[float], bool], lo: float, hi: float,
-            width: float) -> tuple[float, float]:
+def _bisect(moving: Callable[[float], bool], lo: float, hi: float, width: float) -> tuple[float, float]:
     """The bracket (moving, stopped) shrunk to ``width`` by bisection on the predicate."""
     while abs(hi - lo) > width:
         middle = 0.5 * (lo + hi)
@@ -258,8 +285,9 @@ def _bisect(moving: Callable[[float], bool], lo: float, hi: float,
     return lo, hi
 
 
-def _smooth_zero(probe: _Probe, lo: float, hi: float, v_lo: float, sign: float,
-                 direction: float, scale: float) -> tuple[float, float]:
+def _smooth_zero(
+    probe: _Probe, lo: float, hi: float, v_lo: float, sign: float, direction: float, scale: float
+) -> tuple[float, float]:
     """(the stall load, the bracket's stopped side) of a smooth zero: the predicate stopped
     where |v0| fell to its tolerance, so the zero is the secant root through lo and a point
     farther back on the moving side."""

@@ -89,9 +89,17 @@ class SweepInterrupted(KeyboardInterrupt):
         self.done, self.total, self.journal = done, total, journal
 
 
-def run_sweep(grid: SweepGrid, *, jobs: int = 1, shard=None, scheduler: str | None = None,
-              journal: Journal | None = None, progress=None, on_rows=None,
-              pool: WorkerPool | None = None) -> SweepTable:
+def run_sweep(
+    grid: SweepGrid,
+    *,
+    jobs: int = 1,
+    shard=None,
+    scheduler: str | None = None,
+    journal: Journal | None = None,
+    progress=None,
+    on_rows=None,
+    pool: WorkerPool | None = None,
+) -> SweepTable:
     """Evaluate the grid (or one shard of it) and return its table, in grid order.
 
     ``journal`` (see `Journal`) keeps finished points across interruptions and skips them on a
@@ -126,20 +134,36 @@ def run_sweep(grid: SweepGrid, *, jobs: int = 1, shard=None, scheduler: str | No
         else:
             run_local(grid, todo, jobs, collect, progress)
     except KeyboardInterrupt:
-        raise SweepInterrupted(len(finished), len(indices),
-                               None if journal is None else journal.path) from None
+        raise SweepInterrupted(len(finished), len(indices), None if journal is None else journal.path) from None
     finally:
         if journal is not None:
             journal.close()
-    return SweepTable(grid.paths, tuple(np.asarray(a.values) for a in grid.axes),
-                      np.asarray(indices), tuple(finished[int(i)] for i in indices),
-                      grid.gait_yaml, grid.base.source, shard, computed=len(todo),
-                      dims=grid.dims, quantities=tuple(q.name for q in grid.quantities))
+    return SweepTable(
+        grid.paths,
+        tuple(np.asarray(a.values) for a in grid.axes),
+        np.asarray(indices),
+        tuple(finished[int(i)] for i in indices),
+        grid.gait_yaml,
+        grid.base.source,
+        shard,
+        computed=len(todo),
+        dims=grid.dims,
+        quantities=tuple(q.name for q in grid.quantities),
+    )
 
 
-def sweep(grid: SweepGrid | Gait, axes=None, *, output=None, jobs: int = 1, shard=None,
-          scheduler: str | None = None, progress=None, on_rows=None,
-          sensitivity: Sequence[str] = ()) -> SweepTable:
+def sweep(
+    grid: SweepGrid | Gait,
+    axes=None,
+    *,
+    output=None,
+    jobs: int = 1,
+    shard=None,
+    scheduler: str | None = None,
+    progress=None,
+    on_rows=None,
+    sensitivity: Sequence[str] = (),
+) -> SweepTable:
     """The library entry point behind ``crawlsim velocity --sweep``.
 
     ``grid`` is a `SweepGrid` (`make_grid`), or a base gait and its ``axes`` as `make_grid`
@@ -154,12 +178,14 @@ def sweep(grid: SweepGrid | Gait, axes=None, *, output=None, jobs: int = 1, shar
     elif axes is not None:
         raise TypeError("sweep(grid, axes): a SweepGrid has its axes already")
     elif sensitivity:
-        raise TypeError("sweep(grid, sensitivity=...): a SweepGrid has its sensitivity already "
-                        "(make_grid(..., sensitivity=...))")
+        raise TypeError(
+            "sweep(grid, sensitivity=...): a SweepGrid has its sensitivity already (make_grid(..., sensitivity=...))"
+        )
     check_shard_output(shard, output)
     journal = Journal(journal_path(output), grid.fingerprint(shard)) if output else None
-    table = run_sweep(grid, jobs=jobs, shard=shard, scheduler=scheduler, journal=journal,
-                      progress=progress, on_rows=on_rows)
+    table = run_sweep(
+        grid, jobs=jobs, shard=shard, scheduler=scheduler, journal=journal, progress=progress, on_rows=on_rows
+    )
     if output is not None and journal is not None:
         write_table(table, output)
         journal.remove()
@@ -169,9 +195,11 @@ def sweep(grid: SweepGrid | Gait, axes=None, *, output=None, jobs: int = 1, shar
 def check_shard_output(shard, output) -> None:
     """A shard is written to an HDF5 file, or `crawlsim merge` could not join it."""
     if shard is not None and (output is None or not is_hdf5(output)):
-        raise SweepSpecError("--shard", "", "a shard must be written to an HDF5 file "
-                                            "(-o part-I.h5) so that `crawlsim merge` can join "
-                                            "the parts")
+        raise SweepSpecError(
+            "--shard",
+            "",
+            "a shard must be written to an HDF5 file (-o part-I.h5) so that `crawlsim merge` can join the parts",
+        )
 
 
 def sweep_figure_data(table: SweepTable) -> tuple[dict, np.ndarray, np.ndarray]:
@@ -179,8 +207,9 @@ def sweep_figure_data(table: SweepTable) -> tuple[dict, np.ndarray, np.ndarray]:
     its first path), v0 on the grid, and the points without a v0 (failed or invalid)."""
     dims = table.dimension_paths()
     if len(dims) not in (1, 2):
-        raise SweepSpecError("--plot", "", f"a sweep figure shows one or two swept dimensions, "
-                                           f"this sweep has {len(dims)}")
+        raise SweepSpecError(
+            "--plot", "", f"a sweep figure shows one or two swept dimensions, this sweep has {len(dims)}"
+        )
     first = dict(zip(table.paths, table.axes))
     axes = {paths[0]: np.asarray(first[paths[0]], dtype=float) for paths in dims}
     status = table.grid("status")
@@ -188,8 +217,7 @@ def sweep_figure_data(table: SweepTable) -> tuple[dict, np.ndarray, np.ndarray]:
     return axes, table.grid("v0"), missing
 
 
-def plot_table(table: SweepTable, path, title: str | None = None,
-               figure_options: dict | None = None) -> None:
+def plot_table(table: SweepTable, path, title: str | None = None, figure_options: dict | None = None) -> None:
     """v0 against one swept dimension, or a heat map over two, with the points that have no v0
     (failed or invalid) marked; written atomically."""
     from crawlsim.plotting import save_figure, sweep_figure
@@ -209,17 +237,53 @@ def plot_table(table: SweepTable, path, title: str | None = None,
     # The statuses themselves, not a failed/ok mask: an invalid gait and a failed run are
     # different answers and are marked differently (docs/figures.md).
     status = table.grid("status")
-    figure = sweep_figure(axes, v0, status, title, units=units_of({"gait_yaml": table.gait_yaml}),
-                          displacement=table.grid("displacement_per_period"), marks=marks)
+    figure = sweep_figure(
+        axes,
+        v0,
+        status,
+        title,
+        units=units_of({"gait_yaml": table.gait_yaml}),
+        displacement=table.grid("displacement_per_period"),
+        marks=marks,
+    )
     save_figure(figure, path, **(figure_options or {}))
 
 
-
-__all__ = ["BATCH_PLAIN_PERIODS", "JOURNAL_SECONDS", "LATER_COLUMNS", "MAX_AXIS_POINTS",
-           "MAX_CHUNK", "MIN_CHUNK", "RESULT_COLUMNS", "SCHEDULER_TIMEOUT", "TASK_SECONDS",
-           "Axis", "Chunker", "Journal", "PointQuantity", "PointResult", "SweepGrid",
-           "SweepInterrupted", "SweepTable", "WorkerPool", "check_scheduler",
-           "check_shard_output", "check_some_point_runs", "evaluate", "is_hdf5",
-           "journal_path", "make_grid", "merge_tables", "parse_axis", "parse_shard",
-           "plot_table", "read_table", "run_points", "run_sweep", "sweep", "sweep_figure_data",
-           "table_payload", "write_table"]
+__all__ = [
+    "BATCH_PLAIN_PERIODS",
+    "JOURNAL_SECONDS",
+    "LATER_COLUMNS",
+    "MAX_AXIS_POINTS",
+    "MAX_CHUNK",
+    "MIN_CHUNK",
+    "RESULT_COLUMNS",
+    "SCHEDULER_TIMEOUT",
+    "TASK_SECONDS",
+    "Axis",
+    "Chunker",
+    "Journal",
+    "PointQuantity",
+    "PointResult",
+    "SweepGrid",
+    "SweepInterrupted",
+    "SweepTable",
+    "WorkerPool",
+    "check_scheduler",
+    "check_shard_output",
+    "check_some_point_runs",
+    "evaluate",
+    "is_hdf5",
+    "journal_path",
+    "make_grid",
+    "merge_tables",
+    "parse_axis",
+    "parse_shard",
+    "plot_table",
+    "read_table",
+    "run_points",
+    "run_sweep",
+    "sweep",
+    "sweep_figure_data",
+    "table_payload",
+    "write_table",
+]

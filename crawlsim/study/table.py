@@ -17,12 +17,29 @@ from crawlsim.study.grid import grid_shape, parse_shard
 from crawlsim.study.points import PointResult
 
 #: Columns of a sweep table after the swept paths (CSV header, HDF5 /results datasets).
-RESULT_COLUMNS = ("v0", "v0_error_estimate", "displacement_per_period",
-                  "dissipation_per_period", "cost_of_transport", "convergence", "periods",
-                  "integrator", "limit", "newton_steps", "status", "message")
+RESULT_COLUMNS = (
+    "v0",
+    "v0_error_estimate",
+    "displacement_per_period",
+    "dissipation_per_period",
+    "cost_of_transport",
+    "convergence",
+    "periods",
+    "integrator",
+    "limit",
+    "newton_steps",
+    "status",
+    "message",
+)
 #: Result columns that files written before crawlsim 0.2 lack (read back as missing values).
-LATER_COLUMNS = ("v0_error_estimate", "dissipation_per_period", "cost_of_transport",
-                 "integrator", "limit", "newton_steps")
+LATER_COLUMNS = (
+    "v0_error_estimate",
+    "dissipation_per_period",
+    "cost_of_transport",
+    "integrator",
+    "limit",
+    "newton_steps",
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -81,8 +98,9 @@ class SweepTable:
             else:
                 cols[name] = np.array([np.nan if v is None else v for v in values], float)
         for k, name in enumerate(self.quantities):
-            cols[name] = np.array([np.nan if not r.extra or r.extra[k] is None else r.extra[k]
-                                   for r in self.rows], float)
+            cols[name] = np.array(
+                [np.nan if not r.extra or r.extra[k] is None else r.extra[k] for r in self.rows], float
+            )
         from crawlsim.analysis import sensitivity_sweep
 
         cols.update(sensitivity_sweep.columns(self.rows))
@@ -98,8 +116,7 @@ class SweepTable:
     def grid(self, column: str) -> np.ndarray:
         """A column on the grid's shape (full tables only)."""
         values = self.columns()[column]
-        full = np.full(math.prod(self.shape), np.nan if values.dtype != object else "",
-                       dtype=values.dtype)
+        full = np.full(math.prod(self.shape), np.nan if values.dtype != object else "", dtype=values.dtype)
         full[self.points] = values
         return full.reshape(self.shape)
 
@@ -110,15 +127,16 @@ class SweepTable:
         from crawlsim.analysis.sensitivity_sweep import columns
 
         derivatives = columns(self.rows)
-        writer.writerow(list(self.paths) + list(RESULT_COLUMNS) + list(self.quantities)
-                        + list(derivatives))
+        writer.writerow(list(self.paths) + list(RESULT_COLUMNS) + list(self.quantities) + list(derivatives))
         coords = self.coordinates()
         for n, r in enumerate(self.rows):
             extra = r.extra or (None,) * len(self.quantities)
-            writer.writerow([_cell(c[n]) for c in coords]
-                            + [_cell(getattr(r, name)) for name in RESULT_COLUMNS]
-                            + [_cell(v) for v in extra]
-                            + [_cell(d[n]) for d in derivatives.values()])
+            writer.writerow(
+                [_cell(c[n]) for c in coords]
+                + [_cell(getattr(r, name)) for name in RESULT_COLUMNS]
+                + [_cell(v) for v in extra]
+                + [_cell(d[n]) for d in derivatives.values()]
+            )
         return buf.getvalue()
 
 
@@ -150,12 +168,17 @@ def is_hdf5(path) -> bool:
 
 def table_payload(table: SweepTable) -> dict:
     """The plain data `crawlsim.io.hdf5.write_sweep` stores."""
-    return dict(paths=list(table.paths), axes=[np.asarray(a) for a in table.axes],
-                points=np.asarray(table.points, dtype=np.int64), columns=table.columns(),
-                gait_yaml=table.gait_yaml, source=table.source,
-                shard="" if table.shard is None else f"{table.shard[0]}/{table.shard[1]}",
-                steps=np.array([r.steps for r in table.rows], dtype=np.int64),
-                dimensions=list(table.dimensions))
+    return dict(
+        paths=list(table.paths),
+        axes=[np.asarray(a) for a in table.axes],
+        points=np.asarray(table.points, dtype=np.int64),
+        columns=table.columns(),
+        gait_yaml=table.gait_yaml,
+        source=table.source,
+        shard="" if table.shard is None else f"{table.shard[0]}/{table.shard[1]}",
+        steps=np.array([r.steps for r in table.rows], dtype=np.int64),
+        dimensions=list(table.dimensions),
+    )
 
 
 def read_table(path) -> SweepTable:
@@ -176,24 +199,39 @@ def read_table(path) -> SweepTable:
 
     rows: list[PointResult] = []
     for n, point in enumerate(data["points"]):
-        rows.append(PointResult(
-            int(point), PointStatus(str(cols["status"][n])), v0=number("v0", n),
-            v0_error_estimate=number("v0_error_estimate", n),
-            displacement_per_period=number("displacement_per_period", n),
-            dissipation_per_period=number("dissipation_per_period", n),
-            cost_of_transport=number("cost_of_transport", n),
-            convergence=str(cols["convergence"][n]), periods=int(cols["periods"][n]),
-            integrator=str(cols["integrator"][n]) if "integrator" in cols else "",
-            message=str(cols["message"][n]), steps=int(data["steps"][n]),
-            limit=str(cols["limit"][n]) if "limit" in cols else "",
-            newton_steps=(int(cols["newton_steps"][n])
-                          if "newton_steps" in cols and cols["newton_steps"][n] >= 0 else None),
-            derivatives=row_derivatives(cols, n)))
+        rows.append(
+            PointResult(
+                int(point),
+                PointStatus(str(cols["status"][n])),
+                v0=number("v0", n),
+                v0_error_estimate=number("v0_error_estimate", n),
+                displacement_per_period=number("displacement_per_period", n),
+                dissipation_per_period=number("dissipation_per_period", n),
+                cost_of_transport=number("cost_of_transport", n),
+                convergence=str(cols["convergence"][n]),
+                periods=int(cols["periods"][n]),
+                integrator=str(cols["integrator"][n]) if "integrator" in cols else "",
+                message=str(cols["message"][n]),
+                steps=int(data["steps"][n]),
+                limit=str(cols["limit"][n]) if "limit" in cols else "",
+                newton_steps=(
+                    int(cols["newton_steps"][n]) if "newton_steps" in cols and cols["newton_steps"][n] >= 0 else None
+                ),
+                derivatives=row_derivatives(cols, n),
+            )
+        )
     shard = parse_shard(data["shard"]) if data["shard"] else None
     dims = data.get("dimensions")
-    return SweepTable(tuple(data["paths"]), tuple(data["axes"]), np.asarray(data["points"]),
-                      tuple(rows), data["gait_yaml"], data["source"], shard,
-                      dims=None if dims is None else tuple(int(d) for d in dims))
+    return SweepTable(
+        tuple(data["paths"]),
+        tuple(data["axes"]),
+        np.asarray(data["points"]),
+        tuple(rows),
+        data["gait_yaml"],
+        data["source"],
+        shard,
+        dims=None if dims is None else tuple(int(d) for d in dims),
+    )
 
 
 def merge_tables(tables) -> SweepTable:
@@ -213,8 +251,17 @@ def merge_tables(tables) -> SweepTable:
     size = math.prod(first.shape)
     if [r.index for r in rows] != list(range(size)):
         raise ResultsFileError("the shards do not cover the grid exactly once", "merge")
-    return SweepTable(first.paths, first.axes, np.arange(size), tuple(rows), first.gait_yaml,
-                      first.source, None, dims=first.dims, quantities=first.quantities)
+    return SweepTable(
+        first.paths,
+        first.axes,
+        np.arange(size),
+        tuple(rows),
+        first.gait_yaml,
+        first.source,
+        None,
+        dims=first.dims,
+        quantities=first.quantities,
+    )
 
 
 def _check_shards(tables: list[SweepTable]) -> None:
@@ -224,19 +271,25 @@ def _check_shards(tables: list[SweepTable]) -> None:
     first = tables[0]
     for t in tables:
         if t.shard is None:
-            raise ResultsFileError("not a shard (no shard attribute): only files written "
-                                   "with --shard I/N are merged", t.source)
-        if (t.gait_yaml != first.gait_yaml or t.paths != first.paths
-                or t.dimensions != first.dimensions or len(t.axes) != len(first.axes)
-                or not all(np.array_equal(a, b) for a, b in zip(t.axes, first.axes))):
-            raise ResultsFileError("this shard is from a different sweep (gait, paths or "
-                                   "values differ from the first part)", t.source)
+            raise ResultsFileError(
+                "not a shard (no shard attribute): only files written with --shard I/N are merged", t.source
+            )
+        if (
+            t.gait_yaml != first.gait_yaml
+            or t.paths != first.paths
+            or t.dimensions != first.dimensions
+            or len(t.axes) != len(first.axes)
+            or not all(np.array_equal(a, b) for a, b in zip(t.axes, first.axes))
+        ):
+            raise ResultsFileError(
+                "this shard is from a different sweep (gait, paths or values differ from the first part)", t.source
+            )
     shards = [t.shard for t in tables if t.shard is not None]  # all, checked above
     n = shards[0][1]
     seen = sorted(s[0] for s in shards)
     if any(s[1] != n for s in shards) or seen != list(range(1, n + 1)):
         missing = sorted(set(range(1, n + 1)) - set(seen))
         repeated = sorted({i for i in seen if seen.count(i) > 1})
-        raise ResultsFileError(f"expected shards 1..{n} once each; missing "
-                               f"{missing or 'none'}, repeated {repeated or 'none'}", "merge")
-
+        raise ResultsFileError(
+            f"expected shards 1..{n} once each; missing {missing or 'none'}, repeated {repeated or 'none'}", "merge"
+        )
