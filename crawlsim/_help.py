@@ -30,6 +30,7 @@ TEXT = (
     "  stall     Print the load at which v0 reaches 0: the stall force...\n"
     "  validate  Check each GAIT_FILE and list every error in it, one per line...\n"
     "  velocity  Print v0 of GAIT_FILE, or sweep gait parameters and tabulate v0.\n"
+    "  warmup    Compile crawlsim's kernel for every command, so that no run...\n"
     "\n"
     "  Shell completion (bash; zsh and fish alike with zsh_source, fish_source):\n"
     '    eval "$(_CRAWLSIM_COMPLETE=bash_source crawlsim)"   # in ~/.bashrc\n'

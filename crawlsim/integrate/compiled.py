@@ -17,6 +17,7 @@ import numpy as np
 from crawlsim.errors import CertificateError
 from crawlsim.integrate.ledger import ExactLedger, PeriodEnergy
 from crawlsim.integrate.stepping import PeriodRecord, Transition, TransitionCause
+from crawlsim.kernel.jit import kernel
 from crawlsim.kernel.kkt import ActiveSet, ChainPolyhedron, Polyhedron
 
 if TYPE_CHECKING:
@@ -148,7 +149,6 @@ class _CompiledLoop:
         self._lamc = np.empty((0, 0))
         self._final: tuple[bytes, ActiveSet] = (b"", stepper.poly.empty)
         self._final_signs = np.zeros(stepper.process.blocks, dtype=np.int8)
-        catchup.announce_compilation("exact")
 
     @staticmethod
     def of(stepper: EventStepper) -> _CompiledLoop | None:
@@ -192,7 +192,7 @@ class _CompiledLoop:
         return None  # HANDOFF
 
     def _run(self, s: EventStepper) -> dict[str, Any]:
-        catchup, eventloop = self._catchup, self._kernel
+        catchup = self._catchup
         p = s.process
         N, n, m = p.blocks, s.poly.n, s.poly.m
         nb, P, G = s.basis.size, s.pieces.pieces, p.steps
@@ -240,7 +240,7 @@ class _CompiledLoop:
         x0 = np.ascontiguousarray(s.x, dtype=float) if s.x is not None else np.empty(0)
         # the set the last period ended on, when the stepper still has it (`_record`)
         out["signs"] = self._final_signs.copy() if s.active is self._final[1] else catchup.signs_of(s.active, N)
-        out["status"] = eventloop.period(
+        out["status"] = kernel().eventloop.period(
             self.k,
             self.c_scale,
             s.basis.linear,

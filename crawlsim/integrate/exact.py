@@ -68,6 +68,7 @@ from crawlsim.errors import CertificateError, DegenerateModelError, EventError, 
 from crawlsim.integrate.compiled import EventTrajectory, _CompiledLoop
 from crawlsim.integrate.ledger import ExactLedger
 from crawlsim.integrate.stepping import PeriodRecord, PeriodStepper, Transition, TransitionCause
+from crawlsim.kernel.jit import kernel
 from crawlsim.kernel.kkt import RTOL, ActiveSet, Dependent, Tolerance
 from crawlsim.kernel.projection import Projection
 from crawlsim.model.offsets import TWO_PI, PiecewiseOffsets
@@ -437,10 +438,8 @@ class EventStepper(PeriodStepper):
         return self._sampled(Z, tol, u0, u1)
 
     def _linear(self, Z: np.ndarray, tol: np.ndarray, u0: float, u1: float) -> np.ndarray:
-        from crawlsim.kernel.events import linear_crossings  # compiled closed form
-
         out = np.empty(Z.shape[1])
-        linear_crossings(
+        kernel().events.linear_crossings(
             np.ascontiguousarray(Z[0], dtype=float),
             np.ascontiguousarray(Z[1], dtype=float),
             np.ascontiguousarray(tol, dtype=float),
@@ -455,22 +454,18 @@ class EventStepper(PeriodStepper):
     ) -> np.ndarray:
         """f(u) = a + alpha cos 2 pi u + beta sin 2 pi u = a + rho cos(theta - phi)
         (`crawlsim.kernel.events.harmonic_crossings`, compiled)."""
-        from crawlsim.kernel.events import harmonic_crossings
-
         out = np.empty(np.shape(a))
         a_, alpha_, beta_, tol_ = (np.ascontiguousarray(v, dtype=float) for v in (a, alpha, beta, tol))
-        harmonic_crossings(a_, alpha_, beta_, tol_, float(u0), float(u1), out)
+        kernel().events.harmonic_crossings(a_, alpha_, beta_, tol_, float(u0), float(u1), out)
         return out
 
     def _sampled(self, Z: np.ndarray, tol: np.ndarray, u0: float, u1: float) -> np.ndarray:
         """Certified sampling, compiled (`crawlsim.kernel.sampling`, the rule of its module
         docstring): samples every 1/(64 H) cycle, and only the cells where the curvature bound
         allows a crossing searched (Brent's bounded maximisation and brentq)."""
-        from crawlsim.kernel.sampling import crossings
-
         b = self.basis
         out = np.empty(Z.shape[1])
-        crossings(
+        kernel().sampling.crossings(
             np.ascontiguousarray(Z, dtype=float),
             np.ascontiguousarray(tol, dtype=float),
             float(u0),

@@ -265,9 +265,9 @@ class CatchUpStepper(PeriodStepper):
         if self.x is not None:
             X = np.empty((G + 1, len(self.x)))
             if self._kernel is not None:
-                from crawlsim.kernel import chain
+                from crawlsim.kernel.jit import kernel
 
-                chain.positions(LAM, self.x, X)
+                kernel().chain.positions(LAM, self.x, X)
             else:
                 X[0] = self.x
                 np.cumsum(p.slips(LAM), axis=0, out=X[1:])

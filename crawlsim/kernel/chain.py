@@ -42,7 +42,8 @@ Everything here is a function of plain arrays and scalars, compiled by numba; wi
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from crawlsim.kernel.jit import jit
 
 #: The tolerance constants of `crawlsim.kernel.kkt` (repeated: the compiled code sees literals only;
 #: tests/test_kernel.py checks they agree).
@@ -59,7 +60,7 @@ DONE, HANDOFF, FAILED = 0, 1, 2
 REPORT_PRIMAL, REPORT_DUAL, REPORT_COMP, REPORT_TOLP, REPORT_TOLD, REPORT_ROW = range(6)
 
 
-@njit(cache=True)
+@jit
 def factor(k: np.ndarray, signs: np.ndarray, D: np.ndarray, l: np.ndarray) -> tuple[float, float]:
     """LDL^T of the padded L~ (diagonal L_ii on saturated blocks, 1 on free ones; off-diagonal
     -k_i where blocks i and i+1 are both saturated) into the pivots D and unit subdiagonal l.
@@ -67,7 +68,7 @@ def factor(k: np.ndarray, signs: np.ndarray, D: np.ndarray, l: np.ndarray) -> tu
     return factor_into(k, signs, D, l, np.empty(signs.shape[0]))
 
 
-@njit(cache=True)
+@jit
 def factor_into(k: np.ndarray, signs: np.ndarray, D: np.ndarray, l: np.ndarray, y: np.ndarray) -> tuple[float, float]:
     """`factor` with the caller's scratch ``y`` (N) for the solve that gives ||L_JJ^{-1}||:
     the catch-up loop refactors without allocating."""
@@ -93,7 +94,7 @@ def factor_into(k: np.ndarray, signs: np.ndarray, D: np.ndarray, l: np.ndarray, 
     return inverse, gram
 
 
-@njit(cache=True, inline="always")
+@jit
 def eliminate(k: np.ndarray, signs: np.ndarray, D: np.ndarray, l: np.ndarray, lo: int, hi: int) -> None:
     """The elimination of `factor` along blocks lo..hi, their pivots D on the diagonal: the
     subdiagonal l and the pivots after it. l = 0 between runs (D[i] - 0 * 0 = D[i]): no chain
@@ -107,7 +108,7 @@ def eliminate(k: np.ndarray, signs: np.ndarray, D: np.ndarray, l: np.ndarray, lo
             l[i - 1] = 0.0
 
 
-@njit(cache=True)
+@jit
 def solve(D: np.ndarray, l: np.ndarray, y: np.ndarray) -> None:
     """y <- L~^{-1} y in place with the LDL^T factor (D, l). The terms with l = 0 (between
     two runs of saturated blocks) are skipped: y - 0 y = y for finite y, and the recurrences
@@ -123,7 +124,7 @@ def solve(D: np.ndarray, l: np.ndarray, y: np.ndarray) -> None:
             y[i] -= l[i] * y[i + 1]
 
 
-@njit(cache=True, inline="always")
+@jit
 def force(w: np.ndarray, i: int, N: int) -> float:
     """f_i = (D^T w)_i = w_{i-1} - w_i, with w_{-1} = w_{N-1} = 0: the net force on block i."""
     if i == 0:
@@ -133,7 +134,7 @@ def force(w: np.ndarray, i: int, N: int) -> float:
     return float(w[i - 1] - w[i])
 
 
-@njit(cache=True)
+@jit
 def forces(w: np.ndarray, f: np.ndarray) -> None:
     """f = D^T w (`force` of every block)."""
     N = f.shape[0]
@@ -141,7 +142,7 @@ def forces(w: np.ndarray, f: np.ndarray) -> None:
         f[i] = force(w, i, N)
 
 
-@njit(cache=True, inline="always")
+@jit
 def state(
     k: np.ndarray,
     w_trial: np.ndarray,
@@ -199,7 +200,7 @@ def state(
     return lam_size, primal, dual, comp
 
 
-@njit(cache=True, inline="always")
+@jit
 def on_set(
     k: np.ndarray,
     kmax: float,
@@ -267,7 +268,7 @@ def on_set(
     return tol_p, tol_d, primal, dual, comp
 
 
-@njit(cache=True)
+@jit
 def row_duals(
     k: np.ndarray,
     kmax: float,
@@ -328,7 +329,7 @@ def row_duals(
             told[N + i] = bound
 
 
-@njit(cache=True)
+@jit
 def dual_excess(lam: np.ndarray, told: np.ndarray, fixed: np.ndarray) -> tuple[float, float]:
     """(-lambda_r, tol_r) of the row whose multiplier is most negative relative to its own
     tolerance (rows ``fixed`` excluded); (0, tol) when every sign holds."""
@@ -342,7 +343,7 @@ def dual_excess(lam: np.ndarray, told: np.ndarray, fixed: np.ndarray) -> tuple[f
     return value, tol
 
 
-@njit(cache=True)
+@jit
 def independent(rows: np.ndarray, N: int) -> bool:
     """LICQ of the rows (a mask of 2N) of a chain: no block at both limits, not every block."""
     count = 0
@@ -354,7 +355,7 @@ def independent(rows: np.ndarray, N: int) -> bool:
     return count < N
 
 
-@njit(cache=True)
+@jit
 def update(
     signs: np.ndarray,
     lam: np.ndarray,
@@ -409,7 +410,7 @@ def update(
     return 0
 
 
-@njit(cache=True)
+@jit
 def exchange(member: np.ndarray, lam: np.ndarray, slack: np.ndarray, fixed: np.ndarray, rows: np.ndarray) -> bool:
     """The exchange of Goldfarb and Idnani into ``rows`` (`crawlsim.kernel.polyhedron.Polyhedron.exchange`):
     the most violated row r enters although it depends on the active ones, which happens only
@@ -440,7 +441,7 @@ def exchange(member: np.ndarray, lam: np.ndarray, slack: np.ndarray, fixed: np.n
     return True
 
 
-@njit(cache=True, inline="always")
+@jit
 def same(a: np.ndarray, b: np.ndarray) -> bool:
     """a == b for two sets of signs, without the temporary array of np.array_equal (a step at
     N = 4 costs about as much as that allocation)."""
@@ -450,7 +451,7 @@ def same(a: np.ndarray, b: np.ndarray) -> bool:
     return True
 
 
-@njit(cache=True)
+@jit
 def settle(
     k: np.ndarray,
     kmax: float,
@@ -508,7 +509,7 @@ def settle(
     )
 
 
-@njit(cache=True, inline="always")
+@jit
 def settle_from(
     k: np.ndarray,
     kmax: float,
@@ -580,7 +581,7 @@ def settle_from(
     return HANDOFF, 0.0
 
 
-@njit(cache=True)
+@jit
 def project(
     k: np.ndarray,
     c_scale: float,
@@ -599,7 +600,7 @@ def project(
     return project_rows(k, c_scale, w_trial, c, signs, fixed, w, lam, report, np.empty(2 * signs.shape[0]))
 
 
-@njit(cache=True)
+@jit
 def project_rows(
     k: np.ndarray,
     c_scale: float,
@@ -649,7 +650,7 @@ def project_rows(
     return status
 
 
-@njit(cache=True)
+@jit
 def catch_up(
     k: np.ndarray,
     c_scale: float,
@@ -739,7 +740,7 @@ def catch_up(
     return DONE, G
 
 
-@njit(cache=True)
+@jit
 def set_starts(S: np.ndarray) -> np.ndarray:
     """The steps where the set S[j] differs from S[j-1] (step 0 included): the index of the
     first step of each run of one set (`crawlsim.kernel.catchup.VisitedSets`)."""
@@ -753,7 +754,7 @@ def set_starts(S: np.ndarray) -> np.ndarray:
     return starts[:count]
 
 
-@njit(cache=True)
+@jit
 def positions(LAM: np.ndarray, x0: np.ndarray, X: np.ndarray) -> None:
     """Block positions of a period (docs/model.md §3): X[0] = x0 and X[j+1] = x0 + dx_0 + ...
     + dx_j, dx = lambda^+ - lambda^- of each step (`crawlsim.model.crawler.slips`). The running
@@ -772,7 +773,7 @@ def positions(LAM: np.ndarray, x0: np.ndarray, X: np.ndarray) -> None:
             X[j + 1, i] = t + x0[i]
 
 
-@njit(cache=True)
+@jit
 def worst_row(signs: np.ndarray, lam: np.ndarray, slack: np.ndarray) -> int:
     """The row that violates its certificate most, relative to nothing: the largest slack, or
     the most negative multiplier, or the active row with the largest residual."""

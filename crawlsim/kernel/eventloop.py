@@ -40,7 +40,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from crawlsim.kernel import chain
 from crawlsim.kernel.events import (  # noqa: F401 - eventloop.next_event etc. are entry points too
@@ -52,6 +51,7 @@ from crawlsim.kernel.events import (  # noqa: F401 - eventloop.next_event etc. a
     rate_tolerance,
     row_functions,
 )
+from crawlsim.kernel.jit import jit
 from crawlsim.kernel.piece import (  # noqa: F401 - eventloop.piece etc. are its entry points too
     CLEAR_MARGIN,
     DECISION_ORDERS,
@@ -98,7 +98,7 @@ C_EVENTS, C_TRANSITIONS, C_PIECES, C_JUMPS = range(4)
 
 
 # -- the grid samples of a piece and their certificate ------------------------------------------
-@njit(cache=True)
+@jit
 def sample_piece(
     k: np.ndarray,
     kmax: float,
@@ -205,7 +205,7 @@ def sample_piece(
     return True
 
 
-@njit(cache=True)
+@jit
 def state_at(
     u: float,
     linear: bool,
@@ -237,7 +237,7 @@ def state_at(
             lam_now[N + i] = lam_cum[N + i] + -(dx0[i] - dx[i])
 
 
-@njit(cache=True)
+@jit
 def rebuild_changed(
     k: np.ndarray,
     old: np.ndarray,
@@ -296,7 +296,7 @@ def rebuild_changed(
 CHUNK = 32
 
 
-@njit(cache=True)
+@jit
 def energy_terms(
     signs: np.ndarray,
     base: np.ndarray,
@@ -354,7 +354,7 @@ def energy_terms(
 
 
 # -- a jump of c at a breakpoint ----------------------------------------------------------------
-@njit(cache=True)
+@jit
 def jump(
     k: np.ndarray,
     c_scale: float,
@@ -395,7 +395,7 @@ def jump(
     return DONE
 
 
-@njit(cache=True)
+@jit
 def record_at(j: int, LAMC: np.ndarray, x0: np.ndarray, MU: np.ndarray, X: np.ndarray) -> None:
     """The record's slips of the step ending at grid point j, MU[j-1] = LAMC[j] - LAMC[j-1]
     (j > 0), and the positions X[j] = x0 + (lambda^+ - lambda^-)(t_j) (x0 not empty), as
@@ -409,7 +409,7 @@ def record_at(j: int, LAMC: np.ndarray, x0: np.ndarray, MU: np.ndarray, X: np.nd
             X[j, i] = x0[i] + (LAMC[j, i] - LAMC[j, N + i])
 
 
-@njit(cache=True)
+@jit
 def at_jump(
     k: np.ndarray,
     c_scale: float,
@@ -479,7 +479,7 @@ def at_jump(
 
 
 # -- one period -----------------------------------------------------------------------------------
-@njit(cache=True)
+@jit
 def begin_event(
     u: float,
     w: np.ndarray,
@@ -516,7 +516,7 @@ def begin_event(
     return DONE
 
 
-@njit(cache=True)
+@jit
 def after_jump(
     u: float,
     piece_after: int,
@@ -552,7 +552,7 @@ def after_jump(
     return je
 
 
-@njit(cache=True)
+@jit
 def period(
     k: np.ndarray,
     c_scale: float,

@@ -29,15 +29,15 @@ Everything here is a function of plain arrays and scalars, compiled by numba; wi
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from crawlsim.kernel.chain import factor
+from crawlsim.kernel.jit import jit
 
 #: The kind of a packed factor: the projector of an active set, or a saltation.
 PROJECTOR, SALTATION = 0, 1
 
 
-@njit(cache=True)
+@jit
 def pack(
     k: np.ndarray, kinds: np.ndarray, starts: np.ndarray, blocks: np.ndarray, D: np.ndarray, l: np.ndarray
 ) -> None:
@@ -64,7 +64,7 @@ def pack(
             signs[b] = 0.0
 
 
-@njit(cache=True, inline="always")
+@jit
 def _project(
     k: np.ndarray,
     blocks: np.ndarray,
@@ -111,7 +111,7 @@ def _project(
         right = dx
 
 
-@njit(cache=True)
+@jit
 def apply(
     k: np.ndarray,
     kinds: np.ndarray,
@@ -144,7 +144,7 @@ def apply(
         _project(k, blocks, D, l, lo, hi, x, y, False)
 
 
-@njit(cache=True)
+@jit
 def apply_transpose(
     k: np.ndarray,
     kinds: np.ndarray,
