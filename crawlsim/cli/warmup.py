@@ -27,7 +27,7 @@ def warmup(jobs, background):
     \b
     Examples:
       crawlsim warmup
-      NUMBA_CACHE_DIR=/shared/numba crawlsim warmup -j 8
+      crawlsim warmup -j 8
     """
     from crawlsim.kernel import jit
     from crawlsim.study.warmup import warmup as compile_all

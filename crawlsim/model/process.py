@@ -187,7 +187,7 @@ def _period_grid(steps_per_period: int, bp: np.ndarray) -> np.ndarray:
     if bp.size:
         near = np.min(np.abs(uniform[:, None] - bp[None, :]), axis=1) <= GRID_MERGE
         uniform = uniform[~near]
-    u = np.union1d(uniform, bp)
+    u = np.sort(np.concatenate([uniform, bp]))  # np.union1d, but without importing numpy.ma
     keep = np.concatenate([[True], np.diff(u) > GRID_MERGE])
     u = u[keep]
     u[0], u[-1] = 0.0, 1.0
