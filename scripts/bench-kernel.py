@@ -126,6 +126,10 @@ timer of scripts/bench-scale.py).
 
 from __future__ import annotations
 
+import os
+
+os.environ.setdefault("CRAWLSIM_KERNEL", "compiled")  # the compiled kernel's speed (crawlsim.kernel.jit)
+
 import argparse
 import importlib.util
 import statistics

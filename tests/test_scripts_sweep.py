@@ -20,34 +20,6 @@ def _v0(path, *options):
     return float(r.output)
 
 
-def test_v0_folder(tmp_path):
-    """One row per gait file, each v0 equal to `crawlsim velocity` on that file."""
-    folder = tmp_path / "gaits"
-    folder.mkdir()
-    for name in ("inching-2.yaml", "peristalsis-3.yaml"):
-        (folder / name).write_text((ROOT / "gaits" / name).read_text())
-    (folder / "broken.yaml").write_text("blocks: 1\n")
-    (folder / "triangle.yaml").write_text((ROOT / "gaits" / "paper" / "triangle.yaml").read_text())
-    out = tmp_path / "v0.csv"
-    done = subprocess.run(
-        ["bash", SCRIPTS / "v0-folder.sh", folder, out, "--steps-per-period", "80"],
-        check=True,
-        capture_output=True,
-        text=True,
-    )
-    rows = list(csv.DictReader(out.open()))
-    assert [r["gait"] for r in rows] == ["broken", "inching-2", "peristalsis-3", "triangle"]
-    assert rows[0]["status"] == "failed" and rows[0]["v0"] == ""
-    # a sweeping process has no velocity: skipped, not failed, and said so
-    assert rows[3]["status"] == "skipped" and rows[3]["v0"] == ""
-    assert "skipped" in done.stderr and "triangle.yaml" in done.stderr
-    for row in rows[1:3]:
-        assert row["status"] == "ok"
-        # the script runs `crawlsim velocity` on this machine: the same printed digits
-        assert float(row["v0"]) == _v0(folder / f"{row['gait']}.yaml", "--steps-per-period", "80")
-    assert float(rows[1]["v0"]) == pytest.approx(0.4, abs=1e-12)  # inching closed form
-
-
 def test_phase_lag_sweep(tmp_path):
     """Signals are periodic in cycles, so a lag of a whole period is the gait with lag 0: v0
     agrees at both ends of the sweep to roundoff. The table has the requested points and the

@@ -71,11 +71,15 @@ def summary_lines(d: dict) -> list[str]:
         lines.append(f"  integrator, seed         {d['integrator']}, {d['seed']}")
     else:
         shard = f" (shard {d['shard']})" if d["shard"] else ""
-        lines.append(f"{d['file']}: sweep of gait {d['name']}{shard}, from {d['source']}")
+        if [dim["paths"] for dim in d["grid"]] == [["gait"]]:  # crawlsim velocity A.yaml B.yaml ...
+            lines.append(f"{d['file']}: v0 of {d['source']}{shard}")
+        else:
+            lines.append(f"{d['file']}: sweep of gait {d['name']}{shard}, from {d['source']}")
         for n, dim in enumerate(d["grid"], 1):
             paths = " with ".join(dim["paths"])
             lines.append(
-                f"  dimension {n}              {paths}: {dim['values']} values in [{_g(dim['min'])}, {_g(dim['max'])}]"
+                f"  dimension {n}              {paths}: {dim['values']} values"
+                + ("" if dim["min"] is None else f" in [{_g(dim['min'])}, {_g(dim['max'])}]")
             )
         counts = ", ".join(f"{v} {k}" for k, v in sorted(d["statuses"].items()))
         lines.append(f"  points                   {d['points']}: {counts}")

@@ -60,9 +60,12 @@ def _dimensions(sweep_specs, link_specs) -> list[list[str]]:
 
 
 @main.command(cls=OrderedCommand)
-@click.argument("gait_file", type=click.Path(exists=True, dir_okay=False))
+@click.argument("gait_files", nargs=-1, required=True, type=click.Path(exists=True, dir_okay=False))
 @click.option(
-    "--json", "as_json", is_flag=True, help="Print the run's JSON summary instead of v0 alone (single gait only)."
+    "--json",
+    "as_json",
+    is_flag=True,
+    help="Print the run's JSON summary instead of v0 alone; with several gait files, a JSON line per file.",
 )
 @click.option(
     "--sweep",
@@ -121,7 +124,7 @@ def _dimensions(sweep_specs, link_specs) -> list[list[str]]:
 @force_option
 @feedback_options
 def velocity(
-    gait_file,
+    gait_files,
     as_json,
     sweep_specs,
     sensitivity_paths,
@@ -141,7 +144,7 @@ def velocity(
     quiet,
     verbose,
 ):
-    """Print v0 of GAIT_FILE, or sweep gait parameters and tabulate v0.
+    """Print v0 of GAIT_FILE, tabulate v0 of several, or sweep gait parameters.
 
     Without --sweep, prints v0 alone on one line, with the digits its error estimate supports
     (--json: full precision and the estimate; exit code 3 if the run did not converge). A
@@ -156,10 +159,17 @@ def velocity(
     finished points are kept in OUT.journal: an interrupted sweep (Ctrl-C: exit code 130)
     resumes when the same command is run again.
 
+    With several GAIT_FILEs (a shell glob, say), all run in this process (or on -j workers, a
+    --scheduler or --shard parts, as a sweep's points) and the table has a row per file: its
+    first column gait is the file, the others those of a sweep; a file that is not a valid
+    crawler gait is a row with status invalid and its reason, and the exit code stays 0 (2 if
+    no file is valid).
+
     \b
     Examples:
       crawlsim velocity gaits/peristalsis-4.yaml
       crawlsim velocity gaits/inching-2.yaml --json
+      crawlsim velocity gaits/*.yaml -o all.csv
       crawlsim velocity gaits/peristalsis-4.yaml --sensitivity 'links.*.phase' \\
           --sensitivity stiffness
       crawlsim velocity gaits/peristalsis-4.yaml --sweep 'links.*.amplitude=0.1:0.4:7' \\
@@ -175,8 +185,16 @@ def velocity(
     """
     check_feedback(quiet, verbose)
     output = None if output == "-" else output  # stdout is where the table (or v0) goes
+    if len(gait_files) > 1:
+        options = dict(jobs=jobs, shard=shard, scheduler=scheduler, quiet=quiet, verbose=verbose, force=force)
+        overrides = dict(steps_per_period=steps_per_period, max_periods=max_periods, tolerance=tolerance)
+        overrides.update(integrator=integrator, limit=limit)
+        if sweep_specs or link_specs or sensitivity_paths or plot_file:
+            raise BadInput("--sweep, --link, --sensitivity and --plot take one gait file; several were given")
+        return _files(gait_files, {k: v for k, v in overrides.items() if v is not None}, output, as_json, **options)
+    (gait_file,) = gait_files
     with library_errors():
-        _check_targets(gait_file, output, plot_file, scheduler, force)
+        _check_targets(gait_files, output, plot_file, scheduler, force)
         groups = _dimensions(sweep_specs, link_specs)
         gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance, integrator, limit)
         from crawlsim.gait.document import need_crawler
@@ -208,7 +226,31 @@ def velocity(
         )
 
 
-def _check_targets(gait_file, output, plot_file, scheduler, force) -> None:
+def _files(gait_files, overrides, output, as_json, *, jobs, shard, scheduler, quiet, verbose, force):
+    """v0 of every file: a sweep whose one dimension is the file (`crawlsim.study.grid.FileGrid`)."""
+    from crawlsim.study.grid import FileGrid
+    from crawlsim.study.sweep import check_shard_output
+
+    with library_errors():
+        _check_targets(gait_files, output, None, scheduler, force)
+        check_shard_output(shard, output)
+        table = _sweep(FileGrid.of(gait_files, overrides), output, jobs, shard, scheduler, quiet, verbose)
+    if as_json:
+        columns = table.columns()
+        for n in range(len(table.rows)):
+            click.echo(to_json({name: getattr(c[n], "item", lambda v=c[n]: v)() for name, c in columns.items()}))
+    elif output is None:
+        click.echo(table.to_csv(), nl=False)
+    counts = table.counts()
+    if len(table.rows) != counts["ok"]:
+        click.echo(
+            f"{len(table.rows)} gait files: {counts['ok']} ok, {counts['invalid']} invalid, "
+            f"{counts['failed']} failed, {counts['not-converged']} not converged (see the status and message columns)",
+            err=True,
+        )
+
+
+def _check_targets(gait_files, output, plot_file, scheduler, force) -> None:
     """Refuse, before the gait is read, a --scheduler that is no address and outputs that may
     not be written (`crawlsim.io.outputs.check_target`)."""
     from crawlsim.io.outputs import FIGURE, SWEEP, check_target
@@ -221,7 +263,7 @@ def _check_targets(gait_file, output, plot_file, scheduler, force) -> None:
         raise BadInput(f"--plot {plot_file}: is also the --output file; give two names")
     for path, kind, option in ((output, SWEEP, "--output"), (plot_file, FIGURE, "--plot")):
         if path is not None:
-            check_target(path, kind, inputs=[gait_file], force=force, option=option)
+            check_target(path, kind, inputs=list(gait_files), force=force, option=option)
     if plot_file is not None and os.path.splitext(plot_file)[1].lower() not in (".png", ".pdf", ".svg"):
         raise BadInput(f"--plot {plot_file}: a figure is written as .png, .pdf or .svg")
 

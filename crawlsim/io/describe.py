@@ -177,6 +177,8 @@ def _sweep_grid(f: h5py.File, attrs: dict[str, Any]) -> list[dict[str, Any]]:
         if first not in values:
             return {"values": 0, "min": None, "max": None}
         v = values[first]
+        if v.dtype.kind in "OSU":  # gait files: no range
+            return {"values": len(v), "min": None, "max": None}
         return {"values": len(v), "min": number(float(np.min(v))), "max": number(float(np.max(v)))}
 
     return [{"paths": grouped[d], **extent(grouped[d][0])} for d in sorted(grouped)]

@@ -26,6 +26,7 @@ import json
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -143,6 +144,7 @@ class SweepGrid:
     #: Extra columns computed at every point that runs (`crawlsim.study.points.PointQuantity`).
     quantities: tuple[PointQuantity, ...] = ()
     sensitivity: tuple[str, ...] = ()  # --sensitivity paths: a dv0/dPATH column each
+    point = "point of the grid"  # what a point is, in messages
 
     def __post_init__(self) -> None:
         if not self.dims:
@@ -224,6 +226,55 @@ class SweepGrid:
             return np.arange(self.size)
         i, n = shard
         return np.arange(i - 1, self.size, n)
+
+
+    @property
+    def source(self) -> str:
+        return self.base.source
+
+
+@dataclass(frozen=True, eq=False)
+class FileGrid(SweepGrid):
+    """Gait files as a grid of one dimension, ``gait`` (``crawlsim velocity A.yaml B.yaml ...``):
+    point i is file i with the simulation settings ``overrides`` (the command line's). A file
+    that is not a valid crawler gait is an invalid point, as an invalid grid point is."""
+
+    overrides: tuple[tuple[str, object], ...] = ()
+    point = "gait file"
+
+    @classmethod
+    def of(cls, files: Sequence[str], overrides: dict | None = None) -> FileGrid:
+        axis = Axis("gait", tuple(str(f) for f in files))
+        return cls(None, (axis,), ((),), overrides=tuple(sorted((overrides or {}).items())))  # type: ignore[arg-type]
+
+    @property
+    def source(self) -> str:
+        return f"{len(self.axes[0].values)} gait files"
+
+    @property
+    def gait_yaml(self) -> str:
+        return ""
+
+    def label(self, index: int) -> str:
+        return str(self.axes[0].values[index])
+
+    def gait(self, index: int) -> Gait:
+        from crawlsim.gait.document import load_gait, with_simulation
+
+        gait = load_gait(self.label(index))
+        need_crawler(gait, "v0")
+        return with_simulation(gait, **dict(self.overrides)) if self.overrides else gait  # type: ignore[return-value]
+
+    def fingerprint(self, shard) -> str:
+        """The files' paths and contents, the overrides and the shard: a journal of other or
+        since edited files is refused."""
+        digest = hashlib.sha256(json.dumps([list(self.axes[0].values), self.overrides, shard]).encode())
+        for path in self.axes[0].values:
+            try:
+                digest.update(Path(path).read_bytes())
+            except OSError:
+                digest.update(b"unreadable")
+        return digest.hexdigest()
 
 
 def grid_shape(lengths, dims) -> tuple[int, ...]:
@@ -316,5 +367,5 @@ def check_some_point_runs(grid: SweepGrid) -> None:
         raise SweepSpecError(
             first.source,
             first.keypath,
-            f"{first.message} (no point of the grid is a valid gait: all {grid.size} are refused, this is the first)",
+            f"{first.message} (no {grid.point} is a valid gait: all {grid.size} are refused, this is the first)",
         )

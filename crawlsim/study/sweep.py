@@ -144,7 +144,7 @@ def run_sweep(
         np.asarray(indices),
         tuple(finished[int(i)] for i in indices),
         grid.gait_yaml,
-        grid.base.source,
+        grid.source,
         shard,
         computed=len(todo),
         dims=grid.dims,
