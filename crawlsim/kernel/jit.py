@@ -33,13 +33,13 @@ import os
 import sys
 import time
 import types
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from enum import StrEnum
 from pathlib import Path
 from typing import Any, TypeVar
 
-F = TypeVar("F", bound=types.FunctionType)
+F = TypeVar("F", bound=Callable[..., Any])
 
 #: The kernel's modules, callees before callers.
 MODULES = ("chain", "piece", "sampling", "events", "eventloop", "jacobian", "tangent", "tangent_catchup", "implicit")
@@ -54,7 +54,7 @@ _marked: dict[str, dict[str, types.FunctionType]] = {}
 
 def jit(fn: F) -> F:
     """Mark a kernel function: interpreted as it is, compiled by numba in the compiled form."""
-    _marked.setdefault(fn.__module__, {})[fn.__name__] = fn
+    _marked.setdefault(fn.__module__, {})[fn.__name__] = fn  # type: ignore[assignment]
     return fn
 
 
@@ -139,7 +139,7 @@ def compiled() -> World:
         class Announce(event.Listener):
             on_start = on_end = staticmethod(_announce)
 
-        event.register("numba:compile", Announce())
+        event.register("numba:compile", Announce())  # type: ignore[no-untyped-call]
         modules = {name: importlib.import_module(f"crawlsim.kernel.{name}") for name in MODULES}
         proxies = {f"crawlsim.kernel.{name}": types.ModuleType(f"crawlsim.kernel.{name}") for name in MODULES}
         namespaces = {name: dict(module.__dict__) for name, module in modules.items()}

@@ -75,7 +75,7 @@ def _catch_up() -> None:
 
 
 def _sensitivity() -> None:
-    from crawlsim.api import sensitivity
+    from crawlsim.analysis.sensitivity import sensitivity
 
     gait = _gait()
     for integrator in ("exact", "catch-up"):
@@ -114,7 +114,7 @@ def warmup(jobs: int | None = None, *, report: Callable[[str], None] = lambda s:
     and return the wall time. A task that fails raises `RuntimeError` with its output."""
     jobs = jobs or os.cpu_count() or 1
     start = time.perf_counter()
-    pending, running = list(TASKS), {}
+    pending, running = list(TASKS), dict[str, subprocess.Popen[str]]()
     env = dict(os.environ, CRAWLSIM_BACKGROUND_COMPILE="0")
     try:
         while pending or running:
