@@ -227,7 +227,6 @@ class SweepGrid:
         i, n = shard
         return np.arange(i - 1, self.size, n)
 
-
     @property
     def source(self) -> str:
         return self.base.source
