@@ -139,7 +139,7 @@ def compiled() -> World:
         class Announce(event.Listener):
             on_start = on_end = staticmethod(_announce)
 
-        event.register("numba:compile", Announce())  # type: ignore[no-untyped-call]
+        event.register("numba:compile", Announce())  # type: ignore[no-untyped-call,unused-ignore]
         modules = {name: importlib.import_module(f"crawlsim.kernel.{name}") for name in MODULES}
         proxies = {f"crawlsim.kernel.{name}": types.ModuleType(f"crawlsim.kernel.{name}") for name in MODULES}
         namespaces = {name: dict(module.__dict__) for name, module in modules.items()}
