@@ -157,7 +157,7 @@ def _bench_scale():
     return module
 
 
-@njit(cache=True)
+@njit
 def reference_period(k, C, w0, signs, W):
     """Catch-up steps w_j -> w_{j+1} onto {B w <= C[j+1]} (crawlsim.kernel.kkt's chain), the active
     set of each step found from the previous one; W (G+1, N-1) receives the states."""
