@@ -31,8 +31,9 @@ import pytest
 from crawlsim.errors import CertificateError
 from crawlsim.gait.document import load_gait
 from crawlsim.integrate.stepping import make_stepper
-from crawlsim.kernel.certificate import REFINE_FRACTION, Dependent
+from crawlsim.kernel.certificate import Dependent
 from crawlsim.kernel.dense_polyhedron import DensePolyhedron
+from crawlsim.kernel.policy import REFINE_FRACTION
 from crawlsim.kernel.polyhedron import ActiveSet
 from crawlsim.kernel.projection import ExactProjector
 from crawlsim.model.process import compile_gait

@@ -24,7 +24,7 @@ from crawlsim.gait.corpus import random_gait
 from crawlsim.gait.document import load_gait
 from crawlsim.integrate.exact import EventStepper
 from crawlsim.integrate.stepping import CatchUpStepper
-from crawlsim.kernel import catchup, chain, eventloop, jit, kkt
+from crawlsim.kernel import catchup, chain, eventloop, jit
 from crawlsim.model.process import compile_gait
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -37,14 +37,6 @@ BITWISE = ("inching-2", "peristalsis-4", "smooth-friction-3", "anchoring-2")
 #: a linear part and three harmonics (seed 18), a linear part and one harmonic (5), three
 #: harmonics (4), each with steps signals.
 BITWISE_SEEDS = (18, 5, 4)
-
-
-def test_kernel_constants_are_the_kkt_policy():
-    assert (chain.RTOL, chain.REFINE_FRACTION, chain.UPDATE_ITERATIONS) == (
-        kkt.RTOL,
-        kkt.REFINE_FRACTION,
-        kkt.UPDATE_ITERATIONS,
-    )
 
 
 @pytest.mark.parametrize("path", CRAWLERS, ids=lambda p: p.stem)

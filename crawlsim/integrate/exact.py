@@ -316,7 +316,7 @@ class EventStepper(PeriodStepper):
         coef = self.pieces.coefficients(piece_index)
         c0 = (self.basis.values(u) @ coef)[0]
         slack = poly.apply(w) - c0
-        tol = poly._tolerance1(poly.empty, c0, w, np.zeros(0))
+        tol = poly.step_tolerance(poly.empty, c0, w, np.zeros(0))
         tight = slack >= -tol.primal
         tight[forced] = True
         if not tight.any():
@@ -545,7 +545,7 @@ class EventStepper(PeriodStepper):
         projection of the state before it onto K(t+) (feasible, slips >= 0, complementary)."""
         poly = self.poly
         slack = poly.apply(proj.point) - c
-        tol = poly._tolerance1(proj.active, c, w, proj.multipliers)
+        tol = poly.step_tolerance(proj.active, c, w, proj.multipliers)
         cert = poly.certify(slack, proj.multipliers, proj.active, tol)
         if not cert.ok:
             raise CertificateError(
@@ -561,7 +561,7 @@ class EventStepper(PeriodStepper):
         for j in range(len(W)):
             proj = self.projector.project(W[j], p.offsets[j], time=start + p.times[j], verify=True)
             moved = float(np.max(np.abs(proj.point - W[j])))
-            tol = self.poly._tolerance1(proj.active, p.offsets[j], W[j], proj.multipliers)
+            tol = self.poly.step_tolerance(proj.active, p.offsets[j], W[j], proj.multipliers)
             if moved > 100 * tol.primal:
                 raise CertificateError(
                     f"{p.name}: Clarabel moves the exact state at t = {start + p.times[j]:.12g} by {moved:.3g}"

@@ -44,12 +44,7 @@ from __future__ import annotations
 import numpy as np
 
 from crawlsim.kernel.jit import jit
-
-#: The tolerance constants of `crawlsim.kernel.kkt` (repeated: the compiled code sees literals only;
-#: tests/test_kernel.py checks they agree).
-RTOL = 1e-14
-REFINE_FRACTION = 0.25
-UPDATE_ITERATIONS = 12
+from crawlsim.kernel.policy import REFINE_FRACTION, RTOL, UPDATE_ITERATIONS, tolerances
 
 #: What `catch_up` returns: every step done; step j handed to the Python projector (the
 #: updates did not settle, or the step is certified with every block tight, where LICQ and the
@@ -250,9 +245,7 @@ def on_set(
     if active:
         solve(D, l, dx)
     lam_size, primal, dual, comp = state(k, w_trial, dx, signs, w, lam, slack, c, fixed)
-    size = max(max(c_scale, c_size), max(2.0 * w_size, 4.0 * kmax * lam_size))
-    tol_p = RTOL * size
-    tol_d = 2.0 * RTOL * inverse * (size + gram * lam_size)
+    tol_p, tol_d = tolerances(c_scale, c_size, 2.0 * w_size, 4.0 * kmax * lam_size, inverse, gram, lam_size)
     if active and comp > REFINE_FRACTION * tol_p:
         for i in range(N):
             if signs[i] > 0:

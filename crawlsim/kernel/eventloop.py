@@ -75,11 +75,11 @@ from crawlsim.kernel.piece import (  # noqa: F401 - eventloop.piece etc. are its
     solve_rows,
     tight_rows,
 )
+from crawlsim.kernel.policy import RTOL, UPDATE_ITERATIONS, tolerances
 
 TWO_PI = 2.0 * math.pi
-RTOL = chain.RTOL
 #: Restarts of the projection at a jump of c from the set where its primal-dual updates
-#: stopped: a jump may change more rows than `chain.UPDATE_ITERATIONS` updates do when the
+#: stopped: a jump may change more rows than `UPDATE_ITERATIONS` updates do when the
 #: tight set, nearly every block, only admits them one at a time.
 JUMP_RESTARTS = 8
 
@@ -191,10 +191,8 @@ def sample_piece(
             elif s < 0:
                 comp = max(comp, abs(slack_minus))
             w_left = w_right
-        size = max(max(c_scale, c_size), max(2.0 * w_size, 4.0 * kmax * lam_size))
-        tol_p = RTOL * size
-        tol_d = max(2.0 * RTOL * inverse * (size + gram * lam_size), own)
-        tol_d = max(tol_d, 4 * RTOL * lam_size)
+        tol_p, tol_d = tolerances(c_scale, c_size, 2.0 * w_size, 4.0 * kmax * lam_size, inverse, gram, lam_size)
+        tol_d = max(max(tol_d, own), 4 * RTOL * lam_size)
         if j == j0:
             tol_d = max(tol_d, carried)
         if primal > tol_p or dual > tol_d or comp > tol_p:
@@ -629,7 +627,7 @@ def period(
     # the velocity problems' scratch and the factor of the last set (`decide`)
     masks = np.zeros((3, m), dtype=np.bool_)
     rows_m, rows_n = np.empty((4, m)), np.zeros((5, N))
-    sets = np.empty((2 + chain.UPDATE_ITERATIONS, N), dtype=np.int8)
+    sets = np.empty((2 + UPDATE_ITERATIONS, N), dtype=np.int8)
     factored, norms = np.full(N, 2, dtype=np.int8), np.zeros(2)
     # the piece's own factor, L_JJ^{-1} 1, the slips at the last event and the rows' kept
     # crossings (`rebuild_changed`, `next_event_kept`); built: the piece arrays hold the

@@ -24,12 +24,12 @@ import math
 
 import numpy as np
 
-from crawlsim.kernel import chain, sampling
+from crawlsim.kernel import sampling
 from crawlsim.kernel.jit import jit
 from crawlsim.kernel.piece import basis_values, derivative
+from crawlsim.kernel.policy import RTOL
 
 TWO_PI = 2.0 * math.pi
-RTOL = chain.RTOL
 #: Two rows hit within this many cycles of the first crossing are hit together.
 SIMULTANEOUS = 1e-13
 

@@ -42,7 +42,18 @@ from typing import Any, TypeVar
 F = TypeVar("F", bound=Callable[..., Any])
 
 #: The kernel's modules, callees before callers.
-MODULES = ("chain", "piece", "sampling", "events", "eventloop", "jacobian", "tangent", "tangent_catchup", "implicit")
+MODULES = (
+    "policy",
+    "chain",
+    "piece",
+    "sampling",
+    "events",
+    "eventloop",
+    "jacobian",
+    "tangent",
+    "tangent_catchup",
+    "implicit",
+)
 #: Seconds of interpreted work after which loading the compiled form pays (its load time).
 SWITCH_SECONDS = 0.3
 #: What `crawlsim warmup` takes with an empty cache on one core of a 2-core machine (median

@@ -46,10 +46,7 @@ and the polyhedra above, re-exported.
 from crawlsim.kernel.certificate import (
     CACHE_NUMBERS,
     GENERIC_RCOND,
-    REFINE_FRACTION,
-    RTOL,
     SMALL_CHAIN,
-    UPDATE_ITERATIONS,
     Certificate,
     Dependent,
     Run,
@@ -58,6 +55,7 @@ from crawlsim.kernel.certificate import (
 )
 from crawlsim.kernel.chain_polyhedron import ChainPolyhedron
 from crawlsim.kernel.dense_polyhedron import DensePolyhedron
+from crawlsim.kernel.policy import REFINE_FRACTION, RTOL, UPDATE_ITERATIONS
 from crawlsim.kernel.polyhedron import ActiveSet, Polyhedron
 from crawlsim.kernel.tridiagonal import ldl_solve, ldl_tridiagonal
 

@@ -18,9 +18,9 @@ import numpy as np
 
 from crawlsim.kernel import chain
 from crawlsim.kernel.jit import jit
+from crawlsim.kernel.policy import RTOL, UPDATE_ITERATIONS, tolerances
 
 TWO_PI = 2.0 * math.pi
-RTOL = chain.RTOL
 
 
 # -- the basis phi(u) and products with it ------------------------------------------------------
@@ -320,8 +320,7 @@ def dual_scale(
             if signs[i] != 0:
                 top = max(top, abs(Ydx[b, i]))
         lam_size += top
-    size = max(max(c_scale, c_size), max(2.0 * w_size, 4.0 * kmax * lam_size))
-    return 2.0 * RTOL * inverse * (size + gram * lam_size)
+    return float(tolerances(c_scale, c_size, 2.0 * w_size, 4.0 * kmax * lam_size, inverse, gram, lam_size)[1])
 
 
 # -- an event: the next active set --------------------------------------------------------------
@@ -750,7 +749,7 @@ def decide_run(
         masks,
         np.empty((4, 2 * n)),
         np.zeros((5, n)),
-        np.empty((2 + chain.UPDATE_ITERATIONS, n), dtype=np.int8),
+        np.empty((2 + UPDATE_ITERATIONS, n), dtype=np.int8),
         np.full(n, 2, dtype=np.int8),
         np.empty(n),
         np.empty(max(n - 1, 0)),
