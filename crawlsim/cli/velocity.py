@@ -65,6 +65,12 @@ def _dimensions(sweep_specs, link_specs) -> list[list[str]]:
     "--json", "as_json", is_flag=True, help="Print the run's JSON summary instead of v0 alone (single gait only)."
 )
 @click.option(
+    "--rigid",
+    is_flag=True,
+    help="v0 in the rigid limit (links infinitely stiff): exact, without stepping; "
+    "--json adds its estimate and which block rests when.",
+)
+@click.option(
     "--sweep",
     "sweep_specs",
     multiple=True,
@@ -123,6 +129,7 @@ def _dimensions(sweep_specs, link_specs) -> list[list[str]]:
 def velocity(
     gait_file,
     as_json,
+    rigid,
     sweep_specs,
     sensitivity_paths,
     link_specs,
@@ -160,6 +167,7 @@ def velocity(
     Examples:
       crawlsim velocity gaits/peristalsis-4.yaml
       crawlsim velocity gaits/inching-2.yaml --json
+      crawlsim velocity gaits/peristalsis-4.yaml --rigid
       crawlsim velocity gaits/peristalsis-4.yaml --sensitivity 'links.*.phase' \\
           --sensitivity stiffness
       crawlsim velocity gaits/peristalsis-4.yaml --sweep 'links.*.amplitude=0.1:0.4:7' \\
@@ -183,6 +191,10 @@ def velocity(
 
         need_crawler(gait)
         warn_unchecked(gait)
+        if rigid:
+            if groups or sensitivity_paths or output:
+                raise BadInput("--rigid prints one gait's rigid limit: without --sweep, --sensitivity or -o")
+            return _rigid(gait, as_json)
         if not groups:
             if shard or plot_file:
                 raise BadInput("--shard and --plot need at least one --sweep PATH=SPEC")
@@ -266,6 +278,20 @@ def _single(gait, sensitivity_paths, as_json, max_memory, quiet, verbose):
         s = gait.simulation
         click.echo(not_converged_message(result, s.max_periods, s.tolerance, s.limit), err=True)
         sys.exit(EXIT_NOT_CONVERGED)
+
+
+def _rigid(gait, as_json):
+    """v0 in the rigid limit (`crawlsim.api.rigid_limit`), with the digits its estimate supports
+    (--json: full precision, the estimate and the resting block's intervals)."""
+    from crawlsim import api
+    from crawlsim.analysis.digits import supported
+
+    result = api.rigid_limit(gait)
+    click.echo(
+        to_json({"name": gait.name, **result.summary()})
+        if as_json
+        else supported(result.v0, result.v0_error_estimate)[0]
+    )
 
 
 def _sweep(grid, output, jobs, shard, scheduler, quiet, verbose):

@@ -1,0 +1,351 @@
+"""The rigid limit k -> infinity of a crawler gait: v0 without stepping (docs/model.md §7).
+
+With rigid links the shape follows the actuators, x_j = x_1 + P_j(t) with P_j = L_1 + ... +
+L_{j-1}, so block j moves at u + c_j(t), c_j = dP_j/dt, and the balance 0 in
+sum_j dR~_j(u + c_j(t)) (thresholds mu~ shifted by the loads, docs/model.md §6) fixes u = -c_m:
+in the order of decreasing c_j, block m is the first at which g_J = sum_J mu~^+ - sum_rest mu~^-
+turns positive, J the blocks up to it (a weighted median). It rests, and while it does the
+integral of u is -(P_m(b) - P_m(a)): exact, from the signals themselves.
+
+Block m changes only at events, found on each piece between the signals' breakpoints, where
+every signal is phi(u) @ coef (`crawlsim.model.offsets`):
+
+* crossings c_j = c_l reorder the velocities (every pair's zeros);
+* weight events, sign changes of the g_J of the current order, move the resting block along it
+  (time-controlled friction or loads);
+* a jump of a link (a steps signal) moves the body at once, by the same rule with the jumps of
+  P in place of the velocities and the friction after the jump.
+
+Zeros of one harmonic or of an affine function are in closed form, the others (several
+harmonics, or a harmonic and a linear part) are found by certified sampling (`_sampled`). The
+error estimate adds the roundoff of the sum and, for each event, its time's uncertainty times
+the jump of u there.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from crawlsim.errors import DegenerateModelError
+from crawlsim.gait.crawler_spec import Gait
+from crawlsim.gait.signals import Steps, union_breakpoints
+from crawlsim.gait.uniqueness import TOLERANCE
+from crawlsim.model.offsets import Basis, PiecewiseOffsets
+from crawlsim.model.process import piece_edges
+from crawlsim.status import RigidStatus
+
+EPS = float(np.finfo(float).eps)
+TWO_PI = 2.0 * math.pi
+SAMPLE_CELLS = 8
+"""Cells per harmonic and cycle in which a sampled search starts."""
+NARROWEST = 1e-12
+"""Cycles: a cell the sampled search does not split further; its width counts in the estimate."""
+
+
+@dataclass(frozen=True, eq=False)
+class RigidLimit:
+    """The rigid limit of a gait: v0, its error estimate, and which block rests when.
+
+    ``resting[i]`` (1-based) rests on ``[times[i], times[i+1])``; an interval of length zero is
+    a jump of the links, made with that block at rest."""
+
+    v0: float
+    v0_error_estimate: float
+    displacement_per_period: float
+    period: float
+    times: np.ndarray
+    resting: np.ndarray
+    status: RigidStatus
+    message: str
+
+    def summary(self) -> dict[str, Any]:
+        """The JSON form: v0, its estimate, and the resting block's intervals."""
+        return {
+            "v0": self.v0,
+            "v0_error_estimate": self.v0_error_estimate,
+            "displacement_per_period": self.displacement_per_period,
+            "status": str(self.status),
+            "message": self.message,
+            "resting": [
+                {"start": float(a), "end": float(b), "block": int(m)}
+                for a, b, m in zip(self.times[:-1], self.times[1:], self.resting)
+            ],
+        }
+
+
+def rigid_limit(gait: Gait) -> RigidLimit:
+    """v0 of ``gait`` as its links stiffen without bound (module docstring). Raises
+    `DegenerateModelError` where the balance does not fix the motion (a g_J of the order is 0
+    on an interval, or at a jump)."""
+    n = gait.blocks
+    loads = gait.loads
+    scale = 1.0 if loads is None else loads.cos
+    gravity = None if loads is None else loads.gravity
+
+    def combine(coef: np.ndarray) -> np.ndarray:
+        """[P | mu~^+ | mu~^-] from the signals' coefficients (docs/model.md §6)."""
+        positions = np.zeros((coef.shape[0], n))
+        positions[:, 1:] = np.cumsum(coef[:, : n - 1], axis=1)
+        plus, minus = scale * coef[:, n - 1 : 2 * n - 1], scale * coef[:, 2 * n - 1 : 3 * n - 1]
+        if gravity is not None:
+            force = coef[:, 3 * n - 1 :].copy()
+            force[0] += gravity
+            plus, minus = plus - force, minus + force
+        return np.hstack([positions, plus, minus])
+
+    signals = gait.links + gait.forward + gait.backward + (() if loads is None else loads.forces)
+    kinks = union_breakpoints([s.breakpoints() for s in set(signals) if not s.is_smooth])
+    pieces = PiecewiseOffsets(signals, combine, piece_edges(kinks))
+    walk = _Walk(gait, pieces.basis)
+    jumps = any(isinstance(s, Steps) for s in gait.links)
+    for p in range(pieces.pieces):
+        a, b = float(pieces.edges[p]), float(pieces.edges[p + 1])
+        if jumps:
+            before = pieces.coefficients(p - 1 if p else pieces.pieces - 1)
+            walk.jump(a, pieces.basis.values([a if p else 1.0]) @ before[:, :n], pieces.coefficients(p))
+        walk.piece(pieces.coefficients(p), a, b)
+    return walk.result()
+
+
+class _Walk:
+    """The resting block piece by piece, and the displacement it makes."""
+
+    def __init__(self, gait: Gait, basis: Basis):
+        self.gait, self.basis, self.n = gait, basis, gait.blocks
+        self.edges: list[np.ndarray] = []
+        self.resting: list[np.ndarray] = []
+        self.displacement: list[float] = []
+        self.error = 0.0
+        self.sampled = 0
+
+    def jump(self, u: float, left: np.ndarray, coef: np.ndarray) -> None:
+        """A jump of the links at cycle u (P from ``left`` to ``coef``'s value): the block at rest
+        is chosen by the rule of the velocities, with the jumps of P and the friction after."""
+        phi = self.basis.values([u])
+        right = phi @ coef
+        step = right[:, : self.n] - left
+        size = float(np.max(np.abs(phi) @ np.abs(coef[:, : self.n])))
+        if not np.max(np.abs(step)) > 64 * EPS * size:
+            return
+        key = np.round(step / (64 * EPS * size))
+        m, _, _ = self._rank(key, right[:, self.n :], None, np.array([u, u]))
+        self.edges.append(np.array([u, u]))
+        self.resting.append(m)
+        self.displacement.append(-float(step[0, m[0]]))
+        self.error += 8 * EPS * size
+
+    def piece(self, coef: np.ndarray, a: float, b: float) -> None:
+        """The piece [a, b]: its crossings, then its weight events, then the integral."""
+        n, basis = self.n, self.basis
+        c = basis.derivative(coef[:, :n])
+        friction = coef[:, n:]
+        speed = max(float(np.max(np.abs(c).sum(axis=0))), 1e-300)
+        i, j = _pairs(n)
+        roots, spread = self._zeros(c[:, i] - c[:, j], a, b, speed)
+        self.error += spread * speed * 16 * EPS
+        edges = _distinct(np.concatenate([[a], roots, [b]]))
+        for _ in range(4 * n + 16):  # each round splits at the sign changes of two g_J
+            phi = basis.values(np.concatenate([0.5 * (edges[:-1] + edges[1:]), edges]))
+            mid = phi[: len(edges) - 1]
+            # velocities equal to roundoff (a link at rest, a wave summing to zero) tie
+            m, watched, owner = self._rank(np.round((mid @ c) / (64 * EPS * speed)), mid @ friction, coef, edges)
+            if watched is None:
+                break
+            roots, spread = self._zeros(watched, edges[owner], edges[owner + 1], float(np.abs(friction).sum()))
+            self.error += spread * 2.0 * speed
+            split = _distinct(np.concatenate([edges, roots]))
+            if len(split) == len(edges):  # none, or zeros at the edges they made
+                break
+            edges = split
+        ends = phi[len(edges) - 1 :]
+        positions = ends @ coef[:, :n]
+        size = np.abs(ends) @ np.abs(coef[:, :n])
+        rows = np.arange(len(m))
+        self.edges.append(edges)
+        self.resting.append(m)
+        self.displacement.append(-math.fsum(positions[rows + 1, m] - positions[rows, m]))
+        self.error += 8 * EPS * float(np.sum(size[rows + 1, m] + size[rows, m]))
+
+    def _rank(
+        self, key: np.ndarray, values: np.ndarray, coef: np.ndarray | None, edges: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+        """The resting block of each interval, from its velocities (``key``, equal where they
+        tie) and friction ``values`` [mu~^+ | mu~^-]; with the friction's coefficients ``coef``
+        where it varies, the g_J that keep it there (the one up to it and the one before, as
+        coefficients, with the interval of each). Of blocks that move together the first is
+        named (they all rest)."""
+        n = self.n
+        order = np.argsort(-key, axis=1, kind="stable")
+        rows = np.arange(len(order))
+        weights = values[:, :n] + values[:, n:]
+        g = np.cumsum(np.take_along_axis(weights, order, axis=1), axis=1) - values[:, n:].sum(axis=1)[:, None]
+        position = np.argmax(g > 0, axis=1)
+        kept = [(position < n - 1, position), (position > 0, position - 1)]
+        owner = np.concatenate([rows[k] for k, _ in kept])
+        column = np.concatenate([p[k] for k, p in kept])
+        band = TOLERANCE * weights.sum(axis=1)[owner]
+        tied = np.abs(g[owner, column]) <= band
+        watched = None
+        varying = coef is not None and np.any(coef[1:, n:])
+        if varying or np.any(tied):
+            flat = tied
+            if coef is not None:
+                friction = coef[:, n:]
+                sums = np.cumsum(friction[:, :n][:, order] + friction[:, n:][:, order], axis=2)
+                watched = sums[:, owner, column] - friction[:, n:].sum(axis=1)[:, None]
+                flat = tied & np.all(np.abs(watched) <= band, axis=0)
+            if np.any(flat):
+                at = int(owner[np.argmax(flat)])
+                self._degenerate(order[at], g[at], edges[at], edges[at + 1])
+        m = order[rows, position]
+        m = np.argmax(key == key[rows, m][:, None], axis=1)
+        return m, watched if varying else None, owner
+
+    def _degenerate(self, order: np.ndarray, g: np.ndarray, a: float, b: float) -> None:
+        """Refuse a gait whose balance does not fix the motion: some g_J of the order is zero."""
+        p = int(np.argmin(np.abs(g)))
+        faster = ", ".join(str(int(j) + 1) for j in sorted(order[: p + 1]))
+        period = self.gait.period
+        when = f"t = {a * period:g}" if a == b else f"t in [{a * period:g}, {b * period:g}]"
+        raise DegenerateModelError(
+            self.gait.source,
+            "loads" if self.gait.loads is not None else "friction",
+            f"the rigid limit is not unique at {when}: the blocks J = {{{faster}}}, the fastest, "
+            "forward and the rest backward balance exactly (sum mu+ over J - sum mu- over the "
+            "rest = 0), so the balance does not fix which block rests (docs/model.md §7)",
+        )
+
+    def _zeros(self, z: np.ndarray, lo: Any, hi: Any, scale: float) -> tuple[np.ndarray, float]:
+        """The sign changes of the columns f_i = phi @ z[:, i] in (lo_i, hi_i), and the sum of
+        their times' uncertainties (cycles). A column within roundoff of zero, relative to
+        ``scale`` (that of the functions it is a difference of), is zero: a tie, not a zero."""
+        nonzero = np.abs(z).sum(axis=0) > 64 * EPS * scale
+        z = z[:, nonzero]
+        lo = np.broadcast_to(lo, nonzero.shape)[nonzero]
+        hi = np.broadcast_to(hi, nonzero.shape)[nonzero]
+        basis = self.basis
+        h0 = basis.first_harmonic
+        roundoff = 16 * EPS * np.abs(z).sum(axis=0)
+        slope = z[1] if basis.linear else np.zeros(z.shape[1])
+        if not np.any(z[h0:]):  # affine: z0 + z1 u
+            with np.errstate(divide="ignore", invalid="ignore"):
+                u = -z[0] / slope
+            keep = (slope != 0) & (u > lo) & (u < hi)
+            return u[keep], float(np.sum(roundoff[keep] / np.abs(slope[keep])))
+        if not np.any(z[h0 + 2 :]) and not np.any(slope):  # z0 + a cos 2 pi u + b sin 2 pi u
+            radius = np.hypot(z[h0], z[h0 + 1])
+            cross = radius > np.abs(z[0])
+            delta = np.arccos(-z[0][cross] / radius[cross])
+            alpha = np.arctan2(z[h0 + 1], z[h0])[cross]
+            u = np.mod(np.concatenate([alpha - delta, alpha + delta]) / TWO_PI, 1.0)
+            lo, hi, radius, r = (np.tile(x[cross], 2) for x in (lo, hi, radius, roundoff))
+            keep = (u > lo) & (u < hi)
+            rate = TWO_PI * radius * np.abs(np.sin(np.tile(delta, 2)))
+            with np.errstate(divide="ignore"):
+                dt = np.minimum(r / rate, np.sqrt(2 * r / (TWO_PI**2 * radius)))
+            return u[keep], float(np.sum(dt[keep]))
+        self.sampled += 1
+        return _sampled(z, basis, lo, hi, roundoff)
+
+    def result(self) -> RigidLimit:
+        period = float(self.gait.period)
+        edges = np.concatenate([e[:-1] for e in self.edges] + [[1.0]])
+        resting = np.concatenate(self.resting)
+        length = np.diff(edges)
+        keep = np.concatenate([[True], (resting[1:] != resting[:-1]) | (length[1:] == 0) | (length[:-1] == 0)])
+        displacement = math.fsum(self.displacement)
+        error = self.error + 2 * EPS * len(edges) * sum(abs(d) for d in self.displacement)
+        how = "every event in closed form"
+        if self.sampled:
+            how = f"events in closed form and by certified sampling ({self.sampled} searches)"
+        return RigidLimit(
+            v0=displacement / period,
+            v0_error_estimate=error / period,
+            displacement_per_period=displacement,
+            period=period,
+            times=np.append(edges[:-1][keep], 1.0) * period,
+            resting=resting[keep] + 1,
+            status=RigidStatus.SAMPLED if self.sampled else RigidStatus.CLOSED_FORM,
+            message=how,
+        )
+
+
+@functools.lru_cache(maxsize=8)
+def _pairs(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Every pair j < l of n blocks."""
+    return np.triu_indices(n, 1)
+
+
+def _distinct(edges: np.ndarray) -> np.ndarray:
+    """Sorted edges without those within a few ulps of the one before (the last kept)."""
+    edges = np.sort(edges)
+    keep = np.concatenate([np.diff(edges) > 4 * EPS, [True]])
+    keep[0] = True
+    return edges[keep]
+
+
+def _at(z: np.ndarray, basis: Basis, owner: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """f_owner(u) for each pair of a function and a cycle."""
+    return np.einsum("ij,ji->i", basis.values(u), z[:, owner])
+
+
+def _sampled(z: np.ndarray, basis: Basis, lo: np.ndarray, hi: np.ndarray, roundoff: np.ndarray) -> tuple:
+    """Sign changes of f_i = phi @ z[:, i] in (lo_i, hi_i) by certified sampling: on a cell of
+    width h, |f''| <= M (`Basis.curvature_bound`) keeps f within M h^2 / 8 of its chord, and
+    |f'(mid)| > M h / 2 makes it monotone. A cell whose ends have one sign holds no sign change
+    if they exceed that bound or f is monotone; a monotone one whose ends differ holds one, found
+    by Newton's method kept in the bracket. Other cells are split, down to `NARROWEST`; one left then counts its width
+    as uncertainty."""
+    derivative = basis.derivative(z)
+    curve = basis.curvature_bound(z)
+    cells = max(2, math.ceil(SAMPLE_CELLS * basis.harmonics * float(np.max(hi - lo))))
+    owner = np.repeat(np.arange(z.shape[1]), cells)
+    steps = np.tile(np.arange(cells + 1), (z.shape[1], 1)) / cells
+    grid = lo[:, None] + (hi - lo)[:, None] * steps
+    grid[:, -1] = hi
+    x0, x1 = grid[:, :-1].ravel(), grid[:, 1:].ravel()
+    found: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+    uncertain = 0.0
+    while owner.size:
+        f0, f1 = _at(z, basis, owner, x0), _at(z, basis, owner, x1)
+        h = x1 - x0
+        rate = np.abs(_at(derivative, basis, owner, 0.5 * (x0 + x1)))
+        change = np.signbit(f0) != np.signbit(f1)
+        monotone = rate > curve[owner] * h / 2
+        clear = ~change & (monotone | (np.minimum(np.abs(f0), np.abs(f1)) > curve[owner] * h * h / 8 + roundoff[owner]))
+        narrow = h < NARROWEST
+        solve = change & (monotone | narrow)
+        uncertain += float(np.sum(h[narrow & ~clear & ~(change & monotone)]))
+        if np.any(solve):
+            found.append((owner[solve], x0[solve], x1[solve]))
+        split = ~clear & ~solve & ~narrow
+        owner, x0, x1 = owner[split], x0[split], x1[split]
+        quarter = (x1 - x0) / 4
+        owner = np.repeat(owner, 4)
+        x0 = np.repeat(x0, 4) + np.tile(np.arange(4), len(quarter)) * np.repeat(quarter, 4)
+        x1 = x0 + np.repeat(quarter, 4)
+    if not found:
+        return np.empty(0), uncertain
+    owner = np.concatenate([f[0] for f in found])
+    x0, x1 = np.concatenate([f[1] for f in found]), np.concatenate([f[2] for f in found])
+    f0 = _at(z, basis, owner, x0)
+    root = 0.5 * (x0 + x1)
+    for _ in range(100):  # Newton's steps, kept in the bracket by bisection (cycles: <= 1)
+        f, rate = _at(z, basis, owner, root), _at(derivative, basis, owner, root)
+        same = np.signbit(f) == np.signbit(f0)
+        x0, f0, x1 = np.where(same, root, x0), np.where(same, f, f0), np.where(same, x1, root)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            newton = root - f / rate
+        step = np.where((newton >= x0) & (newton <= x1), newton, 0.5 * (x0 + x1))
+        root, moved = step, np.abs(step - root)
+        if np.all((moved <= 4 * EPS) | (x1 - x0 <= 4 * EPS)):
+            break
+    rate = np.abs(_at(derivative, basis, owner, root))
+    with np.errstate(divide="ignore"):
+        dt = np.minimum(roundoff[owner] / rate, np.sqrt(2 * roundoff[owner] / np.maximum(curve[owner], 1e-300)))
+    return root, uncertain + float(np.sum(dt + moved))
