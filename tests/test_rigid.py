@@ -249,3 +249,29 @@ def test_velocity_rigid_on_the_command_line():
     assert all(a["end"] == b["start"] for a, b in zip(intervals, intervals[1:]))
     out = runner.invoke(main, ["velocity", str(GAITS / "inching-2.yaml"), "--rigid", "--sweep", "period=1:2:3"])
     assert out.exit_code == 2 and "--rigid" in out.output
+
+
+def test_run_rigid_writes_draws_and_describes_it(tmp_path):
+    """``run --rigid`` adds /rigid to the results file (the intervals tile the period), its
+    figure to --plot, its v0 to the summary; ``info`` reports it with the uniqueness margin. A
+    file without it has no rigid figure, and asking for one says how to get it (exit code 2)."""
+    from crawlsim.io.hdf5 import read_results
+
+    runner = CliRunner()
+    out = tmp_path / "p4.h5"
+    args = ["run", str(GAITS / "peristalsis-4.yaml"), "--rigid", "--plot", "--json", "-q", "-o", str(out)]
+    summary = json.loads(runner.invoke(main, args).output)
+    assert summary["rigid"]["v0"] == pytest.approx(0.3, abs=1e-13)
+    assert str(tmp_path / "p4-rigid.png") in summary["figures"]
+    data = read_results(out)
+    assert data["rigid_attrs"]["v0"] == summary["rigid"]["v0"]
+    assert data["rigid"]["start"][0] == 0.0 and data["rigid"]["end"][-1] == 1.0
+    np.testing.assert_array_equal(data["rigid"]["start"][1:], data["rigid"]["end"][:-1])
+    assert list(data["rigid"]["resting_block"]) == [1, 3, 2, 1]
+    text = runner.invoke(main, ["info", str(out)]).output
+    assert "rigid limit v0           0.300000000000" in text
+    assert "uniqueness margin        1, for J = {1, 2, 3} at t = 0; friction.forward from 1 to 0.666667" in text
+    plain = tmp_path / "plain.h5"
+    runner.invoke(main, ["run", str(GAITS / "inching-2.yaml"), "-q", "-o", str(plain)])
+    missing = runner.invoke(main, ["plot", str(plain), "--only", "rigid"])
+    assert missing.exit_code == 2 and "crawlsim run --rigid writes it" in missing.output
