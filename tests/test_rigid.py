@@ -275,3 +275,23 @@ def test_run_rigid_writes_draws_and_describes_it(tmp_path):
     runner.invoke(main, ["run", str(GAITS / "inching-2.yaml"), "-q", "-o", str(plain)])
     missing = runner.invoke(main, ["plot", str(plain), "--only", "rigid"])
     assert missing.exit_code == 2 and "crawlsim run --rigid writes it" in missing.output
+
+
+def test_sweep_figures_draw_the_asymptote_and_the_margin(tmp_path):
+    """A stiffness sweep's figure draws v0_inf as its asymptote (here v0 T, the displacement per
+    period, as the figure draws it); a friction sweep marks where the uniqueness margin reaches
+    0 (peristalsis-4: 3 mu+ - mu- = 0 at friction.backward = 3, where v0 jumps)."""
+    from crawlsim.io.hdf5 import read_sweep
+    from crawlsim.plotting.sweeps import sweep_data_figure
+
+    runner = CliRunner()
+    gait = str(GAITS / "peristalsis-4.yaml")
+    for sweep, name in (("stiffness=log:10:1000:3", "k.h5"), ("friction.backward=2.5:3.5:5", "f.h5")):
+        out = runner.invoke(
+            main, ["velocity", gait, "--sweep", sweep, "--steps-per-period", "100", "-q", "-o", str(tmp_path / name)]
+        )
+        assert out.exit_code == 0, out.output
+    lines = {line.get_label(): line for line in sweep_data_figure(read_sweep(tmp_path / "k.h5")).axes[0].get_lines()}
+    assert list(lines["rigid limit $k \\to \\infty$: 0.3"].get_ydata()) == pytest.approx([0.3, 0.3], abs=1e-13)
+    lines = {line.get_label(): line for line in sweep_data_figure(read_sweep(tmp_path / "f.h5")).axes[0].get_lines()}
+    assert list(lines["uniqueness margin 0: $v_0$ can jump"].get_xdata()) == pytest.approx([3.0, 3.0], abs=1e-9)

@@ -62,10 +62,12 @@ class CurveMarks:
     stall: float | None
     cause: StallCause | None
     label: str  # "stall force" or "steepest slope"
+    jump_label: str = "jump of $v_0$"
 
 
 def curve_marks(gait_yaml: str, path: str, values, v0) -> CurveMarks | None:
-    """The marks of a sweep of one load path (``loads.force...`` or ``loads.slope.angle``), or
+    """The marks of a sweep of one load path (``loads.force...`` or ``loads.slope.angle``) or one
+    friction path (``friction...``: the jumps only, where the uniqueness margin reaches 0), or
     None for any other sweep (or when the gait cannot be rebuilt).
 
     Jumps: between consecutive swept values, a subset J whose shifted uniqueness sum g~_J changes
@@ -77,7 +79,8 @@ def curve_marks(gait_yaml: str, path: str, values, v0) -> CurveMarks | None:
     """
     import yaml
 
-    if not (path.startswith("loads.force") or path == "loads.slope.angle"):
+    friction = path.startswith("friction")
+    if not (friction or path.startswith("loads.force") or path == "loads.slope.angle"):
         return None
     try:
         document = yaml.safe_load(gait_yaml)
@@ -90,6 +93,8 @@ def curve_marks(gait_yaml: str, path: str, values, v0) -> CurveMarks | None:
     v = np.asarray(v0, dtype=float)
     label = "steepest slope" if path == "loads.slope.angle" else "stall force"
     jumps = _UniquenessSums(gait, path).jumps(x)
+    if friction:
+        return CurveMarks(tuple(jumps), None, None, "", "uniqueness margin 0: $v_0$ can jump")
     stall_at, cause = None, None
     own = resolve_path_value(gait.document, path)
     finite = np.isfinite(v)

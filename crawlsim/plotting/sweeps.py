@@ -92,7 +92,7 @@ def _status_grid(status, shape) -> np.ndarray:
 
 
 def sweep_figure(
-    axes: dict, v0, status, title: str, *, units: Units | None = None, displacement=None, marks=None
+    axes: dict, v0, status, title: str, *, units: Units | None = None, displacement=None, marks=None, rigid=None
 ) -> Figure:
     """v0 over a sweep of one or two gait parameters, named by their dotted paths.
 
@@ -112,8 +112,10 @@ def sweep_figure(
       v0 = 0 when v0 changes sign, and cells without a value hatched and marked by status.
 
     A log-spaced axis (constant ratio, `is_geometric`) is drawn on a log scale. ``marks`` (a
-    `crawlsim.analysis.stall.CurveMarks`, sweeps of one load) break the line at the loads where v0 jumps
-    (dotted verticals) instead of joining across them, and mark the stall load.
+    `crawlsim.analysis.stall.CurveMarks`, sweeps of one load or friction number) break the line
+    where v0 jumps (dotted verticals) instead of joining across them, and mark the stall load.
+    ``rigid`` (a `crawlsim.analysis.rigid.RigidLimit`, sweeps of the stiffness) is drawn as the
+    asymptote it is (dashed).
     """
     units = units or Units()
     names = list(axes)
@@ -139,7 +141,13 @@ def sweep_figure(
         fig, axs = new_figure(height=3.6 if len(names) == 1 else 4.4)
         ax = axs[0, 0]
         if len(names) == 1:
+            if rigid is not None:
+                limit = rigid.displacement_per_period if data is not v0 else rigid.v0
+                text = f"rigid limit $k \\to \\infty$: {format_number(limit)}"
+                ax.axhline(limit, color=REFERENCE, linestyle="--", linewidth=1.0, zorder=3, label=text)
             _sweep_line(ax, values[0], data, statuses, logs[0], marks)
+            if rigid is not None:
+                ax.legend(loc="best")
             ax.set_xlabel(path_label(names[0], units))
             ax.set_ylabel(value_label)
         else:
@@ -268,7 +276,7 @@ def _draw_marks(ax, marks) -> None:
             label=f"{marks.label} {marks.stall:.6g} ({marks.cause})",
         )
     for k, s in enumerate(marks.jumps or ()):
-        ax.axvline(s, color=FAINT, linestyle=":", linewidth=1.0, label="jump of $v_0$" if k == 0 else None)
+        ax.axvline(s, color=FAINT, linestyle=":", linewidth=1.0, label=marks.jump_label if k == 0 else None)
 
 
 def _draw_sampled_jumps(ax, x, data, jump, log) -> None:
@@ -414,14 +422,38 @@ def sweep_data_figure(data: dict, title: str | None = None) -> Figure:
     status = on_grid("status", "", object)
     if title is None:
         title = f"{_sweep_name(data)}: average velocity over a sweep"
-    marks = None
+    marks = rigid = None
     if len(paths) == 1 and data.get("gait_yaml"):
         from crawlsim.analysis.stall import curve_marks
 
         marks = curve_marks(data["gait_yaml"], paths[0], data["axes"][0], v0)
+        rigid = rigid_asymptote(data["gait_yaml"], paths[0])
     return sweep_figure(
-        dict(zip(paths, data["axes"])), v0, status, title, units=units_of(data), displacement=displacement, marks=marks
+        dict(zip(paths, data["axes"])),
+        v0,
+        status,
+        title,
+        units=units_of(data),
+        displacement=displacement,
+        marks=marks,
+        rigid=rigid,
     )
+
+
+def rigid_asymptote(gait_yaml: str, path: str):
+    """The rigid limit of a sweep's gait (`crawlsim.analysis.rigid`) when the stiffness is swept,
+    the asymptote of v0; None otherwise, or where there is none."""
+    if path.split(".")[0] != "stiffness":
+        return None
+    from crawlsim.analysis.rigid import rigid_limit
+    from crawlsim.errors import InputError
+    from crawlsim.gait.document import Gait, parse_gait
+
+    try:
+        gait = parse_gait(gait_yaml, source="<sweep>")
+        return rigid_limit(gait) if isinstance(gait, Gait) else None
+    except InputError:
+        return None
 
 
 def _sweep_name(data: dict) -> str:
