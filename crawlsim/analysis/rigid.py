@@ -40,6 +40,7 @@ from crawlsim.model.process import piece_edges
 from crawlsim.status import RigidStatus
 
 EPS = float(np.finfo(float).eps)
+_CYCLE = np.array([0.0, 1.0])
 TWO_PI = 2.0 * math.pi
 SAMPLE_CELLS = 8
 """Cells per harmonic and cycle in which a sampled search starts."""
@@ -86,99 +87,111 @@ def rigid_limit(gait: Gait) -> RigidLimit:
     loads = gait.loads
     scale = 1.0 if loads is None else loads.cos
     gravity = None if loads is None else loads.gravity
-
-    def combine(coef: np.ndarray) -> np.ndarray:
-        """[P | mu~^+ | mu~^-] from the signals' coefficients (docs/model.md §6)."""
-        positions = np.zeros((coef.shape[0], n))
-        positions[:, 1:] = np.cumsum(coef[:, : n - 1], axis=1)
-        plus, minus = scale * coef[:, n - 1 : 2 * n - 1], scale * coef[:, 2 * n - 1 : 3 * n - 1]
-        if gravity is not None:
-            force = coef[:, 3 * n - 1 :].copy()
-            force[0] += gravity
-            plus, minus = plus - force, minus + force
-        return np.hstack([positions, plus, minus])
-
     signals = gait.links + gait.forward + gait.backward + (() if loads is None else loads.forces)
-    kinks = union_breakpoints([s.breakpoints() for s in set(signals) if not s.is_smooth])
-    pieces = PiecewiseOffsets(signals, combine, piece_edges(kinks))
-    walk = _Walk(gait, pieces.basis)
-    jumps = any(isinstance(s, Steps) for s in gait.links)
-    for p in range(pieces.pieces):
-        a, b = float(pieces.edges[p]), float(pieces.edges[p + 1])
-        if jumps:
-            before = pieces.coefficients(p - 1 if p else pieces.pieces - 1)
-            walk.jump(a, pieces.basis.values([a if p else 1.0]) @ before[:, :n], pieces.coefficients(p))
-        walk.piece(pieces.coefficients(p), a, b)
+    distinct = {s: i for i, s in enumerate(dict.fromkeys(signals))}  # a chain repeats its friction
+    kinks = [s.breakpoints() for s in distinct if not s.is_smooth]
+    pieces = PiecewiseOffsets(
+        list(distinct), lambda coef: coef, piece_edges(union_breakpoints(kinks)) if kinks else _CYCLE
+    )
+    # [P | mu~^+ | mu~^-] on every piece (docs/model.md §6): (basis, piece, 3N)
+    coef = np.stack([pieces.signal_coefficients(p) for p in range(pieces.pieces)], axis=1)
+    coef = coef[..., np.array([distinct[s] for s in signals])]
+    positions = np.concatenate([np.zeros(coef.shape[:2] + (1,)), np.cumsum(coef[..., : n - 1], axis=-1)], axis=-1)
+    plus, minus = scale * coef[..., n - 1 : 2 * n - 1], scale * coef[..., 2 * n - 1 : 3 * n - 1]
+    if gravity is not None:
+        force = coef[..., 3 * n - 1 :].copy()
+        force[0] += gravity
+        plus, minus = plus - force, minus + force
+    walk = _Walk(gait, pieces.basis, np.concatenate([positions, plus, minus], axis=-1))
+    if any(isinstance(s, Steps) for s in gait.links):
+        walk.jumps(pieces.edges)
+    walk.intervals(pieces.edges)
     return walk.result()
 
 
 class _Walk:
-    """The resting block piece by piece, and the displacement it makes."""
+    """The resting block on every piece at once, and the displacement it makes."""
 
-    def __init__(self, gait: Gait, basis: Basis):
-        self.gait, self.basis, self.n = gait, basis, gait.blocks
-        self.edges: list[np.ndarray] = []
+    def __init__(self, gait: Gait, basis: Basis, coef: np.ndarray):
+        self.gait, self.basis, self.n, self.coef = gait, basis, gait.blocks, coef
+        self.spans: list[np.ndarray] = []  # (start, end) of each interval, cycles
         self.resting: list[np.ndarray] = []
-        self.displacement: list[float] = []
+        self.displacement = 0.0
         self.error = 0.0
         self.sampled = 0
 
-    def jump(self, u: float, left: np.ndarray, coef: np.ndarray) -> None:
-        """A jump of the links at cycle u (P from ``left`` to ``coef``'s value): the block at rest
-        is chosen by the rule of the velocities, with the jumps of P and the friction after."""
-        phi = self.basis.values([u])
-        right = phi @ coef
-        step = right[:, : self.n] - left
-        size = float(np.max(np.abs(phi) @ np.abs(coef[:, : self.n])))
-        if not np.max(np.abs(step)) > 64 * EPS * size:
+    def jumps(self, cuts: np.ndarray) -> None:
+        """Jumps of the links at the pieces' starts (P from the piece before to this one): the
+        block at rest is chosen by the rule of the velocities, with the jumps of P and the
+        friction after."""
+        n, coef = self.n, self.coef
+        phi = self.basis.values(cuts[:-1])
+        before = self.basis.values(np.append(1.0, cuts[1:-1]))
+        step = np.einsum("pb,bpn->pn", phi, coef[..., :n]) - np.einsum(
+            "pb,bpn->pn", before, np.roll(coef[..., :n], 1, 1)
+        )
+        size = np.einsum("pb,bpn->p", np.abs(phi), np.abs(coef[..., :n]))
+        at = np.abs(step).max(axis=1) > 64 * EPS * size
+        if not at.any():
             return
-        key = np.round(step / (64 * EPS * size))
-        m, _, _ = self._rank(key, right[:, self.n :], None, np.array([u, u]))
-        self.edges.append(np.array([u, u]))
+        step, size, u = step[at], size[at], cuts[:-1][at]
+        friction = np.einsum("pb,bpn->pn", phi[at], coef[:, at, n:])
+        m, _, _ = self._rank(np.round(step / (64 * EPS * size[:, None])), friction, None, np.stack([u, u], 1))
+        self.spans.append(np.stack([u, u], 1))
         self.resting.append(m)
-        self.displacement.append(-float(step[0, m[0]]))
-        self.error += 8 * EPS * size
+        self.displacement -= math.fsum(step[np.arange(len(m)), m])
+        self.error += 8 * EPS * float(size.sum())
 
-    def piece(self, coef: np.ndarray, a: float, b: float) -> None:
-        """The piece [a, b]: its crossings, then its weight events, then the integral."""
-        n, basis = self.n, self.basis
-        c = basis.derivative(coef[:, :n])
-        friction = coef[:, n:]
-        speed = max(float(np.max(np.abs(c).sum(axis=0))), 1e-300)
+    def intervals(self, cuts: np.ndarray) -> None:
+        """Every piece: its crossings, then its weight events, then the integral."""
+        n, basis, coef = self.n, self.basis, self.coef
+        c = basis.derivative(coef[..., :n])
+        speed = max(float(np.abs(c).sum(axis=0).max()), 1e-300)
         i, j = _pairs(n)
-        roots, spread = self._zeros(c[:, i] - c[:, j], a, b, speed)
+        owner = np.repeat(np.arange(len(cuts) - 1), len(i))
+        roots, spread = self._zeros((c[..., i] - c[..., j]).reshape(len(c), -1), cuts[owner], cuts[owner + 1], speed)
         self.error += spread * speed * 16 * EPS
-        edges = _distinct(np.concatenate([[a], roots, [b]]))
+        edges = _distinct(np.concatenate([cuts, roots]))
+        varying = bool(coef[1:, :, n:].any())
         for _ in range(4 * n + 16):  # each round splits at the sign changes of two g_J
-            phi = basis.values(np.concatenate([0.5 * (edges[:-1] + edges[1:]), edges]))
-            mid = phi[: len(edges) - 1]
+            mid = 0.5 * (edges[:-1] + edges[1:])
+            piece = np.searchsorted(cuts, mid, side="right") - 1
+            phi = basis.values(mid)
+            friction = coef[:, piece, n:]
             # velocities equal to roundoff (a link at rest, a wave summing to zero) tie
-            m, watched, owner = self._rank(np.round((mid @ c) / (64 * EPS * speed)), mid @ friction, coef, edges)
+            key = np.round(np.einsum("mb,bmn->mn", phi, c[:, piece]) / (64 * EPS * speed))
+            m, watched, owner = self._rank(
+                key,
+                np.einsum("mb,bmn->mn", phi, friction),
+                friction if varying else None,
+                np.stack([edges[:-1], edges[1:]], 1),
+            )
             if watched is None:
                 break
-            roots, spread = self._zeros(watched, edges[owner], edges[owner + 1], float(np.abs(friction).sum()))
+            roots, spread = self._zeros(
+                watched, edges[owner], edges[owner + 1], float(np.abs(friction).sum(axis=(0, 2)).max())
+            )
             self.error += spread * 2.0 * speed
             split = _distinct(np.concatenate([edges, roots]))
             if len(split) == len(edges):  # none, or zeros at the edges they made
                 break
             edges = split
-        ends = phi[len(edges) - 1 :]
-        positions = ends @ coef[:, :n]
-        size = np.abs(ends) @ np.abs(coef[:, :n])
-        rows = np.arange(len(m))
-        self.edges.append(edges)
+        at = coef[:, piece, m]  # (basis, interval): the resting block's P
+        left, right = basis.values(edges[:-1]), basis.values(edges[1:])
+        moved = np.einsum("mb,bm->m", right, at) - np.einsum("mb,bm->m", left, at)
+        self.spans.append(np.stack([edges[:-1], edges[1:]], 1))
         self.resting.append(m)
-        self.displacement.append(-math.fsum(positions[rows + 1, m] - positions[rows, m]))
-        self.error += 8 * EPS * float(np.sum(size[rows + 1, m] + size[rows, m]))
+        self.displacement -= math.fsum(moved)
+        self.error += 8 * EPS * float(np.einsum("mb,bm->", np.abs(left) + np.abs(right), np.abs(at)))
 
     def _rank(
-        self, key: np.ndarray, values: np.ndarray, coef: np.ndarray | None, edges: np.ndarray
+        self, key: np.ndarray, values: np.ndarray, friction: np.ndarray | None, spans: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
         """The resting block of each interval, from its velocities (``key``, equal where they
-        tie) and friction ``values`` [mu~^+ | mu~^-]; with the friction's coefficients ``coef``
-        where it varies, the g_J that keep it there (the one up to it and the one before, as
-        coefficients, with the interval of each). Of blocks that move together the first is
-        named (they all rest)."""
+        tie) and friction ``values`` [mu~^+ | mu~^-]; given the friction's coefficients on
+        each interval (``friction``, where it varies), the g_J that keep it there (the one up to
+        it and the one before, as coefficients), with the interval of each. Of blocks that move
+        together the first is named (they all rest)."""
         n = self.n
         order = np.argsort(-key, axis=1, kind="stable")
         rows = np.arange(len(order))
@@ -191,20 +204,15 @@ class _Walk:
         band = TOLERANCE * weights.sum(axis=1)[owner]
         tied = np.abs(g[owner, column]) <= band
         watched = None
-        varying = coef is not None and np.any(coef[1:, n:])
-        if varying or np.any(tied):
-            flat = tied
-            if coef is not None:
-                friction = coef[:, n:]
-                sums = np.cumsum(friction[:, :n][:, order] + friction[:, n:][:, order], axis=2)
-                watched = sums[:, owner, column] - friction[:, n:].sum(axis=1)[:, None]
-                flat = tied & np.all(np.abs(watched) <= band, axis=0)
-            if np.any(flat):
-                at = int(owner[np.argmax(flat)])
-                self._degenerate(order[at], g[at], edges[at], edges[at + 1])
+        if friction is not None:
+            ordered = np.take_along_axis(friction[..., :n] + friction[..., n:], order[None], axis=2)
+            watched = (np.cumsum(ordered, axis=2) - friction[..., n:].sum(axis=2)[..., None])[:, owner, column]
+            tied &= np.all(np.abs(watched) <= band, axis=0)
+        if tied.any():
+            at = int(owner[np.argmax(tied)])
+            self._degenerate(order[at], g[at], *spans[at])
         m = order[rows, position]
-        m = np.argmax(key == key[rows, m][:, None], axis=1)
-        return m, watched if varying else None, owner
+        return np.argmax(key == key[rows, m][:, None], axis=1), watched, owner
 
     def _degenerate(self, order: np.ndarray, g: np.ndarray, a: float, b: float) -> None:
         """Refuse a gait whose balance does not fix the motion: some g_J of the order is zero."""
@@ -222,53 +230,47 @@ class _Walk:
 
     def _zeros(self, z: np.ndarray, lo: Any, hi: Any, scale: float) -> tuple[np.ndarray, float]:
         """The sign changes of the columns f_i = phi @ z[:, i] in (lo_i, hi_i), and the sum of
-        their times' uncertainties (cycles). A column within roundoff of zero, relative to
-        ``scale`` (that of the functions it is a difference of), is zero: a tie, not a zero."""
-        nonzero = np.abs(z).sum(axis=0) > 64 * EPS * scale
-        z = z[:, nonzero]
-        lo = np.broadcast_to(lo, nonzero.shape)[nonzero]
-        hi = np.broadcast_to(hi, nonzero.shape)[nonzero]
+        their times' uncertainties (cycles): affine columns and those of one harmonic in closed
+        form, the others by `_sampled`. A column within roundoff of zero, relative to ``scale``
+        (that of the functions it is a difference of), is zero: a tie, not a zero."""
+        size = np.abs(z).sum(axis=0)
+        lo, hi = np.broadcast_to(lo, size.shape), np.broadcast_to(hi, size.shape)
         basis = self.basis
         h0 = basis.first_harmonic
-        roundoff = 16 * EPS * np.abs(z).sum(axis=0)
-        slope = z[1] if basis.linear else np.zeros(z.shape[1])
-        if not np.any(z[h0:]):  # affine: z0 + z1 u
-            with np.errstate(divide="ignore", invalid="ignore"):
-                u = -z[0] / slope
-            keep = (slope != 0) & (u > lo) & (u < hi)
-            return u[keep], float(np.sum(roundoff[keep] / np.abs(slope[keep])))
-        if not np.any(z[h0 + 2 :]) and not np.any(slope):  # z0 + a cos 2 pi u + b sin 2 pi u
-            radius = np.hypot(z[h0], z[h0 + 1])
-            cross = radius > np.abs(z[0])
-            delta = np.arccos(-z[0][cross] / radius[cross])
-            alpha = np.arctan2(z[h0 + 1], z[h0])[cross]
-            u = np.mod(np.concatenate([alpha - delta, alpha + delta]) / TWO_PI, 1.0)
-            lo, hi, radius, r = (np.tile(x[cross], 2) for x in (lo, hi, radius, roundoff))
-            keep = (u > lo) & (u < hi)
-            rate = TWO_PI * radius * np.abs(np.sin(np.tile(delta, 2)))
-            with np.errstate(divide="ignore"):
-                dt = np.minimum(r / rate, np.sqrt(2 * r / (TWO_PI**2 * radius)))
-            return u[keep], float(np.sum(dt[keep]))
-        self.sampled += 1
-        return _sampled(z, basis, lo, hi, roundoff)
+        slope = z[1] != 0 if basis.linear else np.zeros(len(size), dtype=bool)
+        harmonic, higher = z[h0 : h0 + 2].any(axis=0), z[h0 + 2 :].any(axis=0)
+        nonzero = size > 64 * EPS * scale
+        groups = (
+            (nonzero & ~harmonic & ~higher, _affine),
+            (nonzero & harmonic & ~higher & ~slope, _harmonic),
+            (nonzero & (higher | harmonic & slope), _sampled),
+        )
+        found, spread = [], 0.0
+        for chosen, solve in groups:
+            if chosen.any():
+                roots, uncertain = solve(z[:, chosen], basis, lo[chosen], hi[chosen], 16 * EPS * size[chosen])
+                found.append(roots)
+                spread += uncertain
+        self.sampled += int(groups[2][0].any())
+        return np.concatenate(found) if found else np.empty(0), spread
 
     def result(self) -> RigidLimit:
         period = float(self.gait.period)
-        edges = np.concatenate([e[:-1] for e in self.edges] + [[1.0]])
-        resting = np.concatenate(self.resting)
-        length = np.diff(edges)
-        keep = np.concatenate([[True], (resting[1:] != resting[:-1]) | (length[1:] == 0) | (length[:-1] == 0)])
-        displacement = math.fsum(self.displacement)
-        error = self.error + 2 * EPS * len(edges) * sum(abs(d) for d in self.displacement)
+        spans, resting = np.concatenate(self.spans), np.concatenate(self.resting)
+        order = np.lexsort((spans[:, 1], spans[:, 0]))  # a jump before the interval it starts
+        spans, resting = spans[order], resting[order]
+        point = spans[:, 0] == spans[:, 1]
+        keep = np.concatenate([[True], (resting[1:] != resting[:-1]) | point[1:] | point[:-1]])
+        error = self.error + 2 * EPS * len(spans) * abs(self.displacement)
         how = "every event in closed form"
         if self.sampled:
-            how = f"events in closed form and by certified sampling ({self.sampled} searches)"
+            how = "events in closed form and by certified sampling (several harmonics, or one and a linear part)"
         return RigidLimit(
-            v0=displacement / period,
+            v0=self.displacement / period,
             v0_error_estimate=error / period,
-            displacement_per_period=displacement,
+            displacement_per_period=self.displacement,
             period=period,
-            times=np.append(edges[:-1][keep], 1.0) * period,
+            times=np.append(spans[keep, 0], 1.0) * period,
             resting=resting[keep] + 1,
             status=RigidStatus.SAMPLED if self.sampled else RigidStatus.CLOSED_FORM,
             message=how,
@@ -287,6 +289,35 @@ def _distinct(edges: np.ndarray) -> np.ndarray:
     keep = np.concatenate([np.diff(edges) > 4 * EPS, [True]])
     keep[0] = True
     return edges[keep]
+
+
+def _affine(z: np.ndarray, basis: Basis, lo: np.ndarray, hi: np.ndarray, roundoff: np.ndarray) -> tuple:
+    """Zeros of z0 + z1 u in (lo, hi), and the sum of their uncertainties."""
+    slope = z[1] if basis.linear else np.zeros(z.shape[1])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = -z[0] / slope
+    keep = (slope != 0) & (u > lo) & (u < hi)
+    return u[keep], float((roundoff[keep] / np.abs(slope[keep])).sum())
+
+
+def _harmonic(z: np.ndarray, basis: Basis, lo: np.ndarray, hi: np.ndarray, roundoff: np.ndarray) -> tuple:
+    """Sign changes of z0 + a cos 2 pi u + b sin 2 pi u = z0 + r cos(2 pi u - alpha) in (lo, hi):
+    2 pi u = alpha +- arccos(-z0 / r) where r > |z0|; the uncertainty of each is the roundoff
+    over the slope there, or at a near tangency sqrt(2 roundoff / f'')."""
+    h0 = basis.first_harmonic
+    radius = np.hypot(z[h0], z[h0 + 1])
+    cross = radius > np.abs(z[0])
+    delta = np.arccos(-z[0][cross] / radius[cross])
+    alpha = np.arctan2(z[h0 + 1], z[h0])[cross]
+    u = np.mod(np.concatenate([alpha - delta, alpha + delta]) / TWO_PI, 1.0)
+    lo, hi, radius, r, delta = (
+        np.concatenate([x, x]) for x in (lo[cross], hi[cross], radius[cross], roundoff[cross], delta)
+    )
+    keep = (u > lo) & (u < hi)
+    rate = TWO_PI * radius * np.abs(np.sin(delta))
+    with np.errstate(divide="ignore"):
+        dt = np.minimum(r / rate, np.sqrt(2 * r / (TWO_PI**2 * radius)))
+    return u[keep], float(dt[keep].sum())
 
 
 def _at(z: np.ndarray, basis: Basis, owner: np.ndarray, u: np.ndarray) -> np.ndarray:

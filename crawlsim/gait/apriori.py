@@ -49,20 +49,23 @@ class Margin:
     subset: np.ndarray  # (N,) bool: J, the blocks at their forward limit
     time: float
     change: str  # the change of one friction number that makes g_J(t) vanish, or ""
+    scale: float  # sum_j (mu~_j^+ + mu~_j^-) at that time: the size of the g_J
+
+    @property
+    def blocks(self) -> tuple[int, ...]:
+        """J, numbered from 1."""
+        return tuple(int(j) + 1 for j in np.flatnonzero(self.subset))
 
     def text(self) -> str:
-        inside = [str(j + 1) for j in np.flatnonzero(self.subset)]
-        if len(inside) > 12:
-            inside = [*inside[:10], "...", inside[-1]]
-        blocks = "{" + ", ".join(inside) + "}"
-        text = f"{self.value:.6g}, for J = {blocks} at t = {self.time:.6g}"
+        inside = [str(j) for j in self.blocks]
+        blocks = ", ".join(inside if len(inside) <= 12 else [*inside[:10], "...", inside[-1]])
+        text = f"{self.value:.6g}, for J = {{{blocks}}} at t = {self.time:.6g}"
         if self.value == 0:
             return text + " (an isolated instant, which the theory allows: the run steps past it)"
         return text + (f"; {self.change} closes it" if self.change else "")
 
     def summary(self) -> dict[str, Any]:
-        blocks = [int(j) + 1 for j in np.flatnonzero(self.subset)]
-        return {"value": self.value, "subset": blocks, "time": self.time, "change": self.change or None}
+        return {"value": self.value, "subset": list(self.blocks), "time": self.time, "change": self.change or None}
 
 
 def margin(gait: Gait) -> Margin:
@@ -98,7 +101,8 @@ def margin(gait: Gait) -> Margin:
     if not constant:
         first = s - s % len(inside)
         value, at = _refined(g_of, u[max(s - 1, first)], at, u[min(s + 1, first + len(inside) - 1)])
-    return Margin(value, subset, at * gait.period, _closing(gait, subset, at, g_of(at)) if value else "")
+    closing = _closing(gait, subset, at, g_of(at)) if value else ""
+    return Margin(value, subset, at * gait.period, closing, float(a[:, s] @ friction.multiplicity))
 
 
 def _refined(g_of, lo: float, mid: float, hi: float) -> tuple[float, float]:

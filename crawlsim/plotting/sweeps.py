@@ -92,7 +92,7 @@ def _status_grid(status, shape) -> np.ndarray:
 
 
 def sweep_figure(
-    axes: dict, v0, status, title: str, *, units: Units | None = None, displacement=None, marks=None, rigid=None
+    axes: dict, v0, status, title: str, *, units: Units | None = None, displacement=None, marks=None
 ) -> Figure:
     """v0 over a sweep of one or two gait parameters, named by their dotted paths.
 
@@ -113,9 +113,8 @@ def sweep_figure(
 
     A log-spaced axis (constant ratio, `is_geometric`) is drawn on a log scale. ``marks`` (a
     `crawlsim.analysis.stall.CurveMarks`, sweeps of one load or friction number) break the line
-    where v0 jumps (dotted verticals) instead of joining across them, and mark the stall load.
-    ``rigid`` (a `crawlsim.analysis.rigid.RigidLimit`, sweeps of the stiffness) is drawn as the
-    asymptote it is (dashed).
+    where v0 jumps (dotted verticals) instead of joining across them, and mark the stall load;
+    for a sweep of the stiffness they hold the rigid limit, drawn as the asymptote it is (dashed).
     """
     units = units or Units()
     names = list(axes)
@@ -141,13 +140,13 @@ def sweep_figure(
         fig, axs = new_figure(height=3.6 if len(names) == 1 else 4.4)
         ax = axs[0, 0]
         if len(names) == 1:
-            if rigid is not None:
-                limit = rigid.displacement_per_period if data is not v0 else rigid.v0
+            if marks is not None and marks.rigid is not None:
+                limit = (
+                    marks.rigid.displacement_per_period if per_period and displacement is not None else marks.rigid.v0
+                )
                 text = f"rigid limit $k \\to \\infty$: {format_number(limit)}"
                 ax.axhline(limit, color=REFERENCE, linestyle="--", linewidth=1.0, zorder=3, label=text)
             _sweep_line(ax, values[0], data, statuses, logs[0], marks)
-            if rigid is not None:
-                ax.legend(loc="best")
             ax.set_xlabel(path_label(names[0], units))
             ax.set_ylabel(value_label)
         else:
@@ -261,7 +260,7 @@ def _sweep_line(ax, x, data, statuses, log, marks=None):
         ax.set_xlim(x[0] * np.exp(-pad), x[-1] * np.exp(pad))
     else:
         ax.set_xlim(x[0] - pad, x[-1] + pad)
-    if handles or (marks is not None and (marks.jumps or marks.stall is not None)):
+    if handles or (marks is not None and (marks.jumps or marks.stall is not None or marks.rigid is not None)):
         ax.legend(loc="best")
 
 
@@ -422,38 +421,14 @@ def sweep_data_figure(data: dict, title: str | None = None) -> Figure:
     status = on_grid("status", "", object)
     if title is None:
         title = f"{_sweep_name(data)}: average velocity over a sweep"
-    marks = rigid = None
+    marks = None
     if len(paths) == 1 and data.get("gait_yaml"):
         from crawlsim.analysis.stall import curve_marks
 
         marks = curve_marks(data["gait_yaml"], paths[0], data["axes"][0], v0)
-        rigid = rigid_asymptote(data["gait_yaml"], paths[0])
     return sweep_figure(
-        dict(zip(paths, data["axes"])),
-        v0,
-        status,
-        title,
-        units=units_of(data),
-        displacement=displacement,
-        marks=marks,
-        rigid=rigid,
+        dict(zip(paths, data["axes"])), v0, status, title, units=units_of(data), displacement=displacement, marks=marks
     )
-
-
-def rigid_asymptote(gait_yaml: str, path: str):
-    """The rigid limit of a sweep's gait (`crawlsim.analysis.rigid`) when the stiffness is swept,
-    the asymptote of v0; None otherwise, or where there is none."""
-    if path.split(".")[0] != "stiffness":
-        return None
-    from crawlsim.analysis.rigid import rigid_limit
-    from crawlsim.errors import InputError
-    from crawlsim.gait.document import Gait, parse_gait
-
-    try:
-        gait = parse_gait(gait_yaml, source="<sweep>")
-        return rigid_limit(gait) if isinstance(gait, Gait) else None
-    except InputError:
-        return None
 
 
 def _sweep_name(data: dict) -> str:

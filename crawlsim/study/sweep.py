@@ -228,14 +228,12 @@ def plot_table(table: SweepTable, path, title: str | None = None, figure_options
         document = yaml.safe_load(table.gait_yaml) if table.gait_yaml else None
         name = document.get("name") if isinstance(document, dict) else None
         title = f"{name or Path(table.source).stem}: average velocity over a sweep"
-    marks = rigid = None
+    marks = None
     if len(axes) == 1 and table.gait_yaml:
         from crawlsim.analysis.stall import curve_marks
-        from crawlsim.plotting.sweeps import rigid_asymptote
 
         name = next(iter(axes))
         marks = curve_marks(table.gait_yaml, name, axes[name], v0)
-        rigid = rigid_asymptote(table.gait_yaml, name)
     # The statuses themselves, not a failed/ok mask: an invalid gait and a failed run are
     # different answers and are marked differently (docs/figures.md).
     status = table.grid("status")
@@ -247,7 +245,6 @@ def plot_table(table: SweepTable, path, title: str | None = None, figure_options
         units=units_of({"gait_yaml": table.gait_yaml}),
         displacement=table.grid("displacement_per_period"),
         marks=marks,
-        rigid=rigid,
     )
     save_figure(figure, path, **(figure_options or {}))
 
