@@ -57,6 +57,7 @@ class Margin:
         return tuple(int(j) + 1 for j in np.flatnonzero(self.subset))
 
     def text(self) -> str:
+        """The margin in one line, as ``crawlsim validate --explain`` and ``crawlsim info`` print it."""
         inside = [str(j) for j in self.blocks]
         blocks = ", ".join(inside if len(inside) <= 12 else [*inside[:10], "...", inside[-1]])
         text = f"{self.value:.6g}, for J = {{{blocks}}} at t = {self.time:.6g}"
@@ -65,6 +66,7 @@ class Margin:
         return text + (f"; {self.change} closes it" if self.change else "")
 
     def summary(self) -> dict[str, Any]:
+        """The JSON form (``crawlsim info --json``): value, subset (from 1), time, change."""
         return {"value": self.value, "subset": list(self.blocks), "time": self.time, "change": self.change or None}
 
 
