@@ -176,6 +176,8 @@ class _Walk:
             if len(split) == len(edges):  # none, or zeros at the edges they made
                 break
             edges = split
+        else:  # pragma: no cover - a round's zeros move the rank by one: n rounds suffice
+            raise RuntimeError(f"{self.gait.source}: the weight events of the rigid limit did not settle")
         at = coef[:, piece, m]  # (basis, interval): the resting block's P
         left, right = basis.values(edges[:-1]), basis.values(edges[1:])
         moved = np.einsum("mb,bm->m", right, at) - np.einsum("mb,bm->m", left, at)
