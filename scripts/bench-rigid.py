@@ -32,7 +32,15 @@ from crawlsim.cli import main as cli
 from crawlsim.gait.corpus import random_gait
 
 ROOT = Path(__file__).resolve().parents[1]
-EXAMPLES = ["inching-2", "anchoring-2", "climbing-3", "peristalsis-3", "smooth-friction-3", "peristalsis-4"]
+EXAMPLES = [
+    "inching-2",
+    "anchoring-2",
+    "climbing-3",
+    "peristalsis-3",
+    "smooth-friction-3",
+    "peristalsis-4",
+    "earthworm-100",
+]
 
 
 def measure(gait, folder: Path, repeats: int, clock) -> tuple[float, float, float, float]:

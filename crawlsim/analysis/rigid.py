@@ -136,7 +136,7 @@ class _Walk:
             return
         step, size, u = step[at], size[at], cuts[:-1][at]
         friction = np.einsum("pb,bpn->pn", phi[at], coef[:, at, n:])
-        m, _, _ = self._rank(np.round(step / (64 * EPS * size[:, None])), friction, None, np.stack([u, u], 1))
+        m, _, _ = self._rank(np.round(step / (64 * EPS * size[:, None])), friction, None, u, u)
         self.spans.append(np.stack([u, u], 1))
         self.resting.append(m)
         self.displacement -= math.fsum(step[np.arange(len(m)), m])
@@ -156,15 +156,13 @@ class _Walk:
         for _ in range(4 * n + 16):  # each round splits at the sign changes of two g_J
             mid = 0.5 * (edges[:-1] + edges[1:])
             piece = np.searchsorted(cuts, mid, side="right") - 1
-            phi = basis.values(mid)
+            values = basis.values(np.concatenate([mid, edges]))  # at the midpoints, then the edges
+            phi = values[: len(mid)]
             friction = coef[:, piece, n:]
             # velocities equal to roundoff (a link at rest, a wave summing to zero) tie
             key = np.round(np.einsum("mb,bmn->mn", phi, c[:, piece]) / (64 * EPS * speed))
             m, watched, owner = self._rank(
-                key,
-                np.einsum("mb,bmn->mn", phi, friction),
-                friction if varying else None,
-                np.stack([edges[:-1], edges[1:]], 1),
+                key, np.einsum("mb,bmn->mn", phi, friction), friction if varying else None, edges[:-1], edges[1:]
             )
             if watched is None:
                 break
@@ -179,7 +177,7 @@ class _Walk:
         else:  # pragma: no cover - a round's zeros move the rank by one: n rounds suffice
             raise RuntimeError(f"{self.gait.source}: the weight events of the rigid limit did not settle")
         at = coef[:, piece, m]  # (basis, interval): the resting block's P
-        left, right = basis.values(edges[:-1]), basis.values(edges[1:])
+        left, right = values[len(mid) : -1], values[len(mid) + 1 :]
         moved = np.einsum("mb,bm->m", right, at) - np.einsum("mb,bm->m", left, at)
         self.spans.append(np.stack([edges[:-1], edges[1:]], 1))
         self.resting.append(m)
@@ -187,7 +185,7 @@ class _Walk:
         self.error += 8 * EPS * float(np.einsum("mb,bm->", np.abs(left) + np.abs(right), np.abs(at)))
 
     def _rank(
-        self, key: np.ndarray, values: np.ndarray, friction: np.ndarray | None, spans: np.ndarray
+        self, key: np.ndarray, values: np.ndarray, friction: np.ndarray | None, starts: np.ndarray, ends: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
         """The resting block of each interval, from its velocities (``key``, equal where they
         tie) and friction ``values`` [mu~^+ | mu~^-]; given the friction's coefficients on
@@ -212,7 +210,7 @@ class _Walk:
             tied &= np.all(np.abs(watched) <= band, axis=0)
         if tied.any():
             at = int(owner[np.argmax(tied)])
-            self._degenerate(order[at], g[at], *spans[at])
+            self._degenerate(order[at], g[at], starts[at], ends[at])
         m = order[rows, position]
         return np.argmax(key == key[rows, m][:, None], axis=1), watched, owner
 
