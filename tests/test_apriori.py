@@ -1,6 +1,8 @@
 """What a gait says before any run (crawlsim/gait/apriori.py): the margin to the uniqueness
 condition, found by hand here, and the cell theorem's verdict, checked against the runs."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from click.testing import CliRunner
@@ -9,6 +11,7 @@ import crawlsim
 from crawlsim.cli import main
 from crawlsim.gait.apriori import cell_verdict, margin
 from crawlsim.gait.corpus import random_document, random_gait
+from crawlsim.gait.signals import Constant
 
 from .conftest import GAITS, iterated_examples, make_gait
 
@@ -53,11 +56,16 @@ def test_the_margin_of_time_controlled_friction():
     assert found.change.startswith("friction.0.forward.mean from 1 to 1.5")
 
 
-def test_a_margin_that_reaches_zero_at_an_instant():
+def test_a_margin_that_reaches_zero_at_an_instant_or_on_an_interval():
     """smooth-friction-3: g_{1,3} changes sign in time, which the uniqueness condition allows
-    (an isolated instant); its margin is 0 there."""
+    (an isolated instant); its margin is 0 there. Equal friction both ways on four blocks: two
+    forward and two backward balance at every time, and the margin says the condition fails."""
     found = margin(crawlsim.load_gait(GAITS / "smooth-friction-3.yaml"))
-    assert found.value == 0.0 and "isolated instant" in found.text()
+    assert found.value == 0.0 and not found.failing and "isolated instant" in found.text()
+    gait = crawlsim.load_gait(GAITS / "peristalsis-4.yaml")
+    tied = dataclasses.replace(gait, forward=(Constant(1.0),) * 4, backward=(Constant(1.0),) * 4)
+    found = margin(tied)
+    assert found.value == 0.0 and found.failing and len(found.blocks) == 2
 
 
 def three_blocks_held_in_the_middle(seed):

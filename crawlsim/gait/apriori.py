@@ -34,7 +34,7 @@ from crawlsim.gait.crawler_spec import Gait
 from crawlsim.gait.loads import combination
 from crawlsim.gait.process_spec import ProcessSpec
 from crawlsim.gait.signals import Constant, Steps, evaluate_many, union_breakpoints
-from crawlsim.gait.uniqueness import _Friction, _search_piece, _subset
+from crawlsim.gait.uniqueness import TOLERANCE, _Friction, _search_piece, _subset, find_violation
 from crawlsim.gait.uniqueness_advice import _changed, friction_slots
 
 SAMPLES = 16
@@ -50,6 +50,7 @@ class Margin:
     time: float
     change: str  # the change of one friction number that makes g_J(t) vanish, or ""
     scale: float  # sum_j (mu~_j^+ + mu~_j^-) at that time: the size of the g_J
+    failing: bool = False  # g_J vanishes on an interval: the condition fails
 
     @property
     def blocks(self) -> tuple[int, ...]:
@@ -61,6 +62,8 @@ class Margin:
         inside = [str(j) for j in self.blocks]
         blocks = ", ".join(inside if len(inside) <= 12 else [*inside[:10], "...", inside[-1]])
         text = f"{self.value:.6g}, for J = {{{blocks}}} at t = {self.time:.6g}"
+        if self.failing:
+            return text + " (on an interval of time: the condition fails)"
         if self.value == 0:
             return text + " (an isolated instant, which the theory allows: the run steps past it)"
         return text + (f"; {self.change} closes it" if self.change else "")
@@ -103,8 +106,10 @@ def margin(gait: Gait) -> Margin:
     if not constant:
         first = s - s % len(inside)
         value, at = _refined(g_of, u[max(s - 1, first)], at, u[min(s + 1, first + len(inside) - 1)])
+    scale = float(a[:, s] @ friction.multiplicity)
     closing = _closing(gait, subset, at, g_of(at)) if value else ""
-    return Margin(value, subset, at * gait.period, closing, float(a[:, s] @ friction.multiplicity))
+    failing = value <= TOLERANCE * scale and find_violation(plus, minus) is not None
+    return Margin(value, subset, at * gait.period, closing, scale, failing)
 
 
 def _refined(g_of, lo: float, mid: float, hi: float) -> tuple[float, float]:
