@@ -1,25 +1,13 @@
 """The rigid limit k -> infinity of a crawler gait: v0 without stepping (docs/model.md §7).
 
-With rigid links the shape follows the actuators, x_j = x_1 + P_j(t) with P_j = L_1 + ... +
-L_{j-1}, so block j moves at u + c_j(t), c_j = dP_j/dt, and the balance 0 in
-sum_j dR~_j(u + c_j(t)) (thresholds mu~ shifted by the loads, docs/model.md §6) fixes u = -c_m:
-in the order of decreasing c_j, block m is the first at which g_J = sum_J mu~^+ - sum_rest mu~^-
-turns positive, J the blocks up to it (a weighted median). It rests, and while it does the
-integral of u is -(P_m(b) - P_m(a)): exact, from the signals themselves.
-
-Block m changes only at events, found on each piece between the signals' breakpoints, where
-every signal is phi(u) @ coef (`crawlsim.model.offsets`):
-
-* crossings c_j = c_l reorder the velocities (every pair's zeros);
-* weight events, sign changes of the g_J of the current order, move the resting block along it
-  (time-controlled friction or loads);
-* a jump of a link (a steps signal) moves the body at once, by the same rule with the jumps of
-  P in place of the velocities and the friction after the jump.
-
-Zeros of one harmonic or of an affine function are in closed form, the others (several
-harmonics, or a harmonic and a linear part) are found by certified sampling (`_sampled`). The
-error estimate adds the roundoff of the sum and, for each event, its time's uncertainty times
-the jump of u there.
+Block j moves at u + c_j(t), c_j the rate of P_j = L_1 + ... + L_{j-1}, and in the order of
+decreasing c_j the first block at which g_J = sum_J mu~^+ - sum_rest mu~^- turns positive rests
+(u = -c_m). While it does, the integral of u is -(P_m(b) - P_m(a)), exact. It changes at
+crossings of the c_j, at sign changes of the g_J of the order, and at jumps of the links; on each
+piece between breakpoints every signal is phi(u) @ coef (`crawlsim.model.offsets`), and all the
+pieces are searched together: zeros of an affine function or of one harmonic in closed form,
+others by certified sampling (`_sampled`). The estimate adds the roundoff of the sum and, for
+each event, its time's uncertainty times the jump of u there.
 """
 
 from __future__ import annotations

@@ -148,7 +148,10 @@ def _margin(attrs: dict[str, Any]) -> dict[str, Any] | None:
         gait = parse_gait(attrs["gait_yaml"], source="gait_yaml")
     except (KeyError, GaitError):
         return None
-    return {**margin(gait).summary(), "text": margin(gait).text()} if isinstance(gait, Gait) else None
+    if not isinstance(gait, Gait):
+        return None
+    found = margin(gait)
+    return {**found.summary(), "text": found.text()}
 
 
 def _describe_sweep(path: Path, f: h5py.File, attrs: dict[str, Any]) -> dict[str, Any]:

@@ -482,12 +482,14 @@ class ResultsWriter:
         for gname, values in self._groups(result).items():
             self._write_group(gname, values)
         if rigid is not None:
-            times = rigid.times
-            self._write_group(
-                "rigid",
-                {"rigid_interval": np.arange(len(rigid.resting)), "start": times[:-1], "end": times[1:]}
-                | {"resting_block": rigid.resting},
-            )
+            t = rigid.times
+            group = {
+                "rigid_interval": np.arange(len(t) - 1),
+                "start": t[:-1],
+                "end": t[1:],
+                "resting_block": rigid.resting,
+            }
+            self._write_group("rigid", group)
             for name in ("v0", "v0_error_estimate", "displacement_per_period", "status", "message"):
                 f["rigid"].attrs[name] = getattr(rigid, name) if name != "status" else str(rigid.status)
         f["limit"].attrs["start"] = result.limit.start
