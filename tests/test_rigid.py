@@ -295,3 +295,13 @@ def test_sweep_figures_draw_the_asymptote_and_the_margin(tmp_path):
     assert list(lines["rigid limit $k \\to \\infty$: 0.3"].get_ydata()) == pytest.approx([0.3, 0.3], abs=1e-13)
     lines = {line.get_label(): line for line in sweep_data_figure(read_sweep(tmp_path / "f.h5")).axes[0].get_lines()}
     assert list(lines["uniqueness margin 0: $v_0$ can jump"].get_xdata()) == pytest.approx([3.0, 3.0], abs=1e-9)
+
+
+def test_a_rigid_limit_too_large_is_refused(monkeypatch):
+    """The arrays of the rigid limit grow with the square of the blocks and with the crossings:
+    beyond `MAX_ENTRIES` values the gait is refused with why (exit code 2), before allocating."""
+    from crawlsim.analysis import rigid
+
+    monkeypatch.setattr(rigid, "MAX_ENTRIES", 5000)
+    out = CliRunner().invoke(main, ["velocity", str(GAITS / "earthworm-100.yaml"), "--rigid"])
+    assert out.exit_code == 2 and "blocks: the rigid limit of 101 blocks would hold" in out.output

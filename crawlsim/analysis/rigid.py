@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from crawlsim.errors import DegenerateModelError
+from crawlsim.errors import DegenerateModelError, ResourceError
 from crawlsim.gait.crawler_spec import Gait
 from crawlsim.gait.signals import Steps, union_breakpoints
 from crawlsim.gait.uniqueness import TOLERANCE
@@ -32,6 +32,8 @@ _CYCLE = np.array([0.0, 1.0])
 TWO_PI = 2.0 * math.pi
 SAMPLE_CELLS = 8
 """Cells per harmonic and cycle in which a sampled search starts."""
+MAX_ENTRIES = 1 << 26
+"""Most values of an array of the rigid limit (512 MiB of doubles)."""
 NARROWEST = 1e-12
 """Cycles: a cell the sampled search does not split further; its width counts in the estimate."""
 
@@ -135,11 +137,13 @@ class _Walk:
         n, basis, coef = self.n, self.basis, self.coef
         c = basis.derivative(coef[..., :n])
         speed = max(float(np.abs(c).sum(axis=0).max()), 1e-300)
+        self._bound(n * n * len(c) * (len(cuts) - 1), "differences of velocities")
         i, j = _pairs(n)
         owner = np.repeat(np.arange(len(cuts) - 1), len(i))
         roots, spread = self._zeros((c[..., i] - c[..., j]).reshape(len(c), -1), cuts[owner], cuts[owner + 1], speed)
         self.error += spread * speed * 16 * EPS
         edges = _distinct(np.concatenate([cuts, roots]))
+        self._bound(len(edges) * n * len(c), "velocities between the crossings")
         varying = bool(coef[1:, :, n:].any())
         for _ in range(4 * n + 16):  # each round splits at the sign changes of two g_J
             mid = 0.5 * (edges[:-1] + edges[1:])
@@ -201,6 +205,16 @@ class _Walk:
             self._degenerate(order[at], g[at], starts[at], ends[at])
         m = order[rows, position]
         return np.argmax(key == key[rows, m][:, None], axis=1), watched, owner
+
+    def _bound(self, entries: int, what: str) -> None:
+        """Refuse a rigid limit whose arrays would exceed `MAX_ENTRIES` (`ResourceError`)."""
+        if entries > MAX_ENTRIES:
+            raise ResourceError(
+                self.gait.source,
+                "blocks",
+                f"the rigid limit of {self.n} blocks would hold {entries:,} values of its {what} at once, "
+                f"more than {MAX_ENTRIES:,}: too many blocks and crossings for it",
+            )
 
     def _degenerate(self, order: np.ndarray, g: np.ndarray, a: float, b: float) -> None:
         """Refuse a gait whose balance does not fix the motion: some g_J of the order is zero."""
