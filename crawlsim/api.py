@@ -41,6 +41,7 @@ from crawlsim.study.simulation import (
 if TYPE_CHECKING:
     import xarray
 
+    from crawlsim.analysis.rigid import RigidLimit
     from crawlsim.analysis.sensitivity import SensitivityResult
     from crawlsim.study.grid import SweepGrid
     from crawlsim.study.optresult import OptimizationResult
@@ -55,6 +56,7 @@ __all__ = [
     "open_optimization",
     "open_run",
     "open_sweep",
+    "rigid_limit",
     "run",
     "sensitivity",
     "simulate",
@@ -218,3 +220,22 @@ def sensitivity(gait: Spec | str | Path, paths: Sequence[str] | str, *, one_side
             "sensitivities are defined for crawler gaits (kind: crawler), not generic sweeping processes",
         )
     return _sensitivity(spec, paths, one_sided=one_sided)
+
+
+def rigid_limit(gait: Spec | str | Path) -> RigidLimit:
+    """v0 of a crawler gait as its links stiffen without bound (docs/model.md §7), with its
+    error estimate and the resting block as a piecewise-constant function of time: exact
+    between events found in closed form or by certified sampling, no stepping.
+
+        r = crawlsim.rigid_limit("gaits/peristalsis-4.yaml")
+        r.v0, r.v0_error_estimate, r.times, r.resting
+
+    Raises `crawlsim.errors.DegenerateModelError` where the balance does not fix the motion.
+    """
+    from crawlsim.analysis.rigid import rigid_limit as _rigid_limit
+    from crawlsim.gait.document import need_crawler
+
+    spec = _as_spec(gait)
+    need_crawler(spec, "crawlsim.rigid_limit")
+    assert isinstance(spec, Gait)
+    return _rigid_limit(spec)

@@ -10,12 +10,13 @@ trap 'rm -rf "$work"' EXIT
 mkdir -p "$out"
 
 # Figures of single runs, through the command line exactly as a user would draw them.
-crawlsim run "$root/gaits/peristalsis-4.yaml" -o "$work/peristalsis-4.h5" >/dev/null
+crawlsim run "$root/gaits/peristalsis-4.yaml" -o "$work/peristalsis-4.h5" --rigid >/dev/null
 crawlsim run "$root/gaits/smooth-friction-3.yaml" -o "$work/smooth-friction-3.h5" >/dev/null
 crawlsim run "$root/gaits/paper/triangle.yaml" -o "$work/triangle.h5" >/dev/null
 crawlsim plot "$work/peristalsis-4.h5" -o "$out" --only motion
 crawlsim plot "$work/peristalsis-4.h5" -o "$out" --only gait-diagram
 crawlsim plot "$work/peristalsis-4.h5" -o "$out" --only convergence
+crawlsim plot "$work/peristalsis-4.h5" -o "$out" --only rigid
 crawlsim plot "$work/triangle.h5" -o "$out" --only convergence
 crawlsim plot "$work/smooth-friction-3.h5" -o "$out" --only shape-space
 

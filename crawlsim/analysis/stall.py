@@ -7,14 +7,14 @@ at the loads it probes; the sweep figures (`crawlsim.plotting.sweeps`) draw thes
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from enum import StrEnum
 from typing import Any
 
 import numpy as np
 
-from crawlsim.errors import GaitError
+from crawlsim.analysis.rigid import RigidLimit, rigid_limit
+from crawlsim.errors import GaitError, InputError
 from crawlsim.gait.document import Gait, gait_from_document
 from crawlsim.gait.signals import evaluate_many
 
@@ -30,28 +30,6 @@ class StallCause(StrEnum):
     HOLD = "hold"  # the body can no longer hold its loads before v0 reaches 0 (docs/model.md §6)
 
 
-def _vanishing_subset(gait: Gait) -> tuple[int, ...] | None:
-    """The subset J whose shifted uniqueness sum g~_J is nearest to 0 over the cycle's samples
-    (docs/model.md §3, §6); None for more than 16 blocks or when none is near 0."""
-    N = gait.blocks
-    if N > 16:
-        return None
-    plus, minus = gait.thresholds()
-    u = np.linspace(0.0, 1.0, 33)[:-1]
-    a, b = evaluate_many(plus, u), evaluate_many(minus, u)  # (samples, N)
-    scale = float(np.max(np.sum(np.abs(a) + np.abs(b), axis=1)))
-    best, best_value = None, math.inf
-    for mask in range(2**N):
-        inside = np.array([(mask >> j) & 1 for j in range(N)], dtype=bool)
-        g = a[:, inside].sum(axis=1) - b[:, ~inside].sum(axis=1)
-        value = float(np.min(np.abs(g)))
-        if value < best_value:
-            best, best_value = inside, value
-    if best is None or best_value > 1e-6 * scale:
-        return None
-    return tuple(int(j) + 1 for j in np.nonzero(best)[0])
-
-
 @dataclass(frozen=True)
 class CurveMarks:
     """What a force-velocity (or slope-velocity) sweep figure marks: the loads between swept
@@ -62,11 +40,15 @@ class CurveMarks:
     stall: float | None
     cause: StallCause | None
     label: str  # "stall force" or "steepest slope"
+    jump_label: str = "jump of $v_0$"
+    rigid: RigidLimit | None = None  # a sweep of the stiffness: its asymptote
 
 
 def curve_marks(gait_yaml: str, path: str, values, v0) -> CurveMarks | None:
-    """The marks of a sweep of one load path (``loads.force...`` or ``loads.slope.angle``), or
-    None for any other sweep (or when the gait cannot be rebuilt).
+    """The marks of a sweep of one load path (``loads.force...`` or ``loads.slope.angle``), one
+    friction path (``friction...``: the jumps only, where the uniqueness margin reaches 0) or the
+    stiffness (its rigid limit, `crawlsim.analysis.rigid`), or None for any other sweep (or when
+    the gait cannot be rebuilt).
 
     Jumps: between consecutive swept values, a subset J whose shifted uniqueness sum g~_J changes
     sign at every sample time of the cycle (N <= 12) is bisected to the load where it vanishes
@@ -77,19 +59,27 @@ def curve_marks(gait_yaml: str, path: str, values, v0) -> CurveMarks | None:
     """
     import yaml
 
-    if not (path.startswith("loads.force") or path == "loads.slope.angle"):
+    friction, stiffness = path.startswith("friction"), path.split(".")[0] == "stiffness"
+    if not (friction or stiffness or path.startswith("loads.force") or path == "loads.slope.angle"):
         return None
     try:
         document = yaml.safe_load(gait_yaml)
         gait = gait_from_document(document, "<sweep>")
     except Exception:  # a figure is drawn without marks rather than not at all
         return None
+    if stiffness and isinstance(gait, Gait):
+        try:
+            return CurveMarks((), None, None, "", rigid=rigid_limit(gait))
+        except InputError:  # a balance that does not fix the motion: no asymptote
+            return None
     if not isinstance(gait, Gait) or gait.blocks > 12:
         return None
     x = np.asarray(values, dtype=float)
     v = np.asarray(v0, dtype=float)
     label = "steepest slope" if path == "loads.slope.angle" else "stall force"
     jumps = _UniquenessSums(gait, path).jumps(x)
+    if friction:
+        return CurveMarks(tuple(jumps), None, None, "", "uniqueness margin 0: $v_0$ can jump")
     stall_at, cause = None, None
     own = resolve_path_value(gait.document, path)
     finite = np.isfinite(v)

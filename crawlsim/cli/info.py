@@ -43,6 +43,12 @@ def _run_lines(d: dict) -> list[str]:
         lines.append(f"  displacement per period  {_g(d['displacement_per_period'])}")
         lines.append(f"  dissipation per period   {_g(d['dissipation_per_period'])}")
         lines.append(f"  cost of transport        {_g(d['cost_of_transport'], 6)}")
+    if d.get("rigid_v0") is not None:
+        lines.append(
+            f"  rigid limit v0           {with_error(d['rigid_v0'], d['rigid_v0_error_estimate'])} (k -> infinity)"
+        )
+    if d.get("uniqueness_margin"):
+        lines.append(f"  uniqueness margin        {d['uniqueness_margin']['text']}")
     return lines
 
 

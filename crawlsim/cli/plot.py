@@ -9,7 +9,7 @@ import click
 from crawlsim.cli import BadInput, library_errors, main
 from crawlsim.cli.guards import figure_format_of, figure_options, figure_options_of, force_option
 from crawlsim.errors import CrawlsimError
-from crawlsim.plotting import FIGURE_NAMES, OPTIMIZATION_FIGURES
+from crawlsim.plotting import FIGURE_NAMES, OPTIMIZATION_FIGURES, RIGID_FIGURE
 
 if TYPE_CHECKING:  # pathlib is imported where used: `crawlsim --help` needs none of it
     from pathlib import Path
@@ -45,7 +45,7 @@ def _coords(ctx, param, value):
 )
 @click.option(
     "--only",
-    type=click.Choice(FIGURE_NAMES + OPTIMIZATION_FIGURES),
+    type=click.Choice((*FIGURE_NAMES, RIGID_FIGURE, *OPTIMIZATION_FIGURES)),
     help="Draw this figure only (runs, optimisations).",
 )
 @click.option(
@@ -124,7 +124,7 @@ def _check_targets(results_file, output_dir, fmt, only, kind, force) -> None:
     folder = Path(output_dir) if output_dir else Path(results_file).parent
     if not folder.is_dir():
         return  # created by plot_results: nothing in it to protect
-    every = {"sweep": ["sweep"], "optimization": list(OPTIMIZATION_FIGURES)}.get(kind, FIGURE_NAMES)
+    every = {"sweep": ["sweep"], "optimization": list(OPTIMIZATION_FIGURES)}.get(kind, [*FIGURE_NAMES, RIGID_FIGURE])
     names = [only] if only and only in every else every
     for name in names:
         check_target(

@@ -61,6 +61,12 @@ MAX_SAVE_EVERY = 2**62
 @click.option(
     "--check-every-step", is_flag=True, help="Run Clarabel at every step instead of the certified fast paths."
 )
+@click.option(
+    "--rigid",
+    is_flag=True,
+    help="Also compute the rigid limit (links infinitely stiff): its v0 in the summary, "
+    "which block rests when in the file's /rigid group, and with --plot its figure.",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
 @click.option("--plot", is_flag=True, help="Also draw the figures next to the results file (<stem>-<figure>.png).")
 @click.option(
@@ -83,6 +89,7 @@ def run(
     limit,
     save_every,
     check_every_step,
+    rigid,
     as_json,
     plot,
     plot_format,
@@ -104,6 +111,7 @@ def run(
       crawlsim run gaits/peristalsis-4.yaml
       crawlsim run gaits/peristalsis-4.yaml --integrator exact -o exact.h5
       crawlsim run gaits/inching-2.yaml --json | python -m json.tool
+      crawlsim run gaits/peristalsis-4.yaml --rigid --plot
       crawlsim run gaits/inching-2.yaml --max-periods 500 --quiet -o inching.h5
       crawlsim run gaits/inching-2.yaml -o inching.h5 --plot --plot-format pdf
       crawlsim run --from inching.h5 -o again.h5
@@ -147,11 +155,17 @@ def run(
                 f"{MAX_SAVE_EVERY:,} (the grid points are counted in 64-bit integers)"
             )
         check_memory(gait, max_memory, save_every=save_every)
+        limit = None
+        if rigid:  # before the run: a gait it refuses is refused at once
+            from crawlsim.gait.document import need_crawler
+
+            need_crawler(gait, "crawlsim run --rigid")
+            limit = api.rigid_limit(gait)
         if plot:
             from crawlsim.io.outputs import FIGURE, check_target
-            from crawlsim.plotting import FIGURE_NAMES
+            from crawlsim.plotting import FIGURE_NAMES, RIGID_FIGURE
 
-            for name in FIGURE_NAMES:
+            for name in (*FIGURE_NAMES, RIGID_FIGURE) if rigid else FIGURE_NAMES:
                 check_target(
                     out.parent / f"{out.stem}-{name}.{fmt}",
                     FIGURE,
@@ -162,7 +176,12 @@ def run(
         warn_unchecked(gait)
         with run_progress(gait, quiet, verbose) as progress:
             result = api.run(
-                gait, output=out, save_every=save_every, check_every_step=check_every_step, progress=progress
+                gait,
+                output=out,
+                save_every=save_every,
+                check_every_step=check_every_step,
+                progress=progress,
+                rigid=limit,
             )
         figures = []
         if plot:
@@ -172,11 +191,18 @@ def run(
     if as_json:
         summary = result.summary()
         summary["output"] = str(out)
+        if limit is not None:
+            summary["rigid"] = limit.summary()
         if plot:
             summary["figures"] = figures
         click.echo(to_json(summary))
     else:
-        click.echo(summary_text(result, str(out)))
+        text = summary_text(result, str(out))
+        if limit is not None:
+            from crawlsim.analysis.digits import with_error
+
+            text += f"\n  rigid limit v0           {with_error(limit.v0, limit.v0_error_estimate)} (k -> infinity)"
+        click.echo(text)
         for figure in figures:
             click.echo(f"  figure                   {figure}")
     if not result.converged:

@@ -68,6 +68,12 @@ def _dimensions(sweep_specs, link_specs) -> list[list[str]]:
     help="Print the run's JSON summary instead of v0 alone; with several gait files, a JSON line per file.",
 )
 @click.option(
+    "--rigid",
+    is_flag=True,
+    help="v0 in the rigid limit (links infinitely stiff): exact, without stepping; "
+    "--json adds its estimate and which block rests when.",
+)
+@click.option(
     "--sweep",
     "sweep_specs",
     multiple=True,
@@ -126,6 +132,7 @@ def _dimensions(sweep_specs, link_specs) -> list[list[str]]:
 def velocity(
     gait_files,
     as_json,
+    rigid,
     sweep_specs,
     sensitivity_paths,
     link_specs,
@@ -170,6 +177,7 @@ def velocity(
       crawlsim velocity gaits/peristalsis-4.yaml
       crawlsim velocity gaits/inching-2.yaml --json
       crawlsim velocity gaits/*.yaml -o all.csv
+      crawlsim velocity gaits/peristalsis-4.yaml --rigid
       crawlsim velocity gaits/peristalsis-4.yaml --sensitivity 'links.*.phase' \\
           --sensitivity stiffness
       crawlsim velocity gaits/peristalsis-4.yaml --sweep 'links.*.amplitude=0.1:0.4:7' \\
@@ -189,8 +197,8 @@ def velocity(
         options = dict(jobs=jobs, shard=shard, scheduler=scheduler, quiet=quiet, verbose=verbose, force=force)
         overrides = dict(steps_per_period=steps_per_period, max_periods=max_periods, tolerance=tolerance)
         overrides.update(integrator=integrator, limit=limit)
-        if sweep_specs or link_specs or sensitivity_paths or plot_file:
-            raise BadInput("--sweep, --link, --sensitivity and --plot take one gait file; several were given")
+        if sweep_specs or link_specs or sensitivity_paths or plot_file or rigid:
+            raise BadInput("--sweep, --link, --sensitivity, --plot and --rigid take one gait file; several were given")
         return _files(gait_files, {k: v for k, v in overrides.items() if v is not None}, output, as_json, **options)
     (gait_file,) = gait_files
     with library_errors():
@@ -201,6 +209,10 @@ def velocity(
 
         need_crawler(gait)
         warn_unchecked(gait)
+        if rigid:
+            if groups or sensitivity_paths or output:
+                raise BadInput("--rigid prints one gait's rigid limit: without --sweep, --sensitivity or -o")
+            return _rigid(gait, as_json)
         if not groups:
             if shard or plot_file:
                 raise BadInput("--shard and --plot need at least one --sweep PATH=SPEC")
@@ -308,6 +320,20 @@ def _single(gait, sensitivity_paths, as_json, max_memory, quiet, verbose):
         s = gait.simulation
         click.echo(not_converged_message(result, s.max_periods, s.tolerance, s.limit), err=True)
         sys.exit(EXIT_NOT_CONVERGED)
+
+
+def _rigid(gait, as_json):
+    """v0 in the rigid limit (`crawlsim.api.rigid_limit`), with the digits its estimate supports
+    (--json: full precision, the estimate and the resting block's intervals)."""
+    from crawlsim import api
+    from crawlsim.analysis.digits import supported
+
+    result = api.rigid_limit(gait)
+    click.echo(
+        to_json({"name": gait.name, **result.summary()})
+        if as_json
+        else supported(result.v0, result.v0_error_estimate)[0]
+    )
 
 
 def _sweep(grid, output, jobs, shard, scheduler, quiet, verbose):

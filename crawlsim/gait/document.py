@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import functools
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -167,16 +168,23 @@ def validation_errors(path: str | Path) -> list[GaitError]:
 
 def uniqueness_explanation(path: str | Path) -> list[str]:
     """The whole uniqueness analysis of a crawler gait file (`crawlsim.gait.crawler_spec.
-    uniqueness_report`); empty for a file that cannot be read and for a process."""
+    uniqueness_report`), then what the gait says before a run (`crawlsim.gait.apriori`: the
+    margin, the cell theorem's verdict); empty for a file that cannot be read."""
+    from crawlsim.gait.apriori import apriori_lines
+
     source = str(path)
     try:
         document = load_yaml(read_limited(path), source)
-        document, _, _ = _prepare(document, source)
+        document, schema, build = _prepare(document, source)
     except GaitError:
         return []
-    if document.get("kind", "crawler") != "crawler":
-        return []
-    return uniqueness_report(document, source)
+    crawler = document.get("kind", "crawler") == "crawler"
+    lines = uniqueness_report(document, source) if crawler else []
+    try:
+        spec = validated(plain(document), schema, functools.partial(build, unique=False) if crawler else build, source)
+    except GaitError:
+        return lines
+    return lines + apriori_lines(spec)
 
 
 def document_errors(

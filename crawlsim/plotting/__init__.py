@@ -24,6 +24,8 @@ SWEEP_FIGURE = "sweep"
 #: The figures of an optimisation file (``crawlsim plot OPT.h5``): the convergence of the
 #: objective, and with --pareto the front.
 OPTIMIZATION_FIGURES = ("objective", "pareto-front")
+#: The figure of a run's rigid limit (``crawlsim run --rigid``), drawn when the file has one.
+RIGID_FIGURE = "rigid"
 #: Figures that need block positions, stresses and slips: crawler runs only.
 CRAWLER_FIGURES = ("motion", "gait-diagram")
 
@@ -36,6 +38,7 @@ _LAZY = {
     "gait_figure": "gait_diagram",
     "convergence_figure": "convergence",
     "shape_space_figure": "shape_space",
+    "rigid_figure": "rigid",
     "sweep_figure": "sweeps",
     "sweep_data_figure": "sweeps",
     "run_data": "source",
@@ -51,6 +54,7 @@ __all__ = [
     "FIGURES",
     "FIGURE_NAMES",
     "OPTIMIZATION_FIGURES",
+    "RIGID_FIGURE",
     "objective_figure",
     "pareto_figure",
     "convergence_figure",
@@ -59,6 +63,7 @@ __all__ = [
     "SWEEP_FIGURE",
     "plot_results",
     "save_figure",
+    "rigid_figure",
     "shape_space_figure",
     "sweep_data_figure",
     "sweep_figure",

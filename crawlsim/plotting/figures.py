@@ -32,6 +32,7 @@ from crawlsim.plotting.gait_diagram import (
     stress_mode,
 )
 from crawlsim.plotting.motion import MAX_MOTION_BLOCKS, motion_figure
+from crawlsim.plotting.rigid import rigid_figure
 from crawlsim.plotting.shape_space import (
     NICE_DIVISIONS,
     SHAPE_SPACE_TIMES,
@@ -62,6 +63,7 @@ FIGURES: dict[str, Callable[..., Figure]] = {
     "gait-diagram": gait_figure,
     "convergence": convergence_figure,
     "shape-space": shape_space_figure,
+    "rigid": rigid_figure,
 }
 
 __all__ = [
@@ -90,6 +92,7 @@ __all__ = [
     "motion_figure",
     "polygon",
     "relative_stress",
+    "rigid_figure",
     "section",
     "shape_space_figure",
     "shape_space_instants",

@@ -11,7 +11,7 @@ from pathlib import Path
 from crawlsim.errors import ResultsFileError
 from crawlsim.io.atomic import atomic_path
 from crawlsim.io.hdf5 import read_attrs, read_optimization, read_results, read_sweep
-from crawlsim.plotting import CRAWLER_FIGURES, FIGURE_NAMES, OPTIMIZATION_FIGURES, SWEEP_FIGURE
+from crawlsim.plotting import CRAWLER_FIGURES, FIGURE_NAMES, OPTIMIZATION_FIGURES, RIGID_FIGURE, SWEEP_FIGURE
 from crawlsim.plotting.figures import FIGURES
 from crawlsim.plotting.style import DPI, FORMATS, FigureOptions, figure_style, user_style
 from crawlsim.plotting.sweeps import sweep_data_figure
@@ -19,9 +19,11 @@ from crawlsim.plotting.sweeps import sweep_data_figure
 
 def available_figures(results: dict) -> list[str]:
     """The figures a file supports: all of them for crawler runs, the shape-space and
-    convergence figures for a generic sweeping process (no blocks, no velocity)."""
+    convergence figures for a generic sweeping process (no blocks, no velocity); and the rigid
+    limit's when the file has one."""
     crawler = results["attrs"].get("kind", "crawler") == "crawler"
-    return [n for n in FIGURE_NAMES if crawler or n not in CRAWLER_FIGURES]
+    rigid = [RIGID_FIGURE] if "rigid" in results else []
+    return [n for n in FIGURE_NAMES if crawler or n not in CRAWLER_FIGURES] + rigid
 
 
 def draw_figure(results: dict, name: str, *, coords=(0, 1)):
@@ -85,7 +87,11 @@ def plot_results(
     if fmt not in FORMATS:
         raise ValueError(f"format {fmt!r}: choose one of {', '.join(FORMATS)}")
     kind, results = read_plottable(path)
-    choices = {"run": FIGURE_NAMES, "sweep": (SWEEP_FIGURE,), "optimization": optimization_figures(results)}[kind]
+    choices = {
+        "run": (*FIGURE_NAMES, RIGID_FIGURE),
+        "sweep": (SWEEP_FIGURE,),
+        "optimization": optimization_figures(results),
+    }[kind]
     if only is not None and only not in choices:
         article = "an" if kind[0] in "aeiou" else "a"
         raise ValueError(f"unknown figure {only!r} for {article} {kind} file; choose one of {', '.join(choices)}")

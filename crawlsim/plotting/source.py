@@ -150,6 +150,8 @@ def need(results: dict, figure: str, *paths: str) -> None:
             hint = " (this result keeps no trajectory: use crawlsim.simulate(gait), which keeps it by default)"
         elif from_object and (group == "process" or name in PROCESS_SERIES):
             hint = " (this result records no provenance, whose gait document gives it)"
+        elif group == "rigid":
+            hint = " (crawlsim run --rigid writes it)"
         elif path in ("limit/lengths", "limit/friction", "limit/offsets", "process/normals"):
             hint = " (files written before crawlsim stored it lack it; rerun `crawlsim run`)"
         raise ResultsFileError(f"the {figure} figure needs /{path}, which is missing{hint}")

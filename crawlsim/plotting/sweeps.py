@@ -112,8 +112,9 @@ def sweep_figure(
       v0 = 0 when v0 changes sign, and cells without a value hatched and marked by status.
 
     A log-spaced axis (constant ratio, `is_geometric`) is drawn on a log scale. ``marks`` (a
-    `crawlsim.analysis.stall.CurveMarks`, sweeps of one load) break the line at the loads where v0 jumps
-    (dotted verticals) instead of joining across them, and mark the stall load.
+    `crawlsim.analysis.stall.CurveMarks`, sweeps of one load or friction number) break the line
+    where v0 jumps (dotted verticals) instead of joining across them, and mark the stall load;
+    for a sweep of the stiffness they hold the rigid limit, drawn as the asymptote it is (dashed).
     """
     units = units or Units()
     names = list(axes)
@@ -139,6 +140,12 @@ def sweep_figure(
         fig, axs = new_figure(height=3.6 if len(names) == 1 else 4.4)
         ax = axs[0, 0]
         if len(names) == 1:
+            if marks is not None and marks.rigid is not None:
+                limit = (
+                    marks.rigid.displacement_per_period if per_period and displacement is not None else marks.rigid.v0
+                )
+                text = f"rigid limit $k \\to \\infty$: {format_number(limit)}"
+                ax.axhline(limit, color=REFERENCE, linestyle="--", linewidth=1.0, zorder=3, label=text)
             _sweep_line(ax, values[0], data, statuses, logs[0], marks)
             ax.set_xlabel(path_label(names[0], units))
             ax.set_ylabel(value_label)
@@ -253,7 +260,7 @@ def _sweep_line(ax, x, data, statuses, log, marks=None):
         ax.set_xlim(x[0] * np.exp(-pad), x[-1] * np.exp(pad))
     else:
         ax.set_xlim(x[0] - pad, x[-1] + pad)
-    if handles or (marks is not None and (marks.jumps or marks.stall is not None)):
+    if handles or (marks is not None and (marks.jumps or marks.stall is not None or marks.rigid is not None)):
         ax.legend(loc="best")
 
 
@@ -268,7 +275,7 @@ def _draw_marks(ax, marks) -> None:
             label=f"{marks.label} {marks.stall:.6g} ({marks.cause})",
         )
     for k, s in enumerate(marks.jumps or ()):
-        ax.axvline(s, color=FAINT, linestyle=":", linewidth=1.0, label="jump of $v_0$" if k == 0 else None)
+        ax.axvline(s, color=FAINT, linestyle=":", linewidth=1.0, label=marks.jump_label if k == 0 else None)
 
 
 def _draw_sampled_jumps(ax, x, data, jump, log) -> None:

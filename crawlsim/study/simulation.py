@@ -32,6 +32,8 @@ from crawlsim.model.process import compile
 if TYPE_CHECKING:
     import xarray
 
+    from crawlsim.analysis.rigid import RigidLimit
+
 Spec = Gait | ProcessSpec
 Progress = Callable[[int, float], None]
 
@@ -263,8 +265,9 @@ def _execute(
     check_every_step: bool,
     progress: Progress | None,
     keep_trajectory: bool,
+    rigid: Any = None,
 ) -> SimulationResult:
-    """Run ``spec`` with its settings, writing its results file into ``target``."""
+    """Run ``spec`` with its settings, writing its results file (and ``rigid``) into ``target``."""
     from crawlsim.io.hdf5 import ResultsWriter  # h5py only when a results file is written
 
     process = compile(spec)
@@ -284,7 +287,8 @@ def _execute(
             time_step_error=True,
         )
         result = SimulationResult.from_run(run, units=spec.units, provenance=record)
-        writer.finish(result, record, kind=kind, unchecked_uniqueness=getattr(spec, "uniqueness_unchecked", False))
+        unchecked = getattr(spec, "uniqueness_unchecked", False)
+        writer.finish(result, record, kind=kind, unchecked_uniqueness=unchecked, rigid=rigid)
     return result
 
 
@@ -296,9 +300,11 @@ def run(
     check_every_step: bool = False,
     progress: Progress | None = None,
     history: bool = True,
+    rigid: RigidLimit | None = None,
 ) -> SimulationResult:
     """Simulate a gait to its periodic regime; write the HDF5 results file if ``output`` is given
-    (the command line's ``crawlsim run``).
+    (the command line's ``crawlsim run``), with ``rigid``, the gait's rigid limit
+    (`crawlsim.api.rigid_limit`), in its /rigid group.
 
     ``gait`` is a `Gait`, a `ProcessSpec` (a generic sweeping process, whose run has no velocity:
     v0 and the other crawler keys are None) or the path of either file. Its ``simulation``
@@ -331,6 +337,7 @@ def run(
         check_every_step=check_every_step,
         progress=progress,
         keep_trajectory=True,
+        rigid=rigid,
     )
     return dataclasses.replace(result, output=Path(output))
 

@@ -28,8 +28,9 @@ from typing import Any
 
 import numpy as np
 
-from crawlsim.analysis.stall import SMOOTH, StallCause, _vanishing_subset
+from crawlsim.analysis.stall import SMOOTH, StallCause
 from crawlsim.errors import CertificateError, GaitError, InputError
+from crawlsim.gait.apriori import margin
 from crawlsim.gait.document import Gait, gait_from_document
 
 SCAN_STEPS = 64
@@ -185,7 +186,8 @@ def stall(gait: Gait | str, *, force: str | None = None, slope: bool = False) ->
         value, hi = _smooth_zero(probe, lo, hi, v_lo, sign, direction, scale)
     else:
         cause = StallCause.JUMP
-        subset = _vanishing_subset(spec.replace(path, lo))
+        nearest = margin(spec.replace(path, lo))  # the J whose g~_J vanishes at the jump
+        subset = nearest.blocks if nearest.value <= 1e-6 * nearest.scale else None
     unit = "degree" if quantity == "slope" else spec.units.suffix("force").strip()
     return StallResult(
         quantity, path, value, (lo, hi), cause, v_start, v_lo, v_hi, s0, probe.evaluations, subset, reason, unit
