@@ -159,7 +159,7 @@ def _bench_scale():
 
 @njit
 def reference_period(k, C, w0, signs, W):
-    """Catch-up steps w_j -> w_{j+1} onto {B w <= C[j+1]} (crawlsim.kernel.kkt's chain), the active
+    """Catch-up steps w_j -> w_{j+1} onto {B w <= C[j+1]} (crawlsim.projection.kkt's chain), the active
     set of each step found from the previous one; W (G+1, N-1) receives the states."""
     N = signs.shape[0]
     G = C.shape[0] - 1

@@ -105,7 +105,7 @@ def test_projectors_of_nested_sets_merge_into_the_larger():
     projectors onto null B_A' within null B_A), also back over several; a saltation or a set
     that is neither stops the merge. The merged product is the unmerged one (numpy) to
     roundoff, on a chain of 8 blocks with unequal links."""
-    from crawlsim.kernel.chain_polyhedron import ChainPolyhedron
+    from crawlsim.projection.chain_polyhedron import ChainPolyhedron
 
     poly = ChainPolyhedron([1.0, 3.0, 0.5, 2.0, 7.0, 1.5, 4.0], 1.0)
     N = poly.blocks

@@ -2,7 +2,7 @@
 
 What must hold:
 
-* it is the same scheme as `crawlsim.kernel.kkt` (the telescoped runs that generic processes keep): a
+* it is the same scheme as `crawlsim.projection.kkt` (the telescoped runs that generic processes keep): a
   certified KKT point of a strictly convex problem is unique, so both paths take the same steps
   to roundoff, and v0 agrees to 1e-12 on every example crawler;
 * one source: the compiled functions and the same functions run as Python
@@ -22,9 +22,10 @@ import pytest
 from crawlsim.errors import CertificateError
 from crawlsim.gait.corpus import random_gait
 from crawlsim.gait.document import load_gait
+from crawlsim.integrate import catchup
 from crawlsim.integrate.exact import EventStepper
 from crawlsim.integrate.stepping import CatchUpStepper
-from crawlsim.kernel import catchup, chain, eventloop, jit
+from crawlsim.kernel import chain, eventloop, jit
 from crawlsim.model.process import compile_gait
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -42,7 +43,7 @@ BITWISE_SEEDS = (18, 5, 4)
 @pytest.mark.parametrize("path", CRAWLERS, ids=lambda p: p.stem)
 def test_kernel_steps_are_the_kkt_steps(path):
     """Three periods from the file's initial state with the kernel and with the telescoped
-    runs of `crawlsim.kernel.kkt`: states, slips and v0 of each period agree to roundoff (1e-12
+    runs of `crawlsim.projection.kkt`: states, slips and v0 of each period agree to roundoff (1e-12
     relative to the sizes involved), and the periods visit the same active sets."""
     process = compile_gait(load_gait(path))
     fast, slow = CatchUpStepper(process), CatchUpStepper(process, kernel=False)
@@ -61,7 +62,7 @@ def test_kernel_steps_are_the_kkt_steps(path):
 @pytest.mark.parametrize("path", CRAWLERS, ids=lambda p: p.stem)
 def test_compiled_event_loop_changes_nothing(path, monkeypatch):
     """The exact integrator's compiled event loop (`crawlsim.kernel.eventloop`) against its
-    Python loop with the velocity problems solved by `crawlsim.kernel.kkt` (the kernel switched
+    Python loop with the velocity problems solved by `crawlsim.projection.kkt` (the kernel switched
     off): the same certified KKT points, so the same decisions, events and states to roundoff,
     v0 of each period to 1e-12 and the same energy ledger (1e-12 relative)."""
     process = compile_gait(load_gait(path))

@@ -20,8 +20,9 @@ from pathlib import Path
 import numpy as np
 
 from crawlsim.gait.document import gait_from_document
+from crawlsim.integrate import catchup
 from crawlsim.integrate.exact import EventStepper
-from crawlsim.kernel import catchup, chain, eventloop, jit
+from crawlsim.kernel import chain, eventloop, jit
 from crawlsim.kernel import events as kernel_events
 from crawlsim.model.process import compile_gait
 

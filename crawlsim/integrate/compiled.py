@@ -18,7 +18,7 @@ from crawlsim.errors import CertificateError
 from crawlsim.integrate.ledger import ExactLedger, PeriodEnergy
 from crawlsim.integrate.stepping import PeriodRecord, Transition, TransitionCause
 from crawlsim.kernel.jit import kernel
-from crawlsim.kernel.kkt import ActiveSet, ChainPolyhedron, Polyhedron
+from crawlsim.projection.kkt import ActiveSet, ChainPolyhedron, Polyhedron
 
 if TYPE_CHECKING:
     from crawlsim.integrate.exact import EventStepper
@@ -38,7 +38,7 @@ class EventTrajectory(NamedTuple):
 
 class _Transitions(Sequence[Transition]):
     """The period's `Transition` records from the compiled loop's arrays, their active sets
-    factored by `crawlsim.kernel.kkt` only when they are read (`crawlsim.integrate.limit`,
+    factored by `crawlsim.projection.kkt` only when they are read (`crawlsim.integrate.limit`,
     sensitivities)."""
 
     def __init__(
@@ -50,7 +50,7 @@ class _Transitions(Sequence[Transition]):
 
     def _list(self) -> list[Transition]:
         if self._built is None:
-            from crawlsim.kernel.catchup import rows_of
+            from crawlsim.integrate.catchup import rows_of
             from crawlsim.kernel.eventloop import CAUSES
 
             u, piece, signs, cause, hit = self._arrays
@@ -86,7 +86,7 @@ class _Transitions(Sequence[Transition]):
 
 
 class _Visited(Sequence[ActiveSet]):
-    """`PeriodRecord.visited` of a compiled period: `crawlsim.kernel.catchup.VisitedSets` of
+    """`PeriodRecord.visited` of a compiled period: `crawlsim.integrate.catchup.VisitedSets` of
     its transitions' sets, formed when first read (`crawlsim.integrate.limit`)."""
 
     def __init__(self, poly: Polyhedron, signs: np.ndarray) -> None:
@@ -95,7 +95,7 @@ class _Visited(Sequence[ActiveSet]):
 
     def _list(self) -> Sequence[ActiveSet]:
         if self._args is not None:
-            from crawlsim.kernel.catchup import VisitedSets
+            from crawlsim.integrate.catchup import VisitedSets
 
             self._sets, self._args = VisitedSets(*self._args), None
         return self._sets
@@ -119,7 +119,8 @@ class _CompiledLoop:
     output arrays, sized to the events of the last period."""
 
     def __init__(self, stepper: EventStepper) -> None:
-        from crawlsim.kernel import catchup, eventloop
+        from crawlsim.integrate import catchup
+        from crawlsim.kernel import eventloop
 
         # the kernel's modules, imported here (not with this module: `crawlsim validate` loads
         # no kernel) and kept, since a period at N = 4 costs a few import look-ups

@@ -14,7 +14,7 @@ multipliers: the slip rates (dx/dt = lambda^+ - lambda^-). Times are in cycles u
 Lambda_A the slips accumulated since the piece began, G_A = B_A M^{-1} B_A^T. On a piece of c
 (`crawlsim.model.offsets`: c(u) = phi(u) @ C_p in a basis of 1, u and harmonics), every gap
 (B w(u) - c(u))_i and every slip rate is itself such a combination, computed with one
-multi-right-hand-side solve of the KKT kernel (`crawlsim.kernel.kkt`), O(N) for a crawler.
+multi-right-hand-side solve of the KKT kernel (`crawlsim.projection.kkt`), O(N) for a crawler.
 
 **Events** end a piece: an inactive row's gap reaches 0 from below, or an active row's slip rate
 reaches 0 from above; and the breakpoints of c, where at a jump (a ``steps`` signal) the state
@@ -69,10 +69,10 @@ from crawlsim.integrate.compiled import EventTrajectory, _CompiledLoop
 from crawlsim.integrate.ledger import ExactLedger
 from crawlsim.integrate.stepping import PeriodRecord, PeriodStepper, Transition, TransitionCause
 from crawlsim.kernel.jit import kernel
-from crawlsim.kernel.kkt import RTOL, ActiveSet, Dependent, Tolerance
-from crawlsim.kernel.projection import Projection
 from crawlsim.model.offsets import TWO_PI, PiecewiseOffsets
 from crawlsim.model.process import SweepingProcess
+from crawlsim.projection.adapter import Projection
+from crawlsim.projection.kkt import RTOL, ActiveSet, Dependent, Tolerance
 
 #: Default bound on the number of events in one period.
 MAX_EVENTS = 100_000
@@ -346,7 +346,7 @@ class EventStepper(PeriodStepper):
     def _velocity(self, c: np.ndarray, warm: np.ndarray, fixed: np.ndarray, time: float) -> _Velocity:
         """argmin 1/2 |v|_M^2 over {B_fixed v = c_fixed, B_i v <= c_i (finite c_i)}: the
         kernel's updates from ``warm``, Clarabel's proposal when they do not settle."""
-        from crawlsim.kernel.catchup import velocity  # crawlers: the compiled, certified step
+        from crawlsim.integrate.catchup import velocity  # crawlers: the compiled, certified step
 
         found = velocity(self.poly, c, warm, fixed)
         if found is not None:

@@ -14,10 +14,10 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from crawlsim.kernel.certificate import Floats
 from crawlsim.model.crawler import elastic_energy
 from crawlsim.model.offsets import TWO_PI, Basis
 from crawlsim.model.process import SweepingProcess
+from crawlsim.projection.certificate import Floats
 
 #: Below this value of omega delta the closed form of int s sin(omega s) ds is summed as its
 #: Taylor series (the closed form cancels there).

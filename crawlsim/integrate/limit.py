@@ -50,10 +50,10 @@ import numpy as np
 
 from crawlsim import interrupts
 from crawlsim.integrate.stepping import PeriodRecord, PeriodStepper
-from crawlsim.kernel.chain_polyhedron import ChainPolyhedron
 from crawlsim.kernel.jit import kernel
-from crawlsim.kernel.kkt import ActiveSet, Dependent, Polyhedron
 from crawlsim.model.process import SweepingProcess
+from crawlsim.projection.chain_polyhedron import ChainPolyhedron
+from crawlsim.projection.kkt import ActiveSet, Dependent, Polyhedron
 
 #: Plain periods before the first Newton step.
 PLAIN_PERIODS = 2
@@ -121,7 +121,7 @@ Factor = ActiveSet | Saltation
 
 def factors(process: SweepingProcess, record: PeriodRecord) -> list[Factor]:
     """The Jacobian of the period map from ``record``'s start, as the factors applied in turn:
-    the projectors P_A of the visited sets (`crawlsim.kernel.kkt.ActiveSet`), and, for event-driven
+    the projectors P_A of the visited sets (`crawlsim.projection.kkt.ActiveSet`), and, for event-driven
     integrators (``record.transitions``), the `Saltation` of every hit that swaps the set.
 
     Only a hit (a gap reaching zero) happens at a time that moves with the start; the other
@@ -261,7 +261,7 @@ class PackedJacobian:
 
 def packed_jacobian(poly: Polyhedron, visited: Sequence[Factor]) -> PackedJacobian | None:
     """The factors ``visited`` packed for the compiled products, for a crawler chain
-    (`crawlsim.kernel.chain_polyhedron.ChainPolyhedron`: a projector depends on its saturated
+    (`crawlsim.projection.chain_polyhedron.ChainPolyhedron`: a projector depends on its saturated
     blocks alone); None for another polyhedron.
 
     Neighbouring projectors of nested sets are merged (`_merged`): P_A is the M-orthogonal

@@ -19,7 +19,7 @@ import h5py
 from crawlsim.errors import ResultsFileError
 from crawlsim.io.layout import check_version, open_h5, plain, root_attrs, variables
 from crawlsim.io.runfile import TIME_DIMENSIONS
-from crawlsim.kernel.kkt import ChainPolyhedron
+from crawlsim.projection.kkt import ChainPolyhedron
 
 
 def read_results(path: Any) -> dict[str, Any]:

@@ -1,7 +1,7 @@
 """The compiled, certified catch-up step of a crawler chain (docs/model.md §3).
 
 One step projects the trial state w_j onto K(t_{j+1}) = {w : B w <= c} in the metric M = K^{-1},
-with B = [D^T; -D^T] (`crawlsim.kernel.chain_polyhedron.ChainPolyhedron`). On the saturated blocks J, with signs
+with B = [D^T; -D^T] (`crawlsim.projection.chain_polyhedron.ChainPolyhedron`). On the saturated blocks J, with signs
 s_i = +1 (forward limit, row i) or -1 (backward limit, row N + i), the KKT system is
 
     L_JJ dx_J = f_J - f*_J,   f = D^T w_j,   f*_i = c_i (s_i = +1) or -c_{N+i} (s_i = -1),
@@ -11,7 +11,7 @@ w_{j+1} = w_j - K D dx, multipliers lambda_i = dx_i (s_i = +1), lambda_{N+i} = -
 The system is padded to all N blocks (identity rows on free blocks, no coupling across them) and
 factored by LDL^T in O(N) (the Thomas recurrence), refactored only when J changes.
 
-Every step is certified with the tolerance policy of `crawlsim.kernel.polyhedron.Polyhedron.solve_on` and
+Every step is certified with the tolerance policy of `crawlsim.projection.polyhedron.Polyhedron.solve_on` and
 `certify` (one policy for every integrator): primal feasibility max(B w - c) <= tol_p, the sign
 of the multipliers -min(lambda) <= tol_d and complementarity max |(B w - c)_J| <= tol_p, where
 
@@ -20,10 +20,10 @@ of the multipliers -min(lambda) <= tol_d and complementarity max |(B w - c)_J| <
 
 with ||L_JJ^{-1}||_inf = max(L_JJ^{-1} 1) exactly (an M-matrix). A complementarity residual above
 a quarter of tol_p gets one step of iterative refinement. An uncertified step moves its active
-set by the primal-dual updates of `crawlsim.kernel.polyhedron.Polyhedron.refine` (drop the rows with negative
+set by the primal-dual updates of `crawlsim.projection.polyhedron.Polyhedron.refine` (drop the rows with negative
 multipliers, add the violated rows; the worst one alone, or the exchange of Goldfarb and Idnani,
 where all at once would saturate every block). A certified KKT point of this strictly convex
-problem is the projection, so the steps agree with `crawlsim.kernel.kkt` to roundoff.
+problem is the projection, so the steps agree with `crawlsim.projection.kkt` to roundoff.
 
 A step at N = 4 costs a few hundred machine instructions, so its shape is its cost: after the
 solve, one pass over the blocks forms the point, the multipliers, the slack and the three
@@ -360,7 +360,7 @@ def update(
     rows: np.ndarray,
     member: np.ndarray,
 ) -> int:
-    """The next set of a primal-dual update into ``new`` (`crawlsim.kernel.polyhedron.Polyhedron.update_set`,
+    """The next set of a primal-dual update into ``new`` (`crawlsim.projection.polyhedron.Polyhedron.update_set`,
     then `exchange` where the set would fail LICQ); rows ``fixed`` never leave. Returns 0 with a
     new set, 1 when nothing is to change (the certificate failed on its own numbers), 2 when
     no independent update exists (the Python projector decides). ``rows`` and ``member``
@@ -405,7 +405,7 @@ def update(
 
 @jit
 def exchange(member: np.ndarray, lam: np.ndarray, slack: np.ndarray, fixed: np.ndarray, rows: np.ndarray) -> bool:
-    """The exchange of Goldfarb and Idnani into ``rows`` (`crawlsim.kernel.polyhedron.Polyhedron.exchange`):
+    """The exchange of Goldfarb and Idnani into ``rows`` (`crawlsim.projection.polyhedron.Polyhedron.exchange`):
     the most violated row r enters although it depends on the active ones, which happens only
     when every block would be saturated (a block at both limits has no leaving row); along the
     dependency z = S 1 (signs of the rows, z_r > 0) the active row of the opposite sign with
@@ -469,7 +469,7 @@ def settle(
     told: np.ndarray,
 ) -> tuple[int, float]:
     """One certified projection of ``w_trial`` onto {B w <= c} (rows ``fixed`` as equalities)
-    from the set ``signs``, by primal-dual updates (`crawlsim.kernel.polyhedron.Polyhedron.refine`): DONE
+    from the set ``signs``, by primal-dual updates (`crawlsim.projection.polyhedron.Polyhedron.refine`): DONE
     with w, lam, slack, the set and each row's own dual tolerance (``told``, `row_duals`) in
     place, HANDOFF when the updates cycle, run out or find no independent set, FAILED when the
     certificate fails with nothing to change (``report``). Returns (status, tol_p); the scalar
@@ -711,7 +711,7 @@ def catch_up(
         if status != DONE:
             return status, j
         # every block tight to roundoff with an inactive row among them: LICQ may fail and the
-        # slips may not be unique; the Python projector decides (crawlsim.kernel.projection)
+        # slips may not be unique; the Python projector decides (crawlsim.projection.adapter)
         all_tight = True
         inactive_tight = False
         for i in range(N):
@@ -736,7 +736,7 @@ def catch_up(
 @jit
 def set_starts(S: np.ndarray) -> np.ndarray:
     """The steps where the set S[j] differs from S[j-1] (step 0 included): the index of the
-    first step of each run of one set (`crawlsim.kernel.catchup.VisitedSets`)."""
+    first step of each run of one set (`crawlsim.integrate.catchup.VisitedSets`)."""
     G, N = S.shape
     starts = np.empty(G, dtype=np.int64)
     count = 0

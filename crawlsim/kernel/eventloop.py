@@ -10,7 +10,7 @@ sampling, `crawlsim.kernel.sampling`); the grid samples and their certificate
 (`sample_piece`); and at a jump of c(t) the certified projection onto K(t+) (`jump`). The
 formulas, tolerances and decisions are those of the module docstring of
 `crawlsim.integrate.exact`, which documents them; the rows of a chain are those of
-`crawlsim.kernel.kkt.ChainPolyhedron` (row i < N: block i at its forward limit, row N + i at its
+`crawlsim.projection.kkt.ChainPolyhedron` (row i < N: block i at its forward limit, row N + i at its
 backward one), and an active set is its signs (+1, -1, 0 per block).
 
 An event touches what can change. The padded KKT system decouples at a free block, so the
@@ -366,7 +366,7 @@ def jump(
     """The projection of w onto K(t+) = {B v <= target} from the set ``signs``, certified by
     `crawlsim.kernel.chain.project` (DONE only with its certificate; restarted where its
     updates run out, `JUMP_RESTARTS`), and LICQ at its tight rows
-    (`crawlsim.kernel.projection.ExactProjector`: a tight set that may be dependent goes to the
+    (`crawlsim.projection.adapter.ExactProjector`: a tight set that may be dependent goes to the
     projector, which decides whether the slips are unique). Returns DONE or HANDOFF."""
     N = signs.shape[0]
     m = 2 * N

@@ -2,7 +2,7 @@
 
 The Jacobian of the period map from a start is the product of the factors visited in its
 period (`crawlsim.integrate.limit.factors`): projectors P_A = I - R_A B_A of active sets and
-saltations S = I - (v_b - v_a) b_i^T / rate. For a chain (`crawlsim.kernel.chain_polyhedron`,
+saltations S = I - (v_b - v_a) b_i^T / rate. For a chain (`crawlsim.projection.chain_polyhedron`,
 B = [D^T; -D^T], M = K^{-1}) a projector depends only on the saturated blocks J of A, not on
 the signs of its rows: with f = D^T v,
 

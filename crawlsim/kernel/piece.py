@@ -76,7 +76,7 @@ def combine(phi: np.ndarray, coef: np.ndarray, out: np.ndarray) -> None:
 
 @jit
 def apply(w: np.ndarray, out: np.ndarray) -> None:
-    """B w = [D^T w; -D^T w] of a chain (`crawlsim.kernel.kkt.ChainPolyhedron.apply`)."""
+    """B w = [D^T w; -D^T w] of a chain (`crawlsim.projection.kkt.ChainPolyhedron.apply`)."""
     N = out.shape[0] // 2
     for i in range(N):
         f = (w[i - 1] if i > 0 else 0.0) - (w[i] if i < N - 1 else 0.0)

@@ -1,5 +1,5 @@
 """The one tolerance policy of every certificate, for every step of every integrator: the
-Python polyhedra (`crawlsim.kernel.polyhedron`) and the compiled steps (`crawlsim.kernel.chain`,
+Python polyhedra (`crawlsim.projection.polyhedron`) and the compiled steps (`crawlsim.kernel.chain`,
 `crawlsim.kernel.eventloop`, `crawlsim.kernel.piece`) call the same functions.
 
 A step is held to `RTOL` of the size of the numbers it sums ([How a step is made exact]

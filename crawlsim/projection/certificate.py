@@ -1,4 +1,4 @@
-"""The certificate of a step and the records of a certified step or run (`crawlsim.kernel.kkt`).
+"""The certificate of a step and the records of a certified step or run (`crawlsim.projection.kkt`).
 
 Every certificate of every integrator holds a step to the tolerances of `crawlsim.kernel.policy`:
 primal feasibility max(B w - c), the sign of the multipliers -min(lambda) and complementarity
@@ -14,7 +14,7 @@ import numpy as np
 import numpy.typing as npt
 
 if TYPE_CHECKING:
-    from crawlsim.kernel.polyhedron import ActiveSet
+    from crawlsim.projection.polyhedron import ActiveSet
 
 #: Float arrays of any shape (the annotation that lets numpy's stubs type their arithmetic).
 Floats = npt.NDArray[np.floating[Any]]

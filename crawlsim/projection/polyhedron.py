@@ -1,10 +1,10 @@
-"""The certified projection step on a polyhedron, for every integrator (`crawlsim.kernel.kkt`).
+"""The certified projection step on a polyhedron, for every integrator (`crawlsim.projection.kkt`).
 
 `Polyhedron` holds what every structure shares: the tolerance policy, the solve on an active
 set with iterative refinement, the certificate, the primal-dual active-set updates and the
 telescoped run of steps on a fixed active set. Its subclasses give the structure: the crawler
-chain (`crawlsim.kernel.chain_polyhedron`) and a dense generic process
-(`crawlsim.kernel.dense_polyhedron`).
+chain (`crawlsim.projection.chain_polyhedron`) and a dense generic process
+(`crawlsim.projection.dense_polyhedron`).
 """
 
 from __future__ import annotations
@@ -14,7 +14,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from crawlsim.kernel.certificate import (
+from crawlsim.kernel.policy import REFINE_FRACTION, UPDATE_ITERATIONS, tolerances
+from crawlsim.projection.certificate import (
     CACHE_NUMBERS,
     GENERIC_RCOND,
     Certificate,
@@ -23,7 +24,6 @@ from crawlsim.kernel.certificate import (
     Step,
     Tolerance,
 )
-from crawlsim.kernel.policy import REFINE_FRACTION, UPDATE_ITERATIONS, tolerances
 
 
 class ActiveSet:

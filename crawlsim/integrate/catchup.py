@@ -1,6 +1,6 @@
 """The driver of the compiled catch-up step (`crawlsim.kernel.chain`): it owns the kernel's
 arrays between periods, calls it, and turns what it reports into crawlsim's terms: the active
-sets as `crawlsim.kernel.polyhedron.ActiveSet` (for the periodic-limit solver), a failed certificate as a
+sets as `crawlsim.projection.polyhedron.ActiveSet` (for the periodic-limit solver), a failed certificate as a
 `CertificateError` naming the time and the rows.
 """
 
@@ -12,10 +12,10 @@ from typing import overload
 import numpy as np
 
 from crawlsim.kernel import chain
-from crawlsim.kernel.certificate import Dependent
-from crawlsim.kernel.chain_polyhedron import ChainPolyhedron
 from crawlsim.kernel.jit import kernel
-from crawlsim.kernel.polyhedron import ActiveSet, Polyhedron
+from crawlsim.projection.certificate import Dependent
+from crawlsim.projection.chain_polyhedron import ChainPolyhedron
+from crawlsim.projection.polyhedron import ActiveSet, Polyhedron
 
 
 def signs_of(active: ActiveSet, blocks: int) -> np.ndarray:
@@ -62,7 +62,7 @@ class ChainKernel:
         self.signs[:] = signs_of(active, len(self.signs))
 
     def active(self, fallback: ActiveSet) -> ActiveSet:
-        """The current set, factored by `crawlsim.kernel.kkt` (cached there), or ``fallback``."""
+        """The current set, factored by `crawlsim.projection.kkt` (cached there), or ``fallback``."""
         key = self.signs.tobytes()
         if self._active is not None and key == self._key:
             return self._active
@@ -97,7 +97,7 @@ class ChainKernel:
 
 class VisitedSets(Sequence[ActiveSet]):
     """The non-empty active sets of a period's steps, in order, consecutive repeats left out
-    (`crawlsim.integrate.stepping.PeriodRecord.visited`), factored by `crawlsim.kernel.kkt` only when the
+    (`crawlsim.integrate.stepping.PeriodRecord.visited`), factored by `crawlsim.projection.kkt` only when the
     periodic-limit solver asks for them: most periods never need them."""
 
     def __init__(self, polyhedron: Polyhedron, S: np.ndarray):
