@@ -40,6 +40,7 @@ from crawlsim.gait.settings import (
     simulation_from,
 )
 from crawlsim.gait.signals import SIGNAL_SCHEMA, Signal, evaluate_many, parse_signal, union_breakpoints
+from crawlsim.gait.terrain import TERRAIN_SCHEMA, Terrain, ground_violation, parse_terrain
 from crawlsim.gait.uniqueness import UniquenessUndecidable, alike_subsets, analyse, find_violation
 from crawlsim.gait.uniqueness_advice import remedy_text, smallest_change, uniqueness_message
 from crawlsim.gait.units import UNITS_SCHEMA, Units
@@ -103,6 +104,7 @@ CRAWLER_SCHEMA: dict = {
         "simulation": SIMULATION_SCHEMA,
         "units": UNITS_SCHEMA,
         "loads": LOADS_SCHEMA,
+        "terrain": TERRAIN_SCHEMA,
     },
 }
 """JSON Schema (Draft 2020-12) of a crawler gait document."""
@@ -131,6 +133,8 @@ class Gait:
     uniqueness_unchecked: bool = False
     #: External forces and a slope (docs/model.md §6), or None for none.
     loads: Loads | None = None
+    #: Friction factors along the ground (docs/model.md §8), or None for uniform ground.
+    terrain: Terrain | None = None
 
     def replace(self, *changes: Any) -> Gait:
         """A new validated gait with values set at dotted paths, the syntax of ``--sweep``:
@@ -253,6 +257,7 @@ def build_crawler(
         loads = errors.attempt(parse_loads, document["loads"], n, source)
         if loads is None:
             return None
+    terrain = errors.attempt(parse_terrain, document["terrain"], source) if "terrain" in document else None
     positions = _positions(document, n, links, source, errors)
     if errors.found or k is None or links is None or friction is None or positions is None:
         return None
@@ -273,6 +278,7 @@ def build_crawler(
         simulation=simulation,
         units=Units.from_block(document.get("units")),
         loads=loads,
+        terrain=terrain,
     )
     started = _admissible_start(gait, positive, errors)
     if started is None or not positive:
@@ -365,6 +371,11 @@ def _unique(gait: Gait, errors: ErrorSink) -> Gait | None:
         if problem is not None:
             errors.add(GaitError(source, "loads" if gait.loads is not None else "friction", problem))
             return None
+        if gait.terrain is not None:  # and on the ground the blocks start on (the run checks the rest)
+            problem = ground_violation(gait, *gait.terrain.factors(gait.initial_positions))
+            if problem is not None:
+                errors.add(GaitError(source, "terrain", problem))
+                return None
     if not errors.found:  # stiffness and friction each valid: their ratio (`stress_scale`)
         errors.attempt(
             check_stress_scale, gait.stiffness, gait.links, gait.initial_positions, gait.forward + gait.backward, source
@@ -413,6 +424,11 @@ def admissibility_violation(gait: Gait, positions: np.ndarray, t: float = 0.0) -
     plus, minus = gait.thresholds()
     u = at / gait.period
     mu_plus, mu_minus = evaluate_many(plus, u)[0], evaluate_many(minus, u)[0]
+    if gait.terrain is not None:  # the ground under each block scales its friction (§8)
+        cos = 1.0 if gait.loads is None else gait.loads.cos
+        a_plus, a_minus = gait.terrain.factors(x)
+        mu_plus = mu_plus + (a_plus - 1.0) * cos * gait.mu_plus(at)[0]
+        mu_minus = mu_minus + (a_minus - 1.0) * cos * gait.mu_minus(at)[0]
     sigma = gait.stiffness * (lengths - np.diff(x))
     force = np.zeros(gait.blocks)
     force[1:] += sigma
