@@ -53,6 +53,10 @@ from crawlsim.kernel.policy import REFINE_FRACTION, RTOL, UPDATE_ITERATIONS, tol
 DONE, HANDOFF, FAILED = 0, 1, 2
 #: Entries of the report array of a FAILED step.
 REPORT_PRIMAL, REPORT_DUAL, REPORT_COMP, REPORT_TOLP, REPORT_TOLD, REPORT_ROW = range(6)
+#: Restarts of the projection at a jump from the set where its primal-dual updates stopped: a
+#: jump may change more rows than `UPDATE_ITERATIONS` updates do when the tight set, nearly
+#: every block, only admits them one at a time.
+JUMP_RESTARTS = 8
 
 
 @jit
@@ -641,6 +645,47 @@ def project_rows(
         told,
     )
     return status
+
+
+@jit
+def jump(
+    k: np.ndarray,
+    c_scale: float,
+    w: np.ndarray,
+    target: np.ndarray,
+    signs: np.ndarray,
+    w_out: np.ndarray,
+    lam: np.ndarray,
+    report: np.ndarray,
+) -> int:
+    """The projection of w onto {B v <= target} at a jump (of c, `crawlsim.kernel.eventloop`, or
+    of the ground, `crawlsim.kernel.terrain`) from the set ``signs``, certified by `project`
+    (DONE only with its certificate; restarted where its updates run out, `JUMP_RESTARTS`), and
+    LICQ at its tight rows (`crawlsim.projection.adapter.ExactProjector`: a tight set that may be
+    dependent goes to the projector, which decides whether the slips are unique). Returns DONE
+    or HANDOFF."""
+    N = signs.shape[0]
+    m = 2 * N
+    fixed = np.zeros(m, dtype=np.bool_)
+    status = project(k, c_scale, w, target, signs, fixed, w_out, lam, report)
+    for _ in range(JUMP_RESTARTS):  # the updates go on from the set where they stopped
+        if status != HANDOFF:
+            break
+        status = project(k, c_scale, w, target, signs, fixed, w_out, lam, report)
+    if status != DONE:
+        return HANDOFF
+    tol_p = report[REPORT_TOLP]
+    tight = np.zeros(m, dtype=np.bool_)
+    extra = False
+    for r in range(m):
+        s = signs[r % N]
+        member = (r < N and s > 0) or (r >= N and s < 0)
+        f = force(w_out, r % N, N)
+        tight[r] = member or (f if r < N else -f) - target[r] >= -tol_p
+        extra = extra or (tight[r] and not member)
+    if extra and not independent(tight, N):
+        return HANDOFF
+    return DONE
 
 
 @jit

@@ -41,7 +41,8 @@ import math
 
 import numpy as np
 
-from crawlsim.kernel import chain
+from crawlsim.kernel import terrain
+from crawlsim.kernel.chain import jump
 from crawlsim.kernel.events import (  # noqa: F401 - eventloop.next_event etc. are entry points too
     SIMULTANEOUS,
     closed_forms,
@@ -78,15 +79,11 @@ from crawlsim.kernel.piece import (  # noqa: F401 - eventloop.piece etc. are its
 from crawlsim.kernel.policy import RTOL, UPDATE_ITERATIONS, tolerances
 
 TWO_PI = 2.0 * math.pi
-#: Restarts of the projection at a jump of c from the set where its primal-dual updates
-#: stopped: a jump may change more rows than `UPDATE_ITERATIONS` updates do when the
-#: tight set, nearly every block, only admits them one at a time.
-JUMP_RESTARTS = 8
 
 DONE, HANDOFF, FAILED_PIECE, TOO_MANY, ZENO, OVERFLOW = range(6)
 #: Transition causes (`crawlsim.integrate.stepping.TransitionCause`), in this order.
-CAUSES = ("edge", "release", "hit", "jump")
-EDGE, RELEASE, HIT, JUMP = range(4)
+CAUSES = ("edge", "release", "hit", "jump", "ground")
+EDGE, RELEASE, HIT, JUMP, GROUND = range(5)
 #: Entries of ``report`` (R_REASON: why a period was handed over, one of HANDOFF_REASONS).
 R_U, R_INDEX, R_PRIMAL, R_DUAL, R_TOLP, R_TOLD, R_COMP, R_REASON = range(8)
 #: Why the loop hands a period over: an event's active set (a velocity problem not settled by
@@ -353,47 +350,6 @@ def energy_terms(
 
 # -- a jump of c at a breakpoint ----------------------------------------------------------------
 @jit
-def jump(
-    k: np.ndarray,
-    c_scale: float,
-    w: np.ndarray,
-    target: np.ndarray,
-    signs: np.ndarray,
-    w_out: np.ndarray,
-    lam: np.ndarray,
-    report: np.ndarray,
-) -> int:
-    """The projection of w onto K(t+) = {B v <= target} from the set ``signs``, certified by
-    `crawlsim.kernel.chain.project` (DONE only with its certificate; restarted where its
-    updates run out, `JUMP_RESTARTS`), and LICQ at its tight rows
-    (`crawlsim.projection.adapter.ExactProjector`: a tight set that may be dependent goes to the
-    projector, which decides whether the slips are unique). Returns DONE or HANDOFF."""
-    N = signs.shape[0]
-    m = 2 * N
-    fixed = np.zeros(m, dtype=np.bool_)
-    status = chain.project(k, c_scale, w, target, signs, fixed, w_out, lam, report)
-    for _ in range(JUMP_RESTARTS):  # the updates go on from the set where they stopped
-        if status != chain.HANDOFF:
-            break
-        status = chain.project(k, c_scale, w, target, signs, fixed, w_out, lam, report)
-    if status != chain.DONE:
-        return HANDOFF
-    tol_p = report[chain.REPORT_TOLP]
-    slack = np.empty(m)
-    apply(w_out, slack)
-    tight = np.zeros(m, dtype=np.bool_)
-    extra = False
-    for r in range(m):
-        s = signs[r % N]
-        member = (r < N and s > 0) or (r >= N and s < 0)
-        tight[r] = member or slack[r] - target[r] >= -tol_p
-        extra = extra or (tight[r] and not member)
-    if extra and not chain.independent(tight, N):
-        return HANDOFF
-    return DONE
-
-
-@jit
 def record_at(j: int, LAMC: np.ndarray, x0: np.ndarray, MU: np.ndarray, X: np.ndarray) -> None:
     """The record's slips of the step ending at grid point j, MU[j-1] = LAMC[j] - LAMC[j-1]
     (j > 0), and the positions X[j] = x0 + (lambda^+ - lambda^-)(t_j) (x0 not empty), as
@@ -474,6 +430,17 @@ def at_jump(
     lam_now[:] = lam_cum
     record_at(je, LAMC, x0, MU, X)
     return DONE
+
+
+@jit
+def slid(status: int, u: float, report: np.ndarray) -> int:
+    """The loop's status after a slide on terrain (`crawlsim.kernel.terrain.settle`)."""
+    if status == terrain.SETTLED:
+        return DONE
+    if status == terrain.OVERFLOW:
+        return OVERFLOW
+    report[R_U], report[R_REASON] = u, H_JUMP
+    return HANDOFF
 
 
 # -- one period -----------------------------------------------------------------------------------
@@ -594,13 +561,17 @@ def period(
     counts: np.ndarray,
     report: np.ndarray,
     cells_per_cycle: int,
+    ground: terrain.Ground,
 ) -> int:
     """One period from w_start (in K(0)) with the warm set ``signs`` (left at the final set), on
     the grid ``grid`` (PHI: phi at its times):
     W and LAMC (cumulative slips) on the grid, and the record's slips MU and positions X from
     x0 (x0 empty: none; `sample_piece`); the events, transitions, the pieces' energy
     terms (``ledger``: the number of products the ledger keeps, 0 without one) and the jumps
-    into the other arrays, their numbers in ``counts``.
+    into the other arrays, their numbers in ``counts``. On terrain (``ground``,
+    `crawlsim.kernel.terrain`) each block's offsets and friction are those of the ground under
+    it (COEF and MC on uniform ground, refreshed into coefw and muw), a block reaching a
+    boundary is an event, and the slides that follow are jumps.
     Returns a status (module docstring)."""
     N = signs.shape[0]
     n, m = N - 1, 2 * N
@@ -641,6 +612,10 @@ def period(
     stale = np.ones((N + CHUNK - 1) // CHUNK, dtype=np.bool_)
     partial = np.zeros((stale.shape[0], 3, nb, nb))
     kept = closed_forms(linear, H)
+    on_ground = terrain.active(ground)
+    coefw, muw, x_piece, zg = np.empty((nb, m)), np.empty((nb, m)), np.empty(N), np.empty(nb)
+    edge_mu, one = np.empty((1, m)), np.ones(1)
+    jump_count = counts[C_JUMPS : C_JUMPS + 1]
     built = False
     inverse = 0.0
     W[0] = w_start
@@ -656,7 +631,11 @@ def period(
         if status != DONE:
             return status
         t_count = counts[C_TRANSITIONS]
-        coef = COEF[p]
+        coef, c_size, mc = COEF[p], C_SIZE[p], MC[p]
+        if on_ground:
+            if not built:  # a new piece of c, or the ground under a block changed
+                terrain.effective(COEF[p], MC[p], ground, coefw, muw)
+            coef, c_size, mc = coefw, offset_size(coefw), muw
         if built and kept and N >= LOCAL_BLOCKS:  # the piece of ``signs`` is in place
             decided = decide_local(
                 k,
@@ -665,7 +644,7 @@ def period(
                 linear,
                 H,
                 coef,
-                C_SIZE[p],
+                c_size,
                 u,
                 w,
                 forced,
@@ -716,6 +695,37 @@ def period(
         if not decided:
             report[R_U], report[R_REASON] = u, H_DECIDE
             return HANDOFF
+        moved = terrain.depart(ground, chosen, u) if on_ground else 0
+        if moved < 0:
+            return OVERFLOW
+        if moved > 0:  # onto the ground beside a boundary: a slide where it is smoother
+            lam_cum[:] = lam_now
+            built = False
+            basis_values(u, 0, linear, H, phi)
+            jumped = jump_count[0]
+            status = slid(
+                terrain.settle(
+                    k,
+                    c_scale,
+                    u,
+                    ground,
+                    (COEF[p], MC[p], phi, coefw, muw),
+                    (w, lam_cum, signs, x0),
+                    (-1 - p, -1 - p, u, JUMP_PIECE, JUMP_U, JUMP_W, JUMP_LAM, jump_count),
+                    inner,
+                    False,
+                ),
+                u,
+                report,
+            )
+            if status != DONE:
+                return status
+            lam_now[:] = lam_cum
+            coef, c_size = coefw, offset_size(coefw)
+            if jump_count[0] > jumped:  # it slid: the set is decided again where it stopped
+                forced[:] = False
+                cause = GROUND
+                continue
         rebuild_changed(
             k,
             signs,
@@ -752,7 +762,7 @@ def period(
                     linear,
                     H,
                     coef,
-                    C_SIZE[p],
+                    c_size,
                     signs,
                     base,
                     Wc,
@@ -775,7 +785,7 @@ def period(
                 linear,
                 H,
                 coef,
-                C_SIZE[p],
+                c_size,
                 signs,
                 base,
                 Wc,
@@ -795,17 +805,27 @@ def period(
         if handoff:
             report[R_U], report[R_REASON] = u, H_ZERO
             return HANDOFF
+        reached = -1
+        if on_ground:  # a block reaching a boundary before the piece's next event
+            for i in range(N):
+                x_piece[i] = x0[i] + lam_cum[i] - lam_cum[N + i]
+            u_g, reached = terrain.next_crossing(
+                ground, signs, x_piece, (dx0, Ydx, linear, H, phi0, cells_per_cycle), u, min(u_e, u_end), (zg,)
+            )
+            if u_g < min(u_e, u_end):
+                u_e = u_g
+                forced[:] = False
+            else:
+                reached = -1
         event = u_e < u_end
         if not event:
             u_e = u_end
         if ledger > 0 and u_e > u:
             q = counts[C_PIECES]
             PIECE_BOUNDS[q, 0], PIECE_BOUNDS[q, 1] = u, u_e
-            energy_terms(
-                signs, base, Wc, Rdx, KLC[p], DLC[p], MC[p], LC[p], ledger == 3, PIECE_TERMS[q], stale, partial
-            )
+            energy_terms(signs, base, Wc, Rdx, KLC[p], DLC[p], mc, LC[p], ledger == 3, PIECE_TERMS[q], stale, partial)
             counts[C_PIECES] = q + 1
-        own = dual_scale(k, kmax, c_scale, signs, C_SIZE[p], dx0, Ydx, base, Wc, inverse, gram)
+        own = dual_scale(k, kmax, c_scale, signs, c_size, dx0, Ydx, base, Wc, inverse, gram)
         j_end = j
         while j_end < G1 and grid[j_end] <= u_e:
             j_end += 1
@@ -843,6 +863,31 @@ def period(
             carried = max(carried, own)
         state_at(u_e, linear, H, signs, dx0, Ydx, base, Wc, lam_cum, w, phi, dx, lam_now)
         u = u_e
+        if event and reached >= 0:  # held at the boundary, on beyond it, or a slide onto it
+            lam_cum[:] = lam_now
+            built = False
+            if not terrain.arrive(ground, reached, signs[reached], u):
+                return OVERFLOW
+            status = slid(
+                terrain.settle(
+                    k,
+                    c_scale,
+                    u,
+                    ground,
+                    (COEF[p], MC[p], phi, coefw, muw),
+                    (w, lam_cum, signs, x0),
+                    (-1 - p, -1 - p, u, JUMP_PIECE, JUMP_U, JUMP_W, JUMP_LAM, jump_count),
+                    inner,
+                    False,
+                ),
+                u,
+                report,
+            )
+            if status != DONE:
+                return status
+            lam_now[:] = lam_cum
+            cause = GROUND
+            continue
         if event:
             cause = HIT if forced.any() else RELEASE
             continue
@@ -851,7 +896,50 @@ def period(
         edge = p + 1
         lam_cum[:] = lam_now  # the next piece is built anew (another piece of c)
         built = False
-        if (
+        if jumps[edge] and on_ground:  # the jump's slide, stage by stage (`crawlsim.kernel.terrain`)
+            u_after = u if edge < P else 0.0
+            basis_values(u_after, 0, linear, H, phi)
+            combine(phi, MC[edge % P], edge_mu[0])
+            status = slid(
+                terrain.settle(
+                    k,
+                    c_scale,
+                    u,
+                    ground,
+                    (TARGET[edge : edge + 1], edge_mu, one, coefw[:1], muw[:1]),
+                    (w, lam_cum, signs, x0),
+                    (p, -1 - edge % P, u_after, JUMP_PIECE, JUMP_U, JUMP_W, JUMP_LAM, jump_count),
+                    inner,
+                    True,
+                ),
+                u,
+                report,
+            )
+            if status != DONE:
+                return status
+            lam_jump[:] = 0.0
+            je = after_jump(
+                u,
+                edge % P,
+                w,
+                w,
+                lam_cum,
+                lam_jump,
+                signs,
+                forced,
+                grid,
+                W,
+                LAMC,
+                TR_U,
+                TR_PIECE,
+                TR_SIGNS,
+                TR_CAUSE,
+                TR_HIT,
+                counts,
+            )
+            lam_now[:] = lam_cum
+            record_at(je, LAMC, x0, MU, X)
+        elif (
             jumps[edge]
             and at_jump(
                 k,

@@ -48,6 +48,7 @@ MODULES = (
     "piece",
     "sampling",
     "events",
+    "terrain",
     "eventloop",
     "jacobian",
     "tangent",
