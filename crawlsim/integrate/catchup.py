@@ -13,6 +13,7 @@ import numpy as np
 
 from crawlsim.kernel import chain
 from crawlsim.kernel.jit import kernel
+from crawlsim.kernel.terrain import Ground
 from crawlsim.projection.certificate import Dependent
 from crawlsim.projection.chain_polyhedron import ChainPolyhedron
 from crawlsim.projection.polyhedron import ActiveSet, Polyhedron
@@ -80,6 +81,28 @@ class ChainKernel:
             self.k, self.c_scale, C, W, LAM, S, self.signs, self.factored, self.D, self.l, self.norms, j0, self.report
         )
         return int(status), int(j)
+
+    def ground_run(
+        self, ground: Ground, C: np.ndarray, CW: np.ndarray, X: np.ndarray, MU: np.ndarray
+    ) -> Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int], tuple[int, int]]:
+        """`run` on terrain (docs/model.md §8): each step with the factors of the ground at the
+        positions X[j] it starts from, its offsets in CW, the positions formed step by step
+        (`crawlsim.kernel.terrain.catch_up`)."""
+        self._total = np.zeros(len(self.signs))
+        scratch = np.empty((1, 2 * len(self.signs)))
+
+        def run(_: np.ndarray, W: np.ndarray, LAM: np.ndarray, S: np.ndarray, j0: int) -> tuple[int, int]:
+            carry = (self.signs, self.factored, self.D, self.l, self.norms, CW, self._total, scratch)
+            status, j = kernel().terrain.catch_up(
+                self.k, self.c_scale, C, MU, ground, X, W, LAM, S, carry, j0, self.report
+            )
+            return int(status), int(j)
+
+        return run
+
+    def advance(self, X: np.ndarray, LAM: np.ndarray, j: int) -> None:
+        """X[j+1] after a step the projector made (`crawlsim.kernel.terrain.advance`)."""
+        kernel().terrain.advance(LAM, X, self._total, j)
 
     def failure(self, name: str, when: float, describe: Callable[[np.ndarray], str]) -> str:
         """The message of a step whose certificate failed with no update left (FAILED)."""

@@ -14,7 +14,8 @@ from typing import TYPE_CHECKING, Any, NamedTuple, cast, overload
 
 import numpy as np
 
-from crawlsim.errors import CertificateError
+from crawlsim.errors import CertificateError, EventError
+from crawlsim.integrate.ground import no_ground
 from crawlsim.integrate.ledger import ExactLedger, PeriodEnergy
 from crawlsim.integrate.stepping import PeriodRecord, Transition, TransitionCause
 from crawlsim.kernel.jit import kernel
@@ -150,6 +151,7 @@ class _CompiledLoop:
         self._lamc = np.empty((0, 0))
         self._final: tuple[bytes, ActiveSet] = (b"", stepper.poly.empty)
         self._final_signs = np.zeros(stepper.process.blocks, dtype=np.int8)
+        self._no_ground = no_ground(stepper.process.blocks)
 
     @staticmethod
     def of(stepper: EventStepper) -> _CompiledLoop | None:
@@ -190,6 +192,12 @@ class _CompiledLoop:
                 f"(tolerance {report[loop.R_TOLP]:.3g} / {report[loop.R_TOLD]:.3g}), "
                 f"complementarity {report[loop.R_COMP]:.3g}"
             )
+        if s.ground is not None:  # the Python loop does not walk terrain
+            raise EventError(
+                f"{s.process.name}: the exact integrator cannot pass t = {start + u * s.process.period:.12g} "
+                f"on this terrain ({loop.HANDOFF_REASONS[int(report[loop.R_REASON])]}: a step its compiled "
+                "loop hands over); use --integrator catch-up"
+            )
         return None  # HANDOFF
 
     def _run(self, s: EventStepper) -> dict[str, Any]:
@@ -208,6 +216,7 @@ class _CompiledLoop:
         else:
             E = out["capacity"]
         T2 = E + P + 2
+        J = P + 1 + (E if s.ground is not None else 0)  # jumps: of c, and the slides on terrain
         if "ev_t" not in out:
             out.update(
                 {
@@ -222,10 +231,10 @@ class _CompiledLoop:
                     "tr_hit": np.zeros((T2, m), dtype=np.bool_),
                     "bounds": np.empty((E, 2)),
                     "products": np.empty((E, 3, nb, nb)),
-                    "jump_piece": np.empty(P + 1, dtype=np.int64),
-                    "jump_u": np.empty(P + 1),
-                    "jump_w": np.empty((P + 1, 2, n)),
-                    "jump_lam": np.empty((P + 1, m)),
+                    "jump_piece": np.empty(J, dtype=np.int64),
+                    "jump_u": np.empty(J),
+                    "jump_w": np.empty((J, 2, n)),
+                    "jump_lam": np.empty((J, m)),
                     "counts": np.zeros(4, dtype=np.int64),
                     "report": np.zeros(8),
                 }
@@ -241,6 +250,7 @@ class _CompiledLoop:
         x0 = np.ascontiguousarray(s.x, dtype=float) if s.x is not None else np.empty(0)
         # the set the last period ended on, when the stepper still has it (`_record`)
         out["signs"] = self._final_signs.copy() if s.active is self._final[1] else catchup.signs_of(s.active, N)
+        out["ground"] = self._no_ground if s.ground is None else s.ground.record(E, J)
         out["status"] = kernel().eventloop.period(
             self.k,
             self.c_scale,
@@ -284,6 +294,7 @@ class _CompiledLoop:
             out["counts"],
             out["report"],
             s.cells_per_cycle,
+            out["ground"],
         )
         return out
 
@@ -319,6 +330,9 @@ class _CompiledLoop:
             x_events = s.x + out["ev_dx"][:e]
             s.x = X[-1].copy()
         s.w = W[-1].copy()
+        ground = None
+        if s.ground is not None:
+            ground = s.ground.adopt(out["ground"], start, T)
         energy = None
         if s._ledger is not None:
             energy = _Energy(
@@ -332,6 +346,7 @@ class _CompiledLoop:
                         out["jump_w"][i, 0].copy(),
                         out["jump_w"][i, 1].copy(),
                         out["jump_lam"][i].copy(),
+                        None if s.ground is None else out["ground"].fac[i].copy(),
                     )
                     for i in range(nj)
                 ],
@@ -359,6 +374,7 @@ class _CompiledLoop:
             visited=_Visited(s.poly, signs),
             transitions=transitions,
             energy_of=energy,
+            ground=ground,
         )
         return record
 
@@ -371,7 +387,7 @@ class _Energy:
     ledger: ExactLedger
     bounds: np.ndarray
     products: np.ndarray
-    jumps: list[tuple[int, float, np.ndarray, np.ndarray, np.ndarray]]
+    jumps: list[tuple[int, float, np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]]
     w_start: np.ndarray
     w_end: np.ndarray
 

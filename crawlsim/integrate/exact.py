@@ -66,6 +66,7 @@ import numpy as np
 
 from crawlsim.errors import CertificateError, DegenerateModelError, EventError, LicqWarning
 from crawlsim.integrate.compiled import EventTrajectory, _CompiledLoop
+from crawlsim.integrate.ground import GroundState
 from crawlsim.integrate.ledger import ExactLedger
 from crawlsim.integrate.stepping import PeriodRecord, PeriodStepper, Transition, TransitionCause
 from crawlsim.kernel.jit import kernel
@@ -162,6 +163,10 @@ class EventStepper(PeriodStepper):
             left = self.pieces.evaluate(edges[p], piece=p - 1)[0]
             right = self.pieces.evaluate(edges[p] if p < P else 0.0, piece=p % P)[0]
             self._jump[p] = np.max(np.abs(left - right)) > 100 * RTOL * self.poly.c_scale
+        # the ground under the blocks (docs/model.md §8): only the compiled loop walks terrain
+        self.ground = None if process.terrain is None else GroundState(process, np.asarray(self.x))
+        if self.ground is not None and not kernel:
+            raise EventError(f"{process.name}: on terrain the exact integrator runs its compiled loop only")
         self._loop = _CompiledLoop.of(self) if kernel else None
 
     # -- one period -------------------------------------------------------------------------
@@ -177,6 +182,11 @@ class EventStepper(PeriodStepper):
             if self._loop.handoffs >= LOOP_HANDOFFS:  # a gait the compiled loop cannot take
                 self._loop = None
         return self._python_period()
+
+    def reset(self, w: np.ndarray, x: np.ndarray | None = None) -> None:
+        super().reset(w, x)
+        if self.ground is not None and self.x is not None:
+            self.ground.locate(self.x)
 
     def _python_period(self) -> PeriodRecord:
         """One period with the event loop in Python (generic processes, and the periods the

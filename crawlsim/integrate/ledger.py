@@ -246,19 +246,42 @@ class ExactLedger:
         phi = self.basis.values(u)[0]
         return phi @ Lc, phi @ Mc, phi @ lc
 
-    def jump(self, p_before: int, u: float, w_before: np.ndarray, w_after: np.ndarray, multipliers: np.ndarray) -> None:
+    def jump(
+        self,
+        p_before: int,
+        u: float,
+        w_before: np.ndarray,
+        w_after: np.ndarray,
+        multipliers: np.ndarray,
+        factors: np.ndarray | None = None,
+    ) -> None:
         """Add the jump at the end u of piece ``p_before`` (at u = 1 the signals after it are
-        those of u = 0): the actuators' jump work, the slip's friction work and the jump loss."""
-        p_after = (p_before + 1) % self.pieces
-        L_before, _, _ = self._signals_at(u, p_before)
-        L_after, mu_after, load_after = self._signals_at(u if p_before + 1 < self.pieces else 0.0, p_after)
+        those of u = 0): the actuators' jump work, the slip's friction work and the jump loss.
+        On terrain (docs/model.md §8) the friction of each row is times its ``factors``, a
+        slide of the ground within piece p has ``p_before`` = -1 - p, and the jump loss is the
+        energy released beyond the friction and load work (a slide's pinned blocks are not at
+        their threshold at its end)."""
+        within = p_before < 0
+        p_after = -1 - p_before if within else (p_before + 1) % self.pieces
+        L_before, _, _ = self._signals_at(u, p_after if within else p_before)
+        L_after, mu_after, load_after = self._signals_at(u if within or p_before + 1 < self.pieces else 0.0, p_after)
+        if factors is not None:
+            mu_after = mu_after * factors
         dL = L_after - L_before
         sigma = w_before + self.k * L_before
-        self._jumps["work"].append(float(np.sum((sigma + 0.5 * self.k * dL) * dL)))
-        self._jumps["dissipation"].append(float(multipliers @ mu_after))
-        self._jumps["load_work"].append(float(multipliers @ load_after))
+        work = float(np.sum((sigma + 0.5 * self.k * dL) * dL))
+        dissipation, load = float(multipliers @ mu_after), float(multipliers @ load_after)
+        self._jumps["work"].append(work)
+        self._jumps["dissipation"].append(dissipation)
+        self._jumps["load_work"].append(load)
         dw = w_after - w_before
-        self._jumps["jump_loss"].append(float(np.sum(dw * dw / (2.0 * self.k))))
+        if factors is None:
+            self._jumps["jump_loss"].append(float(np.sum(dw * dw / (2.0 * self.k))))
+        else:
+            trial = elastic_energy(w_before + self.k * L_after, self.k)
+            self._jumps["jump_loss"].append(
+                trial - elastic_energy(w_after + self.k * L_after, self.k) - dissipation - load
+            )
 
     def finish(self, w_start: np.ndarray, w_end: np.ndarray) -> PeriodEnergy:
         """The period's ledger; both ends are at u = 0 of the cycle (L(1) = L(0))."""

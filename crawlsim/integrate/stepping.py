@@ -21,13 +21,13 @@ processes), for comparison.
 from __future__ import annotations
 
 import importlib
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal, NamedTuple
 
 import numpy as np
 
-from crawlsim.errors import CertificateError
+from crawlsim.errors import CertificateError, InputError
 from crawlsim.model.process import SweepingProcess
 from crawlsim.projection.adapter import ExactProjector
 from crawlsim.projection.kkt import Dependent
@@ -72,8 +72,8 @@ def make_stepper(process: SweepingProcess, integrator: str = "catch-up", **optio
 #: Why an event-driven integrator decided its active set anew (`Transition.cause`): the start
 #: of the period or a piece of c(t) (a fixed time), a multiplier reaching zero (a release:
 #: its time depends on c only), a gap reaching zero (a hit: its time moves with the start),
-#: or the projection at a jump of c.
-TransitionCause = Literal["edge", "release", "hit", "jump"]
+#: the projection at a jump of c, or a block reaching a boundary of the ground or leaving one.
+TransitionCause = Literal["edge", "release", "hit", "jump", "ground"]
 
 
 class Transition(NamedTuple):
@@ -112,6 +112,12 @@ class PeriodRecord:
     # `crawlsim.integrate.limit` adds the saltation of the events whose time depends on the start (the
     # hits) to the Jacobian.
     transitions: Sequence[Transition] = ()
+    # On terrain (docs/model.md §8): the period's ground events (E, 5), as
+    # `crawlsim.kernel.terrain` logs them (time, block, boundary, kind, direction), in absolute time.
+    ground: np.ndarray | None = None
+    # Catch-up on terrain: the friction part of the thresholds on the grid, [a^+ mu^+, a^- mu^-]
+    # with the factors each step took (the dissipation's), where it is not the process's.
+    friction: np.ndarray | None = None
 
     @property
     def energy(self) -> Any:
@@ -222,6 +228,17 @@ class CatchUpStepper(PeriodStepper):
 
             self._kernel = ChainKernel(self.polyhedron)
             self._offsets = np.ascontiguousarray(process.offsets, dtype=float)
+        # on terrain (docs/model.md §8) the factors of the ground at the positions each step
+        # starts from, in the compiled kernel only (`crawlsim.kernel.terrain.catch_up`)
+        self.ground = None
+        self._ground_events: np.ndarray | None = None
+        if process.terrain is not None:
+            if self._kernel is None:
+                raise InputError(process.name, "terrain", "on terrain catch-up runs its compiled steps only")
+            from crawlsim.integrate.ground import GroundState
+
+            self.ground = GroundState(process, np.asarray(self.x))
+            self._effective = self._offsets.copy()
 
     def _step_impl(self) -> PeriodRecord:
         p = self.process
@@ -282,8 +299,15 @@ class CatchUpStepper(PeriodStepper):
             X,
             self.projector.clarabel_calls - calls0,
             visited=(tuple(self._visited) if self._lazy_visited is None else self._lazy_visited),
+            ground=self._ground_events,
+            friction=None if self.ground is None else p.friction + (self._effective - p.offsets),
         )
         return record
+
+    def reset(self, w: np.ndarray, x: np.ndarray | None = None) -> None:
+        super().reset(w, x)
+        if self.ground is not None and self.x is not None:
+            self.ground.locate(self.x)
 
     def _kernel_period(self, W: np.ndarray, LAM: np.ndarray, start: float) -> None:
         """The period's steps in the compiled kernel; the steps it hands over go to the
@@ -296,8 +320,16 @@ class CatchUpStepper(PeriodStepper):
         S = np.zeros((len(LAM), p.blocks), dtype=np.int8)
         kernel.load(self.active)
         j = 0
+        run: Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int], tuple[int, int]] = kernel.run
+        self._ground_events = None
+        if self.ground is not None:
+            assert p.crawler is not None
+            X = np.empty((len(W), p.blocks))
+            X[0] = self.x
+            record = self.ground.record(min(len(W) * p.blocks, 1 << 20), 0)
+            run = kernel.ground_run(record, self._offsets, self._effective, X, p.crawler.friction)
         while True:
-            status, j = kernel.run(self._offsets, W, LAM, S, j)
+            status, j = run(self._offsets, W, LAM, S, j)
             if status == chain.DONE:
                 break
             if status == chain.FAILED:
@@ -306,14 +338,19 @@ class CatchUpStepper(PeriodStepper):
             self._full_step(j, W, LAM, start, warm=True)
             S[j] = catchup.signs_of(self.active, p.blocks)
             kernel.load(self.active)
+            if self.ground is not None:
+                kernel.advance(X, LAM, j)
             j += 1
         self.active = kernel.active(self.active)
         self._lazy_visited = catchup.VisitedSets(self.polyhedron, S)
+        if self.ground is not None:
+            self._ground_events = self.ground.adopt(record, start, p.period)
 
     def _full_step(self, j: int, W: np.ndarray, LAM: np.ndarray, start: float, *, warm: bool) -> None:
         p = self.process
+        offsets = p.offsets if self.ground is None else self._effective
         proj = self.projector.project(
-            W[j], p.offsets[j + 1], time=start + p.times[j + 1], warm=self.active if warm else None, verify=not warm
+            W[j], offsets[j + 1], time=start + p.times[j + 1], warm=self.active if warm else None, verify=not warm
         )
         W[j + 1] = proj.point
         LAM[j] = proj.multipliers

@@ -21,13 +21,15 @@ Everything time-dependent is tabulated once on the period's grid, vectorised ove
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import functools
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from crawlsim.gait.document import Gait, ProcessSpec
 from crawlsim.gait.signals import Signal, evaluate_many
+from crawlsim.gait.terrain import Terrain, ground_violation, on_ground
 from crawlsim.model.crawler import Crawler, block_forces, slips
 from crawlsim.model.offsets import PiecewiseOffsets
 from crawlsim.projection.kkt import ChainPolyhedron, DensePolyhedron, Polyhedron
@@ -57,6 +59,10 @@ class SweepingProcess:
     # The closed form of c(t) piece by piece, for integrators that leave the grid (exact):
     offset_pieces: PiecewiseOffsets | None = None
     breakpoints: np.ndarray | None = None  # times in [0, T) where c has a kink or a jump
+    # The ground under the blocks (docs/model.md §8, `crawlsim.gait.terrain.Terrain`) and why the
+    # uniqueness condition fails on the factors (a^+, a^-) under them (None where it holds).
+    terrain: Terrain | None = None
+    ground_check: Callable[[np.ndarray, np.ndarray], str | None] | None = None
 
     @property
     def cycles(self) -> np.ndarray:
@@ -209,6 +215,8 @@ def piece_edges(breakpoints) -> np.ndarray:
 def compile_gait(gait: Gait, steps_per_period: int | None = None) -> SweepingProcess:
     """The shape-space sweeping process of a crawler gait on its time grid (docs/model.md §2)."""
     G = steps_per_period or gait.simulation.steps_per_period
+    if gait.terrain is not None and not len(gait.terrain.boundaries):  # uniform ground: its friction
+        gait = on_ground(gait, gait.terrain.forward.repeat(gait.blocks), gait.terrain.backward.repeat(gait.blocks))
     breakpoints = gait.breakpoints()  # the union of every signal's: computed once
     u, key = _shared_grid(G, breakpoints)
     k = np.asarray(gait.stiffness, dtype=float)
@@ -266,6 +274,8 @@ def compile_gait(gait: Gait, steps_per_period: int | None = None) -> SweepingPro
         offset_pieces=pieces,
         breakpoints=np.asarray(breakpoints, dtype=float) * T,
         _cycles=u,
+        terrain=gait.terrain,
+        ground_check=None if gait.terrain is None else functools.partial(ground_violation, gait),
     )
 
 
