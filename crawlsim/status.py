@@ -12,6 +12,7 @@ class Convergence(StrEnum):
     FINITE_TIME = "finite-time"  # exactly periodic from some period on
     ASYMPTOTIC = "asymptotic"  # geometric convergence only, with a contraction rate
     NOT_CONVERGED = "not-converged"  # max_periods ran out first
+    QUASI_PERIODIC = "quasi-periodic"  # on periodic ground, not locked to it: v0 the long-run average (§8)
 
 
 class PointStatus(StrEnum):

@@ -151,6 +151,8 @@ def period_dissipation(process: SweepingProcess, record: PeriodRecord) -> float:
     if energy is not None:
         return float(energy.dissipation)
     assert process.crawler is not None
+    if record.friction is not None:  # on terrain: the friction of the ground under the blocks (§8)
+        return float(np.sum(record.multipliers * record.friction[1:]))
     return process.crawler.dissipation(record.multipliers)
 
 
@@ -254,6 +256,11 @@ def ledger(
         return EnergyLedger(
             energy.work, energy.dissipation, energy.jump_loss, energy.residual, None, efficiency, energy.load_work
         )
+    if process.terrain is not None:
+        # on terrain (docs/model.md §8) the last period need not repeat: its balance counts the
+        # change of the stored energy; the bound of uniform friction does not apply
+        residual = energy.residual - energy.energy_change
+        return EnergyLedger(energy.work, energy.dissipation, energy.jump_loss, residual, None, None)
     bound = cost_of_transport_bound(process, displacement)
     efficiency = None
     if bound is not None and cost_of_transport is not None and cost_of_transport > 0:

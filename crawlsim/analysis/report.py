@@ -109,6 +109,8 @@ def convergence_text(result: RunResult) -> str:
             f"asymptotic, contraction rate {rate:.4g} per period ({spread}fitted on "
             f"{result.contraction_rate_periods} periods)"
         )
+    if result.convergence == Convergence.QUASI_PERIODIC:
+        return f"quasi-periodic: not locked to the ground over {result.periods} periods (docs/model.md §8)"
     return f"NOT converged: final Poincare step {result.history.poincare_step[-1]:.3g}. Try increasing max_periods."
 
 
@@ -128,6 +130,8 @@ def summary_rows(result: RunResult) -> list[Row]:
     if result.v0 is not None:
         rows.append(("v0", with_error(result.v0, result.v0_error_estimate, unit("velocity")) + _error_parts(result)))
     rows.append(("convergence", convergence_text(result)))
+    if result.terrain is not None:
+        rows.extend(result.terrain.text(result.period))
     if result.grid_note:
         rows.append(("grid", result.grid_note))
     rows.append(

@@ -72,6 +72,7 @@ from crawlsim.analysis.report import (
     summary_text,
     verdict_rate,
 )
+from crawlsim.analysis.terrain import GroundWatch, TerrainReport
 from crawlsim.integrate.stepping import PeriodRecord, make_stepper, positions_of
 from crawlsim.model.process import SweepingProcess
 from crawlsim.status import Convergence, LimitMethod, RunStatus
@@ -247,6 +248,8 @@ class RunResult:
     # The limit period itself, for exact sensitivities of this run (`crawlsim.analysis.sensitivity`)
     limit_record: PeriodRecord | None = field(default=None, repr=False, compare=False)
     limit_process: SweepingProcess | None = field(default=None, repr=False, compare=False)
+    # On terrain (docs/model.md §8): how the run settled, the crossings and the holds.
+    terrain: TerrainReport | None = field(default=None, repr=False, compare=False)
 
     @property
     def displacement_error_estimate(self) -> float | None:
@@ -302,6 +305,7 @@ class _Drive:
     distances: dict[str, np.ndarray]
     clarabel_calls: int
     solver_periods: int
+    ground: GroundWatch | None = None
 
 
 def simulate(
@@ -392,10 +396,13 @@ def _drive(
     log = History(process, series=series)
     solution: LimitSolution | None = None
     cost = (0, 0)  # periods simulated and Clarabel calls made by the limit solver
+    watch = None if process.terrain is None else GroundWatch(process, tol)
+    if watch is not None:  # on terrain the iterates alone, until they settle (docs/model.md §8)
+        limit = LimitMethod.ITERATE
     try:
         # the true iterates; with the solver, only a few before it takes over
         budget = max_periods if limit == LimitMethod.ITERATE else min(max_periods, PLAIN_PERIODS)
-        final = _iterate(log, stepper, budget, tol, sink, progress)
+        final = _iterate(log, stepper, budget, tol, sink, progress, watch)
         if final is None and limit == LimitMethod.NEWTON and len(log) < max_periods:
             final, solution, cost = _solve(
                 process,
@@ -410,8 +417,10 @@ def _drive(
                 progress=progress,
             )
         if final is None:  # plain iteration to the end (limit="iterate", or a solver failure)
-            final = _iterate(log, stepper, max_periods, tol, sink, progress) or log.last
+            final = _iterate(log, stepper, max_periods, tol, sink, progress, watch) or log.last
         assert final is not None, "max_periods >= 1"
+        if watch is not None:
+            watch.conclude()
         log.set_limit(final)
         measured = log.distances() if series else {key: np.array([]) for key in DISTANCES}
     finally:
@@ -419,17 +428,28 @@ def _drive(
     if solution is not None:
         assert log.last is not None
         final = following(process, final, log.last)
-    return _Drive(log, final, solution, measured, stepper.projector.clarabel_calls + cost[1], cost[0])
+    return _Drive(log, final, solution, measured, stepper.projector.clarabel_calls + cost[1], cost[0], watch)
 
 
 def _iterate(
-    log: History, stepper: Any, budget: int, tol: float, sink: Any, progress: Progress | None
+    log: History,
+    stepper: Any,
+    budget: int,
+    tol: float,
+    sink: Any,
+    progress: Progress | None,
+    watch: GroundWatch | None = None,
 ) -> PeriodRecord | None:
-    """Plain periods until the Poincare step reaches ``tol`` (that period, the limit) or the
-    history holds ``budget`` periods (None)."""
+    """Plain periods until the Poincare step reaches ``tol`` (on terrain: until the run settles,
+    `crawlsim.analysis.terrain`; that period, the limit) or the history holds ``budget``
+    periods (None)."""
     while len(log) < budget:
         record = log.add(stepper.step_period(), sink, progress)
-        if log.rel_steps[-1] <= tol:
+        if watch is not None:
+            watch.add(record)
+            if watch.settled(log.rel_steps[-1]):
+                return record
+        elif log.rel_steps[-1] <= tol:
             return record
     return None
 
@@ -506,6 +526,9 @@ def _motion(
     c = process.crawler
     if c is None:
         return None
+    found = None if drive.ground is None else drive.ground.motion()
+    if found is not None:  # locked to the ground, or its long-run average (docs/model.md §8)
+        return _Motion(*found)
     final, T, G = drive.final, process.period, process.steps
     slips = final.slips
     assert final.x is not None and slips is not None
@@ -632,15 +655,25 @@ def _analyse(
 ) -> RunResult:
     """What the driver's periods measure: the convergence and its rate, v0 and its error
     (period iteration plus time step), the cost of transport and the energy ledger."""
-    rel = np.array(drive.log.rel_steps)
+    watch = drive.ground
+    since = 0  # on terrain: the periods on one ground
+    if watch is not None and watch.regime == "one-ground":
+        since = watch.quiet_since
+    rel = np.array(drive.log.rel_steps)[since:]
     convergence, periodic_from = classify_convergence(rel, tol)
+    periodic_from = None if periodic_from is None else periodic_from + since
+    if watch is not None and watch.lock is not None:  # the motion repeats every n periods
+        convergence, periodic_from = Convergence.FINITE_TIME, len(drive.log) - watch.lock[0]
+    elif watch is not None and watch.regime != "one-ground":
+        quasi = watch.regime == "quasi-periodic"
+        convergence = Convergence.QUASI_PERIODIC if quasi else Convergence.NOT_CONVERGED
     if drive.solution is not None and convergence == Convergence.NOT_CONVERGED:
         # the limit is verified; the iterates approach it geometrically but had not reached it
         convergence = Convergence.ASYMPTOTIC
     fit = None if convergence == Convergence.FINITE_TIME else fit_contraction_rate(rel)
     rate = None if fit is None else fit.rate
     hist = _history_arrays(process, drive)
-    motion = _motion(process, drive, hist.displacement, convergence, rate)
+    motion = _motion(process, drive, hist.displacement[since:], convergence, rate)
     step = _step_error(process, motion, integrator, reference)
     err_pi = None if motion is None else motion.error
     err = err_pi if err_pi is None or step.v0 is None else err_pi + step.v0
@@ -677,6 +710,7 @@ def _analyse(
         exact_rate=exact[1],
         limit_record=drive.final,
         limit_process=process,
+        terrain=None if watch is None else watch.report(),
         **_solver_fields(drive.solution),
         **_energy_fields(process, drive.final, motion, err),
     )
