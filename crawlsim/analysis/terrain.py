@@ -221,12 +221,14 @@ class GroundWatch:
                         break
                 if arrived is not None and arrived[1] == s:  # on through the boundary it was held at
                     crossings.append((t, i, x, s))
+        holds = [h for h in holds if not h[3] == h[2]]  # a slide's stops on its way are no holds
         T = self.process.period
         held: set[int] = set()
         end = (len(self._y) - 1) * T
         for _, _, start, stop in holds:
             stop = end if math.isnan(stop) else stop
-            held.update(range(int(start // T), int(min(stop, end - 1e-15 * T) // T) + 1))
+            first = int(start // T)
+            held.update(range(first, max(first, math.ceil(stop / T) - 1) + 1))
         return TerrainReport(
             self.regime,
             self.lock,

@@ -347,6 +347,7 @@ class _CompiledLoop:
                         out["jump_w"][i, 1].copy(),
                         out["jump_lam"][i].copy(),
                         None if s.ground is None else out["ground"].fac[i].copy(),
+                        s.ground is not None and bool(out["ground"].pinned[i]),
                     )
                     for i in range(nj)
                 ],
@@ -387,7 +388,7 @@ class _Energy:
     ledger: ExactLedger
     bounds: np.ndarray
     products: np.ndarray
-    jumps: list[tuple[int, float, np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]]
+    jumps: list[tuple[int, float, np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, bool]]
     w_start: np.ndarray
     w_end: np.ndarray
 

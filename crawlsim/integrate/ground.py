@@ -24,6 +24,7 @@ def no_ground(blocks: int) -> Ground:
         np.empty((0, 5)),
         np.zeros(1, dtype=np.int64),
         np.empty((0, 2 * blocks)),
+        np.empty(0, dtype=np.bool_),
     )
 
 
@@ -60,6 +61,7 @@ class GroundState:
             np.empty((events, 5)),
             np.zeros(1, dtype=np.int64),
             np.empty((jumps, 2 * len(self.cell))),
+            np.zeros(jumps, dtype=np.bool_),
         )
 
     def adopt(self, ground: Ground, start: float, period: float) -> np.ndarray:

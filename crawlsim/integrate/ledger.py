@@ -254,13 +254,14 @@ class ExactLedger:
         w_after: np.ndarray,
         multipliers: np.ndarray,
         factors: np.ndarray | None = None,
+        pinned: bool = False,
     ) -> None:
         """Add the jump at the end u of piece ``p_before`` (at u = 1 the signals after it are
         those of u = 0): the actuators' jump work, the slip's friction work and the jump loss.
         On terrain (docs/model.md §8) the friction of each row is times its ``factors``, a
-        slide of the ground within piece p has ``p_before`` = -1 - p, and the jump loss is the
-        energy released beyond the friction and load work (a slide's pinned blocks are not at
-        their threshold at its end)."""
+        slide of the ground within piece p has ``p_before`` = -1 - p, and where a slide held a
+        block at a boundary (``pinned``: its force is not at its threshold at the end) the jump
+        loss is the energy released beyond the friction and load work."""
         within = p_before < 0
         p_after = -1 - p_before if within else (p_before + 1) % self.pieces
         L_before, _, _ = self._signals_at(u, p_after if within else p_before)
@@ -275,7 +276,7 @@ class ExactLedger:
         self._jumps["dissipation"].append(dissipation)
         self._jumps["load_work"].append(load)
         dw = w_after - w_before
-        if factors is None:
+        if not pinned:
             self._jumps["jump_loss"].append(float(np.sum(dw * dw / (2.0 * self.k))))
         else:
             trial = elastic_energy(w_before + self.k * L_after, self.k)

@@ -67,6 +67,7 @@ class Ground(NamedTuple):
     log: np.ndarray  # (capacity, 5) the period's ground events
     logged: np.ndarray  # (1,) int64: entries of log
     fac: np.ndarray  # (jumps, 2N) the factors of each row during each jump of the period
+    pinned: np.ndarray  # (jumps,) bool: whether the jump held a block at a boundary it would pass
 
 
 @jit
@@ -297,6 +298,7 @@ def settle(
                 tgt[j], tgt[N + j] = target[j], target[N + j]
                 if pinned[j]:
                     tgt[j], tgt[N + j] = np.inf, np.inf
+                    signs[j] = 0
                     if j > 0:
                         wt[j - 1] -= k[j - 1] * dpin[j]
                     if j < N - 1:
@@ -332,12 +334,15 @@ def settle(
         JUMP_PIECE[q], JUMP_U[q] = (first, u) if stage == 0 else (within, u_within)
         JUMP_W[q, 0], JUMP_W[q, 1], JUMP_LAM[q] = w, w_out, lam
         ground.fac[q] = fac
+        ground.pinned[q] = pinned.any()
         count[0] = q + 1
         for j in range(N):
             dx = lam[j] - lam[N + j]
             if dx == 0.0:
                 continue
             s = 1 if dx > 0 else -1
+            if pinned[j] and ground.at[j] and not record(ground, u, j, ground.cell[j], LEAVE, s):
+                return OVERFLOW
             if pinned[j]:
                 g = ahead(ground, j, s)
                 ground.cell[j], ground.at[j] = g, True
