@@ -345,5 +345,5 @@ def test_the_uniqueness_condition_is_checked_on_the_ground_the_blocks_reach():
         DegenerateModelError, match=r"terrain: on the terrain the uniqueness condition .* 1/1, 1/1, 1/0.8"
     ):
         crawlsim.simulate(gait.replace("simulation.max_periods", 20))
-    with pytest.raises(GaitError, match="terrain: on the terrain the uniqueness condition"):
-        make_gait({**gait.document, "initial": {"positions": [0.0, 1.3, 2.6]}})  # on it from the start
+    with pytest.raises(GaitError, match="terrain: on the terrain the uniqueness condition"):  # on it at once
+        make_gait({**gait.document, "terrain": {"patches": [{"from": 2.1, "forward": 1.0, "backward": 0.8}]}})
