@@ -20,8 +20,9 @@ from crawlsim.cli import (
 )
 from crawlsim.gait.document import Simulation
 
+from .conftest import console_env
+
 ROOT = Path(__file__).resolve().parents[1]
-BIN = Path(sys.executable).parent
 
 
 def commands():
@@ -57,7 +58,7 @@ def test_every_help_example_runs(name, command, tmp_path):
     lines = examples(command.help)
     assert lines, f"{name} --help has no examples"
     (tmp_path / "gaits").symlink_to(ROOT / "gaits")
-    env = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}"}
+    env = console_env()
     for line in lines:
         assert line.startswith(("crawlsim ", "for ")), line
         r = subprocess.run(

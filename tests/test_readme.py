@@ -32,7 +32,6 @@ wrote, as a reader following the page would).
 from __future__ import annotations
 
 import json
-import os
 import re
 import shutil
 import subprocess
@@ -41,6 +40,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+
+from .conftest import console_env
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
@@ -406,8 +407,7 @@ def workdir(tmp_path_factory):
 
 
 def _environment() -> dict[str, str]:
-    env = dict(os.environ)
-    env["PATH"] = os.pathsep.join([str(Path(sys.executable).parent), env.get("PATH", "")])
+    env = console_env()
     env["CRAWLSIM_PROGRESS_INTERVAL"] = "3600"  # no progress line in a shown output
     env.pop("PYTHONDONTWRITEBYTECODE", None)
     return env
