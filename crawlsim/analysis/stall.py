@@ -21,6 +21,11 @@ from crawlsim.gait.signals import evaluate_many
 SMOOTH = 1e-6
 """A v0 below this fraction of |v0(s0)| on the moving side of the final bracket is a smooth zero."""
 
+MOVING = 1e-9
+"""The crawler still moves its way at a load where v0 has the sign of v0(s0) and more than this
+fraction of its size: a v0 of 3.7e-17 beyond a jump (the roundoff of a run that does not move)
+does not count as motion."""
+
 
 class StallCause(StrEnum):
     """Why v0 stops having its sign at the stall load."""
@@ -74,6 +79,8 @@ def curve_marks(gait_yaml: str, path: str, values, v0) -> CurveMarks | None:
     interpolated. Stall: from the swept value nearest the gait's own load, the first interval
     where v0 loses that point's sign; at a jump inside it the stall is the jump (cause jump),
     otherwise the linear interpolation of the zero (cause smooth-zero, to the grid's resolution).
+    Moving means what it means to `crawlsim.study.stall`: the sign of v0 at the start and more
+    than `MOVING` of its size.
     """
     import yaml
 
@@ -172,7 +179,7 @@ def _first_stall(
     i = start
     while 0 <= i + direction < len(x):
         j = i + direction
-        if np.isfinite(v[j]) and np.sign(v[j]) == sign:
+        if np.isfinite(v[j]) and v[j] * sign > MOVING * abs(v[start]):
             i = j
             continue
         inside = [s for s in jumps if 0 < (s - x[i]) / (x[j] - x[i]) <= 1]

@@ -42,7 +42,7 @@ from matplotlib import cycler  # type: ignore[attr-defined]
 from matplotlib.colors import to_hex
 from matplotlib.figure import Figure
 
-from crawlsim.gait.units import Units
+from crawlsim.gait.units import Units, path_quantity
 
 #: Okabe-Ito palette, in the order that puts the most distinct colours first.
 OKABE_ITO = {
@@ -364,30 +364,16 @@ def velocity_axis(units: Units, *, name: str = "average velocity") -> tuple[bool
     return True, label("displacement per period", "v_0T", "length", units)
 
 
-#: Units of the swept gait parameters, by the keys of their dotted paths.
-_PATH_DIMENSIONS = {
-    "phase": "cycles",
-    "times": "cycles",
-    "stiffness": "stiffness",
-    "period": "time",
-    "positions": "length",
-}
-
-
 def path_dimension(path: str) -> str | None:
     """The dimension of a swept dotted path (``links.*.amplitude`` is a length,
-    ``friction.backward`` a force, ``links.1.phase`` a phase in cycles, ``simulation.*`` a pure
-    number)."""
-    keys = [k for k in path.split(".") if not (k == "*" or k.isdigit())]
-    if not keys or keys[0] in ("simulation", "normals", "offsets", "metric", "initial") and keys[-1] != "positions":
-        return None
-    if keys[-1] in _PATH_DIMENSIONS:
-        return _PATH_DIMENSIONS[keys[-1]]
-    if keys[0] == "links":
-        return "length"
-    if keys[0] == "friction":
-        return "force"
-    return None
+    ``friction.backward`` and ``loads.force.0`` forces, ``loads.slope.angle`` an angle,
+    ``links.1.phase`` a phase in cycles, ``simulation.*`` a pure number): the quantity of
+    `crawlsim.gait.units.path_quantity`."""
+    keys = tuple(k for k in path.split(".") if not (k == "*" or k.isdigit()))
+    if keys and keys[-1] in ("phase", "times", "phase_step"):
+        return "cycles"
+    quantity = path_quantity("crawler", keys)
+    return None if quantity == "1" else quantity
 
 
 def path_label(path: str, units: Units) -> str:
@@ -396,8 +382,8 @@ def path_label(path: str, units: Units) -> str:
     dimension = path_dimension(path)
     if dimension is None:
         return path
-    if dimension == "cycles":
-        return f"{path} (cycles)"
+    if dimension in ("cycles", "angle"):
+        return f"{path} ({'cycles' if dimension == 'cycles' else 'degrees'})"
     unit = unit_text(dimension, units)
     if unit is not None:
         return f"{path} ({unit})"

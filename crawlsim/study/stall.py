@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from crawlsim.analysis.stall import SMOOTH, StallCause, _vanishing_subset
+from crawlsim.analysis.stall import MOVING, SMOOTH, StallCause, _vanishing_subset
 from crawlsim.errors import CertificateError, GaitError, InputError
 from crawlsim.gait.document import Gait, gait_from_document
 
@@ -150,7 +150,7 @@ def stall(gait: Gait | str, *, force: str | None = None, slope: bool = False) ->
     if v_start is None:  # pragma: no cover - the gait itself was validated
         raise InputError(spec.source, path, why or "refused")
     scale = _natural_range(spec, quantity, path)
-    tolerance_v = 1e-9 * abs(v_start)
+    tolerance_v = MOVING * abs(v_start)
     if not abs(v_start) > 1e-12 * max(scale, 1.0):
         raise InputError(
             spec.source,
