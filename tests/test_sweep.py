@@ -81,6 +81,34 @@ def test_axis_specs():
         sweeps.parse_axis("period=1:2", "--link")
 
 
+def test_evenly_spaced_values_are_the_numbers_asked_for():
+    """START:STOP:NUM gives the double nearest each exact value START + k (STOP - START)/(NUM - 1)
+    (linspace gave 0.30000000000000004 for 0:1:11), so the CSV, the files' attributes and the
+    messages print 0.3."""
+    assert sweeps.parse_axis("links.1.phase=0:1:11").values == tuple(k / 10 for k in range(11))
+    assert sweeps.parse_axis("period=1e-3:2e-3:3").values == (0.001, 0.0015, 0.002)
+    assert sweeps.parse_axis("period=0:1:4").values == (0.0, 1 / 3, 2 / 3, 1.0)
+    assert sweeps.parse_axis("period=3:-1:5").values == (3.0, 2.0, 1.0, 0.0, -1.0)
+    gait = with_simulation(load_gait(GAITS / "peristalsis-3.yaml"), integrator="catch-up", steps_per_period=20)
+    grid = sweeps.make_grid(gait, ["links.1.phase=0:1:11"])
+    assert grid.label(3).endswith("with links.1.phase=0.3")
+    r = CliRunner().invoke(
+        main,
+        [
+            "velocity",
+            str(GAITS / "peristalsis-3.yaml"),
+            "--sweep",
+            "links.1.phase=0:1:11",
+            "--integrator",
+            "catch-up",
+            "--steps-per-period",
+            "20",
+        ],
+    )
+    assert r.exit_code == 0, r.output
+    assert [row.split(",")[0] for row in r.output.splitlines()[1:]] == [str(k / 10) for k in range(11)]
+
+
 def test_log_spaced_axis_is_geometric_with_exact_ends():
     """log:LO:HI:NUM: consecutive ratios all equal (HI/LO)^(1/(NUM-1)), ends as written."""
     a = sweeps.parse_axis("stiffness=log:5:50:10")
