@@ -379,6 +379,15 @@ def test_cli_bad_input():
     assert "links.3.amplitude" in res.output and "out of range" in res.output
     res = _cli("gaits/inching-2.yaml", "--sensitivity", "links")
     assert res.exit_code == 2 and "not a number" in res.output
+    # a misspelt key: the did-you-mean of --sweep and of the gait files, not "found None"
+    hint = "links[0].phse: unknown key 'phse'; did you mean 'phase'? (allowed here: amplitude, kind, mean, phase)"
+    for extra in ([], ["--sweep", "period=1:2:2"]):
+        res = _cli("gaits/peristalsis-4.yaml", "--sensitivity", "links.*.phse", *extra)
+        assert res.exit_code == 2 and res.output == f"Error: gaits/peristalsis-4.yaml: {hint}\n", res.output
+    res = _cli("gaits/peristalsis-4.yaml", "--sweep", "links.*.phse=0:1:2")
+    assert res.exit_code == 2 and hint in res.output
+    res = _cli("gaits/peristalsis-4.yaml", "--sensitivity", "frction.forward")
+    assert res.exit_code == 2 and "no key 'frction'; did you mean 'friction'?" in res.output
 
 
 # -- gradient-based design ---------------------------------------------------------------------

@@ -299,8 +299,11 @@ def _known(run: Any, process: SweepingProcess) -> tuple[float, float, float | No
 
 def _expand(gait: Gait, paths: Sequence[str] | str) -> list[tuple[Any, ...]]:
     """The concrete key paths of ``paths`` (each ``*`` expanded), each once, in order."""
+    from crawlsim.analysis.sensitivity_sweep import check_paths
+
+    paths = check_paths(gait, [paths] if isinstance(paths, str) else paths)
     keys_list: list[tuple[Any, ...]] = []
-    for path in [paths] if isinstance(paths, str) else paths:
+    for path in paths:
         for keys in resolve_path(gait.document, path, gait.source):
             if keys not in keys_list:
                 keys_list.append(keys)

@@ -14,6 +14,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from crawlsim.errors import GaitError
+from crawlsim.gait.schemaerrors import did_you_mean
 
 Key = str | int
 
@@ -57,8 +58,11 @@ def resolve_path(document: dict, path: Any, source: str) -> list[tuple[Key, ...]
                 nxt.append((prefix + (key,), node[key]))
             elif isinstance(node, dict):
                 if str(key) not in node and not last:
+                    keys = list(map(str, node))
                     raise GaitError(
-                        source, path, f"{_where(prefix)} has no key {str(key)!r} (keys: {', '.join(map(str, node))})"
+                        source,
+                        path,
+                        f"{_where(prefix)} has no key {str(key)!r}{did_you_mean(key, keys)} (keys: {', '.join(keys)})",
                     )
                 nxt.append((prefix + (str(key),), node.get(str(key))))
             else:
