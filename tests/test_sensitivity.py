@@ -542,3 +542,35 @@ def test_closed_form_columns_match_differences_of_the_coefficients(source):
         np.testing.assert_allclose(got[1], (plus.Mu - minus.Mu) / (2 * h), rtol=0, atol=tol, err_msg=path)
         closed += 1
     assert closed >= 2
+
+
+def test_cli_summarises_many_coincident_events():
+    """earthworm-100's links.0.phase sits on 37 coincident events (a 3000-character line): the
+    line counts them, names the first and says the one-sided derivatives agree; the JSON keeps
+    every reason. Few reasons are printed whole, and sides that differ are not said to agree."""
+    from types import SimpleNamespace
+
+    from crawlsim.analysis.sensitivity import Derivative, ParameterSensitivity
+    from crawlsim.cli.sensitivities import lines
+
+    none = Derivative(None, None)
+    kinks = [f"a constraint is reached at t/T = {k / 10 + 0.03:.12g}, at the time of another event" for k in range(37)]
+
+    def entry(reason, right):
+        return ParameterSensitivity(
+            "links.0.phase", 0.0, none, none, none, none, False, "one-sided", reason, Derivative(0.0538037, 8e-7), right
+        )
+
+    many = entry("; ".join(kinks), Derivative(0.0538038, 7e-7))
+    (line,) = lines(SimpleNamespace(parameters=[many], v0=0.07), "exact")
+    assert line == (
+        f"dv0/dlinks.0.phase: not smooth (37 coincident events, the first: {kinks[0]}; --json lists them all); "
+        "left 0.0538037 ± 8e-07, right 0.0538038 ± 7e-07: the one-sided derivatives agree"
+    )
+    assert many.summary()["reason"].count("at the time of another event") == 37
+    few = entry("; ".join(kinks[:2]), Derivative(0.06, 1e-7))
+    (line,) = lines(SimpleNamespace(parameters=[few], v0=0.07), "exact")
+    assert (
+        line
+        == f"dv0/dlinks.0.phase: not smooth ({kinks[0]}; {kinks[1]}); left 0.0538037 ± 8e-07, right 0.0600000 ± 1e-07"
+    )
