@@ -1167,13 +1167,16 @@ def test_cli_missing_data_exit_2(run_file, tmp_path, dataset, only, message):
 
 
 def test_cli_wrong_files_exit_2(tmp_path):
-    not_h5 = tmp_path / "gait.yaml"
+    not_h5 = tmp_path / "notes.txt"
     not_h5.write_text("name: x\n")
+    gait = tmp_path / "gait.yaml"
+    gait.write_text("name: x\n")
     empty = tmp_path / "empty.h5"
     h5py.File(empty, "w").close()
     for path, message in (
         (tmp_path / "none.h5", "no such results file"),
         (not_h5, "not an HDF5 file"),
+        (gait, f"{gait}: a gait file, not a results file: `crawlsim run {gait} --plot` runs it"),
         (empty, "not a crawlsim results file"),
     ):
         result = CliRunner().invoke(main, ["plot", str(path)])

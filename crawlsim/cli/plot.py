@@ -99,6 +99,11 @@ def plot(results_file, output, fmt, only, coords, dpi, figsize, style, force):
         fmt = fmt_of_file
         output = None
     fmt = fmt or "png"
+    if Path(results_file).suffix.lower() in (".yaml", ".yml") and Path(results_file).is_file():
+        raise BadInput(
+            f"{results_file}: a gait file, not a results file: `crawlsim run {results_file} --plot` "
+            "runs it and draws its figures"
+        )
     with library_errors():
         kind = describe(results_file)["file_kind"]
         if target is not None:
