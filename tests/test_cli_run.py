@@ -44,6 +44,8 @@ def test_run_writes_default_file_and_summary(runner, tmp_path):
     assert "v0                       0.4" in result.output
     assert "finite-time: periodic from period 1" in result.output
     assert (tmp_path / "inch.h5").exists()
+    one = runner.invoke(main, ["run", str(gait), "--max-periods", "1", "-o", "one.h5", "--force"])
+    assert one.exit_code == 3 and one.output.splitlines()[0] == "gait inch: 1 period of 100 steps", one.output
 
 
 def test_run_json_keys_and_values(runner, tmp_path):

@@ -13,7 +13,7 @@ import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from crawlsim.analysis.digits import how_found, with_error
+from crawlsim.analysis.digits import counted, how_found, with_error
 from crawlsim.status import Convergence, LimitMethod, RunStatus
 
 if TYPE_CHECKING:
@@ -162,7 +162,7 @@ def summary_rows(result: RunResult) -> list[Row]:
 
 def headline(result: RunResult) -> str:
     what = "gait" if result.v0 is not None else "process"  # a generic process has no v0
-    return f"{what} {result.name}: {result.periods} periods of {result.steps_per_period} steps"
+    return f"{what} {result.name}: {counted(result.periods, 'period')} of {counted(result.steps_per_period, 'step')}"
 
 
 def _line(row: Row) -> str:

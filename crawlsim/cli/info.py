@@ -16,7 +16,7 @@ def _g(value, digits: int = 12) -> str:
 
 def _run_lines(d: dict) -> list[str]:
     """The lines of a run's file: the summary of ``crawlsim run``, from the attributes."""
-    from crawlsim.analysis.digits import how_found, with_error
+    from crawlsim.analysis.digits import counted, how_found, with_error
 
     what = "gait" if d["kind"] == "crawler" else d["kind"]
     lines = [f"{d['file']}: run of {what} {d['name']}", f"  integrator               {d['integrator'] or 'n/a'}"]
@@ -39,7 +39,8 @@ def _run_lines(d: dict) -> list[str]:
     )
     lines.append(f"  limit found by           {found}")
     lines.append(
-        f"  periods                  {d['periods']} of {d['steps_per_period']} steps (period {_g(d['period'])})"
+        f"  periods                  {d['periods']} of {counted(d['steps_per_period'], 'step')} "
+        f"(period {_g(d['period'])})"
     )
     if d["displacement_per_period"] is not None:  # as `crawlsim run` prints them
         from crawlsim.analysis.run import quotient_error

@@ -200,8 +200,10 @@ def velocity(
         click.echo(table.to_csv(), nl=False)
     counts = table.counts()
     if len(table.rows) != counts["ok"]:
+        from crawlsim.analysis.digits import counted
+
         click.echo(
-            f"{len(table.rows)} points: {counts['ok']} ok, {counts['invalid']} invalid, "
+            f"{counted(len(table.rows), 'point')}: {counts['ok']} ok, {counts['invalid']} invalid, "
             f"{counts['failed']} failed, {counts['not-converged']} not converged (see "
             "the status and message columns)",
             err=True,
