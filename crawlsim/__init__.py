@@ -107,5 +107,5 @@ def __getattr__(name: str) -> Any:
     raise AttributeError(f"module 'crawlsim' has no attribute {name!r}")
 
 
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+def __dir__() -> list[str]:  # the public names, not this module's own imports
+    return sorted(set(__all__) | _SUBPACKAGES)

@@ -46,6 +46,17 @@ def test_load_gait_is_immutable_and_replace_returns_a_new_validated_gait():
     )
 
 
+def test_a_gait_and_the_package_show_what_a_user_looks_for():
+    """repr(gait) was 2 kB (its whole document and file text); dir(crawlsim) listed the module's
+    own imports (TYPE_CHECKING, annotations, importlib)."""
+    assert repr(crawlsim.load_gait(P4)) == "<Gait peristalsis-4: 4 blocks, period 1, from " + str(P4) + ">"
+    triangle = crawlsim.load_gait(GAITS / "paper" / "triangle.yaml")
+    assert repr(triangle).startswith("<ProcessSpec triangle: 3 faces in R^2, period 1, from ")
+    names = dir(crawlsim)
+    assert not {"TYPE_CHECKING", "annotations", "importlib"} & set(names)
+    assert set(crawlsim.__all__) <= set(names) and "plotting" in names
+
+
 def test_replace_edits_exactly_as_a_sweep_point():
     """The same path syntax, the same edit: the document of a one-point sweep grid."""
     gait = crawlsim.load_gait(P4)

@@ -132,6 +132,9 @@ class Gait:
     #: External forces and a slope (docs/model.md §6), or None for none.
     loads: Loads | None = None
 
+    def __repr__(self) -> str:  # not the whole document and file text (2 kB for four blocks)
+        return f"<Gait {self.name}: {self.blocks} blocks, period {self.period:g}, from {self.source}>"
+
     def replace(self, *changes: Any) -> Gait:
         """A new validated gait with values set at dotted paths, the syntax of ``--sweep``:
         ``gait.replace("links.*.amplitude", 0.2)``, several pairs
