@@ -67,7 +67,7 @@ def test_phase_lag_sweep(tmp_path):
     assert [float(r["links.1.phase"]) for r in rows] == [0.0, 0.25, 0.5, 0.75, 1.0]
     assert all(r["status"] == "ok" for r in rows)
     assert float(rows[0]["v0"]) == pytest.approx(float(rows[-1]["v0"]), abs=1e-12)
-    png = (tmp_path / "lag" / "phase-lag.png").read_bytes()
+    png = (tmp_path / "lag" / "phase-lag-sweep.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 5000
 
 

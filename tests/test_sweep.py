@@ -863,15 +863,17 @@ def test_killed_process_resumes(tmp_path):
 def test_plot_one_and_two_paths(tmp_path):
     import matplotlib.image as mpimg
 
-    for axes, name in (([AMP], "one.png"), ([AMP, LAG], "two.png")):
-        args = [P4, *FAST] + [x for a in axes for x in ("--sweep", a)] + ["--plot", tmp_path / name]
-        assert vel(*args).exit_code == 0
-        image = mpimg.imread(tmp_path / name)
+    for axes, name in (([AMP], "one"), ([AMP, LAG], "two")):
+        args = [P4, *FAST] + [x for a in axes for x in ("--sweep", a)] + ["-o", tmp_path / f"{name}.h5", "--plot"]
+        r = vel(*args)
+        assert r.exit_code == 0 and r.output == f"{tmp_path / name}-sweep.png\n"
+        image = mpimg.imread(tmp_path / f"{name}-sweep.png")
         assert image.ndim == 3 and image.shape[0] > 200 and image.shape[1] > 300
         assert image[..., :3].std() > 0.05  # not blank
-    r = vel(P4, *FAST, "--sweep", AMP, "--sweep", LAG, "--sweep", "period=1,2", "--plot", tmp_path / "three.png")
+    three = ["--sweep", AMP, "--sweep", LAG, "--sweep", "period=1,2", "-o", tmp_path / "three.h5", "--plot"]
+    r = vel(P4, *FAST, *three)
     assert r.exit_code == 2 and "one or two swept dimensions" in r.output
-    assert not (tmp_path / "three.png").exists()
+    assert not list(tmp_path.glob("three*"))
 
 
 def test_sweep_figures_of_files_mark_invalid_points_as_invalid(tmp_path, monkeypatch):
@@ -906,8 +908,9 @@ def test_sweep_figures_of_files_mark_invalid_points_as_invalid(tmp_path, monkeyp
             "friction.backward=[0.5,1,2,3,4]",
             "--link",
             "friction.forward=[0.5,1,1,1,1]",
+            "-o",
+            tmp_path / "v.csv",
             "--plot",
-            tmp_path / "v.png",
         ],
     ):
         assert cli(*args).exit_code == 0

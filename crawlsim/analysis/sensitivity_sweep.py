@@ -24,28 +24,6 @@ import numpy as np
 PREFIX = "dv0/d"
 
 
-def check_paths(gait: Any, paths: Sequence[str]) -> tuple[str, ...]:
-    """The ``--sensitivity`` paths, checked against the gait (a `GaitError` naming the path
-    when one names nothing: exit code 2 before any point runs). A path to a key the document
-    leaves out (but a signal's phase) is put to the schema with a value, so that a misspelt key
-    (``links.*.phse``) gets the did-you-mean of a gait file and of ``--sweep``."""
-    from crawlsim.errors import GaitError
-    from crawlsim.gait.docpaths import resolve_path
-
-    for path in paths:
-        keys = resolve_path(gait.document, path, gait.source)[0]
-        node = gait.document
-        for key in keys[:-1]:
-            node = node[key]
-        if keys[-1] != "phase" and isinstance(node, dict) and keys[-1] not in node:
-            try:
-                gait.replace(path, 1.0)
-            except GaitError as error:
-                if error.message.startswith("unknown key"):
-                    raise GaitError(gait.source, error.keypath, error.message) from None
-    return tuple(paths)
-
-
 def with_derivatives(
     paths: Sequence[str], gaits: Iterable[tuple[int, Any]], rows: Mapping[int, Any], runs: Mapping[int, Any]
 ) -> dict[int, Any]:

@@ -162,7 +162,6 @@ def _plot_file(results_file, output_dir, fmt, only, coords, options, target):
 def _plot_sweep(results_file, output_dir, fmt, only, options, target) -> Path:
     from pathlib import Path
 
-    from crawlsim.plotting.style import user_style
     from crawlsim.study import sweep as sweeps
 
     if only is not None:
@@ -186,6 +185,5 @@ def _plot_sweep(results_file, output_dir, fmt, only, options, target) -> Path:
         folder = Path(output_dir) if output_dir is not None else path.resolve().parent
         target = folder / f"{path.stem}-sweep.{fmt}"
     target.parent.mkdir(parents=True, exist_ok=True)
-    with user_style(options.style):
-        sweeps.plot_table(table, target, figure_options={"dpi": options.dpi, "figsize": options.figsize})
+    sweeps.plot_table(table, target, options=options)
     return target

@@ -58,12 +58,9 @@ def resolve_path(document: dict, path: Any, source: str) -> list[tuple[Key, ...]
                 nxt.append((prefix + (key,), node[key]))
             elif isinstance(node, dict):
                 if str(key) not in node and not last:
-                    keys = list(map(str, node))
-                    raise GaitError(
-                        source,
-                        path,
-                        f"{_where(prefix)} has no key {str(key)!r}{did_you_mean(key, keys)} (keys: {', '.join(keys)})",
-                    )
+                    names = list(map(str, node))
+                    hint = f"{did_you_mean(key, names)} (keys: {', '.join(names)})"
+                    raise GaitError(source, path, f"{_where(prefix)} has no key {str(key)!r}{hint}")
                 nxt.append((prefix + (str(key),), node.get(str(key))))
             else:
                 raise GaitError(source, path, f"{_where(prefix)} is {_kind(node)}, it has no key {key!r}")
@@ -158,3 +155,22 @@ def replacement(source: str, document: dict, args: Sequence[Any]) -> tuple[str, 
     pairs = changes_of(args)
     label = f"{source} with " + ", ".join(f"{p}={v!r}" for p, v in pairs)
     return label, edited(document, pairs, label)
+
+
+def check_number_paths(gait: Any, paths: Sequence[str]) -> tuple[str, ...]:
+    """``paths``, each checked to name a number of ``gait`` (``--sensitivity``: a `GaitError`
+    naming the path when one names nothing, exit code 2 before any point runs). A path to a key
+    the document leaves out (but a signal's phase) is put to the schema with a value, so that a
+    misspelt key (``links.*.phse``) gets the did-you-mean of a gait file and of ``--sweep``."""
+    for path in paths:
+        keys = resolve_path(gait.document, path, gait.source)[0]
+        node = gait.document
+        for key in keys[:-1]:
+            node = node[key]
+        if keys[-1] != "phase" and isinstance(node, dict) and keys[-1] not in node:
+            try:
+                gait.replace(path, 1.0)
+            except GaitError as error:
+                if error.message.startswith("unknown key"):
+                    raise GaitError(gait.source, error.keypath, error.message) from None
+    return tuple(paths)

@@ -35,7 +35,7 @@ import numpy as np
 import yaml
 
 from crawlsim.errors import GaitError, InputError, SweepSpecError
-from crawlsim.gait.docpaths import path_keys, resolve_path, set_value
+from crawlsim.gait.docpaths import check_number_paths, path_keys, resolve_path, set_value
 from crawlsim.gait.document import Gait, gait_from_document, need_crawler
 from crawlsim.gait.validation import plain
 
@@ -87,7 +87,8 @@ def parse_axis(text: str, option: str = "--sweep") -> Axis:
         values = (lo, *values[1:-1], hi) if num > 1 else (lo,)  # both ends exactly as given
     elif ":" in spec:
         _, _, num = _range(spec, source, path, "START:STOP:NUM")
-        values = _evenly(*spec.split(":")[:2], num)
+        start, stop = spec.split(":")[:2]
+        values = _evenly(start, stop, num)
     else:
         values = _list(spec, source, path)
     if not all(math.isfinite(v) for v in values):
@@ -297,9 +298,7 @@ def make_grid(base: Gait, axes, quantities: Sequence[PointQuantity] = (), sensit
                     f"this path sets {'.'.join(map(str, key))}, which {seen[key]} sets too: sweep each value once",
                 )
             seen[key] = f"{option} {axis.path}"
-    from crawlsim.analysis.sensitivity_sweep import check_paths
-
-    return SweepGrid(base, tuple(flat), targets, tuple(dims), tuple(quantities), check_paths(base, sensitivity))
+    return SweepGrid(base, tuple(flat), targets, tuple(dims), tuple(quantities), check_number_paths(base, sensitivity))
 
 
 def parse_shard(text: str) -> tuple[int, int]:

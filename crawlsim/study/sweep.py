@@ -32,6 +32,7 @@ from __future__ import annotations
 import os  # noqa: F401  (tests patch sweeps.os.fsync: the journal's fsync)
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import yaml
@@ -60,6 +61,9 @@ from crawlsim.study.grid import (
     parse_axis,
     parse_shard,
 )
+
+if TYPE_CHECKING:
+    from crawlsim.plotting.style import FigureOptions
 from crawlsim.study.journal import JOURNAL_SECONDS, Journal, journal_path
 from crawlsim.study.points import (
     BATCH_PLAIN_PERIODS,
@@ -217,12 +221,14 @@ def sweep_figure_data(table: SweepTable) -> tuple[dict, np.ndarray, np.ndarray]:
     return axes, table.grid("v0"), missing
 
 
-def plot_table(table: SweepTable, path, title: str | None = None, figure_options: dict | None = None) -> None:
+def plot_table(table: SweepTable, path, title: str | None = None, options: FigureOptions | None = None) -> None:
     """v0 against one swept dimension, or a heat map over two, with the points that have no v0
-    (failed or invalid) marked; written atomically."""
+    (failed or invalid) marked, drawn with ``options`` (`crawlsim.plotting.style.FigureOptions`:
+    dpi, size, style sheet); written atomically."""
     from crawlsim.plotting import save_figure, sweep_figure
-    from crawlsim.plotting.style import units_of
+    from crawlsim.plotting.style import FigureOptions, units_of, user_style
 
+    options = options or FigureOptions()
     axes, v0, _ = sweep_figure_data(table)
     if title is None:
         document = yaml.safe_load(table.gait_yaml) if table.gait_yaml else None
@@ -237,16 +243,17 @@ def plot_table(table: SweepTable, path, title: str | None = None, figure_options
     # The statuses themselves, not a failed/ok mask: an invalid gait and a failed run are
     # different answers and are marked differently (docs/figures.md).
     status = table.grid("status")
-    figure = sweep_figure(
-        axes,
-        v0,
-        status,
-        title,
-        units=units_of({"gait_yaml": table.gait_yaml}),
-        displacement=table.grid("displacement_per_period"),
-        marks=marks,
-    )
-    save_figure(figure, path, **(figure_options or {}))
+    with user_style(options.style):
+        figure = sweep_figure(
+            axes,
+            v0,
+            status,
+            title,
+            units=units_of({"gait_yaml": table.gait_yaml}),
+            displacement=table.grid("displacement_per_period"),
+            marks=marks,
+        )
+        save_figure(figure, path, dpi=options.dpi, figsize=options.figsize)
 
 
 __all__ = [
