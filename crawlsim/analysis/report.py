@@ -189,22 +189,32 @@ def energy_rows(result: RunResult, unit: Unit) -> list[Row]:
         return []
     work = result.actuator_work_per_period
     loss = result.jump_loss_per_period or 0.0
+    numerical = result.discretisation_loss_per_period
     residual = result.energy_balance_residual or 0.0
     relative = abs(residual) / max(abs(work), 1e-300)
-    # W = D + J: the work is as accurate as the dissipation, and for catch-up its jump losses
-    # J_h hold the scheme's own numerical loss (first order in the step) besides the true one
+    # W = D + J (+ catch-up's numerical loss, first order in the step): the work is as accurate
+    # as the dissipation, and for catch-up its losses are those of the step too
     err = result.dissipation_error_estimate
-    if err is not None and result.integrator != "exact":
-        err += abs(loss)
-    loads = " - load work" if result.load_work_per_period is not None else ""
+    if err is not None and numerical is not None:
+        err += abs(loss) + abs(numerical)
+    terms = ("" if numerical is None else " - discretisation loss") + (
+        " - load work" if result.load_work_per_period is not None else ""
+    )
     rows = [
         ("actuator work per period", with_error(work, err, unit("dissipation"))),
         ("jump losses per period", f"{loss:.3g}{unit('dissipation')}"),
         (
             "energy balance residual",
-            f"{residual:.3g}{unit('dissipation')} (work - dissipation - jump losses{loads}; {relative:.1g} relative)",
+            f"{residual:.3g}{unit('dissipation')} (work - dissipation - jump losses{terms}; {relative:.1g} relative)",
         ),
     ]
+    if numerical is not None:
+        rows[2:2] = [
+            (
+                "discretisation loss",
+                f"{numerical:.3g}{unit('dissipation')} per period (catch-up's own, first order in the step)",
+            )
+        ]
     if result.load_work_per_period is not None:
         rows[2:2] = [_load_row(result, err, unit)]
         if result.efficiency is not None:

@@ -114,6 +114,7 @@ LIMIT_METHODS = tuple(LimitMethod)
 ENERGY_KEYS = (
     "actuator_work_per_period",
     "jump_loss_per_period",
+    "discretisation_loss_per_period",
     "load_work_per_period",
     "energy_balance_residual",
     "cost_of_transport_bound",
@@ -237,6 +238,8 @@ class RunResult:
     # for this friction and direction, and the efficiency bound / cost_of_transport.
     actuator_work_per_period: float | None = None
     jump_loss_per_period: float | None = None
+    # catch-up: its numerical dissipation, first order in the step; None for exact
+    discretisation_loss_per_period: float | None = None
     energy_balance_residual: float | None = None
     cost_of_transport_bound: float | None = None
     efficiency: float | None = None
@@ -589,6 +592,7 @@ def _energy_fields(
         fields.update(
             actuator_work_per_period=ledger.actuator_work_per_period,
             jump_loss_per_period=ledger.jump_loss_per_period,
+            discretisation_loss_per_period=ledger.discretisation_loss_per_period,
             load_work_per_period=ledger.load_work_per_period,
             energy_balance_residual=ledger.energy_balance_residual,
             cost_of_transport_bound=ledger.cost_of_transport_bound,
