@@ -54,6 +54,7 @@ _EXPORTS = {
     "CrawlsimError": "crawlsim.errors",
     "GaitError": "crawlsim.errors",
     "InputError": "crawlsim.errors",
+    "GaitWarning": "crawlsim.errors",
     "stall": "crawlsim.study.stall",
 }
 
@@ -92,6 +93,7 @@ __all__ = [
     "CrawlsimError",
     "GaitError",
     "InputError",
+    "GaitWarning",
     "stall",
     "__version__",
 ]

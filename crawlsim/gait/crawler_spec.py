@@ -441,6 +441,30 @@ def admissibility_violation(gait: Gait, positions: np.ndarray, t: float = 0.0) -
     return None
 
 
+def negative_length(gait: Gait) -> str | None:
+    """Where the first actuator length L_i(t) that goes negative does, in words, or None.
+
+    Not an error of the model: adding a constant to L translates K(t) = C(t) - K L(t) rigidly
+    and leaves the slips alone (docs/model.md §2), so v0 does not depend on the links' mean
+    lengths. But a negative rest length lets blocks i and i+1 pass through each other, which the
+    positions and the figures then show: `crawlsim.gait.document.load_gait` warns.
+    """
+    lowest: dict[Signal, float] = {}  # by the shape of the signal: its phase moves no minimum
+    for i, link in enumerate(gait.links):
+        shape = dataclasses.replace(link, phase=0.0) if hasattr(link, "phase") else link  # type: ignore[call-arg]
+        if shape not in lowest:
+            lowest[shape] = shape.minimum()[0]
+        if lowest[shape] < 0:
+            value, at = link.minimum()
+            when = f"t = {at:g} T" + (f" = {at * gait.period:g}" if gait.period != 1.0 else "")
+            return (
+                f"{gait.source}: links[{i}]: the actuator length goes negative ({value:.3g} at {when}), so blocks "
+                f"{i + 1} and {i + 2} can pass through each other; v0 does not depend on the links' mean lengths "
+                f"(docs/model.md §2), but the positions and figures do: add {-value:.3g} or more to this length"
+            )
+    return None
+
+
 def uniqueness_violation(gait: Gait) -> str | None:
     """Why the friction violates the uniqueness condition, or None if it holds.
 
