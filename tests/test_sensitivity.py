@@ -574,3 +574,25 @@ def test_cli_summarises_many_coincident_events():
         line
         == f"dv0/dlinks.0.phase: not smooth ({kinks[0]}; {kinks[1]}); left 0.0538037 ± 8e-07, right 0.0600000 ± 1e-07"
     )
+
+
+def test_a_waves_numbers_differentiate_by_the_chain_rule():
+    """peristalsis-4 written as a wave (links: {wave: ..., phase_step: 1/3}): links.wave.amplitude
+    moves every link's amplitude by the same amount and links.phase_step link i's phase by i
+    times it (crawlsim.gait.docpaths.wave_links), so dv0/d(wave amplitude) = sum_i
+    dv0/d(links.i.amplitude) and dv0/d(phase_step) = sum_i i dv0/d(links.i.phase), within the
+    sum of their error estimates; the generated links' own paths work on the wave too."""
+    import yaml
+
+    doc = yaml.safe_load(open("gaits/peristalsis-4.yaml").read())
+    doc["links"] = {"wave": {"kind": "cosine", "mean": 1.0, "amplitude": 0.3}, "phase_step": 0.3333333333333333}
+    r = sensitivity(gait_from_document(doc, "wave"), ["links.wave.amplitude", "links.phase_step", "links.*.amplitude"])
+    each = sensitivity(crawlsim.load_gait("gaits/peristalsis-4.yaml"), ["links.*.amplitude", "links.*.phase"])
+    for path, weights in (("links.wave.amplitude", ("amplitude", 1, 1, 1)), ("links.phase_step", ("phase", 0, 1, 2))):
+        name, *w = weights
+        parts = [each[f"links.{i}.{name}"].v0 for i in range(3)]
+        total = sum(k * p.value for k, p in zip(w, parts))
+        bound = r[path].v0.error_estimate + sum(k * p.error_estimate for k, p in zip(w, parts))
+        assert r[path].smooth and abs(r[path].v0.value - total) <= bound, (path, r[path].v0, total)
+        assert abs(total) > 1e3 * bound  # a real derivative, not roundoff
+    assert r["links.1.amplitude"].v0.value == pytest.approx(each["links.1.amplitude"].v0.value, abs=1e-9)

@@ -1000,3 +1000,31 @@ def test_crawlsim_plot_draws_sweep_files(tmp_path):
     assert vel(P4, *FAST, "--sweep", AMP, "--shard", "1/2", "-o", part).exit_code == 0
     assert cli("plot", part).exit_code == 2
     assert sorted(p.name for p in tmp_path.glob("*.png")) == []
+
+
+def test_sweeping_a_waves_numbers_and_its_links():
+    """On a wave (links: {wave: ..., phase_step: ...}) a sweep of links.phase_step moves the lag
+    of every link at once (link i at i x step, modulo 1), one of links.wave.amplitude every
+    link's amplitude, and one of links.1.phase that generated link alone (the point's document
+    holds the links written out), as docs/gait-files.md defines them."""
+    import yaml
+
+    from crawlsim.gait.document import gait_from_document
+
+    doc = yaml.safe_load(Path(P4).read_text())
+    doc["links"] = {"wave": {"kind": "cosine", "mean": 1.0, "amplitude": 0.3}, "phase_step": 0.3333333333333333}
+    wave = gait_from_document(doc, "wave.yaml")
+    lags = sweeps.make_grid(wave, ["links.phase_step=0:0.5:3"])
+    assert [[s.phase for s in lags.gait(i).links] for i in range(3)] == [
+        [0.0, 0.0, 0.0],
+        [0.0, 0.25, 0.5],
+        [0.0, 0.5, 0.0],
+    ]
+    grid = sweeps.make_grid(wave, ["links.wave.amplitude=0.1,0.2", "links.1.phase=0.5"])
+    point = grid.gait(1)
+    assert [s.amplitude for s in point.links] == [0.2] * 3 and [s.phase for s in point.links] == [
+        0.0,
+        0.5,
+        0.6666666666666666,
+    ]
+    assert isinstance(grid.document(1)["links"], list) and isinstance(grid.base.document["links"], dict)

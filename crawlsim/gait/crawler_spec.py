@@ -26,7 +26,7 @@ import numpy as np
 
 from crawlsim.errors import GaitError
 from crawlsim.gait.crawler_limits import check_stiffness, check_stress_scale
-from crawlsim.gait.docpaths import replacement
+from crawlsim.gait.docpaths import replacement, wave_links
 from crawlsim.gait.loads import LOADS_SCHEMA, Loads, held_positions, hold_violation, parse_loads
 from crawlsim.gait.schemaerrors import LARGEST
 from crawlsim.gait.settings import (
@@ -39,7 +39,7 @@ from crawlsim.gait.settings import (
     positive_schema,
     simulation_from,
 )
-from crawlsim.gait.signals import SIGNAL_SCHEMA, Signal, evaluate_many, parse_signal, union_breakpoints
+from crawlsim.gait.signals import MAX_PHASE, SIGNAL_SCHEMA, Signal, evaluate_many, parse_signal, union_breakpoints
 from crawlsim.gait.uniqueness import UniquenessUndecidable, alike_subsets, analyse, find_violation
 from crawlsim.gait.uniqueness_advice import remedy_text, smallest_change, uniqueness_message
 from crawlsim.gait.units import UNITS_SCHEMA, Units
@@ -81,7 +81,24 @@ CRAWLER_SCHEMA: dict = {
             "description": "k, one value for every link or one per link. The ratio k_max / k_min "
             "times N^2 estimates the conditioning of a step and must stay below 1e12.",
         },
-        "links": list_schema(MAX_BLOCKS - 1, "a list of N-1 signals (actuator lengths)", SIGNAL_SCHEMA),
+        "links": {
+            **list_schema(MAX_BLOCKS - 1, "a list of N-1 signals (actuator lengths)", SIGNAL_SCHEMA),
+            "type": ["array", "object"],
+            "x-expected": "a list of N-1 signals (actuator lengths) or a wave {wave: SIGNAL, phase_step: CYCLES}",
+            "description": "L_i(t): one signal per link, or a travelling wave: every link follows the wave's "
+            "signal, link i+1 phase_step cycles after link i (crawlsim.gait.docpaths.wave_links).",
+            "required": ["wave"],
+            "additionalProperties": False,
+            "properties": {
+                "wave": SIGNAL_SCHEMA,
+                "phase_step": {
+                    "type": "number",
+                    "minimum": -MAX_PHASE,
+                    "maximum": MAX_PHASE,
+                    "x-expected": "a number of cycles (the phase of link i+1 minus that of link i)",
+                },
+            },
+        },
         "friction": {
             **_FRICTION_MAPPING,
             "type": ["object", "array"],
@@ -284,11 +301,17 @@ def build_crawler(
 
 
 def _links(document: dict, n: int, source: str, errors: ErrorSink) -> tuple[Signal, ...] | None:
-    """The N-1 actuator lengths L_i(t), or None after reporting why not."""
-    if len(document["links"]) != n - 1:
-        errors.add(count_error(source, "links", n - 1, "link signals (one per link, N-1)", len(document["links"])))
+    """The N-1 actuator lengths L_i(t) (those of a wave, `wave_links`, once its signal is
+    valid), or None after reporting why not."""
+    links = document["links"]
+    if isinstance(links, dict):
+        if errors.attempt(parse_signal, links["wave"], "links.wave", source) is None:
+            return None
+        links = wave_links(links, n - 1)
+    elif len(links) != n - 1:
+        errors.add(count_error(source, "links", n - 1, "link signals (one per link, N-1)", len(links)))
         return None
-    parsed = _signals(document["links"], "links", source, errors)
+    parsed = _signals(links, "links", source, errors)
     return None if parsed is None else tuple(parsed)
 
 

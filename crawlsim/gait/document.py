@@ -248,6 +248,8 @@ def _signal_slots(document: dict):
         return
     for i, value in items("links"):
         yield f"links[{i}]", value
+    if isinstance(document.get("links"), dict) and "wave" in document["links"]:
+        yield "links.wave", document["links"]["wave"]
     friction = document.get("friction")
     entries = (
         [("friction", friction)]

@@ -35,7 +35,7 @@ import numpy as np
 import yaml
 
 from crawlsim.errors import GaitError, InputError, SweepSpecError
-from crawlsim.gait.docpaths import check_number_paths, path_keys, resolve_path, set_value
+from crawlsim.gait.docpaths import check_number_paths, path_keys, resolve_path, set_values
 from crawlsim.gait.document import Gait, gait_from_document, need_crawler
 from crawlsim.gait.validation import plain
 
@@ -200,9 +200,7 @@ class SweepGrid:
         """The base document with the point's values set: a copy (`crawlsim.gait.validation.
         plain`: the base document is plain data already, which copies faster than deepcopy)."""
         doc = plain(self.base.document)
-        for targets, value in zip(self.targets, self.values(index)):
-            for keys in targets:
-                set_value(doc, keys, value)
+        set_values(doc, [(keys, value) for targets, value in zip(self.targets, self.values(index)) for keys in targets])
         return doc
 
     def label(self, index: int) -> str:
