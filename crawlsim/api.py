@@ -176,11 +176,28 @@ def _grid_dataset(source: Any) -> xarray.Dataset:
     attrs = read_attrs(source)
     if isinstance(source, io.IOBase):
         source.seek(0)
+    if not hasattr(xr.Dataset, "crawlsim"):
+        _register_accessor(xr)
     with xr.open_dataset(source, engine="h5netcdf", group="grid", decode_timedelta=False) as ds:
         grid = cast("xarray.Dataset", ds.load())
     grid.attrs = {**attrs, **grid.attrs}
     # keyed by the paths the user passed (the file's names, `axis_name`, avoid dots)
     return grid.rename({name: grid[name].attrs["path"] for name in grid.coords if "path" in grid[name].attrs})
+
+
+def _register_accessor(xr: Any) -> None:
+    """``grid.crawlsim.plot()`` on the Datasets of `sweep` and `open_sweep`: the sweep figure,
+    as ``crawlsim plot SWEEP.h5`` draws it (``grid.plot`` is xarray's own)."""
+
+    @xr.register_dataset_accessor("crawlsim")
+    class SweepAccessor:
+        def __init__(self, grid: Any) -> None:
+            self._grid = grid
+
+        def plot(self) -> Any:
+            from crawlsim.plotting.sweeps import sweep_data_figure
+
+            return sweep_data_figure(self._grid)
 
 
 def _axis_values(path: str, values: Iterable[float]) -> tuple[float, ...]:

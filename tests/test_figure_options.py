@@ -143,7 +143,13 @@ def test_run_plot_takes_the_figure_options(tmp_path):
     )
     assert r.exit_code == 0, r.output
     figures = sorted(p.name for p in tmp_path.glob("i-*"))
-    assert figures == ["i-convergence.svg", "i-gait-diagram.svg", "i-motion.svg", "i-shape-space.svg"]
+    assert figures == [
+        "i-convergence.svg",
+        "i-gait-diagram.svg",
+        "i-kymograph.svg",
+        "i-motion.svg",
+        "i-shape-space.svg",
+    ]
     head = (tmp_path / "i-motion.svg").read_text()[:1000]
     assert 'width="288pt" height="216pt"' in head  # 4 x 3 in, 72 pt to the inch
     for option in (["--dpi", "200"], ["--plot-format", "pdf"], ["--style", "ggplot"]):

@@ -233,6 +233,14 @@ def colour_map():
     return matplotlib.colormaps[COLOUR_MAP].copy()
 
 
+def diverging_map():
+    """The map of a signed quantity (stress, strain) around 0: two series colours through light
+    grey (tension or contraction blue, compression or extension vermilion), never a slip colour."""
+    from matplotlib.colors import LinearSegmentedColormap
+
+    return LinearSegmentedColormap.from_list("crawlsim-signed", [OKABE_ITO["blue"], "#EDEDED", OKABE_ITO["vermillion"]])
+
+
 def colours(count: int) -> list:
     """``count`` distinguishable series colours: Okabe-Ito up to eight, the colour map beyond
     (never exactly a slip colour: a sample that falls on one moves to the next entry of the
@@ -402,9 +410,38 @@ def format_number(value: float) -> str:
     return f"{value:.4g}"
 
 
+#: A figure narrower than this (inches, ``--figsize``) gets its legends below the axes, not on
+#: their right, where they would take most of a journal column (`legends_below`).
+NARROW = 5.0
+
+
 def legend_right(ax, **kwargs):
-    """The legend of ``ax`` outside it, on its right, top-aligned."""
-    return ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0, **kwargs)
+    """The legend of ``ax`` outside it, on its right, top-aligned (below it on a narrow figure:
+    `legends_below`)."""
+    legend = ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0, **kwargs)
+    legend.set_gid("right")
+    return legend
+
+
+def legends_below(fig) -> None:
+    """The legends `legend_right` put on the right of their axes, as one legend below the figure,
+    in columns: on a figure narrower than `NARROW` they left the plot 40 % of a 3.4 in width."""
+    handles: dict[str, Any] = {}
+    for ax in fig.axes:
+        legend = ax.get_legend()
+        if legend is not None and legend.get_gid() == "right":
+            handles.update(zip((t.get_text() for t in legend.get_texts()), legend.legend_handles))
+            legend.remove()
+    if handles:
+        fig.legend(
+            handles.values(),
+            handles.keys(),
+            loc="outside lower center",
+            ncol=min(2, len(handles)),
+            fontsize="small",
+            handlelength=1.5,
+            columnspacing=1.0,
+        )
 
 
 def shown_series(count: int, limit: int) -> np.ndarray:
