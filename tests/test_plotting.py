@@ -1258,6 +1258,7 @@ def test_figures_of_a_result_object_are_those_of_its_file(name, tmp_path):
         function = {
             "motion": motion_figure,
             "gait-diagram": gait_figure,
+            "kymograph": kymograph_figure,
             "convergence": convergence_figure,
             "shape-space": shape_space_figure,
         }[figure]

@@ -962,6 +962,8 @@ def test_crawlsim_plot_draws_sweep_files(tmp_path):
     (invalid and failed) marked; 3-D sweeps, shards and --only are refused (exit 2)."""
     import matplotlib.image as mpimg
 
+    from crawlsim.plotting import sweep_data_figure
+
     one = tmp_path / "one.h5"
     assert (
         vel(
@@ -977,12 +979,12 @@ def test_crawlsim_plot_draws_sweep_files(tmp_path):
         == 0
     )
     table = sweeps.read_table(one)
-    axes, v0, missing = sweeps.sweep_figure_data(table)
-    assert list(axes) == ["friction.backward"] and v0.shape == (5,)
+    ax = sweep_data_figure(sweeps.table_payload(table)).axes[0]  # linked paths count once
+    assert ax.get_xlabel() == "friction.backward ($F$)" and len(ax.get_lines()[0].get_xdata()) >= 5
     # backward 1 = forward 1 and backward 3 (= 3 x forward 1 on 4 blocks) break uniqueness;
     # backward 0.5 = forward 0.5 too
-    np.testing.assert_array_equal(missing, [True, True, False, True, False])
-    assert np.all(np.isnan(v0[missing])) and np.all(np.isfinite(v0[~missing]))
+    (invalid,) = [line for line in ax.get_lines() if line.get_label() == "invalid gait"]
+    assert invalid.get_xdata().tolist() == [0.5, 1.0, 3.0]
     r = cli("plot", one, "-o", tmp_path / "fig")
     assert r.exit_code == 0, r.output
     image = mpimg.imread(tmp_path / "fig" / "one-sweep.png")

@@ -271,31 +271,14 @@ def ledger(
     energy = period_energy(process, record)
     if energy is None:
         return None
+    terms = (energy.work, energy.dissipation, energy.jump_loss, energy.residual)
     if process.crawler is not None and process.crawler.load is not None:
         # with loads (docs/model.md §6): the efficiency is the share of the actuator work that
         # goes into the load, and the friction-only bound does not bound the cost of transport
         efficiency = energy.load_work / energy.work if energy.work > 0 else None
-        return EnergyLedger(
-            energy.work,
-            energy.dissipation,
-            energy.jump_loss,
-            energy.residual,
-            None,
-            efficiency,
-            energy.load_work,
-            energy.discretisation_loss,
-        )
+        return EnergyLedger(*terms, None, efficiency, energy.load_work, energy.discretisation_loss)
     bound = cost_of_transport_bound(process, displacement)
     efficiency = None
     if bound is not None and cost_of_transport is not None and cost_of_transport > 0:
         efficiency = bound / cost_of_transport
-    return EnergyLedger(
-        energy.work,
-        energy.dissipation,
-        energy.jump_loss,
-        energy.residual,
-        bound,
-        efficiency,
-        None,
-        energy.discretisation_loss,
-    )
+    return EnergyLedger(*terms, bound, efficiency, None, energy.discretisation_loss)

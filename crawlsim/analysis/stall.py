@@ -10,11 +10,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import Any
 
 import numpy as np
 
 from crawlsim.errors import GaitError
+from crawlsim.gait.docpaths import path_keys, value_at
 from crawlsim.gait.document import Gait, gait_from_document
 from crawlsim.gait.signals import evaluate_many
 
@@ -98,7 +98,10 @@ def curve_marks(gait_yaml: str, path: str, values, v0) -> CurveMarks | None:
     label = "steepest slope" if path == "loads.slope.angle" else "stall force"
     jumps = _UniquenessSums(gait, path).jumps(x)
     stall_at, cause = None, None
-    own = resolve_path_value(gait.document, path)
+    try:
+        own = float(value_at(gait.document, path_keys(path)))
+    except (KeyError, IndexError, TypeError, ValueError):
+        own = None
     finite = np.isfinite(v)
     if own is not None and np.any(finite):
         index = np.flatnonzero(finite)
@@ -203,16 +206,3 @@ def _secant_zero(x: np.ndarray, v: np.ndarray, i: int, j: int, direction: int) -
         if 0 < (root - x[i]) / (x[j] - x[i]) <= 1:
             stall_at = root
     return stall_at
-
-
-def resolve_path_value(document: dict, path: str) -> float | None:
-    """The number at a dotted path of a document, or None."""
-    from crawlsim.gait.docpaths import path_keys
-
-    node: Any = document
-    try:
-        for key in path_keys(path):
-            node = node[key]
-    except (KeyError, IndexError, TypeError):
-        return None
-    return float(node) if isinstance(node, (int, float)) and not isinstance(node, bool) else None

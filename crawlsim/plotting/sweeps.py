@@ -407,9 +407,11 @@ def sweep_data_figure(data: Any, title: str | None = None) -> Figure:
         columns = {name: data[name].values.ravel() for name in ("v0", "displacement_per_period")}
         columns["status"] = np.array([flags[int(s)].replace("_", "-") for s in data.status.values.ravel()])
         data = {**data.attrs, "paths": data.v0.dims, "axes": [data[d].values for d in data.v0.dims]}
-        data.update(points=np.arange(columns["v0"].size), columns=columns)
-    paths = list(data["paths"])
-    shape = tuple(len(a) for a in data["axes"])
+        data.update(points=np.arange(columns["v0"].size), columns=columns, dimensions=None)
+    dims = data.get("dimensions") or range(len(data["paths"]))
+    first = [list(dims).index(d) for d in sorted(set(dims))]  # a dimension's first path: linked ones once
+    paths, values = [data["paths"][k] for k in first], [data["axes"][k] for k in first]
+    shape = tuple(len(a) for a in values)
     points = np.asarray(data["points"], dtype=int)
     columns = data["columns"]
 
@@ -427,9 +429,9 @@ def sweep_data_figure(data: Any, title: str | None = None) -> Figure:
     if len(paths) == 1 and data.get("gait_yaml"):
         from crawlsim.analysis.stall import curve_marks
 
-        marks = curve_marks(data["gait_yaml"], paths[0], data["axes"][0], v0)
+        marks = curve_marks(data["gait_yaml"], paths[0], values[0], v0)
     return sweep_figure(
-        dict(zip(paths, data["axes"])), v0, status, title, units=units_of(data), displacement=displacement, marks=marks
+        dict(zip(paths, values)), v0, status, title, units=units_of(data), displacement=displacement, marks=marks
     )
 
 

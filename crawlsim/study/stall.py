@@ -235,12 +235,9 @@ def _stall_problem(gait: Gait | str, force: str | None, slope: bool) -> tuple[Ga
 
 def _start_load(spec: Gait, path: str) -> float:
     """The gait's own load at ``path``: a constant number."""
-    from crawlsim.gait.docpaths import resolve_path
+    from crawlsim.gait.docpaths import resolve_path, value_at
 
-    keys = resolve_path(spec.document, path, spec.source)[0]
-    node: Any = spec.document
-    for key in keys:
-        node = node[key]
+    node = value_at(spec.document, resolve_path(spec.document, path, spec.source)[0])
     if not isinstance(node, (int, float)) or isinstance(node, bool):
         raise InputError(
             spec.source, path, f"expected a number at {path}, got {node!r}: the stall search varies a constant load"
