@@ -51,6 +51,7 @@ def examples(help_text: str) -> list[str]:
     return lines
 
 
+@pytest.mark.slow  # every example of every command, each a fresh process: about 100 s
 @pytest.mark.parametrize("name, command", commands(), ids=lambda c: c if isinstance(c, str) else "")
 def test_every_help_example_runs(name, command, tmp_path):
     """Each command's examples run in order in an empty folder holding the example gaits, with

@@ -27,6 +27,9 @@ pytest.importorskip("ipykernel")
 pytest.importorskip("xarray")
 pytest.importorskip("h5netcdf")
 
+#: each notebook runs in a fresh Jupyter kernel: .ci/run runs them in its slow step
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "docs" / "examples"
 NOTEBOOKS = sorted(EXAMPLES.glob("*.ipynb"))

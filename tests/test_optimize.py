@@ -502,6 +502,7 @@ def test_the_results_file_layout_and_its_figures(tmp_path):
     assert rerun.exit_code == 2 and "--write-best" in rerun.output
 
 
+@pytest.mark.slow  # starts a Dask cluster
 def test_a_dask_cluster_gives_the_same_result():
     """Each generation goes to the cluster through the sweep engine; the search is the same,
     point for point (CI installs the dask extra)."""

@@ -216,6 +216,7 @@ def start_slow_run(folder):
     return child
 
 
+@pytest.mark.slow  # a slow run, signalled, in a subprocess
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
 def test_no_temporary_file_survives_sigterm_or_sigint(folder, signum):
     child = start_slow_run(folder)

@@ -24,6 +24,7 @@ def _v0(path, *options):
     return float(r.output)
 
 
+@pytest.mark.slow  # the script runs crawlsim once per gait, a process each
 def test_v0_folder(tmp_path):
     """One row per gait file, each v0 equal to `crawlsim velocity` on that file."""
     folder = tmp_path / "gaits"
@@ -53,6 +54,7 @@ def test_v0_folder(tmp_path):
     assert float(rows[1]["v0"]) == pytest.approx(0.4, abs=1e-12)  # inching closed form
 
 
+@pytest.mark.slow  # the script runs a sweep in a process
 def test_phase_lag_sweep(tmp_path):
     """Signals are periodic in cycles, so a lag of a whole period is the gait with lag 0: v0
     agrees at both ends of the sweep to roundoff. The table has the requested points and the

@@ -782,6 +782,7 @@ def _wait_for_points(proc, at_least):
     raise AssertionError(f"the sweep ended before {at_least} points: {lines}")
 
 
+@pytest.mark.slow  # sweeps in subprocesses, signalled and run again
 @pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_interrupt_exits_130_and_the_rerun_resumes(tmp_path, sig, code):
     """Ctrl-C (SIGINT) exits 130 and SIGTERM (a batch system's stop) 143; either way every
@@ -820,6 +821,7 @@ def test_interrupt_exits_130_and_the_rerun_resumes(tmp_path, sig, code):
     np.testing.assert_allclose(table.columns()["v0"], fresh.columns()["v0"], rtol=0, atol=1e-12)
 
 
+@pytest.mark.slow  # a sweep in a subprocess, killed and run again
 def test_killed_process_resumes(tmp_path):
     """SIGKILL a sweep process once its journal holds finished points; the rerun of the same
     command completes the table, equal to an uninterrupted run's."""
