@@ -58,7 +58,6 @@ def kymograph_figure(results, last: int | None = None) -> Figure:
     s = t * factor
     mean = z.mean(axis=0)
     strain = np.divide(z, mean, out=np.full_like(z, np.nan), where=mean != 0) - 1.0
-    N = slip.shape[1]
     cmap = diverging_map()
     with figure_style():
         fig, axs = new_figure(3, 1, height=6.6, sharex=True)
@@ -80,7 +79,7 @@ def kymograph_figure(results, last: int | None = None) -> Figure:
                     rasterized=True,
                 )
                 patches = [Patch(facecolor=SLIP_COLOURS[k], label=SLIP_NAMES[k]) for k in (0, 1, -1)]
-                ax.legend(handles=patches, loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=3, borderaxespad=0.1)
+                ax.legend(handles=patches, loc="lower left", bbox_to_anchor=(0, 1), ncol=3, fontsize="small")
             else:
                 largest = float(np.nanmax(np.abs(data), initial=0.0)) or 1.0
                 mesh = ax.pcolormesh(
@@ -100,6 +99,6 @@ def kymograph_figure(results, last: int | None = None) -> Figure:
             ax.grid(False)
         axs[-1, 0].set_xlim(s[0], s[-1])
         axs[-1, 0].set_xlabel(time_label)
-        window = "the limit period" if last is None else f"the last {counted(last, 'period')}"
-        fig.suptitle(title(run_name(results), f"kymograph of {window} ({N} blocks)"))
+        window = "" if last is None else f", the last {counted(last, 'period')}"
+        fig.suptitle(title(run_name(results), f"kymograph{window}"))
     return fig

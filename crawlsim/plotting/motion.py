@@ -78,7 +78,7 @@ def motion_figure(results, last: int | None = None) -> Figure:
         ax = axs[0, 0]
         drawn = shown_series(N, MAX_MOTION_BLOCKS if last is None else 8)  # steps that cross: fewer
         for j, colour in zip(drawn, colours(len(drawn))):
-            shown = N <= 8 or j in (0, N - 1)
+            shown = len(drawn) <= 8 or j in (0, N - 1)
             ax.plot(t * factor, x[:, j], color=colour, label=f"block {j + 1}" if shown else None)
         ax.plot(t * factor, y, color=REFERENCE, linestyle="--", linewidth=1.2, label="barycentre $y$", zorder=3)
         # The v0 line meets the barycentre at every period start of the limit, so a thin line
@@ -105,8 +105,8 @@ def motion_figure(results, last: int | None = None) -> Figure:
             ax.set_title(title(run_name(results), "block positions"))
         else:
             span.remove()
-            ax.set_ylabel(label("displacement", "x_j(t) - x_j(t_a)", "length", units))
-            ax.set_title(title(run_name(results), f"the last {counted(last, 'period')}, following the crawler"))
+            ax.set_ylabel(label("displacement", "\\Delta x_j", "length", units))  # x_j(t) - x_j(t_a)
+            ax.set_title(title(run_name(results), f"the last {counted(last, 'period')}"))
         # The legend lists the lines from top to bottom as they end at the right of the axes
         # (the front block first), then the shaded limit period.
         lines = [line for line in ax.get_lines() if not line.get_label().startswith("_")]
