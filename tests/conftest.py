@@ -7,6 +7,7 @@ counterexample found as an ``@example``.
 """
 
 import os
+import sys
 from pathlib import Path
 
 import pytest
