@@ -55,6 +55,7 @@ _EXPORTS = {
     "CrawlsimError": "crawlsim.errors",
     "GaitError": "crawlsim.errors",
     "InputError": "crawlsim.errors",
+    "GaitWarning": "crawlsim.errors",
     "stall": "crawlsim.study.stall",
 }
 
@@ -94,6 +95,7 @@ __all__ = [
     "CrawlsimError",
     "GaitError",
     "InputError",
+    "GaitWarning",
     "stall",
     "__version__",
 ]
@@ -109,5 +111,5 @@ def __getattr__(name: str) -> Any:
     raise AttributeError(f"module 'crawlsim' has no attribute {name!r}")
 
 
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+def __dir__() -> list[str]:  # the public names, not this module's own imports
+    return sorted(set(__all__) | _SUBPACKAGES)

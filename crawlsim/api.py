@@ -80,8 +80,9 @@ def sweep(
     """v0 over the Cartesian grid of ``axes`` (``{"links.*.amplitude": [0.1, 0.2], ...}``: the
     dotted paths of ``--sweep``, in grid order, the last varying fastest).
 
-    Returns an `xarray.Dataset` on the grid, one dimension per swept path (named by
-    `crawlsim.io.hdf5.axis_name`, ``links_all_amplitude``; the path in its ``path`` attribute):
+    Returns an `xarray.Dataset` on the grid, one dimension per swept path, named by the path as
+    given (``grid.v0.sel({"links.*.amplitude": 0.2})``; the file names it
+    `crawlsim.io.hdf5.axis_name`, ``links_all_amplitude``):
     v0, displacement_per_period, periods, steps, convergence and status (CF flags: see their
     ``flag_meanings``) and message, with the provenance as attributes, exactly the ``/grid``
     group of a sweep file. **Without xarray** (``pip install 'crawlsim[xarray]'``) it returns
@@ -177,10 +178,28 @@ def _grid_dataset(source: Any) -> xarray.Dataset:
     attrs = read_attrs(source)
     if isinstance(source, io.IOBase):
         source.seek(0)
+    if not hasattr(xr.Dataset, "crawlsim"):
+        _register_accessor(xr)
     with xr.open_dataset(source, engine="h5netcdf", group="grid", decode_timedelta=False) as ds:
         grid = cast("xarray.Dataset", ds.load())
     grid.attrs = {**attrs, **grid.attrs}
-    return grid
+    # keyed by the paths the user passed (the file's names, `axis_name`, avoid dots)
+    return grid.rename({name: grid[name].attrs["path"] for name in grid.coords if "path" in grid[name].attrs})
+
+
+def _register_accessor(xr: Any) -> None:
+    """``grid.crawlsim.plot()`` on the Datasets of `sweep` and `open_sweep`: the sweep figure,
+    as ``crawlsim plot SWEEP.h5`` draws it (``grid.plot`` is xarray's own)."""
+
+    @xr.register_dataset_accessor("crawlsim")
+    class SweepAccessor:
+        def __init__(self, grid: Any) -> None:
+            self._grid = grid
+
+        def plot(self) -> Any:
+            from crawlsim.plotting.sweeps import sweep_data_figure
+
+            return sweep_data_figure(self._grid)
 
 
 def _axis_values(path: str, values: Iterable[float]) -> tuple[float, ...]:

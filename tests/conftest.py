@@ -7,6 +7,7 @@ counterexample found as an ``@example``.
 """
 
 import os
+import sys
 from pathlib import Path
 
 import pytest
@@ -59,6 +60,16 @@ def two_block(amplitude=0.3, k=10.0, friction=None, steps=200, max_periods=20, *
     }
     doc.update(extra)
     return make_gait(doc)
+
+
+def console_env(env: dict[str, str] | None = None) -> dict[str, str]:
+    """The environment (``os.environ`` by default) of a subprocess that calls ``crawlsim`` from
+    PATH (the scripts of scripts/, documented commands): the console scripts of this
+    interpreter's environment first, so that ``venv/bin/python -m pytest tests`` needs no
+    activated venv and runs its own crawlsim."""
+    env = dict(os.environ if env is None else env)
+    env["PATH"] = os.pathsep.join([str(Path(sys.executable).parent), env.get("PATH", "")])
+    return env
 
 
 @pytest.fixture

@@ -11,6 +11,9 @@ from crawlsim.gait.document import load_gait, with_simulation
 from crawlsim.study import sweep as sweeps
 from tests.test_sweep import AMP, LAG, P4
 
+#: Dask clusters start in seconds, and an unreachable scheduler is waited for: .ci/run runs them in its slow step
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def scheduler():

@@ -249,6 +249,7 @@ def test_every_object_of_the_api_reference_has_a_docstring():
     ]
 
 
+@pytest.mark.slow  # mkdocs build; .ci/run builds the site in its own step too
 def test_the_site_builds_strictly(tmp_path):
     """`mkdocs build --strict` (as .ci/run runs it): no broken link or anchor, no page outside
     the navigation, no undocumented object in the API reference, and the notebooks rendered

@@ -27,6 +27,9 @@ pytest.importorskip("ipykernel")
 pytest.importorskip("xarray")
 pytest.importorskip("h5netcdf")
 
+#: each notebook runs in a fresh Jupyter kernel: .ci/run runs them in its slow step
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "docs" / "examples"
 NOTEBOOKS = sorted(EXAMPLES.glob("*.ipynb"))
@@ -107,7 +110,8 @@ def test_stored_outputs_are_what_the_notebook_prints(path):
 
 def test_first_run_numbers():
     """peristalsis-4: v0 = 0.3711554677 to 8 digits (README's first run), finite-time from
-    period 1, the cost of transport, the trajectory's shape, three figures, the xarray view."""
+    period 1, the cost of transport, the trajectory's shape, four figures (result.plot), the xarray
+    view."""
     fresh = executed(EXAMPLES / "first-run.ipynb")
     cells = _texts(fresh)
     printed = [line for cell in cells for line in cell]
@@ -118,7 +122,7 @@ def test_first_run_numbers():
     assert "trajectory         2001 saved times, x of shape (2001, 4)" in printed
     summary = "\n".join(cells[1])
     assert re.search(r"v0 +0\.3711554676\d+ ± \de-1[34]", summary), summary
-    assert _figures(fresh) == 3
+    assert _figures(fresh) == 4
     assert "backward_slip stick forward_slip" in printed
 
 

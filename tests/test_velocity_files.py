@@ -108,6 +108,6 @@ def test_workers_and_the_journal_give_the_same_table(folder, tmp_path):
 
 
 def test_options_of_one_file_are_refused_with_several(folder):
-    for extra in (["--sweep", "period=1,2"], ["--sensitivity", "stiffness"], ["--plot", "x.png"]):
+    for extra in (["--sweep", "period=1,2"], ["--sensitivity", "stiffness"], ["--plot"], ["--rigid"]):
         done = velocity(*_files(folder), *extra)
         assert done.exit_code == 2 and "take one gait file" in done.output

@@ -13,7 +13,7 @@ import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from crawlsim.analysis.digits import how_found, with_error
+from crawlsim.analysis.digits import counted, how_found, with_error
 from crawlsim.status import Convergence, LimitMethod, RunStatus
 
 if TYPE_CHECKING:
@@ -166,7 +166,7 @@ def summary_rows(result: RunResult) -> list[Row]:
 
 def headline(result: RunResult) -> str:
     what = "gait" if result.v0 is not None else "process"  # a generic process has no v0
-    return f"{what} {result.name}: {result.periods} periods of {result.steps_per_period} steps"
+    return f"{what} {result.name}: {counted(result.periods, 'period')} of {counted(result.steps_per_period, 'step')}"
 
 
 def _line(row: Row) -> str:
@@ -193,22 +193,32 @@ def energy_rows(result: RunResult, unit: Unit) -> list[Row]:
         return []
     work = result.actuator_work_per_period
     loss = result.jump_loss_per_period or 0.0
+    numerical = result.discretisation_loss_per_period
     residual = result.energy_balance_residual or 0.0
     relative = abs(residual) / max(abs(work), 1e-300)
-    # W = D + J: the work is as accurate as the dissipation, and for catch-up its jump losses
-    # J_h hold the scheme's own numerical loss (first order in the step) besides the true one
+    # W = D + J (+ catch-up's numerical loss, first order in the step): the work is as accurate
+    # as the dissipation, and for catch-up its losses are those of the step too
     err = result.dissipation_error_estimate
-    if err is not None and result.integrator != "exact":
-        err += abs(loss)
-    loads = " - load work" if result.load_work_per_period is not None else ""
+    if err is not None and numerical is not None:
+        err += abs(loss) + abs(numerical)
+    terms = ("" if numerical is None else " - discretisation loss") + (
+        " - load work" if result.load_work_per_period is not None else ""
+    )
     rows = [
         ("actuator work per period", with_error(work, err, unit("dissipation"))),
         ("jump losses per period", f"{loss:.3g}{unit('dissipation')}"),
         (
             "energy balance residual",
-            f"{residual:.3g}{unit('dissipation')} (work - dissipation - jump losses{loads}; {relative:.1g} relative)",
+            f"{residual:.3g}{unit('dissipation')} (work - dissipation - jump losses{terms}; {relative:.1g} relative)",
         ),
     ]
+    if numerical is not None:
+        rows[2:2] = [
+            (
+                "discretisation loss",
+                f"{numerical:.3g}{unit('dissipation')} per period (catch-up's own, first order in the step)",
+            )
+        ]
     if result.load_work_per_period is not None:
         rows[2:2] = [_load_row(result, err, unit)]
         if result.efficiency is not None:

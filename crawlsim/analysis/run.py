@@ -115,6 +115,7 @@ LIMIT_METHODS = tuple(LimitMethod)
 ENERGY_KEYS = (
     "actuator_work_per_period",
     "jump_loss_per_period",
+    "discretisation_loss_per_period",
     "load_work_per_period",
     "energy_balance_residual",
     "cost_of_transport_bound",
@@ -185,6 +186,15 @@ class LimitPeriod:
     slip_rate: np.ndarray | None = None  # (G, N) dx / dt on each step
 
 
+def quotient_error(cot: float | None, d: float | None, dD: float | None, dd: float | None) -> float | None:
+    """The error of the cost of transport cot = D/|d| from those of D and d: first-order
+    propagation through the quotient (|d(D/d)| <= dD/|d| + D dd/d^2), widened by 1 % for the
+    second-order term, which is below that wherever the cost of transport is printed at all."""
+    if cot is None or d is None or dD is None or dd is None or d == 0:
+        return None
+    return 1.01 * (dD / abs(d) + cot * dd / abs(d))
+
+
 @dataclass(frozen=True, eq=False, repr=False)
 class RunResult:
     """Everything `simulate` measured. ``summary()`` is the JSON-ready part."""
@@ -229,6 +239,8 @@ class RunResult:
     # for this friction and direction, and the efficiency bound / cost_of_transport.
     actuator_work_per_period: float | None = None
     jump_loss_per_period: float | None = None
+    # catch-up: its numerical dissipation, first order in the step; None for exact
+    discretisation_loss_per_period: float | None = None
     energy_balance_residual: float | None = None
     cost_of_transport_bound: float | None = None
     efficiency: float | None = None
@@ -258,14 +270,13 @@ class RunResult:
 
     @property
     def cost_of_transport_error_estimate(self) -> float | None:
-        """First-order propagation of the dissipation's and displacement's errors through
-        their quotient (|d(D/d)| <= dD/|d| + D dd/d^2), widened by 1 % for the second-order
-        term, which is below that wherever the cost of transport is printed at all."""
-        cot, d = self.cost_of_transport, self.displacement_per_period
-        dD, dd = self.dissipation_error_estimate, self.displacement_error_estimate
-        if cot is None or d is None or dD is None or dd is None or d == 0:
-            return None
-        return 1.01 * (dD / abs(d) + cot * dd / abs(d))
+        """`quotient_error` of the dissipation over the displacement."""
+        return quotient_error(
+            self.cost_of_transport,
+            self.displacement_per_period,
+            self.dissipation_error_estimate,
+            self.displacement_error_estimate,
+        )
 
     @property
     def converged(self) -> bool:
@@ -604,6 +615,7 @@ def _energy_fields(
         fields.update(
             actuator_work_per_period=ledger.actuator_work_per_period,
             jump_loss_per_period=ledger.jump_loss_per_period,
+            discretisation_loss_per_period=ledger.discretisation_loss_per_period,
             load_work_per_period=ledger.load_work_per_period,
             energy_balance_residual=ledger.energy_balance_residual,
             cost_of_transport_bound=ledger.cost_of_transport_bound,

@@ -48,7 +48,7 @@ from crawlsim.analysis.sensitivity_terms import (
 )
 from crawlsim.analysis.sensitivity_walk import Prepared, Walk, prepare, walk_catch_up, walk_exact
 from crawlsim.errors import CrawlsimError, GaitError
-from crawlsim.gait.docpaths import resolve_path
+from crawlsim.gait.docpaths import check_number_paths, resolve_path
 from crawlsim.kernel.jit import kernel
 from crawlsim.status import Convergence
 
@@ -299,8 +299,9 @@ def _known(run: Any, process: SweepingProcess) -> tuple[float, float, float | No
 
 def _expand(gait: Gait, paths: Sequence[str] | str) -> list[tuple[Any, ...]]:
     """The concrete key paths of ``paths`` (each ``*`` expanded), each once, in order."""
+    paths = check_number_paths(gait, [paths] if isinstance(paths, str) else paths)
     keys_list: list[tuple[Any, ...]] = []
-    for path in [paths] if isinstance(paths, str) else paths:
+    for path in paths:
         for keys in resolve_path(gait.document, path, gait.source):
             if keys not in keys_list:
                 keys_list.append(keys)

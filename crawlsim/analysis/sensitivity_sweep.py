@@ -24,16 +24,6 @@ import numpy as np
 PREFIX = "dv0/d"
 
 
-def check_paths(gait: Any, paths: Sequence[str]) -> tuple[str, ...]:
-    """The ``--sensitivity`` paths, checked against the sweep's base gait (a `GaitError`
-    naming the path when one names nothing: exit code 2 before any point runs)."""
-    from crawlsim.gait.docpaths import resolve_path
-
-    for path in paths:
-        resolve_path(gait.document, path, gait.source)
-    return tuple(paths)
-
-
 def with_derivatives(
     paths: Sequence[str], gaits: Iterable[tuple[int, Any]], rows: Mapping[int, Any], runs: Mapping[int, Any]
 ) -> dict[int, Any]:

@@ -9,17 +9,22 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import Any
 
 import numpy as np
 
 from crawlsim.analysis.rigid import RigidLimit, rigid_limit
 from crawlsim.errors import GaitError, InputError
+from crawlsim.gait.docpaths import path_keys, value_at
 from crawlsim.gait.document import Gait, gait_from_document
 from crawlsim.gait.signals import evaluate_many
 
 SMOOTH = 1e-6
 """A v0 below this fraction of |v0(s0)| on the moving side of the final bracket is a smooth zero."""
+
+MOVING = 1e-9
+"""The crawler still moves its way at a load where v0 has the sign of v0(s0) and more than this
+fraction of its size: a v0 of 3.7e-17 beyond a jump (the roundoff of a run that does not move)
+does not count as motion."""
 
 
 class StallCause(StrEnum):
@@ -56,6 +61,8 @@ def curve_marks(gait_yaml: str, path: str, values, v0) -> CurveMarks | None:
     interpolated. Stall: from the swept value nearest the gait's own load, the first interval
     where v0 loses that point's sign; at a jump inside it the stall is the jump (cause jump),
     otherwise the linear interpolation of the zero (cause smooth-zero, to the grid's resolution).
+    Moving means what it means to `crawlsim.study.stall`: the sign of v0 at the start and more
+    than `MOVING` of its size.
     """
     import yaml
 
@@ -81,7 +88,10 @@ def curve_marks(gait_yaml: str, path: str, values, v0) -> CurveMarks | None:
     if friction:
         return CurveMarks(tuple(jumps), None, None, "", "uniqueness margin 0: $v_0$ can jump")
     stall_at, cause = None, None
-    own = resolve_path_value(gait.document, path)
+    try:
+        own = float(value_at(gait.document, path_keys(path)))
+    except (KeyError, IndexError, TypeError, ValueError):
+        own = None
     finite = np.isfinite(v)
     if own is not None and np.any(finite):
         index = np.flatnonzero(finite)
@@ -162,7 +172,7 @@ def _first_stall(
     i = start
     while 0 <= i + direction < len(x):
         j = i + direction
-        if np.isfinite(v[j]) and np.sign(v[j]) == sign:
+        if np.isfinite(v[j]) and v[j] * sign > MOVING * abs(v[start]):
             i = j
             continue
         inside = [s for s in jumps if 0 < (s - x[i]) / (x[j] - x[i]) <= 1]
@@ -186,16 +196,3 @@ def _secant_zero(x: np.ndarray, v: np.ndarray, i: int, j: int, direction: int) -
         if 0 < (root - x[i]) / (x[j] - x[i]) <= 1:
             stall_at = root
     return stall_at
-
-
-def resolve_path_value(document: dict, path: str) -> float | None:
-    """The number at a dotted path of a document, or None."""
-    from crawlsim.gait.docpaths import path_keys
-
-    node: Any = document
-    try:
-        for key in path_keys(path):
-            node = node[key]
-    except (KeyError, IndexError, TypeError):
-        return None
-    return float(node) if isinstance(node, (int, float)) and not isinstance(node, bool) else None

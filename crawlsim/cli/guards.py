@@ -121,6 +121,38 @@ def figure_options(f):
     return f
 
 
+def plot_options(f):
+    """``--plot``, ``--plot-format`` and the `figure_options`: one meaning in every command that
+    draws as it computes (run, velocity --sweep): the figures next to the results, as
+    ``crawlsim plot`` names them, <stem>-<figure>.<format>."""
+    f = figure_options(f)
+    f = click.option(
+        "--plot-format",
+        type=click.Choice(["png", "pdf", "svg"]),
+        help="Image format of the --plot figures.  [default: png]",
+    )(f)
+    return click.option(
+        "--plot",
+        is_flag=True,
+        help="Also draw the figures next to the results (<stem>-<figure>.png), as crawlsim plot RESULTS does.",
+    )(f)
+
+
+def plot_settings(plot, plot_format, dpi, figsize, style):
+    """The `FigureOptions` and format of ``--plot`` (None without it); a figure option given
+    without ``--plot`` is BadInput (exit 2)."""
+    from crawlsim.cli import BadInput
+
+    given = [
+        name
+        for name, value in (("--plot-format", plot_format), ("--dpi", dpi), ("--figsize", figsize), ("--style", style))
+        if value is not None
+    ]
+    if given and not plot:
+        raise BadInput(f"{', '.join(given)} set how the figures are drawn: add --plot")
+    return (figure_options_of(dpi, figsize, style), plot_format or "png") if plot else None
+
+
 def figure_options_of(dpi, figsize, style):
     """The `FigureOptions` of the command line, the style sheet checked first (a bad one is
     BadInput, exit 2)."""

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import click
 
 from crawlsim.cli import library_errors, main, to_json
@@ -14,7 +16,7 @@ def _g(value, digits: int = 12) -> str:
 
 def _run_lines(d: dict) -> list[str]:
     """The lines of a run's file: the summary of ``crawlsim run``, from the attributes."""
-    from crawlsim.analysis.digits import how_found, with_error
+    from crawlsim.analysis.digits import counted, how_found, with_error
 
     what = "gait" if d["kind"] == "crawler" else d["kind"]
     lines = [f"{d['file']}: run of {what} {d['name']}", f"  integrator               {d['integrator'] or 'n/a'}"]
@@ -37,12 +39,19 @@ def _run_lines(d: dict) -> list[str]:
     )
     lines.append(f"  limit found by           {found}")
     lines.append(
-        f"  periods                  {d['periods']} of {d['steps_per_period']} steps (period {_g(d['period'])})"
+        f"  periods                  {d['periods']} of {counted(d['steps_per_period'], 'step')} "
+        f"(period {_g(d['period'])})"
     )
-    if d["displacement_per_period"] is not None:
-        lines.append(f"  displacement per period  {_g(d['displacement_per_period'])}")
-        lines.append(f"  dissipation per period   {_g(d['dissipation_per_period'])}")
-        lines.append(f"  cost of transport        {_g(d['cost_of_transport'], 6)}")
+    if d["displacement_per_period"] is not None:  # as `crawlsim run` prints them
+        from crawlsim.analysis.run import quotient_error
+
+        d_err = None if d["v0_error_estimate"] is None else d["v0_error_estimate"] * d["period"]
+        dD_err = d["dissipation_error_estimate"]
+        cot_err = quotient_error(d["cost_of_transport"], d["displacement_per_period"], dD_err, d_err)
+        lines.append(f"  displacement per period  {with_error(d['displacement_per_period'], d_err)}")
+        lines.append(f"  dissipation per period   {with_error(d['dissipation_per_period'], dD_err)}")
+        if d["cost_of_transport"] is not None:
+            lines.append(f"  cost of transport        {with_error(d['cost_of_transport'], cot_err)}")
     if d.get("rigid_v0") is not None:
         lines.append(
             f"  rigid limit v0           {with_error(d['rigid_v0'], d['rigid_v0_error_estimate'])} (k -> infinity)"
@@ -94,7 +103,8 @@ def summary_lines(d: dict) -> list[str]:
             lines.append(f"  v0 of the ok points      {_g(d['v0_min'])} to {_g(d['v0_max'])}")
     lines.append(f"  written by               crawlsim {d['crawlsim_version']} (format {d['format_version']})")
     for key, value in sorted(d["attributes"].items()):
-        lines.append(f"  {key:<24} {value}")
+        if not (isinstance(value, float) and math.isnan(value)):  # NaN: does not apply to this run
+            lines.append(f"  {key:<24} {value}")
     return lines
 
 

@@ -49,4 +49,6 @@ def merge(parts, output, force):
             click.echo(table.to_csv(), nl=False)
             return
         sweeps.write_table(table, output)
-    click.echo(f"{len(table.rows)} points from {len(parts)} shards written to {output}")
+    from crawlsim.analysis.digits import counted
+
+    click.echo(f"{counted(len(table.rows), 'point')} from {counted(len(parts), 'shard')} written to {output}")

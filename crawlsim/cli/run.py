@@ -21,10 +21,10 @@ from crawlsim.cli import (
 )
 from crawlsim.cli.guards import (
     check_memory,
-    figure_options,
-    figure_options_of,
     force_option,
     max_memory_option,
+    plot_options,
+    plot_settings,
     warn_unchecked,
 )
 
@@ -68,13 +68,7 @@ MAX_SAVE_EVERY = 2**62
     "which block rests when in the file's /rigid group, and with --plot its figure.",
 )
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
-@click.option("--plot", is_flag=True, help="Also draw the figures next to the results file (<stem>-<figure>.png).")
-@click.option(
-    "--plot-format",
-    type=click.Choice(["png", "pdf", "svg"]),
-    help="Image format of the --plot figures.  [default: png]",
-)
-@figure_options
+@plot_options
 @max_memory_option
 @force_option
 @feedback_options
@@ -125,15 +119,7 @@ def run(
             "streamed to stdout; give a file name (-o run.h5), and --json prints "
             "the summary on stdout"
         )
-    given = [
-        name
-        for name, value in (("--plot-format", plot_format), ("--dpi", dpi), ("--figsize", figsize), ("--style", style))
-        if value is not None
-    ]
-    if given and not plot:
-        raise BadInput(f"{', '.join(given)} set how the figures are drawn: add --plot")
-    options = figure_options_of(dpi, figsize, style) if plot else None
-    fmt = plot_format or "png"
+    options, fmt = plot_settings(plot, plot_format, dpi, figsize, style) or (None, "png")
     from pathlib import Path
 
     from crawlsim import api
@@ -187,7 +173,7 @@ def run(
         if plot:
             from crawlsim.plotting import plot_results
 
-            figures = [str(f) for f in plot_results(out, out.resolve().parent, fmt=fmt, options=options)]
+            figures = [str(f) for f in plot_results(out, out.parent, fmt=fmt, options=options)]
     if as_json:
         summary = result.summary()
         summary["output"] = str(out)

@@ -7,6 +7,9 @@ from typing import Any
 
 import click
 
+#: Kinks a line names one by one; more are counted, and ``--json`` keeps them all.
+MAX_KINKS = 3
+
 
 def compute(gait: Any, paths: tuple[str, ...], run: Any = None) -> Any:
     """The sensitivities of ``gait`` for ``paths`` at the limit period of ``run`` (the
@@ -34,7 +37,14 @@ def lines(result: Any, integrator: str) -> list[str]:
             for side, why in (("left", p.left_reason), ("right", p.right_reason)):
                 d = getattr(p, side)
                 sides.append(f"{side} {with_error(d.value, d.error_estimate)}" if d is not None else f"{side}: {why}")
-            out.append(f"{name}: not smooth ({p.reason}); " + ", ".join(sides))
+            kinks = (p.reason or "").split("; ")
+            if len(kinks) > MAX_KINKS:  # a long body's many coincident events: --json lists them
+                kinks = [f"{len(kinks)} coincident events, the first: {kinks[0]}; --json lists them all"]
+            left, right = p.left, p.right
+            if left is not None and right is not None and left.value is not None and right.value is not None:
+                if abs(left.value - right.value) <= (left.error_estimate or 0.0) + (right.error_estimate or 0.0):
+                    sides[-1] += ": the one-sided derivatives agree"
+            out.append(f"{name}: not smooth ({'; '.join(kinks)}); " + ", ".join(sides))
     if integrator != "exact":
         out.append(
             f"(derivatives of the {integrator} scheme's own discrete period map at its "

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-import os
 import sys
+from pathlib import Path
 
 import click
 
@@ -26,6 +26,8 @@ from crawlsim.cli.guards import (
     check_sweep_memory,
     force_option,
     max_memory_option,
+    plot_options,
+    plot_settings,
     warn_unchecked,
 )
 from crawlsim.cli.progress import Progress, choose_mode
@@ -118,13 +120,7 @@ def _dimensions(sweep_specs, link_specs) -> list[list[str]]:
     metavar="ADDRESS",
     help="Run on an existing Dask cluster (tcp://host:8786); needs pip install 'crawlsim[dask]'.",
 )
-@click.option(
-    "--plot",
-    "plot_file",
-    type=click.Path(dir_okay=False),
-    help="Draw v0 against one swept dimension, or a heat map over two (PNG); "
-    "`crawlsim plot OUT.h5` draws it from a sweep file later.",
-)
+@plot_options
 @simulation_options
 @max_memory_option
 @force_option
@@ -140,7 +136,11 @@ def velocity(
     jobs,
     shard,
     scheduler,
-    plot_file,
+    plot,
+    plot_format,
+    dpi,
+    figsize,
+    style,
     steps_per_period,
     max_periods,
     tolerance,
@@ -183,7 +183,7 @@ def velocity(
       crawlsim velocity gaits/peristalsis-4.yaml --sweep 'links.*.amplitude=0.1:0.4:7' \\
           --steps-per-period 100
       crawlsim velocity gaits/peristalsis-3.yaml --sweep links.1.phase=0:1:11 \\
-          --sweep 'friction.backward=[1.5,2.5,3.5]' -o lag.h5 -j 2 --plot lag.png \\
+          --sweep 'friction.backward=[1.5,2.5,3.5]' -o lag.h5 -j 2 --plot \\
           --steps-per-period 100
       crawlsim velocity gaits/inching-2.yaml --sweep stiffness=log:5:50:9 -o - | cut -d, -f1,2
       crawlsim velocity gaits/peristalsis-3.yaml --sweep links.0.phase=0:0.5:6 \\
@@ -197,10 +197,13 @@ def velocity(
         options = dict(jobs=jobs, shard=shard, scheduler=scheduler, quiet=quiet, verbose=verbose, force=force)
         overrides = dict(steps_per_period=steps_per_period, max_periods=max_periods, tolerance=tolerance)
         overrides.update(integrator=integrator, limit=limit)
-        if sweep_specs or link_specs or sensitivity_paths or plot_file or rigid:
+        if sweep_specs or link_specs or sensitivity_paths or plot or rigid:
             raise BadInput("--sweep, --link, --sensitivity, --plot and --rigid take one gait file; several were given")
         return _files(gait_files, {k: v for k, v in overrides.items() if v is not None}, output, as_json, **options)
     (gait_file,) = gait_files
+    figure = plot_settings(plot, plot_format, dpi, figsize, style)
+    # the sweep's figure as `crawlsim plot OUT.h5` names it, next to OUT (or the gait's stem here)
+    plot_file = None if figure is None else _figure_path(output or Path(gait_file).name, figure[1])
     with library_errors():
         _check_targets(gait_files, output, plot_file, scheduler, force)
         groups = _dimensions(sweep_specs, link_specs)
@@ -215,7 +218,10 @@ def velocity(
             return _rigid(gait, as_json)
         if not groups:
             if shard or plot_file:
-                raise BadInput("--shard and --plot need at least one --sweep PATH=SPEC")
+                raise BadInput(
+                    "--shard and --plot need at least one --sweep PATH=SPEC "
+                    "(crawlsim run GAIT --plot draws the figures of one run)"
+                )
             if output is None:
                 return _single(gait, sensitivity_paths, as_json, max_memory, quiet, verbose)
         _check_sweep_options(groups, as_json, plot_file, shard)
@@ -224,14 +230,18 @@ def velocity(
         grid = sweeps.make_grid(gait, groups, sensitivity=sensitivity_paths)
         check_sweep_memory(grid, len(grid.indices(shard)), jobs, scheduler, max_memory)
         table = _sweep(grid, output, jobs, shard, scheduler, quiet, verbose)
-        if plot_file:
-            sweeps.plot_table(table, plot_file)
+        if figure is not None:
+            sweeps.plot_table(table, plot_file, options=figure[0])
     if output is None:
         click.echo(table.to_csv(), nl=False)
+    if figure is not None:
+        click.echo(str(plot_file), err=output is None)  # stdout holds the table without -o
     counts = table.counts()
     if len(table.rows) != counts["ok"]:
+        from crawlsim.analysis.digits import counted
+
         click.echo(
-            f"{len(table.rows)} points: {counts['ok']} ok, {counts['invalid']} invalid, "
+            f"{counted(len(table.rows), 'point')}: {counts['ok']} ok, {counts['invalid']} invalid, "
             f"{counts['failed']} failed, {counts['not-converged']} not converged (see "
             "the status and message columns)",
             err=True,
@@ -262,6 +272,12 @@ def _files(gait_files, overrides, output, as_json, *, jobs, shard, scheduler, qu
         )
 
 
+def _figure_path(results, fmt: str) -> Path:
+    """<stem>-sweep.<fmt> beside ``results``."""
+    results = Path(results)
+    return results.with_name(f"{results.stem}-sweep.{fmt}")
+
+
 def _check_targets(gait_files, output, plot_file, scheduler, force) -> None:
     """Refuse, before the gait is read, a --scheduler that is no address and outputs that may
     not be written (`crawlsim.io.outputs.check_target`)."""
@@ -271,13 +287,9 @@ def _check_targets(gait_files, output, plot_file, scheduler, force) -> None:
         from crawlsim.study.executors import check_scheduler
 
         check_scheduler(scheduler)
-    if output is not None and plot_file is not None and os.path.abspath(output) == os.path.abspath(plot_file):
-        raise BadInput(f"--plot {plot_file}: is also the --output file; give two names")
     for path, kind, option in ((output, SWEEP, "--output"), (plot_file, FIGURE, "--plot")):
         if path is not None:
             check_target(path, kind, inputs=list(gait_files), force=force, option=option)
-    if plot_file is not None and os.path.splitext(plot_file)[1].lower() not in (".png", ".pdf", ".svg"):
-        raise BadInput(f"--plot {plot_file}: a figure is written as .png, .pdf or .svg")
 
 
 def _check_sweep_options(groups, as_json, plot_file, shard) -> None:

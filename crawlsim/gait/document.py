@@ -19,12 +19,13 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import functools
+import warnings
 from pathlib import Path
 from typing import Any, TypeVar
 
 import yaml
 
-from crawlsim.errors import GaitError
+from crawlsim.errors import GaitError, GaitWarning
 from crawlsim.gait.crawler_limits import (
     STIFFNESS_CONDITION_LIMIT,
     STRESS_SCALE_LIMIT,
@@ -37,6 +38,7 @@ from crawlsim.gait.crawler_spec import (
     admissibility_violation,
     build_crawler,
     need_crawler,
+    negative_length,
     uniqueness_report,
     uniqueness_violation,
 )
@@ -116,7 +118,17 @@ def load_gait(path: str | Path) -> Gait | ProcessSpec:
     depth and alias expansion bounded.
     """
     text = read_limited(path)
-    return parse_gait(text, source=str(path), default_name=Path(path).stem)
+    spec = parse_gait(text, source=str(path), default_name=Path(path).stem)
+    _warn_negative_length(spec)
+    return spec
+
+
+def _warn_negative_length(spec: Any) -> None:
+    """A `GaitWarning` when a link's actuator length goes negative (`negative_length`): a file
+    read, or validated, says so once; the gaits of a sweep's points do not."""
+    problem = negative_length(spec) if isinstance(spec, Gait) else None
+    if problem is not None:
+        warnings.warn(problem, GaitWarning, stacklevel=3)
 
 
 def parse_gait(text: str, source: str = "<string>", default_name: str = "gait") -> Gait | ProcessSpec:
@@ -210,9 +222,14 @@ def document_errors(
         return _distinct(errors)
     collected = ErrorSink(collect=True)
     try:
-        build(document, source, source_text or yaml.safe_dump(document, sort_keys=False), default_name, collected)
+        spec = build(
+            document, source, source_text or yaml.safe_dump(document, sort_keys=False), default_name, collected
+        )
     except GaitError as error:  # a check whose failure stops the others
         collected.found.append(error)
+    else:
+        if not collected.found:
+            _warn_negative_length(spec)
     return _distinct(collected.found)
 
 
@@ -239,6 +256,8 @@ def _signal_slots(document: dict):
         return
     for i, value in items("links"):
         yield f"links[{i}]", value
+    if isinstance(document.get("links"), dict) and "wave" in document["links"]:
+        yield "links.wave", document["links"]["wave"]
     friction = document.get("friction")
     entries = (
         [("friction", friction)]

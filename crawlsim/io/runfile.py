@@ -186,8 +186,16 @@ RUN_VARIABLES: dict[str, dict[str, Var]] = {
             "elastic energy released at jumps beyond friction work over the limit period, sum_i k_i (Delta z_i)^2 / 2",
             "dissipation",
         ),
+        "discretisation_loss": Var(
+            (),
+            "catch-up only: the scheme's numerical dissipation over the limit period, first order in the step",
+            "dissipation",
+        ),
         "balance_residual": Var(
-            (), "actuator_work - dissipation - jump_loss: zero in the periodic regime, up to roundoff", "dissipation"
+            (),
+            "actuator_work - dissipation - jump_loss (- discretisation_loss): zero in the periodic regime, "
+            "up to roundoff",
+            "dissipation",
         ),
         "cost_of_transport_bound": Var(
             (),
@@ -229,6 +237,7 @@ _ENERGY = {
     "actuator_work": "actuator_work_per_period",
     "dissipation": "dissipation_per_period",
     "jump_loss": "jump_loss_per_period",
+    "discretisation_loss": "discretisation_loss_per_period",
     "balance_residual": "energy_balance_residual",
     "cost_of_transport_bound": "cost_of_transport_bound",
     "efficiency": "efficiency",
@@ -280,6 +289,7 @@ _ATTRIBUTE_QUANTITIES = {
     "save_every": "1",
     "actuator_work_per_period": "dissipation",
     "jump_loss_per_period": "dissipation",
+    "discretisation_loss_per_period": "dissipation",
     "energy_balance_residual": "dissipation",
     "cost_of_transport_bound": "force",
     "efficiency": "1",
@@ -642,6 +652,7 @@ class ResultsWriter:
             "cost_of_transport",
             "actuator_work_per_period",
             "jump_loss_per_period",
+            "discretisation_loss_per_period",
             "energy_balance_residual",
             "cost_of_transport_bound",
             "efficiency",

@@ -2,7 +2,8 @@
 
 * `style` holds the one style of all figures (fonts, palettes, the colour map, labels with
   units, titles);
-* one module per figure of a run, `motion`, `gait_diagram`, `convergence` and `shape_space`,
+* one module per figure of a run, `motion`, `gait_diagram`, `kymograph`, `convergence` and
+  `shape_space`,
   each function taking the run (a results file, the dict of `crawlsim.io.hdf5.read_results`, or
   the result of `crawlsim.simulate`: `source.run_data`) and returning a matplotlib `Figure`;
   `figures.FIGURES` names them;
@@ -18,7 +19,7 @@ command line stay fast and never import matplotlib until a figure is drawn.
 from __future__ import annotations
 
 #: The figures of one run, in drawing order; ``--only`` takes one of these names.
-FIGURE_NAMES = ("motion", "gait-diagram", "convergence", "shape-space")
+FIGURE_NAMES = ("motion", "gait-diagram", "kymograph", "convergence", "shape-space")
 #: The one figure of a sweep file (``crawlsim plot SWEEP.h5``).
 SWEEP_FIGURE = "sweep"
 #: The figures of an optimisation file (``crawlsim plot OPT.h5``): the convergence of the
@@ -27,7 +28,9 @@ OPTIMIZATION_FIGURES = ("objective", "pareto-front")
 #: The figure of a run's rigid limit (``crawlsim run --rigid``), drawn when the file has one.
 RIGID_FIGURE = "rigid"
 #: Figures that need block positions, stresses and slips: crawler runs only.
-CRAWLER_FIGURES = ("motion", "gait-diagram")
+CRAWLER_FIGURES = ("motion", "gait-diagram", "kymograph")
+#: Figures that zoom on the last periods of a run (``crawlsim plot --last K``).
+LAST_FIGURES = ("motion", "kymograph")
 
 _LAZY = {
     "plot_results": "output",
@@ -36,6 +39,7 @@ _LAZY = {
     "save_figure": "output",
     "motion_figure": "motion",
     "gait_figure": "gait_diagram",
+    "kymograph_figure": "kymograph",
     "convergence_figure": "convergence",
     "shape_space_figure": "shape_space",
     "rigid_figure": "rigid",
@@ -59,6 +63,7 @@ __all__ = [
     "pareto_figure",
     "convergence_figure",
     "gait_figure",
+    "kymograph_figure",
     "motion_figure",
     "SWEEP_FIGURE",
     "plot_results",

@@ -1,6 +1,6 @@
 """The figures of a run, by name, and every figure function in one namespace.
 
-Each figure has its own module: `motion`, `gait_diagram`, `convergence`, `shape_space`, and
+Each figure has its own module: `motion`, `gait_diagram`, `kymograph`, `convergence`, `shape_space`, and
 `sweeps` for velocity sweeps. A figure of a run takes the run as a results file, the dict of
 `crawlsim.io.hdf5.read_results` or a result object of `crawlsim.simulate` (`source.run_data`
 converts it) and returns a matplotlib `Figure` in the style of `crawlsim.plotting.style`. A
@@ -31,7 +31,8 @@ from crawlsim.plotting.gait_diagram import (
     stress_bounds,
     stress_mode,
 )
-from crawlsim.plotting.motion import MAX_MOTION_BLOCKS, motion_figure
+from crawlsim.plotting.kymograph import kymograph_figure
+from crawlsim.plotting.motion import FOLLOW_PERIODS, MAX_MOTION_BLOCKS, motion_figure
 from crawlsim.plotting.rigid import rigid_figure
 from crawlsim.plotting.shape_space import (
     NICE_DIVISIONS,
@@ -61,6 +62,7 @@ from crawlsim.plotting.sweeps import (
 FIGURES: dict[str, Callable[..., Figure]] = {
     "motion": motion_figure,
     "gait-diagram": gait_figure,
+    "kymograph": kymograph_figure,
     "convergence": convergence_figure,
     "shape-space": shape_space_figure,
     "rigid": rigid_figure,
@@ -68,6 +70,7 @@ FIGURES: dict[str, Callable[..., Figure]] = {
 
 __all__ = [
     "FIGURES",
+    "FOLLOW_PERIODS",
     "FORCE_ROW_HEIGHT",
     "JUMP_FLOOR",
     "JUMP_RATIO",
@@ -88,6 +91,7 @@ __all__ = [
     "interval",
     "is_geometric",
     "jump_walls",
+    "kymograph_figure",
     "jumps",
     "motion_figure",
     "polygon",

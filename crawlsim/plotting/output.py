@@ -7,13 +7,21 @@ renamed into place, so a figure that cannot be drawn leaves no file behind.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 from crawlsim.errors import ResultsFileError
 from crawlsim.io.atomic import atomic_path
 from crawlsim.io.hdf5 import read_attrs, read_optimization, read_results, read_sweep
-from crawlsim.plotting import CRAWLER_FIGURES, FIGURE_NAMES, OPTIMIZATION_FIGURES, RIGID_FIGURE, SWEEP_FIGURE
+from crawlsim.plotting import (
+    CRAWLER_FIGURES,
+    FIGURE_NAMES,
+    LAST_FIGURES,
+    OPTIMIZATION_FIGURES,
+    RIGID_FIGURE,
+    SWEEP_FIGURE,
+)
 from crawlsim.plotting.figures import FIGURES
-from crawlsim.plotting.style import DPI, FORMATS, FigureOptions, figure_style, user_style
+from crawlsim.plotting.style import DPI, FORMATS, NARROW, FigureOptions, figure_style, legends_below, user_style
 from crawlsim.plotting.sweeps import sweep_data_figure
 
 
@@ -26,13 +34,14 @@ def available_figures(results: dict) -> list[str]:
     return [n for n in FIGURE_NAMES if crawler or n not in CRAWLER_FIGURES] + rigid
 
 
-def draw_figure(results: dict, name: str, *, coords=(0, 1)):
-    """The figure ``name`` (one of `FIGURE_NAMES`) of ``results``."""
+def draw_figure(results: Any, name: str, *, coords=(0, 1), last: int | None = None):
+    """The figure ``name`` (one of `FIGURE_NAMES`) of ``results`` (a results dict, file or result
+    object: `source.run_data`); ``last``: the last periods the figures of `LAST_FIGURES` zoom on."""
     if name not in FIGURES:
         raise ValueError(f"unknown figure {name!r}; choose one of {', '.join(FIGURE_NAMES)}")
     if name == "shape-space":
         return FIGURES[name](results, coords=coords)
-    return FIGURES[name](results)
+    return FIGURES[name](results, last=last) if name in LAST_FIGURES else FIGURES[name](results)
 
 
 def read_plottable(path: Path) -> tuple[str, dict]:
@@ -65,6 +74,7 @@ def plot_results(
     coords=(0, 1),
     options: FigureOptions | None = None,
     target=None,
+    last: int | None = None,
 ) -> list[Path]:
     """Draw the figures of the results file ``path`` into ``out_dir`` (default: its folder) as
     ``<stem>-<figure>.<fmt>``; return the paths written.
@@ -80,7 +90,8 @@ def plot_results(
 
     ``options`` (`style.FigureOptions`) sets the dpi, the size in inches and a matplotlib style
     sheet. ``target``, a file name, writes the one figure drawn there instead (its extension
-    gives the format; ValueError when more than one figure would be drawn).
+    gives the format; ValueError when more than one figure would be drawn). ``last=K``: the
+    motion figure and the kymograph zoom on the last K periods (`motion.motion_figure`).
     """
     options = options or FigureOptions()
     path = Path(path)
@@ -107,7 +118,7 @@ def plot_results(
             )
     try:
         with user_style(options.style):
-            drawn = _draw(results, kind, choices, only, coords)
+            drawn = _draw(results, kind, choices, only, coords, last)
     except ResultsFileError as exc:
         raise ResultsFileError(f"{path}: {exc}") from None
     if target is not None:
@@ -127,7 +138,7 @@ def plot_results(
     return written
 
 
-def _draw(results, kind, choices, only, coords) -> dict:
+def _draw(results, kind, choices, only, coords, last) -> dict:
     """The figures of a file of ``kind``, by name, drawn (not yet written)."""
     if kind == "sweep":
         return {SWEEP_FIGURE: sweep_data_figure(results)}
@@ -138,7 +149,7 @@ def _draw(results, kind, choices, only, coords) -> dict:
             name: OPTIMIZATION_FIGURE_FUNCTIONS[name](results) for name in ([only] if only is not None else choices)
         }
     names = [only] if only is not None else available_figures(results)
-    return {name: draw_figure(results, name, coords=coords) for name in names}
+    return {name: draw_figure(results, name, coords=coords, last=last) for name in names}
 
 
 def optimization_figures(data: dict) -> tuple[str, ...]:
@@ -165,6 +176,8 @@ def save_figure(
     try:
         if figsize is not None:
             fig.set_size_inches(*figsize)
+            if figsize[0] < NARROW:
+                legends_below(fig)
         # The whole figure, not its tight bounding box, when a size is asked for (an
         # bbox_inches of None would fall back to the style's "tight").
         whole: dict = {"savefig.bbox": "standard"} if figsize is not None else {}

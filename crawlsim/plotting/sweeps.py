@@ -3,6 +3,8 @@ drawn as jumps (docs/model.md §3), points without a value marked by their statu
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
@@ -402,12 +404,21 @@ def jump_walls(x, y, jump_x, jump_y, logs=(False, False)) -> list[np.ndarray]:
     return walls
 
 
-def sweep_data_figure(data: dict, title: str | None = None) -> Figure:
-    """The sweep figure of a sweep file (`crawlsim.io.hdf5.read_sweep`) or of a table
-    (`crawlsim.study.sweep.table_payload`): the columns are put back on the grid (points a shard did
-    not hold have no value and no status), the units come from the file (`style.units_of`)."""
-    paths = list(data["paths"])
-    shape = tuple(len(a) for a in data["axes"])
+def sweep_data_figure(data: Any, title: str | None = None) -> Figure:
+    """The sweep figure of a sweep file (`crawlsim.io.hdf5.read_sweep`), of a table
+    (`crawlsim.study.sweep.table_payload`) or of the `xarray.Dataset` of `crawlsim.sweep`
+    (``grid.crawlsim.plot()``): the columns are put back on the grid (points a shard did not hold
+    have no value and no status), the units come from the file (`style.units_of`)."""
+    if not isinstance(data, dict):  # a Dataset, its dimensions named by the paths
+        flags = dict(zip(data.status.attrs["flag_values"].tolist(), data.status.attrs["flag_meanings"].split()))
+        columns = {name: data[name].values.ravel() for name in ("v0", "displacement_per_period")}
+        columns["status"] = np.array([flags[int(s)].replace("_", "-") for s in data.status.values.ravel()])
+        data = {**data.attrs, "paths": data.v0.dims, "axes": [data[d].values for d in data.v0.dims]}
+        data.update(points=np.arange(columns["v0"].size), columns=columns, dimensions=None)
+    dims = data.get("dimensions") or range(len(data["paths"]))
+    first = [list(dims).index(d) for d in sorted(set(dims))]  # a dimension's first path: linked ones once
+    paths, values = [data["paths"][k] for k in first], [data["axes"][k] for k in first]
+    shape = tuple(len(a) for a in values)
     points = np.asarray(data["points"], dtype=int)
     columns = data["columns"]
 
@@ -425,9 +436,9 @@ def sweep_data_figure(data: dict, title: str | None = None) -> Figure:
     if len(paths) == 1 and data.get("gait_yaml"):
         from crawlsim.analysis.stall import curve_marks
 
-        marks = curve_marks(data["gait_yaml"], paths[0], data["axes"][0], v0)
+        marks = curve_marks(data["gait_yaml"], paths[0], values[0], v0)
     return sweep_figure(
-        dict(zip(paths, data["axes"])), v0, status, title, units=units_of(data), displacement=displacement, marks=marks
+        dict(zip(paths, values)), v0, status, title, units=units_of(data), displacement=displacement, marks=marks
     )
 
 

@@ -5,7 +5,9 @@ A sweep axis is ``PATH=SPEC``. ``PATH`` is a dotted path into the gait document 
 indices, ``*`` for every element: ``links.*.amplitude``, ``friction.1.backward``, ``period``).
 ``SPEC`` is one of
 
-* ``START:STOP:NUM``: NUM evenly spaced values, both ends included;
+* ``START:STOP:NUM``: NUM evenly spaced values, both ends included, each the double nearest its
+  exact value START + k (STOP - START) / (NUM - 1) with START and STOP as written, so that a
+  value prints as the number asked for (``0:1:11`` gives 0.3, not 0.30000000000000004);
 * ``log:LO:HI:NUM``: NUM log-spaced (geometric) values, LO and HI > 0, both ends included;
 * ``[a,b,c]`` or ``a,b,c``: these values.
 
@@ -26,6 +28,7 @@ import json
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from fractions import Fraction
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -33,7 +36,7 @@ import numpy as np
 import yaml
 
 from crawlsim.errors import GaitError, InputError, SweepSpecError
-from crawlsim.gait.docpaths import path_keys, resolve_path, set_value
+from crawlsim.gait.docpaths import check_number_paths, path_keys, resolve_path, set_values
 from crawlsim.gait.document import Gait, gait_from_document, need_crawler
 from crawlsim.gait.validation import plain
 
@@ -84,8 +87,9 @@ def parse_axis(text: str, option: str = "--sweep") -> Axis:
         values = tuple(float(v) for v in np.geomspace(lo, hi, num))
         values = (lo, *values[1:-1], hi) if num > 1 else (lo,)  # both ends exactly as given
     elif ":" in spec:
-        start, stop, num = _range(spec, source, path, "START:STOP:NUM")
-        values = tuple(float(v) for v in np.linspace(start, stop, num))
+        _, _, num = _range(spec, source, path, "START:STOP:NUM")
+        start, stop = spec.split(":")[:2]
+        values = _evenly(start, stop, num)
     else:
         values = _list(spec, source, path)
     if not all(math.isfinite(v) for v in values):
@@ -113,6 +117,16 @@ def _range(spec: str, source: str, path: str, form: str) -> tuple[float, float, 
     if not (math.isfinite(start) and math.isfinite(stop)):
         raise SweepSpecError(source, path, f"values must be finite numbers, got {spec!r}")
     return start, stop, num
+
+
+def _evenly(start: str, stop: str, num: int) -> tuple[float, ...]:
+    """``num`` values from ``start`` to ``stop`` (decimal strings), each correctly rounded from
+    its exact value: integers over one denominator, whose true division Python rounds
+    correctly."""
+    a, b = Fraction(start), Fraction(stop)
+    den = math.lcm(a.denominator, b.denominator)
+    p, q, d = a.numerator * (den // a.denominator), b.numerator * (den // b.denominator), max(num - 1, 1)
+    return tuple((p * (d - k) + q * k) / (den * d) for k in range(num))
 
 
 def _list(text: str, source: str, path: str) -> tuple:
@@ -188,9 +202,7 @@ class SweepGrid:
         """The base document with the point's values set: a copy (`crawlsim.gait.validation.
         plain`: the base document is plain data already, which copies faster than deepcopy)."""
         doc = plain(self.base.document)
-        for targets, value in zip(self.targets, self.values(index)):
-            for keys in targets:
-                set_value(doc, keys, value)
+        set_values(doc, [(keys, value) for targets, value in zip(self.targets, self.values(index)) for keys in targets])
         return doc
 
     def label(self, index: int) -> str:
@@ -334,9 +346,7 @@ def make_grid(base: Gait, axes, quantities: Sequence[PointQuantity] = (), sensit
                     f"this path sets {'.'.join(map(str, key))}, which {seen[key]} sets too: sweep each value once",
                 )
             seen[key] = f"{option} {axis.path}"
-    from crawlsim.analysis.sensitivity_sweep import check_paths
-
-    return SweepGrid(base, tuple(flat), targets, tuple(dims), tuple(quantities), check_paths(base, sensitivity))
+    return SweepGrid(base, tuple(flat), targets, tuple(dims), tuple(quantities), check_number_paths(base, sensitivity))
 
 
 def parse_shard(text: str) -> tuple[int, int]:

@@ -146,6 +146,14 @@ class SimulationResult(RunResult):
         self._write_to(Path(path))
         return Path(path)
 
+    def plot(self, figure: str = "motion", **options: Any) -> Any:
+        """The matplotlib figure ``figure`` of this run, as ``crawlsim plot`` draws it: one of
+        `crawlsim.plotting.FIGURE_NAMES` (motion, gait-diagram, kymograph, convergence,
+        shape-space), with its function's options (``last=3``, ``coords=(0, 2)``)."""
+        from crawlsim.plotting.output import draw_figure
+
+        return draw_figure(self, figure, **options)
+
     def to_xarray(self) -> xarray.DataTree:
         """The results as an `xarray.DataTree` with the groups, names, dimensions and
         attributes of the results file (it is read from the same bytes): ``time`` is an index,

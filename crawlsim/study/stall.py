@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from crawlsim.analysis.stall import SMOOTH, StallCause
+from crawlsim.analysis.stall import MOVING, SMOOTH, StallCause
 from crawlsim.errors import CertificateError, GaitError, InputError
 from crawlsim.gait.apriori import margin
 from crawlsim.gait.document import Gait, gait_from_document
@@ -151,7 +151,7 @@ def stall(gait: Gait | str, *, force: str | None = None, slope: bool = False) ->
     if v_start is None:  # pragma: no cover - the gait itself was validated
         raise InputError(spec.source, path, why or "refused")
     scale = _natural_range(spec, quantity, path)
-    tolerance_v = 1e-9 * abs(v_start)
+    tolerance_v = MOVING * abs(v_start)
     if not abs(v_start) > 1e-12 * max(scale, 1.0):
         raise InputError(
             spec.source,
@@ -237,12 +237,9 @@ def _stall_problem(gait: Gait | str, force: str | None, slope: bool) -> tuple[Ga
 
 def _start_load(spec: Gait, path: str) -> float:
     """The gait's own load at ``path``: a constant number."""
-    from crawlsim.gait.docpaths import resolve_path
+    from crawlsim.gait.docpaths import resolve_path, value_at
 
-    keys = resolve_path(spec.document, path, spec.source)[0]
-    node: Any = spec.document
-    for key in keys:
-        node = node[key]
+    node = value_at(spec.document, resolve_path(spec.document, path, spec.source)[0])
     if not isinstance(node, (int, float)) or isinstance(node, bool):
         raise InputError(
             spec.source, path, f"expected a number at {path}, got {node!r}: the stall search varies a constant load"

@@ -32,13 +32,12 @@ from __future__ import annotations
 import os  # noqa: F401  (tests patch sweeps.os.fsync: the journal's fsync)
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import yaml
 
 from crawlsim.errors import SweepSpecError
 from crawlsim.gait.document import Gait
-from crawlsim.status import PointStatus
 from crawlsim.study.executors import (
     MAX_CHUNK,
     MIN_CHUNK,
@@ -60,6 +59,9 @@ from crawlsim.study.grid import (
     parse_axis,
     parse_shard,
 )
+
+if TYPE_CHECKING:
+    from crawlsim.plotting.style import FigureOptions
 from crawlsim.study.journal import JOURNAL_SECONDS, Journal, journal_path
 from crawlsim.study.points import (
     BATCH_PLAIN_PERIODS,
@@ -202,51 +204,17 @@ def check_shard_output(shard, output) -> None:
         )
 
 
-def sweep_figure_data(table: SweepTable) -> tuple[dict, np.ndarray, np.ndarray]:
-    """What `crawlsim.plotting.sweep_figure` draws: the values of each grid dimension (named by
-    its first path), v0 on the grid, and the points without a v0 (failed or invalid)."""
-    dims = table.dimension_paths()
-    if len(dims) not in (1, 2):
-        raise SweepSpecError(
-            "--plot", "", f"a sweep figure shows one or two swept dimensions, this sweep has {len(dims)}"
-        )
-    first = dict(zip(table.paths, table.axes))
-    axes = {paths[0]: np.asarray(first[paths[0]], dtype=float) for paths in dims}
-    status = table.grid("status")
-    missing = (status == PointStatus.FAILED) | (status == PointStatus.INVALID)
-    return axes, table.grid("v0"), missing
+def plot_table(table: SweepTable, path, options: FigureOptions | None = None) -> None:
+    """The sweep figure of ``table`` (`crawlsim.plotting.sweeps.sweep_data_figure`), drawn with
+    ``options`` (`crawlsim.plotting.style.FigureOptions`: dpi, size, style sheet) and written
+    atomically."""
+    from crawlsim.plotting import save_figure
+    from crawlsim.plotting.style import FigureOptions, user_style
+    from crawlsim.plotting.sweeps import sweep_data_figure
 
-
-def plot_table(table: SweepTable, path, title: str | None = None, figure_options: dict | None = None) -> None:
-    """v0 against one swept dimension, or a heat map over two, with the points that have no v0
-    (failed or invalid) marked; written atomically."""
-    from crawlsim.plotting import save_figure, sweep_figure
-    from crawlsim.plotting.style import units_of
-
-    axes, v0, _ = sweep_figure_data(table)
-    if title is None:
-        document = yaml.safe_load(table.gait_yaml) if table.gait_yaml else None
-        name = document.get("name") if isinstance(document, dict) else None
-        title = f"{name or Path(table.source).stem}: average velocity over a sweep"
-    marks = None
-    if len(axes) == 1 and table.gait_yaml:
-        from crawlsim.analysis.stall import curve_marks
-
-        name = next(iter(axes))
-        marks = curve_marks(table.gait_yaml, name, axes[name], v0)
-    # The statuses themselves, not a failed/ok mask: an invalid gait and a failed run are
-    # different answers and are marked differently (docs/figures.md).
-    status = table.grid("status")
-    figure = sweep_figure(
-        axes,
-        v0,
-        status,
-        title,
-        units=units_of({"gait_yaml": table.gait_yaml}),
-        displacement=table.grid("displacement_per_period"),
-        marks=marks,
-    )
-    save_figure(figure, path, **(figure_options or {}))
+    options = options or FigureOptions()
+    with user_style(options.style):
+        save_figure(sweep_data_figure(table_payload(table)), path, dpi=options.dpi, figsize=options.figsize)
 
 
 __all__ = [
@@ -283,7 +251,6 @@ __all__ = [
     "run_points",
     "run_sweep",
     "sweep",
-    "sweep_figure_data",
     "table_payload",
     "write_table",
 ]
