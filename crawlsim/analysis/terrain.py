@@ -47,6 +47,24 @@ class TerrainReport:
     holds: np.ndarray  # (H, 4): block, boundary position, start, end (NaN: still held)
     held_periods: np.ndarray  # the periods in which some block was held at a boundary
 
+    @classmethod
+    def from_group(cls, group: dict, attrs: dict, period: float, periods: int) -> TerrainReport:
+        """The report of a results file's /terrain group (`crawlsim.io.runread`)."""
+        n, m = (int(v) for v in attrs.get("lock", (0, 0)))
+        crossings = np.column_stack(
+            [
+                group["crossing_time"],
+                group["crossing_block"] - 1,
+                group["crossing_position"],
+                group["crossing_direction"],
+            ]
+        )
+        holds = np.column_stack(
+            [group["hold_block"] - 1, group["hold_position"], group["hold_start"], group["hold_end"]]
+        )
+        regime = str(attrs.get("regime", "not-settled"))
+        return cls(regime, (n, m) if n else None, crossings, holds, held_periods(holds, period, periods * period))
+
     def text(self, period: float) -> list[tuple[str, str]]:
         """The lines `crawlsim run` prints for the ground: (label, value)."""
         lines = [("ground", _regime_text(self, period))]
@@ -221,18 +239,23 @@ class GroundWatch:
                         break
                 if arrived is not None and arrived[1] == s:  # on through the boundary it was held at
                     crossings.append((t, i, x, s))
-        holds = [h for h in holds if not h[3] == h[2]]  # a slide's stops on its way are no holds
+        kept = np.array([h for h in holds if not h[3] == h[2]], dtype=float).reshape(-1, 4)  # a slide's stops
         T = self.process.period
-        held: set[int] = set()
-        end = (len(self._y) - 1) * T
-        for _, _, start, stop in holds:
-            stop = end if math.isnan(stop) else stop
-            first = int(start // T)
-            held.update(range(first, max(first, math.ceil(stop / T) - 1) + 1))
         return TerrainReport(
             self.regime,
             self.lock,
             np.array(crossings, dtype=float).reshape(-1, 4),
-            np.array(holds, dtype=float).reshape(-1, 4),
-            np.array(sorted(held), dtype=int),
+            kept,
+            held_periods(kept, T, (len(self._y) - 1) * T),
         )
+
+
+def held_periods(holds: np.ndarray, T: float, end: float) -> np.ndarray:
+    """The periods in which some block was held at a boundary (holds (H, 4): block, boundary,
+    start, end or NaN while held at the run's ``end``)."""
+    held: set[int] = set()
+    for _, _, start, stop in holds:
+        stop = end if math.isnan(stop) else stop
+        first = int(start // T)
+        held.update(range(first, max(first, math.ceil(stop / T) - 1) + 1))
+    return np.array(sorted(held), dtype=int)

@@ -17,6 +17,9 @@
     /events/*             dimension event_time                        [--integrator exact]
     /energy/*             crawlers: scalars, the energy ledger of the limit period
                           (`crawlsim.analysis.energy`)
+    /terrain/*            the ground (docs/model.md §8): dimensions boundary and cell (factors), crossing
+                          (each block passing a boundary) and hold (each block held at one);
+                          attributes repeat, regime, lock                     [gaits with terrain]
     /rigid/*              the rigid limit (`crawlsim.analysis.rigid`): attributes v0,
                           v0_error_estimate, status, message; dimension rigid_interval (the
                           resting block from start to end)                 [crawlsim run --rigid]
@@ -222,6 +225,27 @@ RUN_VARIABLES: dict[str, dict[str, Var]] = {
         "resting_block": Var(
             ("rigid_interval",), "the block at rest over the interval in the rigid limit k -> infinity", "1"
         ),
+    },
+    "terrain": {
+        "boundary": Var(
+            ("boundary",), "boundary g of the ground, where a friction factor changes (docs/model.md §8)", "1"
+        ),
+        "position": Var(
+            ("boundary",), "where boundary g is (periodic ground: in [0, repeat), again every repeat)", "length"
+        ),
+        "cell": Var(("cell",), "cell g of the ground, between boundaries g - 1 and g (on a line the ends run on)", "1"),
+        "forward": Var(("cell",), "the factor on mu+ of the blocks on cell g", "1"),
+        "backward": Var(("cell",), "the factor on mu- of the blocks on cell g", "1"),
+        "crossing": Var(("crossing",), "crossing i: a block passing a boundary, in time order", "1"),
+        "crossing_time": Var(("crossing",), "when the block passed the boundary", "time"),
+        "crossing_block": Var(("crossing",), "the block that passed it", "1"),
+        "crossing_position": Var(("crossing",), "the boundary it passed", "length"),
+        "crossing_direction": Var(("crossing",), "+1 forward, -1 backward", "1"),
+        "hold": Var(("hold",), "hold i: a block held at a boundary by the rougher ground beyond it", "1"),
+        "hold_block": Var(("hold",), "the block held", "1"),
+        "hold_position": Var(("hold",), "the boundary it is held at", "length"),
+        "hold_start": Var(("hold",), "when it reached the boundary", "time"),
+        "hold_end": Var(("hold",), "when it left it (NaN: held when the run ended)", "time"),
     },
     "events": {
         "t": Var(
@@ -491,6 +515,16 @@ class ResultsWriter:
         self._write_root_coordinates()
         for gname, values in self._groups(result).items():
             self._write_group(gname, values)
+        if "terrain" in f:
+            report = result.terrain
+            f["terrain"].attrs["repeat"] = float(self.process.terrain.repeat)
+            f["terrain"].attrs["regime"] = report.regime
+            f["terrain"].attrs["lock"] = np.array(report.lock or (0, 0), dtype=np.int64)
+            f["terrain"].attrs["comment"] = (
+                "the ground (docs/model.md §8): factors on mu+ and mu- by cells between the boundaries; "
+                "repeat 0 on a line; regime one-ground, locked (lock = n periods, m ground periods), "
+                "quasi-periodic or not-settled"
+            )
         if rigid is not None:
             t = rigid.times
             group = {
@@ -532,6 +566,26 @@ class ResultsWriter:
             groups["events"] = {name: f["events"][name] for name in f["events"]}
         if c is not None and getattr(result, "actuator_work_per_period", None) is not None:
             groups["energy"] = {name: getattr(result, attr) for name, attr in _ENERGY.items()}
+        report, ground = getattr(result, "terrain", None), p.terrain
+        if report is not None and ground is not None:
+            crossed, held = report.crossings, report.holds
+            groups["terrain"] = {
+                "boundary": np.arange(len(ground.boundaries)),
+                "position": ground.boundaries,
+                "cell": np.arange(len(ground.forward)),
+                "forward": ground.forward,
+                "backward": ground.backward,
+                "crossing": np.arange(len(crossed)),
+                "crossing_time": crossed[:, 0],
+                "crossing_block": crossed[:, 1].astype(np.int64) + 1,
+                "crossing_position": crossed[:, 2],
+                "crossing_direction": crossed[:, 3].astype(np.int8),
+                "hold": np.arange(len(held)),
+                "hold_block": held[:, 0].astype(np.int64) + 1,
+                "hold_position": held[:, 1],
+                "hold_start": held[:, 2],
+                "hold_end": held[:, 3],
+            }
         return groups
 
     def _write_group(self, gname: str, values: dict[str, Any]) -> None:
@@ -549,7 +603,7 @@ class ResultsWriter:
                 Var((time_dim,), f"time: the index of dimension {time_dim} (the values of /{gname}/t)", "time"),
                 _unit(self.units, "time", crawler),
             )
-        for name in ("period", "step", "rigid_interval"):
+        for name in ("period", "step", "rigid_interval", "boundary", "cell", "crossing", "hold"):
             if name in values and name in table:
                 scales.coordinate(group, name, np.asarray(values.pop(name), dtype=np.int64))
                 describe_var(group[name], table[name], "1")

@@ -228,6 +228,11 @@ def _fields_of_file(data: Mapping[str, Any]) -> dict[str, Any]:
     fields["units"] = Units.from_block(json.loads(attrs.get("units_json", "{}")))
     fields["provenance"] = _provenance.Provenance.from_attrs(attrs)
     fields["trajectory"] = _trajectory_of_file(data) if attrs.get("save_every", 1) else None
+    if "terrain" in data:
+        from crawlsim.analysis.terrain import TerrainReport
+
+        terrain = TerrainReport.from_group(data["terrain"], data["terrain_attrs"], fields["period"], fields["periods"])
+        fields["terrain"] = terrain
     return fields
 
 
