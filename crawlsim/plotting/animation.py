@@ -43,7 +43,8 @@ from matplotlib.patches import Patch
 from crawlsim import interrupts
 from crawlsim.errors import ResultsFileError
 from crawlsim.io.atomic import atomic_path
-from crawlsim.plotting.source import need, run_name, run_period, step_slip, takes_run
+from crawlsim.plotting.motion import shade_ground
+from crawlsim.plotting.source import ground_cells, need, run_name, run_period, step_slip, takes_run
 from crawlsim.plotting.style import (
     FAINT,
     REFERENCE,
@@ -51,6 +52,7 @@ from crawlsim.plotting.style import (
     SLIP_NAMES,
     diverging_map,
     figure_style,
+    ground_shade,
     label,
     title,
     units_of,
@@ -290,6 +292,15 @@ def animation_figure(results: dict, frames: Frames, follow: bool = False):
             (trace,) = body.plot([], [], color=REFERENCE, linewidth=3.0, solid_capstyle="butt")
             moved = body.text(0.02 * half, -1.4 * height, "", ha="left", va="center", fontsize=8)
             body.axhline(-1.25 * height, color=FAINT, linewidth=0.6)
+            # the cells of the ground passing by (docs/model.md §8), a strip under the blocks
+            cells = ground_cells(results, float(origin.min()) - half, float(origin.max()) + half)
+            strip = PolyCollection(
+                [], facecolors=[ground_shade(a, b)[0] for _, _, a, b in cells], linewidths=0, zorder=0
+            )
+            strip.set_alpha(0.35)
+            body.add_collection(strip)
+        if not follow:  # the ground under the crawler (docs/model.md §8), where it is not the file's
+            shade_ground(body, results, float(frames.x.min()), float(frames.x.max()), vertical=True)
         body.set_ylim(-1.6 * height, 1.6 * height)
         body.set_yticks([])
         body.grid(False)
@@ -330,7 +341,7 @@ def animation_figure(results: dict, frames: Frames, follow: bool = False):
     if actuator is not None:
         animated.append(actuator)
     if follow:
-        animated += [ground, trace, moved]
+        animated += [ground, trace, moved, strip]
     for artist in animated:
         artist.set_animated(True)
 
@@ -340,6 +351,13 @@ def animation_figure(results: dict, frames: Frames, follow: bool = False):
         if follow:  # the ground passes by; the trace is the way the barycentre came
             ground.set_segments([[(g, -1.25 * height), (g, -1.05 * height)] for g in marks - origin[k]])
             trace.set_data([origin[0] - origin[k], 0.0], [-1.4 * height] * 2)
+            strip.set_verts(
+                [
+                    [(a - o, -1.6 * height), (b - o, -1.6 * height), (b - o, -1.05 * height), (a - o, -1.05 * height)]
+                    for a, b, _, _ in cells
+                    for o in (origin[k],)
+                ]
+            )
         boxes.set_verts(list(_block_boxes(x, width, height)))
         boxes.set_facecolor([SLIP_COLOURS[int(v)] for v in frames.slip[k]])
         link_lines.set_segments(

@@ -8,13 +8,14 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
 from crawlsim.analysis.digits import counted
-from crawlsim.plotting.source import last_periods, need, run_name, run_period, takes_run
+from crawlsim.plotting.source import ground_cells, last_periods, need, run_name, run_period, takes_run
 from crawlsim.plotting.style import (
     FAINT,
     REFERENCE,
     colours,
     figure_style,
     format_number,
+    ground_shade,
     label,
     legend_right,
     new_figure,
@@ -96,6 +97,7 @@ def motion_figure(results, last: int | None = None) -> Figure:
             label=f"slope {speed}",
         )
         span = ax.axvspan(t0 * factor, (t0 + T) * factor, color=FAINT, alpha=0.15, linewidth=0, label="limit period")
+        patches = [] if last is not None else shade_ground(ax, results, float(x.min()), float(x.max()))
         ax.set_xlim(ends[0] * factor, ends[1] * factor)
         if units.time is None and (ends[1] - ends[0]) / T <= 12:
             ax.xaxis.set_major_locator(MaxNLocator(integer=True))
@@ -111,5 +113,22 @@ def motion_figure(results, last: int | None = None) -> Figure:
         # (the front block first), then the shaded limit period.
         lines = [line for line in ax.get_lines() if not line.get_label().startswith("_")]
         lines.sort(key=lambda line: -float(np.asarray(line.get_ydata())[-1]))
-        legend_right(ax, handles=[*lines] + ([span] if last is None else []), title=shown_title(drawn, N, "blocks"))
+        handles = [*lines] + ([span, *patches] if last is None else [])
+        legend_right(ax, handles=handles, title=shown_title(drawn, N, "blocks"))
     return fig
+
+
+def shade_ground(ax, results: dict, lo: float, hi: float, vertical: bool = False) -> list:
+    """The cells of the ground over positions [lo, hi] (a little beyond) shaded behind the
+    paths, across the axes (along x where ``vertical``); returns one legend patch per kind of
+    ground (`crawlsim.plotting.style.ground_shade`)."""
+    pad = 0.02 * max(hi - lo, 1e-12)
+    kinds: dict[tuple[float, float], object] = {}
+    for start, end, a, b in ground_cells(results, lo - pad, hi + pad):
+        colour, alpha = ground_shade(a, b)
+        name = f"ground: $\\mu^+ \\times$ {a:g}, $\\mu^- \\times$ {b:g}"
+        span = (ax.axvspan if vertical else ax.axhspan)(start, end, color=colour, alpha=alpha, linewidth=0, zorder=0)
+        if (a, b) not in kinds:
+            span.set_label(name)
+            kinds[(a, b)] = span
+    return list(kinds.values())[:4]

@@ -124,6 +124,10 @@ def from_result(result: Any) -> dict[str, Any]:
     if process is not None:
         out["limit"].update(_present(process, PROCESS_SERIES))
         out["process"]["normals"] = process.normals
+        if process.terrain is not None:
+            ground = process.terrain
+            out["terrain"] = {"position": ground.boundaries, "forward": ground.forward, "backward": ground.backward}
+            out["terrain_attrs"] = {"repeat": ground.repeat}
     return out
 
 
@@ -176,6 +180,32 @@ def step_slip(x: Any) -> Any:
     dx = np.diff(x, axis=0)
     tol = 1e-9 * max(float(np.max(np.abs(x))), 1.0)
     return np.where(dx > tol, 1, np.where(dx < -tol, -1, 0)).astype(np.int8)
+
+
+def ground_cells(results: dict, lo: float, hi: float) -> list[tuple[float, float, float, float]]:
+    """The cells of the ground (docs/model.md §8) over positions [lo, hi] whose factors are not
+    1: (start, end, a^+, a^-), clipped to [lo, hi]; none without terrain."""
+    import numpy as np
+
+    ground = results.get("terrain")
+    if not ground:
+        return []
+    bounds, forward, backward = (np.asarray(ground[k], dtype=float) for k in ("position", "forward", "backward"))
+    repeat = float(results.get("terrain_attrs", {}).get("repeat", 0.0))
+    K = len(bounds)
+    if repeat:  # boundaries g and cells g of every ground period the range meets
+        first = int(np.floor(lo / repeat)) * K
+        count = (int(np.floor(hi / repeat)) + 1) * K - first + 1
+        edges = [bounds[g % K] + repeat * (g // K) for g in range(first - 1, first + count)]
+        factors = [(forward[g % K], backward[g % K]) for g in range(first, first + count)]
+    else:
+        edges = [-np.inf, *bounds, np.inf]
+        factors = list(zip(forward, backward))
+    cells = []
+    for start, end, (a, b) in zip(edges[:-1], edges[1:], factors):
+        if (a, b) != (1.0, 1.0) and end > lo and start < hi:
+            cells.append((max(start, lo), min(end, hi), float(a), float(b)))
+    return cells
 
 
 def run_name(results: dict) -> str:

@@ -28,6 +28,7 @@ Labels
 
 from __future__ import annotations
 
+import math
 from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass
@@ -75,6 +76,19 @@ SLIP_NAMES = {0: "stick", 1: "forward slip", -1: "backward slip"}
 #: Reference lines (barycentre, limits, fitted rates) and faint context (early periods).
 REFERENCE = "#000000"
 FAINT = "#9E9E9E"
+
+#: The ground (docs/model.md §8): rougher than the file's friction in orange, smoother in sky
+#: blue, the more the further its factor is from 1 (`ground_shade`).
+GROUND_COLOURS = (OKABE_ITO["orange"], OKABE_ITO["sky blue"])
+
+
+def ground_shade(forward: float, backward: float) -> tuple[str, float]:
+    """(colour, alpha) of a cell of the ground by its factors: rougher or smoother by their
+    mean logarithm, the alpha growing with it from 0.18 to 0.4."""
+    strength = 0.5 * (math.log(forward) + math.log(backward))
+    colour = GROUND_COLOURS[0] if strength > 0 else GROUND_COLOURS[1]
+    return colour, min(0.4, 0.18 + 0.2 * abs(strength))
+
 
 #: Sweep points that gave no v0, and how they are marked (matplotlib marker, legend name).
 STATUS_MARKERS = {
