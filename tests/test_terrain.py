@@ -347,3 +347,58 @@ def test_the_uniqueness_condition_is_checked_on_the_ground_the_blocks_reach():
         crawlsim.simulate(gait.replace("simulation.max_periods", 20))
     with pytest.raises(GaitError, match="terrain: on the terrain the uniqueness condition"):  # on it at once
         make_gait({**gait.document, "terrain": {"patches": [{"from": 2.1, "forward": 1.0, "backward": 0.8}]}})
+
+
+def test_sensitivities_on_the_ground_a_run_settles_on_and_refused_elsewhere():
+    """Past the step down the crawler runs on ground of threshold a mu+ = 1 (a = 0.5, mu+ = 2):
+    v0 = 0.6 - 2 a mu+ / k, so dv0/dmu+ = -2 a / k = -0.1 and dv0/dk = 2 a mu+ / k^2 = 0.02
+    (exact). On stripes the run does not settle on one ground: refused, with the reason."""
+    result = crawlsim.sensitivity(_step_gait(2.0, 1.0), ["friction.forward", "stiffness"])
+    assert result["friction.forward"].v0.value == pytest.approx(-0.1, abs=1e-12)
+    assert result["stiffness"].v0.value == pytest.approx(0.02, abs=1e-12)
+    with pytest.raises(GaitError, match="terrain: sensitivities are not defined here: .* non-smooth"):
+        crawlsim.sensitivity(TERRAINS["stripes"].replace("simulation.max_periods", 30), ["stiffness"])
+
+
+def test_the_rigid_limit_refuses_ground_that_changes():
+    with pytest.raises(GaitError, match="terrain: the rigid limit .* not periodic"):
+        crawlsim.rigid_limit(_step_gait(1.0, 2.0))
+    uniform = make_gait(
+        _wave(3, friction={"forward": 1.0, "backward": 2.5}, terrain={"patches": [{"forward": 2.0, "backward": 2.0}]})
+    )
+    scaled = make_gait(_wave(3, friction={"forward": 2.0, "backward": 5.0}))
+    assert crawlsim.rigid_limit(uniform).v0 == pytest.approx(crawlsim.rigid_limit(scaled).v0, abs=1e-14)
+
+
+def test_the_results_file_holds_the_ground_the_crossings_and_the_holds(tmp_path):
+    import h5py
+
+    result = crawlsim.api.run(_step_gait(1.0, 2.0), output=tmp_path / "up.h5")
+    with h5py.File(tmp_path / "up.h5") as f:
+        g = f["terrain"]
+        assert list(g["position"]) == [2.0] and list(g["forward"]) == [1.0, 2.0] and g.attrs["regime"] == "one-ground"
+        assert list(g["crossing_block"]) == [2, 1] and list(g["crossing_position"]) == [2.0, 2.0]
+        assert list(g["hold_block"]) == [2, 1] and np.all(np.isfinite(g["hold_end"][:]))
+    back = crawlsim.open_run(tmp_path / "up.h5")
+    np.testing.assert_array_equal(back.terrain.crossings, result.terrain.crossings)
+    np.testing.assert_array_equal(back.terrain.held_periods, result.terrain.held_periods)
+    assert list(result.terrain.held_periods) == [2, 5, 6]
+
+
+def test_validate_explain_and_info_know_the_ground(tmp_path):
+    import yaml
+
+    path = tmp_path / "up.yaml"
+    path.write_text(yaml.safe_dump(_step_gait(1.0, 2.0).document))
+    explain = subprocess.run(
+        [sys.executable, "-m", "crawlsim", "validate", "--explain", str(path)], capture_output=True, text=True
+    )
+    assert (
+        "terrain: 1 boundary at x = 2; factors (forward/backward) of the cells between them 1/1, 2/1" in explain.stdout
+    )
+    assert "a priori: on terrain the motion repeats only once every block is on one ground" in explain.stdout
+    crawlsim.api.run(_step_gait(1.0, 2.0), output=tmp_path / "up.h5")
+    info = subprocess.run(
+        [sys.executable, "-m", "crawlsim", "info", str(tmp_path / "up.h5")], capture_output=True, text=True
+    )
+    assert "terrain                  1 boundary; one-ground; 2 crossings, 2 holds" in info.stdout

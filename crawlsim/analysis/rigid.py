@@ -19,9 +19,10 @@ from typing import Any
 
 import numpy as np
 
-from crawlsim.errors import DegenerateModelError, ResourceError
+from crawlsim.errors import DegenerateModelError, GaitError, ResourceError
 from crawlsim.gait.crawler_spec import Gait
 from crawlsim.gait.signals import Steps, union_breakpoints
+from crawlsim.gait.terrain import on_ground
 from crawlsim.gait.uniqueness import TOLERANCE
 from crawlsim.model.offsets import Basis, PiecewiseOffsets
 from crawlsim.model.process import piece_edges
@@ -72,7 +73,20 @@ class RigidLimit:
 def rigid_limit(gait: Gait) -> RigidLimit:
     """v0 of ``gait`` as its links stiffen without bound (module docstring). Raises
     `DegenerateModelError` where the balance does not fix the motion (a g_J of the order is 0
-    on an interval, or at a jump)."""
+    on an interval, or at a jump). Uniform ground scales the friction; ground that changes
+    along x is refused: the rigid motion is then not periodic (which block rests depends on the
+    ground under each block, which changes as the crawler moves), so no period's average is v0."""
+    if gait.terrain is not None:
+        if len(gait.terrain.boundaries):
+            raise GaitError(
+                gait.source,
+                "terrain",
+                "the rigid limit (docs/model.md §7) is not defined on ground that changes along x: the "
+                "rigid motion is not periodic there, since the resting block depends on the ground under "
+                "each block, which changes as the crawler moves (docs/model.md §8); run the gait instead",
+            )
+        plus, minus = gait.terrain.forward, gait.terrain.backward
+        gait = on_ground(gait, plus.repeat(gait.blocks), minus.repeat(gait.blocks))
     n = gait.blocks
     loads = gait.loads
     scale = 1.0 if loads is None else loads.cos

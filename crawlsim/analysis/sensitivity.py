@@ -47,6 +47,7 @@ from crawlsim.analysis.sensitivity_terms import (
     uniqueness_touch,
 )
 from crawlsim.analysis.sensitivity_walk import Prepared, Walk, prepare, walk_catch_up, walk_exact
+from crawlsim.analysis.terrain import ground_gait
 from crawlsim.errors import CrawlsimError, GaitError
 from crawlsim.gait.docpaths import check_number_paths, resolve_path
 from crawlsim.kernel.jit import kernel
@@ -168,6 +169,8 @@ def sensitivity(
         raise GaitError(
             getattr(gait, "source", "<gait>"), "", "sensitivities are defined for crawler gaits (kind: crawler)"
         )
+    if gait.terrain is not None and len(gait.terrain.boundaries):  # the one ground a run settles on (§8)
+        gait, run = ground_gait(gait, run), None
     lim = _limit_of_run(gait, run)
     st = _static_of(gait, lim.process, paths)
     co, params, active, dMu = st.co, st.params, st.active, st.dMu

@@ -280,7 +280,9 @@ def _signal_columns(gait: Gait, keys: tuple[Any, ...]) -> tuple[list[tuple[int, 
         return None
     side, blocks, rest = friction
     first, signals = (N - 1, gait.forward) if side == "forward" else (2 * N - 1, gait.backward)
-    return [(first + j, signals[j], 1.0) for j in blocks], rest[1:]
+    ground = gait.terrain  # uniform ground scales the friction it compiles to (docs/model.md §8)
+    scale = 1.0 if ground is None else float((ground.forward if side == "forward" else ground.backward)[0])
+    return [(first + j, signals[j], scale) for j in blocks], rest[1:]
 
 
 def _friction_keys(gait: Gait, keys: tuple[Any, ...]) -> tuple[str, Sequence[int], tuple[Any, ...]] | None:

@@ -22,11 +22,14 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from crawlsim.analysis.convergence import displacement_roundoff
 from crawlsim.analysis.energy import period_dissipation
+from crawlsim.errors import GaitError
+from crawlsim.gait.crawler_spec import Gait
 from crawlsim.integrate.stepping import PeriodRecord
 from crawlsim.kernel.terrain import CROSS, HOLD, L_BLOCK, L_BOUNDARY, L_DIRECTION, L_KIND, L_U, LEAVE
 from crawlsim.model.process import SweepingProcess
@@ -248,6 +251,34 @@ class GroundWatch:
             kept,
             held_periods(kept, T, (len(self._y) - 1) * T),
         )
+
+
+def ground_gait(gait: Gait, run: Any = None) -> Gait:
+    """The gait on the one ground a run on terrain settles on (its v0 is that ground's: the
+    sensitivities of `crawlsim.analysis.sensitivity` are that gait's), or the gait itself
+    without boundaries; refused where the run does not settle on one ground: there v0 is not
+    smooth in the crawler's phase relative to the ground (docs/model.md §8)."""
+    from crawlsim.analysis.run import simulate
+    from crawlsim.gait.document import gait_from_document
+    from crawlsim.model.process import compile
+
+    terrain = gait.terrain
+    if terrain is None or not len(terrain.boundaries):
+        return gait
+    if run is None or getattr(run, "terrain", None) is None or getattr(run, "limit_record", None) is None:
+        run = simulate(compile(gait), integrator=gait.simulation.integrator, max_periods=gait.simulation.max_periods)
+    report = run.terrain
+    if report is None or report.regime != "one-ground":
+        regime = "not settled" if report is None else report.regime
+        raise GaitError(
+            gait.source,
+            "terrain",
+            f"sensitivities are not defined here: the run on this terrain is {regime}, not on one ground, and "
+            "a boundary makes v0 non-smooth in the crawler's phase relative to the ground (docs/model.md §8)",
+        )
+    a, b = terrain.factors(run.limit_record.x[-1])  # every block on the same cell
+    document = {**gait.document, "terrain": {"patches": [{"forward": float(a[0]), "backward": float(b[0])}]}}
+    return gait_from_document(document, gait.source, default_name=gait.name)
 
 
 def held_periods(holds: np.ndarray, T: float, end: float) -> np.ndarray:

@@ -58,6 +58,17 @@ def _run_lines(d: dict) -> list[str]:
         )
     if d.get("uniqueness_margin"):
         lines.append(f"  uniqueness margin        {d['uniqueness_margin']['text']}")
+    ground = d.get("terrain")
+    if ground:  # docs/model.md §8
+        from crawlsim.gait.terrain import boundaries
+
+        lock = ground["lock"]
+        settled = ground["regime"] + ("" if lock is None else f" ({lock[0]} periods, {lock[1]} ground periods)")
+        repeat = f", repeated every {_g(ground['repeat'])}" if ground["repeat"] else ""
+        lines.append(
+            f"  terrain                  {boundaries(ground['boundaries'])}{repeat}; {settled}; "
+            f"{ground['crossings']} crossings, {ground['holds']} holds"
+        )
     return lines
 
 

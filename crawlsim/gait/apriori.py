@@ -34,6 +34,7 @@ from crawlsim.gait.crawler_spec import Gait
 from crawlsim.gait.loads import combination
 from crawlsim.gait.process_spec import ProcessSpec
 from crawlsim.gait.signals import Constant, Steps, evaluate_many, union_breakpoints
+from crawlsim.gait.terrain import terrain_text
 from crawlsim.gait.uniqueness import TOLERANCE, _Friction, _search_piece, _subset, find_violation
 from crawlsim.gait.uniqueness_advice import _changed, friction_slots
 
@@ -187,6 +188,14 @@ def apriori_lines(spec: Gait | ProcessSpec) -> list[str]:
         lines.append(
             "uniqueness margin: min over J and t of |sum mu+ over J - sum mu- over the rest| = " + margin(spec).text()
         )
+    if isinstance(spec, Gait) and spec.terrain is not None and len(spec.terrain.boundaries):
+        return lines + [
+            f"terrain: {terrain_text(spec.terrain)}",
+            "terrain: the uniqueness condition is checked on the ground under the blocks at the start and "
+            "again along the run, at every change of the ground under a block",
+            "a priori: on terrain the motion repeats only once every block is on one ground, or when it "
+            "locks to a periodic ground: only the run can tell (docs/model.md §8)",
+        ]
     verdict = cell_verdict(spec)
     if verdict is None:
         lines.append(

@@ -168,6 +168,21 @@ def _cells(spans: list[tuple[float, float, float, float]], repeat: float) -> Ter
     return Terrain(np.array([points[i] for i in keep], dtype=float), factors[:, 0], factors[:, 1], repeat)
 
 
+def boundaries(count: int) -> str:
+    return f"{count} boundar{'y' if count == 1 else 'ies'}"
+
+
+def terrain_text(terrain: Terrain) -> str:
+    """The ground in one line (``crawlsim validate --explain``, ``crawlsim info``)."""
+    cells = ", ".join(f"{a:g}/{b:g}" for a, b in zip(terrain.forward, terrain.backward))
+    where = ", ".join(f"{x:g}" for x in terrain.boundaries)
+    repeat = f", repeated every {terrain.repeat:g}" if terrain.repeat else ""
+    return (
+        f"{boundaries(len(terrain.boundaries))} at x = {where}{repeat}; factors (forward/backward) of the cells "
+        f"between them {cells}; at a boundary the larger of both sides (docs/model.md §8)"
+    )
+
+
 def on_ground(gait: Any, plus: np.ndarray, minus: np.ndarray) -> Any:
     """``gait`` with its friction multiplied block by block by the factors (a^+, a^-): the crawler
     of docs/model.md §1-§6 while the ground under each block stays the same."""

@@ -136,6 +136,24 @@ def _describe_run(path: Path, f: h5py.File, attrs: dict[str, Any]) -> dict[str, 
         "rigid_v0": number(f["rigid"].attrs["v0"]) if "rigid" in f else None,
         "rigid_v0_error_estimate": number(f["rigid"].attrs["v0_error_estimate"]) if "rigid" in f else None,
         "uniqueness_margin": _margin(attrs),
+        "terrain": _terrain(f),
+    }
+
+
+def _terrain(f: h5py.File) -> dict[str, Any] | None:
+    """The ground of a run on terrain (docs/model.md §8): how the run settled, its crossings
+    and holds; None without terrain."""
+    if "terrain" not in f:
+        return None
+    g = f["terrain"]
+    n, m = (int(v) for v in g.attrs["lock"])
+    return {
+        "regime": plain(g.attrs["regime"]),
+        "lock": [n, m] if n else None,
+        "boundaries": len(g["position"]),
+        "repeat": float(g.attrs["repeat"]),
+        "crossings": len(g["crossing"]),
+        "holds": len(g["hold"]),
     }
 
 
