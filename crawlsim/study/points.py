@@ -183,7 +183,8 @@ def _compile(gaits, indices, out: dict[int, PointResult], tick) -> tuple[list[_M
             out[i] = _failure(i, exc)
             tick(1)
             continue
-        (batch if g.simulation.integrator == "catch-up" else single).append((i, process, g))
+        batched = g.simulation.integrator == "catch-up" and process.terrain is None  # terrain: its own steps (§8)
+        (batch if batched else single).append((i, process, g))
     return batch, single
 
 
