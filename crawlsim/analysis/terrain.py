@@ -72,9 +72,8 @@ class TerrainReport:
         """The lines `crawlsim run` prints for the ground: (label, value)."""
         lines = [("ground", _regime_text(self, period))]
         if len(self.crossings):
-            first = ", ".join(f"{int(b) + 1}@{x:g} t={t:.6g}" for t, b, x, _ in self.crossings[:6]) + (
-                f", ... ({len(self.crossings)} in all)" if len(self.crossings) > 6 else ""
-            )
+            shown = (f"{int(b) + 1}@{x:g}{'' if s > 0 else ' back'} t={t:.6g}" for t, b, x, s in self.crossings[:6])
+            first = ", ".join(shown) + (f", ... ({len(self.crossings)} in all)" if len(self.crossings) > 6 else "")
             lines.append(("crossings", first))
         if len(self.held_periods):
             periods = ", ".join(str(int(q)) for q in self.held_periods[:10])
