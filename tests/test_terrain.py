@@ -342,7 +342,8 @@ def test_the_uniqueness_condition_is_checked_on_the_ground_the_blocks_reach():
         )
     )
     with pytest.raises(
-        DegenerateModelError, match=r"terrain: on the terrain the uniqueness condition .* 1/1, 1/1, 1/0.8"
+        DegenerateModelError,
+        match=r"terrain: on the terrain the uniqueness condition .*: blocks 1-2 on 1/1; block 3 on 1/0.8: ",
     ):
         crawlsim.simulate(gait.replace("simulation.max_periods", 20))
     with pytest.raises(GaitError, match="terrain: on the terrain the uniqueness condition"):  # on it at once

@@ -186,9 +186,47 @@ def terrain_text(terrain: Terrain) -> str:
 def on_ground(gait: Any, plus: np.ndarray, minus: np.ndarray) -> Any:
     """``gait`` with its friction multiplied block by block by the factors (a^+, a^-): the crawler
     of docs/model.md §1-§6 while the ground under each block stays the same."""
-    forward = tuple(combination([(a, s)]) for a, s in zip(plus, gait.forward))
-    backward = tuple(combination([(a, s)]) for a, s in zip(minus, gait.backward))
+    memo: dict[tuple[int, float], Any] = {}  # one signal per friction and factor (100 blocks, two grounds)
+
+    def scaled(a: float, s: Any) -> Any:
+        return memo.setdefault((id(s), float(a)), combination([(a, s)]))
+
+    forward = tuple(scaled(a, s) for a, s in zip(plus, gait.forward))
+    backward = tuple(scaled(a, s) for a, s in zip(minus, gait.backward))
     return dataclasses.replace(gait, forward=forward, backward=backward, terrain=None)
+
+
+class GroundCheck:
+    """The uniqueness condition on the ground under the blocks (`ground_violation`), decided
+    once per *kind* of ground: g_J ranges over every subset J, so it depends on the multiset of
+    the blocks' thresholds, not on which block has which. ``classes[j]`` numbers the blocks whose
+    thresholds are alike on uniform ground (the same friction and load signals); a ground is the
+    multiset of (class, a^+, a^-) of the blocks, as `key` forms it."""
+
+    def __init__(self, gait: Any):
+        self.gait = gait
+        plus, minus = gait.thresholds()
+        seen: dict[tuple[int, ...], int] = {}
+        signals = zip(plus, minus, gait.forward, gait.backward)
+        self.classes = [seen.setdefault(tuple(map(id, four)), len(seen)) for four in signals]
+        self._known: dict[frozenset[tuple[tuple[int, float, float], int]], str | None] = {}
+
+    @staticmethod
+    def key(counts: dict[tuple[int, float, float], int]) -> frozenset[tuple[tuple[int, float, float], int]]:
+        return frozenset(counts.items())
+
+    def __call__(self, plus: np.ndarray, minus: np.ndarray, key: Any = None) -> str | None:
+        """Why the condition fails with the factors (a^+, a^-) under the blocks, or None."""
+        if key is None:
+            counts: dict[tuple[int, float, float], int] = {}
+            for c, a, b in zip(self.classes, plus, minus):
+                counts[(c, float(a), float(b))] = counts.get((c, float(a), float(b)), 0) + 1
+            key = self.key(counts)
+        if key not in self._known:
+            if len(self._known) > 4096:
+                self._known.clear()
+            self._known[key] = ground_violation(self.gait, plus, minus)
+        return self._known[key]
 
 
 def ground_violation(gait: Any, plus: np.ndarray, minus: np.ndarray) -> str | None:
@@ -201,9 +239,25 @@ def ground_violation(gait: Any, plus: np.ndarray, minus: np.ndarray) -> str | No
         return None
     if violation is None:
         return None
-    ground = ", ".join(f"{a:g}/{b:g}" for a, b in zip(plus, minus))
+    grounds: dict[tuple[float, float], list[int]] = {}
+    for j, key in enumerate(zip(plus, minus)):
+        grounds.setdefault((float(key[0]), float(key[1])), []).append(j + 1)
+    ground = "; ".join(f"{_blocks(blocks)} on {a:g}/{b:g}" for (a, b), blocks in grounds.items())
     return (
         f"on the terrain the uniqueness condition (docs/model.md §3, §8) fails where the blocks stand on "
-        f"grounds of factors (forward/backward) {ground}: g_J = 0 for {violation.subsets_text()} at t in "
+        f"grounds of factors (forward/backward): {ground}: g_J = 0 for {violation.subsets_text()} at t in "
         f"{violation.where(gait.period)}; the model does not determine how the crawler moves there"
     )
+
+
+def _blocks(blocks: list[int]) -> str:
+    """ "block 3", "blocks 1-2, 5" (at most eight runs, then how many more)."""
+    runs: list[list[int]] = []
+    for j in blocks:
+        if runs and j == runs[-1][1] + 1:
+            runs[-1][1] = j
+        else:
+            runs.append([j, j])
+    text = ", ".join(f"{a}" if a == b else f"{a}-{b}" for a, b in runs[:8])
+    more = f" and {len(runs) - 8} more runs" if len(runs) > 8 else ""
+    return f"block{'s' if len(blocks) > 1 else ''} {text}{more}"

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from crawlsim.errors import DegenerateModelError
-from crawlsim.kernel.terrain import CROSS, HOLD, L_BLOCK, L_BOUNDARY, L_DIRECTION, L_KIND, L_U, LEAVE, Ground
+from crawlsim.kernel.terrain import L_BLOCK, L_MINUS, L_PLUS, L_U, Ground
 from crawlsim.model.process import SweepingProcess
 
 
@@ -21,7 +21,7 @@ def no_ground(blocks: int) -> Ground:
         0.0,
         np.zeros(blocks, dtype=np.int64),
         np.zeros(blocks, dtype=np.bool_),
-        np.empty((0, 5)),
+        np.empty((0, 7)),
         np.zeros(1, dtype=np.int64),
         np.empty((0, 2 * blocks)),
         np.empty(0, dtype=np.bool_),
@@ -29,28 +29,48 @@ def no_ground(blocks: int) -> Ground:
 
 
 class GroundState:
-    """The ground of a process and where its blocks stand, kept from period to period."""
+    """The ground of a process and where its blocks stand, kept from period to period, with the
+    factors under them and how many blocks of each class stand on each kind of ground (the key
+    of the uniqueness condition's check, `crawlsim.gait.terrain.GroundCheck`), kept up to date
+    event by event."""
 
     def __init__(self, process: SweepingProcess, x: np.ndarray):
-        terrain = process.terrain
-        assert terrain is not None
-        self.process = process
-        self.terrain = terrain
+        terrain, check = process.terrain, process.ground_check
+        assert terrain is not None and check is not None
+        self.process, self.terrain, self.check_ground = process, terrain, check
         N = len(x)
         self.cell, self.at = np.zeros(N, dtype=np.int64), np.zeros(N, dtype=np.bool_)
-        self._checked: set[bytes] = set()
+        self.plus, self.minus = np.ones(N), np.ones(N)
         self.locate(x)
 
     def locate(self, x: np.ndarray) -> None:
         """Where the blocks at positions x stand (a new start: `PeriodStepper.reset`)."""
         for i, xi in enumerate(np.asarray(x, dtype=float)):
             self.cell[i], self.at[i] = self.terrain.locate(float(xi))
+        self.locate_counts()
         self.check(0.0)
+
+    def _move(self, i: int, a: float, b: float) -> None:
+        """Block i onto ground of factors (a, b): the counts of kinds of ground follow."""
+        c = self.check_ground.classes[i]
+        old = (c, float(self.plus[i]), float(self.minus[i]))
+        count = self.counts[old] - 1
+        if count:
+            self.counts[old] = count
+        else:
+            del self.counts[old]
+        self.plus[i], self.minus[i] = a, b
+        self.counts[(c, a, b)] = self.counts.get((c, a, b), 0) + 1
 
     def record(self, events: int, jumps: int) -> Ground:
         """A record for one period, with room for ``events`` ground events and ``jumps`` jumps,
-        the blocks where the last period left them (copies: a period run again starts there)."""
+        the blocks where the last period left them (copies: a period run again starts there);
+        its log and jump arrays are those of the last period (whose record copied them out)."""
         t = self.terrain
+        log, fac, pinned = getattr(self, "_arrays", (np.empty((0, 7)), None, None))
+        if len(log) != events or fac is None or len(fac) != jumps:  # kept from period to period
+            log, fac, pinned = np.empty((events, 7)), np.empty((jumps, 2 * len(self.cell))), np.empty(jumps, bool)
+            self._arrays = log, fac, pinned
         return Ground(
             t.boundaries,
             t.forward,
@@ -58,45 +78,40 @@ class GroundState:
             float(t.repeat),
             self.cell.copy(),
             self.at.copy(),
-            np.empty((events, 5)),
+            log,
             np.zeros(1, dtype=np.int64),
-            np.empty((jumps, 2 * len(self.cell))),
-            np.zeros(jumps, dtype=np.bool_),
+            fac,
+            pinned,
         )
 
     def adopt(self, ground: Ground, start: float, period: float) -> np.ndarray:
         """The blocks where a finished period left them; returns its ground events (E, 5) with
         absolute times, after checking the uniqueness condition on every ground they stood on."""
-        events = ground.log[: int(ground.logged[0])].copy()
-        for e in events:  # replayed: the factors under the blocks after each event
-            i, g, kind, s = int(e[L_BLOCK]), int(e[L_BOUNDARY]), int(e[L_KIND]), int(e[L_DIRECTION])
-            if kind == HOLD:
-                self.cell[i], self.at[i] = g, True
-            elif kind in (CROSS, LEAVE):
-                self.cell[i], self.at[i] = (g + 1 if s > 0 else g), False
-            self.check(start + e[L_U] * period)
+        logged = int(ground.logged[0])
+        events = ground.log[:logged, :5].copy()
+        for u, i, a, b in ground.log[:logged, [L_U, L_BLOCK, L_PLUS, L_MINUS]].tolist():
+            self._move(int(i), a, b)  # the ground under the blocks after each event
+            self.check(start + u * period)
         self.cell[:], self.at[:] = ground.cell, ground.at
-        self.check(start + period)
+        if logged == len(ground.log):  # catch-up's log may be full: from where the blocks stand
+            self.locate_counts()
+            self.check(start + period)
         events[:, L_U] = start + events[:, L_U] * period
         return events
 
-    def factors(self) -> tuple[np.ndarray, np.ndarray]:
-        """(a^+, a^-) under the blocks now (at a boundary the larger of both sides)."""
-        t = self.terrain
-        plus, minus = np.empty(len(self.cell)), np.empty(len(self.cell))
-        for i, (g, at) in enumerate(zip(self.cell, self.at)):
-            plus[i], minus[i] = t.cell(int(g))
+    def locate_counts(self) -> None:
+        """The factors and counts of every block from where it stands."""
+        self.counts: dict[tuple[int, float, float], int] = {}
+        t, classes = self.terrain, self.check_ground.classes
+        for i, (g, at) in enumerate(zip(self.cell.tolist(), self.at.tolist())):
+            a, b = t.cell(g)
             if at:
-                plus[i], minus[i] = np.maximum((plus[i], minus[i]), t.cell(int(g) + 1))
-        return plus, minus
+                a, b = (max(u, v) for u, v in zip((a, b), t.cell(g + 1)))
+            self.plus[i], self.minus[i] = a, b
+            self.counts[(classes[i], a, b)] = self.counts.get((classes[i], a, b), 0) + 1
 
     def check(self, time: float) -> None:
-        """The uniqueness condition on the ground under the blocks now, once per ground."""
-        plus, minus = self.factors()
-        key = plus.tobytes() + minus.tobytes()
-        if key in self._checked or self.process.ground_check is None:
-            return
-        problem = self.process.ground_check(plus, minus)
+        """The uniqueness condition on the ground under the blocks now (decided once per kind)."""
+        problem = self.check_ground(self.plus, self.minus, self.check_ground.key(self.counts))
         if problem is not None:
             raise DegenerateModelError(self.process.name, "terrain", f"{problem} (from t = {time:.12g})")
-        self._checked.add(key)

@@ -613,7 +613,7 @@ def period(
     partial = np.zeros((stale.shape[0], 3, nb, nb))
     kept = closed_forms(linear, H)
     on_ground = terrain.active(ground)
-    coefw, muw, x_piece, zg = np.empty((nb, m)), np.empty((nb, m)), np.empty(N), np.empty(nb)
+    coefw, muw, ground_times, zg = np.empty((nb, m)), np.empty((nb, m)), np.full(N, np.inf), np.empty(nb)
     edge_mu, one = np.empty((1, m)), np.ones(1)
     jump_count = counts[C_JUMPS : C_JUMPS + 1]
     built = False
@@ -636,7 +636,7 @@ def period(
             if not built:  # a new piece of c, or the ground under a block changed
                 terrain.effective(COEF[p], MC[p], ground, coefw, muw)
             coef, c_size, mc = coefw, offset_size(coefw), muw
-        if built and kept and N >= LOCAL_BLOCKS:  # the piece of ``signs`` is in place
+        if built and kept and N >= LOCAL_BLOCKS and cause != GROUND:  # the piece of ``signs`` is in place
             decided = decide_local(
                 k,
                 kmax,
@@ -755,6 +755,18 @@ def period(
         counts[C_TRANSITIONS] = t_count + 1
         inverse, gram = set_norms(k, signs, inv)
         u_end = edges[p + 1]
+        reached, u_g = -1, np.inf
+        if on_ground:  # a block reaching a boundary: sought before the rows clear ``dirty``
+            basis_values(u, 0, linear, H, phi0)
+            u_g, reached = terrain.next_crossing(
+                ground,
+                signs,
+                (x0, lam_cum),
+                (dx0, Ydx, linear, H, phi0, cells_per_cycle, dirty),
+                u,
+                u_end,
+                (zg, ground_times),
+            )
         if kept:
             u_e, handoff = (
                 next_event_kept(
@@ -805,18 +817,11 @@ def period(
         if handoff:
             report[R_U], report[R_REASON] = u, H_ZERO
             return HANDOFF
-        reached = -1
-        if on_ground:  # a block reaching a boundary before the piece's next event
-            for i in range(N):
-                x_piece[i] = x0[i] + lam_cum[i] - lam_cum[N + i]
-            u_g, reached = terrain.next_crossing(
-                ground, signs, x_piece, (dx0, Ydx, linear, H, phi0, cells_per_cycle), u, min(u_e, u_end), (zg,)
-            )
-            if u_g < min(u_e, u_end):
-                u_e = u_g
-                forced[:] = False
-            else:
-                reached = -1
+        if u_g < min(u_e, u_end):  # the block reaches it before the rows' next event
+            u_e = u_g
+            forced[:] = False
+        else:
+            reached = -1
         event = u_e < u_end
         if not event:
             u_e = u_end
@@ -864,10 +869,21 @@ def period(
         state_at(u_e, linear, H, signs, dx0, Ydx, base, Wc, lam_cum, w, phi, dx, lam_now)
         u = u_e
         if event and reached >= 0:  # held at the boundary, on beyond it, or a slide onto it
-            lam_cum[:] = lam_now
-            built = False
             if not terrain.arrive(ground, reached, signs[reached], u):
                 return OVERFLOW
+            terrain.effective(COEF[p], MC[p], ground, coefw, muw)
+            combine(phi, coefw, cvec)
+            if not terrain.violated(w, cvec, RTOL * max(c_scale, 2.0 * max_abs(w), max_abs(cvec)), Bw):
+                # held, or on ground as rough: only this block's rows changed; the piece goes on
+                # (its sign, if it changes, is rebuilt at the next event with the rest of its run,
+                # which the velocity problems of the whole chain decide)
+                for b in range(max(reached - 1, 0), min(reached + 2, N)):
+                    dirty[b] = True
+                stale[reached // CHUNK] = True
+                cause = GROUND
+                continue
+            lam_cum[:] = lam_now
+            built = False
             status = slid(
                 terrain.settle(
                     k,

@@ -48,8 +48,9 @@ SNAP = 1e-12
 MAX_STAGES = 64
 #: Kinds of ground events (``log[:, 3]``): held at a boundary, passed it, left a boundary.
 HOLD, CROSS, LEAVE = range(3)
-#: Columns of ``log``: the cycle, the block, the boundary, the kind, the direction (+1, -1).
-L_U, L_BLOCK, L_BOUNDARY, L_KIND, L_DIRECTION = range(5)
+#: Columns of ``log``: the cycle, the block, the boundary, the kind, the direction (+1, -1), and
+#: the block's factors (a^+, a^-) after the event.
+L_U, L_BLOCK, L_BOUNDARY, L_KIND, L_DIRECTION, L_PLUS, L_MINUS = range(7)
 #: What `settle` and `arrive` return.
 SETTLED, HANDOFF, OVERFLOW = range(3)
 
@@ -64,7 +65,7 @@ class Ground(NamedTuple):
     repeat: float  # the period of the ground, 0 on a line
     cell: np.ndarray  # (N,) int64: the cell of each block (state, in place)
     at: np.ndarray  # (N,) bool: at the right boundary of its cell
-    log: np.ndarray  # (capacity, 5) the period's ground events
+    log: np.ndarray  # (capacity, 7) the period's ground events (``L_U`` ...)
     logged: np.ndarray  # (1,) int64: entries of log
     fac: np.ndarray  # (jumps, 2N) the factors of each row during each jump of the period
     pinned: np.ndarray  # (jumps,) bool: whether the jump held a block at a boundary it would pass
@@ -150,12 +151,14 @@ def factors(ground: Ground, out: np.ndarray) -> None:
 
 @jit
 def record(ground: Ground, u: float, i: int, g: int, kind: int, direction: int) -> bool:
-    """A ground event into the log; False when it is full."""
+    """A ground event into the log, with block i's factors where it now stands; False when the
+    log is full."""
     e = ground.logged[0]
     if e >= ground.log.shape[0]:
         return False
     ground.log[e, L_U], ground.log[e, L_BLOCK], ground.log[e, L_BOUNDARY] = u, i, g
     ground.log[e, L_KIND], ground.log[e, L_DIRECTION] = kind, direction
+    ground.log[e, L_PLUS], ground.log[e, L_MINUS] = block_factors(ground, i)
     ground.logged[0] = e + 1
     return True
 
@@ -175,38 +178,44 @@ def ahead(ground: Ground, i: int, s: int) -> int:
 def next_crossing(
     ground: Ground,
     signs: np.ndarray,
-    X: np.ndarray,
+    start: tuple[np.ndarray, ...],
     piece: tuple[Any, ...],
     u0: float,
     u1: float,
-    scratch: tuple[np.ndarray],
+    scratch: tuple[np.ndarray, ...],
 ) -> tuple[float, int]:
-    """(u, block) of the first slipping block to reach the boundary ahead of it in (u0, u1)
-    (inf, -1: none). X: each block's position at the start of its piece; piece = (dx0, Ydx,
-    linear, H, phi0, cells_per_cycle): its slip dx0 - phi(u) @ Ydx on the piece; scratch: z
-    (nb)."""
-    dx0, Ydx, linear, H, phi0, cells_per_cycle = piece
-    z = scratch[0]
+    """(u, block) of the first slipping block to reach the boundary ahead of it in (u0, u1), u1
+    the end of the piece of c (inf, -1: none). start = (x0, lam_cum): the positions at the
+    period's start and the slips up to the start of each block's piece; piece = (dx0, Ydx,
+    linear, H, phi0, cells_per_cycle, dirty): the slip dx0 - phi(u) @ Ydx on the piece, and the
+    blocks whose piece changed; scratch = (z (nb), times (N)). A block's crossing, sought to
+    u1, is kept in ``times`` while its piece is the same and it is still ahead (as
+    `crawlsim.kernel.events.next_event_kept` keeps the rows'): an event seeks only the blocks it
+    changed."""
+    x0, lam_cum = start
+    dx0, Ydx, linear, H, phi0, cells_per_cycle, dirty = piece
+    z, times = scratch
+    N = signs.shape[0]
     first, who = np.inf, -1
-    for i in range(signs.shape[0]):
-        s = signs[i]
-        if s == 0:
-            continue
-        b = bound(ground, ahead(ground, i, s))
-        if not math.isfinite(b):
-            continue
-        for q in range(z.shape[0]):
-            z[q] = -s * Ydx[q, i]
-        z[0] += s * (X[i] + dx0[i] - b)
-        tol = SNAP * max(1.0, abs(b))
-        t = crossing(z, tol, u0, u1, linear, H, phi0, min(u1, first))
-        if np.isnan(t):  # no closed form: certified sampling (`crawlsim.kernel.sampling`)
-            count = sampling.cells(u0, u1, cells_per_cycle, H)
-            S, PHIS = np.empty(count + 1), np.empty((count + 1, z.shape[0]))
-            sampling.grid(u0, u1, count, S)
-            t = sampling.crossing(z, tol, u0, u1, linear, H, min(u1, first), S, PHIS, np.zeros(1, dtype=np.int64))
-        if t < first:
-            first, who = t, i
+    for i in range(N):
+        if dirty[i] or not times[i] > u0:
+            times[i] = np.inf
+            s = signs[i]
+            b = bound(ground, ahead(ground, i, s)) if s != 0 else np.inf
+            if math.isfinite(b):
+                for q in range(z.shape[0]):
+                    z[q] = -s * Ydx[q, i]
+                z[0] += s * (x0[i] + lam_cum[i] - lam_cum[N + i] + dx0[i] - b)
+                tol = SNAP * max(1.0, abs(b))
+                t = crossing(z, tol, u0, u1, linear, H, phi0, u1)
+                if np.isnan(t):  # no closed form: certified sampling (`crawlsim.kernel.sampling`)
+                    count = sampling.cells(u0, u1, cells_per_cycle, H)
+                    S, PHIS = np.empty(count + 1), np.empty((count + 1, z.shape[0]))
+                    sampling.grid(u0, u1, count, S)
+                    t = sampling.crossing(z, tol, u0, u1, linear, H, u1, S, PHIS, np.zeros(1, dtype=np.int64))
+                times[i] = t
+        if times[i] < first:
+            first, who = times[i], i
     return first, who
 
 
@@ -341,8 +350,11 @@ def settle(
             if dx == 0.0:
                 continue
             s = 1 if dx > 0 else -1
-            if pinned[j] and ground.at[j] and not record(ground, u, j, ground.cell[j], LEAVE, s):
-                return OVERFLOW
+            if pinned[j] and ground.at[j]:  # it left one boundary for the next
+                g = ground.cell[j]
+                ground.cell[j], ground.at[j] = (g + 1 if s > 0 else g), False
+                if not record(ground, u, j, g, LEAVE, s):
+                    return OVERFLOW
             if pinned[j]:
                 g = ahead(ground, j, s)
                 ground.cell[j], ground.at[j] = g, True

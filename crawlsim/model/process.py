@@ -21,15 +21,14 @@ Everything time-dependent is tabulated once on the period's grid, vectorised ove
 
 from __future__ import annotations
 
-import functools
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from crawlsim.gait.document import Gait, ProcessSpec
 from crawlsim.gait.signals import Signal, evaluate_many
-from crawlsim.gait.terrain import Terrain, ground_violation, on_ground
+from crawlsim.gait.terrain import GroundCheck, Terrain, on_ground
 from crawlsim.model.crawler import Crawler, block_forces, slips
 from crawlsim.model.offsets import PiecewiseOffsets
 from crawlsim.projection.kkt import ChainPolyhedron, DensePolyhedron, Polyhedron
@@ -62,7 +61,7 @@ class SweepingProcess:
     # The ground under the blocks (docs/model.md §8, `crawlsim.gait.terrain.Terrain`) and why the
     # uniqueness condition fails on the factors (a^+, a^-) under them (None where it holds).
     terrain: Terrain | None = None
-    ground_check: Callable[[np.ndarray, np.ndarray], str | None] | None = None
+    ground_check: GroundCheck | None = None
 
     @property
     def cycles(self) -> np.ndarray:
@@ -275,7 +274,7 @@ def compile_gait(gait: Gait, steps_per_period: int | None = None) -> SweepingPro
         breakpoints=np.asarray(breakpoints, dtype=float) * T,
         _cycles=u,
         terrain=gait.terrain,
-        ground_check=None if gait.terrain is None else functools.partial(ground_violation, gait),
+        ground_check=None if gait.terrain is None else GroundCheck(gait),
     )
 
 
