@@ -21,6 +21,10 @@ crawlsim plot "$work/peristalsis-4.h5" -o "$out" --only rigid
 crawlsim plot "$work/triangle.h5" -o "$out" --only convergence
 crawlsim plot "$work/smooth-friction-3.h5" -o "$out" --only shape-space
 
+# A step onto rougher ground (docs/terrain.md): the ground shaded behind the block paths.
+crawlsim run "$root/gaits/terrain/step-up-2.yaml" -o "$work/step-up-2.h5" >/dev/null
+crawlsim plot "$work/step-up-2.h5" -o "$out" --only motion
+
 # A large crawler: the kymograph of earthworm-100 and its motion, following the crawler over its
 # last three periods (the default beyond 32 blocks).
 crawlsim run "$root/gaits/earthworm-100.yaml" -o "$work/earthworm-100.h5" >/dev/null

@@ -147,3 +147,18 @@ def test_force_velocity_numbers():
     assert abs(float(value) + 1.0) <= float(estimate) <= 1e-8
     assert "cause: jump" in printed
     assert _figures(fresh) == 1
+
+
+def test_terrain_numbers():
+    """Crossing terrain: the step up and the step down settle on the ground beyond (v0 0.2 and
+    0.4, the closed forms of docs/model.md §8, whose displacements per period it prints), the
+    step up holds each block once, the step down none; the patches end at the plain ground's v0
+    (peristalsis-4's); the stripes lock every 8 periods, 3 on: v0 = 3/8."""
+    printed = [line for cell in _texts(executed(EXAMPLES / "terrain.ipynb")) for line in cell]
+    assert "step up: v0 = 0.200000000000 (one-ground)" in printed
+    assert "step down: v0 = 0.400000000000 (one-ground)" in printed
+    assert "  per period: 0.35 0.40 0.35 0.30 0.30 0.25 0.20 0.20" in printed
+    assert "  per period: 0.15 0.20 0.20 0.20 0.20 0.30 0.30 0.30 0.40 0.40" in printed
+    assert sum(line.startswith("  block") and "held" in line for line in printed) == 2
+    assert sum("v0 = 0.3711554677" in line for line in printed) == 2
+    assert "locked: every 8 periods, 3 stripes on; v0 = 0.375000000000 (3/8 = 0.375)" in printed
