@@ -81,6 +81,8 @@ PATHS = [
     (_sensitivity, "peristalsis-4.yaml", "catch-up"),
     (_stall, "climbing-3.yaml", "exact"),
     (_sweep, "peristalsis-4.yaml", "exact"),
+    (_run, "terrain/patch-4.yaml", "exact"),  # terrain: boundaries, holds and slides
+    (_run, "terrain/step-up-2.yaml", "catch-up"),  # terrain: the factors at each step's start
 ]
 
 
