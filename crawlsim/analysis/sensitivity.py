@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
-from crawlsim.analysis.run import LimitMethod, RunResult, shape_mismatch
+from crawlsim.analysis.run import LimitMethod, RunResult, shape_mismatch, simulate
 from crawlsim.analysis.sensitivity_terms import (
     EPS,
     Limit,
@@ -170,6 +170,11 @@ def sensitivity(
             getattr(gait, "source", "<gait>"), "", "sensitivities are defined for crawler gaits (kind: crawler)"
         )
     if gait.terrain is not None and len(gait.terrain.boundaries):  # the one ground a run settles on (§8)
+        if getattr(run, "terrain", None) is None or getattr(run, "limit_record", None) is None:
+            from crawlsim.model.process import compile
+
+            s = gait.simulation
+            run = simulate(compile(gait), integrator=s.integrator, max_periods=s.max_periods, tolerance=s.tolerance)
         gait, run = ground_gait(gait, run), None
     lim = _limit_of_run(gait, run)
     st = _static_of(gait, lim.process, paths)

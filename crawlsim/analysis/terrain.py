@@ -252,20 +252,15 @@ class GroundWatch:
         )
 
 
-def ground_gait(gait: Gait, run: Any = None) -> Gait:
-    """The gait on the one ground a run on terrain settles on (its v0 is that ground's: the
-    sensitivities of `crawlsim.analysis.sensitivity` are that gait's), or the gait itself
-    without boundaries; refused where the run does not settle on one ground: there v0 is not
-    smooth in the crawler's phase relative to the ground (docs/model.md §8)."""
-    from crawlsim.analysis.run import simulate
+def ground_gait(gait: Gait, run: Any) -> Gait:
+    """The gait on the one ground ``run`` (the gait's run on terrain) settles on: its v0 is that
+    ground's, and the sensitivities of `crawlsim.analysis.sensitivity` are that gait's. Refused
+    where the run does not settle on one ground: there v0 is not smooth in the crawler's phase
+    relative to the ground (docs/model.md §8)."""
     from crawlsim.gait.document import gait_from_document
-    from crawlsim.model.process import compile
 
     terrain = gait.terrain
-    if terrain is None or not len(terrain.boundaries):
-        return gait
-    if run is None or getattr(run, "terrain", None) is None or getattr(run, "limit_record", None) is None:
-        run = simulate(compile(gait), integrator=gait.simulation.integrator, max_periods=gait.simulation.max_periods)
+    assert terrain is not None
     report = run.terrain
     if report is None or report.regime != "one-ground":
         regime = "not settled" if report is None else report.regime
@@ -277,7 +272,9 @@ def ground_gait(gait: Gait, run: Any = None) -> Gait:
         )
     a, b = terrain.factors(run.limit_record.x[-1])  # every block on the same cell
     document = {**gait.document, "terrain": {"patches": [{"forward": float(a[0]), "backward": float(b[0])}]}}
-    return gait_from_document(document, gait.source, default_name=gait.name)
+    found = gait_from_document(document, gait.source, default_name=gait.name)
+    assert isinstance(found, Gait)
+    return found
 
 
 def held_periods(holds: np.ndarray, T: float, end: float) -> np.ndarray:

@@ -41,6 +41,7 @@ class GroundState:
         N = len(x)
         self.cell, self.at = np.zeros(N, dtype=np.int64), np.zeros(N, dtype=np.bool_)
         self.plus, self.minus = np.ones(N), np.ones(N)
+        self._arrays = np.empty((0, 7)), np.empty((0, 2 * N)), np.empty(0, bool)
         self.locate(x)
 
     def locate(self, x: np.ndarray) -> None:
@@ -67,8 +68,8 @@ class GroundState:
         the blocks where the last period left them (copies: a period run again starts there);
         its log and jump arrays are those of the last period (whose record copied them out)."""
         t = self.terrain
-        log, fac, pinned = getattr(self, "_arrays", (np.empty((0, 7)), None, None))
-        if len(log) != events or fac is None or len(fac) != jumps:  # kept from period to period
+        log, fac, pinned = self._arrays
+        if len(log) != events or len(fac) != jumps:  # kept from period to period
             log, fac, pinned = np.empty((events, 7)), np.empty((jumps, 2 * len(self.cell))), np.empty(jumps, bool)
             self._arrays = log, fac, pinned
         return Ground(
