@@ -299,6 +299,8 @@ class RunResult:
         for key in ("status", "convergence", "exact_convergence", "limit_method"):
             out[key] = None if out[key] is None else str(out[key])
         out["final_poincare_step"] = float(self.history.poincare_step[-1])
+        if self.terrain is not None:  # docs/model.md §8
+            out["terrain"] = self.terrain.summary()
         return out
 
 

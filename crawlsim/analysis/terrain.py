@@ -68,6 +68,21 @@ class TerrainReport:
         regime = str(attrs.get("regime", "not-settled"))
         return cls(regime, (n, m) if n else None, crossings, holds, held_periods(holds, period, periods * period))
 
+    def summary(self) -> dict[str, Any]:
+        """The JSON-ready report: blocks and boundaries as in the results file (1..N, x)."""
+        return {
+            "regime": self.regime,
+            "lock": None if self.lock is None else list(self.lock),
+            "crossings": [
+                {"time": t, "block": int(b) + 1, "position": x, "direction": int(s)} for t, b, x, s in self.crossings
+            ],
+            "holds": [
+                {"block": int(b) + 1, "position": x, "start": t0, "end": None if math.isnan(t1) else t1}
+                for b, x, t0, t1 in self.holds
+            ],
+            "held_periods": self.held_periods.tolist(),
+        }
+
     def text(self, period: float) -> list[tuple[str, str]]:
         """The lines `crawlsim run` prints for the ground: (label, value)."""
         lines = [("ground", _regime_text(self, period))]
