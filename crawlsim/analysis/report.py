@@ -84,11 +84,9 @@ def _error_parts(result: RunResult) -> str:
     """Where v0's error estimate comes from, after ``v0 ± estimate``."""
     if result.v0_error_estimate is None:
         return f" ({result.v0_error_reason or 'no error estimate'})"
-    regime = None if result.terrain is None else result.terrain.regime
-    if regime == "quasi-periodic":
-        return " (the long-run average's estimate, docs/model.md §8" + (
-            ")" if result.integrator == "exact" else "; ...)"
-        )
+    quasi = result.terrain is not None and result.terrain.regime == "quasi-periodic"
+    if quasi and result.integrator == "exact":
+        return " (the long-run average's estimate, docs/model.md §8)"
     if result.integrator == "exact":
         return " (period iteration; the exact integrator has no time-step error)"
     step = result.v0_error_time_step
