@@ -41,15 +41,17 @@ def _texts(notebook) -> list[list[str]]:
     for cell in notebook.cells:
         if cell.cell_type != "code":
             continue
-        lines: list[str] = []
+        # the kernel sends stdout in chunks wherever its buffer was flushed (a line can arrive
+        # apart from its newline): the chunks are one text
+        text = ""
         for output in cell.outputs:
             if output.output_type == "stream" and output.name == "stdout":
-                lines += output.text.splitlines()
+                text += output.text
             elif output.output_type == "execute_result" and "image/png" not in output.data:
-                lines += output.data.get("text/plain", "").splitlines()
+                text += output.data.get("text/plain", "") + "\n"
             elif output.output_type == "error":
                 raise AssertionError(f"{output.ename}: {output.evalue}")
-        out.append([line.rstrip() for line in lines])
+        out.append([line.rstrip() for line in text.splitlines()])
     return out
 
 
