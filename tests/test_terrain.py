@@ -29,6 +29,8 @@ import sys
 
 import numpy as np
 import pytest
+from hypothesis import example, given, settings
+from hypothesis import strategies as st
 
 import crawlsim
 from crawlsim.analysis.energy import period_energy
@@ -403,3 +405,65 @@ def test_validate_explain_and_info_know_the_ground(tmp_path):
         [sys.executable, "-m", "crawlsim", "info", str(tmp_path / "up.h5")], capture_output=True, text=True
     )
     assert "terrain                  1 boundary; one-ground; 2 crossings, 2 holds" in info.stdout
+
+
+def test_a_motion_locked_to_stripes_moves_m_stripes_in_n_periods():
+    """gaits/terrain/stripes-2.yaml: the state repeats every 8 periods, 3 stripes (repeat 1)
+    on: v0 = 3/8, finite-time, to roundoff."""
+    result = crawlsim.simulate(crawlsim.load_gait(GAITS / "terrain" / "stripes-2.yaml"))
+    assert result.terrain.regime == "locked" and result.terrain.lock == (8, 3)
+    assert result.v0 == pytest.approx(3 / 8, abs=1e-12) and result.v0_error_estimate < 1e-11
+    assert str(result.convergence) == "finite-time"
+
+
+def test_the_long_run_average_on_stripes_holds_within_its_estimate():
+    """Not locked (the four-block wave of peristalsis-4 on stripes 0.3 wide every 1, factors 0.7
+    and 1.3): the average over the second half of a run of 150 periods lies within its estimate
+    of that of 1200 periods (whose own estimate is smaller)."""
+    document = crawlsim.load_gait(GAITS / "peristalsis-4.yaml").document
+    stripes = {"repeat": 1.0, "patches": [{"from": 0.3, "to": 0.6, "forward": 0.7, "backward": 1.3}]}
+    gait = make_gait({**document, "terrain": stripes})
+    short = crawlsim.simulate(gait.replace("simulation.max_periods", 150))
+    long = crawlsim.simulate(gait.replace("simulation.max_periods", 1200))
+    assert short.terrain.regime == long.terrain.regime == "quasi-periodic"
+    assert long.v0_error_estimate < short.v0_error_estimate
+    assert abs(short.v0 - long.v0) <= short.v0_error_estimate
+
+
+@settings(max_examples=12)
+@example(blocks=5, repeat=1.3, cuts=[0.0625, 0.5], factors=[1.5] + [1.0] * 7)  # uniqueness fails on the way
+@given(
+    blocks=st.integers(2, 5),
+    repeat=st.sampled_from([0.0, 0.7, 1.3]),
+    cuts=st.lists(st.floats(0.02, 0.9), min_size=2, max_size=8),
+    factors=st.lists(st.floats(0.3, 2.5), min_size=8, max_size=8),
+)
+def test_random_ground_runs_certified_with_its_energy_balanced(blocks, repeat, cuts, factors):
+    """Random patches under a random wave: every period certified (the kernel's samples and
+    slides), the energy balance closed, and after every crossing the block on the side it
+    crossed to."""
+    edges = np.cumsum(cuts) + (0.0 if repeat else 0.5)
+    if repeat:
+        edges = edges[edges < repeat]
+    patches = [
+        {"from": float(a), "to": float(b), "forward": factors[i % 8], "backward": factors[(i + 3) % 8]}
+        for i, (a, b) in enumerate(zip(edges[::2], edges[1::2]))
+    ]
+    doc = _wave(blocks, terrain={"patches": patches, **({"repeat": repeat} if repeat else {})})
+    try:
+        gait = make_gait(doc)
+    except GaitError:
+        return  # the uniqueness condition fails on the ground the blocks start on
+    try:
+        records = _periods(gait, "exact", 5)
+    except DegenerateModelError:
+        return  # it fails on ground they reach
+    for record in records:
+        e = record.energy
+        assert abs(e.residual - e.energy_change) <= 1e-12 * max(e.scale, 1.0)
+        events = record.events
+        for t, i, g, kind, s in [] if record.ground is None else record.ground:
+            if kind != 1:  # crossings
+                continue
+            k = int(np.searchsorted(events.t, t, side="right")) - 1
+            assert s * (events.x[k, int(i)] - gait.terrain.boundary(int(g))) >= -1e-9

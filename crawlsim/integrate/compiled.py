@@ -193,6 +193,7 @@ class _CompiledLoop:
                 f"complementarity {report[loop.R_COMP]:.3g}"
             )
         if s.ground is not None:  # the Python loop does not walk terrain
+            s.ground.adopt(out["ground"], start, s.process.period)  # uniqueness there (§8)?
             raise EventError(
                 f"{s.process.name}: the exact integrator cannot pass t = {start + u * s.process.period:.12g} "
                 f"on this terrain ({loop.HANDOFF_REASONS[int(report[loop.R_REASON])]}: a step its compiled "
