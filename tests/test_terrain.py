@@ -469,3 +469,18 @@ def test_random_ground_runs_certified_with_its_energy_balanced(blocks, repeat, c
                 continue
             k = int(np.searchsorted(events.t, t, side="right")) - 1
             assert s * (events.x[k, int(i)] - gait.terrain.boundary(int(g))) >= -1e-9
+
+
+def test_stall_on_terrain_where_the_crawler_no_longer_gets_across():
+    """inching-2-towing (mu+ = 1, mu- = 2, k = 10, stroke 0.6) towing P on its rear block,
+    toward ground from x = 1.5 of factors 1.3 and 1.2. With the front block on it and the rear one
+    not, the front slips forward at sigma = 1.3 and the rear backward at 2 - P: for P > 0.7 the
+    extension pushes the rear block back instead of the front one forward, and the crawler stops
+    at the boundary (docs/model.md §6 with the ground's thresholds). So the stall force is -0.7,
+    where the uniqueness condition fails on the mixed ground (a jump), below the stall of either
+    ground alone."""
+    document = crawlsim.load_gait(GAITS / "inching-2-towing.yaml").document
+    gait = make_gait({**document, "terrain": {"patches": [{"from": 1.5, "forward": 1.3, "backward": 1.2}]}})
+    found = crawlsim.stall(gait, force="loads.force.0")
+    assert abs(found.value + 0.7) <= found.error_estimate + 1e-12 and found.error_estimate < 1e-8
+    assert found.cause == "jump"
