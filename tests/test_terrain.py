@@ -484,3 +484,13 @@ def test_stall_on_terrain_where_the_crawler_no_longer_gets_across():
     found = crawlsim.stall(gait, force="loads.force.0")
     assert abs(found.value + 0.7) <= found.error_estimate + 1e-12 and found.error_estimate < 1e-8
     assert found.cause == "jump"
+
+
+@pytest.mark.parametrize("integrator", ["exact", "catch-up"])
+def test_check_every_step_is_refused_on_terrain(integrator, tmp_path):
+    """Clarabel's check of every step projects onto the sets of uniform ground: on terrain it is
+    refused (exit code 2, one line), with no file written."""
+    out = tmp_path / "c.h5"
+    argv = ["run", str(GAITS / "terrain" / "step-up-2.yaml"), "--check-every-step", "--integrator", integrator]
+    done = subprocess.run([sys.executable, "-m", "crawlsim", *argv, "-o", str(out)], capture_output=True, text=True)
+    assert done.returncode == 2 and "without --check-every-step" in done.stderr and not out.exists()

@@ -64,7 +64,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from crawlsim.errors import CertificateError, DegenerateModelError, EventError, LicqWarning
+from crawlsim.errors import CertificateError, DegenerateModelError, EventError, InputError, LicqWarning
 from crawlsim.integrate.compiled import EventTrajectory, _CompiledLoop
 from crawlsim.integrate.ground import GroundState
 from crawlsim.integrate.ledger import ExactLedger
@@ -165,8 +165,13 @@ class EventStepper(PeriodStepper):
             self._jump[p] = np.max(np.abs(left - right)) > 100 * RTOL * self.poly.c_scale
         # the ground under the blocks (docs/model.md §8): only the compiled loop walks terrain
         self.ground = None if process.terrain is None else GroundState(process, np.asarray(self.x))
-        if self.ground is not None and not kernel:
-            raise EventError(f"{process.name}: on terrain the exact integrator runs its compiled loop only")
+        if self.ground is not None and (check_every_step or not kernel):
+            raise InputError(
+                process.name,
+                "terrain",
+                "on terrain the exact integrator runs its compiled loop only, without --check-every-step "
+                "(Clarabel's check projects onto the sets of uniform ground)",
+            )
         self._loop = _CompiledLoop.of(self) if kernel else None
 
     # -- one period -------------------------------------------------------------------------

@@ -234,7 +234,12 @@ class CatchUpStepper(PeriodStepper):
         self._ground_events: np.ndarray | None = None
         if process.terrain is not None:
             if self._kernel is None:
-                raise InputError(process.name, "terrain", "on terrain catch-up runs its compiled steps only")
+                raise InputError(
+                    process.name,
+                    "terrain",
+                    "on terrain catch-up runs its compiled steps only, without --check-every-step "
+                    "(Clarabel's check projects onto the sets of uniform ground)",
+                )
             from crawlsim.integrate.ground import GroundState
 
             self.ground = GroundState(process, np.asarray(self.x))
