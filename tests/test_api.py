@@ -177,7 +177,7 @@ def test_generic_processes_run_through_the_same_api():
     assert isinstance(spec, crawlsim.ProcessSpec)
     r = crawlsim.simulate(spec, steps_per_period=60)
     assert r.v0 is None and r.trajectory.x is None and r.trajectory.reaction is not None
-    assert r.contraction_rate == pytest.approx(1 / 8, rel=1e-3)  # the paper's phi^3
+    assert r.rate.rate == pytest.approx(1 / 8, rel=1e-3)  # the paper's phi^3
     assert spec.replace("period", 2.0).period == 2.0
 
 

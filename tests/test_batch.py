@@ -31,17 +31,17 @@ def _assert_same(run, single):
     assert run.periods == single.periods
     assert run.periodic_from == single.periodic_from
     assert run.v0 == pytest.approx(single.v0, abs=1e-12, rel=0)
-    assert run.displacement_per_period == pytest.approx(single.displacement_per_period, abs=1e-12, rel=0)
-    assert run.dissipation_per_period == pytest.approx(single.dissipation_per_period, abs=1e-11, rel=1e-12)
-    if single.contraction_rate is None:
+    assert run.displacement_per_period == pytest.approx(single.estimate.displacement, abs=1e-12, rel=0)
+    assert run.dissipation_per_period == pytest.approx(single.energy.dissipation, abs=1e-11, rel=1e-12)
+    if single.rate is None:
         assert run.contraction_rate is None
     else:
-        assert run.contraction_rate == pytest.approx(single.contraction_rate, rel=1e-6)
-    assert run.v0_error_estimate == pytest.approx(single.v0_error_estimate, rel=1e-6, abs=1e-15)
-    if single.cost_of_transport is None:
+        assert run.contraction_rate == pytest.approx(single.rate.rate, rel=1e-6)
+    assert run.v0_error_estimate == pytest.approx(single.estimate.error_estimate, rel=1e-6, abs=1e-15)
+    if single.energy.cost_of_transport is None:
         assert run.cost_of_transport is None
     else:
-        assert run.cost_of_transport == pytest.approx(single.cost_of_transport, rel=1e-10)
+        assert run.cost_of_transport == pytest.approx(single.energy.cost_of_transport, rel=1e-10)
 
 
 def test_every_gait_file_in_one_batch_matches_single_runs():

@@ -263,7 +263,7 @@ def test_every_paper_file_runs(path):
     kind, rate = expected[Path(path).stem]
     assert result.convergence == kind
     if rate is not None:
-        assert result.contraction_rate == pytest.approx(rate, rel=1e-3)
+        assert result.rate.rate == pytest.approx(rate, rel=1e-3)
     assert (result.v0 is not None) == isinstance(spec, Gait)
 
 

@@ -1,5 +1,5 @@
 """A catch-up sweep with ``--sensitivity`` walks the limit period each batched point's own run
-stepped (`crawlsim.study.batch.BatchRun.limit_record`): no point is stepped twice. Counted: the
+stepped (`crawlsim.study.batch.BatchRun.record`): no point is stepped twice. Counted: the
 catch-up periods stepped in the whole sweep are the periods its rows report, and each cell is
 the closed form of the two-block crawler (tests/test_sensitivity_sweep.py), the value
 `crawlsim.sensitivity` gives for that point's gait after searching its limit itself.

@@ -101,15 +101,17 @@ from crawlsim.model.process import SweepingProcess
 
 @dataclass(frozen=True)
 class EnergyLedger:
-    """What a run reports of the limit period's energy (`ledger`)."""
+    """What a run reports of its limit period's dissipation and energy (`ledger`)."""
 
-    actuator_work_per_period: float
-    dissipation_per_period: float
-    jump_loss_per_period: float
-    energy_balance_residual: float  # W - D - J - W_load on the limit period
+    dissipation: float  # D, with its error estimate (None where v0's time-step error is unknown)
+    dissipation_error_estimate: float | None
+    cost_of_transport: float | None  # (D + W_load) / |displacement|; None without net motion
+    actuator_work: float
+    jump_loss: float
+    balance_residual: float  # W - D - J - W_load on the limit period
     cost_of_transport_bound: float | None  # force; None without a direction of motion or with loads
     efficiency: float | None  # bound / cost of transport; with loads W_load / W
-    load_work_per_period: float | None = None  # W_load; None without loads
+    load_work: float | None = None  # W_load; None without loads
 
 
 # -- a period's ledger, either integrator ----------------------------------------------------------
@@ -240,22 +242,25 @@ def cost_of_transport_bound(process: SweepingProcess, displacement: float) -> fl
 
 
 def ledger(
-    process: SweepingProcess, record: PeriodRecord, displacement: float, cost_of_transport: float | None
+    process: SweepingProcess,
+    record: PeriodRecord,
+    displacement: float,
+    cost_of_transport: float | None,
+    dissipation_error: float | None,
 ) -> EnergyLedger | None:
     """The ledger of the limit period ``record`` and the bound on the cost of transport; None
     for a generic sweeping process."""
     energy = period_energy(process, record)
     if energy is None:
         return None
-    if process.crawler is not None and process.crawler.load is not None:
+    head = (energy.dissipation, dissipation_error, cost_of_transport, energy.work, energy.jump_loss, energy.residual)
+    if process.load is not None:
         # with loads (docs/model.md §6): the efficiency is the share of the actuator work that
         # goes into the load, and the friction-only bound does not bound the cost of transport
         efficiency = energy.load_work / energy.work if energy.work > 0 else None
-        return EnergyLedger(
-            energy.work, energy.dissipation, energy.jump_loss, energy.residual, None, efficiency, energy.load_work
-        )
+        return EnergyLedger(*head, None, efficiency, energy.load_work)
     bound = cost_of_transport_bound(process, displacement)
     efficiency = None
     if bound is not None and cost_of_transport is not None and cost_of_transport > 0:
         efficiency = bound / cost_of_transport
-    return EnergyLedger(energy.work, energy.dissipation, energy.jump_loss, energy.residual, bound, efficiency)
+    return EnergyLedger(*head, bound, efficiency)

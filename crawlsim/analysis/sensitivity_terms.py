@@ -22,6 +22,7 @@ import numpy as np
 
 from crawlsim.analysis.run import verified_limit_error
 from crawlsim.errors import CrawlsimError, GaitError
+from crawlsim.gait.settings import effective_tolerance
 from crawlsim.gait.signals import Constant, Cosine, Fourier
 
 if TYPE_CHECKING:
@@ -60,7 +61,6 @@ class Limit:
 def find_limit(gait: Gait) -> Limit:
     """The verified limit period of ``gait`` with its own integrator (as `crawlsim velocity`
     finds it: plain periods, then the periodic-limit solver)."""
-    from crawlsim.analysis.run import effective_tolerance
     from crawlsim.integrate.limit import PLAIN_PERIODS, relative_step, solve_limit
     from crawlsim.integrate.stepping import make_stepper
     from crawlsim.model.process import compile_gait

@@ -239,7 +239,8 @@ def periods_to_tolerance(rel_steps, tolerance: float, max_periods: int) -> int |
     """
     import numpy as np
 
-    from crawlsim.analysis.run import contraction_rate, effective_tolerance
+    from crawlsim.analysis.convergence import contraction_rate
+    from crawlsim.gait.settings import effective_tolerance
 
     steps = np.asarray(rel_steps, dtype=float)
     done = len(steps)

@@ -129,7 +129,7 @@ def run(
     from pathlib import Path
 
     from crawlsim import api
-    from crawlsim.analysis.run import summary_text
+    from crawlsim.analysis.report import summary_text
 
     with library_errors():
         if from_results is not None:
@@ -176,14 +176,13 @@ def run(
             summary["figures"] = figures
         click.echo(to_json(summary))
     else:
-        click.echo(summary_text(result, str(out)))
+        click.echo(summary_text(result.run, str(out), result.units))
         for figure in figures:
             click.echo(f"  figure                   {figure}")
     if not result.converged:
-        from crawlsim.analysis.run import not_converged_message
+        from crawlsim.analysis.report import not_converged_message
 
-        s = gait.simulation
-        click.echo(not_converged_message(result, s.max_periods, s.tolerance, s.limit), err=True)
+        click.echo(not_converged_message(result.run), err=True)
         sys.exit(EXIT_NOT_CONVERGED)
 
 

@@ -14,7 +14,7 @@ def compute(gait: Any, paths: tuple[str, ...], run: Any = None) -> Any:
     integrator: exact, or the catch-up scheme's discrete map (the lines say so)."""
     from crawlsim.analysis.sensitivity import sensitivity
 
-    return sensitivity(gait, list(paths), run=run)
+    return sensitivity(gait, list(paths), run=run.settled)
 
 
 def lines(result: Any, integrator: str) -> list[str]:

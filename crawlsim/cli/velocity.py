@@ -257,14 +257,13 @@ def _single(gait, sensitivity_paths, as_json, max_memory, quiet, verbose):
         from crawlsim.analysis.digits import supported
 
         assert result.v0 is not None  # a crawler (need_crawler): v0 is measured
-        click.echo(supported(result.v0, result.v0_error_estimate)[0])
+        click.echo(supported(result.v0, result.estimate.error_estimate)[0])
         if derivatives is not None:
             sensitivities.echo(derivatives, summary["integrator"])
     if not result.converged:
-        from crawlsim.analysis.run import not_converged_message
+        from crawlsim.analysis.report import not_converged_message
 
-        s = gait.simulation
-        click.echo(not_converged_message(result, s.max_periods, s.tolerance, s.limit), err=True)
+        click.echo(not_converged_message(result.run), err=True)
         sys.exit(EXIT_NOT_CONVERGED)
 
 

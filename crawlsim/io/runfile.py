@@ -490,8 +490,9 @@ class ResultsWriter:
             groups["limit"].update(lengths=c.lengths, friction=c.friction, load=c.load)
         if "events" in f:
             groups["events"] = {name: f["events"][name] for name in f["events"]}
-        if c is not None and getattr(result, "actuator_work_per_period", None) is not None:
-            groups["energy"] = {name: getattr(result, attr) for name, attr in _ENERGY.items()}
+        summary = result.summary()
+        if c is not None and summary["actuator_work_per_period"] is not None:
+            groups["energy"] = {name: summary[key] for name, key in _ENERGY.items()}
         return groups
 
     def _write_group(self, gname: str, values: dict[str, Any]) -> None:
@@ -540,8 +541,8 @@ class ResultsWriter:
         solver_period is empty. jacobian_rate (the Jacobian's subdominant spectral radius at
         the limit) and contraction_rate (fitted to the true iterates) should agree."""
         group = self.file["limit"].create_group("solver", track_order=True)
-        residuals = getattr(result, "limit_residuals", None)
-        kinds = getattr(result, "limit_kinds", None)
+        solver, summary = result.solver, result.summary()
+        residuals, kinds = solver.residuals, solver.kinds
         residuals = np.zeros(0) if residuals is None else np.asarray(residuals, dtype=float)
         kinds = np.zeros(len(residuals), dtype=np.int8) if kinds is None else np.asarray(kinds, dtype=np.int8)
         ds = self._scales.coordinate(group, "solver_period", np.arange(len(residuals), dtype=np.int64))
@@ -551,12 +552,11 @@ class ResultsWriter:
             self._scales.attach(ds, ("solver_period",))
             describe_var(ds, SOLVER_VARIABLES[name], "1")
         a = group.attrs
-        a["method"] = str(getattr(result, "limit_method", "iterate"))
-        a["newton_steps"] = int(getattr(result, "limit_newton_steps", 0))
-        a["periods"] = int(getattr(result, "limit_periods", 0))
+        a["method"] = str(solver.method)
+        a["newton_steps"] = int(solver.newton_steps)
+        a["periods"] = int(solver.periods)
         for key in ("jacobian_rate", "contraction_rate"):
-            value = getattr(result, key, None)
-            a[key] = np.nan if value is None else float(value)
+            a[key] = np.nan if summary[key] is None else float(summary[key])
         a["comment"] = (
             "how the periodic limit was found. method newton: the periodic-limit solver "
             "(safeguarded semismooth Newton on F(w) = P(w) - w, P the period map, Jacobian from "
@@ -617,8 +617,7 @@ class ResultsWriter:
             "efficiency",
             "load_work_per_period",
         ):
-            value = summary.get(key, getattr(result, key, None))
-            a[key] = np.nan if value is None else float(value)
+            a[key] = np.nan if summary[key] is None else float(summary[key])
         # the loads (docs/model.md §6): the effective document (gait_yaml) holds the whole
         # loads: block; the angle in degrees is repeated here, NaN without a slope
         c = self.process.crawler

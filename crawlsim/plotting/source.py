@@ -108,7 +108,7 @@ def from_result(result: Any) -> dict[str, Any]:
         "convergence": str(result.convergence),
         "periodic_from": -1 if result.periodic_from is None else int(result.periodic_from),
         "v0": _number_or_nan(result.v0),
-        "contraction_rate": _number_or_nan(result.contraction_rate),
+        "contraction_rate": math.nan if result.rate is None else result.rate.rate,
         "units_json": json.dumps(units.to_json() if units is not None else {}),
         "source": "result",
     }

@@ -21,16 +21,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from crawlsim import interrupts
-from crawlsim.analysis.run import (
+from crawlsim.analysis.convergence import (
     classify_convergence,
     contraction_rate,
-    cost_of_transport,
     displacement_roundoff,
-    effective_tolerance,
     period_iteration_error,
     poincare_step,
 )
+from crawlsim.analysis.run import cost_of_transport
 from crawlsim.errors import CrawlsimError, InputError
+from crawlsim.gait.settings import effective_tolerance
 from crawlsim.integrate.stepping import CatchUpStepper, PeriodRecord
 from crawlsim.model.process import SweepingProcess
 from crawlsim.status import Convergence, PointStatus
@@ -57,10 +57,9 @@ class BatchRun:
     v0_error_estimate: float | None = None
     contraction_rate: float | None = None
     cost_of_transport: float | None = None
-    # with ``keep_limit``: the last period stepped and its process, walked by the sweep's
-    # --sensitivity (`crawlsim.analysis.sensitivity`) instead of stepping the point again
-    limit_record: PeriodRecord | None = field(default=None, repr=False, compare=False)
-    limit_process: SweepingProcess | None = field(default=None, repr=False, compare=False)
+    # with ``keep_limit``: the last period stepped, walked by the sweep's --sensitivity
+    # (`crawlsim.analysis.sensitivity`) instead of stepping the point again
+    record: PeriodRecord | None = field(default=None, repr=False, compare=False)
     integrator: str = "catch-up"
 
     @property
@@ -76,7 +75,7 @@ def simulate_batch(
     ``max_periods`` and ``tolerance`` are numbers or one per process. ``capacity`` is accepted
     for the callers that size batches; each gait runs on its own compiled kernel step.
     ``progress(k)`` is called whenever k more gaits have finished. ``keep_limit`` keeps each
-    run's last period (`BatchRun.limit_record`).
+    run's last period (`BatchRun.record`).
     """
     processes = list(processes)
     count = len(processes)
@@ -148,8 +147,7 @@ def _run(p: SweepingProcess, max_periods: int, tol: float, keep_limit: bool = Fa
         v0_error_estimate=err,
         contraction_rate=rate,
         cost_of_transport=cost_of_transport(paid, d, err, p.period),
-        limit_record=record if keep_limit else None,
-        limit_process=p if keep_limit else None,
+        record=record if keep_limit else None,
     )
 
 

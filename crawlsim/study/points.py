@@ -17,6 +17,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any, Protocol
 
+from crawlsim.analysis.run import Settled, settle
 from crawlsim.errors import CrawlsimError, InputError
 from crawlsim.gait.document import Gait
 from crawlsim.status import PointStatus
@@ -217,8 +218,8 @@ def _run_batch(
     members: list[_Member], single: list[_Member], out: dict[int, PointResult], capacity, tick, kept: dict | None = None
 ) -> None:
     """Catch-up points through the batched stepper; a ``newton`` point not converged within
-    `BATCH_PLAIN_PERIODS` goes to ``single`` (the periodic-limit solver finishes it). The
-    others' runs join ``kept`` when given, with their last period (--sensitivity)."""
+    `BATCH_PLAIN_PERIODS` goes to ``single`` (the periodic-limit solver finishes it). What the
+    others settled on joins ``kept`` when given (--sensitivity)."""
     from crawlsim.study.batch import DEFAULT_CAPACITY, simulate_batch
 
     newton = [g.simulation.limit == "newton" for _, _, g in members]
@@ -237,8 +238,8 @@ def _run_batch(
         if n and r.status == PointStatus.NOT_CONVERGED and g.simulation.max_periods > BATCH_PLAIN_PERIODS:
             single.append((i, p, g))
             continue
-        if kept is not None:
-            kept[i] = r
+        if kept is not None and r.record is not None:
+            kept[i] = Settled(r, r.record, p)
         out[i] = PointResult(
             i,
             r.status,
@@ -264,14 +265,12 @@ def _limit_of(v0: float | None) -> dict[str, Any]:
 
 
 def _run_single(member: _Member, runs: dict | None = None) -> PointResult:
-    """One point through `crawlsim.analysis.run.simulate` (no history); its run joins
+    """One point through `crawlsim.analysis.run.settle` (no history); what it settled on joins
     ``runs`` (by index) when given."""
-    from crawlsim.analysis.run import simulate
-
     i, process, g = member
     s = g.simulation
     try:
-        run = simulate(
+        settled = settle(
             process,
             max_periods=s.max_periods,
             tolerance=s.tolerance,
@@ -279,28 +278,28 @@ def _run_single(member: _Member, runs: dict | None = None) -> PointResult:
             limit=s.limit,
             history=False,
             series=runs is not None,  # the row holds no per-period series,
-            running_frame=runs is not None,
-        )  # nor the running frame
+            running_frame=runs is not None,  # nor the running frame
+        )
     except Exception as exc:
         _reraise_memory(exc)
         return _failure(i, exc)
-    status = PointStatus.OK if run.converged else PointStatus.NOT_CONVERGED
+    run, e = settled.result, settled.result.estimate
     if runs is not None:
-        runs[i] = run
+        runs[i] = settled
     return PointResult(
         i,
-        status,
+        PointStatus.OK if run.converged else PointStatus.NOT_CONVERGED,
         v0=run.v0,
-        v0_error_estimate=run.v0_error_estimate if run.integrator == "exact" else None,
-        displacement_per_period=run.displacement_per_period,
-        dissipation_per_period=run.dissipation_per_period,
-        cost_of_transport=run.cost_of_transport,
+        v0_error_estimate=e.error_estimate if run.integrator == "exact" else None,
+        displacement_per_period=e.displacement,
+        dissipation_per_period=run.energy.dissipation,
+        cost_of_transport=run.energy.cost_of_transport,
         convergence=str(run.convergence),
-        periods=run.periods + run.limit_periods,
+        periods=run.periods + run.solver.periods,
         integrator=run.integrator,
-        steps=run.steps,
-        limit=run.limit_method,
-        newton_steps=run.limit_newton_steps,
+        steps=run.effort.steps,
+        limit=run.solver.method,
+        newton_steps=run.solver.newton_steps,
     )
 
 
