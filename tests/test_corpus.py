@@ -112,6 +112,6 @@ def test_a_thousand_knots_run_exactly():
     catch_up = simulate(process, integrator="catch-up", max_periods=50, tolerance=1e-12, history=False)
     assert exact.converged and catch_up.converged
     assert exact.v0 is not None and catch_up.v0 is not None
-    L = process.lengths
+    L = process.crawler.lengths
     stroke = float(np.max(L.max(axis=0) - L.min(axis=0))) / gait.period
     assert 0.0 < abs(catch_up.v0 - exact.v0) <= 10 * stroke / process.steps

@@ -35,7 +35,9 @@ from crawlsim.study.sweep import make_grid, run_points
 from .conftest import GAITS, make_gait
 
 CRAWLERS = sorted(
-    p for p in list(GAITS.glob("*.yaml")) + list(GAITS.glob("paper/*.yaml")) if compile_any(load_gait(p)).is_crawler
+    p
+    for p in list(GAITS.glob("*.yaml")) + list(GAITS.glob("paper/*.yaml"))
+    if compile_any(load_gait(p)).crawler is not None
 )
 
 

@@ -47,7 +47,7 @@ def test_two_exact_loops_agree_within_the_estimate(seed, monkeypatch):
     compiled, python = runs
     assert compiled.v0 is not None and python.v0 is not None
     assert compiled.estimate.error_estimate is not None and python.estimate.error_estimate is not None
-    k = np.asarray(process.stiffness, dtype=float)
+    k = np.asarray(process.crawler.stiffness, dtype=float)
     assert k.max() / k.min() > 1e4  # a stiff chain: the case this is about
     difference = abs(compiled.v0 - python.v0)
     assert difference <= min(compiled.estimate.error_estimate, python.estimate.error_estimate)

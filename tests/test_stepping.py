@@ -60,7 +60,7 @@ def test_stress_stays_admissible_and_slips_only_at_the_friction_limit():
     force = np.zeros((len(stress), N))
     force[:, :-1] -= stress
     force[:, 1:] += stress
-    mu = process.friction
+    mu = process.crawler.friction
     tol = 1e-12 * process.scale
     assert np.all(force <= mu[:, :N] + tol) and np.all(force >= -mu[:, N:] - tol)
     slip = res.limit.slip

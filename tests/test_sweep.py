@@ -355,7 +355,7 @@ def test_a_point_that_raises_does_not_sink_its_batch(monkeypatch):
     original = batch.simulate_batch
 
     def flaky(processes, **options):
-        if any(abs(p.lengths[0, 0] - (1 + 0.2)) < 1e-12 for p in processes):
+        if any(abs(p.crawler.lengths[0, 0] - (1 + 0.2)) < 1e-12 for p in processes):
             raise FloatingPointError("boom")
         return original(processes, **options)
 

@@ -201,7 +201,7 @@ def displacement_roundoff(process: SweepingProcess, steps_per_period: int, mean_
     1e6, the v0 of the compiled and of the Python event loop (each exact, their roundoff apart)
     differ by at most 0.62 of it over T, and by up to 150 times the first term alone."""
     eps = float(np.finfo(float).eps)
-    k_min = float(np.min(process.stiffness)) if process.stiffness is not None else math.inf
+    k_min = math.inf if process.crawler is None else float(np.min(process.crawler.stiffness))
     return steps_per_period * eps * mean_abs_slip + eps * process.scale / k_min
 
 

@@ -222,14 +222,11 @@ def friction_minimum(signal: Signal) -> float:
 
 def friction_minima(process: SweepingProcess) -> tuple[np.ndarray, np.ndarray]:
     """(min_t mu_j^+(t), min_t mu_j^-(t)) for every block j of a compiled crawler."""
-    assert process.offset_pieces is not None
-    N = process.blocks
-    signals = process.offset_pieces.signals
-    forward = np.array([friction_minimum(s) for s in signals[N - 1 : 2 * N - 1]])
-    backward = np.array([friction_minimum(s) for s in signals[2 * N - 1 : 3 * N - 1]])
-    assert process.crawler is not None
-    scale = process.crawler.friction_scale
-    return scale * forward, scale * backward
+    crawler, pieces = process.crawler, process.offset_pieces
+    assert crawler is not None and pieces is not None
+    forward = np.array([friction_minimum(s) for s in pieces.signals[crawler.columns["forward"]]])
+    backward = np.array([friction_minimum(s) for s in pieces.signals[crawler.columns["backward"]]])
+    return crawler.friction_scale * forward, crawler.friction_scale * backward
 
 
 def cost_of_transport_bound(process: SweepingProcess, displacement: float) -> float | None:
@@ -254,7 +251,7 @@ def ledger(
     if energy is None:
         return None
     head = (energy.dissipation, dissipation_error, cost_of_transport, energy.work, energy.jump_loss, energy.residual)
-    if process.load is not None:
+    if process.crawler is not None and process.crawler.load is not None:
         # with loads (docs/model.md §6): the efficiency is the share of the actuator work that
         # goes into the load, and the friction-only bound does not bound the cost of transport
         efficiency = energy.load_work / energy.work if energy.work > 0 else None

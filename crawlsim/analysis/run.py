@@ -461,8 +461,8 @@ def verified_limit_error(process: SweepingProcess, final: PeriodRecord, steps: i
 def shape_mismatch(process: SweepingProcess, final: PeriodRecord) -> float:
     """A period's residual |P(w) - w| as a length, max |w(T) - w(0)| / k_min: a shape that
     repeats to within it leaves the displacement uncertain by as much."""
-    assert process.stiffness is not None
-    return float(np.abs(final.w[-1] - final.w[0]).max()) / float(process.stiffness.min())
+    assert process.crawler is not None
+    return float(np.abs(final.w[-1] - final.w[0]).max()) / float(process.crawler.stiffness.min())
 
 
 def _motion(
@@ -538,7 +538,7 @@ def _energy(
     cot = None
     if error is not None:
         paid = motion.dissipation
-        if process.load is not None:
+        if process.crawler is not None and process.crawler.load is not None:
             paid += period_energy(process, final).load_work  # type: ignore[union-attr]
         cot = cost_of_transport(paid, motion.displacement, error, process.period)
     return energy_ledger(process, final, motion.displacement, cot, dissipation_error)

@@ -24,6 +24,7 @@ from crawlsim.analysis.run import verified_limit_error
 from crawlsim.errors import CrawlsimError, GaitError
 from crawlsim.gait.settings import effective_tolerance
 from crawlsim.gait.signals import Constant, Cosine, Fourier
+from crawlsim.model.crawler import signal_columns, signals_of
 
 if TYPE_CHECKING:
     from crawlsim.gait.document import Gait
@@ -153,6 +154,7 @@ class Coefficients:
     edges: np.ndarray
     basis: Any
     pieces: Any  # the compiled `crawlsim.model.offsets.PiecewiseOffsets` they come from
+    crawler: Any  # the `crawlsim.model.crawler.Crawler` whose signals they are
 
 
 def coefficients_of(gait: Gait, process: SweepingProcess | None = None) -> Coefficients:
@@ -163,34 +165,28 @@ def coefficients_of(gait: Gait, process: SweepingProcess | None = None) -> Coeff
 
     if process is None:
         process = compile_gait(gait, steps_per_period=1)
-    assert process.offset_pieces is not None and process.stiffness is not None
-    return _assemble(gait, process.offset_pieces, np.array(process.stiffness, dtype=float))
+    assert process.offset_pieces is not None and process.crawler is not None
+    return _assemble(process.offset_pieces, process.crawler)
 
 
 def _signals(gait: Gait, fields: dict[str, Any] | None = None) -> tuple[Any, ...]:
     """The signals c(t) is combined from, in the order `compile_gait` takes them (with the
     gait's ``fields`` replaced by those given, `_moved_fields`)."""
     f = fields or {}
-    forces = () if gait.loads is None else tuple(gait.loads.forces)
-    return (
-        tuple(f.get("links", gait.links))
-        + tuple(f.get("forward", gait.forward))
-        + tuple(f.get("backward", gait.backward))
-        + forces
+    forces = () if gait.loads is None else gait.loads.forces
+    return signals_of(
+        f.get("links", gait.links), f.get("forward", gait.forward), f.get("backward", gait.backward), forces
     )
 
 
-def _assemble(gait: Gait, pieces: Any, k: np.ndarray) -> Coefficients:
+def _assemble(pieces: Any, crawler: Any) -> Coefficients:
     """C_p of ``pieces`` and the friction weights Mu_p: the friction signals' own coefficients
-    on each piece (the columns after the links'), times cos(angle) on a slope (docs/model.md
-    §6)."""
-    N = gait.blocks
+    on each piece, times cos(angle) on a slope (docs/model.md §6)."""
     P = pieces.pieces
     C = np.array([pieces.coefficients(p) for p in range(P)])
-    Mu = np.array([pieces.signal_coefficients(p)[:, N - 1 : 3 * N - 1] for p in range(P)]) * (
-        1.0 if gait.loads is None else gait.loads.cos
-    )
-    return Coefficients(C, Mu, k, pieces.edges, pieces.basis, pieces)
+    Mu = np.array([crawler.split(pieces.signal_coefficients(p))[1] for p in range(P)])
+    k = np.array(crawler.stiffness, dtype=float)
+    return Coefficients(C, Mu, k, pieces.edges, pieces.basis, pieces, crawler)
 
 
 def _moved_coefficients(gait: Gait, base: Coefficients, keys: tuple[Any, ...], value: float) -> Coefficients:
@@ -203,7 +199,7 @@ def _moved_coefficients(gait: Gait, base: Coefficients, keys: tuple[Any, ...], v
     moved = _moved(gait, keys, value)
     if keys[0] in ("links", "friction") and np.array_equal(moved.breakpoints(), gait.breakpoints()):
         pieces = PiecewiseOffsets(_signals(moved), base.pieces.combine, base.pieces.edges)
-        return _assemble(moved, pieces, base.k)
+        return _assemble(pieces, base.crawler)
     return coefficients_of(moved)
 
 
@@ -261,18 +257,19 @@ def _signal_columns(gait: Gait, keys: tuple[Any, ...]) -> tuple[list[tuple[int, 
     """The signals a number at ``keys`` of a link, a friction or a force belongs to, each with
     its column in `_signals`' order (links, mu^+ per block, mu^- per block, forces per block),
     and the path inside them; None for other numbers."""
-    N = gait.blocks
+    columns = signal_columns(gait.blocks)
     if keys[0] == "links" and len(keys) >= 2 and isinstance(keys[1], int):
         return [(keys[1], gait.links[keys[1]])], keys[2:]
     if keys[0] == "loads" and len(keys) >= 2 and keys[1] == "force" and gait.loads is not None:
         each = len(keys) >= 3 and isinstance(keys[2], int)  # one signal per block
-        forced: Sequence[int] = [keys[2]] if each else range(N)
-        return ([(3 * N - 1 + j, gait.loads.forces[j]) for j in forced], keys[3:] if each else keys[2:])
+        forced: Sequence[int] = [keys[2]] if each else range(gait.blocks)
+        first = columns["forces"].start
+        return ([(first + j, gait.loads.forces[j]) for j in forced], keys[3:] if each else keys[2:])
     friction = _friction_keys(gait, keys) if keys[0] == "friction" else None
     if friction is None:
         return None
     side, blocks, rest = friction
-    first, signals = (N - 1, gait.forward) if side == "forward" else (2 * N - 1, gait.backward)
+    first, signals = columns[side].start, gait.forward if side == "forward" else gait.backward
     return [(first + j, signals[j]) for j in blocks], rest[1:]
 
 
@@ -309,8 +306,7 @@ def _closed_form_change(gait: Gait, base: Coefficients, keys: tuple[Any, ...]) -
             return None
         dS[1:, column] = d
     dC = base.pieces.combine(dS)[1:]
-    N = gait.blocks
-    dMu = dS[1:, N - 1 : 3 * N - 1] * (1.0 if gait.loads is None else gait.loads.cos)
+    dMu = base.crawler.split(dS[1:])[1]
     P = base.C.shape[0]
     out_C, out_Mu = np.empty((P, *dC.shape)), np.empty((P, *dMu.shape))
     out_C[:], out_Mu[:] = dC, dMu

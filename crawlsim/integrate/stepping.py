@@ -171,7 +171,7 @@ class PeriodStepper:
             on_dependent="raise" if process.crawler is not None else "warn",
         )
         self.w = np.array(process.initial, dtype=float)
-        self.x = None if process.initial_positions is None else np.array(process.initial_positions, dtype=float)
+        self.x = None if process.crawler is None else np.array(process.crawler.initial_positions, dtype=float)
         self.active = self.polyhedron.empty
         self.period_index = 0
         self._visited: list[ActiveSet] = []

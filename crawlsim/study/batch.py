@@ -103,8 +103,9 @@ def _run(p: SweepingProcess, max_periods: int, tol: float, keep_limit: bool = Fa
     """
     stepper = CatchUpStepper(p)
     N, G = p.blocks, p.steps
-    friction = _friction(p)[1:]
-    load = p.load[1:] if p.load is not None else None
+    assert p.crawler is not None, "batched stepping needs crawlers"
+    friction = p.crawler.friction[1:]
+    load = p.crawler.load[1:] if p.crawler.load is not None else None
     rel_steps: list[float] = []
     displacements: list[float] = []
     for q in range(max_periods):
@@ -149,8 +150,3 @@ def _run(p: SweepingProcess, max_periods: int, tol: float, keep_limit: bool = Fa
         cost_of_transport=cost_of_transport(paid, d, err, p.period),
         record=record if keep_limit else None,
     )
-
-
-def _friction(process: SweepingProcess) -> np.ndarray:
-    assert process.friction is not None, "batched stepping needs crawlers"
-    return process.friction
