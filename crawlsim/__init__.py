@@ -6,11 +6,11 @@ The folders are the path from a gait file to an answer:
                  loads, the uniqueness condition
     kernel/      exact, certified projections: the KKT certificate, the one Clarabel adapter,
                  the compiled (numba) catch-up step and exact event loop
+    io/          HDF5 (netCDF-4) results files, provenance, atomic writes
     model/       `Gait` -> shape-space sweeping process: offsets, the `Crawler`'s quantities
     integrate/   stepping a process period by period: catch-up, exact, the periodic limit, the
                  exact energy ledger
     analysis/    a run to its periodic regime and what it measures: v0, energy, sensitivities
-    io/          HDF5 (netCDF-4) results files, provenance, atomic writes
     plotting/    figures and animations of a run
     study/       one gait's run, sweeps, the stall search, gait design (optimize), the paper's checks
     api.py       the entry points for Python studies: load_gait, simulate, sweep, sensitivity,

@@ -87,7 +87,7 @@ def sweep(
     table. Settings given override the gait's ``simulation`` block. ``gait`` may also be a
     grid already made (`crawlsim.study.grid.make_grid`: linked paths, extra columns), swept as
     it is (no ``axes``, no settings). ``sensitivity``: dotted paths (with ``*``) whose
-    ``dv0/dPATH`` are added at every point, with units (`crawlsim.analysis.sensitivity_sweep`).
+    ``dv0/dPATH`` are added at every point, with units (`crawlsim.study.points.with_derivatives`).
     """
     from crawlsim.study import sweep as sweeps
 

@@ -122,7 +122,8 @@ def from_result(result: Any) -> dict[str, Any]:
         "process": {},
     }
     if process is not None:
-        out["limit"].update(_present(process, PROCESS_SERIES))
+        out["limit"]["offsets"] = process.offsets
+        out["limit"].update(_present(process.crawler, PROCESS_SERIES[1:]))
         out["process"]["normals"] = process.normals
     return out
 

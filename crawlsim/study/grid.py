@@ -254,7 +254,7 @@ def make_grid(base: Gait, axes, quantities: Sequence[PointQuantity] = (), sensit
     repeated paths are refused, and so is a base that is not a crawler
     (`crawlsim.gait.document.need_crawler`). ``quantities`` are extra columns of the table
     (`crawlsim.study.points.PointQuantity`); ``sensitivity``, the ``--sensitivity`` paths, each
-    number's ``dv0/dPATH`` column (`crawlsim.analysis.sensitivity_sweep`)."""
+    number's ``dv0/dPATH`` column (`crawlsim.study.points.with_derivatives`)."""
     need_crawler(base, "a sweep of v0")
     groups = [_group(item) for item in axes]
     flat: list[Axis] = []
@@ -284,9 +284,9 @@ def make_grid(base: Gait, axes, quantities: Sequence[PointQuantity] = (), sensit
                     f"this path sets {'.'.join(map(str, key))}, which {seen[key]} sets too: sweep each value once",
                 )
             seen[key] = f"{option} {axis.path}"
-    from crawlsim.analysis.sensitivity_sweep import check_paths
-
-    return SweepGrid(base, tuple(flat), targets, tuple(dims), tuple(quantities), check_paths(base, sensitivity))
+    for path in sensitivity:  # a path that names nothing: exit code 2 before any point runs
+        resolve_path(base.document, path, source)
+    return SweepGrid(base, tuple(flat), targets, tuple(dims), tuple(quantities), tuple(sensitivity))
 
 
 def parse_shard(text: str) -> tuple[int, int]:

@@ -13,7 +13,7 @@ parameter) are computed after a point's run, for the points that ran.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any, Protocol
 
@@ -108,8 +108,8 @@ def _failure(index: int, exc: BaseException) -> PointResult:
 def run_points(grid: SweepGrid, indices, *, capacity=None, progress=None) -> list[PointResult]:
     """Validate and evaluate the grid points ``indices`` (a worker's task); a point that is not
     a valid gait is an ``invalid`` row, the others go to `evaluate` (with the grid's extra
-    `quantities <PointQuantity>`), then, with ``--sensitivity``, to
-    `crawlsim.analysis.sensitivity_sweep.with_derivatives` on the limit periods their runs
+    `quantities <PointQuantity>`), then, with ``--sensitivity``, to `with_derivatives` on the
+    limit periods their runs
     found. ``progress(k)`` is called as k more points finish."""
     rows: dict[int, PointResult] = {}
     valid: list[tuple[int, Gait]] = []
@@ -132,8 +132,6 @@ def run_points(grid: SweepGrid, indices, *, capacity=None, progress=None) -> lis
         ):
             rows[row.index] = row
         if runs is not None:
-            from crawlsim.analysis.sensitivity_sweep import with_derivatives
-
             rows.update(with_derivatives(grid.sensitivity, valid, rows, runs))
     return [rows[int(i)] for i in indices]
 
@@ -301,6 +299,33 @@ def _run_single(member: _Member, runs: dict | None = None) -> PointResult:
         limit=run.solver.method,
         newton_steps=run.solver.newton_steps,
     )
+
+
+def with_derivatives(
+    paths: Sequence[str], gaits: Iterable[tuple[int, Gait]], rows: Mapping[int, PointResult], runs: Mapping[int, Any]
+) -> dict[int, PointResult]:
+    """The rows of the converged points among ``gaits`` ((index, Gait) pairs) with their
+    ``derivatives`` (``--sweep ... --sensitivity PATH``): {concrete path: dv0/dpath, None where
+    the point's limit is not smooth in that number (no one-sided differences in a sweep)}, of
+    the point's own integrator (the ``integrator`` column says which). ``runs``: what each
+    point's run settled on, by index, whose limit period is walked: no point is stepped again
+    (a point without one has its limit searched). A point whose derivatives fail keeps its row,
+    with the failure in its message."""
+    from crawlsim.analysis.sensitivity import sensitivity  # start-up: the tangent kernels only when asked
+
+    out: dict[int, PointResult] = {}
+    for i, gait in gaits:
+        row = rows[i]
+        if row.status != PointStatus.OK:
+            continue
+        try:
+            result = sensitivity(gait, list(paths), one_sided=False, run=runs.get(i))
+        except CrawlsimError as exc:
+            message = f"{row.message}; " if row.message else ""
+            out[i] = replace(row, message=f"{message}no derivatives: {exc}")
+            continue
+        out[i] = replace(row, derivatives={p.path: (p.v0.value if p.smooth else None) for p in result.parameters})
+    return out
 
 
 def _with_quantities(row: PointResult, gait: Gait, quantities: Sequence[PointQuantity]) -> PointResult:

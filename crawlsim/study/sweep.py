@@ -171,7 +171,7 @@ def sweep(
     points, keeps a journal next to ``output`` while running, and writes ``output`` (CSV or
     HDF5) atomically at the end, removing the journal. Without ``output`` nothing is written.
     ``progress`` and ``on_rows`` as in `run_sweep`. ``sensitivity``: paths whose ``dv0/dPATH``
-    columns are added (`crawlsim.analysis.sensitivity_sweep`), with a base gait.
+    columns are added (`crawlsim.study.points.with_derivatives`), with a base gait.
     """
     if not isinstance(grid, SweepGrid):
         grid = make_grid(grid, () if axes is None else axes, sensitivity=sensitivity)

@@ -6,12 +6,14 @@ from __future__ import annotations
 import csv
 import io
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from crawlsim.io.atomic import atomic_path
+from crawlsim.io.sweepfile import DERIVATIVE
 from crawlsim.status import PointStatus
 from crawlsim.study.grid import grid_shape, parse_shard
 from crawlsim.study.points import PointResult
@@ -101,9 +103,7 @@ class SweepTable:
             cols[name] = np.array(
                 [np.nan if not r.extra or r.extra[k] is None else r.extra[k] for r in self.rows], float
             )
-        from crawlsim.analysis import sensitivity_sweep
-
-        cols.update(sensitivity_sweep.columns(self.rows))
+        cols.update(_derivatives(self.rows))
         return cols
 
     def counts(self) -> dict[str, int]:
@@ -124,9 +124,7 @@ class SweepTable:
         """The table as ``crawlsim velocity --sweep`` prints it: CSV, one row per point."""
         buf = io.StringIO()
         writer = csv.writer(buf, lineterminator="\n")
-        from crawlsim.analysis.sensitivity_sweep import columns
-
-        derivatives = columns(self.rows)
+        derivatives = _derivatives(self.rows)
         writer.writerow(list(self.paths) + list(RESULT_COLUMNS) + list(self.quantities) + list(derivatives))
         coords = self.coordinates()
         for n, r in enumerate(self.rows):
@@ -138,6 +136,16 @@ class SweepTable:
                 + [_cell(d[n]) for d in derivatives.values()]
             )
         return buf.getvalue()
+
+
+def _derivatives(rows: Sequence[PointResult]) -> dict[str, np.ndarray]:
+    """The dv0/dPATH columns of ``--sensitivity`` (`crawlsim.study.points.with_derivatives`),
+    in the order the points name them, as floats: NaN where a point has no value."""
+    paths = list(dict.fromkeys(path for r in rows for path in r.derivatives or {}))
+    values = [[(r.derivatives or {}).get(path) for r in rows] for path in paths]
+    return {
+        DERIVATIVE + p: np.array([np.nan if v is None else v for v in vs], dtype=float) for p, vs in zip(paths, values)
+    }
 
 
 def _cell(value) -> str:
@@ -185,7 +193,6 @@ def read_table(path) -> SweepTable:
     """A sweep HDF5 file (complete or a shard) back as a `SweepTable`. Files written before the
     `LATER_COLUMNS` existed read with those columns missing (NaN, ""); the dv0/dPATH columns
     of ``--sensitivity`` come back as the rows' ``derivatives``."""
-    from crawlsim.analysis.sensitivity_sweep import row_derivatives
     from crawlsim.io import hdf5 as h5io
 
     data = h5io.read_sweep(path)
@@ -217,7 +224,12 @@ def read_table(path) -> SweepTable:
                 newton_steps=(
                     int(cols["newton_steps"][n]) if "newton_steps" in cols and cols["newton_steps"][n] >= 0 else None
                 ),
-                derivatives=row_derivatives(cols, n),
+                derivatives={
+                    name[len(DERIVATIVE) :]: None if np.isnan(values[n]) else float(values[n])
+                    for name, values in cols.items()
+                    if name.startswith(DERIVATIVE)
+                }
+                or None,
             )
         )
     shard = parse_shard(data["shard"]) if data["shard"] else None
