@@ -12,7 +12,8 @@ The folders are the path from a gait file to an answer:
                  exact energy ledger
     analysis/    a run to its periodic regime and what it measures: v0, energy, sensitivities
     plotting/    figures and animations of a run
-    study/       one gait's run, sweeps, the stall search, gait design (optimize), the paper's checks
+    study/       one gait's run, sweeps, the paper's checks
+    design/      gait design: optimize (evolution or gradient search), the stall search
     api.py       the entry points for Python studies: load_gait, simulate, sweep, sensitivity,
                  and the typed readers open_run, open_sweep,
                  open_optimization
@@ -54,13 +55,14 @@ _EXPORTS = {
     "CrawlsimError": "crawlsim.errors",
     "GaitError": "crawlsim.errors",
     "InputError": "crawlsim.errors",
-    "stall": "crawlsim.study.stall",
+    "stall": "crawlsim.design.stall",
 }
 
 _SUBPACKAGES = {
     "analysis",
     "api",
     "cli",
+    "design",
     "errors",
     "gait",
     "integrate",

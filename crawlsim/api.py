@@ -42,8 +42,8 @@ if TYPE_CHECKING:
     import xarray
 
     from crawlsim.analysis.sensitivity import SensitivityResult
+    from crawlsim.design.optresult import OptimizationResult
     from crawlsim.study.grid import SweepGrid
-    from crawlsim.study.optresult import OptimizationResult
     from crawlsim.study.sweep import SweepTable
 
 __all__ = [
@@ -156,10 +156,10 @@ def open_sweep(path: str | Path) -> xarray.Dataset | SweepTable:
 
 def open_optimization(path: str | Path) -> OptimizationResult:
     """Read an optimisation file (``crawlsim optimize -o``) as the
-    `crawlsim.study.optresult.OptimizationResult` that `crawlsim.study.optimize.optimize`
+    `crawlsim.design.optresult.OptimizationResult` that `crawlsim.design.optimize.optimize`
     returns (`OptimizationResult.from_file`). Raises `crawlsim.errors.ResultsFileError` for a
     file that is not an optimisation file."""
-    from crawlsim.study.optresult import OptimizationResult
+    from crawlsim.design.optresult import OptimizationResult
 
     return OptimizationResult.from_file(path)
 

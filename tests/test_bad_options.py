@@ -15,7 +15,7 @@ import pytest
 from click.testing import CliRunner
 
 import crawlsim.api
-import crawlsim.study.optimize
+import crawlsim.design.optimize
 import crawlsim.study.sweep
 from crawlsim.cli import main
 
@@ -42,7 +42,7 @@ def folder(tmp_path, monkeypatch):
 
     monkeypatch.setattr(crawlsim.api, "run", computed)
     monkeypatch.setattr(crawlsim.study.sweep, "run_sweep", computed)
-    monkeypatch.setattr(crawlsim.study.optimize, "optimize", computed)
+    monkeypatch.setattr(crawlsim.design.optimize, "optimize", computed)
     return tmp_path
 
 
@@ -109,9 +109,9 @@ def test_refused_before_any_computation(folder, args, phrase):
 
 def test_the_largest_seed_is_accepted():
     """2**63 - 1 is the largest seed the results file holds; it is a valid search."""
-    crawlsim.study.optimize.Method(seed=2**63 - 1)
-    with pytest.raises(crawlsim.study.optimize.SweepSpecError):
-        crawlsim.study.optimize.Method(seed=2**63)
+    crawlsim.design.optimize.Method(seed=2**63 - 1)
+    with pytest.raises(crawlsim.design.optimize.SweepSpecError):
+        crawlsim.design.optimize.Method(seed=2**63)
 
 
 @pytest.mark.parametrize(

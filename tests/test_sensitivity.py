@@ -387,10 +387,11 @@ def test_gradient_search_two_block_bound():
     a in [0.1, 0.35] the maximum is at the upper bound, v0 = (0.7 - 0.2) / 1 = 0.5, which the
     gradient search of `crawlsim optimize` (exact gradients, bounds) reaches to roundoff. The
     two-lag example is tests/test_optimize.py's."""
-    from crawlsim.study import optimize as opt
+    from crawlsim.design import optimize as opt
+    from crawlsim.design.problem import Method, make_problem
 
-    problem = opt.make_problem(_two_block(a=0.2), ["links.0.amplitude=0.1:0.35"])
-    result = opt.optimize(problem, opt.Method(search="gradient", max_evaluations=40))
+    problem = make_problem(_two_block(a=0.2), ["links.0.amplitude=0.1:0.35"])
+    result = opt.optimize(problem, Method(search="gradient", max_evaluations=40))
     assert result.feasible
     assert result.value == pytest.approx(0.5, abs=1e-12)
 

@@ -23,9 +23,9 @@ from click.testing import CliRunner
 
 from crawlsim.analysis.stall import StallCause
 from crawlsim.cli import main
+from crawlsim.design.stall import stall
 from crawlsim.errors import InputError
 from crawlsim.gait.document import parse_gait
-from crawlsim.study.stall import stall
 
 from .conftest import GAITS
 

@@ -1,13 +1,12 @@
 """The marks of a force-velocity (or slope-velocity) curve: where v0 jumps across 0 because the
 shifted uniqueness condition fails (docs/model.md §3, §6), and the stall load read off a sweep's
-samples; the cause of a stall (`StallCause`) and the subset J whose shifted uniqueness sum
-vanishes there. The stall load itself is searched by `crawlsim.study.stall`, which runs the gait
-at the loads it probes; the sweep figures (`crawlsim.plotting.sweeps`) draw these marks.
+samples, with its cause (`StallCause`). The stall load itself is searched by
+`crawlsim.design.stall`, which runs the gait at the loads it probes; the sweep figures
+(`crawlsim.plotting.sweeps`) draw these marks.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from enum import StrEnum
 from typing import Any
@@ -18,9 +17,6 @@ from crawlsim.errors import GaitError
 from crawlsim.gait.document import Gait, gait_from_document
 from crawlsim.gait.signals import evaluate_many
 
-SMOOTH = 1e-6
-"""A v0 below this fraction of |v0(s0)| on the moving side of the final bracket is a smooth zero."""
-
 
 class StallCause(StrEnum):
     """Why v0 stops having its sign at the stall load."""
@@ -28,28 +24,6 @@ class StallCause(StrEnum):
     SMOOTH_ZERO = "smooth-zero"  # v0 reaches 0 continuously
     JUMP = "jump"  # v0 jumps across 0 (or to 0) where the shifted uniqueness condition fails
     HOLD = "hold"  # the body can no longer hold its loads before v0 reaches 0 (docs/model.md §6)
-
-
-def _vanishing_subset(gait: Gait) -> tuple[int, ...] | None:
-    """The subset J whose shifted uniqueness sum g~_J is nearest to 0 over the cycle's samples
-    (docs/model.md §3, §6); None for more than 16 blocks or when none is near 0."""
-    N = gait.blocks
-    if N > 16:
-        return None
-    plus, minus = gait.thresholds()
-    u = np.linspace(0.0, 1.0, 33)[:-1]
-    a, b = evaluate_many(plus, u), evaluate_many(minus, u)  # (samples, N)
-    scale = float(np.max(np.sum(np.abs(a) + np.abs(b), axis=1)))
-    best, best_value = None, math.inf
-    for mask in range(2**N):
-        inside = np.array([(mask >> j) & 1 for j in range(N)], dtype=bool)
-        g = a[:, inside].sum(axis=1) - b[:, ~inside].sum(axis=1)
-        value = float(np.min(np.abs(g)))
-        if value < best_value:
-            best, best_value = inside, value
-    if best is None or best_value > 1e-6 * scale:
-        return None
-    return tuple(int(j) + 1 for j in np.nonzero(best)[0])
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,11 @@ from crawlsim.cli.progress import Progress, choose_mode
 
 
 def _objective(maximize, minimize):
-    from crawlsim.study import optimize as opt
+    from crawlsim.design.problem import (
+        Objective,
+        Sense,
+        quantity,
+    )
 
     if maximize and minimize:
         raise BadInput(
@@ -32,9 +36,9 @@ def _objective(maximize, minimize):
             "(or --pareto for v0 against cost_of_transport)"
         )
     if minimize:
-        return opt.Objective(opt.quantity(minimize, "--minimize"), opt.Sense.MINIMIZE)
+        return Objective(quantity(minimize, "--minimize"), Sense.MINIMIZE)
     if maximize:
-        return opt.Objective(opt.quantity(maximize, "--maximize"), opt.Sense.MAXIMIZE)
+        return Objective(quantity(maximize, "--maximize"), Sense.MAXIMIZE)
     return None
 
 
@@ -175,26 +179,32 @@ def optimize(
           --front-points 2 --max-evaluations 80 --steps-per-period 20 -o front.h5 --json
     """
     check_feedback(quiet, verbose)
-    from crawlsim.study import optimize as opt
+    from crawlsim.design.problem import (
+        Method,
+        default_search,
+        make_problem,
+        parse_constraint,
+        parse_free,
+    )
 
     _check_options(free_specs, output)
     with library_errors():
         out = _targets(gait_file, output, write_best, scheduler, seed)
         objective = _objective(maximize, minimize)
-        free = [opt.parse_free(spec) for spec in free_specs]
-        cons = [opt.parse_constraint(text) for text in constraints]
+        free = [parse_free(spec) for spec in free_specs]
+        cons = [parse_constraint(text) for text in constraints]
         gait = load_with_overrides(
             gait_file, steps_per_period, max_periods, tolerance, _integrator(gait_file, integrator), limit
         )
         from crawlsim.integrate.resources import check_signal_work, gait_signal_work
 
         check_signal_work(gait_signal_work(gait), gait.source)  # before any evaluation
-        problem = opt.make_problem(gait, free, objective=objective, constraints=cons, pareto=pareto)
-        method = opt.Method(
+        problem = make_problem(gait, free, objective=objective, constraints=cons, pareto=pareto)
+        method = Method(
             seed=seed,
             max_evaluations=max_evaluations,
             front_points=front_points,
-            search=opt.default_search(problem, search),
+            search=default_search(problem, search),
         )
         result = _search(problem, method, out, jobs, scheduler, quiet, verbose)
         result.check_feasible()
@@ -222,13 +232,15 @@ def _check_options(free_specs, output) -> None:
 def _targets(gait_file, output, write_best, scheduler, seed) -> Path:
     """The results file, checked with the --write-best file and the --scheduler address
     before any work."""
-    from crawlsim.study import optimize as opt
+    from crawlsim.design.problem import (
+        Method,
+    )
 
     if scheduler is not None:
         from crawlsim.study.executors import check_scheduler
 
         check_scheduler(scheduler)
-    opt.Method(seed=seed)  # refuses a seed the results file cannot hold, before any work
+    Method(seed=seed)  # refuses a seed the results file cannot hold, before any work
     out = _output_path(output, Path(gait_file).stem + "-optimize", inputs=[gait_file])
     if out.suffix.lower() not in (".h5", ".hdf5"):
         raise BadInput(f"--output {out}: an optimisation is written to HDF5: give a name ending in .h5")
@@ -253,7 +265,8 @@ def _integrator(gait_file, integrator) -> str:
 
 def _search(problem, method, out, jobs, scheduler, quiet, verbose):
     """Run the search with progress on stderr (the best value so far as the bar's note)."""
-    from crawlsim.study import optimize as opt
+    from crawlsim.design import optimize as opt
+    from crawlsim.design.search import OptimizationInterrupted
 
     budget = method.budget(problem)
     bar = Progress("optimize", "point", budget, mode=choose_mode(quiet))
@@ -278,7 +291,7 @@ def _search(problem, method, out, jobs, scheduler, quiet, verbose):
         result = opt.optimize(
             problem, method, output=out, jobs=jobs, scheduler=scheduler, progress=bar.update, report=report
         )
-    except opt.OptimizationInterrupted as exc:
+    except OptimizationInterrupted as exc:
         bar.close()
         where = (
             f"kept in {exc.journal}; run the same command again to resume" if exc.journal is not None else "not kept"

@@ -41,7 +41,7 @@ def stall(gait_file, force_path, slope, as_json):
         raise BadInput("give exactly one of --force PATH and --slope")
     with library_errors():
         from crawlsim.analysis.digits import with_error
-        from crawlsim.study.stall import stall as find_stall
+        from crawlsim.design.stall import stall as find_stall
 
         result = find_stall(gait_file, force=force_path, slope=slope)
     if as_json:

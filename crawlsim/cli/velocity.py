@@ -244,10 +244,10 @@ def _single(gait, sensitivity_paths, as_json, max_memory, quiet, verbose):
     with run_progress(gait, quiet, verbose) as progress:
         result = api.run(gait, progress=progress, history=False)
         derivatives = None
-        if sensitivity_paths:
-            from crawlsim.cli import sensitivities
+        if sensitivity_paths:  # at the limit period of this run: not searched twice
+            from crawlsim.analysis.sensitivity import sensitivity
 
-            derivatives = sensitivities.compute(gait, sensitivity_paths, result)
+            derivatives = sensitivity(gait, list(sensitivity_paths), run=result.settled)
     summary = result.summary()
     if as_json:
         if derivatives is not None:
@@ -258,13 +258,39 @@ def _single(gait, sensitivity_paths, as_json, max_memory, quiet, verbose):
 
         assert result.v0 is not None  # a crawler (need_crawler): v0 is measured
         click.echo(supported(result.v0, result.estimate.error_estimate)[0])
-        if derivatives is not None:
-            sensitivities.echo(derivatives, summary["integrator"])
+        for line in [] if derivatives is None else _sensitivity_lines(derivatives, summary["integrator"]):
+            click.echo(line)
     if not result.converged:
         from crawlsim.analysis.report import not_converged_message
 
         click.echo(not_converged_message(result.run), err=True)
         sys.exit(EXIT_NOT_CONVERGED)
+
+
+def _sensitivity_lines(result, integrator: str) -> list[str]:
+    """One line per parameter: dv0/dPATH with the digits its error estimate supports, or why
+    it is not smooth with the one-sided values, or why it was not computed."""
+    from crawlsim.analysis.digits import with_error
+
+    out = []
+    for p in result.parameters:
+        name = f"dv0/d{p.path}"
+        if p.method == "unsupported":
+            out.append(f"{name}: not computed: {p.reason}")
+        elif p.smooth:
+            out.append(f"{name} = {with_error(p.v0.value, p.v0.error_estimate)}")
+        else:
+            sides = []
+            for side, why in (("left", p.left_reason), ("right", p.right_reason)):
+                d = getattr(p, side)
+                sides.append(f"{side} {with_error(d.value, d.error_estimate)}" if d is not None else f"{side}: {why}")
+            out.append(f"{name}: not smooth ({p.reason}); " + ", ".join(sides))
+    if integrator != "exact":
+        out.append(
+            f"(derivatives of the {integrator} scheme's own discrete period map at its "
+            f"v0 = {result.v0:.12g}, not of the exact v0: method {integrator})"
+        )
+    return out
 
 
 def _sweep(grid, output, jobs, shard, scheduler, quiet, verbose):

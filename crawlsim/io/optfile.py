@@ -44,7 +44,7 @@ _OPTIMIZATION_COMMENT = (
     "units_json; every dataset has units and long_name."
 )
 
-#: Units of the optimisable quantities (`crawlsim.study.optimize.QUANTITIES`).
+#: Units of the optimisable quantities (`crawlsim.design.optimize.QUANTITIES`).
 OBJECTIVE_QUANTITIES = {
     "v0": "velocity",
     "cost_of_transport": "force",
@@ -122,7 +122,7 @@ OPTIMIZATION_VARIABLES: dict[str, dict[str, Var]] = {
 
 
 def write_optimization(path: Any, result: Any) -> None:
-    """Write a `crawlsim.study.optimize.OptimizationResult` atomically (`crawlsim.io.atomic`);
+    """Write a `crawlsim.design.optimize.OptimizationResult` atomically (`crawlsim.io.atomic`);
     ``path`` may be a binary file object (an in-memory image)."""
     write_file(path, lambda f: _write_optimization(f, result))
 

@@ -1,4 +1,4 @@
-"""Studies of gaits: one run, sweeps, the stall search, gait design, the paper's checks.
+"""Studies of gaits: one run, sweeps, the paper's checks.
 
 simulation   one gait to its periodic regime: run, simulate, SimulationResult, open_run
 sweep        parameter sweeps of v0: the entry points (sweep, run_sweep), resumable
@@ -8,12 +8,5 @@ points       one point validated, compiled and run: a row of the table, extra co
 executors    where points run: here, local workers (only when they pay), a Dask cluster
 journal      finished points kept across interruptions
 table        the sweep table, its CSV and HDF5 files, the join of shards
-optimize     gait design: the driver (one objective, or the Pareto front)
-problem      free parameters, objective, constraints, the feasibility rules
-method       the search's settings and budget
-search       the shared evaluator; one search: evolution + pattern search
-descent      the gradient search: sample (or evolution), then quasi-Newton, exact gradients
-optresult    the answer: evaluations, history, runs, front, hypervolume
-stall        the stall force and the steepest slope, searched by runs at probed loads
 paper        the paper's convergence results, reproduced
 """

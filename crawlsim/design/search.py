@@ -12,11 +12,10 @@ from typing import Any, cast
 
 import numpy as np
 
+from crawlsim.design.optresult import BUDGET_SPENT, Batch, Evaluation, Run, Stage
+from crawlsim.design.problem import Constraint, Method, Objective, Problem, rank
 from crawlsim.errors import SweepSpecError
 from crawlsim.status import PointStatus
-from crawlsim.study.method import Method
-from crawlsim.study.optresult import BUDGET_SPENT, Batch, Evaluation, Run, Stage
-from crawlsim.study.problem import Constraint, Objective, Problem, rank
 from crawlsim.study.sweep import (
     Axis,
     Journal,

@@ -13,18 +13,18 @@ from typing import Any
 
 import numpy as np
 
-from crawlsim.status import PointStatus
-from crawlsim.study.method import Method
-from crawlsim.study.points import PointResult
-from crawlsim.study.problem import (
+from crawlsim.design.problem import (
     Constraint,
     Free,
     InfeasibleError,
+    Method,
     Objective,
     Problem,
     Sense,
     rank,
 )
+from crawlsim.status import PointStatus
+from crawlsim.study.points import PointResult
 
 BUDGET_SPENT = "budget spent"
 
@@ -203,7 +203,7 @@ class OptimizationResult:
     @classmethod
     def from_file(cls, path: Path | str) -> OptimizationResult:
         """The result recorded in an optimisation file (`crawlsim.io.optfile`): the same type
-        and the same numbers as the `crawlsim.study.optimize.optimize` that wrote it. What the
+        and the same numbers as the `crawlsim.design.optimize.optimize` that wrote it. What the
         file does not keep comes back empty: ``computed`` is 0 (this process simulated nothing),
         and the rows' ``limit``, ``newton_steps`` and ``extra`` (the gradient search's derivative
         columns) are unset. Raises `ResultsFileError` for a
@@ -273,10 +273,10 @@ class OptimizationResult:
 
 def _result_of_file(data: dict[str, Any]) -> OptimizationResult:
     """`OptimizationResult.from_file` on `read_optimization`'s dicts."""
+    from crawlsim.design.problem import parse_constraint
     from crawlsim.gait.document import Gait, gait_from_document
     from crawlsim.gait.yamlsafe import load_yaml
     from crawlsim.io.optfile import STAGE_FLAGS
-    from crawlsim.study.problem import parse_constraint
 
     a = data["attrs"]
     base = gait_from_document(

@@ -28,9 +28,15 @@ from typing import Any
 
 import numpy as np
 
-from crawlsim.analysis.stall import SMOOTH, StallCause, _vanishing_subset
+from crawlsim.analysis.stall import StallCause
 from crawlsim.errors import CertificateError, GaitError, InputError
+from crawlsim.gait.docpaths import resolve_path
 from crawlsim.gait.document import Gait, gait_from_document
+from crawlsim.gait.signals import evaluate_many
+from crawlsim.study.simulation import _as_spec, run
+
+SMOOTH = 1e-6
+"""A v0 below this fraction of |v0(s0)| on the moving side of the final bracket is a smooth zero."""
 
 SCAN_STEPS = 64
 """Scan steps across the load's natural range (the loaded block's friction interval, or 90
@@ -99,8 +105,6 @@ class _Probe:
         """(v0, refusal reason, refused because the body cannot hold) at load s."""
         if s in self.cache:
             return self.cache[s]
-        from crawlsim.study.simulation import run
-
         self.evaluations += 1
         try:
             gait = self.gait.replace(self.path, float(s))
@@ -195,9 +199,6 @@ def stall(gait: Gait | str, *, force: str | None = None, slope: bool = False) ->
 def _stall_problem(gait: Gait | str, force: str | None, slope: bool) -> tuple[Gait, str, str]:
     """(the gait, the path varied, "force" or "slope"): a force path gets zero forces on every
     block when the gait has none yet."""
-    from crawlsim.gait.docpaths import resolve_path
-    from crawlsim.study.simulation import _as_spec
-
     spec = _as_spec(gait)
     if not isinstance(spec, Gait):
         raise InputError(spec.source, "kind", "stall needs a crawler gait, not a sweeping process")
@@ -235,8 +236,6 @@ def _stall_problem(gait: Gait | str, force: str | None, slope: bool) -> tuple[Ga
 
 def _start_load(spec: Gait, path: str) -> float:
     """The gait's own load at ``path``: a constant number."""
-    from crawlsim.gait.docpaths import resolve_path
-
     keys = resolve_path(spec.document, path, spec.source)[0]
     node: Any = spec.document
     for key in keys:
@@ -300,3 +299,25 @@ def _smooth_zero(
             value = root
             hi = lo + 2 * (root - lo) if abs(root - lo) > abs(hi - lo) / 2 else hi
     return value, hi
+
+
+def _vanishing_subset(gait: Gait) -> tuple[int, ...] | None:
+    """The subset J whose shifted uniqueness sum g~_J is nearest to 0 over the cycle's samples
+    (docs/model.md §3, §6); None for more than 16 blocks or when none is near 0."""
+    N = gait.blocks
+    if N > 16:
+        return None
+    plus, minus = gait.thresholds()
+    u = np.linspace(0.0, 1.0, 33)[:-1]
+    a, b = evaluate_many(plus, u), evaluate_many(minus, u)  # (samples, N)
+    scale = float(np.max(np.sum(np.abs(a) + np.abs(b), axis=1)))
+    best, best_value = None, math.inf
+    for mask in range(2**N):
+        inside = np.array([(mask >> j) & 1 for j in range(N)], dtype=bool)
+        g = a[:, inside].sum(axis=1) - b[:, ~inside].sum(axis=1)
+        value = float(np.min(np.abs(g)))
+        if value < best_value:
+            best, best_value = inside, value
+    if best is None or best_value > 1e-6 * scale:
+        return None
+    return tuple(int(j) + 1 for j in np.nonzero(best)[0])
