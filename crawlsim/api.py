@@ -12,11 +12,10 @@ integrator and its settings, the versions, and the call that made it.
 
 from __future__ import annotations
 
-import io
 import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -30,7 +29,6 @@ from crawlsim.study.simulation import (
     Trajectory,
     _as_spec,
     _with_settings,
-    _xarray,
     from_results,
     load_gait,
     open_run,
@@ -44,7 +42,7 @@ if TYPE_CHECKING:
     from crawlsim.analysis.sensitivity import SensitivityResult
     from crawlsim.design.optresult import OptimizationResult
     from crawlsim.study.grid import SweepGrid
-    from crawlsim.study.sweep import SweepTable
+    from crawlsim.study.table import SweepTable
 
 __all__ = [
     "Rerun",
@@ -79,7 +77,7 @@ def sweep(
     dotted paths of ``--sweep``, in grid order, the last varying fastest).
 
     Returns an `xarray.Dataset` on the grid, one dimension per swept path (named by
-    `crawlsim.io.hdf5.axis_name`, ``links_all_amplitude``; the path in its ``path`` attribute):
+    `crawlsim.io.sweepfile.axis_name`, ``links_all_amplitude``; the path in its ``path`` attribute):
     v0, displacement_per_period, periods, steps, convergence and status (CF flags: see their
     ``flag_meanings``) and message, with the provenance as attributes, exactly the ``/grid``
     group of a sweep file. **Without xarray** (``pip install 'crawlsim[xarray]'``) it returns
@@ -89,11 +87,11 @@ def sweep(
     it is (no ``axes``, no settings). ``sensitivity``: dotted paths (with ``*``) whose
     ``dv0/dPATH`` are added at every point, with units (`crawlsim.study.points.with_derivatives`).
     """
+    from crawlsim.study import grid  # start-up: h5py and the sweep engine only for sweeps
     from crawlsim.study import sweep as sweeps
 
-    if isinstance(gait, sweeps.SweepGrid):
-        table = sweeps.sweep(gait, output=output, jobs=jobs, progress=progress, sensitivity=sensitivity)
-        return _sweep_dataset(table)
+    if isinstance(gait, grid.SweepGrid):
+        return sweeps.dataset(sweeps.sweep(gait, output=output, jobs=jobs, progress=progress, sensitivity=sensitivity))
     spec = _with_settings(
         _as_spec(gait),
         integrator=integrator,
@@ -105,7 +103,7 @@ def sweep(
         raise SweepSpecError(
             spec.source, "", "sweeps run crawler gaits (kind: crawler), not generic sweeping processes"
         )
-    axis_list = [sweeps.Axis(path, _axis_values(path, values)) for path, values in (axes or {}).items()]
+    axis_list = [grid.Axis(path, _axis_values(path, values)) for path, values in (axes or {}).items()]
     call = _provenance.python_call(
         "crawlsim.sweep",
         gait,
@@ -120,38 +118,16 @@ def sweep(
     )
     with _provenance.recording(call):
         table = sweeps.sweep(spec, axis_list, output=output, jobs=jobs, progress=progress, sensitivity=sensitivity)
-        return _sweep_dataset(table)
-
-
-def _sweep_dataset(table: SweepTable) -> xarray.Dataset | SweepTable:
-    """The ``/grid`` group of the table's sweep file as an `xarray.Dataset` (the table itself
-    without xarray)."""
-    from crawlsim.study import sweep as sweeps
-
-    try:
-        _xarray()
-    except ImportError:
-        return table
-    from crawlsim.io.sweepfile import write_sweep
-
-    buffer = io.BytesIO()
-    write_sweep(buffer, **sweeps.table_payload(table))
-    return _grid_dataset(buffer)
+        return sweeps.dataset(table)
 
 
 def open_sweep(path: str | Path) -> xarray.Dataset | SweepTable:
     """Read a sweep file as `sweep` returns it: the `xarray.Dataset` of its ``/grid`` with the
     provenance as attributes, or without xarray the `crawlsim.study.sweep.SweepTable`. Raises
     `crawlsim.errors.ResultsFileError` for a file that is not a sweep file."""
-    from crawlsim.io.sweepfile import read_sweep
-    from crawlsim.study import sweep as sweeps
+    from crawlsim.study import sweep as sweeps  # start-up: h5py and the sweep engine only for sweeps
 
-    read_sweep(path)  # refuses what is not a sweep file, naming what is missing
-    try:
-        _xarray()
-    except ImportError:
-        return sweeps.read_table(path)
-    return _grid_dataset(path)
+    return sweeps.open_dataset(path)
 
 
 def open_optimization(path: str | Path) -> OptimizationResult:
@@ -159,26 +135,9 @@ def open_optimization(path: str | Path) -> OptimizationResult:
     `crawlsim.design.optresult.OptimizationResult` that `crawlsim.design.optimize.optimize`
     returns (`OptimizationResult.from_file`). Raises `crawlsim.errors.ResultsFileError` for a
     file that is not an optimisation file."""
-    from crawlsim.design.optresult import OptimizationResult
+    from crawlsim.design.optresult import OptimizationResult  # start-up: h5py only for its file
 
     return OptimizationResult.from_file(path)
-
-
-def _grid_dataset(source: Any) -> xarray.Dataset:
-    """The ``/grid`` group of a sweep file (a path or a binary file object) as a Dataset, the
-    root attributes (provenance) merged into its own."""
-    from crawlsim.io.runread import read_attrs
-
-    xr = _xarray()
-    if isinstance(source, io.IOBase):
-        source.seek(0)
-    attrs = read_attrs(source)
-    if isinstance(source, io.IOBase):
-        source.seek(0)
-    with xr.open_dataset(source, engine="h5netcdf", group="grid", decode_timedelta=False) as ds:
-        grid = cast("xarray.Dataset", ds.load())
-    grid.attrs = {**attrs, **grid.attrs}
-    return grid
 
 
 def _axis_values(path: str, values: Iterable[float]) -> tuple[float, ...]:
@@ -208,7 +167,7 @@ def sensitivity(gait: Spec | str | Path, paths: Sequence[str] | str, *, one_side
     ``left`` / ``right`` hold one-sided derivatives measured with the same integrator
     (``one_sided=False`` skips them).
     """
-    from crawlsim.analysis.sensitivity import sensitivity as _sensitivity
+    from crawlsim.analysis.sensitivity import sensitivity as _sensitivity  # start-up: its kernels only when asked
 
     spec = _as_spec(gait)
     if not isinstance(spec, Gait):

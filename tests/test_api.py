@@ -13,10 +13,11 @@ import numpy as np
 import pytest
 
 import crawlsim
+import crawlsim.study.sweep
 from crawlsim import api
 from crawlsim.errors import GaitError, SweepSpecError
-from crawlsim.io.hdf5 import read_results
-from crawlsim.study.sweep import Axis, make_grid
+from crawlsim.io.runread import read_results
+from crawlsim.study.grid import Axis, make_grid
 
 from .conftest import GAITS, ROOT
 
@@ -211,7 +212,7 @@ def test_sweep_without_xarray_returns_the_table(monkeypatch, tmp_path):
     def missing():
         raise ImportError("no xarray")
 
-    monkeypatch.setattr(api, "_xarray", missing)
+    monkeypatch.setattr(crawlsim.study.sweep, "_xarray", missing)
     out = tmp_path / "s.h5"
     table = crawlsim.sweep(
         crawlsim.load_gait(INCHING), {"links.0.amplitude": [0.2, 0.3]}, steps_per_period=20, output=out

@@ -10,7 +10,7 @@ from click.testing import CliRunner
 
 from crawlsim import __version__
 from crawlsim.cli import main
-from crawlsim.io.hdf5 import read_results
+from crawlsim.io.runread import read_results
 
 from .conftest import iterated_examples
 

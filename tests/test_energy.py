@@ -26,11 +26,12 @@ from crawlsim.gait.document import load_gait
 from crawlsim.gait.signals import Fourier
 from crawlsim.integrate import ledger
 from crawlsim.integrate.stepping import make_stepper
-from crawlsim.io.hdf5 import read_results
+from crawlsim.io.runread import read_results
 from crawlsim.model.offsets import Basis
 from crawlsim.model.process import compile as compile_any
 from crawlsim.model.process import compile_gait
-from crawlsim.study.sweep import make_grid, run_points
+from crawlsim.study.grid import make_grid
+from crawlsim.study.points import run_points
 
 from .conftest import GAITS, make_gait
 

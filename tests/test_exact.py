@@ -33,7 +33,7 @@ from crawlsim.errors import EventError, GaitError, LicqWarning
 from crawlsim.gait.document import load_gait, parse_gait, with_simulation
 from crawlsim.integrate.exact import EventStepper
 from crawlsim.integrate.stepping import make_stepper
-from crawlsim.io.hdf5 import read_results
+from crawlsim.io.runread import read_results
 from crawlsim.model.process import compile as compile_any
 from crawlsim.model.process import compile_gait
 from crawlsim.study import paper

@@ -33,7 +33,7 @@ from crawlsim.integrate.limit import (
     subdominant_rate,
 )
 from crawlsim.integrate.stepping import make_stepper
-from crawlsim.io.hdf5 import read_results
+from crawlsim.io.runread import read_results
 from crawlsim.model.process import compile as compile_gait
 from crawlsim.study.paper import acute_angle_document
 

@@ -32,8 +32,10 @@ from crawlsim.design.problem import (
 from crawlsim.design.search import Evaluator, OptimizationInterrupted
 from crawlsim.errors import SweepSpecError
 from crawlsim.gait.document import load_gait, with_simulation
-from crawlsim.io import hdf5 as h5io
+from crawlsim.io.describe import describe
+from crawlsim.io.optfile import read_optimization
 from crawlsim.study import sweep as sweeps
+from crawlsim.study.points import PointResult
 
 GAITS = Path(__file__).resolve().parents[1] / "gaits"
 P4 = str(GAITS / "peristalsis-4.yaml")
@@ -97,11 +99,11 @@ def test_free_parameters_and_constraints_are_parsed_exactly():
     assert parse_constraint(" cost-of-transport <= 6 ") == Constraint("cost_of_transport", "<=", 6.0)
     assert parse_constraint("v0=>1e-3") == Constraint("v0", ">=", 1e-3)
     assert quantity("Cost-Of-Transport", "--minimize") == "cost_of_transport"
-    row = sweeps.PointResult(0, "ok", v0=0.25, cost_of_transport=7.0)
+    row = PointResult(0, "ok", v0=0.25, cost_of_transport=7.0)
     assert Constraint("v0", ">=", 0.2).violation(row) == 0.0
     assert Constraint("v0", ">=", 0.5).violation(row) == 0.25
     assert Constraint("cost_of_transport", "<=", 6.0).violation(row) == 1.0
-    failed = sweeps.PointResult(0, "failed", message="boom")
+    failed = PointResult(0, "failed", message="boom")
     assert Constraint("v0", ">=", 0.2).violation(failed) == math.inf
     for bad in (
         "links.1.phase",
@@ -206,7 +208,7 @@ def test_write_best_is_a_gait_file_that_crawlsim_run_reproduces(tmp_path):
     assert run.exit_code == 0, run.output
     v0 = json.loads(run.output)["v0"]
     assert abs(v0 - answer["v0"]) <= 1e-12 * abs(answer["v0"])
-    assert h5io.describe(out)["v0"] == answer["v0"]
+    assert describe(out)["v0"] == answer["v0"]
 
 
 def test_the_same_seed_gives_the_same_result_with_one_or_two_jobs():
@@ -254,7 +256,7 @@ def test_invalid_points_are_recorded_and_never_chosen(tmp_path):
     assert invalid and all(e.x[0] <= 0 for e in invalid)
     assert all("stiffness" in e.row.message for e in invalid)
     assert result.best_point.row.status == "ok" and result.best_point.x[0] > 0
-    data = h5io.read_optimization(tmp_path / "o.h5")
+    data = read_optimization(tmp_path / "o.h5")
     status = list(data["evaluations"]["status"])
     assert status.count("invalid") == len(invalid)
     assert_reads_back(result, tmp_path / "o.h5")
@@ -348,7 +350,7 @@ def test_pareto_front_is_the_non_dominated_set_of_the_evaluated_points(tmp_path)
     assert [p.v0 for p in front] == sorted(p.v0 for p in front)
     hv = [b.hypervolume for b in result.history]
     assert all(np.diff(hv) >= 0) and hv[-1] > 0
-    data = h5io.read_optimization(tmp_path / "front.h5")
+    data = read_optimization(tmp_path / "front.h5")
     assert data["front"]["evaluation"].tolist() == list(result.front)
     assert data["front"]["chosen"].sum() >= 1
     assert_reads_back(result, tmp_path / "front.h5")
@@ -386,7 +388,7 @@ def test_pareto_reports_the_fastest_evaluated_gait_and_the_runs_out_of_budget(tm
     ]
     r = cli("optimize", *args, "-o", out, "--write-best", best_yaml)
     assert r.exit_code == 0, r.output
-    data = h5io.read_optimization(out)
+    data = read_optimization(out)
     ev = data["evaluations"]
     ok = (ev["status"] == "ok") & np.isfinite(ev["v0"])  # no constraints: every point that runs
     fastest = int(np.flatnonzero(ok)[np.argmax(ev["v0"][ok])])
@@ -461,7 +463,7 @@ def test_the_results_file_layout_and_its_figures(tmp_path):
     )
     assert r.exit_code == 0, r.output
     assert "minimize cost_of_transport subject to v0>=0.3" in r.output
-    data = h5io.read_optimization(out)
+    data = read_optimization(out)
     a = data["attrs"]
     assert a["kind"] == "optimization" and a["format_version"] == 2 and a["seed"] == 3
     assert a["objective"] == "minimize cost_of_transport" and a["max_evaluations"] == 30
@@ -495,7 +497,7 @@ def test_the_results_file_layout_and_its_figures(tmp_path):
         assert f["evaluations/v0"].dims[0][0].name == "/evaluations/evaluation"
         assert f["history/best"].dims[0][0].name == "/history/batch"
         assert list(f["evaluations/stage"].attrs["flag_values"]) == [0, 1, 2]
-    assert h5io.describe(out)["file_kind"] == "optimization"
+    assert describe(out)["file_kind"] == "optimization"
     info = cli("info", out)
     assert info.exit_code == 0 and "optimisation of gait peristalsis-4" in info.output
     assert "subject to               v0>=0.3" in info.output
@@ -583,7 +585,7 @@ def test_gradient_search_pareto_front_and_results_file(tmp_path):
     )
     assert len(non_dominated(points)) == len(points)
     assert result.best_point.row.v0 == max(p[0] for p in points)
-    data = h5io.read_optimization(out)
+    data = read_optimization(out)
     assert data["attrs"]["method"] == "sample + quasi-Newton on exact gradients"
     assert len(data["evaluations"]["v0"]) == len(result.evaluations)
     assert_reads_back(result, out)

@@ -16,7 +16,7 @@ from crawlsim.api import run
 from crawlsim.cli import main
 from crawlsim.errors import DegenerateModelError, GaitError, LicqWarning
 from crawlsim.gait.document import Gait, ProcessSpec, load_gait, parse_gait, recession_direction
-from crawlsim.io.hdf5 import read_results
+from crawlsim.io.runread import read_results
 from crawlsim.kernel.projection import ExactProjector
 from crawlsim.model.process import compile, compile_gait, compile_process
 from crawlsim.study.paper import acute_angle_document

@@ -51,8 +51,8 @@ def animate(results_file, output, periods, frames_per_period, fps, dpi, force):
     """
     from pathlib import Path
 
-    from crawlsim.io.hdf5 import read_results
     from crawlsim.io.outputs import FIGURE, check_target
+    from crawlsim.io.runread import read_results
     from crawlsim.plotting.animation import ANIMATION_FORMATS, parse_periods, write_animation
 
     target = Path(output) if output else Path(results_file).with_suffix(".gif")

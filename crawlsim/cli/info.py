@@ -47,7 +47,7 @@ def _run_lines(d: dict) -> list[str]:
 
 
 def summary_lines(d: dict) -> list[str]:
-    """The text of ``crawlsim info`` for `crawlsim.io.hdf5.describe`'s dict."""
+    """The text of ``crawlsim info`` for `crawlsim.io.describe.describe`'s dict."""
     lines = []
     if d["file_kind"] == "run":
         lines.extend(_run_lines(d))
@@ -106,7 +106,7 @@ def info(results_file, as_json):
       crawlsim run gaits/inching-2.yaml -o inching.h5 && crawlsim info inching.h5
       crawlsim info inching.h5 --json
     """
-    from crawlsim.io.hdf5 import describe
+    from crawlsim.io.describe import describe
 
     with library_errors():
         d = describe(results_file)

@@ -34,6 +34,7 @@ def merge(parts, output, force):
     from pathlib import Path
 
     from crawlsim.study import sweep as sweeps
+    from crawlsim.study.table import merge_tables, read_table
 
     if output != "-" and Path(output).suffix.lower() not in (".h5", ".hdf5", ".csv"):
         raise BadInput(
@@ -44,7 +45,7 @@ def merge(parts, output, force):
             from crawlsim.io.outputs import SWEEP, check_target
 
             check_target(output, SWEEP, inputs=parts, force=force)
-        table = sweeps.merge_tables(sweeps.read_table(p) for p in parts)
+        table = merge_tables(read_table(p) for p in parts)
         if output == "-":
             click.echo(table.to_csv(), nl=False)
             return

@@ -85,7 +85,7 @@ def plot(results_file, output, fmt, only, coords, dpi, figsize, style, force):
     """
     from pathlib import Path
 
-    from crawlsim.io.hdf5 import describe
+    from crawlsim.io.describe import describe
 
     options = figure_options_of(dpi, figsize, style)
     target = None
@@ -138,7 +138,7 @@ def _check_targets(results_file, output_dir, fmt, only, kind, force) -> None:
 
 def _plot_file(results_file, output_dir, fmt, only, coords, options, target):
     """The figures of a run or an optimisation file (`crawlsim.plotting.plot_results`)."""
-    from crawlsim.io.hdf5 import describe
+    from crawlsim.io.describe import describe
     from crawlsim.plotting import plot_results
 
     if only is not None and describe(results_file)["file_kind"] == "optimization" and only not in OPTIMIZATION_FIGURES:
@@ -159,13 +159,14 @@ def _plot_sweep(results_file, output_dir, fmt, only, options, target) -> Path:
 
     from crawlsim.plotting.style import user_style
     from crawlsim.study import sweep as sweeps
+    from crawlsim.study.table import read_table
 
     if only is not None:
         raise BadInput(
             f"--only {only}: {results_file} is a sweep file, whose one figure is "
             "the sweep; --only chooses among the figures of a run"
         )
-    table = sweeps.read_table(results_file)
+    table = read_table(results_file)
     if len(table.dimension_paths()) not in (1, 2):
         raise BadInput(
             f"{results_file}: a sweep figure shows one or two swept dimensions, "

@@ -75,7 +75,7 @@ def _open_run(path: Any) -> tuple[Any, h5py.File]:
         if kind == "optimization":
             raise ResultsFileError(
                 f"{source}: an optimisation file, not a run's results file: "
-                "read it with crawlsim.io.hdf5.read_optimization"
+                "read it with crawlsim.io.optfile.read_optimization"
             )
     except BaseException:
         f.close()

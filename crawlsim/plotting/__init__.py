@@ -3,9 +3,9 @@
 * `style` holds the one style of all figures (fonts, palettes, the colour map, labels with
   units, titles);
 * one module per figure of a run, `motion`, `gait_diagram`, `convergence` and `shape_space`,
-  each function taking the run (a results file, the dict of `crawlsim.io.hdf5.read_results`, or
+  each function taking the run (a results file, the dict of `crawlsim.io.runread.read_results`, or
   the result of `crawlsim.simulate`: `source.run_data`) and returning a matplotlib `Figure`;
-  `figures.FIGURES` names them;
+  `output.FIGURES` names them;
 * `sweeps` draws velocity sweeps (`sweep_figure`, `sweep_data_figure`);
 * `optimization` has the figures of an optimisation file (`objective_figure`, `pareto_figure`);
 * `animation` draws the crawler in motion (`write_animation`, ``crawlsim animate``);
@@ -39,7 +39,7 @@ _LAZY = {
     "sweep_figure": "sweeps",
     "sweep_data_figure": "sweeps",
     "run_data": "source",
-    "FIGURES": "figures",
+    "FIGURES": "output",
     "objective_figure": "optimization",
     "pareto_figure": "optimization",
     "write_animation": "animation",

@@ -6,15 +6,33 @@ renamed into place, so a figure that cannot be drawn leaves no file behind.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from crawlsim.errors import ResultsFileError
 from crawlsim.io.atomic import atomic_path
-from crawlsim.io.hdf5 import read_attrs, read_optimization, read_results, read_sweep
+from crawlsim.io.optfile import read_optimization
+from crawlsim.io.runread import read_attrs, read_results
+from crawlsim.io.sweepfile import read_sweep
 from crawlsim.plotting import CRAWLER_FIGURES, FIGURE_NAMES, OPTIMIZATION_FIGURES, SWEEP_FIGURE
-from crawlsim.plotting.figures import FIGURES
+from crawlsim.plotting.convergence import convergence_figure
+from crawlsim.plotting.gait_diagram import gait_figure
+from crawlsim.plotting.motion import motion_figure
+from crawlsim.plotting.shape_space import shape_space_figure
 from crawlsim.plotting.style import DPI, FORMATS, FigureOptions, figure_style, user_style
 from crawlsim.plotting.sweeps import sweep_data_figure
+
+#: The figures of one run, by the names of `crawlsim.plotting.FIGURE_NAMES`: each takes the run
+#: (`crawlsim.plotting.source.run_data`) and returns a matplotlib Figure in the style of
+#: `crawlsim.plotting.style`; a figure that needs data the run lacks raises `ResultsFileError`
+#: naming the missing dataset.
+FIGURES: dict[str, Callable[..., Any]] = {
+    "motion": motion_figure,
+    "gait-diagram": gait_figure,
+    "convergence": convergence_figure,
+    "shape-space": shape_space_figure,
+}
 
 
 def available_figures(results: dict) -> list[str]:
@@ -70,7 +88,7 @@ def plot_results(
     ``only`` draws one figure; otherwise every figure the file supports (`available_figures`).
     ``coords`` is the 0-based pair of shape coordinates of the shape-space figure when the shape
     space has more than two dimensions. A sweep file (``crawlsim velocity --sweep ... -o
-    OUT.h5``) gets its one figure, ``<stem>-sweep.<fmt>`` (`figures.sweep_data_figure`); an
+    OUT.h5``) gets its one figure, ``<stem>-sweep.<fmt>`` (`crawlsim.plotting.sweeps.sweep_data_figure`); an
     optimisation file (``crawlsim optimize``) ``<stem>-objective.<fmt>`` and, with --pareto,
     ``<stem>-pareto-front.<fmt>`` (`crawlsim.plotting.optimization`). A
     missing dataset raises `ResultsFileError` naming the file and the dataset; nothing is

@@ -1,7 +1,7 @@
 """What a run's figures are drawn from, whichever way the run is given.
 
 Every figure of a run (and the animation) reads one thing: the dict of
-`crawlsim.io.hdf5.read_results`, the groups and attributes of the results file. A study in a
+`crawlsim.io.runread.read_results`, the groups and attributes of the results file. A study in a
 notebook holds a result object instead (`crawlsim.simulate`, `crawlsim.api.run`), and a command
 holds a path. `run_data` turns any of the three into that dict, and `takes_run` makes a figure
 function call it on its first argument: the conversion is made here and nowhere else, so
@@ -39,14 +39,14 @@ F = TypeVar("F", bound=Callable[..., Any])
 
 
 def run_data(source: Any) -> dict[str, Any]:
-    """The dict of `crawlsim.io.hdf5.read_results` for ``source``: that dict itself, a results
+    """The dict of `crawlsim.io.runread.read_results` for ``source``: that dict itself, a results
     file's path (read), or a run's result object (`crawlsim.api.SimulationResult`,
     `crawlsim.analysis.run.RunResult`: `from_result`; the results file it names as ``output``,
     when it wrote one). TypeError for anything else."""
     if isinstance(source, dict):
         return source
     if isinstance(source, (str, os.PathLike)):
-        from crawlsim.io.hdf5 import read_results
+        from crawlsim.io.runread import read_results
 
         return read_results(source)
     if hasattr(source, "limit") and hasattr(source, "history"):
@@ -54,13 +54,13 @@ def run_data(source: Any) -> dict[str, Any]:
         if written is not None and os.path.isfile(written):
             # `crawlsim.api.run(gait, output=...)`: its file holds the trajectory the result
             # object does not keep.
-            from crawlsim.io.hdf5 import read_results
+            from crawlsim.io.runread import read_results
 
             return read_results(written)
         return from_result(source)
     raise TypeError(
         f"a figure of a run takes a results file, the dict of "
-        f"crawlsim.io.hdf5.read_results or the result of crawlsim.simulate; got "
+        f"crawlsim.io.runread.read_results or the result of crawlsim.simulate; got "
         f"{type(source).__name__}"
     )
 

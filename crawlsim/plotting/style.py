@@ -267,8 +267,8 @@ DIMENSIONS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
 
 
 def units_of(data: dict) -> Units:
-    """The units of a results dict (`crawlsim.io.hdf5.read_results`) or a sweep dict
-    (`crawlsim.io.hdf5.read_sweep`): the ``units_json`` attribute when the file has it, else the
+    """The units of a results dict (`crawlsim.io.runread.read_results`) or a sweep dict
+    (`crawlsim.io.sweepfile.read_sweep`): the ``units_json`` attribute when the file has it, else the
     ``units:`` block of the stored gait document, else none."""
     attrs = data.get("attrs") or {}
     for holder in (attrs, data):

@@ -396,7 +396,7 @@ def jump_walls(x, y, jump_x, jump_y, logs=(False, False)) -> list[np.ndarray]:
 
 
 def sweep_data_figure(data: dict, title: str | None = None) -> Figure:
-    """The sweep figure of a sweep file (`crawlsim.io.hdf5.read_sweep`) or of a table
+    """The sweep figure of a sweep file (`crawlsim.io.sweepfile.read_sweep`) or of a table
     (`crawlsim.study.sweep.table_payload`): the columns are put back on the grid (points a shard did
     not hold have no value and no status), the units come from the file (`style.units_of`)."""
     paths = list(data["paths"])

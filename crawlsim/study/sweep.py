@@ -29,55 +29,28 @@ recomputed. The output file is written atomically at the end.
 
 from __future__ import annotations
 
-import os  # noqa: F401  (tests patch sweeps.os.fsync: the journal's fsync)
+import io
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 import yaml
 
+from crawlsim.analysis.stall import curve_marks
 from crawlsim.errors import SweepSpecError
 from crawlsim.gait.document import Gait
+from crawlsim.io.runread import read_attrs
+from crawlsim.io.sweepfile import read_sweep, write_sweep
 from crawlsim.status import PointStatus
-from crawlsim.study.executors import (
-    MAX_CHUNK,
-    MIN_CHUNK,
-    SCHEDULER_TIMEOUT,
-    TASK_SECONDS,
-    Chunker,
-    WorkerPool,
-    check_scheduler,
-    run_dask,
-    run_local,
-    run_on_pool,
-)
-from crawlsim.study.grid import (
-    MAX_AXIS_POINTS,
-    Axis,
-    SweepGrid,
-    check_some_point_runs,
-    make_grid,
-    parse_axis,
-    parse_shard,
-)
-from crawlsim.study.journal import JOURNAL_SECONDS, Journal, journal_path
-from crawlsim.study.points import (
-    BATCH_PLAIN_PERIODS,
-    PointQuantity,
-    PointResult,
-    evaluate,
-    run_points,
-)
-from crawlsim.study.table import (
-    LATER_COLUMNS,
-    RESULT_COLUMNS,
-    SweepTable,
-    is_hdf5,
-    merge_tables,
-    read_table,
-    table_payload,
-    write_table,
-)
+from crawlsim.study.executors import MIN_CHUNK, WorkerPool, run_dask, run_local, run_on_pool
+from crawlsim.study.grid import SweepGrid, check_some_point_runs, make_grid
+from crawlsim.study.journal import Journal, journal_path
+from crawlsim.study.simulation import _xarray
+from crawlsim.study.table import SweepTable, is_hdf5, read_table, table_payload, write_table
+
+if TYPE_CHECKING:
+    import xarray
 
 
 class SweepInterrupted(KeyboardInterrupt):
@@ -192,6 +165,44 @@ def sweep(
     return table
 
 
+def dataset(table: SweepTable) -> xarray.Dataset | SweepTable:
+    """The ``/grid`` group of the table's sweep file as an `xarray.Dataset` (`crawlsim.sweep`;
+    the table itself without xarray)."""
+    try:
+        _xarray()
+    except ImportError:
+        return table
+    buffer = io.BytesIO()
+    write_sweep(buffer, **table_payload(table))
+    return _grid_dataset(buffer)
+
+
+def open_dataset(path: str | Path) -> xarray.Dataset | SweepTable:
+    """A sweep file as `crawlsim.sweep` returns it (`crawlsim.open_sweep`): the `xarray.Dataset`
+    of its ``/grid`` with the provenance as attributes, or without xarray its `SweepTable`."""
+    read_sweep(path)  # refuses what is not a sweep file, naming what is missing
+    try:
+        _xarray()
+    except ImportError:
+        return read_table(path)
+    return _grid_dataset(path)
+
+
+def _grid_dataset(source: Any) -> xarray.Dataset:
+    """The ``/grid`` group of a sweep file (a path or a binary file object) as a Dataset, the
+    root attributes (provenance) merged into its own."""
+    xr = _xarray()
+    if isinstance(source, io.IOBase):
+        source.seek(0)
+    attrs = read_attrs(source)
+    if isinstance(source, io.IOBase):
+        source.seek(0)
+    with xr.open_dataset(source, engine="h5netcdf", group="grid", decode_timedelta=False) as ds:
+        grid = cast("xarray.Dataset", ds.load())
+    grid.attrs = {**attrs, **grid.attrs}
+    return grid
+
+
 def check_shard_output(shard, output) -> None:
     """A shard is written to an HDF5 file, or `crawlsim merge` could not join it."""
     if shard is not None and (output is None or not is_hdf5(output)):
@@ -230,8 +241,6 @@ def plot_table(table: SweepTable, path, title: str | None = None, figure_options
         title = f"{name or Path(table.source).stem}: average velocity over a sweep"
     marks = None
     if len(axes) == 1 and table.gait_yaml:
-        from crawlsim.analysis.stall import curve_marks
-
         name = next(iter(axes))
         marks = curve_marks(table.gait_yaml, name, axes[name], v0)
     # The statuses themselves, not a failed/ok mask: an invalid gait and a failed run are
@@ -247,43 +256,3 @@ def plot_table(table: SweepTable, path, title: str | None = None, figure_options
         marks=marks,
     )
     save_figure(figure, path, **(figure_options or {}))
-
-
-__all__ = [
-    "BATCH_PLAIN_PERIODS",
-    "JOURNAL_SECONDS",
-    "LATER_COLUMNS",
-    "MAX_AXIS_POINTS",
-    "MAX_CHUNK",
-    "MIN_CHUNK",
-    "RESULT_COLUMNS",
-    "SCHEDULER_TIMEOUT",
-    "TASK_SECONDS",
-    "Axis",
-    "Chunker",
-    "Journal",
-    "PointQuantity",
-    "PointResult",
-    "SweepGrid",
-    "SweepInterrupted",
-    "SweepTable",
-    "WorkerPool",
-    "check_scheduler",
-    "check_shard_output",
-    "check_some_point_runs",
-    "evaluate",
-    "is_hdf5",
-    "journal_path",
-    "make_grid",
-    "merge_tables",
-    "parse_axis",
-    "parse_shard",
-    "plot_table",
-    "read_table",
-    "run_points",
-    "run_sweep",
-    "sweep",
-    "sweep_figure_data",
-    "table_payload",
-    "write_table",
-]

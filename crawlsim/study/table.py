@@ -162,9 +162,9 @@ def write_table(table: SweepTable, output) -> None:
     """CSV (``.csv`` or any other suffix) or HDF5 (``.h5``/``.hdf5``), written atomically."""
     output = Path(output)
     if is_hdf5(output):
-        from crawlsim.io import hdf5 as h5io
+        from crawlsim.io.sweepfile import write_sweep
 
-        h5io.write_sweep(output, **table_payload(table))
+        write_sweep(output, **table_payload(table))
         return
     with atomic_path(output) as tmp:
         tmp.write_text(table.to_csv(), encoding="utf-8", newline="")
@@ -175,7 +175,7 @@ def is_hdf5(path) -> bool:
 
 
 def table_payload(table: SweepTable) -> dict:
-    """The plain data `crawlsim.io.hdf5.write_sweep` stores."""
+    """The plain data `crawlsim.io.sweepfile.write_sweep` stores."""
     return dict(
         paths=list(table.paths),
         axes=[np.asarray(a) for a in table.axes],
@@ -193,9 +193,9 @@ def read_table(path) -> SweepTable:
     """A sweep HDF5 file (complete or a shard) back as a `SweepTable`. Files written before the
     `LATER_COLUMNS` existed read with those columns missing (NaN, ""); the dv0/dPATH columns
     of ``--sensitivity`` come back as the rows' ``derivatives``."""
-    from crawlsim.io import hdf5 as h5io
+    from crawlsim.io.sweepfile import read_sweep
 
-    data = h5io.read_sweep(path)
+    data = read_sweep(path)
     cols = data["columns"]
 
     def number(name, n):
