@@ -29,7 +29,8 @@ import numpy as np
 import pytest
 
 from crawlsim.api import run
-from crawlsim.gait.document import admissibility_violation, load_gait, with_simulation
+from crawlsim.gait.crawler_spec import admissibility_violation
+from crawlsim.gait.document import load_gait, with_simulation
 
 from .conftest import GAITS, make_gait, two_block
 
@@ -166,7 +167,7 @@ def test_anchoring_catch_up_error_depends_on_the_parity_of_the_step_count(steps,
 #: The largest stiffness crawlsim accepts for two_block(0.3, k) with friction 1 / 2: the
 #: stress scale k max|L| / min mu = 1.3 k at most `STRESS_SCALE_LIMIT`.
 def _largest_stiffness():
-    from crawlsim.gait.document import STRESS_SCALE_LIMIT
+    from crawlsim.gait.crawler_limits import STRESS_SCALE_LIMIT
 
     return STRESS_SCALE_LIMIT / 1.3
 

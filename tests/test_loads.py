@@ -32,7 +32,8 @@ from hypothesis import strategies as st
 from crawlsim.api import run
 from crawlsim.cli import main
 from crawlsim.errors import GaitError
-from crawlsim.gait.document import admissibility_violation, parse_gait
+from crawlsim.gait.crawler_spec import admissibility_violation
+from crawlsim.gait.document import parse_gait
 
 from .conftest import make_gait
 

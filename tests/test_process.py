@@ -15,7 +15,8 @@ from click.testing import CliRunner
 from crawlsim.api import run
 from crawlsim.cli import main
 from crawlsim.errors import DegenerateModelError, GaitError, LicqWarning
-from crawlsim.gait.document import Gait, ProcessSpec, load_gait, parse_gait, recession_direction
+from crawlsim.gait.document import Gait, ProcessSpec, load_gait, parse_gait
+from crawlsim.gait.process_spec import recession_direction
 from crawlsim.io.runread import read_results
 from crawlsim.kernel.projection import ExactProjector
 from crawlsim.model.process import compile, compile_gait, compile_process

@@ -39,7 +39,7 @@ EXIT_NOT_CONVERGED = 3
 EXIT_INTERRUPTED = 128 + signal.SIGINT
 EXIT_TERMINATED = 128 + signal.SIGTERM
 
-#: The defaults of the gait file's ``simulation`` mapping (`crawlsim.gait.document.Simulation`), for the
+#: The defaults of the gait file's ``simulation`` mapping (`crawlsim.gait.settings.Simulation`), for the
 #: help texts; tests/test_cli_help.py checks that they agree.
 DEFAULT_STEPS_PER_PERIOD = 1000
 DEFAULT_MAX_PERIODS = 1000

@@ -179,7 +179,7 @@ def velocity(
         _check_targets(gait_file, output, plot_file, scheduler, force)
         groups = _dimensions(sweep_specs, link_specs)
         gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance, integrator, limit)
-        from crawlsim.gait.document import need_crawler
+        from crawlsim.gait.crawler_spec import need_crawler
 
         need_crawler(gait)
         warn_unchecked(gait)

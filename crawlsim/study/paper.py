@@ -38,14 +38,8 @@ from pathlib import Path
 
 import numpy as np
 
-from crawlsim.gait.document import (
-    Gait,
-    ProcessSpec,
-    admissibility_violation,
-    gait_from_document,
-    load_gait,
-    with_simulation,
-)
+from crawlsim.gait.crawler_spec import admissibility_violation
+from crawlsim.gait.document import Gait, ProcessSpec, gait_from_document, load_gait, with_simulation
 from crawlsim.integrate.stepping import STEPPERS, make_stepper
 from crawlsim.model.process import compile
 from crawlsim.study.simulation import SimulationResult, run
