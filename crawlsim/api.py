@@ -39,6 +39,7 @@ from crawlsim.study.simulation import (
 if TYPE_CHECKING:
     import xarray
 
+    from crawlsim.analysis.run import Settled
     from crawlsim.analysis.sensitivity import SensitivityResult
     from crawlsim.design.optresult import OptimizationResult
     from crawlsim.study.grid import SweepGrid
@@ -153,7 +154,9 @@ def _axis_values(path: str, values: Iterable[float]) -> tuple[float, ...]:
     return tuple(items)
 
 
-def sensitivity(gait: Spec | str | Path, paths: Sequence[str] | str, *, one_sided: bool = True) -> SensitivityResult:
+def sensitivity(
+    gait: Spec | str | Path, paths: Sequence[str] | str, *, one_sided: bool = True, run: Settled | None = None
+) -> SensitivityResult:
     """The exact derivatives of v0, of the displacement and dissipation per period and of the
     cost of transport with respect to the numbers ``paths`` name in ``gait`` (dotted paths with
     ``*`` as in ``--sweep``; each ``*`` expands to one parameter per element), at the verified
@@ -165,7 +168,8 @@ def sensitivity(gait: Spec | str | Path, paths: Sequence[str] | str, *, one_side
 
     Where v0 has a kink or a jump, a parameter's ``smooth`` is False, ``v0.value`` is None and
     ``left`` / ``right`` hold one-sided derivatives measured with the same integrator
-    (``one_sided=False`` skips them).
+    (``one_sided=False`` skips them). ``run``: what a run of this gait settled on (the
+    ``settled`` of `run`'s result), whose limit period is walked instead of searched again.
     """
     from crawlsim.analysis.sensitivity import sensitivity as _sensitivity  # start-up: its kernels only when asked
 
@@ -176,4 +180,4 @@ def sensitivity(gait: Spec | str | Path, paths: Sequence[str] | str, *, one_side
             "",
             "sensitivities are defined for crawler gaits (kind: crawler), not generic sweeping processes",
         )
-    return _sensitivity(spec, paths, one_sided=one_sided)
+    return _sensitivity(spec, paths, one_sided=one_sided, run=run)

@@ -16,8 +16,10 @@ from click.testing import CliRunner
 
 import crawlsim.api
 import crawlsim.design.optimize
-import crawlsim.study.sweep
 from crawlsim.cli import main
+from crawlsim.design.problem import Method
+from crawlsim.errors import SweepSpecError
+from crawlsim.study import executors
 
 GAIT = """\
 blocks: 2
@@ -109,9 +111,9 @@ def test_refused_before_any_computation(folder, args, phrase):
 
 def test_the_largest_seed_is_accepted():
     """2**63 - 1 is the largest seed the results file holds; it is a valid search."""
-    crawlsim.design.optimize.Method(seed=2**63 - 1)
-    with pytest.raises(crawlsim.design.optimize.SweepSpecError):
-        crawlsim.design.optimize.Method(seed=2**63)
+    Method(seed=2**63 - 1)
+    with pytest.raises(SweepSpecError):
+        Method(seed=2**63)
 
 
 @pytest.mark.parametrize(
@@ -132,7 +134,7 @@ def test_scheduler_addresses(address, valid):
     and a port from 1 to 65535; anything else is refused before a connection is tried."""
     pytest.importorskip("distributed")
     if valid:
-        crawlsim.study.sweep.check_scheduler(address)
+        executors.check_scheduler(address)
         return
-    with pytest.raises(crawlsim.study.sweep.SweepSpecError, match="expected the address of a Dask"):
-        crawlsim.study.sweep.check_scheduler(address)
+    with pytest.raises(SweepSpecError, match="expected the address of a Dask"):
+        executors.check_scheduler(address)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import click
 
+from crawlsim.analysis.digits import how_found, with_error
 from crawlsim.cli import library_errors, main, to_json
 from crawlsim.status import Convergence
 
@@ -14,8 +15,6 @@ def _g(value, digits: int = 12) -> str:
 
 def _run_lines(d: dict) -> list[str]:
     """The lines of a run's file: the summary of ``crawlsim run``, from the attributes."""
-    from crawlsim.analysis.digits import how_found, with_error
-
     what = "gait" if d["kind"] == "crawler" else d["kind"]
     lines = [f"{d['file']}: run of {what} {d['name']}", f"  integrator               {d['integrator'] or 'n/a'}"]
     if d["v0"] is not None:
@@ -106,7 +105,7 @@ def info(results_file, as_json):
       crawlsim run gaits/inching-2.yaml -o inching.h5 && crawlsim info inching.h5
       crawlsim info inching.h5 --json
     """
-    from crawlsim.io.describe import describe
+    from crawlsim.io.describe import describe  # start-up: h5py when the command runs
 
     with library_errors():
         d = describe(results_file)

@@ -6,9 +6,11 @@ from typing import TYPE_CHECKING
 
 import click
 
+from crawlsim import plotting
 from crawlsim.cli import BadInput, library_errors, main
-from crawlsim.cli.guards import figure_format_of, figure_options, figure_options_of, force_option
+from crawlsim.cli.guards import figure_format_of, figure_options, force_option
 from crawlsim.errors import CrawlsimError
+from crawlsim.io.outputs import FIGURE, check_target
 from crawlsim.plotting import FIGURE_NAMES, OPTIMIZATION_FIGURES
 
 if TYPE_CHECKING:  # pathlib is imported where used: `crawlsim --help` needs none of it
@@ -58,7 +60,7 @@ def _coords(ctx, param, value):
 )
 @figure_options
 @force_option
-def plot(results_file, output, fmt, only, coords, dpi, figsize, style, force):
+def plot(results_file, output, fmt, only, coords, figures, force):
     """Draw the figures of RESULTS_FILE as <stem>-<figure>.<format>.
 
     \b
@@ -85,9 +87,9 @@ def plot(results_file, output, fmt, only, coords, dpi, figsize, style, force):
     """
     from pathlib import Path
 
-    from crawlsim.io.describe import describe
+    from crawlsim.io.describe import describe  # start-up: h5py when the command runs
 
-    options = figure_options_of(dpi, figsize, style)
+    options = figures.options()
     target = None
     if output is not None and Path(output).suffix and not Path(output).is_dir():
         target = Path(output)
@@ -102,15 +104,13 @@ def plot(results_file, output, fmt, only, coords, dpi, figsize, style, force):
     with library_errors():
         kind = describe(results_file)["file_kind"]
         if target is not None:
-            from crawlsim.io.outputs import FIGURE, check_target
-
             check_target(target, FIGURE, inputs=[results_file], force=force, option="--output")
         else:
             _check_targets(results_file, output, fmt, only, kind, force)
         if kind == "sweep":
             written = [_plot_sweep(results_file, output, fmt, only, options, target)]
         else:
-            written = _plot_file(results_file, output, fmt, only, coords, options, target)
+            written = _plot_file(results_file, output, fmt, only, coords, options, target, kind)
     for path in written:
         click.echo(str(path))
 
@@ -118,8 +118,6 @@ def plot(results_file, output, fmt, only, coords, dpi, figsize, style, force):
 def _check_targets(results_file, output_dir, fmt, only, kind, force) -> None:
     """Refuse figure files that may not be replaced (`crawlsim.io.outputs.check_target`)."""
     from pathlib import Path
-
-    from crawlsim.io.outputs import FIGURE, check_target
 
     folder = Path(output_dir) if output_dir else Path(results_file).parent
     if not folder.is_dir():
@@ -136,18 +134,17 @@ def _check_targets(results_file, output_dir, fmt, only, kind, force) -> None:
         )
 
 
-def _plot_file(results_file, output_dir, fmt, only, coords, options, target):
+def _plot_file(results_file, output_dir, fmt, only, coords, options, target, kind):
     """The figures of a run or an optimisation file (`crawlsim.plotting.plot_results`)."""
-    from crawlsim.io.describe import describe
-    from crawlsim.plotting import plot_results
-
-    if only is not None and describe(results_file)["file_kind"] == "optimization" and only not in OPTIMIZATION_FIGURES:
+    if only is not None and kind == "optimization" and only not in OPTIMIZATION_FIGURES:
         raise BadInput(
             f"--only {only}: {results_file} is an optimisation file, whose figures "
             f"are {', '.join(OPTIMIZATION_FIGURES)}"
         )
     try:
-        return plot_results(results_file, output_dir, fmt=fmt, only=only, coords=coords, options=options, target=target)
+        return plotting.plot_results(
+            results_file, output_dir, fmt=fmt, only=only, coords=coords, options=options, target=target
+        )
     except ValueError as exc:
         if isinstance(exc, CrawlsimError):
             raise
@@ -157,16 +154,15 @@ def _plot_file(results_file, output_dir, fmt, only, coords, options, target):
 def _plot_sweep(results_file, output_dir, fmt, only, options, target) -> Path:
     from pathlib import Path
 
-    from crawlsim.plotting.style import user_style
+    from crawlsim.plotting.style import user_style  # start-up: matplotlib and the sweep table, when drawn
     from crawlsim.study import sweep as sweeps
-    from crawlsim.study.table import read_table
 
     if only is not None:
         raise BadInput(
             f"--only {only}: {results_file} is a sweep file, whose one figure is "
             "the sweep; --only chooses among the figures of a run"
         )
-    table = read_table(results_file)
+    table = sweeps.read_table(results_file)
     if len(table.dimension_paths()) not in (1, 2):
         raise BadInput(
             f"{results_file}: a sweep figure shows one or two swept dimensions, "

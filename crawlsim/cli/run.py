@@ -6,27 +6,22 @@ import sys
 
 import click
 
+import crawlsim
+from crawlsim import plotting
+from crawlsim.analysis.report import not_converged_message, summary_text
 from crawlsim.cli import (
     EXIT_NOT_CONVERGED,
     BadInput,
     _output_path,
-    check_feedback,
     feedback_options,
     library_errors,
-    load_with_overrides,
     main,
     run_progress,
     simulation_options,
     to_json,
 )
-from crawlsim.cli.guards import (
-    check_memory,
-    figure_options,
-    figure_options_of,
-    force_option,
-    max_memory_option,
-    warn_unchecked,
-)
+from crawlsim.cli.guards import check_memory, figure_options, force_option, max_memory_option, warn_unchecked
+from crawlsim.io.outputs import FIGURE, check_target
 
 #: Largest ``--save-every``: grid points are counted in int64 (a run has at most 10^8 steps per
 #: period, so any larger value saves only each period's first point anyway).
@@ -76,23 +71,16 @@ def run(
     gait_file,
     from_results,
     output,
-    steps_per_period,
-    max_periods,
-    tolerance,
-    integrator,
-    limit,
+    settings,
     save_every,
     check_every_step,
     as_json,
     plot,
     plot_format,
-    dpi,
-    figsize,
-    style,
+    figures,
     max_memory,
     force,
-    quiet,
-    verbose,
+    feedback,
 ):
     """Simulate GAIT_FILE to its periodic regime; report v0 and write an HDF5 file.
 
@@ -108,7 +96,8 @@ def run(
       crawlsim run gaits/inching-2.yaml -o inching.h5 --plot --plot-format pdf
       crawlsim run --from inching.h5 -o again.h5
     """
-    check_feedback(quiet, verbose)
+    from pathlib import Path
+
     if (gait_file is None) == (from_results is None):
         raise BadInput("give a gait file or --from RESULT.h5 (one of the two)")
     if output == "-":
@@ -117,28 +106,19 @@ def run(
             "streamed to stdout; give a file name (-o run.h5), and --json prints "
             "the summary on stdout"
         )
-    given = [
-        name
-        for name, value in (("--plot-format", plot_format), ("--dpi", dpi), ("--figsize", figsize), ("--style", style))
-        if value is not None
-    ]
+    given = ([] if plot_format is None else ["--plot-format"]) + figures.given()
     if given and not plot:
         raise BadInput(f"{', '.join(given)} set how the figures are drawn: add --plot")
-    options = figure_options_of(dpi, figsize, style) if plot else None
+    options = figures.options() if plot else None
     fmt = plot_format or "png"
-    from pathlib import Path
-
-    from crawlsim import api
-    from crawlsim.analysis.report import summary_text
-
     with library_errors():
         if from_results is not None:
-            gait, check_every_step, save_every = _rerun(
-                from_results, steps_per_period, max_periods, tolerance, integrator, check_every_step, save_every
-            )
+            rerun = crawlsim.api.from_results(from_results, **settings.given())
+            gait, check_every_step = rerun.gait, check_every_step or rerun.check_every_step
+            save_every = save_every or rerun.save_every
             out = _output_path(output, Path(from_results).stem + "-rerun", force, inputs=[from_results])
         else:
-            gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance, integrator, limit)
+            gait = crawlsim.api.load_gait(gait_file, **settings.given())
             out = _output_path(output, gait_file, force)
             save_every = save_every or 1
         if save_every > MAX_SAVE_EVERY:
@@ -147,57 +127,27 @@ def run(
                 f"{MAX_SAVE_EVERY:,} (the grid points are counted in 64-bit integers)"
             )
         check_memory(gait, max_memory, save_every=save_every)
-        if plot:
-            from crawlsim.io.outputs import FIGURE, check_target
-            from crawlsim.plotting import FIGURE_NAMES
-
-            for name in FIGURE_NAMES:
-                check_target(
-                    out.parent / f"{out.stem}-{name}.{fmt}",
-                    FIGURE,
-                    inputs=[gait_file or from_results],
-                    force=force,
-                    option="--plot",
-                )
+        for name in plotting.FIGURE_NAMES if plot else ():
+            target = out.parent / f"{out.stem}-{name}.{fmt}"
+            check_target(target, FIGURE, inputs=[gait_file or from_results], force=force, option="--plot")
         warn_unchecked(gait)
-        with run_progress(gait, quiet, verbose) as progress:
-            result = api.run(
+        with run_progress(gait, feedback) as progress:
+            result = crawlsim.api.run(
                 gait, output=out, save_every=save_every, check_every_step=check_every_step, progress=progress
             )
-        figures = []
-        if plot:
-            from crawlsim.plotting import plot_results
-
-            figures = [str(f) for f in plot_results(out, out.resolve().parent, fmt=fmt, options=options)]
+        drawn = (
+            [str(f) for f in plotting.plot_results(out, out.resolve().parent, fmt=fmt, options=options)] if plot else []
+        )
     if as_json:
         summary = result.summary()
         summary["output"] = str(out)
         if plot:
-            summary["figures"] = figures
+            summary["figures"] = drawn
         click.echo(to_json(summary))
     else:
         click.echo(summary_text(result.run, str(out), result.units))
-        for figure in figures:
+        for figure in drawn:
             click.echo(f"  figure                   {figure}")
     if not result.converged:
-        from crawlsim.analysis.report import not_converged_message
-
         click.echo(not_converged_message(result.run), err=True)
         sys.exit(EXIT_NOT_CONVERGED)
-
-
-def _rerun(path, steps_per_period, max_periods, tolerance, integrator, check_every_step, save_every):
-    """The gait and settings recorded in ``path``, with the options given on top."""
-    from crawlsim import api
-    from crawlsim.gait.document import with_simulation
-
-    recorded = api.from_results(path)
-    overrides = {
-        k: v
-        for k, v in dict(
-            steps_per_period=steps_per_period, max_periods=max_periods, tolerance=tolerance, integrator=integrator
-        ).items()
-        if v is not None
-    }
-    gait = with_simulation(recorded.gait, **overrides) if overrides else recorded.gait
-    return (gait, check_every_step or recorded.check_every_step, save_every or recorded.save_every)

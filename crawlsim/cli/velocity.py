@@ -7,34 +7,30 @@ import sys
 
 import click
 
+import crawlsim
+from crawlsim.analysis.digits import supported, with_error
+from crawlsim.analysis.report import not_converged_message
 from crawlsim.cli import (
     EXIT_NOT_CONVERGED,
     BadInput,
     OrderedCommand,
-    check_feedback,
     feedback_options,
     interrupt_exit,
     library_errors,
-    load_with_overrides,
     main,
     run_progress,
     simulation_options,
     to_json,
 )
-from crawlsim.cli.guards import (
-    check_memory,
-    check_sweep_memory,
-    force_option,
-    max_memory_option,
-    warn_unchecked,
-)
-from crawlsim.cli.progress import Progress, choose_mode
+from crawlsim.cli.guards import check_memory, check_sweep_memory, force_option, max_memory_option, warn_unchecked
+from crawlsim.cli.progress import Progress
+from crawlsim.io.outputs import FIGURE, SWEEP, check_target
 
 
 def _shard(ctx, param, value):
     if value is None:
         return None
-    from crawlsim.study.grid import parse_shard
+    from crawlsim.study.grid import parse_shard  # start-up: numpy and YAML only when the command runs
 
     with library_errors():
         return parse_shard(value)
@@ -131,15 +127,10 @@ def velocity(
     shard,
     scheduler,
     plot_file,
-    steps_per_period,
-    max_periods,
-    tolerance,
-    integrator,
-    limit,
+    settings,
     max_memory,
     force,
-    quiet,
-    verbose,
+    feedback,
 ):
     """Print v0 of GAIT_FILE, or sweep gait parameters and tabulate v0.
 
@@ -173,27 +164,26 @@ def velocity(
       for i in 1 2 3; do crawlsim velocity gaits/inching-2.yaml --sweep period=0.5:2:16 \\
           --shard $i/3 -o part-$i.h5; done && crawlsim merge part-*.h5 -o all.h5
     """
-    check_feedback(quiet, verbose)
+    from crawlsim.gait.crawler_spec import need_crawler  # start-up: numpy and YAML when the command runs
+
     output = None if output == "-" else output  # stdout is where the table (or v0) goes
     with library_errors():
         _check_targets(gait_file, output, plot_file, scheduler, force)
         groups = _dimensions(sweep_specs, link_specs)
-        gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance, integrator, limit)
-        from crawlsim.gait.crawler_spec import need_crawler
-
+        gait = crawlsim.api.load_gait(gait_file, **settings.given())
         need_crawler(gait)
         warn_unchecked(gait)
         if not groups:
             if shard or plot_file:
                 raise BadInput("--shard and --plot need at least one --sweep PATH=SPEC")
             if output is None:
-                return _single(gait, sensitivity_paths, as_json, max_memory, quiet, verbose)
+                return _single(gait, sensitivity_paths, as_json, max_memory, feedback)
         _check_sweep_options(groups, as_json, plot_file, shard)
-        from crawlsim.study import sweep as sweeps
+        from crawlsim.study import sweep as sweeps  # start-up: h5py and the sweep engine only for sweeps
 
         grid = sweeps.make_grid(gait, groups, sensitivity=sensitivity_paths)
         check_sweep_memory(grid, len(grid.indices(shard)), jobs, scheduler, max_memory)
-        table = _sweep(grid, output, jobs, shard, scheduler, quiet, verbose)
+        table = _sweep(sweeps, grid, output, jobs, shard, scheduler, feedback)
         if plot_file:
             sweeps.plot_table(table, plot_file)
     if output is None:
@@ -211,10 +201,8 @@ def velocity(
 def _check_targets(gait_file, output, plot_file, scheduler, force) -> None:
     """Refuse, before the gait is read, a --scheduler that is no address and outputs that may
     not be written (`crawlsim.io.outputs.check_target`)."""
-    from crawlsim.io.outputs import FIGURE, SWEEP, check_target
-
     if scheduler is not None:
-        from crawlsim.study.executors import check_scheduler
+        from crawlsim.study.executors import check_scheduler  # start-up: the sweep engine for sweeps
 
         check_scheduler(scheduler)
     if output is not None and plot_file is not None and os.path.abspath(output) == os.path.abspath(plot_file):
@@ -235,34 +223,25 @@ def _check_sweep_options(groups, as_json, plot_file, shard) -> None:
         raise BadInput(f"--plot draws one or two swept dimensions, got {len(groups)}")
 
 
-def _single(gait, sensitivity_paths, as_json, max_memory, quiet, verbose):
-    """v0 of one gait (`crawlsim.api.run`), with its sensitivities if asked; exit code 3 when
-    the run did not converge."""
-    from crawlsim import api
-
+def _single(gait, sensitivity_paths, as_json, max_memory, feedback):
+    """v0 of one gait (`crawlsim.api.run`), with its sensitivities if asked, at the limit
+    period of this run (not searched twice); exit code 3 when the run did not converge."""
     check_memory(gait, max_memory)
-    with run_progress(gait, quiet, verbose) as progress:
-        result = api.run(gait, progress=progress, history=False)
-        derivatives = None
-        if sensitivity_paths:  # at the limit period of this run: not searched twice
-            from crawlsim.analysis.sensitivity import sensitivity
-
-            derivatives = sensitivity(gait, list(sensitivity_paths), run=result.settled)
+    with run_progress(gait, feedback) as progress:
+        result = crawlsim.api.run(gait, progress=progress, history=False)
+        paths = list(sensitivity_paths)
+        derivatives = crawlsim.api.sensitivity(gait, paths, run=result.settled) if paths else None
     summary = result.summary()
     if as_json:
         if derivatives is not None:
             summary["sensitivity"] = derivatives.summary()
         click.echo(to_json(summary))
     else:  # the digits its error estimate supports (--json: full precision)
-        from crawlsim.analysis.digits import supported
-
         assert result.v0 is not None  # a crawler (need_crawler): v0 is measured
         click.echo(supported(result.v0, result.estimate.error_estimate)[0])
         for line in [] if derivatives is None else _sensitivity_lines(derivatives, summary["integrator"]):
             click.echo(line)
     if not result.converged:
-        from crawlsim.analysis.report import not_converged_message
-
         click.echo(not_converged_message(result.run), err=True)
         sys.exit(EXIT_NOT_CONVERGED)
 
@@ -270,8 +249,6 @@ def _single(gait, sensitivity_paths, as_json, max_memory, quiet, verbose):
 def _sensitivity_lines(result, integrator: str) -> list[str]:
     """One line per parameter: dv0/dPATH with the digits its error estimate supports, or why
     it is not smooth with the one-sided values, or why it was not computed."""
-    from crawlsim.analysis.digits import with_error
-
     out = []
     for p in result.parameters:
         name = f"dv0/d{p.path}"
@@ -293,19 +270,18 @@ def _sensitivity_lines(result, integrator: str) -> list[str]:
     return out
 
 
-def _sweep(grid, output, jobs, shard, scheduler, quiet, verbose):
-    """Run the sweep with progress on stderr; an interrupt says what was kept, then exits 130."""
-    from crawlsim.study import sweep as sweeps
-
+def _sweep(sweeps, grid, output, jobs, shard, scheduler, feedback):
+    """Run the sweep (``sweeps``: `crawlsim.study.sweep`) with progress on stderr; an interrupt
+    says what was kept, then exits 130."""
     total = len(grid.indices(shard))
-    bar = Progress("velocity", "point", total, mode=choose_mode(quiet))
+    bar = Progress("velocity", "point", total, mode=feedback.mode)
 
     def on_rows(rows, resumed):
         if resumed:
             bar.skip(len(rows))
-            if verbose:
+            if feedback.verbose:
                 bar.message(f"resuming: {len(rows)} of {total} points read from {sweeps.journal_path(output)}")
-        elif verbose:
+        elif feedback.verbose:
             for r in rows:
                 if r.status in ("invalid", "failed"):
                     bar.message(f"point {r.index} {r.status}: {r.message}")

@@ -31,6 +31,17 @@ from crawlsim.gait.signals import SIGNAL_SCHEMA, parse_signal
 from crawlsim.gait.validation import Builder, ErrorSink, plain, structure, validated
 from crawlsim.gait.yamlsafe import load_yaml, read_limited
 
+__all__ = [  # and the two kinds of document, so that one import gives a gait and its type
+    "Gait",
+    "ProcessSpec",
+    "document_errors",
+    "gait_from_document",
+    "load_gait",
+    "parse_gait",
+    "uniqueness_explanation",
+    "validation_errors",
+    "with_simulation",
+]
 _KINDS: dict[str, tuple[dict, Builder]] = {
     "crawler": (CRAWLER_SCHEMA, build_crawler),
     "sweeping-process": (PROCESS_SCHEMA, build_process),

@@ -26,6 +26,8 @@ SWEEP_FIGURE = "sweep"
 OPTIMIZATION_FIGURES = ("objective", "pareto-front")
 #: Figures that need block positions, stresses and slips: crawler runs only.
 CRAWLER_FIGURES = ("motion", "gait-diagram")
+#: The formats a figure is written in.
+FORMATS = ("png", "pdf", "svg")
 
 _LAZY = {
     "plot_results": "output",
@@ -66,6 +68,18 @@ __all__ = [
     "FigureOptions",
     "run_data",
 ]
+
+
+def figure_format(path, option: str = "-o") -> str:
+    """The image format of a figure file, by its extension (png, pdf or svg); ValueError for
+    any other."""
+    from pathlib import Path
+
+    suffix = Path(path).suffix.lower().lstrip(".")
+    if suffix not in FORMATS:
+        given = f"extension .{suffix}" if suffix else "no extension"
+        raise ValueError(f"{option} {path}: {given}; a figure is written as .png, .pdf or .svg")
+    return suffix
 
 
 def __getattr__(name):

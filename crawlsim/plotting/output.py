@@ -15,12 +15,12 @@ from crawlsim.io.atomic import atomic_path
 from crawlsim.io.optfile import read_optimization
 from crawlsim.io.runread import read_attrs, read_results
 from crawlsim.io.sweepfile import read_sweep
-from crawlsim.plotting import CRAWLER_FIGURES, FIGURE_NAMES, OPTIMIZATION_FIGURES, SWEEP_FIGURE
+from crawlsim.plotting import CRAWLER_FIGURES, FIGURE_NAMES, FORMATS, OPTIMIZATION_FIGURES, SWEEP_FIGURE
 from crawlsim.plotting.convergence import convergence_figure
 from crawlsim.plotting.gait_diagram import gait_figure
 from crawlsim.plotting.motion import motion_figure
 from crawlsim.plotting.shape_space import shape_space_figure
-from crawlsim.plotting.style import DPI, FORMATS, FigureOptions, figure_style, user_style
+from crawlsim.plotting.style import DPI, FigureOptions, figure_style, user_style
 from crawlsim.plotting.sweeps import sweep_data_figure
 
 #: The figures of one run, by the names of `crawlsim.plotting.FIGURE_NAMES`: each takes the run

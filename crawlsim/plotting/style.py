@@ -116,10 +116,8 @@ RC = {
 #: for the duration of a `user_style` block.
 _USER_STYLE: ContextVar[str | None] = ContextVar("crawlsim_user_style", default=None)
 
+
 #: The image formats crawlsim writes, by file extension.
-FORMATS = ("png", "pdf", "svg")
-
-
 @contextmanager
 def figure_style():
     """The rc settings of crawlsim figures, for the duration of the block, with the style sheet
@@ -192,18 +190,6 @@ def check_style(style: str) -> str:
     else:
         hint = f"; the names are {', '.join(available)}"
     raise ValueError(f"--style {style}: no such matplotlib style sheet or file{hint} (or give a .mplstyle file)")
-
-
-def figure_format(path, option: str = "-o") -> str:
-    """The image format of a figure file, by its extension (png, pdf or svg); ValueError for
-    any other."""
-    from pathlib import Path
-
-    suffix = Path(path).suffix.lower().lstrip(".")
-    if suffix not in FORMATS:
-        given = f"extension .{suffix}" if suffix else "no extension"
-        raise ValueError(f"{option} {path}: {given}; a figure is written as .png, .pdf or .svg")
-    return suffix
 
 
 @dataclass(frozen=True)

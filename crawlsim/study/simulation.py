@@ -52,10 +52,11 @@ Spec = Gait | ProcessSpec
 Progress = Callable[[int, float], None]
 
 
-def load_gait(path: str | Path) -> Spec:
+def load_gait(path: str | Path, **settings: Any) -> Spec:
     """Read and validate a gait file (or a ``kind: sweeping-process`` file) into an immutable
-    `Gait` (`ProcessSpec`); change it with ``gait.replace("links.*.amplitude", 0.2)``."""
-    return _load_gait(path)
+    `Gait` (`ProcessSpec`); ``settings`` replace those of its ``simulation`` block (validated;
+    None keeps the file's). Change it with ``gait.replace("links.*.amplitude", 0.2)``."""
+    return _with_settings(_load_gait(path), **settings)
 
 
 @dataclass(frozen=True, eq=False)
@@ -440,14 +441,14 @@ class Rerun:
     save_every: int
 
 
-def from_results(path: str | Path) -> Rerun:
+def from_results(path: str | Path, **settings: Any) -> Rerun:
     """The run recorded in a results file (format_version 2), ready to rerun: the effective
-    gait document (every override of the original command applied) and ``check_every_step``.
-    Rerunning it with `run` reproduces v0 bit for bit on the same versions
-    (``versions_json``)."""
+    gait document (every override of the original command applied, and ``settings`` on top, as
+    `load_gait` takes them) and ``check_every_step``. Rerunning it with `run` reproduces v0 bit
+    for bit on the same versions (``versions_json``)."""
     from crawlsim.io.runread import read_provenance  # start-up: h5py only when a file is read
 
     info = read_provenance(path)
     spec = parse_gait(info["gait_yaml"], source=f"{path} (gait_yaml)", default_name=str(info["name"]))
-    settings = info["integrator_settings"]
-    return Rerun(spec, bool(settings.get("check_every_step", False)), int(info["save_every"]))
+    check = bool(info["integrator_settings"].get("check_every_step", False))
+    return Rerun(_with_settings(spec, **settings), check, int(info["save_every"]))
