@@ -88,8 +88,8 @@ def sweep(
     it is (no ``axes``, no settings). ``sensitivity``: dotted paths (with ``*``) whose
     ``dv0/dPATH`` are added at every point, with units (`crawlsim.study.points.with_derivatives`).
     """
-    from crawlsim.study import grid  # start-up: h5py and the sweep engine only for sweeps
-    from crawlsim.study import sweep as sweeps
+    from crawlsim.study import grid  # start-up: numpy and YAML only for sweeps (its axes)
+    from crawlsim.study import sweep as sweeps  # start-up: h5py and the sweep engine only for sweeps
 
     if isinstance(gait, grid.SweepGrid):
         return sweeps.dataset(sweeps.sweep(gait, output=output, jobs=jobs, progress=progress, sensitivity=sensitivity))

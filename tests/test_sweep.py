@@ -352,18 +352,18 @@ def test_failed_points_are_recorded_not_fatal(tmp_path):
 def test_a_point_that_raises_does_not_sink_its_batch(monkeypatch):
     """A batch that raises is rerun point by point; the point that raises again is recorded as
     failed (an unexpected exception, named) and its neighbours keep their values."""
-    import crawlsim.study.batch as batch
+    import crawlsim.study.points as points
 
     gait = with_simulation(base(), integrator="catch-up")
     reference = sweeps.sweep(gait, [AMP])
-    original = batch.simulate_batch
+    original = points.simulate_batch
 
     def flaky(processes, **options):
         if any(abs(p.crawler.lengths[0, 0] - (1 + 0.2)) < 1e-12 for p in processes):
             raise FloatingPointError("boom")
         return original(processes, **options)
 
-    monkeypatch.setattr(batch, "simulate_batch", flaky)
+    monkeypatch.setattr(points, "simulate_batch", flaky)
     table = sweeps.sweep(gait, [AMP])
     assert [r.status for r in table.rows] == ["ok", "ok", "failed", "ok", "ok"]
     assert table.rows[2].message == "FloatingPointError: boom"

@@ -49,11 +49,11 @@ from crawlsim.analysis.sensitivity_terms import (
 from crawlsim.analysis.sensitivity_walk import Prepared, Walk, prepare, walk_catch_up, walk_exact
 from crawlsim.errors import CrawlsimError, GaitError
 from crawlsim.gait.docpaths import resolve_path
+from crawlsim.gait.document import Gait
 from crawlsim.kernel.implicit import column_moves, implicit
 from crawlsim.status import Convergence, LimitMethod
 
 if TYPE_CHECKING:
-    from crawlsim.gait.document import Gait
     from crawlsim.model.process import SweepingProcess
 
 #: Relative step of the one-sided differences at a kink (h and 2 h, Richardson extrapolated).
@@ -163,9 +163,7 @@ def sensitivity(
     ``crawlsim.api.run`` result's ``settled``), whose limit period is used instead of searching
     it again. ``one_sided=False`` skips the one-sided
     differences at a kink (left and right are then None with the reason)."""
-    from crawlsim.gait.document import Gait as _Gait
-
-    if not isinstance(gait, _Gait):
+    if not isinstance(gait, Gait):
         raise GaitError(
             getattr(gait, "source", "<gait>"), "", "sensitivities are defined for crawler gaits (kind: crawler)"
         )

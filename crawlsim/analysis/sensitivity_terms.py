@@ -20,11 +20,17 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from crawlsim.analysis.energy import period_dissipation
 from crawlsim.analysis.run import verified_limit_error
 from crawlsim.errors import CrawlsimError, GaitError
+from crawlsim.gait.docpaths import set_value
 from crawlsim.gait.settings import effective_tolerance
-from crawlsim.gait.signals import Constant, Cosine, Fourier
+from crawlsim.gait.signals import Constant, Cosine, Fourier, parse_signal
+from crawlsim.integrate.limit import PLAIN_PERIODS, relative_step, solve_limit
+from crawlsim.integrate.stepping import make_stepper
 from crawlsim.model.crawler import signal_columns, signals_of
+from crawlsim.model.offsets import PiecewiseOffsets
+from crawlsim.model.process import _scale, compile_gait
 
 if TYPE_CHECKING:
     from crawlsim.gait.document import Gait
@@ -62,10 +68,6 @@ class Limit:
 def find_limit(gait: Gait) -> Limit:
     """The verified limit period of ``gait`` with its own integrator (as `crawlsim velocity`
     finds it: plain periods, then the periodic-limit solver)."""
-    from crawlsim.integrate.limit import PLAIN_PERIODS, relative_step, solve_limit
-    from crawlsim.integrate.stepping import make_stepper
-    from crawlsim.model.process import compile_gait
-
     process = compile_gait(gait)
     s = gait.simulation
     tol = effective_tolerance(s.tolerance)
@@ -111,8 +113,6 @@ def limit_of(
     Poincare step is taken on it. ``known``: the period's displacement, dissipation and v0's
     error (None: not known) as the run that verified ``final`` measured them, with these
     formulas on this period (`crawlsim.analysis.run`), not measured again."""
-    from crawlsim.analysis.energy import period_dissipation
-
     assert final.x is not None
     T = process.period
     if known is None:
@@ -134,8 +134,6 @@ def breakpoint_scale(process: SweepingProcess) -> float:
     """The c_scale of ``process``'s gait compiled on the grid of its breakpoints alone (the
     exact walk's grid, `compile_gait` with one step): its offsets at the pieces' edges and
     its initial state, read off ``process``'s own grid, which holds every edge."""
-    from crawlsim.model.process import _scale
-
     assert process.offset_pieces is not None
     edges = process.offset_pieces.edges
     if len(edges) == 2:  # one piece: the grid's first and last times are its edges, 0 and 1
@@ -161,8 +159,6 @@ def coefficients_of(gait: Gait, process: SweepingProcess | None = None) -> Coeff
     """The offsets' coefficients as the integrator compiles them (every term of c(t), whatever
     the gait file adds to it) and the friction weights: those of ``process`` (the gait's,
     compiled on any grid) or of the gait compiled on a grid of its breakpoints only."""
-    from crawlsim.model.process import compile_gait
-
     if process is None:
         process = compile_gait(gait, steps_per_period=1)
     assert process.offset_pieces is not None and process.crawler is not None
@@ -194,8 +190,6 @@ def _moved_coefficients(gait: Gait, base: Coefficients, keys: tuple[Any, ...], v
     friction's) changes the signals alone: they are combined by the base's own map into c
     (linear in them, docs/sensitivity.md), on the base's pieces when the breakpoints stay;
     anything else (the stiffness, which that map holds) is compiled anew."""
-    from crawlsim.model.offsets import PiecewiseOffsets
-
     moved = _moved(gait, keys, value)
     if keys[0] in ("links", "friction") and np.array_equal(moved.breakpoints(), gait.breakpoints()):
         pieces = PiecewiseOffsets(_signals(moved), base.pieces.combine, base.pieces.edges)
@@ -362,9 +356,6 @@ def _moved_fields(gait: Gait, keys: tuple[Any, ...], value: float) -> dict[str, 
 def _moved_signal(gait: Gait, node: Any, inside: tuple[Any, ...], value: float, keypath: str) -> Any:
     """The signal of the document ``node`` with the number at ``inside`` it set to ``value``
     (the node itself when ``inside`` is empty: a constant), parsed and checked."""
-    from crawlsim.gait.docpaths import set_value
-    from crawlsim.gait.signals import parse_signal
-
     if inside:
         node = copy.deepcopy(node)
         set_value(node, inside, value)

@@ -36,6 +36,7 @@ from crawlsim.analysis.sensitivity_terms import Coefficients, Limit
 from crawlsim.errors import CrawlsimError
 from crawlsim.kernel import tangent, tangent_catchup
 from crawlsim.kernel.catchup import announce_compilation
+from crawlsim.kernel.tangent import HIT, factor, gap_coefficients, solve_on
 
 if TYPE_CHECKING:
     from crawlsim.integrate.stepping import Transition
@@ -141,8 +142,6 @@ class _Walker:
 
     def factor(self, index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """B_A and G_A^{-1}, G_A = B_A K B_A^T."""
-        from crawlsim.kernel.tangent import factor
-
         return factor(self.B, self.k, np.asarray(index, dtype=np.int64))
 
     def pad(self, X: np.ndarray) -> np.ndarray:
@@ -156,8 +155,6 @@ class _Walker:
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Lambda_A(u), w(u) and their tangents for a flow (or projection) on A from w_s;
         phi = phi(u), the basis at u (eq. (piece), `crawlsim.kernel.tangent.solve_on`)."""
-        from crawlsim.kernel.tangent import solve_on
-
         BA, Gi = self.factor(index)
         return solve_on(
             BA,
@@ -298,8 +295,6 @@ def _touches_of_flow(
     """The touches of the flow from transition j (``arrays``: `_transition_arrays`), flagged
     by the compiled walk: an inactive gap (``flags[0]``) or a slip rate (``flags[1]``)
     reaching zero inside it."""
-    from crawlsim.kernel.tangent import HIT
-
     u, pieces, cause, act, hit = arrays
     last = j + 1 >= len(u)
     index = np.flatnonzero(act[j])
@@ -333,8 +328,6 @@ def _gap_touches(
     tangents of those gaps where they are zero. A touch is an interior maximum at zero (one at
     an end is an event there; a touch exactly at the start of the period is not looked for).
     ``stacked``: the basis at u_s, at the samples x and at u_e."""
-    from crawlsim.kernel.tangent import gap_coefficients
-
     B, k, basis = s.B, s.k, s.basis
     u_s, u_e = span
     outside = np.ones(s.m, dtype=bool)

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from crawlsim.errors import GaitError
+from crawlsim.gait.docpaths import path_keys
 from crawlsim.gait.document import Gait, gait_from_document
 from crawlsim.gait.signals import evaluate_many
 
@@ -174,8 +175,6 @@ def _secant_zero(x: np.ndarray, v: np.ndarray, i: int, j: int, direction: int) -
 
 def resolve_path_value(document: dict, path: str) -> float | None:
     """The number at a dotted path of a document, or None."""
-    from crawlsim.gait.docpaths import path_keys
-
     node: Any = document
     try:
         for key in path_keys(path):

@@ -53,7 +53,7 @@ def animate(results_file, output, periods, frames_per_period, fps, dpi, force):
     from pathlib import Path
 
     from crawlsim.io.runread import read_results  # start-up: h5py and matplotlib when the command runs
-    from crawlsim.plotting.animation import ANIMATION_FORMATS, parse_periods, write_animation
+    from crawlsim.plotting.animation import ANIMATION_FORMATS, parse_periods, write_animation  # (idem)
 
     target = Path(output) if output else Path(results_file).with_suffix(".gif")
     if target.suffix.lower().lstrip(".") not in ANIMATION_FORMATS:

@@ -24,21 +24,6 @@ from crawlsim.integrate.resources import check_signal_work, gait_signal_work
 from crawlsim.io.outputs import GAIT, check_target
 
 
-def _objective(maximize, minimize):
-    from crawlsim.design.problem import Objective, Sense, quantity  # start-up: the library when the command runs
-
-    if maximize and minimize:
-        raise BadInput(
-            f"--maximize {maximize} and --minimize {minimize}: give one objective "
-            "(or --pareto for v0 against cost_of_transport)"
-        )
-    if minimize:
-        return Objective(quantity(minimize, "--minimize"), Sense.MINIMIZE)
-    if maximize:
-        return Objective(quantity(maximize, "--maximize"), Sense.MAXIMIZE)
-    return None
-
-
 @main.command()
 @click.argument("gait_file", type=click.Path(exists=True, dir_okay=False))
 @click.option(
@@ -170,24 +155,32 @@ def optimize(
       crawlsim optimize gaits/peristalsis-3.yaml --free links.1.phase=0:1 --pareto \\
           --front-points 2 --max-evaluations 80 --steps-per-period 20 -o front.h5 --json
     """
-    from crawlsim.design.problem import Method, default_search, make_problem, parse_constraint, parse_free
+    from crawlsim.design import problem as design  # start-up: the library when the command runs
 
     _check_options(free_specs, output)
     with library_errors():
-        out = _targets(gait_file, output, write_best, scheduler, seed)
-        objective = _objective(maximize, minimize)
-        free = [parse_free(spec) for spec in free_specs]
-        cons = [parse_constraint(text) for text in constraints]
+        out = _targets(design, gait_file, output, write_best, scheduler, seed)
+        if maximize and minimize:
+            raise BadInput(
+                f"--maximize {maximize} and --minimize {minimize}: give one objective "
+                "(or --pareto for v0 against cost_of_transport)"
+            )
+        objective = None
+        if maximize or minimize:
+            option, sense = ("--minimize", design.Sense.MINIMIZE) if minimize else ("--maximize", design.Sense.MAXIMIZE)
+            objective = design.Objective(design.quantity(minimize or maximize, option), sense)
+        free = [design.parse_free(spec) for spec in free_specs]
+        cons = [design.parse_constraint(text) for text in constraints]
         # the gait file's integrator (else exact), written into its document: the best gait records it
         integrator = crawlsim.api.load_gait(gait_file).simulation.integrator
         gait = crawlsim.api.load_gait(gait_file, **{"integrator": integrator, **settings.given()})
         check_signal_work(gait_signal_work(gait), gait.source)  # before any evaluation
-        problem = make_problem(gait, free, objective=objective, constraints=cons, pareto=pareto)
-        method = Method(
+        problem = design.make_problem(gait, free, objective=objective, constraints=cons, pareto=pareto)
+        method = design.Method(
             seed=seed,
             max_evaluations=max_evaluations,
             front_points=front_points,
-            search=default_search(problem, search),
+            search=design.default_search(problem, search),
         )
         result = _search(problem, method, out, jobs, scheduler, feedback)
         result.check_feasible()
@@ -212,15 +205,14 @@ def _check_options(free_specs, output) -> None:
         )
 
 
-def _targets(gait_file, output, write_best, scheduler, seed) -> Path:
-    """The results file, checked with the --write-best file and the --scheduler address
-    before any work."""
-    from crawlsim.design.problem import Method  # start-up: the library when the command runs
-    from crawlsim.study.executors import check_scheduler
-
+def _targets(design, gait_file, output, write_best, scheduler, seed) -> Path:
+    """The results file, checked with the --write-best file, the --scheduler address and the
+    seed (``design``: `crawlsim.design.problem`) before any work."""
     if scheduler is not None:
+        from crawlsim.study.executors import check_scheduler  # start-up: the sweep engine for a cluster
+
         check_scheduler(scheduler)
-    Method(seed=seed)  # refuses a seed the results file cannot hold, before any work
+    design.Method(seed=seed)  # refuses a seed the results file cannot hold, before any work
     out = _output_path(output, Path(gait_file).stem + "-optimize", inputs=[gait_file])
     if out.suffix.lower() not in (".h5", ".hdf5"):
         raise BadInput(f"--output {out}: an optimisation is written to HDF5: give a name ending in .h5")
@@ -232,8 +224,8 @@ def _targets(gait_file, output, write_best, scheduler, seed) -> Path:
 
 def _search(problem, method, out, jobs, scheduler, feedback):
     """Run the search with progress on stderr (the best value so far as the bar's note)."""
-    from crawlsim.design import optimize as opt  # start-up: the library when the command runs
-    from crawlsim.design.search import OptimizationInterrupted
+    from crawlsim.design import optimize as opt  # start-up: the search's library, when it runs
+    from crawlsim.design.search import OptimizationInterrupted  # (its interrupt, raised there)
 
     budget = method.budget(problem)
     bar = Progress("optimize", "point", budget, mode=feedback.mode)

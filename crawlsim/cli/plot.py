@@ -155,7 +155,7 @@ def _plot_sweep(results_file, output_dir, fmt, only, options, target) -> Path:
     from pathlib import Path
 
     from crawlsim.plotting.style import user_style  # start-up: matplotlib and the sweep table, when drawn
-    from crawlsim.study import sweep as sweeps
+    from crawlsim.study import sweep as sweeps  # (idem)
 
     if only is not None:
         raise BadInput(

@@ -35,10 +35,11 @@ from typing import Any
 
 import numpy as np
 
+from crawlsim.analysis.sensitivity import sensitivity
 from crawlsim.design.optresult import BUDGET_SPENT, Evaluation, Run, Stage
 from crawlsim.design.problem import QUANTITIES, SAMPLE_GRID, Constraint, Problem
 from crawlsim.design.search import BudgetSpent, Search
-from crawlsim.errors import CrawlsimError
+from crawlsim.errors import CrawlsimError, InputError
 from crawlsim.gait.docpaths import resolve_path
 from crawlsim.status import PointStatus
 from crawlsim.study.points import PointResult
@@ -68,9 +69,6 @@ def gradient_row(problem: Problem, groups: Sequence[set[str]], x: Sequence[float
     parameters in its extra columns (NaN where a derivative has no value), from one
     `crawlsim.sensitivity` at the exact integrator's verified limit. A gait that is not valid,
     or a run that fails, is a row of its own (``invalid`` or ``failed``) without derivatives."""
-    from crawlsim.analysis.sensitivity import sensitivity
-    from crawlsim.errors import InputError
-
     try:
         r = sensitivity(problem.gait(x), list(problem.paths), one_sided=False)
     except InputError as exc:

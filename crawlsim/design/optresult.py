@@ -21,8 +21,14 @@ from crawlsim.design.problem import (
     Objective,
     Problem,
     Sense,
+    parse_constraint,
     rank,
 )
+from crawlsim.gait.document import Gait, gait_from_document
+from crawlsim.gait.yamlsafe import load_yaml
+from crawlsim.io.atomic import atomic_path
+from crawlsim.io.optfile import STAGE_FLAGS, read_optimization
+from crawlsim.io.provenance import command_line, effective_yaml
 from crawlsim.status import PointStatus
 from crawlsim.study.points import PointResult
 
@@ -143,8 +149,6 @@ class OptimizationResult:
 
     def write_best(self, path: Path | str, index: int | None = None) -> Path:
         """Write `best_yaml` to ``path`` atomically."""
-        from crawlsim.io.atomic import atomic_path
-
         with atomic_path(path) as tmp:
             tmp.write_text(self.best_yaml(index), encoding="utf-8")
         return Path(path)
@@ -184,8 +188,6 @@ class OptimizationResult:
         """`best_document` as YAML: a gait file that ``crawlsim run`` reproduces (floats written
         with repr, so the values are the optimiser's bit for bit), headed by a comment that says
         where it comes from."""
-        from crawlsim.io.provenance import command_line, effective_yaml
-
         e = self.evaluations[self.best if index is None else index]
         what = self.runs[e.run].text
         if self.problem.pareto and e.index == self.best:
@@ -208,8 +210,6 @@ class OptimizationResult:
         and the rows' ``limit``, ``newton_steps`` and ``extra`` (the gradient search's derivative
         columns) are unset. Raises `ResultsFileError` for a
         file that is not an optimisation file."""
-        from crawlsim.io.optfile import read_optimization
-
         return _result_of_file(read_optimization(path))
 
     def summary(self) -> dict[str, Any]:
@@ -273,11 +273,6 @@ class OptimizationResult:
 
 def _result_of_file(data: dict[str, Any]) -> OptimizationResult:
     """`OptimizationResult.from_file` on `read_optimization`'s dicts."""
-    from crawlsim.design.problem import parse_constraint
-    from crawlsim.gait.document import Gait, gait_from_document
-    from crawlsim.gait.yamlsafe import load_yaml
-    from crawlsim.io.optfile import STAGE_FLAGS
-
     a = data["attrs"]
     base = gait_from_document(
         load_yaml(a["gait_yaml"], a["source"]),

@@ -19,6 +19,7 @@ import numpy as np
 
 from crawlsim.errors import ResultsFileError
 from crawlsim.gait.units import Units, path_quantity
+from crawlsim.io import provenance
 from crawlsim.io.layout import (
     Scales,
     Var,
@@ -144,8 +145,6 @@ def _write_optimization(f: h5py.File, result: Any) -> None:
 
 def _write_attributes(f: h5py.File, result: Any, names: Sequence[str], units: Units) -> None:
     """The root attributes: the problem, the method, the best point and the provenance."""
-    from crawlsim.io import provenance
-
     problem, method = result.problem, result.method
     base, objective = problem.base, problem.objective
     best = result.evaluations[result.best]

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from typing import Any
 
+from crawlsim import __version__
 from crawlsim.gait.settings import effective_tolerance
 
 #: The libraries whose versions are recorded (everything that computes or stores a number).
@@ -63,8 +64,6 @@ def versions() -> dict[str, str]:
 def _versions() -> tuple[tuple[str, str], ...]:
     """Looked up once per process (reading the distributions' metadata takes milliseconds)."""
     from importlib import metadata  # here: importing it costs milliseconds too
-
-    from crawlsim import __version__
 
     out = {"crawlsim": __version__, "python": platform.python_version()}
     for name in LIBRARIES:

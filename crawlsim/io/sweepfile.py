@@ -19,6 +19,7 @@ import numpy as np
 from crawlsim.errors import ResultsFileError
 from crawlsim.gait.settings import Simulation
 from crawlsim.gait.units import Units, path_quantity
+from crawlsim.io import provenance
 from crawlsim.io.layout import (
     CONVERGENCE_FLAGS,
     STATUS_FLAGS,
@@ -184,8 +185,6 @@ class _SweepLayout:
 def _write_sweep(
     f: h5py.File, layout: _SweepLayout, columns: Mapping[str, Any], gait_yaml: str, source: str, shard: str, steps: Any
 ) -> None:
-    from crawlsim.io import provenance
-
     paths, names = layout.paths, layout.names
     write_header(f, title="crawlsim parameter sweep", comment=_SWEEP_COMMENT, kind="sweep")
     a = f.attrs

@@ -46,6 +46,7 @@ _LAZY = {
     "pareto_figure": "optimization",
     "write_animation": "animation",
     "FigureOptions": "style",
+    "units_of": "style",
 }
 
 __all__ = [

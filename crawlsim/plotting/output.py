@@ -10,6 +10,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from crawlsim import __version__
 from crawlsim.errors import ResultsFileError
 from crawlsim.io.atomic import atomic_path
 from crawlsim.io.optfile import read_optimization
@@ -19,6 +20,7 @@ from crawlsim.plotting import CRAWLER_FIGURES, FIGURE_NAMES, FORMATS, OPTIMIZATI
 from crawlsim.plotting.convergence import convergence_figure
 from crawlsim.plotting.gait_diagram import gait_figure
 from crawlsim.plotting.motion import motion_figure
+from crawlsim.plotting.optimization import OPTIMIZATION_FIGURE_FUNCTIONS
 from crawlsim.plotting.shape_space import shape_space_figure
 from crawlsim.plotting.style import DPI, FigureOptions, figure_style, user_style
 from crawlsim.plotting.sweeps import sweep_data_figure
@@ -144,8 +146,6 @@ def _draw(results, kind, choices, only, coords) -> dict:
     if kind == "sweep":
         return {SWEEP_FIGURE: sweep_data_figure(results)}
     if kind == "optimization":
-        from crawlsim.plotting.optimization import OPTIMIZATION_FIGURE_FUNCTIONS
-
         return {
             name: OPTIMIZATION_FIGURE_FUNCTIONS[name](results) for name in ([only] if only is not None else choices)
         }
@@ -195,8 +195,6 @@ def save_figure(
 
 def _metadata(fmt: str) -> dict:
     """Reproducible files: no creation date in PDF and SVG, and crawlsim named as creator."""
-    from crawlsim import __version__
-
     creator = f"crawlsim {__version__}"
     if fmt == "pdf":
         return {"Creator": creator, "CreationDate": None}

@@ -24,6 +24,9 @@ from collections.abc import Callable
 from typing import Any, TypeVar
 
 from crawlsim.errors import ResultsFileError
+from crawlsim.gait.document import parse_gait
+from crawlsim.io.runread import read_results
+from crawlsim.model.process import compile
 
 #: The per-period series of ``/convergence`` the figures read, by their names on
 #: `crawlsim.analysis.run.ConvergenceHistory`.
@@ -46,16 +49,12 @@ def run_data(source: Any) -> dict[str, Any]:
     if isinstance(source, dict):
         return source
     if isinstance(source, (str, os.PathLike)):
-        from crawlsim.io.runread import read_results
-
         return read_results(source)
     if hasattr(source, "limit") and hasattr(source, "history"):
         written = getattr(source, "output", None)
         if written is not None and os.path.isfile(written):
             # `crawlsim.api.run(gait, output=...)`: its file holds the trajectory the result
             # object does not keep.
-            from crawlsim.io.runread import read_results
-
             return read_results(written)
         return from_result(source)
     raise TypeError(
@@ -91,9 +90,6 @@ def from_result(result: Any) -> dict[str, Any]:
     provenance = getattr(result, "provenance", None)
     process = None
     if provenance is not None and getattr(provenance, "gait_yaml", None):
-        from crawlsim.gait.document import parse_gait
-        from crawlsim.model.process import compile
-
         spec = parse_gait(provenance.gait_yaml, source=f"{result.name} (provenance)", default_name=str(result.name))
         process = compile(spec)
     limit, history = result.limit, result.history

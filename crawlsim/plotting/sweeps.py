@@ -10,6 +10,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Rectangle
 from matplotlib.ticker import FixedLocator, NullFormatter, NullLocator
 
+from crawlsim.analysis.stall import curve_marks
 from crawlsim.plotting.style import (
     FAINT,
     REFERENCE,
@@ -416,8 +417,6 @@ def sweep_data_figure(data: dict, title: str | None = None) -> Figure:
         title = f"{_sweep_name(data)}: average velocity over a sweep"
     marks = None
     if len(paths) == 1 and data.get("gait_yaml"):
-        from crawlsim.analysis.stall import curve_marks
-
         marks = curve_marks(data["gait_yaml"], paths[0], data["axes"][0], v0)
     return sweep_figure(
         dict(zip(paths, data["axes"])), v0, status, title, units=units_of(data), displacement=displacement, marks=marks

@@ -20,7 +20,9 @@ from typing import TYPE_CHECKING, Any, Protocol
 from crawlsim.analysis.run import Settled, settle
 from crawlsim.errors import CrawlsimError, InputError
 from crawlsim.gait.document import Gait
+from crawlsim.model.process import compile_gait
 from crawlsim.status import PointStatus
+from crawlsim.study.batch import DEFAULT_CAPACITY, simulate_batch
 
 if TYPE_CHECKING:
     from crawlsim.study.grid import SweepGrid
@@ -170,8 +172,6 @@ def evaluate(
 def _compile(gaits, indices, out: dict[int, PointResult], tick) -> tuple[list[_Member], list[_Member]]:
     """The compiled processes, catch-up ones (for the batch) apart from exact ones; a gait
     that cannot be compiled is its row at once."""
-    from crawlsim.model.process import compile_gait
-
     batch: list[_Member] = []
     single: list[_Member] = []
     for i, g in zip((int(i) for i in indices), gaits):
@@ -218,8 +218,6 @@ def _run_batch(
     """Catch-up points through the batched stepper; a ``newton`` point not converged within
     `BATCH_PLAIN_PERIODS` goes to ``single`` (the periodic-limit solver finishes it). What the
     others settled on joins ``kept`` when given (--sensitivity)."""
-    from crawlsim.study.batch import DEFAULT_CAPACITY, simulate_batch
-
     newton = [g.simulation.limit == "newton" for _, _, g in members]
     runs = simulate_batch(
         [p for _, p, _ in members],

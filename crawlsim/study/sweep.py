@@ -37,6 +37,7 @@ from typing import TYPE_CHECKING, Any, cast
 import numpy as np
 import yaml
 
+from crawlsim import plotting
 from crawlsim.analysis.stall import curve_marks
 from crawlsim.errors import SweepSpecError
 from crawlsim.gait.document import Gait
@@ -231,9 +232,6 @@ def sweep_figure_data(table: SweepTable) -> tuple[dict, np.ndarray, np.ndarray]:
 def plot_table(table: SweepTable, path, title: str | None = None, figure_options: dict | None = None) -> None:
     """v0 against one swept dimension, or a heat map over two, with the points that have no v0
     (failed or invalid) marked; written atomically."""
-    from crawlsim.plotting import save_figure, sweep_figure
-    from crawlsim.plotting.style import units_of
-
     axes, v0, _ = sweep_figure_data(table)
     if title is None:
         document = yaml.safe_load(table.gait_yaml) if table.gait_yaml else None
@@ -246,13 +244,13 @@ def plot_table(table: SweepTable, path, title: str | None = None, figure_options
     # The statuses themselves, not a failed/ok mask: an invalid gait and a failed run are
     # different answers and are marked differently (docs/figures.md).
     status = table.grid("status")
-    figure = sweep_figure(
+    figure = plotting.sweep_figure(
         axes,
         v0,
         status,
         title,
-        units=units_of({"gait_yaml": table.gait_yaml}),
+        units=plotting.units_of({"gait_yaml": table.gait_yaml}),
         displacement=table.grid("displacement_per_period"),
         marks=marks,
     )
-    save_figure(figure, path, **(figure_options or {}))
+    plotting.save_figure(figure, path, **(figure_options or {}))

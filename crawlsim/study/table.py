@@ -12,8 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
+from crawlsim.errors import ResultsFileError
 from crawlsim.io.atomic import atomic_path
-from crawlsim.io.sweepfile import DERIVATIVE
+from crawlsim.io.sweepfile import DERIVATIVE, read_sweep, write_sweep
 from crawlsim.status import PointStatus
 from crawlsim.study.grid import grid_shape, parse_shard
 from crawlsim.study.points import PointResult
@@ -162,8 +163,6 @@ def write_table(table: SweepTable, output) -> None:
     """CSV (``.csv`` or any other suffix) or HDF5 (``.h5``/``.hdf5``), written atomically."""
     output = Path(output)
     if is_hdf5(output):
-        from crawlsim.io.sweepfile import write_sweep
-
         write_sweep(output, **table_payload(table))
         return
     with atomic_path(output) as tmp:
@@ -193,8 +192,6 @@ def read_table(path) -> SweepTable:
     """A sweep HDF5 file (complete or a shard) back as a `SweepTable`. Files written before the
     `LATER_COLUMNS` existed read with those columns missing (NaN, ""); the dv0/dPATH columns
     of ``--sensitivity`` come back as the rows' ``derivatives``."""
-    from crawlsim.io.sweepfile import read_sweep
-
     data = read_sweep(path)
     cols = data["columns"]
 
@@ -252,8 +249,6 @@ def merge_tables(tables) -> SweepTable:
     All parts must come from the same sweep (gait, paths, values, links, N), and together hold
     each shard 1..N exactly once; otherwise a `ResultsFileError` says what is wrong (exit code 2).
     """
-    from crawlsim.errors import ResultsFileError
-
     tables = list(tables)
     if not tables:
         raise ResultsFileError("no shard files given", "merge")
@@ -278,8 +273,6 @@ def merge_tables(tables) -> SweepTable:
 
 def _check_shards(tables: list[SweepTable]) -> None:
     """Every part is a shard of the first part's sweep, and together they hold 1..N once."""
-    from crawlsim.errors import ResultsFileError
-
     first = tables[0]
     for t in tables:
         if t.shard is None:
