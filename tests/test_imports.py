@@ -90,7 +90,6 @@ def test_velocity_loads_what_it_needs_and_no_more(integrator, tmp_path):
         "distributed",
         "dask",
         "crawlsim.study.sweep",
-        "crawlsim.study.batch",
         "crawlsim.io.runfile",
         "crawlsim.plotting.output",
         "clarabel",

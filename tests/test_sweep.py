@@ -327,8 +327,8 @@ def test_velocity_of_a_sweeping_process_is_refused(tmp_path, extra):
 
 def test_failed_points_are_recorded_not_fatal(tmp_path):
     """A point whose grid hits an instant of a uniqueness violation is refused with its reason
-    (status invalid, see tests/test_batch.py); the others run and the exit code is 0."""
-    from tests.test_batch import LICQ_GAIT
+    (status invalid, see tests/test_points.py); the others run and the exit code is 0."""
+    from tests.test_points import LICQ_GAIT
 
     path = tmp_path / "licq.yaml"
     path.write_text(LICQ_GAIT)
@@ -349,21 +349,21 @@ def test_failed_points_are_recorded_not_fatal(tmp_path):
         assert fields[2] == "" and ",finite-time,2,catch-up,iterate,0,ok," in row
 
 
-def test_a_point_that_raises_does_not_sink_its_batch(monkeypatch):
-    """A batch that raises is rerun point by point; the point that raises again is recorded as
-    failed (an unexpected exception, named) and its neighbours keep their values."""
+def test_a_point_that_raises_does_not_sink_its_neighbours(monkeypatch):
+    """A point whose run raises is recorded as failed (an unexpected exception, named) and its
+    neighbours keep their values."""
     import crawlsim.study.points as points
 
     gait = with_simulation(base(), integrator="catch-up")
     reference = sweeps.sweep(gait, [AMP])
-    original = points.simulate_batch
+    original = points.settle
 
-    def flaky(processes, **options):
-        if any(abs(p.crawler.lengths[0, 0] - (1 + 0.2)) < 1e-12 for p in processes):
+    def flaky(process, **options):
+        if abs(process.crawler.lengths[0, 0] - (1 + 0.2)) < 1e-12:
             raise FloatingPointError("boom")
-        return original(processes, **options)
+        return original(process, **options)
 
-    monkeypatch.setattr(points, "simulate_batch", flaky)
+    monkeypatch.setattr(points, "settle", flaky)
     table = sweeps.sweep(gait, [AMP])
     assert [r.status for r in table.rows] == ["ok", "ok", "failed", "ok", "ok"]
     assert table.rows[2].message == "FloatingPointError: boom"

@@ -246,10 +246,9 @@ class RunResult:
 class Settled:
     """A run with the period it settled on: its result, and the limit period's record on the
     process it is a period of, which exact sensitivities walk again
-    (`crawlsim.analysis.sensitivity`, ``run=``) instead of searching the limit twice. The
-    result is a `RunResult`, or a sweep's batched run (`crawlsim.study.batch.BatchRun`)."""
+    (`crawlsim.analysis.sensitivity`, ``run=``) instead of searching the limit twice."""
 
-    result: Any
+    result: RunResult
     record: PeriodRecord
     process: SweepingProcess
 

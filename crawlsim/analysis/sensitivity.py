@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
-from crawlsim.analysis.run import RunResult, Settled, shape_mismatch
+from crawlsim.analysis.run import Settled, shape_mismatch
 from crawlsim.analysis.sensitivity_terms import (
     EPS,
     Limit,
@@ -274,8 +274,8 @@ def _known(run: Settled) -> tuple[float, float, float | None] | None:
     term (the periodic-limit solver's period, or a finite-time limit, on the grid of the
     record: else None, measured again)."""
     result, process, final = run.result, run.process, run.record
-    if not isinstance(result, RunResult) or result.estimate is None or result.energy is None:
-        return None  # (a sweep's batched point: measured on its own terms)
+    if result.estimate is None or result.energy is None:
+        return None
     d, dissipation, err = result.estimate.displacement, result.energy.dissipation, result.estimate.period_iteration
     if len(final.w) - 1 != process.steps:
         return d, dissipation, None

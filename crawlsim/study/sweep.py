@@ -15,8 +15,8 @@ Every path is resolved against the base document before anything runs, so a bad 
 `InputError` (exit code 2) and nothing is computed or written; so is a grid in which no point is
 a valid gait (no point could run). A point whose edited document is not a valid gait (a friction
 value that breaks the uniqueness condition, a non-positive length) is recorded with status
-``invalid`` and the reason, and the others run. Points run through the batched exact stepper
-(`crawlsim.study.batch`), in-process, on local worker processes, or on a Dask cluster; a point
+``invalid`` and the reason, and the others run. Each point runs as its single run does
+(`crawlsim.study.points`), in-process, on local worker processes, or on a Dask cluster; a point
 that fails while running is recorded with status ``failed`` and its reason. With local workers
 (``jobs > 1``) the first task runs here and measures the cost of a point, and the workers start
 only when they save more than their start-up (`crawlsim.study.executors.run_local`).
