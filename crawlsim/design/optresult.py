@@ -27,6 +27,7 @@ from crawlsim.design.problem import (
 from crawlsim.gait.document import Gait, gait_from_document
 from crawlsim.gait.yamlsafe import load_yaml
 from crawlsim.io.atomic import atomic_path
+from crawlsim.io.layout import counts
 from crawlsim.io.optfile import STAGE_FLAGS, read_optimization
 from crawlsim.io.provenance import command_line, effective_yaml
 from crawlsim.status import PointStatus
@@ -155,10 +156,7 @@ class OptimizationResult:
 
     def counts(self) -> dict[str, int]:
         """Evaluated points by `crawlsim.status.PointStatus` (ok, invalid, failed...)."""
-        out = {str(s): 0 for s in PointStatus}
-        for e in self.evaluations:
-            out[e.row.status] += 1
-        return out
+        return {str(s): 0 for s in PointStatus} | counts([e.row.status for e in self.evaluations])
 
     def feasibility(self) -> tuple[list[bool], list[float]]:
         """For each evaluation: does it satisfy its run's constraints (and run), and its total
@@ -290,11 +288,6 @@ def _result_of_file(data: dict[str, Any]) -> OptimizationResult:
     stages = dict(STAGE_FLAGS)
     ev = data["evaluations"]
     names = [f["name"] for f in data["free"]]
-
-    def number(column: str, n: int) -> float | None:
-        value = float(ev[column][n])
-        return None if math.isnan(value) else value
-
     evaluations = tuple(
         Evaluation(
             n,
@@ -302,20 +295,7 @@ def _result_of_file(data: dict[str, Any]) -> OptimizationResult:
             int(ev["run"][n]),
             Stage(stages[int(ev["stage"][n])]),
             int(ev["batch"][n]),
-            PointResult(
-                n,
-                PointStatus(str(ev["status"][n])),
-                v0=number("v0", n),
-                v0_error_estimate=number("v0_error_estimate", n),
-                displacement_per_period=number("displacement_per_period", n),
-                dissipation_per_period=number("dissipation_per_period", n),
-                cost_of_transport=number("cost_of_transport", n),
-                convergence=str(ev["convergence"][n]),
-                periods=int(ev["periods"][n]),
-                integrator=str(ev["integrator"][n]),
-                message=str(ev["message"][n]),
-                steps=int(ev["steps"][n]),
-            ),
+            PointResult.from_columns(ev, n, n, int(ev["steps"][n])),
         )
         for n in range(len(ev["run"]))
     )

@@ -12,6 +12,7 @@ parameter) are computed after a point's run, for the points that ran.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any, Protocol
@@ -19,6 +20,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 from crawlsim.analysis.run import settle
 from crawlsim.errors import CrawlsimError, InputError
 from crawlsim.gait.document import Gait
+from crawlsim.io.sweepfile import DERIVATIVE
 from crawlsim.model.process import compile_gait
 from crawlsim.status import PointStatus
 
@@ -68,6 +70,39 @@ class PointResult:
         if self.derivatives is not None:  # and so do those of sweeps without --sensitivity
             row["derivatives"] = self.derivatives
         return row
+
+    @classmethod
+    def from_columns(cls, columns: Mapping[str, Any], n: int, index: int, steps: int) -> PointResult:
+        """Row ``n`` of a file's table (a sweep file's /results, an optimisation file's
+        /evaluations): NaN is missing, and so are the columns of files written before them; the
+        dv0/dPATH columns of ``--sensitivity`` are the row's ``derivatives``."""
+
+        def number(name: str) -> float | None:
+            value = float(columns[name][n]) if name in columns else math.nan
+            return None if math.isnan(value) else value
+
+        def text(name: str) -> str:
+            return str(columns[name][n]) if name in columns else ""
+
+        newton = int(columns["newton_steps"][n]) if "newton_steps" in columns else -1
+        derivatives = {name[len(DERIVATIVE) :]: number(name) for name in columns if name.startswith(DERIVATIVE)}
+        return cls(
+            index,
+            PointStatus(text("status")),
+            number("v0"),
+            number("v0_error_estimate"),
+            number("displacement_per_period"),
+            number("dissipation_per_period"),
+            number("cost_of_transport"),
+            convergence=text("convergence"),
+            periods=int(columns["periods"][n]),
+            integrator=text("integrator"),
+            message=text("message"),
+            steps=steps,
+            limit=text("limit"),
+            newton_steps=None if newton < 0 else newton,
+            derivatives=derivatives or None,
+        )
 
     @classmethod
     def from_json(cls, row: dict) -> PointResult:

@@ -14,6 +14,7 @@ import numpy as np
 
 from crawlsim.errors import ResultsFileError
 from crawlsim.io.atomic import atomic_path
+from crawlsim.io.layout import counts
 from crawlsim.io.sweepfile import DERIVATIVE, read_sweep, write_sweep
 from crawlsim.status import PointStatus
 from crawlsim.study.grid import grid_shape, parse_shard
@@ -109,10 +110,7 @@ class SweepTable:
 
     def counts(self) -> dict[str, int]:
         """The number of points of each status (``ok``, ``invalid``, ...)."""
-        out = {str(s): 0 for s in PointStatus}
-        for r in self.rows:
-            out[r.status] = out.get(r.status, 0) + 1
-        return out
+        return {str(s): 0 for s in PointStatus} | counts([r.status for r in self.rows])
 
     def grid(self, column: str) -> np.ndarray:
         """A column on the grid's shape (full tables only)."""
@@ -193,42 +191,10 @@ def read_table(path) -> SweepTable:
     `LATER_COLUMNS` existed read with those columns missing (NaN, ""); the dv0/dPATH columns
     of ``--sensitivity`` come back as the rows' ``derivatives``."""
     data = read_sweep(path)
-    cols = data["columns"]
-
-    def number(name, n):
-        if name not in cols:
-            return None
-        value = float(cols[name][n])
-        return None if math.isnan(value) else value
-
-    rows: list[PointResult] = []
-    for n, point in enumerate(data["points"]):
-        rows.append(
-            PointResult(
-                int(point),
-                PointStatus(str(cols["status"][n])),
-                v0=number("v0", n),
-                v0_error_estimate=number("v0_error_estimate", n),
-                displacement_per_period=number("displacement_per_period", n),
-                dissipation_per_period=number("dissipation_per_period", n),
-                cost_of_transport=number("cost_of_transport", n),
-                convergence=str(cols["convergence"][n]),
-                periods=int(cols["periods"][n]),
-                integrator=str(cols["integrator"][n]) if "integrator" in cols else "",
-                message=str(cols["message"][n]),
-                steps=int(data["steps"][n]),
-                limit=str(cols["limit"][n]) if "limit" in cols else "",
-                newton_steps=(
-                    int(cols["newton_steps"][n]) if "newton_steps" in cols and cols["newton_steps"][n] >= 0 else None
-                ),
-                derivatives={
-                    name[len(DERIVATIVE) :]: None if np.isnan(values[n]) else float(values[n])
-                    for name, values in cols.items()
-                    if name.startswith(DERIVATIVE)
-                }
-                or None,
-            )
-        )
+    rows = [
+        PointResult.from_columns(data["columns"], n, int(point), int(data["steps"][n]))
+        for n, point in enumerate(data["points"])
+    ]
     shard = parse_shard(data["shard"]) if data["shard"] else None
     dims = data.get("dimensions")
     return SweepTable(
