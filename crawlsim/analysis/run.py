@@ -505,10 +505,8 @@ def _reference(
 
 
 def _step_error(
-    process: SweepingProcess, motion: _Motion | None, integrator: str, reference: RunResult | None | bool
+    process: SweepingProcess, motion: _Motion, integrator: str, reference: RunResult | None | bool
 ) -> _StepError:
-    if motion is None:
-        return _StepError()
     if integrator == "exact":
         return _StepError(0.0, 0.0)
     if reference is False:

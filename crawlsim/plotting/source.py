@@ -75,10 +75,6 @@ def takes_run(function: F) -> F:
     return wrapper  # type: ignore[return-value]
 
 
-def _number_or_nan(value: Any) -> float:
-    return math.nan if value is None else float(value)
-
-
 def from_result(result: Any) -> dict[str, Any]:
     """The read_results dict of a run's result object, from its attributes: ``name``,
     ``period``, ``steps_per_period``, ``periods``, ``convergence``, ``periodic_from``,
@@ -103,7 +99,7 @@ def from_result(result: Any) -> dict[str, Any]:
         "periods": int(result.periods),
         "convergence": str(result.convergence),
         "periodic_from": -1 if result.periodic_from is None else int(result.periodic_from),
-        "v0": _number_or_nan(result.v0),
+        "v0": math.nan if result.v0 is None else float(result.v0),
         "contraction_rate": math.nan if result.rate is None else result.rate.rate,
         "units_json": json.dumps(units.to_json() if units is not None else {}),
         "source": "result",
