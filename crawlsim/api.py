@@ -39,6 +39,7 @@ from crawlsim.study.simulation import (
 if TYPE_CHECKING:
     import xarray
 
+    from crawlsim.analysis.rigid import RigidLimit
     from crawlsim.analysis.run import Settled
     from crawlsim.analysis.sensitivity import SensitivityResult
     from crawlsim.design.optresult import OptimizationResult
@@ -54,6 +55,7 @@ __all__ = [
     "open_optimization",
     "open_run",
     "open_sweep",
+    "rigid_limit",
     "run",
     "sensitivity",
     "simulate",
@@ -77,8 +79,9 @@ def sweep(
     """v0 over the Cartesian grid of ``axes`` (``{"links.*.amplitude": [0.1, 0.2], ...}``: the
     dotted paths of ``--sweep``, in grid order, the last varying fastest).
 
-    Returns an `xarray.Dataset` on the grid, one dimension per swept path (named by
-    `crawlsim.io.sweepfile.axis_name`, ``links_all_amplitude``; the path in its ``path`` attribute):
+    Returns an `xarray.Dataset` on the grid, one dimension per swept path, named by the path as
+    given (``grid.v0.sel({"links.*.amplitude": 0.2})``; the file names it
+    `crawlsim.io.sweepfile.axis_name`, ``links_all_amplitude``):
     v0, displacement_per_period, periods, steps, convergence and status (CF flags: see their
     ``flag_meanings``) and message, with the provenance as attributes, exactly the ``/grid``
     group of a sweep file. **Without xarray** (``pip install 'crawlsim[xarray]'``) it returns
@@ -181,3 +184,22 @@ def sensitivity(
             "sensitivities are defined for crawler gaits (kind: crawler), not generic sweeping processes",
         )
     return _sensitivity(spec, paths, one_sided=one_sided, run=run)
+
+
+def rigid_limit(gait: Spec | str | Path) -> RigidLimit:
+    """v0 of a crawler gait as its links stiffen without bound (docs/model.md §7), with its
+    error estimate and the resting block as a piecewise-constant function of time: exact
+    between events found in closed form or by certified sampling, no stepping.
+
+        r = crawlsim.rigid_limit("gaits/peristalsis-4.yaml")
+        r.v0, r.v0_error_estimate, r.times, r.resting
+
+    Raises `crawlsim.errors.DegenerateModelError` where the balance does not fix the motion.
+    """
+    from crawlsim.analysis.rigid import rigid_limit as _rigid_limit
+    from crawlsim.gait.crawler_spec import need_crawler
+
+    spec = _as_spec(gait)
+    need_crawler(spec, "crawlsim.rigid_limit")
+    assert isinstance(spec, Gait)
+    return _rigid_limit(spec)

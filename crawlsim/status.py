@@ -46,3 +46,10 @@ class LimitMethod(StrEnum):
 
     NEWTON = "newton"  # the periodic-limit solver found and verified it
     ITERATE = "iterate"  # the true iterates reached it themselves
+
+
+class RigidStatus(StrEnum):
+    """How the rigid limit found its events (`crawlsim.analysis.rigid`)."""
+
+    CLOSED_FORM = "closed-form"  # every crossing and weight event in closed form
+    SAMPLED = "sampled"  # some found by certified sampling: the estimate holds its uncertainty

@@ -37,6 +37,10 @@ than 10%.
 
 from __future__ import annotations
 
+import os
+
+os.environ.setdefault("CRAWLSIM_KERNEL", "compiled")  # the compiled kernel's speed (crawlsim.kernel.jit)
+
 import argparse
 import statistics
 import sys

@@ -33,6 +33,10 @@ left out), interleaved like the others.
 
 from __future__ import annotations
 
+import os
+
+os.environ.setdefault("CRAWLSIM_KERNEL", "compiled")  # the compiled kernel's speed (crawlsim.kernel.jit)
+
 import argparse
 import copy
 import shutil

@@ -41,6 +41,10 @@ faster. Before issue 20 a catch-up sweep with ``-j 2`` always started two worker
 
 from __future__ import annotations
 
+import os
+
+os.environ.setdefault("CRAWLSIM_KERNEL", "compiled")  # the compiled kernel's speed (crawlsim.kernel.jit)
+
 import argparse
 import statistics
 import time

@@ -83,10 +83,7 @@ OPT = ("optimize", "g.yaml", "--free", "links.0.phase=0:1", "--max-evaluations",
         ((*OPT, "--write-best", "g.yaml"), "is the input file g.yaml"),
         ((*OPT, "--write-best", "./g.yaml"), "is the input file g.yaml"),
         ((*OPT, "-o", "o.h5", "--write-best", "o.h5"), "is the input file o.h5"),
-        (
-            ("velocity", "g.yaml", "--sweep", "period=1,2", "-o", "t.csv", "--plot", "t.csv"),
-            "is also the --output file",
-        ),
+        (("velocity", "g.yaml", "--sweep", "period=1,2", "-o", "t.csv", "--dpi", "100"), "add --plot"),
     ],
     ids=[
         "save-every",
@@ -102,7 +99,7 @@ OPT = ("optimize", "g.yaml", "--free", "links.0.phase=0:1", "--max-evaluations",
         "write-best-input",
         "write-best-input-path",
         "write-best-output",
-        "plot-is-output",
+        "figure-option-without-plot",
     ],
 )
 def test_refused_before_any_computation(folder, args, phrase):

@@ -31,11 +31,12 @@ import pytest
 from crawlsim.errors import CertificateError
 from crawlsim.gait.document import load_gait
 from crawlsim.integrate.stepping import make_stepper
-from crawlsim.kernel.certificate import REFINE_FRACTION, Dependent
-from crawlsim.kernel.dense_polyhedron import DensePolyhedron
-from crawlsim.kernel.polyhedron import ActiveSet
-from crawlsim.kernel.projection import ExactProjector
+from crawlsim.kernel.policy import REFINE_FRACTION
 from crawlsim.model.process import compile_gait
+from crawlsim.projection.adapter import ExactProjector
+from crawlsim.projection.certificate import Dependent
+from crawlsim.projection.dense_polyhedron import DensePolyhedron
+from crawlsim.projection.polyhedron import ActiveSet
 
 GAITS = Path(__file__).resolve().parents[1] / "gaits"
 INTEGRATORS = ("exact", "catch-up")
@@ -100,7 +101,7 @@ def periods(stepper, count: int = 3) -> None:
 @pytest.mark.parametrize("integrator", INTEGRATORS)
 def test_a_wrong_step_raises_in_both_integrators(integrator, name):
     """Wrong solves of every active set raise. Both integrators run here on the Python path of
-    `crawlsim.kernel.kkt` (``kernel=False``), the one the polyhedron's factors reach; the compiled
+    `crawlsim.projection.kkt` (``kernel=False``), the one the polyhedron's factors reach; the compiled
     kernel's own corrupted factor and piece are in tests/test_kernel.py."""
     options = {"kernel": False}
     process = process_of(name)

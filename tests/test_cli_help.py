@@ -20,8 +20,9 @@ from crawlsim.cli import (
 )
 from crawlsim.gait.settings import Simulation
 
+from .conftest import console_env
+
 ROOT = Path(__file__).resolve().parents[1]
-BIN = Path(sys.executable).parent
 
 
 def commands():
@@ -50,6 +51,7 @@ def examples(help_text: str) -> list[str]:
     return lines
 
 
+@pytest.mark.slow  # every example of every command, each a fresh process: about 100 s
 @pytest.mark.parametrize("name, command", commands(), ids=lambda c: c if isinstance(c, str) else "")
 def test_every_help_example_runs(name, command, tmp_path):
     """Each command's examples run in order in an empty folder holding the example gaits, with
@@ -57,7 +59,7 @@ def test_every_help_example_runs(name, command, tmp_path):
     lines = examples(command.help)
     assert lines, f"{name} --help has no examples"
     (tmp_path / "gaits").symlink_to(ROOT / "gaits")
-    env = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}"}
+    env = console_env()
     for line in lines:
         assert line.startswith(("crawlsim ", "for ")), line
         r = subprocess.run(

@@ -13,6 +13,9 @@ from crawlsim.study import sweep as sweeps
 from crawlsim.study.table import read_table
 from tests.test_sweep import AMP, LAG, P4
 
+#: Dask clusters start in seconds, and an unreachable scheduler is waited for: .ci/run runs them in its slow step
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def scheduler():

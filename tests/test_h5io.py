@@ -399,7 +399,7 @@ def test_format_1_files_still_read_and_plot(tmp_path):
     assert data["attrs"]["v0"] == pytest.approx(0.4, abs=1e-13)
     assert data["trajectory"]["t"].shape == (17,) and data["limit"]["slip"].shape == (8, 2)
     written = plot_results(DATA / "v1-run.h5", tmp_path)
-    assert len(written) == 4 and all(p.stat().st_size > 1000 for p in written)
+    assert len(written) == 5 and all(p.stat().st_size > 1000 for p in written)
     table = read_table(DATA / "v1-sweep.h5")
     assert table.paths == ("links.*.amplitude",)
     np.testing.assert_allclose([r.v0 for r in table.rows], [0.2, 0.4], atol=1e-13)

@@ -16,6 +16,7 @@ import pytest
 import yaml
 from click.testing import CliRunner
 
+from crawlsim.analysis.digits import with_error
 from crawlsim.cli import main
 from crawlsim.design import optimize as opt
 from crawlsim.design.optresult import BUDGET_SPENT, Stage, hypervolume, non_dominated
@@ -204,6 +205,8 @@ def test_write_best_is_a_gait_file_that_crawlsim_run_reproduces(tmp_path):
     assert document["simulation"]["integrator"] == "exact"
     original = yaml.safe_load(Path(P4).read_text())
     assert document["links"][0] == original["links"][0] and document["friction"] == original["friction"]
+    lags = f"links.1.phase = {answer['best']['links.1.phase']!r}, links.2.phase = {answer['best']['links.2.phase']!r}"
+    assert document["description"] == f"{original['description']} [crawlsim optimize: maximize v0; {lags}]"
     run = cli("run", best, "--json", "-o", tmp_path / "run.h5", "-q")
     assert run.exit_code == 0, run.output
     v0 = json.loads(run.output)["v0"]
@@ -396,7 +399,8 @@ def test_pareto_reports_the_fastest_evaluated_gait_and_the_runs_out_of_budget(tm
     assert ev["v0"][fastest] > ev["v0"][run_best]  # the case this test is about
     assert data["attrs"]["best_evaluation"] == fastest
     assert data["attrs"]["best_v0"] == ev["v0"][fastest]
-    assert f"  v0                       {float(ev['v0'][fastest])!r}" in r.output
+    v0 = with_error(float(ev["v0"][fastest]), float(ev["v0_error_estimate"][fastest]))
+    assert f"  v0                       {v0}\n" in r.output and " ± " in v0  # as crawlsim run prints it
     assert f"evaluation {fastest} of 120" in best_yaml.read_text()
     stops = [str(s) for s in data["runs"]["stop"]]
     assert all(s.startswith(BUDGET_SPENT) for s in stops)
@@ -510,6 +514,7 @@ def test_the_results_file_layout_and_its_figures(tmp_path):
     assert rerun.exit_code == 2 and "--write-best" in rerun.output
 
 
+@pytest.mark.slow  # starts a Dask cluster
 def test_a_dask_cluster_gives_the_same_result():
     """Each generation goes to the cluster through the sweep engine; the search is the same,
     point for point (CI installs the dask extra)."""

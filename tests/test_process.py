@@ -18,8 +18,8 @@ from crawlsim.errors import DegenerateModelError, GaitError, LicqWarning
 from crawlsim.gait.document import Gait, ProcessSpec, load_gait, parse_gait
 from crawlsim.gait.process_spec import recession_direction
 from crawlsim.io.runread import read_results
-from crawlsim.kernel.projection import ExactProjector
 from crawlsim.model.process import compile, compile_gait, compile_process
+from crawlsim.projection.adapter import ExactProjector
 from crawlsim.study.paper import acute_angle_document
 
 from .conftest import GAITS

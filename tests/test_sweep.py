@@ -85,6 +85,34 @@ def test_axis_specs():
         parse_axis("period=1:2", "--link")
 
 
+def test_evenly_spaced_values_are_the_numbers_asked_for():
+    """START:STOP:NUM gives the double nearest each exact value START + k (STOP - START)/(NUM - 1)
+    (linspace gave 0.30000000000000004 for 0:1:11), so the CSV, the files' attributes and the
+    messages print 0.3."""
+    assert parse_axis("links.1.phase=0:1:11").values == tuple(k / 10 for k in range(11))
+    assert parse_axis("period=1e-3:2e-3:3").values == (0.001, 0.0015, 0.002)
+    assert parse_axis("period=0:1:4").values == (0.0, 1 / 3, 2 / 3, 1.0)
+    assert parse_axis("period=3:-1:5").values == (3.0, 2.0, 1.0, 0.0, -1.0)
+    gait = with_simulation(load_gait(GAITS / "peristalsis-3.yaml"), integrator="catch-up", steps_per_period=20)
+    grid = sweeps.make_grid(gait, ["links.1.phase=0:1:11"])
+    assert grid.label(3).endswith("with links.1.phase=0.3")
+    r = CliRunner().invoke(
+        main,
+        [
+            "velocity",
+            str(GAITS / "peristalsis-3.yaml"),
+            "--sweep",
+            "links.1.phase=0:1:11",
+            "--integrator",
+            "catch-up",
+            "--steps-per-period",
+            "20",
+        ],
+    )
+    assert r.exit_code == 0, r.output
+    assert [row.split(",")[0] for row in r.output.splitlines()[1:]] == [str(k / 10) for k in range(11)]
+
+
 def test_log_spaced_axis_is_geometric_with_exact_ends():
     """log:LO:HI:NUM: consecutive ratios all equal (HI/LO)^(1/(NUM-1)), ends as written."""
     a = parse_axis("stiffness=log:5:50:10")
@@ -758,6 +786,7 @@ def _wait_for_points(proc, at_least):
     raise AssertionError(f"the sweep ended before {at_least} points: {lines}")
 
 
+@pytest.mark.slow  # sweeps in subprocesses, signalled and run again
 @pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_interrupt_exits_130_and_the_rerun_resumes(tmp_path, sig, code):
     """Ctrl-C (SIGINT) exits 130 and SIGTERM (a batch system's stop) 143; either way every
@@ -796,6 +825,7 @@ def test_interrupt_exits_130_and_the_rerun_resumes(tmp_path, sig, code):
     np.testing.assert_allclose(table.columns()["v0"], fresh.columns()["v0"], rtol=0, atol=1e-12)
 
 
+@pytest.mark.slow  # a sweep in a subprocess, killed and run again
 def test_killed_process_resumes(tmp_path):
     """SIGKILL a sweep process once its journal holds finished points; the rerun of the same
     command completes the table, equal to an uninterrupted run's."""
@@ -839,15 +869,17 @@ def test_killed_process_resumes(tmp_path):
 def test_plot_one_and_two_paths(tmp_path):
     import matplotlib.image as mpimg
 
-    for axes, name in (([AMP], "one.png"), ([AMP, LAG], "two.png")):
-        args = [P4, *FAST] + [x for a in axes for x in ("--sweep", a)] + ["--plot", tmp_path / name]
-        assert vel(*args).exit_code == 0
-        image = mpimg.imread(tmp_path / name)
+    for axes, name in (([AMP], "one"), ([AMP, LAG], "two")):
+        args = [P4, *FAST] + [x for a in axes for x in ("--sweep", a)] + ["-o", tmp_path / f"{name}.h5", "--plot"]
+        r = vel(*args)
+        assert r.exit_code == 0 and r.output == f"{tmp_path / name}-sweep.png\n"
+        image = mpimg.imread(tmp_path / f"{name}-sweep.png")
         assert image.ndim == 3 and image.shape[0] > 200 and image.shape[1] > 300
         assert image[..., :3].std() > 0.05  # not blank
-    r = vel(P4, *FAST, "--sweep", AMP, "--sweep", LAG, "--sweep", "period=1,2", "--plot", tmp_path / "three.png")
+    three = ["--sweep", AMP, "--sweep", LAG, "--sweep", "period=1,2", "-o", tmp_path / "three.h5", "--plot"]
+    r = vel(P4, *FAST, *three)
     assert r.exit_code == 2 and "one or two swept dimensions" in r.output
-    assert not (tmp_path / "three.png").exists()
+    assert not list(tmp_path.glob("three*"))
 
 
 def test_sweep_figures_of_files_mark_invalid_points_as_invalid(tmp_path, monkeypatch):
@@ -882,8 +914,9 @@ def test_sweep_figures_of_files_mark_invalid_points_as_invalid(tmp_path, monkeyp
             "friction.backward=[0.5,1,2,3,4]",
             "--link",
             "friction.forward=[0.5,1,1,1,1]",
+            "-o",
+            tmp_path / "v.csv",
             "--plot",
-            tmp_path / "v.png",
         ],
     ):
         assert cli(*args).exit_code == 0
@@ -935,6 +968,8 @@ def test_crawlsim_plot_draws_sweep_files(tmp_path):
     (invalid and failed) marked; 3-D sweeps, shards and --only are refused (exit 2)."""
     import matplotlib.image as mpimg
 
+    from crawlsim.plotting import sweep_data_figure
+
     one = tmp_path / "one.h5"
     assert (
         vel(
@@ -950,12 +985,12 @@ def test_crawlsim_plot_draws_sweep_files(tmp_path):
         == 0
     )
     table = read_table(one)
-    axes, v0, missing = sweeps.sweep_figure_data(table)
-    assert list(axes) == ["friction.backward"] and v0.shape == (5,)
+    ax = sweep_data_figure(sweeps.table_payload(table)).axes[0]  # linked paths count once
+    assert ax.get_xlabel() == "friction.backward ($F$)" and len(ax.get_lines()[0].get_xdata()) >= 5
     # backward 1 = forward 1 and backward 3 (= 3 x forward 1 on 4 blocks) break uniqueness;
     # backward 0.5 = forward 0.5 too
-    np.testing.assert_array_equal(missing, [True, True, False, True, False])
-    assert np.all(np.isnan(v0[missing])) and np.all(np.isfinite(v0[~missing]))
+    (invalid,) = [line for line in ax.get_lines() if line.get_label() == "invalid gait"]
+    assert invalid.get_xdata().tolist() == [0.5, 1.0, 3.0]
     r = cli("plot", one, "-o", tmp_path / "fig")
     assert r.exit_code == 0, r.output
     image = mpimg.imread(tmp_path / "fig" / "one-sweep.png")
@@ -973,3 +1008,31 @@ def test_crawlsim_plot_draws_sweep_files(tmp_path):
     assert vel(P4, *FAST, "--sweep", AMP, "--shard", "1/2", "-o", part).exit_code == 0
     assert cli("plot", part).exit_code == 2
     assert sorted(p.name for p in tmp_path.glob("*.png")) == []
+
+
+def test_sweeping_a_waves_numbers_and_its_links():
+    """On a wave (links: {wave: ..., phase_step: ...}) a sweep of links.phase_step moves the lag
+    of every link at once (link i at i x step, modulo 1), one of links.wave.amplitude every
+    link's amplitude, and one of links.1.phase that generated link alone (the point's document
+    holds the links written out), as docs/gait-files.md defines them."""
+    import yaml
+
+    from crawlsim.gait.document import gait_from_document
+
+    doc = yaml.safe_load(Path(P4).read_text())
+    doc["links"] = {"wave": {"kind": "cosine", "mean": 1.0, "amplitude": 0.3}, "phase_step": 0.3333333333333333}
+    wave = gait_from_document(doc, "wave.yaml")
+    lags = sweeps.make_grid(wave, ["links.phase_step=0:0.5:3"])
+    assert [[s.phase for s in lags.gait(i).links] for i in range(3)] == [
+        [0.0, 0.0, 0.0],
+        [0.0, 0.25, 0.5],
+        [0.0, 0.5, 0.0],
+    ]
+    grid = sweeps.make_grid(wave, ["links.wave.amplitude=0.1,0.2", "links.1.phase=0.5"])
+    point = grid.gait(1)
+    assert [s.amplitude for s in point.links] == [0.2] * 3 and [s.phase for s in point.links] == [
+        0.0,
+        0.5,
+        0.6666666666666666,
+    ]
+    assert isinstance(grid.document(1)["links"], list) and isinstance(grid.base.document["links"], dict)

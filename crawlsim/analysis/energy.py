@@ -66,8 +66,10 @@ consistent discrete ledger is therefore
     J_h = sum_n sum_i k_i (z^{n+1}_i - z^n_i)^2 / 2,
 
 and ``W_h = D_h + J_h + E^G - E^0`` holds exactly for the scheme (each step is the jump identity
-above). Away from jumps ``Delta z = O(h)``, so J_h is the scheme's numerical dissipation, first
-order in h, and converges to the jump losses; W_h and D_h converge to W and D at first order.
+above). Away from jumps ``Delta z = O(h)``, so J_h there is the scheme's numerical dissipation,
+first order in h: it is reported apart, as the **discretisation loss**, and only the steps that
+end at a jump of a ``steps`` signal are booked as jump losses, to which they converge; W_h and
+D_h converge to W and D at first order.
 (The right-endpoint sum ``sum_n sigma^{n+1} . Delta L^n`` balances too, with
 ``sum_n |sigma^{n+1} - sigma^n|^2_{K^-1} / 2`` in place of J_h, by ``|a|^2/2 - |b|^2/2 = <a, a -
 b> - |a - b|^2/2``; but at a jump of an actuator length that term also holds the elastic work of
@@ -92,7 +94,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from crawlsim.gait.signals import Constant, Cosine, Fourier, PiecewiseLinear, Signal, Steps
+from crawlsim.gait.signals import (
+    JUMP_TOLERANCE,
+    Constant,
+    Cosine,
+    Fourier,
+    PiecewiseLinear,
+    Signal,
+    Steps,
+    union_breakpoints,
+)
 from crawlsim.integrate.ledger import PeriodEnergy
 from crawlsim.integrate.stepping import PeriodRecord
 from crawlsim.model.offsets import TWO_PI
@@ -108,10 +119,11 @@ class EnergyLedger:
     cost_of_transport: float | None  # (D + W_load) / |displacement|; None without net motion
     actuator_work: float
     jump_loss: float
-    balance_residual: float  # W - D - J - W_load on the limit period
+    balance_residual: float  # W - D - J - W_load (- the discretisation loss) on the limit period
     cost_of_transport_bound: float | None  # force; None without a direction of motion or with loads
     efficiency: float | None  # bound / cost of transport; with loads W_load / W
     load_work: float | None = None  # W_load; None without loads
+    discretisation_loss: float | None = None  # catch-up's numerical loss; None for exact
 
 
 # -- a period's ledger, either integrator ----------------------------------------------------------
@@ -126,15 +138,27 @@ def catch_up_energy(process: SweepingProcess, record: PeriodRecord) -> PeriodEne
     work = math.fsum(np.sum((sigma[:-1] + 0.5 * k * dL) * dL, axis=1))
     dissipation = period_dissipation(process, record)
     dw = np.diff(record.w, axis=0)
-    loss = math.fsum(np.sum(dw * dw / (2.0 * k), axis=1))
+    loss = np.sum(dw * dw / (2.0 * k), axis=1)
+    jumps = _jump_steps(process)
     return PeriodEnergy(
         work,
         dissipation,
-        loss,
+        math.fsum(loss[jumps]),
         crawler.elastic_energy(sigma[0]),
         crawler.elastic_energy(sigma[-1]),
         crawler.load_work(record.multipliers),
+        math.fsum(loss[~jumps]),
     )
+
+
+def _jump_steps(process: SweepingProcess) -> np.ndarray:
+    """The catch-up steps that end at a jump of a ``steps`` signal (a grid point, since the
+    breakpoints are: `crawlsim.model.process.period_grid`), a mask over the steps."""
+    assert process.offset_pieces is not None
+    jumps = union_breakpoints([s.breakpoints() for s in process.offset_pieces.signals if isinstance(s, Steps)])
+    ends = np.mod(process.cycles[1:], 1.0)  # a jump at u = 0 ends the period's last step
+    gap = np.abs(ends[:, None] - jumps[None, :])
+    return np.any(np.minimum(gap, 1.0 - gap) <= JUMP_TOLERANCE, axis=1)
 
 
 def period_energy(process: SweepingProcess, record: PeriodRecord) -> PeriodEnergy | None:
@@ -255,9 +279,9 @@ def ledger(
         # with loads (docs/model.md §6): the efficiency is the share of the actuator work that
         # goes into the load, and the friction-only bound does not bound the cost of transport
         efficiency = energy.load_work / energy.work if energy.work > 0 else None
-        return EnergyLedger(*head, None, efficiency, energy.load_work)
+        return EnergyLedger(*head, None, efficiency, energy.load_work, energy.discretisation_loss)
     bound = cost_of_transport_bound(process, displacement)
     efficiency = None
     if bound is not None and cost_of_transport is not None and cost_of_transport > 0:
         efficiency = bound / cost_of_transport
-    return EnergyLedger(*head, bound, efficiency)
+    return EnergyLedger(*head, bound, efficiency, None, energy.discretisation_loss)

@@ -13,7 +13,7 @@ import math
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
-from crawlsim.analysis.digits import how_found, with_error
+from crawlsim.analysis.digits import counted, how_found, with_error
 from crawlsim.status import Convergence, LimitMethod, RunStatus
 
 if TYPE_CHECKING:
@@ -137,21 +137,26 @@ def summary_rows(result: RunResult, units: Units | None = None) -> list[Row]:
     return rows
 
 
+def quotient_error(cot: float | None, d: float | None, dD: float | None, dd: float | None) -> float | None:
+    """The error of the cost of transport cot = D/|d| from those of D and d: first-order
+    propagation through the quotient (|d(D/d)| <= dD/|d| + D dd/d^2), widened by 1 % for the
+    second-order term, which is below that wherever the cost of transport is printed at all."""
+    if cot is None or d is None or dD is None or dd is None or d == 0:
+        return None
+    return 1.01 * (dD / abs(d) + cot * dd / abs(d))
+
+
 def _cot_error(result: RunResult) -> float | None:
-    """First-order propagation of the dissipation's and displacement's errors through their
-    quotient (|d(D/d)| <= dD/|d| + D dd/d^2), widened by 1 % for the second-order term, which
-    is below that wherever the cost of transport is printed at all."""
+    """`quotient_error` of the run's dissipation over its displacement."""
     e, energy = result.estimate, result.energy
     assert e is not None and energy is not None
-    cot, d, dD = energy.cost_of_transport, e.displacement, energy.dissipation_error_estimate
-    if cot is None or dD is None or e.error_estimate is None or d == 0:
-        return None
-    return 1.01 * (dD / abs(d) + cot * e.error_estimate * result.period / abs(d))
+    dd = None if e.error_estimate is None else e.error_estimate * result.period
+    return quotient_error(energy.cost_of_transport, e.displacement, energy.dissipation_error_estimate, dd)
 
 
 def headline(result: RunResult) -> str:
     what = "gait" if result.v0 is not None else "process"  # a generic process has no v0
-    return f"{what} {result.name}: {result.periods} periods of {result.steps_per_period} steps"
+    return f"{what} {result.name}: {counted(result.periods, 'period')} of {counted(result.steps_per_period, 'step')}"
 
 
 def _line(row: Row) -> str:
@@ -173,21 +178,25 @@ def energy_rows(result: RunResult, unit: Unit) -> list[Row]:
     if energy is None:
         return []
     work, loss, residual, load = energy.actuator_work, energy.jump_loss, energy.balance_residual, energy.load_work
+    numerical = energy.discretisation_loss
     relative = abs(residual) / max(abs(work), 1e-300)
-    # W = D + J: the work is as accurate as the dissipation, and for catch-up its jump losses
-    # J_h hold the scheme's own numerical loss (first order in the step) besides the true one
+    # W = D + J (+ catch-up's numerical loss, first order in the step): the work is as accurate
+    # as the dissipation, and for catch-up its losses are those of the step too
     err = energy.dissipation_error_estimate
-    if err is not None and result.integrator != "exact":
-        err += abs(loss)
-    loads = " - load work" if load is not None else ""
+    if err is not None and numerical is not None:
+        err += abs(loss) + abs(numerical)
+    terms = ("" if numerical is None else " - discretisation loss") + (" - load work" if load is not None else "")
     rows = [
         ("actuator work per period", with_error(work, err, unit("dissipation"))),
         ("jump losses per period", f"{loss:.3g}{unit('dissipation')}"),
         (
             "energy balance residual",
-            f"{residual:.3g}{unit('dissipation')} (work - dissipation - jump losses{loads}; {relative:.1g} relative)",
+            f"{residual:.3g}{unit('dissipation')} (work - dissipation - jump losses{terms}; {relative:.1g} relative)",
         ),
     ]
+    if numerical is not None:
+        loss_text = f"{numerical:.3g}{unit('dissipation')} per period (catch-up's own, first order in the step)"
+        rows[2:2] = [("discretisation loss", loss_text)]
     if load is not None:
         # W_load carries the error of the work it is part of (W = D + J + W_load, §6)
         against = f"{with_error(load, err, unit('dissipation'))} (against the loads, docs/model.md §6)"

@@ -234,6 +234,7 @@ class RunResult:
             "wall_time": self.effort.wall_time,
             "actuator_work_per_period": None if energy is None else energy.actuator_work,
             "jump_loss_per_period": None if energy is None else energy.jump_loss,
+            "discretisation_loss_per_period": None if energy is None else energy.discretisation_loss,
             "load_work_per_period": None if energy is None else energy.load_work,
             "energy_balance_residual": None if energy is None else energy.balance_residual,
             "cost_of_transport_bound": None if energy is None else energy.cost_of_transport_bound,

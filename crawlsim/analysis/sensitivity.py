@@ -48,9 +48,9 @@ from crawlsim.analysis.sensitivity_terms import (
 )
 from crawlsim.analysis.sensitivity_walk import Prepared, Walk, prepare, walk_catch_up, walk_exact
 from crawlsim.errors import CrawlsimError, GaitError
-from crawlsim.gait.docpaths import resolve_path
+from crawlsim.gait.docpaths import check_number_paths, resolve_path
 from crawlsim.gait.document import Gait
-from crawlsim.kernel.implicit import column_moves, implicit
+from crawlsim.kernel.jit import kernel
 from crawlsim.status import Convergence, LimitMethod
 
 if TYPE_CHECKING:
@@ -249,7 +249,7 @@ def _build_static(gait: Gait, process: SweepingProcess, paths: Sequence[str] | s
     active = tuple(i for i, prm in enumerate(params) if prm.dC is not None)
     dC, dMu, dk = _stack(co, [params[i] for i in active])
     prep = prepare(process, co, dC, dMu, gait.simulation.integrator != "exact")
-    moved = column_moves(co.C, dC, np.ascontiguousarray(co.k, dtype=float), dk)
+    moved = kernel().implicit.column_moves(co.C, dC, np.ascontiguousarray(co.k, dtype=float), dk)
     # the friction's uniqueness touch matters only to a column that moves the friction
     touch = uniqueness_touch(gait, co) if dMu.any() else None
     return _Static(co, params, active, dC, dMu, dk, touch, prep, moved)
@@ -290,8 +290,9 @@ def _known(run: Settled) -> tuple[float, float, float | None] | None:
 
 def _expand(gait: Gait, paths: Sequence[str] | str) -> list[tuple[Any, ...]]:
     """The concrete key paths of ``paths`` (each ``*`` expanded), each once, in order."""
+    paths = check_number_paths(gait, [paths] if isinstance(paths, str) else paths)
     keys_list: list[tuple[Any, ...]] = []
-    for path in [paths] if isinstance(paths, str) else paths:
+    for path in paths:
         for keys in resolve_path(gait.document, path, gait.source):
             if keys not in keys_list:
                 keys_list.append(keys)
@@ -324,7 +325,7 @@ class _Ift:
         # error: roundoff of every term (pieces x eps x their sizes, times the conditioning of
         # the least-squares solve) plus the verified limit's distance, relative, on the same
         # sizes (`crawlsim.kernel.implicit.implicit` gives the sizes and the conditioning)
-        self.dw, self.dY, self.dD, magY, magD, cond = implicit(walk.W, walk.L, walk.D, blocks)
+        self.dw, self.dY, self.dD, magY, magD, cond = kernel().implicit.implicit(walk.W, walk.L, walk.D, blocks)
         rel = 64 * EPS * (walk.pieces + n) * cond + lim.residual
         # a floor at the roundoff of the slips themselves: a derivative that cancels to ~0 (a
         # common phase shift) is zero to eps times the sizes the period's slips are made of

@@ -23,7 +23,7 @@ import numpy as np
 from crawlsim.analysis.energy import period_dissipation
 from crawlsim.analysis.run import verified_limit_error
 from crawlsim.errors import CrawlsimError, GaitError
-from crawlsim.gait.docpaths import set_value
+from crawlsim.gait.docpaths import explicit, set_value, value_at
 from crawlsim.gait.settings import effective_tolerance
 from crawlsim.gait.signals import Constant, Cosine, Fourier, parse_signal
 from crawlsim.integrate.limit import PLAIN_PERIODS, relative_step, solve_limit
@@ -247,24 +247,30 @@ def _smooth_derivative(signal: Any, inside: tuple[Any, ...], basis: Any) -> np.n
     return out
 
 
-def _signal_columns(gait: Gait, keys: tuple[Any, ...]) -> tuple[list[tuple[int, Any]], tuple[Any, ...]] | None:
+def _signal_columns(gait: Gait, keys: tuple[Any, ...]) -> tuple[list[tuple[int, Any, float]], tuple[Any, ...]] | None:
     """The signals a number at ``keys`` of a link, a friction or a force belongs to, each with
-    its column in `_signals`' order (links, mu^+ per block, mu^- per block, forces per block),
-    and the path inside them; None for other numbers."""
+    its column in `_signals`' order (links, mu^+ per block, mu^- per block, forces per block)
+    and the derivative of its number by the one at ``keys``, and the path inside them; None for
+    other numbers. A wave's number moves every link's (``links.wave...``: by 1; the
+    ``phase_step``: link i's phase by i, `crawlsim.gait.docpaths.wave_links`)."""
     columns = signal_columns(gait.blocks)
     if keys[0] == "links" and len(keys) >= 2 and isinstance(keys[1], int):
-        return [(keys[1], gait.links[keys[1]])], keys[2:]
+        return [(keys[1], gait.links[keys[1]], 1.0)], keys[2:]
+    if keys[:2] == ("links", "wave"):
+        return [(i, link, 1.0) for i, link in enumerate(gait.links)], keys[2:]
+    if keys == ("links", "phase_step"):
+        return [(i, link, float(i)) for i, link in enumerate(gait.links)], ("phase",)
     if keys[0] == "loads" and len(keys) >= 2 and keys[1] == "force" and gait.loads is not None:
         each = len(keys) >= 3 and isinstance(keys[2], int)  # one signal per block
         forced: Sequence[int] = [keys[2]] if each else range(gait.blocks)
         first = columns["forces"].start
-        return ([(first + j, gait.loads.forces[j]) for j in forced], keys[3:] if each else keys[2:])
+        return ([(first + j, gait.loads.forces[j], 1.0) for j in forced], keys[3:] if each else keys[2:])
     friction = _friction_keys(gait, keys) if keys[0] == "friction" else None
     if friction is None:
         return None
     side, blocks, rest = friction
     first, signals = columns[side].start, gait.forward if side == "forward" else gait.backward
-    return [(first + j, signals[j]) for j in blocks], rest[1:]
+    return [(first + j, signals[j], 1.0) for j in blocks], rest[1:]
 
 
 def _friction_keys(gait: Gait, keys: tuple[Any, ...]) -> tuple[str, Sequence[int], tuple[Any, ...]] | None:
@@ -294,11 +300,11 @@ def _closed_form_change(gait: Gait, base: Coefficients, keys: tuple[Any, ...]) -
     # a zero row first: ``combine`` adds its constant term (the loads') to row 0, the
     # coefficient of phi_0 = 1, so the rows after it are the linear part alone
     dS = np.zeros((basis.size + 1, len(_signals(gait))))
-    for column, signal in columns:
+    for column, signal, weight in columns:
         d = _smooth_derivative(signal, inside, basis)
         if d is None:
             return None
-        dS[1:, column] = d
+        dS[1:, column] = weight * d
     dC = base.pieces.combine(dS)[1:]
     dMu = base.crawler.split(dS[1:])[1]
     P = base.C.shape[0]
@@ -337,7 +343,7 @@ def _moved_fields(gait: Gait, keys: tuple[Any, ...], value: float) -> dict[str, 
     if keys[0] == "links" and len(keys) >= 2 and isinstance(keys[1], int):
         i = keys[1]
         links = list(gait.links)
-        links[i] = _moved_signal(gait, gait.document["links"][i], keys[2:], value, f"links[{i}]")
+        links[i] = _moved_signal(gait, explicit(gait.document)["links"][i], keys[2:], value, f"links[{i}]")
         return {"links": tuple(links)}
     if keys[0] == "friction" and value > 0:
         friction = _moved_friction(gait, keys, value)
@@ -382,9 +388,7 @@ def _moved_friction(gait: Gait, keys: tuple[Any, ...], value: float) -> tuple[tu
 
 def parameter_of(gait: Gait, base: Coefficients, keys: tuple[Any, ...]) -> Parameter:
     path = ".".join(str(k) for k in keys)
-    node: Any = gait.document
-    for key in keys:
-        node = node.get(key) if isinstance(node, dict) else node[key]
+    node = value_at(gait.document, keys)
     if node is None and keys[-1] == "phase":
         node = 0.0
     if isinstance(node, bool) or not isinstance(node, (int, float)):
@@ -400,8 +404,8 @@ def parameter_of(gait: Gait, base: Coefficients, keys: tuple[Any, ...]) -> Param
     if closed is not None:
         return Parameter(path, keys, value, closed[0], closed[1], np.zeros_like(base.k))
     moves = f"moving {path} moves the breakpoints of c(t) or changes its form: not differentiated"
-    if keys[-1] == "phase":  # a smooth signal's is closed above, a piecewise one's moves
-        return Parameter(path, keys, value, reason=moves)  # its breakpoints
+    if keys[-1] in ("phase", "phase_step"):  # a smooth signal's is closed above, a piecewise
+        return Parameter(path, keys, value, reason=moves)  # one's moves its breakpoints
     h = COEFFICIENT_STEP * max(abs(value), 1.0)
     try:
         change = _change(gait, base, keys, value, h)

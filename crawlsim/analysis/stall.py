@@ -9,14 +9,19 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import Any
 
 import numpy as np
 
-from crawlsim.errors import GaitError
-from crawlsim.gait.docpaths import path_keys
+from crawlsim.analysis.rigid import RigidLimit, rigid_limit
+from crawlsim.errors import GaitError, InputError
+from crawlsim.gait.docpaths import path_keys, value_at
 from crawlsim.gait.document import Gait, gait_from_document
 from crawlsim.gait.signals import evaluate_many
+
+MOVING = 1e-9
+"""The crawler still moves its way at a load where v0 has the sign of v0(s0) and more than this
+fraction of its size: a v0 of 3.7e-17 beyond a jump (the roundoff of a run that does not move)
+does not count as motion."""
 
 
 class StallCause(StrEnum):
@@ -37,11 +42,15 @@ class CurveMarks:
     stall: float | None
     cause: StallCause | None
     label: str  # "stall force" or "steepest slope"
+    jump_label: str = "jump of $v_0$"
+    rigid: RigidLimit | None = None  # a sweep of the stiffness: its asymptote
 
 
 def curve_marks(gait_yaml: str, path: str, values, v0) -> CurveMarks | None:
-    """The marks of a sweep of one load path (``loads.force...`` or ``loads.slope.angle``), or
-    None for any other sweep (or when the gait cannot be rebuilt).
+    """The marks of a sweep of one load path (``loads.force...`` or ``loads.slope.angle``), one
+    friction path (``friction...``: the jumps only, where the uniqueness margin reaches 0) or the
+    stiffness (its rigid limit, `crawlsim.analysis.rigid`), or None for any other sweep (or when
+    the gait cannot be rebuilt).
 
     Jumps: between consecutive swept values, a subset J whose shifted uniqueness sum g~_J changes
     sign at every sample time of the cycle (N <= 12) is bisected to the load where it vanishes
@@ -49,24 +58,37 @@ def curve_marks(gait_yaml: str, path: str, values, v0) -> CurveMarks | None:
     interpolated. Stall: from the swept value nearest the gait's own load, the first interval
     where v0 loses that point's sign; at a jump inside it the stall is the jump (cause jump),
     otherwise the linear interpolation of the zero (cause smooth-zero, to the grid's resolution).
+    Moving means what it means to `crawlsim.design.stall`: the sign of v0 at the start and more
+    than `MOVING` of its size.
     """
     import yaml
 
-    if not (path.startswith("loads.force") or path == "loads.slope.angle"):
+    friction, stiffness = path.startswith("friction"), path.split(".")[0] == "stiffness"
+    if not (friction or stiffness or path.startswith("loads.force") or path == "loads.slope.angle"):
         return None
     try:
         document = yaml.safe_load(gait_yaml)
         gait = gait_from_document(document, "<sweep>")
     except Exception:  # a figure is drawn without marks rather than not at all
         return None
+    if stiffness and isinstance(gait, Gait):
+        try:
+            return CurveMarks((), None, None, "", rigid=rigid_limit(gait))
+        except InputError:  # a balance that does not fix the motion: no asymptote
+            return None
     if not isinstance(gait, Gait) or gait.blocks > 12:
         return None
     x = np.asarray(values, dtype=float)
     v = np.asarray(v0, dtype=float)
     label = "steepest slope" if path == "loads.slope.angle" else "stall force"
     jumps = _UniquenessSums(gait, path).jumps(x)
+    if friction:
+        return CurveMarks(tuple(jumps), None, None, "", "uniqueness margin 0: $v_0$ can jump")
     stall_at, cause = None, None
-    own = resolve_path_value(gait.document, path)
+    try:
+        own = float(value_at(gait.document, path_keys(path)))
+    except (KeyError, IndexError, TypeError, ValueError):
+        own = None
     finite = np.isfinite(v)
     if own is not None and np.any(finite):
         index = np.flatnonzero(finite)
@@ -147,7 +169,7 @@ def _first_stall(
     i = start
     while 0 <= i + direction < len(x):
         j = i + direction
-        if np.isfinite(v[j]) and np.sign(v[j]) == sign:
+        if np.isfinite(v[j]) and v[j] * sign > MOVING * abs(v[start]):
             i = j
             continue
         inside = [s for s in jumps if 0 < (s - x[i]) / (x[j] - x[i]) <= 1]
@@ -171,14 +193,3 @@ def _secant_zero(x: np.ndarray, v: np.ndarray, i: int, j: int, direction: int) -
         if 0 < (root - x[i]) / (x[j] - x[i]) <= 1:
             stall_at = root
     return stall_at
-
-
-def resolve_path_value(document: dict, path: str) -> float | None:
-    """The number at a dotted path of a document, or None."""
-    node: Any = document
-    try:
-        for key in path_keys(path):
-            node = node[key]
-    except (KeyError, IndexError, TypeError):
-        return None
-    return float(node) if isinstance(node, (int, float)) and not isinstance(node, bool) else None

@@ -66,7 +66,7 @@ def library_errors():
 
 #: The command modules (``crawlsim.cli.<name>``, each attaching its command to `main`). Only
 #: the invoked one is imported (``--help`` imports them all, for their one-line help).
-COMMANDS = ("animate", "info", "merge", "optimize", "plot", "run", "stall", "validate", "velocity")
+COMMANDS = ("animate", "info", "merge", "optimize", "plot", "run", "stall", "validate", "velocity", "warmup")
 
 
 class CrawlsimGroup(click.Group):

@@ -25,7 +25,7 @@ from crawlsim.integrate.resources import (
     gait_signal_work,
     parse_size,
 )
-from crawlsim.plotting import figure_format
+from crawlsim.plotting import FORMATS, figure_format
 
 
 def grouped(name: str, record: type, *options: Any) -> Any:
@@ -188,6 +188,43 @@ figure_options = grouped(
         help="Resolution of PNG figures in dots per inch (default: 150).",
     ),
 )
+
+
+@dataclass(frozen=True)
+class Plot:
+    """``--plot`` and ``--plot-format``: one meaning in every command that draws as it computes
+    (run, velocity --sweep): the figures next to the results, as ``crawlsim plot`` names them,
+    <stem>-<figure>.<format>."""
+
+    plot: bool = False
+    plot_format: str | None = None
+
+    def settings(self, figures: Figures) -> tuple[Any, str] | None:
+        """The `FigureOptions` and format of ``--plot`` (None without it); a figure option given
+        without ``--plot`` is BadInput (exit 2)."""
+        given = ([] if self.plot_format is None else ["--plot-format"]) + figures.given()
+        if given and not self.plot:
+            raise BadInput(f"{', '.join(given)} set how the figures are drawn: add --plot")
+        return (figures.options(), self.plot_format or "png") if self.plot else None
+
+
+def plot_options(f: Any) -> Any:
+    """``--plot`` and ``--plot-format`` as one record ``plot`` (`Plot`), with the
+    `figure_options` as ``figures``."""
+    return grouped(
+        "plot",
+        Plot,
+        click.option(
+            "--plot-format",
+            type=click.Choice(FORMATS),
+            help="Image format of the --plot figures.  [default: png]",
+        ),
+        click.option(
+            "--plot",
+            is_flag=True,
+            help="Also draw the figures next to the results (<stem>-<figure>.png), as crawlsim plot RESULTS does.",
+        ),
+    )(figure_options(f))
 
 
 def figure_format_of(path, option: str) -> str:

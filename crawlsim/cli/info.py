@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import math
+
 import click
 
-from crawlsim.analysis.digits import how_found, with_error
+from crawlsim.analysis.digits import counted, how_found, with_error
+from crawlsim.analysis.report import quotient_error
 from crawlsim.cli import library_errors, main, to_json
 from crawlsim.status import Convergence
 
@@ -36,12 +39,23 @@ def _run_lines(d: dict) -> list[str]:
     )
     lines.append(f"  limit found by           {found}")
     lines.append(
-        f"  periods                  {d['periods']} of {d['steps_per_period']} steps (period {_g(d['period'])})"
+        f"  periods                  {d['periods']} of {counted(d['steps_per_period'], 'step')} "
+        f"(period {_g(d['period'])})"
     )
-    if d["displacement_per_period"] is not None:
-        lines.append(f"  displacement per period  {_g(d['displacement_per_period'])}")
-        lines.append(f"  dissipation per period   {_g(d['dissipation_per_period'])}")
-        lines.append(f"  cost of transport        {_g(d['cost_of_transport'], 6)}")
+    if d["displacement_per_period"] is not None:  # as `crawlsim run` prints them
+        d_err = None if d["v0_error_estimate"] is None else d["v0_error_estimate"] * d["period"]
+        dD_err = d["dissipation_error_estimate"]
+        cot_err = quotient_error(d["cost_of_transport"], d["displacement_per_period"], dD_err, d_err)
+        lines.append(f"  displacement per period  {with_error(d['displacement_per_period'], d_err)}")
+        lines.append(f"  dissipation per period   {with_error(d['dissipation_per_period'], dD_err)}")
+        if d["cost_of_transport"] is not None:
+            lines.append(f"  cost of transport        {with_error(d['cost_of_transport'], cot_err)}")
+    if d.get("rigid_v0") is not None:
+        lines.append(
+            f"  rigid limit v0           {with_error(d['rigid_v0'], d['rigid_v0_error_estimate'])} (k -> infinity)"
+        )
+    if d.get("uniqueness_margin"):
+        lines.append(f"  uniqueness margin        {d['uniqueness_margin']['text']}")
     return lines
 
 
@@ -70,11 +84,15 @@ def summary_lines(d: dict) -> list[str]:
         lines.append(f"  integrator, seed         {d['integrator']}, {d['seed']}")
     else:
         shard = f" (shard {d['shard']})" if d["shard"] else ""
-        lines.append(f"{d['file']}: sweep of gait {d['name']}{shard}, from {d['source']}")
+        if [dim["paths"] for dim in d["grid"]] == [["gait"]]:  # crawlsim velocity A.yaml B.yaml ...
+            lines.append(f"{d['file']}: v0 of {d['source']}{shard}")
+        else:
+            lines.append(f"{d['file']}: sweep of gait {d['name']}{shard}, from {d['source']}")
         for n, dim in enumerate(d["grid"], 1):
             paths = " with ".join(dim["paths"])
             lines.append(
-                f"  dimension {n}              {paths}: {dim['values']} values in [{_g(dim['min'])}, {_g(dim['max'])}]"
+                f"  dimension {n}              {paths}: {dim['values']} values"
+                + ("" if dim["min"] is None else f" in [{_g(dim['min'])}, {_g(dim['max'])}]")
             )
         counts = ", ".join(f"{v} {k}" for k, v in sorted(d["statuses"].items()))
         lines.append(f"  points                   {d['points']}: {counts}")
@@ -83,7 +101,8 @@ def summary_lines(d: dict) -> list[str]:
             lines.append(f"  v0 of the ok points      {_g(d['v0_min'])} to {_g(d['v0_max'])}")
     lines.append(f"  written by               crawlsim {d['crawlsim_version']} (format {d['format_version']})")
     for key, value in sorted(d["attributes"].items()):
-        lines.append(f"  {key:<24} {value}")
+        if not (isinstance(value, float) and math.isnan(value)):  # NaN: does not apply to this run
+            lines.append(f"  {key:<24} {value}")
     return lines
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import click
 
+from crawlsim.analysis.digits import counted
 from crawlsim.cli import BadInput, library_errors, main
 from crawlsim.cli.guards import force_option
 from crawlsim.io.outputs import SWEEP, check_target
@@ -48,4 +49,4 @@ def merge(parts, output, force):
             click.echo(table.to_csv(), nl=False)
             return
         tables.write_table(table, output)
-    click.echo(f"{len(table.rows)} points from {len(parts)} shards written to {output}")
+    click.echo(f"{counted(len(table.rows), 'point')} from {counted(len(parts), 'shard')} written to {output}")

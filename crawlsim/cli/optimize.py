@@ -272,6 +272,8 @@ def _search(problem, method, out, jobs, scheduler, feedback):
 
 
 def _text(result, summary, out, write_best) -> str:
+    from crawlsim.analysis.digits import with_error
+
     problem = result.problem
     best = result.best_point
     what = "Pareto front of v0 against cost_of_transport" if problem.pareto else result.runs[0].text
@@ -282,8 +284,9 @@ def _text(result, summary, out, write_best) -> str:
     for path, value in result.best_values.items():
         lines.append(f"  {path:<24} {value!r}")
     for name in ("v0", "cost_of_transport", "dissipation_per_period"):
-        value = getattr(best.row, name)
-        lines.append(f"  {name:<24} {'n/a' if value is None else repr(value)}")
+        # as `crawlsim run` prints them: v0 to the digits its estimate supports, with it
+        value, error = getattr(best.row, name), best.row.v0_error_estimate if name == "v0" else None
+        lines.append(f"  {name:<24} {'n/a' if value is None else with_error(value, error)}")
     lines.append(f"  {'feasible':<24} {'yes' if result.feasible else 'no'}")
     lines.append(_evaluations_line(result))
     if problem.pareto:

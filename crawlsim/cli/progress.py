@@ -186,6 +186,9 @@ class Progress:
                 parts.append(f"ETA {_clock_text(left)}")
             if self.note:
                 parts.append(self.note)
+            jit = sys.modules.get("crawlsim.kernel.jit")  # loaded by whatever runs the kernel
+            if jit is not None and jit.compiling():
+                parts.append(jit.compiling())
             return f"{self.label}: " + ", ".join(parts)
 
     def tick(self) -> bool:

@@ -8,6 +8,7 @@ import click
 
 import crawlsim
 from crawlsim import plotting
+from crawlsim.analysis.digits import with_error
 from crawlsim.analysis.report import not_converged_message, summary_text
 from crawlsim.cli import (
     EXIT_NOT_CONVERGED,
@@ -20,7 +21,7 @@ from crawlsim.cli import (
     simulation_options,
     to_json,
 )
-from crawlsim.cli.guards import check_memory, figure_options, force_option, max_memory_option, warn_unchecked
+from crawlsim.cli.guards import check_memory, force_option, max_memory_option, plot_options, warn_unchecked
 from crawlsim.io.outputs import FIGURE, check_target
 
 #: Largest ``--save-every``: grid points are counted in int64 (a run has at most 10^8 steps per
@@ -56,14 +57,14 @@ MAX_SAVE_EVERY = 2**62
 @click.option(
     "--check-every-step", is_flag=True, help="Run Clarabel at every step instead of the certified fast paths."
 )
-@click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
-@click.option("--plot", is_flag=True, help="Also draw the figures next to the results file (<stem>-<figure>.png).")
 @click.option(
-    "--plot-format",
-    type=click.Choice(["png", "pdf", "svg"]),
-    help="Image format of the --plot figures.  [default: png]",
+    "--rigid",
+    is_flag=True,
+    help="Also compute the rigid limit (links infinitely stiff): its v0 in the summary, "
+    "which block rests when in the file's /rigid group, and with --plot its figure.",
 )
-@figure_options
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
+@plot_options
 @max_memory_option
 @force_option
 @feedback_options
@@ -74,9 +75,9 @@ def run(
     settings,
     save_every,
     check_every_step,
+    rigid,
     as_json,
     plot,
-    plot_format,
     figures,
     max_memory,
     force,
@@ -92,6 +93,7 @@ def run(
       crawlsim run gaits/peristalsis-4.yaml
       crawlsim run gaits/peristalsis-4.yaml --integrator exact -o exact.h5
       crawlsim run gaits/inching-2.yaml --json | python -m json.tool
+      crawlsim run gaits/peristalsis-4.yaml --rigid --plot
       crawlsim run gaits/inching-2.yaml --max-periods 500 --quiet -o inching.h5
       crawlsim run gaits/inching-2.yaml -o inching.h5 --plot --plot-format pdf
       crawlsim run --from inching.h5 -o again.h5
@@ -106,11 +108,8 @@ def run(
             "streamed to stdout; give a file name (-o run.h5), and --json prints "
             "the summary on stdout"
         )
-    given = ([] if plot_format is None else ["--plot-format"]) + figures.given()
-    if given and not plot:
-        raise BadInput(f"{', '.join(given)} set how the figures are drawn: add --plot")
-    options = figures.options() if plot else None
-    fmt = plot_format or "png"
+    drawing = plot.settings(figures)
+    options, fmt = drawing or (None, "png")
     with library_errors():
         if from_results is not None:
             rerun = crawlsim.api.from_results(from_results, **settings.given())
@@ -127,25 +126,40 @@ def run(
                 f"{MAX_SAVE_EVERY:,} (the grid points are counted in 64-bit integers)"
             )
         check_memory(gait, max_memory, save_every=save_every)
-        for name in plotting.FIGURE_NAMES if plot else ():
+        limit = None
+        if rigid:  # before the run: a gait it refuses is refused at once
+            from crawlsim.gait.crawler_spec import need_crawler  # start-up: numpy and YAML when it runs
+
+            need_crawler(gait, "crawlsim run --rigid")
+            limit = crawlsim.api.rigid_limit(gait)
+        names = (*plotting.FIGURE_NAMES, plotting.RIGID_FIGURE) if rigid else plotting.FIGURE_NAMES
+        for name in names if drawing else ():
             target = out.parent / f"{out.stem}-{name}.{fmt}"
             check_target(target, FIGURE, inputs=[gait_file or from_results], force=force, option="--plot")
         warn_unchecked(gait)
         with run_progress(gait, feedback) as progress:
             result = crawlsim.api.run(
-                gait, output=out, save_every=save_every, check_every_step=check_every_step, progress=progress
+                gait,
+                output=out,
+                save_every=save_every,
+                check_every_step=check_every_step,
+                progress=progress,
+                rigid=limit,
             )
-        drawn = (
-            [str(f) for f in plotting.plot_results(out, out.resolve().parent, fmt=fmt, options=options)] if plot else []
-        )
+        drawn = [str(f) for f in plotting.plot_results(out, out.parent, fmt=fmt, options=options)] if drawing else []
     if as_json:
         summary = result.summary()
         summary["output"] = str(out)
-        if plot:
+        if limit is not None:
+            summary["rigid"] = limit.summary()
+        if drawing:
             summary["figures"] = drawn
         click.echo(to_json(summary))
     else:
-        click.echo(summary_text(result.run, str(out), result.units))
+        text = summary_text(result.run, str(out), result.units)
+        if limit is not None:
+            text += f"\n  rigid limit v0           {with_error(limit.v0, limit.v0_error_estimate)} (k -> infinity)"
+        click.echo(text)
         for figure in drawn:
             click.echo(f"  figure                   {figure}")
     if not result.converged:

@@ -16,7 +16,8 @@ from crawlsim.cli import main
     is_flag=True,
     help="Print the whole uniqueness analysis of each crawler: every subset J of "
     "blocks whose g_J vanishes on an interval, with its times, and the smallest "
-    "change of one friction coefficient that restores the condition.",
+    "change of one friction coefficient that restores the condition; the margin to "
+    "it; and whether the cell theorem makes the motion periodic from the first period.",
 )
 def validate(gait_files, explain):
     """Check each GAIT_FILE and list every error in it, one per line as FILE: KEY: message.

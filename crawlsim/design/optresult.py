@@ -198,7 +198,11 @@ class OptimizationResult:
             *(f"# {p} = {v!r}" for p, v in zip(self.problem.paths, e.x)),
             f"# command: {command_line()}",
         ]
-        return "\n".join(line.replace("\n", " ") for line in head) + "\n" + effective_yaml(self.problem.document(e.x))
+        document = self.problem.document(e.x)
+        free = ", ".join(f"{p} = {v!r}" for p, v in zip(self.problem.paths, e.x))
+        base = str(document.get("description", "")).split(" [crawlsim optimize: ")[0]
+        document["description"] = f"{base} [crawlsim optimize: {what}; {free}]".lstrip()
+        return "\n".join(line.replace("\n", " ") for line in head) + "\n" + effective_yaml(document)
 
     @classmethod
     def from_file(cls, path: Path | str) -> OptimizationResult:

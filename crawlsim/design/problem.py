@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from enum import StrEnum
 
 from crawlsim.errors import GaitError, InputError, SweepSpecError
-from crawlsim.gait.docpaths import resolve_path, set_value
+from crawlsim.gait.docpaths import resolve_path, set_values
 from crawlsim.gait.document import Gait, gait_from_document
 from crawlsim.status import PointStatus
 from crawlsim.study.points import PointResult
@@ -247,9 +247,8 @@ class Problem:
     def document(self, x: Sequence[float]) -> dict:
         """The base document with the free parameters set to ``x``."""
         doc = copy.deepcopy(self.base.document)
-        for f, value in zip(self.free, x):
-            for keys in resolve_path(self.base.document, f.path, self.base.source):
-                set_value(doc, keys, float(value))
+        base, source = self.base.document, self.base.source
+        set_values(doc, [(keys, float(v)) for f, v in zip(self.free, x) for keys in resolve_path(base, f.path, source)])
         return doc
 
     def label(self, x: Sequence[float]) -> str:

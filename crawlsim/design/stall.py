@@ -28,11 +28,11 @@ from typing import Any
 
 import numpy as np
 
-from crawlsim.analysis.stall import StallCause
+from crawlsim.analysis.stall import MOVING, StallCause
 from crawlsim.errors import CertificateError, GaitError, InputError
-from crawlsim.gait.docpaths import resolve_path
+from crawlsim.gait.apriori import margin
+from crawlsim.gait.docpaths import resolve_path, value_at
 from crawlsim.gait.document import Gait, gait_from_document
-from crawlsim.gait.signals import evaluate_many
 from crawlsim.study.simulation import _as_spec, run
 
 SMOOTH = 1e-6
@@ -154,7 +154,7 @@ def stall(gait: Gait | str, *, force: str | None = None, slope: bool = False) ->
     if v_start is None:  # pragma: no cover - the gait itself was validated
         raise InputError(spec.source, path, why or "refused")
     scale = _natural_range(spec, quantity, path)
-    tolerance_v = 1e-9 * abs(v_start)
+    tolerance_v = MOVING * abs(v_start)
     if not abs(v_start) > 1e-12 * max(scale, 1.0):
         raise InputError(
             spec.source,
@@ -189,7 +189,8 @@ def stall(gait: Gait | str, *, force: str | None = None, slope: bool = False) ->
         value, hi = _smooth_zero(probe, lo, hi, v_lo, sign, direction, scale)
     else:
         cause = StallCause.JUMP
-        subset = _vanishing_subset(spec.replace(path, lo))
+        nearest = margin(spec.replace(path, lo))  # the J whose g~_J vanishes at the jump
+        subset = nearest.blocks if nearest.value <= 1e-6 * nearest.scale else None
     unit = "degree" if quantity == "slope" else spec.units.suffix("force").strip()
     return StallResult(
         quantity, path, value, (lo, hi), cause, v_start, v_lo, v_hi, s0, probe.evaluations, subset, reason, unit
@@ -236,10 +237,7 @@ def _stall_problem(gait: Gait | str, force: str | None, slope: bool) -> tuple[Ga
 
 def _start_load(spec: Gait, path: str) -> float:
     """The gait's own load at ``path``: a constant number."""
-    keys = resolve_path(spec.document, path, spec.source)[0]
-    node: Any = spec.document
-    for key in keys:
-        node = node[key]
+    node = value_at(spec.document, resolve_path(spec.document, path, spec.source)[0])
     if not isinstance(node, (int, float)) or isinstance(node, bool):
         raise InputError(
             spec.source, path, f"expected a number at {path}, got {node!r}: the stall search varies a constant load"
@@ -299,25 +297,3 @@ def _smooth_zero(
             value = root
             hi = lo + 2 * (root - lo) if abs(root - lo) > abs(hi - lo) / 2 else hi
     return value, hi
-
-
-def _vanishing_subset(gait: Gait) -> tuple[int, ...] | None:
-    """The subset J whose shifted uniqueness sum g~_J is nearest to 0 over the cycle's samples
-    (docs/model.md §3, §6); None for more than 16 blocks or when none is near 0."""
-    N = gait.blocks
-    if N > 16:
-        return None
-    plus, minus = gait.thresholds()
-    u = np.linspace(0.0, 1.0, 33)[:-1]
-    a, b = evaluate_many(plus, u), evaluate_many(minus, u)  # (samples, N)
-    scale = float(np.max(np.sum(np.abs(a) + np.abs(b), axis=1)))
-    best, best_value = None, math.inf
-    for mask in range(2**N):
-        inside = np.array([(mask >> j) & 1 for j in range(N)], dtype=bool)
-        g = a[:, inside].sum(axis=1) - b[:, ~inside].sum(axis=1)
-        value = float(np.min(np.abs(g)))
-        if value < best_value:
-            best, best_value = inside, value
-    if best is None or best_value > 1e-6 * scale:
-        return None
-    return tuple(int(j) + 1 for j in np.nonzero(best)[0])

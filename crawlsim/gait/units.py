@@ -244,7 +244,7 @@ def path_quantity(kind: str, keys: tuple[str | int, ...]) -> str:
     names = [k for k in keys if isinstance(k, str)]
     if not names or names[0] in ("simulation", "blocks", "units"):
         return "1"
-    if names[-1] in ("phase", "times"):
+    if names[-1] in ("phase", "times", "phase_step"):
         return "1"
     first = names[0]
     if first == "period":

@@ -25,7 +25,8 @@ from crawlsim.io.runfile import TIME_DIMENSIONS
 def read_results(path: Any) -> dict[str, Any]:
     """Load a results file (format_version 1 or 2) into plain dicts of arrays: ``{"attrs",
     "trajectory", "convergence", "limit"}`` and the groups' attributes as ``"<group>_attrs"``,
-    plus ``"process"``, ``"events"`` and ``"energy"`` when the file has them. Format 2 adds
+    plus ``"process"``, ``"events"``, ``"energy"`` and ``"rigid"`` (with ``"rigid_attrs"``) when the
+    file has them. Format 2 adds
     ``"coordinates"`` (the root coordinate variables: block, link, constraint, ...) and
     ``/limit/step``; files that record the periodic-limit solver add ``"limit_solver"`` and
     ``"limit_solver_attrs"`` (``/limit/solver``). Raises `ResultsFileError` naming what is
@@ -38,9 +39,11 @@ def read_results(path: Any) -> dict[str, Any]:
                 raise ResultsFileError(f"{source}: missing group /{group}")
             out[group] = _group(f, group)
             out[group + "_attrs"] = {k: plain(v) for k, v in f[group].attrs.items()}
-        for group in ("process", "events", "energy"):
+        for group in ("process", "events", "energy", "rigid"):
             if group in f:
                 out[group] = _group(f, group)
+        if "rigid" in f:
+            out["rigid_attrs"] = {k: plain(v) for k, v in f["rigid"].attrs.items()}
         if "solver" in f["limit"]:  # files since the periodic-limit solver
             out["limit_solver"] = variables(f["limit"]["solver"])
             out["limit_solver_attrs"] = {k: plain(v) for k, v in f["limit"]["solver"].attrs.items()}

@@ -265,7 +265,7 @@ def _write_results(f: h5py.File, scales: Scales, layout: _SweepLayout, columns: 
     ds = scales.coordinate(results, "point", layout.points)
     describe_var(ds, SWEEP_VARIABLES["point"], "1")
     for p, n in zip(layout.paths, layout.names):
-        ds = results.create_dataset(n, data=np.asarray(columns[p]), track_order=True)
+        ds = write_column(results, n, columns[p])
         scales.attach(ds, ("point",))
         describe_var(ds, layout.axis_var(p), units.of(layout.axis_var(p).quantity))
         ds.attrs["path"] = p

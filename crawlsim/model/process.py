@@ -14,7 +14,7 @@ A generic polyhedral sweeping process (docs/model.md §5, ``kind: sweeping-proce
 same `SweepingProcess` with its own B, c(t), M and z(0) and no crawler fields, so it is stepped,
 certified and analysed by the same code; `compile` dispatches on the kind.
 
-B and M live in the process's `crawlsim.kernel.kkt.Polyhedron`: for a crawler a `ChainPolyhedron`, which
+B and M live in the process's `crawlsim.projection.kkt.Polyhedron`: for a crawler a `ChainPolyhedron`, which
 never forms anything of size N^2, so compiling, like stepping, costs O(N) per grid time.
 Everything time-dependent is tabulated once on the period's grid, vectorised over all times.
 """
@@ -28,9 +28,9 @@ import numpy as np
 
 from crawlsim.gait.document import Gait, ProcessSpec
 from crawlsim.gait.signals import Signal, evaluate_many
-from crawlsim.kernel.kkt import ChainPolyhedron, DensePolyhedron, Polyhedron
 from crawlsim.model.crawler import Crawler, offsets_of, signals_of, slips
 from crawlsim.model.offsets import PiecewiseOffsets
+from crawlsim.projection.kkt import ChainPolyhedron, DensePolyhedron, Polyhedron
 
 #: Grid times closer than this (in cycles) to a breakpoint are merged into the breakpoint.
 GRID_MERGE = 1e-12
@@ -161,7 +161,7 @@ def _period_grid(steps_per_period: int, bp: np.ndarray) -> np.ndarray:
     if bp.size:
         near = np.min(np.abs(uniform[:, None] - bp[None, :]), axis=1) <= GRID_MERGE
         uniform = uniform[~near]
-    u = np.union1d(uniform, bp)
+    u = np.sort(np.concatenate([uniform, bp]))  # np.union1d, but without importing numpy.ma
     keep = np.concatenate([[True], np.diff(u) > GRID_MERGE])
     u = u[keep]
     u[0], u[-1] = 0.0, 1.0

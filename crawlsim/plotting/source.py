@@ -143,9 +143,32 @@ def need(results: dict, figure: str, *paths: str) -> None:
             hint = " (this result keeps no trajectory: use crawlsim.simulate(gait), which keeps it by default)"
         elif from_object and (group == "process" or name in PROCESS_SERIES):
             hint = " (this result records no provenance, whose gait document gives it)"
+        elif group == "rigid":
+            hint = " (crawlsim run --rigid writes it)"
         elif path in ("limit/lengths", "limit/friction", "limit/offsets", "process/normals"):
             hint = " (files written before crawlsim stored it lack it; rerun `crawlsim run`)"
         raise ResultsFileError(f"the {figure} figure needs /{path}, which is missing{hint}")
+
+
+def last_periods(results: dict, last: int) -> tuple[Any, Any]:
+    """The times and block positions of the last ``last`` periods of the stored trajectory (all
+    of it when it holds fewer): the window the figures zoom on (``--last``)."""
+    import numpy as np
+
+    t = np.asarray(results["trajectory"]["t"], dtype=float)
+    keep = t >= t[-1] - last * run_period(results) * (1 + 1e-12)
+    return t[keep], np.asarray(results["trajectory"]["x"], dtype=float)[keep]
+
+
+def step_slip(x: Any) -> Any:
+    """The slip state of each block on each stored step, (G, N) in -1, 0, 1: the sign of its
+    displacement over the step, a displacement below roundoff of the crawler's size counted as
+    stick."""
+    import numpy as np
+
+    dx = np.diff(x, axis=0)
+    tol = 1e-9 * max(float(np.max(np.abs(x))), 1.0)
+    return np.where(dx > tol, 1, np.where(dx < -tol, -1, 0)).astype(np.int8)
 
 
 def run_name(results: dict) -> str:

@@ -46,6 +46,7 @@ from crawlsim.status import Convergence, LimitMethod, RunStatus
 if TYPE_CHECKING:
     import xarray
 
+    from crawlsim.analysis.rigid import RigidLimit
     from crawlsim.io.runfile import ResultsWriter
 
 Spec = Gait | ProcessSpec
@@ -156,6 +157,14 @@ class SimulationResult:
         self._write_to(Path(path))
         return Path(path)
 
+    def plot(self, figure: str = "motion", **options: Any) -> Any:
+        """The matplotlib figure ``figure`` of this run, as ``crawlsim plot`` draws it: one of
+        `crawlsim.plotting.FIGURE_NAMES` (motion, gait-diagram, kymograph, convergence,
+        shape-space), with its function's options (``last=3``, ``coords=(0, 2)``)."""
+        from crawlsim.plotting.output import draw_figure
+
+        return draw_figure(self, figure, **options)
+
     def to_xarray(self) -> xarray.DataTree:
         """The results as an `xarray.DataTree` with the groups, names, dimensions and
         attributes of the results file (it is read from the same bytes): ``time`` is an index,
@@ -194,6 +203,21 @@ def _none(value: Any) -> Any:
     return None if isinstance(value, float) and math.isnan(value) else value
 
 
+#: The summary's keys of `EnergyLedger`'s fields, in their order.
+_LEDGER_KEYS = (
+    "dissipation_per_period",
+    "dissipation_error_estimate",
+    "cost_of_transport",
+    "actuator_work_per_period",
+    "jump_loss_per_period",
+    "energy_balance_residual",
+    "cost_of_transport_bound",
+    "efficiency",
+    "load_work_per_period",
+    "discretisation_loss_per_period",
+)
+
+
 def _run_of_file(data: Mapping[str, Any]) -> RunResult:
     """The `RunResult` of `read_results`'s dicts: the scalars of the summary (summary_json;
     files written before a number existed give its default, or the root attribute of the same
@@ -214,11 +238,7 @@ def _run_of_file(data: Mapping[str, Any]) -> RunResult:
             get("v0_error_reason"),
             get("displacement_per_period"),
         )
-        energy = EnergyLedger(
-            *(get(key) for key in ("dissipation_per_period", "dissipation_error_estimate", "cost_of_transport")),
-            *(get(key) for key in ("actuator_work_per_period", "jump_loss_per_period", "energy_balance_residual")),
-            *(get(key) for key in ("cost_of_transport_bound", "efficiency", "load_work_per_period")),
-        )
+        energy = EnergyLedger(*(get(key) for key in _LEDGER_KEYS))
     fit = None
     if get("contraction_rate") is not None:
         fit = RateFit(get("contraction_rate"), get("contraction_rate_error"), get("contraction_rate_periods", 0))
@@ -320,11 +340,12 @@ def _writer(target: Any, process: SweepingProcess, spec: Spec, save_every: int, 
     return ResultsWriter(target, process, save_every=save_every, units=spec.units, trajectory=trajectory)
 
 
-def _finish(writer: ResultsWriter, result: SimulationResult, spec: Spec) -> None:
-    """The results file's analysis, coordinates and attributes, and its publication."""
+def _finish(writer: ResultsWriter, result: SimulationResult, spec: Spec, rigid: RigidLimit | None = None) -> None:
+    """The results file's analysis, coordinates and attributes (and ``rigid``), and its
+    publication."""
     kind = str(spec.document.get("kind", "crawler"))
     unchecked = getattr(spec, "uniqueness_unchecked", False)
-    writer.finish(result, result.provenance, kind=kind, unchecked_uniqueness=unchecked)
+    writer.finish(result, result.provenance, kind=kind, unchecked_uniqueness=unchecked, rigid=rigid)
 
 
 def run(
@@ -335,9 +356,11 @@ def run(
     check_every_step: bool = False,
     progress: Progress | None = None,
     history: bool = True,
+    rigid: RigidLimit | None = None,
 ) -> SimulationResult:
     """Simulate a gait to its periodic regime; write the HDF5 results file if ``output`` is given
-    (the command line's ``crawlsim run``).
+    (the command line's ``crawlsim run``), with ``rigid``, the gait's rigid limit
+    (`crawlsim.api.rigid_limit`), in its /rigid group.
 
     ``gait`` is a `Gait`, a `ProcessSpec` (a generic sweeping process, whose run has no velocity:
     v0 and the other crawler keys are None) or the path of either file. Its ``simulation``
@@ -355,7 +378,7 @@ def run(
     with _writer(Path(output), process, spec, save_every, True) as writer:
         run_ = _settle(spec, process, check_every_step, progress, sink=writer).result
         result = SimulationResult(run_, units=spec.units, provenance=record, output=Path(output))
-        _finish(writer, result, spec)
+        _finish(writer, result, spec, rigid)
     return result
 
 

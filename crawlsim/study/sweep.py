@@ -35,15 +35,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
-import yaml
 
 from crawlsim import plotting
-from crawlsim.analysis.stall import curve_marks
 from crawlsim.errors import SweepSpecError
 from crawlsim.gait.document import Gait
 from crawlsim.io.runread import read_attrs
 from crawlsim.io.sweepfile import read_sweep, write_sweep
-from crawlsim.status import PointStatus
 from crawlsim.study.executors import MIN_CHUNK, WorkerPool, run_dask, run_local, run_on_pool
 from crawlsim.study.grid import SweepGrid, check_some_point_runs, make_grid
 from crawlsim.study.journal import Journal, journal_path
@@ -52,6 +49,8 @@ from crawlsim.study.table import SweepTable, is_hdf5, read_table, table_payload,
 
 if TYPE_CHECKING:
     import xarray
+
+    from crawlsim.plotting.style import FigureOptions
 
 
 class SweepInterrupted(KeyboardInterrupt):
@@ -118,7 +117,7 @@ def run_sweep(
         np.asarray(indices),
         tuple(finished[int(i)] for i in indices),
         grid.gait_yaml,
-        grid.base.source,
+        grid.source,
         shard,
         computed=len(todo),
         dims=grid.dims,
@@ -198,10 +197,26 @@ def _grid_dataset(source: Any) -> xarray.Dataset:
     attrs = read_attrs(source)
     if isinstance(source, io.IOBase):
         source.seek(0)
+    if not hasattr(xr.Dataset, "crawlsim"):
+        _register_accessor(xr)
     with xr.open_dataset(source, engine="h5netcdf", group="grid", decode_timedelta=False) as ds:
         grid = cast("xarray.Dataset", ds.load())
     grid.attrs = {**attrs, **grid.attrs}
-    return grid
+    # keyed by the paths the user passed (the file's names, `axis_name`, avoid dots)
+    return grid.rename({name: grid[name].attrs["path"] for name in grid.coords if "path" in grid[name].attrs})
+
+
+def _register_accessor(xr: Any) -> None:
+    """``grid.crawlsim.plot()`` on the Datasets of `crawlsim.sweep` and `crawlsim.open_sweep`:
+    the sweep figure, as ``crawlsim plot SWEEP.h5`` draws it (``grid.plot`` is xarray's own)."""
+
+    @xr.register_dataset_accessor("crawlsim")
+    class SweepAccessor:
+        def __init__(self, grid: Any) -> None:
+            self._grid = grid
+
+        def plot(self) -> Any:
+            return plotting.sweep_data_figure(self._grid)
 
 
 def check_shard_output(shard, output) -> None:
@@ -214,43 +229,13 @@ def check_shard_output(shard, output) -> None:
         )
 
 
-def sweep_figure_data(table: SweepTable) -> tuple[dict, np.ndarray, np.ndarray]:
-    """What `crawlsim.plotting.sweep_figure` draws: the values of each grid dimension (named by
-    its first path), v0 on the grid, and the points without a v0 (failed or invalid)."""
-    dims = table.dimension_paths()
-    if len(dims) not in (1, 2):
-        raise SweepSpecError(
-            "--plot", "", f"a sweep figure shows one or two swept dimensions, this sweep has {len(dims)}"
-        )
-    first = dict(zip(table.paths, table.axes))
-    axes = {paths[0]: np.asarray(first[paths[0]], dtype=float) for paths in dims}
-    status = table.grid("status")
-    missing = (status == PointStatus.FAILED) | (status == PointStatus.INVALID)
-    return axes, table.grid("v0"), missing
+def plot_table(table: SweepTable, path, options: FigureOptions | None = None) -> None:
+    """The sweep figure of ``table`` (`crawlsim.plotting.sweeps.sweep_data_figure`), drawn with
+    ``options`` (`crawlsim.plotting.style.FigureOptions`: dpi, size, style sheet) and written
+    atomically."""
+    from crawlsim.plotting.style import FigureOptions, user_style  # start-up: matplotlib for figures only
 
-
-def plot_table(table: SweepTable, path, title: str | None = None, figure_options: dict | None = None) -> None:
-    """v0 against one swept dimension, or a heat map over two, with the points that have no v0
-    (failed or invalid) marked; written atomically."""
-    axes, v0, _ = sweep_figure_data(table)
-    if title is None:
-        document = yaml.safe_load(table.gait_yaml) if table.gait_yaml else None
-        name = document.get("name") if isinstance(document, dict) else None
-        title = f"{name or Path(table.source).stem}: average velocity over a sweep"
-    marks = None
-    if len(axes) == 1 and table.gait_yaml:
-        name = next(iter(axes))
-        marks = curve_marks(table.gait_yaml, name, axes[name], v0)
-    # The statuses themselves, not a failed/ok mask: an invalid gait and a failed run are
-    # different answers and are marked differently (docs/figures.md).
-    status = table.grid("status")
-    figure = plotting.sweep_figure(
-        axes,
-        v0,
-        status,
-        title,
-        units=plotting.units_of({"gait_yaml": table.gait_yaml}),
-        displacement=table.grid("displacement_per_period"),
-        marks=marks,
-    )
-    plotting.save_figure(figure, path, **(figure_options or {}))
+    options = options or FigureOptions()
+    with user_style(options.style):
+        figure = plotting.sweep_data_figure(table_payload(table))
+        plotting.save_figure(figure, path, dpi=options.dpi, figsize=options.figsize)

@@ -9,6 +9,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -118,6 +119,13 @@ class SweepTable:
         full = np.full(math.prod(self.shape), np.nan if values.dtype != object else "", dtype=values.dtype)
         full[self.points] = values
         return full.reshape(self.shape)
+
+    def plot(self) -> Any:
+        """The sweep figure of this table (`crawlsim.plotting.sweeps.sweep_data_figure`), a
+        matplotlib figure."""
+        from crawlsim.plotting.sweeps import sweep_data_figure
+
+        return sweep_data_figure(table_payload(self))
 
     def to_csv(self) -> str:
         """The table as ``crawlsim velocity --sweep`` prints it: CSV, one row per point."""
