@@ -48,7 +48,9 @@ import time
 from pathlib import Path
 
 import crawlsim
-from crawlsim.design.optimize import Method, OptimizationResult, make_problem, optimize
+from crawlsim.design.optimize import optimize
+from crawlsim.design.optresult import OptimizationResult
+from crawlsim.design.problem import Method, make_problem
 from crawlsim.gait.document import gait_from_document
 
 ROOT = Path(__file__).resolve().parents[1]
