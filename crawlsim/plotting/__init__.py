@@ -53,7 +53,6 @@ _LAZY = {
     "pareto_figure": "optimization",
     "write_animation": "animation",
     "FigureOptions": "style",
-    "units_of": "style",
 }
 
 __all__ = [
