@@ -12,11 +12,10 @@ integrator and its settings, the versions, and the call that made it.
 
 from __future__ import annotations
 
-import io
 import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -30,7 +29,6 @@ from crawlsim.study.simulation import (
     Trajectory,
     _as_spec,
     _with_settings,
-    _xarray,
     from_results,
     load_gait,
     open_run,
@@ -42,10 +40,11 @@ if TYPE_CHECKING:
     import xarray
 
     from crawlsim.analysis.rigid import RigidLimit
+    from crawlsim.analysis.run import Settled
     from crawlsim.analysis.sensitivity import SensitivityResult
+    from crawlsim.design.optresult import OptimizationResult
     from crawlsim.study.grid import SweepGrid
-    from crawlsim.study.optresult import OptimizationResult
-    from crawlsim.study.sweep import SweepTable
+    from crawlsim.study.table import SweepTable
 
 __all__ = [
     "Rerun",
@@ -82,7 +81,7 @@ def sweep(
 
     Returns an `xarray.Dataset` on the grid, one dimension per swept path, named by the path as
     given (``grid.v0.sel({"links.*.amplitude": 0.2})``; the file names it
-    `crawlsim.io.hdf5.axis_name`, ``links_all_amplitude``):
+    `crawlsim.io.sweepfile.axis_name`, ``links_all_amplitude``):
     v0, displacement_per_period, periods, steps, convergence and status (CF flags: see their
     ``flag_meanings``) and message, with the provenance as attributes, exactly the ``/grid``
     group of a sweep file. **Without xarray** (``pip install 'crawlsim[xarray]'``) it returns
@@ -90,13 +89,13 @@ def sweep(
     table. Settings given override the gait's ``simulation`` block. ``gait`` may also be a
     grid already made (`crawlsim.study.grid.make_grid`: linked paths, extra columns), swept as
     it is (no ``axes``, no settings). ``sensitivity``: dotted paths (with ``*``) whose
-    ``dv0/dPATH`` are added at every point, with units (`crawlsim.analysis.sensitivity_sweep`).
+    ``dv0/dPATH`` are added at every point, with units (`crawlsim.study.points.with_derivatives`).
     """
-    from crawlsim.study import sweep as sweeps
+    from crawlsim.study import grid  # start-up: numpy and YAML only for sweeps (its axes)
+    from crawlsim.study import sweep as sweeps  # start-up: h5py and the sweep engine only for sweeps
 
-    if isinstance(gait, sweeps.SweepGrid):
-        table = sweeps.sweep(gait, output=output, jobs=jobs, progress=progress, sensitivity=sensitivity)
-        return _sweep_dataset(table)
+    if isinstance(gait, grid.SweepGrid):
+        return sweeps.dataset(sweeps.sweep(gait, output=output, jobs=jobs, progress=progress, sensitivity=sensitivity))
     spec = _with_settings(
         _as_spec(gait),
         integrator=integrator,
@@ -108,7 +107,7 @@ def sweep(
         raise SweepSpecError(
             spec.source, "", "sweeps run crawler gaits (kind: crawler), not generic sweeping processes"
         )
-    axis_list = [sweeps.Axis(path, _axis_values(path, values)) for path, values in (axes or {}).items()]
+    axis_list = [grid.Axis(path, _axis_values(path, values)) for path, values in (axes or {}).items()]
     call = _provenance.python_call(
         "crawlsim.sweep",
         gait,
@@ -123,83 +122,26 @@ def sweep(
     )
     with _provenance.recording(call):
         table = sweeps.sweep(spec, axis_list, output=output, jobs=jobs, progress=progress, sensitivity=sensitivity)
-        return _sweep_dataset(table)
-
-
-def _sweep_dataset(table: SweepTable) -> xarray.Dataset | SweepTable:
-    """The ``/grid`` group of the table's sweep file as an `xarray.Dataset` (the table itself
-    without xarray)."""
-    from crawlsim.study import sweep as sweeps
-
-    try:
-        _xarray()
-    except ImportError:
-        return table
-    from crawlsim.io.sweepfile import write_sweep
-
-    buffer = io.BytesIO()
-    write_sweep(buffer, **sweeps.table_payload(table))
-    return _grid_dataset(buffer)
+        return sweeps.dataset(table)
 
 
 def open_sweep(path: str | Path) -> xarray.Dataset | SweepTable:
     """Read a sweep file as `sweep` returns it: the `xarray.Dataset` of its ``/grid`` with the
     provenance as attributes, or without xarray the `crawlsim.study.sweep.SweepTable`. Raises
     `crawlsim.errors.ResultsFileError` for a file that is not a sweep file."""
-    from crawlsim.io.sweepfile import read_sweep
-    from crawlsim.study import sweep as sweeps
+    from crawlsim.study import sweep as sweeps  # start-up: h5py and the sweep engine only for sweeps
 
-    read_sweep(path)  # refuses what is not a sweep file, naming what is missing
-    try:
-        _xarray()
-    except ImportError:
-        return sweeps.read_table(path)
-    return _grid_dataset(path)
+    return sweeps.open_dataset(path)
 
 
 def open_optimization(path: str | Path) -> OptimizationResult:
     """Read an optimisation file (``crawlsim optimize -o``) as the
-    `crawlsim.study.optresult.OptimizationResult` that `crawlsim.study.optimize.optimize`
+    `crawlsim.design.optresult.OptimizationResult` that `crawlsim.design.optimize.optimize`
     returns (`OptimizationResult.from_file`). Raises `crawlsim.errors.ResultsFileError` for a
     file that is not an optimisation file."""
-    from crawlsim.study.optresult import OptimizationResult
+    from crawlsim.design.optresult import OptimizationResult  # start-up: h5py only for its file
 
     return OptimizationResult.from_file(path)
-
-
-def _grid_dataset(source: Any) -> xarray.Dataset:
-    """The ``/grid`` group of a sweep file (a path or a binary file object) as a Dataset, the
-    root attributes (provenance) merged into its own."""
-    from crawlsim.io.runread import read_attrs
-
-    xr = _xarray()
-    if isinstance(source, io.IOBase):
-        source.seek(0)
-    attrs = read_attrs(source)
-    if isinstance(source, io.IOBase):
-        source.seek(0)
-    if not hasattr(xr.Dataset, "crawlsim"):
-        _register_accessor(xr)
-    with xr.open_dataset(source, engine="h5netcdf", group="grid", decode_timedelta=False) as ds:
-        grid = cast("xarray.Dataset", ds.load())
-    grid.attrs = {**attrs, **grid.attrs}
-    # keyed by the paths the user passed (the file's names, `axis_name`, avoid dots)
-    return grid.rename({name: grid[name].attrs["path"] for name in grid.coords if "path" in grid[name].attrs})
-
-
-def _register_accessor(xr: Any) -> None:
-    """``grid.crawlsim.plot()`` on the Datasets of `sweep` and `open_sweep`: the sweep figure,
-    as ``crawlsim plot SWEEP.h5`` draws it (``grid.plot`` is xarray's own)."""
-
-    @xr.register_dataset_accessor("crawlsim")
-    class SweepAccessor:
-        def __init__(self, grid: Any) -> None:
-            self._grid = grid
-
-        def plot(self) -> Any:
-            from crawlsim.plotting.sweeps import sweep_data_figure
-
-            return sweep_data_figure(self._grid)
 
 
 def _axis_values(path: str, values: Iterable[float]) -> tuple[float, ...]:
@@ -215,7 +157,9 @@ def _axis_values(path: str, values: Iterable[float]) -> tuple[float, ...]:
     return tuple(items)
 
 
-def sensitivity(gait: Spec | str | Path, paths: Sequence[str] | str, *, one_sided: bool = True) -> SensitivityResult:
+def sensitivity(
+    gait: Spec | str | Path, paths: Sequence[str] | str, *, one_sided: bool = True, run: Settled | None = None
+) -> SensitivityResult:
     """The exact derivatives of v0, of the displacement and dissipation per period and of the
     cost of transport with respect to the numbers ``paths`` name in ``gait`` (dotted paths with
     ``*`` as in ``--sweep``; each ``*`` expands to one parameter per element), at the verified
@@ -227,9 +171,10 @@ def sensitivity(gait: Spec | str | Path, paths: Sequence[str] | str, *, one_side
 
     Where v0 has a kink or a jump, a parameter's ``smooth`` is False, ``v0.value`` is None and
     ``left`` / ``right`` hold one-sided derivatives measured with the same integrator
-    (``one_sided=False`` skips them).
+    (``one_sided=False`` skips them). ``run``: what a run of this gait settled on (the
+    ``settled`` of `run`'s result), whose limit period is walked instead of searched again.
     """
-    from crawlsim.analysis.sensitivity import sensitivity as _sensitivity
+    from crawlsim.analysis.sensitivity import sensitivity as _sensitivity  # start-up: its kernels only when asked
 
     spec = _as_spec(gait)
     if not isinstance(spec, Gait):
@@ -238,7 +183,7 @@ def sensitivity(gait: Spec | str | Path, paths: Sequence[str] | str, *, one_side
             "",
             "sensitivities are defined for crawler gaits (kind: crawler), not generic sweeping processes",
         )
-    return _sensitivity(spec, paths, one_sided=one_sided)
+    return _sensitivity(spec, paths, one_sided=one_sided, run=run)
 
 
 def rigid_limit(gait: Spec | str | Path) -> RigidLimit:
@@ -252,7 +197,7 @@ def rigid_limit(gait: Spec | str | Path) -> RigidLimit:
     Raises `crawlsim.errors.DegenerateModelError` where the balance does not fix the motion.
     """
     from crawlsim.analysis.rigid import rigid_limit as _rigid_limit
-    from crawlsim.gait.document import need_crawler
+    from crawlsim.gait.crawler_spec import need_crawler
 
     spec = _as_spec(gait)
     need_crawler(spec, "crawlsim.rigid_limit")

@@ -13,6 +13,9 @@ from __future__ import annotations
 import os
 import sys
 
+from crawlsim import __version__
+from crawlsim._help import TEXT
+
 
 def _columns() -> int:
     """The width `shutil.get_terminal_size` reports (``COLUMNS``, else the terminal's, else 80),
@@ -31,15 +34,11 @@ def _columns() -> int:
 
 def main() -> None:
     if sys.argv[1:] == ["--version"]:
-        from crawlsim import __version__
-
         sys.stdout.write(f"crawlsim, version {__version__}\n")
         sys.exit(0)
     if sys.argv[1:] == ["--help"] and os.path.basename(sys.argv[0]) == "crawlsim" and _columns() >= 80:
-        from crawlsim._help import TEXT
-
         sys.stdout.write(TEXT)
         sys.exit(0)
-    from crawlsim.cli import main as cli
+    from crawlsim.cli import main as cli  # start-up: click only beyond --version and --help
 
     cli()

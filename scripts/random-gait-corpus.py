@@ -168,7 +168,7 @@ def main() -> int:
         row: dict = {"seed": seed, "blocks": gait.blocks}
         for integrator in ("catch-up", "exact"):
             row[integrator] = run_one(gait, integrator, args.steps, args.timeout)
-        L = compile_gait(gait, args.steps).lengths
+        L = compile_gait(gait, args.steps).crawler.lengths
         row["stroke_velocity"] = float(np.max(L.max(axis=0) - L.min(axis=0), initial=0.0) / gait.period)
         rows.append(row)
         a, b = row["catch-up"], row["exact"]

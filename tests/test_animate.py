@@ -14,7 +14,7 @@ from crawlsim import api
 from crawlsim.cli import main
 from crawlsim.errors import OutputError
 from crawlsim.gait.document import load_gait, with_simulation
-from crawlsim.io.hdf5 import read_results
+from crawlsim.io.runread import read_results
 from crawlsim.plotting import animation
 from crawlsim.plotting.animation import (
     ANIMATION_DPI,

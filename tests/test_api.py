@@ -13,10 +13,11 @@ import numpy as np
 import pytest
 
 import crawlsim
+import crawlsim.study.sweep
 from crawlsim import api
 from crawlsim.errors import GaitError, SweepSpecError
-from crawlsim.io.hdf5 import read_results
-from crawlsim.study.sweep import Axis, make_grid
+from crawlsim.io.runread import read_results
+from crawlsim.study.grid import Axis, make_grid
 
 from .conftest import GAITS, ROOT
 
@@ -188,7 +189,7 @@ def test_generic_processes_run_through_the_same_api():
     assert isinstance(spec, crawlsim.ProcessSpec)
     r = crawlsim.simulate(spec, steps_per_period=60)
     assert r.v0 is None and r.trajectory.x is None and r.trajectory.reaction is not None
-    assert r.contraction_rate == pytest.approx(1 / 8, rel=1e-3)  # the paper's phi^3
+    assert r.rate.rate == pytest.approx(1 / 8, rel=1e-3)  # the paper's phi^3
     assert spec.replace("period", 2.0).period == 2.0
 
 
@@ -223,7 +224,7 @@ def test_sweep_without_xarray_returns_the_table(monkeypatch, tmp_path):
     def missing():
         raise ImportError("no xarray")
 
-    monkeypatch.setattr(api, "_xarray", missing)
+    monkeypatch.setattr(crawlsim.study.sweep, "_xarray", missing)
     out = tmp_path / "s.h5"
     table = crawlsim.sweep(
         crawlsim.load_gait(INCHING), {"links.0.amplitude": [0.2, 0.3]}, steps_per_period=20, output=out

@@ -18,7 +18,7 @@ from crawlsim.cli import (
     DEFAULT_TOLERANCE,
     main,
 )
-from crawlsim.gait.document import Simulation
+from crawlsim.gait.settings import Simulation
 
 from .conftest import console_env
 
@@ -82,7 +82,7 @@ def test_the_examples_are_found():
 
 def test_defaults_in_the_help_are_the_gait_files_defaults():
     """The help says what wins: the gait file's value, else crawlsim's default, which is the
-    default of `crawlsim.gait.document.Simulation`."""
+    default of `crawlsim.gait.settings.Simulation`."""
     s = Simulation()
     assert (DEFAULT_STEPS_PER_PERIOD, DEFAULT_MAX_PERIODS, DEFAULT_TOLERANCE, str(DEFAULT_INTEGRATOR)) == (
         s.steps_per_period,

@@ -10,7 +10,7 @@ from click.testing import CliRunner
 
 from crawlsim import __version__
 from crawlsim.cli import main
-from crawlsim.io.hdf5 import read_results
+from crawlsim.io.runread import read_results
 
 from .conftest import iterated_examples
 
@@ -118,6 +118,12 @@ simulation: {steps_per_period: 100}
     assert len(result.stderr.strip().splitlines()) == 1, result.stderr
     assert "max_periods = 2" in result.stderr and "--max-periods" in result.stderr
     assert (tmp_path / "gait.h5").exists()
+    # the line is the run's own message: the tolerance it names is the one used, 1e-15 clamped
+    # to the roundoff floor
+    result = runner.invoke(main, ["run", str(gait), "--max-periods", "2", "--tolerance", "1e-15", "--json", "--force"])
+    message = json.loads(result.stdout)["message"]
+    assert "tolerance 1e-13 relative" in message
+    assert result.stderr == f"Not converged: {message}. The numbers printed are those of the last period.\n"
 
 
 def test_overrides_apply(runner, tmp_path):

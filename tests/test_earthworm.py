@@ -55,14 +55,14 @@ def test_it_moves_forward_and_converges_only_asymptotically(exact):
     N mu^+ v0 T, so the cost of transport (dissipation per distance) is N mu^+ = 101 exactly; a
     backward slip anywhere would add mu^- |dx| for no progress and raise it.
     """
-    assert exact.converged and exact.limit_method == "newton"
-    assert exact.v0 - exact.v0_error_estimate > 0
-    assert exact.v0_error_estimate <= 1e-12
+    assert exact.converged and exact.solver.method == "newton"
+    assert exact.v0 - exact.estimate.error_estimate > 0
+    assert exact.estimate.error_estimate <= 1e-12
     assert exact.v0 == pytest.approx(0.0694830455579, abs=1e-12)
     assert exact.convergence == "asymptotic"
-    assert 0.99 < exact.jacobian_rate < 1.0
-    assert exact.limit_periods <= 10
-    assert exact.cost_of_transport == pytest.approx(101.0, rel=1e-12)
+    assert 0.99 < exact.solver.jacobian_rate < 1.0
+    assert exact.solver.periods <= 10
+    assert exact.energy.cost_of_transport == pytest.approx(101.0, rel=1e-12)
 
 
 def test_catch_up_agrees_with_exact_within_the_first_order_bound(document, exact):

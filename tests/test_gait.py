@@ -2,15 +2,9 @@ import numpy as np
 import pytest
 
 from crawlsim.errors import GaitError
-from crawlsim.gait.document import (
-    Simulation,
-    admissibility_violation,
-    gait_from_document,
-    load_gait,
-    parse_gait,
-    uniqueness_violation,
-    with_simulation,
-)
+from crawlsim.gait.crawler_spec import admissibility_violation, uniqueness_violation
+from crawlsim.gait.document import gait_from_document, load_gait, parse_gait, with_simulation
+from crawlsim.gait.settings import Simulation
 from crawlsim.gait.signals import Cosine, Steps
 
 from .conftest import GAITS

@@ -16,9 +16,11 @@ from click.testing import CliRunner
 from crawlsim.cli import main
 from crawlsim.errors import GaitError, ResultsFileError
 from crawlsim.gait.units import Units, path_quantity
-from crawlsim.io.hdf5 import FORMAT_VERSION, NOT_A_VARIABLE, axis_name, read_results, read_sweep
+from crawlsim.io.layout import FORMAT_VERSION, NOT_A_VARIABLE
+from crawlsim.io.runread import read_results
+from crawlsim.io.sweepfile import axis_name, read_sweep
 from crawlsim.plotting import plot_results
-from crawlsim.study.sweep import read_table
+from crawlsim.study.table import read_table
 
 from .conftest import GAITS, make_gait
 

@@ -56,7 +56,7 @@ def _sensitivity(name: str, integrator: str):
 
 
 def _stall(name: str, integrator: str):
-    from crawlsim.study.stall import stall
+    from crawlsim.design.stall import stall
 
     gait = crawlsim.load_gait(GAITS / name).replace("simulation.integrator", integrator)
     return stall(gait, slope=True).summary()

@@ -33,7 +33,7 @@ from crawlsim.integrate.limit import (
     subdominant_rate,
 )
 from crawlsim.integrate.stepping import make_stepper
-from crawlsim.io.hdf5 import read_results
+from crawlsim.io.runread import read_results
 from crawlsim.model.process import compile as compile_gait
 from crawlsim.study.paper import acute_angle_document
 
@@ -95,7 +95,7 @@ def process_of(document):
 
 
 def periods_simulated(result):
-    return result.steps // result.steps_per_period
+    return result.effort.steps // result.steps_per_period
 
 
 def metric_distance(process, a, b):
@@ -131,19 +131,19 @@ def runs():
 def test_newton_and_iteration_find_the_same_limit(runs, name, integrator):
     process, newton, reference, _ = runs[name, integrator]
     assert newton.converged and reference.converged
-    assert newton.limit_method == "newton" and newton.limit_newton_steps >= 1
+    assert newton.solver.method == "newton" and newton.solver.newton_steps >= 1
     if newton.v0 is not None:
         assert abs(newton.v0 - reference.v0) <= 1e-11 * abs(reference.v0)
     assert metric_distance(process, newton.limit.w, reference.limit.w) <= 1e-10
     # the verified period is periodic to the tolerance
-    assert newton.limit_residuals[-1] <= 1e-12
+    assert newton.solver.residuals[-1] <= 1e-12
 
 
 @pytest.mark.parametrize("integrator", INTEGRATORS)
 @pytest.mark.parametrize("name", ["square-7", "acute-0.5"])
 def test_newton_simulates_ten_times_fewer_periods_when_the_rate_exceeds_one_half(runs, name, integrator):
     _, newton, _, plain = runs[name, integrator]
-    assert plain.contraction_rate > 0.5
+    assert plain.rate.rate > 0.5
     assert periods_simulated(plain) >= 10 * periods_simulated(newton)
 
 
@@ -157,8 +157,8 @@ def test_jacobian_rate_agrees_with_the_true_iterates(runs, name, rate, integrato
     piecewise-affine maps they agree to 1e-4, and both equal the rates the module docstring
     lists (1/(1 + alpha^2) = 0.8 for the acute angle)."""
     _, newton, _, plain = runs[name, integrator]
-    assert newton.jacobian_rate == pytest.approx(plain.contraction_rate, rel=1e-4)
-    assert newton.jacobian_rate == pytest.approx(rate, rel=1e-4)
+    assert newton.solver.jacobian_rate == pytest.approx(plain.rate.rate, rel=1e-4)
+    assert newton.solver.jacobian_rate == pytest.approx(rate, rel=1e-4)
 
 
 @pytest.mark.parametrize("integrator", INTEGRATORS)
@@ -168,7 +168,7 @@ def test_fixed_point_on_a_kink_of_the_map(runs, integrator):
     lands on it exactly in one step (the piece is affine), verified by one plain period."""
     process, newton, _, _ = runs["acute-0.5", integrator]
     assert newton.limit.w[0] == pytest.approx([1.0, 0.0], abs=1e-12)
-    assert newton.limit_newton_steps == 1
+    assert newton.solver.newton_steps == 1
     # 2 true iterates, then the Newton period, which is also the verifying one
     assert periods_simulated(newton) == 3
     # the limit period's own Jacobian is the identity piece (no eigenvalue below 1); the rate
@@ -177,7 +177,7 @@ def test_fixed_point_on_a_kink_of_the_map(runs, integrator):
     stepper.reset(newton.limit.w[0])
     record = stepper.step_period()
     assert subdominant_rate(jacobian(process.polyhedron, record.visited)) == pytest.approx(0.0, abs=1e-12)
-    assert newton.jacobian_rate == pytest.approx(0.8, rel=1e-12)
+    assert newton.solver.jacobian_rate == pytest.approx(0.8, rel=1e-12)
 
 
 @pytest.mark.parametrize("integrator", INTEGRATORS)
@@ -192,8 +192,8 @@ def test_a_family_of_periodic_solutions(integrator):
     process = process_of(document)
     newton = simulate(process, integrator=integrator, limit="newton", history=False)
     plain = simulate(process, integrator=integrator, limit="iterate", history=False, tolerance=1e-13)
-    assert newton.limit_method == "newton" and newton.limit_residuals[-1] <= 1e-12
-    assert abs(newton.v0) <= newton.v0_error_estimate and newton.v0_error_estimate < 1e-12
+    assert newton.solver.method == "newton" and newton.solver.residuals[-1] <= 1e-12
+    assert abs(newton.v0) <= newton.estimate.error_estimate and newton.estimate.error_estimate < 1e-12
     # the family: the Jacobian of the limit period is the identity (J - I = 0, every
     # eigenvalue 1) ...
     stepper = make_stepper(process, integrator)
@@ -243,10 +243,10 @@ def test_iterates_periodic_on_another_member_of_a_family_stop_the_run(integrator
     np.testing.assert_allclose(stepper.step_period().w[-1], run.limit.w[0], atol=1e-10)
     # ... of a family: the solver alone (v0 only) verifies another member, with v0 = 0 as well
     solver = simulate(process, integrator=integrator, max_periods=max_periods, tolerance=1e-12, history=False)
-    assert solver.limit_method == "newton"
+    assert solver.solver.method == "newton"
     assert np.max(np.abs(solver.limit.w[0] - run.limit.w[0])) > 1e-4
     for r in (run, solver):
-        assert abs(r.v0) <= r.v0_error_estimate < 1e-11
+        assert abs(r.v0) <= r.estimate.error_estimate < 1e-11
 
 
 def test_not_converged_within_max_periods_exits_3(tmp_path):
@@ -402,7 +402,7 @@ def test_jacobian_matches_central_differences_of_the_period_map(integrator):
     else:
         assert not swaps
     # the rate of the Jacobian is the rate of the true iterates
-    assert limit.jacobian_rate == pytest.approx(subdominant_rate(fd), rel=1e-5)
+    assert limit.solver.jacobian_rate == pytest.approx(subdominant_rate(fd), rel=1e-5)
 
 
 def test_saltation_only_where_the_event_time_moves_with_the_start():

@@ -28,7 +28,7 @@ from crawlsim.cli import main
 from crawlsim.errors import ResultsFileError
 from crawlsim.gait.document import gait_from_document, load_gait, with_simulation
 from crawlsim.gait.units import Units as GaitUnits
-from crawlsim.io.hdf5 import read_results
+from crawlsim.io.runread import read_results
 from crawlsim.model import crawler as crawler_module
 from crawlsim.model.process import compile_gait
 from crawlsim.plotting import (
@@ -45,27 +45,18 @@ from crawlsim.plotting import (
     sweep_figure,
 )
 from crawlsim.plotting.convergence import MAX_MARKERS, marked_periods
-from crawlsim.plotting.figures import (
-    FOLLOW_PERIODS,
+from crawlsim.plotting.gait_diagram import (
     MAX_BAND_LABELS,
     MAX_FORCE_ROWS,
-    MAX_MOTION_BLOCKS,
     MAX_SERIES,
     block_forces,
-    cell_edges,
-    is_geometric,
-    jumps,
-    polygon,
     relative_stress,
-    section,
-    shape_space_instants,
-    shown_series,
     slip_runs,
     stress_bounds,
     stress_mode,
-    swept_ticks,
-    zero_contour,
 )
+from crawlsim.plotting.motion import FOLLOW_PERIODS, MAX_MOTION_BLOCKS
+from crawlsim.plotting.shape_space import polygon, section, shape_space_instants
 from crawlsim.plotting.style import (
     COLOUR_MAP,
     PALETTE,
@@ -75,8 +66,10 @@ from crawlsim.plotting.style import (
     label,
     path_dimension,
     path_label,
+    shown_series,
     units_of,
 )
+from crawlsim.plotting.sweeps import cell_edges, is_geometric, jumps, swept_ticks, zero_contour
 
 from .conftest import SOLVER_GAITS
 
@@ -1065,7 +1058,7 @@ def test_sweep_ticks_and_cells():
 def test_sweep_file_plot(tmp_path):
     """`crawlsim plot` on a sweep file draws its one figure (the sweep of `crawlsim velocity`,
     with its units when the gait file gives them): the heat map holds the file's values."""
-    from crawlsim.io.hdf5 import write_sweep
+    from crawlsim.io.sweepfile import write_sweep
 
     a, b = np.array([1.5, 2.0, 2.5]), np.array([5.0, 10.0])
     v0 = np.array([0.1, 0.2, np.nan, 0.4, 0.5, 0.6])
@@ -1095,7 +1088,7 @@ def test_sweep_file_plot(tmp_path):
     assert result.exit_code == 0, result.output
     (out,) = (tmp_path / "figs").iterdir()
     assert out.name == "grid-sweep.png" and result.output.strip() == str(out)
-    from crawlsim.io.hdf5 import read_sweep
+    from crawlsim.io.sweepfile import read_sweep
     from crawlsim.plotting import sweep_data_figure
 
     fig = sweep_data_figure(read_sweep(path))

@@ -255,7 +255,7 @@ def test_run_rigid_writes_draws_and_describes_it(tmp_path):
     """``run --rigid`` adds /rigid to the results file (the intervals tile the period), its
     figure to --plot, its v0 to the summary; ``info`` reports it with the uniqueness margin. A
     file without it has no rigid figure, and asking for one says how to get it (exit code 2)."""
-    from crawlsim.io.hdf5 import read_results
+    from crawlsim.io.runread import read_results
 
     runner = CliRunner()
     out = tmp_path / "p4.h5"
@@ -281,7 +281,7 @@ def test_sweep_figures_draw_the_asymptote_and_the_margin(tmp_path):
     """A stiffness sweep's figure draws v0_inf as its asymptote (here v0 T, the displacement per
     period, as the figure draws it); a friction sweep marks where the uniqueness margin reaches
     0 (peristalsis-4: 3 mu+ - mu- = 0 at friction.backward = 3, where v0 jumps)."""
-    from crawlsim.io.hdf5 import read_sweep
+    from crawlsim.io.sweepfile import read_sweep
     from crawlsim.plotting.sweeps import sweep_data_figure
 
     runner = CliRunner()

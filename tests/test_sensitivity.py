@@ -396,10 +396,11 @@ def test_gradient_search_two_block_bound():
     a in [0.1, 0.35] the maximum is at the upper bound, v0 = (0.7 - 0.2) / 1 = 0.5, which the
     gradient search of `crawlsim optimize` (exact gradients, bounds) reaches to roundoff. The
     two-lag example is tests/test_optimize.py's."""
-    from crawlsim.study import optimize as opt
+    from crawlsim.design import optimize as opt
+    from crawlsim.design.problem import Method, make_problem
 
-    problem = opt.make_problem(_two_block(a=0.2), ["links.0.amplitude=0.1:0.35"])
-    result = opt.optimize(problem, opt.Method(search="gradient", max_evaluations=40))
+    problem = make_problem(_two_block(a=0.2), ["links.0.amplitude=0.1:0.35"])
+    result = opt.optimize(problem, Method(search="gradient", max_evaluations=40))
     assert result.feasible
     assert result.value == pytest.approx(0.5, abs=1e-12)
 
@@ -551,7 +552,7 @@ def test_cli_summarises_many_coincident_events():
     from types import SimpleNamespace
 
     from crawlsim.analysis.sensitivity import Derivative, ParameterSensitivity
-    from crawlsim.cli.sensitivities import lines
+    from crawlsim.cli.velocity import _sensitivity_lines as lines
 
     none = Derivative(None, None)
     kinks = [f"a constraint is reached at t/T = {k / 10 + 0.03:.12g}, at the time of another event" for k in range(37)]

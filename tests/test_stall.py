@@ -23,9 +23,9 @@ from click.testing import CliRunner
 
 from crawlsim.analysis.stall import StallCause
 from crawlsim.cli import main
+from crawlsim.design.stall import stall
 from crawlsim.errors import InputError
 from crawlsim.gait.document import parse_gait
-from crawlsim.study.stall import stall
 
 from .conftest import GAITS
 
@@ -167,7 +167,7 @@ def test_the_slope_sweep_figure_agrees_with_crawlsim_stall(tmp_path):
     = 33.69 degrees v0 is roundoff (3.7e-17 at 34, 36 and 38 degrees, exactly 0 at 37), which is
     not motion. The figure marks the steepest slope where `crawlsim stall` finds it, as a jump
     between the grid points 33 and 34, and its axis carries the unit of the angle."""
-    from crawlsim.io.hdf5 import read_sweep
+    from crawlsim.io.sweepfile import read_sweep
     from crawlsim.plotting.sweeps import sweep_data_figure
 
     out = tmp_path / "slope.h5"

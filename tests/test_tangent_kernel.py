@@ -42,7 +42,7 @@ def _walks() -> dict:
             "simulation.integrator", integrator, "simulation.steps_per_period", 200
         )
         run = api.run(gait, history=False)
-        lim = S._limit_of_run(gait, run)
+        lim = S._limit_of_run(gait, run.settled)
         co = st.coefficients_of(gait, lim.process)
         params = [st.parameter_of(gait, co, keys) for keys in S._expand(gait, paths)]
         dC, dMu, dk = S._stack(co, [p for p in params if p.dC is not None])

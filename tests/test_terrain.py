@@ -115,13 +115,13 @@ def test_two_block_step_closed_form(a0, a1):
     d = result.history.displacement
     expected = _closed_form(a0, a1, len(d))
     np.testing.assert_allclose(d, expected, rtol=0, atol=1e-12)
-    assert result.terrain is not None and result.terrain.regime == "one-ground"
+    assert result.history.terrain is not None and result.history.terrain.regime == "one-ground"
     assert result.v0 == pytest.approx(0.6 - 2 * a1 / 10.0, abs=1e-12)  # the ground after the step
     # each block crosses x = 2 once, forward; a step up holds them there first, a step down never
-    crossings = result.terrain.crossings
+    crossings = result.history.terrain.crossings
     assert sorted(crossings[:, 1]) == [0, 1] and np.all(crossings[:, 2] == 2.0) and np.all(crossings[:, 3] == 1)
-    assert (len(result.terrain.holds) > 0) == (a1 > a0)
-    assert (result.jump_loss_per_period == 0.0) and result.energy_balance_residual == pytest.approx(0, abs=1e-14)
+    assert (len(result.history.terrain.holds) > 0) == (a1 > a0)
+    assert (result.energy.jump_loss == 0.0) and result.energy.balance_residual == pytest.approx(0, abs=1e-14)
 
 
 def test_step_up_and_down_are_not_mirror_images():
@@ -146,7 +146,7 @@ def test_a_slide_across_smoother_cells_is_one_step_down():
     result = crawlsim.simulate(_ground_gait(cells))
     d = result.history.displacement
     np.testing.assert_allclose(d, _closed_form(2.0, 1.0, len(d)), rtol=0, atol=1e-12)
-    assert len(result.terrain.crossings) == 6  # each block over three boundaries
+    assert len(result.history.terrain.crossings) == 6  # each block over three boundaries
 
 
 def test_a_slide_stops_at_rougher_ground():
@@ -160,9 +160,9 @@ def test_a_slide_stops_at_rougher_ground():
     d = result.history.displacement
     np.testing.assert_allclose(d, _play(np.array([2.0, 2.05]), np.array([2.0, 1.0, 3.0]), len(d)), rtol=0, atol=1e-12)
     # both blocks end held at 2.05, where a stroke of 0.6 cannot reach 3 + 3 (k = 10): stopped
-    assert result.terrain.regime == "locked" and result.terrain.lock == (1, 0) and result.v0 == 0.0
-    assert [tuple(h[:2]) for h in result.terrain.holds] == [(1, 2.05), (0, 2.05)]
-    assert math.isnan(result.terrain.holds[-1, 3])  # still held at the end
+    assert result.history.terrain.regime == "locked" and result.history.terrain.lock == (1, 0) and result.v0 == 0.0
+    assert [tuple(h[:2]) for h in result.history.terrain.holds] == [(1, 2.05), (0, 2.05)]
+    assert math.isnan(result.history.terrain.holds[-1, 3])  # still held at the end
 
 
 def _wave(blocks: int, **extra) -> dict:
@@ -253,7 +253,7 @@ def test_the_energy_balance_closes_on_every_period(name, integrator):
     assert crossed > 0
     # W = D + J (+ catch-up's loss) on the ground the run ends on, the terrain's friction in D
     result = crawlsim.simulate(gait.replace("simulation.max_periods", 60, "simulation.integrator", integrator))
-    assert abs(result.energy_balance_residual) <= 1e-12 * max(1.0, result.actuator_work_per_period)
+    assert abs(result.energy.balance_residual) <= 1e-12 * max(1.0, result.energy.actuator_work)
 
 
 @pytest.mark.parametrize("name", ["stripes", "patch-backward"])
@@ -385,9 +385,9 @@ def test_the_results_file_holds_the_ground_the_crossings_and_the_holds(tmp_path)
         assert list(g["crossing_block"]) == [2, 1] and list(g["crossing_position"]) == [2.0, 2.0]
         assert list(g["hold_block"]) == [2, 1] and np.all(np.isfinite(g["hold_end"][:]))
     back = crawlsim.open_run(tmp_path / "up.h5")
-    np.testing.assert_array_equal(back.terrain.crossings, result.terrain.crossings)
-    np.testing.assert_array_equal(back.terrain.held_periods, result.terrain.held_periods)
-    assert list(result.terrain.held_periods) == [2, 5, 6]
+    np.testing.assert_array_equal(back.history.terrain.crossings, result.history.terrain.crossings)
+    np.testing.assert_array_equal(back.history.terrain.held_periods, result.history.terrain.held_periods)
+    assert list(result.history.terrain.held_periods) == [2, 5, 6]
 
 
 def test_validate_explain_and_info_know_the_ground(tmp_path):
@@ -413,8 +413,8 @@ def test_a_motion_locked_to_stripes_moves_m_stripes_in_n_periods():
     """gaits/terrain/stripes-2.yaml: the state repeats every 8 periods, 3 stripes (repeat 1)
     on: v0 = 3/8, finite-time, to roundoff."""
     result = crawlsim.simulate(crawlsim.load_gait(GAITS / "terrain" / "stripes-2.yaml"))
-    assert result.terrain.regime == "locked" and result.terrain.lock == (8, 3)
-    assert result.v0 == pytest.approx(3 / 8, abs=1e-12) and result.v0_error_estimate < 1e-11
+    assert result.history.terrain.regime == "locked" and result.history.terrain.lock == (8, 3)
+    assert result.v0 == pytest.approx(3 / 8, abs=1e-12) and result.estimate.error_estimate < 1e-11
     assert str(result.convergence) == "finite-time"
 
 
@@ -427,9 +427,9 @@ def test_the_long_run_average_on_stripes_holds_within_its_estimate():
     gait = make_gait({**document, "terrain": stripes})
     short = crawlsim.simulate(gait.replace("simulation.max_periods", 150))
     long = crawlsim.simulate(gait.replace("simulation.max_periods", 1200))
-    assert short.terrain.regime == long.terrain.regime == "quasi-periodic"
-    assert long.v0_error_estimate < short.v0_error_estimate
-    assert abs(short.v0 - long.v0) <= short.v0_error_estimate
+    assert short.history.terrain.regime == long.history.terrain.regime == "quasi-periodic"
+    assert long.estimate.error_estimate < short.estimate.error_estimate
+    assert abs(short.v0 - long.v0) <= short.estimate.error_estimate
 
 
 @settings(max_examples=12)

@@ -138,5 +138,7 @@ def test_a_negative_actuator_length_is_run_with_a_warning_naming_link_and_time(t
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         positive = crawlsim.simulate(crawlsim.load_gait(path), keep_trajectory=False)
-    assert negative.v0 == pytest.approx(positive.v0, abs=negative.v0_error_estimate + positive.v0_error_estimate)
+    assert negative.v0 == pytest.approx(
+        positive.v0, abs=negative.estimate.error_estimate + positive.estimate.error_estimate
+    )
     assert positive.v0 > 0.01

@@ -19,12 +19,11 @@ import numpy as np
 
 from crawlsim import interrupts
 from crawlsim.analysis.energy import period_dissipation
+from crawlsim.gait.settings import ROUNDOFF_FLOOR
 from crawlsim.integrate.stepping import PeriodRecord
 from crawlsim.model.process import SweepingProcess
 from crawlsim.status import Convergence
 
-#: Relative Poincare steps below this are roundoff: a smaller tolerance is clamped to it.
-ROUNDOFF_FLOOR = 1e-13
 #: One-period drop of the Poincare step that counts as finite-time convergence.
 FINITE_JUMP = 1e-4
 #: Periods used to fit the contraction rate.
@@ -202,7 +201,7 @@ def displacement_roundoff(process: SweepingProcess, steps_per_period: int, mean_
     1e6, the v0 of the compiled and of the Python event loop (each exact, their roundoff apart)
     differ by at most 0.62 of it over T, and by up to 150 times the first term alone."""
     eps = float(np.finfo(float).eps)
-    k_min = float(np.min(process.stiffness)) if process.stiffness is not None else math.inf
+    k_min = math.inf if process.crawler is None else float(np.min(process.crawler.stiffness))
     return steps_per_period * eps * mean_abs_slip + eps * process.scale / k_min
 
 
@@ -218,11 +217,6 @@ def period_iteration_error(
         r = rate if rate is not None and rate < 1 else None
         err += dv * r / (1 - r) if r is not None else dv
     return float(err)
-
-
-def effective_tolerance(tolerance: float) -> float:
-    """The Poincare-step tolerance actually used: relative steps below roundoff are clamped."""
-    return max(float(tolerance), ROUNDOFF_FLOOR)
 
 
 def poincare_step(process: SweepingProcess, w_start, w_end) -> tuple[float, float]:

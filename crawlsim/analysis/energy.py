@@ -112,16 +112,18 @@ from crawlsim.model.process import SweepingProcess
 
 @dataclass(frozen=True)
 class EnergyLedger:
-    """What a run reports of the limit period's energy (`ledger`)."""
+    """What a run reports of its limit period's dissipation and energy (`ledger`)."""
 
-    actuator_work_per_period: float
-    dissipation_per_period: float
-    jump_loss_per_period: float
-    energy_balance_residual: float  # W - D - J - W_load (- the discretisation loss) on the limit period
+    dissipation: float  # D, with its error estimate (None where v0's time-step error is unknown)
+    dissipation_error_estimate: float | None
+    cost_of_transport: float | None  # (D + W_load) / |displacement|; None without net motion
+    actuator_work: float
+    jump_loss: float
+    balance_residual: float  # W - D - J - W_load (- the discretisation loss) on the limit period
     cost_of_transport_bound: float | None  # force; None without a direction of motion or with loads
     efficiency: float | None  # bound / cost of transport; with loads W_load / W
-    load_work_per_period: float | None = None  # W_load; None without loads
-    discretisation_loss_per_period: float | None = None  # catch-up's numerical loss; None for exact
+    load_work: float | None = None  # W_load; None without loads
+    discretisation_loss: float | None = None  # catch-up's numerical loss; None for exact
 
 
 # -- a period's ledger, either integrator ----------------------------------------------------------
@@ -246,14 +248,11 @@ def friction_minimum(signal: Signal) -> float:
 
 def friction_minima(process: SweepingProcess) -> tuple[np.ndarray, np.ndarray]:
     """(min_t mu_j^+(t), min_t mu_j^-(t)) for every block j of a compiled crawler."""
-    assert process.offset_pieces is not None
-    N = process.blocks
-    signals = process.offset_pieces.signals
-    forward = np.array([friction_minimum(s) for s in signals[N - 1 : 2 * N - 1]])
-    backward = np.array([friction_minimum(s) for s in signals[2 * N - 1 : 3 * N - 1]])
-    assert process.crawler is not None
-    scale = process.crawler.friction_scale
-    return scale * forward, scale * backward
+    crawler, pieces = process.crawler, process.offset_pieces
+    assert crawler is not None and pieces is not None
+    forward = np.array([friction_minimum(s) for s in pieces.signals[crawler.columns["forward"]]])
+    backward = np.array([friction_minimum(s) for s in pieces.signals[crawler.columns["backward"]]])
+    return crawler.friction_scale * forward, crawler.friction_scale * backward
 
 
 def cost_of_transport_bound(process: SweepingProcess, displacement: float) -> float | None:
@@ -266,7 +265,11 @@ def cost_of_transport_bound(process: SweepingProcess, displacement: float) -> fl
 
 
 def ledger(
-    process: SweepingProcess, record: PeriodRecord, displacement: float, cost_of_transport: float | None
+    process: SweepingProcess,
+    record: PeriodRecord,
+    displacement: float,
+    cost_of_transport: float | None,
+    dissipation_error: float | None,
 ) -> EnergyLedger | None:
     """The ledger of the limit period ``record`` and the bound on the cost of transport; None
     for a generic sweeping process."""
@@ -276,16 +279,16 @@ def ledger(
     residual = energy.residual
     if process.terrain is not None:  # on terrain the last period need not repeat (docs/model.md §8)
         residual -= energy.energy_change
-    terms = (energy.work, energy.dissipation, energy.jump_loss, residual)
+    head = (energy.dissipation, dissipation_error, cost_of_transport, energy.work, energy.jump_loss, residual)
     if process.crawler is not None and process.crawler.load is not None:
         # with loads (docs/model.md §6): the efficiency is the share of the actuator work that
         # goes into the load, and the friction-only bound does not bound the cost of transport
         efficiency = energy.load_work / energy.work if energy.work > 0 else None
-        return EnergyLedger(*terms, None, efficiency, energy.load_work, energy.discretisation_loss)
+        return EnergyLedger(*head, None, efficiency, energy.load_work, energy.discretisation_loss)
     if process.terrain is not None:  # the bound of uniform friction does not apply (§8)
-        return EnergyLedger(*terms, None, None, None, energy.discretisation_loss)
+        return EnergyLedger(*head, None, None, None, energy.discretisation_loss)
     bound = cost_of_transport_bound(process, displacement)
     efficiency = None
     if bound is not None and cost_of_transport is not None and cost_of_transport > 0:
         efficiency = bound / cost_of_transport
-    return EnergyLedger(*terms, bound, efficiency, None, energy.discretisation_loss)
+    return EnergyLedger(*head, bound, efficiency, None, energy.discretisation_loss)

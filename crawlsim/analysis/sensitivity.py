@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
-from crawlsim.analysis.run import LimitMethod, RunResult, shape_mismatch, simulate
+from crawlsim.analysis.run import Settled, settle, shape_mismatch
 from crawlsim.analysis.sensitivity_terms import (
     EPS,
     Limit,
@@ -50,11 +50,12 @@ from crawlsim.analysis.sensitivity_walk import Prepared, Walk, prepare, walk_cat
 from crawlsim.analysis.terrain import ground_gait
 from crawlsim.errors import CrawlsimError, GaitError
 from crawlsim.gait.docpaths import check_number_paths, resolve_path
+from crawlsim.gait.document import Gait
 from crawlsim.kernel.jit import kernel
-from crawlsim.status import Convergence
+from crawlsim.model.process import compile
+from crawlsim.status import Convergence, LimitMethod
 
 if TYPE_CHECKING:
-    from crawlsim.gait.document import Gait
     from crawlsim.model.process import SweepingProcess
 
 #: Relative step of the one-sided differences at a kink (h and 2 h, Richardson extrapolated).
@@ -152,7 +153,7 @@ class SensitivityResult:
 
 # -- the public function ---------------------------------------------------------------------
 def sensitivity(
-    gait: Gait, paths: Sequence[str] | str, *, one_sided: bool = True, run: Any = None
+    gait: Gait, paths: Sequence[str] | str, *, one_sided: bool = True, run: Settled | None = None
 ) -> SensitivityResult:
     """dv0/dtheta (and of the displacement, dissipation and cost of transport per period) for
     every number ``paths`` name in ``gait`` (dotted paths with ``*``, as ``--sweep``; each
@@ -160,21 +161,18 @@ def sensitivity(
     integrator: the exact integrator's derivatives, or those of the catch-up scheme's discrete
     map.
 
-    ``run``: a `crawlsim.analysis.run.RunResult` of this gait (``crawlsim.api.run``), whose limit
-    period is used instead of searching it again. ``one_sided=False`` skips the one-sided
+    ``run``: what a run of this gait settled on (`crawlsim.analysis.run.Settled`: a
+    ``crawlsim.api.run`` result's ``settled``), whose limit period is used instead of searching
+    it again. ``one_sided=False`` skips the one-sided
     differences at a kink (left and right are then None with the reason)."""
-    from crawlsim.gait.document import Gait as _Gait
-
-    if not isinstance(gait, _Gait):
+    if not isinstance(gait, Gait):
         raise GaitError(
             getattr(gait, "source", "<gait>"), "", "sensitivities are defined for crawler gaits (kind: crawler)"
         )
     if gait.terrain is not None and len(gait.terrain.boundaries):  # the one ground a run settles on (§8)
-        if getattr(run, "terrain", None) is None or getattr(run, "limit_record", None) is None:
-            from crawlsim.model.process import compile
-
+        if run is None or run.result.history.terrain is None:
             s = gait.simulation
-            run = simulate(compile(gait), integrator=s.integrator, max_periods=s.max_periods, tolerance=s.tolerance)
+            run = settle(compile(gait), integrator=s.integrator, max_periods=s.max_periods, tolerance=s.tolerance)
         gait, run = ground_gait(gait, run), None
     lim = _limit_of_run(gait, run)
     st = _static_of(gait, lim.process, paths)
@@ -264,41 +262,33 @@ def _build_static(gait: Gait, process: SweepingProcess, paths: Sequence[str] | s
     return _Static(co, params, active, dC, dMu, dk, touch, prep, moved)
 
 
-def _limit_of_run(gait: Gait, run: Any) -> Limit:
-    """The limit period of ``run`` (its ``limit_record``, on its ``limit_process``) when it is
-    this gait's, else found. The exact walk needs the closed form of c only, not the run's
-    grid: its tolerances are relative to c's size at the pieces' edges (`breakpoint_scale`)."""
-    record = getattr(run, "limit_record", None)
-    if record is None or not run.converged or run.integrator != gait.simulation.integrator:
+def _limit_of_run(gait: Gait, run: Settled | None) -> Limit:
+    """The limit period ``run`` settled on when it is this gait's, else found. The exact walk
+    needs the closed form of c only, not the run's grid: its tolerances are relative to c's
+    size at the pieces' edges (`breakpoint_scale`)."""
+    if run is None or not run.result.converged or run.result.integrator != gait.simulation.integrator:
         return find_limit(gait)
+    process = run.process
     exact = gait.simulation.integrator == "exact"
-    process = getattr(run, "limit_process", None)
-    if process is None:
-        from crawlsim.model.process import compile_gait
-
-        process = compile_gait(gait, steps_per_period=1 if exact else None)
     scale = _cached(gait, ("scale", process.steps), lambda: breakpoint_scale(process)) if exact else None
-    return limit_of(process, record, scale, _known(run, process))
+    return limit_of(process, run.record, scale, _known(run))
 
 
-def _known(run: Any, process: SweepingProcess) -> tuple[float, float, float | None] | None:
-    """What ``run`` (a `crawlsim.analysis.run.RunResult` on ``process``) measured of its limit
-    period with `limit_of`'s own formulas: the displacement and dissipation of the period
-    (`crawlsim.analysis.run`'s motion), and v0's error where the run took it as
-    `verified_limit_error` does here, or all but its residual term (the periodic-limit
-    solver's period, or a finite-time limit, on the grid of the record: else None, measured
-    again)."""
-    if not isinstance(run, RunResult) or process is not run.limit_process:
-        return None  # (a sweep's point: measured on its own terms)
-    d, dissipation = run.displacement_per_period, run.dissipation_per_period
-    final, err = run.limit_record, run.v0_error_period_iteration
-    if d is None or dissipation is None or final is None:
+def _known(run: Settled) -> tuple[float, float, float | None] | None:
+    """What ``run`` measured of its limit period with `limit_of`'s own formulas: the
+    displacement and dissipation of the period (`crawlsim.analysis.run`'s motion), and v0's
+    error where the run took it as `verified_limit_error` does here, or all but its residual
+    term (the periodic-limit solver's period, or a finite-time limit, on the grid of the
+    record: else None, measured again)."""
+    result, process, final = run.result, run.process, run.record
+    if result.estimate is None or result.energy is None:
         return None
-    if err is None or len(final.w) - 1 != process.steps:
+    d, dissipation, err = result.estimate.displacement, result.energy.dissipation, result.estimate.period_iteration
+    if len(final.w) - 1 != process.steps:
         return d, dissipation, None
-    if run.limit_method == LimitMethod.NEWTON:
+    if result.solver.method == LimitMethod.NEWTON:
         return d, dissipation, err
-    if run.convergence == Convergence.FINITE_TIME:
+    if result.convergence == Convergence.FINITE_TIME:
         # the period iteration's error is then the displacement's roundoff over T alone, to
         # which `verified_limit_error` adds the period's residual
         return d, dissipation, err + shape_mismatch(process, final) / process.period

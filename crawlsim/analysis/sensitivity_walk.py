@@ -293,8 +293,6 @@ def _touches_of_flow(
     """The touches of the flow from transition j (``arrays``: `_transition_arrays`), flagged
     by the compiled walk: an inactive gap (``flags[0]``) or a slip rate (``flags[1]``)
     reaching zero inside it."""
-    from crawlsim.kernel.tangent import HIT
-
     u, pieces, cause, act, hit = arrays
     last = j + 1 >= len(u)
     index = np.flatnonzero(act[j])
@@ -304,7 +302,7 @@ def _touches_of_flow(
     x = u_s + 0.5 * (u_e - u_s) * (gx + 1.0)
     stacked = s.basis.values(np.concatenate([[u_s], x, [u_e]]))
     if flags[0]:
-        ends = np.flatnonzero(hit[j + 1]) if not last and cause[j + 1] == HIT else np.zeros(0, int)
+        ends = np.flatnonzero(hit[j + 1]) if not last and cause[j + 1] == tangent.HIT else np.zeros(0, int)
         _gap_touches(s, index, piece, x, stacked, (u_s, u_e), ends)
     if flags[1] and index.size:
         dcoef, dC1 = derivative[0][piece], derivative[1][piece]

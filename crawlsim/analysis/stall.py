@@ -1,8 +1,8 @@
 """The marks of a force-velocity (or slope-velocity) curve: where v0 jumps across 0 because the
 shifted uniqueness condition fails (docs/model.md §3, §6), and the stall load read off a sweep's
-samples; the cause of a stall (`StallCause`) and the subset J whose shifted uniqueness sum
-vanishes there. The stall load itself is searched by `crawlsim.study.stall`, which runs the gait
-at the loads it probes; the sweep figures (`crawlsim.plotting.sweeps`) draw these marks.
+samples, with its cause (`StallCause`). The stall load itself is searched by
+`crawlsim.design.stall`, which runs the gait at the loads it probes; the sweep figures
+(`crawlsim.plotting.sweeps`) draw these marks.
 """
 
 from __future__ import annotations
@@ -17,9 +17,6 @@ from crawlsim.errors import GaitError, InputError
 from crawlsim.gait.docpaths import path_keys, value_at
 from crawlsim.gait.document import Gait, gait_from_document
 from crawlsim.gait.signals import evaluate_many
-
-SMOOTH = 1e-6
-"""A v0 below this fraction of |v0(s0)| on the moving side of the final bracket is a smooth zero."""
 
 MOVING = 1e-9
 """The crawler still moves its way at a load where v0 has the sign of v0(s0) and more than this
@@ -61,7 +58,7 @@ def curve_marks(gait_yaml: str, path: str, values, v0) -> CurveMarks | None:
     interpolated. Stall: from the swept value nearest the gait's own load, the first interval
     where v0 loses that point's sign; at a jump inside it the stall is the jump (cause jump),
     otherwise the linear interpolation of the zero (cause smooth-zero, to the grid's resolution).
-    Moving means what it means to `crawlsim.study.stall`: the sign of v0 at the start and more
+    Moving means what it means to `crawlsim.design.stall`: the sign of v0 at the start and more
     than `MOVING` of its size.
     """
     import yaml

@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -30,9 +30,13 @@ from crawlsim.analysis.convergence import displacement_roundoff
 from crawlsim.analysis.energy import period_dissipation
 from crawlsim.errors import GaitError
 from crawlsim.gait.crawler_spec import Gait
+from crawlsim.gait.document import gait_from_document
 from crawlsim.integrate.stepping import PeriodRecord
 from crawlsim.kernel.terrain import CROSS, HOLD, L_BLOCK, L_BOUNDARY, L_DIRECTION, L_KIND, L_U, LEAVE
 from crawlsim.model.process import SweepingProcess
+
+if TYPE_CHECKING:
+    from crawlsim.analysis.run import Settled
 
 #: The longest lock sought, in periods.
 MAX_LOCK = 24
@@ -210,9 +214,9 @@ class GroundWatch:
             d = float(y[-1] - y[-1 - n]) / n
             slips = sum(float(np.sum(np.abs(r.slips))) for r in periods if r.slips is not None)
             roundoff = displacement_roundoff(p, n * p.steps, slips / p.blocks)
-            assert p.stiffness is not None
+            assert p.crawler is not None
             mismatch = float(np.abs(periods[-1].w[-1] - list(self._kept)[-1 - n].w[-1]).max()) / float(
-                p.stiffness.min()
+                p.crawler.stiffness.min()
             )
             error = (roundoff + mismatch) / (n * T)
             dissipation = float(np.mean([period_dissipation(p, r) for r in periods]))
@@ -267,16 +271,14 @@ class GroundWatch:
         )
 
 
-def ground_gait(gait: Gait, run: Any) -> Gait:
-    """The gait on the one ground ``run`` (the gait's run on terrain) settles on: its v0 is that
-    ground's, and the sensitivities of `crawlsim.analysis.sensitivity` are that gait's. Refused
+def ground_gait(gait: Gait, run: Settled) -> Gait:
+    """The gait on the one ground ``run`` (what the gait's run on terrain settled on) ends on:
+    its v0 is that ground's, and the sensitivities of `crawlsim.analysis.sensitivity` are that gait's. Refused
     where the run does not settle on one ground: there v0 is not smooth in the crawler's phase
     relative to the ground (docs/model.md §8)."""
-    from crawlsim.gait.document import gait_from_document
-
     terrain = gait.terrain
     assert terrain is not None
-    report = run.terrain
+    report = run.result.history.terrain
     if report is None or report.regime != "one-ground":
         regime = "not settled" if report is None else report.regime
         raise GaitError(
@@ -285,7 +287,8 @@ def ground_gait(gait: Gait, run: Any) -> Gait:
             f"sensitivities are not defined here: the run on this terrain is {regime}, not on one ground, and "
             "a boundary makes v0 non-smooth in the crawler's phase relative to the ground (docs/model.md §8)",
         )
-    a, b = terrain.factors(run.limit_record.x[-1])  # every block on the same cell
+    assert run.record.x is not None
+    a, b = terrain.factors(run.record.x[-1])  # every block on the same cell
     document = {**gait.document, "terrain": {"patches": [{"forward": float(a[0]), "backward": float(b[0])}]}}
     found = gait_from_document(document, gait.source, default_name=gait.name)
     assert isinstance(found, Gait)

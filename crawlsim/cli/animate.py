@@ -6,6 +6,7 @@ import click
 
 from crawlsim.cli import BadInput, library_errors, main
 from crawlsim.cli.guards import FiniteFloatRange, force_option
+from crawlsim.io.outputs import FIGURE, check_target
 
 
 @main.command()
@@ -59,9 +60,8 @@ def animate(results_file, output, periods, last, frames_per_period, fps, dpi, fo
     """
     from pathlib import Path
 
-    from crawlsim.io.hdf5 import read_results
-    from crawlsim.io.outputs import FIGURE, check_target
-    from crawlsim.plotting.animation import ANIMATION_FORMATS, parse_periods, write_animation
+    from crawlsim.io.runread import read_results  # start-up: h5py and matplotlib when the command runs
+    from crawlsim.plotting.animation import ANIMATION_FORMATS, parse_periods, write_animation  # (idem)
 
     target = Path(output) if output else Path(results_file).with_suffix(".gif")
     if target.suffix.lower().lstrip(".") not in ANIMATION_FORMATS:

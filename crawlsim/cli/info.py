@@ -6,6 +6,8 @@ import math
 
 import click
 
+from crawlsim.analysis.digits import counted, how_found, with_error
+from crawlsim.analysis.report import quotient_error
 from crawlsim.cli import library_errors, main, to_json
 from crawlsim.status import Convergence
 
@@ -16,8 +18,6 @@ def _g(value, digits: int = 12) -> str:
 
 def _run_lines(d: dict) -> list[str]:
     """The lines of a run's file: the summary of ``crawlsim run``, from the attributes."""
-    from crawlsim.analysis.digits import counted, how_found, with_error
-
     what = "gait" if d["kind"] == "crawler" else d["kind"]
     lines = [f"{d['file']}: run of {what} {d['name']}", f"  integrator               {d['integrator'] or 'n/a'}"]
     if d["v0"] is not None:
@@ -43,8 +43,6 @@ def _run_lines(d: dict) -> list[str]:
         f"(period {_g(d['period'])})"
     )
     if d["displacement_per_period"] is not None:  # as `crawlsim run` prints them
-        from crawlsim.analysis.run import quotient_error
-
         d_err = None if d["v0_error_estimate"] is None else d["v0_error_estimate"] * d["period"]
         dD_err = d["dissipation_error_estimate"]
         cot_err = quotient_error(d["cost_of_transport"], d["displacement_per_period"], dD_err, d_err)
@@ -73,7 +71,7 @@ def _run_lines(d: dict) -> list[str]:
 
 
 def summary_lines(d: dict) -> list[str]:
-    """The text of ``crawlsim info`` for `crawlsim.io.hdf5.describe`'s dict."""
+    """The text of ``crawlsim info`` for `crawlsim.io.describe.describe`'s dict."""
     lines = []
     if d["file_kind"] == "run":
         lines.extend(_run_lines(d))
@@ -137,7 +135,7 @@ def info(results_file, as_json):
       crawlsim run gaits/inching-2.yaml -o inching.h5 && crawlsim info inching.h5
       crawlsim info inching.h5 --json
     """
-    from crawlsim.io.hdf5 import describe
+    from crawlsim.io.describe import describe  # start-up: h5py when the command runs
 
     with library_errors():
         d = describe(results_file)

@@ -6,9 +6,11 @@ from typing import TYPE_CHECKING
 
 import click
 
+from crawlsim import plotting
 from crawlsim.cli import BadInput, library_errors, main
-from crawlsim.cli.guards import figure_format_of, figure_options, figure_options_of, force_option
+from crawlsim.cli.guards import figure_format_of, figure_options, force_option
 from crawlsim.errors import CrawlsimError
+from crawlsim.io.outputs import FIGURE, check_target
 from crawlsim.plotting import FIGURE_NAMES, OPTIMIZATION_FIGURES, RIGID_FIGURE
 
 if TYPE_CHECKING:  # pathlib is imported where used: `crawlsim --help` needs none of it
@@ -65,7 +67,7 @@ def _coords(ctx, param, value):
 )
 @figure_options
 @force_option
-def plot(results_file, output, fmt, only, coords, last, dpi, figsize, style, force):
+def plot(results_file, output, fmt, only, coords, last, figures, force):
     """Draw the figures of RESULTS_FILE as <stem>-<figure>.<format>.
 
     \b
@@ -94,9 +96,9 @@ def plot(results_file, output, fmt, only, coords, last, dpi, figsize, style, for
     """
     from pathlib import Path
 
-    from crawlsim.io.hdf5 import describe
+    from crawlsim.io.describe import describe  # start-up: h5py when the command runs
 
-    options = figure_options_of(dpi, figsize, style)
+    options = figures.options()
     target = None
     if output is not None and Path(output).suffix and not Path(output).is_dir():
         target = Path(output)
@@ -116,15 +118,13 @@ def plot(results_file, output, fmt, only, coords, last, dpi, figsize, style, for
     with library_errors():
         kind = describe(results_file)["file_kind"]
         if target is not None:
-            from crawlsim.io.outputs import FIGURE, check_target
-
             check_target(target, FIGURE, inputs=[results_file], force=force, option="--output")
         else:
             _check_targets(results_file, output, fmt, only, kind, force)
         if kind == "sweep":
             written = [_plot_sweep(results_file, output, fmt, only, options, target)]
         else:
-            written = _plot_file(results_file, output, fmt, only, coords, options, target, last)
+            written = _plot_file(results_file, output, fmt, only, coords, options, target, kind, last)
     for path in written:
         click.echo(str(path))
 
@@ -132,8 +132,6 @@ def plot(results_file, output, fmt, only, coords, last, dpi, figsize, style, for
 def _check_targets(results_file, output_dir, fmt, only, kind, force) -> None:
     """Refuse figure files that may not be replaced (`crawlsim.io.outputs.check_target`)."""
     from pathlib import Path
-
-    from crawlsim.io.outputs import FIGURE, check_target
 
     folder = Path(output_dir) if output_dir else Path(results_file).parent
     if not folder.is_dir():
@@ -150,18 +148,15 @@ def _check_targets(results_file, output_dir, fmt, only, kind, force) -> None:
         )
 
 
-def _plot_file(results_file, output_dir, fmt, only, coords, options, target, last):
+def _plot_file(results_file, output_dir, fmt, only, coords, options, target, kind, last):
     """The figures of a run or an optimisation file (`crawlsim.plotting.plot_results`)."""
-    from crawlsim.io.hdf5 import describe
-    from crawlsim.plotting import plot_results
-
-    if only is not None and describe(results_file)["file_kind"] == "optimization" and only not in OPTIMIZATION_FIGURES:
+    if only is not None and kind == "optimization" and only not in OPTIMIZATION_FIGURES:
         raise BadInput(
             f"--only {only}: {results_file} is an optimisation file, whose figures "
             f"are {', '.join(OPTIMIZATION_FIGURES)}"
         )
     try:
-        return plot_results(
+        return plotting.plot_results(
             results_file, output_dir, fmt=fmt, only=only, coords=coords, options=options, target=target, last=last
         )
     except ValueError as exc:
@@ -173,7 +168,7 @@ def _plot_file(results_file, output_dir, fmt, only, coords, options, target, las
 def _plot_sweep(results_file, output_dir, fmt, only, options, target) -> Path:
     from pathlib import Path
 
-    from crawlsim.study import sweep as sweeps
+    from crawlsim.study import sweep as sweeps  # start-up: matplotlib and the sweep table, when drawn
 
     if only is not None:
         raise BadInput(

@@ -32,7 +32,7 @@ def validate(gait_files, explain):
       crawlsim validate --explain gaits/peristalsis-4.yaml
       crawlsim validate gaits/inching-2.yaml && crawlsim run gaits/inching-2.yaml -o inching.h5
     """
-    from crawlsim.gait.document import uniqueness_explanation, validation_errors
+    from crawlsim.gait.document import uniqueness_explanation, validation_errors  # start-up: numpy and YAML
 
     invalid = 0
     for path in gait_files:

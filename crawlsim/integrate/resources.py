@@ -104,8 +104,8 @@ def run_memory(
     process); ``save_every`` thins the rows written to the results file; ``dense`` counts the
     dense matrices of a generic process.
     """
-    from crawlsim.integrate.limit import DENSE_JACOBIAN
-    from crawlsim.projection.kkt import CACHE_NUMBERS
+    from crawlsim.integrate.limit import DENSE_JACOBIAN  # start-up: the commands check memory before numpy
+    from crawlsim.projection.kkt import CACHE_NUMBERS  # (idem: this module is light, the solvers are not)
 
     n, p = int(blocks), int(grid_points)
     tabulated = [
@@ -276,7 +276,7 @@ def signal_work(harmonics: int, faces: int, grid_points: int, key: str = "") -> 
     N blocks) on a grid of ``grid_points`` points a period. Signals of at most one harmonic
     (constants, piecewise-linear signals, cosines) have closed-form events: only their
     tabulation counts."""
-    from crawlsim.integrate.exact import CELLS_PER_CYCLE
+    from crawlsim.integrate.exact import CELLS_PER_CYCLE  # start-up: the commands check the work before numpy
 
     h, m = int(harmonics), int(faces)
     per_sample = (2 * h + 1) * (TRIG_COST + m)

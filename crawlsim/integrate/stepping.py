@@ -177,7 +177,7 @@ class PeriodStepper:
             on_dependent="raise" if process.crawler is not None else "warn",
         )
         self.w = np.array(process.initial, dtype=float)
-        self.x = None if process.initial_positions is None else np.array(process.initial_positions, dtype=float)
+        self.x = None if process.crawler is None else np.array(process.crawler.initial_positions, dtype=float)
         self.active = self.polyhedron.empty
         self.period_index = 0
         self._visited: list[ActiveSet] = []
@@ -296,6 +296,10 @@ class CatchUpStepper(PeriodStepper):
                 X[1:] += self.x
             self.x = X[-1].copy()
         self.w = W[-1].copy()
+        friction = None
+        if self.ground is not None:  # the friction of the ground under the blocks (docs/model.md §8)
+            assert p.crawler is not None
+            friction = p.crawler.friction + (self._effective - p.offsets)
         record = PeriodRecord(
             self.period_index,
             start,
@@ -305,7 +309,7 @@ class CatchUpStepper(PeriodStepper):
             self.projector.clarabel_calls - calls0,
             visited=(tuple(self._visited) if self._lazy_visited is None else self._lazy_visited),
             ground=self._ground_events,
-            friction=None if self.ground is None else p.friction + (self._effective - p.offsets),
+            friction=friction,
         )
         return record
 

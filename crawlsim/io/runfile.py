@@ -516,7 +516,7 @@ class ResultsWriter:
         for gname, values in self._groups(result).items():
             self._write_group(gname, values)
         if "terrain" in f:
-            report = result.terrain
+            report = result.history.terrain
             f["terrain"].attrs["repeat"] = float(self.process.terrain.repeat)
             f["terrain"].attrs["regime"] = report.regime
             f["terrain"].attrs["lock"] = np.array(report.lock or (0, 0), dtype=np.int64)
@@ -564,9 +564,10 @@ class ResultsWriter:
             groups["limit"].update(lengths=c.lengths, friction=c.friction, load=c.load)
         if "events" in f:
             groups["events"] = {name: f["events"][name] for name in f["events"]}
-        if c is not None and getattr(result, "actuator_work_per_period", None) is not None:
-            groups["energy"] = {name: getattr(result, attr) for name, attr in _ENERGY.items()}
-        report, ground = getattr(result, "terrain", None), p.terrain
+        summary = result.summary()
+        if c is not None and summary["actuator_work_per_period"] is not None:
+            groups["energy"] = {name: summary[key] for name, key in _ENERGY.items()}
+        report, ground = result.history.terrain, p.terrain
         if report is not None and ground is not None:
             crossed, held = report.crossings, report.holds
             groups["terrain"] = {
@@ -634,8 +635,8 @@ class ResultsWriter:
         solver_period is empty. jacobian_rate (the Jacobian's subdominant spectral radius at
         the limit) and contraction_rate (fitted to the true iterates) should agree."""
         group = self.file["limit"].create_group("solver", track_order=True)
-        residuals = getattr(result, "limit_residuals", None)
-        kinds = getattr(result, "limit_kinds", None)
+        solver, summary = result.solver, result.summary()
+        residuals, kinds = solver.residuals, solver.kinds
         residuals = np.zeros(0) if residuals is None else np.asarray(residuals, dtype=float)
         kinds = np.zeros(len(residuals), dtype=np.int8) if kinds is None else np.asarray(kinds, dtype=np.int8)
         ds = self._scales.coordinate(group, "solver_period", np.arange(len(residuals), dtype=np.int64))
@@ -645,12 +646,11 @@ class ResultsWriter:
             self._scales.attach(ds, ("solver_period",))
             describe_var(ds, SOLVER_VARIABLES[name], "1")
         a = group.attrs
-        a["method"] = str(getattr(result, "limit_method", "iterate"))
-        a["newton_steps"] = int(getattr(result, "limit_newton_steps", 0))
-        a["periods"] = int(getattr(result, "limit_periods", 0))
+        a["method"] = str(solver.method)
+        a["newton_steps"] = int(solver.newton_steps)
+        a["periods"] = int(solver.periods)
         for key in ("jacobian_rate", "contraction_rate"):
-            value = getattr(result, key, None)
-            a[key] = np.nan if value is None else float(value)
+            a[key] = np.nan if summary[key] is None else float(summary[key])
         a["comment"] = (
             "how the periodic limit was found. method newton: the periodic-limit solver "
             "(safeguarded semismooth Newton on F(w) = P(w) - w, P the period map, Jacobian from "
@@ -712,8 +712,7 @@ class ResultsWriter:
             "efficiency",
             "load_work_per_period",
         ):
-            value = summary.get(key, getattr(result, key, None))
-            a[key] = np.nan if value is None else float(value)
+            a[key] = np.nan if summary[key] is None else float(summary[key])
         # the loads (docs/model.md §6): the effective document (gait_yaml) holds the whole
         # loads: block; the angle in degrees is repeated here, NaN without a slope
         c = self.process.crawler

@@ -15,11 +15,11 @@ from pathlib import Path
 from typing import Any
 
 import h5py
+import numpy as np
 
 from crawlsim.errors import ResultsFileError
 from crawlsim.io.layout import check_version, open_h5, plain, root_attrs, variables
 from crawlsim.io.runfile import TIME_DIMENSIONS
-from crawlsim.projection.kkt import ChainPolyhedron
 
 
 def read_results(path: Any) -> dict[str, Any]:
@@ -53,8 +53,10 @@ def read_results(path: Any) -> dict[str, Any]:
             out["coordinates"] = coordinates
     process = out.get("process", {})
     if "stiffness" in process and "normals" not in process:
-        chain = ChainPolyhedron(process["stiffness"], 1.0)
-        process.update(normals=chain.dense_normals(), metric=chain.dense_metric())
+        # a crawler's B = [D^T; -D^T], (D^T v)_j = v_{j-1} - v_j, and M = K^-1 (docs/model.md §2)
+        k = np.asarray(process["stiffness"], dtype=float)
+        Dt = np.eye(len(k) + 1, len(k), -1) - np.eye(len(k) + 1, len(k))
+        process.update(normals=np.vstack([Dt, -Dt]), metric=np.diag(1.0 / k))
     return out
 
 
@@ -77,7 +79,7 @@ def _open_run(path: Any) -> tuple[Any, h5py.File]:
         if kind == "optimization":
             raise ResultsFileError(
                 f"{source}: an optimisation file, not a run's results file: "
-                "read it with crawlsim.io.hdf5.read_optimization"
+                "read it with crawlsim.io.optfile.read_optimization"
             )
     except BaseException:
         f.close()

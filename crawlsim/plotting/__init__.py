@@ -4,9 +4,9 @@
   units, titles);
 * one module per figure of a run, `motion`, `gait_diagram`, `kymograph`, `convergence` and
   `shape_space`,
-  each function taking the run (a results file, the dict of `crawlsim.io.hdf5.read_results`, or
+  each function taking the run (a results file, the dict of `crawlsim.io.runread.read_results`, or
   the result of `crawlsim.simulate`: `source.run_data`) and returning a matplotlib `Figure`;
-  `figures.FIGURES` names them;
+  `output.FIGURES` names them;
 * `sweeps` draws velocity sweeps (`sweep_figure`, `sweep_data_figure`);
 * `optimization` has the figures of an optimisation file (`objective_figure`, `pareto_figure`);
 * `animation` draws the crawler in motion (`write_animation`, ``crawlsim animate``);
@@ -31,6 +31,8 @@ RIGID_FIGURE = "rigid"
 CRAWLER_FIGURES = ("motion", "gait-diagram", "kymograph")
 #: Figures that zoom on the last periods of a run (``crawlsim plot --last K``).
 LAST_FIGURES = ("motion", "kymograph")
+#: The formats a figure is written in.
+FORMATS = ("png", "pdf", "svg")
 
 _LAZY = {
     "plot_results": "output",
@@ -46,7 +48,7 @@ _LAZY = {
     "sweep_figure": "sweeps",
     "sweep_data_figure": "sweeps",
     "run_data": "source",
-    "FIGURES": "figures",
+    "FIGURES": "output",
     "objective_figure": "optimization",
     "pareto_figure": "optimization",
     "write_animation": "animation",
@@ -76,6 +78,18 @@ __all__ = [
     "FigureOptions",
     "run_data",
 ]
+
+
+def figure_format(path, option: str = "-o") -> str:
+    """The image format of a figure file, by its extension (png, pdf or svg); ValueError for
+    any other."""
+    from pathlib import Path
+
+    suffix = Path(path).suffix.lower().lstrip(".")
+    if suffix not in FORMATS:
+        given = f"extension .{suffix}" if suffix else "no extension"
+        raise ValueError(f"{option} {path}: {given}; a figure is written as .png, .pdf or .svg")
+    return suffix
 
 
 def __getattr__(name):

@@ -6,23 +6,47 @@ renamed into place, so a figure that cannot be drawn leaves no file behind.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from crawlsim import __version__
 from crawlsim.errors import ResultsFileError
 from crawlsim.io.atomic import atomic_path
-from crawlsim.io.hdf5 import read_attrs, read_optimization, read_results, read_sweep
+from crawlsim.io.optfile import read_optimization
+from crawlsim.io.runread import read_attrs, read_results
+from crawlsim.io.sweepfile import read_sweep
 from crawlsim.plotting import (
     CRAWLER_FIGURES,
     FIGURE_NAMES,
+    FORMATS,
     LAST_FIGURES,
     OPTIMIZATION_FIGURES,
     RIGID_FIGURE,
     SWEEP_FIGURE,
 )
-from crawlsim.plotting.figures import FIGURES
-from crawlsim.plotting.style import DPI, FORMATS, NARROW, FigureOptions, figure_style, legends_below, user_style
+from crawlsim.plotting.convergence import convergence_figure
+from crawlsim.plotting.gait_diagram import gait_figure
+from crawlsim.plotting.kymograph import kymograph_figure
+from crawlsim.plotting.motion import motion_figure
+from crawlsim.plotting.optimization import OPTIMIZATION_FIGURE_FUNCTIONS
+from crawlsim.plotting.rigid import rigid_figure
+from crawlsim.plotting.shape_space import shape_space_figure
+from crawlsim.plotting.style import DPI, NARROW, FigureOptions, figure_style, legends_below, user_style
 from crawlsim.plotting.sweeps import sweep_data_figure
+
+#: The figures of one run, by the names of `crawlsim.plotting.FIGURE_NAMES`: each takes the run
+#: (`crawlsim.plotting.source.run_data`) and returns a matplotlib Figure in the style of
+#: `crawlsim.plotting.style`; a figure that needs data the run lacks raises `ResultsFileError`
+#: naming the missing dataset.
+FIGURES: dict[str, Callable[..., Any]] = {
+    "motion": motion_figure,
+    "gait-diagram": gait_figure,
+    "kymograph": kymograph_figure,
+    "convergence": convergence_figure,
+    "shape-space": shape_space_figure,
+    "rigid": rigid_figure,
+}
 
 
 def available_figures(results: dict) -> list[str]:
@@ -82,7 +106,7 @@ def plot_results(
     ``only`` draws one figure; otherwise every figure the file supports (`available_figures`).
     ``coords`` is the 0-based pair of shape coordinates of the shape-space figure when the shape
     space has more than two dimensions. A sweep file (``crawlsim velocity --sweep ... -o
-    OUT.h5``) gets its one figure, ``<stem>-sweep.<fmt>`` (`figures.sweep_data_figure`); an
+    OUT.h5``) gets its one figure, ``<stem>-sweep.<fmt>`` (`crawlsim.plotting.sweeps.sweep_data_figure`); an
     optimisation file (``crawlsim optimize``) ``<stem>-objective.<fmt>`` and, with --pareto,
     ``<stem>-pareto-front.<fmt>`` (`crawlsim.plotting.optimization`). A
     missing dataset raises `ResultsFileError` naming the file and the dataset; nothing is
@@ -143,8 +167,6 @@ def _draw(results, kind, choices, only, coords, last) -> dict:
     if kind == "sweep":
         return {SWEEP_FIGURE: sweep_data_figure(results)}
     if kind == "optimization":
-        from crawlsim.plotting.optimization import OPTIMIZATION_FIGURE_FUNCTIONS
-
         return {
             name: OPTIMIZATION_FIGURE_FUNCTIONS[name](results) for name in ([only] if only is not None else choices)
         }
@@ -196,8 +218,6 @@ def save_figure(
 
 def _metadata(fmt: str) -> dict:
     """Reproducible files: no creation date in PDF and SVG, and crawlsim named as creator."""
-    from crawlsim import __version__
-
     creator = f"crawlsim {__version__}"
     if fmt == "pdf":
         return {"Creator": creator, "CreationDate": None}

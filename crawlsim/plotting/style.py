@@ -130,10 +130,8 @@ RC = {
 #: for the duration of a `user_style` block.
 _USER_STYLE: ContextVar[str | None] = ContextVar("crawlsim_user_style", default=None)
 
+
 #: The image formats crawlsim writes, by file extension.
-FORMATS = ("png", "pdf", "svg")
-
-
 @contextmanager
 def figure_style():
     """The rc settings of crawlsim figures, for the duration of the block, with the style sheet
@@ -208,18 +206,6 @@ def check_style(style: str) -> str:
     raise ValueError(f"--style {style}: no such matplotlib style sheet or file{hint} (or give a .mplstyle file)")
 
 
-def figure_format(path, option: str = "-o") -> str:
-    """The image format of a figure file, by its extension (png, pdf or svg); ValueError for
-    any other."""
-    from pathlib import Path
-
-    suffix = Path(path).suffix.lower().lstrip(".")
-    if suffix not in FORMATS:
-        given = f"extension .{suffix}" if suffix else "no extension"
-        raise ValueError(f"{option} {path}: {given}; a figure is written as .png, .pdf or .svg")
-    return suffix
-
-
 @dataclass(frozen=True)
 class FigureOptions:
     """How figures are written (``--dpi``, ``--figsize``, ``--style``): the resolution of PNGs
@@ -289,8 +275,8 @@ DIMENSIONS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
 
 
 def units_of(data: dict) -> Units:
-    """The units of a results dict (`crawlsim.io.hdf5.read_results`) or a sweep dict
-    (`crawlsim.io.hdf5.read_sweep`): the ``units_json`` attribute when the file has it, else the
+    """The units of a results dict (`crawlsim.io.runread.read_results`) or a sweep dict
+    (`crawlsim.io.sweepfile.read_sweep`): the ``units_json`` attribute when the file has it, else the
     ``units:`` block of the stored gait document, else none."""
     attrs = data.get("attrs") or {}
     for holder in (attrs, data):

@@ -12,6 +12,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Rectangle
 from matplotlib.ticker import FixedLocator, NullFormatter, NullLocator
 
+from crawlsim.analysis.stall import curve_marks
 from crawlsim.plotting.style import (
     FAINT,
     REFERENCE,
@@ -405,7 +406,7 @@ def jump_walls(x, y, jump_x, jump_y, logs=(False, False)) -> list[np.ndarray]:
 
 
 def sweep_data_figure(data: Any, title: str | None = None) -> Figure:
-    """The sweep figure of a sweep file (`crawlsim.io.hdf5.read_sweep`), of a table
+    """The sweep figure of a sweep file (`crawlsim.io.sweepfile.read_sweep`), of a table
     (`crawlsim.study.sweep.table_payload`) or of the `xarray.Dataset` of `crawlsim.sweep`
     (``grid.crawlsim.plot()``): the columns are put back on the grid (points a shard did not hold
     have no value and no status), the units come from the file (`style.units_of`)."""
@@ -434,8 +435,6 @@ def sweep_data_figure(data: Any, title: str | None = None) -> Figure:
         title = f"{_sweep_name(data)}: average velocity over a sweep"
     marks = None
     if len(paths) == 1 and data.get("gait_yaml"):
-        from crawlsim.analysis.stall import curve_marks
-
         marks = curve_marks(data["gait_yaml"], paths[0], values[0], v0)
     return sweep_figure(
         dict(zip(paths, values)), v0, status, title, units=units_of(data), displacement=displacement, marks=marks

@@ -36,8 +36,9 @@ import numpy as np
 import yaml
 
 from crawlsim.errors import GaitError, InputError, SweepSpecError
+from crawlsim.gait.crawler_spec import need_crawler
 from crawlsim.gait.docpaths import check_number_paths, path_keys, resolve_path, set_values
-from crawlsim.gait.document import Gait, gait_from_document, need_crawler
+from crawlsim.gait.document import Gait, gait_from_document
 from crawlsim.gait.validation import plain
 
 if TYPE_CHECKING:
@@ -314,9 +315,9 @@ def make_grid(base: Gait, axes, quantities: Sequence[PointQuantity] = (), sensit
     ``PATH=SPEC`` text) or a sequence of them that vary together (linked paths, the same
     number of values each). Every path is checked against the base document; overlapping or
     repeated paths are refused, and so is a base that is not a crawler
-    (`crawlsim.gait.document.need_crawler`). ``quantities`` are extra columns of the table
+    (`crawlsim.gait.crawler_spec.need_crawler`). ``quantities`` are extra columns of the table
     (`crawlsim.study.points.PointQuantity`); ``sensitivity``, the ``--sensitivity`` paths, each
-    number's ``dv0/dPATH`` column (`crawlsim.analysis.sensitivity_sweep`)."""
+    number's ``dv0/dPATH`` column (`crawlsim.study.points.with_derivatives`)."""
     need_crawler(base, "a sweep of v0")
     groups = [_group(item) for item in axes]
     flat: list[Axis] = []

@@ -28,10 +28,15 @@ from typing import Any
 
 import numpy as np
 
-from crawlsim.analysis.stall import MOVING, SMOOTH, StallCause
+from crawlsim.analysis.stall import MOVING, StallCause
 from crawlsim.errors import CertificateError, GaitError, InputError
 from crawlsim.gait.apriori import margin
+from crawlsim.gait.docpaths import resolve_path, value_at
 from crawlsim.gait.document import Gait, gait_from_document
+from crawlsim.study.simulation import _as_spec, run
+
+SMOOTH = 1e-6
+"""A v0 below this fraction of |v0(s0)| on the moving side of the final bracket is a smooth zero."""
 
 SCAN_STEPS = 64
 """Scan steps across the load's natural range (the loaded block's friction interval, or 90
@@ -100,8 +105,6 @@ class _Probe:
         """(v0, refusal reason, refused because the body cannot hold) at load s."""
         if s in self.cache:
             return self.cache[s]
-        from crawlsim.study.simulation import run
-
         self.evaluations += 1
         try:
             gait = self.gait.replace(self.path, float(s))
@@ -197,9 +200,6 @@ def stall(gait: Gait | str, *, force: str | None = None, slope: bool = False) ->
 def _stall_problem(gait: Gait | str, force: str | None, slope: bool) -> tuple[Gait, str, str]:
     """(the gait, the path varied, "force" or "slope"): a force path gets zero forces on every
     block when the gait has none yet."""
-    from crawlsim.gait.docpaths import resolve_path
-    from crawlsim.study.simulation import _as_spec
-
     spec = _as_spec(gait)
     if not isinstance(spec, Gait):
         raise InputError(spec.source, "kind", "stall needs a crawler gait, not a sweeping process")
@@ -237,8 +237,6 @@ def _stall_problem(gait: Gait | str, force: str | None, slope: bool) -> tuple[Ga
 
 def _start_load(spec: Gait, path: str) -> float:
     """The gait's own load at ``path``: a constant number."""
-    from crawlsim.gait.docpaths import resolve_path, value_at
-
     node = value_at(spec.document, resolve_path(spec.document, path, spec.source)[0])
     if not isinstance(node, (int, float)) or isinstance(node, bool):
         raise InputError(
