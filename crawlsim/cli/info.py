@@ -58,7 +58,7 @@ def _run_lines(d: dict) -> list[str]:
         lines.append(f"  uniqueness margin        {d['uniqueness_margin']['text']}")
     ground = d.get("terrain")
     if ground:  # docs/model.md §8
-        from crawlsim.gait.terrain import boundaries
+        from crawlsim.gait.terrain import boundaries  # start-up: numpy when the command runs
 
         lock = ground["lock"]
         settled = ground["regime"] + ("" if lock is None else f" ({lock[0]} periods, {lock[1]} ground periods)")
