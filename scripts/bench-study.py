@@ -49,7 +49,7 @@ from crawlsim.model.process import compile as compile_gait
 from crawlsim.study.sweep import sweep
 
 ROOT = Path(__file__).resolve().parents[1]
-ENV = dict(os.environ)
+ENV = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")  # one thread: comparable runs
 
 
 def _script(name: str):
@@ -176,31 +176,25 @@ def newton(repeat: int) -> dict[str, tuple[float, float, int]]:
     return out
 
 
-def catch_up_step(N: int, repeat: int) -> tuple[float, float]:
+def catch_up_step(N: int, repeat: int, periods: int = 6) -> tuple[float, float]:
     """(margin per catch-up step of ``crawlsim velocity --integrator catch-up`` from 1000 to 4000
-    steps a period, reference step), CPU seconds."""
+    steps a period, reference step), CPU seconds. The runs are ``periods`` plain periods each
+    (``--limit iterate --max-periods``: exit code 3), so that both do the same periods, and the
+    exact run that measures the time-step error with them."""
     document = KERNEL._bench_scale().wave_document(N, 1000, wave="segments")
     with tempfile.TemporaryDirectory(prefix="crawlsim-steps-") as folder:
         times: dict[int, list[float]] = {1000: [], 4000: []}
-        periods: dict[int, int] = {}
         for steps in times:
             path = Path(folder) / f"wave-{steps}.yaml"
-            path.write_text(yaml.safe_dump(dict(document, simulation={"steps_per_period": steps, "max_periods": 400})))
-            out = subprocess.run(
-                [sys.executable, "-m", "crawlsim", "velocity", str(path), "--integrator", "catch-up", "--json"],
-                capture_output=True,
-                text=True,
-                env=ENV,
-                check=False,
-            ).stdout
-            periods[steps] = yaml.safe_load(out)["steps"]  # the catch-up steps the run made
+            path.write_text(yaml.safe_dump(dict(document, simulation={"steps_per_period": steps})))
         for _ in range(repeat):
             for steps in times:
                 command = [sys.executable, "-m", "crawlsim", "velocity", f"{folder}/wave-{steps}.yaml"]
-                times[steps].append(run_clocked([*command, "--integrator", "catch-up"], cwd=ROOT, env=ENV)[1])
+                command += ["--integrator", "catch-up", "--limit", "iterate", "--max-periods", str(periods)]
+                times[steps].append(run_clocked(command, cwd=ROOT, env=ENV, check=False)[1])
         gait = gait_from_document(document, f"wave-{N}")
         ref = statistics.median(reference_seconds(gait) for _ in range(repeat)) / 1000
-    margin = (statistics.median(times[4000]) - statistics.median(times[1000])) / (periods[4000] - periods[1000])
+    margin = (statistics.median(times[4000]) - statistics.median(times[1000])) / (3000 * periods)
     return margin, ref
 
 

@@ -330,6 +330,7 @@ def _settle(
         progress=progress,
         limit=s.limit,
         history=history,
+        series=history,  # without a history (v0 alone) no distances to the limit either
         time_step_error=True,
     )
 
