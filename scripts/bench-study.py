@@ -49,7 +49,7 @@ from crawlsim.model.process import compile as compile_gait
 from crawlsim.study.sweep import sweep
 
 ROOT = Path(__file__).resolve().parents[1]
-ENV = dict(os.environ)
+ENV = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")  # one thread: comparable runs
 
 
 def _script(name: str):
@@ -126,44 +126,75 @@ def files(repeat: int) -> tuple[float, float]:
     return (statistics.median(many) - statistics.median(few)) / 108, statistics.median(alone)
 
 
-def newton(repeat: int) -> tuple[float, float, int]:
-    """(newton wall_time, iterate wall_time, iterate periods) on the 20-block wave."""
-    process = compile_gait(gait_from_document(LIMIT.wave_document(20, 1000), "wave-20"))
-    times: dict[str, list[float]] = {"newton": [], "iterate": []}
-    periods = 0
-    for _ in range(repeat):
-        for limit in times:
-            run = simulate(process, integrator="exact", limit=limit, history=False, max_periods=5000)
-            times[limit].append(run.wall_time)
-            periods = run.periods if limit == "iterate" else periods
-    return statistics.median(times["newton"]), statistics.median(times["iterate"]), periods
+def newton(repeat: int) -> dict[str, tuple[float, float, int]]:
+    """(newton wall_time, iterate wall_time, iterate periods) on the 20-block wave: the
+    library's run without history (what velocity and sweeps run), ``crawlsim.simulate`` (the
+    history and the trajectory kept) and ``crawlsim run`` (the run's own wall_time, --json)."""
+    gait = gait_from_document(LIMIT.wave_document(20, 1000), "wave-20")
+    process = compile_gait(gait)
+    out = {}
+    with tempfile.TemporaryDirectory(prefix="crawlsim-newton-") as folder:
+        path = Path(folder) / "wave-20.yaml"
+        path.write_text(yaml.safe_dump(gait.document))
+        ways = {
+            "library": lambda limit: simulate(process, integrator="exact", limit=limit, history=False),
+            "crawlsim.simulate": lambda limit: crawlsim.simulate(gait, limit=limit),
+        }
+        for name, call in ways.items():
+            times: dict[str, list[float]] = {"newton": [], "iterate": []}
+            for _ in range(repeat):
+                for limit in times:
+                    run = call(limit)
+                    times[limit].append(run.effort.wall_time)
+                    periods = run.periods if limit == "iterate" else 0
+            out[name] = (statistics.median(times["newton"]), statistics.median(times["iterate"]), periods)
+        times = {"newton": [], "iterate": []}
+        for _ in range(repeat):
+            for limit in times:
+                done = subprocess.run(
+                    [
+                        sys.executable,
+                        "-m",
+                        "crawlsim",
+                        "run",
+                        str(path),
+                        "--limit",
+                        limit,
+                        "--json",
+                        "-o",
+                        f"{folder}/r.h5",
+                    ],
+                    capture_output=True,
+                    text=True,
+                    env=ENV,
+                    check=True,
+                )
+                summary = yaml.safe_load(done.stdout)
+                times[limit].append(summary["wall_time"])
+                periods = summary["periods"] if limit == "iterate" else 0
+        out["crawlsim run"] = (statistics.median(times["newton"]), statistics.median(times["iterate"]), periods)
+    return out
 
 
-def catch_up_step(N: int, repeat: int) -> tuple[float, float]:
+def catch_up_step(N: int, repeat: int, periods: int = 6) -> tuple[float, float]:
     """(margin per catch-up step of ``crawlsim velocity --integrator catch-up`` from 1000 to 4000
-    steps a period, reference step), CPU seconds."""
+    steps a period, reference step), CPU seconds. The runs are ``periods`` plain periods each
+    (``--limit iterate --max-periods``: exit code 3), so that both do the same periods, and the
+    exact run that measures the time-step error with them."""
     document = KERNEL._bench_scale().wave_document(N, 1000, wave="segments")
     with tempfile.TemporaryDirectory(prefix="crawlsim-steps-") as folder:
         times: dict[int, list[float]] = {1000: [], 4000: []}
-        periods: dict[int, int] = {}
         for steps in times:
             path = Path(folder) / f"wave-{steps}.yaml"
-            path.write_text(yaml.safe_dump(dict(document, simulation={"steps_per_period": steps, "max_periods": 400})))
-            out = subprocess.run(
-                [sys.executable, "-m", "crawlsim", "velocity", str(path), "--integrator", "catch-up", "--json"],
-                capture_output=True,
-                text=True,
-                env=ENV,
-                check=False,
-            ).stdout
-            periods[steps] = yaml.safe_load(out)["steps"]  # the catch-up steps the run made
+            path.write_text(yaml.safe_dump(dict(document, simulation={"steps_per_period": steps})))
         for _ in range(repeat):
             for steps in times:
                 command = [sys.executable, "-m", "crawlsim", "velocity", f"{folder}/wave-{steps}.yaml"]
-                times[steps].append(run_clocked([*command, "--integrator", "catch-up"], cwd=ROOT, env=ENV)[1])
+                command += ["--integrator", "catch-up", "--limit", "iterate", "--max-periods", str(periods)]
+                times[steps].append(run_clocked(command, cwd=ROOT, env=ENV, check=False)[1])
         gait = gait_from_document(document, f"wave-{N}")
         ref = statistics.median(reference_seconds(gait) for _ in range(repeat)) / 1000
-    margin = (statistics.median(times[4000]) - statistics.median(times[1000])) / (periods[4000] - periods[1000])
+    margin = (statistics.median(times[4000]) - statistics.median(times[1000])) / (3000 * periods)
     return margin, ref
 
 
@@ -179,11 +210,11 @@ def main() -> int:
     )
     file, alone = files(args.repeat)
     print(f"  gait file      {file * 1e3:8.3f} ms = {file / alone:5.2f} x simulate ({alone * 1e3:.3f} ms; bar <= 2)")
-    solver, iterate, periods = newton(args.repeat)
-    print(
-        f"  Newton         {solver:8.3f} s  = {solver / iterate:5.2f} x iterate "
-        f"({iterate:.3f} s, {periods} periods; bar <= 0.5)"
-    )
+    for way, (solver, iterate, periods) in newton(args.repeat).items():
+        print(
+            f"  Newton, {way:<18} {solver:7.3f} s = {solver / iterate:5.2f} x iterate "
+            f"({iterate:.3f} s, {periods} periods; bar <= 0.5)"
+        )
     for N in (64, 256):
         step, ref_step = catch_up_step(N, args.repeat)
         print(

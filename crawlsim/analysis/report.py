@@ -105,11 +105,19 @@ def convergence_text(result: RunResult) -> str:
     if result.convergence == Convergence.FINITE_TIME:
         return f"finite-time: periodic from period {result.periodic_from}"
     if result.convergence == Convergence.ASYMPTOTIC:
-        fit = result.rate
-        if fit is None:
+        fit, solver = result.rate, result.solver
+        jacobian = None if solver is None else solver.jacobian_rate
+        if fit is None and jacobian is None:
             return "asymptotic, contraction rate n/a per period"
-        spread = "" if fit.error is None else f"± {fit.error:.1g}, "
-        return f"asymptotic, contraction rate {fit.rate:.4g} per period ({spread}fitted on {fit.periods} periods)"
+        fitted = "" if fit is None else f"fitted on {fit.periods} periods"
+        if fit is not None and fit.error is not None:
+            fitted = f"± {fit.error:.1g}, {fitted}"
+        if fit is not None and (jacobian is None or abs(fit.rate - jacobian) <= 3 * (fit.error or 0.0)):
+            return f"asymptotic, contraction rate {fit.rate:.4g} per period ({fitted})"
+        # the solver's limit: the history stops after a few periods, whose fit need not be the
+        # asymptotic rate yet; the Jacobian's at the limit is
+        seen = "" if fit is None else f"; the history's {fit.rate:.4g} {fitted}"
+        return f"asymptotic, contraction rate {jacobian:.4g} per period (the Jacobian's at the limit{seen})"
     if result.convergence == Convergence.QUASI_PERIODIC:
         return f"quasi-periodic: not locked to the ground over {result.periods} periods (docs/model.md §8)"
     return f"NOT converged: final Poincare step {result.history.poincare_step[-1]:.3g}. Try increasing max_periods."

@@ -47,8 +47,10 @@ import numpy as np
 
 from crawlsim.analysis.convergence import (
     DISTANCES,
+    RATE_WINDOW,
     History,
     RateFit,
+    approaching,
     classify_convergence,
     displacement_roundoff,
     fit_contraction_rate,
@@ -452,8 +454,12 @@ def _solve(
     # themselves (a Poincare step of 0 is convergence): where the periodic solutions form a
     # family (Theorem th:speed: they differ by constants of the directions no active set ever
     # sees), the iterates may settle on another member than the solver's, and would never
-    # reach it. Their own is then the limit.
+    # reach it. Their own is then the limit. It stops once it holds the periods a rate fit needs:
+    # following slowly contracting iterates all the way is the cost the solver saves.
+    end = len(log) + RATE_WINDOW + 1
     while history and len(log) < max_periods and not log.reached(tol):
+        if len(log) >= end and approaching(log, tol, RATE_WINDOW):
+            break
         record = log.add(stepper.step_period(), sink, progress)
         if settled_elsewhere(log, tol):
             return record, None, cost

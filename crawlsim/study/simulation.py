@@ -335,6 +335,7 @@ def _settle(
         progress=progress,
         limit=s.limit,
         history=history,
+        series=history,  # without a history (v0 alone) no distances to the limit either
         time_step_error=True,
     )
 
@@ -394,6 +395,7 @@ def simulate(
     steps_per_period: int | None = None,
     max_periods: int | None = None,
     tolerance: float | None = None,
+    limit: str | None = None,
     keep_trajectory: bool = True,
     save_every: int = 1,
     check_every_step: bool = False,
@@ -401,7 +403,8 @@ def simulate(
 ) -> SimulationResult:
     """Simulate ``gait`` (a `Gait`, a `ProcessSpec` or a file) to its periodic regime.
 
-    The keyword settings override the gait's ``simulation`` block (None keeps it). The result is
+    The keyword settings override the gait's ``simulation`` block (None keeps it; ``limit`` is
+    ``"newton"``, the periodic-limit solver, or ``"iterate"``, plain periods). The result is
     a `RunResult` with, besides, ``trajectory`` (every ``save_every``-th grid point in memory;
     None with ``keep_trajectory=False``, when nothing per step is kept beyond what the analysis
     needs), ``units``, ``provenance`` and ``to_xarray()``; ``result.save(path)`` writes the
@@ -414,6 +417,7 @@ def simulate(
         steps_per_period=steps_per_period,
         max_periods=max_periods,
         tolerance=tolerance,
+        limit=limit,
         keep_trajectory=None if keep_trajectory else False,
         save_every=None if save_every == 1 else save_every,
         check_every_step=check_every_step or None,
@@ -424,6 +428,7 @@ def simulate(
         steps_per_period=steps_per_period,
         max_periods=max_periods,
         tolerance=tolerance,
+        limit=limit,
     )
     with _provenance.recording(call):
         return _in_memory(
