@@ -89,14 +89,16 @@ def run_one(gait, integrator: str, steps: int, timeout: float) -> dict:
 
 
 def corpus_gait(seed: int, args):
-    """Three gaits in four have N <= 12, the rest up to ``--max-blocks``."""
-    small = seed % 4 != 0
+    """Three gaits in four have N <= 12, the rest up to ``--max-blocks`` (``--rough``: 2 to
+    ``--max-blocks`` evenly)."""
+    small = seed % 4 != 0 and not args.rough
     return random_gait(
         seed,
         blocks=(2, min(12, args.max_blocks)) if small else (2, args.max_blocks),
         loads=args.loads,
         stiffness_ratio=args.stiffness_ratio,
         friction_ratio=args.friction_ratio,
+        rough=args.rough,
     )
 
 
@@ -155,6 +157,12 @@ def main() -> int:
     )
     parser.add_argument(
         "--timeout", type=float, default=60.0, help="seconds after which a run is stopped and counted as a failure"
+    )
+    parser.add_argument(
+        "--rough",
+        action="store_true",
+        help="the rough classes: jagged piecewise-linear links of 100-1000 knots, steps in links and friction, "
+        "stiffness spreads up to the accepted limit (crawlsim.gait.corpus)",
     )
     parser.add_argument("--jsonl", help="also write one JSON line per gait to this file")
     parser.add_argument(
