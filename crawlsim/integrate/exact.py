@@ -208,7 +208,7 @@ class EventStepper(PeriodStepper):
             ev_lam.append(lam_cum)
             self._guard(len(ev_t), recent, u, start, forced)
             time = start + u * T
-            self.active = self._decide(u, w, piece_index, forced, time)
+            self.active = self._decide(u, w, piece_index, forced, time, self.active if transitions else poly.empty)
             self._visit(self.active)
             transitions.append(Transition(u, piece_index, self.active, cause, forced))
             piece = self._piece(self.active, w, piece_index, u)
@@ -309,15 +309,25 @@ class EventStepper(PeriodStepper):
         )
 
     # -- an event: the next active set, order by order ----------------------------------------
-    def _decide(self, u: float, w: np.ndarray, piece_index: int, forced: np.ndarray, time: float) -> ActiveSet:
-        """The active set on (u, u + eps) from the velocity problems (module docstring)."""
+    def _decide(
+        self, u: float, w: np.ndarray, piece_index: int, forced: np.ndarray, time: float, held: ActiveSet
+    ) -> ActiveSet:
+        """The active set on (u, u + eps) from the velocity problems (module docstring). The
+        candidates are the rows tight at w, those an event hit and those of ``held``, the last
+        piece's set (empty at a period's start, whose warm set may be another state's): a row
+        of it is at its limit, to that piece's roundoff, which on a stiff chain may be far
+        above what a slack alone can tell; left out, it would be released without its velocity
+        problem, hit again at once, and chatter."""
         poly = self.poly
         coef = self.pieces.coefficients(piece_index)
-        c0 = (self.basis.values(u) @ coef)[0]
+        phi = self.basis.values(u)
+        c0 = (phi @ coef)[0]
         slack = poly.apply(w) - c0
-        tol = poly._tolerance1(poly.empty, c0, w, np.zeros(0))
+        # the size of c's terms, not of their sum (`crawlsim.kernel.piece.tight_rows`)
+        tol = poly._tolerance1(poly.empty, (np.abs(phi) @ np.abs(coef))[0], w, np.zeros(0))
         tight = slack >= -tol.primal
         tight[forced] = True
+        tight[held.index] = True
         if not tight.any():
             return poly.empty
         if self.projector.on_dependent == "warn" and not poly.licq_verified(np.flatnonzero(tight)):
@@ -515,12 +525,16 @@ class EventStepper(PeriodStepper):
         C = phi @ self.pieces.coefficients(piece_index)
         slack = poly.apply(Wg) - C
         lam = np.diff(LAMC, axis=0)
-        # sizes of the numbers summed (phi @ coef cancels on short pieces with steep offsets)
+        # sizes of the numbers summed (phi @ coef cancels on short pieces with steep offsets,
+        # and so do the slips' lam0 - phi @ Y)
         tol = poly.tolerance(
             piece.active,
             np.max(np.abs(phi) @ np.abs(self.pieces.coefficients(piece_index)), axis=1),
             np.max(np.abs(piece.base) + np.abs(phi) @ np.abs(piece.Wc), axis=1),
-            np.max(np.abs(LAMC[1:]), axis=1),
+            np.maximum(
+                np.max(np.abs(LAMC[1:]), axis=1),
+                np.max(np.abs(piece.lam0) + np.abs(phi) @ np.abs(piece.Y), axis=1, initial=0.0),
+            ),
         )
         primal = np.max(slack, axis=1)
         dual = -np.min(lam, axis=1, initial=0.0)
