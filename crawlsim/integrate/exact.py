@@ -83,8 +83,10 @@ ZENO_WINDOW = 1e-9
 DECISION_ORDERS = 4
 #: Sampling cells per cycle and harmonic where no closed form gives the zeros.
 CELLS_PER_CYCLE = 64
-#: Periods the compiled event loop may hand over to the Python loop before a stepper stops
-#: trying it (a gait whose velocity problems or jumps need Clarabel).
+#: Periods in a row the compiled event loop may hand over to the Python loop before a stepper
+#: stops trying it (a gait whose velocity problems or jumps need Clarabel every period; one
+#: that needs it now and then, at a jump from a Newton candidate of the limit search, keeps
+#: the compiled loop for the other periods).
 LOOP_HANDOFFS = 3
 
 
@@ -171,6 +173,7 @@ class EventStepper(PeriodStepper):
         if self._loop is not None:
             record = self._loop.period(self)
             if record is not None:
+                self._loop.handoffs = 0
                 return record
             self._loop.handoffs += 1
             if self._loop.handoffs >= LOOP_HANDOFFS:  # a gait the compiled loop cannot take
