@@ -130,7 +130,7 @@ def _run(p: SweepingProcess, max_periods: int, tol: float, keep_limit: bool = Fa
     status = PointStatus.NOT_CONVERGED if convergence == Convergence.NOT_CONVERGED else PointStatus.OK
     rate = None if convergence == Convergence.FINITE_TIME else contraction_rate(np.array(rel_steps))
     err = period_iteration_error(
-        displacements, convergence, rate, displacement_roundoff(p, G, float(np.sum(np.abs(LAM))) / N), p.period
+        displacements, convergence, rate, displacement_roundoff(p, G, float(np.sum(np.abs(LAM))) / N, G), p.period
     )
     diss = float(np.einsum("km,km->", LAM, friction))
     paid = diss + (float(np.einsum("km,km->", LAM, load)) if load is not None else 0.0)
