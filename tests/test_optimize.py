@@ -267,7 +267,7 @@ def test_invalid_points_are_recorded_and_never_chosen(tmp_path):
             ["cannot be at least 0.5 and at most 0.2"],
         ),
         (["--free", "links.1.phase=0:1", "--pareto", "--minimize", "v0"], ["--pareto"]),
-        (["--free", "stiffness=-5:-1"], ["no", "valid gait"]),
+        (["--free", "stiffness=-5:-1"], ["LO = -5.0 is refused", "expected a positive number"]),
         ([], ["--free PATH=LO:HI"]),
         (["--free", "links.1.phase=0:1", "-o", "out.csv"], ["HDF5", ".h5"]),
     ],

@@ -25,12 +25,17 @@ PREFIX = "dv0/d"
 
 
 def check_paths(gait: Any, paths: Sequence[str]) -> tuple[str, ...]:
-    """The ``--sensitivity`` paths, checked against the sweep's base gait (a `GaitError`
-    naming the path when one names nothing: exit code 2 before any point runs)."""
+    """The ``--sensitivity`` paths, checked against the base gait (a `GaitError` naming the path
+    when one names nothing or no continuous parameter, such as ``blocks``: exit code 2 before
+    any point runs)."""
+    from crawlsim.analysis.sensitivity_terms import STRUCTURAL
+    from crawlsim.errors import GaitError
     from crawlsim.gait.docpaths import resolve_path
 
     for path in paths:
         resolve_path(gait.document, path, gait.source)
+        if path.split(".")[0] in STRUCTURAL:
+            raise GaitError(gait.source, path, "not a continuous parameter of the gait: v0 has no derivative in it")
     return tuple(paths)
 
 

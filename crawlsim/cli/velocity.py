@@ -187,6 +187,9 @@ def velocity(
             if shard or plot_file:
                 raise BadInput("--shard and --plot need at least one --sweep PATH=SPEC")
             if output is None:
+                from crawlsim.analysis.sensitivity_sweep import check_paths
+
+                check_paths(gait, sensitivity_paths)  # before the run
                 return _single(gait, sensitivity_paths, as_json, max_memory, quiet, verbose)
         _check_sweep_options(groups, as_json, plot_file, shard)
         from crawlsim.study import sweep as sweeps

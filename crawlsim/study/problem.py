@@ -304,8 +304,25 @@ def make_problem(
             "--pareto optimises v0 and cost_of_transport together; drop the objective option",
         )
     problem = Problem(base, items, objective or Objective(), cons, pareto)
+    _check_bounds(problem)
     _check_some_point_is_valid(problem)
     return problem
+
+
+def _check_bounds(problem: Problem) -> None:
+    """Refuse a bound of --free that the schema refuses (``period=1:1e300``), each end with the
+    other free values at the box's centre: the points beyond it could never run."""
+    from crawlsim.gait.document import CRAWLER_SCHEMA
+    from crawlsim.gait.schemaerrors import check_schema
+
+    for i, f in enumerate(problem.free):
+        for end, name in ((0.0, f"LO = {f.lo!r}"), (1.0, f"HI = {f.hi!r}")):
+            u = [0.5] * problem.dimension
+            u[i] = end
+            try:
+                check_schema(problem.document(problem.values(u)), CRAWLER_SCHEMA, problem.base.source)
+            except GaitError as exc:
+                raise SweepSpecError(f"--free {f.text}", f.path, f"{name} is refused: {exc.message}") from None
 
 
 def _check_some_point_is_valid(problem: Problem) -> None:
