@@ -280,9 +280,9 @@ def _search(problem, method, out, jobs, scheduler, quiet, verbose):
         )
     except opt.OptimizationInterrupted as exc:
         bar.close()
-        where = (
-            f"kept in {exc.journal}; run the same command again to resume" if exc.journal is not None else "not kept"
-        )
+        where = "not kept" if exc.journal is None else "nothing to keep"
+        if exc.journal is not None and exc.done:  # the journal exists once a point is in it
+            where = f"kept in {exc.journal}; run the same command again to resume"
         click.echo(f"Interrupted: {exc.done} points finished, {where}.", err=True)
         cause: BaseException | None = exc
         while cause is not None and not isinstance(cause, Terminated):

@@ -294,11 +294,9 @@ def _sweep(grid, output, jobs, shard, scheduler, quiet, verbose):
         )
     except sweeps.SweepInterrupted as exc:
         bar.close()
-        where = (
-            f"kept in {exc.journal}; run the same command again to resume"
-            if exc.journal is not None
-            else "not kept (no -o)"
-        )
+        where = "not kept (no -o)" if exc.journal is None else "nothing to keep"
+        if exc.journal is not None and exc.done:  # the journal exists once a point is in it
+            where = f"kept in {exc.journal}; run the same command again to resume"
         click.echo(f"Interrupted: {exc.done} of {exc.total} points finished, {where}.", err=True)
         raise interrupt_exit(exc) from None
     except BaseException:
