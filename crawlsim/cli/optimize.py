@@ -20,6 +20,7 @@ from crawlsim.cli import (
     simulation_options,
     to_json,
 )
+from crawlsim.cli.guards import force_option
 from crawlsim.cli.progress import Progress, choose_mode
 
 
@@ -123,6 +124,7 @@ def _objective(maximize, minimize):
     "[default: gradient to maximise v0 without constraints, else evolution]",
 )
 @simulation_options
+@force_option
 @feedback_options
 def optimize(
     gait_file,
@@ -145,6 +147,7 @@ def optimize(
     tolerance,
     integrator,
     limit,
+    force,
     quiet,
     verbose,
 ):
@@ -179,7 +182,7 @@ def optimize(
 
     _check_options(free_specs, output)
     with library_errors():
-        out = _targets(gait_file, output, write_best, scheduler, seed)
+        out = _targets(gait_file, output, write_best, scheduler, seed, force)
         objective = _objective(maximize, minimize)
         free = [opt.parse_free(spec) for spec in free_specs]
         cons = [opt.parse_constraint(text) for text in constraints]
@@ -219,7 +222,7 @@ def _check_options(free_specs, output) -> None:
         )
 
 
-def _targets(gait_file, output, write_best, scheduler, seed) -> Path:
+def _targets(gait_file, output, write_best, scheduler, seed, force) -> Path:
     """The results file, checked with the --write-best file and the --scheduler address
     before any work."""
     from crawlsim.study import optimize as opt
@@ -229,14 +232,14 @@ def _targets(gait_file, output, write_best, scheduler, seed) -> Path:
 
         check_scheduler(scheduler)
     opt.Method(seed=seed)  # refuses a seed the results file cannot hold, before any work
-    out = _output_path(output, Path(gait_file).stem + "-optimize", inputs=[gait_file])
+    out = _output_path(output, Path(gait_file).stem + "-optimize", force, inputs=[gait_file])
     if out.suffix.lower() not in (".h5", ".hdf5"):
         raise BadInput(f"--output {out}: an optimisation is written to HDF5: give a name ending in .h5")
     if write_best is not None:
         from crawlsim.io.outputs import GAIT, check_target
 
         # never the gait file optimised (nor the results file): refused like every output
-        check_target(write_best, GAIT, inputs=[gait_file, out], option="--write-best")
+        check_target(write_best, GAIT, inputs=[gait_file, out], force=force, option="--write-best")
     return out
 
 

@@ -184,6 +184,7 @@ class OptimizationResult:
         """`best_document` as YAML: a gait file that ``crawlsim run`` reproduces (floats written
         with repr, so the values are the optimiser's bit for bit), headed by a comment that says
         where it comes from."""
+        from crawlsim.io.outputs import GAIT_HEAD
         from crawlsim.io.provenance import command_line, effective_yaml
 
         e = self.evaluations[self.best if index is None else index]
@@ -191,7 +192,7 @@ class OptimizationResult:
         if self.problem.pareto and e.index == self.best:
             what = f"the fastest gait of the Pareto front (found by {what})"
         head = [
-            f"# written by crawlsim optimize: {what}",
+            f"{GAIT_HEAD}: {what}",
             f"# from {self.problem.base.source}, evaluation {e.index} of "
             f"{len(self.evaluations)}, seed {self.method.seed}",
             f"# v0 = {e.row.v0!r}, cost_of_transport = {e.row.cost_of_transport!r}",
