@@ -125,6 +125,27 @@ def test_a_corrupted_exact_piece_raises(name):
         periods(stepper)
 
 
+def test_a_piece_off_by_a_few_tolerances_is_refined():
+    """Every exact piece pushed out of K(t) by 5e-14 of the scale of c, a few times the
+    tolerance (the size of the closed form's roundoff on chains stiff to the accepted limits):
+    each sample that fails is refined, projected onto K(t_j) and certified, and the run goes on
+    from there (it used to stop with a CertificateError); v0 moves by roundoff. Pushed 1e-8 out,
+    far beyond the refinement's reach, it still stops (`test_a_corrupted_exact_piece_raises`)."""
+    from crawlsim.integrate.exact import REFINE_LIMIT
+
+    clean = make_stepper(process_of("peristalsis-4"), "exact", kernel=False)
+    stepper = make_stepper(process_of("peristalsis-4"), "exact", kernel=False)
+    refined = []
+    refine = stepper._refine
+    stepper._refine = lambda *args: refined.append(args[1]) or refine(*args)
+    corrupt_pieces(stepper, relative=5e-14)
+    for _ in range(3):
+        a, b = clean.step_period(), stepper.step_period()
+        assert abs(np.mean(a.x[-1] - a.x[0]) - np.mean(b.x[-1] - b.x[0])) < 1e-12
+    assert refined and 5e-14 * REFINE_LIMIT < 1e-8  # refined here, not there
+    assert set(refined) <= set(stepper._grid) and set(refined) - set(stepper.pieces.edges)  # at samples
+
+
 def test_clarabel_check_of_every_step_catches_a_corrupted_piece_alone():
     """``check_every_step``: Clarabel must find a state outside K(t_j) by itself, with the
     kernel's certificate of the sampled trajectory switched off."""

@@ -61,6 +61,7 @@ from __future__ import annotations
 import warnings
 from collections import deque
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -88,6 +89,10 @@ CELLS_PER_CYCLE = 64
 #: that needs it now and then, at a jump from a Newton candidate of the limit search, keeps
 #: the compiled loop for the other periods).
 LOOP_HANDOFFS = 3
+#: A grid sample whose certificate fails by at most this many times its tolerance is refined
+#: (`EventStepper._refine`: the closed form's roundoff, on chains stiff to the accepted limits);
+#: beyond, it is an internal error.
+REFINE_LIMIT = 100.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -218,8 +223,6 @@ class EventStepper(PeriodStepper):
             u_end = edges[piece_index + 1]
             event = self._next_event(piece, piece_index, u, u_end)
             u_e = u_end if event is None else event[0]
-            if ledger is not None:
-                ledger.piece(piece_index, u, u_e, piece.base, piece.Wc, piece.active.index, piece.Y)
             # sample the grid times in (u, u_e]
             j_end = int(np.searchsorted(self._grid, u_e, side="right"))
             if j_end > j:
@@ -227,12 +230,27 @@ class EventStepper(PeriodStepper):
                 Wg, Lg = piece.at(phi, m)
                 W[j:j_end] = Wg
                 LAMC[j:j_end] = lam_cum + Lg
-                carried = self._certify_piece(
-                    Wg, LAMC[j - 1 : j_end], piece, phi, piece_index, start + self._grid[j:j_end] * T, carried
-                )
+                try:
+                    carried = self._certify_piece(
+                        Wg, LAMC[j - 1 : j_end], piece, phi, piece_index, start + self._grid[j:j_end] * T, carried
+                    )
+                except _Uncertified as failed:
+                    if failed.excess > REFINE_LIMIT:
+                        raise
+                    j += failed.index  # refined: the piece ends at that sample, projected there
+                    u = self._grid[j]
+                    if ledger is not None:
+                        ledger.piece(piece_index, piece.u0, u, piece.base, piece.Wc, piece.active.index, piece.Y)
+                    w, lam_cum = self._refine(piece_index, u, W, LAMC, j, start + u * T, ledger)
+                    j, carried = j + 1, 0.0
+                    transitions.append(Transition(u, piece_index, self.active, "jump", forced))
+                    forced, cause = np.zeros(0, dtype=int), "release"
+                    continue
                 j = j_end
             else:  # the grid interval spans this piece: its roundoff enters the next sample
                 carried = max(carried, self._dual_scale(piece, piece_index))
+            if ledger is not None:
+                ledger.piece(piece_index, u, u_e, piece.base, piece.Wc, piece.active.index, piece.Y)
             w_e, lam_e = piece.at(self.basis.values(u_e), m)
             w, lam_cum = w_e[0], lam_cum + lam_e[0]
             u = u_e
@@ -548,19 +566,39 @@ class EventStepper(PeriodStepper):
         dual_tol[0] = max(dual_tol[0], carried)
         idx = piece.active.index
         comp = np.max(np.abs(slack[:, idx]), axis=1, initial=0.0)
-        bad = (primal > tol.primal) | (dual > dual_tol) | (comp > tol.primal)
-        if bad.any():
-            i = int(np.argmax(bad))
+        # a sample off K by a little is refined (`_refine`), a negative slip never
+        excess = np.where(dual > dual_tol, np.inf, np.maximum(primal, comp) / tol.primal)
+        if np.any(excess > 1.0):
+            i = int(np.argmax(excess > 1.0))
             rows = np.flatnonzero((slack[i] > tol.primal[i]) | (lam[i] < -dual_tol[i]))
-            raise CertificateError(
+            raise _Uncertified(
                 f"{self.process.name}: the exact trajectory failed its certificate at t = "
                 f"{times[i]:.12g}: constraint violation {primal[i]:.3g}, negative slip "
                 f"integral {dual[i]:.3g} (tolerance {float(tol.primal[i]):.3g} / "
                 f"{float(dual_tol[i]):.3g}), complementarity {comp[i]:.3g}; rows "
                 f"{self.process.describe_active(rows)}; active set "
-                f"{self.process.describe_active(idx)}"
+                f"{self.process.describe_active(idx)}. An internal error of crawlsim: please "
+                "report it with the gait file and the command",
+                i,
+                float(excess[i]),
             )
         return own
+
+    def _refine(
+        self, piece_index: int, u: float, W: np.ndarray, LAMC: np.ndarray, j: int, time: float, ledger: Any
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """A sample whose certificate failed within `REFINE_LIMIT` of its tolerance: the closed
+        form's roundoff there is replaced by the certified projection of its state onto K(u)
+        (a jump of roundoff's size, booked like a jump of c), from which the next piece starts.
+        Returns the state and cumulative slips there."""
+        c = (self.basis.values(u) @ self.pieces.coefficients(piece_index))[0]
+        proj = self.projector.project(W[j], c, time=time, warm=self.active)
+        self._certify_jump(W[j], c, proj, time)
+        if ledger is not None:
+            ledger.jump(piece_index, u, W[j], proj.point, proj.multipliers)
+        self.active = proj.active
+        W[j], LAMC[j] = proj.point, LAMC[j] + proj.multipliers
+        return proj.point, LAMC[j].copy()
 
     def _certify_jump(self, w: np.ndarray, c: np.ndarray, proj: Projection, time: float) -> None:
         """The state after a jump of c is written to the grid as it is: it must be the certified
@@ -588,6 +626,15 @@ class EventStepper(PeriodStepper):
                 raise CertificateError(
                     f"{p.name}: Clarabel moves the exact state at t = {start + p.times[j]:.12g} by {moved:.3g}"
                 )
+
+
+class _Uncertified(CertificateError):
+    """A grid sample's certificate failed: the ``index`` of the sample, ``excess`` the largest
+    ratio of a measure to its tolerance there."""
+
+    def __init__(self, message: str, index: int, excess: float) -> None:
+        super().__init__(message)
+        self.index, self.excess = index, excess
 
 
 @dataclass(frozen=True, eq=False)
