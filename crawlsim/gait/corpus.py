@@ -86,8 +86,8 @@ def _jagged_signal(rng: np.random.Generator) -> dict:
     within up to 45 % of the mean: many steep pieces whose crossings and kinks interleave."""
     knots = int(rng.integers(100, 1001))
     inner = np.sort(rng.uniform(0, 1, knots - 1)) if rng.uniform() < 0.5 else np.arange(1, knots) / knots
-    values = 1.0 + rng.uniform(-1, 1, knots) * rng.uniform(0.1, 0.45)
-    times, values = [0.0, *map(float, inner), 1.0], [*map(float, values), float(values[0])]
+    drawn = 1.0 + rng.uniform(-1, 1, knots) * rng.uniform(0.1, 0.45)
+    times, values = [0.0, *map(float, inner), 1.0], [*map(float, drawn), float(drawn[0])]
     return {"kind": "piecewise-linear", "times": times, "values": values, "phase": float(rng.uniform(0, 1))}
 
 

@@ -209,7 +209,7 @@ class EventStepper(PeriodStepper):
         ledger = self._ledger
         if ledger is not None:
             ledger.start()
-        transitions = []
+        transitions: list[Transition] = []
         while True:
             ev_t.append(u)
             ev_w.append(w)
