@@ -22,8 +22,7 @@ import numpy as np
 import pytest
 
 from crawlsim.analysis.run import simulate
-from crawlsim.gait.corpus import random_document
-from crawlsim.gait.crawler_limits import STRESS_SCALE_LIMIT
+from crawlsim.gait.corpus import random_gait
 from crawlsim.gait.document import gait_from_document
 from crawlsim.kernel import events, sampling
 from crawlsim.model.process import compile_gait
@@ -132,20 +131,6 @@ def test_a_sampled_crossing_is_its_zero_not_the_sample_before():
 #: stiff to the accepted limits, 18 a negative slip of 2e-4, 22 and 26 constraints violated by
 #: 0.29 and 1.41, 3 a negative slip of 0.034 (and 1023, below).
 ROUGH_FAILURES = (3, 9, 13, 18, 22, 24, 26)
-#: Of those, the seeds whose stress scale the corpus then drew at its limit (it now draws one
-#: below, log-uniform): rebuilt as they were.
-AT_THE_LIMIT = (9, 24, 1023)
-
-
-def rough_gait(seed: int):
-    """The rough corpus's gait of ``seed`` (its first attempt is valid), at the stress limit
-    the corpus then drew for the seeds `AT_THE_LIMIT`: max k = 1/4 1e10 min mu."""
-    doc = random_document(seed, blocks=(2, 64), rough=True, friction_ratio=1e3)
-    if seed in AT_THE_LIMIT:
-        least = min(min(v["values"]) if isinstance(v, dict) else v for f in doc["friction"] for v in f.values())
-        k = np.array(doc["stiffness"])
-        doc["stiffness"] = [float(v) for v in k * (0.25 * STRESS_SCALE_LIMIT * least / k.max())]
-    return gait_from_document(doc, f"rough-{seed}.yaml", default_name=doc["name"])
 
 
 @pytest.mark.slow
@@ -154,7 +139,7 @@ def test_rough_corpus_gaits_that_failed(seed):
     """Each now runs to its periodic regime with the exact integrator, and catch-up's v0 lies
     within the error it prints (its time-step error measured against an exact run, as
     ``crawlsim run --integrator catch-up`` does)."""
-    gait = rough_gait(seed)
+    gait = random_gait(seed, blocks=(2, 64), rough=True, friction_ratio=1e3)
     process = compile_gait(gait, 1000)
     exact = simulate(process, integrator="exact", max_periods=300, tolerance=1e-11, history=False)
     assert exact.converged and exact.v0 is not None and exact.v0_error_estimate is not None
@@ -175,6 +160,6 @@ def test_a_sample_off_by_roundoff_in_a_newton_period_is_refined(monkeypatch):
     refined = []
     refine = EventStepper._refine
     monkeypatch.setattr(EventStepper, "_refine", lambda self, *a: refined.append(a[1]) or refine(self, *a))
-    process = compile_gait(rough_gait(1023), 1000)
+    process = compile_gait(random_gait(1023, blocks=(2, 64), rough=True, friction_ratio=1e3), 1000)
     result = simulate(process, integrator="exact", max_periods=8, tolerance=1e-11, history=False)
     assert refined and result.v0 is not None and math.isfinite(result.v0)

@@ -121,12 +121,7 @@ def _rough_document(rng: np.random.Generator, N: int, friction_ratio: float) -> 
     spread = _log_uniform(rng, 1.0, 0.9 * STIFFNESS_CONDITION_LIMIT / N**2)
     k = _log_uniform(rng, 1.0, 100.0) * spread ** rng.uniform(0, 1, N - 1)
     k[rng.integers(N - 1)] = k.min() * spread  # the whole spread
-    # a stress scale k_max max L / min mu (values <= 2 L) beyond the accepted limit: scaled to
-    # one between 1e-6 and 1/4 of it, log-uniform (pinned at the limit, the chains whose links
-    # are also soft to their friction contract too slowly for a corpus run)
-    top = 0.25 * STRESS_SCALE_LIMIT * least / (2 * k.max())
-    if top < 1.0:
-        k *= top * _log_uniform(rng, 1e-6, 1.0)
+    k *= min(1.0, 0.5 * STRESS_SCALE_LIMIT * least / (2 * k.max()))  # values <= 2 L
     return {"blocks": N, "stiffness": [float(v) for v in k], "links": links, "friction": friction}
 
 
