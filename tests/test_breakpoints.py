@@ -182,3 +182,19 @@ def test_catch_up_steps_whose_updates_cycle_settle_in_the_kernel(monkeypatch):
     )
     stepper.step_period()
     assert 0 < len(handed) <= 150
+
+
+def test_a_velocity_problem_of_many_rows_settles_one_row_at_a_time():
+    """Rough seed 1133 (62 blocks): at u = 0.314 of the first period a decision's velocity
+    problem has 57 candidate rows. The updates of every violated row at once did not settle,
+    and Clarabel, proposing a set instead, called the problem infeasible (exit 1), which it is
+    not: five blocks are free. The updates now go on one row at a time before Clarabel, and the
+    Python loop's period is the compiled loop's (which settled it in the kernel), to roundoff."""
+    from crawlsim.integrate.exact import EventStepper
+
+    process = compile_gait(random_gait(1133, blocks=(2, 64), rough=True, friction_ratio=1e3), 1000)
+    compiled = EventStepper(process).step_period()
+    python = EventStepper(process, kernel=False).step_period()
+    assert len(python.transitions) > 10000
+    np.testing.assert_allclose(python.w, compiled.w, rtol=0, atol=1e-12 * process.scale)
+    assert np.mean(python.x[-1] - python.x[0]) == pytest.approx(np.mean(compiled.x[-1] - compiled.x[0]), abs=1e-12)

@@ -384,6 +384,8 @@ class EventStepper(PeriodStepper):
         poly = self.poly
         zero = np.zeros(poly.n)
         step = poly.refine(zero, c, warm, fixed=fixed)
+        if step is None:  # one row at a time, as long as it takes, before Clarabel's proposal
+            step = poly.refine(zero, c, warm, single=True, iterations=4 * poly.m + 4, fixed=fixed)
         if step is not None:
             return _Velocity(step.point, step.multipliers, step.certificate.tolerance)
         with warnings.catch_warnings():
