@@ -4,15 +4,18 @@ The folders are the path from a gait file to an answer:
 
     gait/        YAML gait file -> validated `Gait`: schema, signals, units, dotted paths,
                  loads, the uniqueness condition
-    kernel/      exact, certified projections: the KKT certificate, the one Clarabel adapter,
-                 the compiled (numba) catch-up step and exact event loop
+    kernel/      the compiled kernel (interpreted or numba): the tolerance policy, the catch-up
+                 step and the exact event loop
+    io/          HDF5 (netCDF-4) results files, provenance, atomic writes
+    projection/  exact, certified projections in Python: the KKT certificate, the polyhedra,
+                 the one Clarabel adapter
     model/       `Gait` -> shape-space sweeping process: offsets, the `Crawler`'s quantities
     integrate/   stepping a process period by period: catch-up, exact, the periodic limit, the
                  exact energy ledger
     analysis/    a run to its periodic regime and what it measures: v0, energy, sensitivities
-    io/          HDF5 (netCDF-4) results files, provenance, atomic writes
     plotting/    figures and animations of a run
-    study/       one gait's run, sweeps, the stall search, gait design (optimize), the paper's checks
+    study/       one gait's run, sweeps, the paper's checks
+    design/      gait design: optimize (evolution or gradient search), the stall search
     api.py       the entry points for Python studies: load_gait, simulate, sweep, sensitivity,
                  and the typed readers open_run, open_sweep,
                  open_optimization
@@ -40,6 +43,7 @@ _EXPORTS = {
     "run": "crawlsim.api",
     "sweep": "crawlsim.api",
     "sensitivity": "crawlsim.api",
+    "rigid_limit": "crawlsim.api",
     "open_run": "crawlsim.api",
     "open_sweep": "crawlsim.api",
     "open_optimization": "crawlsim.api",
@@ -54,13 +58,15 @@ _EXPORTS = {
     "CrawlsimError": "crawlsim.errors",
     "GaitError": "crawlsim.errors",
     "InputError": "crawlsim.errors",
-    "stall": "crawlsim.study.stall",
+    "GaitWarning": "crawlsim.errors",
+    "stall": "crawlsim.design.stall",
 }
 
 _SUBPACKAGES = {
     "analysis",
     "api",
     "cli",
+    "design",
     "errors",
     "gait",
     "integrate",
@@ -68,6 +74,7 @@ _SUBPACKAGES = {
     "kernel",
     "model",
     "plotting",
+    "projection",
     "status",
     "study",
 }
@@ -78,6 +85,7 @@ __all__ = [
     "sweep",
     "run",
     "sensitivity",
+    "rigid_limit",
     "open_run",
     "open_sweep",
     "open_optimization",
@@ -92,6 +100,7 @@ __all__ = [
     "CrawlsimError",
     "GaitError",
     "InputError",
+    "GaitWarning",
     "stall",
     "__version__",
 ]
@@ -107,5 +116,5 @@ def __getattr__(name: str) -> Any:
     raise AttributeError(f"module 'crawlsim' has no attribute {name!r}")
 
 
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+def __dir__() -> list[str]:  # the public names, not this module's own imports
+    return sorted(set(__all__) | _SUBPACKAGES)

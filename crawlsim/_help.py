@@ -29,7 +29,8 @@ TEXT = (
     "  run       Simulate GAIT_FILE to its periodic regime; report v0 and...\n"
     "  stall     Print the load at which v0 reaches 0: the stall force...\n"
     "  validate  Check each GAIT_FILE and list every error in it, one per line...\n"
-    "  velocity  Print v0 of GAIT_FILE, or sweep gait parameters and tabulate v0.\n"
+    "  velocity  Print v0 of GAIT_FILE, tabulate v0 of several, or sweep gait...\n"
+    "  warmup    Compile crawlsim's kernel for every command, so that no run...\n"
     "\n"
     "  Shell completion (bash; zsh and fish alike with zsh_source, fish_source):\n"
     '    eval "$(_CRAWLSIM_COMPLETE=bash_source crawlsim)"   # in ~/.bashrc\n'

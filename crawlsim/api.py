@@ -12,11 +12,10 @@ integrator and its settings, the versions, and the call that made it.
 
 from __future__ import annotations
 
-import io
 import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -30,7 +29,6 @@ from crawlsim.study.simulation import (
     Trajectory,
     _as_spec,
     _with_settings,
-    _xarray,
     from_results,
     load_gait,
     open_run,
@@ -41,10 +39,12 @@ from crawlsim.study.simulation import (
 if TYPE_CHECKING:
     import xarray
 
+    from crawlsim.analysis.rigid import RigidLimit
+    from crawlsim.analysis.run import Settled
     from crawlsim.analysis.sensitivity import SensitivityResult
+    from crawlsim.design.optresult import OptimizationResult
     from crawlsim.study.grid import SweepGrid
-    from crawlsim.study.optresult import OptimizationResult
-    from crawlsim.study.sweep import SweepTable
+    from crawlsim.study.table import SweepTable
 
 __all__ = [
     "Rerun",
@@ -55,6 +55,7 @@ __all__ = [
     "open_optimization",
     "open_run",
     "open_sweep",
+    "rigid_limit",
     "run",
     "sensitivity",
     "simulate",
@@ -78,8 +79,9 @@ def sweep(
     """v0 over the Cartesian grid of ``axes`` (``{"links.*.amplitude": [0.1, 0.2], ...}``: the
     dotted paths of ``--sweep``, in grid order, the last varying fastest).
 
-    Returns an `xarray.Dataset` on the grid, one dimension per swept path (named by
-    `crawlsim.io.hdf5.axis_name`, ``links_all_amplitude``; the path in its ``path`` attribute):
+    Returns an `xarray.Dataset` on the grid, one dimension per swept path, named by the path as
+    given (``grid.v0.sel({"links.*.amplitude": 0.2})``; the file names it
+    `crawlsim.io.sweepfile.axis_name`, ``links_all_amplitude``):
     v0, displacement_per_period, periods, steps, convergence and status (CF flags: see their
     ``flag_meanings``) and message, with the provenance as attributes, exactly the ``/grid``
     group of a sweep file. **Without xarray** (``pip install 'crawlsim[xarray]'``) it returns
@@ -87,13 +89,13 @@ def sweep(
     table. Settings given override the gait's ``simulation`` block. ``gait`` may also be a
     grid already made (`crawlsim.study.grid.make_grid`: linked paths, extra columns), swept as
     it is (no ``axes``, no settings). ``sensitivity``: dotted paths (with ``*``) whose
-    ``dv0/dPATH`` are added at every point, with units (`crawlsim.analysis.sensitivity_sweep`).
+    ``dv0/dPATH`` are added at every point, with units (`crawlsim.study.points.with_derivatives`).
     """
-    from crawlsim.study import sweep as sweeps
+    from crawlsim.study import grid  # start-up: numpy and YAML only for sweeps (its axes)
+    from crawlsim.study import sweep as sweeps  # start-up: h5py and the sweep engine only for sweeps
 
-    if isinstance(gait, sweeps.SweepGrid):
-        table = sweeps.sweep(gait, output=output, jobs=jobs, progress=progress, sensitivity=sensitivity)
-        return _sweep_dataset(table)
+    if isinstance(gait, grid.SweepGrid):
+        return sweeps.dataset(sweeps.sweep(gait, output=output, jobs=jobs, progress=progress, sensitivity=sensitivity))
     spec = _with_settings(
         _as_spec(gait),
         integrator=integrator,
@@ -105,7 +107,7 @@ def sweep(
         raise SweepSpecError(
             spec.source, "", "sweeps run crawler gaits (kind: crawler), not generic sweeping processes"
         )
-    axis_list = [sweeps.Axis(path, _axis_values(path, values)) for path, values in (axes or {}).items()]
+    axis_list = [grid.Axis(path, _axis_values(path, values)) for path, values in (axes or {}).items()]
     call = _provenance.python_call(
         "crawlsim.sweep",
         gait,
@@ -120,65 +122,26 @@ def sweep(
     )
     with _provenance.recording(call):
         table = sweeps.sweep(spec, axis_list, output=output, jobs=jobs, progress=progress, sensitivity=sensitivity)
-        return _sweep_dataset(table)
-
-
-def _sweep_dataset(table: SweepTable) -> xarray.Dataset | SweepTable:
-    """The ``/grid`` group of the table's sweep file as an `xarray.Dataset` (the table itself
-    without xarray)."""
-    from crawlsim.study import sweep as sweeps
-
-    try:
-        _xarray()
-    except ImportError:
-        return table
-    from crawlsim.io.sweepfile import write_sweep
-
-    buffer = io.BytesIO()
-    write_sweep(buffer, **sweeps.table_payload(table))
-    return _grid_dataset(buffer)
+        return sweeps.dataset(table)
 
 
 def open_sweep(path: str | Path) -> xarray.Dataset | SweepTable:
     """Read a sweep file as `sweep` returns it: the `xarray.Dataset` of its ``/grid`` with the
     provenance as attributes, or without xarray the `crawlsim.study.sweep.SweepTable`. Raises
     `crawlsim.errors.ResultsFileError` for a file that is not a sweep file."""
-    from crawlsim.io.sweepfile import read_sweep
-    from crawlsim.study import sweep as sweeps
+    from crawlsim.study import sweep as sweeps  # start-up: h5py and the sweep engine only for sweeps
 
-    read_sweep(path)  # refuses what is not a sweep file, naming what is missing
-    try:
-        _xarray()
-    except ImportError:
-        return sweeps.read_table(path)
-    return _grid_dataset(path)
+    return sweeps.open_dataset(path)
 
 
 def open_optimization(path: str | Path) -> OptimizationResult:
     """Read an optimisation file (``crawlsim optimize -o``) as the
-    `crawlsim.study.optresult.OptimizationResult` that `crawlsim.study.optimize.optimize`
+    `crawlsim.design.optresult.OptimizationResult` that `crawlsim.design.optimize.optimize`
     returns (`OptimizationResult.from_file`). Raises `crawlsim.errors.ResultsFileError` for a
     file that is not an optimisation file."""
-    from crawlsim.study.optresult import OptimizationResult
+    from crawlsim.design.optresult import OptimizationResult  # start-up: h5py only for its file
 
     return OptimizationResult.from_file(path)
-
-
-def _grid_dataset(source: Any) -> xarray.Dataset:
-    """The ``/grid`` group of a sweep file (a path or a binary file object) as a Dataset, the
-    root attributes (provenance) merged into its own."""
-    from crawlsim.io.runread import read_attrs
-
-    xr = _xarray()
-    if isinstance(source, io.IOBase):
-        source.seek(0)
-    attrs = read_attrs(source)
-    if isinstance(source, io.IOBase):
-        source.seek(0)
-    with xr.open_dataset(source, engine="h5netcdf", group="grid", decode_timedelta=False) as ds:
-        grid = cast("xarray.Dataset", ds.load())
-    grid.attrs = {**attrs, **grid.attrs}
-    return grid
 
 
 def _axis_values(path: str, values: Iterable[float]) -> tuple[float, ...]:
@@ -194,7 +157,9 @@ def _axis_values(path: str, values: Iterable[float]) -> tuple[float, ...]:
     return tuple(items)
 
 
-def sensitivity(gait: Spec | str | Path, paths: Sequence[str] | str, *, one_sided: bool = True) -> SensitivityResult:
+def sensitivity(
+    gait: Spec | str | Path, paths: Sequence[str] | str, *, one_sided: bool = True, run: Settled | None = None
+) -> SensitivityResult:
     """The exact derivatives of v0, of the displacement and dissipation per period and of the
     cost of transport with respect to the numbers ``paths`` name in ``gait`` (dotted paths with
     ``*`` as in ``--sweep``; each ``*`` expands to one parameter per element), at the verified
@@ -206,9 +171,10 @@ def sensitivity(gait: Spec | str | Path, paths: Sequence[str] | str, *, one_side
 
     Where v0 has a kink or a jump, a parameter's ``smooth`` is False, ``v0.value`` is None and
     ``left`` / ``right`` hold one-sided derivatives measured with the same integrator
-    (``one_sided=False`` skips them).
+    (``one_sided=False`` skips them). ``run``: what a run of this gait settled on (the
+    ``settled`` of `run`'s result), whose limit period is walked instead of searched again.
     """
-    from crawlsim.analysis.sensitivity import sensitivity as _sensitivity
+    from crawlsim.analysis.sensitivity import sensitivity as _sensitivity  # start-up: its kernels only when asked
 
     spec = _as_spec(gait)
     if not isinstance(spec, Gait):
@@ -217,4 +183,23 @@ def sensitivity(gait: Spec | str | Path, paths: Sequence[str] | str, *, one_side
             "",
             "sensitivities are defined for crawler gaits (kind: crawler), not generic sweeping processes",
         )
-    return _sensitivity(spec, paths, one_sided=one_sided)
+    return _sensitivity(spec, paths, one_sided=one_sided, run=run)
+
+
+def rigid_limit(gait: Spec | str | Path) -> RigidLimit:
+    """v0 of a crawler gait as its links stiffen without bound (docs/model.md §7), with its
+    error estimate and the resting block as a piecewise-constant function of time: exact
+    between events found in closed form or by certified sampling, no stepping.
+
+        r = crawlsim.rigid_limit("gaits/peristalsis-4.yaml")
+        r.v0, r.v0_error_estimate, r.times, r.resting
+
+    Raises `crawlsim.errors.DegenerateModelError` where the balance does not fix the motion.
+    """
+    from crawlsim.analysis.rigid import rigid_limit as _rigid_limit
+    from crawlsim.gait.crawler_spec import need_crawler
+
+    spec = _as_spec(gait)
+    need_crawler(spec, "crawlsim.rigid_limit")
+    assert isinstance(spec, Gait)
+    return _rigid_limit(spec)

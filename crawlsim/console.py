@@ -14,6 +14,9 @@ import os
 import signal
 import sys
 
+from crawlsim import __version__
+from crawlsim._help import TEXT
+
 
 def _columns() -> int:
     """The width `shutil.get_terminal_size` reports (``COLUMNS``, else the terminal's, else 80),
@@ -32,16 +35,12 @@ def _columns() -> int:
 
 def main() -> None:
     if sys.argv[1:] == ["--version"]:
-        from crawlsim import __version__
-
         sys.stdout.write(f"crawlsim, version {__version__}\n")
         sys.exit(0)
     if sys.argv[1:] == ["--help"] and os.path.basename(sys.argv[0]) == "crawlsim" and _columns() >= 80:
-        from crawlsim._help import TEXT
-
         sys.stdout.write(TEXT)
         sys.exit(0)
-    from crawlsim.cli import main as cli
+    from crawlsim.cli import main as cli  # start-up: click only beyond --version and --help
 
     try:
         cli()

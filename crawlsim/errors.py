@@ -69,6 +69,11 @@ class EventError(CrawlsimError):
     """The event-driven integrator cannot go on: too many events, or Zeno-like accumulation."""
 
 
+class GaitWarning(UserWarning):
+    """A gait that runs but shows something unphysical: an actuator length that goes negative
+    (`crawlsim.gait.crawler_spec.negative_length`)."""
+
+
 class LicqWarning(UserWarning):
     """The active normals of a generic process are dependent at some time (not an error there:
     the projected point is unique, only the reactions are not)."""

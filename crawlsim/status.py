@@ -34,8 +34,11 @@ class RunStatus(StrEnum):
     """The outcome of one run, in the manner of diffrax's ``RESULTS``: `RunResult.message`
     says what to change when it is not `SUCCESSFUL`."""
 
-    SUCCESSFUL = "successful"  # the periodic limit was found (finite-time or asymptotic)
+    SUCCESSFUL = "successful"  # the periodic limit was found, and v0 (if any) bounded
     MAX_PERIODS_REACHED = "max-periods-reached"  # max_periods ran out before the limit
+    # the limit was found, but v0 has no error estimate: a catch-up run whose time-step error
+    # could not be measured against the exact integrator (the message says why)
+    NO_ERROR_ESTIMATE = "no-error-estimate"
 
 
 class LimitMethod(StrEnum):
@@ -43,3 +46,10 @@ class LimitMethod(StrEnum):
 
     NEWTON = "newton"  # the periodic-limit solver found and verified it
     ITERATE = "iterate"  # the true iterates reached it themselves
+
+
+class RigidStatus(StrEnum):
+    """How the rigid limit found its events (`crawlsim.analysis.rigid`)."""
+
+    CLOSED_FORM = "closed-form"  # every crossing and weight event in closed form
+    SAMPLED = "sampled"  # some found by certified sampling: the estimate holds its uncertainty

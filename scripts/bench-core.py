@@ -10,6 +10,10 @@ In one run it measures, at 1000 steps per period:
 Usage: python scripts/bench-core.py [--repeats 5] [--periods 20] [--naive-periods 2]
 """
 
+import os
+
+os.environ.setdefault("CRAWLSIM_KERNEL", "compiled")  # the compiled kernel's speed (crawlsim.kernel.jit)
+
 import argparse
 import statistics
 import time

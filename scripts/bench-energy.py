@@ -9,6 +9,10 @@ residual |W - D - J - (E(end) - E(start))| / max(W, D).
 Usage: python scripts/bench-energy.py [--repeats 5] [--periods 3] [--blocks 200]
 """
 
+import os
+
+os.environ.setdefault("CRAWLSIM_KERNEL", "compiled")  # the compiled kernel's speed (crawlsim.kernel.jit)
+
 import argparse
 import statistics
 import time

@@ -126,6 +126,10 @@ timer of scripts/bench-scale.py).
 
 from __future__ import annotations
 
+import os
+
+os.environ.setdefault("CRAWLSIM_KERNEL", "compiled")  # the compiled kernel's speed (crawlsim.kernel.jit)
+
 import argparse
 import importlib.util
 import statistics
@@ -153,9 +157,9 @@ def _bench_scale():
     return module
 
 
-@njit(cache=True)
+@njit
 def reference_period(k, C, w0, signs, W):
-    """Catch-up steps w_j -> w_{j+1} onto {B w <= C[j+1]} (crawlsim.kernel.kkt's chain), the active
+    """Catch-up steps w_j -> w_{j+1} onto {B w <= C[j+1]} (crawlsim.projection.kkt's chain), the active
     set of each step found from the previous one; W (G+1, N-1) receives the states."""
     N = signs.shape[0]
     G = C.shape[0] - 1

@@ -37,6 +37,10 @@ than 10%.
 
 from __future__ import annotations
 
+import os
+
+os.environ.setdefault("CRAWLSIM_KERNEL", "compiled")  # the compiled kernel's speed (crawlsim.kernel.jit)
+
 import argparse
 import statistics
 import sys
@@ -140,7 +144,7 @@ def compare_gaits(args) -> list[str]:
             G = process.steps
             p_it, p_nt = it.steps // G, nt.steps // G
             dv = (abs(nt.v0 - it.v0) / abs(it.v0)) if it.v0 else float("nan")
-            err = (it.v0_error_estimate / abs(it.v0)) if it.v0 else float("nan")
+            err = (it.estimate.error_estimate / abs(it.v0)) if it.v0 else float("nan")
             dist = float(
                 np.max(metric_norm(process, nt.limit.w - it.limit.w))
                 / max(float(np.max(metric_norm(process, it.limit.w))), 1e-300)
@@ -150,8 +154,8 @@ def compare_gaits(args) -> list[str]:
                 process, max_periods=5000, tolerance=1e-13, integrator=integrator, limit="iterate", history=False
             )
             dv_tight = (abs(nt.v0 - tight.v0) / abs(tight.v0)) if tight.v0 else float("nan")
-            rate = it.contraction_rate
-            jrate = nt.jacobian_rate
+            rate = None if it.rate is None else it.rate.rate
+            jrate = nt.solver.jacobian_rate
             print(
                 f"{name:<19} {integrator:<9} {_f(rate, 4):>6} {_f(jrate, 4):>6} "
                 f"{p_it:>6} / {p_nt:<5} {p_it / p_nt:>6.1f} {t_it:>7.3f}/{t_nt:<7.3f} "
@@ -194,7 +198,7 @@ def compare_sweep(args) -> list[str]:
         # plain iteration stopped at a Poincare step of 1e-12 is off by its own error estimate
         # (the geometric tail): |dv0| is measured against it (exact rows; catch-up sweep rows
         # carry no estimate), and against the sweep's largest |v0| (v0 crosses 0 near lag 0)
-        e_it = np.array([np.nan if r.v0_error_estimate is None else r.v0_error_estimate for r in it])
+        e_it = np.array([np.nan if r.estimate.error_estimate is None else r.estimate.error_estimate for r in it])
         dv = float(np.nanmax(np.abs(v_nt - v_it)) / np.nanmax(np.abs(v_it)))
         ratio = np.abs(v_nt - v_it) / e_it
         dv_err = float(np.nanmax(ratio)) if np.any(np.isfinite(ratio)) else float("nan")

@@ -15,6 +15,10 @@ For each gait: ``--periods`` periods stepped by each loop in turn (after one war
 
 from __future__ import annotations
 
+import os
+
+os.environ.setdefault("CRAWLSIM_KERNEL", "compiled")  # the compiled kernel's speed (crawlsim.kernel.jit)
+
 import argparse
 import statistics
 import sys

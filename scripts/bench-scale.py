@@ -26,6 +26,10 @@ through the same library call as ``crawlsim run`` with an HDF5 file, which is th
 
 from __future__ import annotations
 
+import os
+
+os.environ.setdefault("CRAWLSIM_KERNEL", "compiled")  # the compiled kernel's speed (crawlsim.kernel.jit)
+
 import argparse
 import statistics
 import subprocess

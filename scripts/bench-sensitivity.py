@@ -4,7 +4,7 @@ GAIT`` alone, for p = 1, 2, 5 and 10 parameters, measured in one run (issue 22's
 at most 1 + 0.2 p).
 
 ``velocity`` alone is ``crawlsim.api.run(gait, history=False)``; with ``--sensitivity`` the
-command runs the same and then ``crawlsim.analysis.sensitivity.sensitivity(gait, paths, run=result)``,
+command runs the same and then ``crawlsim.analysis.sensitivity.sensitivity(gait, paths, run=result.settled)``,
 which walks the run's own limit period once with p + n tangent columns and solves (I - dP/dw)
 for the p right-hand sides together: the limit is not searched again, and no parameter costs a
 run. The two are interleaved, repeat by repeat, so that a change of load on the machine hits
@@ -32,6 +32,10 @@ left out), interleaved like the others.
 """
 
 from __future__ import annotations
+
+import os
+
+os.environ.setdefault("CRAWLSIM_KERNEL", "compiled")  # the compiled kernel's speed (crawlsim.kernel.jit)
 
 import argparse
 import copy
@@ -134,11 +138,10 @@ def main() -> int:
     for gait, path_sets in cases():
         for p, paths in path_sets.items():
             result = api.run(gait, history=False)  # warm (and the count of parameters)
-            got = len(sensitivity(gait, paths, run=result).parameters)
+            got = len(sensitivity(gait, paths, run=result.settled).parameters)
             assert got == p, (gait.name, paths, got)
-            process = result.limit_process
-            assert process is not None
-            periods = result.periods + result.limit_periods
+            process = result.settled.process
+            periods = result.periods + result.solver.periods
             alone, both, sens, stepping, first = [], [], [], [], []
             for _ in range(args.repeats):  # interleaved
                 began = clock()
@@ -147,7 +150,7 @@ def main() -> int:
                 began = clock()
                 result = api.run(gait, history=False)
                 middle = clock()
-                sensitivity(gait, paths, run=result)
+                sensitivity(gait, paths, run=result.settled)
                 ended = clock()
                 both.append(ended - began)
                 sens.append(ended - middle)
@@ -156,7 +159,7 @@ def main() -> int:
                 fresh = copy.copy(gait)
                 began = clock()
                 result = api.run(fresh, history=False)
-                sensitivity(fresh, paths, run=result)
+                sensitivity(fresh, paths, run=result.settled)
                 first.append(clock() - began)
                 began = clock()
                 stepper = make_stepper(process, gait.simulation.integrator)

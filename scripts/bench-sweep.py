@@ -41,6 +41,10 @@ faster. Before issue 20 a catch-up sweep with ``-j 2`` always started two worker
 
 from __future__ import annotations
 
+import os
+
+os.environ.setdefault("CRAWLSIM_KERNEL", "compiled")  # the compiled kernel's speed (crawlsim.kernel.jit)
+
 import argparse
 import statistics
 import time
@@ -50,6 +54,7 @@ from crawlsim.analysis.run import simulate
 from crawlsim.gait.document import load_gait, with_simulation
 from crawlsim.model.process import compile_gait
 from crawlsim.study import sweep as sweeps
+from crawlsim.study.grid import parse_axis
 
 GAIT = Path(__file__).resolve().parents[1] / "gaits" / "peristalsis-4.yaml"
 
@@ -99,7 +104,7 @@ def main():
         return
     gait = with_simulation(load_gait(GAIT), steps_per_period=args.steps)
     axis = f"{args.path}:{args.points}"
-    grid = sweeps.make_grid(gait, [sweeps.parse_axis(axis)])
+    grid = sweeps.make_grid(gait, [parse_axis(axis)])
 
     sweep_rates, loop_rates, walls = [], [], []
     for rep in range(args.repeat):

@@ -55,7 +55,7 @@ MUTANTS = [
     ),
     (
         "Certificate.ok",
-        "crawlsim/kernel/certificate.py",
+        "crawlsim/projection/certificate.py",
         "        return (self.primal <= t.primal and self.dual <= self._dual_tol\n"
         "                and self.complementarity <= t.primal)",
         "        return True",
@@ -63,28 +63,28 @@ MUTANTS = [
     ),
     (
         "Polyhedron.solve_on refinement",
-        "crawlsim/kernel/polyhedron.py",
+        "crawlsim/projection/polyhedron.py",
         "        if np.abs(slack[idx]).max() > REFINE_FRACTION * tol.primal:",
         "        if False:",
         [CERT],
     ),
     (
         "Polyhedron.run certificate",
-        "crawlsim/kernel/polyhedron.py",
+        "crawlsim/projection/polyhedron.py",
         "        ok = (primal <= tol.primal) & (dual <= tol.dual) & (comp <= tol.primal)",
         "        ok = np.ones(len(primal), dtype=bool)",
         [CERT],
     ),
     (
         "Polyhedron.run refinement",
-        "crawlsim/kernel/polyhedron.py",
+        "crawlsim/projection/polyhedron.py",
         "        if np.any(comp > REFINE_FRACTION * tol.primal):",
         "        if False:",
         [CERT],
     ),
     (
         "ChainPolyhedron.row_tolerance",
-        "crawlsim/kernel/chain_polyhedron.py",
+        "crawlsim/projection/chain_polyhedron.py",
         "        if not active.size:\n            return tol\n        N = self.blocks",
         "        if True:\n            return tol\n        N = self.blocks",
         [KKT],

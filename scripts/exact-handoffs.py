@@ -169,7 +169,7 @@ def main() -> int:
         basis = process.offset_pieces.basis if process.offset_pieces is not None else None
         shape = "" if basis is None else f"linear {int(basis.linear)} H {basis.harmonics}"
         if process.crawler is not None:
-            k = np.asarray(process.stiffness, dtype=float)
+            k = np.asarray(process.crawler.stiffness, dtype=float)
             shape += f" k ratio {np.max(k) / np.min(k):.0e}"
         print(
             f"{name:36s} N {process.blocks if process.crawler else '-':>3} {shape:28s} "

@@ -10,14 +10,22 @@ trap 'rm -rf "$work"' EXIT
 mkdir -p "$out"
 
 # Figures of single runs, through the command line exactly as a user would draw them.
-crawlsim run "$root/gaits/peristalsis-4.yaml" -o "$work/peristalsis-4.h5" >/dev/null
+crawlsim run "$root/gaits/peristalsis-4.yaml" -o "$work/peristalsis-4.h5" --rigid >/dev/null
 crawlsim run "$root/gaits/smooth-friction-3.yaml" -o "$work/smooth-friction-3.h5" >/dev/null
 crawlsim run "$root/gaits/paper/triangle.yaml" -o "$work/triangle.h5" >/dev/null
 crawlsim plot "$work/peristalsis-4.h5" -o "$out" --only motion
 crawlsim plot "$work/peristalsis-4.h5" -o "$out" --only gait-diagram
+crawlsim plot "$work/peristalsis-4.h5" -o "$out" --only kymograph
 crawlsim plot "$work/peristalsis-4.h5" -o "$out" --only convergence
+crawlsim plot "$work/peristalsis-4.h5" -o "$out" --only rigid
 crawlsim plot "$work/triangle.h5" -o "$out" --only convergence
 crawlsim plot "$work/smooth-friction-3.h5" -o "$out" --only shape-space
+
+# A large crawler: the kymograph of earthworm-100 and its motion, following the crawler over its
+# last three periods (the default beyond 32 blocks).
+crawlsim run "$root/gaits/earthworm-100.yaml" -o "$work/earthworm-100.h5" >/dev/null
+crawlsim plot "$work/earthworm-100.h5" -o "$out" --only kymograph
+crawlsim plot "$work/earthworm-100.h5" -o "$out" --only motion
 
 # The crawler in motion over its limit period (a GIF for docs/figures.md, kept small).
 crawlsim animate "$work/peristalsis-4.h5" -o "$out/peristalsis-4-crawl.gif" --frames-per-period 30 \

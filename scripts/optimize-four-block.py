@@ -4,7 +4,7 @@ brute-force grid, then the phase lags and the amplitude for v0 and for the cost 
 
 1. **Agreement with a grid** (the issue's done-when check). v0 on a 60 x 60 grid of the phase lags
    of links 1 and 2 over [0, 1] x [0, 1] (3,600 points, the sweep engine), against
-   `crawlsim.study.optimize` on the same box with the default budget (150 (n + 1) = 450 points, within
+   `crawlsim.design.optimize` on the same box with the default budget (150 (n + 1) = 450 points, within
    the allowed fifth of the grid, 720), for several seeds: the gap of each optimum to the grid's
    maximum (it must be > -1e-4), its evaluations and wall time (medians printed).
 2. **--jobs**: one optimisation with 1 and with 2 local workers, in one run, as a ratio.
@@ -34,8 +34,9 @@ from pathlib import Path
 
 import numpy as np
 
+from crawlsim.design import optimize as opt
+from crawlsim.design.problem import Method, Objective, make_problem
 from crawlsim.gait.document import load_gait, with_simulation
-from crawlsim.study import optimize as opt
 from crawlsim.study import sweep as sweeps
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -86,10 +87,10 @@ def measure(args, free: list[str]) -> None:
         f"{grid_max!r} at links.1.phase = {where[0]:.6g}, links.2.phase = {where[1]:.6g}; "
         f"{grid_wall:.1f} s"
     )
-    problem = opt.make_problem(base(), LAGS)
+    problem = make_problem(base(), LAGS)
     walls, counts, gaps = [], [], []
     for seed in range(args.seeds):
-        result = opt.optimize(problem, opt.Method(seed=seed))
+        result = opt.optimize(problem, Method(seed=seed))
         gap = result.value - grid_max
         walls.append(result.wall_time)
         counts.append(len(result.evaluations))
@@ -110,8 +111,8 @@ def measure(args, free: list[str]) -> None:
 
     # 2. --jobs
     if args.jobs > 1:
-        one = opt.optimize(problem, opt.Method(seed=0))
-        many = opt.optimize(problem, opt.Method(seed=0), jobs=args.jobs)
+        one = opt.optimize(problem, Method(seed=0))
+        many = opt.optimize(problem, Method(seed=0), jobs=args.jobs)
         assert many.best_point.x == one.best_point.x and many.value == one.value
         print(
             f"-j 1: {one.wall_time:.1f} s, -j {args.jobs}: {many.wall_time:.1f} s, ratio "
@@ -119,17 +120,15 @@ def measure(args, free: list[str]) -> None:
         )
 
     # 3. phase lags and amplitude
-    fast = opt.optimize(opt.make_problem(base(), free), opt.Method(seed=0), jobs=args.jobs)
+    fast = opt.optimize(make_problem(base(), free), Method(seed=0), jobs=args.jobs)
     print(
         f"max v0 over lags and amplitude: v0 {fast.value!r}, cost of transport "
         f"{fast.best_point.row.cost_of_transport!r} at {fast.best_values}; "
         f"{len(fast.evaluations)} evaluations, {fast.wall_time:.1f} s"
     )
     cheap = opt.optimize(
-        opt.make_problem(
-            base(), free, objective=opt.Objective("cost_of_transport", "minimize"), constraints=["v0>=0.3"]
-        ),
-        opt.Method(seed=0),
+        make_problem(base(), free, objective=Objective("cost_of_transport", "minimize"), constraints=["v0>=0.3"]),
+        Method(seed=0),
         jobs=args.jobs,
     )
     row = cheap.best_point.row

@@ -1,6 +1,6 @@
 #!/usr/bin/env python
 """The gradient search of `crawlsim optimize --method gradient` (a coarse sample, then
-quasi-Newton runs on the exact sensitivities, `crawlsim.study.descent`) against the evolution
+quasi-Newton runs on the exact sensitivities, `crawlsim.design.descent`) against the evolution
 search (differential evolution + pattern search), measured in one run.
 
 1. **docs/optimize.md's two-lag example**: maximise v0 of gaits/peristalsis-4.yaml over
@@ -48,8 +48,10 @@ import time
 from pathlib import Path
 
 import crawlsim
+from crawlsim.design.optimize import optimize
+from crawlsim.design.optresult import OptimizationResult
+from crawlsim.design.problem import Method, make_problem
 from crawlsim.gait.document import gait_from_document
-from crawlsim.study.optimize import Method, OptimizationResult, make_problem, optimize
 
 ROOT = Path(__file__).resolve().parents[1]
 OPTIMUM = 7.0 / 15.0

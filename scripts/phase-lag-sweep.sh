@@ -5,7 +5,7 @@
 #   scripts/phase-lag-sweep.sh [OUTDIR] [POINTS] [crawlsim velocity options...]
 #   scripts/phase-lag-sweep.sh lag 101 --steps-per-period 400 --jobs 2
 #
-# Writes OUTDIR/phase-lag.csv and OUTDIR/phase-lag.png. Rerunning after an interruption
+# Writes OUTDIR/phase-lag.csv and OUTDIR/phase-lag-sweep.png. Rerunning after an interruption
 # resumes the sweep (finished points are kept in OUTDIR/phase-lag.csv.journal).
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
@@ -15,5 +15,5 @@ shift $(( $# >= 2 ? 2 : $# ))
 gait=${GAIT:-$here/../gaits/peristalsis-3.yaml}
 mkdir -p "$outdir"
 crawlsim velocity "$gait" --sweep "links.1.phase=0:1:$points" \
-    -o "$outdir/phase-lag.csv" --plot "$outdir/phase-lag.png" "$@"
-echo "wrote $outdir/phase-lag.csv and $outdir/phase-lag.png"
+    -o "$outdir/phase-lag.csv" --plot "$@" >/dev/null
+echo "wrote $outdir/phase-lag.csv and $outdir/phase-lag-sweep.png"

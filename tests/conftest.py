@@ -7,10 +7,7 @@ counterexample found as an ``@example``.
 """
 
 import os
-import shutil
-import subprocess
 import sys
-import tempfile
 from pathlib import Path
 
 import pytest
@@ -65,45 +62,35 @@ def two_block(amplitude=0.3, k=10.0, friction=None, steps=200, max_periods=20, *
     return make_gait(doc)
 
 
+def console_env(env: dict[str, str] | None = None) -> dict[str, str]:
+    """The environment (``os.environ`` by default) of a subprocess that calls ``crawlsim`` from
+    PATH (the scripts of scripts/, documented commands): the console scripts of this
+    interpreter's environment first, so that ``venv/bin/python -m pytest tests`` needs no
+    activated venv and runs its own crawlsim."""
+    env = dict(os.environ if env is None else env)
+    env["PATH"] = os.pathsep.join([str(Path(sys.executable).parent), env.get("PATH", "")])
+    return env
+
+
 @pytest.fixture
 def gaits_dir():
     return GAITS
 
 
-@pytest.fixture(scope="session", autouse=True)
-def compiled_kernel():
-    """Compile the kernel (crawlsim/kernel, numba with cache=True) once, before any test: on a
-    fresh install the first run compiles it (about 50 s), and the tests that run crawlsim in a
-    subprocess under a hang guard should find the cache warm rather than pay for it; nor should
-    a documented command's output carry the one-line notice of a first compilation (the
-    sensitivities' tangent walk included)."""
-    from crawlsim.api import sensitivity, simulate
-    from crawlsim.gait.document import load_gait, with_simulation
+def pytest_sessionfinish(session, exitstatus):
+    """No stray process after the tests: a background compile of the kernel (`crawlsim warmup
+    --background`, started by a long run on a cold cache) that is still running is stopped; the
+    functions it finished stay in numba's cache."""
+    import signal
 
-    gait = load_gait(GAITS / "inching-2.yaml")
-    for integrator in ("catch-up", "exact"):
-        simulate(with_simulation(gait, integrator=integrator, steps_per_period=20, max_periods=3))
-        sensitivity(with_simulation(gait, integrator=integrator, steps_per_period=20), "stiffness")
-    # the installed command may import another copy of crawlsim than the tests do (pytest run
-    # from a checkout with a non-editable install): numba caches each copy's kernel apart
-    command = shutil.which("crawlsim", path=str(Path(sys.executable).parent))
-    if command is not None:
-        with tempfile.TemporaryDirectory() as folder:
-            for integrator in ("catch-up", "exact"):
-                subprocess.run(
-                    [
-                        command,
-                        "velocity",
-                        str(GAITS / "inching-2.yaml"),
-                        "--integrator",
-                        integrator,
-                        "--steps-per-period",
-                        "20",
-                        "--sensitivity",
-                        "stiffness",
-                    ],
-                    cwd=folder,
-                    capture_output=True,
-                    timeout=1800,
-                    check=False,
-                )
+    from crawlsim.kernel import jit
+
+    lock = jit.stamp().with_suffix(".lock")
+    try:
+        os.killpg(int(lock.read_text()), signal.SIGTERM)
+    except (OSError, ValueError):
+        pass
+    background = jit._state["background"]
+    if background is not None and background.poll() is None:
+        os.killpg(background.pid, signal.SIGTERM)
+        background.wait()

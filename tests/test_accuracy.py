@@ -47,8 +47,8 @@ def exact_v0(gait) -> tuple[float, float]:
         tolerance=0.0,
         history=False,
     )
-    assert run.converged and run.v0 is not None and run.v0_error_estimate is not None
-    return run.v0, run.v0_error_estimate
+    assert run.converged and run.v0 is not None and run.estimate.error_estimate is not None
+    return run.v0, run.estimate.error_estimate
 
 
 def printed(path: Path, tmp_path: Path, *extra: str) -> tuple[float, float, str]:

@@ -14,7 +14,7 @@ from crawlsim import api
 from crawlsim.cli import main
 from crawlsim.errors import OutputError
 from crawlsim.gait.document import load_gait, with_simulation
-from crawlsim.io.hdf5 import read_results
+from crawlsim.io.runread import read_results
 from crawlsim.plotting import animation
 from crawlsim.plotting.animation import (
     ANIMATION_DPI,
@@ -133,8 +133,8 @@ def test_an_error_while_writing_leaves_no_file(p4, tmp_path, monkeypatch):
     target = tmp_path / "crawl.gif"
     real = animation.animation_figure
 
-    def failing(results, frames):
-        fig, draw = real(results, frames)
+    def failing(results, frames, **options):
+        fig, draw = real(results, frames, **options)
 
         def draw_or_fail(k):
             if k == 5:
@@ -197,3 +197,35 @@ def test_animation_of_a_result_object(p4, tmp_path):
         np.testing.assert_allclose(getattr(ours, name), getattr(stored, name), rtol=1e-12, atol=1e-12, err_msg=name)
     path, count = write_animation(result, tmp_path / "r.gif", frames_per_period=8)
     assert count == 8 and len(frames_of(path)) == 8
+
+
+def test_the_last_periods_in_a_frame_that_follows_the_crawler(p4, tmp_path):
+    """--last K animates the last K stored periods with the positions taken from the barycentre:
+    in every frame the blocks' centres average 0, the ground's marks pass by as the barycentre
+    advances, and its trace from the first frame is as long as it has come (peristalsis-4: v0 T
+    a period in its periodic regime)."""
+    from crawlsim.plotting.animation import animation_figure
+
+    r = read_results(p4)
+    frames = animation_frames(r, (1, 2), 8)
+    fig, draw = animation_figure(r, frames, follow=True)
+    body = fig.axes[0]
+    boxes = next(c for c in body.collections if c.__class__.__name__ == "PolyCollection")
+    ground = [c for c in body.collections if c.__class__.__name__ == "LineCollection"][-1]  # after the links
+    y = frames.x.mean(axis=1)
+    first = None
+    for k in (0, 4, 7):
+        draw(k)
+        centres = np.array([np.mean(v[:, 0]) for v in [p.vertices[:4] for p in boxes.get_paths()]])
+        assert abs(centres.mean()) <= 1e-12
+        marks = np.array([seg[0][0] for seg in ground.get_segments()])
+        first = marks if first is None else first
+        np.testing.assert_allclose(marks, first - (y[k] - y[0]), atol=1e-12)
+        trace = next(line for line in body.get_lines() if line.get_label() == "barycentre's trace")
+        np.testing.assert_allclose(trace.get_xdata(), [y[0] - y[k], 0.0], atol=1e-12)
+    assert body.get_xlabel() == "position from the barycentre $(x_j - y)/\\ell$"
+    target = tmp_path / "follow.gif"
+    r = cli("animate", p4, "--last", 1, "--frames-per-period", 8, "-o", target)
+    assert r.exit_code == 0 and r.output.strip() == f"{target} (8 frames, 0.4 s)", r.output
+    r = cli("animate", p4, "--last", 1, "--periods", "0:1", "-o", tmp_path / "no.gif")
+    assert r.exit_code == 2 and "give one of the two" in r.output and not (tmp_path / "no.gif").exists()

@@ -13,10 +13,11 @@ import numpy as np
 import pytest
 
 import crawlsim
+import crawlsim.study.sweep
 from crawlsim import api
 from crawlsim.errors import GaitError, SweepSpecError
-from crawlsim.io.hdf5 import read_results
-from crawlsim.study.sweep import Axis, make_grid
+from crawlsim.io.runread import read_results
+from crawlsim.study.grid import Axis, make_grid
 
 from .conftest import GAITS, ROOT
 
@@ -44,6 +45,17 @@ def test_load_gait_is_immutable_and_replace_returns_a_new_validated_gait():
     assert steps.simulation.steps_per_period == 300 and isinstance(
         steps.document["simulation"]["steps_per_period"], int
     )
+
+
+def test_a_gait_and_the_package_show_what_a_user_looks_for():
+    """repr(gait) was 2 kB (its whole document and file text); dir(crawlsim) listed the module's
+    own imports (TYPE_CHECKING, annotations, importlib)."""
+    assert repr(crawlsim.load_gait(P4)) == "<Gait peristalsis-4: 4 blocks, period 1, from " + str(P4) + ">"
+    triangle = crawlsim.load_gait(GAITS / "paper" / "triangle.yaml")
+    assert repr(triangle).startswith("<ProcessSpec triangle: 3 faces in R^2, period 1, from ")
+    names = dir(crawlsim)
+    assert not {"TYPE_CHECKING", "annotations", "importlib"} & set(names)
+    assert set(crawlsim.__all__) <= set(names) and "plotting" in names
 
 
 def test_replace_edits_exactly_as_a_sweep_point():
@@ -177,7 +189,7 @@ def test_generic_processes_run_through_the_same_api():
     assert isinstance(spec, crawlsim.ProcessSpec)
     r = crawlsim.simulate(spec, steps_per_period=60)
     assert r.v0 is None and r.trajectory.x is None and r.trajectory.reaction is not None
-    assert r.contraction_rate == pytest.approx(1 / 8, rel=1e-3)  # the paper's phi^3
+    assert r.rate.rate == pytest.approx(1 / 8, rel=1e-3)  # the paper's phi^3
     assert spec.replace("period", 2.0).period == 2.0
 
 
@@ -190,9 +202,10 @@ def test_sweep_returns_a_dataset_on_the_grid():
     gait = crawlsim.load_gait(P4)
     amplitudes, phases = [0.2, 0.3], [0.25, 0.5, 0.75]
     grid = crawlsim.sweep(gait, {"links.*.amplitude": amplitudes, "links.1.phase": phases}, steps_per_period=80)
-    assert grid.v0.dims == ("links_all_amplitude", "links_1_phase")
-    assert grid.links_1_phase.attrs["path"] == "links.1.phase"
-    np.testing.assert_array_equal(grid.links_all_amplitude.values, amplitudes)
+    assert grid.v0.dims == ("links.*.amplitude", "links.1.phase")  # the paths passed (issue 35)
+    assert grid["links.1.phase"].attrs["path"] == "links.1.phase"
+    np.testing.assert_array_equal(grid["links.*.amplitude"].values, amplitudes)
+    assert float(grid.v0.sel({"links.*.amplitude": 0.3, "links.1.phase": 0.5})) == float(grid.v0[1, 1])
     assert (grid.status.values == 0).all() and (grid.message.values == "").all()
     for i, a in enumerate(amplitudes):
         for j, p in enumerate(phases):
@@ -211,7 +224,7 @@ def test_sweep_without_xarray_returns_the_table(monkeypatch, tmp_path):
     def missing():
         raise ImportError("no xarray")
 
-    monkeypatch.setattr(api, "_xarray", missing)
+    monkeypatch.setattr(crawlsim.study.sweep, "_xarray", missing)
     out = tmp_path / "s.h5"
     table = crawlsim.sweep(
         crawlsim.load_gait(INCHING), {"links.0.amplitude": [0.2, 0.3]}, steps_per_period=20, output=out
@@ -279,19 +292,19 @@ def test_the_study_in_the_docs_runs_and_says_what_it_finds(tmp_path, monkeypatch
         exec(compile(block, "docs/study.md", "exec"), namespace)
     monkeypatch.undo()
     printed = {" ".join(line.split()) for line in out.getvalue().splitlines()}
-    shown = re.findall(r"```\n(links_all_amplitude.*?)```", text, flags=re.S)[0]
+    shown = re.findall(r"```\n(links\.\*\.amplitude.*?)```", text, flags=re.S)[0]
     for line in shown.strip().splitlines():  # the output the page shows is the output
         assert " ".join(line.split()) in printed, line
     v0 = namespace["v0"]
-    amp = v0.links_all_amplitude.values
+    amp = v0["links.*.amplitude"].values
     still = v0.sel(lag=0.0, method="nearest").values
     assert np.all(np.abs(still[amp <= 0.2 + 1e-12]) < 1e-12)
     np.testing.assert_allclose(still[amp > 0.2 + 1e-12], 2 * amp[amp > 0.2 + 1e-12] - 0.4, atol=1e-9)
     moving = v0.sel(lag=v0.lag[v0.lag > 0])
-    assert np.all(moving.sel(links_all_amplitude=amp[amp >= 0.15]).values > 1e-3)
-    assert abs(float(v0.sel(lag=0.1, links_all_amplitude=0.1, method="nearest"))) < 5e-5
-    assert np.all(v0.sel(lag=v0.lag[v0.lag >= 0.2], links_all_amplitude=0.1).values > 1e-3)
+    assert np.all(moving.sel({"links.*.amplitude": amp[amp >= 0.15]}).values > 1e-3)
+    assert abs(float(v0.sel({"lag": 0.1, "links.*.amplitude": 0.1}, method="nearest"))) < 5e-5
+    assert np.all(v0.sel({"lag": v0.lag[v0.lag >= 0.2], "links.*.amplitude": 0.1}).values > 1e-3)
     assert np.all(np.diff(v0.values, axis=1) >= -1e-12)  # never decreases with the amplitude
-    at = v0.sel(links_all_amplitude=0.4, method="nearest").values  # lags 0, 0.1, ..., 0.5
+    at = v0.sel({"links.*.amplitude": 0.4}, method="nearest").values  # lags 0, 0.1, ..., 0.5
     assert at[2] > at[3] and at[2] > at[4] and at[5] > at[2]
     assert (tmp_path / "peristalsis-4.h5").exists()

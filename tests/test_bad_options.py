@@ -17,9 +17,11 @@ import pytest
 from click.testing import CliRunner
 
 import crawlsim.api
-import crawlsim.study.optimize
-import crawlsim.study.sweep
+import crawlsim.design.optimize
 from crawlsim.cli import main
+from crawlsim.design.problem import Method
+from crawlsim.errors import SweepSpecError
+from crawlsim.study import executors
 
 GAIT = """\
 blocks: 2
@@ -44,7 +46,7 @@ def folder(tmp_path, monkeypatch):
 
     monkeypatch.setattr(crawlsim.api, "run", computed)
     monkeypatch.setattr(crawlsim.study.sweep, "run_sweep", computed)
-    monkeypatch.setattr(crawlsim.study.optimize, "optimize", computed)
+    monkeypatch.setattr(crawlsim.design.optimize, "optimize", computed)
     return tmp_path
 
 
@@ -83,10 +85,7 @@ OPT = ("optimize", "g.yaml", "--free", "links.0.phase=0:1", "--max-evaluations",
         ((*OPT, "--write-best", "g.yaml"), "is the input file g.yaml"),
         ((*OPT, "--write-best", "./g.yaml"), "is the input file g.yaml"),
         ((*OPT, "-o", "o.h5", "--write-best", "o.h5"), "is the input file o.h5"),
-        (
-            ("velocity", "g.yaml", "--sweep", "period=1,2", "-o", "t.csv", "--plot", "t.csv"),
-            "is also the --output file",
-        ),
+        (("velocity", "g.yaml", "--sweep", "period=1,2", "-o", "t.csv", "--dpi", "100"), "add --plot"),
         (("velocity", "g.yaml", "--sensitivity", "blocks"), "blocks: not a continuous parameter"),
         (
             ("velocity", "g.yaml", "--sweep", "period=1,2", "--sensitivity", "blocks", "-o", "s.csv"),
@@ -109,7 +108,7 @@ OPT = ("optimize", "g.yaml", "--free", "links.0.phase=0:1", "--max-evaluations",
         "write-best-input",
         "write-best-input-path",
         "write-best-output",
-        "plot-is-output",
+        "figure-option-without-plot",
         "sensitivity-blocks",
         "sweep-sensitivity-blocks",
         "free-beyond-the-schema",
@@ -122,9 +121,9 @@ def test_refused_before_any_computation(folder, args, phrase):
 
 def test_the_largest_seed_is_accepted():
     """2**63 - 1 is the largest seed the results file holds; it is a valid search."""
-    crawlsim.study.optimize.Method(seed=2**63 - 1)
-    with pytest.raises(crawlsim.study.optimize.SweepSpecError):
-        crawlsim.study.optimize.Method(seed=2**63)
+    Method(seed=2**63 - 1)
+    with pytest.raises(SweepSpecError):
+        Method(seed=2**63)
 
 
 @pytest.mark.parametrize(
@@ -145,7 +144,7 @@ def test_scheduler_addresses(address, valid):
     and a port from 1 to 65535; anything else is refused before a connection is tried."""
     pytest.importorskip("distributed")
     if valid:
-        crawlsim.study.sweep.check_scheduler(address)
+        executors.check_scheduler(address)
         return
-    with pytest.raises(crawlsim.study.sweep.SweepSpecError, match="expected the address of a Dask"):
-        crawlsim.study.sweep.check_scheduler(address)
+    with pytest.raises(SweepSpecError, match="expected the address of a Dask"):
+        executors.check_scheduler(address)

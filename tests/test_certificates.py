@@ -31,11 +31,11 @@ import pytest
 from crawlsim.errors import CertificateError
 from crawlsim.gait.document import load_gait
 from crawlsim.integrate.stepping import make_stepper
-from crawlsim.kernel.certificate import REFINE_FRACTION
-from crawlsim.kernel.dense_polyhedron import DensePolyhedron
-from crawlsim.kernel.polyhedron import ActiveSet
-from crawlsim.kernel.projection import ExactProjector
+from crawlsim.kernel.policy import REFINE_FRACTION
 from crawlsim.model.process import compile_gait
+from crawlsim.projection.adapter import ExactProjector
+from crawlsim.projection.dense_polyhedron import DensePolyhedron
+from crawlsim.projection.polyhedron import ActiveSet
 
 GAITS = Path(__file__).resolve().parents[1] / "gaits"
 INTEGRATORS = ("exact", "catch-up")
@@ -100,7 +100,7 @@ def periods(stepper, count: int = 3) -> None:
 @pytest.mark.parametrize("integrator", INTEGRATORS)
 def test_a_wrong_step_raises_in_both_integrators(integrator, name):
     """Wrong solves of every active set raise. Both integrators run here on the Python path of
-    `crawlsim.kernel.kkt` (``kernel=False``), the one the polyhedron's factors reach; the compiled
+    `crawlsim.projection.kkt` (``kernel=False``), the one the polyhedron's factors reach; the compiled
     kernel's own corrupted factor and piece are in tests/test_kernel.py."""
     options = {"kernel": False}
     process = process_of(name)
@@ -131,7 +131,7 @@ def test_a_piece_off_by_a_few_tolerances_is_refined():
     each sample that fails is refined, projected onto K(t_j) and certified, and the run goes on
     from there (it used to stop with a CertificateError); v0 moves by roundoff. Pushed 1e-8 out,
     far beyond the refinement's reach, it still stops (`test_a_corrupted_exact_piece_raises`)."""
-    from crawlsim.integrate.exact import REFINE_LIMIT
+    from crawlsim.kernel.policy import REFINE_LIMIT
 
     clean = make_stepper(process_of("peristalsis-4"), "exact", kernel=False)
     stepper = make_stepper(process_of("peristalsis-4"), "exact", kernel=False)

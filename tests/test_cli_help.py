@@ -18,10 +18,11 @@ from crawlsim.cli import (
     DEFAULT_TOLERANCE,
     main,
 )
-from crawlsim.gait.document import Simulation
+from crawlsim.gait.settings import Simulation
+
+from .conftest import console_env
 
 ROOT = Path(__file__).resolve().parents[1]
-BIN = Path(sys.executable).parent
 
 
 def commands():
@@ -50,6 +51,7 @@ def examples(help_text: str) -> list[str]:
     return lines
 
 
+@pytest.mark.slow  # every example of every command, each a fresh process: about 100 s
 @pytest.mark.parametrize("name, command", commands(), ids=lambda c: c if isinstance(c, str) else "")
 def test_every_help_example_runs(name, command, tmp_path):
     """Each command's examples run in order in an empty folder holding the example gaits, with
@@ -57,7 +59,7 @@ def test_every_help_example_runs(name, command, tmp_path):
     lines = examples(command.help)
     assert lines, f"{name} --help has no examples"
     (tmp_path / "gaits").symlink_to(ROOT / "gaits")
-    env = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ.get('PATH', '')}"}
+    env = console_env()
     for line in lines:
         assert line.startswith(("crawlsim ", "for ")), line
         r = subprocess.run(
@@ -80,7 +82,7 @@ def test_the_examples_are_found():
 
 def test_defaults_in_the_help_are_the_gait_files_defaults():
     """The help says what wins: the gait file's value, else crawlsim's default, which is the
-    default of `crawlsim.gait.document.Simulation`."""
+    default of `crawlsim.gait.settings.Simulation`."""
     s = Simulation()
     assert (DEFAULT_STEPS_PER_PERIOD, DEFAULT_MAX_PERIODS, DEFAULT_TOLERANCE, str(DEFAULT_INTEGRATOR)) == (
         s.steps_per_period,

@@ -10,7 +10,7 @@ from click.testing import CliRunner
 
 from crawlsim import __version__
 from crawlsim.cli import main
-from crawlsim.io.hdf5 import read_results
+from crawlsim.io.runread import read_results
 
 from .conftest import iterated_examples
 
@@ -44,6 +44,8 @@ def test_run_writes_default_file_and_summary(runner, tmp_path):
     assert "v0                       0.4" in result.output
     assert "finite-time: periodic from period 1" in result.output
     assert (tmp_path / "inch.h5").exists()
+    one = runner.invoke(main, ["run", str(gait), "--max-periods", "1", "-o", "one.h5", "--force"])
+    assert one.exit_code == 3 and one.output.splitlines()[0] == "gait inch: 1 period of 100 steps", one.output
 
 
 def test_run_json_keys_and_values(runner, tmp_path):
@@ -116,6 +118,12 @@ simulation: {steps_per_period: 100}
     assert len(result.stderr.strip().splitlines()) == 1, result.stderr
     assert "max_periods = 2" in result.stderr and "--max-periods" in result.stderr
     assert (tmp_path / "gait.h5").exists()
+    # the line is the run's own message: the tolerance it names is the one used, 1e-15 clamped
+    # to the roundoff floor
+    result = runner.invoke(main, ["run", str(gait), "--max-periods", "2", "--tolerance", "1e-15", "--json", "--force"])
+    message = json.loads(result.stdout)["message"]
+    assert "tolerance 1e-13 relative" in message
+    assert result.stderr == f"Not converged: {message}. The numbers printed are those of the last period.\n"
 
 
 def test_overrides_apply(runner, tmp_path):
@@ -205,10 +213,17 @@ def test_info_summarises_a_run(runner, tmp_path):
     """`crawlsim info` reports what the file's attributes say (the closed-form v0 0.4 of the
     inching gait, finite-time from period 1), text and JSON alike, without the trajectory."""
     gait = write(tmp_path, INCHING, "inch.yaml")
-    assert runner.invoke(main, ["run", str(gait), "-o", "r.h5"]).exit_code == 0
+    run = runner.invoke(main, ["run", str(gait), "-o", "r.h5"])
+    assert run.exit_code == 0
     text = runner.invoke(main, ["info", "r.h5"])
     assert text.exit_code == 0, text.output
     lines = text.output.splitlines()
+    # the numbers crawlsim run prints, with their estimates; no attribute that does not apply
+    # (NaN: the load work and slope of a run without loads)
+    for label in ("v0", "displacement per period", "dissipation per period", "cost of transport"):
+        (printed,) = [line for line in run.output.splitlines() if line.startswith(f"  {label:<24} ")]
+        assert printed.split(" (")[0] in lines  # v0 without its explanation
+    assert not [line for line in lines if line.endswith(" nan")]
     assert lines[0] == "r.h5: run of gait inch"
     assert "  integrator               exact" in lines  # the default
     assert any(line.startswith("  v0                       0.4") for line in lines)

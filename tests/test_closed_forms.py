@@ -29,7 +29,8 @@ import numpy as np
 import pytest
 
 from crawlsim.api import run
-from crawlsim.gait.document import admissibility_violation, load_gait, with_simulation
+from crawlsim.gait.crawler_spec import admissibility_violation
+from crawlsim.gait.document import load_gait, with_simulation
 
 from .conftest import GAITS, make_gait, two_block
 
@@ -42,10 +43,10 @@ def test_moving_gait(amplitude, k, mu_plus, mu_minus):
     res = run(gait)
     delta = 2 * amplitude - 2 * mu_plus / k
     assert delta > 0
-    assert res.displacement_per_period == pytest.approx(delta, abs=1e-13)
+    assert res.estimate.displacement == pytest.approx(delta, abs=1e-13)
     assert res.v0 == pytest.approx(delta, abs=1e-13)
-    assert res.dissipation_per_period == pytest.approx(2 * mu_plus * delta, abs=1e-12)
-    assert res.cost_of_transport == pytest.approx(2 * mu_plus, abs=1e-11)
+    assert res.energy.dissipation == pytest.approx(2 * mu_plus * delta, abs=1e-12)
+    assert res.energy.cost_of_transport == pytest.approx(2 * mu_plus, abs=1e-11)
     # In the limit period block 2 slips forward while the link extends, block 1 while it contracts.
     slip = res.limit.slip
     assert set(np.unique(slip[:, 0])) == {0, 1} and set(np.unique(slip[:, 1])) == {0, 1}
@@ -59,8 +60,8 @@ def test_back_and_forth_with_zero_net_motion():
     res = run(two_block(0.3, 10.0, friction))
     delta = 0.6 - 2.0 / 10.0
     assert res.v0 == pytest.approx(0.0, abs=1e-14)
-    assert res.dissipation_per_period == pytest.approx(2.0 * delta, abs=1e-12)
-    assert res.cost_of_transport is None
+    assert res.energy.dissipation == pytest.approx(2.0 * delta, abs=1e-12)
+    assert res.energy.cost_of_transport is None
     dx = np.diff(res.limit.x + res.v0 * res.limit.t[:, None], axis=0)
     assert np.sum(np.clip(dx[:, 0], 0, None)) == pytest.approx(delta, abs=1e-12)
     assert np.sum(np.clip(-dx[:, 0], 0, None)) == pytest.approx(delta, abs=1e-12)
@@ -77,7 +78,7 @@ def test_below_threshold_of_motion():
     res = run(gait)
     assert res.history.displacement[0] == pytest.approx(A, abs=1e-14)
     assert res.v0 == 0.0
-    assert res.dissipation_per_period == 0.0
+    assert res.energy.dissipation == 0.0
     assert res.convergence == "finite-time" and res.periodic_from == 1
     assert np.all(res.limit.slip == 0)
 
@@ -166,7 +167,7 @@ def test_anchoring_catch_up_error_depends_on_the_parity_of_the_step_count(steps,
 #: The largest stiffness crawlsim accepts for two_block(0.3, k) with friction 1 / 2: the
 #: stress scale k max|L| / min mu = 1.3 k at most `STRESS_SCALE_LIMIT`.
 def _largest_stiffness():
-    from crawlsim.gait.document import STRESS_SCALE_LIMIT
+    from crawlsim.gait.crawler_limits import STRESS_SCALE_LIMIT
 
     return STRESS_SCALE_LIMIT / 1.3
 
@@ -189,7 +190,7 @@ def test_stiff_crawler_closed_form_up_to_the_largest_accepted_stiffness(k, integ
     res = run(gait)
     assert res.converged
     closed = 0.6 - 2.0 / k
-    assert abs(res.v0 - closed) <= res.v0_error_estimate, (res.v0, closed, res.v0_error_estimate)
+    assert abs(res.v0 - closed) <= res.estimate.error_estimate, (res.v0, closed, res.estimate.error_estimate)
     assert abs(res.v0 - closed) <= 1e-13
 
 

@@ -41,7 +41,7 @@ def converges_with_both_integrators(gait) -> None:
     """Exact converges; catch-up with 16 times the steps has at most half the error."""
     process = compile_gait(gait, STEPS)
     exact = simulate(process, integrator="exact", max_periods=300, tolerance=1e-11, history=False)
-    assert exact.converged and exact.v0 is not None and exact.v0_error_estimate is not None
+    assert exact.converged and exact.v0 is not None and exact.estimate.error_estimate is not None
     errors = []
     for steps in (STEPS, 16 * STEPS):
         try:
@@ -52,7 +52,7 @@ def converges_with_both_integrators(gait) -> None:
             return  # a grid time on a degenerate instant: refused with its reason, not a crash
         assert catch_up.converged and catch_up.v0 is not None
         errors.append(abs(catch_up.v0 - exact.v0))
-    assert errors[1] <= errors[0] / 2 + exact.v0_error_estimate + 1e-12, errors
+    assert errors[1] <= errors[0] / 2 + exact.estimate.error_estimate + 1e-12, errors
 
 
 @pytest.mark.slow
@@ -112,6 +112,6 @@ def test_a_thousand_knots_run_exactly():
     catch_up = simulate(process, integrator="catch-up", max_periods=50, tolerance=1e-12, history=False)
     assert exact.converged and catch_up.converged
     assert exact.v0 is not None and catch_up.v0 is not None
-    L = process.lengths
+    L = process.crawler.lengths
     stroke = float(np.max(L.max(axis=0) - L.min(axis=0))) / gait.period
     assert 0.0 < abs(catch_up.v0 - exact.v0) <= 10 * stroke / process.steps

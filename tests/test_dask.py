@@ -8,8 +8,13 @@ from click.testing import CliRunner
 
 from crawlsim.cli import main
 from crawlsim.gait.document import load_gait, with_simulation
+from crawlsim.study import executors
 from crawlsim.study import sweep as sweeps
+from crawlsim.study.table import read_table
 from tests.test_sweep import AMP, LAG, P4
+
+#: Dask clusters start in seconds, and an unreachable scheduler is waited for: .ci/run runs them in its slow step
+pytestmark = pytest.mark.slow
 
 
 @pytest.fixture(scope="module")
@@ -57,13 +62,13 @@ def test_dask_cli_writes_the_local_file(scheduler, tmp_path):
     assert run.invoke(main, args + ["-o", str(tmp_path / "local.h5")]).exit_code == 0
     r = run.invoke(main, args + ["--scheduler", scheduler, "-o", str(tmp_path / "dask.h5")])
     assert r.exit_code == 0, r.output
-    assert sweeps.read_table(tmp_path / "dask.h5").to_csv() == sweeps.read_table(tmp_path / "local.h5").to_csv()
+    assert read_table(tmp_path / "dask.h5").to_csv() == read_table(tmp_path / "local.h5").to_csv()
     with h5py.File(tmp_path / "dask.h5") as f:
         assert f.attrs["integrator"] == "exact"  # what the rows ran
 
 
 def test_unreachable_scheduler_is_bad_input(tmp_path, monkeypatch):
-    monkeypatch.setattr(sweeps, "SCHEDULER_TIMEOUT", "1s")
+    monkeypatch.setattr(executors, "SCHEDULER_TIMEOUT", "1s")
     r = CliRunner().invoke(
         main,
         [

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import copy
 
-import numpy as np
 import pytest
 import yaml
 
@@ -36,12 +35,14 @@ def exact(document):
 
 def test_the_file_is_the_wave_it_says(document):
     """101 blocks, 100 links (the segments), phase -(i-1)/10 modulo 1 on link i: a wave ten
-    segments long running from the head (block 101) to the tail."""
-    links = document["links"]
-    assert document["blocks"] == 101 and len(links) == 100
-    phases = np.array([link["phase"] for link in links])
-    np.testing.assert_allclose(phases, (-np.arange(100) / 10) % 1, atol=1e-15)
-    assert {link["amplitude"] for link in links} == {0.2}
+    segments long running from the head (block 101) to the tail, in one line (the wave
+    shorthand). Its links are, bit for bit, the 100 lines the file spelt out before (phases 0,
+    0.9, 0.8, ..., 0.1 as typed, k/10 correctly rounded), so its results are those of that file."""
+    assert document["blocks"] == 101
+    assert document["links"] == {"wave": {"kind": "cosine", "mean": 1.0, "amplitude": 0.2}, "phase_step": -0.1}
+    spelt = [{"kind": "cosine", "mean": 1.0, "amplitude": 0.2, "phase": (10 - i % 10) % 10 / 10} for i in range(100)]
+    assert [link["phase"] for link in spelt[:11]] == [0.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4, 0.3, 0.2, 0.1, 0.0]
+    assert gait_from_document(document, "wave").links == gait_from_document({**document, "links": spelt}, "list").links
     assert document["friction"] == {"forward": 1.0, "backward": 3.0}
 
 
@@ -54,14 +55,14 @@ def test_it_moves_forward_and_converges_only_asymptotically(exact):
     N mu^+ v0 T, so the cost of transport (dissipation per distance) is N mu^+ = 101 exactly; a
     backward slip anywhere would add mu^- |dx| for no progress and raise it.
     """
-    assert exact.converged and exact.limit_method == "newton"
-    assert exact.v0 - exact.v0_error_estimate > 0
-    assert exact.v0_error_estimate <= 1e-12
+    assert exact.converged and exact.solver.method == "newton"
+    assert exact.v0 - exact.estimate.error_estimate > 0
+    assert exact.estimate.error_estimate <= 1e-12
     assert exact.v0 == pytest.approx(0.0694830455579, abs=1e-12)
     assert exact.convergence == "asymptotic"
-    assert 0.99 < exact.jacobian_rate < 1.0
-    assert exact.limit_periods <= 10
-    assert exact.cost_of_transport == pytest.approx(101.0, rel=1e-12)
+    assert 0.99 < exact.solver.jacobian_rate < 1.0
+    assert exact.solver.periods <= 10
+    assert exact.energy.cost_of_transport == pytest.approx(101.0, rel=1e-12)
 
 
 def test_catch_up_agrees_with_exact_within_the_first_order_bound(document, exact):
@@ -93,6 +94,5 @@ def test_direction_of_the_wave_and_friction_mirror(document, exact):
     swapped["friction"] = {"forward": 3.0, "backward": 1.0}
     assert v0_of(swapped).v0 == pytest.approx(-exact.v0, abs=1e-12)
     direct = copy.deepcopy(document)
-    for i, link in enumerate(direct["links"]):
-        link["phase"] = (i / 10) % 1
+    direct["links"]["phase_step"] = 0.1  # link i at phase (i - 1)/10
     assert v0_of(direct).v0 == pytest.approx(exact.v0, abs=1e-12)

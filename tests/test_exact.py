@@ -33,7 +33,7 @@ from crawlsim.errors import EventError, GaitError, LicqWarning
 from crawlsim.gait.document import load_gait, parse_gait, with_simulation
 from crawlsim.integrate.exact import EventStepper
 from crawlsim.integrate.stepping import make_stepper
-from crawlsim.io.hdf5 import read_results
+from crawlsim.io.runread import read_results
 from crawlsim.model.process import compile as compile_any
 from crawlsim.model.process import compile_gait
 from crawlsim.study import paper
@@ -74,7 +74,7 @@ def test_two_block_inching_closed_form(amplitude, k, mu_plus, mu_minus):
     np.testing.assert_allclose(dx, [[0, 0], [delta, 0], [0, 0], [0, delta]], atol=1e-13)
     res = exact(gait)
     assert res.v0 == pytest.approx(delta, abs=1e-13)
-    assert res.dissipation_per_period == pytest.approx(2 * mu_plus * delta, abs=1e-13)
+    assert res.energy.dissipation == pytest.approx(2 * mu_plus * delta, abs=1e-13)
     assert res.convergence == "finite-time" and res.periodic_from == 1
 
 
@@ -88,7 +88,7 @@ def test_two_block_back_and_forth_with_zero_net_motion():
     res = exact(two_block(0.3, 10.0, friction), steps=11)
     delta = 0.6 - 2.0 / 10.0
     assert res.v0 == pytest.approx(0.0, abs=1e-14)
-    assert res.dissipation_per_period == pytest.approx(2.0 * delta, abs=1e-13)
+    assert res.energy.dissipation == pytest.approx(2.0 * delta, abs=1e-13)
     dx = np.diff(res.limit.x + res.v0 * res.limit.t[:, None], axis=0)
     assert np.sum(np.clip(dx[:, 0], 0, None)) == pytest.approx(delta, abs=1e-13)
     assert np.sum(np.clip(-dx[:, 0], 0, None)) == pytest.approx(delta, abs=1e-13)
@@ -102,7 +102,7 @@ def test_two_block_below_threshold():
     gait = two_block(A, k, steps=9, initial={"positions": [0.0, 1 + A + 1.0 / k]})
     res = exact(gait)
     assert res.history.displacement[0] == pytest.approx(A, abs=1e-14)
-    assert res.v0 == 0.0 and res.dissipation_per_period == 0.0
+    assert res.v0 == 0.0 and res.energy.dissipation == 0.0
     assert res.convergence == "finite-time" and res.periodic_from == 1
 
 
@@ -383,7 +383,7 @@ def test_paper_files_agree_with_catch_up(path):
     process = compile_any(spec, 30)
     exact_stepper, catch_up = make_stepper(process, "exact"), make_stepper(process, "catch-up")
     records = [(exact_stepper.step_period(), catch_up.step_period()) for _ in range(4)]
-    if process.is_crawler:
+    if process.crawler is not None:
         v0 = [np.mean(r.x[-1] - r.x[0]) for r, _ in records[-2:]]
         other = EventStepper(compile_any(spec, 7))
         for _ in range(4):
@@ -494,6 +494,6 @@ def test_exact_integrator_does_not_cut_an_asymptotic_decay_short():
     gait = load_gait(Path(__file__).resolve().parents[1] / "gaits" / "paper" / "acute-angle.yaml")
     res = run_file(with_simulation(gait, integrator="exact"))
     assert res.convergence == "asymptotic"
-    assert res.contraction_rate == pytest.approx(0.5, rel=1e-6)
+    assert res.rate.rate == pytest.approx(0.5, rel=1e-6)
     steps = res.history.poincare_step
     assert np.allclose(steps[-5:] / steps[-6:-1], 0.5, rtol=1e-3)  # roundoff near 1e-12

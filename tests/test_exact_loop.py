@@ -15,8 +15,9 @@ import numpy as np
 import pytest
 
 from crawlsim.gait.document import load_gait
+from crawlsim.integrate import catchup
 from crawlsim.integrate.exact import EventStepper
-from crawlsim.kernel import catchup, eventloop, sampling
+from crawlsim.kernel import eventloop, sampling
 from crawlsim.model.process import compile_gait
 
 ROOT = Path(__file__).resolve().parents[1]

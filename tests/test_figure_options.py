@@ -143,7 +143,13 @@ def test_run_plot_takes_the_figure_options(tmp_path):
     )
     assert r.exit_code == 0, r.output
     figures = sorted(p.name for p in tmp_path.glob("i-*"))
-    assert figures == ["i-convergence.svg", "i-gait-diagram.svg", "i-motion.svg", "i-shape-space.svg"]
+    assert figures == [
+        "i-convergence.svg",
+        "i-gait-diagram.svg",
+        "i-kymograph.svg",
+        "i-motion.svg",
+        "i-shape-space.svg",
+    ]
     head = (tmp_path / "i-motion.svg").read_text()[:1000]
     assert 'width="288pt" height="216pt"' in head  # 4 x 3 in, 72 pt to the inch
     for option in (["--dpi", "200"], ["--plot-format", "pdf"], ["--style", "ggplot"]):
@@ -156,16 +162,20 @@ def test_run_plot_takes_the_figure_options(tmp_path):
     assert not (tmp_path / "no.h5").exists()
 
 
-def test_velocity_plot_refuses_other_extensions(tmp_path):
-    r = cli(
-        "velocity",
-        GAITS / "inching-2.yaml",
-        "--sweep",
-        "friction.backward=2,3",
-        "--steps-per-period",
-        "20",
-        "--plot",
-        tmp_path / "s.jpeg",
-    )
-    assert r.exit_code == 2 and ".png, .pdf or .svg" in r.output
-    assert list(tmp_path.iterdir()) == []
+def test_plot_means_the_same_in_run_and_velocity(tmp_path, monkeypatch):
+    """--plot is a flag in both (it took a file in velocity): the figures next to the results, as
+    `crawlsim plot RESULTS` names them, in --plot-format with the figure options; without -o,
+    velocity's next to the gait's name in this folder, its path on stderr (the table is on
+    stdout). The paths are printed as the results path is, relative (run printed them absolute)."""
+    monkeypatch.chdir(tmp_path)
+    sweep = ["--sweep", "friction.backward=2,3", "--steps-per-period", "20"]
+    r = cli("velocity", GAITS / "inching-2.yaml", *sweep, "-o", "s.h5", "--plot", "--plot-format", "pdf", "--dpi", "99")
+    assert r.exit_code == 0 and r.stdout == "s-sweep.pdf\n", r.output
+    assert (tmp_path / "s-sweep.pdf").read_bytes()[:5] == b"%PDF-"
+    r = cli("velocity", GAITS / "inching-2.yaml", *sweep, "--plot", "--figsize", "4,3")
+    assert r.exit_code == 0 and r.stderr == "inching-2-sweep.png\n" and r.stdout.startswith("friction.backward,v0")
+    assert Image.open(tmp_path / "inching-2-sweep.png").size == (600, 450)  # 4 x 3 in at 150 dpi
+    r = cli("velocity", GAITS / "inching-2.yaml", "--plot")
+    assert r.exit_code == 2 and "crawlsim run GAIT --plot" in r.output
+    r = cli("run", GAITS / "inching-2.yaml", "-o", "r.h5", "--steps-per-period", "20", "--plot")
+    assert r.exit_code == 0 and "  figure                   r-motion.png" in r.output.splitlines()

@@ -22,8 +22,6 @@ from click.testing import CliRunner
 
 from crawlsim.cli import main
 from crawlsim.io import atomic
-from crawlsim.io import hdf5 as h5io
-from crawlsim.study import sweep as sweeps
 
 GAITS = Path(__file__).resolve().parents[1] / "gaits"
 GAIT = """\
@@ -57,8 +55,7 @@ def full_after(monkeypatch, budget: int) -> None:
             Full.written += size
             return super()._write(data)
 
-    monkeypatch.setattr(h5io, "GuardedFile", Full)  # run files
-    monkeypatch.setattr(atomic, "GuardedFile", Full)  # sweep and optimisation files
+    monkeypatch.setattr(atomic, "GuardedFile", Full)  # every HDF5 file
 
 
 def left(folder: Path) -> list[str]:
@@ -111,7 +108,7 @@ def test_a_journal_on_a_full_disk(folder, monkeypatch):
     def fsync(fd):
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 
-    monkeypatch.setattr(sweeps.os, "fsync", fsync)
+    monkeypatch.setattr(os, "fsync", fsync)
     result = CliRunner().invoke(main, ["velocity", "g.yaml", "--sweep", "period=1,2,3", "-o", "s.csv"])
     full_disk_refusal(result, "s.csv.journal")
     assert "s.csv" not in left(folder)

@@ -2,15 +2,9 @@ import numpy as np
 import pytest
 
 from crawlsim.errors import GaitError
-from crawlsim.gait.document import (
-    Simulation,
-    admissibility_violation,
-    gait_from_document,
-    load_gait,
-    parse_gait,
-    uniqueness_violation,
-    with_simulation,
-)
+from crawlsim.gait.crawler_spec import admissibility_violation, uniqueness_violation
+from crawlsim.gait.document import gait_from_document, load_gait, parse_gait, with_simulation
+from crawlsim.gait.settings import Simulation
 from crawlsim.gait.signals import Cosine, Steps
 
 from .conftest import GAITS
@@ -456,3 +450,68 @@ def test_dotted_paths_are_below_the_document_no_cycle():
     changed = gait.replace("links.0.amplitude", 0.25)
     assert changed.links[0].amplitude == 0.25 and gait.links[0].amplitude == 0.3
     assert changed.source == f"{gait.source} with links.0.amplitude=0.25"
+
+
+# -- a wave of links: links: {wave: SIGNAL, phase_step: CYCLES} -----------------------------------
+WAVE = {
+    "blocks": 4,
+    "period": 1.0,
+    "stiffness": 10.0,
+    "links": {"wave": {"kind": "cosine", "mean": 1.0, "amplitude": 0.3}, "phase_step": 0.3333333333333333},
+    "friction": {"forward": 1.0, "backward": 2.0},
+}
+
+
+def test_a_wave_is_the_links_it_stands_for():
+    """Link i follows the wave with phase i * phase_step modulo 1, in decimal as written: the
+    wave of peristalsis-4 gives its three links exactly (2 x 0.3333333333333333 is the double
+    0.6666666666666666 as typed); a step of -0.1 gives link 7 the phase 0.3 (7 x -0.1 in binary
+    is -0.7000000000000001, whose remainder would be 0.29999999999999993); a constant wave is
+    the constant on every link; the wave's own phase shifts them all."""
+    from crawlsim.gait.docpaths import wave_links
+
+    assert load_gait(GAITS / "peristalsis-4.yaml").links == gait_from_document(WAVE, "wave").links
+    phases = [link["phase"] for link in wave_links({"wave": {"kind": "cosine", "phase": 0.05}, "phase_step": -0.1}, 12)]
+    assert phases == [0.05, 0.95, 0.85, 0.75, 0.65, 0.55, 0.45, 0.35, 0.25, 0.15, 0.05, 0.95]
+    assert wave_links({"wave": {"kind": "cosine"}, "phase_step": -0.1}, 8)[7]["phase"] == 0.3
+    assert wave_links({"wave": 1.5, "phase_step": 0.2}, 3) == [1.5, 1.5, 1.5]
+    assert wave_links({"wave": {"kind": "cosine"}}, 2) == [{"kind": "cosine", "phase": 0.0}] * 2
+
+
+@pytest.mark.parametrize(
+    "links, keypath, phrase",
+    [
+        ({"wave": {"kind": "cosine", "mean": 1.0, "amplitude": "x"}}, "links.wave.amplitude", "expected"),
+        ({"wave": {"kind": "cosine", "mean": 1.0}, "phasestep": 0.1}, "links.phasestep", "did you mean 'phase_step'?"),
+        ({"phase_step": 0.1}, "links.wave", "required key is missing"),
+        ({"wave": 1.0, "phase_step": "x"}, "links.phase_step", "a number of cycles"),
+        (5, "links", "or a wave {wave: SIGNAL, phase_step: CYCLES}"),
+    ],
+)
+def test_a_bad_wave_is_refused_naming_its_key(links, keypath, phrase):
+    with pytest.raises(GaitError) as error:
+        gait_from_document({**WAVE, "links": links}, "g.yaml")
+    assert error.value.keypath == keypath and phrase in error.value.message, str(error.value)
+
+
+def test_paths_into_a_wave_and_into_the_links_it_generates():
+    """links.wave.NUMBER and links.phase_step are the wave's own numbers: every link moves, the
+    file stays a wave. links.I.NUMBER and links.*.NUMBER name the generated links: the links are
+    written out and that number alone moves. Both at once, in either order: the wave's first,
+    then the link's (crawlsim.gait.docpaths)."""
+    gait = gait_from_document(WAVE, "wave")
+    wider = gait.replace("links.wave.amplitude", 0.2)
+    assert wider.document["links"]["wave"]["amplitude"] == 0.2 and {s.amplitude for s in wider.links} == {0.2}
+    lag = gait.replace("links.phase_step", 0.25)
+    assert [s.phase for s in lag.links] == [0.0, 0.25, 0.5]
+    one = gait.replace("links.1.phase", 0.5)
+    assert isinstance(one.document["links"], list) and [s.phase for s in one.links] == [0.0, 0.5, 0.6666666666666666]
+    every = gait.replace("links.*.amplitude", 0.1)
+    assert every.links == gait.replace("links.wave.amplitude", 0.1).links
+    for pairs in (
+        ("links.2.amplitude", 0.1, "links.wave.amplitude", 0.2),
+        ("links.wave.amplitude", 0.2, "links.2.amplitude", 0.1),
+    ):
+        assert [s.amplitude for s in gait.replace(*pairs).links] == [0.2, 0.2, 0.1]
+    with pytest.raises(GaitError, match="out of range"):
+        gait.replace("links.3.phase", 0.5)

@@ -16,9 +16,11 @@ from click.testing import CliRunner
 from crawlsim.cli import main
 from crawlsim.errors import GaitError, ResultsFileError
 from crawlsim.gait.units import Units, path_quantity
-from crawlsim.io.hdf5 import FORMAT_VERSION, NOT_A_VARIABLE, axis_name, read_results, read_sweep
+from crawlsim.io.layout import FORMAT_VERSION, NOT_A_VARIABLE
+from crawlsim.io.runread import read_results
+from crawlsim.io.sweepfile import axis_name, read_sweep
 from crawlsim.plotting import plot_results
-from crawlsim.study.sweep import read_table
+from crawlsim.study.table import read_table
 
 from .conftest import GAITS, make_gait
 
@@ -397,7 +399,7 @@ def test_format_1_files_still_read_and_plot(tmp_path):
     assert data["attrs"]["v0"] == pytest.approx(0.4, abs=1e-13)
     assert data["trajectory"]["t"].shape == (17,) and data["limit"]["slip"].shape == (8, 2)
     written = plot_results(DATA / "v1-run.h5", tmp_path)
-    assert len(written) == 4 and all(p.stat().st_size > 1000 for p in written)
+    assert len(written) == 5 and all(p.stat().st_size > 1000 for p in written)
     table = read_table(DATA / "v1-sweep.h5")
     assert table.paths == ("links.*.amplitude",)
     np.testing.assert_allclose([r.v0 for r in table.rows], [0.2, 0.4], atol=1e-13)

@@ -193,6 +193,7 @@ def test_the_corpus_is_complete(hostile_files):
     assert sorted(name for name, _ in hostile_files) == sorted(EXPECTED)
 
 
+@pytest.mark.slow  # a 10,000-block run
 def test_ten_thousand_blocks_run_within_their_own_estimate(tmp_path_factory, tmp_path):
     """blocks: 10000 is a valid request: with the O(N) chain kernel it runs under the corpus's
     1 GiB address-space limit, and the memory it needs beyond an interpreter's

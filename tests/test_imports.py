@@ -81,7 +81,7 @@ def test_velocity_loads_what_it_needs_and_no_more(integrator, tmp_path):
     of a cosine gait have closed forms. jsonschema is not loaded for a valid gait (the compiled
     check of `crawlsim.gait.schemacheck` accepts it)."""
     modules = modules_after(["velocity", str(GAIT), "--integrator", integrator], tmp_path)
-    for name in ("numpy", "yaml", "crawlsim.kernel.projection", "crawlsim.kernel.kkt"):
+    for name in ("numpy", "yaml", "crawlsim.projection.adapter", "crawlsim.projection.kkt"):
         assert loaded(modules, name), name
     for name in (
         "h5py",
@@ -90,9 +90,8 @@ def test_velocity_loads_what_it_needs_and_no_more(integrator, tmp_path):
         "distributed",
         "dask",
         "crawlsim.study.sweep",
-        "crawlsim.study.batch",
-        "crawlsim.io.hdf5",
-        "crawlsim.plotting.figures",
+        "crawlsim.io.runfile",
+        "crawlsim.plotting.output",
         "clarabel",
         "scipy.optimize",
         "jsonschema",
@@ -128,7 +127,7 @@ def test_validate_of_crawler_gaits_loads_neither_scipy_nor_the_kernel(tmp_path):
     numpy's work: scipy (its LPs check generic process files only), numba and the compiled
     kernel are for running."""
     modules = modules_after(["validate", str(GAIT), str(ROOT / "gaits" / "earthworm-100.yaml")], tmp_path)
-    for name in ("scipy", "numba", "crawlsim.kernel", "crawlsim.kernel.kkt", "clarabel", "h5py"):
+    for name in ("scipy", "numba", "crawlsim.kernel", "crawlsim.projection.kkt", "clarabel", "h5py"):
         assert not loaded(modules, name), name
 
 

@@ -115,17 +115,16 @@ def test_a_noted_signal_wins_over_how_the_command_ends(ending):
     assert interrupts.pending() is None
 
 
-def test_a_batched_catch_up_sweep_stops_at_a_noted_signal(handlers):
-    """Catch-up sweep points run in batches (crawlsim.study.batch): each period looks."""
-    from crawlsim.model.process import compile_gait
-    from crawlsim.study.batch import simulate_batch
+def test_a_catch_up_sweep_point_stops_at_a_noted_signal(handlers):
+    """Sweep points (crawlsim.study.points) run period by period: each period looks."""
+    from crawlsim.gait.document import with_simulation
+    from crawlsim.study.points import evaluate
 
-    gait = load_gait(GAIT)
-    process = compile_gait(gait)
-    assert len(simulate_batch([process], max_periods=5, tolerance=1e-12)) == 1
+    gait = with_simulation(load_gait(GAIT), integrator="catch-up", max_periods=5)
+    assert evaluate([gait], [0])[0].status == "ok"
     interrupts._handler(signal.SIGINT, sys._getframe())
     with pytest.raises(KeyboardInterrupt):
-        simulate_batch([process], max_periods=5, tolerance=1e-12)
+        evaluate([gait], [0])
     assert interrupts.pending() is None
 
 

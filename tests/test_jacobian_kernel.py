@@ -4,15 +4,12 @@ they agree with the numpy products factor by factor (`apply_jacobian`,
 `apply_jacobian_transpose`) to 1e-12 relative on random vectors, for periods with projectors
 only (catch-up) and with saltations (exact, hits that swap the active set), on uniform and
 random stiffness; and the compiled functions and the same source run as Python
-(``NUMBA_DISABLE_JIT=1``, in a subprocess, on the same packed arrays) give the same bits: they
+(`crawlsim.kernel.jit`'s two forms, on the same packed arrays) give the same bits: they
 are loops of IEEE arithmetic in a fixed order.
 """
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +27,7 @@ from crawlsim.integrate.limit import (
     packed_jacobian,
 )
 from crawlsim.integrate.stepping import make_stepper
+from crawlsim.kernel import jit
 from crawlsim.model.process import compile as compile_gait
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -107,7 +105,7 @@ def test_projectors_of_nested_sets_merge_into_the_larger():
     projectors onto null B_A' within null B_A), also back over several; a saltation or a set
     that is neither stops the merge. The merged product is the unmerged one (numpy) to
     roundoff, on a chain of 8 blocks with unequal links."""
-    from crawlsim.kernel.chain_polyhedron import ChainPolyhedron
+    from crawlsim.projection.chain_polyhedron import ChainPolyhedron
 
     poly = ChainPolyhedron([1.0, 3.0, 0.5, 2.0, 7.0, 1.5, 4.0], 1.0)
     N = poly.blocks
@@ -147,46 +145,25 @@ def test_matrix_free_step_with_compiled_products_is_the_dense_step(periods, monk
     np.testing.assert_allclose(compiled, python, rtol=0, atol=1e-10 * scale)
 
 
-PRODUCTS = """
-import sys
-import numpy as np
-from crawlsim.kernel.jacobian import apply, apply_transpose, pack
-data = dict(np.load(sys.argv[1]))
-out = {}
-for name in sorted({key.split(':')[0] for key in data}):
-    a = {key.split(':')[1]: value for key, value in data.items() if key.startswith(name + ':')}
-    D, l = np.empty(len(a['blocks'])), np.empty(len(a['blocks']))
-    pack(a['k'], a['kinds'], a['starts'], a['blocks'], D, l)
-    args = (a['k'], a['kinds'], a['starts'], a['blocks'], D, l, a['slot'], a['rows'], a['rates'],
-            a['jumps'])
-    out[name + ':D'], out[name + ':l'] = D, l
-    for i, v in enumerate(a['V']):
-        x, y = v.copy(), v.copy()
-        apply(*args, x)
-        apply_transpose(*args, y)
-        out[f'{name}:J{i}'], out[f'{name}:JT{i}'] = x, y
-np.savez(sys.argv[2], **out)
-"""
+def _products(inputs: dict) -> dict:
+    """pack, J v and J^T v of each packed Jacobian of ``inputs`` in the current form."""
+    world = jit.kernel()
+    out = {}
+    for name in sorted({key.split(":")[0] for key in inputs}):
+        a = {key.split(":")[1]: value for key, value in inputs.items() if key.startswith(name + ":")}
+        D, l = np.empty(len(a["blocks"])), np.empty(len(a["blocks"]))
+        world.jacobian.pack(a["k"], a["kinds"], a["starts"], a["blocks"], D, l)
+        args = (a["k"], a["kinds"], a["starts"], a["blocks"], D, l, a["slot"], a["rows"], a["rates"], a["jumps"])
+        out[name + ":D"], out[name + ":l"] = D, l
+        for i, v in enumerate(a["V"]):
+            x, y = v.copy(), v.copy()
+            world.jacobian.apply(*args, x)
+            world.jacobian.apply_transpose(*args, y)
+            out[f"{name}:J{i}"], out[f"{name}:JT{i}"] = x, y
+    return out
 
 
-def _products(inputs: Path, out: Path, disable_jit: bool) -> dict:
-    env = dict(os.environ)
-    env.pop("NUMBA_DISABLE_JIT", None)
-    if disable_jit:
-        env["NUMBA_DISABLE_JIT"] = "1"
-    env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
-    subprocess.run(
-        [sys.executable, "-c", PRODUCTS, str(inputs), str(out)],
-        check=True,
-        env=env,
-        cwd=ROOT,
-        capture_output=True,
-        timeout=900,
-    )
-    return dict(np.load(out))
-
-
-def test_compiled_and_python_products_agree_bit_for_bit(periods, tmp_path):
+def test_compiled_and_python_products_agree_bit_for_bit(periods):
     inputs = {}
     for name in ("wave-10 exact", "random-236 exact", "segments-64 exact"):
         process, fs = periods[name]
@@ -204,9 +181,10 @@ def test_compiled_and_python_products_agree_bit_for_bit(periods, tmp_path):
             V=np.random.default_rng(11).standard_normal((3, process.polyhedron.n)),
         ).items():
             inputs[f"{name}:{key}"] = value
-    np.savez(tmp_path / "inputs.npz", **inputs)
-    compiled = _products(tmp_path / "inputs.npz", tmp_path / "compiled.npz", disable_jit=False)
-    python = _products(tmp_path / "inputs.npz", tmp_path / "python.npz", disable_jit=True)
+    with jit.forced("compiled"):
+        compiled = _products(inputs)
+    with jit.forced("python"):
+        python = _products(inputs)
     assert compiled.keys() == python.keys() and len(compiled) == 3 * (2 + 2 * 3)
     for key in compiled:
         np.testing.assert_array_equal(compiled[key], python[key], err_msg=key)

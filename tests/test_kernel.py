@@ -2,11 +2,11 @@
 
 What must hold:
 
-* it is the same scheme as `crawlsim.kernel.kkt` (the telescoped runs that generic processes keep): a
+* it is the same scheme as `crawlsim.projection.kkt` (the telescoped runs that generic processes keep): a
   certified KKT point of a strictly convex problem is unique, so both paths take the same steps
   to roundoff, and v0 agrees to 1e-12 on every example crawler;
 * one source: the compiled functions and the same functions run as Python
-  (``NUMBA_DISABLE_JIT=1``, in a subprocess) give the same bits on fixed inputs (the kernel is
+  (`crawlsim.kernel.jit`'s interpreted form) give the same bits on fixed inputs (the kernel is
   plain IEEE arithmetic in a fixed order; numba does not contract or reassociate without
   fastmath);
 * a step whose numbers are wrong is never accepted: it raises `CertificateError`, naming the
@@ -14,20 +14,18 @@ What must hold:
 * a cold cache is announced with one line on stderr, a warm one is not.
 """
 
-import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from crawlsim.errors import CertificateError
+from crawlsim.gait.corpus import random_gait
 from crawlsim.gait.document import load_gait
+from crawlsim.integrate import catchup
 from crawlsim.integrate.exact import EventStepper
 from crawlsim.integrate.stepping import CatchUpStepper
-from crawlsim.kernel import catchup, chain, eventloop, kkt
+from crawlsim.kernel import chain, eventloop, jit
 from crawlsim.model.process import compile_gait
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -42,18 +40,10 @@ BITWISE = ("inching-2", "peristalsis-4", "smooth-friction-3", "anchoring-2")
 BITWISE_SEEDS = (18, 5, 4)
 
 
-def test_kernel_constants_are_the_kkt_policy():
-    assert (chain.RTOL, chain.REFINE_FRACTION, chain.UPDATE_ITERATIONS) == (
-        kkt.RTOL,
-        kkt.REFINE_FRACTION,
-        kkt.UPDATE_ITERATIONS,
-    )
-
-
 @pytest.mark.parametrize("path", CRAWLERS, ids=lambda p: p.stem)
 def test_kernel_steps_are_the_kkt_steps(path):
     """Three periods from the file's initial state with the kernel and with the telescoped
-    runs of `crawlsim.kernel.kkt`: states, slips and v0 of each period agree to roundoff (1e-12
+    runs of `crawlsim.projection.kkt`: states, slips and v0 of each period agree to roundoff (1e-12
     relative to the sizes involved), and the periods visit the same active sets."""
     process = compile_gait(load_gait(path))
     fast, slow = CatchUpStepper(process), CatchUpStepper(process, kernel=False)
@@ -72,7 +62,7 @@ def test_kernel_steps_are_the_kkt_steps(path):
 @pytest.mark.parametrize("path", CRAWLERS, ids=lambda p: p.stem)
 def test_compiled_event_loop_changes_nothing(path, monkeypatch):
     """The exact integrator's compiled event loop (`crawlsim.kernel.eventloop`) against its
-    Python loop with the velocity problems solved by `crawlsim.kernel.kkt` (the kernel switched
+    Python loop with the velocity problems solved by `crawlsim.projection.kkt` (the kernel switched
     off): the same certified KKT points, so the same decisions, events and states to roundoff,
     v0 of each period to 1e-12 and the same energy ledger (1e-12 relative)."""
     process = compile_gait(load_gait(path))
@@ -167,55 +157,35 @@ def test_corrupted_piece_fails_the_sample_certificate():
     assert max(report[eventloop.R_PRIMAL], report[eventloop.R_COMP]) > report[eventloop.R_TOLP]
 
 
-RUN_PERIODS = """\
-import json, sys
-import numpy as np
-from crawlsim.gait.document import load_gait
-from crawlsim.model.process import compile_gait
-from crawlsim.integrate.stepping import CatchUpStepper
-out = {}
-from crawlsim.integrate.exact import EventStepper
-from crawlsim.gait.corpus import random_gait
-for path in json.loads(sys.argv[1]):
-    if path.startswith("seed "):  # a corpus gait of 2-5 blocks at 100 steps per period
-        process = compile_gait(random_gait(int(path[5:]), blocks=(2, 5), stiffness_ratio=1e6,
-                                           friction_ratio=1e3), 100)
-    else:
-        process = compile_gait(load_gait(path))
-    for stepper in (CatchUpStepper(process), EventStepper(process)):
-        records = [stepper.step_period() for _ in range(2)]
-        out[f"{path} {type(stepper).__name__}"] = [
-            [r.w.tobytes().hex(), r.multipliers.tobytes().hex()]
-            + ([] if r.events is None else [r.events.t.tobytes().hex(), repr(r.energy)])
-            for r in records]
-with open(sys.argv[2], "w") as f:
-    json.dump(out, f)
-"""
+def _periods(paths) -> dict:
+    """Two periods of each gait, catch-up and exact, as their bits."""
+    out = {}
+    for path in paths:
+        if path.startswith("seed "):  # a corpus gait of 2-5 blocks at 100 steps per period
+            gait = random_gait(int(path[5:]), blocks=(2, 5), stiffness_ratio=1e6, friction_ratio=1e3)
+            process = compile_gait(gait, 100)
+        else:
+            process = compile_gait(load_gait(path))
+        for stepper in (CatchUpStepper(process), EventStepper(process)):
+            records = [stepper.step_period() for _ in range(2)]
+            out[f"{path} {type(stepper).__name__}"] = [
+                [r.w.tobytes().hex(), r.multipliers.tobytes().hex()]
+                + ([] if r.events is None else [r.events.t.tobytes().hex(), repr(r.energy)])
+                for r in records
+            ]
+    return out
 
 
-def _periods(paths, out: Path, disable_jit: bool) -> dict:
-    env = dict(os.environ)
-    env.pop("NUMBA_DISABLE_JIT", None)
-    if disable_jit:
-        env["NUMBA_DISABLE_JIT"] = "1"
-    subprocess.run(
-        [sys.executable, "-c", RUN_PERIODS, json.dumps(paths), str(out)],
-        check=True,
-        env=env,
-        capture_output=True,
-        timeout=600,
-    )
-    return json.loads(out.read_text())
-
-
-def test_compiled_and_python_kernels_agree_bit_for_bit(tmp_path):
+def test_compiled_and_python_kernels_agree_bit_for_bit():
     """Two periods of catch-up and of the exact integrator (its compiled event loop, with
     closed-form and sampled zeros, `crawlsim.kernel.sampling`): states, slips, event times and
     energy ledgers, bit for bit."""
     paths = [str(ROOT / "gaits" / f"{name}.yaml") for name in BITWISE]
     paths += [f"seed {seed}" for seed in BITWISE_SEEDS]
-    compiled = _periods(paths, tmp_path / "compiled.json", disable_jit=False)
-    python = _periods(paths, tmp_path / "python.json", disable_jit=True)
+    with jit.forced("compiled"):
+        compiled = _periods(paths)
+    with jit.forced("python"):
+        python = _periods(paths)
     assert compiled.keys() == python.keys() and len(compiled) == 2 * len(paths)
     for key in compiled:
         assert compiled[key] == python[key], key
@@ -265,29 +235,6 @@ def test_refinement_repairs_a_small_corruption():
     expected = clean.step_period()
     got = _corrupted(1.0 + 1e-9).step_period()
     assert np.max(np.abs(got.w - expected.w)) <= 1e-12
-
-
-ANNOUNCE = """\
-from crawlsim.kernel import catchup
-catchup.announce_compilation()
-catchup.announce_compilation()
-"""
-
-
-def test_cold_cache_is_announced_once(tmp_path):
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "empty"))
-    env.pop("NUMBA_DISABLE_JIT", None)
-    run = subprocess.run([sys.executable, "-c", ANNOUNCE], env=env, capture_output=True, text=True, timeout=120)
-    assert run.returncode == 0
-    assert run.stderr.count("compiling the kernel once") == 1
-
-
-def test_warm_cache_is_not_announced():
-    """After a run in this process the cache holds the entry point (or the JIT is disabled):
-    nothing to announce."""
-    process = compile_gait(load_gait(ROOT / "gaits" / "inching-2.yaml"))
-    CatchUpStepper(process).step_period()
-    assert not catchup.cache_is_cold()
 
 
 def test_linear_crossing_closed_form():

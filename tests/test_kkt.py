@@ -1,4 +1,4 @@
-"""The certified KKT kernel (crawlsim.kernel.kkt): structure, factorisations, certificates, runs.
+"""The certified KKT kernel (crawlsim.projection.kkt): structure, factorisations, certificates, runs.
 
 A projection w* = argmin 1/2 |w - w_trial|_M^2 s.t. B w <= c is characterised by its KKT
 conditions, M (w* - w_trial) + B^T lambda = 0, B w* <= c, lambda >= 0, lambda_i (B w* - c)_i = 0;
@@ -11,10 +11,10 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from crawlsim.kernel import certificate, tridiagonal
-from crawlsim.kernel.chain_polyhedron import ChainPolyhedron
-from crawlsim.kernel.dense_polyhedron import DensePolyhedron
-from crawlsim.kernel.projection import ExactProjector
+from crawlsim.projection import certificate, tridiagonal
+from crawlsim.projection.adapter import ExactProjector
+from crawlsim.projection.chain_polyhedron import ChainPolyhedron
+from crawlsim.projection.dense_polyhedron import DensePolyhedron
 
 EPS = np.finfo(float).eps
 

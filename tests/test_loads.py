@@ -32,7 +32,8 @@ from hypothesis import strategies as st
 from crawlsim.api import run
 from crawlsim.cli import main
 from crawlsim.errors import GaitError
-from crawlsim.gait.document import admissibility_violation, parse_gait
+from crawlsim.gait.crawler_spec import admissibility_violation
+from crawlsim.gait.document import parse_gait
 
 from .conftest import make_gait
 
@@ -90,8 +91,8 @@ def test_two_blocks_constant_forces_closed_form(amplitude, k, mu_plus, mu_minus,
     result = run(gait, history=False)
     d = closed_form_d(2 * amplitude, k, mu_plus, mu_minus, (f1, f2))
     assert result.v0 * gait.period == pytest.approx(d, abs=1e-9)
-    assert result.load_work_per_period == pytest.approx(-(f1 + f2) * d, abs=1e-9)
-    assert abs(result.energy_balance_residual) <= 1e-12 * max(1.0, result.actuator_work_per_period)
+    assert result.energy.load_work == pytest.approx(-(f1 + f2) * d, abs=1e-9)
+    assert abs(result.energy.balance_residual) <= 1e-12 * max(1.0, result.energy.actuator_work)
 
 
 def test_piecewise_linear_monotone_stroke_and_uniform_force():
@@ -174,9 +175,9 @@ def test_slope_is_forces_and_scaled_friction():
     a, b = run(slope, history=False), run(flat, history=False)
     assert a.v0 == pytest.approx(b.v0, abs=1e-10)
     assert a.v0 != 0
-    for key in ("dissipation_per_period", "load_work_per_period", "actuator_work_per_period"):
-        assert getattr(a, key) == pytest.approx(getattr(b, key), abs=1e-10), key
-    assert abs(a.energy_balance_residual) <= 1e-11 * a.actuator_work_per_period
+    for key in ("dissipation", "load_work", "actuator_work"):
+        assert getattr(a.energy, key) == pytest.approx(getattr(b.energy, key), abs=1e-10), key
+    assert abs(a.energy.balance_residual) <= 1e-11 * a.energy.actuator_work
 
 
 def test_slope_closed_form_and_potential_energy():
@@ -189,14 +190,15 @@ def test_slope_closed_form_and_potential_energy():
     d = 0.6 - 2 * (ca + sa) / 10.0
     assert result.v0 == pytest.approx(d, abs=1e-12)
     assert closed_form_d(0.6, 10.0, 1.0, 2.0, (0.0, 0.0), 20.0, 1.0) == pytest.approx(d, abs=1e-15)
-    assert result.load_work_per_period == pytest.approx(2 * sa * d, abs=1e-12)
-    assert result.efficiency == pytest.approx(result.load_work_per_period / result.actuator_work_per_period, rel=1e-12)
+    assert result.energy.load_work == pytest.approx(2 * sa * d, abs=1e-12)
+    assert result.energy.efficiency == pytest.approx(result.energy.load_work / result.energy.actuator_work, rel=1e-12)
 
 
 @pytest.mark.parametrize("integrator", ["exact", "catch-up"])
 def test_energy_balance_with_loads_and_jumps(integrator):
-    """W = D + J + W_load on the limit period to roundoff, for a gait with switched (steps)
-    friction, which makes jumps (J > 0), a periodic force and a slope, on four blocks."""
+    """W = D + J + W_load (+ catch-up's discretisation loss) on the limit period to roundoff, for a
+    gait with switched (steps) friction, which makes jumps (J > 0), a periodic force and a slope,
+    on four blocks."""
     doc = {
         "blocks": 4,
         "period": 2.0,
@@ -210,11 +212,12 @@ def test_energy_balance_with_loads_and_jumps(integrator):
         "simulation": {"steps_per_period": 400, "max_periods": 400, "integrator": integrator},
     }
     result = run(make_gait(doc), history=False)
-    W = result.actuator_work_per_period
-    total = result.dissipation_per_period + result.jump_loss_per_period + result.load_work_per_period
-    assert W > 0 and result.load_work_per_period != 0
+    W = result.energy.actuator_work
+    total = result.energy.dissipation + result.energy.jump_loss + result.energy.load_work
+    total += result.energy.discretisation_loss or 0.0
+    assert W > 0 and result.energy.load_work != 0
     assert W - total == pytest.approx(0.0, abs=1e-11 * W)
-    assert result.energy_balance_residual == pytest.approx(W - total, abs=1e-12 * W)
+    assert result.energy.balance_residual == pytest.approx(W - total, abs=1e-12 * W)
 
 
 def test_rate_independence_with_loads():
@@ -227,10 +230,10 @@ def test_rate_independence_with_loads():
     }
     one = run(make_gait(two_block_doc(loads=loads)), history=False)
     slow = run(make_gait(two_block_doc(loads=loads, period=7.5)), history=False)
-    assert slow.displacement_per_period == pytest.approx(one.displacement_per_period, abs=1e-12)
+    assert slow.estimate.displacement == pytest.approx(one.estimate.displacement, abs=1e-12)
     assert slow.v0 * 7.5 == pytest.approx(one.v0, abs=1e-12)
-    assert slow.load_work_per_period == pytest.approx(one.load_work_per_period, abs=1e-12)
-    assert slow.dissipation_per_period == pytest.approx(one.dissipation_per_period, abs=1e-12)
+    assert slow.energy.load_work == pytest.approx(one.energy.load_work, abs=1e-12)
+    assert slow.energy.dissipation == pytest.approx(one.energy.dissipation, abs=1e-12)
 
 
 def test_default_start_when_stress_free_is_not_admissible():
@@ -326,8 +329,8 @@ def test_run_file_records_the_loads(tmp_path):
     with h5py.File(tmp_path / "r.h5") as f:
         assert f.attrs["slope_angle"] == 20.0
         assert json.loads(f.attrs["attribute_units_json"])["slope_angle"] == "degree"
-        assert f.attrs["load_work_per_period"] == pytest.approx(result.load_work_per_period, abs=1e-15)
-        assert f["energy/load_work"][()] == pytest.approx(result.load_work_per_period, abs=1e-15)
+        assert f.attrs["load_work_per_period"] == pytest.approx(result.energy.load_work, abs=1e-15)
+        assert f["energy/load_work"][()] == pytest.approx(result.energy.load_work, abs=1e-15)
         load = f["limit/load"][()]
         total = -0.5 - math.sin(math.radians(20.0))
         np.testing.assert_allclose(load[:, 0], -total, atol=1e-15)  # forward row: -F~_1
@@ -424,9 +427,9 @@ def test_square_wave_gait_under_a_uniform_force():
         doc["simulation"]["integrator"] = integrator
         result = run(make_gait(doc), history=False)
         assert result.v0 == pytest.approx(0.36, abs=1e-12)
-        assert result.load_work_per_period == pytest.approx(0.4 * 0.36, abs=1e-12)
-        assert result.jump_loss_per_period > 0
-        assert abs(result.energy_balance_residual) <= 1e-12 * result.actuator_work_per_period
+        assert result.energy.load_work == pytest.approx(0.4 * 0.36, abs=1e-12)
+        assert result.energy.jump_loss > 0
+        assert abs(result.energy.balance_residual) <= 1e-12 * result.energy.actuator_work
 
 
 def test_climbing_3_closed_form():
@@ -438,7 +441,7 @@ def test_climbing_3_closed_form():
     a = math.cos(math.radians(10)) + math.sin(math.radians(10))
     d = 2 * (0.6 - 3 * a / 10)
     assert result.v0 == pytest.approx(d, abs=1e-12)
-    assert result.load_work_per_period == pytest.approx(3 * math.sin(math.radians(10)) * d, abs=1e-12)
+    assert result.energy.load_work == pytest.approx(3 * math.sin(math.radians(10)) * d, abs=1e-12)
 
 
 def test_inching_2_towing_header():
@@ -446,10 +449,10 @@ def test_inching_2_towing_header():
 
     result = run(GAITS / "inching-2-towing.yaml", history=False)
     assert result.v0 == pytest.approx(0.35, abs=1e-12)
-    assert result.load_work_per_period == pytest.approx(0.175, abs=1e-12)
-    assert result.dissipation_per_period == pytest.approx(0.7, abs=1e-12)
-    assert result.actuator_work_per_period == pytest.approx(0.875, abs=1e-12)
-    assert result.efficiency == pytest.approx(0.2, abs=1e-12)
+    assert result.energy.load_work == pytest.approx(0.175, abs=1e-12)
+    assert result.energy.dissipation == pytest.approx(0.7, abs=1e-12)
+    assert result.energy.actuator_work == pytest.approx(0.875, abs=1e-12)
+    assert result.energy.efficiency == pytest.approx(0.2, abs=1e-12)
 
 
 @pytest.mark.slow
@@ -466,9 +469,7 @@ def test_random_gaits_with_loads_never_crash(seed):
     gait = random_gait(seed, blocks=(2, 8), steps_per_period=200, max_periods=300, loads=True)
     assert gait.loads is not None
     exact = simulate(compile_gait(gait), integrator="exact", max_periods=300, tolerance=1e-11, history=False)
-    assert exact.converged and abs(exact.energy_balance_residual) <= 1e-9 * max(
-        1.0, abs(exact.actuator_work_per_period)
-    )
+    assert exact.converged and abs(exact.energy.balance_residual) <= 1e-9 * max(1.0, abs(exact.energy.actuator_work))
     try:
         catch_up = simulate(compile_gait(gait), integrator="catch-up", max_periods=300, tolerance=1e-11, history=False)
     except DegenerateModelError:
@@ -513,8 +514,8 @@ def test_two_blocks_closed_form_any_monotone_stroke(mu_plus, mu_minus, k, stroke
     result = run(make_gait(doc), history=False)
     d = closed_form_d(stroke, k, mu_plus, mu_minus, (f1, f2), angle, weight)
     assert result.v0 == pytest.approx(d, abs=1e-9)
-    W = result.actuator_work_per_period
-    assert abs(result.energy_balance_residual) <= 1e-11 * max(W, 1.0)
+    W = result.energy.actuator_work
+    assert abs(result.energy.balance_residual) <= 1e-11 * max(W, 1.0)
 
 
 def test_a_towing_load_on_the_uniqueness_boundary_is_fixed_by_the_suggested_change():

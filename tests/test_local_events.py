@@ -11,21 +11,18 @@ What must hold, each against the computation over the whole chain that it replac
 * the energy terms summed by chunks, only the stale chunks again, are the sums over every link
   and slipping block;
 * the loop on a 16-block wave (several runs per set, kept runs, velocity problems on a run of
-  their own) gives the same bits compiled and as Python (``NUMBA_DISABLE_JIT=1``).
+  their own) gives the same bits compiled and interpreted (`crawlsim.kernel.jit`).
 """
 
 import importlib.util
-import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 
 from crawlsim.gait.document import gait_from_document
+from crawlsim.integrate import catchup
 from crawlsim.integrate.exact import EventStepper
-from crawlsim.kernel import catchup, chain, eventloop
+from crawlsim.kernel import chain, eventloop, jit
 from crawlsim.kernel import events as kernel_events
 from crawlsim.model.process import compile_gait
 
@@ -341,37 +338,24 @@ def test_energy_terms_by_chunks():
     assert np.array_equal(out, again)
 
 
-RUN_WAVE = """\
-import json, sys
-import numpy as np
-sys.path.insert(0, sys.argv[1])
-from test_local_events import _wave
-from crawlsim.integrate.exact import EventStepper
-stepper = EventStepper(_wave(16, 200))
-out = []
-for _ in range(3):
-    r = stepper.step_period()
-    e = r.energy
-    out.append([r.w.tobytes().hex(), r.multipliers.tobytes().hex(), r.events.t.tobytes().hex(),
-                [float(x).hex() for x in (e.work, e.dissipation, e.energy_end)]])
-print(json.dumps(out))
-"""
-
-
 def test_local_events_compiled_and_python_agree_bit_for_bit():
     """Three periods of the 16-block segments wave (200 steps per period): states, slips,
-    event times and energy, the same bits compiled and with ``NUMBA_DISABLE_JIT=1``."""
+    event times and energy, the same bits in the kernel's two forms."""
     outputs = []
-    for flag in ("0", "1"):
-        env = dict(os.environ, NUMBA_DISABLE_JIT=flag)
-        env.pop("PYTHONHASHSEED", None)
-        run = subprocess.run(
-            [sys.executable, "-c", RUN_WAVE, str(ROOT / "tests")],
-            env=env,
-            capture_output=True,
-            text=True,
-            check=True,
-            cwd=ROOT,
-        )
-        outputs.append(json.loads(run.stdout.splitlines()[-1]))
+    for form in ("compiled", "python"):
+        with jit.forced(form):
+            stepper = EventStepper(_wave(16, 200))
+            out = []
+            for _ in range(3):
+                r = stepper.step_period()
+                e = r.energy
+                out.append(
+                    [
+                        r.w.tobytes(),
+                        r.multipliers.tobytes(),
+                        r.events.t.tobytes(),
+                        (e.work, e.dissipation, e.energy_end),
+                    ]
+                )
+            outputs.append(out)
     assert outputs[0] == outputs[1]

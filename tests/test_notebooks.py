@@ -27,6 +27,9 @@ pytest.importorskip("ipykernel")
 pytest.importorskip("xarray")
 pytest.importorskip("h5netcdf")
 
+#: each notebook runs in a fresh Jupyter kernel: .ci/run runs them in its slow step
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "docs" / "examples"
 NOTEBOOKS = sorted(EXAMPLES.glob("*.ipynb"))
@@ -38,15 +41,17 @@ def _texts(notebook) -> list[list[str]]:
     for cell in notebook.cells:
         if cell.cell_type != "code":
             continue
-        lines: list[str] = []
+        # the kernel sends stdout in chunks wherever its buffer was flushed (a line can arrive
+        # apart from its newline): the chunks are one text
+        text = ""
         for output in cell.outputs:
             if output.output_type == "stream" and output.name == "stdout":
-                lines += output.text.splitlines()
+                text += output.text
             elif output.output_type == "execute_result" and "image/png" not in output.data:
-                lines += output.data.get("text/plain", "").splitlines()
+                text += output.data.get("text/plain", "") + "\n"
             elif output.output_type == "error":
                 raise AssertionError(f"{output.ename}: {output.evalue}")
-        out.append([line.rstrip() for line in lines])
+        out.append([line.rstrip() for line in text.splitlines()])
     return out
 
 
@@ -107,7 +112,8 @@ def test_stored_outputs_are_what_the_notebook_prints(path):
 
 def test_first_run_numbers():
     """peristalsis-4: v0 = 0.3711554677 to 8 digits (README's first run), finite-time from
-    period 1, the cost of transport, the trajectory's shape, three figures, the xarray view."""
+    period 1, the cost of transport, the trajectory's shape, four figures (result.plot), the xarray
+    view."""
     fresh = executed(EXAMPLES / "first-run.ipynb")
     cells = _texts(fresh)
     printed = [line for cell in cells for line in cell]
@@ -118,7 +124,7 @@ def test_first_run_numbers():
     assert "trajectory         2001 saved times, x of shape (2001, 4)" in printed
     summary = "\n".join(cells[1])
     assert re.search(r"v0 +0\.3711554676\d+ ± \de-1[34]", summary), summary
-    assert _figures(fresh) == 3
+    assert _figures(fresh) == 4
     assert "backward_slip stick forward_slip" in printed
 
 

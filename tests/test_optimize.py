@@ -16,12 +16,27 @@ import pytest
 import yaml
 from click.testing import CliRunner
 
+from crawlsim.analysis.digits import with_error
 from crawlsim.cli import main
+from crawlsim.design import optimize as opt
+from crawlsim.design.optresult import BUDGET_SPENT, Stage, hypervolume, non_dominated
+from crawlsim.design.problem import (
+    Constraint,
+    Method,
+    Objective,
+    default_search,
+    make_problem,
+    parse_constraint,
+    parse_free,
+    quantity,
+)
+from crawlsim.design.search import Evaluator, OptimizationInterrupted
 from crawlsim.errors import SweepSpecError
 from crawlsim.gait.document import load_gait, with_simulation
-from crawlsim.io import hdf5 as h5io
-from crawlsim.study import optimize as opt
+from crawlsim.io.describe import describe
+from crawlsim.io.optfile import read_optimization
 from crawlsim.study import sweep as sweeps
+from crawlsim.study.points import PointResult
 
 GAITS = Path(__file__).resolve().parents[1] / "gaits"
 P4 = str(GAITS / "peristalsis-4.yaml")
@@ -40,7 +55,7 @@ def base(path=P4):
 
 
 def lags_problem(**kwargs):
-    return opt.make_problem(base(), list(LAGS), **kwargs)
+    return make_problem(base(), list(LAGS), **kwargs)
 
 
 # -- specifications ----------------------------------------------------------------------------
@@ -52,7 +67,7 @@ def assert_reads_back(result, path):
     import dataclasses
 
     import crawlsim
-    from crawlsim.study.optresult import OptimizationResult
+    from crawlsim.design.optresult import OptimizationResult
 
     back = crawlsim.open_optimization(path)
     assert type(back) is OptimizationResult
@@ -77,20 +92,20 @@ def assert_reads_back(result, path):
 
 
 def test_free_parameters_and_constraints_are_parsed_exactly():
-    f = opt.parse_free("links.*.amplitude=0.1:0.4")
+    f = parse_free("links.*.amplitude=0.1:0.4")
     assert (f.path, f.lo, f.hi) == ("links.*.amplitude", 0.1, 0.4)
     assert f.value(0.0) == 0.1 and f.value(1.0) == 0.4  # inclusive bounds, reached exactly
     assert f.value(-1.0) == 0.1 and f.value(2.0) == 0.4
-    assert opt.parse_constraint("v0>=0.2") == opt.Constraint("v0", ">=", 0.2)
-    assert opt.parse_constraint(" cost-of-transport <= 6 ") == opt.Constraint("cost_of_transport", "<=", 6.0)
-    assert opt.parse_constraint("v0=>1e-3") == opt.Constraint("v0", ">=", 1e-3)
-    assert opt.quantity("Cost-Of-Transport", "--minimize") == "cost_of_transport"
-    row = sweeps.PointResult(0, "ok", v0=0.25, cost_of_transport=7.0)
-    assert opt.Constraint("v0", ">=", 0.2).violation(row) == 0.0
-    assert opt.Constraint("v0", ">=", 0.5).violation(row) == 0.25
-    assert opt.Constraint("cost_of_transport", "<=", 6.0).violation(row) == 1.0
-    failed = sweeps.PointResult(0, "failed", message="boom")
-    assert opt.Constraint("v0", ">=", 0.2).violation(failed) == math.inf
+    assert parse_constraint("v0>=0.2") == Constraint("v0", ">=", 0.2)
+    assert parse_constraint(" cost-of-transport <= 6 ") == Constraint("cost_of_transport", "<=", 6.0)
+    assert parse_constraint("v0=>1e-3") == Constraint("v0", ">=", 1e-3)
+    assert quantity("Cost-Of-Transport", "--minimize") == "cost_of_transport"
+    row = PointResult(0, "ok", v0=0.25, cost_of_transport=7.0)
+    assert Constraint("v0", ">=", 0.2).violation(row) == 0.0
+    assert Constraint("v0", ">=", 0.5).violation(row) == 0.25
+    assert Constraint("cost_of_transport", "<=", 6.0).violation(row) == 1.0
+    failed = PointResult(0, "failed", message="boom")
+    assert Constraint("v0", ">=", 0.2).violation(failed) == math.inf
     for bad in (
         "links.1.phase",
         "links.1.phase=",
@@ -101,12 +116,12 @@ def test_free_parameters_and_constraints_are_parsed_exactly():
         "=0:1",
     ):
         with pytest.raises(SweepSpecError, match="--free"):
-            opt.parse_free(bad)
+            parse_free(bad)
     with pytest.raises(SweepSpecError, match="bounds reversed"):
-        opt.parse_free("links.1.phase=1:0")
+        parse_free("links.1.phase=1:0")
     for bad in ("v0>>0.2", "v0>0.2", "v0==0.2", "v0 = 0.2", "speed>=1", "v0>=abc", "v0>=nan", ">=1", "v0"):
         with pytest.raises(SweepSpecError, match="--subject-to"):
-            opt.parse_constraint(bad)
+            parse_constraint(bad)
 
 
 def test_non_dominated_set_and_hypervolume_closed_forms():
@@ -115,10 +130,10 @@ def test_non_dominated_set_and_hypervolume_closed_forms():
     (0, 5) the dominated area is a union of rectangles: [0,1]x[1,5] + [1,2]x[2,5] + [2,3]x[4,5]
     = 4 + 3 + 1 = 8."""
     points = np.array([[2, 2], [1, 1], [2, 3], [3, 4], [1.5, 5.0]], dtype=float)
-    assert opt.non_dominated(points).tolist() == [1, 0, 3]
-    assert opt.hypervolume(points, (0.0, 5.0)) == 8.0
-    assert opt.hypervolume(points, (3.0, 5.0)) == 0.0  # nothing beyond the reference's v0
-    assert opt.non_dominated(np.array([[1.0, 1.0], [1.0, 1.0]])).tolist() == [0]
+    assert non_dominated(points).tolist() == [1, 0, 3]
+    assert hypervolume(points, (0.0, 5.0)) == 8.0
+    assert hypervolume(points, (3.0, 5.0)) == 0.0  # nothing beyond the reference's v0
+    assert non_dominated(np.array([[1.0, 1.0], [1.0, 1.0]])).tolist() == [0]
 
 
 # -- agreement with a grid -----------------------------------------------------------------------
@@ -137,7 +152,7 @@ def test_optimize_matches_the_grid_maximum_with_a_fifth_of_its_evaluations(lag_g
     instance is in scripts/optimize-four-block.py): v0 of the optimum is at least the grid's
     maximum less 1e-4, with at most 256 / 5 evaluations, and it is a point of the box."""
     grid_max = float(np.nanmax(lag_grid.columns()["v0"]))
-    result = opt.optimize(lags_problem(), opt.Method(seed=0, max_evaluations=256 // 5))
+    result = opt.optimize(lags_problem(), Method(seed=0, max_evaluations=256 // 5))
     assert len(result.evaluations) <= 256 // 5
     assert result.feasible and result.best_point.row.status == "ok"
     assert result.value >= grid_max - 1e-4
@@ -154,8 +169,8 @@ def test_points_of_a_grid_evaluate_as_the_grid_does(lag_grid):
     coords = lag_grid.coordinates()
     k = 37
     x = (float(coords[0][k]), float(coords[1][k]))
-    ev = opt.Evaluator(lags_problem(), 10, jobs=1, scheduler=None, journal=None, progress=None, report=None)
-    (e,) = ev.evaluate(np.array([x]), 0, opt.Stage.INITIAL)
+    ev = Evaluator(lags_problem(), 10, jobs=1, scheduler=None, journal=None, progress=None, report=None)
+    (e,) = ev.evaluate(np.array([x]), 0, Stage.INITIAL)
     assert e.row.v0 == lag_grid.rows[k].v0
     assert e.row.cost_of_transport == lag_grid.rows[k].cost_of_transport
 
@@ -190,16 +205,18 @@ def test_write_best_is_a_gait_file_that_crawlsim_run_reproduces(tmp_path):
     assert document["simulation"]["integrator"] == "exact"
     original = yaml.safe_load(Path(P4).read_text())
     assert document["links"][0] == original["links"][0] and document["friction"] == original["friction"]
+    lags = f"links.1.phase = {answer['best']['links.1.phase']!r}, links.2.phase = {answer['best']['links.2.phase']!r}"
+    assert document["description"] == f"{original['description']} [crawlsim optimize: maximize v0; {lags}]"
     run = cli("run", best, "--json", "-o", tmp_path / "run.h5", "-q")
     assert run.exit_code == 0, run.output
     v0 = json.loads(run.output)["v0"]
     assert abs(v0 - answer["v0"]) <= 1e-12 * abs(answer["v0"])
-    assert h5io.describe(out)["v0"] == answer["v0"]
+    assert describe(out)["v0"] == answer["v0"]
 
 
 def test_the_same_seed_gives_the_same_result_with_one_or_two_jobs():
-    problem = lags_problem(objective=opt.Objective("cost_of_transport", "minimize"), constraints=["v0>=0.3"])
-    method = opt.Method(seed=5, max_evaluations=40)
+    problem = lags_problem(objective=Objective("cost_of_transport", "minimize"), constraints=["v0>=0.3"])
+    method = Method(seed=5, max_evaluations=40)
     first = opt.optimize(problem, method)
     again = opt.optimize(problem, method)
     pooled = opt.optimize(problem, method, jobs=2)
@@ -208,7 +225,7 @@ def test_the_same_seed_gives_the_same_result_with_one_or_two_jobs():
         assert other.best_point.row.v0 == first.best_point.row.v0
         assert other.value == first.value
         assert [e.x for e in other.evaluations] == [e.x for e in first.evaluations]
-    other_seed = opt.optimize(problem, opt.Method(seed=6, max_evaluations=40))
+    other_seed = opt.optimize(problem, Method(seed=6, max_evaluations=40))
     assert [e.x for e in other_seed.evaluations] != [e.x for e in first.evaluations]
 
 
@@ -219,8 +236,8 @@ def test_constraints_and_the_cost_of_transport_bound():
     the lower bound of the issue: over a period of the periodic regime each block moves by the
     period displacement d, so the dissipation sum_j mu_j^+ (dx_j)^+ + mu_j^- (dx_j)^- is at
     least sum_j mu_j^+ d, and with mu^+ = 1 on four blocks the cost of transport is >= 4."""
-    problem = lags_problem(objective=opt.Objective("cost_of_transport", "minimize"), constraints=["v0>=0.3"])
-    result = opt.optimize(problem, opt.Method(seed=1, max_evaluations=45))
+    problem = lags_problem(objective=Objective("cost_of_transport", "minimize"), constraints=["v0>=0.3"])
+    result = opt.optimize(problem, Method(seed=1, max_evaluations=45))
     best = result.best_point.row
     assert result.feasible and best.v0 >= 0.3
     flags, violations = result.feasibility()
@@ -237,13 +254,13 @@ def test_invalid_points_are_recorded_and_never_chosen(tmp_path):
     k = 1e10 / 1.3, the stress-scale limit; a box beyond the schema is refused whole): those
     points are recorded as invalid with their reason, the search goes on, and the best point is
     valid."""
-    problem = opt.make_problem(base(INCHING), ["stiffness=1:2e10"])
-    result = opt.optimize(problem, opt.Method(seed=0, max_evaluations=30), output=tmp_path / "o.h5")
+    problem = make_problem(base(INCHING), ["stiffness=1:2e10"])
+    result = opt.optimize(problem, Method(seed=0, max_evaluations=30), output=tmp_path / "o.h5")
     invalid = [e for e in result.evaluations if e.row.status == "invalid"]
     assert invalid and all(e.x[0] > 1e10 / 1.3 for e in invalid)
     assert all("too stiff" in e.row.message for e in invalid)
     assert result.best_point.row.status == "ok" and result.best_point.x[0] <= 1e10 / 1.3
-    data = h5io.read_optimization(tmp_path / "o.h5")
+    data = read_optimization(tmp_path / "o.h5")
     status = list(data["evaluations"]["status"])
     assert status.count("invalid") == len(invalid)
     assert_reads_back(result, tmp_path / "o.h5")
@@ -311,10 +328,8 @@ def test_an_infeasible_problem_exits_2_and_writes_nothing(tmp_path, monkeypatch)
 
 # -- the Pareto front -------------------------------------------------------------------------
 def test_pareto_front_is_the_non_dominated_set_of_the_evaluated_points(tmp_path):
-    problem = opt.make_problem(base(P3), ["links.*.amplitude=0.1:0.4", "links.1.phase=0:1"], pareto=True)
-    result = opt.optimize(
-        problem, opt.Method(seed=0, max_evaluations=120, front_points=2), output=tmp_path / "front.h5"
-    )
+    problem = make_problem(base(P3), ["links.*.amplitude=0.1:0.4", "links.1.phase=0:1"], pareto=True)
+    result = opt.optimize(problem, Method(seed=0, max_evaluations=120, front_points=2), output=tmp_path / "front.h5")
     assert len(result.runs) == 4 and len(result.evaluations) <= 120
     assert [r.objective.text for r in result.runs] == [
         "maximize v0",
@@ -339,7 +354,7 @@ def test_pareto_front_is_the_non_dominated_set_of_the_evaluated_points(tmp_path)
     assert [p.v0 for p in front] == sorted(p.v0 for p in front)
     hv = [b.hypervolume for b in result.history]
     assert all(np.diff(hv) >= 0) and hv[-1] > 0
-    data = h5io.read_optimization(tmp_path / "front.h5")
+    data = read_optimization(tmp_path / "front.h5")
     assert data["front"]["evaluation"].tolist() == list(result.front)
     assert data["front"]["chosen"].sum() >= 1
     assert_reads_back(result, tmp_path / "front.h5")
@@ -377,7 +392,7 @@ def test_pareto_reports_the_fastest_evaluated_gait_and_the_runs_out_of_budget(tm
     ]
     r = cli("optimize", *args, "-o", out, "--write-best", best_yaml)
     assert r.exit_code == 0, r.output
-    data = h5io.read_optimization(out)
+    data = read_optimization(out)
     ev = data["evaluations"]
     ok = (ev["status"] == "ok") & np.isfinite(ev["v0"])  # no constraints: every point that runs
     fastest = int(np.flatnonzero(ok)[np.argmax(ev["v0"][ok])])
@@ -385,10 +400,11 @@ def test_pareto_reports_the_fastest_evaluated_gait_and_the_runs_out_of_budget(tm
     assert ev["v0"][fastest] > ev["v0"][run_best]  # the case this test is about
     assert data["attrs"]["best_evaluation"] == fastest
     assert data["attrs"]["best_v0"] == ev["v0"][fastest]
-    assert f"  v0                       {float(ev['v0'][fastest])!r}" in r.output
+    v0 = with_error(float(ev["v0"][fastest]), float(ev["v0_error_estimate"][fastest]))
+    assert f"  v0                       {v0}\n" in r.output and " ± " in v0  # as crawlsim run prints it
     assert f"evaluation {fastest} of 120" in best_yaml.read_text()
     stops = [str(s) for s in data["runs"]["stop"]]
-    assert all(s.startswith(opt.BUDGET_SPENT) for s in stops)
+    assert all(s.startswith(BUDGET_SPENT) for s in stops)
     assert f"out of budget            {len(stops)} of {len(stops)} runs" in r.output
     for k, stop in enumerate(stops, 1):
         assert f"    run {k}, " in r.output and f": {stop}" in r.output
@@ -401,7 +417,7 @@ def test_pareto_reports_the_fastest_evaluated_gait_and_the_runs_out_of_budget(tm
 # -- resume, the file, the figures --------------------------------------------------------------
 def test_an_interrupted_optimisation_resumes_from_its_journal(tmp_path):
     problem = lags_problem()
-    method = opt.Method(seed=2, max_evaluations=36)
+    method = Method(seed=2, max_evaluations=36)
     whole = opt.optimize(problem, method)
     out = tmp_path / "opt.h5"
     count = [0]
@@ -411,7 +427,7 @@ def test_an_interrupted_optimisation_resumes_from_its_journal(tmp_path):
         if count[0] >= 25:
             raise KeyboardInterrupt
 
-    with pytest.raises(opt.OptimizationInterrupted) as stopped:
+    with pytest.raises(OptimizationInterrupted) as stopped:
         opt.optimize(problem, method, output=out, progress=interrupt)
     assert stopped.value.done >= 20 and not out.exists()
     assert sweeps.journal_path(out).exists()
@@ -422,10 +438,10 @@ def test_an_interrupted_optimisation_resumes_from_its_journal(tmp_path):
     assert out.exists() and not sweeps.journal_path(out).exists()
     # another optimisation refuses the journal of this one
     count[0] = 0
-    with pytest.raises(opt.OptimizationInterrupted):
+    with pytest.raises(OptimizationInterrupted):
         opt.optimize(problem, method, output=out, progress=interrupt)
     with pytest.raises(SweepSpecError, match="different optimisation"):
-        opt.optimize(problem, opt.Method(seed=3, max_evaluations=36), output=out)
+        opt.optimize(problem, Method(seed=3, max_evaluations=36), output=out)
 
 
 def test_the_results_file_layout_and_its_figures(tmp_path):
@@ -452,7 +468,7 @@ def test_the_results_file_layout_and_its_figures(tmp_path):
     )
     assert r.exit_code == 0, r.output
     assert "minimize cost_of_transport subject to v0>=0.3" in r.output
-    data = h5io.read_optimization(out)
+    data = read_optimization(out)
     a = data["attrs"]
     assert a["kind"] == "optimization" and a["format_version"] == 2 and a["seed"] == 3
     assert a["objective"] == "minimize cost_of_transport" and a["max_evaluations"] == 30
@@ -486,7 +502,7 @@ def test_the_results_file_layout_and_its_figures(tmp_path):
         assert f["evaluations/v0"].dims[0][0].name == "/evaluations/evaluation"
         assert f["history/best"].dims[0][0].name == "/history/batch"
         assert list(f["evaluations/stage"].attrs["flag_values"]) == [0, 1, 2]
-    assert h5io.describe(out)["file_kind"] == "optimization"
+    assert describe(out)["file_kind"] == "optimization"
     info = cli("info", out)
     assert info.exit_code == 0 and "optimisation of gait peristalsis-4" in info.output
     assert "subject to               v0>=0.3" in info.output
@@ -499,12 +515,13 @@ def test_the_results_file_layout_and_its_figures(tmp_path):
     assert rerun.exit_code == 2 and "--write-best" in rerun.output
 
 
+@pytest.mark.slow  # starts a Dask cluster
 def test_a_dask_cluster_gives_the_same_result():
     """Each generation goes to the cluster through the sweep engine; the search is the same,
     point for point (CI installs the dask extra)."""
     distributed = pytest.importorskip("distributed")
     problem = lags_problem()
-    method = opt.Method(seed=4, max_evaluations=30)
+    method = Method(seed=4, max_evaluations=30)
     local = opt.optimize(problem, method)
     with distributed.LocalCluster(
         host="127.0.0.1", n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
@@ -536,8 +553,8 @@ def test_gradient_search_reaches_the_two_lag_optimum_in_a_fifth_of_the_evaluatio
     1e-6 of it in at most a fifth of the evaluations the evolution search needs, and is the
     default for this problem (maximise v0, no constraints, exact integrator)."""
     problem = lags_problem()
-    assert opt.default_search(problem) == "gradient"
-    result = opt.optimize(problem, opt.Method(search=opt.default_search(problem)))
+    assert default_search(problem) == "gradient"
+    result = opt.optimize(problem, Method(search=default_search(problem)))
     assert result.feasible and result.value == pytest.approx(7 / 15, abs=1e-6)
     assert first_within(result, 7 / 15, 1e-6) <= EVOLUTION_TO_1E6 / 5
     x = result.best_point.x
@@ -545,7 +562,7 @@ def test_gradient_search_reaches_the_two_lag_optimum_in_a_fifth_of_the_evaluatio
     stages = result.stage_counts()
     assert stages["global"] == 16 and stages["polish"] == len(result.evaluations) - 16
     # every gradient evaluation carries the derivatives of the four quantities
-    e = next(e for e in result.evaluations if e.stage == opt.Stage.POLISH)
+    e = next(e for e in result.evaluations if e.stage == Stage.POLISH)
     assert len(e.row.extra) == 4 * 2
 
 
@@ -554,8 +571,8 @@ def test_gradient_search_meets_an_active_constraint():
     both sides of 0.3 in the box, so the optimum is on the constraint, v0 = 0.3; SLSQP on the
     exact gradients finds it, and no chosen point violates it."""
     problem = lags_problem(constraints=["v0<=0.3"])
-    assert opt.default_search(problem) == "evolution"  # the default where not measured
-    result = opt.optimize(problem, opt.Method(search="gradient", max_evaluations=80))
+    assert default_search(problem) == "evolution"  # the default where not measured
+    result = opt.optimize(problem, Method(search="gradient", max_evaluations=80))
     assert result.feasible
     assert result.value <= 0.3 and result.value == pytest.approx(0.3, abs=1e-6)
     assert all(r.feasible for r in result.runs)
@@ -566,15 +583,15 @@ def test_gradient_search_pareto_front_and_results_file(tmp_path):
     epsilon-constraint points); the front is non-dominated and the results file records the
     method."""
     out = tmp_path / "front.h5"
-    problem = opt.make_problem(base(), ["links.*.amplitude=0.1:0.4", "links.1.phase=0:1"], pareto=True)
-    result = opt.optimize(problem, opt.Method(search="gradient", front_points=1, max_evaluations=120), output=out)
+    problem = make_problem(base(), ["links.*.amplitude=0.1:0.4", "links.1.phase=0:1"], pareto=True)
+    result = opt.optimize(problem, Method(search="gradient", front_points=1, max_evaluations=120), output=out)
     assert result.feasible and len(result.runs) == 3 and len(result.front) >= 3
     points = np.array(
         [[result.evaluations[i].row.v0, result.evaluations[i].row.cost_of_transport] for i in result.front]
     )
-    assert len(opt.non_dominated(points)) == len(points)
+    assert len(non_dominated(points)) == len(points)
     assert result.best_point.row.v0 == max(p[0] for p in points)
-    data = h5io.read_optimization(out)
+    data = read_optimization(out)
     assert data["attrs"]["method"] == "sample + quasi-Newton on exact gradients"
     assert len(data["evaluations"]["v0"]) == len(result.evaluations)
     assert_reads_back(result, out)
@@ -584,10 +601,10 @@ def test_gradient_search_resumes_from_its_journal(tmp_path, monkeypatch):
     """An interrupted gradient search keeps its finished points (derivatives included) in the
     journal; the rerun replays them and simulates only the rest, to the same answer, bit for
     bit."""
-    from crawlsim.study import descent
+    from crawlsim.design import descent
 
     problem = lags_problem()
-    method = opt.Method(search="gradient", restarts=1)
+    method = Method(search="gradient", restarts=1)
     whole = opt.optimize(problem, method)
     calls = []
     row_of = descent.gradient_row
@@ -600,7 +617,7 @@ def test_gradient_search_resumes_from_its_journal(tmp_path, monkeypatch):
 
     monkeypatch.setattr(descent, "gradient_row", interrupted)
     out = tmp_path / "opt.h5"
-    with pytest.raises(opt.OptimizationInterrupted):
+    with pytest.raises(OptimizationInterrupted):
         opt.optimize(problem, method, output=out)
     monkeypatch.setattr(descent, "gradient_row", row_of)
     again = opt.optimize(problem, method, output=out)
@@ -610,10 +627,10 @@ def test_gradient_search_resumes_from_its_journal(tmp_path, monkeypatch):
 
 
 def test_gradient_search_refuses_a_catch_up_gait():
-    problem = opt.make_problem(with_simulation(base(), integrator="catch-up"), list(LAGS))
-    assert opt.default_search(problem) == "evolution"
+    problem = make_problem(with_simulation(base(), integrator="catch-up"), list(LAGS))
+    assert default_search(problem) == "evolution"
     with pytest.raises(SweepSpecError, match="--integrator exact"):
-        opt.default_search(problem, "gradient")
+        default_search(problem, "gradient")
 
 
 def test_the_command_runs_the_gradient_search_where_it_is_the_default(tmp_path):

@@ -115,7 +115,8 @@ def test_figures_replace_images_of_their_format_only(folder):
     assert invoke("plot", "r.h5", "--only", "motion", "--force").exit_code == 0
     assert classify(folder / "r-motion.png") == "figure:png"
     assert invoke("plot", "r.h5", "--only", "motion").exit_code == 0  # an image over an image
-    refused(invoke("velocity", "g.yaml", "--sweep", "period=1,2", "--plot", "g.yaml"), "is the input file")
+    (folder / "g-sweep.png").write_text("not an image")  # velocity --plot's figure, beside the gait
+    refused(invoke("velocity", "g.yaml", "--sweep", "period=1,2", "--plot"), "g-sweep.png", "not a figure")
 
 
 def test_special_files_are_refused_even_with_force(folder):
@@ -215,6 +216,7 @@ def start_slow_run(folder):
     return child
 
 
+@pytest.mark.slow  # a slow run, signalled, in a subprocess
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
 def test_no_temporary_file_survives_sigterm_or_sigint(folder, signum):
     child = start_slow_run(folder)

@@ -67,7 +67,7 @@ def test_acute_angle_contracts_by_one_over_one_plus_alpha_squared(alpha):
     usable = steps[steps > 1e-6 * steps[0]]
     assert np.max(np.abs(usable[1:] / usable[:-1] - 1 / (1 + alpha**2))) <= 1e-8
     assert result.convergence == "asymptotic" and result.periodic_from is None
-    assert result.contraction_rate == pytest.approx(1 / (1 + alpha**2), rel=1e-3)
+    assert result.rate.rate == pytest.approx(1 / (1 + alpha**2), rel=1e-3)
     assert result.limit.w[0] == pytest.approx([1 / (2 * alpha), 0.0], abs=1e-11)
 
 
@@ -96,7 +96,7 @@ def test_triangle_has_one_periodic_solution_reached_only_asymptotically():
     for start in [(0.1, 0.05), (-0.3, -0.2), (0.45, -0.25)]:
         result = run(_triangle(start))
         assert result.convergence == "asymptotic"
-        assert result.contraction_rate == pytest.approx(1 / 8, rel=1e-3)
+        assert result.rate.rate == pytest.approx(1 / 8, rel=1e-3)
         limits.append(result.limit.w[-1])
         s, distance = paper.edge_parameter(result.limit.w[-1], 2)
         assert s == pytest.approx(1 / 3, abs=1e-11) and abs(distance) <= 1e-15

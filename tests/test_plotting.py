@@ -28,7 +28,7 @@ from crawlsim.cli import main
 from crawlsim.errors import ResultsFileError
 from crawlsim.gait.document import gait_from_document, load_gait, with_simulation
 from crawlsim.gait.units import Units as GaitUnits
-from crawlsim.io.hdf5 import read_results
+from crawlsim.io.runread import read_results
 from crawlsim.model import crawler as crawler_module
 from crawlsim.model.process import compile_gait
 from crawlsim.plotting import (
@@ -37,6 +37,7 @@ from crawlsim.plotting import (
     convergence_figure,
     gait_diagram,
     gait_figure,
+    kymograph_figure,
     motion_figure,
     plot_results,
     run_data,
@@ -44,26 +45,18 @@ from crawlsim.plotting import (
     sweep_figure,
 )
 from crawlsim.plotting.convergence import MAX_MARKERS, marked_periods
-from crawlsim.plotting.figures import (
+from crawlsim.plotting.gait_diagram import (
     MAX_BAND_LABELS,
     MAX_FORCE_ROWS,
-    MAX_MOTION_BLOCKS,
     MAX_SERIES,
     block_forces,
-    cell_edges,
-    is_geometric,
-    jumps,
-    polygon,
     relative_stress,
-    section,
-    shape_space_instants,
-    shown_series,
     slip_runs,
     stress_bounds,
     stress_mode,
-    swept_ticks,
-    zero_contour,
 )
+from crawlsim.plotting.motion import FOLLOW_PERIODS, MAX_MOTION_BLOCKS
+from crawlsim.plotting.shape_space import polygon, section, shape_space_instants
 from crawlsim.plotting.style import (
     COLOUR_MAP,
     PALETTE,
@@ -73,8 +66,10 @@ from crawlsim.plotting.style import (
     label,
     path_dimension,
     path_label,
+    shown_series,
     units_of,
 )
+from crawlsim.plotting.sweeps import cell_edges, is_geometric, jumps, swept_ticks, zero_contour
 
 from .conftest import SOLVER_GAITS
 
@@ -141,7 +136,7 @@ def _check_labels(fig, units=None):
 
 @pytest.mark.parametrize("gait_file", GAIT_FILES, ids=lambda p: p.stem)
 def test_every_figure_of_every_gait(run_file, gait_file, tmp_path):
-    """Every figure a file supports is written for each example gait (all four for crawlers,
+    """Every figure a file supports is written for each example gait (all five for crawlers,
     convergence and shape space for the paper's generic sweeping processes), titled with the
     gait's name, every axis labelled with its unit, as small PNG files."""
     path = run_file(str(gait_file.relative_to(GAITS).with_suffix("")))
@@ -157,6 +152,7 @@ def test_every_figure_of_every_gait(run_file, gait_file, tmp_path):
     draws = {
         "motion": motion_figure,
         "gait-diagram": gait_figure,
+        "kymograph": kymograph_figure,
         "convergence": convergence_figure,
         "shape-space": shape_space_figure,
     }
@@ -380,13 +376,19 @@ def test_many_blocks_are_drawn_thinned_and_the_slip_pattern_whole(tmp_path):
     small = gait_figure(read_results(wave_file(tmp_path, MAX_BAND_LABELS)))
     assert fig.get_size_inches()[1] == small.get_size_inches()[1]
 
+    # beyond MAX_MOTION_BLOCKS blocks the motion figure follows the crawler over its last periods
+    assert N > MAX_MOTION_BLOCKS
     motion = motion_figure(r).axes[0]
-    drawn = shown_series(N, MAX_MOTION_BLOCKS)
+    assert motion.get_title() == f"wave-{N}: the last {FOLLOW_PERIODS} periods"
+    drawn = shown_series(N, 8)
     lines = motion.get_lines()
     assert len(lines) == len(drawn) + 2
+    x = r["trajectory"]["x"][r["trajectory"]["t"] >= r["trajectory"]["t"][-1] - FOLLOW_PERIODS - 1e-9]
     for k, j in enumerate(drawn):
-        np.testing.assert_array_equal(lines[k].get_ydata(), r["trajectory"]["x"][:, j])
-    assert motion.get_legend().get_title().get_text() == f"{MAX_MOTION_BLOCKS} of {N} blocks"
+        np.testing.assert_array_equal(lines[k].get_ydata(), x[:, j] - x[0, j])
+    assert motion.get_legend().get_title().get_text() == f"8 of {N} blocks"
+    names = {t.get_text() for t in motion.get_legend().get_texts()}
+    assert {f"block {j + 1}" for j in drawn} <= names  # each of the eight, to tell the steps apart
 
 
 def test_slip_runs_tile_the_period():
@@ -1056,7 +1058,7 @@ def test_sweep_ticks_and_cells():
 def test_sweep_file_plot(tmp_path):
     """`crawlsim plot` on a sweep file draws its one figure (the sweep of `crawlsim velocity`,
     with its units when the gait file gives them): the heat map holds the file's values."""
-    from crawlsim.io.hdf5 import write_sweep
+    from crawlsim.io.sweepfile import write_sweep
 
     a, b = np.array([1.5, 2.0, 2.5]), np.array([5.0, 10.0])
     v0 = np.array([0.1, 0.2, np.nan, 0.4, 0.5, 0.6])
@@ -1086,7 +1088,7 @@ def test_sweep_file_plot(tmp_path):
     assert result.exit_code == 0, result.output
     (out,) = (tmp_path / "figs").iterdir()
     assert out.name == "grid-sweep.png" and result.output.strip() == str(out)
-    from crawlsim.io.hdf5 import read_sweep
+    from crawlsim.io.sweepfile import read_sweep
     from crawlsim.plotting import sweep_data_figure
 
     fig = sweep_data_figure(read_sweep(path))
@@ -1167,13 +1169,16 @@ def test_cli_missing_data_exit_2(run_file, tmp_path, dataset, only, message):
 
 
 def test_cli_wrong_files_exit_2(tmp_path):
-    not_h5 = tmp_path / "gait.yaml"
+    not_h5 = tmp_path / "notes.txt"
     not_h5.write_text("name: x\n")
+    gait = tmp_path / "gait.yaml"
+    gait.write_text("name: x\n")
     empty = tmp_path / "empty.h5"
     h5py.File(empty, "w").close()
     for path, message in (
         (tmp_path / "none.h5", "no such results file"),
         (not_h5, "not an HDF5 file"),
+        (gait, f"{gait}: a gait file, not a results file: `crawlsim run {gait} --plot` runs it"),
         (empty, "not a crawlsim results file"),
     ):
         result = CliRunner().invoke(main, ["plot", str(path)])
@@ -1248,6 +1253,7 @@ def test_figures_of_a_result_object_are_those_of_its_file(name, tmp_path):
         function = {
             "motion": motion_figure,
             "gait-diagram": gait_figure,
+            "kymograph": kymograph_figure,
             "convergence": convergence_figure,
             "shape-space": shape_space_figure,
         }[figure]
@@ -1313,3 +1319,88 @@ def test_pareto_title_stays_within_its_axes():
     assert " ".join(rest).replace("over ", "", 1).split(", ") == paths
     assert len(rest) >= 2
     assert _inside_axes(fig, fig.axes[0])
+
+
+# --------------------------------------------------------------------------------------------
+# Large crawlers (issue 35): the kymograph, the motion figure following the crawler
+
+
+@pytest.mark.parametrize("N", [4, 41])
+def test_the_kymograph_is_the_limit_period_over_the_body(tmp_path, N):
+    """Three images over (time, index): the strain z_i / mean(z_i) - 1 of every link, the slip
+    state of every block, the stress of every link, exactly the file's /limit datasets, at 4 and
+    at 41 blocks alike; with last=2, the last two periods of the trajectory (the slip states the
+    signs of the blocks' displacements, the strains over that window's means)."""
+    from crawlsim.plotting.kymograph import kymograph_figure
+    from crawlsim.plotting.source import step_slip
+
+    r = read_results(wave_file(tmp_path, N))
+    lim = r["limit"]
+    strain, slip, stress = kymograph_figure(r).axes[:3]
+    z = lim["shape"]
+    for ax, expected in ((strain, (z / z.mean(axis=0) - 1).T), (slip, lim["slip"].T), (stress, lim["stress"].T)):
+        (mesh,) = ax.collections
+        np.testing.assert_array_equal(np.asarray(mesh.get_array()).reshape(expected.shape), expected)
+    assert [strain.get_ylabel(), slip.get_ylabel(), stress.get_ylabel()] == ["link $i$", "block $j$", "link $i$"]
+    assert slip.get_ylim() == (0.5, N + 0.5) and strain.get_ylim() == (0.5, N - 0.5)
+    tr = r["trajectory"]
+    window = tr["t"] >= tr["t"][-1] - 2 - 1e-9
+    last = kymograph_figure(r, last=2)
+    strain, slip, _ = last.axes[:3]
+    z = np.diff(tr["x"][window], axis=1)
+    np.testing.assert_array_equal(
+        np.asarray(strain.collections[0].get_array()).ravel(), (z / z.mean(axis=0) - 1).T.ravel()
+    )
+    np.testing.assert_array_equal(
+        np.asarray(slip.collections[0].get_array()).ravel(), step_slip(tr["x"][window]).T.ravel()
+    )
+    assert strain.get_xlim() == (tr["t"][-1] - 2, tr["t"][-1])
+    assert last._suptitle.get_text() == f"wave-{N}: kymograph, the last 2 periods"
+
+
+def test_the_motion_figure_follows_the_crawler_over_the_last_period(run_file):
+    """peristalsis-4 is periodic from period 1: over its last period every block advances by
+    the same v0 T (the shape repeats), which the figure following the crawler shows as lines
+    from 0 to v0 T, the barycentre's among them, and the slope line from 0 at t_a."""
+    r = results_of(run_file, "peristalsis-4")
+    v0, T = float(r["attrs"]["v0"]), 1.0
+    ax = motion_figure(r, last=1).axes[0]
+    assert ax.get_ylabel() == "displacement $\\Delta x_j/\\ell$"
+    lines = ax.get_lines()
+    for line in lines[:5]:  # four blocks and the barycentre
+        y = np.asarray(line.get_ydata())
+        assert y[0] == 0.0 and y[-1] == pytest.approx(v0 * T, abs=1e-12)
+    slope = np.asarray(lines[5].get_ydata())
+    assert slope[0] == 0.0 and slope[-1] == pytest.approx(v0 * T, abs=1e-12)
+    assert ax.get_xlim() == (1.0, 2.0)
+
+
+def test_a_narrow_figure_keeps_most_of_its_width_for_the_plot(run_file, tmp_path):
+    """--figsize 3.4,2.4 left the motion plot 40 % of the width, the legend on its right taking
+    the rest; a figure narrower than NARROW gets the legend below, in columns."""
+    from crawlsim.plotting import save_figure
+
+    fig = motion_figure(results_of(run_file, "peristalsis-4"))
+    save_figure(fig, tmp_path / "m.png", figsize=(3.4, 2.4))
+    assert fig.axes[0].get_position().width > 0.75
+    assert fig.axes[0].get_legend() is None and len(fig.legends) == 1
+    assert [t.get_text() for t in fig.legends[0].get_texts()][:2] == ["block 4", "block 3"]
+
+
+def test_plot_methods_of_results_and_sweeps(run_file, tmp_path):
+    """result.plot(), grid.crawlsim.plot() (the Dataset of crawlsim.sweep) and table.plot() draw
+    what crawlsim plot draws, without importing crawlsim.plotting."""
+    import crawlsim
+    from crawlsim.study.table import read_table
+
+    result = crawlsim.open_run(run_file("peristalsis-4"))
+    assert result.plot().axes[0].get_title() == "peristalsis-4: block positions"
+    assert result.plot("kymograph", last=1)._suptitle.get_text() == "peristalsis-4: kymograph, the last 1 period"
+    with pytest.raises(ValueError, match="unknown figure"):
+        result.plot("motions")
+    out = tmp_path / "s.h5"
+    grid = crawlsim.sweep(GAITS / "inching-2-towing.yaml", {"loads.force.0": [0.0, -0.4, -0.8, -1.2, -1.6]}, output=out)
+    for fig in (grid.crawlsim.plot(), read_table(out).plot()):
+        ax = fig.axes[0]
+        assert ax.get_xlabel() == "loads.force.0 ($F$)"
+        assert "stall force -1 (jump)" in [t.get_text() for t in ax.get_legend().get_texts()]

@@ -15,10 +15,11 @@ from click.testing import CliRunner
 from crawlsim.api import run
 from crawlsim.cli import main
 from crawlsim.errors import DegenerateModelError, GaitError, LicqWarning
-from crawlsim.gait.document import Gait, ProcessSpec, load_gait, parse_gait, recession_direction
-from crawlsim.io.hdf5 import read_results
-from crawlsim.kernel.projection import ExactProjector
+from crawlsim.gait.document import Gait, ProcessSpec, load_gait, parse_gait
+from crawlsim.gait.process_spec import recession_direction
+from crawlsim.io.runread import read_results
 from crawlsim.model.process import compile, compile_gait, compile_process
+from crawlsim.projection.adapter import ExactProjector
 from crawlsim.study.paper import acute_angle_document
 
 from .conftest import GAITS
@@ -42,7 +43,7 @@ def test_a_process_file_builds_a_process_spec_and_compiles_to_its_own_data():
     spec = load_gait(ACUTE)
     assert isinstance(spec, ProcessSpec) and spec.normals.shape == (3, 2)
     p = compile_process(spec, steps_per_period=7)
-    assert not p.is_crawler and p.stiffness is None and p.friction is None
+    assert p.crawler is None and p.blocks == 0
     assert 0.5 in p.times  # the kink of l(t) is a grid point although 7 is odd
     l2 = np.where(p.times <= 0.5, p.times, 1.0 - p.times)
     assert np.allclose(p.offsets, np.column_stack([l2, -l2, np.full_like(l2, 1.0)]), atol=1e-15, rtol=0)
@@ -54,9 +55,9 @@ def test_a_process_file_builds_a_process_spec_and_compiles_to_its_own_data():
 
 def test_compile_dispatches_on_the_kind(gaits_dir):
     gait = load_gait(gaits_dir / "inching-2.yaml")
-    assert isinstance(gait, Gait) and compile(gait).is_crawler
+    assert isinstance(gait, Gait) and compile(gait).crawler is not None
     assert np.array_equal(compile(gait, 50).offsets, compile_gait(gait, 50).offsets)
-    assert not compile(load_gait(ACUTE)).is_crawler
+    assert compile(load_gait(ACUTE)).crawler is None
 
 
 @pytest.mark.parametrize(
@@ -263,7 +264,7 @@ def test_every_paper_file_runs(path):
     kind, rate = expected[Path(path).stem]
     assert result.convergence == kind
     if rate is not None:
-        assert result.contraction_rate == pytest.approx(rate, rel=1e-3)
+        assert result.rate.rate == pytest.approx(rate, rel=1e-3)
     assert (result.v0 is not None) == isinstance(spec, Gait)
 
 

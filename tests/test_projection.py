@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from crawlsim.errors import CertificateError, DegenerateModelError
-from crawlsim.kernel.projection import ExactProjector
+from crawlsim.projection.adapter import ExactProjector
 
 
 @st.composite

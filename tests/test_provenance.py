@@ -17,7 +17,7 @@ from click.testing import CliRunner
 
 import crawlsim
 from crawlsim.cli import main
-from crawlsim.io.hdf5 import read_results
+from crawlsim.io.runread import read_results
 
 ROOT = Path(__file__).resolve().parents[1]
 GAITS = ROOT / "gaits"

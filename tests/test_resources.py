@@ -233,11 +233,11 @@ def test_a_gait_whose_signals_would_not_finish_is_refused_before_it_runs(tmp_pat
     def computed(*args, **kwargs):
         raise AssertionError("the run started")
 
-    import crawlsim.study.optimize
+    import crawlsim.design.optimize
 
     monkeypatch.setattr(api, "run", computed)
     monkeypatch.setattr(sweeps, "run_sweep", computed)
-    monkeypatch.setattr(crawlsim.study.optimize, "optimize", computed)
+    monkeypatch.setattr(crawlsim.design.optimize, "optimize", computed)
     for args in (
         ["run", "f.yaml"],
         ["velocity", "f.yaml"],

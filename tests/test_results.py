@@ -13,8 +13,9 @@ import pytest
 from scipy import stats
 
 import crawlsim
-from crawlsim.analysis.convergence import RATE_WINDOW, fit_contraction_rate
+from crawlsim.analysis.convergence import RATE_WINDOW, RateFit, fit_contraction_rate
 from crawlsim.analysis.report import REPR_LINES, grid_note
+from crawlsim.analysis.run import ExactVerdict
 from crawlsim.api import open_run, open_sweep
 from crawlsim.errors import ResultsFileError
 from crawlsim.status import Convergence, RunStatus
@@ -90,15 +91,30 @@ def test_a_converged_run_has_no_message(p4, triangle):
         assert result.status == RunStatus.SUCCESSFUL and result.message == ""
 
 
+def test_a_catch_up_run_whose_error_cannot_be_measured_says_so(monkeypatch):
+    """Catch-up's v0 is bounded only by its time-step error measured against the exact
+    integrator: where that reference run fails, the run converges but its status says that v0
+    has no error estimate, and the message why."""
+    from crawlsim.analysis import run
+
+    monkeypatch.setattr(run, "time_step_reference", lambda process, **options: None)
+    result = crawlsim.simulate(P4, integrator="catch-up", steps_per_period=50)
+    assert result.converged and result.v0 is not None and result.estimate.error_estimate is None
+    assert result.status == RunStatus.NO_ERROR_ESTIMATE == "no-error-estimate"
+    assert result.message == result.estimate.reason
+    assert "the exact integrator's reference run failed" in result.message
+    assert result.summary()["status"] == "no-error-estimate"
+
+
 # -- the contraction rate and its evidence -------------------------------------------------------
 def test_the_rate_of_the_triangle_is_one_eighth_with_a_tiny_error(triangle):
     """Theorem: the triangle contracts by exactly 1/8 a period; the fit's residuals are
     roundoff, and its standard error says so."""
     assert triangle.convergence == Convergence.ASYMPTOTIC
-    assert triangle.contraction_rate == pytest.approx(0.125, rel=1e-7)
-    assert triangle.contraction_rate_periods == RATE_WINDOW
-    assert 0 < triangle.contraction_rate_error < 1e-6
-    assert abs(triangle.contraction_rate - 0.125) <= 10 * triangle.contraction_rate_error + 1e-9
+    assert triangle.rate.rate == pytest.approx(0.125, rel=1e-7)
+    assert triangle.rate.periods == RATE_WINDOW
+    assert 0 < triangle.rate.error < 1e-6
+    assert abs(triangle.rate.rate - 0.125) <= 10 * triangle.rate.error + 1e-9
     line = next(x for x in repr(triangle).splitlines() if "convergence" in x)
     assert f"fitted on {RATE_WINDOW} periods" in line and "contraction rate 0.125 per period" in line
 
@@ -126,29 +142,27 @@ def test_the_rate_error_is_the_standard_error_of_the_fitted_slope():
 # -- a catch-up verdict that depends on the grid --------------------------------------------------
 def test_catch_up_is_measured_against_the_exact_verdict():
     result = crawlsim.simulate(P4, integrator="catch-up", steps_per_period=100)
-    assert result.exact_convergence == Convergence.FINITE_TIME  # the exact run's own verdict
-    assert result.convergence == Convergence.FINITE_TIME and result.grid_note is None
+    assert result.exact.convergence == Convergence.FINITE_TIME  # the exact run's own verdict
+    assert result.convergence == Convergence.FINITE_TIME and result.exact.note is None
     disagree = dataclasses.replace(
-        result,
-        convergence=Convergence.ASYMPTOTIC,
-        contraction_rate=0.0013,
-        contraction_rate_error=1e-4,
-        periodic_from=None,
+        result.run, convergence=Convergence.ASYMPTOTIC, rate=RateFit(0.0013, 1e-4, 8), periodic_from=None
     )
     note = grid_note(disagree)
     assert note == (
         "catch-up's verdict depends on the time grid (100 steps per period); the exact integrator finds finite-time"
     )
-    shown = dataclasses.replace(disagree, grid_note=note)
+    shown = dataclasses.replace(disagree, exact=dataclasses.replace(disagree.exact, note=note))
     assert f"  grid                     {note}" in repr(shown)
 
 
 def test_grid_note_compares_the_rates_of_two_asymptotic_verdicts(triangle):
     catch_up = dataclasses.replace(
-        triangle, integrator="catch-up", exact_convergence=Convergence.ASYMPTOTIC, exact_rate=0.125
+        triangle.run, integrator="catch-up", exact=ExactVerdict(Convergence.ASYMPTOTIC, 0.125)
     )
     assert grid_note(catch_up) is None  # the same rate (the Jacobian's, 0.125)
-    slower = dataclasses.replace(catch_up, jacobian_rate=None, contraction_rate=0.097, contraction_rate_error=1e-3)
+    slower = dataclasses.replace(
+        catch_up, solver=dataclasses.replace(catch_up.solver, jacobian_rate=None), rate=RateFit(0.097, 1e-3, 8)
+    )
     assert grid_note(slower).endswith("the exact integrator finds asymptotic, rate 0.12")
     exact = dataclasses.replace(slower, integrator="exact")
     assert grid_note(exact) is None  # the exact integrator's verdict is the process's
@@ -188,8 +202,8 @@ def _assert_same_result(mine, read):
     assert (mine.trajectory.events is None) == (read.trajectory.events is None)
     for name, values in (mine.trajectory.events or {}).items():
         np.testing.assert_array_equal(read.trajectory.events[name], values)
-    for name in ("limit_residuals", "limit_kinds"):
-        a, b = getattr(mine, name), getattr(read, name)
+    for name in ("residuals", "kinds"):
+        a, b = getattr(mine.solver, name), getattr(read.solver, name)
         assert (a is None) == (b is None), name
         if a is not None:
             np.testing.assert_array_equal(b, a)
@@ -243,7 +257,7 @@ def test_info_prints_the_rate_with_its_evidence(triangle, tmp_path):
     r = CliRunner().invoke(main, ["info", str(path)])
     assert r.exit_code == 0, r.output
     line = next(x for x in r.output.splitlines() if x.startswith("  convergence"))
-    error = f"{triangle.contraction_rate_error:.1g}"
+    error = f"{triangle.rate.error:.1g}"
     assert line == (
         "  convergence              asymptotic, contraction rate 0.125 per period "
         f"(± {error}, fitted on {RATE_WINDOW} periods)"
@@ -257,11 +271,11 @@ def test_the_exact_verdict_is_claimed_only_where_the_reference_run_shows_it(p4, 
     from crawlsim.analysis.run import exact_verdict
     from crawlsim.status import LimitMethod
 
-    assert p4.limit_method == LimitMethod.ITERATE
-    assert exact_verdict(p4) == (Convergence.FINITE_TIME, None)
-    assert triangle.limit_method == LimitMethod.NEWTON
-    verdict, rate = exact_verdict(triangle)
-    assert verdict == Convergence.ASYMPTOTIC and rate == pytest.approx(0.125, rel=1e-9)
-    unformed = dataclasses.replace(triangle, jacobian_rate=None)
-    assert exact_verdict(unformed) == (None, None)
-    assert exact_verdict(dataclasses.replace(triangle, jacobian_rate=0.0)) == (None, None)
+    assert p4.solver.method == LimitMethod.ITERATE
+    assert exact_verdict(p4.run) == ExactVerdict(Convergence.FINITE_TIME, None)
+    assert triangle.solver.method == LimitMethod.NEWTON
+    verdict = exact_verdict(triangle.run)
+    assert verdict.convergence == Convergence.ASYMPTOTIC and verdict.rate == pytest.approx(0.125, rel=1e-9)
+    for rate in (None, 0.0):
+        unformed = dataclasses.replace(triangle.run, solver=dataclasses.replace(triangle.solver, jacobian_rate=rate))
+        assert exact_verdict(unformed) is None

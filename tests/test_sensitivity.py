@@ -379,6 +379,15 @@ def test_cli_bad_input():
     assert "links.3.amplitude" in res.output and "out of range" in res.output
     res = _cli("gaits/inching-2.yaml", "--sensitivity", "links")
     assert res.exit_code == 2 and "not a number" in res.output
+    # a misspelt key: the did-you-mean of --sweep and of the gait files, not "found None"
+    hint = "links[0].phse: unknown key 'phse'; did you mean 'phase'? (allowed here: amplitude, kind, mean, phase)"
+    for extra in ([], ["--sweep", "period=1:2:2"]):
+        res = _cli("gaits/peristalsis-4.yaml", "--sensitivity", "links.*.phse", *extra)
+        assert res.exit_code == 2 and res.output == f"Error: gaits/peristalsis-4.yaml: {hint}\n", res.output
+    res = _cli("gaits/peristalsis-4.yaml", "--sweep", "links.*.phse=0:1:2")
+    assert res.exit_code == 2 and hint in res.output
+    res = _cli("gaits/peristalsis-4.yaml", "--sensitivity", "frction.forward")
+    assert res.exit_code == 2 and "no key 'frction'; did you mean 'friction'?" in res.output
 
 
 # -- gradient-based design ---------------------------------------------------------------------
@@ -387,10 +396,11 @@ def test_gradient_search_two_block_bound():
     a in [0.1, 0.35] the maximum is at the upper bound, v0 = (0.7 - 0.2) / 1 = 0.5, which the
     gradient search of `crawlsim optimize` (exact gradients, bounds) reaches to roundoff. The
     two-lag example is tests/test_optimize.py's."""
-    from crawlsim.study import optimize as opt
+    from crawlsim.design import optimize as opt
+    from crawlsim.design.problem import Method, make_problem
 
-    problem = opt.make_problem(_two_block(a=0.2), ["links.0.amplitude=0.1:0.35"])
-    result = opt.optimize(problem, opt.Method(search="gradient", max_evaluations=40))
+    problem = make_problem(_two_block(a=0.2), ["links.0.amplitude=0.1:0.35"])
+    result = opt.optimize(problem, Method(search="gradient", max_evaluations=40))
     assert result.feasible
     assert result.value == pytest.approx(0.5, abs=1e-12)
 
@@ -533,3 +543,57 @@ def test_closed_form_columns_match_differences_of_the_coefficients(source):
         np.testing.assert_allclose(got[1], (plus.Mu - minus.Mu) / (2 * h), rtol=0, atol=tol, err_msg=path)
         closed += 1
     assert closed >= 2
+
+
+def test_cli_summarises_many_coincident_events():
+    """earthworm-100's links.0.phase sits on 37 coincident events (a 3000-character line): the
+    line counts them, names the first and says the one-sided derivatives agree; the JSON keeps
+    every reason. Few reasons are printed whole, and sides that differ are not said to agree."""
+    from types import SimpleNamespace
+
+    from crawlsim.analysis.sensitivity import Derivative, ParameterSensitivity
+    from crawlsim.cli.velocity import _sensitivity_lines as lines
+
+    none = Derivative(None, None)
+    kinks = [f"a constraint is reached at t/T = {k / 10 + 0.03:.12g}, at the time of another event" for k in range(37)]
+
+    def entry(reason, right):
+        return ParameterSensitivity(
+            "links.0.phase", 0.0, none, none, none, none, False, "one-sided", reason, Derivative(0.0538037, 8e-7), right
+        )
+
+    many = entry("; ".join(kinks), Derivative(0.0538038, 7e-7))
+    (line,) = lines(SimpleNamespace(parameters=[many], v0=0.07), "exact")
+    assert line == (
+        f"dv0/dlinks.0.phase: not smooth (37 coincident events, the first: {kinks[0]}; --json lists them all); "
+        "left 0.0538037 ± 8e-07, right 0.0538038 ± 7e-07: the one-sided derivatives agree"
+    )
+    assert many.summary()["reason"].count("at the time of another event") == 37
+    few = entry("; ".join(kinks[:2]), Derivative(0.06, 1e-7))
+    (line,) = lines(SimpleNamespace(parameters=[few], v0=0.07), "exact")
+    assert (
+        line
+        == f"dv0/dlinks.0.phase: not smooth ({kinks[0]}; {kinks[1]}); left 0.0538037 ± 8e-07, right 0.0600000 ± 1e-07"
+    )
+
+
+def test_a_waves_numbers_differentiate_by_the_chain_rule():
+    """peristalsis-4 written as a wave (links: {wave: ..., phase_step: 1/3}): links.wave.amplitude
+    moves every link's amplitude by the same amount and links.phase_step link i's phase by i
+    times it (crawlsim.gait.docpaths.wave_links), so dv0/d(wave amplitude) = sum_i
+    dv0/d(links.i.amplitude) and dv0/d(phase_step) = sum_i i dv0/d(links.i.phase), within the
+    sum of their error estimates; the generated links' own paths work on the wave too."""
+    import yaml
+
+    doc = yaml.safe_load(open("gaits/peristalsis-4.yaml").read())
+    doc["links"] = {"wave": {"kind": "cosine", "mean": 1.0, "amplitude": 0.3}, "phase_step": 0.3333333333333333}
+    r = sensitivity(gait_from_document(doc, "wave"), ["links.wave.amplitude", "links.phase_step", "links.*.amplitude"])
+    each = sensitivity(crawlsim.load_gait("gaits/peristalsis-4.yaml"), ["links.*.amplitude", "links.*.phase"])
+    for path, weights in (("links.wave.amplitude", ("amplitude", 1, 1, 1)), ("links.phase_step", ("phase", 0, 1, 2))):
+        name, *w = weights
+        parts = [each[f"links.{i}.{name}"].v0 for i in range(3)]
+        total = sum(k * p.value for k, p in zip(w, parts))
+        bound = r[path].v0.error_estimate + sum(k * p.error_estimate for k, p in zip(w, parts))
+        assert r[path].smooth and abs(r[path].v0.value - total) <= bound, (path, r[path].v0, total)
+        assert abs(total) > 1e3 * bound  # a real derivative, not roundoff
+    assert r["links.1.amplitude"].v0.value == pytest.approx(each["links.1.amplitude"].v0.value, abs=1e-9)

@@ -1,5 +1,5 @@
-"""A catch-up sweep with ``--sensitivity`` walks the limit period each batched point's own run
-stepped (`crawlsim.study.batch.BatchRun.limit_record`): no point is stepped twice. Counted: the
+"""A catch-up sweep with ``--sensitivity`` walks the limit period each point's own run settled on
+(`crawlsim.analysis.run.Settled`): no point is stepped twice. Counted: the
 catch-up periods stepped in the whole sweep are the periods its rows report, and each cell is
 the closed form of the two-block crawler (tests/test_sensitivity_sweep.py), the value
 `crawlsim.sensitivity` gives for that point's gait after searching its limit itself.
@@ -29,7 +29,7 @@ def test_batched_catch_up_points_are_stepped_once(monkeypatch):
     table = sweeps.sweep(gait, ["stiffness=[6,12]"], sensitivity=["stiffness", "period"])
     rows = table.rows
     assert [r.integrator for r in rows] == ["catch-up", "catch-up"]
-    assert all(r.limit == "iterate" for r in rows)  # the batch's rows
+    assert all(r.limit == "iterate" for r in rows)  # finite-time: no Newton step
     assert len(stepped) == sum(r.periods for r in rows) > 0
     monkeypatch.undo()
     for row, k in zip(rows, (6.0, 12.0)):

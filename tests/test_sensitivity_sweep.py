@@ -18,6 +18,8 @@ import pytest
 from crawlsim.analysis.sensitivity import sensitivity
 from crawlsim.gait.document import gait_from_document
 from crawlsim.study import sweep as sweeps
+from crawlsim.study.points import PointResult
+from crawlsim.study.table import merge_tables, read_table
 
 PATHS = ("stiffness", "friction.0.forward", "links.*.amplitude", "period")
 
@@ -118,7 +120,7 @@ def test_hdf5_and_xarray_carry_units(tmp_path):
         assert f["grid"]["dv0_dstiffness"][()] == pytest.approx(
             [_expected(5.0)["dv0/dstiffness"], _expected(10.0)["dv0/dstiffness"]], abs=1e-10
         )
-    back = sweeps.read_table(out)
+    back = read_table(out)
     for a, b in zip(back.rows, table.rows):
         assert a.derivatives == b.derivatives
     ds = crawlsim.sweep(gait, {"stiffness": [5.0, 10.0]}, sensitivity=["stiffness"])
@@ -134,12 +136,12 @@ def test_shards_merge_and_journal_keep_the_columns(tmp_path):
     for i in (1, 2):
         part = tmp_path / f"part-{i}.h5"
         sweeps.sweep(gait, ["stiffness=[5,10,20]"], output=part, shard=(i, 2), sensitivity=["stiffness"])
-        parts.append(sweeps.read_table(part))
-    merged = sweeps.merge_tables(parts)
+        parts.append(read_table(part))
+    merged = merge_tables(parts)
     column = merged.columns()["dv0/dstiffness"]
     assert column == pytest.approx([1.5 / (k * k * 2.0) for k in (5, 10, 20)], abs=1e-10)
     row = merged.rows[0]
-    assert sweeps.PointResult.from_json(json.loads(json.dumps(row.to_json()))) == row
+    assert PointResult.from_json(json.loads(json.dumps(row.to_json()))) == row
     # a journal of the same grid without --sensitivity is another sweep
     grid = sweeps.make_grid(gait, ["stiffness=[5,10,20]"])
     with_paths = sweeps.make_grid(gait, ["stiffness=[5,10,20]"], sensitivity=["stiffness"])

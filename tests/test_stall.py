@@ -23,9 +23,9 @@ from click.testing import CliRunner
 
 from crawlsim.analysis.stall import StallCause
 from crawlsim.cli import main
+from crawlsim.design.stall import stall
 from crawlsim.errors import InputError
 from crawlsim.gait.document import parse_gait
-from crawlsim.study.stall import stall
 
 from .conftest import GAITS
 
@@ -160,3 +160,26 @@ def test_stall_of_a_gait_without_loads_uses_zero_forces():
     assert result.cause == StallCause.JUMP
     assert result.v0_moving == pytest.approx(0.3, abs=1e-6)
     assert result.v0_stopped == pytest.approx(-0.3, abs=1e-6)
+
+
+def test_the_slope_sweep_figure_agrees_with_crawlsim_stall(tmp_path):
+    """gaits/climbing-3.yaml swept over 0..40 degrees (issue 35): beyond the jump at atan(2/3)
+    = 33.69 degrees v0 is roundoff (3.7e-17 at 34, 36 and 38 degrees, exactly 0 at 37), which is
+    not motion. The figure marks the steepest slope where `crawlsim stall` finds it, as a jump
+    between the grid points 33 and 34, and its axis carries the unit of the angle."""
+    from crawlsim.io.sweepfile import read_sweep
+    from crawlsim.plotting.sweeps import sweep_data_figure
+
+    out = tmp_path / "slope.h5"
+    r = CliRunner().invoke(
+        main, ["velocity", str(GAITS / "climbing-3.yaml"), "--sweep", "loads.slope.angle=0:40:41", "-o", str(out)]
+    )
+    assert r.exit_code == 0, r.output
+    fig = sweep_data_figure(read_sweep(out))
+    ax = fig.axes[0]
+    legend = [t.get_text() for t in ax.get_legend().get_texts()]
+    steepest = math.degrees(math.atan(2 / 3))
+    assert f"steepest slope {steepest:.6g} (jump)" in legend
+    (marker,) = [line for line in ax.get_lines() if line.get_label().startswith("steepest slope")]
+    assert marker.get_xdata()[0] == pytest.approx(steepest, abs=1e-9)
+    assert ax.get_xlabel() == "loads.slope.angle (degrees)"

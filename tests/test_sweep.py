@@ -26,6 +26,10 @@ from crawlsim.errors import GaitError, InputError
 from crawlsim.gait.docpaths import resolve_path
 from crawlsim.gait.document import load_gait, with_simulation
 from crawlsim.study import sweep as sweeps
+from crawlsim.study.executors import MAX_CHUNK, TASK_SECONDS, Chunker
+from crawlsim.study.grid import parse_axis
+from crawlsim.study.points import PointResult
+from crawlsim.study.table import LATER_COLUMNS, read_table
 
 GAITS = Path(__file__).resolve().parents[1] / "gaits"
 P4 = str(GAITS / "peristalsis-4.yaml")
@@ -48,14 +52,14 @@ def base(steps=40, path=P4):
 
 # -- specs and paths ---------------------------------------------------------------------------
 def test_axis_specs():
-    a = sweeps.parse_axis("links.*.amplitude=0.1:0.3:5")
+    a = parse_axis("links.*.amplitude=0.1:0.3:5")
     assert a.path == "links.*.amplitude" and a.keys == ("links", "*", "amplitude")
     np.testing.assert_allclose(a.values, [0.1, 0.15, 0.2, 0.25, 0.3], rtol=0, atol=1e-15)
     assert a.values[0] == 0.1 and a.values[-1] == 0.3  # inclusive ends, exactly
-    assert sweeps.parse_axis("period=1,2.5, 3").values == (1, 2.5, 3)
-    assert sweeps.parse_axis("period=[1,2.5, 3]").values == (1, 2.5, 3)
-    assert sweeps.parse_axis("period=[0.5]").values == (0.5,)
-    assert sweeps.parse_axis("period=2:2:1").values == (2.0,)
+    assert parse_axis("period=1,2.5, 3").values == (1, 2.5, 3)
+    assert parse_axis("period=[1,2.5, 3]").values == (1, 2.5, 3)
+    assert parse_axis("period=[0.5]").values == (0.5,)
+    assert parse_axis("period=2:2:1").values == (2.0,)
     for bad in (
         "period",
         "period=",
@@ -76,29 +80,57 @@ def test_axis_specs():
         "period=log:1:inf:3",
     ):
         with pytest.raises(InputError, match="--sweep"):
-            sweeps.parse_axis(bad)
+            parse_axis(bad)
     with pytest.raises(InputError, match="--link period=1:2"):
-        sweeps.parse_axis("period=1:2", "--link")
+        parse_axis("period=1:2", "--link")
+
+
+def test_evenly_spaced_values_are_the_numbers_asked_for():
+    """START:STOP:NUM gives the double nearest each exact value START + k (STOP - START)/(NUM - 1)
+    (linspace gave 0.30000000000000004 for 0:1:11), so the CSV, the files' attributes and the
+    messages print 0.3."""
+    assert parse_axis("links.1.phase=0:1:11").values == tuple(k / 10 for k in range(11))
+    assert parse_axis("period=1e-3:2e-3:3").values == (0.001, 0.0015, 0.002)
+    assert parse_axis("period=0:1:4").values == (0.0, 1 / 3, 2 / 3, 1.0)
+    assert parse_axis("period=3:-1:5").values == (3.0, 2.0, 1.0, 0.0, -1.0)
+    gait = with_simulation(load_gait(GAITS / "peristalsis-3.yaml"), integrator="catch-up", steps_per_period=20)
+    grid = sweeps.make_grid(gait, ["links.1.phase=0:1:11"])
+    assert grid.label(3).endswith("with links.1.phase=0.3")
+    r = CliRunner().invoke(
+        main,
+        [
+            "velocity",
+            str(GAITS / "peristalsis-3.yaml"),
+            "--sweep",
+            "links.1.phase=0:1:11",
+            "--integrator",
+            "catch-up",
+            "--steps-per-period",
+            "20",
+        ],
+    )
+    assert r.exit_code == 0, r.output
+    assert [row.split(",")[0] for row in r.output.splitlines()[1:]] == [str(k / 10) for k in range(11)]
 
 
 def test_log_spaced_axis_is_geometric_with_exact_ends():
     """log:LO:HI:NUM: consecutive ratios all equal (HI/LO)^(1/(NUM-1)), ends as written."""
-    a = sweeps.parse_axis("stiffness=log:5:50:10")
+    a = parse_axis("stiffness=log:5:50:10")
     v = np.array(a.values)
     assert len(v) == 10 and v[0] == 5 and v[-1] == 50
     np.testing.assert_allclose(v[1:] / v[:-1], 10 ** (1 / 9), rtol=1e-14, atol=0)
-    assert sweeps.parse_axis("period=log:1e-2:1e2:5").values == pytest.approx((0.01, 0.1, 1, 10, 100), rel=1e-15)
-    assert sweeps.parse_axis("period=log:3:3:1").values == (3.0,)
+    assert parse_axis("period=log:1e-2:1e2:5").values == pytest.approx((0.01, 0.1, 1, 10, 100), rel=1e-15)
+    assert parse_axis("period=log:3:3:1").values == (3.0,)
 
 
 def test_paths_expand_and_refuse():
     doc = base().document
-    assert resolve_path(doc, sweeps.parse_axis("links.*.phase=0"), "g") == [
+    assert resolve_path(doc, parse_axis("links.*.phase=0"), "g") == [
         ("links", 0, "phase"),
         ("links", 1, "phase"),
         ("links", 2, "phase"),
     ]
-    assert resolve_path(doc, sweeps.parse_axis("friction.backward=1"), "g") == [("friction", "backward")]
+    assert resolve_path(doc, parse_axis("friction.backward=1"), "g") == [("friction", "backward")]
     messages = {
         "links.3.phase=0": "index 3 is out of range",
         "links.phase=0": "must be an index or '*'",
@@ -109,13 +141,13 @@ def test_paths_expand_and_refuse():
     }
     for spec, text in messages.items():
         with pytest.raises(GaitError, match=text):
-            resolve_path(doc, sweeps.parse_axis(spec), "g")
+            resolve_path(doc, parse_axis(spec), "g")
     with pytest.raises(GaitError, match="sets links.1.phase, which --sweep links.1.phase"):
-        sweeps.make_grid(base(), [sweeps.parse_axis("links.1.phase=0"), sweeps.parse_axis("links.*.phase=0")])
+        sweeps.make_grid(base(), [parse_axis("links.1.phase=0"), parse_axis("links.*.phase=0")])
 
 
 def test_grid_order_is_c_order_and_points_are_edited_documents():
-    grid = sweeps.make_grid(base(), [sweeps.parse_axis(AMP), sweeps.parse_axis(LAG)])
+    grid = sweeps.make_grid(base(), [parse_axis(AMP), parse_axis(LAG)])
     assert grid.shape == (5, 3) and grid.size == 15
     assert grid.values(0) == (0.1, 0.2) and grid.values(1) == (0.1, 0.33)
     assert grid.values(3) == (0.15, 0.2) and grid.values(14) == (0.3, 0.4)
@@ -124,7 +156,7 @@ def test_grid_order_is_c_order_and_points_are_edited_documents():
     assert [l["phase"] for l in doc["links"]] == [0.0, 0.33, 0.6666666666666666]
     assert grid.base.document["links"][0]["amplitude"] == 0.3  # the base is untouched
     assert list(grid.indices((2, 4))) == [1, 5, 9, 13]
-    steps = sweeps.make_grid(base(), [sweeps.parse_axis("simulation.steps_per_period=50,60")])
+    steps = sweeps.make_grid(base(), [parse_axis("simulation.steps_per_period=50,60")])
     assert steps.gait(1).simulation.steps_per_period == 60
     assert isinstance(steps.document(1)["simulation"]["steps_per_period"], int)
 
@@ -245,7 +277,7 @@ def test_300_point_sweep_with_10_invalid_points(tmp_path):
     )
     assert r.exit_code == 0, r.output
     assert "300 points: 290 ok, 10 invalid, 0 failed, 0 not converged" in r.output
-    table = sweeps.read_table(out)
+    table = read_table(out)
     counts = table.counts()
     assert counts["ok"] == 290 and counts["invalid"] == 10 and len(table.rows) == 300
     b, k = table.coordinates()
@@ -266,7 +298,7 @@ def test_sweep_points_equal_single_velocity_runs(tmp_path):
     """Every point of a 5 x 3 sweep (batched) equals `crawlsim velocity` on that point's gait
     file (single run) to 1e-12, with the same convergence and period count."""
     gait = base()
-    grid = sweeps.make_grid(gait, [sweeps.parse_axis(AMP), sweeps.parse_axis(LAG)])
+    grid = sweeps.make_grid(gait, [parse_axis(AMP), parse_axis(LAG)])
     table = sweeps.sweep(gait, [AMP, LAG])
     assert table.counts()["ok"] == 15
     for i in (0, 4, 7, 11, 14):
@@ -323,8 +355,8 @@ def test_velocity_of_a_sweeping_process_is_refused(tmp_path, extra):
 
 def test_failed_points_are_recorded_not_fatal(tmp_path):
     """A point whose grid hits an instant of a uniqueness violation is refused with its reason
-    (status invalid, see tests/test_batch.py); the others run and the exit code is 0."""
-    from tests.test_batch import LICQ_GAIT
+    (status invalid, see tests/test_points.py); the others run and the exit code is 0."""
+    from tests.test_points import LICQ_GAIT
 
     path = tmp_path / "licq.yaml"
     path.write_text(LICQ_GAIT)
@@ -345,21 +377,21 @@ def test_failed_points_are_recorded_not_fatal(tmp_path):
         assert fields[2] == "" and ",finite-time,2,catch-up,iterate,0,ok," in row
 
 
-def test_a_point_that_raises_does_not_sink_its_batch(monkeypatch):
-    """A batch that raises is rerun point by point; the point that raises again is recorded as
-    failed (an unexpected exception, named) and its neighbours keep their values."""
-    import crawlsim.study.batch as batch
+def test_a_point_that_raises_does_not_sink_its_neighbours(monkeypatch):
+    """A point whose run raises is recorded as failed (an unexpected exception, named) and its
+    neighbours keep their values."""
+    import crawlsim.study.points as points
 
     gait = with_simulation(base(), integrator="catch-up")
     reference = sweeps.sweep(gait, [AMP])
-    original = batch.simulate_batch
+    original = points.settle
 
-    def flaky(processes, **options):
-        if any(abs(p.lengths[0, 0] - (1 + 0.2)) < 1e-12 for p in processes):
+    def flaky(process, **options):
+        if abs(process.crawler.lengths[0, 0] - (1 + 0.2)) < 1e-12:
             raise FloatingPointError("boom")
-        return original(processes, **options)
+        return original(process, **options)
 
-    monkeypatch.setattr(batch, "simulate_batch", flaky)
+    monkeypatch.setattr(points, "settle", flaky)
     table = sweeps.sweep(gait, [AMP])
     assert [r.status for r in table.rows] == ["ok", "ok", "failed", "ok", "ok"]
     assert table.rows[2].message == "FloatingPointError: boom"
@@ -381,12 +413,12 @@ def test_more_columns_agree_with_single_runs():
             single = api.run(grid.gait(i))
             assert row.integrator == integrator == single.integrator
             if integrator == "catch-up":  # the time-step error is not measured in sweeps
-                assert row.v0_error_estimate is None and single.v0_error_time_step is not None
+                assert row.v0_error_estimate is None and single.estimate.time_step is not None
             names = ("dissipation_per_period", "cost_of_transport") + (
                 ("v0_error_estimate",) if integrator == "exact" else ()
             )
             for name in names:
-                assert getattr(row, name) == pytest.approx(getattr(single, name), rel=1e-9, abs=1e-15), name
+                assert getattr(row, name) == pytest.approx(single.summary()[name], rel=1e-9, abs=1e-15), name
             assert row.dissipation_per_period > 0
 
 
@@ -399,7 +431,7 @@ def test_csv_and_hdf5_hold_the_same_table(tmp_path):
     csv_text = (tmp_path / "s.csv").read_text()
     assert stdout == csv_text == dash
     assert not (tmp_path / "-").exists() and not Path("-").exists()
-    table = sweeps.read_table(tmp_path / "s.h5")
+    table = read_table(tmp_path / "s.h5")
     assert table.to_csv() == csv_text
     with h5py.File(tmp_path / "s.h5") as f:
         assert f.attrs["kind"] == "sweep"
@@ -433,7 +465,7 @@ def test_linked_sweep_round_trips_through_hdf5_and_merge(tmp_path):
         "period=1,2",
     ]
     assert vel(*args, "-o", tmp_path / "full.h5").exit_code == 0
-    full = sweeps.read_table(tmp_path / "full.h5")
+    full = read_table(tmp_path / "full.h5")
     assert full.dimensions == (0, 0, 1) and full.shape == (4, 2) and len(full.rows) == 8
     assert full.dimension_paths() == [["links.1.phase", "links.2.phase"], ["period"]]
     phase1, phase2, period = full.coordinates()
@@ -449,18 +481,18 @@ def test_older_sweep_files_are_read(tmp_path):
     dissipation_per_period, cost_of_transport or integrator) reads with those missing."""
     out = tmp_path / "old.h5"
     assert vel(P4, *FAST, "--sweep", AMP, "-o", out).exit_code == 0
-    new = sweeps.read_table(out)
+    new = read_table(out)
     with h5py.File(out, "a") as f:
         del f.attrs["dimensions"]
-        for name in sweeps.LATER_COLUMNS:
+        for name in LATER_COLUMNS:
             del f[f"results/{name}"]
-    old = sweeps.read_table(out)
+    old = read_table(out)
     assert old.dimensions == (0,) and [r.v0 for r in old.rows] == [r.v0 for r in new.rows]
     assert all(r.integrator == "" and r.dissipation_per_period is None for r in old.rows)
     header, first = old.to_csv().splitlines()[:2]
     fields = dict(zip(header.split(","), first.split(",")))
     assert fields["status"] == "ok" and fields["v0"] == repr(new.rows[0].v0)
-    for name in sweeps.LATER_COLUMNS:
+    for name in LATER_COLUMNS:
         assert fields[name] == "", name
 
 
@@ -565,7 +597,7 @@ def test_extra_columns_of_a_grid():
     assert np.isnan(cols["v0_times_period"][0])
     assert table.to_csv().splitlines()[0].endswith(",message,v0_times_period")
     row = table.rows[1]
-    assert sweeps.PointResult.from_json(row.to_json()) == row
+    assert PointResult.from_json(row.to_json()) == row
     assert "extra" not in sweeps.sweep(base(), [LAG]).rows[0].to_json()  # journals unchanged
     assert grid.fingerprint(None) != sweeps.make_grid(base(), ["friction.backward=[0,2,2.5]"]).fingerprint(None)
 
@@ -583,18 +615,18 @@ def test_chunks_grow_with_the_measured_rate_and_shrink_at_the_end():
     """Tasks start at MIN_CHUNK points (progress and the journal move at once), then take about
     TASK_SECONDS at the measured rate (capped at MAX_CHUNK); the last ones split what is left
     among the workers."""
-    chunker = sweeps.Chunker(np.arange(1000), workers=2)
+    chunker = Chunker(np.arange(1000), workers=2)
     sizes = [len(chunker.take())]
     assert sizes == [sweeps.MIN_CHUNK]
     chunker.record(8, 8 / 20.0)  # 20 points per second
     sizes.append(len(chunker.take()))
-    assert sizes[-1] == round(20 * sweeps.TASK_SECONDS)
+    assert sizes[-1] == round(20 * TASK_SECONDS)
     chunker.record(1000, 0.1)  # very fast now: capped
     sizes.append(len(chunker.take()))
-    assert sizes[-1] == sweeps.MAX_CHUNK
+    assert sizes[-1] == MAX_CHUNK
     while (chunk := chunker.take()) is not None:
         left = 1000 - sum(sizes)
-        assert len(chunk) == min(max(sweeps.MIN_CHUNK, min(sweeps.MAX_CHUNK, -(-left // 2))), left)
+        assert len(chunk) == min(max(sweeps.MIN_CHUNK, min(MAX_CHUNK, -(-left // 2))), left)
         sizes.append(len(chunk))
     assert sum(sizes) == 1000 and sizes[-1] <= sweeps.MIN_CHUNK
 
@@ -606,7 +638,7 @@ def test_shards_merge_into_the_unsharded_file(tmp_path):
     for i in (1, 2, 3, 4):
         part = tmp_path / f"part-{i}.h5"
         assert vel(P4, *FAST, "--sweep", AMP, "--sweep", LAG, "--shard", f"{i}/4", "-o", part).exit_code == 0
-        assert len(sweeps.read_table(part).rows) == len(range(i - 1, 15, 4))
+        assert len(read_table(part).rows) == len(range(i - 1, 15, 4))
         parts.append(part)
     merged = tmp_path / "merged.h5"
     r = cli("merge", *reversed(parts), "-o", merged)
@@ -626,7 +658,7 @@ def test_shards_merge_into_the_unsharded_file(tmp_path):
                 assert np.array_equal(a[name][()], b[name][()]), name
     csv_merge = cli("merge", *parts, "-o", tmp_path / "merged.csv")
     assert csv_merge.exit_code == 0
-    assert (tmp_path / "merged.csv").read_text() == sweeps.read_table(full).to_csv()
+    assert (tmp_path / "merged.csv").read_text() == read_table(full).to_csv()
     missing = cli("merge", *parts[:3], "-o", tmp_path / "bad.h5")
     assert missing.exit_code == 2 and "missing [4]" in missing.output
     assert not (tmp_path / "bad.h5").exists()
@@ -642,7 +674,7 @@ def test_journal_flushes_on_a_clock_not_per_chunk(tmp_path):
     interval has passed since the last flush, and at close; a reader sees every flushed row."""
     now = [0.0]
     journal = sweeps.Journal(tmp_path / "j", "fp", interval=3.0, clock=lambda: now[0])
-    rows = [sweeps.PointResult(i, "ok", v0=0.1 * i, periods=2) for i in range(5)]
+    rows = [PointResult(i, "ok", v0=0.1 * i, periods=2) for i in range(5)]
     assert not journal.path.exists()
     journal.append(rows[:1])
     assert sorted(journal.load()) == [0]
@@ -754,6 +786,7 @@ def _wait_for_points(proc, at_least):
     raise AssertionError(f"the sweep ended before {at_least} points: {lines}")
 
 
+@pytest.mark.slow  # sweeps in subprocesses, signalled and run again
 @pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_interrupt_exits_130_and_the_rerun_resumes(tmp_path, sig, code):
     """Ctrl-C (SIGINT) exits 130 and SIGTERM (a batch system's stop) 143; either way every
@@ -787,11 +820,12 @@ def test_interrupt_exits_130_and_the_rerun_resumes(tmp_path, sig, code):
     assert f"resuming: {kept} of 400 points read from {journal}" in stderr
     assert not journal.exists()
     fresh = sweeps.sweep(with_simulation(base(), integrator="catch-up"), [SWEEP_ARGS[-3], SWEEP_ARGS[-1]])
-    table = sweeps.read_table(out)
+    table = read_table(out)
     assert [r.status for r in table.rows] == [r.status for r in fresh.rows]
     np.testing.assert_allclose(table.columns()["v0"], fresh.columns()["v0"], rtol=0, atol=1e-12)
 
 
+@pytest.mark.slow  # a sweep in a subprocess, killed and run again
 def test_killed_process_resumes(tmp_path):
     """SIGKILL a sweep process once its journal holds finished points; the rerun of the same
     command completes the table, equal to an uninterrupted run's."""
@@ -828,22 +862,24 @@ def test_killed_process_resumes(tmp_path):
     assert not journal.exists()
     fresh = tmp_path / "fresh.h5"
     subprocess.run(args + ["-o", str(fresh)], check=True, capture_output=True)
-    assert sweeps.read_table(out).to_csv() == sweeps.read_table(fresh).to_csv()
+    assert read_table(out).to_csv() == read_table(fresh).to_csv()
 
 
 # -- plot ---------------------------------------------------------------------------------------
 def test_plot_one_and_two_paths(tmp_path):
     import matplotlib.image as mpimg
 
-    for axes, name in (([AMP], "one.png"), ([AMP, LAG], "two.png")):
-        args = [P4, *FAST] + [x for a in axes for x in ("--sweep", a)] + ["--plot", tmp_path / name]
-        assert vel(*args).exit_code == 0
-        image = mpimg.imread(tmp_path / name)
+    for axes, name in (([AMP], "one"), ([AMP, LAG], "two")):
+        args = [P4, *FAST] + [x for a in axes for x in ("--sweep", a)] + ["-o", tmp_path / f"{name}.h5", "--plot"]
+        r = vel(*args)
+        assert r.exit_code == 0 and r.output == f"{tmp_path / name}-sweep.png\n"
+        image = mpimg.imread(tmp_path / f"{name}-sweep.png")
         assert image.ndim == 3 and image.shape[0] > 200 and image.shape[1] > 300
         assert image[..., :3].std() > 0.05  # not blank
-    r = vel(P4, *FAST, "--sweep", AMP, "--sweep", LAG, "--sweep", "period=1,2", "--plot", tmp_path / "three.png")
+    three = ["--sweep", AMP, "--sweep", LAG, "--sweep", "period=1,2", "-o", tmp_path / "three.h5", "--plot"]
+    r = vel(P4, *FAST, *three)
     assert r.exit_code == 2 and "one or two swept dimensions" in r.output
-    assert not (tmp_path / "three.png").exists()
+    assert not list(tmp_path.glob("three*"))
 
 
 def test_sweep_figures_of_files_mark_invalid_points_as_invalid(tmp_path, monkeypatch):
@@ -878,8 +914,9 @@ def test_sweep_figures_of_files_mark_invalid_points_as_invalid(tmp_path, monkeyp
             "friction.backward=[0.5,1,2,3,4]",
             "--link",
             "friction.forward=[0.5,1,1,1,1]",
+            "-o",
+            tmp_path / "v.csv",
             "--plot",
-            tmp_path / "v.png",
         ],
     ):
         assert cli(*args).exit_code == 0
@@ -903,7 +940,7 @@ def test_v0_jumps_at_equal_friction_are_walls_not_contours(tmp_path):
     interpolated across the jump."""
     from matplotlib.collections import LineCollection
 
-    from crawlsim.io.hdf5 import read_sweep
+    from crawlsim.io.sweepfile import read_sweep
     from crawlsim.plotting import sweep_data_figure
 
     out = tmp_path / "jump.h5"
@@ -931,6 +968,8 @@ def test_crawlsim_plot_draws_sweep_files(tmp_path):
     (invalid and failed) marked; 3-D sweeps, shards and --only are refused (exit 2)."""
     import matplotlib.image as mpimg
 
+    from crawlsim.plotting import sweep_data_figure
+
     one = tmp_path / "one.h5"
     assert (
         vel(
@@ -945,13 +984,13 @@ def test_crawlsim_plot_draws_sweep_files(tmp_path):
         ).exit_code
         == 0
     )
-    table = sweeps.read_table(one)
-    axes, v0, missing = sweeps.sweep_figure_data(table)
-    assert list(axes) == ["friction.backward"] and v0.shape == (5,)
+    table = read_table(one)
+    ax = sweep_data_figure(sweeps.table_payload(table)).axes[0]  # linked paths count once
+    assert ax.get_xlabel() == "friction.backward ($F$)" and len(ax.get_lines()[0].get_xdata()) >= 5
     # backward 1 = forward 1 and backward 3 (= 3 x forward 1 on 4 blocks) break uniqueness;
     # backward 0.5 = forward 0.5 too
-    np.testing.assert_array_equal(missing, [True, True, False, True, False])
-    assert np.all(np.isnan(v0[missing])) and np.all(np.isfinite(v0[~missing]))
+    (invalid,) = [line for line in ax.get_lines() if line.get_label() == "invalid gait"]
+    assert invalid.get_xdata().tolist() == [0.5, 1.0, 3.0]
     r = cli("plot", one, "-o", tmp_path / "fig")
     assert r.exit_code == 0, r.output
     image = mpimg.imread(tmp_path / "fig" / "one-sweep.png")
@@ -969,3 +1008,31 @@ def test_crawlsim_plot_draws_sweep_files(tmp_path):
     assert vel(P4, *FAST, "--sweep", AMP, "--shard", "1/2", "-o", part).exit_code == 0
     assert cli("plot", part).exit_code == 2
     assert sorted(p.name for p in tmp_path.glob("*.png")) == []
+
+
+def test_sweeping_a_waves_numbers_and_its_links():
+    """On a wave (links: {wave: ..., phase_step: ...}) a sweep of links.phase_step moves the lag
+    of every link at once (link i at i x step, modulo 1), one of links.wave.amplitude every
+    link's amplitude, and one of links.1.phase that generated link alone (the point's document
+    holds the links written out), as docs/gait-files.md defines them."""
+    import yaml
+
+    from crawlsim.gait.document import gait_from_document
+
+    doc = yaml.safe_load(Path(P4).read_text())
+    doc["links"] = {"wave": {"kind": "cosine", "mean": 1.0, "amplitude": 0.3}, "phase_step": 0.3333333333333333}
+    wave = gait_from_document(doc, "wave.yaml")
+    lags = sweeps.make_grid(wave, ["links.phase_step=0:0.5:3"])
+    assert [[s.phase for s in lags.gait(i).links] for i in range(3)] == [
+        [0.0, 0.0, 0.0],
+        [0.0, 0.25, 0.5],
+        [0.0, 0.5, 0.0],
+    ]
+    grid = sweeps.make_grid(wave, ["links.wave.amplitude=0.1,0.2", "links.1.phase=0.5"])
+    point = grid.gait(1)
+    assert [s.amplitude for s in point.links] == [0.2] * 3 and [s.phase for s in point.links] == [
+        0.0,
+        0.5,
+        0.6666666666666666,
+    ]
+    assert isinstance(grid.document(1)["links"], list) and isinstance(grid.base.document["links"], dict)

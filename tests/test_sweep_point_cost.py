@@ -20,6 +20,7 @@ from crawlsim.integrate.stepping import make_stepper
 from crawlsim.model.offsets import Basis, PiecewiseOffsets
 from crawlsim.model.process import compile_gait, period_grid
 from crawlsim.study import sweep as sweeps
+from crawlsim.study.points import run_points
 
 from .conftest import GAITS
 
@@ -52,7 +53,7 @@ def test_a_sweeps_rows_equal_each_point_computed_from_scratch(axes):
     alone = []
     for i in range(grid.size):
         _forget_shared()
-        alone.extend(r.to_json() for r in sweeps.run_points(grid, [i]))
+        alone.extend(r.to_json() for r in run_points(grid, [i]))
     assert shared == alone
     assert any(r["limit"] == "newton" for r in shared) or axes[0].startswith("friction")
     if axes[0].startswith("friction"):

@@ -98,3 +98,47 @@ def test_yaml_errors_are_one_error(tmp_path):
     path = write(tmp_path, "syntax.yaml", "blocks: [3\n")
     errors = validation_errors(path)
     assert len(errors) == 1 and "YAML syntax error at line" in errors[0].message
+
+
+NEGATIVE = """\
+blocks: 3
+period: 2.0
+stiffness: 10.0
+links:
+  - {kind: cosine, mean: 1.0, amplitude: 0.3}
+  - {kind: cosine, mean: MEAN, amplitude: 1.3, phase: 0.25}
+friction: {forward: 1.0, backward: 1.5}
+simulation: {steps_per_period: 100}
+"""
+
+
+def test_a_negative_actuator_length_is_run_with_a_warning_naming_link_and_time(tmp_path):
+    """links[1] = 1 + 1.3 cos 2 pi (u - 1/4) reaches 1 - 1.3 = -0.3 at u = 3/4, t = 1.5 (T = 2):
+    validate and every command that reads the file warn, naming the link and the time, and run
+    (issue 35: it ran silently while blocks 2 and 3 passed through each other). The warning's
+    claim holds: adding a constant c to L translates K(t) = C(t) - K L(t) by -K c and leaves the
+    slips alone, so v0 with mean 1.5 (L > 0) is v0 with mean 1.0."""
+    import warnings
+
+    import crawlsim
+
+    path = tmp_path / "neg.yaml"
+    path.write_text(NEGATIVE.replace("MEAN", "1.0"))
+    warning = (
+        f"Warning: {path}: links[1]: the actuator length goes negative (-0.3 at t = 0.75 T = 1.5), so blocks 2 and 3 "
+        "can pass through each other"
+    )
+    runner = CliRunner()
+    for args in (["validate", str(path)], ["velocity", str(path)]):
+        r = runner.invoke(main, args)
+        assert r.exit_code == 0 and r.stderr.startswith(warning) and len(r.stderr.splitlines()) == 1, r.stderr
+    with pytest.warns(crawlsim.GaitWarning, match="goes negative"):
+        negative = crawlsim.simulate(crawlsim.load_gait(path), keep_trajectory=False)
+    path.write_text(NEGATIVE.replace("MEAN", "1.5"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        positive = crawlsim.simulate(crawlsim.load_gait(path), keep_trajectory=False)
+    assert negative.v0 == pytest.approx(
+        positive.v0, abs=negative.estimate.error_estimate + positive.estimate.error_estimate
+    )
+    assert positive.v0 > 0.01

@@ -19,12 +19,11 @@ import numpy as np
 
 from crawlsim import interrupts
 from crawlsim.analysis.energy import period_dissipation
+from crawlsim.gait.settings import ROUNDOFF_FLOOR
 from crawlsim.integrate.stepping import PeriodRecord
 from crawlsim.model.process import SweepingProcess
 from crawlsim.status import Convergence
 
-#: Relative Poincare steps below this are roundoff: a smaller tolerance is clamped to it.
-ROUNDOFF_FLOOR = 1e-13
 #: One-period drop of the Poincare step that counts as finite-time convergence.
 FINITE_JUMP = 1e-4
 #: Periods used to fit the contraction rate.
@@ -173,23 +172,40 @@ class History:
             self._spill = None
 
 
+def _travel(log: History) -> float | None:
+    """The way the iterates still have to go: at most the geometric tail ``step r / (1 - r)`` of
+    their Poincare steps (none after a step of 0, a finite-time convergence); None without a
+    contraction rate below 1."""
+    step, rate = log.rel_steps[-1], _rate(log)
+    if step == 0.0:
+        return 0.0
+    return step * rate / (1.0 - rate) if rate is not None else None
+
+
+def _rate(log: History) -> float | None:
+    rate = contraction_rate(np.array(log.rel_steps))
+    return rate if rate is not None and 0.0 < rate < 1.0 else None
+
+
 def settled_elsewhere(log: History, tol: float) -> bool:
     """Whether the iterates are periodic to ``tol`` yet cannot reach the solver's limit: the
-    way they still have to go, at most the geometric tail ``step r / (1 - r)`` of their Poincare
-    steps (none after a step of 0, a finite-time convergence), is shorter than their distance
-    to it. An iterate that merely approaches the solver's limit slowly (``r`` near 1) has its
-    tail at least as long as that distance, and goes on."""
-    step = log.rel_steps[-1]
-    if step > tol or log.reached(tol):
+    way they still have to go is shorter than their distance to it. An iterate that merely
+    approaches the solver's limit slowly (``r`` near 1) has its tail at least as long as that
+    distance, and goes on."""
+    if log.rel_steps[-1] > tol or log.reached(tol):
         return False
-    if step == 0.0:
-        travel = 0.0
-    else:
-        rate = contraction_rate(np.array(log.rel_steps))
-        if rate is None or not rate < 1.0:
-            return False
-        travel = step * rate / (1.0 - rate)
-    return log.gap > tol + 2.0 * travel
+    travel = _travel(log)
+    return travel is not None and log.gap > tol + 2.0 * travel
+
+
+def approaching(log: History, tol: float, periods: int) -> bool:
+    """Whether the iterates head for the solver's limit, the way they still have to go covering
+    their distance to it (twice over, for a rate fitted on early periods), and would take more
+    than ``periods`` periods more to reach ``tol`` at their rate."""
+    travel, rate = _travel(log), _rate(log)
+    if travel is None or rate is None or log.gap > 2.0 * travel:
+        return False
+    return log.gap > tol and math.log(tol / log.gap) / math.log(rate) > periods
 
 
 def displacement_roundoff(
@@ -208,7 +224,7 @@ def displacement_roundoff(
     at most 0.17 of it with sqrt(restarts); the Python loop's own v0 moves by 4.2 times the
     first when friction and stiffness are scaled together (which leaves the motion as it is)."""
     eps = float(np.finfo(float).eps)
-    k_min = float(np.min(process.stiffness)) if process.stiffness is not None else math.inf
+    k_min = math.inf if process.crawler is None else float(np.min(process.crawler.stiffness))
     return steps_per_period * eps * mean_abs_slip + eps * process.scale / k_min * math.sqrt(max(restarts, 1))
 
 
@@ -224,11 +240,6 @@ def period_iteration_error(
         r = rate if rate is not None and rate < 1 else None
         err += dv * r / (1 - r) if r is not None else dv
     return float(err)
-
-
-def effective_tolerance(tolerance: float) -> float:
-    """The Poincare-step tolerance actually used: relative steps below roundoff are clamped."""
-    return max(float(tolerance), ROUNDOFF_FLOOR)
 
 
 def poincare_step(process: SweepingProcess, w_start, w_end) -> tuple[float, float]:

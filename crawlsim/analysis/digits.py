@@ -41,14 +41,18 @@ def with_error(value: float, error: float | None, unit: str = "") -> str:
     return f"{text}{unit}" if bound is None else f"{text}{unit} ± {bound}{unit}"
 
 
+def counted(n: int | None, noun: str) -> str:
+    """``n`` and ``noun``, plural but for one: "1 period", "2 periods"."""
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
 def how_found(
     method: str | None, newton_steps: int | None, periods: int | None, jacobian_rate: float | None = None
 ) -> str:
     """One line saying how a run's limit was found (``crawlsim run`` and ``crawlsim info``)."""
     if method == "newton":
         rate = "" if jacobian_rate is None else f", Jacobian rate {jacobian_rate:.4g}"
-        steps = f"{newton_steps} Newton step{'' if newton_steps == 1 else 's'}"
-        simulated = f"{periods} period{'' if periods == 1 else 's'}"
+        steps, simulated = counted(newton_steps, "Newton step"), counted(periods, "period")
         return f"Newton on the period map: {steps} in {simulated}, verified by a plain period{rate}"
     if method == "iterate":
         return "plain iteration of the periods"

@@ -66,8 +66,10 @@ consistent discrete ledger is therefore
     J_h = sum_n sum_i k_i (z^{n+1}_i - z^n_i)^2 / 2,
 
 and ``W_h = D_h + J_h + E^G - E^0`` holds exactly for the scheme (each step is the jump identity
-above). Away from jumps ``Delta z = O(h)``, so J_h is the scheme's numerical dissipation, first
-order in h, and converges to the jump losses; W_h and D_h converge to W and D at first order.
+above). Away from jumps ``Delta z = O(h)``, so J_h there is the scheme's numerical dissipation,
+first order in h: it is reported apart, as the **discretisation loss**, and only the steps that
+end at a jump of a ``steps`` signal are booked as jump losses, to which they converge; W_h and
+D_h converge to W and D at first order.
 (The right-endpoint sum ``sum_n sigma^{n+1} . Delta L^n`` balances too, with
 ``sum_n |sigma^{n+1} - sigma^n|^2_{K^-1} / 2`` in place of J_h, by ``|a|^2/2 - |b|^2/2 = <a, a -
 b> - |a - b|^2/2``; but at a jump of an actuator length that term also holds the elastic work of
@@ -92,7 +94,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from crawlsim.gait.signals import Constant, Cosine, Fourier, PiecewiseLinear, Signal, Steps
+from crawlsim.gait.signals import (
+    JUMP_TOLERANCE,
+    Constant,
+    Cosine,
+    Fourier,
+    PiecewiseLinear,
+    Signal,
+    Steps,
+    union_breakpoints,
+)
 from crawlsim.integrate.ledger import PeriodEnergy
 from crawlsim.integrate.stepping import PeriodRecord
 from crawlsim.model.offsets import TWO_PI
@@ -101,15 +112,18 @@ from crawlsim.model.process import SweepingProcess
 
 @dataclass(frozen=True)
 class EnergyLedger:
-    """What a run reports of the limit period's energy (`ledger`)."""
+    """What a run reports of its limit period's dissipation and energy (`ledger`)."""
 
-    actuator_work_per_period: float
-    dissipation_per_period: float
-    jump_loss_per_period: float
-    energy_balance_residual: float  # W - D - J - W_load on the limit period
+    dissipation: float  # D, with its error estimate (None where v0's time-step error is unknown)
+    dissipation_error_estimate: float | None
+    cost_of_transport: float | None  # (D + W_load) / |displacement|; None without net motion
+    actuator_work: float
+    jump_loss: float
+    balance_residual: float  # W - D - J - W_load (- the discretisation loss) on the limit period
     cost_of_transport_bound: float | None  # force; None without a direction of motion or with loads
     efficiency: float | None  # bound / cost of transport; with loads W_load / W
-    load_work_per_period: float | None = None  # W_load; None without loads
+    load_work: float | None = None  # W_load; None without loads
+    discretisation_loss: float | None = None  # catch-up's numerical loss; None for exact
 
 
 # -- a period's ledger, either integrator ----------------------------------------------------------
@@ -124,15 +138,27 @@ def catch_up_energy(process: SweepingProcess, record: PeriodRecord) -> PeriodEne
     work = math.fsum(np.sum((sigma[:-1] + 0.5 * k * dL) * dL, axis=1))
     dissipation = period_dissipation(process, record)
     dw = np.diff(record.w, axis=0)
-    loss = math.fsum(np.sum(dw * dw / (2.0 * k), axis=1))
+    loss = np.sum(dw * dw / (2.0 * k), axis=1)
+    jumps = _jump_steps(process)
     return PeriodEnergy(
         work,
         dissipation,
-        loss,
+        math.fsum(loss[jumps]),
         crawler.elastic_energy(sigma[0]),
         crawler.elastic_energy(sigma[-1]),
         crawler.load_work(record.multipliers),
+        math.fsum(loss[~jumps]),
     )
+
+
+def _jump_steps(process: SweepingProcess) -> np.ndarray:
+    """The catch-up steps that end at a jump of a ``steps`` signal (a grid point, since the
+    breakpoints are: `crawlsim.model.process.period_grid`), a mask over the steps."""
+    assert process.offset_pieces is not None
+    jumps = union_breakpoints([s.breakpoints() for s in process.offset_pieces.signals if isinstance(s, Steps)])
+    ends = np.mod(process.cycles[1:], 1.0)  # a jump at u = 0 ends the period's last step
+    gap = np.abs(ends[:, None] - jumps[None, :])
+    return np.any(np.minimum(gap, 1.0 - gap) <= JUMP_TOLERANCE, axis=1)
 
 
 def period_energy(process: SweepingProcess, record: PeriodRecord) -> PeriodEnergy | None:
@@ -220,14 +246,11 @@ def friction_minimum(signal: Signal) -> float:
 
 def friction_minima(process: SweepingProcess) -> tuple[np.ndarray, np.ndarray]:
     """(min_t mu_j^+(t), min_t mu_j^-(t)) for every block j of a compiled crawler."""
-    assert process.offset_pieces is not None
-    N = process.blocks
-    signals = process.offset_pieces.signals
-    forward = np.array([friction_minimum(s) for s in signals[N - 1 : 2 * N - 1]])
-    backward = np.array([friction_minimum(s) for s in signals[2 * N - 1 : 3 * N - 1]])
-    assert process.crawler is not None
-    scale = process.crawler.friction_scale
-    return scale * forward, scale * backward
+    crawler, pieces = process.crawler, process.offset_pieces
+    assert crawler is not None and pieces is not None
+    forward = np.array([friction_minimum(s) for s in pieces.signals[crawler.columns["forward"]]])
+    backward = np.array([friction_minimum(s) for s in pieces.signals[crawler.columns["backward"]]])
+    return crawler.friction_scale * forward, crawler.friction_scale * backward
 
 
 def cost_of_transport_bound(process: SweepingProcess, displacement: float) -> float | None:
@@ -240,22 +263,25 @@ def cost_of_transport_bound(process: SweepingProcess, displacement: float) -> fl
 
 
 def ledger(
-    process: SweepingProcess, record: PeriodRecord, displacement: float, cost_of_transport: float | None
+    process: SweepingProcess,
+    record: PeriodRecord,
+    displacement: float,
+    cost_of_transport: float | None,
+    dissipation_error: float | None,
 ) -> EnergyLedger | None:
     """The ledger of the limit period ``record`` and the bound on the cost of transport; None
     for a generic sweeping process."""
     energy = period_energy(process, record)
     if energy is None:
         return None
+    head = (energy.dissipation, dissipation_error, cost_of_transport, energy.work, energy.jump_loss, energy.residual)
     if process.crawler is not None and process.crawler.load is not None:
         # with loads (docs/model.md §6): the efficiency is the share of the actuator work that
         # goes into the load, and the friction-only bound does not bound the cost of transport
         efficiency = energy.load_work / energy.work if energy.work > 0 else None
-        return EnergyLedger(
-            energy.work, energy.dissipation, energy.jump_loss, energy.residual, None, efficiency, energy.load_work
-        )
+        return EnergyLedger(*head, None, efficiency, energy.load_work, energy.discretisation_loss)
     bound = cost_of_transport_bound(process, displacement)
     efficiency = None
     if bound is not None and cost_of_transport is not None and cost_of_transport > 0:
         efficiency = bound / cost_of_transport
-    return EnergyLedger(energy.work, energy.dissipation, energy.jump_loss, energy.residual, bound, efficiency)
+    return EnergyLedger(*head, bound, efficiency, None, energy.discretisation_loss)

@@ -40,119 +40,35 @@ from __future__ import annotations
 
 import time as _time
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any
+from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
 from crawlsim.analysis.convergence import (
     DISTANCES,
-    FINITE_JUMP,
-    RATE_RELIABLE,
     RATE_WINDOW,
-    ROUNDOFF_FLOOR,
     History,
     RateFit,
+    approaching,
     classify_convergence,
-    contraction_rate,
     displacement_roundoff,
-    effective_tolerance,
     fit_contraction_rate,
     period_iteration_error,
-    poincare_step,
     settled_elsewhere,
 )
+from crawlsim.analysis.energy import EnergyLedger, period_dissipation, period_energy
 from crawlsim.analysis.energy import ledger as energy_ledger
-from crawlsim.analysis.energy import period_dissipation, period_energy
-from crawlsim.analysis.report import (
-    energy_lines,
-    grid_note,
-    not_converged_message,
-    run_message,
-    summary_text,
-    verdict_rate,
-)
+from crawlsim.analysis.report import grid_note, result_html, result_repr, run_message, verdict_rate
+from crawlsim.errors import CrawlsimError
+from crawlsim.gait.settings import effective_tolerance
+from crawlsim.integrate.limit import PLAIN_PERIODS, LimitSolution, solve_limit
 from crawlsim.integrate.stepping import PeriodRecord, make_stepper, positions_of
 from crawlsim.model.process import SweepingProcess
 from crawlsim.status import Convergence, LimitMethod, RunStatus
 
-if TYPE_CHECKING:
-    from crawlsim.integrate.limit import LimitSolution
-
-__all__ = [
-    "ENERGY_KEYS",
-    "FINITE_JUMP",
-    "LIMIT_METHODS",
-    "RATE_RELIABLE",
-    "RATE_WINDOW",
-    "ROUNDOFF_FLOOR",
-    "ConvergenceHistory",
-    "LimitPeriod",
-    "RateFit",
-    "RunResult",
-    "classify_convergence",
-    "contraction_rate",
-    "cost_of_transport",
-    "displacement_roundoff",
-    "effective_tolerance",
-    "energy_lines",
-    "fit_contraction_rate",
-    "following",
-    "limit_period",
-    "not_converged_message",
-    "period_iteration_error",
-    "poincare_step",
-    "simulate",
-    "summary_text",
-    "time_step_reference",
-]
-
 #: How the periodic limit is found: the solver of `crawlsim.integrate.limit`, or plain iteration.
 LIMIT_METHODS = tuple(LimitMethod)
-
-#: The energy ledger's entries of the summary (`crawlsim.analysis.energy`).
-ENERGY_KEYS = (
-    "actuator_work_per_period",
-    "jump_loss_per_period",
-    "load_work_per_period",
-    "energy_balance_residual",
-    "cost_of_transport_bound",
-    "efficiency",
-)
-
-#: The keys of `RunResult.summary`, in order.
-SUMMARY_KEYS = (
-    "name",
-    "integrator",
-    "status",
-    "message",
-    "v0",
-    "v0_error_estimate",
-    "v0_error_period_iteration",
-    "v0_error_time_step",
-    "v0_error_reason",
-    "displacement_per_period",
-    "dissipation_error_estimate",
-    "convergence",
-    "periodic_from",
-    "contraction_rate",
-    "contraction_rate_error",
-    "contraction_rate_periods",
-    "jacobian_rate",
-    "exact_convergence",
-    "exact_rate",
-    "grid_note",
-    "periods",
-    "steps_per_period",
-    "dissipation_per_period",
-    "cost_of_transport",
-    "limit_method",
-    "limit_newton_steps",
-    "limit_periods",
-    "clarabel_calls",
-    "steps",
-    "wall_time",
-) + ENERGY_KEYS
 
 
 @dataclass(frozen=True, eq=False)
@@ -184,85 +100,94 @@ class LimitPeriod:
     slip_rate: np.ndarray | None = None  # (G, N) dx / dt on each step
 
 
-@dataclass(frozen=True, eq=False, repr=False)
-class RunResult:
-    """Everything `simulate` measured. ``summary()`` is the JSON-ready part."""
+@dataclass(frozen=True)
+class V0Estimate:
+    """A crawler's v0 with an error estimate that bounds its true error (docs/model.md §4): the
+    period iteration's part (the roundoff of the period's slips, the tail still to come, or the
+    residual of the verified limit) plus the time step's (none for the exact integrator; for
+    catch-up measured against the exact integrator, None with the reason where it cannot be).
+    The estimate is None, and ``reason`` says why, where the time step's part is unknown."""
 
-    name: str
-    period: float
-    steps_per_period: int
+    value: float
+    error_estimate: float | None
+    period_iteration: float
+    time_step: float | None
+    reason: str | None
+    displacement: float  # per period: y(t0+(q+1)T) - y(t0+qT) of the limit period
+
+
+@dataclass(frozen=True)
+class LimitSolver:
+    """How the limit was found: the periodic-limit solver (``newton``: its accepted Newton
+    steps, the periods it simulated with the verifying one, their relative Poincare steps and
+    kinds, `crawlsim.integrate.limit.PLAIN`, ``NEWTON`` or ``REJECTED``, and the contraction
+    rate read from the Jacobian at the limit) or the iterates themselves (``iterate``)."""
+
+    method: LimitMethod = LimitMethod.ITERATE
+    newton_steps: int = 0
+    periods: int = 0
+    residuals: np.ndarray | None = None
+    kinds: np.ndarray | None = None
+    jacobian_rate: float | None = None
+
+
+@dataclass(frozen=True)
+class ExactVerdict:
+    """For a catch-up run measured against the exact integrator: the exact integrator's verdict
+    and rate (`exact_verdict`), and the note the summary prints where catch-up's verdict depends
+    on the time grid (`crawlsim.analysis.report.grid_note`)."""
+
     convergence: Convergence
-    periods: int
-    periodic_from: int | None
-    contraction_rate: float | None
-    v0: float | None
-    v0_error_estimate: float | None
-    displacement_per_period: float | None
-    dissipation_per_period: float | None
-    cost_of_transport: float | None
-    history: ConvergenceHistory
-    limit: LimitPeriod
+    rate: float | None
+    note: str | None = None
+
+
+@dataclass(frozen=True)
+class Effort:
+    """What a run took: the steps of every period simulated (the solver's included), the
+    projections Clarabel solved, and the wall time in seconds."""
+
+    steps: int
     clarabel_calls: int
     wall_time: float
-    steps: int = field(default=0)
-    integrator: str = "catch-up"
-    # The periodic-limit solver: how the limit was found ("newton" or "iterate"), its accepted
-    # Newton steps, the periods it simulated (the verifying one included), its relative Poincare
-    # steps, and the contraction rate read from the Jacobian at the limit.
-    limit_method: LimitMethod = LimitMethod.ITERATE
-    limit_newton_steps: int = 0
-    limit_periods: int = 0
-    limit_residuals: np.ndarray | None = None
-    limit_kinds: np.ndarray | None = None  # per solver period: crawlsim.integrate.limit.PLAIN, NEWTON, REJECTED
-    jacobian_rate: float | None = None
-    v0_error_period_iteration: float | None = None
-    v0_error_time_step: float | None = None
-    # Why v0 has no error estimate although it has a value (v0_error_estimate None): a catch-up
-    # run whose time-step error could not be measured against the exact integrator
-    v0_error_reason: str | None = None
-    # The dissipation's error: the period iteration's share (v0's relative one) plus, for
-    # catch-up, its measured time-step error (None where that is not measured).
-    dissipation_error_estimate: float | None = None
-    # The energy ledger of the limit period (`crawlsim.analysis.energy`; None for generic processes):
-    # actuator work, jump losses, the balance residual W - D - J, the least cost of transport
-    # for this friction and direction, and the efficiency bound / cost_of_transport.
-    actuator_work_per_period: float | None = None
-    jump_loss_per_period: float | None = None
-    energy_balance_residual: float | None = None
-    cost_of_transport_bound: float | None = None
-    efficiency: float | None = None
-    # Work against the loads per period (docs/model.md §6); None without loads.
-    load_work_per_period: float | None = None
-    # The outcome and, when it is not successful, what to change (diffrax's manner).
-    status: RunStatus = RunStatus.SUCCESSFUL
-    message: str = ""
-    # The contraction rate's evidence: its standard error and the periods it was fitted on.
-    contraction_rate_error: float | None = None
-    contraction_rate_periods: int = 0
-    # Catch-up runs measured against the exact integrator: its verdict and rate (the Jacobian's
-    # at the limit), and the note the summary prints when catch-up's verdict depends on the grid.
-    exact_convergence: Convergence | None = None
-    exact_rate: float | None = None
-    grid_note: str | None = None
-    # The limit period itself, for exact sensitivities of this run (`crawlsim.analysis.sensitivity`)
-    limit_record: PeriodRecord | None = field(default=None, repr=False, compare=False)
-    limit_process: SweepingProcess | None = field(default=None, repr=False, compare=False)
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class RunResult:
+    """Everything `simulate` measured, in groups; ``summary()`` is the JSON-ready part.
+
+    ``status`` is the outcome and ``message`` says what to change when it is not
+    `RunStatus.SUCCESSFUL` (diffrax's manner); ``estimate`` (v0 and its error) and ``energy``
+    (the energy ledger of the limit period, `crawlsim.analysis.energy.EnergyLedger`) are None
+    for a generic sweeping process, which has no velocity; ``rate`` is the contraction rate
+    fitted to the Poincare steps (None for finite-time convergence)."""
+
+    name: str
+    integrator: str
+    status: RunStatus
+    message: str
+    period: float
+    periods: int
+    convergence: Convergence
+    periodic_from: int | None
+    estimate: V0Estimate | None
+    energy: EnergyLedger | None
+    rate: RateFit | None
+    solver: LimitSolver
+    exact: ExactVerdict | None
+    effort: Effort
+    history: ConvergenceHistory
+    limit: LimitPeriod
 
     @property
-    def displacement_error_estimate(self) -> float | None:
-        """The error estimate of `displacement_per_period`: v0's times the period."""
-        return None if self.v0_error_estimate is None else self.v0_error_estimate * self.period
+    def v0(self) -> float | None:
+        """v0 (``estimate.value``); None for a generic sweeping process."""
+        return None if self.estimate is None else self.estimate.value
 
     @property
-    def cost_of_transport_error_estimate(self) -> float | None:
-        """First-order propagation of the dissipation's and displacement's errors through
-        their quotient (|d(D/d)| <= dD/|d| + D dd/d^2), widened by 1 % for the second-order
-        term, which is below that wherever the cost of transport is printed at all."""
-        cot, d = self.cost_of_transport, self.displacement_per_period
-        dD, dd = self.dissipation_error_estimate, self.displacement_error_estimate
-        if cot is None or d is None or dD is None or dd is None or d == 0:
-            return None
-        return 1.01 * (dD / abs(d) + cot * dd / abs(d))
+    def steps_per_period(self) -> int:
+        """Steps of the period's grid (breakpoints included): those of the limit period."""
+        return len(self.limit.t) - 1
 
     @property
     def converged(self) -> bool:
@@ -270,22 +195,65 @@ class RunResult:
         return self.convergence != Convergence.NOT_CONVERGED
 
     def __repr__(self) -> str:
-        from crawlsim.analysis.report import result_repr
-
         return result_repr(self)
 
     def _repr_html_(self) -> str:
-        from crawlsim.analysis.report import result_html
-
         return result_html(self)
 
     def summary(self) -> dict[str, Any]:
-        """The JSON-ready numbers (`SUMMARY_KEYS`), statuses as their strings."""
-        out = {k: getattr(self, k) for k in SUMMARY_KEYS}
-        for key in ("status", "convergence", "exact_convergence", "limit_method"):
-            out[key] = None if out[key] is None else str(out[key])
-        out["final_poincare_step"] = float(self.history.poincare_step[-1])
-        return out
+        """The JSON-ready numbers, flat, statuses as their strings."""
+        e, energy, rate, solver, exact = self.estimate, self.energy, self.rate, self.solver, self.exact
+        return {
+            "name": self.name,
+            "integrator": self.integrator,
+            "status": str(self.status),
+            "message": self.message,
+            "v0": self.v0,
+            "v0_error_estimate": None if e is None else e.error_estimate,
+            "v0_error_period_iteration": None if e is None else e.period_iteration,
+            "v0_error_time_step": None if e is None else e.time_step,
+            "v0_error_reason": None if e is None else e.reason,
+            "displacement_per_period": None if e is None else e.displacement,
+            "dissipation_error_estimate": None if energy is None else energy.dissipation_error_estimate,
+            "convergence": str(self.convergence),
+            "periodic_from": self.periodic_from,
+            "contraction_rate": None if rate is None else rate.rate,
+            "contraction_rate_error": None if rate is None else rate.error,
+            "contraction_rate_periods": 0 if rate is None else rate.periods,
+            "jacobian_rate": solver.jacobian_rate,
+            "exact_convergence": None if exact is None else str(exact.convergence),
+            "exact_rate": None if exact is None else exact.rate,
+            "grid_note": None if exact is None else exact.note,
+            "periods": self.periods,
+            "steps_per_period": self.steps_per_period,
+            "dissipation_per_period": None if energy is None else energy.dissipation,
+            "cost_of_transport": None if energy is None else energy.cost_of_transport,
+            "limit_method": str(solver.method),
+            "limit_newton_steps": solver.newton_steps,
+            "limit_periods": solver.periods,
+            "clarabel_calls": self.effort.clarabel_calls,
+            "steps": self.effort.steps,
+            "wall_time": self.effort.wall_time,
+            "actuator_work_per_period": None if energy is None else energy.actuator_work,
+            "jump_loss_per_period": None if energy is None else energy.jump_loss,
+            "discretisation_loss_per_period": None if energy is None else energy.discretisation_loss,
+            "load_work_per_period": None if energy is None else energy.load_work,
+            "energy_balance_residual": None if energy is None else energy.balance_residual,
+            "cost_of_transport_bound": None if energy is None else energy.cost_of_transport_bound,
+            "efficiency": None if energy is None else energy.efficiency,
+            "final_poincare_step": float(self.history.poincare_step[-1]),
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class Settled:
+    """A run with the period it settled on: its result, and the limit period's record on the
+    process it is a period of, which exact sensitivities walk again
+    (`crawlsim.analysis.sensitivity`, ``run=``) instead of searching the limit twice."""
+
+    result: RunResult
+    record: PeriodRecord
+    process: SweepingProcess
 
 
 Progress = Callable[[int, float], None]
@@ -304,7 +272,7 @@ class _Drive:
     solver_periods: int
 
 
-def simulate(
+def settle(
     process: SweepingProcess,
     *,
     max_periods: int = 1000,
@@ -318,8 +286,9 @@ def simulate(
     time_step_error: bool = False,
     series: bool = True,
     running_frame: bool = True,
-) -> RunResult:
-    """Step ``process`` to its periodic regime and analyse the run (module docstring).
+) -> Settled:
+    """Step ``process`` to its periodic regime and analyse the run (module docstring): the
+    result, and the limit period it settled on (`Settled`).
 
     ``sink.add_period(record)`` receives every period of the history as it is computed (the
     HDF5 writer streams the trajectory); ``progress(q, poincare_step_relative)`` is called after
@@ -364,11 +333,15 @@ def simulate(
         reference=_reference(process, integrator, time_step_error, max_periods=max_periods, tolerance=tolerance),
         running_frame=running_frame,
     )
-    return replace(
-        result,
-        wall_time=_time.perf_counter() - began,
-        **_outcome(result, max_periods=max_periods, tolerance=tol, limit=limit),
-    )
+    status, message = _outcome(result, max_periods=max_periods, tolerance=tol, limit=limit)
+    exact = None if result.exact is None else replace(result.exact, note=grid_note(result))
+    effort = replace(result.effort, wall_time=_time.perf_counter() - began)
+    return Settled(replace(result, status=status, message=message, exact=exact, effort=effort), drive.final, process)
+
+
+def simulate(process: SweepingProcess, **options: Any) -> RunResult:
+    """The result of `settle` (its options) alone."""
+    return settle(process, **options).result
 
 
 def _drive(
@@ -386,8 +359,6 @@ def _drive(
 ) -> _Drive:
     """The true iterates, period by period, and the limit: plain iteration, or a few plain
     periods and then the periodic-limit solver, with the history following the iterates to it."""
-    from crawlsim.integrate.limit import PLAIN_PERIODS
-
     stepper = make_stepper(process, integrator, **options)
     log = History(process, series=series)
     solution: LimitSolution | None = None
@@ -450,8 +421,6 @@ def _solve(
     """The periodic-limit solver from the last true iterate, then the history up to its limit:
     (the limit period or None when the solver failed, the solution or None when the iterates
     settled elsewhere, the solver's (periods, Clarabel calls))."""
-    from crawlsim.integrate.limit import solve_limit
-
     solver = make_stepper(process, integrator, **options)
     # the last true iterate is the solver's first period: not simulated twice
     solution = solve_limit(process, solver, tolerance=tol, first=log.last, max_periods=max_periods - len(log), plain=0)
@@ -463,8 +432,12 @@ def _solve(
     # themselves (a Poincare step of 0 is convergence): where the periodic solutions form a
     # family (Theorem th:speed: they differ by constants of the directions no active set ever
     # sees), the iterates may settle on another member than the solver's, and would never
-    # reach it. Their own is then the limit.
+    # reach it. Their own is then the limit. It stops once it holds the periods a rate fit needs:
+    # following slowly contracting iterates all the way is the cost the solver saves.
+    end = len(log) + RATE_WINDOW + 1
     while history and len(log) < max_periods and not log.reached(tol):
+        if len(log) >= end and approaching(log, tol, RATE_WINDOW):
+            break
         record = log.add(stepper.step_period(), sink, progress)
         if settled_elsewhere(log, tol):
             return record, None, cost
@@ -495,8 +468,8 @@ def verified_limit_error(process: SweepingProcess, final: PeriodRecord, steps: i
 def shape_mismatch(process: SweepingProcess, final: PeriodRecord) -> float:
     """A period's residual |P(w) - w| as a length, max |w(T) - w(0)| / k_min: a shape that
     repeats to within it leaves the displacement uncertain by as much."""
-    assert process.stiffness is not None
-    return float(np.abs(final.w[-1] - final.w[0]).max()) / float(process.stiffness.min())
+    assert process.crawler is not None
+    return float(np.abs(final.w[-1] - final.w[0]).max()) / float(process.crawler.stiffness.min())
 
 
 def _motion(
@@ -541,19 +514,18 @@ def _reference(
 
 
 def _step_error(
-    process: SweepingProcess, motion: _Motion | None, integrator: str, reference: RunResult | None | bool
+    process: SweepingProcess, motion: _Motion, integrator: str, reference: RunResult | None | bool
 ) -> _StepError:
-    if motion is None:
-        return _StepError()
     if integrator == "exact":
         return _StepError(0.0, 0.0)
     if reference is False:
         return _StepError()
-    if isinstance(reference, RunResult) and reference.v0 is not None:
-        assert reference.dissipation_per_period is not None
+    if isinstance(reference, RunResult) and reference.estimate is not None:
+        e, energy = reference.estimate, reference.energy
+        assert energy is not None
         return _StepError(
-            abs(motion.v0 - reference.v0) + (reference.v0_error_estimate or 0.0),
-            abs(motion.dissipation - reference.dissipation_per_period) + (reference.dissipation_error_estimate or 0.0),
+            abs(motion.v0 - e.value) + (e.error_estimate or 0.0),
+            abs(motion.dissipation - energy.dissipation) + (energy.dissipation_error_estimate or 0.0),
         )
     # the period iteration's part alone bounds nothing: catch-up is O(h)
     reason = (
@@ -564,31 +536,18 @@ def _step_error(
     return _StepError(reason=f"no error estimate: the catch-up time-step error could not be measured; {reason}")
 
 
-def _energy_fields(
-    process: SweepingProcess, final: PeriodRecord, motion: _Motion | None, error: float | None
-) -> dict[str, Any]:
+def _energy(
+    process: SweepingProcess, final: PeriodRecord, motion: _Motion, error: float | None, dissipation_error: float | None
+) -> EnergyLedger | None:
     """The cost of transport (with loads, counting the work against them: docs/model.md §6)
     and the energy ledger of the limit period (`crawlsim.analysis.energy`)."""
-    if motion is None or process.crawler is None:
-        return {"cost_of_transport": None}
     cot = None
     if error is not None:
         paid = motion.dissipation
-        if process.crawler.load is not None:
+        if process.crawler is not None and process.crawler.load is not None:
             paid += period_energy(process, final).load_work  # type: ignore[union-attr]
         cot = cost_of_transport(paid, motion.displacement, error, process.period)
-    ledger = energy_ledger(process, final, motion.displacement, cot)
-    fields: dict[str, Any] = {"cost_of_transport": cot}
-    if ledger is not None:
-        fields.update(
-            actuator_work_per_period=ledger.actuator_work_per_period,
-            jump_loss_per_period=ledger.jump_loss_per_period,
-            load_work_per_period=ledger.load_work_per_period,
-            energy_balance_residual=ledger.energy_balance_residual,
-            cost_of_transport_bound=ledger.cost_of_transport_bound,
-            efficiency=ledger.efficiency,
-        )
-    return fields
+    return energy_ledger(process, final, motion.displacement, cot, dissipation_error)
 
 
 def _history_arrays(process: SweepingProcess, drive: _Drive) -> ConvergenceHistory:
@@ -609,18 +568,12 @@ def _history_arrays(process: SweepingProcess, drive: _Drive) -> ConvergenceHisto
     )
 
 
-def _solver_fields(solution: LimitSolution | None) -> dict[str, Any]:
+def _solver(solution: LimitSolution | None) -> LimitSolver:
     """How the limit was found: the periodic-limit solver's numbers, or plain iteration."""
     if solution is None:
-        return {"limit_method": LimitMethod.ITERATE}
-    return {
-        "limit_method": LimitMethod.NEWTON,
-        "limit_newton_steps": solution.newton_steps,
-        "limit_periods": solution.periods,
-        "limit_residuals": solution.residuals,
-        "limit_kinds": solution.kinds,
-        "jacobian_rate": solution.jacobian_rate,
-    }
+        return LimitSolver()
+    s = solution
+    return LimitSolver(LimitMethod.NEWTON, s.newton_steps, s.periods, s.residuals, s.kinds, s.jacobian_rate)
 
 
 def _analyse(
@@ -640,82 +593,70 @@ def _analyse(
         # the limit is verified; the iterates approach it geometrically but had not reached it
         convergence = Convergence.ASYMPTOTIC
     fit = None if convergence == Convergence.FINITE_TIME else fit_contraction_rate(rel)
-    rate = None if fit is None else fit.rate
     hist = _history_arrays(process, drive)
-    motion = _motion(process, drive, hist.displacement, convergence, rate)
-    step = _step_error(process, motion, integrator, reference)
-    err_pi = None if motion is None else motion.error
-    err = err_pi if err_pi is None or step.v0 is None else err_pi + step.v0
-    diss_err = None
-    if motion is not None and step.dissipation is not None and motion.v0:
-        diss_err = abs(motion.dissipation) * motion.error / abs(motion.v0) + step.dissipation
-    G = process.steps
-    exact = exact_verdict(reference) if isinstance(reference, RunResult) else (None, None)
+    motion = _motion(process, drive, hist.displacement, convergence, None if fit is None else fit.rate)
+    estimate, energy = None, None
+    if motion is not None:
+        step = _step_error(process, motion, integrator, reference)
+        err = motion.error if step.v0 is None else motion.error + step.v0
+        diss_err = None
+        if step.dissipation is not None and motion.v0:
+            diss_err = abs(motion.dissipation) * motion.error / abs(motion.v0) + step.dissipation
+        estimate = V0Estimate(
+            motion.v0, None if step.reason else err, motion.error, step.v0, step.reason, motion.displacement
+        )
+        energy = _energy(process, drive.final, motion, err, diss_err)
+    exact = exact_verdict(reference) if isinstance(reference, RunResult) else None
     return RunResult(
         name=process.name,
+        integrator=integrator,
+        status=RunStatus.SUCCESSFUL,
+        message="",
         period=process.period,
-        steps_per_period=G,
-        convergence=convergence,
         periods=len(drive.log),
+        convergence=convergence,
         periodic_from=periodic_from,
-        contraction_rate=rate,
-        v0=None if motion is None else motion.v0,
-        v0_error_estimate=None if step.reason else err,
-        displacement_per_period=None if motion is None else motion.displacement,
-        dissipation_per_period=None if motion is None else motion.dissipation,
+        estimate=estimate,
+        energy=energy,
+        rate=fit,
+        solver=_solver(drive.solution),
+        exact=exact,
+        effort=Effort((len(drive.log) + drive.solver_periods) * process.steps, drive.clarabel_calls, 0.0),
         history=hist,
         limit=limit_period(process, drive.final, None if motion is None else motion.v0, running_frame),
-        clarabel_calls=drive.clarabel_calls,
-        wall_time=0.0,
-        steps=(len(drive.log) + drive.solver_periods) * G,
-        integrator=integrator,
-        v0_error_period_iteration=err_pi,
-        v0_error_time_step=step.v0,
-        v0_error_reason=step.reason,
-        dissipation_error_estimate=diss_err,
-        contraction_rate_error=None if fit is None else fit.error,
-        contraction_rate_periods=0 if fit is None else fit.periods,
-        exact_convergence=exact[0],
-        exact_rate=exact[1],
-        limit_record=drive.final,
-        limit_process=process,
-        **_solver_fields(drive.solution),
-        **_energy_fields(process, drive.final, motion, err),
     )
 
 
-def exact_verdict(reference: RunResult) -> tuple[Convergence | None, float | None]:
+def exact_verdict(reference: RunResult) -> ExactVerdict | None:
     """The exact integrator's verdict and rate from its reference run (`time_step_reference`),
     where it costs nothing more: that run stops at the verified limit without following the
     iterates to it, so its own classification is the true iterates' only when they reached the
-    limit themselves (limit_method iterate). When the solver found it, a Jacobian rate r > 0 at
+    limit themselves (limit method iterate). When the solver found it, a Jacobian rate r > 0 at
     the limit means the iterates approach it geometrically, at that rate (asymptotic);
     otherwise the verdict is unknown (None) and nothing is claimed."""
-    if reference.limit_method == LimitMethod.ITERATE:
-        return reference.convergence, verdict_rate(reference)
-    rate = reference.jacobian_rate
+    if reference.solver.method == LimitMethod.ITERATE:
+        return ExactVerdict(reference.convergence, verdict_rate(reference))
+    rate = reference.solver.jacobian_rate
     if rate is not None and rate > 0:
-        return Convergence.ASYMPTOTIC, rate
-    return None, None
+        return ExactVerdict(Convergence.ASYMPTOTIC, rate)
+    return None
 
 
-def _outcome(result: RunResult, *, max_periods: int, tolerance: float, limit: str) -> dict[str, Any]:
-    """The status, the message saying what to change, and the grid note of a catch-up run."""
-    status = RunStatus.MAX_PERIODS_REACHED if result.convergence == Convergence.NOT_CONVERGED else RunStatus.SUCCESSFUL
-    message = (
-        ""
-        if status == RunStatus.SUCCESSFUL
-        else run_message(result, max_periods=max_periods, tolerance=tolerance, limit=limit)
-    )
-    return {"status": status, "message": message, "grid_note": grid_note(result)}
+def _outcome(result: RunResult, *, max_periods: int, tolerance: float, limit: str) -> tuple[RunStatus, str]:
+    """The status and the message saying what to change (empty when successful)."""
+    if result.convergence == Convergence.NOT_CONVERGED:
+        return RunStatus.MAX_PERIODS_REACHED, run_message(
+            result, max_periods=max_periods, tolerance=tolerance, limit=limit
+        )
+    if result.estimate is not None and result.estimate.reason is not None:
+        return RunStatus.NO_ERROR_ESTIMATE, result.estimate.reason
+    return RunStatus.SUCCESSFUL, ""
 
 
 def time_step_reference(process: SweepingProcess, *, max_periods: int, tolerance: float) -> RunResult | None:
     """The exact integrator's v0 for ``process`` (periodic-limit solver, no history): the
     reference a catch-up v0's time-step error is measured against; None where the exact
     integrator cannot run (no closed form of c(t), or it stops with an error)."""
-    from crawlsim.errors import CrawlsimError
-
     if process.offset_pieces is None:
         return None
     try:

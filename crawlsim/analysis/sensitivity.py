@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
-from crawlsim.analysis.run import LimitMethod, RunResult, shape_mismatch
+from crawlsim.analysis.run import Settled, shape_mismatch
 from crawlsim.analysis.sensitivity_terms import (
     EPS,
     Limit,
@@ -48,12 +48,12 @@ from crawlsim.analysis.sensitivity_terms import (
 )
 from crawlsim.analysis.sensitivity_walk import Prepared, Walk, prepare, walk_catch_up, walk_exact
 from crawlsim.errors import CrawlsimError, GaitError
-from crawlsim.gait.docpaths import resolve_path
-from crawlsim.kernel.implicit import column_moves, implicit
-from crawlsim.status import Convergence
+from crawlsim.gait.docpaths import check_number_paths, resolve_path
+from crawlsim.gait.document import Gait
+from crawlsim.kernel.jit import kernel
+from crawlsim.status import Convergence, LimitMethod
 
 if TYPE_CHECKING:
-    from crawlsim.gait.document import Gait
     from crawlsim.model.process import SweepingProcess
 
 #: Relative step of the one-sided differences at a kink (h and 2 h, Richardson extrapolated).
@@ -151,7 +151,7 @@ class SensitivityResult:
 
 # -- the public function ---------------------------------------------------------------------
 def sensitivity(
-    gait: Gait, paths: Sequence[str] | str, *, one_sided: bool = True, run: Any = None
+    gait: Gait, paths: Sequence[str] | str, *, one_sided: bool = True, run: Settled | None = None
 ) -> SensitivityResult:
     """dv0/dtheta (and of the displacement, dissipation and cost of transport per period) for
     every number ``paths`` name in ``gait`` (dotted paths with ``*``, as ``--sweep``; each
@@ -159,12 +159,11 @@ def sensitivity(
     integrator: the exact integrator's derivatives, or those of the catch-up scheme's discrete
     map.
 
-    ``run``: a `crawlsim.analysis.run.RunResult` of this gait (``crawlsim.api.run``), whose limit
-    period is used instead of searching it again. ``one_sided=False`` skips the one-sided
+    ``run``: what a run of this gait settled on (`crawlsim.analysis.run.Settled`: a
+    ``crawlsim.api.run`` result's ``settled``), whose limit period is used instead of searching
+    it again. ``one_sided=False`` skips the one-sided
     differences at a kink (left and right are then None with the reason)."""
-    from crawlsim.gait.document import Gait as _Gait
-
-    if not isinstance(gait, _Gait):
+    if not isinstance(gait, Gait):
         raise GaitError(
             getattr(gait, "source", "<gait>"), "", "sensitivities are defined for crawler gaits (kind: crawler)"
         )
@@ -250,47 +249,39 @@ def _build_static(gait: Gait, process: SweepingProcess, paths: Sequence[str] | s
     active = tuple(i for i, prm in enumerate(params) if prm.dC is not None)
     dC, dMu, dk = _stack(co, [params[i] for i in active])
     prep = prepare(process, co, dC, dMu, gait.simulation.integrator != "exact")
-    moved = column_moves(co.C, dC, np.ascontiguousarray(co.k, dtype=float), dk)
+    moved = kernel().implicit.column_moves(co.C, dC, np.ascontiguousarray(co.k, dtype=float), dk)
     # the friction's uniqueness touch matters only to a column that moves the friction
     touch = uniqueness_touch(gait, co) if dMu.any() else None
     return _Static(co, params, active, dC, dMu, dk, touch, prep, moved)
 
 
-def _limit_of_run(gait: Gait, run: Any) -> Limit:
-    """The limit period of ``run`` (its ``limit_record``, on its ``limit_process``) when it is
-    this gait's, else found. The exact walk needs the closed form of c only, not the run's
-    grid: its tolerances are relative to c's size at the pieces' edges (`breakpoint_scale`)."""
-    record = getattr(run, "limit_record", None)
-    if record is None or not run.converged or run.integrator != gait.simulation.integrator:
+def _limit_of_run(gait: Gait, run: Settled | None) -> Limit:
+    """The limit period ``run`` settled on when it is this gait's, else found. The exact walk
+    needs the closed form of c only, not the run's grid: its tolerances are relative to c's
+    size at the pieces' edges (`breakpoint_scale`)."""
+    if run is None or not run.result.converged or run.result.integrator != gait.simulation.integrator:
         return find_limit(gait)
+    process = run.process
     exact = gait.simulation.integrator == "exact"
-    process = getattr(run, "limit_process", None)
-    if process is None:
-        from crawlsim.model.process import compile_gait
-
-        process = compile_gait(gait, steps_per_period=1 if exact else None)
     scale = _cached(gait, ("scale", process.steps), lambda: breakpoint_scale(process)) if exact else None
-    return limit_of(process, record, scale, _known(run, process))
+    return limit_of(process, run.record, scale, _known(run))
 
 
-def _known(run: Any, process: SweepingProcess) -> tuple[float, float, float | None] | None:
-    """What ``run`` (a `crawlsim.analysis.run.RunResult` on ``process``) measured of its limit
-    period with `limit_of`'s own formulas: the displacement and dissipation of the period
-    (`crawlsim.analysis.run`'s motion), and v0's error where the run took it as
-    `verified_limit_error` does here, or all but its residual term (the periodic-limit
-    solver's period, or a finite-time limit, on the grid of the record: else None, measured
-    again)."""
-    if not isinstance(run, RunResult) or process is not run.limit_process:
-        return None  # (a sweep's point: measured on its own terms)
-    d, dissipation = run.displacement_per_period, run.dissipation_per_period
-    final, err = run.limit_record, run.v0_error_period_iteration
-    if d is None or dissipation is None or final is None:
+def _known(run: Settled) -> tuple[float, float, float | None] | None:
+    """What ``run`` measured of its limit period with `limit_of`'s own formulas: the
+    displacement and dissipation of the period (`crawlsim.analysis.run`'s motion), and v0's
+    error where the run took it as `verified_limit_error` does here, or all but its residual
+    term (the periodic-limit solver's period, or a finite-time limit, on the grid of the
+    record: else None, measured again)."""
+    result, process, final = run.result, run.process, run.record
+    if result.estimate is None or result.energy is None:
         return None
-    if err is None or len(final.w) - 1 != process.steps:
+    d, dissipation, err = result.estimate.displacement, result.energy.dissipation, result.estimate.period_iteration
+    if len(final.w) - 1 != process.steps:
         return d, dissipation, None
-    if run.limit_method == LimitMethod.NEWTON:
+    if result.solver.method == LimitMethod.NEWTON:
         return d, dissipation, err
-    if run.convergence == Convergence.FINITE_TIME:
+    if result.convergence == Convergence.FINITE_TIME:
         # the period iteration's error is then the displacement's roundoff over T alone, to
         # which `verified_limit_error` adds the period's residual
         return d, dissipation, err + shape_mismatch(process, final) / process.period
@@ -299,8 +290,9 @@ def _known(run: Any, process: SweepingProcess) -> tuple[float, float, float | No
 
 def _expand(gait: Gait, paths: Sequence[str] | str) -> list[tuple[Any, ...]]:
     """The concrete key paths of ``paths`` (each ``*`` expanded), each once, in order."""
+    paths = check_number_paths(gait, [paths] if isinstance(paths, str) else paths)
     keys_list: list[tuple[Any, ...]] = []
-    for path in [paths] if isinstance(paths, str) else paths:
+    for path in paths:
         for keys in resolve_path(gait.document, path, gait.source):
             if keys not in keys_list:
                 keys_list.append(keys)
@@ -333,7 +325,7 @@ class _Ift:
         # error: roundoff of every term (pieces x eps x their sizes, times the conditioning of
         # the least-squares solve) plus the verified limit's distance, relative, on the same
         # sizes (`crawlsim.kernel.implicit.implicit` gives the sizes and the conditioning)
-        self.dw, self.dY, self.dD, magY, magD, cond = implicit(walk.W, walk.L, walk.D, blocks)
+        self.dw, self.dY, self.dD, magY, magD, cond = kernel().implicit.implicit(walk.W, walk.L, walk.D, blocks)
         rel = 64 * EPS * (walk.pieces + n) * cond + lim.residual
         # a floor at the roundoff of the slips themselves: a derivative that cancels to ~0 (a
         # common phase shift) is zero to eps times the sizes the period's slips are made of

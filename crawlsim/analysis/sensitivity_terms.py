@@ -20,9 +20,17 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from crawlsim.analysis.energy import period_dissipation
 from crawlsim.analysis.run import verified_limit_error
 from crawlsim.errors import CrawlsimError, GaitError
-from crawlsim.gait.signals import Constant, Cosine, Fourier
+from crawlsim.gait.docpaths import STRUCTURAL, explicit, set_value, value_at
+from crawlsim.gait.settings import effective_tolerance
+from crawlsim.gait.signals import Constant, Cosine, Fourier, parse_signal
+from crawlsim.integrate.limit import PLAIN_PERIODS, relative_step, solve_limit
+from crawlsim.integrate.stepping import make_stepper
+from crawlsim.model.crawler import signal_columns, signals_of
+from crawlsim.model.offsets import PiecewiseOffsets
+from crawlsim.model.process import _scale, compile_gait
 
 if TYPE_CHECKING:
     from crawlsim.gait.document import Gait
@@ -38,8 +46,6 @@ COEFFICIENT_STEP = 2.0**-10
 ANGLE_STEP = 1e-3
 #: Most blocks for which the uniqueness boundary is checked over every subset.
 UNIQUENESS_BLOCKS = 12
-#: Top-level keys that are not continuous parameters of a gait.
-STRUCTURAL = ("blocks", "simulation", "name", "description", "units", "kind")
 
 
 # -- the limit period ------------------------------------------------------------------------
@@ -60,11 +66,6 @@ class Limit:
 def find_limit(gait: Gait) -> Limit:
     """The verified limit period of ``gait`` with its own integrator (as `crawlsim velocity`
     finds it: plain periods, then the periodic-limit solver)."""
-    from crawlsim.analysis.run import effective_tolerance
-    from crawlsim.integrate.limit import PLAIN_PERIODS, relative_step, solve_limit
-    from crawlsim.integrate.stepping import make_stepper
-    from crawlsim.model.process import compile_gait
-
     process = compile_gait(gait)
     s = gait.simulation
     tol = effective_tolerance(s.tolerance)
@@ -110,8 +111,6 @@ def limit_of(
     Poincare step is taken on it. ``known``: the period's displacement, dissipation and v0's
     error (None: not known) as the run that verified ``final`` measured them, with these
     formulas on this period (`crawlsim.analysis.run`), not measured again."""
-    from crawlsim.analysis.energy import period_dissipation
-
     assert final.x is not None
     T = process.period
     if known is None:
@@ -133,8 +132,6 @@ def breakpoint_scale(process: SweepingProcess) -> float:
     """The c_scale of ``process``'s gait compiled on the grid of its breakpoints alone (the
     exact walk's grid, `compile_gait` with one step): its offsets at the pieces' edges and
     its initial state, read off ``process``'s own grid, which holds every edge."""
-    from crawlsim.model.process import _scale
-
     assert process.offset_pieces is not None
     edges = process.offset_pieces.edges
     if len(edges) == 2:  # one piece: the grid's first and last times are its edges, 0 and 1
@@ -153,44 +150,37 @@ class Coefficients:
     edges: np.ndarray
     basis: Any
     pieces: Any  # the compiled `crawlsim.model.offsets.PiecewiseOffsets` they come from
+    crawler: Any  # the `crawlsim.model.crawler.Crawler` whose signals they are
 
 
 def coefficients_of(gait: Gait, process: SweepingProcess | None = None) -> Coefficients:
     """The offsets' coefficients as the integrator compiles them (every term of c(t), whatever
     the gait file adds to it) and the friction weights: those of ``process`` (the gait's,
     compiled on any grid) or of the gait compiled on a grid of its breakpoints only."""
-    from crawlsim.model.process import compile_gait
-
     if process is None:
         process = compile_gait(gait, steps_per_period=1)
-    assert process.offset_pieces is not None and process.stiffness is not None
-    return _assemble(gait, process.offset_pieces, np.array(process.stiffness, dtype=float))
+    assert process.offset_pieces is not None and process.crawler is not None
+    return _assemble(process.offset_pieces, process.crawler)
 
 
 def _signals(gait: Gait, fields: dict[str, Any] | None = None) -> tuple[Any, ...]:
     """The signals c(t) is combined from, in the order `compile_gait` takes them (with the
     gait's ``fields`` replaced by those given, `_moved_fields`)."""
     f = fields or {}
-    forces = () if gait.loads is None else tuple(gait.loads.forces)
-    return (
-        tuple(f.get("links", gait.links))
-        + tuple(f.get("forward", gait.forward))
-        + tuple(f.get("backward", gait.backward))
-        + forces
+    forces = () if gait.loads is None else gait.loads.forces
+    return signals_of(
+        f.get("links", gait.links), f.get("forward", gait.forward), f.get("backward", gait.backward), forces
     )
 
 
-def _assemble(gait: Gait, pieces: Any, k: np.ndarray) -> Coefficients:
+def _assemble(pieces: Any, crawler: Any) -> Coefficients:
     """C_p of ``pieces`` and the friction weights Mu_p: the friction signals' own coefficients
-    on each piece (the columns after the links'), times cos(angle) on a slope (docs/model.md
-    §6)."""
-    N = gait.blocks
+    on each piece, times cos(angle) on a slope (docs/model.md §6)."""
     P = pieces.pieces
     C = np.array([pieces.coefficients(p) for p in range(P)])
-    Mu = np.array([pieces.signal_coefficients(p)[:, N - 1 : 3 * N - 1] for p in range(P)]) * (
-        1.0 if gait.loads is None else gait.loads.cos
-    )
-    return Coefficients(C, Mu, k, pieces.edges, pieces.basis, pieces)
+    Mu = np.array([crawler.split(pieces.signal_coefficients(p))[1] for p in range(P)])
+    k = np.array(crawler.stiffness, dtype=float)
+    return Coefficients(C, Mu, k, pieces.edges, pieces.basis, pieces, crawler)
 
 
 def _moved_coefficients(gait: Gait, base: Coefficients, keys: tuple[Any, ...], value: float) -> Coefficients:
@@ -198,12 +188,10 @@ def _moved_coefficients(gait: Gait, base: Coefficients, keys: tuple[Any, ...], v
     friction's) changes the signals alone: they are combined by the base's own map into c
     (linear in them, docs/sensitivity.md), on the base's pieces when the breakpoints stay;
     anything else (the stiffness, which that map holds) is compiled anew."""
-    from crawlsim.model.offsets import PiecewiseOffsets
-
     moved = _moved(gait, keys, value)
     if keys[0] in ("links", "friction") and np.array_equal(moved.breakpoints(), gait.breakpoints()):
         pieces = PiecewiseOffsets(_signals(moved), base.pieces.combine, base.pieces.edges)
-        return _assemble(moved, pieces, base.k)
+        return _assemble(pieces, base.crawler)
     return coefficients_of(moved)
 
 
@@ -257,23 +245,30 @@ def _smooth_derivative(signal: Any, inside: tuple[Any, ...], basis: Any) -> np.n
     return out
 
 
-def _signal_columns(gait: Gait, keys: tuple[Any, ...]) -> tuple[list[tuple[int, Any]], tuple[Any, ...]] | None:
+def _signal_columns(gait: Gait, keys: tuple[Any, ...]) -> tuple[list[tuple[int, Any, float]], tuple[Any, ...]] | None:
     """The signals a number at ``keys`` of a link, a friction or a force belongs to, each with
-    its column in `_signals`' order (links, mu^+ per block, mu^- per block, forces per block),
-    and the path inside them; None for other numbers."""
-    N = gait.blocks
+    its column in `_signals`' order (links, mu^+ per block, mu^- per block, forces per block)
+    and the derivative of its number by the one at ``keys``, and the path inside them; None for
+    other numbers. A wave's number moves every link's (``links.wave...``: by 1; the
+    ``phase_step``: link i's phase by i, `crawlsim.gait.docpaths.wave_links`)."""
+    columns = signal_columns(gait.blocks)
     if keys[0] == "links" and len(keys) >= 2 and isinstance(keys[1], int):
-        return [(keys[1], gait.links[keys[1]])], keys[2:]
+        return [(keys[1], gait.links[keys[1]], 1.0)], keys[2:]
+    if keys[:2] == ("links", "wave"):
+        return [(i, link, 1.0) for i, link in enumerate(gait.links)], keys[2:]
+    if keys == ("links", "phase_step"):
+        return [(i, link, float(i)) for i, link in enumerate(gait.links)], ("phase",)
     if keys[0] == "loads" and len(keys) >= 2 and keys[1] == "force" and gait.loads is not None:
         each = len(keys) >= 3 and isinstance(keys[2], int)  # one signal per block
-        forced: Sequence[int] = [keys[2]] if each else range(N)
-        return ([(3 * N - 1 + j, gait.loads.forces[j]) for j in forced], keys[3:] if each else keys[2:])
+        forced: Sequence[int] = [keys[2]] if each else range(gait.blocks)
+        first = columns["forces"].start
+        return ([(first + j, gait.loads.forces[j], 1.0) for j in forced], keys[3:] if each else keys[2:])
     friction = _friction_keys(gait, keys) if keys[0] == "friction" else None
     if friction is None:
         return None
     side, blocks, rest = friction
-    first, signals = (N - 1, gait.forward) if side == "forward" else (2 * N - 1, gait.backward)
-    return [(first + j, signals[j]) for j in blocks], rest[1:]
+    first, signals = columns[side].start, gait.forward if side == "forward" else gait.backward
+    return [(first + j, signals[j], 1.0) for j in blocks], rest[1:]
 
 
 def _friction_keys(gait: Gait, keys: tuple[Any, ...]) -> tuple[str, Sequence[int], tuple[Any, ...]] | None:
@@ -303,14 +298,13 @@ def _closed_form_change(gait: Gait, base: Coefficients, keys: tuple[Any, ...]) -
     # a zero row first: ``combine`` adds its constant term (the loads') to row 0, the
     # coefficient of phi_0 = 1, so the rows after it are the linear part alone
     dS = np.zeros((basis.size + 1, len(_signals(gait))))
-    for column, signal in columns:
+    for column, signal, weight in columns:
         d = _smooth_derivative(signal, inside, basis)
         if d is None:
             return None
-        dS[1:, column] = d
+        dS[1:, column] = weight * d
     dC = base.pieces.combine(dS)[1:]
-    N = gait.blocks
-    dMu = dS[1:, N - 1 : 3 * N - 1] * (1.0 if gait.loads is None else gait.loads.cos)
+    dMu = base.crawler.split(dS[1:])[1]
     P = base.C.shape[0]
     out_C, out_Mu = np.empty((P, *dC.shape)), np.empty((P, *dMu.shape))
     out_C[:], out_Mu[:] = dC, dMu
@@ -347,7 +341,7 @@ def _moved_fields(gait: Gait, keys: tuple[Any, ...], value: float) -> dict[str, 
     if keys[0] == "links" and len(keys) >= 2 and isinstance(keys[1], int):
         i = keys[1]
         links = list(gait.links)
-        links[i] = _moved_signal(gait, gait.document["links"][i], keys[2:], value, f"links[{i}]")
+        links[i] = _moved_signal(gait, explicit(gait.document)["links"][i], keys[2:], value, f"links[{i}]")
         return {"links": tuple(links)}
     if keys[0] == "friction" and value > 0:
         friction = _moved_friction(gait, keys, value)
@@ -366,9 +360,6 @@ def _moved_fields(gait: Gait, keys: tuple[Any, ...], value: float) -> dict[str, 
 def _moved_signal(gait: Gait, node: Any, inside: tuple[Any, ...], value: float, keypath: str) -> Any:
     """The signal of the document ``node`` with the number at ``inside`` it set to ``value``
     (the node itself when ``inside`` is empty: a constant), parsed and checked."""
-    from crawlsim.gait.docpaths import set_value
-    from crawlsim.gait.signals import parse_signal
-
     if inside:
         node = copy.deepcopy(node)
         set_value(node, inside, value)
@@ -395,9 +386,7 @@ def _moved_friction(gait: Gait, keys: tuple[Any, ...], value: float) -> tuple[tu
 
 def parameter_of(gait: Gait, base: Coefficients, keys: tuple[Any, ...]) -> Parameter:
     path = ".".join(str(k) for k in keys)
-    node: Any = gait.document
-    for key in keys:
-        node = node.get(key) if isinstance(node, dict) else node[key]
+    node = value_at(gait.document, keys)
     if node is None and keys[-1] == "phase":
         node = 0.0
     if isinstance(node, bool) or not isinstance(node, (int, float)):
@@ -413,8 +402,8 @@ def parameter_of(gait: Gait, base: Coefficients, keys: tuple[Any, ...]) -> Param
     if closed is not None:
         return Parameter(path, keys, value, closed[0], closed[1], np.zeros_like(base.k))
     moves = f"moving {path} moves the breakpoints of c(t) or changes its form: not differentiated"
-    if keys[-1] == "phase":  # a smooth signal's is closed above, a piecewise one's moves
-        return Parameter(path, keys, value, reason=moves)  # its breakpoints
+    if keys[-1] in ("phase", "phase_step"):  # a smooth signal's is closed above, a piecewise
+        return Parameter(path, keys, value, reason=moves)  # one's moves its breakpoints
     h = COEFFICIENT_STEP * max(abs(value), 1.0)
     try:
         change = _change(gait, base, keys, value, h)

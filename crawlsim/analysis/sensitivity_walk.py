@@ -34,8 +34,8 @@ import numpy as np
 
 from crawlsim.analysis.sensitivity_terms import Coefficients, Limit
 from crawlsim.errors import CrawlsimError
-from crawlsim.kernel import tangent, tangent_catchup
-from crawlsim.kernel.catchup import announce_compilation
+from crawlsim.kernel import tangent
+from crawlsim.kernel.jit import kernel
 
 if TYPE_CHECKING:
     from crawlsim.integrate.stepping import Transition
@@ -99,7 +99,7 @@ def prepare(process: Any, co: Coefficients, dC: np.ndarray, dMu: np.ndarray, cat
     k = np.ascontiguousarray(co.k, dtype=float)
     if not catch_up:
         return Prepared(B, k, _gauss(24 + 12 * co.basis.harmonics))
-    u, pieces, Phi, c, mu, dc, dmu = tangent_catchup.grid_values(
+    u, pieces, Phi, c, mu, dc, dmu = kernel().tangent_catchup.grid_values(
         np.ascontiguousarray(process.times, dtype=float),
         float(process.period),
         np.ascontiguousarray(co.edges, dtype=float),
@@ -141,9 +141,7 @@ class _Walker:
 
     def factor(self, index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """B_A and G_A^{-1}, G_A = B_A K B_A^T."""
-        from crawlsim.kernel.tangent import factor
-
-        return factor(self.B, self.k, np.asarray(index, dtype=np.int64))
+        return kernel().tangent.factor(self.B, self.k, np.asarray(index, dtype=np.int64))
 
     def pad(self, X: np.ndarray) -> np.ndarray:
         """Parameter columns X (..., p) as full tangent columns (..., n + p)."""
@@ -156,10 +154,8 @@ class _Walker:
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Lambda_A(u), w(u) and their tangents for a flow (or projection) on A from w_s;
         phi = phi(u), the basis at u (eq. (piece), `crawlsim.kernel.tangent.solve_on`)."""
-        from crawlsim.kernel.tangent import solve_on
-
         BA, Gi = self.factor(index)
-        return solve_on(
+        return kernel().tangent.solve_on(
             BA,
             Gi,
             np.asarray(index, dtype=np.int64),
@@ -182,7 +178,6 @@ def walk_exact(
     `crawlsim.kernel.tangent.walk_exact`; the flows it flags as holding a possible touch are
     examined here on the closed form, from the state and tangent it had at their start.
     ``prep``: `prepare`'s data for these columns, built here when not given."""
-    announce_compilation("sensitivity")  # a first walk compiles the kernel (once per cache)
     if prep is None:
         prep = prepare(lim.process, co, dC, dMu, False)
     B, k = prep.B, prep.k
@@ -199,7 +194,7 @@ def walk_exact(
     column_kinks = np.zeros(q, dtype=np.bool_)
     gap_flag, rate_flag = np.zeros(K, dtype=np.bool_), np.zeros(K, dtype=np.bool_)
     w_start, W_start = np.empty((K, n)), np.empty((K, n, q))
-    diss = tangent.walk_exact(
+    diss = kernel().tangent.walk_exact(
         B,
         k,
         co.C,
@@ -248,7 +243,7 @@ def walk_exact(
         flagged = np.flatnonzero(flags)
         s = _Walker(lim, co, dC, dk)
         # c' and dc', as the kernel formed them
-        derivatives = tangent.coefficient_derivatives(co.C, dC, basis.linear, basis.harmonics)
+        derivatives = kernel().tangent.coefficient_derivatives(co.C, dC, basis.linear, basis.harmonics)
         for at in flagged.tolist():
             s.w, s.Wt = w_start[at], W_start[at]
             _touches_of_flow(
@@ -298,8 +293,6 @@ def _touches_of_flow(
     """The touches of the flow from transition j (``arrays``: `_transition_arrays`), flagged
     by the compiled walk: an inactive gap (``flags[0]``) or a slip rate (``flags[1]``)
     reaching zero inside it."""
-    from crawlsim.kernel.tangent import HIT
-
     u, pieces, cause, act, hit = arrays
     last = j + 1 >= len(u)
     index = np.flatnonzero(act[j])
@@ -309,7 +302,7 @@ def _touches_of_flow(
     x = u_s + 0.5 * (u_e - u_s) * (gx + 1.0)
     stacked = s.basis.values(np.concatenate([[u_s], x, [u_e]]))
     if flags[0]:
-        ends = np.flatnonzero(hit[j + 1]) if not last and cause[j + 1] == HIT else np.zeros(0, int)
+        ends = np.flatnonzero(hit[j + 1]) if not last and cause[j + 1] == tangent.HIT else np.zeros(0, int)
         _gap_touches(s, index, piece, x, stacked, (u_s, u_e), ends)
     if flags[1] and index.size:
         dcoef, dC1 = derivative[0][piece], derivative[1][piece]
@@ -333,8 +326,6 @@ def _gap_touches(
     tangents of those gaps where they are zero. A touch is an interior maximum at zero (one at
     an end is an event there; a touch exactly at the start of the period is not looked for).
     ``stacked``: the basis at u_s, at the samples x and at u_e."""
-    from crawlsim.kernel.tangent import gap_coefficients
-
     B, k, basis = s.B, s.k, s.basis
     u_s, u_e = span
     outside = np.ones(s.m, dtype=bool)
@@ -342,7 +333,9 @@ def _gap_touches(
     outside[hit_at_end] = False
     # every row's gap(u) = phi(u) @ Gcoef (nb, m)
     BA, Gi = s.factor(index)
-    Gcoef = gap_coefficients(B, k, BA, Gi, np.asarray(index, dtype=np.int64), np.ascontiguousarray(s.w), s.co.C[piece])
+    Gcoef = kernel().tangent.gap_coefficients(
+        B, k, BA, Gi, np.asarray(index, dtype=np.int64), np.ascontiguousarray(s.w), s.co.C[piece]
+    )
     tol = TOUCH * s.scale
     grid = np.concatenate([[u_s], x, [u_e]])
     values = stacked @ Gcoef  # (s + 2, m)
@@ -449,7 +442,6 @@ def walk_catch_up(
     compiled `crawlsim.kernel.tangent_catchup.walk_catch_up`; the runs with a row tight at a zero
     multiplier are examined here, from the state and tangent it had at their start.
     ``prep``: `prepare`'s data (with the grid) for these columns, built here when not given."""
-    announce_compilation("sensitivity")
     process, record = lim.process, lim.record
     if prep is None or prep.grid is None:
         prep = prepare(process, co, dC, dMu, True)
@@ -467,7 +459,7 @@ def walk_catch_up(
     # the active rows, and the rows tight at w_{j+1} with a zero multiplier ("weak"): the map
     # has a kink there for the parameters that move that gap off zero (a touch, as in the
     # exact walk)
-    active, weak, starts, runs_weak, scale_w = tangent_catchup.catch_up_runs(
+    active, weak, starts, runs_weak, scale_w = kernel().tangent_catchup.catch_up_runs(
         np.ascontiguousarray(record.multipliers, dtype=float),
         np.ascontiguousarray(record.w, dtype=float),
         B,
@@ -479,7 +471,7 @@ def walk_catch_up(
     W, L, D = np.empty((n, q)), np.empty((m, q)), np.empty(q)
     lam, w_end = np.empty(m), np.empty(n)
     w_start, W_start = np.empty((R, n)), np.empty((R, n, q))
-    diss = tangent_catchup.walk_catch_up(
+    diss = kernel().tangent_catchup.walk_catch_up(
         B,
         prep.k,
         co.C,

@@ -1,25 +1,27 @@
 """The marks of a force-velocity (or slope-velocity) curve: where v0 jumps across 0 because the
 shifted uniqueness condition fails (docs/model.md §3, §6), and the stall load read off a sweep's
-samples; the cause of a stall (`StallCause`) and the subset J whose shifted uniqueness sum
-vanishes there. The stall load itself is searched by `crawlsim.study.stall`, which runs the gait
-at the loads it probes; the sweep figures (`crawlsim.plotting.sweeps`) draw these marks.
+samples, with its cause (`StallCause`). The stall load itself is searched by
+`crawlsim.design.stall`, which runs the gait at the loads it probes; the sweep figures
+(`crawlsim.plotting.sweeps`) draw these marks.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import Any
 
 import numpy as np
 
-from crawlsim.errors import GaitError
+from crawlsim.analysis.rigid import RigidLimit, rigid_limit
+from crawlsim.errors import GaitError, InputError
+from crawlsim.gait.docpaths import path_keys, value_at
 from crawlsim.gait.document import Gait, gait_from_document
 from crawlsim.gait.signals import evaluate_many
 
-SMOOTH = 1e-6
-"""A v0 below this fraction of |v0(s0)| on the moving side of the final bracket is a smooth zero."""
+MOVING = 1e-9
+"""The crawler still moves its way at a load where v0 has the sign of v0(s0) and more than this
+fraction of its size: a v0 of 3.7e-17 beyond a jump (the roundoff of a run that does not move)
+does not count as motion."""
 
 
 class StallCause(StrEnum):
@@ -28,28 +30,6 @@ class StallCause(StrEnum):
     SMOOTH_ZERO = "smooth-zero"  # v0 reaches 0 continuously
     JUMP = "jump"  # v0 jumps across 0 (or to 0) where the shifted uniqueness condition fails
     HOLD = "hold"  # the body can no longer hold its loads before v0 reaches 0 (docs/model.md §6)
-
-
-def _vanishing_subset(gait: Gait) -> tuple[int, ...] | None:
-    """The subset J whose shifted uniqueness sum g~_J is nearest to 0 over the cycle's samples
-    (docs/model.md §3, §6); None for more than 16 blocks or when none is near 0."""
-    N = gait.blocks
-    if N > 16:
-        return None
-    plus, minus = gait.thresholds()
-    u = np.linspace(0.0, 1.0, 33)[:-1]
-    a, b = evaluate_many(plus, u), evaluate_many(minus, u)  # (samples, N)
-    scale = float(np.max(np.sum(np.abs(a) + np.abs(b), axis=1)))
-    best, best_value = None, math.inf
-    for mask in range(2**N):
-        inside = np.array([(mask >> j) & 1 for j in range(N)], dtype=bool)
-        g = a[:, inside].sum(axis=1) - b[:, ~inside].sum(axis=1)
-        value = float(np.min(np.abs(g)))
-        if value < best_value:
-            best, best_value = inside, value
-    if best is None or best_value > 1e-6 * scale:
-        return None
-    return tuple(int(j) + 1 for j in np.nonzero(best)[0])
 
 
 @dataclass(frozen=True)
@@ -62,11 +42,15 @@ class CurveMarks:
     stall: float | None
     cause: StallCause | None
     label: str  # "stall force" or "steepest slope"
+    jump_label: str = "jump of $v_0$"
+    rigid: RigidLimit | None = None  # a sweep of the stiffness: its asymptote
 
 
 def curve_marks(gait_yaml: str, path: str, values, v0) -> CurveMarks | None:
-    """The marks of a sweep of one load path (``loads.force...`` or ``loads.slope.angle``), or
-    None for any other sweep (or when the gait cannot be rebuilt).
+    """The marks of a sweep of one load path (``loads.force...`` or ``loads.slope.angle``), one
+    friction path (``friction...``: the jumps only, where the uniqueness margin reaches 0) or the
+    stiffness (its rigid limit, `crawlsim.analysis.rigid`), or None for any other sweep (or when
+    the gait cannot be rebuilt).
 
     Jumps: between consecutive swept values, a subset J whose shifted uniqueness sum g~_J changes
     sign at every sample time of the cycle (N <= 12) is bisected to the load where it vanishes
@@ -74,24 +58,37 @@ def curve_marks(gait_yaml: str, path: str, values, v0) -> CurveMarks | None:
     interpolated. Stall: from the swept value nearest the gait's own load, the first interval
     where v0 loses that point's sign; at a jump inside it the stall is the jump (cause jump),
     otherwise the linear interpolation of the zero (cause smooth-zero, to the grid's resolution).
+    Moving means what it means to `crawlsim.design.stall`: the sign of v0 at the start and more
+    than `MOVING` of its size.
     """
     import yaml
 
-    if not (path.startswith("loads.force") or path == "loads.slope.angle"):
+    friction, stiffness = path.startswith("friction"), path.split(".")[0] == "stiffness"
+    if not (friction or stiffness or path.startswith("loads.force") or path == "loads.slope.angle"):
         return None
     try:
         document = yaml.safe_load(gait_yaml)
         gait = gait_from_document(document, "<sweep>")
     except Exception:  # a figure is drawn without marks rather than not at all
         return None
+    if stiffness and isinstance(gait, Gait):
+        try:
+            return CurveMarks((), None, None, "", rigid=rigid_limit(gait))
+        except InputError:  # a balance that does not fix the motion: no asymptote
+            return None
     if not isinstance(gait, Gait) or gait.blocks > 12:
         return None
     x = np.asarray(values, dtype=float)
     v = np.asarray(v0, dtype=float)
     label = "steepest slope" if path == "loads.slope.angle" else "stall force"
     jumps = _UniquenessSums(gait, path).jumps(x)
+    if friction:
+        return CurveMarks(tuple(jumps), None, None, "", "uniqueness margin 0: $v_0$ can jump")
     stall_at, cause = None, None
-    own = resolve_path_value(gait.document, path)
+    try:
+        own = float(value_at(gait.document, path_keys(path)))
+    except (KeyError, IndexError, TypeError, ValueError):
+        own = None
     finite = np.isfinite(v)
     if own is not None and np.any(finite):
         index = np.flatnonzero(finite)
@@ -172,7 +169,7 @@ def _first_stall(
     i = start
     while 0 <= i + direction < len(x):
         j = i + direction
-        if np.isfinite(v[j]) and np.sign(v[j]) == sign:
+        if np.isfinite(v[j]) and v[j] * sign > MOVING * abs(v[start]):
             i = j
             continue
         inside = [s for s in jumps if 0 < (s - x[i]) / (x[j] - x[i]) <= 1]
@@ -196,16 +193,3 @@ def _secant_zero(x: np.ndarray, v: np.ndarray, i: int, j: int, direction: int) -
         if 0 < (root - x[i]) / (x[j] - x[i]) <= 1:
             stall_at = root
     return stall_at
-
-
-def resolve_path_value(document: dict, path: str) -> float | None:
-    """The number at a dotted path of a document, or None."""
-    from crawlsim.gait.docpaths import path_keys
-
-    node: Any = document
-    try:
-        for key in path_keys(path):
-            node = node[key]
-    except (KeyError, IndexError, TypeError):
-        return None
-    return float(node) if isinstance(node, (int, float)) and not isinstance(node, bool) else None

@@ -15,19 +15,24 @@ Exit codes: 0 converged, 3 not converged within max_periods (results still writt
 
 from __future__ import annotations
 
+import dataclasses
+import importlib
 import math
 import signal
 import sys
 import warnings
 from contextlib import contextmanager
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import click
 
 from crawlsim import __version__, interrupts
-from crawlsim.cli.guards import FiniteFloatRange
+from crawlsim.cli.guards import BadInput, FiniteFloatRange, InternalFailure, grouped
+from crawlsim.cli.progress import RunProgress, choose_mode
 from crawlsim.errors import CrawlsimError, InputError
 from crawlsim.interrupts import Terminated
+from crawlsim.io.outputs import RUN, check_target
 from crawlsim.status import Integrator
 
 if TYPE_CHECKING:  # json and pathlib are imported where used: `crawlsim --help` needs neither
@@ -40,28 +45,13 @@ EXIT_NOT_CONVERGED = 3
 EXIT_INTERRUPTED = 128 + signal.SIGINT
 EXIT_TERMINATED = 128 + signal.SIGTERM
 
-#: The defaults of the gait file's ``simulation`` mapping (`crawlsim.gait.document.Simulation`), for the
+#: The defaults of the gait file's ``simulation`` mapping (`crawlsim.gait.settings.Simulation`), for the
 #: help texts; tests/test_cli_help.py checks that they agree.
 DEFAULT_STEPS_PER_PERIOD = 1000
 DEFAULT_MAX_PERIODS = 1000
 DEFAULT_TOLERANCE = 1e-12
 DEFAULT_INTEGRATOR = Integrator.EXACT
 DEFAULT_LIMIT = "newton"
-
-
-class BadInput(click.ClickException):
-    """Bad input: exit code 2 and a one-line message, no usage text."""
-
-    exit_code = 2
-
-    def show(self, file=None):
-        click.echo(f"Error: {self.format_message()}", err=True)
-
-
-class InternalFailure(BadInput):
-    """An internal failure (a failed certificate, say): the same one line, exit code 1."""
-
-    exit_code = 1
 
 
 @contextmanager
@@ -77,7 +67,7 @@ def library_errors():
 
 #: The command modules (``crawlsim.cli.<name>``, each attaching its command to `main`). Only
 #: the invoked one is imported (``--help`` imports them all, for their one-line help).
-COMMANDS = ("animate", "info", "merge", "optimize", "plot", "run", "stall", "validate", "velocity")
+COMMANDS = ("animate", "info", "merge", "optimize", "plot", "run", "stall", "validate", "velocity", "warmup")
 
 
 class CrawlsimGroup(click.Group):
@@ -90,8 +80,6 @@ class CrawlsimGroup(click.Group):
 
     def get_command(self, ctx, cmd_name):
         if cmd_name not in self.commands and cmd_name in COMMANDS:
-            import importlib
-
             importlib.import_module(f"{__name__}.{cmd_name}")
         return self.commands.get(cmd_name)
 
@@ -141,8 +129,6 @@ def _output_path(output, gait_file, force: bool = False, inputs=None) -> Path:
     replaced; ``inputs`` are the files the run reads (never replaced, default the gait file)."""
     from pathlib import Path
 
-    from crawlsim.io.outputs import RUN, check_target
-
     out = Path(output) if output else Path(Path(gait_file).stem + ".h5")
     return check_target(out, RUN, inputs=[gait_file] if inputs is None else inputs, force=force)
 
@@ -182,94 +168,99 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
     click.echo(f"Warning: {message}", err=True)
 
 
-def simulation_options(f):
-    """Options that override the gait file's ``simulation`` mapping: the command receives
-    ``steps_per_period, max_periods, tolerance, integrator, limit`` (None when not given) and
-    hands them to `load_with_overrides`."""
-    f = click.option(
+@dataclass(frozen=True)
+class Settings:
+    """The command line's overrides of the gait file's ``simulation`` mapping (None: the file's)."""
+
+    steps_per_period: int | None = None
+    max_periods: int | None = None
+    tolerance: float | None = None
+    integrator: str | None = None
+    limit: str | None = None
+
+    def given(self) -> dict[str, Any]:
+        return {k: v for k, v in dataclasses.asdict(self).items() if v is not None}
+
+
+simulation_options = grouped(
+    "settings",
+    Settings,
+    click.option(
         "--tolerance",
         type=FiniteFloatRange(min=0, min_open=True),
         help="Stop when the Poincare step is at most this, relative to |w| "
         f"(default: the gait file's value, else {DEFAULT_TOLERANCE:g}).",
-    )(f)
-    f = click.option(
+    ),
+    click.option(
         "--max-periods",
         type=click.IntRange(min=1),
         help=f"Give up after this many periods (default: the gait file's value, else {DEFAULT_MAX_PERIODS}).",
-    )(f)
-    f = click.option(
+    ),
+    click.option(
         "--steps-per-period",
         type=click.IntRange(min=1),
         help="Uniform catch-up steps per period; breakpoints are added (default: "
         f"the gait file's value, else {DEFAULT_STEPS_PER_PERIOD}). With "
         "--integrator exact, only the output grid.",
-    )(f)
-    f = click.option(
+    ),
+    click.option(
         "--integrator",
         type=click.Choice([str(i) for i in Integrator]),
         help="exact: event-driven, v0 to roundoff. catch-up: the paper's time "
         "discretisation, first order in the step (its time-step error is "
         "measured against exact) (default: the gait file's value, else "
         f"{DEFAULT_INTEGRATOR}).",
-    )(f)
-    f = click.option(
+    ),
+    click.option(
         "--limit",
         type=click.Choice(["newton", "iterate"]),
         help="How the periodic limit is found: newton, the periodic-limit solver "
         "(a few periods even when the iterates converge slowly), or iterate, "
         "period after period (default: the gait file's value, else "
         f"{DEFAULT_LIMIT}).",
-    )(f)
-    return f
+    ),
+)
 
 
-def feedback_options(f):
+@dataclass(frozen=True)
+class Feedback:
     """``--quiet`` and ``--verbose``: how much goes to stderr besides errors and warnings."""
-    f = click.option(
+
+    quiet: bool = False
+    verbose: bool = False
+
+    def __post_init__(self) -> None:
+        if self.quiet and self.verbose:
+            raise BadInput("--quiet and --verbose: choose one")
+
+    @property
+    def mode(self) -> str:
+        """The progress mode (`crawlsim.cli.progress.choose_mode`)."""
+        return choose_mode(self.quiet)
+
+
+feedback_options = grouped(
+    "feedback",
+    Feedback,
+    click.option(
         "-v",
         "--verbose",
         is_flag=True,
         help="More detail on stderr: every period's Poincare step, every invalid "
         "or failed sweep point with its reason, resumed points.",
-    )(f)
-    f = click.option(
+    ),
+    click.option(
         "-q",
         "--quiet",
         is_flag=True,
         help="No progress on stderr (warnings and errors are still printed). "
         "Progress is a bar on a terminal, else a line every 10 s "
         "(CRAWLSIM_PROGRESS_INTERVAL).",
-    )(f)
-    return f
+    ),
+)
 
 
-def check_feedback(quiet: bool, verbose: bool) -> None:
-    if quiet and verbose:
-        raise BadInput("--quiet and --verbose: choose one")
-
-
-def load_with_overrides(gait_file, steps_per_period, max_periods, tolerance, integrator=None, limit=None):
-    """The gait file with the command line's simulation options applied (those not None)."""
-    from crawlsim.gait.document import load_gait, with_simulation
-
-    gait = load_gait(gait_file)
-    overrides = {
-        k: v
-        for k, v in dict(
-            steps_per_period=steps_per_period,
-            max_periods=max_periods,
-            tolerance=tolerance,
-            integrator=integrator,
-            limit=limit,
-        ).items()
-        if v is not None
-    }
-    return with_simulation(gait, **overrides) if overrides else gait
-
-
-def run_progress(gait, quiet: bool, verbose: bool):
+def run_progress(gait, feedback: Feedback) -> RunProgress:
     """Progress over the periods of one run of ``gait`` (`progress.RunProgress`)."""
-    from crawlsim.cli.progress import RunProgress, choose_mode
-
     s = gait.simulation
-    return RunProgress(gait.name, s.tolerance, s.max_periods, mode=choose_mode(quiet), verbose=verbose)
+    return RunProgress(gait.name, s.tolerance, s.max_periods, mode=feedback.mode, verbose=feedback.verbose)

@@ -6,6 +6,7 @@ import click
 
 from crawlsim.cli import BadInput, library_errors, main
 from crawlsim.cli.guards import FiniteFloatRange, force_option
+from crawlsim.io.outputs import FIGURE, check_target
 
 
 @main.command()
@@ -20,6 +21,13 @@ from crawlsim.cli.guards import FiniteFloatRange, force_option
     "--periods",
     metavar="A:B",
     help="Animate t from A T to B T (periods A to B-1 of the stored trajectory) instead of the limit period.",
+)
+@click.option(
+    "--last",
+    type=click.IntRange(min=1),
+    metavar="K",
+    help="Animate the last K periods of the stored trajectory in a frame that follows the crawler, "
+    "with the barycentre's trace. Instead of --periods.",
 )
 @click.option(
     "--frames-per-period",
@@ -37,7 +45,7 @@ from crawlsim.cli.guards import FiniteFloatRange, force_option
     help="Resolution of the frames (dots per inch; frames are 8 x 5.6 in).",
 )
 @force_option
-def animate(results_file, output, periods, frames_per_period, fps, dpi, force):
+def animate(results_file, output, periods, last, frames_per_period, fps, dpi, force):
     """Animate the run in RESULTS_FILE: the blocks and links move over the limit period.
 
     Blocks are coloured by their slip state (stick, forward slip, backward slip, as in the
@@ -48,17 +56,19 @@ def animate(results_file, output, periods, frames_per_period, fps, dpi, force):
     Examples:
       crawlsim run gaits/peristalsis-4.yaml -o p4.h5 && crawlsim animate p4.h5 -o crawl.gif
       crawlsim animate p4.h5 --periods 0:2 -o start.gif --frames-per-period 20
+      crawlsim animate p4.h5 --last 2 -o follow.gif --frames-per-period 20
     """
     from pathlib import Path
 
-    from crawlsim.io.hdf5 import read_results
-    from crawlsim.io.outputs import FIGURE, check_target
-    from crawlsim.plotting.animation import ANIMATION_FORMATS, parse_periods, write_animation
+    from crawlsim.io.runread import read_results  # start-up: h5py and matplotlib when the command runs
+    from crawlsim.plotting.animation import ANIMATION_FORMATS, parse_periods, write_animation  # (idem)
 
     target = Path(output) if output else Path(results_file).with_suffix(".gif")
     if target.suffix.lower().lstrip(".") not in ANIMATION_FORMATS:
         raise BadInput(f"-o {target}: an animation is written as .gif or .mp4")
     span = None
+    if periods is not None and last is not None:
+        raise BadInput("--periods and --last choose the periods animated: give one of the two")
     if periods is not None:
         try:
             span = parse_periods(periods)
@@ -73,7 +83,7 @@ def animate(results_file, output, periods, frames_per_period, fps, dpi, force):
             )
         try:
             path, count = write_animation(
-                results, target, periods=span, frames_per_period=frames_per_period, fps=fps, dpi=dpi
+                results, target, periods=span, frames_per_period=frames_per_period, fps=fps, dpi=dpi, last=last
             )
         except ValueError as exc:
             raise BadInput(f"{results_file}: {exc}") from None

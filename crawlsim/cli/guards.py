@@ -7,9 +7,58 @@ user gets the same refusals; here they only become options.
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import math
+from dataclasses import asdict, dataclass
+from typing import Any
 
 import click
+
+from crawlsim.errors import ResourceError
+from crawlsim.integrate.resources import check_memory as check_estimate
+from crawlsim.integrate.resources import (
+    check_signal_work,
+    default_limit,
+    format_size,
+    gait_memory,
+    gait_signal_work,
+    parse_size,
+)
+from crawlsim.plotting import FORMATS, figure_format
+
+
+def grouped(name: str, record: type, *options: Any) -> Any:
+    """Click options whose values reach the command as one record ``name`` of type ``record``
+    (its fields are the options' names), built and checked when the command is called."""
+    fields = [f.name for f in dataclasses.fields(record)]
+
+    def decorate(f: Any) -> Any:
+        @functools.wraps(f)
+        def command(*args: Any, **kwargs: Any) -> Any:
+            kwargs[name] = record(**{k: kwargs.pop(k) for k in fields})
+            return f(*args, **kwargs)
+
+        for option in options:
+            command = option(command)
+        return command
+
+    return decorate
+
+
+class BadInput(click.ClickException):
+    """Bad input: exit code 2 and a one-line message, no usage text."""
+
+    exit_code = 2
+
+    def show(self, file=None):
+        click.echo(f"Error: {self.format_message()}", err=True)
+
+
+class InternalFailure(BadInput):
+    """An internal failure (a failed certificate, say): the same one line, exit code 1."""
+
+    exit_code = 1
 
 
 class FiniteFloatRange(click.FloatRange):
@@ -28,8 +77,6 @@ class FiniteFloatRange(click.FloatRange):
 def _size(ctx, param, value):
     if value is None:
         return None
-    from crawlsim.integrate.resources import parse_size
-
     try:
         return parse_size(value)
     except ValueError as exc:
@@ -62,11 +109,8 @@ def check_memory(
 ) -> None:
     """Refuse (ResourceError, exit 2) a gait whose run would not fit in ``max_memory`` bytes
     (None: the default limit), or whose signals would take too long (`resources.signal_work`)."""
-    from crawlsim.integrate.resources import check_memory as check
-    from crawlsim.integrate.resources import check_signal_work, default_limit, gait_memory, gait_signal_work
-
     estimate = gait_memory(gait, save_every=save_every, batch=batch, steps_per_period=steps_per_period, blocks=blocks)
-    check(estimate, default_limit() if max_memory is None else max_memory, gait.source, what)
+    check_estimate(estimate, default_limit() if max_memory is None else max_memory, gait.source, what)
     # and the time its signals would take (fewer blocks at a sweep point cost less; more
     # steps per period only add the tabulation)
     check_signal_work(gait_signal_work(gait, steps_per_period=steps_per_period), gait.source)
@@ -97,63 +141,104 @@ def _figsize(ctx, param, value):
     return pair
 
 
-def figure_options(f):
-    """``--dpi``, ``--figsize W,H`` and ``--style``: how figures are written
-    (`crawlsim.plotting.style.FigureOptions`)."""
-    f = click.option(
+@dataclass(frozen=True)
+class Figures:
+    """``--dpi``, ``--figsize W,H`` and ``--style``: how figures are written."""
+
+    dpi: float | None = None
+    figsize: tuple[float, float] | None = None
+    style: str | None = None
+
+    def given(self) -> list[str]:
+        """The options given, as the command line spells them."""
+        return [f"--{name}" for name, value in asdict(self).items() if value is not None]
+
+    def options(self) -> Any:
+        """These as `crawlsim.plotting.style.FigureOptions`, the style sheet checked first (a bad
+        one is BadInput, exit 2)."""
+        from crawlsim.plotting.style import FigureOptions, check_style  # start-up: matplotlib for figures only
+
+        try:
+            style = None if self.style is None else check_style(self.style)
+        except ValueError as exc:
+            raise BadInput(str(exc)) from None
+        return FigureOptions(dpi=self.dpi, figsize=self.figsize, style=style)
+
+
+#: ``--dpi``, ``--figsize W,H`` and ``--style`` as one record ``figures`` (`Figures`).
+figure_options = grouped(
+    "figures",
+    Figures,
+    click.option(
         "--style",
         metavar="STYLE",
         help="A matplotlib style sheet laid over crawlsim's: a name of "
         "matplotlib.style.available (ggplot, seaborn-v0_8-paper, ...) or a "
         ".mplstyle file.",
-    )(f)
-    f = click.option(
+    ),
+    click.option(
         "--figsize",
         callback=_figsize,
         metavar="W,H",
         help="Size of every figure in inches, such as 3.5,2.6 (default: each figure's own, cropped to its content).",
-    )(f)
-    f = click.option(
+    ),
+    click.option(
         "--dpi",
         type=FiniteFloatRange(min=10, max=2400),
         help="Resolution of PNG figures in dots per inch (default: 150).",
-    )(f)
-    return f
+    ),
+)
 
 
-def figure_options_of(dpi, figsize, style):
-    """The `FigureOptions` of the command line, the style sheet checked first (a bad one is
-    BadInput, exit 2)."""
-    from crawlsim.plotting.style import FigureOptions
+@dataclass(frozen=True)
+class Plot:
+    """``--plot`` and ``--plot-format``: one meaning in every command that draws as it computes
+    (run, velocity --sweep): the figures next to the results, as ``crawlsim plot`` names them,
+    <stem>-<figure>.<format>."""
 
-    if style is not None:
-        from crawlsim.plotting.style import check_style
+    plot: bool = False
+    plot_format: str | None = None
 
-        try:
-            style = check_style(style)
-        except ValueError as exc:
-            from crawlsim.cli import BadInput
+    def settings(self, figures: Figures) -> tuple[Any, str] | None:
+        """The `FigureOptions` and format of ``--plot`` (None without it); a figure option given
+        without ``--plot`` is BadInput (exit 2)."""
+        given = ([] if self.plot_format is None else ["--plot-format"]) + figures.given()
+        if given and not self.plot:
+            raise BadInput(f"{', '.join(given)} set how the figures are drawn: add --plot")
+        return (figures.options(), self.plot_format or "png") if self.plot else None
 
-            raise BadInput(str(exc)) from None
-    return FigureOptions(dpi=dpi, figsize=figsize, style=style)
+
+def plot_options(f: Any) -> Any:
+    """``--plot`` and ``--plot-format`` as one record ``plot`` (`Plot`), with the
+    `figure_options` as ``figures``."""
+    return grouped(
+        "plot",
+        Plot,
+        click.option(
+            "--plot-format",
+            type=click.Choice(FORMATS),
+            help="Image format of the --plot figures.  [default: png]",
+        ),
+        click.option(
+            "--plot",
+            is_flag=True,
+            help="Also draw the figures next to the results (<stem>-<figure>.png), as crawlsim plot RESULTS does.",
+        ),
+    )(figure_options(f))
 
 
 def figure_format_of(path, option: str) -> str:
     """The format of a figure file by its extension (png, pdf, svg); any other is BadInput."""
-    from crawlsim.plotting.style import figure_format
-
     try:
         return figure_format(path, option)
     except ValueError as exc:
-        from crawlsim.cli import BadInput
-
         raise BadInput(str(exc)) from None
 
 
 def check_sweep_memory(grid, points: int, jobs: int, scheduler, max_memory) -> None:
     """Refuse a sweep whose largest point (most blocks, most steps per period) would not fit,
     in a batch as large as the sweep's tasks, once per local worker."""
-    from crawlsim.study.executors import MAX_CHUNK
+    from crawlsim.study.executors import MAX_CHUNK  # start-up: numpy, only for sweeps
 
     largest = {a.path: int(max(a.values)) for a in grid.axes if a.path in ("blocks", "simulation.steps_per_period")}
     blocks, steps = largest.get("blocks"), largest.get("simulation.steps_per_period")
@@ -169,13 +254,9 @@ def check_sweep_memory(grid, points: int, jobs: int, scheduler, max_memory) -> N
     )
     if scheduler or jobs <= 1:
         return
-    from crawlsim.integrate.resources import default_limit, format_size, gait_memory
-
     limit = default_limit() if max_memory is None else max_memory
     each = gait_memory(gait, batch=batch, blocks=blocks, steps_per_period=steps)
     if jobs * each.total > limit:
-        from crawlsim.errors import ResourceError
-
         raise ResourceError(
             gait.source,
             "",

@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import math
+
 import click
 
+from crawlsim.analysis.digits import counted, how_found, with_error
+from crawlsim.analysis.report import quotient_error
 from crawlsim.cli import library_errors, main, to_json
 from crawlsim.status import Convergence
 
@@ -14,8 +18,6 @@ def _g(value, digits: int = 12) -> str:
 
 def _run_lines(d: dict) -> list[str]:
     """The lines of a run's file: the summary of ``crawlsim run``, from the attributes."""
-    from crawlsim.analysis.digits import how_found, with_error
-
     what = "gait" if d["kind"] == "crawler" else d["kind"]
     lines = [f"{d['file']}: run of {what} {d['name']}", f"  integrator               {d['integrator'] or 'n/a'}"]
     if d["v0"] is not None:
@@ -37,17 +39,28 @@ def _run_lines(d: dict) -> list[str]:
     )
     lines.append(f"  limit found by           {found}")
     lines.append(
-        f"  periods                  {d['periods']} of {d['steps_per_period']} steps (period {_g(d['period'])})"
+        f"  periods                  {d['periods']} of {counted(d['steps_per_period'], 'step')} "
+        f"(period {_g(d['period'])})"
     )
-    if d["displacement_per_period"] is not None:
-        lines.append(f"  displacement per period  {_g(d['displacement_per_period'])}")
-        lines.append(f"  dissipation per period   {_g(d['dissipation_per_period'])}")
-        lines.append(f"  cost of transport        {_g(d['cost_of_transport'], 6)}")
+    if d["displacement_per_period"] is not None:  # as `crawlsim run` prints them
+        d_err = None if d["v0_error_estimate"] is None else d["v0_error_estimate"] * d["period"]
+        dD_err = d["dissipation_error_estimate"]
+        cot_err = quotient_error(d["cost_of_transport"], d["displacement_per_period"], dD_err, d_err)
+        lines.append(f"  displacement per period  {with_error(d['displacement_per_period'], d_err)}")
+        lines.append(f"  dissipation per period   {with_error(d['dissipation_per_period'], dD_err)}")
+        if d["cost_of_transport"] is not None:
+            lines.append(f"  cost of transport        {with_error(d['cost_of_transport'], cot_err)}")
+    if d.get("rigid_v0") is not None:
+        lines.append(
+            f"  rigid limit v0           {with_error(d['rigid_v0'], d['rigid_v0_error_estimate'])} (k -> infinity)"
+        )
+    if d.get("uniqueness_margin"):
+        lines.append(f"  uniqueness margin        {d['uniqueness_margin']['text']}")
     return lines
 
 
 def summary_lines(d: dict) -> list[str]:
-    """The text of ``crawlsim info`` for `crawlsim.io.hdf5.describe`'s dict."""
+    """The text of ``crawlsim info`` for `crawlsim.io.describe.describe`'s dict."""
     lines = []
     if d["file_kind"] == "run":
         lines.extend(_run_lines(d))
@@ -71,11 +84,15 @@ def summary_lines(d: dict) -> list[str]:
         lines.append(f"  integrator, seed         {d['integrator']}, {d['seed']}")
     else:
         shard = f" (shard {d['shard']})" if d["shard"] else ""
-        lines.append(f"{d['file']}: sweep of gait {d['name']}{shard}, from {d['source']}")
+        if [dim["paths"] for dim in d["grid"]] == [["gait"]]:  # crawlsim velocity A.yaml B.yaml ...
+            lines.append(f"{d['file']}: v0 of {d['source']}{shard}")
+        else:
+            lines.append(f"{d['file']}: sweep of gait {d['name']}{shard}, from {d['source']}")
         for n, dim in enumerate(d["grid"], 1):
             paths = " with ".join(dim["paths"])
             lines.append(
-                f"  dimension {n}              {paths}: {dim['values']} values in [{_g(dim['min'])}, {_g(dim['max'])}]"
+                f"  dimension {n}              {paths}: {dim['values']} values"
+                + ("" if dim["min"] is None else f" in [{_g(dim['min'])}, {_g(dim['max'])}]")
             )
         counts = ", ".join(f"{v} {k}" for k, v in sorted(d["statuses"].items()))
         lines.append(f"  points                   {d['points']}: {counts}")
@@ -84,7 +101,8 @@ def summary_lines(d: dict) -> list[str]:
             lines.append(f"  v0 of the ok points      {_g(d['v0_min'])} to {_g(d['v0_max'])}")
     lines.append(f"  written by               crawlsim {d['crawlsim_version']} (format {d['format_version']})")
     for key, value in sorted(d["attributes"].items()):
-        lines.append(f"  {key:<24} {value}")
+        if not (isinstance(value, float) and math.isnan(value)):  # NaN: does not apply to this run
+            lines.append(f"  {key:<24} {value}")
     return lines
 
 
@@ -106,7 +124,7 @@ def info(results_file, as_json):
       crawlsim run gaits/inching-2.yaml -o inching.h5 && crawlsim info inching.h5
       crawlsim info inching.h5 --json
     """
-    from crawlsim.io.hdf5 import describe
+    from crawlsim.io.describe import describe  # start-up: h5py when the command runs
 
     with library_errors():
         d = describe(results_file)

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import click
 
+from crawlsim.analysis.digits import counted
 from crawlsim.cli import BadInput, library_errors, main
 from crawlsim.cli.guards import force_option
+from crawlsim.io.outputs import SWEEP, check_target
 
 
 @main.command()
@@ -33,7 +35,7 @@ def merge(parts, output, force):
     """
     from pathlib import Path
 
-    from crawlsim.study import sweep as sweeps
+    from crawlsim.study import table as tables  # start-up: h5py when the command runs
 
     if output != "-" and Path(output).suffix.lower() not in (".h5", ".hdf5", ".csv"):
         raise BadInput(
@@ -41,12 +43,10 @@ def merge(parts, output, force):
         )
     with library_errors():
         if output != "-":
-            from crawlsim.io.outputs import SWEEP, check_target
-
             check_target(output, SWEEP, inputs=parts, force=force)
-        table = sweeps.merge_tables(sweeps.read_table(p) for p in parts)
+        table = tables.merge_tables(tables.read_table(p) for p in parts)
         if output == "-":
             click.echo(table.to_csv(), nl=False)
             return
-        sweeps.write_table(table, output)
-    click.echo(f"{len(table.rows)} points from {len(parts)} shards written to {output}")
+        tables.write_table(table, output)
+    click.echo(f"{counted(len(table.rows), 'point')} from {counted(len(parts), 'shard')} written to {output}")

@@ -7,36 +7,22 @@ from pathlib import Path
 
 import click
 
+import crawlsim
 from crawlsim.cli import (
     BadInput,
     Terminated,
     _output_path,
-    check_feedback,
     feedback_options,
     interrupt_exit,
     library_errors,
-    load_with_overrides,
     main,
     simulation_options,
     to_json,
 )
 from crawlsim.cli.guards import force_option
-from crawlsim.cli.progress import Progress, choose_mode
-
-
-def _objective(maximize, minimize):
-    from crawlsim.study import optimize as opt
-
-    if maximize and minimize:
-        raise BadInput(
-            f"--maximize {maximize} and --minimize {minimize}: give one objective "
-            "(or --pareto for v0 against cost_of_transport)"
-        )
-    if minimize:
-        return opt.Objective(opt.quantity(minimize, "--minimize"), opt.Sense.MINIMIZE)
-    if maximize:
-        return opt.Objective(opt.quantity(maximize, "--maximize"), opt.Sense.MAXIMIZE)
-    return None
+from crawlsim.cli.progress import Progress
+from crawlsim.integrate.resources import check_signal_work, gait_signal_work
+from crawlsim.io.outputs import GAIT, check_target
 
 
 @main.command()
@@ -142,14 +128,9 @@ def optimize(
     scheduler,
     as_json,
     search,
-    steps_per_period,
-    max_periods,
-    tolerance,
-    integrator,
-    limit,
+    settings,
     force,
-    quiet,
-    verbose,
+    feedback,
 ):
     """Find the gait parameters in a box that maximise v0 (or minimise the cost of transport,
     ...), under constraints, or the Pareto front of v0 against the cost of transport.
@@ -177,29 +158,34 @@ def optimize(
       crawlsim optimize gaits/peristalsis-3.yaml --free links.1.phase=0:1 --pareto \\
           --front-points 2 --max-evaluations 80 --steps-per-period 20 -o front.h5 --json
     """
-    check_feedback(quiet, verbose)
-    from crawlsim.study import optimize as opt
+    from crawlsim.design import problem as design  # start-up: the library when the command runs
 
     _check_options(free_specs, output)
     with library_errors():
-        out = _targets(gait_file, output, write_best, scheduler, seed, force)
-        objective = _objective(maximize, minimize)
-        free = [opt.parse_free(spec) for spec in free_specs]
-        cons = [opt.parse_constraint(text) for text in constraints]
-        gait = load_with_overrides(
-            gait_file, steps_per_period, max_periods, tolerance, _integrator(gait_file, integrator), limit
-        )
-        from crawlsim.integrate.resources import check_signal_work, gait_signal_work
-
+        out = _targets(design, gait_file, output, write_best, scheduler, seed, force)
+        if maximize and minimize:
+            raise BadInput(
+                f"--maximize {maximize} and --minimize {minimize}: give one objective "
+                "(or --pareto for v0 against cost_of_transport)"
+            )
+        objective = None
+        if maximize or minimize:
+            option, sense = ("--minimize", design.Sense.MINIMIZE) if minimize else ("--maximize", design.Sense.MAXIMIZE)
+            objective = design.Objective(design.quantity(minimize or maximize, option), sense)
+        free = [design.parse_free(spec) for spec in free_specs]
+        cons = [design.parse_constraint(text) for text in constraints]
+        # the gait file's integrator (else exact), written into its document: the best gait records it
+        integrator = crawlsim.api.load_gait(gait_file).simulation.integrator
+        gait = crawlsim.api.load_gait(gait_file, **{"integrator": integrator, **settings.given()})
         check_signal_work(gait_signal_work(gait), gait.source)  # before any evaluation
-        problem = opt.make_problem(gait, free, objective=objective, constraints=cons, pareto=pareto)
-        method = opt.Method(
+        problem = design.make_problem(gait, free, objective=objective, constraints=cons, pareto=pareto)
+        method = design.Method(
             seed=seed,
             max_evaluations=max_evaluations,
             front_points=front_points,
-            search=opt.default_search(problem, search),
+            search=design.default_search(problem, search),
         )
-        result = _search(problem, method, out, jobs, scheduler, quiet, verbose)
+        result = _search(problem, method, out, jobs, scheduler, feedback)
         result.check_feasible()
         if write_best is not None:
             result.write_best(write_best)
@@ -222,44 +208,30 @@ def _check_options(free_specs, output) -> None:
         )
 
 
-def _targets(gait_file, output, write_best, scheduler, seed, force) -> Path:
-    """The results file, checked with the --write-best file and the --scheduler address
-    before any work."""
-    from crawlsim.study import optimize as opt
-
+def _targets(design, gait_file, output, write_best, scheduler, seed, force) -> Path:
+    """The results file, checked with the --write-best file, the --scheduler address and the
+    seed (``design``: `crawlsim.design.problem`) before any work."""
     if scheduler is not None:
-        from crawlsim.study.executors import check_scheduler
+        from crawlsim.study.executors import check_scheduler  # start-up: the sweep engine for a cluster
 
         check_scheduler(scheduler)
-    opt.Method(seed=seed)  # refuses a seed the results file cannot hold, before any work
+    design.Method(seed=seed)  # refuses a seed the results file cannot hold, before any work
     out = _output_path(output, Path(gait_file).stem + "-optimize", force, inputs=[gait_file])
     if out.suffix.lower() not in (".h5", ".hdf5"):
         raise BadInput(f"--output {out}: an optimisation is written to HDF5: give a name ending in .h5")
     if write_best is not None:
-        from crawlsim.io.outputs import GAIT, check_target
-
         # never the gait file optimised (nor the results file): refused like every output
         check_target(write_best, GAIT, inputs=[gait_file, out], force=force, option="--write-best")
     return out
 
 
-def _integrator(gait_file, integrator) -> str:
-    """``--integrator`` if given, else the gait file's own, else exact (v0 exact to roundoff:
-    the objective is deterministic)."""
-    if integrator:
-        return integrator
-    from crawlsim.gait.document import load_gait
-
-    simulation = load_gait(gait_file).document.get("simulation") or {}
-    return simulation.get("integrator", "exact")
-
-
-def _search(problem, method, out, jobs, scheduler, quiet, verbose):
+def _search(problem, method, out, jobs, scheduler, feedback):
     """Run the search with progress on stderr (the best value so far as the bar's note)."""
-    from crawlsim.study import optimize as opt
+    from crawlsim.design import optimize as opt  # start-up: the search's library, when it runs
+    from crawlsim.design.search import OptimizationInterrupted  # (its interrupt, raised there)
 
     budget = method.budget(problem)
-    bar = Progress("optimize", "point", budget, mode=choose_mode(quiet))
+    bar = Progress("optimize", "point", budget, mode=feedback.mode)
     runs = 2 + method.front_points if problem.pareto else 1
 
     def report(batch):
@@ -269,7 +241,7 @@ def _search(problem, method, out, jobs, scheduler, quiet, verbose):
             bar.set_note(f"{run}best {what} {batch.best:.10g}")
         else:
             bar.set_note(f"{run}no feasible point yet")
-        if verbose:
+        if feedback.verbose:
             bar.message(
                 f"batch {batch.batch} (run {batch.run}, {batch.stage}): "
                 f"{batch.evaluations} points, best "
@@ -281,7 +253,7 @@ def _search(problem, method, out, jobs, scheduler, quiet, verbose):
         result = opt.optimize(
             problem, method, output=out, jobs=jobs, scheduler=scheduler, progress=bar.update, report=report
         )
-    except opt.OptimizationInterrupted as exc:
+    except OptimizationInterrupted as exc:
         bar.close()
         where = "not kept" if exc.journal is None else "nothing to keep"
         if exc.journal is not None and exc.done:  # the journal exists once a point is in it
@@ -295,7 +267,7 @@ def _search(problem, method, out, jobs, scheduler, quiet, verbose):
         bar.close()
         raise
     bar.close(complete=True)
-    if verbose:
+    if feedback.verbose:
         for e in result.evaluations:
             if e.row.status in ("invalid", "failed"):
                 click.echo(f"evaluation {e.index} {e.row.status}: {e.row.message}", err=True)
@@ -303,6 +275,8 @@ def _search(problem, method, out, jobs, scheduler, quiet, verbose):
 
 
 def _text(result, summary, out, write_best) -> str:
+    from crawlsim.analysis.digits import with_error
+
     problem = result.problem
     best = result.best_point
     what = "Pareto front of v0 against cost_of_transport" if problem.pareto else result.runs[0].text
@@ -313,8 +287,9 @@ def _text(result, summary, out, write_best) -> str:
     for path, value in result.best_values.items():
         lines.append(f"  {path:<24} {value!r}")
     for name in ("v0", "cost_of_transport", "dissipation_per_period"):
-        value = getattr(best.row, name)
-        lines.append(f"  {name:<24} {'n/a' if value is None else repr(value)}")
+        # as `crawlsim run` prints them: v0 to the digits its estimate supports, with it
+        value, error = getattr(best.row, name), best.row.v0_error_estimate if name == "v0" else None
+        lines.append(f"  {name:<24} {'n/a' if value is None else with_error(value, error)}")
     lines.append(f"  {'feasible':<24} {'yes' if result.feasible else 'no'}")
     lines.append(_evaluations_line(result))
     if problem.pareto:

@@ -6,10 +6,12 @@ from typing import TYPE_CHECKING
 
 import click
 
+from crawlsim import plotting
 from crawlsim.cli import BadInput, library_errors, main
-from crawlsim.cli.guards import figure_format_of, figure_options, figure_options_of, force_option
+from crawlsim.cli.guards import figure_format_of, figure_options, force_option
 from crawlsim.errors import CrawlsimError
-from crawlsim.plotting import FIGURE_NAMES, OPTIMIZATION_FIGURES
+from crawlsim.io.outputs import FIGURE, check_target
+from crawlsim.plotting import FIGURE_NAMES, OPTIMIZATION_FIGURES, RIGID_FIGURE
 
 if TYPE_CHECKING:  # pathlib is imported where used: `crawlsim --help` needs none of it
     from pathlib import Path
@@ -45,7 +47,7 @@ def _coords(ctx, param, value):
 )
 @click.option(
     "--only",
-    type=click.Choice(FIGURE_NAMES + OPTIMIZATION_FIGURES),
+    type=click.Choice((*FIGURE_NAMES, RIGID_FIGURE, *OPTIMIZATION_FIGURES)),
     help="Draw this figure only (runs, optimisations).",
 )
 @click.option(
@@ -56,15 +58,23 @@ def _coords(ctx, param, value):
     help="Shape coordinates i,j of the shape-space figure when there are more than "
     "two (four or more blocks): it shows sections of K(t) in that plane.",
 )
+@click.option(
+    "--last",
+    type=click.IntRange(min=1),
+    metavar="K",
+    help="The motion figure and the kymograph zoom on the last K periods of the run, following "
+    "the crawler (default: the motion figure does so over 3 periods beyond 32 blocks).",
+)
 @figure_options
 @force_option
-def plot(results_file, output, fmt, only, coords, dpi, figsize, style, force):
+def plot(results_file, output, fmt, only, coords, last, figures, force):
     """Draw the figures of RESULTS_FILE as <stem>-<figure>.<format>.
 
     \b
     Figures of a run (crawlsim run): motion (block positions, barycentre, slope v0),
     gait-diagram (slip bands, lengths, stresses and block forces against the friction limits
-    over the limit period), convergence (Poincare step, W^{1,2} distance to the last
+    over the limit period), kymograph (strain, slip and stress over the body and the limit
+    period, or the last periods with --last), convergence (Poincare step, W^{1,2} distance to the last
     period, displacement of each period against v0 T), shape-space (K(t) and the orbit of
     w(t)).
     The figure of a sweep file (crawlsim velocity --sweep ... -o SWEEP.h5, crawlsim merge):
@@ -80,14 +90,15 @@ def plot(results_file, output, fmt, only, coords, dpi, figsize, style, force):
       crawlsim plot peristalsis-4.h5 --only shape-space --coords 1,3 -o figures --format pdf
       crawlsim plot peristalsis-4.h5 --only motion -o motion.pdf --figsize 3.5,2.6
       crawlsim plot peristalsis-4.h5 -o png300 --dpi 300 --style ggplot
+      crawlsim plot peristalsis-4.h5 --only kymograph --last 2 -o last.png
       crawlsim velocity gaits/inching-2.yaml --sweep 'friction.backward=0.5:3:11' \\
           -o sweep.h5 && crawlsim plot sweep.h5
     """
     from pathlib import Path
 
-    from crawlsim.io.hdf5 import describe
+    from crawlsim.io.describe import describe  # start-up: h5py when the command runs
 
-    options = figure_options_of(dpi, figsize, style)
+    options = figures.options()
     target = None
     if output is not None and Path(output).suffix and not Path(output).is_dir():
         target = Path(output)
@@ -99,18 +110,21 @@ def plot(results_file, output, fmt, only, coords, dpi, figsize, style, force):
         fmt = fmt_of_file
         output = None
     fmt = fmt or "png"
+    if Path(results_file).suffix.lower() in (".yaml", ".yml") and Path(results_file).is_file():
+        raise BadInput(
+            f"{results_file}: a gait file, not a results file: `crawlsim run {results_file} --plot` "
+            "runs it and draws its figures"
+        )
     with library_errors():
         kind = describe(results_file)["file_kind"]
         if target is not None:
-            from crawlsim.io.outputs import FIGURE, check_target
-
             check_target(target, FIGURE, inputs=[results_file], force=force, option="--output")
         else:
             _check_targets(results_file, output, fmt, only, kind, force)
         if kind == "sweep":
             written = [_plot_sweep(results_file, output, fmt, only, options, target)]
         else:
-            written = _plot_file(results_file, output, fmt, only, coords, options, target)
+            written = _plot_file(results_file, output, fmt, only, coords, options, target, kind, last)
     for path in written:
         click.echo(str(path))
 
@@ -119,12 +133,10 @@ def _check_targets(results_file, output_dir, fmt, only, kind, force) -> None:
     """Refuse figure files that may not be replaced (`crawlsim.io.outputs.check_target`)."""
     from pathlib import Path
 
-    from crawlsim.io.outputs import FIGURE, check_target
-
     folder = Path(output_dir) if output_dir else Path(results_file).parent
     if not folder.is_dir():
         return  # created by plot_results: nothing in it to protect
-    every = {"sweep": ["sweep"], "optimization": list(OPTIMIZATION_FIGURES)}.get(kind, FIGURE_NAMES)
+    every = {"sweep": ["sweep"], "optimization": list(OPTIMIZATION_FIGURES)}.get(kind, [*FIGURE_NAMES, RIGID_FIGURE])
     names = [only] if only and only in every else every
     for name in names:
         check_target(
@@ -136,18 +148,17 @@ def _check_targets(results_file, output_dir, fmt, only, kind, force) -> None:
         )
 
 
-def _plot_file(results_file, output_dir, fmt, only, coords, options, target):
+def _plot_file(results_file, output_dir, fmt, only, coords, options, target, kind, last):
     """The figures of a run or an optimisation file (`crawlsim.plotting.plot_results`)."""
-    from crawlsim.io.hdf5 import describe
-    from crawlsim.plotting import plot_results
-
-    if only is not None and describe(results_file)["file_kind"] == "optimization" and only not in OPTIMIZATION_FIGURES:
+    if only is not None and kind == "optimization" and only not in OPTIMIZATION_FIGURES:
         raise BadInput(
             f"--only {only}: {results_file} is an optimisation file, whose figures "
             f"are {', '.join(OPTIMIZATION_FIGURES)}"
         )
     try:
-        return plot_results(results_file, output_dir, fmt=fmt, only=only, coords=coords, options=options, target=target)
+        return plotting.plot_results(
+            results_file, output_dir, fmt=fmt, only=only, coords=coords, options=options, target=target, last=last
+        )
     except ValueError as exc:
         if isinstance(exc, CrawlsimError):
             raise
@@ -157,8 +168,7 @@ def _plot_file(results_file, output_dir, fmt, only, coords, options, target):
 def _plot_sweep(results_file, output_dir, fmt, only, options, target) -> Path:
     from pathlib import Path
 
-    from crawlsim.plotting.style import user_style
-    from crawlsim.study import sweep as sweeps
+    from crawlsim.study import sweep as sweeps  # start-up: matplotlib and the sweep table, when drawn
 
     if only is not None:
         raise BadInput(
@@ -181,6 +191,5 @@ def _plot_sweep(results_file, output_dir, fmt, only, options, target) -> Path:
         folder = Path(output_dir) if output_dir is not None else path.resolve().parent
         target = folder / f"{path.stem}-sweep.{fmt}"
     target.parent.mkdir(parents=True, exist_ok=True)
-    with user_style(options.style):
-        sweeps.plot_table(table, target, figure_options={"dpi": options.dpi, "figsize": options.figsize})
+    sweeps.plot_table(table, target, options=options)
     return target

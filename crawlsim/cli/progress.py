@@ -21,6 +21,8 @@ import time
 from collections.abc import Callable
 from typing import IO, Any
 
+from crawlsim.gait.settings import effective_tolerance
+
 #: Seconds between two log lines when stderr is not a terminal.
 DEFAULT_INTERVAL = 10.0
 #: Environment variable that overrides `DEFAULT_INTERVAL` (seconds, > 0).
@@ -184,6 +186,9 @@ class Progress:
                 parts.append(f"ETA {_clock_text(left)}")
             if self.note:
                 parts.append(self.note)
+            jit = sys.modules.get("crawlsim.kernel.jit")  # loaded by whatever runs the kernel
+            if jit is not None and jit.compiling():
+                parts.append(jit.compiling())
             return f"{self.label}: " + ", ".join(parts)
 
     def tick(self) -> bool:
@@ -239,7 +244,7 @@ def periods_to_tolerance(rel_steps, tolerance: float, max_periods: int) -> int |
     """
     import numpy as np
 
-    from crawlsim.analysis.run import contraction_rate, effective_tolerance
+    from crawlsim.analysis.convergence import contraction_rate  # start-up: numpy once a run reports
 
     steps = np.asarray(rel_steps, dtype=float)
     done = len(steps)

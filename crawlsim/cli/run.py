@@ -6,27 +6,23 @@ import sys
 
 import click
 
+import crawlsim
+from crawlsim import plotting
+from crawlsim.analysis.digits import with_error
+from crawlsim.analysis.report import not_converged_message, summary_text
 from crawlsim.cli import (
     EXIT_NOT_CONVERGED,
     BadInput,
     _output_path,
-    check_feedback,
     feedback_options,
     library_errors,
-    load_with_overrides,
     main,
     run_progress,
     simulation_options,
     to_json,
 )
-from crawlsim.cli.guards import (
-    check_memory,
-    figure_options,
-    figure_options_of,
-    force_option,
-    max_memory_option,
-    warn_unchecked,
-)
+from crawlsim.cli.guards import check_memory, force_option, max_memory_option, plot_options, warn_unchecked
+from crawlsim.io.outputs import FIGURE, check_target
 
 #: Largest ``--save-every``: grid points are counted in int64 (a run has at most 10^8 steps per
 #: period, so any larger value saves only each period's first point anyway).
@@ -61,14 +57,14 @@ MAX_SAVE_EVERY = 2**62
 @click.option(
     "--check-every-step", is_flag=True, help="Run Clarabel at every step instead of the certified fast paths."
 )
-@click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
-@click.option("--plot", is_flag=True, help="Also draw the figures next to the results file (<stem>-<figure>.png).")
 @click.option(
-    "--plot-format",
-    type=click.Choice(["png", "pdf", "svg"]),
-    help="Image format of the --plot figures.  [default: png]",
+    "--rigid",
+    is_flag=True,
+    help="Also compute the rigid limit (links infinitely stiff): its v0 in the summary, "
+    "which block rests when in the file's /rigid group, and with --plot its figure.",
 )
-@figure_options
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object on stdout.")
+@plot_options
 @max_memory_option
 @force_option
 @feedback_options
@@ -76,23 +72,16 @@ def run(
     gait_file,
     from_results,
     output,
-    steps_per_period,
-    max_periods,
-    tolerance,
-    integrator,
-    limit,
+    settings,
     save_every,
     check_every_step,
+    rigid,
     as_json,
     plot,
-    plot_format,
-    dpi,
-    figsize,
-    style,
+    figures,
     max_memory,
     force,
-    quiet,
-    verbose,
+    feedback,
 ):
     """Simulate GAIT_FILE to its periodic regime; report v0 and write an HDF5 file.
 
@@ -104,11 +93,13 @@ def run(
       crawlsim run gaits/peristalsis-4.yaml
       crawlsim run gaits/peristalsis-4.yaml --integrator exact -o exact.h5
       crawlsim run gaits/inching-2.yaml --json | python -m json.tool
+      crawlsim run gaits/peristalsis-4.yaml --rigid --plot
       crawlsim run gaits/inching-2.yaml --max-periods 500 --quiet -o inching.h5
       crawlsim run gaits/inching-2.yaml -o inching.h5 --plot --plot-format pdf
       crawlsim run --from inching.h5 -o again.h5
     """
-    check_feedback(quiet, verbose)
+    from pathlib import Path
+
     if (gait_file is None) == (from_results is None):
         raise BadInput("give a gait file or --from RESULT.h5 (one of the two)")
     if output == "-":
@@ -117,28 +108,16 @@ def run(
             "streamed to stdout; give a file name (-o run.h5), and --json prints "
             "the summary on stdout"
         )
-    given = [
-        name
-        for name, value in (("--plot-format", plot_format), ("--dpi", dpi), ("--figsize", figsize), ("--style", style))
-        if value is not None
-    ]
-    if given and not plot:
-        raise BadInput(f"{', '.join(given)} set how the figures are drawn: add --plot")
-    options = figure_options_of(dpi, figsize, style) if plot else None
-    fmt = plot_format or "png"
-    from pathlib import Path
-
-    from crawlsim import api
-    from crawlsim.analysis.run import summary_text
-
+    drawing = plot.settings(figures)
+    options, fmt = drawing or (None, "png")
     with library_errors():
         if from_results is not None:
-            gait, check_every_step, save_every = _rerun(
-                from_results, steps_per_period, max_periods, tolerance, integrator, check_every_step, save_every
-            )
+            rerun = crawlsim.api.from_results(from_results, **settings.given())
+            gait, check_every_step = rerun.gait, check_every_step or rerun.check_every_step
+            save_every = save_every or rerun.save_every
             out = _output_path(output, Path(from_results).stem + "-rerun", force, inputs=[from_results])
         else:
-            gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance, integrator, limit)
+            gait = crawlsim.api.load_gait(gait_file, **settings.given())
             out = _output_path(output, gait_file, force)
             save_every = save_every or 1
         if save_every > MAX_SAVE_EVERY:
@@ -147,58 +126,42 @@ def run(
                 f"{MAX_SAVE_EVERY:,} (the grid points are counted in 64-bit integers)"
             )
         check_memory(gait, max_memory, save_every=save_every)
-        if plot:
-            from crawlsim.io.outputs import FIGURE, check_target
-            from crawlsim.plotting import FIGURE_NAMES
+        limit = None
+        if rigid:  # before the run: a gait it refuses is refused at once
+            from crawlsim.gait.crawler_spec import need_crawler  # start-up: numpy and YAML when it runs
 
-            for name in FIGURE_NAMES:
-                check_target(
-                    out.parent / f"{out.stem}-{name}.{fmt}",
-                    FIGURE,
-                    inputs=[gait_file or from_results],
-                    force=force,
-                    option="--plot",
-                )
+            need_crawler(gait, "crawlsim run --rigid")
+            limit = crawlsim.api.rigid_limit(gait)
+        names = (*plotting.FIGURE_NAMES, plotting.RIGID_FIGURE) if rigid else plotting.FIGURE_NAMES
+        for name in names if drawing else ():
+            target = out.parent / f"{out.stem}-{name}.{fmt}"
+            check_target(target, FIGURE, inputs=[gait_file or from_results], force=force, option="--plot")
         warn_unchecked(gait)
-        with run_progress(gait, quiet, verbose) as progress:
-            result = api.run(
-                gait, output=out, save_every=save_every, check_every_step=check_every_step, progress=progress
+        with run_progress(gait, feedback) as progress:
+            result = crawlsim.api.run(
+                gait,
+                output=out,
+                save_every=save_every,
+                check_every_step=check_every_step,
+                progress=progress,
+                rigid=limit,
             )
-        figures = []
-        if plot:
-            from crawlsim.plotting import plot_results
-
-            figures = [str(f) for f in plot_results(out, out.resolve().parent, fmt=fmt, options=options)]
+        drawn = [str(f) for f in plotting.plot_results(out, out.parent, fmt=fmt, options=options)] if drawing else []
     if as_json:
         summary = result.summary()
         summary["output"] = str(out)
-        if plot:
-            summary["figures"] = figures
+        if limit is not None:
+            summary["rigid"] = limit.summary()
+        if drawing:
+            summary["figures"] = drawn
         click.echo(to_json(summary))
     else:
-        click.echo(summary_text(result, str(out)))
-        for figure in figures:
+        text = summary_text(result.run, str(out), result.units)
+        if limit is not None:
+            text += f"\n  rigid limit v0           {with_error(limit.v0, limit.v0_error_estimate)} (k -> infinity)"
+        click.echo(text)
+        for figure in drawn:
             click.echo(f"  figure                   {figure}")
     if not result.converged:
-        from crawlsim.analysis.run import not_converged_message
-
-        s = gait.simulation
-        click.echo(not_converged_message(result, s.max_periods, s.tolerance, s.limit), err=True)
+        click.echo(not_converged_message(result.run), err=True)
         sys.exit(EXIT_NOT_CONVERGED)
-
-
-def _rerun(path, steps_per_period, max_periods, tolerance, integrator, check_every_step, save_every):
-    """The gait and settings recorded in ``path``, with the options given on top."""
-    from crawlsim import api
-    from crawlsim.gait.document import with_simulation
-
-    recorded = api.from_results(path)
-    overrides = {
-        k: v
-        for k, v in dict(
-            steps_per_period=steps_per_period, max_periods=max_periods, tolerance=tolerance, integrator=integrator
-        ).items()
-        if v is not None
-    }
-    gait = with_simulation(recorded.gait, **overrides) if overrides else recorded.gait
-    return (gait, check_every_step or recorded.check_every_step, save_every or recorded.save_every)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import click
 
+from crawlsim.analysis.digits import with_error
 from crawlsim.cli import BadInput, library_errors, main, to_json
 
 
@@ -40,8 +41,7 @@ def stall(gait_file, force_path, slope, as_json):
     if (force_path is None) == (not slope):
         raise BadInput("give exactly one of --force PATH and --slope")
     with library_errors():
-        from crawlsim.analysis.digits import with_error
-        from crawlsim.study.stall import stall as find_stall
+        from crawlsim.design.stall import stall as find_stall  # start-up: the library when the command runs
 
         result = find_stall(gait_file, force=force_path, slope=slope)
     if as_json:

@@ -16,7 +16,8 @@ from crawlsim.cli import main
     is_flag=True,
     help="Print the whole uniqueness analysis of each crawler: every subset J of "
     "blocks whose g_J vanishes on an interval, with its times, and the smallest "
-    "change of one friction coefficient that restores the condition.",
+    "change of one friction coefficient that restores the condition; the margin to "
+    "it; and whether the cell theorem makes the motion periodic from the first period.",
 )
 def validate(gait_files, explain):
     """Check each GAIT_FILE and list every error in it, one per line as FILE: KEY: message.
@@ -31,7 +32,7 @@ def validate(gait_files, explain):
       crawlsim validate --explain gaits/peristalsis-4.yaml
       crawlsim validate gaits/inching-2.yaml && crawlsim run gaits/inching-2.yaml -o inching.h5
     """
-    from crawlsim.gait.document import uniqueness_explanation, validation_errors
+    from crawlsim.gait.document import uniqueness_explanation, validation_errors  # start-up: numpy and YAML
 
     invalid = 0
     for path in gait_files:

@@ -2,20 +2,21 @@
 
 from __future__ import annotations
 
-import os
 import sys
+from pathlib import Path
 
 import click
 
+import crawlsim
+from crawlsim.analysis.digits import counted, supported, with_error
+from crawlsim.analysis.report import not_converged_message
 from crawlsim.cli import (
     EXIT_NOT_CONVERGED,
     BadInput,
     OrderedCommand,
-    check_feedback,
     feedback_options,
     interrupt_exit,
     library_errors,
-    load_with_overrides,
     main,
     run_progress,
     simulation_options,
@@ -26,15 +27,20 @@ from crawlsim.cli.guards import (
     check_sweep_memory,
     force_option,
     max_memory_option,
+    plot_options,
     warn_unchecked,
 )
-from crawlsim.cli.progress import Progress, choose_mode
+from crawlsim.cli.progress import Progress
+from crawlsim.io.outputs import FIGURE, SWEEP, check_target
+
+#: Kinks a line of ``--sensitivity`` names one by one; more are counted, and ``--json`` keeps them all.
+MAX_KINKS = 3
 
 
 def _shard(ctx, param, value):
     if value is None:
         return None
-    from crawlsim.study.grid import parse_shard
+    from crawlsim.study.grid import parse_shard  # start-up: numpy and YAML only when the command runs
 
     with library_errors():
         return parse_shard(value)
@@ -60,9 +66,18 @@ def _dimensions(sweep_specs, link_specs) -> list[list[str]]:
 
 
 @main.command(cls=OrderedCommand)
-@click.argument("gait_file", type=click.Path(exists=True, dir_okay=False))
+@click.argument("gait_files", nargs=-1, required=True, type=click.Path(exists=True, dir_okay=False))
 @click.option(
-    "--json", "as_json", is_flag=True, help="Print the run's JSON summary instead of v0 alone (single gait only)."
+    "--json",
+    "as_json",
+    is_flag=True,
+    help="Print the run's JSON summary instead of v0 alone; with several gait files, a JSON line per file.",
+)
+@click.option(
+    "--rigid",
+    is_flag=True,
+    help="v0 in the rigid limit (links infinitely stiff): exact, without stepping; "
+    "--json adds its estimate and which block rests when.",
 )
 @click.option(
     "--sweep",
@@ -109,20 +124,15 @@ def _dimensions(sweep_specs, link_specs) -> list[list[str]]:
     metavar="ADDRESS",
     help="Run on an existing Dask cluster (tcp://host:8786); needs pip install 'crawlsim[dask]'.",
 )
-@click.option(
-    "--plot",
-    "plot_file",
-    type=click.Path(dir_okay=False),
-    help="Draw v0 against one swept dimension, or a heat map over two (PNG); "
-    "`crawlsim plot OUT.h5` draws it from a sweep file later.",
-)
+@plot_options
 @simulation_options
 @max_memory_option
 @force_option
 @feedback_options
 def velocity(
-    gait_file,
+    gait_files,
     as_json,
+    rigid,
     sweep_specs,
     sensitivity_paths,
     link_specs,
@@ -130,18 +140,14 @@ def velocity(
     jobs,
     shard,
     scheduler,
-    plot_file,
-    steps_per_period,
-    max_periods,
-    tolerance,
-    integrator,
-    limit,
+    plot,
+    figures,
+    settings,
     max_memory,
     force,
-    quiet,
-    verbose,
+    feedback,
 ):
-    """Print v0 of GAIT_FILE, or sweep gait parameters and tabulate v0.
+    """Print v0 of GAIT_FILE, tabulate v0 of several, or sweep gait parameters.
 
     Without --sweep, prints v0 alone on one line, with the digits its error estimate supports
     (--json: full precision and the estimate; exit code 3 if the run did not converge). A
@@ -156,16 +162,24 @@ def velocity(
     finished points are kept in OUT.journal: an interrupted sweep (Ctrl-C: exit code 130)
     resumes when the same command is run again.
 
+    With several GAIT_FILEs (a shell glob, say), all run in this process (or on -j workers, a
+    --scheduler or --shard parts, as a sweep's points) and the table has a row per file: its
+    first column gait is the file, the others those of a sweep; a file that is not a valid
+    crawler gait is a row with status invalid and its reason, and the exit code stays 0 (2 if
+    no file is valid).
+
     \b
     Examples:
       crawlsim velocity gaits/peristalsis-4.yaml
       crawlsim velocity gaits/inching-2.yaml --json
+      crawlsim velocity gaits/*.yaml -o all.csv
+      crawlsim velocity gaits/peristalsis-4.yaml --rigid
       crawlsim velocity gaits/peristalsis-4.yaml --sensitivity 'links.*.phase' \\
           --sensitivity stiffness
       crawlsim velocity gaits/peristalsis-4.yaml --sweep 'links.*.amplitude=0.1:0.4:7' \\
           --steps-per-period 100
       crawlsim velocity gaits/peristalsis-3.yaml --sweep links.1.phase=0:1:11 \\
-          --sweep 'friction.backward=[1.5,2.5,3.5]' -o lag.h5 -j 2 --plot lag.png \\
+          --sweep 'friction.backward=[1.5,2.5,3.5]' -o lag.h5 -j 2 --plot \\
           --steps-per-period 100
       crawlsim velocity gaits/inching-2.yaml --sweep stiffness=log:5:50:9 -o - | cut -d, -f1,2
       crawlsim velocity gaits/peristalsis-3.yaml --sweep links.0.phase=0:0.5:6 \\
@@ -173,60 +187,97 @@ def velocity(
       for i in 1 2 3; do crawlsim velocity gaits/inching-2.yaml --sweep period=0.5:2:16 \\
           --shard $i/3 -o part-$i.h5; done && crawlsim merge part-*.h5 -o all.h5
     """
-    check_feedback(quiet, verbose)
-    output = None if output == "-" else output  # stdout is where the table (or v0) goes
-    with library_errors():
-        _check_targets(gait_file, output, plot_file, scheduler, force)
-        groups = _dimensions(sweep_specs, link_specs)
-        gait = load_with_overrides(gait_file, steps_per_period, max_periods, tolerance, integrator, limit)
-        from crawlsim.gait.document import need_crawler
+    from crawlsim.gait.crawler_spec import need_crawler  # start-up: numpy and YAML when the command runs
+    from crawlsim.gait.docpaths import check_number_paths
 
+    output = None if output == "-" else output  # stdout is where the table (or v0) goes
+    if len(gait_files) > 1:
+        if sweep_specs or link_specs or sensitivity_paths or plot.plot or rigid:
+            raise BadInput("--sweep, --link, --sensitivity, --plot and --rigid take one gait file; several were given")
+        return _files(gait_files, settings.given(), output, as_json, jobs, shard, scheduler, feedback, force)
+    (gait_file,) = gait_files
+    drawing = plot.settings(figures)
+    # the sweep's figure as `crawlsim plot OUT.h5` names it, next to OUT (or the gait's stem here)
+    plot_file = None if drawing is None else _figure_path(output or Path(gait_file).name, drawing[1])
+    with library_errors():
+        _check_targets(gait_files, output, plot_file, scheduler, force)
+        groups = _dimensions(sweep_specs, link_specs)
+        gait = crawlsim.api.load_gait(gait_file, **settings.given())
         need_crawler(gait)
         warn_unchecked(gait)
+        if rigid:
+            if groups or sensitivity_paths or output:
+                raise BadInput("--rigid prints one gait's rigid limit: without --sweep, --sensitivity or -o")
+            return _rigid(gait, as_json)
         if not groups:
             if shard or plot_file:
-                raise BadInput("--shard and --plot need at least one --sweep PATH=SPEC")
+                raise BadInput(
+                    "--shard and --plot need at least one --sweep PATH=SPEC "
+                    "(crawlsim run GAIT --plot draws the figures of one run)"
+                )
             if output is None:
-                from crawlsim.analysis.sensitivity_sweep import check_paths
-
-                check_paths(gait, sensitivity_paths)  # before the run
-                return _single(gait, sensitivity_paths, as_json, max_memory, quiet, verbose)
+                check_number_paths(gait, sensitivity_paths, continuous=True)  # before the run
+                return _single(gait, sensitivity_paths, as_json, max_memory, feedback)
         _check_sweep_options(groups, as_json, plot_file, shard)
-        from crawlsim.study import sweep as sweeps
+        from crawlsim.study import sweep as sweeps  # start-up: h5py and the sweep engine only for sweeps
 
         grid = sweeps.make_grid(gait, groups, sensitivity=sensitivity_paths)
         check_sweep_memory(grid, len(grid.indices(shard)), jobs, scheduler, max_memory)
-        table = _sweep(grid, output, jobs, shard, scheduler, quiet, verbose)
-        if plot_file:
-            sweeps.plot_table(table, plot_file)
+        table = _sweep(sweeps, grid, output, jobs, shard, scheduler, feedback)
+        if drawing is not None:
+            sweeps.plot_table(table, plot_file, options=drawing[0])
     if output is None:
         click.echo(table.to_csv(), nl=False)
+    if drawing is not None:
+        click.echo(str(plot_file), err=output is None)  # stdout holds the table without -o
+    _count_line(table, counted(len(table.rows), "point"))
+
+
+def _count_line(table, what: str) -> None:
+    """On stderr, when some rows are not ok: how many of each status."""
     counts = table.counts()
     if len(table.rows) != counts["ok"]:
         click.echo(
-            f"{len(table.rows)} points: {counts['ok']} ok, {counts['invalid']} invalid, "
-            f"{counts['failed']} failed, {counts['not-converged']} not converged (see "
-            "the status and message columns)",
+            f"{what}: {counts['ok']} ok, {counts['invalid']} invalid, {counts['failed']} failed, "
+            f"{counts['not-converged']} not converged (see the status and message columns)",
             err=True,
         )
 
 
-def _check_targets(gait_file, output, plot_file, scheduler, force) -> None:
+def _files(gait_files, overrides, output, as_json, jobs, shard, scheduler, feedback, force):
+    """v0 of every file: a sweep whose one dimension is the file (`crawlsim.study.grid.FileGrid`)."""
+    from crawlsim.study import sweep as sweeps  # start-up: h5py and the sweep engine only for sweeps
+    from crawlsim.study.grid import FileGrid  # (idem)
+
+    with library_errors():
+        _check_targets(gait_files, output, None, scheduler, force)
+        sweeps.check_shard_output(shard, output)
+        table = _sweep(sweeps, FileGrid.of(gait_files, overrides), output, jobs, shard, scheduler, feedback)
+    if as_json:
+        columns = table.columns()
+        for n in range(len(table.rows)):
+            click.echo(to_json({name: getattr(c[n], "item", lambda v=c[n]: v)() for name, c in columns.items()}))
+    elif output is None:
+        click.echo(table.to_csv(), nl=False)
+    _count_line(table, f"{len(table.rows)} gait files")
+
+
+def _figure_path(results, fmt: str) -> Path:
+    """<stem>-sweep.<fmt> beside ``results``."""
+    results = Path(results)
+    return results.with_name(f"{results.stem}-sweep.{fmt}")
+
+
+def _check_targets(gait_files, output, plot_file, scheduler, force) -> None:
     """Refuse, before the gait is read, a --scheduler that is no address and outputs that may
     not be written (`crawlsim.io.outputs.check_target`)."""
-    from crawlsim.io.outputs import FIGURE, SWEEP, check_target
-
     if scheduler is not None:
-        from crawlsim.study.executors import check_scheduler
+        from crawlsim.study.executors import check_scheduler  # start-up: the sweep engine for sweeps
 
         check_scheduler(scheduler)
-    if output is not None and plot_file is not None and os.path.abspath(output) == os.path.abspath(plot_file):
-        raise BadInput(f"--plot {plot_file}: is also the --output file; give two names")
     for path, kind, option in ((output, SWEEP, "--output"), (plot_file, FIGURE, "--plot")):
         if path is not None:
-            check_target(path, kind, inputs=[gait_file], force=force, option=option)
-    if plot_file is not None and os.path.splitext(plot_file)[1].lower() not in (".png", ".pdf", ".svg"):
-        raise BadInput(f"--plot {plot_file}: a figure is written as .png, .pdf or .svg")
+            check_target(path, kind, inputs=list(gait_files), force=force, option=option)
 
 
 def _check_sweep_options(groups, as_json, plot_file, shard) -> None:
@@ -238,52 +289,84 @@ def _check_sweep_options(groups, as_json, plot_file, shard) -> None:
         raise BadInput(f"--plot draws one or two swept dimensions, got {len(groups)}")
 
 
-def _single(gait, sensitivity_paths, as_json, max_memory, quiet, verbose):
-    """v0 of one gait (`crawlsim.api.run`), with its sensitivities if asked; exit code 3 when
-    the run did not converge."""
-    from crawlsim import api
-
+def _single(gait, sensitivity_paths, as_json, max_memory, feedback):
+    """v0 of one gait (`crawlsim.api.run`), with its sensitivities if asked, at the limit
+    period of this run (not searched twice); exit code 3 when the run did not converge."""
     check_memory(gait, max_memory)
-    with run_progress(gait, quiet, verbose) as progress:
-        result = api.run(gait, progress=progress, history=False)
-        derivatives = None
-        if sensitivity_paths:
-            from crawlsim.cli import sensitivities
-
-            derivatives = sensitivities.compute(gait, sensitivity_paths, result)
+    with run_progress(gait, feedback) as progress:
+        result = crawlsim.api.run(gait, progress=progress, history=False)
+        paths = list(sensitivity_paths)
+        derivatives = crawlsim.api.sensitivity(gait, paths, run=result.settled) if paths else None
     summary = result.summary()
     if as_json:
         if derivatives is not None:
             summary["sensitivity"] = derivatives.summary()
         click.echo(to_json(summary))
     else:  # the digits its error estimate supports (--json: full precision)
-        from crawlsim.analysis.digits import supported
-
         assert result.v0 is not None  # a crawler (need_crawler): v0 is measured
-        click.echo(supported(result.v0, result.v0_error_estimate)[0])
-        if derivatives is not None:
-            sensitivities.echo(derivatives, summary["integrator"])
+        click.echo(supported(result.v0, result.estimate.error_estimate)[0])
+        for line in [] if derivatives is None else _sensitivity_lines(derivatives, summary["integrator"]):
+            click.echo(line)
     if not result.converged:
-        from crawlsim.analysis.run import not_converged_message
-
-        s = gait.simulation
-        click.echo(not_converged_message(result, s.max_periods, s.tolerance, s.limit), err=True)
+        click.echo(not_converged_message(result.run), err=True)
         sys.exit(EXIT_NOT_CONVERGED)
 
 
-def _sweep(grid, output, jobs, shard, scheduler, quiet, verbose):
-    """Run the sweep with progress on stderr; an interrupt says what was kept, then exits 130."""
-    from crawlsim.study import sweep as sweeps
+def _sensitivity_lines(result, integrator: str) -> list[str]:
+    """One line per parameter: dv0/dPATH with the digits its error estimate supports, or why
+    it is not smooth with the one-sided values (whether they agree), or why it was not
+    computed."""
+    out = []
+    for p in result.parameters:
+        name = f"dv0/d{p.path}"
+        if p.method == "unsupported":
+            out.append(f"{name}: not computed: {p.reason}")
+        elif p.smooth:
+            out.append(f"{name} = {with_error(p.v0.value, p.v0.error_estimate)}")
+        else:
+            sides = []
+            for side, why in (("left", p.left_reason), ("right", p.right_reason)):
+                d = getattr(p, side)
+                sides.append(f"{side} {with_error(d.value, d.error_estimate)}" if d is not None else f"{side}: {why}")
+            kinks = (p.reason or "").split("; ")
+            if len(kinks) > MAX_KINKS:  # a long body's many coincident events: --json lists them
+                kinks = [f"{len(kinks)} coincident events, the first: {kinks[0]}; --json lists them all"]
+            left, right = p.left, p.right
+            if left is not None and right is not None and left.value is not None and right.value is not None:
+                if abs(left.value - right.value) <= (left.error_estimate or 0.0) + (right.error_estimate or 0.0):
+                    sides[-1] += ": the one-sided derivatives agree"
+            out.append(f"{name}: not smooth ({'; '.join(kinks)}); " + ", ".join(sides))
+    if integrator != "exact":
+        out.append(
+            f"(derivatives of the {integrator} scheme's own discrete period map at its "
+            f"v0 = {result.v0:.12g}, not of the exact v0: method {integrator})"
+        )
+    return out
 
+
+def _rigid(gait, as_json):
+    """v0 in the rigid limit (`crawlsim.api.rigid_limit`), with the digits its estimate supports
+    (--json: full precision, the estimate and the resting block's intervals)."""
+    result = crawlsim.api.rigid_limit(gait)
+    click.echo(
+        to_json({"name": gait.name, **result.summary()})
+        if as_json
+        else supported(result.v0, result.v0_error_estimate)[0]
+    )
+
+
+def _sweep(sweeps, grid, output, jobs, shard, scheduler, feedback):
+    """Run the sweep (``sweeps``: `crawlsim.study.sweep`) with progress on stderr; an interrupt
+    says what was kept, then exits 130."""
     total = len(grid.indices(shard))
-    bar = Progress("velocity", "point", total, mode=choose_mode(quiet))
+    bar = Progress("velocity", "point", total, mode=feedback.mode)
 
     def on_rows(rows, resumed):
         if resumed:
             bar.skip(len(rows))
-            if verbose:
+            if feedback.verbose:
                 bar.message(f"resuming: {len(rows)} of {total} points read from {sweeps.journal_path(output)}")
-        elif verbose:
+        elif feedback.verbose:
             for r in rows:
                 if r.status in ("invalid", "failed"):
                     bar.message(f"point {r.index} {r.status}: {r.message}")

@@ -26,7 +26,7 @@ import numpy as np
 
 from crawlsim.errors import GaitError
 from crawlsim.gait.crawler_limits import check_stiffness, check_stress_scale
-from crawlsim.gait.docpaths import replacement
+from crawlsim.gait.docpaths import replacement, wave_links
 from crawlsim.gait.loads import LOADS_SCHEMA, Loads, held_positions, hold_violation, parse_loads
 from crawlsim.gait.schemaerrors import LARGEST
 from crawlsim.gait.settings import (
@@ -39,7 +39,7 @@ from crawlsim.gait.settings import (
     positive_schema,
     simulation_from,
 )
-from crawlsim.gait.signals import SIGNAL_SCHEMA, Signal, evaluate_many, parse_signal, union_breakpoints
+from crawlsim.gait.signals import MAX_PHASE, SIGNAL_SCHEMA, Signal, evaluate_many, parse_signal, union_breakpoints
 from crawlsim.gait.uniqueness import UniquenessUndecidable, alike_subsets, analyse, find_violation
 from crawlsim.gait.uniqueness_advice import remedy_text, smallest_change, uniqueness_message
 from crawlsim.gait.units import UNITS_SCHEMA, Units
@@ -81,7 +81,24 @@ CRAWLER_SCHEMA: dict = {
             "description": "k, one value for every link or one per link. The ratio k_max / k_min "
             "times N^2 estimates the conditioning of a step and must stay below 1e12.",
         },
-        "links": list_schema(MAX_BLOCKS - 1, "a list of N-1 signals (actuator lengths)", SIGNAL_SCHEMA),
+        "links": {
+            **list_schema(MAX_BLOCKS - 1, "a list of N-1 signals (actuator lengths)", SIGNAL_SCHEMA),
+            "type": ["array", "object"],
+            "x-expected": "a list of N-1 signals (actuator lengths) or a wave {wave: SIGNAL, phase_step: CYCLES}",
+            "description": "L_i(t): one signal per link, or a travelling wave: every link follows the wave's "
+            "signal, link i+1 phase_step cycles after link i (crawlsim.gait.docpaths.wave_links).",
+            "required": ["wave"],
+            "additionalProperties": False,
+            "properties": {
+                "wave": SIGNAL_SCHEMA,
+                "phase_step": {
+                    "type": "number",
+                    "minimum": -MAX_PHASE,
+                    "maximum": MAX_PHASE,
+                    "x-expected": "a number of cycles (the phase of link i+1 minus that of link i)",
+                },
+            },
+        },
         "friction": {
             **_FRICTION_MAPPING,
             "type": ["object", "array"],
@@ -131,6 +148,9 @@ class Gait:
     uniqueness_unchecked: bool = False
     #: External forces and a slope (docs/model.md §6), or None for none.
     loads: Loads | None = None
+
+    def __repr__(self) -> str:  # not the whole document and file text (2 kB for four blocks)
+        return f"<Gait {self.name}: {self.blocks} blocks, period {self.period:g}, from {self.source}>"
 
     def replace(self, *changes: Any) -> Gait:
         """A new validated gait with values set at dotted paths, the syntax of ``--sweep``:
@@ -281,11 +301,17 @@ def build_crawler(
 
 
 def _links(document: dict, n: int, source: str, errors: ErrorSink) -> tuple[Signal, ...] | None:
-    """The N-1 actuator lengths L_i(t), or None after reporting why not."""
-    if len(document["links"]) != n - 1:
-        errors.add(count_error(source, "links", n - 1, "link signals (one per link, N-1)", len(document["links"])))
+    """The N-1 actuator lengths L_i(t) (those of a wave, `wave_links`, once its signal is
+    valid), or None after reporting why not."""
+    links = document["links"]
+    if isinstance(links, dict):
+        if errors.attempt(parse_signal, links["wave"], "links.wave", source) is None:
+            return None
+        links = wave_links(links, n - 1)
+    elif len(links) != n - 1:
+        errors.add(count_error(source, "links", n - 1, "link signals (one per link, N-1)", len(links)))
         return None
-    parsed = _signals(document["links"], "links", source, errors)
+    parsed = _signals(links, "links", source, errors)
     return None if parsed is None else tuple(parsed)
 
 
@@ -434,6 +460,30 @@ def admissibility_violation(gait: Gait, positions: np.ndarray, t: float = 0.0) -
                 f"f_{j + 1} = {force[j]:.6g} is below the backward friction limit "
                 f"-mu_{j + 1}^- = {-mu_minus[j]:.6g} by {under[j]:.6g}; an admissible initial "
                 "state needs -mu^- <= f <= mu^+ on every block (docs/model.md §1" + shifted + ")"
+            )
+    return None
+
+
+def negative_length(gait: Gait) -> str | None:
+    """Where the first actuator length L_i(t) that goes negative does, in words, or None.
+
+    Not an error of the model: adding a constant to L translates K(t) = C(t) - K L(t) rigidly
+    and leaves the slips alone (docs/model.md §2), so v0 does not depend on the links' mean
+    lengths. But a negative rest length lets blocks i and i+1 pass through each other, which the
+    positions and the figures then show: `crawlsim.gait.document.load_gait` warns.
+    """
+    lowest: dict[Signal, float] = {}  # by the shape of the signal: its phase moves no minimum
+    for i, link in enumerate(gait.links):
+        shape = dataclasses.replace(link, phase=0.0) if hasattr(link, "phase") else link  # type: ignore[call-arg]
+        if shape not in lowest:
+            lowest[shape] = shape.minimum()[0]
+        if lowest[shape] < 0:
+            value, at = link.minimum()
+            when = f"t = {at:g} T" + (f" = {at * gait.period:g}" if gait.period != 1.0 else "")
+            return (
+                f"{gait.source}: links[{i}]: the actuator length goes negative ({value:.3g} at {when}), so blocks "
+                f"{i + 1} and {i + 2} can pass through each other; v0 does not depend on the links' mean lengths "
+                f"(docs/model.md §2), but the positions and figures do: add {-value:.3g} or more to this length"
             )
     return None
 

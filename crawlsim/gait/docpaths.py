@@ -5,17 +5,60 @@ a list (``links.*.amplitude``, ``friction.1.backward``, ``period``). Every key b
 exist; the last may be an optional key the document leaves out (a signal's ``phase``), and the
 schema then decides whether it is allowed. A path names numbers (or other scalars), never a
 whole mapping or list.
+
+A wave of links, ``links: {wave: SIGNAL, phase_step: CYCLES}`` (`wave_links`), has two kinds of
+paths. ``links.wave.amplitude`` and ``links.phase_step`` are the wave's own numbers: setting one
+sets it for every link, the phases staying in step. ``links.3.phase`` and ``links.*.amplitude``
+name the links the wave generates, as if they were written out: setting one writes the links out
+(the document then holds the list) and sets that link's number alone. Several changes at once set
+the wave's own numbers first (`set_values`), so a generated link's number overrides the wave's.
 """
 
 from __future__ import annotations
 
 import copy
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
+from decimal import Decimal
 from typing import Any
 
 from crawlsim.errors import GaitError
+from crawlsim.gait.schemaerrors import did_you_mean
 
 Key = str | int
+#: Top-level keys that are not continuous parameters of a gait.
+STRUCTURAL = ("blocks", "simulation", "name", "description", "units", "kind")
+
+
+def wave_links(links: dict, count: int) -> list:
+    """The ``count`` link signals of a wave ``{wave: SIGNAL, phase_step: CYCLES}``: link i
+    (0-based) is the wave's signal with phase ``phase + i * phase_step`` modulo 1 (in [0, 1)),
+    computed in decimal from the numbers as written, so that a step of -0.1 gives link 7 the
+    phase 0.3 as it would be typed, not 0.29999999999999993; a constant wave is that constant on
+    every link."""
+    wave = links["wave"]
+    if not isinstance(wave, dict):
+        return [wave] * count
+    start, step = (Decimal(repr(float(v))) for v in (wave.get("phase", 0.0), links.get("phase_step", 0.0)))
+    phases = ((start + i * step) % 1 for i in range(count))
+    return [{**wave, "phase": float(p + 1 if p < 0 else p) + 0.0} for p in phases]
+
+
+def explicit(document: dict) -> dict:
+    """``document`` with a wave's links written out (`wave_links`); the document itself when its
+    links are a list already."""
+    links = document.get("links")
+    if isinstance(links, dict) and "wave" in links:
+        return {**document, "links": wave_links(links, int(document["blocks"]) - 1)}
+    return document
+
+
+def value_at(document: dict, keys: Sequence[Key]) -> Any:
+    """The value at concrete ``keys`` (a generated link's, through its wave); None for a last key
+    the document leaves out."""
+    node: Any = explicit(document) if len(keys) > 1 and isinstance(keys[1], int) else document
+    for key in keys:
+        node = node.get(key) if isinstance(node, dict) else node[key]
+    return node
 
 
 def path_keys(path: str) -> tuple[Key, ...]:
@@ -38,6 +81,8 @@ def resolve_path(document: dict, path: Any, source: str) -> list[tuple[Key, ...]
         last = depth == len(keys) - 1
         nxt: list[tuple[tuple[Key, ...], Any]] = []
         for prefix, node in found:
+            if prefix == ("links",) and (key == "*" or isinstance(key, int)):
+                node = explicit(document)["links"]  # the links a wave generates
             if key == "*":
                 if not isinstance(node, list):
                     raise GaitError(source, path, f"'*' needs a list, but {_where(prefix)} is {_kind(node)}")
@@ -57,9 +102,9 @@ def resolve_path(document: dict, path: Any, source: str) -> list[tuple[Key, ...]
                 nxt.append((prefix + (key,), node[key]))
             elif isinstance(node, dict):
                 if str(key) not in node and not last:
-                    raise GaitError(
-                        source, path, f"{_where(prefix)} has no key {str(key)!r} (keys: {', '.join(map(str, node))})"
-                    )
+                    names = list(map(str, node))
+                    hint = f"{did_you_mean(key, names)} (keys: {', '.join(names)})"
+                    raise GaitError(source, path, f"{_where(prefix)} has no key {str(key)!r}{hint}")
                 nxt.append((prefix + (str(key),), node.get(str(key))))
             else:
                 raise GaitError(source, path, f"{_where(prefix)} is {_kind(node)}, it has no key {key!r}")
@@ -89,13 +134,23 @@ def set_value(document: dict, keys: Sequence[Key], value: Any) -> None:
     """Set ``value`` at the concrete key tuple ``keys`` of ``document``, in place.
 
     An integral value replacing an integer stays an integer (``blocks``, ``steps_per_period``),
-    so that the schema, which wants integers there, accepts a swept 3.0.
+    so that the schema, which wants integers there, accepts a swept 3.0. A generated link's number
+    writes the wave's links out first (module docstring).
     """
+    if len(keys) > 1 and keys[0] == "links" and isinstance(keys[1], int):
+        document["links"] = explicit(document)["links"]
     node: Any = document
     for key in keys[:-1]:
         node = node[key]
     old = node.get(keys[-1]) if isinstance(node, dict) else node[keys[-1]]
     node[keys[-1]] = typed(value, old)
+
+
+def set_values(document: dict, changes: Iterable[tuple[Sequence[Key], Any]]) -> None:
+    """Each ``(keys, value)`` set in place (`set_value`), a wave's own numbers before those of the
+    links it generates (module docstring)."""
+    for keys, value in sorted(changes, key=lambda change: len(change[0]) > 1 and isinstance(change[0][1], int)):
+        set_value(document, keys, value)
 
 
 def typed(value: Any, old: Any) -> Any:
@@ -134,6 +189,7 @@ def edited(document: dict, pairs: Sequence[tuple[str, Any]], source: str) -> dic
     or two paths that set the same number, are a `GaitError`."""
     doc = copy.deepcopy(document)
     seen: dict[tuple[Key, ...], str] = {}
+    changes = []
     for path, value in pairs:
         for keys in resolve_path(document, path, source):
             if keys in seen:
@@ -143,7 +199,8 @@ def edited(document: dict, pairs: Sequence[tuple[str, Any]], source: str) -> dic
                     f"this path sets {'.'.join(map(str, keys))}, which {seen[keys]} sets too: set each value once",
                 )
             seen[keys] = path
-            set_value(doc, keys, value)
+            changes.append((keys, value))
+    set_values(doc, changes)
     return doc
 
 
@@ -154,3 +211,23 @@ def replacement(source: str, document: dict, args: Sequence[Any]) -> tuple[str, 
     pairs = changes_of(args)
     label = f"{source} with " + ", ".join(f"{p}={v!r}" for p, v in pairs)
     return label, edited(document, pairs, label)
+
+
+def check_number_paths(gait: Any, paths: Sequence[str], continuous: bool = False) -> tuple[str, ...]:
+    """``paths``, each checked to name a number of ``gait`` (``--sensitivity``: a `GaitError`
+    naming the path when one names nothing, or with ``continuous`` no continuous parameter such
+    as ``blocks``: exit code 2 before any point runs). A path to a key the document leaves out
+    (but a signal's phase) is put to the schema with a value, so that a misspelt key
+    (``links.*.phse``) gets the did-you-mean of a gait file and of ``--sweep``."""
+    for path in paths:
+        keys = resolve_path(gait.document, path, gait.source)[0]
+        if continuous and keys[0] in STRUCTURAL:
+            raise GaitError(gait.source, path, "not a continuous parameter of the gait: v0 has no derivative in it")
+        node = value_at(gait.document, keys[:-1])
+        if keys[-1] != "phase" and isinstance(node, dict) and keys[-1] not in node:
+            try:
+                gait.replace(path, 1.0)
+            except GaitError as error:
+                if error.message.startswith("unknown key"):
+                    raise GaitError(gait.source, error.keypath, error.message) from None
+    return tuple(paths)

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from crawlsim.errors import GaitError
+from crawlsim.gait.settings import MAX_BLOCKS
 from crawlsim.gait.signals import (
     LARGEST,
     SIGNAL_SCHEMA,
@@ -33,8 +34,6 @@ from crawlsim.gait.signals import (
     parse_signal,
     union_breakpoints,
 )
-
-MAX_BLOCKS = 100_000  # the gait schema's bound (crawlsim.gait.document.MAX_BLOCKS), repeated: no cycle
 
 _WEIGHT = {"type": "number", "minimum": 0, "maximum": LARGEST, "x-expected": "a weight W >= 0 (a force)"}
 

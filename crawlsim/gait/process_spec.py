@@ -45,6 +45,10 @@ class ProcessSpec:
     simulation: Simulation
     units: Units = Units()
 
+    def __repr__(self) -> str:
+        n, m = self.normals.shape[1], len(self.offsets)
+        return f"<ProcessSpec {self.name}: {m} faces in R^{n}, period {self.period:g}, from {self.source}>"
+
     def replace(self, *changes: Any) -> ProcessSpec:
         """A new validated process with values set at dotted paths (see `Gait.replace`)."""
         label, document = replacement(self.source, self.document, changes)

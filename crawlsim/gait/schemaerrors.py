@@ -69,7 +69,8 @@ _TYPE_NAMES = {
 }
 
 
-def _suggestion(word: Any, choices: Sequence[str]) -> str:
+def did_you_mean(word: Any, choices: Sequence[str]) -> str:
+    """The text '; did you mean ...?' with the choice nearest ``word``, or '' when none is near."""
     close = difflib.get_close_matches(str(word), [str(c) for c in choices], n=1)
     return f"; did you mean {close[0]!r}?" if close else ""
 
@@ -87,13 +88,13 @@ def _schema_error(error: jsonschema.ValidationError, source: str, keypath: str) 
         return GaitError(
             source,
             join_keypath(path, str(extra)),
-            f"unknown key {extra!r}{_suggestion(extra, allowed)} (allowed here: {', '.join(allowed)})",
+            f"unknown key {extra!r}{did_you_mean(extra, allowed)} (allowed here: {', '.join(allowed)})",
         )
     if validator in ("enum", "const"):
         choices = error.validator_value if validator == "enum" else [error.validator_value]
         listed = ", ".join(repr(c) for c in choices)
         return GaitError(
-            source, path, f"expected one of {listed}, got {_describe(instance)}{_suggestion(instance, choices)}"
+            source, path, f"expected one of {listed}, got {_describe(instance)}{did_you_mean(instance, choices)}"
         )
     if validator == "minItems":
         return GaitError(source, path, f"expected at least {error.validator_value} entries, got {len(instance)}")

@@ -26,6 +26,15 @@ class Simulation:
     unchecked_uniqueness: bool = False  # run even where uniqueness is beyond an exact check
 
 
+ROUNDOFF_FLOOR = 1e-13
+"""Relative Poincare steps below this are roundoff: a smaller tolerance is clamped to it."""
+
+
+def effective_tolerance(tolerance: float) -> float:
+    """The Poincare-step tolerance actually used: relative steps below roundoff are clamped."""
+    return max(float(tolerance), ROUNDOFF_FLOOR)
+
+
 MAX_BLOCKS = 100_000
 """Most blocks in a crawler. A step costs O(N) once the kernel uses the crawler's structure, but
 every period tabulates (steps per period) x 2N numbers; the memory estimate decides the rest."""

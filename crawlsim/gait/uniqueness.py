@@ -468,9 +468,12 @@ def _unique_rows(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return ordered[new], inverse
 
 
-def _search_piece(a: np.ndarray, rest: np.ndarray, multiplicity: np.ndarray) -> np.ndarray | None:
+def _search_piece(
+    a: np.ndarray, rest: np.ndarray, multiplicity: np.ndarray, nearest: bool = False
+) -> np.ndarray | None:
     """Counts c_p (0 <= c_p <= multiplicity_p) of blocks of each friction pair with
-    sum_p c_p a_p = rest to within the band, or None.
+    sum_p c_p a_p = rest to within the band, or None; with ``nearest`` (one sample), those whose
+    sum is nearest to ``rest``, to within the band (`crawlsim.gait.apriori`'s margin).
 
     ``a`` is (pairs, samples): a_j = mu_j^+ + mu_j^- of each pair at the piece's samples;
     ``rest`` is sum_j mu_j^- at the same samples.
@@ -495,7 +498,7 @@ def _search_piece(a: np.ndarray, rest: np.ndarray, multiplicity: np.ndarray) -> 
         logs[side] += math.log(sizes[g] + 1.0)
     left = _HalfSums(scaled, sizes, halves[0])
     right = _HalfSums(scaled, sizes, halves[1])
-    pair = _meet(left.sums, right.sums, target)
+    pair = _nearest(left.sums[:, 0], right.sums[:, 0], target[0]) if nearest else _meet(left.sums, right.sums, target)
     if pair is None:
         return None
     group_counts = left.counts(pair[0]) + right.counts(pair[1])
@@ -598,6 +601,19 @@ def _distinct_cells(cells: np.ndarray) -> np.ndarray:
     keep = np.any(cells != cells[representative], axis=1)
     keep[first] = True
     return np.flatnonzero(keep)
+
+
+def _nearest(left: np.ndarray, right: np.ndarray, target: float) -> tuple[int, int]:
+    """Indices (i, k) with left[i] + right[k] nearest to ``target``: for each right sum, the left
+    sums on either side of its complement in sorted order."""
+    order = np.argsort(left, kind="stable")
+    want = target - right
+    above = np.clip(np.searchsorted(left[order], want), 0, len(left) - 1)
+    below = np.maximum(above - 1, 0)
+    miss = np.minimum(np.abs(left[order][above] - want), np.abs(left[order][below] - want))
+    k = int(np.argmin(miss))
+    i = min((above[k], below[k]), key=lambda j: abs(left[order][j] - want[k]))
+    return int(order[i]), k
 
 
 def _meet(left: np.ndarray, right: np.ndarray, target: np.ndarray) -> tuple[int, int] | None:

@@ -189,11 +189,6 @@ class Units:
         """The block as given: only the base dimensions that have a unit."""
         return {base: value for base in BASES if (value := getattr(self, base)) is not None}
 
-    @property
-    def dimensionless(self) -> bool:
-        """True when the gait file names no unit (its quantities are pure numbers)."""
-        return not self.to_json()
-
     def of(self, quantity: str) -> str:
         """The unit of ``quantity`` (a key of `QUANTITIES`), "1" when it is dimensionless; a
         slope's ``angle`` is always in degrees (docs/model.md §6)."""
@@ -218,6 +213,16 @@ class Units:
             text = f"{text}/{below}"
         return text
 
+    def derivative(self, kind: str, path: str) -> str:
+        """The unit of dv0/dPATH: v0's over PATH's (``mm/s`` over ``N``: ``mm/(N s)``, composed
+        from the base exponents; per degree for a slope's angle)."""
+        quantity = path_quantity(kind, tuple(int(k) if k.isdigit() else k for k in path.split(".")))
+        velocity = self.of("velocity")
+        if quantity == "angle":
+            return f"{velocity}/degree" if velocity != "1" else "1/degree"
+        v, q = QUANTITIES["velocity"], QUANTITIES[quantity]
+        return self.compose({b: Fraction(v.get(b, 0)) - Fraction(q.get(b, 0)) for b in set(v) | set(q)})
+
     def suffix(self, quantity: str) -> str:
         """ " mm/s" to append to a printed number, or "" when the quantity is dimensionless."""
         unit = self.of(quantity)
@@ -239,7 +244,7 @@ def path_quantity(kind: str, keys: tuple[str | int, ...]) -> str:
     names = [k for k in keys if isinstance(k, str)]
     if not names or names[0] in ("simulation", "blocks", "units"):
         return "1"
-    if names[-1] in ("phase", "times"):
+    if names[-1] in ("phase", "times", "phase_step"):
         return "1"
     first = names[0]
     if first == "period":

@@ -16,7 +16,8 @@ import numpy as np
 
 from crawlsim.integrate.ledger import ExactLedger, PeriodEnergy
 from crawlsim.integrate.stepping import PeriodRecord, Transition, TransitionCause
-from crawlsim.kernel.kkt import ActiveSet, ChainPolyhedron, Polyhedron
+from crawlsim.kernel.jit import kernel
+from crawlsim.projection.kkt import ActiveSet, ChainPolyhedron, Polyhedron
 
 if TYPE_CHECKING:
     from crawlsim.integrate.exact import EventStepper
@@ -36,7 +37,7 @@ class EventTrajectory(NamedTuple):
 
 class _Transitions(Sequence[Transition]):
     """The period's `Transition` records from the compiled loop's arrays, their active sets
-    factored by `crawlsim.kernel.kkt` only when they are read (`crawlsim.integrate.limit`,
+    factored by `crawlsim.projection.kkt` only when they are read (`crawlsim.integrate.limit`,
     sensitivities)."""
 
     def __init__(
@@ -48,7 +49,7 @@ class _Transitions(Sequence[Transition]):
 
     def _list(self) -> list[Transition]:
         if self._built is None:
-            from crawlsim.kernel.catchup import rows_of
+            from crawlsim.integrate.catchup import rows_of
             from crawlsim.kernel.eventloop import CAUSES
 
             u, piece, signs, cause, hit = self._arrays
@@ -84,7 +85,7 @@ class _Transitions(Sequence[Transition]):
 
 
 class _Visited(Sequence[ActiveSet]):
-    """`PeriodRecord.visited` of a compiled period: `crawlsim.kernel.catchup.VisitedSets` of
+    """`PeriodRecord.visited` of a compiled period: `crawlsim.integrate.catchup.VisitedSets` of
     its transitions' sets, formed when first read (`crawlsim.integrate.limit`)."""
 
     def __init__(self, poly: Polyhedron, signs: np.ndarray) -> None:
@@ -93,7 +94,7 @@ class _Visited(Sequence[ActiveSet]):
 
     def _list(self) -> Sequence[ActiveSet]:
         if self._args is not None:
-            from crawlsim.kernel.catchup import VisitedSets
+            from crawlsim.integrate.catchup import VisitedSets
 
             self._sets, self._args = VisitedSets(*self._args), None
         return self._sets
@@ -117,7 +118,8 @@ class _CompiledLoop:
     output arrays, sized to the events of the last period."""
 
     def __init__(self, stepper: EventStepper) -> None:
-        from crawlsim.kernel import catchup, eventloop
+        from crawlsim.integrate import catchup
+        from crawlsim.kernel import eventloop
 
         # the kernel's modules, imported here (not with this module: `crawlsim validate` loads
         # no kernel) and kept, since a period at N = 4 costs a few import look-ups
@@ -147,7 +149,6 @@ class _CompiledLoop:
         self._lamc = np.empty((0, 0))
         self._final: tuple[bytes, ActiveSet] = (b"", stepper.poly.empty)
         self._final_signs = np.zeros(stepper.process.blocks, dtype=np.int8)
-        catchup.announce_compilation("exact")
 
     @staticmethod
     def of(stepper: EventStepper) -> _CompiledLoop | None:
@@ -182,7 +183,7 @@ class _CompiledLoop:
         return None  # HANDOFF, or a failed sample: the Python loop refines it, or says why not
 
     def _run(self, s: EventStepper) -> dict[str, Any]:
-        catchup, eventloop = self._catchup, self._kernel
+        catchup = self._catchup
         p = s.process
         N, n, m = p.blocks, s.poly.n, s.poly.m
         nb, P, G = s.basis.size, s.pieces.pieces, p.steps
@@ -230,7 +231,7 @@ class _CompiledLoop:
         x0 = np.ascontiguousarray(s.x, dtype=float) if s.x is not None else np.empty(0)
         # the set the last period ended on, when the stepper still has it (`_record`)
         out["signs"] = self._final_signs.copy() if s.active is self._final[1] else catchup.signs_of(s.active, N)
-        out["status"] = eventloop.period(
+        out["status"] = kernel().eventloop.period(
             self.k,
             self.c_scale,
             s.basis.linear,

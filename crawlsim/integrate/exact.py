@@ -14,7 +14,7 @@ multipliers: the slip rates (dx/dt = lambda^+ - lambda^-). Times are in cycles u
 Lambda_A the slips accumulated since the piece began, G_A = B_A M^{-1} B_A^T. On a piece of c
 (`crawlsim.model.offsets`: c(u) = phi(u) @ C_p in a basis of 1, u and harmonics), every gap
 (B w(u) - c(u))_i and every slip rate is itself such a combination, computed with one
-multi-right-hand-side solve of the KKT kernel (`crawlsim.kernel.kkt`), O(N) for a crawler.
+multi-right-hand-side solve of the KKT kernel (`crawlsim.projection.kkt`), O(N) for a crawler.
 
 **Events** end a piece: an inactive row's gap reaches 0 from below, or an active row's slip rate
 reaches 0 from above; and the breakpoints of c, where at a jump (a ``steps`` signal) the state
@@ -69,10 +69,12 @@ from crawlsim.errors import CertificateError, DegenerateModelError, EventError, 
 from crawlsim.integrate.compiled import EventTrajectory, _CompiledLoop
 from crawlsim.integrate.ledger import ExactLedger
 from crawlsim.integrate.stepping import PeriodRecord, PeriodStepper, Transition, TransitionCause
-from crawlsim.kernel.kkt import RTOL, ActiveSet, Dependent, Tolerance
-from crawlsim.kernel.projection import Projection
+from crawlsim.kernel.jit import kernel
+from crawlsim.kernel.policy import REFINE_LIMIT
 from crawlsim.model.offsets import TWO_PI, PiecewiseOffsets
 from crawlsim.model.process import SweepingProcess
+from crawlsim.projection.adapter import Projection
+from crawlsim.projection.kkt import RTOL, ActiveSet, Dependent, Tolerance
 
 #: Default bound on the number of events in one period.
 MAX_EVENTS = 100_000
@@ -89,10 +91,6 @@ CELLS_PER_CYCLE = 64
 #: that needs it now and then, at a jump from a Newton candidate of the limit search, keeps
 #: the compiled loop for the other periods).
 LOOP_HANDOFFS = 3
-#: A grid sample whose certificate fails by at most this many times its tolerance is refined
-#: (`EventStepper._refine`: the closed form's roundoff, on chains stiff to the accepted limits);
-#: beyond, it is an internal error.
-REFINE_LIMIT = 100.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -345,7 +343,7 @@ class EventStepper(PeriodStepper):
         c0 = (phi @ coef)[0]
         slack = poly.apply(w) - c0
         # the size of c's terms, not of their sum (`crawlsim.kernel.piece.tight_rows`)
-        tol = poly._tolerance1(poly.empty, (np.abs(phi) @ np.abs(coef))[0], w, np.zeros(0))
+        tol = poly.step_tolerance(poly.empty, (np.abs(phi) @ np.abs(coef))[0], w, np.zeros(0))
         tight = slack >= -tol.primal
         tight[forced] = True
         tight[held.index] = True
@@ -376,7 +374,7 @@ class EventStepper(PeriodStepper):
     def _velocity(self, c: np.ndarray, warm: np.ndarray, fixed: np.ndarray, time: float) -> _Velocity:
         """argmin 1/2 |v|_M^2 over {B_fixed v = c_fixed, B_i v <= c_i (finite c_i)}: the
         kernel's updates from ``warm``, Clarabel's proposal when they do not settle."""
-        from crawlsim.kernel.catchup import velocity  # crawlers: the compiled, certified step
+        from crawlsim.integrate.catchup import velocity  # crawlers: the compiled, certified step
 
         found = velocity(self.poly, c, warm, fixed)
         if found is not None:
@@ -470,10 +468,8 @@ class EventStepper(PeriodStepper):
         return self._sampled(Z, tol, u0, u1)
 
     def _linear(self, Z: np.ndarray, tol: np.ndarray, u0: float, u1: float) -> np.ndarray:
-        from crawlsim.kernel.events import linear_crossings  # compiled closed form
-
         out = np.empty(Z.shape[1])
-        linear_crossings(
+        kernel().events.linear_crossings(
             np.ascontiguousarray(Z[0], dtype=float),
             np.ascontiguousarray(Z[1], dtype=float),
             np.ascontiguousarray(tol, dtype=float),
@@ -488,22 +484,18 @@ class EventStepper(PeriodStepper):
     ) -> np.ndarray:
         """f(u) = a + alpha cos 2 pi u + beta sin 2 pi u = a + rho cos(theta - phi)
         (`crawlsim.kernel.events.harmonic_crossings`, compiled)."""
-        from crawlsim.kernel.events import harmonic_crossings
-
         out = np.empty(np.shape(a))
         a_, alpha_, beta_, tol_ = (np.ascontiguousarray(v, dtype=float) for v in (a, alpha, beta, tol))
-        harmonic_crossings(a_, alpha_, beta_, tol_, float(u0), float(u1), out)
+        kernel().events.harmonic_crossings(a_, alpha_, beta_, tol_, float(u0), float(u1), out)
         return out
 
     def _sampled(self, Z: np.ndarray, tol: np.ndarray, u0: float, u1: float) -> np.ndarray:
         """Certified sampling, compiled (`crawlsim.kernel.sampling`, the rule of its module
         docstring): samples every 1/(64 H) cycle, and only the cells where the curvature bound
         allows a crossing searched (Brent's bounded maximisation and brentq)."""
-        from crawlsim.kernel.sampling import crossings
-
         b = self.basis
         out = np.empty(Z.shape[1])
-        crossings(
+        kernel().sampling.crossings(
             np.ascontiguousarray(Z, dtype=float),
             np.ascontiguousarray(tol, dtype=float),
             float(u0),
@@ -607,7 +599,7 @@ class EventStepper(PeriodStepper):
         projection of the state before it onto K(t+) (feasible, slips >= 0, complementary)."""
         poly = self.poly
         slack = poly.apply(proj.point) - c
-        tol = poly._tolerance1(proj.active, c, w, proj.multipliers)
+        tol = poly.step_tolerance(proj.active, c, w, proj.multipliers)
         cert = poly.certify(slack, proj.multipliers, proj.active, tol)
         if not cert.ok:
             raise CertificateError(
@@ -623,7 +615,7 @@ class EventStepper(PeriodStepper):
         for j in range(len(W)):
             proj = self.projector.project(W[j], p.offsets[j], time=start + p.times[j], verify=True)
             moved = float(np.max(np.abs(proj.point - W[j])))
-            tol = self.poly._tolerance1(proj.active, p.offsets[j], W[j], proj.multipliers)
+            tol = self.poly.step_tolerance(proj.active, p.offsets[j], W[j], proj.multipliers)
             if moved > 100 * tol.primal:
                 raise CertificateError(
                     f"{p.name}: Clarabel moves the exact state at t = {start + p.times[j]:.12g} by {moved:.3g}"

@@ -14,10 +14,10 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from crawlsim.kernel.certificate import Floats
 from crawlsim.model.crawler import elastic_energy
 from crawlsim.model.offsets import TWO_PI, Basis
 from crawlsim.model.process import SweepingProcess
+from crawlsim.projection.certificate import Floats
 
 #: Below this value of omega delta the closed form of int s sin(omega s) ds is summed as its
 #: Taylor series (the closed form cancels there).
@@ -34,6 +34,9 @@ class PeriodEnergy:
     energy_start: float  # E at the period's start
     energy_end: float  # E at its end
     load_work: float = 0.0  # W_load: work against the loads, -oint F~ . dx (docs/model.md §6)
+    # catch-up: the scheme's own numerical dissipation, first order in the step (the loss of
+    # its steps but those across a jump); None for the exact integrator, which has none
+    discretisation_loss: float | None = None
 
     @property
     def energy_change(self) -> float:
@@ -41,9 +44,9 @@ class PeriodEnergy:
 
     @property
     def residual(self) -> float:
-        """W - D - J - W_load: zero in the periodic regime (it is E(end) - E(start), up to
-        roundoff)."""
-        return self.work - self.dissipation - self.jump_loss - self.load_work
+        """W - D - J - W_load (- the discretisation loss): zero in the periodic regime (it is
+        E(end) - E(start), up to roundoff)."""
+        return self.work - self.dissipation - self.jump_loss - self.load_work - (self.discretisation_loss or 0.0)
 
     @property
     def scale(self) -> float:
@@ -53,6 +56,7 @@ class PeriodEnergy:
             abs(self.dissipation),
             abs(self.jump_loss),
             abs(self.load_work),
+            abs(self.discretisation_loss or 0.0),
             self.energy_start,
             self.energy_end,
             1e-300,
@@ -166,15 +170,11 @@ class ExactLedger:
         pieces, crawler = process.offset_pieces, process.crawler
         assert pieces is not None and crawler is not None
         self.basis: Basis = pieces.basis
+        self.crawler = crawler
         self.k = np.asarray(crawler.stiffness, dtype=float)
-        self.N = crawler.blocks
         self.pieces = pieces.pieces
-        # loads (docs/model.md §6): friction is mu cos(angle), and l = [-F~ ; F~] the load's
-        # share of the thresholds, F~ = F(u) + load_constant
-        self.scale = float(crawler.friction_scale)
-        self.constant = crawler.load_constant
-        # the signals themselves (links, then mu^+ and mu^- in the order of the rows of B),
-        # in the basis and on the pieces of c(t)
+        # the signals themselves (`crawlsim.model.crawler.signal_columns`), in the basis and on
+        # the pieces of c(t)
         self.signals = pieces.recombined(_identity)
         # per piece of c: L, K L, dL/du and mu coefficients (a period revisits every piece)
         self._cache: dict[int, tuple[np.ndarray, ...]] = {}
@@ -186,20 +186,12 @@ class ExactLedger:
         self._jumps: dict[str, list[float]] = {"work": [], "dissipation": [], "jump_loss": [], "load_work": []}
 
     def _split(self, p: int) -> tuple[np.ndarray, ...]:
-        """(Lc, K Lc, Lc', Mc, lc) of piece p: Mc the friction of the 2N rows, lc the load's
-        share l = [-F~ ; F~] (zero without loads)."""
+        """(Lc, K Lc, Lc', Mc, lc) of piece p: Mc the friction of the 2N rows (mu cos(angle) on a
+        slope), lc the load's share l = [-F~ ; F~] (zero without loads, docs/model.md §6)."""
         cached = self._cache.get(p)
         if cached is None:
-            coef = self.signals.coefficients(p)
-            N = self.N
-            Lc = coef[:, : N - 1]
-            Mc = self.scale * coef[:, N - 1 : 3 * N - 1]
-            if self.constant is None:
-                lc = np.zeros_like(Mc)
-            else:
-                force = coef[:, 3 * N - 1 :].copy()
-                force[0] += self.constant
-                lc = np.hstack([-force, force])
+            Lc, Mc, force = self.crawler.split(self.signals.coefficients(p))
+            lc = np.zeros_like(Mc) if force is None else np.hstack([-force, force])
             cached = (Lc, Lc * self.k, self.basis.derivative(Lc), Mc, lc)
             if len(self._cache) > 256:
                 self._cache.clear()
@@ -209,7 +201,7 @@ class ExactLedger:
     @property
     def products(self) -> int:
         """Products a piece keeps: work and dissipation, and the load's work with loads."""
-        return 2 if self.constant is None else 3
+        return 2 if self.crawler.load is None else 3
 
     def terms(self, p: int) -> tuple[np.ndarray, ...]:
         """(Lc, K Lc, Lc', Mc, lc) of piece p of c(t), as `piece` uses them."""
@@ -231,7 +223,7 @@ class ExactLedger:
         _, KLc, dLc, Mc, lc = self._split(p)
         Sc = Wc + KLc
         Sc[0] = Sc[0] + base
-        loaded = self.constant is not None  # a third product only with loads (§6)
+        loaded = self.crawler.load is not None  # a third product only with loads (§6)
         G = np.empty((3 if loaded else 2,) + (self.basis.size,) * 2)
         G[0] = Sc @ dLc.T
         dY = self.basis.derivative(Y).T

@@ -50,9 +50,10 @@ import numpy as np
 
 from crawlsim import interrupts
 from crawlsim.integrate.stepping import PeriodRecord, PeriodStepper
-from crawlsim.kernel.chain_polyhedron import ChainPolyhedron
-from crawlsim.kernel.kkt import ActiveSet, Dependent, Polyhedron
+from crawlsim.kernel.jit import kernel
 from crawlsim.model.process import SweepingProcess
+from crawlsim.projection.chain_polyhedron import ChainPolyhedron
+from crawlsim.projection.kkt import ActiveSet, Dependent, Polyhedron
 
 #: Plain periods before the first Newton step.
 PLAIN_PERIODS = 2
@@ -120,7 +121,7 @@ Factor = ActiveSet | Saltation
 
 def factors(process: SweepingProcess, record: PeriodRecord) -> list[Factor]:
     """The Jacobian of the period map from ``record``'s start, as the factors applied in turn:
-    the projectors P_A of the visited sets (`crawlsim.kernel.kkt.ActiveSet`), and, for event-driven
+    the projectors P_A of the visited sets (`crawlsim.projection.kkt.ActiveSet`), and, for event-driven
     integrators (``record.transitions``), the `Saltation` of every hit that swaps the set.
 
     Only a hit (a gap reaching zero) happens at a time that moves with the start; the other
@@ -223,10 +224,8 @@ class PackedJacobian:
 
     def apply(self, v: np.ndarray) -> np.ndarray:
         """J v (`apply_jacobian` for one vector)."""
-        from crawlsim.kernel.jacobian import apply
-
         x = np.array(v, dtype=float)
-        apply(
+        kernel().jacobian.apply(
             self.stiffness,
             self.kinds,
             self.starts,
@@ -243,10 +242,8 @@ class PackedJacobian:
 
     def apply_transpose(self, v: np.ndarray) -> np.ndarray:
         """J^T v (`apply_jacobian_transpose` for one vector)."""
-        from crawlsim.kernel.jacobian import apply_transpose
-
         x = np.array(v, dtype=float)
-        apply_transpose(
+        kernel().jacobian.apply_transpose(
             self.stiffness,
             self.kinds,
             self.starts,
@@ -264,7 +261,7 @@ class PackedJacobian:
 
 def packed_jacobian(poly: Polyhedron, visited: Sequence[Factor]) -> PackedJacobian | None:
     """The factors ``visited`` packed for the compiled products, for a crawler chain
-    (`crawlsim.kernel.chain_polyhedron.ChainPolyhedron`: a projector depends on its saturated
+    (`crawlsim.projection.chain_polyhedron.ChainPolyhedron`: a projector depends on its saturated
     blocks alone); None for another polyhedron.
 
     Neighbouring projectors of nested sets are merged (`_merged`): P_A is the M-orthogonal
@@ -274,7 +271,7 @@ def packed_jacobian(poly: Polyhedron, visited: Sequence[Factor]) -> PackedJacobi
     1000-block segments wave: 128 factors -> 17, their blocks 57725 -> 7385)."""
     if not isinstance(poly, ChainPolyhedron):
         return None
-    from crawlsim.kernel.jacobian import PROJECTOR, SALTATION, pack
+    from crawlsim.kernel.jacobian import PROJECTOR, SALTATION
 
     kept = _merged(poly.blocks, visited)
     kinds = np.array([SALTATION if isinstance(A, Saltation) else PROJECTOR for A in kept], dtype=np.int8)
@@ -286,7 +283,7 @@ def packed_jacobian(poly: Polyhedron, visited: Sequence[Factor]) -> PackedJacobi
     salts = [A for A in kept if isinstance(A, Saltation)]
     slot = np.cumsum(kinds == SALTATION).astype(np.int64) - 1
     D, l = np.empty(len(blocks)), np.empty(len(blocks))
-    pack(poly.stiffness, kinds, starts, blocks, D, l)
+    kernel().jacobian.pack(poly.stiffness, kinds, starts, blocks, D, l)
     return PackedJacobian(
         poly.stiffness,
         kinds,

@@ -11,8 +11,8 @@ blocks; every entry a double):
 * the process tabulated on one period's grid: offsets c(t) (G+1) x 2N, friction (G+1) x 2N,
   lengths L(t) and stress offsets K L(t) (G+1) x (N-1) each;
 * one period of stepping: states w (G+1) x (N-1), multipliers G x 2N, positions (G+1) x N;
-* for a crawler, the KKT kernel's structures are O(N) (`crawlsim.kernel.kkt.ChainPolyhedron`): the
-  cache of factored active sets is bounded (`crawlsim.kernel.kkt.CACHE_NUMBERS`), and the periodic-limit
+* for a crawler, the KKT kernel's structures are O(N) (`crawlsim.projection.kkt.ChainPolyhedron`): the
+  cache of factored active sets is bounded (`crawlsim.projection.kkt.CACHE_NUMBERS`), and the periodic-limit
   solver's dense Jacobian (N-1)^2 is used only up to `crawlsim.integrate.limit.DENSE_JACOBIAN` links;
 * for a generic process, its dense normals, metric and the cache of active sets, about
   `DENSE_SQUARES` n^2;
@@ -104,8 +104,8 @@ def run_memory(
     process); ``save_every`` thins the rows written to the results file; ``dense`` counts the
     dense matrices of a generic process.
     """
-    from crawlsim.integrate.limit import DENSE_JACOBIAN
-    from crawlsim.kernel.kkt import CACHE_NUMBERS
+    from crawlsim.integrate.limit import DENSE_JACOBIAN  # start-up: the commands check memory before numpy
+    from crawlsim.projection.kkt import CACHE_NUMBERS  # (idem: this module is light, the solvers are not)
 
     n, p = int(blocks), int(grid_points)
     tabulated = [
@@ -276,7 +276,7 @@ def signal_work(harmonics: int, faces: int, grid_points: int, key: str = "") -> 
     N blocks) on a grid of ``grid_points`` points a period. Signals of at most one harmonic
     (constants, piecewise-linear signals, cosines) have closed-form events: only their
     tabulation counts."""
-    from crawlsim.integrate.exact import CELLS_PER_CYCLE
+    from crawlsim.integrate.exact import CELLS_PER_CYCLE  # start-up: the commands check the work before numpy
 
     h, m = int(harmonics), int(faces)
     per_sample = (2 * h + 1) * (TRIG_COST + m)

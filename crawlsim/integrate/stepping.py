@@ -2,10 +2,10 @@
 
     w_{j+1} = argmin { 1/2 |w - w_j|_M^2 : B w <= c(t_{j+1}) },   x_{j+1} = x_j + S lambda_{j+1}.
 
-Every step is solved and certified by the KKT kernel (`crawlsim.kernel.kkt`). While the active set A
+Every step is solved and certified by the KKT kernel (`crawlsim.projection.kkt`). While the active set A
 does not change, runs of steps telescope (`kkt.Polyhedron.run`): one factorisation of G_A and
 one multi-right-hand-side solve for the whole run, certified step by step. The first step whose
-certificate fails is redone as a full projection (`crawlsim.kernel.projection.ExactProjector`): the
+certificate fails is redone as a full projection (`crawlsim.projection.adapter.ExactProjector`): the
 kernel's cheap updates from A, and Clarabel only when they do not settle.
 
 ``check_every_step=True`` runs Clarabel at every step instead, so that a user can verify that the
@@ -14,7 +14,7 @@ fast paths change nothing.
 A crawler's steps run in the compiled kernel (`crawlsim.kernel`): the same step, certificate and
 updates, one step at a time in machine code; a step whose updates do not settle is handed to the
 projector as above, and a certificate that fails with no update left is a `CertificateError`.
-``kernel=False`` keeps a crawler on the telescoped runs of `crawlsim.kernel.kkt` (the path of generic
+``kernel=False`` keeps a crawler on the telescoped runs of `crawlsim.projection.kkt` (the path of generic
 processes), for comparison.
 """
 
@@ -28,10 +28,10 @@ from typing import Any, Literal, NamedTuple
 import numpy as np
 
 from crawlsim.errors import CertificateError
-from crawlsim.kernel.kkt import Dependent
-from crawlsim.kernel.polyhedron import ActiveSet
-from crawlsim.kernel.projection import ExactProjector
 from crawlsim.model.process import SweepingProcess
+from crawlsim.projection.adapter import ExactProjector
+from crawlsim.projection.kkt import Dependent
+from crawlsim.projection.polyhedron import ActiveSet
 
 _FIRST_BLOCK = 8
 
@@ -81,7 +81,7 @@ class Transition(NamedTuple):
 
     u: float  # the cycle, in [0, 1]
     piece: int  # the piece of c(t) after it
-    active: Any  # the set A on the following interval (`crawlsim.kernel.kkt.ActiveSet`; may be empty)
+    active: Any  # the set A on the following interval (`crawlsim.projection.kkt.ActiveSet`; may be empty)
     cause: TransitionCause
     hit: np.ndarray  # the rows whose gap reached zero (cause "hit"; empty otherwise)
 
@@ -171,7 +171,7 @@ class PeriodStepper:
             on_dependent="raise" if process.crawler is not None else "warn",
         )
         self.w = np.array(process.initial, dtype=float)
-        self.x = None if process.initial_positions is None else np.array(process.initial_positions, dtype=float)
+        self.x = None if process.crawler is None else np.array(process.crawler.initial_positions, dtype=float)
         self.active = self.polyhedron.empty
         self.period_index = 0
         self._visited: list[ActiveSet] = []
@@ -218,7 +218,7 @@ class CatchUpStepper(PeriodStepper):
         self._kernel = None
         self._lazy_visited: Sequence[ActiveSet] | None = None  # the kernel's record (`VisitedSets`)
         if kernel and not check_every_step and process.crawler is not None:
-            from crawlsim.kernel.catchup import ChainKernel
+            from crawlsim.integrate.catchup import ChainKernel
 
             self._kernel = ChainKernel(self.polyhedron)
             self._offsets = np.ascontiguousarray(process.offsets, dtype=float)
@@ -265,9 +265,9 @@ class CatchUpStepper(PeriodStepper):
         if self.x is not None:
             X = np.empty((G + 1, len(self.x)))
             if self._kernel is not None:
-                from crawlsim.kernel import chain
+                from crawlsim.kernel.jit import kernel
 
-                chain.positions(LAM, self.x, X)
+                kernel().chain.positions(LAM, self.x, X)
             else:
                 X[0] = self.x
                 np.cumsum(p.slips(LAM), axis=0, out=X[1:])
@@ -288,7 +288,8 @@ class CatchUpStepper(PeriodStepper):
     def _kernel_period(self, W: np.ndarray, LAM: np.ndarray, start: float) -> None:
         """The period's steps in the compiled kernel; the steps it hands over go to the
         projector (`_full_step`), warm from the kernel's current set."""
-        from crawlsim.kernel import catchup, chain
+        from crawlsim.integrate import catchup
+        from crawlsim.kernel import chain
 
         kernel, p = self._kernel, self.process
         assert kernel is not None

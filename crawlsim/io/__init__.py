@@ -1,6 +1,5 @@
 """Files: HDF5 (netCDF-4) results, provenance, atomic writes.
 
-hdf5         run, sweep and optimisation files, one import away (the modules below)
 layout       the netCDF-4 conventions every file follows, and their helpers
 runfile      a run's results file: its layout and its writer
 runread      reading a run's results file

@@ -41,6 +41,7 @@ from pathlib import Path
 
 from crawlsim import interrupts
 from crawlsim.errors import OutputError
+from crawlsim.io.outputs import special_kind
 
 _HOST = re.sub(r"[^A-Za-z0-9_-]", "_", socket.gethostname()) or "host"
 _LIVE: set[Path] = set()  # temporary files of this process not yet published or removed
@@ -126,8 +127,6 @@ def publish(tmp: Path, target: Path) -> None:
     except FileNotFoundError:
         mode = None
     if mode is not None and not stat.S_ISREG(mode):
-        from crawlsim.io.outputs import special_kind
-
         raise OutputError(
             str(target), "", f"is {special_kind(mode)}, not a regular file: crawlsim never replaces special files"
         )

@@ -9,7 +9,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from crawlsim.errors import ResultsFileError
+from crawlsim.errors import GaitError, ResultsFileError
 from crawlsim.io.layout import counts, number, open_h5, plain, read_column, root_attrs
 
 #: Root attributes that `describe` reports under their own names (the others, provenance
@@ -121,6 +121,7 @@ def _describe_run(path: Path, f: h5py.File, attrs: dict[str, Any]) -> dict[str, 
         "period": attrs.get("period"),
         "displacement_per_period": number(attrs.get("displacement_per_period")),
         "dissipation_per_period": number(attrs.get("dissipation_per_period")),
+        "dissipation_error_estimate": summary.get("dissipation_error_estimate"),
         "cost_of_transport": number(attrs.get("cost_of_transport")),
         "final_poincare_step": summary.get("final_poincare_step"),
         "limit_method": solver.get("method", summary.get("limit_method")),
@@ -132,7 +133,26 @@ def _describe_run(path: Path, f: h5py.File, attrs: dict[str, Any]) -> dict[str, 
         "status": summary.get("status"),
         "message": summary.get("message"),
         "grid_note": summary.get("grid_note"),
+        "rigid_v0": number(f["rigid"].attrs["v0"]) if "rigid" in f else None,
+        "rigid_v0_error_estimate": number(f["rigid"].attrs["v0_error_estimate"]) if "rigid" in f else None,
+        "uniqueness_margin": _margin(attrs),
     }
+
+
+def _margin(attrs: dict[str, Any]) -> dict[str, Any] | None:
+    """The margin to the uniqueness condition of the run's gait (`crawlsim.gait.apriori`), from
+    its effective document; None for a generic process or a file that records none."""
+    from crawlsim.gait.apriori import margin
+    from crawlsim.gait.document import Gait, parse_gait
+
+    try:
+        gait = parse_gait(attrs["gait_yaml"], source="gait_yaml")
+    except (KeyError, GaitError):
+        return None
+    if not isinstance(gait, Gait):
+        return None
+    found = margin(gait)
+    return {**found.summary(), "text": found.text()}
 
 
 def _describe_sweep(path: Path, f: h5py.File, attrs: dict[str, Any]) -> dict[str, Any]:
@@ -177,6 +197,8 @@ def _sweep_grid(f: h5py.File, attrs: dict[str, Any]) -> list[dict[str, Any]]:
         if first not in values:
             return {"values": 0, "min": None, "max": None}
         v = values[first]
+        if v.dtype.kind in "OSU":  # gait files: no range
+            return {"values": len(v), "min": None, "max": None}
         return {"values": len(v), "min": number(float(np.min(v))), "max": number(float(np.max(v)))}
 
     return [{"paths": grouped[d], **extent(grouped[d][0])} for d in sorted(grouped)]

@@ -73,7 +73,11 @@ class Scales:
 
     def coordinate(self, group: h5py.Group, name: str, data: Any) -> h5py.Dataset:
         """A coordinate variable: a dataset named like its dimension, holding its values."""
-        ds = group.create_dataset(name, data=data, track_order=True)
+        if np.asarray(data).dtype.kind in "OU":  # names (the files of `crawlsim velocity A.yaml B.yaml`)
+            data = np.asarray(data, dtype=object).astype(str).tolist()
+            ds = group.create_dataset(name, data=data, dtype=h5py.string_dtype(), track_order=True)
+        else:
+            ds = group.create_dataset(name, data=data, track_order=True)
         ds.make_scale(name)
         self._register(name, ds)
         return ds

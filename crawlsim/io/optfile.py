@@ -19,6 +19,7 @@ import numpy as np
 
 from crawlsim.errors import ResultsFileError
 from crawlsim.gait.units import Units, path_quantity
+from crawlsim.io import provenance
 from crawlsim.io.layout import (
     Scales,
     Var,
@@ -44,7 +45,7 @@ _OPTIMIZATION_COMMENT = (
     "units_json; every dataset has units and long_name."
 )
 
-#: Units of the optimisable quantities (`crawlsim.study.optimize.QUANTITIES`).
+#: Units of the optimisable quantities (`crawlsim.design.optimize.QUANTITIES`).
 OBJECTIVE_QUANTITIES = {
     "v0": "velocity",
     "cost_of_transport": "force",
@@ -122,7 +123,7 @@ OPTIMIZATION_VARIABLES: dict[str, dict[str, Var]] = {
 
 
 def write_optimization(path: Any, result: Any) -> None:
-    """Write a `crawlsim.study.optimize.OptimizationResult` atomically (`crawlsim.io.atomic`);
+    """Write a `crawlsim.design.optimize.OptimizationResult` atomically (`crawlsim.io.atomic`);
     ``path`` may be a binary file object (an in-memory image)."""
     write_file(path, lambda f: _write_optimization(f, result))
 
@@ -144,8 +145,6 @@ def _write_optimization(f: h5py.File, result: Any) -> None:
 
 def _write_attributes(f: h5py.File, result: Any, names: Sequence[str], units: Units) -> None:
     """The root attributes: the problem, the method, the best point and the provenance."""
-    from crawlsim.io import provenance
-
     problem, method = result.problem, result.method
     base, objective = problem.base, problem.objective
     best = result.evaluations[result.best]

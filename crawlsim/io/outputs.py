@@ -47,7 +47,7 @@ _WHAT = {
 }
 _HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 _IMAGES = {b"\x89PNG\r\n\x1a\n": "png", b"%PDF-": "pdf", b"GIF87a": "gif", b"GIF89a": "gif"}
-#: The first line of a gait file crawlsim writes (`crawlsim.study.optresult`).
+#: The first line of a gait file crawlsim writes (`crawlsim.design.optresult`).
 GAIT_HEAD = "# written by crawlsim optimize"
 #: Columns every crawlsim sweep table has (CSV header), whatever else it holds.
 SWEEP_COLUMNS = frozenset({"v0", "convergence", "status", "message"})

@@ -29,6 +29,9 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from typing import Any
 
+from crawlsim import __version__
+from crawlsim.gait.settings import effective_tolerance
+
 #: The libraries whose versions are recorded (everything that computes or stores a number).
 LIBRARIES = ("numpy", "scipy", "clarabel", "h5py")
 
@@ -61,8 +64,6 @@ def versions() -> dict[str, str]:
 def _versions() -> tuple[tuple[str, str], ...]:
     """Looked up once per process (reading the distributions' metadata takes milliseconds)."""
     from importlib import metadata  # here: importing it costs milliseconds too
-
-    from crawlsim import __version__
 
     out = {"crawlsim": __version__, "python": platform.python_version()}
     for name in LIBRARIES:
@@ -184,8 +185,6 @@ class Provenance:
 def for_gait(gait: Any, *, check_every_step: bool = False) -> Provenance:
     """The provenance of a run of ``gait`` (a `Gait` or `ProcessSpec`) with its own simulation
     settings, which `crawlsim.gait.document.with_simulation` keeps in step with its document."""
-    from crawlsim.analysis.run import effective_tolerance
-
     s = gait.simulation
     settings = {
         "integrator": s.integrator,

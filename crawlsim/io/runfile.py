@@ -17,6 +17,9 @@
     /events/*             dimension event_time                        [--integrator exact]
     /energy/*             crawlers: scalars, the energy ledger of the limit period
                           (`crawlsim.analysis.energy`)
+    /rigid/*              the rigid limit (`crawlsim.analysis.rigid`): attributes v0,
+                          v0_error_estimate, status, message; dimension rigid_interval (the
+                          resting block from start to end)                 [crawlsim run --rigid]
 
 The time dimensions (time, limit_time, event_time) are coordinate variables holding the group's
 times, so that ``ds.sel(time=...)`` works in xarray; the variable ``t`` of each group holds the
@@ -183,8 +186,16 @@ RUN_VARIABLES: dict[str, dict[str, Var]] = {
             "elastic energy released at jumps beyond friction work over the limit period, sum_i k_i (Delta z_i)^2 / 2",
             "dissipation",
         ),
+        "discretisation_loss": Var(
+            (),
+            "catch-up only: the scheme's numerical dissipation over the limit period, first order in the step",
+            "dissipation",
+        ),
         "balance_residual": Var(
-            (), "actuator_work - dissipation - jump_loss: zero in the periodic regime, up to roundoff", "dissipation"
+            (),
+            "actuator_work - dissipation - jump_loss (- discretisation_loss): zero in the periodic regime, "
+            "up to roundoff",
+            "dissipation",
         ),
         "cost_of_transport_bound": Var(
             (),
@@ -204,6 +215,14 @@ RUN_VARIABLES: dict[str, dict[str, Var]] = {
             "dissipation",
         ),
     },
+    "rigid": {
+        "rigid_interval": Var(("rigid_interval",), "interval i of the rigid limit (docs/model.md §7)", "1"),
+        "start": Var(("rigid_interval",), "start of the interval (one of length zero is a jump of the links)", "time"),
+        "end": Var(("rigid_interval",), "end of the interval", "time"),
+        "resting_block": Var(
+            ("rigid_interval",), "the block at rest over the interval in the rigid limit k -> infinity", "1"
+        ),
+    },
     "events": {
         "t": Var(
             ("event_time",), "event time of the exact integrator (every period, never thinned by save_every)", "time"
@@ -218,6 +237,7 @@ _ENERGY = {
     "actuator_work": "actuator_work_per_period",
     "dissipation": "dissipation_per_period",
     "jump_loss": "jump_loss_per_period",
+    "discretisation_loss": "discretisation_loss_per_period",
     "balance_residual": "energy_balance_residual",
     "cost_of_transport_bound": "cost_of_transport_bound",
     "efficiency": "efficiency",
@@ -269,6 +289,7 @@ _ATTRIBUTE_QUANTITIES = {
     "save_every": "1",
     "actuator_work_per_period": "dissipation",
     "jump_loss_per_period": "dissipation",
+    "discretisation_loss_per_period": "dissipation",
     "energy_balance_residual": "dissipation",
     "cost_of_transport_bound": "force",
     "efficiency": "1",
@@ -453,15 +474,34 @@ class ResultsWriter:
             if values is not None and name in self._sets:
                 self._append(name, values)
 
-    def finish(self, result: Any, provenance: Any, kind: str = "crawler", unchecked_uniqueness: bool = False) -> None:
+    def finish(
+        self,
+        result: Any,
+        provenance: Any,
+        kind: str = "crawler",
+        unchecked_uniqueness: bool = False,
+        rigid: Any = None,
+    ) -> None:
         """Write the analysis, the coordinates, the attributes; close and publish.
 
         ``unchecked_uniqueness`` records (the root attribute of that name, 0 or 1) that the
-        gait opted out of an exact check of the uniqueness condition it was beyond."""
+        gait opted out of an exact check of the uniqueness condition it was beyond. ``rigid``,
+        the gait's `crawlsim.analysis.rigid.RigidLimit`, is written to /rigid."""
         f = self.file
         self._write_root_coordinates()
         for gname, values in self._groups(result).items():
             self._write_group(gname, values)
+        if rigid is not None:
+            t = rigid.times
+            group = {
+                "rigid_interval": np.arange(len(t) - 1),
+                "start": t[:-1],
+                "end": t[1:],
+                "resting_block": rigid.resting,
+            }
+            self._write_group("rigid", group)
+            for name in ("v0", "v0_error_estimate", "displacement_per_period", "status", "message"):
+                f["rigid"].attrs[name] = getattr(rigid, name) if name != "status" else str(rigid.status)
         f["limit"].attrs["start"] = result.limit.start
         f["limit"].attrs["comment"] = (
             "the final period, taken as the periodic limit; t is relative to its start (attribute start, absolute time)"
@@ -490,8 +530,9 @@ class ResultsWriter:
             groups["limit"].update(lengths=c.lengths, friction=c.friction, load=c.load)
         if "events" in f:
             groups["events"] = {name: f["events"][name] for name in f["events"]}
-        if c is not None and getattr(result, "actuator_work_per_period", None) is not None:
-            groups["energy"] = {name: getattr(result, attr) for name, attr in _ENERGY.items()}
+        summary = result.summary()
+        if c is not None and summary["actuator_work_per_period"] is not None:
+            groups["energy"] = {name: summary[key] for name, key in _ENERGY.items()}
         return groups
 
     def _write_group(self, gname: str, values: dict[str, Any]) -> None:
@@ -509,7 +550,7 @@ class ResultsWriter:
                 Var((time_dim,), f"time: the index of dimension {time_dim} (the values of /{gname}/t)", "time"),
                 _unit(self.units, "time", crawler),
             )
-        for name in ("period", "step"):
+        for name in ("period", "step", "rigid_interval"):
             if name in values and name in table:
                 scales.coordinate(group, name, np.asarray(values.pop(name), dtype=np.int64))
                 describe_var(group[name], table[name], "1")
@@ -540,8 +581,8 @@ class ResultsWriter:
         solver_period is empty. jacobian_rate (the Jacobian's subdominant spectral radius at
         the limit) and contraction_rate (fitted to the true iterates) should agree."""
         group = self.file["limit"].create_group("solver", track_order=True)
-        residuals = getattr(result, "limit_residuals", None)
-        kinds = getattr(result, "limit_kinds", None)
+        solver, summary = result.solver, result.summary()
+        residuals, kinds = solver.residuals, solver.kinds
         residuals = np.zeros(0) if residuals is None else np.asarray(residuals, dtype=float)
         kinds = np.zeros(len(residuals), dtype=np.int8) if kinds is None else np.asarray(kinds, dtype=np.int8)
         ds = self._scales.coordinate(group, "solver_period", np.arange(len(residuals), dtype=np.int64))
@@ -551,12 +592,11 @@ class ResultsWriter:
             self._scales.attach(ds, ("solver_period",))
             describe_var(ds, SOLVER_VARIABLES[name], "1")
         a = group.attrs
-        a["method"] = str(getattr(result, "limit_method", "iterate"))
-        a["newton_steps"] = int(getattr(result, "limit_newton_steps", 0))
-        a["periods"] = int(getattr(result, "limit_periods", 0))
+        a["method"] = str(solver.method)
+        a["newton_steps"] = int(solver.newton_steps)
+        a["periods"] = int(solver.periods)
         for key in ("jacobian_rate", "contraction_rate"):
-            value = getattr(result, key, None)
-            a[key] = np.nan if value is None else float(value)
+            a[key] = np.nan if summary[key] is None else float(summary[key])
         a["comment"] = (
             "how the periodic limit was found. method newton: the periodic-limit solver "
             "(safeguarded semismooth Newton on F(w) = P(w) - w, P the period map, Jacobian from "
@@ -612,13 +652,13 @@ class ResultsWriter:
             "cost_of_transport",
             "actuator_work_per_period",
             "jump_loss_per_period",
+            "discretisation_loss_per_period",
             "energy_balance_residual",
             "cost_of_transport_bound",
             "efficiency",
             "load_work_per_period",
         ):
-            value = summary.get(key, getattr(result, key, None))
-            a[key] = np.nan if value is None else float(value)
+            a[key] = np.nan if summary[key] is None else float(summary[key])
         # the loads (docs/model.md §6): the effective document (gait_yaml) holds the whole
         # loads: block; the angle in degrees is repeated here, NaN without a slope
         c = self.process.crawler

@@ -15,17 +15,18 @@ from pathlib import Path
 from typing import Any
 
 import h5py
+import numpy as np
 
 from crawlsim.errors import ResultsFileError
 from crawlsim.io.layout import check_version, open_h5, plain, root_attrs, variables
 from crawlsim.io.runfile import TIME_DIMENSIONS
-from crawlsim.kernel.kkt import ChainPolyhedron
 
 
 def read_results(path: Any) -> dict[str, Any]:
     """Load a results file (format_version 1 or 2) into plain dicts of arrays: ``{"attrs",
     "trajectory", "convergence", "limit"}`` and the groups' attributes as ``"<group>_attrs"``,
-    plus ``"process"``, ``"events"`` and ``"energy"`` when the file has them. Format 2 adds
+    plus ``"process"``, ``"events"``, ``"energy"`` and ``"rigid"`` (with ``"rigid_attrs"``) when the
+    file has them. Format 2 adds
     ``"coordinates"`` (the root coordinate variables: block, link, constraint, ...) and
     ``/limit/step``; files that record the periodic-limit solver add ``"limit_solver"`` and
     ``"limit_solver_attrs"`` (``/limit/solver``). Raises `ResultsFileError` naming what is
@@ -38,9 +39,11 @@ def read_results(path: Any) -> dict[str, Any]:
                 raise ResultsFileError(f"{source}: missing group /{group}")
             out[group] = _group(f, group)
             out[group + "_attrs"] = {k: plain(v) for k, v in f[group].attrs.items()}
-        for group in ("process", "events", "energy"):
+        for group in ("process", "events", "energy", "rigid"):
             if group in f:
                 out[group] = _group(f, group)
+        if "rigid" in f:
+            out["rigid_attrs"] = {k: plain(v) for k, v in f["rigid"].attrs.items()}
         if "solver" in f["limit"]:  # files since the periodic-limit solver
             out["limit_solver"] = variables(f["limit"]["solver"])
             out["limit_solver_attrs"] = {k: plain(v) for k, v in f["limit"]["solver"].attrs.items()}
@@ -49,8 +52,10 @@ def read_results(path: Any) -> dict[str, Any]:
             out["coordinates"] = coordinates
     process = out.get("process", {})
     if "stiffness" in process and "normals" not in process:
-        chain = ChainPolyhedron(process["stiffness"], 1.0)
-        process.update(normals=chain.dense_normals(), metric=chain.dense_metric())
+        # a crawler's B = [D^T; -D^T], (D^T v)_j = v_{j-1} - v_j, and M = K^-1 (docs/model.md §2)
+        k = np.asarray(process["stiffness"], dtype=float)
+        Dt = np.eye(len(k) + 1, len(k), -1) - np.eye(len(k) + 1, len(k))
+        process.update(normals=np.vstack([Dt, -Dt]), metric=np.diag(1.0 / k))
     return out
 
 
@@ -73,7 +78,7 @@ def _open_run(path: Any) -> tuple[Any, h5py.File]:
         if kind == "optimization":
             raise ResultsFileError(
                 f"{source}: an optimisation file, not a run's results file: "
-                "read it with crawlsim.io.hdf5.read_optimization"
+                "read it with crawlsim.io.optfile.read_optimization"
             )
     except BaseException:
         f.close()

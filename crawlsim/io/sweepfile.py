@@ -17,7 +17,9 @@ import h5py
 import numpy as np
 
 from crawlsim.errors import ResultsFileError
+from crawlsim.gait.settings import Simulation
 from crawlsim.gait.units import Units, path_quantity
+from crawlsim.io import provenance
 from crawlsim.io.layout import (
     CONVERGENCE_FLAGS,
     STATUS_FLAGS,
@@ -42,6 +44,9 @@ _SWEEP_COMMENT = (
     "has units and long_name."
 )
 
+
+#: Prefix of a derivative column of ``--sensitivity PATH``: ``dv0/dlinks.1.phase``.
+DERIVATIVE = "dv0/d"
 
 #: /grid and /results variables of a sweep file besides the swept paths.
 SWEEP_VARIABLES: dict[str, Var] = {
@@ -168,10 +173,8 @@ class _SweepLayout:
 
     def integrator(self, columns: Mapping[str, Any]) -> str:
         """The integrator the rows ran (a shard or a grid of invalid points has none: the
-        document's, with the default of `crawlsim.gait.document.Simulation`); several,
+        document's, with the default of `crawlsim.gait.settings.Simulation`); several,
         comma-separated, if they differ."""
-        from crawlsim.gait.document import Simulation
-
         used = sorted({str(s) for s in columns.get("integrator", ())} - {""})
         simulation = self.document.get("simulation")
         if not isinstance(simulation, dict):
@@ -182,8 +185,6 @@ class _SweepLayout:
 def _write_sweep(
     f: h5py.File, layout: _SweepLayout, columns: Mapping[str, Any], gait_yaml: str, source: str, shard: str, steps: Any
 ) -> None:
-    from crawlsim.io import provenance
-
     paths, names = layout.paths, layout.names
     write_header(f, title="crawlsim parameter sweep", comment=_SWEEP_COMMENT, kind="sweep")
     a = f.attrs
@@ -264,7 +265,7 @@ def _write_results(f: h5py.File, scales: Scales, layout: _SweepLayout, columns: 
     ds = scales.coordinate(results, "point", layout.points)
     describe_var(ds, SWEEP_VARIABLES["point"], "1")
     for p, n in zip(layout.paths, layout.names):
-        ds = results.create_dataset(n, data=np.asarray(columns[p]), track_order=True)
+        ds = write_column(results, n, columns[p])
         scales.attach(ds, ("point",))
         describe_var(ds, layout.axis_var(p), units.of(layout.axis_var(p).quantity))
         ds.attrs["path"] = p
@@ -278,8 +279,8 @@ def _write_results(f: h5py.File, scales: Scales, layout: _SweepLayout, columns: 
 
 
 def _write_derivatives(f: h5py.File, scales: Scales, layout: _SweepLayout, columns: Mapping[str, Any]) -> None:
-    """The dv0/dPATH columns of ``--sensitivity`` (`crawlsim.analysis.sensitivity_sweep`), on
-    the grid and in the table, with the units of v0 over PATH; the column in ``column``."""
+    """The dv0/dPATH columns of ``--sensitivity`` (`DERIVATIVE`), on the grid and in the table,
+    with the units of v0 over PATH; the column in ``column``."""
     shape, dim_names = layout.shape, layout.dim_names
     for column, name, unit, long_name in _derivative_variables(
         columns, layout.units, layout.kind, [*layout.names, *SWEEP_VARIABLES]
@@ -299,24 +300,16 @@ def _derivative_variables(
 ) -> list[tuple[str, str, str, str]]:
     """(column, dataset name, units, long_name) of each derivative column of a sweep file: the
     name netCDF-safe (``dv0_dlinks_1_phase``), the column itself in the attribute ``column``."""
-    from crawlsim.analysis.sensitivity_sweep import PREFIX, unit
-
     out = []
     names = list(taken)
     for column in cols:
-        if not column.startswith(PREFIX):
+        if not column.startswith(DERIVATIVE):
             continue
-        path = column[len(PREFIX) :]
+        path = column[len(DERIVATIVE) :]
         name = axis_name("dv0_d" + path.replace(".", "_"), names)
         names.append(name)
-        out.append(
-            (
-                column,
-                name,
-                unit(units, kind, path),
-                f"derivative of v0 with respect to {path} (NaN where not smooth or not computed)",
-            )
-        )
+        long_name = f"derivative of v0 with respect to {path} (NaN where not smooth or not computed)"
+        out.append((column, name, units.derivative(kind, path), long_name))
     return out
 
 

@@ -1,7 +1,7 @@
 """The compiled, certified catch-up step of a crawler chain (docs/model.md §3).
 
 One step projects the trial state w_j onto K(t_{j+1}) = {w : B w <= c} in the metric M = K^{-1},
-with B = [D^T; -D^T] (`crawlsim.kernel.chain_polyhedron.ChainPolyhedron`). On the saturated blocks J, with signs
+with B = [D^T; -D^T] (`crawlsim.projection.chain_polyhedron.ChainPolyhedron`). On the saturated blocks J, with signs
 s_i = +1 (forward limit, row i) or -1 (backward limit, row N + i), the KKT system is
 
     L_JJ dx_J = f_J - f*_J,   f = D^T w_j,   f*_i = c_i (s_i = +1) or -c_{N+i} (s_i = -1),
@@ -11,7 +11,7 @@ w_{j+1} = w_j - K D dx, multipliers lambda_i = dx_i (s_i = +1), lambda_{N+i} = -
 The system is padded to all N blocks (identity rows on free blocks, no coupling across them) and
 factored by LDL^T in O(N) (the Thomas recurrence), refactored only when J changes.
 
-Every step is certified with the tolerance policy of `crawlsim.kernel.polyhedron.Polyhedron.solve_on` and
+Every step is certified with the tolerance policy of `crawlsim.projection.polyhedron.Polyhedron.solve_on` and
 `certify` (one policy for every integrator): primal feasibility max(B w - c) <= tol_p, the sign
 of the multipliers -min(lambda) <= tol_d and complementarity max |(B w - c)_J| <= tol_p, where
 
@@ -20,10 +20,10 @@ of the multipliers -min(lambda) <= tol_d and complementarity max |(B w - c)_J| <
 
 with ||L_JJ^{-1}||_inf = max(L_JJ^{-1} 1) exactly (an M-matrix). A complementarity residual above
 a quarter of tol_p gets one step of iterative refinement. An uncertified step moves its active
-set by the primal-dual updates of `crawlsim.kernel.polyhedron.Polyhedron.refine` (drop the rows with negative
+set by the primal-dual updates of `crawlsim.projection.polyhedron.Polyhedron.refine` (drop the rows with negative
 multipliers, add the violated rows; the worst one alone, or the exchange of Goldfarb and Idnani,
 where all at once would saturate every block). A certified KKT point of this strictly convex
-problem is the projection, so the steps agree with `crawlsim.kernel.kkt` to roundoff.
+problem is the projection, so the steps agree with `crawlsim.projection.kkt` to roundoff.
 
 A step at N = 4 costs a few hundred machine instructions, so its shape is its cost: after the
 solve, one pass over the blocks forms the point, the multipliers, the slack and the three
@@ -42,13 +42,9 @@ Everything here is a function of plain arrays and scalars, compiled by numba; wi
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
-#: The tolerance constants of `crawlsim.kernel.kkt` (repeated: the compiled code sees literals only;
-#: tests/test_kernel.py checks they agree).
-RTOL = 1e-14
-REFINE_FRACTION = 0.25
-UPDATE_ITERATIONS = 12
+from crawlsim.kernel.jit import jit
+from crawlsim.kernel.policy import REFINE_FRACTION, RTOL, UPDATE_ITERATIONS, tolerances
 
 #: What `catch_up` returns: every step done; step j handed to the Python projector (the
 #: updates did not settle, or the step is certified with every block tight, where LICQ and the
@@ -59,7 +55,7 @@ DONE, HANDOFF, FAILED = 0, 1, 2
 REPORT_PRIMAL, REPORT_DUAL, REPORT_COMP, REPORT_TOLP, REPORT_TOLD, REPORT_ROW = range(6)
 
 
-@njit(cache=True)
+@jit
 def factor(k: np.ndarray, signs: np.ndarray, D: np.ndarray, l: np.ndarray) -> tuple[float, float]:
     """LDL^T of the padded L~ (diagonal L_ii on saturated blocks, 1 on free ones; off-diagonal
     -k_i where blocks i and i+1 are both saturated) into the pivots D and unit subdiagonal l.
@@ -67,7 +63,7 @@ def factor(k: np.ndarray, signs: np.ndarray, D: np.ndarray, l: np.ndarray) -> tu
     return factor_into(k, signs, D, l, np.empty(signs.shape[0]))
 
 
-@njit(cache=True)
+@jit
 def factor_into(k: np.ndarray, signs: np.ndarray, D: np.ndarray, l: np.ndarray, y: np.ndarray) -> tuple[float, float]:
     """`factor` with the caller's scratch ``y`` (N) for the solve that gives ||L_JJ^{-1}||:
     the catch-up loop refactors without allocating."""
@@ -93,7 +89,7 @@ def factor_into(k: np.ndarray, signs: np.ndarray, D: np.ndarray, l: np.ndarray, 
     return inverse, gram
 
 
-@njit(cache=True, inline="always")
+@jit
 def eliminate(k: np.ndarray, signs: np.ndarray, D: np.ndarray, l: np.ndarray, lo: int, hi: int) -> None:
     """The elimination of `factor` along blocks lo..hi, their pivots D on the diagonal: the
     subdiagonal l and the pivots after it. l = 0 between runs (D[i] - 0 * 0 = D[i]): no chain
@@ -107,7 +103,7 @@ def eliminate(k: np.ndarray, signs: np.ndarray, D: np.ndarray, l: np.ndarray, lo
             l[i - 1] = 0.0
 
 
-@njit(cache=True)
+@jit
 def solve(D: np.ndarray, l: np.ndarray, y: np.ndarray) -> None:
     """y <- L~^{-1} y in place with the LDL^T factor (D, l). The terms with l = 0 (between
     two runs of saturated blocks) are skipped: y - 0 y = y for finite y, and the recurrences
@@ -123,7 +119,7 @@ def solve(D: np.ndarray, l: np.ndarray, y: np.ndarray) -> None:
             y[i] -= l[i] * y[i + 1]
 
 
-@njit(cache=True, inline="always")
+@jit
 def force(w: np.ndarray, i: int, N: int) -> float:
     """f_i = (D^T w)_i = w_{i-1} - w_i, with w_{-1} = w_{N-1} = 0: the net force on block i."""
     if i == 0:
@@ -133,7 +129,7 @@ def force(w: np.ndarray, i: int, N: int) -> float:
     return float(w[i - 1] - w[i])
 
 
-@njit(cache=True)
+@jit
 def forces(w: np.ndarray, f: np.ndarray) -> None:
     """f = D^T w (`force` of every block)."""
     N = f.shape[0]
@@ -141,7 +137,7 @@ def forces(w: np.ndarray, f: np.ndarray) -> None:
         f[i] = force(w, i, N)
 
 
-@njit(cache=True, inline="always")
+@jit
 def state(
     k: np.ndarray,
     w_trial: np.ndarray,
@@ -199,7 +195,7 @@ def state(
     return lam_size, primal, dual, comp
 
 
-@njit(cache=True, inline="always")
+@jit
 def on_set(
     k: np.ndarray,
     kmax: float,
@@ -249,9 +245,7 @@ def on_set(
     if active:
         solve(D, l, dx)
     lam_size, primal, dual, comp = state(k, w_trial, dx, signs, w, lam, slack, c, fixed)
-    size = max(max(c_scale, c_size), max(2.0 * w_size, 4.0 * kmax * lam_size))
-    tol_p = RTOL * size
-    tol_d = 2.0 * RTOL * inverse * (size + gram * lam_size)
+    tol_p, tol_d = tolerances(c_scale, c_size, 2.0 * w_size, 4.0 * kmax * lam_size, inverse, gram, lam_size)
     if active and comp > REFINE_FRACTION * tol_p:
         for i in range(N):
             if signs[i] > 0:
@@ -267,7 +261,7 @@ def on_set(
     return tol_p, tol_d, primal, dual, comp
 
 
-@njit(cache=True)
+@jit
 def row_duals(
     k: np.ndarray,
     kmax: float,
@@ -328,7 +322,7 @@ def row_duals(
             told[N + i] = bound
 
 
-@njit(cache=True)
+@jit
 def dual_excess(lam: np.ndarray, told: np.ndarray, fixed: np.ndarray) -> tuple[float, float]:
     """(-lambda_r, tol_r) of the row whose multiplier is most negative relative to its own
     tolerance (rows ``fixed`` excluded); (0, tol) when every sign holds."""
@@ -342,7 +336,7 @@ def dual_excess(lam: np.ndarray, told: np.ndarray, fixed: np.ndarray) -> tuple[f
     return value, tol
 
 
-@njit(cache=True)
+@jit
 def independent(rows: np.ndarray, N: int) -> bool:
     """LICQ of the rows (a mask of 2N) of a chain: no block at both limits, not every block."""
     count = 0
@@ -354,7 +348,7 @@ def independent(rows: np.ndarray, N: int) -> bool:
     return count < N
 
 
-@njit(cache=True)
+@jit
 def update(
     signs: np.ndarray,
     lam: np.ndarray,
@@ -367,7 +361,7 @@ def update(
     member: np.ndarray,
     single: bool,
 ) -> int:
-    """The next set of a primal-dual update into ``new`` (`crawlsim.kernel.polyhedron.Polyhedron.update_set`,
+    """The next set of a primal-dual update into ``new`` (`crawlsim.projection.polyhedron.Polyhedron.update_set`,
     then `exchange` where the set would fail LICQ; the worst row alone where that, or
     ``single``, asks for it); rows ``fixed`` never leave. Returns 0 with a
     new set, 1 when nothing is to change (the certificate failed on its own numbers), 2 when
@@ -411,9 +405,9 @@ def update(
     return 0
 
 
-@njit(cache=True)
+@jit
 def exchange(member: np.ndarray, lam: np.ndarray, slack: np.ndarray, fixed: np.ndarray, rows: np.ndarray) -> bool:
-    """The exchange of Goldfarb and Idnani into ``rows`` (`crawlsim.kernel.polyhedron.Polyhedron.exchange`):
+    """The exchange of Goldfarb and Idnani into ``rows`` (`crawlsim.projection.polyhedron.Polyhedron.exchange`):
     the most violated row r enters although it depends on the active ones, which happens only
     when every block would be saturated (a block at both limits has no leaving row); along the
     dependency z = S 1 (signs of the rows, z_r > 0) the active row of the opposite sign with
@@ -442,7 +436,7 @@ def exchange(member: np.ndarray, lam: np.ndarray, slack: np.ndarray, fixed: np.n
     return True
 
 
-@njit(cache=True, inline="always")
+@jit
 def same(a: np.ndarray, b: np.ndarray) -> bool:
     """a == b for two sets of signs, without the temporary array of np.array_equal (a step at
     N = 4 costs about as much as that allocation)."""
@@ -452,7 +446,7 @@ def same(a: np.ndarray, b: np.ndarray) -> bool:
     return True
 
 
-@njit(cache=True)
+@jit
 def settle(
     k: np.ndarray,
     kmax: float,
@@ -477,7 +471,7 @@ def settle(
     told: np.ndarray,
 ) -> tuple[int, float]:
     """One certified projection of ``w_trial`` onto {B w <= c} (rows ``fixed`` as equalities)
-    from the set ``signs``, by primal-dual updates (`crawlsim.kernel.polyhedron.Polyhedron.refine`): DONE
+    from the set ``signs``, by primal-dual updates (`crawlsim.projection.polyhedron.Polyhedron.refine`): DONE
     with w, lam, slack, the set and each row's own dual tolerance (``told``, `row_duals`) in
     place, HANDOFF when the updates cycle, run out or find no independent set, FAILED when the
     certificate fails with nothing to change (``report``). Returns (status, tol_p); the scalar
@@ -510,7 +504,7 @@ def settle(
     )
 
 
-@njit(cache=True, inline="always")
+@jit
 def settle_from(
     k: np.ndarray,
     kmax: float,
@@ -588,7 +582,7 @@ def settle_from(
     return HANDOFF, 0.0
 
 
-@njit(cache=True)
+@jit
 def project(
     k: np.ndarray,
     c_scale: float,
@@ -607,7 +601,7 @@ def project(
     return project_rows(k, c_scale, w_trial, c, signs, fixed, w, lam, report, np.empty(2 * signs.shape[0]))
 
 
-@njit(cache=True)
+@jit
 def project_rows(
     k: np.ndarray,
     c_scale: float,
@@ -657,7 +651,7 @@ def project_rows(
     return status
 
 
-@njit(cache=True)
+@jit
 def catch_up(
     k: np.ndarray,
     c_scale: float,
@@ -725,7 +719,7 @@ def catch_up(
         if status != DONE:
             return status, j
         # every block tight to roundoff with an inactive row among them: LICQ may fail and the
-        # slips may not be unique; the Python projector decides (crawlsim.kernel.projection)
+        # slips may not be unique; the Python projector decides (crawlsim.projection.adapter)
         all_tight = True
         inactive_tight = False
         for i in range(N):
@@ -747,10 +741,10 @@ def catch_up(
     return DONE, G
 
 
-@njit(cache=True)
+@jit
 def set_starts(S: np.ndarray) -> np.ndarray:
     """The steps where the set S[j] differs from S[j-1] (step 0 included): the index of the
-    first step of each run of one set (`crawlsim.kernel.catchup.VisitedSets`)."""
+    first step of each run of one set (`crawlsim.integrate.catchup.VisitedSets`)."""
     G, N = S.shape
     starts = np.empty(G, dtype=np.int64)
     count = 0
@@ -761,7 +755,7 @@ def set_starts(S: np.ndarray) -> np.ndarray:
     return starts[:count]
 
 
-@njit(cache=True)
+@jit
 def positions(LAM: np.ndarray, x0: np.ndarray, X: np.ndarray) -> None:
     """Block positions of a period (docs/model.md §3): X[0] = x0 and X[j+1] = x0 + dx_0 + ...
     + dx_j, dx = lambda^+ - lambda^- of each step (`crawlsim.model.crawler.slips`). The running
@@ -780,7 +774,7 @@ def positions(LAM: np.ndarray, x0: np.ndarray, X: np.ndarray) -> None:
             X[j + 1, i] = t + x0[i]
 
 
-@njit(cache=True)
+@jit
 def worst_row(signs: np.ndarray, lam: np.ndarray, slack: np.ndarray) -> int:
     """The row that violates its certificate most, relative to nothing: the largest slack, or
     the most negative multiplier, or the active row with the largest residual."""

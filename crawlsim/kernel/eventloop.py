@@ -10,7 +10,7 @@ sampling, `crawlsim.kernel.sampling`); the grid samples and their certificate
 (`sample_piece`); and at a jump of c(t) the certified projection onto K(t+) (`jump`). The
 formulas, tolerances and decisions are those of the module docstring of
 `crawlsim.integrate.exact`, which documents them; the rows of a chain are those of
-`crawlsim.kernel.kkt.ChainPolyhedron` (row i < N: block i at its forward limit, row N + i at its
+`crawlsim.projection.kkt.ChainPolyhedron` (row i < N: block i at its forward limit, row N + i at its
 backward one), and an active set is its signs (+1, -1, 0 per block).
 
 An event touches what can change. The padded KKT system decouples at a free block, so the
@@ -40,7 +40,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from crawlsim.kernel import chain
 from crawlsim.kernel.events import (  # noqa: F401 - eventloop.next_event etc. are entry points too
@@ -52,6 +51,7 @@ from crawlsim.kernel.events import (  # noqa: F401 - eventloop.next_event etc. a
     rate_tolerance,
     row_functions,
 )
+from crawlsim.kernel.jit import jit
 from crawlsim.kernel.piece import (  # noqa: F401 - eventloop.piece etc. are its entry points too
     CLEAR_MARGIN,
     DECISION_ORDERS,
@@ -75,11 +75,11 @@ from crawlsim.kernel.piece import (  # noqa: F401 - eventloop.piece etc. are its
     solve_rows,
     tight_rows,
 )
+from crawlsim.kernel.policy import RTOL, UPDATE_ITERATIONS, tolerances
 
 TWO_PI = 2.0 * math.pi
-RTOL = chain.RTOL
 #: Restarts of the projection at a jump of c from the set where its primal-dual updates
-#: stopped: a jump may change more rows than `chain.UPDATE_ITERATIONS` updates do when the
+#: stopped: a jump may change more rows than `UPDATE_ITERATIONS` updates do when the
 #: tight set, nearly every block, only admits them one at a time.
 JUMP_RESTARTS = 8
 
@@ -98,7 +98,7 @@ C_EVENTS, C_TRANSITIONS, C_PIECES, C_JUMPS = range(4)
 
 
 # -- the grid samples of a piece and their certificate ------------------------------------------
-@njit(cache=True)
+@jit
 def sample_piece(
     k: np.ndarray,
     kmax: float,
@@ -193,10 +193,8 @@ def sample_piece(
             elif s < 0:
                 comp = max(comp, abs(slack_minus))
             w_left = w_right
-        size = max(max(c_scale, c_size), max(2.0 * w_size, 4.0 * kmax * lam_size))
-        tol_p = RTOL * size
-        tol_d = max(2.0 * RTOL * inverse * (size + gram * lam_size), own)
-        tol_d = max(tol_d, 4 * RTOL * lam_size)
+        tol_p, tol_d = tolerances(c_scale, c_size, 2.0 * w_size, 4.0 * kmax * lam_size, inverse, gram, lam_size)
+        tol_d = max(max(tol_d, own), 4 * RTOL * lam_size)
         if j == j0:
             tol_d = max(tol_d, carried)
         if primal > tol_p or dual > tol_d or comp > tol_p:
@@ -207,7 +205,7 @@ def sample_piece(
     return True
 
 
-@njit(cache=True)
+@jit
 def state_at(
     u: float,
     linear: bool,
@@ -239,7 +237,7 @@ def state_at(
             lam_now[N + i] = lam_cum[N + i] + -(dx0[i] - dx[i])
 
 
-@njit(cache=True)
+@jit
 def rebuild_changed(
     k: np.ndarray,
     old: np.ndarray,
@@ -298,7 +296,7 @@ def rebuild_changed(
 CHUNK = 32
 
 
-@njit(cache=True)
+@jit
 def energy_terms(
     signs: np.ndarray,
     base: np.ndarray,
@@ -356,7 +354,7 @@ def energy_terms(
 
 
 # -- a jump of c at a breakpoint ----------------------------------------------------------------
-@njit(cache=True)
+@jit
 def jump(
     k: np.ndarray,
     c_scale: float,
@@ -370,7 +368,7 @@ def jump(
     """The projection of w onto K(t+) = {B v <= target} from the set ``signs``, certified by
     `crawlsim.kernel.chain.project` (DONE only with its certificate; restarted where its
     updates run out, `JUMP_RESTARTS`), and LICQ at its tight rows
-    (`crawlsim.kernel.projection.ExactProjector`: a tight set that may be dependent goes to the
+    (`crawlsim.projection.adapter.ExactProjector`: a tight set that may be dependent goes to the
     projector, which decides whether the slips are unique). Returns DONE or HANDOFF."""
     N = signs.shape[0]
     m = 2 * N
@@ -397,7 +395,7 @@ def jump(
     return DONE
 
 
-@njit(cache=True)
+@jit
 def record_at(j: int, LAMC: np.ndarray, x0: np.ndarray, MU: np.ndarray, X: np.ndarray) -> None:
     """The record's slips of the step ending at grid point j, MU[j-1] = LAMC[j] - LAMC[j-1]
     (j > 0), and the positions X[j] = x0 + (lambda^+ - lambda^-)(t_j) (x0 not empty), as
@@ -411,7 +409,7 @@ def record_at(j: int, LAMC: np.ndarray, x0: np.ndarray, MU: np.ndarray, X: np.nd
             X[j, i] = x0[i] + (LAMC[j, i] - LAMC[j, N + i])
 
 
-@njit(cache=True)
+@jit
 def at_jump(
     k: np.ndarray,
     c_scale: float,
@@ -481,7 +479,7 @@ def at_jump(
 
 
 # -- one period -----------------------------------------------------------------------------------
-@njit(cache=True)
+@jit
 def begin_event(
     u: float,
     w: np.ndarray,
@@ -518,7 +516,7 @@ def begin_event(
     return DONE
 
 
-@njit(cache=True)
+@jit
 def after_jump(
     u: float,
     piece_after: int,
@@ -554,7 +552,7 @@ def after_jump(
     return je
 
 
-@njit(cache=True)
+@jit
 def period(
     k: np.ndarray,
     c_scale: float,
@@ -633,7 +631,7 @@ def period(
     # the velocity problems' scratch and the factor of the last set (`decide`)
     masks = np.zeros((3, m), dtype=np.bool_)
     rows_m, rows_n = np.empty((4, m)), np.zeros((5, N))
-    sets = np.empty((2 + chain.UPDATE_ITERATIONS, N), dtype=np.int8)
+    sets = np.empty((2 + UPDATE_ITERATIONS, N), dtype=np.int8)
     factored, norms = np.full(N, 2, dtype=np.int8), np.zeros(2)
     # the piece's own factor, L_JJ^{-1} 1, the slips at the last event and the rows' kept
     # crossings (`rebuild_changed`, `next_event_kept`); built: the piece arrays hold the

@@ -27,18 +27,18 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
-from crawlsim.kernel import chain, sampling
+from crawlsim.kernel import sampling
+from crawlsim.kernel.jit import jit
 from crawlsim.kernel.piece import basis_values, derivative
+from crawlsim.kernel.policy import RTOL
 
 TWO_PI = 2.0 * math.pi
-RTOL = chain.RTOL
 #: Two rows hit within this many cycles of the first crossing are hit together.
 SIMULTANEOUS = 1e-13
 
 
-@njit(cache=True)
+@jit
 def linear_crossing(a: float, s: float, tol: float, u0: float, u1: float) -> float:
     """Event time of f = a + s u (inf where there is none before u1)."""
     if not s > 0:
@@ -50,7 +50,7 @@ def linear_crossing(a: float, s: float, tol: float, u0: float, u1: float) -> flo
     return np.inf
 
 
-@njit(cache=True)
+@jit
 def harmonic_crossing(a: float, alpha: float, beta: float, tol: float, u0: float, u1: float) -> float:
     """Event time of f = a + alpha cos 2 pi u + beta sin 2 pi u (inf where there is none)."""
     rho = np.hypot(alpha, beta)
@@ -75,14 +75,14 @@ def harmonic_crossing(a: float, alpha: float, beta: float, tol: float, u0: float
     return t if t < u1 else np.inf
 
 
-@njit(cache=True)
+@jit
 def linear_crossings(a: np.ndarray, s: np.ndarray, tol: np.ndarray, u0: float, u1: float, out: np.ndarray) -> None:
     """`linear_crossing` of every row into ``out``."""
     for r in range(a.shape[0]):
         out[r] = linear_crossing(a[r], s[r], tol[r], u0, u1)
 
 
-@njit(cache=True)
+@jit
 def harmonic_crossings(
     a: np.ndarray, alpha: np.ndarray, beta: np.ndarray, tol: np.ndarray, u0: float, u1: float, out: np.ndarray
 ) -> None:
@@ -92,7 +92,7 @@ def harmonic_crossings(
 
 
 # -- the next event on a piece ------------------------------------------------------------------
-@njit(cache=True)
+@jit
 def crossing(
     z: np.ndarray, tol: float, u0: float, u1: float, linear: bool, H: int, phi0: np.ndarray, horizon: float
 ) -> float:
@@ -125,7 +125,7 @@ def crossing(
     return harmonic_crossing(z[0], z[nb - 2], z[nb - 1], tol, u0, u1)
 
 
-@njit(cache=True)
+@jit
 def rate_tolerance(c_size: float, signs: np.ndarray, Rdx: np.ndarray, inverse: float) -> float:
     """The tolerance of the active rows' slip rates on a piece: RTOL times the larger of the
     rates' own size (sum_b |Rdx[b, i]| over the active blocks) and what the offsets' rates
@@ -142,7 +142,7 @@ def rate_tolerance(c_size: float, signs: np.ndarray, Rdx: np.ndarray, inverse: f
     return RTOL * max(scale, inverse * c_size * TWO_PI)
 
 
-@njit(cache=True)
+@jit
 def block_functions(
     i: int, coef: np.ndarray, signs: np.ndarray, base: np.ndarray, Wc: np.ndarray, Rdx: np.ndarray, Z: np.ndarray
 ) -> None:
@@ -162,7 +162,7 @@ def block_functions(
         Z[N + i, 0] += -g
 
 
-@njit(cache=True)
+@jit
 def row_functions(
     linear: bool,
     H: int,
@@ -224,7 +224,7 @@ def row_functions(
     return best
 
 
-@njit(cache=True)
+@jit
 def next_event(
     c_scale: float,
     linear: bool,
@@ -302,14 +302,14 @@ def next_event(
     return first, False
 
 
-@njit(cache=True)
+@jit
 def closed_forms(linear: bool, H: int) -> bool:
     """Whether every row's crossing has a closed form (`crossing` never hands a row to the
     sampling): a linear basis, or one harmonic without a linear part."""
     return H == 0 or (H == 1 and not linear)
 
 
-@njit(cache=True)
+@jit
 def next_event_kept(
     c_scale: float,
     linear: bool,

@@ -8,10 +8,11 @@ Plain arrays and scalars; with ``NUMBA_DISABLE_JIT=1`` the same source runs as P
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from crawlsim.kernel.jit import jit
 
 
-@njit(cache=True)
+@jit
 def implicit(
     W: np.ndarray, L: np.ndarray, D: np.ndarray, blocks: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
@@ -74,7 +75,7 @@ def implicit(
     return dw, dY, dD, magY, magD, cond
 
 
-@njit(cache=True)
+@jit
 def column_moves(C: np.ndarray, dC: np.ndarray, k: np.ndarray, dk: np.ndarray) -> np.ndarray:
     """Each parameter column's largest relative move of the offsets and the stiffness,
     max |dC[..., c]| / max(max |C|, 1e-300) + max |dk[:, c]| / min k, for C (P, nb, m), dC

@@ -2,7 +2,7 @@
 
 The Jacobian of the period map from a start is the product of the factors visited in its
 period (`crawlsim.integrate.limit.factors`): projectors P_A = I - R_A B_A of active sets and
-saltations S = I - (v_b - v_a) b_i^T / rate. For a chain (`crawlsim.kernel.chain_polyhedron`,
+saltations S = I - (v_b - v_a) b_i^T / rate. For a chain (`crawlsim.projection.chain_polyhedron`,
 B = [D^T; -D^T], M = K^{-1}) a projector depends only on the saturated blocks J of A, not on
 the signs of its rows: with f = D^T v,
 
@@ -29,15 +29,15 @@ Everything here is a function of plain arrays and scalars, compiled by numba; wi
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from crawlsim.kernel.chain import factor
+from crawlsim.kernel.jit import jit
 
 #: The kind of a packed factor: the projector of an active set, or a saltation.
 PROJECTOR, SALTATION = 0, 1
 
 
-@njit(cache=True)
+@jit
 def pack(
     k: np.ndarray, kinds: np.ndarray, starts: np.ndarray, blocks: np.ndarray, D: np.ndarray, l: np.ndarray
 ) -> None:
@@ -64,7 +64,7 @@ def pack(
             signs[b] = 0.0
 
 
-@njit(cache=True, inline="always")
+@jit
 def _project(
     k: np.ndarray,
     blocks: np.ndarray,
@@ -111,7 +111,7 @@ def _project(
         right = dx
 
 
-@njit(cache=True)
+@jit
 def apply(
     k: np.ndarray,
     kinds: np.ndarray,
@@ -144,7 +144,7 @@ def apply(
         _project(k, blocks, D, l, lo, hi, x, y, False)
 
 
-@njit(cache=True)
+@jit
 def apply_transpose(
     k: np.ndarray,
     kinds: np.ndarray,

@@ -15,16 +15,16 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from crawlsim.kernel import chain
+from crawlsim.kernel.jit import jit
+from crawlsim.kernel.policy import RTOL, UPDATE_ITERATIONS, tolerances
 
 TWO_PI = 2.0 * math.pi
-RTOL = chain.RTOL
 
 
 # -- the basis phi(u) and products with it ------------------------------------------------------
-@njit(cache=True)
+@jit
 def basis_values(u: float, order: int, linear: bool, H: int, out: np.ndarray) -> None:
     """The order-th derivative of phi at u into ``out`` (`crawlsim.model.offsets.Basis.values`)."""
     for b in range(out.shape[0]):
@@ -47,7 +47,7 @@ def basis_values(u: float, order: int, linear: bool, H: int, out: np.ndarray) ->
         out[h0 + 2 * (h - 1) + 1] = scale * math.sin(angle + shift)
 
 
-@njit(cache=True)
+@jit
 def derivative(coef: np.ndarray, linear: bool, H: int, out: np.ndarray) -> None:
     """Coefficients (nb, k) of f' for f = phi @ coef (`crawlsim.model.offsets.Basis.derivative`)."""
     out[:] = 0.0
@@ -62,7 +62,7 @@ def derivative(coef: np.ndarray, linear: bool, H: int, out: np.ndarray) -> None:
         out[ci + 1] = -w * coef[ci]
 
 
-@njit(cache=True)
+@jit
 def combine(phi: np.ndarray, coef: np.ndarray, out: np.ndarray) -> None:
     """out = phi @ coef for coef (nb, k), row by row of coef (contiguous; the sums add the same
     terms in the same order as the dot product of each column)."""
@@ -74,9 +74,9 @@ def combine(phi: np.ndarray, coef: np.ndarray, out: np.ndarray) -> None:
             out[r] += p * coef[b, r]
 
 
-@njit(cache=True)
+@jit
 def apply(w: np.ndarray, out: np.ndarray) -> None:
-    """B w = [D^T w; -D^T w] of a chain (`crawlsim.kernel.kkt.ChainPolyhedron.apply`)."""
+    """B w = [D^T w; -D^T w] of a chain (`crawlsim.projection.kkt.ChainPolyhedron.apply`)."""
     N = out.shape[0] // 2
     for i in range(N):
         f = (w[i - 1] if i > 0 else 0.0) - (w[i] if i < N - 1 else 0.0)
@@ -84,7 +84,7 @@ def apply(w: np.ndarray, out: np.ndarray) -> None:
         out[N + i] = -f
 
 
-@njit(cache=True)
+@jit
 def max_abs(x: np.ndarray) -> float:
     out = 0.0
     for i in range(x.shape[0]):
@@ -94,7 +94,7 @@ def max_abs(x: np.ndarray) -> float:
 
 
 # -- a piece: the factor and the closed form of w(u) and the slips --------------------------------
-@njit(cache=True)
+@jit
 def solve_rows(D: np.ndarray, l: np.ndarray, Y: np.ndarray) -> None:
     """Y[b] <- L~^{-1} Y[b] for every row b (`crawlsim.kernel.chain.solve`, the same operations
     on each row), the rows side by side: their recurrences overlap instead of waiting on one
@@ -102,7 +102,7 @@ def solve_rows(D: np.ndarray, l: np.ndarray, Y: np.ndarray) -> None:
     solve_rows_on(D, l, Y, 0, Y.shape[1] - 1)
 
 
-@njit(cache=True)
+@jit
 def solve_rows_on(D: np.ndarray, l: np.ndarray, Y: np.ndarray, lo: int, hi: int) -> None:
     """`solve_rows` on the blocks lo..hi, a union of runs of the set (blocks lo - 1 and hi + 1
     free or absent: the padded system decouples there, so the other blocks are not read).
@@ -123,7 +123,7 @@ def solve_rows_on(D: np.ndarray, l: np.ndarray, Y: np.ndarray, lo: int, hi: int)
                 Y[b, i] -= li * Y[b, i + 1]
 
 
-@njit(cache=True)
+@jit
 def piece(
     k: np.ndarray,
     signs: np.ndarray,
@@ -148,7 +148,7 @@ def piece(
     return piece_on(k, signs, w0, coef, D, l, norms, dx0, Ydx, base, Wc, f)
 
 
-@njit(cache=True)
+@jit
 def factored_set(
     k: np.ndarray, signs: np.ndarray, factored: np.ndarray, D: np.ndarray, l: np.ndarray, norms: np.ndarray
 ) -> None:
@@ -161,7 +161,7 @@ def factored_set(
         factored[:] = signs
 
 
-@njit(cache=True)
+@jit
 def piece_on(
     k: np.ndarray,
     signs: np.ndarray,
@@ -207,7 +207,7 @@ def piece_on(
     return inverse, gram
 
 
-@njit(cache=True)
+@jit
 def rebuild(
     k: np.ndarray,
     signs: np.ndarray,
@@ -258,7 +258,7 @@ def rebuild(
             Wc[b, i] = (Ydx[b, i + 1] - Ydx[b, i]) * k[i]
 
 
-@njit(cache=True)
+@jit
 def set_norms(k: np.ndarray, signs: np.ndarray, inv: np.ndarray) -> tuple[float, float]:
     """(||L_JJ^{-1}||, ||L_JJ||) of the set (`crawlsim.kernel.chain.factor`) from
     inv = L_JJ^{-1} 1 (`rebuild`): its largest entry (an M-matrix) and the largest row sum
@@ -275,7 +275,7 @@ def set_norms(k: np.ndarray, signs: np.ndarray, inv: np.ndarray) -> tuple[float,
     return inverse, gram
 
 
-@njit(cache=True)
+@jit
 def offset_size(coef: np.ndarray) -> float:
     """max_r sum_b |coef[b, r]|: the size of a piece's offsets and of their rates (a bound on
     |c(u)| and |c'(u)| / 2 pi for one harmonic), once per piece of c."""
@@ -288,7 +288,7 @@ def offset_size(coef: np.ndarray) -> float:
     return c_size
 
 
-@njit(cache=True)
+@jit
 def dual_scale(
     k: np.ndarray,
     kmax: float,
@@ -320,8 +320,7 @@ def dual_scale(
             if signs[i] != 0:
                 top = max(top, abs(Ydx[b, i]))
         lam_size += top
-    size = max(max(c_scale, c_size), max(2.0 * w_size, 4.0 * kmax * lam_size))
-    return 2.0 * RTOL * inverse * (size + gram * lam_size)
+    return float(tolerances(c_scale, c_size, 2.0 * w_size, 4.0 * kmax * lam_size, inverse, gram, lam_size)[1])
 
 
 # -- an event: the next active set --------------------------------------------------------------
@@ -330,7 +329,7 @@ def dual_scale(
 DECISION_ORDERS = 4
 
 
-@njit(cache=True)
+@jit
 def tight_rows(
     c_scale: float,
     linear: bool,
@@ -369,7 +368,7 @@ def tight_rows(
         candidates[r] = Bw[r] - cvec[r] >= -tol or forced[r] or member
 
 
-@njit(cache=True)
+@jit
 def settle_rows(
     candidates: np.ndarray,
     fixed: np.ndarray,
@@ -395,7 +394,7 @@ def settle_rows(
     return left
 
 
-@njit(cache=True)
+@jit
 def decide(
     k: np.ndarray,
     kmax: float,
@@ -458,7 +457,7 @@ def decide(
     )
 
 
-@njit(cache=True)
+@jit
 def decide_from(
     k: np.ndarray,
     kmax: float,
@@ -555,7 +554,7 @@ LOCAL_BLOCKS = 16
 CLEAR_MARGIN = 1e3
 
 
-@njit(cache=True)
+@jit
 def decide_local(
     k: np.ndarray,
     kmax: float,
@@ -660,7 +659,7 @@ def decide_local(
     return bool(count < N)  # LICQ of the whole set (`chain.independent`)
 
 
-@njit(cache=True)
+@jit
 def decide_hot_runs(
     k: np.ndarray,
     kmax: float,
@@ -715,7 +714,7 @@ def decide_hot_runs(
     return True
 
 
-@njit(cache=True)
+@jit
 def decide_run(
     k: np.ndarray,
     kmax: float,
@@ -763,7 +762,7 @@ def decide_run(
         masks,
         np.empty((4, 2 * n)),
         np.zeros((5, n)),
-        np.empty((2 + chain.UPDATE_ITERATIONS, n), dtype=np.int8),
+        np.empty((2 + UPDATE_ITERATIONS, n), dtype=np.int8),
         np.full(n, 2, dtype=np.int8),
         np.empty(n),
         np.empty(max(n - 1, 0)),

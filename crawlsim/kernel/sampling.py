@@ -36,8 +36,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
+from crawlsim.kernel.jit import jit
 from crawlsim.kernel.piece import basis_values
 
 TWO_PI = 2.0 * math.pi
@@ -52,7 +52,7 @@ GOLDEN = 0.5 * (3.0 - math.sqrt(5.0))
 BOUNDED_ITERATIONS = 500
 
 
-@njit(cache=True)
+@jit
 def scalar(x: float, z: np.ndarray, linear: bool, H: int) -> float:
     """f(x) = phi(x) @ z for one cycle x, term by term (`crawlsim.model.offsets.Basis.scalar`
     is this function)."""
@@ -66,7 +66,7 @@ def scalar(x: float, z: np.ndarray, linear: bool, H: int) -> float:
     return total
 
 
-@njit(cache=True)
+@jit
 def curvature(z: np.ndarray, linear: bool, H: int) -> float:
     """max_u |f''(u)| <= sum_h (2 pi h)^2 (|a_h| + |b_h|) (`Basis.curvature_bound`)."""
     h0 = 2 if linear else 1
@@ -77,7 +77,7 @@ def curvature(z: np.ndarray, linear: bool, H: int) -> float:
     return bound
 
 
-@njit(cache=True)
+@jit
 def reach(z: np.ndarray, u0: float, u1: float, linear: bool, H: int) -> tuple[float, float, float]:
     """(top, size, slope) of f = phi @ z on [u0, u1]: f <= top, |f'| <= slope, and size the sum
     of the magnitudes of f's terms (the scale of its roundoff), without trigonometry."""
@@ -97,13 +97,13 @@ def reach(z: np.ndarray, u0: float, u1: float, linear: bool, H: int) -> tuple[fl
     return top, size, slope
 
 
-@njit(cache=True)
+@jit
 def _negative(x: float) -> bool:
     """signbit(x): True for negative numbers and -0."""
     return math.copysign(1.0, x) < 0.0
 
 
-@njit(cache=True)
+@jit
 def brentq(z: np.ndarray, t: float, xa: float, xb: float, linear: bool, H: int) -> float:
     """The root of f - t in [xa, xb] (f = `scalar`), as scipy.optimize.brentq with xtol 1e-15
     finds it: its C code, step for step. NaN where f - t has the same sign at both ends or the
@@ -151,13 +151,13 @@ def brentq(z: np.ndarray, t: float, xa: float, xb: float, linear: bool, H: int) 
     return np.nan
 
 
-@njit(cache=True)
+@jit
 def _sign1(x: float) -> float:
     """np.sign(x) + (x == 0): the direction of a step of scipy's bounded minimisation."""
     return 1.0 if x >= 0.0 else -1.0
 
 
-@njit(cache=True)
+@jit
 def maximum(z: np.ndarray, x1: float, x2: float, linear: bool, H: int) -> tuple[float, float]:
     """(x, f(x)) at the maximum of f on [x1, x2], as scipy.optimize.minimize_scalar(-f,
     bounds=(x1, x2), method="bounded", options={"xatol": 1e-15}) finds it (Brent's golden
@@ -225,13 +225,13 @@ def maximum(z: np.ndarray, x1: float, x2: float, linear: bool, H: int) -> tuple[
     return xf, -fx
 
 
-@njit(cache=True)
+@jit
 def cells(u0: float, u1: float, cells_per_cycle: int, H: int) -> int:
     """The sampling cells of (u0, u1): one every 1/(C H) cycle, at least 4."""
     return max(4, int(math.ceil((u1 - u0) * cells_per_cycle * max(H, 1))))
 
 
-@njit(cache=True)
+@jit
 def grid(u0: float, u1: float, count: int, S: np.ndarray) -> None:
     """The samples s_k = u0 + k (u1 - u0) / count, k = 0 ... count, into S (np.linspace)."""
     step = (u1 - u0) / count
@@ -240,7 +240,7 @@ def grid(u0: float, u1: float, count: int, S: np.ndarray) -> None:
     S[count] = u1
 
 
-@njit(cache=True)
+@jit
 def _sample(z: np.ndarray, k: int, S: np.ndarray, PHIS: np.ndarray, filled: np.ndarray, linear: bool, H: int) -> float:
     """f(s_k), the basis at the samples tabulated on first use (PHIS[:filled[0]] hold it)."""
     while filled[0] <= k:
@@ -252,7 +252,7 @@ def _sample(z: np.ndarray, k: int, S: np.ndarray, PHIS: np.ndarray, filled: np.n
     return total
 
 
-@njit(cache=True)
+@jit
 def crossing(
     z: np.ndarray,
     tol: float,
@@ -315,7 +315,7 @@ def crossing(
     return np.inf
 
 
-@njit(cache=True)
+@jit
 def crossings(
     Z: np.ndarray, tol: np.ndarray, u0: float, u1: float, linear: bool, H: int, cells_per_cycle: int, out: np.ndarray
 ) -> None:

@@ -27,10 +27,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 # the transition causes, coded as the compiled event loop codes them
 from crawlsim.kernel.eventloop import CAUSES, HIT, JUMP  # noqa: F401 - CAUSES for the callers
+from crawlsim.kernel.jit import jit
 from crawlsim.kernel.piece import basis_values, derivative
 
 TWO_PI = 2.0 * math.pi
@@ -40,7 +40,7 @@ EPS = float(np.finfo(np.float64).eps)
 ZERO_RATE, APART, COINCIDENT = 1, 2, 4
 
 
-@njit(cache=True)
+@jit
 def factor(B: np.ndarray, k: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """B_A and G_A^{-1}, G_A = B_A K B_A^T (Gauss-Jordan with partial pivoting)."""
     a, n = idx.shape[0], B.shape[1]
@@ -79,7 +79,7 @@ def factor(B: np.ndarray, k: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, n
     return BA, Gi
 
 
-@njit(cache=True)
+@jit
 def _mv(A: np.ndarray, x: np.ndarray) -> np.ndarray:
     """A @ x, in loops (the same sums compiled and as Python)."""
     out = np.zeros(A.shape[0])
@@ -91,7 +91,7 @@ def _mv(A: np.ndarray, x: np.ndarray) -> np.ndarray:
     return out
 
 
-@njit(cache=True)
+@jit
 def _mm(A: np.ndarray, X: np.ndarray) -> np.ndarray:
     """A @ X, in loops."""
     out = np.zeros((A.shape[0], X.shape[1]))
@@ -103,7 +103,7 @@ def _mm(A: np.ndarray, X: np.ndarray) -> np.ndarray:
     return out
 
 
-@njit(cache=True)
+@jit
 def _at(phi: np.ndarray, coef: np.ndarray, idx: np.ndarray) -> np.ndarray:
     """phi @ coef[:, idx] for coef (nb, m)."""
     out = np.zeros(idx.shape[0])
@@ -113,7 +113,7 @@ def _at(phi: np.ndarray, coef: np.ndarray, idx: np.ndarray) -> np.ndarray:
     return out
 
 
-@njit(cache=True)
+@jit
 def _at_p(phi: np.ndarray, coef: np.ndarray, idx: np.ndarray) -> np.ndarray:
     """phi . coef[:, idx, :] for coef (nb, m, p): (a, p)."""
     p = coef.shape[2]
@@ -125,7 +125,7 @@ def _at_p(phi: np.ndarray, coef: np.ndarray, idx: np.ndarray) -> np.ndarray:
     return out
 
 
-@njit(cache=True)
+@jit
 def solve_on(
     BA: np.ndarray,
     Gi: np.ndarray,
@@ -183,7 +183,7 @@ def solve_on(
     return Lam, dLam, w_e, dW
 
 
-@njit(cache=True)
+@jit
 def _saltation(
     B: np.ndarray,
     rows: np.ndarray,
@@ -261,13 +261,13 @@ def _saltation(
     return du, bits
 
 
-@njit(cache=True)
+@jit
 def _rate(Gi: np.ndarray, phi: np.ndarray, dcoef: np.ndarray, idx: np.ndarray) -> np.ndarray:
     """The slip rates lambda_A = -G_A^{-1} c_A' at one time."""
     return -_mv(Gi, _at(phi, dcoef, idx))
 
 
-@njit(cache=True)
+@jit
 def _dissipation(
     BA: np.ndarray,
     Gi: np.ndarray,
@@ -368,7 +368,7 @@ def _dissipation(
     return total, lam_x
 
 
-@njit(cache=True)
+@jit
 def gap_coefficients(
     B: np.ndarray, k: np.ndarray, BA: np.ndarray, Gi: np.ndarray, idx: np.ndarray, w: np.ndarray, coef: np.ndarray
 ) -> np.ndarray:
@@ -407,7 +407,7 @@ def gap_coefficients(
     return out
 
 
-@njit(cache=True)
+@jit
 def _gap_screen(
     B: np.ndarray,
     k: np.ndarray,
@@ -475,7 +475,7 @@ def _gap_screen(
     return False
 
 
-@njit(cache=True)
+@jit
 def _jump(
     B: np.ndarray,
     k: np.ndarray,
@@ -516,7 +516,7 @@ def _jump(
     return w, Wt, diss
 
 
-@njit(cache=True)
+@jit
 def _samples(
     u_s: float,
     u_e: float,
@@ -541,7 +541,7 @@ def _samples(
         basis_values(grid[x], 0, linear, H, stacked[x])
 
 
-@njit(cache=True)
+@jit
 def _velocity(BA: np.ndarray, k: np.ndarray, rate: np.ndarray) -> np.ndarray:
     """w' = -K B_A^T lambda_A for the slip rates lambda_A."""
     v = np.zeros(BA.shape[1])
@@ -551,7 +551,7 @@ def _velocity(BA: np.ndarray, k: np.ndarray, rate: np.ndarray) -> np.ndarray:
     return v
 
 
-@njit(cache=True)
+@jit
 def _outer_add(X: np.ndarray, a: np.ndarray, b: np.ndarray) -> None:
     """X += outer(a, b)."""
     for i in range(a.shape[0]):
@@ -559,7 +559,7 @@ def _outer_add(X: np.ndarray, a: np.ndarray, b: np.ndarray) -> None:
             X[i, c] += a[i] * b[c]
 
 
-@njit(cache=True)
+@jit
 def _rate_screen(Phi: np.ndarray, dcoef: np.ndarray, lam_x: np.ndarray, touch: float) -> bool:
     """Whether an active row's slip rate (``lam_x`` at the samples Phi) comes within twice the
     walk's tolerance of zero, relative to the size of c' on the samples (the caller decides
@@ -578,7 +578,7 @@ def _rate_screen(Phi: np.ndarray, dcoef: np.ndarray, lam_x: np.ndarray, touch: f
     return bool(low <= 2.0 * touch * size)
 
 
-@njit(cache=True)
+@jit
 def coefficient_derivatives(C: np.ndarray, dC: np.ndarray, linear: bool, H: int) -> tuple[np.ndarray, np.ndarray]:
     """The coefficients of c' and dc' on every piece, (P, nb, m) and (P, nb, m, p), from those
     of c and dc (`crawlsim.kernel.piece.derivative`: each entry a single product)."""
@@ -590,7 +590,7 @@ def coefficient_derivatives(C: np.ndarray, dC: np.ndarray, linear: bool, H: int)
     return dcoef, dC1
 
 
-@njit(cache=True)
+@jit
 def walk_exact(
     B: np.ndarray,
     k: np.ndarray,

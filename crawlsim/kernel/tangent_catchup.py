@@ -10,13 +10,13 @@ Plain arrays and scalars; with ``NUMBA_DISABLE_JIT=1`` the same source runs as P
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from crawlsim.kernel.jit import jit
 from crawlsim.kernel.piece import basis_values
 from crawlsim.kernel.tangent import factor, solve_on
 
 
-@njit(cache=True)
+@jit
 def grid_values(
     times: np.ndarray,
     period: float,
@@ -74,7 +74,7 @@ def grid_values(
     return u, pieces, Phi, c, mu, dc, dmu
 
 
-@njit(cache=True)
+@jit
 def catch_up_runs(
     multipliers: np.ndarray, w: np.ndarray, B: np.ndarray, offsets: np.ndarray, tol: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
@@ -118,7 +118,7 @@ def catch_up_runs(
     return active, weak, starts[: R + 1].copy(), runs_weak, scale_w
 
 
-@njit(cache=True)
+@jit
 def _steps(
     BA: np.ndarray,
     Gi: np.ndarray,
@@ -197,7 +197,7 @@ def _steps(
     return diss
 
 
-@njit(cache=True)
+@jit
 def walk_catch_up(
     B: np.ndarray,
     k: np.ndarray,

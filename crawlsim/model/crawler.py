@@ -18,6 +18,7 @@ those) are treated by the same code as a compiled process's.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,6 +31,16 @@ def block_forces(stress: np.ndarray) -> np.ndarray:
     padded = np.zeros(stress.shape[:-1] + (stress.shape[-1] + 2,))
     padded[..., 1:-1] = stress
     return padded[..., :-1] - padded[..., 1:]
+
+
+def offsets_of(KL: np.ndarray, plus: np.ndarray, minus: np.ndarray, force: np.ndarray | None) -> np.ndarray:
+    """c = [mu~^+ - D^T K L; mu~^- + D^T K L] with mu~^+ = mu^+ cos - F~ and mu~^- = mu^- cos + F~
+    (docs/model.md §2, §6), from K L, the friction ``plus`` and ``minus`` (already times cos) and
+    F~ (None without loads): the same on the grid (values) and on a piece (coefficients)."""
+    DtKL = block_forces(KL)
+    if force is None:
+        return np.hstack([plus - DtKL, minus + DtKL])
+    return np.hstack([plus - force - DtKL, minus + force + DtKL])
 
 
 def stress_bounds(friction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -67,6 +78,24 @@ def slips(multipliers: np.ndarray) -> np.ndarray:
     return multipliers[..., :N] - multipliers[..., N:]
 
 
+def signal_columns(blocks: int) -> dict[str, slice]:
+    """Where each signal a crawler's offsets c(t) are combined from sits in the signals' table
+    (`crawlsim.model.offsets.PiecewiseOffsets`, `signals_of`): the links' lengths L, mu^+ and
+    mu^- per block, and the loads' forces per block (docs/model.md §2, §6)."""
+    N = blocks
+    return {
+        "links": slice(0, N - 1),
+        "forward": slice(N - 1, 2 * N - 1),
+        "backward": slice(2 * N - 1, 3 * N - 1),
+        "forces": slice(3 * N - 1, 4 * N - 1),
+    }
+
+
+def signals_of(links: Sequence, forward: Sequence, backward: Sequence, forces: Sequence = ()) -> tuple:
+    """The signals of c(t) in the order of `signal_columns`."""
+    return (*links, *forward, *backward, *forces)
+
+
 def describe_subset(rows, N: int) -> str:
     """Words for the active rows of a crawler of N blocks: the set J of saturated blocks,
     rows 0..N-1 at the forward limit and N..2N-1 at the backward one."""
@@ -102,6 +131,31 @@ class Crawler:
     @property
     def blocks(self) -> int:
         return len(self.stiffness) + 1
+
+    @property
+    def columns(self) -> dict[str, slice]:
+        """The signals' columns (`signal_columns`)."""
+        return signal_columns(self.blocks)
+
+    def split(self, table: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """A table of the signals' coefficients (nb, S), columns as `signal_columns`, split into
+        the lengths L (nb, N-1), the friction [mu^+, mu^-] cos(angle) (nb, 2N) and the loads'
+        F~ = F - W sin(angle) (nb, N; None without loads), whose constant is added to row 0,
+        the coefficient of phi_0 = 1 (docs/model.md §6)."""
+        c = self.columns
+        friction = self.friction_scale * table[:, c["forward"].start : c["backward"].stop]
+        force = None
+        if self.load_constant is not None:
+            force = table[:, c["forces"]].copy()
+            force[0] += self.load_constant
+        return table[:, c["links"]], friction, force
+
+    def offsets(self, table: np.ndarray) -> np.ndarray:
+        """The coefficients (nb, 2N) of c = [mu~^+ - D^T K L; mu~^- + D^T K L] from those of the
+        signals (`split`): the map `crawlsim.model.offsets.PiecewiseOffsets` combines them with."""
+        L, friction, force = self.split(table)
+        N = self.blocks
+        return offsets_of(L * self.stiffness, friction[:, :N], friction[:, N:], force)
 
     def stress(self, w: np.ndarray, rows=slice(None)) -> np.ndarray:
         """sigma = w + K L(t) at the grid rows ``rows`` of the states ``w`` (§2)."""

@@ -93,9 +93,11 @@ class Basis:
     def scalar(self, x: float, coef: np.ndarray) -> float:
         """f(x) = phi(x) @ coef for one cycle x and one coefficient vector (no arrays): the
         compiled `crawlsim.kernel.sampling.scalar` that the event loops' root searches use."""
-        from crawlsim.kernel.sampling import scalar
+        from crawlsim.kernel.jit import kernel
 
-        return float(scalar(float(x), np.ascontiguousarray(coef, dtype=float), self.linear, self.harmonics))
+        return float(
+            kernel().sampling.scalar(float(x), np.ascontiguousarray(coef, dtype=float), self.linear, self.harmonics)
+        )
 
     def derivative(self, coef: np.ndarray) -> np.ndarray:
         """Coefficients (nb, ...) of f' for f = phi @ coef."""

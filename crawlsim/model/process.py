@@ -14,7 +14,7 @@ A generic polyhedral sweeping process (docs/model.md §5, ``kind: sweeping-proce
 same `SweepingProcess` with its own B, c(t), M and z(0) and no crawler fields, so it is stepped,
 certified and analysed by the same code; `compile` dispatches on the kind.
 
-B and M live in the process's `crawlsim.kernel.kkt.Polyhedron`: for a crawler a `ChainPolyhedron`, which
+B and M live in the process's `crawlsim.projection.kkt.Polyhedron`: for a crawler a `ChainPolyhedron`, which
 never forms anything of size N^2, so compiling, like stepping, costs O(N) per grid time.
 Everything time-dependent is tabulated once on the period's grid, vectorised over all times.
 """
@@ -28,9 +28,9 @@ import numpy as np
 
 from crawlsim.gait.document import Gait, ProcessSpec
 from crawlsim.gait.signals import Signal, evaluate_many
-from crawlsim.kernel.kkt import ChainPolyhedron, DensePolyhedron, Polyhedron
-from crawlsim.model.crawler import Crawler, block_forces, slips
+from crawlsim.model.crawler import Crawler, offsets_of, signals_of, slips
 from crawlsim.model.offsets import PiecewiseOffsets
+from crawlsim.projection.kkt import ChainPolyhedron, DensePolyhedron, Polyhedron
 
 #: Grid times closer than this (in cycles) to a breakpoint are merged into the breakpoint.
 GRID_MERGE = 1e-12
@@ -41,10 +41,8 @@ class SweepingProcess:
     """A T-periodic polyhedral sweeping process ``w' in -N_{K(t)}(w)``, tabulated on one period.
 
     ``crawler`` holds what is a crawler's only (`crawlsim.model.crawler.Crawler`: stiffness,
-    stress, shape, block forces, stress bounds, dissipation); it is ``None`` for a generic
-    process. The read-only properties ``is_crawler``, ``blocks``, ``stiffness``,
-    ``initial_positions``, ``friction``, ``lengths`` and ``load`` give its fields, or None (0
-    blocks) without a crawler, to the integrators and sensitivities that still read them there.
+    stress, shape, block forces, stress bounds, dissipation, the signals' layout and the loads);
+    it is ``None`` for a generic process, which has 0 ``blocks``.
     """
 
     name: str
@@ -70,32 +68,8 @@ class SweepingProcess:
         return len(self.times) - 1
 
     @property
-    def is_crawler(self) -> bool:
-        return self.crawler is not None
-
-    @property
     def blocks(self) -> int:
         return 0 if self.crawler is None else self.crawler.blocks
-
-    @property
-    def stiffness(self) -> np.ndarray | None:
-        return None if self.crawler is None else self.crawler.stiffness
-
-    @property
-    def initial_positions(self) -> np.ndarray | None:
-        return None if self.crawler is None else self.crawler.initial_positions
-
-    @property
-    def friction(self) -> np.ndarray | None:
-        return None if self.crawler is None else self.crawler.friction
-
-    @property
-    def lengths(self) -> np.ndarray | None:
-        return None if self.crawler is None else self.crawler.lengths
-
-    @property
-    def load(self) -> np.ndarray | None:
-        return None if self.crawler is None else self.crawler.load
 
     @property
     def scale(self) -> float:
@@ -187,7 +161,7 @@ def _period_grid(steps_per_period: int, bp: np.ndarray) -> np.ndarray:
     if bp.size:
         near = np.min(np.abs(uniform[:, None] - bp[None, :]), axis=1) <= GRID_MERGE
         uniform = uniform[~near]
-    u = np.union1d(uniform, bp)
+    u = np.sort(np.concatenate([uniform, bp]))  # np.union1d, but without importing numpy.ma
     keep = np.concatenate([[True], np.diff(u) > GRID_MERGE])
     u = u[keep]
     u[0], u[-1] = 0.0, 1.0
@@ -218,33 +192,23 @@ def compile_gait(gait: Gait, steps_per_period: int | None = None) -> SweepingPro
     mu_f = _on_grid(gait.forward, u, key) * scale  # (G+1, N): friction mu cos(angle), §6
     mu_b = _on_grid(gait.backward, u, key) * scale
     KL = L * k  # K L on the grid
-    DtKL = block_forces(KL)  # D^T K L, O(N) per row
-    load = None
-    if loads is not None:
-        total = loads.total(u)  # F~ = F - W sin(angle)
-        load = np.hstack([-total, total])
-        offsets = np.hstack([mu_f - total - DtKL, mu_b + total + DtKL])
-    else:
-        offsets = np.hstack([mu_f - DtKL, mu_b + DtKL])
-    T = float(gait.period)
-    N = gait.blocks
-    constant = None if loads is None else loads.gravity
-
-    def combine(coef):
-        """c = [mu~^+ - D^T K L; mu~^- + D^T K L] from the signals' coefficients (nb, S):
-        mu~^+ = mu^+ cos - F~, mu~^- = mu^- cos + F~ with F~ = F - W sin (docs/model.md §6)."""
-        DtKL_c = block_forces(coef[:, : N - 1] * k)
-        plus, minus = coef[:, N - 1 : 2 * N - 1], coef[:, 2 * N - 1 : 3 * N - 1]
-        if constant is None:
-            return np.hstack([plus - DtKL_c, minus + DtKL_c])
-        force = coef[:, 3 * N - 1 :].copy()
-        force[0] += constant
-        return np.hstack([scale * plus - force - DtKL_c, scale * minus + force + DtKL_c])
-
-    signals = gait.links + gait.forward + gait.backward + (() if loads is None else loads.forces)
-    pieces = PiecewiseOffsets(signals, combine, piece_edges(breakpoints))
+    total = None if loads is None else loads.total(u)  # F~ = F - W sin(angle)
+    offsets = offsets_of(KL, mu_f, mu_b, total)
     x0 = np.asarray(gait.initial_positions, dtype=float)
     w0 = -k * np.diff(x0)  # w = -K z, z = D x
+    crawler = Crawler(
+        stiffness=k,
+        initial_positions=x0,
+        stress_offset=KL,
+        friction=np.hstack([mu_f, mu_b]),
+        lengths=L,
+        load=None if total is None else np.hstack([-total, total]),
+        friction_scale=scale,
+        load_constant=None if loads is None else loads.gravity,
+        slope_angle=None if loads is None or loads.weights is None else float(loads.angle),
+    )
+    signals = signals_of(gait.links, gait.forward, gait.backward, () if loads is None else loads.forces)
+    pieces = PiecewiseOffsets(signals, crawler.offsets, piece_edges(breakpoints))
     return SweepingProcess(
         name=gait.name,
         period=float(gait.period),
@@ -252,19 +216,9 @@ def compile_gait(gait: Gait, steps_per_period: int | None = None) -> SweepingPro
         times=u * gait.period,
         offsets=offsets,
         initial=w0,
-        crawler=Crawler(
-            stiffness=k,
-            initial_positions=x0,
-            stress_offset=KL,
-            friction=np.hstack([mu_f, mu_b]),
-            lengths=L,
-            load=load,
-            friction_scale=scale,
-            load_constant=constant,
-            slope_angle=None if loads is None or loads.weights is None else float(loads.angle),
-        ),
+        crawler=crawler,
         offset_pieces=pieces,
-        breakpoints=np.asarray(breakpoints, dtype=float) * T,
+        breakpoints=np.asarray(breakpoints, dtype=float) * gait.period,
         _cycles=u,
     )
 

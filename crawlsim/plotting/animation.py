@@ -20,6 +20,10 @@ written over it.
 Frames are taken at evenly spaced instants of the limit period (``/limit``) or, for a range of
 periods, of the stored trajectory (``/trajectory``), at the nearest stored time; the slip state
 there is ``/limit/slip``, or the sign of the block's displacement over the next stored step.
+The last periods (``last=K``) are drawn in a frame that follows the crawler: positions from its
+barycentre, over at most `FOLLOW_LINKS` links of the body around it, the ground's marks passing
+by and the barycentre's trace since the first frame growing behind it: the net motion shows at
+any N.
 GIFs are written by matplotlib's Pillow writer, MP4s by its FFmpeg writer (when ffmpeg is on the
 PATH), both to a temporary file renamed into place (`crawlsim.io.atomic`).
 """
@@ -32,20 +36,20 @@ from typing import Any, cast
 
 import numpy as np
 from matplotlib.collections import LineCollection, PolyCollection
-from matplotlib.colors import LinearSegmentedColormap, Normalize
+from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
 from crawlsim import interrupts
 from crawlsim.errors import ResultsFileError
 from crawlsim.io.atomic import atomic_path
-from crawlsim.plotting.source import need, run_name, run_period, takes_run
+from crawlsim.plotting.source import need, run_name, run_period, step_slip, takes_run
 from crawlsim.plotting.style import (
     FAINT,
-    OKABE_ITO,
     REFERENCE,
     SLIP_COLOURS,
     SLIP_NAMES,
+    diverging_map,
     figure_style,
     label,
     title,
@@ -61,6 +65,8 @@ FPS = 20
 MAX_FRAMES = 1200
 #: Up to this many links, each link's length and stress are written over it.
 MAX_LABELLED_LINKS = 8
+#: The frame that follows the crawler shows at most this many links' lengths of its body.
+FOLLOW_LINKS = 12
 #: Resolution of the animation frames (dots per inch) and their size in inches.
 ANIMATION_DPI = 80
 ANIMATION_SIZE = (8.0, 5.6)
@@ -134,11 +140,7 @@ def animation_frames(
         per = max(min(int(frames_per_period), MAX_FRAMES // (b - a)), 2)
         count = per * (b - a)
         wanted = t_abs[0] + a * T + (b - a) * T * np.arange(count) / count
-        # The slip state of a block on a stored step: the sign of its displacement there, with
-        # a displacement below roundoff of the crawler's size counted as stick.
-        dx = np.diff(x, axis=0)
-        tol = 1e-9 * max(float(np.max(np.abs(x))), 1.0)
-        slip = np.where(dx > tol, 1, np.where(dx < -tol, -1, 0)).astype(np.int8)
+        slip = step_slip(x)
         t = t_abs
     index = np.clip(np.searchsorted(t, wanted, side="left"), 0, len(t) - 1)
     # The nearest stored time to each wanted instant.
@@ -239,18 +241,21 @@ def _lengths_panel(ax, frames: Frames, links: np.ndarray, units):
     return z_artists, actuator
 
 
-def animation_figure(results: dict, frames: Frames):
+def animation_figure(results: dict, frames: Frames, follow: bool = False):
     """The figure of the animation and the function that draws frame k on it (for
-    `matplotlib.animation.FuncAnimation`)."""
+    `matplotlib.animation.FuncAnimation`); ``follow``: in the frame of the barycentre (module
+    docstring)."""
     units = units_of(results)
     N = frames.x.shape[1]
-    x_all = frames.x
+    origin = frames.x.mean(axis=1) if follow else np.zeros(len(frames.t))
+    x_all = frames.x - origin[:, None]
     spacing = float(np.median(np.abs(np.diff(x_all[0])))) if N > 1 else 1.0
-    width = min(0.35 * spacing, 0.02 * max(float(np.ptp(x_all)), spacing)) if N > 12 else 0.35 * spacing
+    narrow = N > 12 and not follow
+    width = min(0.35 * spacing, 0.02 * max(float(np.ptp(x_all)), spacing)) if narrow else 0.35 * spacing
     height = 1.0
     # Stresses in a diverging map of two series colours through light grey (tension blue,
     # compression vermilion): a link never takes a slip colour, and the sign reads at a glance.
-    cmap = LinearSegmentedColormap.from_list("crawlsim-stress", [OKABE_ITO["blue"], "#EDEDED", OKABE_ITO["vermillion"]])
+    cmap = diverging_map()
     s_max = float(np.max(np.abs(frames.stress), initial=0.0)) or 1.0
     norm = Normalize(-s_max, s_max)
     links = np.arange(1, N)
@@ -276,23 +281,33 @@ def animation_figure(results: dict, frames: Frames):
         body.add_collection(boxes)
         margin = max(0.6 * spacing, 0.02 * float(np.ptp(x_all)))
         body.set_xlim(float(x_all.min()) - margin, float(x_all.max()) + margin)
+        if follow:  # the ground's marks, one a link length apart, and the barycentre's trace
+            half = min(0.5 * float(np.ptp(x_all[0])), 0.5 * FOLLOW_LINKS * spacing) + margin
+            body.set_xlim(-half, half)
+            marks = spacing * np.arange(np.floor((origin.min() - half) / spacing), (origin.max() + half) / spacing + 1)
+            ground = LineCollection([], colors=FAINT, linewidths=1.0)
+            body.add_collection(ground)
+            (trace,) = body.plot([], [], color=REFERENCE, linewidth=3.0, solid_capstyle="butt")
+            moved = body.text(0.02 * half, -1.4 * height, "", ha="left", va="center", fontsize=8)
+            body.axhline(-1.25 * height, color=FAINT, linewidth=0.6)
         body.set_ylim(-1.6 * height, 1.6 * height)
         body.set_yticks([])
         body.grid(False)
         body.spines["left"].set_visible(False)
-        body.set_xlabel(label("position", "x_j", "length", units))
+        if follow:
+            body.set_xlabel(label("position from the barycentre", "x_j - y", "length", units))
+        else:
+            body.set_xlabel(label("position", "x_j", "length", units))
         bar = fig.colorbar(link_lines, ax=body, pad=0.01, fraction=0.04)
         bar.set_label(label("stress", "\\sigma_i", "force", units))
-        body.legend(
-            handles=[
-                Patch(facecolor=SLIP_COLOURS[k], edgecolor=REFERENCE, linewidth=0.6, label=SLIP_NAMES[k])
-                for k in (0, 1, -1)
-            ],
-            loc="lower left",
-            bbox_to_anchor=(0.0, 1.0),
-            ncol=3,
-            borderaxespad=0.2,
-        )
+        handles = [
+            Patch(facecolor=SLIP_COLOURS[k], edgecolor=REFERENCE, linewidth=0.6, label=SLIP_NAMES[k])
+            for k in (0, 1, -1)
+        ]
+        if follow:
+            trace.set_label("barycentre's trace")
+            handles.append(trace)
+        body.legend(handles=handles, loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=len(handles), borderaxespad=0.2)
         texts = []
         if labelled:
             texts = [body.text(0, 0.75 * height, "", ha="center", va="bottom", fontsize=8) for _ in links]
@@ -314,12 +329,17 @@ def animation_figure(results: dict, frames: Frames):
     animated = [boxes, link_lines, *z_bars, *s_bars, *texts, clock]
     if actuator is not None:
         animated.append(actuator)
+    if follow:
+        animated += [ground, trace, moved]
     for artist in animated:
         artist.set_animated(True)
 
     def draw(k: int):
-        x = frames.x[k]
+        x = x_all[k]
         sigma = frames.stress[k]
+        if follow:  # the ground passes by; the trace is the way the barycentre came
+            ground.set_segments([[(g, -1.25 * height), (g, -1.05 * height)] for g in marks - origin[k]])
+            trace.set_data([origin[0] - origin[k], 0.0], [-1.4 * height] * 2)
         boxes.set_verts(list(_block_boxes(x, width, height)))
         boxes.set_facecolor([SLIP_COLOURS[int(v)] for v in frames.slip[k]])
         link_lines.set_segments(
@@ -345,6 +365,8 @@ def animation_figure(results: dict, frames: Frames):
             clock.set_text(f"(t − t₀)/T = {(frames.t[k] - frames.start) / frames.period:.3f}")
         else:
             clock.set_text(f"t/T = {frames.t[k] / frames.period:.3f}")
+        if follow:
+            moved.set_text(f"{origin[k] - origin[0]:+.3g}")
         return animated
 
     draw(0)
@@ -398,9 +420,11 @@ def write_animation(
     frames_per_period: int = FRAMES_PER_PERIOD,
     fps: float = FPS,
     dpi: float = ANIMATION_DPI,
+    last: int | None = None,
 ) -> tuple[Path, int]:
     """Write the animation of ``results`` to ``target`` (.gif, or .mp4 where ffmpeg is on the
-    PATH), atomically: an error leaves no file. Returns (path, number of frames)."""
+    PATH), atomically: an error leaves no file. Returns (path, number of frames). ``last=K``:
+    the last K periods of the stored trajectory, in the frame that follows the crawler."""
     from matplotlib import animation
 
     target = Path(target)
@@ -409,9 +433,14 @@ def write_animation(
         raise ValueError(f"{target}: an animation is written as .gif or .mp4")
     if fmt == "mp4" and not animation.writers.is_available("ffmpeg"):
         raise ValueError(f"{target}: writing MP4 needs ffmpeg on the PATH, which is not there; write a .gif instead")
+    if last is not None:
+        need(results, "animation", "trajectory/t")
+        t = np.asarray(results["trajectory"]["t"], dtype=float)
+        stored = int(np.floor((t[-1] - t[0]) / run_period(results) + 1e-9))
+        periods = (max(stored - last, 0), stored)
     frames = animation_frames(results, periods, frames_per_period)
     count = len(frames.t)
-    fig, draw = animation_figure(results, frames)
+    fig, draw = animation_figure(results, frames, follow=last is not None)
     writer = _BlittingPillowWriter(fps=fps) if fmt == "gif" else animation.FFMpegWriter(fps=round(fps))
     with figure_style(), atomic_path(target) as tmp:
         # The writers choose the container by the file's name: the temporary keeps the suffix.

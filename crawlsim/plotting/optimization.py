@@ -1,4 +1,4 @@
-"""Figures of an optimisation file (`crawlsim.io.hdf5.read_optimization`), in the shared style.
+"""Figures of an optimisation file (`crawlsim.io.optfile.read_optimization`), in the shared style.
 
 * objective: how the search converged, the best value of the objective against the number of
   simulated points (a step line), over every evaluated value (faint dots), with the global search

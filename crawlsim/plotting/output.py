@@ -6,31 +6,66 @@ renamed into place, so a figure that cannot be drawn leaves no file behind.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
+from crawlsim import __version__
 from crawlsim.errors import ResultsFileError
 from crawlsim.io.atomic import atomic_path
-from crawlsim.io.hdf5 import read_attrs, read_optimization, read_results, read_sweep
-from crawlsim.plotting import CRAWLER_FIGURES, FIGURE_NAMES, OPTIMIZATION_FIGURES, SWEEP_FIGURE
-from crawlsim.plotting.figures import FIGURES
-from crawlsim.plotting.style import DPI, FORMATS, FigureOptions, figure_style, user_style
+from crawlsim.io.optfile import read_optimization
+from crawlsim.io.runread import read_attrs, read_results
+from crawlsim.io.sweepfile import read_sweep
+from crawlsim.plotting import (
+    CRAWLER_FIGURES,
+    FIGURE_NAMES,
+    FORMATS,
+    LAST_FIGURES,
+    OPTIMIZATION_FIGURES,
+    RIGID_FIGURE,
+    SWEEP_FIGURE,
+)
+from crawlsim.plotting.convergence import convergence_figure
+from crawlsim.plotting.gait_diagram import gait_figure
+from crawlsim.plotting.kymograph import kymograph_figure
+from crawlsim.plotting.motion import motion_figure
+from crawlsim.plotting.optimization import OPTIMIZATION_FIGURE_FUNCTIONS
+from crawlsim.plotting.rigid import rigid_figure
+from crawlsim.plotting.shape_space import shape_space_figure
+from crawlsim.plotting.style import DPI, NARROW, FigureOptions, figure_style, legends_below, user_style
 from crawlsim.plotting.sweeps import sweep_data_figure
+
+#: The figures of one run, by the names of `crawlsim.plotting.FIGURE_NAMES`: each takes the run
+#: (`crawlsim.plotting.source.run_data`) and returns a matplotlib Figure in the style of
+#: `crawlsim.plotting.style`; a figure that needs data the run lacks raises `ResultsFileError`
+#: naming the missing dataset.
+FIGURES: dict[str, Callable[..., Any]] = {
+    "motion": motion_figure,
+    "gait-diagram": gait_figure,
+    "kymograph": kymograph_figure,
+    "convergence": convergence_figure,
+    "shape-space": shape_space_figure,
+    "rigid": rigid_figure,
+}
 
 
 def available_figures(results: dict) -> list[str]:
     """The figures a file supports: all of them for crawler runs, the shape-space and
-    convergence figures for a generic sweeping process (no blocks, no velocity)."""
+    convergence figures for a generic sweeping process (no blocks, no velocity); and the rigid
+    limit's when the file has one."""
     crawler = results["attrs"].get("kind", "crawler") == "crawler"
-    return [n for n in FIGURE_NAMES if crawler or n not in CRAWLER_FIGURES]
+    rigid = [RIGID_FIGURE] if "rigid" in results else []
+    return [n for n in FIGURE_NAMES if crawler or n not in CRAWLER_FIGURES] + rigid
 
 
-def draw_figure(results: dict, name: str, *, coords=(0, 1)):
-    """The figure ``name`` (one of `FIGURE_NAMES`) of ``results``."""
+def draw_figure(results: Any, name: str, *, coords=(0, 1), last: int | None = None):
+    """The figure ``name`` (one of `FIGURE_NAMES`) of ``results`` (a results dict, file or result
+    object: `source.run_data`); ``last``: the last periods the figures of `LAST_FIGURES` zoom on."""
     if name not in FIGURES:
         raise ValueError(f"unknown figure {name!r}; choose one of {', '.join(FIGURE_NAMES)}")
     if name == "shape-space":
         return FIGURES[name](results, coords=coords)
-    return FIGURES[name](results)
+    return FIGURES[name](results, last=last) if name in LAST_FIGURES else FIGURES[name](results)
 
 
 def read_plottable(path: Path) -> tuple[str, dict]:
@@ -63,6 +98,7 @@ def plot_results(
     coords=(0, 1),
     options: FigureOptions | None = None,
     target=None,
+    last: int | None = None,
 ) -> list[Path]:
     """Draw the figures of the results file ``path`` into ``out_dir`` (default: its folder) as
     ``<stem>-<figure>.<fmt>``; return the paths written.
@@ -70,7 +106,7 @@ def plot_results(
     ``only`` draws one figure; otherwise every figure the file supports (`available_figures`).
     ``coords`` is the 0-based pair of shape coordinates of the shape-space figure when the shape
     space has more than two dimensions. A sweep file (``crawlsim velocity --sweep ... -o
-    OUT.h5``) gets its one figure, ``<stem>-sweep.<fmt>`` (`figures.sweep_data_figure`); an
+    OUT.h5``) gets its one figure, ``<stem>-sweep.<fmt>`` (`crawlsim.plotting.sweeps.sweep_data_figure`); an
     optimisation file (``crawlsim optimize``) ``<stem>-objective.<fmt>`` and, with --pareto,
     ``<stem>-pareto-front.<fmt>`` (`crawlsim.plotting.optimization`). A
     missing dataset raises `ResultsFileError` naming the file and the dataset; nothing is
@@ -78,14 +114,19 @@ def plot_results(
 
     ``options`` (`style.FigureOptions`) sets the dpi, the size in inches and a matplotlib style
     sheet. ``target``, a file name, writes the one figure drawn there instead (its extension
-    gives the format; ValueError when more than one figure would be drawn).
+    gives the format; ValueError when more than one figure would be drawn). ``last=K``: the
+    motion figure and the kymograph zoom on the last K periods (`motion.motion_figure`).
     """
     options = options or FigureOptions()
     path = Path(path)
     if fmt not in FORMATS:
         raise ValueError(f"format {fmt!r}: choose one of {', '.join(FORMATS)}")
     kind, results = read_plottable(path)
-    choices = {"run": FIGURE_NAMES, "sweep": (SWEEP_FIGURE,), "optimization": optimization_figures(results)}[kind]
+    choices = {
+        "run": (*FIGURE_NAMES, RIGID_FIGURE),
+        "sweep": (SWEEP_FIGURE,),
+        "optimization": optimization_figures(results),
+    }[kind]
     if only is not None and only not in choices:
         article = "an" if kind[0] in "aeiou" else "a"
         raise ValueError(f"unknown figure {only!r} for {article} {kind} file; choose one of {', '.join(choices)}")
@@ -101,7 +142,7 @@ def plot_results(
             )
     try:
         with user_style(options.style):
-            drawn = _draw(results, kind, choices, only, coords)
+            drawn = _draw(results, kind, choices, only, coords, last)
     except ResultsFileError as exc:
         raise ResultsFileError(f"{path}: {exc}") from None
     if target is not None:
@@ -121,18 +162,16 @@ def plot_results(
     return written
 
 
-def _draw(results, kind, choices, only, coords) -> dict:
+def _draw(results, kind, choices, only, coords, last) -> dict:
     """The figures of a file of ``kind``, by name, drawn (not yet written)."""
     if kind == "sweep":
         return {SWEEP_FIGURE: sweep_data_figure(results)}
     if kind == "optimization":
-        from crawlsim.plotting.optimization import OPTIMIZATION_FIGURE_FUNCTIONS
-
         return {
             name: OPTIMIZATION_FIGURE_FUNCTIONS[name](results) for name in ([only] if only is not None else choices)
         }
     names = [only] if only is not None else available_figures(results)
-    return {name: draw_figure(results, name, coords=coords) for name in names}
+    return {name: draw_figure(results, name, coords=coords, last=last) for name in names}
 
 
 def optimization_figures(data: dict) -> tuple[str, ...]:
@@ -159,6 +198,8 @@ def save_figure(
     try:
         if figsize is not None:
             fig.set_size_inches(*figsize)
+            if figsize[0] < NARROW:
+                legends_below(fig)
         # The whole figure, not its tight bounding box, when a size is asked for (an
         # bbox_inches of None would fall back to the style's "tight").
         whole: dict = {"savefig.bbox": "standard"} if figsize is not None else {}
@@ -177,8 +218,6 @@ def save_figure(
 
 def _metadata(fmt: str) -> dict:
     """Reproducible files: no creation date in PDF and SVG, and crawlsim named as creator."""
-    from crawlsim import __version__
-
     creator = f"crawlsim {__version__}"
     if fmt == "pdf":
         return {"Creator": creator, "CreationDate": None}

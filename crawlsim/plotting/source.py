@@ -1,7 +1,7 @@
 """What a run's figures are drawn from, whichever way the run is given.
 
 Every figure of a run (and the animation) reads one thing: the dict of
-`crawlsim.io.hdf5.read_results`, the groups and attributes of the results file. A study in a
+`crawlsim.io.runread.read_results`, the groups and attributes of the results file. A study in a
 notebook holds a result object instead (`crawlsim.simulate`, `crawlsim.api.run`), and a command
 holds a path. `run_data` turns any of the three into that dict, and `takes_run` makes a figure
 function call it on its first argument: the conversion is made here and nowhere else, so
@@ -24,6 +24,9 @@ from collections.abc import Callable
 from typing import Any, TypeVar
 
 from crawlsim.errors import ResultsFileError
+from crawlsim.gait.document import parse_gait
+from crawlsim.io.runread import read_results
+from crawlsim.model.process import compile
 
 #: The per-period series of ``/convergence`` the figures read, by their names on
 #: `crawlsim.analysis.run.ConvergenceHistory`.
@@ -39,28 +42,24 @@ F = TypeVar("F", bound=Callable[..., Any])
 
 
 def run_data(source: Any) -> dict[str, Any]:
-    """The dict of `crawlsim.io.hdf5.read_results` for ``source``: that dict itself, a results
+    """The dict of `crawlsim.io.runread.read_results` for ``source``: that dict itself, a results
     file's path (read), or a run's result object (`crawlsim.api.SimulationResult`,
     `crawlsim.analysis.run.RunResult`: `from_result`; the results file it names as ``output``,
     when it wrote one). TypeError for anything else."""
     if isinstance(source, dict):
         return source
     if isinstance(source, (str, os.PathLike)):
-        from crawlsim.io.hdf5 import read_results
-
         return read_results(source)
     if hasattr(source, "limit") and hasattr(source, "history"):
         written = getattr(source, "output", None)
         if written is not None and os.path.isfile(written):
             # `crawlsim.api.run(gait, output=...)`: its file holds the trajectory the result
             # object does not keep.
-            from crawlsim.io.hdf5 import read_results
-
             return read_results(written)
         return from_result(source)
     raise TypeError(
         f"a figure of a run takes a results file, the dict of "
-        f"crawlsim.io.hdf5.read_results or the result of crawlsim.simulate; got "
+        f"crawlsim.io.runread.read_results or the result of crawlsim.simulate; got "
         f"{type(source).__name__}"
     )
 
@@ -76,10 +75,6 @@ def takes_run(function: F) -> F:
     return wrapper  # type: ignore[return-value]
 
 
-def _number_or_nan(value: Any) -> float:
-    return math.nan if value is None else float(value)
-
-
 def from_result(result: Any) -> dict[str, Any]:
     """The read_results dict of a run's result object, from its attributes: ``name``,
     ``period``, ``steps_per_period``, ``periods``, ``convergence``, ``periodic_from``,
@@ -91,9 +86,6 @@ def from_result(result: Any) -> dict[str, Any]:
     provenance = getattr(result, "provenance", None)
     process = None
     if provenance is not None and getattr(provenance, "gait_yaml", None):
-        from crawlsim.gait.document import parse_gait
-        from crawlsim.model.process import compile
-
         spec = parse_gait(provenance.gait_yaml, source=f"{result.name} (provenance)", default_name=str(result.name))
         process = compile(spec)
     limit, history = result.limit, result.history
@@ -107,8 +99,8 @@ def from_result(result: Any) -> dict[str, Any]:
         "periods": int(result.periods),
         "convergence": str(result.convergence),
         "periodic_from": -1 if result.periodic_from is None else int(result.periodic_from),
-        "v0": _number_or_nan(result.v0),
-        "contraction_rate": _number_or_nan(result.contraction_rate),
+        "v0": math.nan if result.v0 is None else float(result.v0),
+        "contraction_rate": math.nan if result.rate is None else result.rate.rate,
         "units_json": json.dumps(units.to_json() if units is not None else {}),
         "source": "result",
     }
@@ -122,7 +114,8 @@ def from_result(result: Any) -> dict[str, Any]:
         "process": {},
     }
     if process is not None:
-        out["limit"].update(_present(process, PROCESS_SERIES))
+        out["limit"]["offsets"] = process.offsets
+        out["limit"].update(_present(process.crawler, PROCESS_SERIES[1:]))
         out["process"]["normals"] = process.normals
     return out
 
@@ -150,9 +143,32 @@ def need(results: dict, figure: str, *paths: str) -> None:
             hint = " (this result keeps no trajectory: use crawlsim.simulate(gait), which keeps it by default)"
         elif from_object and (group == "process" or name in PROCESS_SERIES):
             hint = " (this result records no provenance, whose gait document gives it)"
+        elif group == "rigid":
+            hint = " (crawlsim run --rigid writes it)"
         elif path in ("limit/lengths", "limit/friction", "limit/offsets", "process/normals"):
             hint = " (files written before crawlsim stored it lack it; rerun `crawlsim run`)"
         raise ResultsFileError(f"the {figure} figure needs /{path}, which is missing{hint}")
+
+
+def last_periods(results: dict, last: int) -> tuple[Any, Any]:
+    """The times and block positions of the last ``last`` periods of the stored trajectory (all
+    of it when it holds fewer): the window the figures zoom on (``--last``)."""
+    import numpy as np
+
+    t = np.asarray(results["trajectory"]["t"], dtype=float)
+    keep = t >= t[-1] - last * run_period(results) * (1 + 1e-12)
+    return t[keep], np.asarray(results["trajectory"]["x"], dtype=float)[keep]
+
+
+def step_slip(x: Any) -> Any:
+    """The slip state of each block on each stored step, (G, N) in -1, 0, 1: the sign of its
+    displacement over the step, a displacement below roundoff of the crawler's size counted as
+    stick."""
+    import numpy as np
+
+    dx = np.diff(x, axis=0)
+    tol = 1e-9 * max(float(np.max(np.abs(x))), 1.0)
+    return np.where(dx > tol, 1, np.where(dx < -tol, -1, 0)).astype(np.int8)
 
 
 def run_name(results: dict) -> str:

@@ -42,7 +42,7 @@ from matplotlib import cycler  # type: ignore[attr-defined]
 from matplotlib.colors import to_hex
 from matplotlib.figure import Figure
 
-from crawlsim.gait.units import Units
+from crawlsim.gait.units import Units, path_quantity
 
 #: Okabe-Ito palette, in the order that puts the most distinct colours first.
 OKABE_ITO = {
@@ -116,10 +116,8 @@ RC = {
 #: for the duration of a `user_style` block.
 _USER_STYLE: ContextVar[str | None] = ContextVar("crawlsim_user_style", default=None)
 
+
 #: The image formats crawlsim writes, by file extension.
-FORMATS = ("png", "pdf", "svg")
-
-
 @contextmanager
 def figure_style():
     """The rc settings of crawlsim figures, for the duration of the block, with the style sheet
@@ -194,18 +192,6 @@ def check_style(style: str) -> str:
     raise ValueError(f"--style {style}: no such matplotlib style sheet or file{hint} (or give a .mplstyle file)")
 
 
-def figure_format(path, option: str = "-o") -> str:
-    """The image format of a figure file, by its extension (png, pdf or svg); ValueError for
-    any other."""
-    from pathlib import Path
-
-    suffix = Path(path).suffix.lower().lstrip(".")
-    if suffix not in FORMATS:
-        given = f"extension .{suffix}" if suffix else "no extension"
-        raise ValueError(f"{option} {path}: {given}; a figure is written as .png, .pdf or .svg")
-    return suffix
-
-
 @dataclass(frozen=True)
 class FigureOptions:
     """How figures are written (``--dpi``, ``--figsize``, ``--style``): the resolution of PNGs
@@ -231,6 +217,14 @@ def new_figure(nrows: int = 1, ncols: int = 1, *, height: float = 4.0, **kwargs)
 def colour_map():
     """The colour map of every continuous colouring (a copy, safe to modify)."""
     return matplotlib.colormaps[COLOUR_MAP].copy()
+
+
+def diverging_map():
+    """The map of a signed quantity (stress, strain) around 0: two series colours through light
+    grey (tension or contraction blue, compression or extension vermilion), never a slip colour."""
+    from matplotlib.colors import LinearSegmentedColormap
+
+    return LinearSegmentedColormap.from_list("crawlsim-signed", [OKABE_ITO["blue"], "#EDEDED", OKABE_ITO["vermillion"]])
 
 
 def colours(count: int) -> list:
@@ -267,8 +261,8 @@ DIMENSIONS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
 
 
 def units_of(data: dict) -> Units:
-    """The units of a results dict (`crawlsim.io.hdf5.read_results`) or a sweep dict
-    (`crawlsim.io.hdf5.read_sweep`): the ``units_json`` attribute when the file has it, else the
+    """The units of a results dict (`crawlsim.io.runread.read_results`) or a sweep dict
+    (`crawlsim.io.sweepfile.read_sweep`): the ``units_json`` attribute when the file has it, else the
     ``units:`` block of the stored gait document, else none."""
     attrs = data.get("attrs") or {}
     for holder in (attrs, data):
@@ -364,30 +358,16 @@ def velocity_axis(units: Units, *, name: str = "average velocity") -> tuple[bool
     return True, label("displacement per period", "v_0T", "length", units)
 
 
-#: Units of the swept gait parameters, by the keys of their dotted paths.
-_PATH_DIMENSIONS = {
-    "phase": "cycles",
-    "times": "cycles",
-    "stiffness": "stiffness",
-    "period": "time",
-    "positions": "length",
-}
-
-
 def path_dimension(path: str) -> str | None:
     """The dimension of a swept dotted path (``links.*.amplitude`` is a length,
-    ``friction.backward`` a force, ``links.1.phase`` a phase in cycles, ``simulation.*`` a pure
-    number)."""
-    keys = [k for k in path.split(".") if not (k == "*" or k.isdigit())]
-    if not keys or keys[0] in ("simulation", "normals", "offsets", "metric", "initial") and keys[-1] != "positions":
-        return None
-    if keys[-1] in _PATH_DIMENSIONS:
-        return _PATH_DIMENSIONS[keys[-1]]
-    if keys[0] == "links":
-        return "length"
-    if keys[0] == "friction":
-        return "force"
-    return None
+    ``friction.backward`` and ``loads.force.0`` forces, ``loads.slope.angle`` an angle,
+    ``links.1.phase`` a phase in cycles, ``simulation.*`` a pure number): the quantity of
+    `crawlsim.gait.units.path_quantity`."""
+    keys = tuple(k for k in path.split(".") if not (k == "*" or k.isdigit()))
+    if keys and keys[-1] in ("phase", "times", "phase_step"):
+        return "cycles"
+    quantity = path_quantity("crawler", keys)
+    return None if quantity == "1" else quantity
 
 
 def path_label(path: str, units: Units) -> str:
@@ -396,8 +376,8 @@ def path_label(path: str, units: Units) -> str:
     dimension = path_dimension(path)
     if dimension is None:
         return path
-    if dimension == "cycles":
-        return f"{path} (cycles)"
+    if dimension in ("cycles", "angle"):
+        return f"{path} ({'cycles' if dimension == 'cycles' else 'degrees'})"
     unit = unit_text(dimension, units)
     if unit is not None:
         return f"{path} ({unit})"
@@ -416,9 +396,38 @@ def format_number(value: float) -> str:
     return f"{value:.4g}"
 
 
+#: A figure narrower than this (inches, ``--figsize``) gets its legends below the axes, not on
+#: their right, where they would take most of a journal column (`legends_below`).
+NARROW = 5.0
+
+
 def legend_right(ax, **kwargs):
-    """The legend of ``ax`` outside it, on its right, top-aligned."""
-    return ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0, **kwargs)
+    """The legend of ``ax`` outside it, on its right, top-aligned (below it on a narrow figure:
+    `legends_below`)."""
+    legend = ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0, **kwargs)
+    legend.set_gid("right")
+    return legend
+
+
+def legends_below(fig) -> None:
+    """The legends `legend_right` put on the right of their axes, as one legend below the figure,
+    in columns: on a figure narrower than `NARROW` they left the plot 40 % of a 3.4 in width."""
+    handles: dict[str, Any] = {}
+    for ax in fig.axes:
+        legend = ax.get_legend()
+        if legend is not None and legend.get_gid() == "right":
+            handles.update(zip((t.get_text() for t in legend.get_texts()), legend.legend_handles))
+            legend.remove()
+    if handles:
+        fig.legend(
+            handles.values(),
+            handles.keys(),
+            loc="outside lower center",
+            ncol=min(2, len(handles)),
+            fontsize="small",
+            handlelength=1.5,
+            columnspacing=1.0,
+        )
 
 
 def shown_series(count: int, limit: int) -> np.ndarray:

@@ -3,6 +3,8 @@ drawn as jumps (docs/model.md §3), points without a value marked by their statu
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
@@ -10,6 +12,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Rectangle
 from matplotlib.ticker import FixedLocator, NullFormatter, NullLocator
 
+from crawlsim.analysis.stall import curve_marks
 from crawlsim.plotting.style import (
     FAINT,
     REFERENCE,
@@ -112,8 +115,9 @@ def sweep_figure(
       v0 = 0 when v0 changes sign, and cells without a value hatched and marked by status.
 
     A log-spaced axis (constant ratio, `is_geometric`) is drawn on a log scale. ``marks`` (a
-    `crawlsim.analysis.stall.CurveMarks`, sweeps of one load) break the line at the loads where v0 jumps
-    (dotted verticals) instead of joining across them, and mark the stall load.
+    `crawlsim.analysis.stall.CurveMarks`, sweeps of one load or friction number) break the line
+    where v0 jumps (dotted verticals) instead of joining across them, and mark the stall load;
+    for a sweep of the stiffness they hold the rigid limit, drawn as the asymptote it is (dashed).
     """
     units = units or Units()
     names = list(axes)
@@ -139,6 +143,12 @@ def sweep_figure(
         fig, axs = new_figure(height=3.6 if len(names) == 1 else 4.4)
         ax = axs[0, 0]
         if len(names) == 1:
+            if marks is not None and marks.rigid is not None:
+                limit = (
+                    marks.rigid.displacement_per_period if per_period and displacement is not None else marks.rigid.v0
+                )
+                text = f"rigid limit $k \\to \\infty$: {format_number(limit)}"
+                ax.axhline(limit, color=REFERENCE, linestyle="--", linewidth=1.0, zorder=3, label=text)
             _sweep_line(ax, values[0], data, statuses, logs[0], marks)
             ax.set_xlabel(path_label(names[0], units))
             ax.set_ylabel(value_label)
@@ -253,7 +263,7 @@ def _sweep_line(ax, x, data, statuses, log, marks=None):
         ax.set_xlim(x[0] * np.exp(-pad), x[-1] * np.exp(pad))
     else:
         ax.set_xlim(x[0] - pad, x[-1] + pad)
-    if handles or (marks is not None and (marks.jumps or marks.stall is not None)):
+    if handles or (marks is not None and (marks.jumps or marks.stall is not None or marks.rigid is not None)):
         ax.legend(loc="best")
 
 
@@ -268,7 +278,7 @@ def _draw_marks(ax, marks) -> None:
             label=f"{marks.label} {marks.stall:.6g} ({marks.cause})",
         )
     for k, s in enumerate(marks.jumps or ()):
-        ax.axvline(s, color=FAINT, linestyle=":", linewidth=1.0, label="jump of $v_0$" if k == 0 else None)
+        ax.axvline(s, color=FAINT, linestyle=":", linewidth=1.0, label=marks.jump_label if k == 0 else None)
 
 
 def _draw_sampled_jumps(ax, x, data, jump, log) -> None:
@@ -395,12 +405,21 @@ def jump_walls(x, y, jump_x, jump_y, logs=(False, False)) -> list[np.ndarray]:
     return walls
 
 
-def sweep_data_figure(data: dict, title: str | None = None) -> Figure:
-    """The sweep figure of a sweep file (`crawlsim.io.hdf5.read_sweep`) or of a table
-    (`crawlsim.study.sweep.table_payload`): the columns are put back on the grid (points a shard did
-    not hold have no value and no status), the units come from the file (`style.units_of`)."""
-    paths = list(data["paths"])
-    shape = tuple(len(a) for a in data["axes"])
+def sweep_data_figure(data: Any, title: str | None = None) -> Figure:
+    """The sweep figure of a sweep file (`crawlsim.io.sweepfile.read_sweep`), of a table
+    (`crawlsim.study.sweep.table_payload`) or of the `xarray.Dataset` of `crawlsim.sweep`
+    (``grid.crawlsim.plot()``): the columns are put back on the grid (points a shard did not hold
+    have no value and no status), the units come from the file (`style.units_of`)."""
+    if not isinstance(data, dict):  # a Dataset, its dimensions named by the paths
+        flags = dict(zip(data.status.attrs["flag_values"].tolist(), data.status.attrs["flag_meanings"].split()))
+        columns = {name: data[name].values.ravel() for name in ("v0", "displacement_per_period")}
+        columns["status"] = np.array([flags[int(s)].replace("_", "-") for s in data.status.values.ravel()])
+        data = {**data.attrs, "paths": data.v0.dims, "axes": [data[d].values for d in data.v0.dims]}
+        data.update(points=np.arange(columns["v0"].size), columns=columns, dimensions=None)
+    dims = data.get("dimensions") or range(len(data["paths"]))
+    first = [list(dims).index(d) for d in sorted(set(dims))]  # a dimension's first path: linked ones once
+    paths, values = [data["paths"][k] for k in first], [data["axes"][k] for k in first]
+    shape = tuple(len(a) for a in values)
     points = np.asarray(data["points"], dtype=int)
     columns = data["columns"]
 
@@ -416,11 +435,9 @@ def sweep_data_figure(data: dict, title: str | None = None) -> Figure:
         title = f"{_sweep_name(data)}: average velocity over a sweep"
     marks = None
     if len(paths) == 1 and data.get("gait_yaml"):
-        from crawlsim.analysis.stall import curve_marks
-
-        marks = curve_marks(data["gait_yaml"], paths[0], data["axes"][0], v0)
+        marks = curve_marks(data["gait_yaml"], paths[0], values[0], v0)
     return sweep_figure(
-        dict(zip(paths, data["axes"])), v0, status, title, units=units_of(data), displacement=displacement, marks=marks
+        dict(zip(paths, values)), v0, status, title, units=units_of(data), displacement=displacement, marks=marks
     )
 
 

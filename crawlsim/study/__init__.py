@@ -1,19 +1,11 @@
-"""Studies of gaits: one run, sweeps, the stall search, gait design, the paper's checks.
+"""Studies of gaits: one run, sweeps, the paper's checks.
 
 simulation   one gait to its periodic regime: run, simulate, SimulationResult, open_run
 sweep        parameter sweeps of v0: the entry points (sweep, run_sweep), resumable
 grid         the axes (PATH=SPEC), linked dimensions, the grid of edited gait documents
-batch        many crawlers of a sweep stepped one after another to their limits
 points       one point validated, compiled and run: a row of the table, extra columns
 executors    where points run: here, local workers (only when they pay), a Dask cluster
 journal      finished points kept across interruptions
 table        the sweep table, its CSV and HDF5 files, the join of shards
-optimize     gait design: the driver (one objective, or the Pareto front)
-problem      free parameters, objective, constraints, the feasibility rules
-method       the search's settings and budget
-search       the shared evaluator; one search: evolution + pattern search
-descent      the gradient search: sample (or evolution), then quasi-Newton, exact gradients
-optresult    the answer: evaluations, history, runs, front, hypervolume
-stall        the stall force and the steepest slope, searched by runs at probed loads
 paper        the paper's convergence results, reproduced
 """

@@ -16,9 +16,9 @@ from crawlsim import interrupts
 from crawlsim.errors import SweepSpecError
 from crawlsim.study.points import run_points
 
-#: Points per task handed to a worker: a task is one batch. Small tasks keep progress and the
-#: journal moving; large ones fill the vectorised batch (throughput about doubles from 16 to
-#: 256 points). Task sizes adapt between the two to take about `TASK_SECONDS` each.
+#: Points per task handed to a worker. Small tasks keep progress and the journal moving; large
+#: ones pay a task's overhead once for many points. Task sizes adapt between the two to take
+#: about `TASK_SECONDS` each.
 MIN_CHUNK = 8
 MAX_CHUNK = 256
 TASK_SECONDS = 2.0
@@ -28,7 +28,7 @@ WAIT_SECONDS = 0.2
 #: How long to wait for a Dask scheduler before giving up (exit code 2).
 SCHEDULER_TIMEOUT = "20s"
 #: Modules a fresh local worker imports before its first task.
-_PRELOAD = ["crawlsim.study.points", "crawlsim.study.batch"]
+_PRELOAD = ["crawlsim.study.points"]
 
 
 class Chunker:

@@ -5,7 +5,9 @@ A sweep axis is ``PATH=SPEC``. ``PATH`` is a dotted path into the gait document 
 indices, ``*`` for every element: ``links.*.amplitude``, ``friction.1.backward``, ``period``).
 ``SPEC`` is one of
 
-* ``START:STOP:NUM``: NUM evenly spaced values, both ends included;
+* ``START:STOP:NUM``: NUM evenly spaced values, both ends included, each the double nearest its
+  exact value START + k (STOP - START) / (NUM - 1) with START and STOP as written, so that a
+  value prints as the number asked for (``0:1:11`` gives 0.3, not 0.30000000000000004);
 * ``log:LO:HI:NUM``: NUM log-spaced (geometric) values, LO and HI > 0, both ends included;
 * ``[a,b,c]`` or ``a,b,c``: these values.
 
@@ -26,14 +28,17 @@ import json
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from fractions import Fraction
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 import yaml
 
 from crawlsim.errors import GaitError, InputError, SweepSpecError
-from crawlsim.gait.docpaths import path_keys, resolve_path, set_value
-from crawlsim.gait.document import Gait, gait_from_document, need_crawler
+from crawlsim.gait.crawler_spec import need_crawler
+from crawlsim.gait.docpaths import check_number_paths, path_keys, resolve_path, set_values
+from crawlsim.gait.document import Gait, gait_from_document
 from crawlsim.gait.validation import plain
 
 if TYPE_CHECKING:
@@ -83,8 +88,9 @@ def parse_axis(text: str, option: str = "--sweep") -> Axis:
         values = tuple(float(v) for v in np.geomspace(lo, hi, num))
         values = (lo, *values[1:-1], hi) if num > 1 else (lo,)  # both ends exactly as given
     elif ":" in spec:
-        start, stop, num = _range(spec, source, path, "START:STOP:NUM")
-        values = tuple(float(v) for v in np.linspace(start, stop, num))
+        _, _, num = _range(spec, source, path, "START:STOP:NUM")
+        start, stop = spec.split(":")[:2]
+        values = _evenly(start, stop, num)
     else:
         values = _list(spec, source, path)
     if not all(math.isfinite(v) for v in values):
@@ -112,6 +118,16 @@ def _range(spec: str, source: str, path: str, form: str) -> tuple[float, float, 
     if not (math.isfinite(start) and math.isfinite(stop)):
         raise SweepSpecError(source, path, f"values must be finite numbers, got {spec!r}")
     return start, stop, num
+
+
+def _evenly(start: str, stop: str, num: int) -> tuple[float, ...]:
+    """``num`` values from ``start`` to ``stop`` (decimal strings), each correctly rounded from
+    its exact value: integers over one denominator, whose true division Python rounds
+    correctly."""
+    a, b = Fraction(start), Fraction(stop)
+    den = math.lcm(a.denominator, b.denominator)
+    p, q, d = a.numerator * (den // a.denominator), b.numerator * (den // b.denominator), max(num - 1, 1)
+    return tuple((p * (d - k) + q * k) / (den * d) for k in range(num))
 
 
 def _list(text: str, source: str, path: str) -> tuple:
@@ -143,6 +159,7 @@ class SweepGrid:
     #: Extra columns computed at every point that runs (`crawlsim.study.points.PointQuantity`).
     quantities: tuple[PointQuantity, ...] = ()
     sensitivity: tuple[str, ...] = ()  # --sensitivity paths: a dv0/dPATH column each
+    point = "point of the grid"  # what a point is, in messages
 
     def __post_init__(self) -> None:
         if not self.dims:
@@ -186,9 +203,7 @@ class SweepGrid:
         """The base document with the point's values set: a copy (`crawlsim.gait.validation.
         plain`: the base document is plain data already, which copies faster than deepcopy)."""
         doc = plain(self.base.document)
-        for targets, value in zip(self.targets, self.values(index)):
-            for keys in targets:
-                set_value(doc, keys, value)
+        set_values(doc, [(keys, value) for targets, value in zip(self.targets, self.values(index)) for keys in targets])
         return doc
 
     def label(self, index: int) -> str:
@@ -225,6 +240,54 @@ class SweepGrid:
         i, n = shard
         return np.arange(i - 1, self.size, n)
 
+    @property
+    def source(self) -> str:
+        return self.base.source
+
+
+@dataclass(frozen=True, eq=False)
+class FileGrid(SweepGrid):
+    """Gait files as a grid of one dimension, ``gait`` (``crawlsim velocity A.yaml B.yaml ...``):
+    point i is file i with the simulation settings ``overrides`` (the command line's). A file
+    that is not a valid crawler gait is an invalid point, as an invalid grid point is."""
+
+    overrides: tuple[tuple[str, object], ...] = ()
+    point = "gait file"
+
+    @classmethod
+    def of(cls, files: Sequence[str], overrides: dict | None = None) -> FileGrid:
+        axis = Axis("gait", tuple(str(f) for f in files))
+        return cls(None, (axis,), ((),), overrides=tuple(sorted((overrides or {}).items())))  # type: ignore[arg-type]
+
+    @property
+    def source(self) -> str:
+        return f"{len(self.axes[0].values)} gait files"
+
+    @property
+    def gait_yaml(self) -> str:
+        return ""
+
+    def label(self, index: int) -> str:
+        return str(self.axes[0].values[index])
+
+    def gait(self, index: int) -> Gait:
+        from crawlsim.gait.document import load_gait, with_simulation
+
+        gait = load_gait(self.label(index))
+        need_crawler(gait, "v0")
+        return with_simulation(gait, **dict(self.overrides)) if self.overrides else gait  # type: ignore[return-value]
+
+    def fingerprint(self, shard) -> str:
+        """The files' paths and contents, the overrides and the shard: a journal of other or
+        since edited files is refused."""
+        digest = hashlib.sha256(json.dumps([list(self.axes[0].values), self.overrides, shard]).encode())
+        for path in self.axes[0].values:
+            try:
+                digest.update(Path(path).read_bytes())
+            except OSError:
+                digest.update(b"unreadable")
+        return digest.hexdigest()
+
 
 def grid_shape(lengths, dims) -> tuple[int, ...]:
     """Values per grid dimension: the length of the first axis of each dimension."""
@@ -252,9 +315,9 @@ def make_grid(base: Gait, axes, quantities: Sequence[PointQuantity] = (), sensit
     ``PATH=SPEC`` text) or a sequence of them that vary together (linked paths, the same
     number of values each). Every path is checked against the base document; overlapping or
     repeated paths are refused, and so is a base that is not a crawler
-    (`crawlsim.gait.document.need_crawler`). ``quantities`` are extra columns of the table
+    (`crawlsim.gait.crawler_spec.need_crawler`). ``quantities`` are extra columns of the table
     (`crawlsim.study.points.PointQuantity`); ``sensitivity``, the ``--sensitivity`` paths, each
-    number's ``dv0/dPATH`` column (`crawlsim.analysis.sensitivity_sweep`)."""
+    number's ``dv0/dPATH`` column (`crawlsim.study.points.with_derivatives`)."""
     need_crawler(base, "a sweep of v0")
     groups = [_group(item) for item in axes]
     flat: list[Axis] = []
@@ -284,9 +347,8 @@ def make_grid(base: Gait, axes, quantities: Sequence[PointQuantity] = (), sensit
                     f"this path sets {'.'.join(map(str, key))}, which {seen[key]} sets too: sweep each value once",
                 )
             seen[key] = f"{option} {axis.path}"
-    from crawlsim.analysis.sensitivity_sweep import check_paths
-
-    return SweepGrid(base, tuple(flat), targets, tuple(dims), tuple(quantities), check_paths(base, sensitivity))
+    paths = check_number_paths(base, sensitivity, continuous=True)
+    return SweepGrid(base, tuple(flat), targets, tuple(dims), tuple(quantities), paths)
 
 
 def parse_shard(text: str) -> tuple[int, int]:
@@ -316,5 +378,5 @@ def check_some_point_runs(grid: SweepGrid) -> None:
         raise SweepSpecError(
             first.source,
             first.keypath,
-            f"{first.message} (no point of the grid is a valid gait: all {grid.size} are refused, this is the first)",
+            f"{first.message} (no {grid.point} is a valid gait: all {grid.size} are refused, this is the first)",
         )

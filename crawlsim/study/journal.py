@@ -13,6 +13,7 @@ from pathlib import Path
 
 from crawlsim.errors import GaitError, OutputError
 from crawlsim.io.atomic import DISK_ERRORS, disk_error
+from crawlsim.io.outputs import special_kind
 from crawlsim.study.points import PointResult
 
 #: Seconds between two flushes of the journal (and at the end, and on an interrupt).
@@ -55,8 +56,6 @@ class Journal:
         except OSError as error:
             raise OutputError(str(self.path), "", f"cannot inspect the journal: {error.strerror}") from None
         if not stat.S_ISREG(mode):
-            from crawlsim.io.outputs import special_kind
-
             raise OutputError(
                 str(self.path),
                 "",

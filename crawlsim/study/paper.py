@@ -38,18 +38,11 @@ from pathlib import Path
 
 import numpy as np
 
-from crawlsim.analysis.run import RunResult
-from crawlsim.gait.document import (
-    Gait,
-    ProcessSpec,
-    admissibility_violation,
-    gait_from_document,
-    load_gait,
-    with_simulation,
-)
+from crawlsim.gait.crawler_spec import admissibility_violation
+from crawlsim.gait.document import Gait, ProcessSpec, gait_from_document, load_gait, with_simulation
 from crawlsim.integrate.stepping import STEPPERS, make_stepper
 from crawlsim.model.process import compile
-from crawlsim.study.simulation import run
+from crawlsim.study.simulation import SimulationResult, run
 
 #: Where the paper's example files live: ``gaits/paper`` of the repository, relative to the
 #: working directory (``scripts/reproduce-paper.sh`` runs from the repository's root).
@@ -332,7 +325,7 @@ def acute_angle_checks(
                 1e-8,
             )
         )
-        fitted = result.contraction_rate
+        fitted = None if result.rate is None else result.rate.rate
         rows.append(
             Check(
                 f"acute angle alpha = {alpha:g}: convergence is asymptotic only, rate {rate:.6g}",
@@ -345,7 +338,7 @@ def acute_angle_checks(
     return rows
 
 
-def acute_angle_run(alpha: float, start: float = 0.0, period: float = 1.0, steps: int = 64) -> RunResult:
+def acute_angle_run(alpha: float, start: float = 0.0, period: float = 1.0, steps: int = 64) -> SimulationResult:
     spec = gait_from_document(acute_angle_document(alpha, period, start, steps=steps), "<acute-angle>")
     return run(spec)
 
@@ -415,7 +408,7 @@ def triangle_checks(
         result = run(_with(spec, initial=list(start)))
         converged &= result.convergence == "asymptotic"
         limits.append(result.limit.w[-1])
-        rate = result.contraction_rate
+        rate = None if result.rate is None else result.rate.rate
     s_limit = edge_parameter(limits[0], 2)[0]
     spread = float(max(np.linalg.norm(w - limits[0]) for w in limits))
     rows.append(
@@ -482,7 +475,7 @@ def speed_checks(path: Path | None = None, count: int = 4, steps: int | None = N
     gait = _steps(load_gait(path or PAPER_GAITS / "speed-peristalsis-4.yaml"), steps)
     results = [run(_with(gait, initial={"positions": x.tolist()})) for x in admissible_starts(gait, count)]
     v0 = np.array([r.v0 for r in results])
-    bound = max(max(r.v0_error_estimate or 0.0 for r in results), ROUNDOFF_MATCH * np.max(np.abs(v0)))
+    bound = max(max(r.estimate.error_estimate or 0.0 for r in results), ROUNDOFF_MATCH * np.max(np.abs(v0)))
     spread = float(np.ptp(v0))
     h = np.diff(results[0].limit.t)
     dw = [np.diff(r.limit.w, axis=0) for r in results]
@@ -563,7 +556,7 @@ def _num(x) -> str:
     return "n/a" if x is None else f"{x:.8g}"
 
 
-def _size(result: RunResult) -> float:
+def _size(result: SimulationResult) -> float:
     return max(float(np.max(np.abs(result.limit.w))), 1.0)
 
 

@@ -15,8 +15,8 @@ Every path is resolved against the base document before anything runs, so a bad 
 `InputError` (exit code 2) and nothing is computed or written; so is a grid in which no point is
 a valid gait (no point could run). A point whose edited document is not a valid gait (a friction
 value that breaks the uniqueness condition, a non-positive length) is recorded with status
-``invalid`` and the reason, and the others run. Points run through the batched exact stepper
-(`crawlsim.study.batch`), in-process, on local worker processes, or on a Dask cluster; a point
+``invalid`` and the reason, and the others run. Each point runs as its single run does
+(`crawlsim.study.points`), in-process, on local worker processes, or on a Dask cluster; a point
 that fails while running is recorded with status ``failed`` and its reason. With local workers
 (``jobs > 1``) the first task runs here and measures the cost of a point, and the workers start
 only when they save more than their start-up (`crawlsim.study.executors.run_local`).
@@ -29,55 +29,28 @@ recomputed. The output file is written atomically at the end.
 
 from __future__ import annotations
 
-import os  # noqa: F401  (tests patch sweeps.os.fsync: the journal's fsync)
+import io
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
-import yaml
 
+from crawlsim import plotting
 from crawlsim.errors import SweepSpecError
 from crawlsim.gait.document import Gait
-from crawlsim.status import PointStatus
-from crawlsim.study.executors import (
-    MAX_CHUNK,
-    MIN_CHUNK,
-    SCHEDULER_TIMEOUT,
-    TASK_SECONDS,
-    Chunker,
-    WorkerPool,
-    check_scheduler,
-    run_dask,
-    run_local,
-    run_on_pool,
-)
-from crawlsim.study.grid import (
-    MAX_AXIS_POINTS,
-    Axis,
-    SweepGrid,
-    check_some_point_runs,
-    make_grid,
-    parse_axis,
-    parse_shard,
-)
-from crawlsim.study.journal import JOURNAL_SECONDS, Journal, journal_path
-from crawlsim.study.points import (
-    BATCH_PLAIN_PERIODS,
-    PointQuantity,
-    PointResult,
-    evaluate,
-    run_points,
-)
-from crawlsim.study.table import (
-    LATER_COLUMNS,
-    RESULT_COLUMNS,
-    SweepTable,
-    is_hdf5,
-    merge_tables,
-    read_table,
-    table_payload,
-    write_table,
-)
+from crawlsim.io.runread import read_attrs
+from crawlsim.io.sweepfile import read_sweep, write_sweep
+from crawlsim.study.executors import MIN_CHUNK, WorkerPool, run_dask, run_local, run_on_pool
+from crawlsim.study.grid import SweepGrid, check_some_point_runs, make_grid
+from crawlsim.study.journal import Journal, journal_path
+from crawlsim.study.simulation import _xarray
+from crawlsim.study.table import SweepTable, is_hdf5, read_table, table_payload, write_table
+
+if TYPE_CHECKING:
+    import xarray
+
+    from crawlsim.plotting.style import FigureOptions
 
 
 class SweepInterrupted(KeyboardInterrupt):
@@ -144,7 +117,7 @@ def run_sweep(
         np.asarray(indices),
         tuple(finished[int(i)] for i in indices),
         grid.gait_yaml,
-        grid.base.source,
+        grid.source,
         shard,
         computed=len(todo),
         dims=grid.dims,
@@ -171,7 +144,7 @@ def sweep(
     points, keeps a journal next to ``output`` while running, and writes ``output`` (CSV or
     HDF5) atomically at the end, removing the journal. Without ``output`` nothing is written.
     ``progress`` and ``on_rows`` as in `run_sweep`. ``sensitivity``: paths whose ``dv0/dPATH``
-    columns are added (`crawlsim.analysis.sensitivity_sweep`), with a base gait.
+    columns are added (`crawlsim.study.points.with_derivatives`), with a base gait.
     """
     if not isinstance(grid, SweepGrid):
         grid = make_grid(grid, () if axes is None else axes, sensitivity=sensitivity)
@@ -192,6 +165,60 @@ def sweep(
     return table
 
 
+def dataset(table: SweepTable) -> xarray.Dataset | SweepTable:
+    """The ``/grid`` group of the table's sweep file as an `xarray.Dataset` (`crawlsim.sweep`;
+    the table itself without xarray)."""
+    try:
+        _xarray()
+    except ImportError:
+        return table
+    buffer = io.BytesIO()
+    write_sweep(buffer, **table_payload(table))
+    return _grid_dataset(buffer)
+
+
+def open_dataset(path: str | Path) -> xarray.Dataset | SweepTable:
+    """A sweep file as `crawlsim.sweep` returns it (`crawlsim.open_sweep`): the `xarray.Dataset`
+    of its ``/grid`` with the provenance as attributes, or without xarray its `SweepTable`."""
+    read_sweep(path)  # refuses what is not a sweep file, naming what is missing
+    try:
+        _xarray()
+    except ImportError:
+        return read_table(path)
+    return _grid_dataset(path)
+
+
+def _grid_dataset(source: Any) -> xarray.Dataset:
+    """The ``/grid`` group of a sweep file (a path or a binary file object) as a Dataset, the
+    root attributes (provenance) merged into its own."""
+    xr = _xarray()
+    if isinstance(source, io.IOBase):
+        source.seek(0)
+    attrs = read_attrs(source)
+    if isinstance(source, io.IOBase):
+        source.seek(0)
+    if not hasattr(xr.Dataset, "crawlsim"):
+        _register_accessor(xr)
+    with xr.open_dataset(source, engine="h5netcdf", group="grid", decode_timedelta=False) as ds:
+        grid = cast("xarray.Dataset", ds.load())
+    grid.attrs = {**attrs, **grid.attrs}
+    # keyed by the paths the user passed (the file's names, `axis_name`, avoid dots)
+    return grid.rename({name: grid[name].attrs["path"] for name in grid.coords if "path" in grid[name].attrs})
+
+
+def _register_accessor(xr: Any) -> None:
+    """``grid.crawlsim.plot()`` on the Datasets of `crawlsim.sweep` and `crawlsim.open_sweep`:
+    the sweep figure, as ``crawlsim plot SWEEP.h5`` draws it (``grid.plot`` is xarray's own)."""
+
+    @xr.register_dataset_accessor("crawlsim")
+    class SweepAccessor:
+        def __init__(self, grid: Any) -> None:
+            self._grid = grid
+
+        def plot(self) -> Any:
+            return plotting.sweep_data_figure(self._grid)
+
+
 def check_shard_output(shard, output) -> None:
     """A shard is written to an HDF5 file, or `crawlsim merge` could not join it."""
     if shard is not None and (output is None or not is_hdf5(output)):
@@ -202,88 +229,13 @@ def check_shard_output(shard, output) -> None:
         )
 
 
-def sweep_figure_data(table: SweepTable) -> tuple[dict, np.ndarray, np.ndarray]:
-    """What `crawlsim.plotting.sweep_figure` draws: the values of each grid dimension (named by
-    its first path), v0 on the grid, and the points without a v0 (failed or invalid)."""
-    dims = table.dimension_paths()
-    if len(dims) not in (1, 2):
-        raise SweepSpecError(
-            "--plot", "", f"a sweep figure shows one or two swept dimensions, this sweep has {len(dims)}"
-        )
-    first = dict(zip(table.paths, table.axes))
-    axes = {paths[0]: np.asarray(first[paths[0]], dtype=float) for paths in dims}
-    status = table.grid("status")
-    missing = (status == PointStatus.FAILED) | (status == PointStatus.INVALID)
-    return axes, table.grid("v0"), missing
+def plot_table(table: SweepTable, path, options: FigureOptions | None = None) -> None:
+    """The sweep figure of ``table`` (`crawlsim.plotting.sweeps.sweep_data_figure`), drawn with
+    ``options`` (`crawlsim.plotting.style.FigureOptions`: dpi, size, style sheet) and written
+    atomically."""
+    from crawlsim.plotting.style import FigureOptions, user_style  # start-up: matplotlib for figures only
 
-
-def plot_table(table: SweepTable, path, title: str | None = None, figure_options: dict | None = None) -> None:
-    """v0 against one swept dimension, or a heat map over two, with the points that have no v0
-    (failed or invalid) marked; written atomically."""
-    from crawlsim.plotting import save_figure, sweep_figure
-    from crawlsim.plotting.style import units_of
-
-    axes, v0, _ = sweep_figure_data(table)
-    if title is None:
-        document = yaml.safe_load(table.gait_yaml) if table.gait_yaml else None
-        name = document.get("name") if isinstance(document, dict) else None
-        title = f"{name or Path(table.source).stem}: average velocity over a sweep"
-    marks = None
-    if len(axes) == 1 and table.gait_yaml:
-        from crawlsim.analysis.stall import curve_marks
-
-        name = next(iter(axes))
-        marks = curve_marks(table.gait_yaml, name, axes[name], v0)
-    # The statuses themselves, not a failed/ok mask: an invalid gait and a failed run are
-    # different answers and are marked differently (docs/figures.md).
-    status = table.grid("status")
-    figure = sweep_figure(
-        axes,
-        v0,
-        status,
-        title,
-        units=units_of({"gait_yaml": table.gait_yaml}),
-        displacement=table.grid("displacement_per_period"),
-        marks=marks,
-    )
-    save_figure(figure, path, **(figure_options or {}))
-
-
-__all__ = [
-    "BATCH_PLAIN_PERIODS",
-    "JOURNAL_SECONDS",
-    "LATER_COLUMNS",
-    "MAX_AXIS_POINTS",
-    "MAX_CHUNK",
-    "MIN_CHUNK",
-    "RESULT_COLUMNS",
-    "SCHEDULER_TIMEOUT",
-    "TASK_SECONDS",
-    "Axis",
-    "Chunker",
-    "Journal",
-    "PointQuantity",
-    "PointResult",
-    "SweepGrid",
-    "SweepInterrupted",
-    "SweepTable",
-    "WorkerPool",
-    "check_scheduler",
-    "check_shard_output",
-    "check_some_point_runs",
-    "evaluate",
-    "is_hdf5",
-    "journal_path",
-    "make_grid",
-    "merge_tables",
-    "parse_axis",
-    "parse_shard",
-    "plot_table",
-    "read_table",
-    "run_points",
-    "run_sweep",
-    "sweep",
-    "sweep_figure_data",
-    "table_payload",
-    "write_table",
-]
+    options = options or FigureOptions()
+    with user_style(options.style):
+        figure = plotting.sweep_data_figure(table_payload(table))
+        plotting.save_figure(figure, path, dpi=options.dpi, figsize=options.figsize)

@@ -6,12 +6,17 @@ from __future__ import annotations
 import csv
 import io
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from crawlsim.errors import ResultsFileError
 from crawlsim.io.atomic import atomic_path
+from crawlsim.io.layout import counts
+from crawlsim.io.sweepfile import DERIVATIVE, read_sweep, write_sweep
 from crawlsim.status import PointStatus
 from crawlsim.study.grid import grid_shape, parse_shard
 from crawlsim.study.points import PointResult
@@ -101,17 +106,12 @@ class SweepTable:
             cols[name] = np.array(
                 [np.nan if not r.extra or r.extra[k] is None else r.extra[k] for r in self.rows], float
             )
-        from crawlsim.analysis import sensitivity_sweep
-
-        cols.update(sensitivity_sweep.columns(self.rows))
+        cols.update(_derivatives(self.rows))
         return cols
 
     def counts(self) -> dict[str, int]:
         """The number of points of each status (``ok``, ``invalid``, ...)."""
-        out = {str(s): 0 for s in PointStatus}
-        for r in self.rows:
-            out[r.status] = out.get(r.status, 0) + 1
-        return out
+        return {str(s): 0 for s in PointStatus} | counts([r.status for r in self.rows])
 
     def grid(self, column: str) -> np.ndarray:
         """A column on the grid's shape (full tables only)."""
@@ -120,13 +120,18 @@ class SweepTable:
         full[self.points] = values
         return full.reshape(self.shape)
 
+    def plot(self) -> Any:
+        """The sweep figure of this table (`crawlsim.plotting.sweeps.sweep_data_figure`), a
+        matplotlib figure."""
+        from crawlsim.plotting.sweeps import sweep_data_figure
+
+        return sweep_data_figure(table_payload(self))
+
     def to_csv(self) -> str:
         """The table as ``crawlsim velocity --sweep`` prints it: CSV, one row per point."""
         buf = io.StringIO()
         writer = csv.writer(buf, lineterminator="\n")
-        from crawlsim.analysis.sensitivity_sweep import columns
-
-        derivatives = columns(self.rows)
+        derivatives = _derivatives(self.rows)
         writer.writerow(list(self.paths) + list(RESULT_COLUMNS) + list(self.quantities) + list(derivatives))
         coords = self.coordinates()
         for n, r in enumerate(self.rows):
@@ -138,6 +143,16 @@ class SweepTable:
                 + [_cell(d[n]) for d in derivatives.values()]
             )
         return buf.getvalue()
+
+
+def _derivatives(rows: Sequence[PointResult]) -> dict[str, np.ndarray]:
+    """The dv0/dPATH columns of ``--sensitivity`` (`crawlsim.study.points.with_derivatives`),
+    in the order the points name them, as floats: NaN where a point has no value."""
+    paths = list(dict.fromkeys(path for r in rows for path in r.derivatives or {}))
+    values = [[(r.derivatives or {}).get(path) for r in rows] for path in paths]
+    return {
+        DERIVATIVE + p: np.array([np.nan if v is None else v for v in vs], dtype=float) for p, vs in zip(paths, values)
+    }
 
 
 def _cell(value) -> str:
@@ -154,9 +169,7 @@ def write_table(table: SweepTable, output) -> None:
     """CSV (``.csv`` or any other suffix) or HDF5 (``.h5``/``.hdf5``), written atomically."""
     output = Path(output)
     if is_hdf5(output):
-        from crawlsim.io import hdf5 as h5io
-
-        h5io.write_sweep(output, **table_payload(table))
+        write_sweep(output, **table_payload(table))
         return
     with atomic_path(output) as tmp:
         tmp.write_text(table.to_csv(), encoding="utf-8", newline="")
@@ -167,7 +180,7 @@ def is_hdf5(path) -> bool:
 
 
 def table_payload(table: SweepTable) -> dict:
-    """The plain data `crawlsim.io.hdf5.write_sweep` stores."""
+    """The plain data `crawlsim.io.sweepfile.write_sweep` stores."""
     return dict(
         paths=list(table.paths),
         axes=[np.asarray(a) for a in table.axes],
@@ -185,41 +198,11 @@ def read_table(path) -> SweepTable:
     """A sweep HDF5 file (complete or a shard) back as a `SweepTable`. Files written before the
     `LATER_COLUMNS` existed read with those columns missing (NaN, ""); the dv0/dPATH columns
     of ``--sensitivity`` come back as the rows' ``derivatives``."""
-    from crawlsim.analysis.sensitivity_sweep import row_derivatives
-    from crawlsim.io import hdf5 as h5io
-
-    data = h5io.read_sweep(path)
-    cols = data["columns"]
-
-    def number(name, n):
-        if name not in cols:
-            return None
-        value = float(cols[name][n])
-        return None if math.isnan(value) else value
-
-    rows: list[PointResult] = []
-    for n, point in enumerate(data["points"]):
-        rows.append(
-            PointResult(
-                int(point),
-                PointStatus(str(cols["status"][n])),
-                v0=number("v0", n),
-                v0_error_estimate=number("v0_error_estimate", n),
-                displacement_per_period=number("displacement_per_period", n),
-                dissipation_per_period=number("dissipation_per_period", n),
-                cost_of_transport=number("cost_of_transport", n),
-                convergence=str(cols["convergence"][n]),
-                periods=int(cols["periods"][n]),
-                integrator=str(cols["integrator"][n]) if "integrator" in cols else "",
-                message=str(cols["message"][n]),
-                steps=int(data["steps"][n]),
-                limit=str(cols["limit"][n]) if "limit" in cols else "",
-                newton_steps=(
-                    int(cols["newton_steps"][n]) if "newton_steps" in cols and cols["newton_steps"][n] >= 0 else None
-                ),
-                derivatives=row_derivatives(cols, n),
-            )
-        )
+    data = read_sweep(path)
+    rows = [
+        PointResult.from_columns(data["columns"], n, int(point), int(data["steps"][n]))
+        for n, point in enumerate(data["points"])
+    ]
     shard = parse_shard(data["shard"]) if data["shard"] else None
     dims = data.get("dimensions")
     return SweepTable(
@@ -240,8 +223,6 @@ def merge_tables(tables) -> SweepTable:
     All parts must come from the same sweep (gait, paths, values, links, N), and together hold
     each shard 1..N exactly once; otherwise a `ResultsFileError` says what is wrong (exit code 2).
     """
-    from crawlsim.errors import ResultsFileError
-
     tables = list(tables)
     if not tables:
         raise ResultsFileError("no shard files given", "merge")
@@ -266,8 +247,6 @@ def merge_tables(tables) -> SweepTable:
 
 def _check_shards(tables: list[SweepTable]) -> None:
     """Every part is a shard of the first part's sweep, and together they hold 1..N once."""
-    from crawlsim.errors import ResultsFileError
-
     first = tables[0]
     for t in tables:
         if t.shard is None:

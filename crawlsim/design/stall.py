@@ -28,9 +28,15 @@ from typing import Any
 
 import numpy as np
 
-from crawlsim.analysis.stall import SMOOTH, StallCause, _vanishing_subset
+from crawlsim.analysis.stall import MOVING, StallCause
 from crawlsim.errors import CertificateError, GaitError, InputError
+from crawlsim.gait.apriori import margin
+from crawlsim.gait.docpaths import resolve_path, value_at
 from crawlsim.gait.document import Gait, gait_from_document
+from crawlsim.study.simulation import _as_spec, run
+
+SMOOTH = 1e-6
+"""A v0 below this fraction of |v0(s0)| on the moving side of the final bracket is a smooth zero."""
 
 SCAN_STEPS = 64
 """Scan steps across the load's natural range (the loaded block's friction interval, or 90
@@ -99,8 +105,6 @@ class _Probe:
         """(v0, refusal reason, refused because the body cannot hold) at load s."""
         if s in self.cache:
             return self.cache[s]
-        from crawlsim.study.simulation import run
-
         self.evaluations += 1
         try:
             gait = self.gait.replace(self.path, float(s))
@@ -150,7 +154,7 @@ def stall(gait: Gait | str, *, force: str | None = None, slope: bool = False) ->
     if v_start is None:  # pragma: no cover - the gait itself was validated
         raise InputError(spec.source, path, why or "refused")
     scale = _natural_range(spec, quantity, path)
-    tolerance_v = 1e-9 * abs(v_start)
+    tolerance_v = MOVING * abs(v_start)
     if not abs(v_start) > 1e-12 * max(scale, 1.0):
         raise InputError(
             spec.source,
@@ -185,7 +189,8 @@ def stall(gait: Gait | str, *, force: str | None = None, slope: bool = False) ->
         value, hi = _smooth_zero(probe, lo, hi, v_lo, sign, direction, scale)
     else:
         cause = StallCause.JUMP
-        subset = _vanishing_subset(spec.replace(path, lo))
+        nearest = margin(spec.replace(path, lo))  # the J whose g~_J vanishes at the jump
+        subset = nearest.blocks if nearest.value <= 1e-6 * nearest.scale else None
     unit = "degree" if quantity == "slope" else spec.units.suffix("force").strip()
     return StallResult(
         quantity, path, value, (lo, hi), cause, v_start, v_lo, v_hi, s0, probe.evaluations, subset, reason, unit
@@ -195,9 +200,6 @@ def stall(gait: Gait | str, *, force: str | None = None, slope: bool = False) ->
 def _stall_problem(gait: Gait | str, force: str | None, slope: bool) -> tuple[Gait, str, str]:
     """(the gait, the path varied, "force" or "slope"): a force path gets zero forces on every
     block when the gait has none yet."""
-    from crawlsim.gait.docpaths import resolve_path
-    from crawlsim.study.simulation import _as_spec
-
     spec = _as_spec(gait)
     if not isinstance(spec, Gait):
         raise InputError(spec.source, "kind", "stall needs a crawler gait, not a sweeping process")
@@ -235,12 +237,7 @@ def _stall_problem(gait: Gait | str, force: str | None, slope: bool) -> tuple[Ga
 
 def _start_load(spec: Gait, path: str) -> float:
     """The gait's own load at ``path``: a constant number."""
-    from crawlsim.gait.docpaths import resolve_path
-
-    keys = resolve_path(spec.document, path, spec.source)[0]
-    node: Any = spec.document
-    for key in keys:
-        node = node[key]
+    node = value_at(spec.document, resolve_path(spec.document, path, spec.source)[0])
     if not isinstance(node, (int, float)) or isinstance(node, bool):
         raise InputError(
             spec.source, path, f"expected a number at {path}, got {node!r}: the stall search varies a constant load"

@@ -53,50 +53,14 @@ from pathlib import Path
 
 import numpy as np
 
+from crawlsim.design.descent import Descent
+from crawlsim.design.optresult import Batch, Evaluation, OptimizationResult, Run, hypervolume, non_dominated
+from crawlsim.design.problem import Constraint, Method, Objective, Problem, Sense, feasible, rank
+from crawlsim.design.search import Evaluator, Search
 from crawlsim.errors import GaitError, SweepSpecError
+from crawlsim.io.optfile import write_optimization
 from crawlsim.study.executors import WorkerPool
-from crawlsim.study.journal import Journal
-from crawlsim.study.method import (
-    BUDGET_PER_DIMENSION,
-    FRONT_POINTS,
-    MAX_SEED,
-    POLISH_SHARE,
-    POLISH_STEP,
-    POLISH_XTOL,
-    POPSIZE,
-    Method,
-    default_budget,
-    default_search,
-)
-from crawlsim.study.optresult import (
-    BUDGET_SPENT,
-    Batch,
-    Evaluation,
-    OptimizationResult,
-    Run,
-    Stage,
-    hypervolume,
-    infeasible_error,
-    non_dominated,
-)
-from crawlsim.study.problem import (
-    NON_NEGATIVE,
-    QUANTITIES,
-    Constraint,
-    Free,
-    InfeasibleError,
-    Objective,
-    Problem,
-    Sense,
-    check_constraints,
-    feasible,
-    make_problem,
-    parse_constraint,
-    parse_free,
-    quantity,
-    rank,
-)
-from crawlsim.study.search import Evaluator, OptimizationInterrupted, Search
+from crawlsim.study.journal import Journal, journal_path
 
 
 # -- the driver -------------------------------------------------------------------------------
@@ -142,8 +106,6 @@ def optimize(
     removed and no file is written. Ctrl-C raises `OptimizationInterrupted` once the journal
     holds every finished point.
     """
-    from crawlsim.study.sweep import journal_path
-
     method = method or Method()
     budget = method.budget(problem)
     began = time.perf_counter()
@@ -210,8 +172,6 @@ def optimize(
     )
     if book is not None:
         if ok and evaluations:
-            from crawlsim.io.hdf5 import write_optimization
-
             write_optimization(output, result)
         book.remove()
     return result
@@ -221,8 +181,6 @@ def _runner(method: Method) -> type[Search]:
     """The search of one run: the gradient search, or differential evolution and the pattern
     search."""
     if method.gradient:
-        from crawlsim.study.descent import Descent
-
         return Descent
     return Search
 
@@ -319,44 +277,3 @@ def _with_hypervolume(
         upto = ok[: b.evaluations]
         out.append(dataclasses.replace(b, hypervolume=hypervolume(points[: b.evaluations][upto], reference)))
     return tuple(out)
-
-
-__all__ = [
-    "BUDGET_PER_DIMENSION",
-    "BUDGET_SPENT",
-    "FRONT_POINTS",
-    "MAX_SEED",
-    "NON_NEGATIVE",
-    "POLISH_SHARE",
-    "POLISH_STEP",
-    "POLISH_XTOL",
-    "POPSIZE",
-    "QUANTITIES",
-    "Batch",
-    "Constraint",
-    "Evaluation",
-    "Evaluator",
-    "Free",
-    "InfeasibleError",
-    "Method",
-    "Objective",
-    "OptimizationInterrupted",
-    "OptimizationResult",
-    "Problem",
-    "Run",
-    "Sense",
-    "Stage",
-    "check_constraints",
-    "default_budget",
-    "default_search",
-    "feasible",
-    "fingerprint",
-    "hypervolume",
-    "infeasible_error",
-    "make_problem",
-    "non_dominated",
-    "optimize",
-    "parse_constraint",
-    "parse_free",
-    "quantity",
-]

@@ -1,7 +1,7 @@
 """Symmetric tridiagonal LDL^T, vectorised over leading axes (chains, single and batched).
 
 A crawler's KKT systems are principal submatrices of its tridiagonal stiffness Laplacian
-(`crawlsim.kernel.chain_polyhedron`): LDL^T without pivoting is backward stable for them (an
+(`crawlsim.projection.chain_polyhedron`): LDL^T without pivoting is backward stable for them (an
 M-matrix), in numpy for short active sets and with LAPACK's ``dpttrf``/``dpttrs`` for long ones.
 """
 

@@ -12,22 +12,15 @@ from typing import Any, cast
 
 import numpy as np
 
+from crawlsim.design.optresult import BUDGET_SPENT, Batch, Evaluation, Run, Stage
+from crawlsim.design.problem import Constraint, Method, Objective, Problem, rank
 from crawlsim.errors import SweepSpecError
 from crawlsim.status import PointStatus
-from crawlsim.study.method import Method
-from crawlsim.study.optresult import BUDGET_SPENT, Batch, Evaluation, Run, Stage
-from crawlsim.study.problem import Constraint, Objective, Problem, rank
-from crawlsim.study.sweep import (
-    Axis,
-    Journal,
-    PointResult,
-    SweepInterrupted,
-    WorkerPool,
-    check_some_point_runs,
-    make_grid,
-    run_points,
-    run_sweep,
-)
+from crawlsim.study.executors import WorkerPool
+from crawlsim.study.grid import Axis, check_some_point_runs, make_grid
+from crawlsim.study.journal import Journal
+from crawlsim.study.points import PointResult, run_points
+from crawlsim.study.sweep import SweepInterrupted, run_sweep
 
 
 # -- evaluation -------------------------------------------------------------------------------

@@ -23,9 +23,10 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from crawlsim.kernel.certificate import RTOL, SMALL_CHAIN, Dependent, Floats, Step, Tolerance
-from crawlsim.kernel.polyhedron import ActiveSet, Polyhedron
-from crawlsim.kernel.tridiagonal import _lapack, ldl_solve, ldl_tridiagonal
+from crawlsim.kernel.policy import RTOL
+from crawlsim.projection.certificate import SMALL_CHAIN, Dependent, Floats, Step, Tolerance
+from crawlsim.projection.polyhedron import ActiveSet, Polyhedron
+from crawlsim.projection.tridiagonal import _lapack, ldl_solve, ldl_tridiagonal
 
 
 class _ChainSet(ActiveSet):

@@ -4,13 +4,13 @@ objective and the constraints (`crawlsim.sensitivity`, docs/sensitivity.md).
 
 * **The global stage** goes through the sweep engine in batches (so ``jobs``, a Dask scheduler
   and the journal apply): the grid of `Method.sample` points per free parameter, one batch,
-  while it has at most `crawlsim.study.method.SAMPLE_GRID` points; in more dimensions, where a
+  while it has at most `crawlsim.design.problem.SAMPLE_GRID` points; in more dimensions, where a
   coarse sample leaves most basins of v0 unvisited, differential evolution on the run's budget
   less `Method.polish_share` (the evolution search's global stage, `Search._global`). A run of a
   Pareto front evaluates the population it is given instead (the front found so far among
   it).
 * **The local runs** start from the `Method.restarts` best points of that stage by the feasibility
-  rules (`crawlsim.study.problem.rank`): L-BFGS-B in the box without constraints, SLSQP with
+  rules (`crawlsim.design.problem.rank`): L-BFGS-B in the box without constraints, SLSQP with
   them (each constraint ``q >= b`` or ``q <= b`` with its exact gradient), in units of the box.
   Every step is one verified limit with the derivatives of v0, the displacement, the dissipation
   and the cost of transport per period, kept in the row's extra columns (so a rerun replays
@@ -35,14 +35,14 @@ from typing import Any
 
 import numpy as np
 
-from crawlsim.errors import CrawlsimError
+from crawlsim.analysis.sensitivity import sensitivity
+from crawlsim.design.optresult import BUDGET_SPENT, Evaluation, Run, Stage
+from crawlsim.design.problem import QUANTITIES, SAMPLE_GRID, Constraint, Problem
+from crawlsim.design.search import BudgetSpent, Search
+from crawlsim.errors import CrawlsimError, InputError
 from crawlsim.gait.docpaths import resolve_path
 from crawlsim.status import PointStatus
-from crawlsim.study.method import SAMPLE_GRID
-from crawlsim.study.optresult import BUDGET_SPENT, Evaluation, Run, Stage
 from crawlsim.study.points import PointResult
-from crawlsim.study.problem import QUANTITIES, Constraint, Problem
-from crawlsim.study.search import BudgetSpent, Search
 
 #: The quantities whose derivatives a gradient evaluation keeps, in the order of its extra
 #: columns (one block of n derivatives each, n the free parameters).
@@ -69,9 +69,6 @@ def gradient_row(problem: Problem, groups: Sequence[set[str]], x: Sequence[float
     parameters in its extra columns (NaN where a derivative has no value), from one
     `crawlsim.sensitivity` at the exact integrator's verified limit. A gait that is not valid,
     or a run that fails, is a row of its own (``invalid`` or ``failed``) without derivatives."""
-    from crawlsim.analysis.sensitivity import sensitivity
-    from crawlsim.errors import InputError
-
     try:
         r = sensitivity(problem.gait(x), list(problem.paths), one_sided=False)
     except InputError as exc:

@@ -1,11 +1,8 @@
-"""The kernel's tolerance policy and the records of a certified step (`crawlsim.kernel.kkt`).
+"""The certificate of a step and the records of a certified step or run (`crawlsim.projection.kkt`).
 
-Every certificate of every integrator holds a step to one relative tolerance, `RTOL`, of the
-size of the numbers it was computed from (`crawlsim.kernel.polyhedron.Polyhedron.tolerance`):
+Every certificate of every integrator holds a step to the tolerances of `crawlsim.kernel.policy`:
 primal feasibility max(B w - c), the sign of the multipliers -min(lambda) and complementarity
-max |(B w - c)_A|. A step whose complementarity residual is above `REFINE_FRACTION` of its
-tolerance gets one step of iterative refinement. This module holds those constants, the
-tolerances and certificates themselves, and what a step or a telescoped run returns.
+max |(B w - c)_A|.
 """
 
 from __future__ import annotations
@@ -17,21 +14,15 @@ import numpy as np
 import numpy.typing as npt
 
 if TYPE_CHECKING:
-    from crawlsim.kernel.polyhedron import ActiveSet
+    from crawlsim.projection.polyhedron import ActiveSet
 
 #: Float arrays of any shape (the annotation that lets numpy's stubs type their arithmetic).
 Floats = npt.NDArray[np.floating[Any]]
 
-#: Relative tolerance of every certificate: about 45 ulps of the size of the step's numbers.
-RTOL = 1e-14
 #: Active sets of up to this many blocks are factored in numpy, larger ones with LAPACK.
 SMALL_CHAIN = 6
 #: LICQ floor of generic processes: the reciprocal condition number of G_A.
 GENERIC_RCOND = 1e-10
-#: A complementarity residual above this fraction of its tolerance triggers refinement.
-REFINE_FRACTION = 0.25
-#: Primal-dual active-set updates tried before a step is handed to Clarabel.
-UPDATE_ITERATIONS = 12
 #: Numbers the cache of factored active sets may hold (about 32 MB); it is emptied when full.
 CACHE_NUMBERS = 1 << 22
 

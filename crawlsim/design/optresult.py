@@ -13,18 +13,26 @@ from typing import Any
 
 import numpy as np
 
-from crawlsim.status import PointStatus
-from crawlsim.study.method import Method
-from crawlsim.study.points import PointResult
-from crawlsim.study.problem import (
+from crawlsim.design.problem import (
     Constraint,
     Free,
     InfeasibleError,
+    Method,
     Objective,
     Problem,
     Sense,
+    parse_constraint,
     rank,
 )
+from crawlsim.gait.document import Gait, gait_from_document
+from crawlsim.gait.yamlsafe import load_yaml
+from crawlsim.io.atomic import atomic_path
+from crawlsim.io.layout import counts
+from crawlsim.io.optfile import STAGE_FLAGS, read_optimization
+from crawlsim.io.outputs import GAIT_HEAD
+from crawlsim.io.provenance import command_line, effective_yaml
+from crawlsim.status import PointStatus
+from crawlsim.study.points import PointResult
 
 BUDGET_SPENT = "budget spent"
 
@@ -143,18 +151,13 @@ class OptimizationResult:
 
     def write_best(self, path: Path | str, index: int | None = None) -> Path:
         """Write `best_yaml` to ``path`` atomically."""
-        from crawlsim.io.atomic import atomic_path
-
         with atomic_path(path) as tmp:
             tmp.write_text(self.best_yaml(index), encoding="utf-8")
         return Path(path)
 
     def counts(self) -> dict[str, int]:
         """Evaluated points by `crawlsim.status.PointStatus` (ok, invalid, failed...)."""
-        out = {str(s): 0 for s in PointStatus}
-        for e in self.evaluations:
-            out[e.row.status] += 1
-        return out
+        return {str(s): 0 for s in PointStatus} | counts([e.row.status for e in self.evaluations])
 
     def feasibility(self) -> tuple[list[bool], list[float]]:
         """For each evaluation: does it satisfy its run's constraints (and run), and its total
@@ -184,9 +187,6 @@ class OptimizationResult:
         """`best_document` as YAML: a gait file that ``crawlsim run`` reproduces (floats written
         with repr, so the values are the optimiser's bit for bit), headed by a comment that says
         where it comes from."""
-        from crawlsim.io.outputs import GAIT_HEAD
-        from crawlsim.io.provenance import command_line, effective_yaml
-
         e = self.evaluations[self.best if index is None else index]
         what = self.runs[e.run].text
         if self.problem.pareto and e.index == self.best:
@@ -199,18 +199,20 @@ class OptimizationResult:
             *(f"# {p} = {v!r}" for p, v in zip(self.problem.paths, e.x)),
             f"# command: {command_line()}",
         ]
-        return "\n".join(line.replace("\n", " ") for line in head) + "\n" + effective_yaml(self.problem.document(e.x))
+        document = self.problem.document(e.x)
+        free = ", ".join(f"{p} = {v!r}" for p, v in zip(self.problem.paths, e.x))
+        base = str(document.get("description", "")).split(" [crawlsim optimize: ")[0]
+        document["description"] = f"{base} [crawlsim optimize: {what}; {free}]".lstrip()
+        return "\n".join(line.replace("\n", " ") for line in head) + "\n" + effective_yaml(document)
 
     @classmethod
     def from_file(cls, path: Path | str) -> OptimizationResult:
         """The result recorded in an optimisation file (`crawlsim.io.optfile`): the same type
-        and the same numbers as the `crawlsim.study.optimize.optimize` that wrote it. What the
+        and the same numbers as the `crawlsim.design.optimize.optimize` that wrote it. What the
         file does not keep comes back empty: ``computed`` is 0 (this process simulated nothing),
         and the rows' ``limit``, ``newton_steps`` and ``extra`` (the gradient search's derivative
         columns) are unset. Raises `ResultsFileError` for a
         file that is not an optimisation file."""
-        from crawlsim.io.optfile import read_optimization
-
         return _result_of_file(read_optimization(path))
 
     def summary(self) -> dict[str, Any]:
@@ -274,11 +276,6 @@ class OptimizationResult:
 
 def _result_of_file(data: dict[str, Any]) -> OptimizationResult:
     """`OptimizationResult.from_file` on `read_optimization`'s dicts."""
-    from crawlsim.gait.document import Gait, gait_from_document
-    from crawlsim.gait.yamlsafe import load_yaml
-    from crawlsim.io.optfile import STAGE_FLAGS
-    from crawlsim.study.problem import parse_constraint
-
     a = data["attrs"]
     base = gait_from_document(
         load_yaml(a["gait_yaml"], a["source"]),
@@ -296,11 +293,6 @@ def _result_of_file(data: dict[str, Any]) -> OptimizationResult:
     stages = dict(STAGE_FLAGS)
     ev = data["evaluations"]
     names = [f["name"] for f in data["free"]]
-
-    def number(column: str, n: int) -> float | None:
-        value = float(ev[column][n])
-        return None if math.isnan(value) else value
-
     evaluations = tuple(
         Evaluation(
             n,
@@ -308,20 +300,7 @@ def _result_of_file(data: dict[str, Any]) -> OptimizationResult:
             int(ev["run"][n]),
             Stage(stages[int(ev["stage"][n])]),
             int(ev["batch"][n]),
-            PointResult(
-                n,
-                PointStatus(str(ev["status"][n])),
-                v0=number("v0", n),
-                v0_error_estimate=number("v0_error_estimate", n),
-                displacement_per_period=number("displacement_per_period", n),
-                dissipation_per_period=number("dissipation_per_period", n),
-                cost_of_transport=number("cost_of_transport", n),
-                convergence=str(ev["convergence"][n]),
-                periods=int(ev["periods"][n]),
-                integrator=str(ev["integrator"][n]),
-                message=str(ev["message"][n]),
-                steps=int(ev["steps"][n]),
-            ),
+            PointResult.from_columns(ev, n, n, int(ev["steps"][n])),
         )
         for n in range(len(ev["run"]))
     )

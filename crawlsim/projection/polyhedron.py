@@ -1,10 +1,10 @@
-"""The certified projection step on a polyhedron, for every integrator (`crawlsim.kernel.kkt`).
+"""The certified projection step on a polyhedron, for every integrator (`crawlsim.projection.kkt`).
 
 `Polyhedron` holds what every structure shares: the tolerance policy, the solve on an active
 set with iterative refinement, the certificate, the primal-dual active-set updates and the
 telescoped run of steps on a fixed active set. Its subclasses give the structure: the crawler
-chain (`crawlsim.kernel.chain_polyhedron`) and a dense generic process
-(`crawlsim.kernel.dense_polyhedron`).
+chain (`crawlsim.projection.chain_polyhedron`) and a dense generic process
+(`crawlsim.projection.dense_polyhedron`).
 """
 
 from __future__ import annotations
@@ -14,12 +14,10 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from crawlsim.kernel.certificate import (
+from crawlsim.kernel.policy import REFINE_FRACTION, UPDATE_ITERATIONS, tolerances
+from crawlsim.projection.certificate import (
     CACHE_NUMBERS,
     GENERIC_RCOND,
-    REFINE_FRACTION,
-    RTOL,
-    UPDATE_ITERATIONS,
     Certificate,
     Dependent,
     Run,
@@ -146,25 +144,17 @@ class Polyhedron:
             self._cache[key] = cached
         return cached
 
-    # -- the one tolerance policy --------------------------------------------------------------
+    # -- the one tolerance policy (`crawlsim.kernel.policy`) -----------------------------------
     def tolerance(
         self, active: ActiveSet, c_size: npt.ArrayLike, w_size: npt.ArrayLike, lam_size: npt.ArrayLike
     ) -> Tolerance:
         """Certificate tolerances for a step (or arrays of steps) whose offsets, states and
-        cumulative multipliers have these sup norms.
-
-        Roundoff of B w - c is relative to the numbers summed: |c|, ||B|| |w| and, through
-        w = w_trial - M^{-1} B^T lambda, ||B|| ||M^{-1} B^T|| |lambda|. The multipliers are
-        G_A^{-1} times such a residual, so their roundoff is ||G_A^{-1}|| times it, plus the
-        solve's own, ||G_A^{-1}|| ||G_A|| |lambda| eps.
-        """
-        size = np.maximum(
-            np.maximum(np.maximum(self.c_scale, c_size), self.row_norm * np.asarray(w_size)),
-            self.row_norm * self.response_norm * np.asarray(lam_size),
+        cumulative multipliers have these sup norms."""
+        lam = np.asarray(lam_size)
+        w_part, lam_part = self.row_norm * np.asarray(w_size), self.row_norm * self.response_norm * lam
+        return Tolerance(
+            *tolerances(self.c_scale, c_size, w_part, lam_part, active.inverse_norm, active.gram_norm, lam)
         )
-        primal = RTOL * size
-        dual = RTOL * active.inverse_norm * (size + active.gram_norm * np.asarray(lam_size))
-        return Tolerance(primal, 2.0 * dual)
 
     # -- one step on an active set --------------------------------------------------------------
     def solve_on(
@@ -178,12 +168,12 @@ class Polyhedron:
         lam = np.zeros(self.m)
         if active.size == 0:
             slack = Bw - c
-            return np.array(w_trial, dtype=float), lam, slack, self._tolerance1(active, c, w_trial, lam)
+            return np.array(w_trial, dtype=float), lam, slack, self.step_tolerance(active, c, w_trial, lam)
         idx = active.index
         lam[idx] = active.solve(Bw[idx] - c[idx])
         w = w_trial - self.respond(lam)
         slack = self.apply(w) - c
-        tol = self._tolerance1(active, c, w_trial, lam)
+        tol = self.step_tolerance(active, c, w_trial, lam)
         if np.abs(slack[idx]).max() > REFINE_FRACTION * tol.primal:
             # one step of iterative refinement on the certified residual: B_A w - c_A
             delta = np.zeros(self.m)
@@ -200,19 +190,11 @@ class Polyhedron:
         `ChainPolyhedron.row_tolerance`); generic processes keep the scalar bound."""
         return tol
 
-    def _tolerance1(self, active: ActiveSet, c: np.ndarray, w: np.ndarray, lam: np.ndarray) -> Tolerance:
-        """`tolerance` for one step, in Python floats."""
-        # rows with an infinite offset are ignored (velocity problems of the exact integrator)
+    def step_tolerance(self, active: ActiveSet, c: np.ndarray, w: np.ndarray, lam: np.ndarray) -> Tolerance:
+        """`tolerance` of one step from its offsets, state and multipliers (rows with an
+        infinite offset, the exact integrator's velocity problems, are left out)."""
         c_size = float(np.max(np.abs(c), initial=0.0, where=np.isfinite(c)))
-        lam_size = float(np.abs(lam).max(initial=0.0))
-        size = max(
-            self.c_scale,
-            c_size,
-            self.row_norm * float(np.abs(w).max(initial=0.0)),
-            self.row_norm * self.response_norm * lam_size,
-        )
-        dual = RTOL * active.inverse_norm * (size + active.gram_norm * lam_size)
-        return Tolerance(RTOL * size, 2.0 * dual)
+        return self.tolerance(active, c_size, float(np.abs(w).max(initial=0.0)), float(np.abs(lam).max(initial=0.0)))
 
     def certify(
         self, slack: np.ndarray, lam: np.ndarray, active: ActiveSet, tol: Tolerance, fixed: np.ndarray | None = None

@@ -10,8 +10,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from crawlsim.kernel.certificate import GENERIC_RCOND, Dependent, Floats
-from crawlsim.kernel.polyhedron import ActiveSet, Polyhedron
+from crawlsim.projection.certificate import GENERIC_RCOND, Dependent, Floats
+from crawlsim.projection.polyhedron import ActiveSet, Polyhedron
 
 
 class _DenseSet(ActiveSet):

@@ -1,61 +1,21 @@
 """The driver of the compiled catch-up step (`crawlsim.kernel.chain`): it owns the kernel's
 arrays between periods, calls it, and turns what it reports into crawlsim's terms: the active
-sets as `crawlsim.kernel.polyhedron.ActiveSet` (for the periodic-limit solver), a failed certificate as a
+sets as `crawlsim.projection.polyhedron.ActiveSet` (for the periodic-limit solver), a failed certificate as a
 `CertificateError` naming the time and the rows.
 """
 
 from __future__ import annotations
 
-import sys
 from collections.abc import Callable, Sequence
-from typing import Any, overload
+from typing import overload
 
 import numpy as np
 
 from crawlsim.kernel import chain
-from crawlsim.kernel.certificate import Dependent
-from crawlsim.kernel.chain_polyhedron import ChainPolyhedron
-from crawlsim.kernel.polyhedron import ActiveSet, Polyhedron
-
-#: What the first compilation costs (measured with an empty cache on a 2-core machine; printed
-#: so that a first run does not look hung): `crawlsim velocity peristalsis-4` with an empty
-#: ``NUMBA_CACHE_DIR``, 49 s of CPU (median of 3: 47.3, 49.2, 50.2 s; one thread, so about the
-#: wall time of an idle machine: 47.1, 49.2, 50.0 s), since the exact loop's local events.
-COLD_SECONDS = 50
-_announced: set[str] = set()
-
-
-def _entries(integrator: str) -> tuple[Any, ...]:
-    """The compiled entry point an integrator calls first (the exact integrator's closed
-    forms are small and compile with it only when its gait needs them); ``"sensitivity"``:
-    the tangent walks of `crawlsim.kernel.tangent`."""
-    from crawlsim.kernel import eventloop
-
-    if integrator == "sensitivity":
-        from crawlsim.kernel import implicit, tangent, tangent_catchup
-
-        return (tangent.walk_exact, tangent_catchup.walk_catch_up, implicit.implicit)
-    return (chain.catch_up,) if integrator == "catch-up" else (eventloop.period,)
-
-
-def cache_is_cold(integrator: str = "catch-up") -> bool:
-    """Whether numba has no cached machine code of one of the kernel's entry points that
-    ``integrator`` calls, for this source (an index file missing or stale). False when the JIT
-    is disabled or the cache cannot be inspected: then nothing is announced."""
-    try:
-        return any(not entry._cache._cache_file._load_index() for entry in _entries(integrator))
-    except Exception:
-        return False
-
-
-def announce_compilation(integrator: str = "catch-up") -> None:
-    """One line on stderr (at most one per process) before the kernel is compiled for the
-    first time in this cache."""
-    if integrator not in _announced:
-        if cache_is_cold(integrator) and "printed" not in _announced:
-            print(f"crawlsim: compiling the kernel once, ~{COLD_SECONDS} s", file=sys.stderr, flush=True)
-            _announced.add("printed")
-        _announced.add(integrator)
+from crawlsim.kernel.jit import kernel
+from crawlsim.projection.certificate import Dependent
+from crawlsim.projection.chain_polyhedron import ChainPolyhedron
+from crawlsim.projection.polyhedron import ActiveSet, Polyhedron
 
 
 def signs_of(active: ActiveSet, blocks: int) -> np.ndarray:
@@ -95,7 +55,6 @@ class ChainKernel:
         # N = 4 is several percent of the period's steps)
         self._active: ActiveSet | None = None
         self._key = b""
-        announce_compilation()
 
     def load(self, active: ActiveSet) -> None:
         if active is self._active and self.signs.tobytes() == self._key:
@@ -103,7 +62,7 @@ class ChainKernel:
         self.signs[:] = signs_of(active, len(self.signs))
 
     def active(self, fallback: ActiveSet) -> ActiveSet:
-        """The current set, factored by `crawlsim.kernel.kkt` (cached there), or ``fallback``."""
+        """The current set, factored by `crawlsim.projection.kkt` (cached there), or ``fallback``."""
         key = self.signs.tobytes()
         if self._active is not None and key == self._key:
             return self._active
@@ -117,7 +76,7 @@ class ChainKernel:
     def run(self, C: np.ndarray, W: np.ndarray, LAM: np.ndarray, S: np.ndarray, j0: int) -> tuple[int, int]:
         """Steps j0, j0+1, ... until the period ends or a step needs the projector
         (`chain.catch_up`)."""
-        status, j = chain.catch_up(
+        status, j = kernel().chain.catch_up(
             self.k, self.c_scale, C, W, LAM, S, self.signs, self.factored, self.D, self.l, self.norms, j0, self.report
         )
         return int(status), int(j)
@@ -138,12 +97,12 @@ class ChainKernel:
 
 class VisitedSets(Sequence[ActiveSet]):
     """The non-empty active sets of a period's steps, in order, consecutive repeats left out
-    (`crawlsim.integrate.stepping.PeriodRecord.visited`), factored by `crawlsim.kernel.kkt` only when the
+    (`crawlsim.integrate.stepping.PeriodRecord.visited`), factored by `crawlsim.projection.kkt` only when the
     periodic-limit solver asks for them: most periods never need them."""
 
     def __init__(self, polyhedron: Polyhedron, S: np.ndarray):
         self._polyhedron = polyhedron
-        self._sets = S[chain.set_starts(S)] if len(S) else S
+        self._sets = S[kernel().chain.set_starts(S)] if len(S) else S
         self._factored: list[ActiveSet] | None = None
 
     def _list(self) -> list[ActiveSet]:
@@ -184,12 +143,12 @@ def velocity(
     None when the kernel does not settle it (the caller's Python path decides, as before)."""
     if not isinstance(polyhedron, ChainPolyhedron):
         return None
-    announce_compilation("exact")
     N = polyhedron.blocks
     rows = np.zeros(2 * N, dtype=np.bool_)
     rows[warm] = True
     rows[fixed] = True
-    if not chain.independent(rows, N):
+    world = kernel()
+    if not world.chain.independent(rows, N):
         return None
     signs = np.zeros(N, dtype=np.int8)
     signs[rows[:N]] = 1
@@ -200,7 +159,7 @@ def velocity(
     lam = np.empty(2 * N)
     report = np.zeros(6)
     told = np.empty(2 * N)
-    status = chain.project_rows(
+    status = world.chain.project_rows(
         np.ascontiguousarray(polyhedron.stiffness, dtype=float),
         float(polyhedron.c_scale),
         np.zeros(N - 1),

@@ -16,16 +16,16 @@ which this module solves by a factorisation of G_A (LDL^T or Cholesky, never an 
 inverse) and then *certifies*: primal feasibility, the sign of the multipliers and
 complementarity, each to roundoff under one tolerance policy (`Polyhedron.tolerance`). A step
 whose complementarity residual is above a quarter of its tolerance gets one step of iterative
-refinement on that residual. Clarabel (`crawlsim.kernel.projection`) only proposes active sets; the
+refinement on that residual. Clarabel (`crawlsim.projection.adapter`) only proposes active sets; the
 numbers of a step always come from here.
 
-Two structures share the interface `Polyhedron` (`crawlsim.kernel.polyhedron`):
+Two structures share the interface `Polyhedron` (`crawlsim.projection.polyhedron`):
 
-* `ChainPolyhedron` (`crawlsim.kernel.chain_polyhedron`), the crawler (docs/model.md §2):
+* `ChainPolyhedron` (`crawlsim.projection.chain_polyhedron`), the crawler (docs/model.md §2):
   B = [D^T; -D^T] with D the (N-1) x N forward difference, M = K^{-1}; on A the system is the
   tridiagonal L_JJ dx_J = f_J - f*_J of the saturated blocks, O(N), and each multiplier gets
   its own componentwise dual tolerance;
-* `DensePolyhedron` (`crawlsim.kernel.dense_polyhedron`), a generic polyhedral process
+* `DensePolyhedron` (`crawlsim.projection.dense_polyhedron`), a generic polyhedral process
   (docs/model.md §5): dense B and M, Cholesky of G_A, and LICQ decided by the conditioning of
   G_A.
 
@@ -39,27 +39,25 @@ whole run of steps, certified step by step in one vectorised pass. Crawlers step
 compiled kernel (`crawlsim.kernel.chain`), single runs and sweeps' batches alike.
 
 This module is the kernel's one name space: the tolerance policy and certificate records
-(`crawlsim.kernel.certificate`), the tridiagonal factorisation (`crawlsim.kernel.tridiagonal`)
+(`crawlsim.projection.certificate`), the tridiagonal factorisation (`crawlsim.projection.tridiagonal`)
 and the polyhedra above, re-exported.
 """
 
-from crawlsim.kernel.certificate import (
+from crawlsim.kernel.policy import REFINE_FRACTION, RTOL, UPDATE_ITERATIONS
+from crawlsim.projection.certificate import (
     CACHE_NUMBERS,
     GENERIC_RCOND,
-    REFINE_FRACTION,
-    RTOL,
     SMALL_CHAIN,
-    UPDATE_ITERATIONS,
     Certificate,
     Dependent,
     Run,
     Step,
     Tolerance,
 )
-from crawlsim.kernel.chain_polyhedron import ChainPolyhedron
-from crawlsim.kernel.dense_polyhedron import DensePolyhedron
-from crawlsim.kernel.polyhedron import ActiveSet, Polyhedron
-from crawlsim.kernel.tridiagonal import ldl_solve, ldl_tridiagonal
+from crawlsim.projection.chain_polyhedron import ChainPolyhedron
+from crawlsim.projection.dense_polyhedron import DensePolyhedron
+from crawlsim.projection.polyhedron import ActiveSet, Polyhedron
+from crawlsim.projection.tridiagonal import ldl_solve, ldl_tridiagonal
 
 __all__ = [
     "CACHE_NUMBERS",

@@ -4,7 +4,7 @@ Catch-up stepping (docs/model.md §3) needs, at every step,
 
     w* = argmin { 1/2 |w - w_trial|_M^2 : B w <= c }.
 
-The numbers of every step come from the certified KKT kernel (`crawlsim.kernel.kkt`): an active set A is
+The numbers of every step come from the certified KKT kernel (`crawlsim.projection.kkt`): an active set A is
 factored, the equality system on A solved, and the result certified (primal feasibility, the
 sign of the multipliers, complementarity, to roundoff). This module decides *which* active set:
 
@@ -36,9 +36,9 @@ import numpy as np
 import numpy.typing as npt
 
 from crawlsim.errors import CertificateError, DegenerateModelError, LicqWarning
-from crawlsim.kernel.certificate import Dependent, Step
-from crawlsim.kernel.dense_polyhedron import DensePolyhedron
-from crawlsim.kernel.polyhedron import ActiveSet, Polyhedron
+from crawlsim.projection.certificate import Dependent, Step
+from crawlsim.projection.dense_polyhedron import DensePolyhedron
+from crawlsim.projection.polyhedron import ActiveSet, Polyhedron
 
 
 @dataclass(frozen=True, eq=False)
