@@ -142,12 +142,12 @@ def test_rough_corpus_gaits_that_failed(seed):
     gait = random_gait(seed, blocks=(2, 64), rough=True, friction_ratio=1e3)
     process = compile_gait(gait, 1000)
     exact = simulate(process, integrator="exact", max_periods=300, tolerance=1e-11, history=False)
-    assert exact.converged and exact.v0 is not None and exact.v0_error_estimate is not None
+    assert exact.converged and exact.v0 is not None and exact.estimate.error_estimate is not None
     catch_up = simulate(
         process, integrator="catch-up", max_periods=300, tolerance=1e-11, history=False, time_step_error=True
     )
-    assert catch_up.v0 is not None and catch_up.v0_error_estimate is not None
-    assert abs(catch_up.v0 - exact.v0) <= catch_up.v0_error_estimate
+    assert catch_up.v0 is not None and catch_up.estimate.error_estimate is not None
+    assert abs(catch_up.v0 - exact.v0) <= catch_up.estimate.error_estimate
 
 
 def test_a_sample_off_by_roundoff_in_a_newton_period_is_refined(monkeypatch):
