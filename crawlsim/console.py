@@ -11,6 +11,7 @@ the program is called ``crawlsim``; tests/test_imports.py checks that both agree
 from __future__ import annotations
 
 import os
+import signal
 import sys
 
 from crawlsim import __version__
@@ -41,4 +42,8 @@ def main() -> None:
         sys.exit(0)
     from crawlsim.cli import main as cli  # start-up: click only beyond --version and --help
 
-    cli()
+    try:
+        cli()
+    finally:  # the exit code is decided: a signal now would only lose it
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)

@@ -12,6 +12,9 @@ animation, in the waits for local or Dask workers, and before a finished file is
 place) or, at the latest, when the command returns (an exit code or an error it ends with gives
 way to the signal's). A second signal while one is pending is raised at once wherever the
 program is (the way out of a long first compilation), but for a write libhdf5 calls back.
+Once a file is in place (`settle`, after each rename), a signal is only noted: raised at the
+next safe point if more work follows, and ignored when the command then ends, whose results
+are written and whose exit code stands.
 
 Without `installed` (the Python API) nothing changes: Python's own handlers stay, and `check` is
 a no-op.
@@ -34,6 +37,8 @@ class Terminated(KeyboardInterrupt):
 
 #: The signal noted but not yet raised (`pending`).
 _PENDING: int | None = None
+#: Whether a file of the command is in place (`settle`).
+_SETTLED = False
 
 _PACKAGE = os.path.dirname(os.path.abspath(__file__)) + os.sep
 #: crawlsim's code that other libraries call back (h5py's file driver writes through
@@ -67,7 +72,7 @@ def _handler(signum: int, frame: FrameType | None) -> None:
     A second signal raised in another library's code stays noted as well, in case that
     library swallows it too."""
     global _PENDING
-    if _called_back(frame):
+    if _called_back(frame) or _SETTLED:
         _PENDING = signum
         return
     ours = frame is not None and frame.f_code.co_filename.startswith(_PACKAGE)
@@ -76,6 +81,13 @@ def _handler(signum: int, frame: FrameType | None) -> None:
         return
     _PENDING = None if ours else signum
     raise exception_for(signum)
+
+
+def settle() -> None:
+    """A file of the command is in place: a signal from now on waits for `check`, and is
+    ignored if the command ends without one."""
+    global _SETTLED
+    _SETTLED = True
 
 
 def check() -> None:
@@ -92,25 +104,26 @@ def installed() -> Iterator[None]:
     """The handlers above for SIGINT and SIGTERM while the block runs (the main thread only;
     elsewhere nothing changes), the previous ones restored after it; a signal still pending when
     the block ends is raised then."""
-    global _PENDING
+    global _PENDING, _SETTLED
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    _PENDING = None
+    _PENDING, _SETTLED = None, False
     previous = {signum: signal.signal(signum, _handler) for signum in (signal.SIGINT, signal.SIGTERM)}
     try:
         yield
-        check()
+        if not _SETTLED:
+            check()
     except KeyboardInterrupt:
         raise
     except BaseException as exc:
         # the command ended otherwise (an error, an exit code) after a signal it was given:
-        # the signal's exit wins
-        if _PENDING is not None:
+        # the signal's exit wins, unless it came after the results were in place
+        if _PENDING is not None and not _SETTLED:
             raise exception_for(_PENDING) from exc
         raise
     finally:
         for signum, handler in previous.items():
             if handler is not None:  # None: a handler not installed from Python
                 signal.signal(signum, handler)
-        _PENDING = None
+        _PENDING, _SETTLED = None, False

@@ -6,7 +6,9 @@ Each refusal was, before its fix, a traceback after or during the work: an int64
 HDF5 writer (--save-every), a 10^19-point linspace (--sweep NUM), Dask's parser
 (--scheduler), h5py refusing a 2**70 seed after the whole search (leaving its journal), the
 results file's folder found missing only when it was renamed into place (nosuchdir/../x.h5),
-and the input gait replaced by ``optimize --write-best``.
+and the input gait replaced by ``optimize --write-best``; and, issue 31, a whole run for
+``--sensitivity blocks`` (no derivative) and a search over ``--free period=1:1e300`` (most of
+its box invalid).
 """
 
 from __future__ import annotations
@@ -84,6 +86,13 @@ OPT = ("optimize", "g.yaml", "--free", "links.0.phase=0:1", "--max-evaluations",
         ((*OPT, "--write-best", "./g.yaml"), "is the input file g.yaml"),
         ((*OPT, "-o", "o.h5", "--write-best", "o.h5"), "is the input file o.h5"),
         (("velocity", "g.yaml", "--sweep", "period=1,2", "-o", "t.csv", "--dpi", "100"), "add --plot"),
+        (("velocity", "g.yaml", "--sensitivity", "blocks"), "blocks: not a continuous parameter"),
+        (
+            ("velocity", "g.yaml", "--sweep", "period=1,2", "--sensitivity", "blocks", "-o", "s.csv"),
+            "blocks: not a continuous parameter",
+        ),
+        (("optimize", "g.yaml", "--free", "period=1:1e300"), "HI = 1e+300 is refused: expected a positive number"),
+        (("optimize", "g.yaml", "--free", "stiffness=-5:2"), "LO = -5.0 is refused"),
     ],
     ids=[
         "save-every",
@@ -100,6 +109,10 @@ OPT = ("optimize", "g.yaml", "--free", "links.0.phase=0:1", "--max-evaluations",
         "write-best-input-path",
         "write-best-output",
         "figure-option-without-plot",
+        "sensitivity-blocks",
+        "sweep-sensitivity-blocks",
+        "free-beyond-the-schema",
+        "free-below-the-schema",
     ],
 )
 def test_refused_before_any_computation(folder, args, phrase):

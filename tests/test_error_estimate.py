@@ -3,11 +3,13 @@
 Two exact computations of the same gait, the compiled event loop (`crawlsim.kernel.eventloop`)
 and the Python loop of `crawlsim.integrate.exact` (``kernel=False``), differ only by roundoff:
 their v0 must agree to within the error estimate each of them prints. On chains whose stiffness
-spreads over five or six decades the state is large (c ~ k_max L) and the positions are read
-off it through the softest link, so the displacement's roundoff is eps c_scale / k_min
+spreads over five or six decades the state is large (c ~ k_max L) and each piece reads its
+slips off it through the softest link, so the displacement's roundoff is eps c_scale / k_min
+per piece, sqrt(pieces) of it over a period
 (`crawlsim.analysis.convergence.displacement_roundoff`), not the eps x steps x slip of the
 sums alone: on these seeds of the random-gait corpus the two loops differed by 10 to 250 times
-that first estimate before it carried the second term.
+that first estimate before it carried the second term, and by up to 1.43 times the second
+with one piece (seed 13, 86 pieces a period).
 """
 
 from __future__ import annotations
@@ -52,5 +54,6 @@ def test_two_exact_loops_agree_within_the_estimate(seed, monkeypatch):
     difference = abs(compiled.v0 - python.v0)
     assert difference <= min(compiled.estimate.error_estimate, python.estimate.error_estimate)
     # the stiffness term is what covers it: the rest of the estimate alone does not
-    stiff = displacement_roundoff(process, 0, 0.0) / process.period
+    pieces = len(exact.EventStepper(process).step_period().transitions)
+    stiff = displacement_roundoff(process, 0, 0.0, pieces) / process.period
     assert difference > compiled.estimate.error_estimate - stiff

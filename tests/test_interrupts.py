@@ -187,3 +187,45 @@ def test_a_signal_during_an_hdf5_write_stops_the_run_with_no_file(tmp_path, monk
     assert not (tmp_path / "r.h5").exists()
     assert not glob.glob(str(tmp_path / ".r.h5*"))
     assert interrupts.pending() is None
+
+
+def test_a_signal_after_the_file_is_in_place_leaves_the_exit_code(tmp_path, monkeypatch):
+    """A SIGTERM just after the results file is renamed into place (`interrupts.settle`): the
+    command finishes as it would have, exit code 0 and its summary, the file complete (it used
+    to end with 143, or, past the handlers, be killed without a word)."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "g.yaml").write_text(GAIT)
+    settle = interrupts.settle
+    sent = []
+
+    def settle_then_signal():
+        settle()
+        if not sent:
+            sent.append(signal.SIGTERM)
+            os.kill(os.getpid(), signal.SIGTERM)
+
+    monkeypatch.setattr(interrupts, "settle", settle_then_signal)
+    result = CliRunner().invoke(main, ["run", "g.yaml", "-o", "r.h5"])
+    assert sent and result.exit_code == 0, result.output
+    assert "written" in result.output and "Terminated" not in result.output
+    from crawlsim.io.outputs import RUN, classify
+
+    assert classify(tmp_path / "r.h5") == RUN and interrupts.pending() is None
+
+
+def test_an_interrupted_sweep_names_no_journal_it_has_not_written(tmp_path, monkeypatch):
+    """Ctrl-C before any point of a sweep finishes: the message says nothing was kept, and
+    names no journal (it used to name OUT.journal, which did not exist)."""
+    import crawlsim.study.sweep
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "g.yaml").write_text(GAIT)
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(crawlsim.study.sweep, "run_local", interrupted)
+    result = CliRunner().invoke(main, ["velocity", "g.yaml", "--sweep", "period=1,2", "-o", "s.csv", "--quiet"])
+    assert result.exit_code == 130, result.output
+    assert "Interrupted: 0 of 2 points finished, nothing to keep." in result.output
+    assert "journal" not in result.output and sorted(p.name for p in tmp_path.iterdir()) == ["g.yaml"]

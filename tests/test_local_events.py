@@ -259,7 +259,7 @@ def test_local_decisions_are_those_of_the_whole_chain():
 
         whole, local = np.empty(N, dtype=np.int8), np.empty(N, dtype=np.int8)
         ok = eventloop.decide(
-            loop.k, kmax, loop.c_scale, linear, H, coef, float(u_tr[e]), w, forced, warm, whole, *scratch()
+            loop.k, kmax, loop.c_scale, linear, H, coef, float(u_tr[e]), w, forced, warm, whole, *scratch(), warm
         )
         parts = scratch()
         ok_local = eventloop.decide_local(
@@ -279,6 +279,7 @@ def test_local_decisions_are_those_of_the_whole_chain():
             Rdx,
             inverse,
             np.empty(N),
+            warm,  # the set of the piece before: held (`crawlsim.kernel.piece.tight_rows`)
         )
         assert ok and ok_local
         assert np.array_equal(local, whole), e

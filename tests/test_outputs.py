@@ -1,8 +1,8 @@
 """Outputs never destroy data (crawlsim.io.outputs, crawlsim.io.atomic, the commands' -o/--force).
 
 A command replaces only a crawlsim output of the same kind, never its input nor a special
-file; temporary files are removed on failure, SIGINT and SIGTERM, and stale ones of dead
-processes by the next write of the same target.
+file, nor an output another command is writing; temporary files are removed on failure, SIGINT
+and SIGTERM, and stale ones of dead processes by the next write of the same target.
 """
 
 import glob
@@ -20,7 +20,7 @@ from click.testing import CliRunner
 
 from crawlsim.cli import main
 from crawlsim.errors import OutputError
-from crawlsim.io import atomic
+from crawlsim.io import atomic, outputs
 from crawlsim.io.outputs import FIGURE, RUN, SWEEP, check_target, classify
 
 GAIT = """\
@@ -268,3 +268,48 @@ def test_check_target_kinds_directly(folder):
     assert classify(folder / "table.csv") == SWEEP
     (folder / "other.csv").write_text("a,b\n1,2\n")
     assert classify(folder / "other.csv") is None
+
+
+def test_write_best_replaces_only_a_gait_crawlsim_optimize_wrote(folder):
+    """``optimize --write-best`` follows the rule of every output: a text file of notes, or a
+    run's results file, is refused before any work (it used to become a gait); a gait file
+    crawlsim optimize wrote, an empty file, or any file with --force may be replaced."""
+    (folder / "notes.txt").write_text("my notes\n")
+    assert invoke("run", "g.yaml", "-o", "r.h5").exit_code == 0
+    for target, what in (("notes.txt", "not a crawlsim output"), ("r.h5", "a crawlsim run results file")):
+        result = invoke("optimize", "g.yaml", "--free", "links.1.phase=0:1", "-o", "o.h5", "--write-best", target)
+        refused(result, f"--write-best {target}", what, "not a gait file written by crawlsim optimize", "--force")
+    assert (folder / "notes.txt").read_text() == "my notes\n" and classify(folder / "r.h5") == RUN
+    assert not (folder / "o.h5").exists()
+    (folder / "best.yaml").write_text("# written by crawlsim optimize: maximise v0\n" + GAIT)
+    assert classify(folder / "best.yaml") == outputs.GAIT
+    assert check_target(folder / "best.yaml", outputs.GAIT) == folder / "best.yaml"
+    assert check_target(folder / "notes.txt", outputs.GAIT, force=True) == folder / "notes.txt"
+    outputs.release()
+
+
+def test_a_second_process_writing_the_same_output_is_refused_at_once(folder):
+    """Two real processes: while a run writes slow.h5, another command given the same output
+    exits 2 at once, naming the first (its process id), and writes nothing; the claim (a lock
+    file beside the target) goes with the first command, on SIGTERM too, and the output can be
+    written again after."""
+    child = start_slow_run(folder)
+    began = time.monotonic()
+    second = subprocess.run(
+        [sys.executable, "-m", "crawlsim", "run", "g.yaml", "-o", "slow.h5"],
+        cwd=folder,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert time.monotonic() - began < 30  # refused at once: no run
+    assert second.returncode == 2, second.stderr
+    assert "--output slow.h5: is being written by another crawlsim command" in second.stderr
+    assert f"process {child.pid} on " in second.stderr and "Traceback" not in second.stderr
+    assert (folder / ".slow.h5.lock").exists() and not (folder / "slow.h5").exists()
+    child.send_signal(signal.SIGTERM)
+    assert child.wait(timeout=60) == 143
+    assert not glob.glob(str(folder / ".slow.h5*"))  # the lock file with the temporary one
+    assert invoke("run", "g.yaml", "-o", "slow.h5").exit_code == 0
+    assert classify(folder / "slow.h5") == RUN and not (folder / ".slow.h5.lock").exists()

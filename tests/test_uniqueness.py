@@ -266,3 +266,83 @@ def test_key_weights_are_a_fixed_sequence():
         assert int(uniqueness._splitmix64(1)[0]) == 0xE220A8397B1DCDAF
     finally:
         uniqueness._KEY_WEIGHTS_SEED = seed
+
+
+def test_a_tie_within_roundoff_is_reported_as_what_it_is():
+    """0.1 + 0.2 - 0.3 is 5.6e-17 in double precision, not 0: J = {1, 2} with the rest {3} is a
+    tie of the file's decimals, which the refusal reports as within roundoff of one (it said
+    "= 0"), 3.7e-17 of the friction's sum 1.5; an exact tie in binary still says "= 0"."""
+    doc = wave(3)
+    doc["friction"] = [
+        {"forward": 0.1, "backward": 0.2},
+        {"forward": 0.2, "backward": 0.4},
+        {"forward": 0.3, "backward": 0.3},
+    ]
+    with pytest.raises(GaitError) as info:
+        gait_from_document(doc, "near.yaml")
+    message = info.value.message
+    assert "J = {1, 2} (forward) and the rest {3} (backward)" in message
+    assert "sum mu- over the rest is within 1e-16 of a tie (3.7e-17 of the sum of the friction" in message
+    with pytest.raises(GaitError, match=r"over the rest = 0 for t in \[0, 1\]"):
+        gait_from_document(wave(2, forward=2.0, backward=2.0), "tie.yaml")
+
+
+def step_switched_parity(n: int) -> dict:
+    """n blocks of friction switched by steps, written with three decimals, each block's own:
+    every mu^+ + mu^- an even number of thousandths and sum mu^- an odd one on every piece
+    (block 1 carries an odd thousandth both ways), so no g_J vanishes, by parity."""
+
+    def steps(start, first, step, j):
+        odd = 0.001 if j == 0 else 0.0
+        values = [round(first + step * j + odd, 3), round(first + 0.1 + step * j + odd, 3)]
+        return {"kind": "steps", "times": [0.0, round(start + 0.01 * (j % 37), 3)], "values": values}
+
+    doc = wave(n)
+    doc["friction"] = [{"forward": steps(0.3, 0.4, 0.002, j), "backward": steps(0.31, 0.6, 0.004, j)} for j in range(n)]
+    return doc
+
+
+def test_step_switched_decimals_are_decided_on_whole_numbers(monkeypatch):
+    """39 blocks of distinct three-decimal friction switched by steps (about 70 pieces of time):
+    each piece is decided on whole numbers of thousandths, so the search over subsets (2^19
+    sums a half, a third of a second a piece) never runs, and the gait is valid. A file's
+    friction was checked piece by piece that way for 42 s."""
+    import crawlsim.gait.uniqueness as uniqueness
+
+    searched = []
+    search = uniqueness._search_piece
+    monkeypatch.setattr(uniqueness, "_search_piece", lambda *args: searched.append(1) or search(*args))
+    gait = gait_from_document(step_switched_parity(39), "steps.yaml")
+    assert gait.blocks == 39 and searched == []
+    assert find_violation(gait.forward, gait.backward) is None and searched == []
+
+
+@given(st.lists(st.tuples(st.integers(1, 999), st.integers(1, 999)), min_size=2, max_size=9))
+@example([(100, 200), (200, 400), (300, 300)])
+def test_three_decimal_friction_agrees_with_enumerating_every_subset(pairs):
+    """Friction of three decimals (thousandths from the integers drawn): violated exactly when
+    some subset's g_J is 0 in thousandths (enumerated in integers), whatever its roundoff."""
+    forward = [Constant(f / 1000) for f, _ in pairs]
+    backward = [Constant(b / 1000) for _, b in pairs]
+    tie = any(
+        sum(f for (f, _), s in zip(pairs, subset) if s) == sum(b for (_, b), s in zip(pairs, subset) if not s)
+        for subset in itertools.product([False, True], repeat=len(pairs))
+    )
+    assert (find_violation(forward, backward) is not None) == tie
+
+
+@given(
+    st.lists(st.tuples(st.floats(0.5, 1e4), st.integers(1, 3)), min_size=1, max_size=8),
+    st.floats(0.0, 1e5),
+)
+def test_nearest_subset_sum_is_the_nearest_to_half_a_unit(items, target):
+    """`nearest_subset_sum`: within 1/2 (the unit of its values) of the nearest sum of counts
+    0 <= c_g <= n_g, enumerated."""
+    from crawlsim.gait.uniqueness import nearest_subset_sum
+
+    values, sizes = np.array([v for v, _ in items]), np.array([n for _, n in items])
+    nearest = min(
+        abs(sum(c * v for c, v in zip(counts, values)) - target)
+        for counts in itertools.product(*[range(n + 1) for n in sizes])
+    )
+    assert abs(nearest_subset_sum(values, sizes, target) - nearest) <= 0.5

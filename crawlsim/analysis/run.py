@@ -482,7 +482,8 @@ def verified_limit_error(process: SweepingProcess, final: PeriodRecord, steps: i
     |F| / k_min (a length) bounds the displacement's."""
     c, slips = process.crawler, final.slips
     assert c is not None and slips is not None
-    roundoff = displacement_roundoff(process, steps, float(np.sum(np.abs(slips))) / c.blocks)
+    mean_abs_slip = float(np.sum(np.abs(slips))) / c.blocks
+    roundoff = displacement_roundoff(process, steps, mean_abs_slip, len(final.transitions) or steps)
     return float((roundoff + shape_mismatch(process, final)) / process.period)
 
 
@@ -512,7 +513,8 @@ def _motion(
     if drive.solution is not None:
         err = verified_limit_error(process, final, G)
     else:
-        err = period_iteration_error(displacements, convergence, rate, displacement_roundoff(process, G, roundoff), T)
+        roundoff = displacement_roundoff(process, G, roundoff, len(final.transitions) or G)
+        err = period_iteration_error(displacements, convergence, rate, roundoff, T)
     return _Motion(d_final, d_final / T, period_dissipation(process, final), err)
 
 

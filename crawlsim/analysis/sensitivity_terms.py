@@ -23,7 +23,7 @@ import numpy as np
 from crawlsim.analysis.energy import period_dissipation
 from crawlsim.analysis.run import verified_limit_error
 from crawlsim.errors import CrawlsimError, GaitError
-from crawlsim.gait.docpaths import explicit, set_value, value_at
+from crawlsim.gait.docpaths import STRUCTURAL, explicit, set_value, value_at
 from crawlsim.gait.settings import effective_tolerance
 from crawlsim.gait.signals import Constant, Cosine, Fourier, parse_signal
 from crawlsim.integrate.limit import PLAIN_PERIODS, relative_step, solve_limit
@@ -46,8 +46,6 @@ COEFFICIENT_STEP = 2.0**-10
 ANGLE_STEP = 1e-3
 #: Most blocks for which the uniqueness boundary is checked over every subset.
 UNIQUENESS_BLOCKS = 12
-#: Top-level keys that are not continuous parameters of a gait.
-STRUCTURAL = ("blocks", "simulation", "name", "description", "units", "kind")
 
 
 # -- the limit period ------------------------------------------------------------------------

@@ -19,6 +19,7 @@ import dataclasses
 import importlib
 import math
 import signal
+import sys
 import warnings
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -85,7 +86,12 @@ class CrawlsimGroup(click.Group):
     def invoke(self, ctx):
         try:
             with interrupts.installed():
-                return super().invoke(ctx)
+                try:
+                    return super().invoke(ctx)
+                finally:  # the outputs the command claimed (`crawlsim.io.outputs.claim`)
+                    outputs = sys.modules.get("crawlsim.io.outputs")
+                    if outputs is not None:
+                        outputs.release()
         except Terminated:
             click.echo("Terminated.", err=True)
             raise click.exceptions.Exit(EXIT_TERMINATED) from None

@@ -19,6 +19,7 @@ from crawlsim.cli import (
     simulation_options,
     to_json,
 )
+from crawlsim.cli.guards import force_option
 from crawlsim.cli.progress import Progress
 from crawlsim.integrate.resources import check_signal_work, gait_signal_work
 from crawlsim.io.outputs import GAIT, check_target
@@ -109,6 +110,7 @@ from crawlsim.io.outputs import GAIT, check_target
     "[default: gradient to maximise v0 without constraints, else evolution]",
 )
 @simulation_options
+@force_option
 @feedback_options
 def optimize(
     gait_file,
@@ -127,6 +129,7 @@ def optimize(
     as_json,
     search,
     settings,
+    force,
     feedback,
 ):
     """Find the gait parameters in a box that maximise v0 (or minimise the cost of transport,
@@ -159,7 +162,7 @@ def optimize(
 
     _check_options(free_specs, output)
     with library_errors():
-        out = _targets(design, gait_file, output, write_best, scheduler, seed)
+        out = _targets(design, gait_file, output, write_best, scheduler, seed, force)
         if maximize and minimize:
             raise BadInput(
                 f"--maximize {maximize} and --minimize {minimize}: give one objective "
@@ -205,7 +208,7 @@ def _check_options(free_specs, output) -> None:
         )
 
 
-def _targets(design, gait_file, output, write_best, scheduler, seed) -> Path:
+def _targets(design, gait_file, output, write_best, scheduler, seed, force) -> Path:
     """The results file, checked with the --write-best file, the --scheduler address and the
     seed (``design``: `crawlsim.design.problem`) before any work."""
     if scheduler is not None:
@@ -213,12 +216,12 @@ def _targets(design, gait_file, output, write_best, scheduler, seed) -> Path:
 
         check_scheduler(scheduler)
     design.Method(seed=seed)  # refuses a seed the results file cannot hold, before any work
-    out = _output_path(output, Path(gait_file).stem + "-optimize", inputs=[gait_file])
+    out = _output_path(output, Path(gait_file).stem + "-optimize", force, inputs=[gait_file])
     if out.suffix.lower() not in (".h5", ".hdf5"):
         raise BadInput(f"--output {out}: an optimisation is written to HDF5: give a name ending in .h5")
     if write_best is not None:
         # never the gait file optimised (nor the results file): refused like every output
-        check_target(write_best, GAIT, inputs=[gait_file, out], option="--write-best")
+        check_target(write_best, GAIT, inputs=[gait_file, out], force=force, option="--write-best")
     return out
 
 
@@ -252,9 +255,9 @@ def _search(problem, method, out, jobs, scheduler, feedback):
         )
     except OptimizationInterrupted as exc:
         bar.close()
-        where = (
-            f"kept in {exc.journal}; run the same command again to resume" if exc.journal is not None else "not kept"
-        )
+        where = "not kept" if exc.journal is None else "nothing to keep"
+        if exc.journal is not None and exc.done:  # the journal exists once a point is in it
+            where = f"kept in {exc.journal}; run the same command again to resume"
         click.echo(f"Interrupted: {exc.done} points finished, {where}.", err=True)
         cause: BaseException | None = exc
         while cause is not None and not isinstance(cause, Terminated):

@@ -188,6 +188,7 @@ def velocity(
           --shard $i/3 -o part-$i.h5; done && crawlsim merge part-*.h5 -o all.h5
     """
     from crawlsim.gait.crawler_spec import need_crawler  # start-up: numpy and YAML when the command runs
+    from crawlsim.gait.docpaths import check_number_paths
 
     output = None if output == "-" else output  # stdout is where the table (or v0) goes
     if len(gait_files) > 1:
@@ -215,6 +216,7 @@ def velocity(
                     "(crawlsim run GAIT --plot draws the figures of one run)"
                 )
             if output is None:
+                check_number_paths(gait, sensitivity_paths, continuous=True)  # before the run
                 return _single(gait, sensitivity_paths, as_json, max_memory, feedback)
         _check_sweep_options(groups, as_json, plot_file, shard)
         from crawlsim.study import sweep as sweeps  # start-up: h5py and the sweep engine only for sweeps
@@ -375,11 +377,9 @@ def _sweep(sweeps, grid, output, jobs, shard, scheduler, feedback):
         )
     except sweeps.SweepInterrupted as exc:
         bar.close()
-        where = (
-            f"kept in {exc.journal}; run the same command again to resume"
-            if exc.journal is not None
-            else "not kept (no -o)"
-        )
+        where = "not kept (no -o)" if exc.journal is None else "nothing to keep"
+        if exc.journal is not None and exc.done:  # the journal exists once a point is in it
+            where = f"kept in {exc.journal}; run the same command again to resume"
         click.echo(f"Interrupted: {exc.done} of {exc.total} points finished, {where}.", err=True)
         raise interrupt_exit(exc) from None
     except BaseException:

@@ -29,6 +29,7 @@ from crawlsim.gait.yamlsafe import load_yaml
 from crawlsim.io.atomic import atomic_path
 from crawlsim.io.layout import counts
 from crawlsim.io.optfile import STAGE_FLAGS, read_optimization
+from crawlsim.io.outputs import GAIT_HEAD
 from crawlsim.io.provenance import command_line, effective_yaml
 from crawlsim.status import PointStatus
 from crawlsim.study.points import PointResult
@@ -191,7 +192,7 @@ class OptimizationResult:
         if self.problem.pareto and e.index == self.best:
             what = f"the fastest gait of the Pareto front (found by {what})"
         head = [
-            f"# written by crawlsim optimize: {what}",
+            f"{GAIT_HEAD}: {what}",
             f"# from {self.problem.base.source}, evaluation {e.index} of "
             f"{len(self.evaluations)}, seed {self.method.seed}",
             f"# v0 = {e.row.v0!r}, cost_of_transport = {e.row.cost_of_transport!r}",

@@ -18,8 +18,10 @@ from dataclasses import dataclass
 from enum import StrEnum
 
 from crawlsim.errors import GaitError, InputError, SweepSpecError
+from crawlsim.gait.crawler_spec import CRAWLER_SCHEMA
 from crawlsim.gait.docpaths import resolve_path, set_values
 from crawlsim.gait.document import Gait, gait_from_document
+from crawlsim.gait.schemaerrors import check_schema
 from crawlsim.status import PointStatus
 from crawlsim.study.points import PointResult
 
@@ -309,8 +311,22 @@ def make_problem(
             "--pareto optimises v0 and cost_of_transport together; drop the objective option",
         )
     problem = Problem(base, items, objective or Objective(), cons, pareto)
+    _check_bounds(problem)
     _check_some_point_is_valid(problem)
     return problem
+
+
+def _check_bounds(problem: Problem) -> None:
+    """Refuse a bound of --free that the schema refuses (``period=1:1e300``), each end with the
+    other free values at the box's centre: the points beyond it could never run."""
+    for i, f in enumerate(problem.free):
+        for end, name in ((0.0, f"LO = {f.lo!r}"), (1.0, f"HI = {f.hi!r}")):
+            u = [0.5] * problem.dimension
+            u[i] = end
+            try:
+                check_schema(problem.document(problem.values(u)), CRAWLER_SCHEMA, problem.base.source)
+            except GaitError as exc:
+                raise SweepSpecError(f"--free {f.text}", f.path, f"{name} is refused: {exc.message}") from None
 
 
 def _check_some_point_is_valid(problem: Problem) -> None:

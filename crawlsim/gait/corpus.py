@@ -20,6 +20,7 @@ import math
 import numpy as np
 
 from crawlsim.errors import GaitError
+from crawlsim.gait.crawler_limits import STIFFNESS_CONDITION_LIMIT, STRESS_SCALE_LIMIT
 from crawlsim.gait.document import Gait, gait_from_document
 
 
@@ -80,6 +81,50 @@ def _friction_signal(rng: np.random.Generator, level: float) -> dict | float:
     }
 
 
+def _jagged_signal(rng: np.random.Generator) -> dict:
+    """A piecewise-linear link of 100-1000 knots, evenly or randomly spaced, at random values
+    within up to 45 % of the mean: many steep pieces whose crossings and kinks interleave."""
+    knots = int(rng.integers(100, 1001))
+    inner = np.sort(rng.uniform(0, 1, knots - 1)) if rng.uniform() < 0.5 else np.arange(1, knots) / knots
+    drawn = 1.0 + rng.uniform(-1, 1, knots) * rng.uniform(0.1, 0.45)
+    times, values = [0.0, *map(float, inner), 1.0], [*map(float, drawn), float(drawn[0])]
+    return {"kind": "piecewise-linear", "times": times, "values": values, "phase": float(rng.uniform(0, 1))}
+
+
+def _switched(rng: np.random.Generator, level: float, steps: int) -> dict | float:
+    """``level``, or a steps signal of ``steps`` values around it."""
+    if steps < 2:
+        return level
+    times = [0.0, *sorted(float(t) for t in rng.uniform(0.01, 0.99, steps - 1))]
+    return {"kind": "steps", "times": times, "values": [level * _log_uniform(rng, 0.5, 2.0) for _ in range(steps)]}
+
+
+def _rough_document(rng: np.random.Generator, N: int, friction_ratio: float) -> dict:
+    """The rough classes (``random_document(rough=True)``): one to three jagged links
+    (`_jagged_signal`), the others steps (2-30 values) or smooth; friction pairs constant or
+    switched by steps, up to 12 distinct ones among the blocks; stiffnesses spread up to the
+    accepted limits (`crawlsim.gait.crawler_limits`)."""
+    jagged = set(rng.choice(N - 1, size=min(N - 1, int(rng.integers(1, 4))), replace=False).tolist())
+    links = [_jagged_signal(rng) if i in jagged else _link_signal(rng, 1.0, 0.45) for i in range(N - 1)]
+    for i, link in enumerate(links):
+        if isinstance(link, dict) and link["kind"] == "steps":
+            links[i] = _switched(rng, 1.0, int(rng.integers(2, 31)))
+    mu0 = _log_uniform(rng, 0.2, 5.0)
+    palette = []  # a few distinct friction pairs, shared by the blocks
+    for _ in range(int(rng.integers(1, min(N, 12) + 1))):
+        level = mu0 * _log_uniform(rng, 0.3, 3.0)
+        sides = (level, level * _log_uniform(rng, 1 / friction_ratio, friction_ratio))
+        pair = [_switched(rng, side, int(rng.integers(0, 5))) for side in sides]
+        palette.append({"forward": pair[0], "backward": pair[1]})
+    friction = [palette[i] for i in rng.integers(len(palette), size=N)]
+    least = min(min(v["values"]) if isinstance(v, dict) else v for f in friction for v in f.values())
+    spread = _log_uniform(rng, 1.0, 0.9 * STIFFNESS_CONDITION_LIMIT / N**2)
+    k = _log_uniform(rng, 1.0, 100.0) * spread ** rng.uniform(0, 1, N - 1)
+    k[rng.integers(N - 1)] = k.min() * spread  # the whole spread
+    k *= min(1.0, 0.5 * STRESS_SCALE_LIMIT * least / (2 * k.max()))  # values <= 2 L
+    return {"blocks": N, "stiffness": [float(v) for v in k], "links": links, "friction": friction}
+
+
 def random_document(
     seed: int,
     *,
@@ -90,10 +135,21 @@ def random_document(
     max_periods: int = 300,
     tolerance: float = 1e-11,
     loads: bool = False,
+    rough: bool = False,
 ) -> dict:
-    """A random gait document (not yet validated) from ``seed``."""
+    """A random gait document (not yet validated) from ``seed``; ``rough``: of the rough
+    classes (`_rough_document`; ``stiffness_ratio`` is then the accepted limit's)."""
     rng = np.random.default_rng(seed)
     N = int(rng.integers(blocks[0], blocks[1] + 1))
+    if rough:
+        simulation = {"steps_per_period": steps_per_period, "max_periods": max_periods, "tolerance": tolerance}
+        period = _log_uniform(rng, 0.5, 5.0)
+        return {
+            "name": f"rough-{seed}",
+            "period": period,
+            **_rough_document(rng, N, friction_ratio),
+            "simulation": simulation,
+        }
     k0 = _log_uniform(rng, 1.0, 100.0)
     stiffness = [k0 * _log_uniform(rng, 1.0, stiffness_ratio) for _ in range(N - 1)]
     mu0 = _log_uniform(rng, 0.2, 5.0)

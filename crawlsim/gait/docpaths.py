@@ -25,6 +25,8 @@ from crawlsim.errors import GaitError
 from crawlsim.gait.schemaerrors import did_you_mean
 
 Key = str | int
+#: Top-level keys that are not continuous parameters of a gait.
+STRUCTURAL = ("blocks", "simulation", "name", "description", "units", "kind")
 
 
 def wave_links(links: dict, count: int) -> list:
@@ -211,13 +213,16 @@ def replacement(source: str, document: dict, args: Sequence[Any]) -> tuple[str, 
     return label, edited(document, pairs, label)
 
 
-def check_number_paths(gait: Any, paths: Sequence[str]) -> tuple[str, ...]:
+def check_number_paths(gait: Any, paths: Sequence[str], continuous: bool = False) -> tuple[str, ...]:
     """``paths``, each checked to name a number of ``gait`` (``--sensitivity``: a `GaitError`
-    naming the path when one names nothing, exit code 2 before any point runs). A path to a key
-    the document leaves out (but a signal's phase) is put to the schema with a value, so that a
-    misspelt key (``links.*.phse``) gets the did-you-mean of a gait file and of ``--sweep``."""
+    naming the path when one names nothing, or with ``continuous`` no continuous parameter such
+    as ``blocks``: exit code 2 before any point runs). A path to a key the document leaves out
+    (but a signal's phase) is put to the schema with a value, so that a misspelt key
+    (``links.*.phse``) gets the did-you-mean of a gait file and of ``--sweep``."""
     for path in paths:
         keys = resolve_path(gait.document, path, gait.source)[0]
+        if continuous and keys[0] in STRUCTURAL:
+            raise GaitError(gait.source, path, "not a continuous parameter of the gait: v0 has no derivative in it")
         node = value_at(gait.document, keys[:-1])
         if keys[-1] != "phase" and isinstance(node, dict) and keys[-1] not in node:
             try:

@@ -28,6 +28,17 @@ moves a sum by at most a quarter of the tolerance per half, so every J with |g_J
 is found, and every J reported satisfies |g_J| <= 1.5 tolerance: the decision is exact up to
 that band of roundoff.
 
+**Constant friction.** On a piece where the friction is constant (constant and ``steps``
+friction: every piece) a piece is first decided without the search above, which only then
+finds the subset. Friction written with at most `MAX_DECIMALS` decimals makes every g_J a
+whole number of units of the last decimal, so g_J = 0 exactly in the file's decimals or
+|g_J| >= that unit, far above the tolerance: whether the target sum_j mu_j^- is reachable by
+the sums of the a_j is a set of reachable whole numbers (a bitset, `MAX_LATTICE` of them),
+milliseconds at 40 blocks. Other constant friction goes to `nearest_subset_sum`, the smallest
+|g_J| on the piece by a meet in the middle on scalars, whose halves the next piece reuses
+where their friction has not changed. A computed g_J within the tolerance but not exactly 0 is
+reported as such (`Violation.residual`).
+
 **Bounds.** A half may hold at most `MAX_HALF_ENTRIES` (distinct sums x samples per piece),
 about 2^20 sums of 4 samples, which is 40 blocks of distinct cosine friction; and at most
 `MAX_CANDIDATES` candidate pairs are verified. Beyond that the check raises
@@ -42,6 +53,7 @@ import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from decimal import Decimal
 
 import numpy as np
 
@@ -70,6 +82,12 @@ MAX_LISTED = 1 << 16
 MAX_SAMPLE_ENTRIES = 1 << 22
 """Friction samples evaluated at once: (distinct friction pairs) x (samples)."""
 
+MAX_DECIMALS = 9
+"""Most decimals of friction values for the proof on whole numbers (`_may_vanish`)."""
+
+MAX_LATTICE = 1 << 27
+"""Most whole numbers (bits: 16 MiB) in the proof's set of reachable sums."""
+
 _MATCH = 1.5  # the band of the decision, in tolerances: 1 + a quarter per half for merging
 _KEY_WEIGHTS_SEED = 0x5EED
 
@@ -88,6 +106,16 @@ class Violation:
     #: How many subsets violate alike: J and those that exchange its blocks for blocks of the
     #: same friction (they have the same g_J).
     alike: int = 1
+    #: The largest |g_J| on the intervals, relative to the sum of the friction: 0 for a tie in
+    #: double precision, else the roundoff of the file's decimals that stands for one.
+    residual: float = 0.0
+
+    def value_text(self) -> str:
+        """ "= 0", or how near a tie the computed sums are ("within 1e-14 of a tie")."""
+        if self.residual == 0.0:
+            return "= 0"
+        bound = 10.0 ** math.ceil(math.log10(self.residual))
+        return f"is within {bound:.0e} of a tie ({self.residual:.2g} of the sum of the friction: zero to roundoff)"
 
     def subsets_text(self) -> str:
         """ "J = {1, 2} (forward) and the rest {3} (backward)", and the subsets alike."""
@@ -120,7 +148,7 @@ class UniquenessAnalysis:
         first, *others = self.violations
         text = (
             f"uniqueness condition violated: for {first.subsets_text()}, sum mu+ over J - "
-            f"sum mu- over the rest = 0 for t in {first.where(period)} (a whole interval)"
+            f"sum mu- over the rest {first.value_text()} for t in {first.where(period)} (a whole interval)"
         )
         if others:
             text += f"; and for {len(others)} more subset{'s' if len(others) > 1 else ''}: " + "; ".join(
@@ -148,11 +176,10 @@ def find_violation(forward: Sequence[Signal], backward: Sequence[Signal]) -> Vio
     for first, last, mu_plus, mu_minus in samples.chunks():
         for k in range(last - first):
             columns = slice(k * per_piece, (k + 1) * per_piece)
-            counts = _search_piece(
-                mu_plus[:, columns] + mu_minus[:, columns],
-                friction.multiplicity @ mu_minus[:, columns],
-                friction.multiplicity,
-            )
+            plus, minus = mu_plus[:, columns], mu_minus[:, columns]
+            if not _may_vanish(plus, minus, friction.multiplicity):
+                continue
+            counts = _search_piece(plus + minus, friction.multiplicity @ minus, friction.multiplicity)
             if counts is None:
                 continue
             violation = friction.violation(samples, _subset(counts, friction.pair_of, friction.blocks))
@@ -274,11 +301,11 @@ class _Friction:
         """J = ``subset`` with the intervals where g_J vanishes, verified from the signals; None
         when it vanishes on no piece."""
         inside = self.counts_of(subset)
-        intervals = samples.vanishing_intervals(inside, self.multiplicity - inside)
+        intervals, residual = samples.vanishing_intervals(inside, self.multiplicity - inside)
         if not intervals:
             return None
         alike = math.prod(math.comb(int(m), int(c)) for m, c in zip(self.multiplicity, inside))
-        return Violation(subset, intervals, alike)
+        return Violation(subset, intervals, alike, residual)
 
 
 class _Samples:
@@ -302,22 +329,118 @@ class _Samples:
                 evaluate_many([b for _, b in self.distinct], u).T,
             )
 
-    def vanishing_intervals(self, inside: np.ndarray, outside: np.ndarray) -> tuple[tuple[float, float], ...]:
+    def vanishing_intervals(
+        self, inside: np.ndarray, outside: np.ndarray
+    ) -> tuple[tuple[tuple[float, float], ...], float]:
         """The unions of pieces on which g_J vanishes at every sample, for J holding ``inside[p]``
         blocks of friction pair p and leaving out ``outside[p]``: the search's answer verified
-        from the signals themselves."""
+        from the signals themselves; and the largest |g_J| / sum of the friction there."""
         intervals: list[list[float]] = []
+        residual = 0.0
         for first, _, mu_plus, mu_minus in self.chunks():
             g = inside @ mu_plus - outside @ mu_minus
             scale = (inside + outside) @ (mu_plus + mu_minus)
             ok = (np.abs(g) <= _MATCH * TOLERANCE * scale).reshape(-1, len(self.fractions))
-            for piece in np.nonzero(np.all(ok, axis=1))[0] + first:
+            vanish = np.all(ok, axis=1)
+            if vanish.any():
+                relative = (np.abs(g) / scale).reshape(-1, len(self.fractions))[vanish]
+                residual = max(residual, float(relative.max()))
+            for piece in np.nonzero(vanish)[0] + first:
                 lo, hi = float(self.edges[piece]), float(self.edges[piece + 1])
                 if intervals and abs(intervals[-1][1] - lo) <= JUMP_TOLERANCE:
                     intervals[-1][1] = hi
                 else:
                     intervals.append([lo, hi])
-        return tuple((lo, hi) for lo, hi in intervals)
+        return tuple((lo, hi) for lo, hi in intervals), residual
+
+
+def _may_vanish(plus: np.ndarray, minus: np.ndarray, multiplicity: np.ndarray) -> bool:
+    """False where no g_J can vanish on a piece of constant friction ("Constant friction" in the
+    module docstring): on whole numbers, or by the scalar search; True where neither applies,
+    or a g_J may vanish (the vector search then decides and finds the subset)."""
+    if np.any(plus != plus[:, :1]) or np.any(minus != minus[:, :1]):
+        return True  # not constant on the piece
+    values = np.concatenate([plus[:, 0], minus[:, 0]])
+    digits = max(max(0, -int(Decimal(repr(float(v))).as_tuple().exponent)) for v in values)
+    a, rest = plus[:, 0] + minus[:, 0], float(multiplicity @ minus[:, 0])
+    tolerance = TOLERANCE * float(multiplicity @ a)
+    decimal = digits <= MAX_DECIMALS and 10.0**-digits > 4 * _MATCH * tolerance
+    if decimal:
+        scale = 10.0**digits
+        whole = np.rint(values * scale)
+        target = int(multiplicity @ whole[len(plus) :])
+        decimal = target < MAX_LATTICE and bool(np.all(whole / scale == values))
+    if not decimal:
+        # not short decimals of the file: the nearest sum, in units of a power of 2 at most
+        # the tolerance (exact scaling: the halves of the pieces before are reused)
+        unit = math.ldexp(1.0, math.frexp(tolerance)[1] - 1)
+        return nearest_subset_sum(a / unit, multiplicity, rest / unit) * unit <= _MATCH * tolerance
+    pair_weights = whole[: len(plus)] + whole[len(plus) :]
+    reach = np.zeros(target // 64 + 1, dtype=np.uint64)
+    reach[0] = 1
+    for weight, size in zip(pair_weights.astype(np.int64), multiplicity):
+        left, take = int(size), 1
+        while left > 0:  # a pair of n blocks as items of 1, 2, 4, ... blocks
+            words, bits = divmod(int(weight) * min(take, left), 64)
+            if words < len(reach):
+                shifted = np.zeros_like(reach)
+                shifted[words:] = reach[: len(reach) - words] << np.uint64(bits)
+                if bits:
+                    shifted[words + 1 :] |= reach[: len(reach) - words - 1] >> np.uint64(64 - bits)
+                reach |= shifted
+            left -= min(take, left)
+            take *= 2
+    return bool((reach[target // 64] >> np.uint64(target % 64)) & np.uint64(1))
+
+
+#: The last halves of `nearest_subset_sum`, by their items: a piece of a step-switched friction
+#: changes one pair's value, and so one half.
+_HALVES: dict[str, np.ndarray] = {}
+
+
+def nearest_subset_sum(values: np.ndarray, sizes: np.ndarray, target: float) -> float:
+    """The smallest |sum_g c_g values_g - target| over the counts 0 <= c_g <= sizes_g (values
+    and target in units of the resolution wanted; answered to within 1/2 of it): the distance
+    of the subset sums of a friction to a tie, min_J |g_J| at one time for values = mu^+ + mu^-
+    of each distinct pair, sizes its blocks and target sum_j mu_j^- (module docstring).
+
+    Meet in the middle on scalars: each half's distinct sums, built item by item and kept
+    sorted (a merge of two sorted runs per item), sums within 1/(4 items) of each other
+    merged; then, for each sum of one half, the nearest of the other by binary search.
+    `UniquenessUndecidable` where a half would hold more than `MAX_HALF_ENTRIES` sums."""
+    items: list[tuple[float, int]] = []
+    for v, n in zip(np.asarray(values, dtype=float), np.asarray(sizes, dtype=np.int64)):
+        left, take = int(n), 1
+        while left > 0:
+            items.append((float(v), min(take, left)))
+            left -= min(take, left)
+            take *= 2
+    quantum = 0.25 / max(1, len(items))
+    halves = []
+    for part in (items[::2], items[1::2]):
+        key = repr(part)
+        if key in _HALVES:  # a piece before had the same half
+            halves.append(_HALVES[key])
+            continue
+        sums = np.zeros(1)
+        for v, weight in part:
+            if 2 * len(sums) > MAX_HALF_ENTRIES:
+                raise UniquenessUndecidable(
+                    f"the search would hold more than {MAX_HALF_ENTRIES:,} subset sums of friction coefficients "
+                    f"for one half: {len(values)} groups of blocks with distinct friction are too many to check exactly"
+                )
+            sums = np.sort(np.concatenate([sums, sums + weight * v]), kind="stable")
+            cells = np.floor(sums / quantum)
+            sums = sums[np.concatenate([[True], cells[1:] != cells[:-1]])]
+        if len(_HALVES) >= 4:
+            _HALVES.clear()
+        _HALVES[key] = sums
+        halves.append(sums)
+    left_sums, right_sums = halves
+    i = np.searchsorted(left_sums, target - right_sums)
+    below = left_sums[np.maximum(i - 1, 0)] + right_sums - target
+    above = left_sums[np.minimum(i, len(left_sums) - 1)] + right_sums - target
+    return float(min(np.abs(below).min(), np.abs(above).min()))
 
 
 def _subset(counts: np.ndarray, pair_of: np.ndarray, n: int) -> np.ndarray:

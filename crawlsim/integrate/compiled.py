@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple, cast, overload
 
 import numpy as np
 
-from crawlsim.errors import CertificateError, EventError
+from crawlsim.errors import EventError
 from crawlsim.integrate.ground import no_ground
 from crawlsim.integrate.ledger import ExactLedger, PeriodEnergy
 from crawlsim.integrate.stepping import PeriodRecord, Transition, TransitionCause
@@ -183,23 +183,18 @@ class _CompiledLoop:
             width = float(out["ev_t"][e - 1] - out["ev_t"][e - s.zeno_events])
             rows = np.flatnonzero(out["tr_hit"][out["counts"][loop.C_TRANSITIONS]])
             raise s._zeno(width, u, start, rows)
-        if status == loop.FAILED_PIECE:
-            j = int(report[loop.R_INDEX])
-            raise CertificateError(
-                f"{s.process.name}: the exact trajectory failed its certificate at t = "
-                f"{start + s._grid[j] * s.process.period:.12g}: constraint violation "
-                f"{report[loop.R_PRIMAL]:.3g}, negative slip integral {report[loop.R_DUAL]:.3g} "
-                f"(tolerance {report[loop.R_TOLP]:.3g} / {report[loop.R_TOLD]:.3g}), "
-                f"complementarity {report[loop.R_COMP]:.3g}"
-            )
         if s.ground is not None:  # the Python loop does not walk terrain
             s.ground.adopt(out["ground"], start, s.process.period)  # uniqueness there (§8)?
+            why = (
+                "a piece it could not certify"
+                if status == loop.FAILED_PIECE
+                else loop.HANDOFF_REASONS[int(report[loop.R_REASON])]
+            )
             raise EventError(
                 f"{s.process.name}: the exact integrator cannot pass t = {start + u * s.process.period:.12g} "
-                f"on this terrain ({loop.HANDOFF_REASONS[int(report[loop.R_REASON])]}: a step its compiled "
-                "loop hands over); use --integrator catch-up"
+                f"on this terrain ({why}: a step its compiled loop hands over); use --integrator catch-up"
             )
-        return None  # HANDOFF
+        return None  # HANDOFF, or a failed sample: the Python loop refines it, or says why not
 
     def _run(self, s: EventStepper) -> dict[str, Any]:
         catchup = self._catchup

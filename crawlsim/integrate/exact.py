@@ -61,6 +61,7 @@ from __future__ import annotations
 import warnings
 from collections import deque
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -70,6 +71,7 @@ from crawlsim.integrate.ground import GroundState
 from crawlsim.integrate.ledger import ExactLedger
 from crawlsim.integrate.stepping import PeriodRecord, PeriodStepper, Transition, TransitionCause
 from crawlsim.kernel.jit import kernel
+from crawlsim.kernel.policy import REFINE_LIMIT
 from crawlsim.model.offsets import TWO_PI, PiecewiseOffsets
 from crawlsim.model.process import SweepingProcess
 from crawlsim.projection.adapter import Projection
@@ -85,8 +87,10 @@ ZENO_WINDOW = 1e-9
 DECISION_ORDERS = 4
 #: Sampling cells per cycle and harmonic where no closed form gives the zeros.
 CELLS_PER_CYCLE = 64
-#: Periods the compiled event loop may hand over to the Python loop before a stepper stops
-#: trying it (a gait whose velocity problems or jumps need Clarabel).
+#: Periods in a row the compiled event loop may hand over to the Python loop before a stepper
+#: stops trying it (a gait whose velocity problems or jumps need Clarabel every period; one
+#: that needs it now and then, at a jump from a Newton candidate of the limit search, keeps
+#: the compiled loop for the other periods).
 LOOP_HANDOFFS = 3
 
 
@@ -182,6 +186,7 @@ class EventStepper(PeriodStepper):
         if self._loop is not None:
             record = self._loop.period(self)
             if record is not None:
+                self._loop.handoffs = 0
                 return record
             self._loop.handoffs += 1
             if self._loop.handoffs >= LOOP_HANDOFFS:  # a gait the compiled loop cannot take
@@ -217,22 +222,20 @@ class EventStepper(PeriodStepper):
         ledger = self._ledger
         if ledger is not None:
             ledger.start()
-        transitions = []
+        transitions: list[Transition] = []
         while True:
             ev_t.append(u)
             ev_w.append(w)
             ev_lam.append(lam_cum)
             self._guard(len(ev_t), recent, u, start, forced)
             time = start + u * T
-            self.active = self._decide(u, w, piece_index, forced, time)
+            self.active = self._decide(u, w, piece_index, forced, time, self.active if transitions else poly.empty)
             self._visit(self.active)
             transitions.append(Transition(u, piece_index, self.active, cause, forced))
             piece = self._piece(self.active, w, piece_index, u)
             u_end = edges[piece_index + 1]
             event = self._next_event(piece, piece_index, u, u_end)
             u_e = u_end if event is None else event[0]
-            if ledger is not None:
-                ledger.piece(piece_index, u, u_e, piece.base, piece.Wc, piece.active.index, piece.Y)
             # sample the grid times in (u, u_e]
             j_end = int(np.searchsorted(self._grid, u_e, side="right"))
             if j_end > j:
@@ -240,12 +243,27 @@ class EventStepper(PeriodStepper):
                 Wg, Lg = piece.at(phi, m)
                 W[j:j_end] = Wg
                 LAMC[j:j_end] = lam_cum + Lg
-                carried = self._certify_piece(
-                    Wg, LAMC[j - 1 : j_end], piece, phi, piece_index, start + self._grid[j:j_end] * T, carried
-                )
+                try:
+                    carried = self._certify_piece(
+                        Wg, LAMC[j - 1 : j_end], piece, phi, piece_index, start + self._grid[j:j_end] * T, carried
+                    )
+                except _Uncertified as failed:
+                    if failed.excess > REFINE_LIMIT:
+                        raise
+                    j += failed.index  # refined: the piece ends at that sample, projected there
+                    u = self._grid[j]
+                    if ledger is not None:
+                        ledger.piece(piece_index, piece.u0, u, piece.base, piece.Wc, piece.active.index, piece.Y)
+                    w, lam_cum = self._refine(piece_index, u, W, LAMC, j, start + u * T, ledger)
+                    j, carried = j + 1, 0.0
+                    transitions.append(Transition(u, piece_index, self.active, "jump", forced))
+                    forced, cause = np.zeros(0, dtype=int), "release"
+                    continue
                 j = j_end
             else:  # the grid interval spans this piece: its roundoff enters the next sample
                 carried = max(carried, self._dual_scale(piece, piece_index))
+            if ledger is not None:
+                ledger.piece(piece_index, u, u_e, piece.base, piece.Wc, piece.active.index, piece.Y)
             w_e, lam_e = piece.at(self.basis.values(u_e), m)
             w, lam_cum = w_e[0], lam_cum + lam_e[0]
             u = u_e
@@ -325,15 +343,25 @@ class EventStepper(PeriodStepper):
         )
 
     # -- an event: the next active set, order by order ----------------------------------------
-    def _decide(self, u: float, w: np.ndarray, piece_index: int, forced: np.ndarray, time: float) -> ActiveSet:
-        """The active set on (u, u + eps) from the velocity problems (module docstring)."""
+    def _decide(
+        self, u: float, w: np.ndarray, piece_index: int, forced: np.ndarray, time: float, held: ActiveSet
+    ) -> ActiveSet:
+        """The active set on (u, u + eps) from the velocity problems (module docstring). The
+        candidates are the rows tight at w, those an event hit and those of ``held``, the last
+        piece's set (empty at a period's start, whose warm set may be another state's): a row
+        of it is at its limit, to that piece's roundoff, which on a stiff chain may be far
+        above what a slack alone can tell; left out, it would be released without its velocity
+        problem, hit again at once, and chatter."""
         poly = self.poly
         coef = self.pieces.coefficients(piece_index)
-        c0 = (self.basis.values(u) @ coef)[0]
+        phi = self.basis.values(u)
+        c0 = (phi @ coef)[0]
         slack = poly.apply(w) - c0
-        tol = poly.step_tolerance(poly.empty, c0, w, np.zeros(0))
+        # the size of c's terms, not of their sum (`crawlsim.kernel.piece.tight_rows`)
+        tol = poly.step_tolerance(poly.empty, (np.abs(phi) @ np.abs(coef))[0], w, np.zeros(0))
         tight = slack >= -tol.primal
         tight[forced] = True
+        tight[held.index] = True
         if not tight.any():
             return poly.empty
         if self.projector.on_dependent == "warn" and not poly.licq_verified(np.flatnonzero(tight)):
@@ -369,6 +397,8 @@ class EventStepper(PeriodStepper):
         poly = self.poly
         zero = np.zeros(poly.n)
         step = poly.refine(zero, c, warm, fixed=fixed)
+        if step is None:  # one row at a time, as long as it takes, before Clarabel's proposal
+            step = poly.refine(zero, c, warm, single=True, iterations=4 * poly.m + 4, fixed=fixed)
         if step is not None:
             return _Velocity(step.point, step.multipliers, step.certificate.tolerance)
         with warnings.catch_warnings():
@@ -525,12 +555,16 @@ class EventStepper(PeriodStepper):
         C = phi @ self.pieces.coefficients(piece_index)
         slack = poly.apply(Wg) - C
         lam = np.diff(LAMC, axis=0)
-        # sizes of the numbers summed (phi @ coef cancels on short pieces with steep offsets)
+        # sizes of the numbers summed (phi @ coef cancels on short pieces with steep offsets,
+        # and so do the slips' lam0 - phi @ Y)
         tol = poly.tolerance(
             piece.active,
             np.max(np.abs(phi) @ np.abs(self.pieces.coefficients(piece_index)), axis=1),
             np.max(np.abs(piece.base) + np.abs(phi) @ np.abs(piece.Wc), axis=1),
-            np.max(np.abs(LAMC[1:]), axis=1),
+            np.maximum(
+                np.max(np.abs(LAMC[1:]), axis=1),
+                np.max(np.abs(piece.lam0) + np.abs(phi) @ np.abs(piece.Y), axis=1, initial=0.0),
+            ),
         )
         primal = np.max(slack, axis=1)
         dual = -np.min(lam, axis=1, initial=0.0)
@@ -541,19 +575,39 @@ class EventStepper(PeriodStepper):
         dual_tol[0] = max(dual_tol[0], carried)
         idx = piece.active.index
         comp = np.max(np.abs(slack[:, idx]), axis=1, initial=0.0)
-        bad = (primal > tol.primal) | (dual > dual_tol) | (comp > tol.primal)
-        if bad.any():
-            i = int(np.argmax(bad))
+        # a sample off K by a little is refined (`_refine`), a negative slip never
+        excess = np.where(dual > dual_tol, np.inf, np.maximum(primal, comp) / tol.primal)
+        if np.any(excess > 1.0):
+            i = int(np.argmax(excess > 1.0))
             rows = np.flatnonzero((slack[i] > tol.primal[i]) | (lam[i] < -dual_tol[i]))
-            raise CertificateError(
+            raise _Uncertified(
                 f"{self.process.name}: the exact trajectory failed its certificate at t = "
                 f"{times[i]:.12g}: constraint violation {primal[i]:.3g}, negative slip "
                 f"integral {dual[i]:.3g} (tolerance {float(tol.primal[i]):.3g} / "
                 f"{float(dual_tol[i]):.3g}), complementarity {comp[i]:.3g}; rows "
                 f"{self.process.describe_active(rows)}; active set "
-                f"{self.process.describe_active(idx)}"
+                f"{self.process.describe_active(idx)}. An internal error of crawlsim: please "
+                "report it with the gait file and the command",
+                i,
+                float(excess[i]),
             )
         return own
+
+    def _refine(
+        self, piece_index: int, u: float, W: np.ndarray, LAMC: np.ndarray, j: int, time: float, ledger: Any
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """A sample whose certificate failed within `REFINE_LIMIT` of its tolerance: the closed
+        form's roundoff there is replaced by the certified projection of its state onto K(u)
+        (a jump of roundoff's size, booked like a jump of c), from which the next piece starts.
+        Returns the state and cumulative slips there."""
+        c = (self.basis.values(u) @ self.pieces.coefficients(piece_index))[0]
+        proj = self.projector.project(W[j], c, time=time, warm=self.active)
+        self._certify_jump(W[j], c, proj, time)
+        if ledger is not None:
+            ledger.jump(piece_index, u, W[j], proj.point, proj.multipliers)
+        self.active = proj.active
+        W[j], LAMC[j] = proj.point, LAMC[j] + proj.multipliers
+        return proj.point, LAMC[j].copy()
 
     def _certify_jump(self, w: np.ndarray, c: np.ndarray, proj: Projection, time: float) -> None:
         """The state after a jump of c is written to the grid as it is: it must be the certified
@@ -581,6 +635,15 @@ class EventStepper(PeriodStepper):
                 raise CertificateError(
                     f"{p.name}: Clarabel moves the exact state at t = {start + p.times[j]:.12g} by {moved:.3g}"
                 )
+
+
+class _Uncertified(CertificateError):
+    """A grid sample's certificate failed: the ``index`` of the sample, ``excess`` the largest
+    ratio of a measure to its tolerance there."""
+
+    def __init__(self, message: str, index: int, excess: float) -> None:
+        super().__init__(message)
+        self.index, self.excess = index, excess
 
 
 @dataclass(frozen=True, eq=False)

@@ -134,6 +134,7 @@ def publish(tmp: Path, target: Path) -> None:
     os.umask(umask)
     os.chmod(tmp, 0o666 & ~umask)
     os.replace(tmp, target)
+    interrupts.settle()
     _forget(Path(tmp))
 
 

@@ -12,17 +12,26 @@ exit code 2) a target that is:
 * an existing file that is not a crawlsim output of the same kind, unless ``--force``: a run
   writes over a crawlsim run results file (HDF5 with a ``format_version`` attribute), a sweep
   over a sweep file (HDF5 of kind ``sweep``, or a CSV whose header is a sweep table's), a
-  figure over an image of the same format. An empty file holds nothing and may be replaced.
-  A gait file (``optimize --write-best``) is YAML text, which says nothing of its origin: it
-  replaces an existing file unless that is an input of the command.
+  figure over an image of the same format, a best gait (``optimize --write-best``) over a
+  gait file crawlsim optimize wrote (its first line says so). An empty file holds nothing and
+  may be replaced.
 
 Reading what a file is costs at most a few bytes and, for HDF5, its root attributes.
+
+A target that may be written is then claimed (`claim`) until the command ends (`release`): a
+second process given the same output while the first runs is refused at once, naming the
+first, where both would otherwise run and the last to finish replace the other's file. The
+claim is a lock (``fcntl.flock``) on ``.NAME.lock`` beside the target, which holds the
+claimant's process id and command; the system drops the lock when the process dies, so a lock
+file a killed process left behind claims nothing.
 """
 
 from __future__ import annotations
 
+import atexit
 import csv
 import os
+import socket
 import stat
 from collections.abc import Iterable
 from pathlib import Path
@@ -34,16 +43,18 @@ _WHAT = {
     RUN: "crawlsim run results file (HDF5)",
     SWEEP: "crawlsim sweep table (CSV or HDF5)",
     FIGURE: "figure",
-    GAIT: "gait file",
+    GAIT: "gait file written by crawlsim optimize",
 }
 _HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 _IMAGES = {b"\x89PNG\r\n\x1a\n": "png", b"%PDF-": "pdf", b"GIF87a": "gif", b"GIF89a": "gif"}
+#: The first line of a gait file crawlsim writes (`crawlsim.design.optresult`).
+GAIT_HEAD = "# written by crawlsim optimize"
 #: Columns every crawlsim sweep table has (CSV header), whatever else it holds.
 SWEEP_COLUMNS = frozenset({"v0", "convergence", "status", "message"})
 
 
 def check_target(path, kind: str, *, inputs: Iterable = (), force: bool = False, option: str = "--output") -> Path:
-    """Refuse ``path`` as an output of ``kind`` (`RUN`, `SWEEP` or `FIGURE`) for the reasons
+    """Refuse ``path`` as an output of ``kind`` (`RUN`, `SWEEP`, `FIGURE` or `GAIT`) for the reasons
     in the module docstring; return it as a Path when it may be written."""
     target = Path(path)
     source = f"{option} {path}"
@@ -68,6 +79,7 @@ def check_target(path, kind: str, *, inputs: Iterable = (), force: bool = False,
                     "",
                     f"is the input file {given}: refusing to replace it, even with --force; choose another output name",
                 ) from None
+        claim(target, source)
         return target
     except OSError as error:
         raise OutputError(source, "", f"cannot inspect the target: {error.strerror}") from None
@@ -91,10 +103,9 @@ def check_target(path, kind: str, *, inputs: Iterable = (), force: bool = False,
                 "",
                 f"is the input file {given}: refusing to replace it, even with --force; choose another output name",
             )
-    if force or info.st_size == 0 or kind == GAIT:
-        return target
-    found = classify(target)
-    if found != (FIGURE + ":" + _suffix(target) if kind == FIGURE else kind):
+    expected = f"{FIGURE}:{_suffix(target)}" if kind == FIGURE else kind
+    found = classify(target) if not force and info.st_size else expected
+    if found != expected:
         raise OutputError(
             source,
             "",
@@ -102,7 +113,64 @@ def check_target(path, kind: str, *, inputs: Iterable = (), force: bool = False,
             "refusing to replace it. Choose another name, remove it, "
             "or pass --force to replace it",
         )
+    claim(target, source)
     return target
+
+
+#: This process's claims: the absolute target -> (lock file, its open descriptor).
+_CLAIMS: dict[str, tuple[str, int]] = {}
+
+
+def claim(target: Path, source: str) -> None:
+    """Claim ``target`` for this process until `release` (module docstring), or refuse it
+    (`OutputError`) when another live process holds it."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX: no claims
+        return
+    key = os.path.abspath(target)
+    if key in _CLAIMS:
+        return
+    lock = os.path.join(os.path.dirname(key), f".{os.path.basename(key)}.lock")
+    while True:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            holder = os.read(fd, 4096).decode("utf-8", errors="replace").strip() or "another process"
+            os.close(fd)
+            raise OutputError(
+                source,
+                "",
+                f"is being written by another crawlsim command ({holder}): refusing to write it "
+                "too. Wait for that one to finish, or choose another output name",
+            ) from None
+        try:
+            same = os.stat(lock).st_ino == os.fstat(fd).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        os.close(fd)  # its holder removed it as we opened it: claim a new one
+    from crawlsim.io.provenance import command_line
+
+    os.ftruncate(fd, 0)
+    os.write(fd, f"process {os.getpid()} on {socket.gethostname()}: {command_line()}".encode())
+    if not _CLAIMS:
+        atexit.register(release)  # a caller other than the command line: at the latest
+    _CLAIMS[key] = (lock, fd)
+
+
+def release() -> None:
+    """Give up every claim of this process, their lock files removed (while still locked, so
+    that no other process claims a file about to go)."""
+    while _CLAIMS:
+        _, (lock, fd) = _CLAIMS.popitem()
+        try:
+            os.unlink(lock)
+        except OSError:
+            pass
+        os.close(fd)
 
 
 def _first_missing(folder: Path) -> Path:
@@ -127,8 +195,8 @@ def special_kind(mode: int) -> str:
 
 
 def classify(path) -> str | None:
-    """What an existing regular file is: `RUN`, `SWEEP`, ``figure:<format>``, or None (anything
-    else, crawlsim's or not)."""
+    """What an existing regular file is: `RUN`, `SWEEP`, ``figure:<format>``, `GAIT`, or None
+    (anything else, crawlsim's or not)."""
     path = Path(path)
     try:
         with open(path, "rb") as f:
@@ -146,6 +214,8 @@ def classify(path) -> str | None:
     if "<svg" in text[:4096] and text.lstrip().startswith(("<?xml", "<svg", "<!DOCTYPE svg")):
         return f"{FIGURE}:svg"
     first_line = text.split("\n", 1)[0]
+    if first_line.startswith(GAIT_HEAD):
+        return GAIT
     try:
         header = next(csv.reader([first_line]))
     except (csv.Error, StopIteration):

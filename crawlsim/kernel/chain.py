@@ -363,9 +363,11 @@ def update(
     fixed: np.ndarray,
     rows: np.ndarray,
     member: np.ndarray,
+    single: bool,
 ) -> int:
     """The next set of a primal-dual update into ``new`` (`crawlsim.projection.polyhedron.Polyhedron.update_set`,
-    then `exchange` where the set would fail LICQ); rows ``fixed`` never leave. Returns 0 with a
+    then `exchange` where the set would fail LICQ; the worst row alone where that, or
+    ``single``, asks for it); rows ``fixed`` never leave. Returns 0 with a
     new set, 1 when nothing is to change (the certificate failed on its own numbers), 2 when
     no independent update exists (the Python projector decides). ``rows`` and ``member``
     (2N booleans) are scratch."""
@@ -393,8 +395,8 @@ def update(
                 worst_slack, worst_add = slack[r], r
     if not change:
         return 1
-    if not independent(rows, N):
-        # all at once would make the set dependent: the worst row alone
+    if single or not independent(rows, N):
+        # all at once would make the set dependent, or cycles: the worst row alone
         rows[:] = member
         if worst_drop >= 0:
             rows[worst_drop] = False
@@ -541,10 +543,15 @@ def settle_from(
     >= 0 (rows not ``fixed``) passes the sign check whatever the row tolerances are (each
     lies in [0, tol_d]), so the certificate is the same on every step."""
     N = signs.shape[0]
-    for it in range(UPDATE_ITERATIONS):
+    single = False  # one row at a time, once the updates of every row at once cycle
+    it = 0
+    while it < UPDATE_ITERATIONS:
         for q in range(it):  # a set seen before: the updates cycle
             if same(seen[q], signs):
-                return HANDOFF, 0.0
+                if single:
+                    return HANDOFF, 0.0
+                single, it = True, 0
+                break
         if not same(factored, signs):
             norms[0], norms[1] = factor_into(k, signs, D, l, res)
             for i in range(N):
@@ -565,7 +572,7 @@ def settle_from(
         if rows.shape[0] < 2 * N:
             rows = np.empty(2 * N, dtype=np.bool_)
             member = np.empty(2 * N, dtype=np.bool_)
-        outcome = update(signs, lam, slack, tol_p, told, new, fixed, rows, member)
+        outcome = update(signs, lam, slack, tol_p, told, new, fixed, rows, member, single)
         if outcome == 1:
             report[REPORT_PRIMAL], report[REPORT_DUAL], report[REPORT_COMP] = primal, dual, comp
             report[REPORT_TOLD] = dual_tol
@@ -575,6 +582,7 @@ def settle_from(
             return HANDOFF, tol_p
         for i in range(N):
             signs[i] = new[i]
+        it += 1
     return HANDOFF, 0.0
 
 

@@ -158,9 +158,11 @@ def sample_piece(
             lam_plus, lam_minus = lam_cum[i], lam_cum[N + i]
             s = signs[i]
             if s != 0:
-                slip = 0.0
+                slip, terms = 0.0, abs(dx0[i])
                 for b in range(nb):
                     slip += phi[b] * Ydx[b, i]
+                    terms += abs(phi[b] * Ydx[b, i])
+                lam_size = max(lam_size, terms)  # the slips' terms cancel as w's do
                 if s > 0:
                     lam_plus = lam_plus + (dx0[i] - slip)
                 else:
@@ -594,6 +596,8 @@ def period(
     w_next, lam_jump = np.empty(n), np.empty(m)
     forced = np.zeros(m, dtype=np.bool_)
     chosen = np.empty(N, dtype=np.int8)
+    # the set held at an event: the last piece's, not the warm start's (`piece.tight_rows`)
+    unheld = np.zeros(N, dtype=np.int8)
     inner = np.zeros(8)
     # the velocity problems' scratch and the factor of the last set (`decide`)
     masks = np.zeros((3, m), dtype=np.bool_)
@@ -665,6 +669,7 @@ def period(
                 Rdx,
                 inverse,
                 rate,
+                signs if t_count > 0 else unheld,
             )
         else:
             decided = decide(
@@ -691,6 +696,7 @@ def period(
                 l,
                 norms,
                 inner,
+                signs if t_count > 0 else unheld,
             )
         if not decided:
             report[R_U], report[R_REASON] = u, H_DECIDE

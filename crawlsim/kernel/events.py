@@ -5,6 +5,10 @@ On a piece, every gap of an inactive row and every slip rate of an active one is
 f(u) = phi(u) @ z of the offsets' basis. An event is the first u in (u0, u1) where some f
 crosses zero upwards and goes on to exceed its tolerance; where roundoff puts the crossing at
 u0 or before (a row tight at the start), the time it exceeds its tolerance, strictly after u0.
+A row already above its tolerance at u0 (by the roundoff of a state carried from steeper
+pieces, or of a decision near its tolerance) has its event where f rises a tolerance above
+f(u0): it is crossing now, and the event lets the next decision take it in, where skipping to
+its next crossing would leave it violated on the whole piece.
 
 * linear, f(u) = a + s u: the zero -a / s, and (tol - a) / s above the tolerance;
 * one harmonic, f(u) = a + alpha cos 2 pi u + beta sin 2 pi u = a + rho cos(theta - phi): the
@@ -39,8 +43,8 @@ def linear_crossing(a: float, s: float, tol: float, u0: float, u1: float) -> flo
     """Event time of f = a + s u (inf where there is none before u1)."""
     if not s > 0:
         return np.inf
-    over = (tol - a) / s
-    if over < u1 and over > u0:
+    over = max((max(tol, a + s * u0 + tol) - a) / s, np.nextafter(u0, np.inf))
+    if over < u1:
         zero = -a / s
         return zero if zero > u0 else over
     return np.inf
@@ -52,6 +56,8 @@ def harmonic_crossing(a: float, alpha: float, beta: float, tol: float, u0: float
     rho = np.hypot(alpha, beta)
     if not rho > 0:
         return np.inf
+    th0 = TWO_PI * u0
+    tol = max(tol, a + alpha * math.cos(th0) + beta * math.sin(th0) + tol)
     x_over = (tol - a) / rho
     if not x_over < 1.0:
         return np.inf
@@ -59,14 +65,13 @@ def harmonic_crossing(a: float, alpha: float, beta: float, tol: float, u0: float
     b_over = math.acos(min(max(x_over, -1.0), 1.0))
     b_zero = math.acos(min(max(x_zero, -1.0), 1.0))
     ph = math.atan2(beta, alpha)
-    th0 = TWO_PI * u0
     k = math.ceil((th0 - (ph + b_over)) / TWO_PI)
     start = ph - b_over + TWO_PI * k
     if start <= th0:  # inside the arc already: the next one
         k = k + 1
         start = ph - b_over + TWO_PI * k
     zero = ph - b_zero + TWO_PI * k
-    t = zero / TWO_PI if zero / TWO_PI > u0 else start / TWO_PI
+    t = zero / TWO_PI if zero / TWO_PI > u0 else max(start / TWO_PI, np.nextafter(u0, np.inf))
     return t if t < u1 else np.inf
 
 

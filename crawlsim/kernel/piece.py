@@ -342,9 +342,14 @@ def tight_rows(
     cvec: np.ndarray,
     Bw: np.ndarray,
     candidates: np.ndarray,
+    held: np.ndarray,
 ) -> None:
-    """The rows tight at w to the primal tolerance of a step with no multipliers, and
-    ``forced`` (the rows an event hit), into ``candidates``: the candidates of `decide`."""
+    """The rows tight at w to the primal tolerance of a step with no multipliers, those of the
+    set ``held`` (the last piece's) and ``forced`` (the rows an event hit), into
+    ``candidates``: the candidates of `decide` (`EventStepper._decide`). The tolerance follows the size of the terms of
+    c(u) = phi(u) @ coef, not of their sum: on a steep piece late in the cycle they cancel,
+    and a row within their roundoff of its limit that is left out would cross it at once,
+    with no event to find."""
     m = Bw.shape[0]
     basis_values(u, 0, linear, H, phi)
     combine(phi, coef, cvec)
@@ -352,10 +357,15 @@ def tight_rows(
     c_size = 0.0
     for r in range(m):
         if abs(cvec[r]) < np.inf:
-            c_size = max(c_size, abs(cvec[r]))
+            total = 0.0
+            for b in range(phi.shape[0]):
+                total += abs(phi[b] * coef[b, r])
+            c_size = max(c_size, total)
     tol = RTOL * max(max(c_scale, c_size), 2.0 * max_abs(w))
+    N = held.shape[0]
     for r in range(m):
-        candidates[r] = Bw[r] - cvec[r] >= -tol or forced[r]
+        member = held[r] > 0 if r < N else held[r - N] < 0
+        candidates[r] = Bw[r] - cvec[r] >= -tol or forced[r] or member
 
 
 @jit
@@ -409,16 +419,18 @@ def decide(
     l: np.ndarray,
     norms: np.ndarray,
     report: np.ndarray,
+    held: np.ndarray,
 ) -> bool:
     """The active set on (u, u + eps) into ``out`` (`EventStepper._decide`): the rows tight at
-    w (and ``forced``), decided by the velocity problems of orders 1, 2, ...; False when one of
-    them is not settled by the kernel's updates or the result is dependent (HANDOFF).
+    w (with ``forced`` and ``held``, `tight_rows`), decided by the velocity problems of orders
+    1, 2, ...; False when one of them is not settled by the kernel's updates or the result is
+    dependent (HANDOFF).
 
     Each velocity problem is `crawlsim.kernel.chain.project_rows` (w_trial = 0) on the period's
     scratch: ``masks`` (3, 2N), ``rows_m`` (4, 2N), ``rows_n`` (5, N; its last row stays 0),
     ``sets`` (2 + UPDATE_ITERATIONS, N) and the factor of the last set (``factored``, D, l,
     ``norms``, `crawlsim.kernel.piece.factored_set`), refactored only when the set changes."""
-    tight_rows(c_scale, linear, H, coef, u, w, forced, phi, cvec, Bw, masks[0])
+    tight_rows(c_scale, linear, H, coef, u, w, forced, phi, cvec, Bw, masks[0], held)
     return decide_from(
         k,
         kmax,
@@ -571,6 +583,7 @@ def decide_local(
     Rdx: np.ndarray,
     inverse: float,
     rate: np.ndarray,
+    held: np.ndarray,
 ) -> bool:
     """`decide` at an event of a piece of the set ``warm`` (its slip rates' coefficients Rdx,
     its ||L_JJ^{-1}|| ``inverse``), solving the velocity problems only where the set can change.
@@ -588,7 +601,7 @@ def decide_local(
     N = warm.shape[0]
     nb = coef.shape[0]
     candidates = masks[0]
-    tight_rows(c_scale, linear, H, coef, u, w, forced, phi, cvec, Bw, candidates)
+    tight_rows(c_scale, linear, H, coef, u, w, forced, phi, cvec, Bw, candidates, held)
     # phi = phi(u): the slip rates of the piece's active blocks, and their size
     lam_size = 0.0
     count = 0

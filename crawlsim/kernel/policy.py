@@ -28,6 +28,10 @@ RTOL = 1e-14
 REFINE_FRACTION = 0.25
 #: Primal-dual active-set updates tried before a step is handed to Clarabel.
 UPDATE_ITERATIONS = 12
+#: An exact grid sample whose certificate fails by at most this many times its tolerance is
+#: refined (`crawlsim.integrate.exact.EventStepper._refine`: the closed form's roundoff, on
+#: chains stiff to the accepted limits); beyond, it is an internal error.
+REFINE_LIMIT = 100.0
 
 
 @jit

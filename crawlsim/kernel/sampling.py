@@ -274,6 +274,7 @@ def crossing(
     bound = h * h / 8.0 * curvature(z, linear, H)
     last_below = -1  # the last sample where f < 0
     f_k = _sample(z, 0, S, PHIS, filled, linear, H)
+    tol = max(tol, f_k + tol)  # above it at u0: where it rises further (`crawlsim.kernel.events`)
     for k in range(count):
         if f_k < 0.0:
             last_below = k
@@ -299,9 +300,12 @@ def crossing(
                         return np.nan
                 zero = u0
                 if last_below >= 0:
+                    # f(over) = tol to within brentq's xtol times the slope, which may be
+                    # more than tol: a bracket without a sign change has its zero at an end
                     a = S[last_below]
-                    zero = a
-                    if scalar(a, z, linear, H) < 0.0 < scalar(over, z, linear, H):
+                    f_a = scalar(a, z, linear, H)
+                    zero = a if f_a >= 0.0 else over
+                    if f_a < 0.0 < scalar(over, z, linear, H):
                         zero = brentq(z, 0.0, a, over, linear, H)
                         if np.isnan(zero):
                             return np.nan

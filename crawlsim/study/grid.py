@@ -347,7 +347,8 @@ def make_grid(base: Gait, axes, quantities: Sequence[PointQuantity] = (), sensit
                     f"this path sets {'.'.join(map(str, key))}, which {seen[key]} sets too: sweep each value once",
                 )
             seen[key] = f"{option} {axis.path}"
-    return SweepGrid(base, tuple(flat), targets, tuple(dims), tuple(quantities), check_number_paths(base, sensitivity))
+    paths = check_number_paths(base, sensitivity, continuous=True)
+    return SweepGrid(base, tuple(flat), targets, tuple(dims), tuple(quantities), paths)
 
 
 def parse_shard(text: str) -> tuple[int, int]:

@@ -19,7 +19,11 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from crawlsim.analysis.run import simulate
+from crawlsim.analysis.sensitivity import sensitivity
+from crawlsim.gait.document import parse_gait
 from crawlsim.kernel import jit
+from crawlsim.model.process import compile
 
 #: A four-block wave with smooth (Fourier) links and time-controlled friction: its events need
 #: the closed forms and the certified sampling, its limit the exact and catch-up walks.
@@ -53,30 +57,20 @@ simulation: {steps_per_period: 60, max_periods: 20}
 
 
 def _gait() -> Any:
-    from crawlsim.gait.document import parse_gait
-
     return parse_gait(GAIT, "warmup.yaml")
 
 
 def _exact() -> None:
-    from crawlsim.analysis.run import simulate
-    from crawlsim.model.process import compile
-
     with jit.forced("compiled"):
         simulate(compile(_gait()), integrator="exact", max_periods=3, limit="iterate")
 
 
 def _catch_up() -> None:
-    from crawlsim.analysis.run import simulate
-    from crawlsim.model.process import compile
-
     with jit.forced("compiled"):
         simulate(compile(_gait()), integrator="catch-up", max_periods=60)
 
 
 def _sensitivity() -> None:
-    from crawlsim.analysis.sensitivity import sensitivity
-
     gait = _gait()
     for integrator in ("exact", "catch-up"):
         g = gait.replace("simulation.integrator", integrator)
@@ -87,10 +81,6 @@ def _sensitivity() -> None:
 
 
 def _process() -> None:
-    from crawlsim.analysis.run import simulate
-    from crawlsim.gait.document import parse_gait
-    from crawlsim.model.process import compile
-
     with jit.forced("compiled"):
         simulate(compile(parse_gait(PROCESS, "warmup-process.yaml")), integrator="exact", max_periods=3)
 
