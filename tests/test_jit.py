@@ -196,14 +196,33 @@ def test_no_background_compile_when_turned_off(tmp_path):
     assert done.returncode == 0 and done.stdout.split() == ["None", "None"], done.stdout + done.stderr
 
 
+@pytest.mark.slow
 def test_after_warmup_nothing_compiles(tmp_path):
     """`crawlsim warmup` compiles every path, once: afterwards each command in the compiled form
     loads the kernel from the cache and prints no compile line, and the stamp says the cache is
-    ready. (The cache is this session's: warm when an earlier test compiled the kernel.)"""
-    done = _crawlsim("warmup")
+    ready. The cache starts empty, as a new user's: a cache that earlier tests filled would hide
+    an entry point warmup misses (the triangle's linear closed form was one).
+
+    Warmup runs in a folder with a ``crawlsim/`` of its own (a regular install used inside a
+    checkout): its compile processes import the crawlsim that started them, not that one, whose
+    sources numba would cache apart (before they did, the commands below compiled again)."""
+    decoy = tmp_path / "checkout"
+    (decoy / "crawlsim").mkdir(parents=True)
+    (decoy / "crawlsim" / "__init__.py").write_text("raise SystemExit(5)\n")
+    environment = {k: v for k, v in os.environ.items() if k not in ("NUMBA_DISABLE_JIT", "CRAWLSIM_KERNEL")}
+    environment["PYTHONPATH"] = str(Path(crawlsim.__file__).resolve().parents[1])
+    environment["NUMBA_CACHE_DIR"] = str(tmp_path / "cache")
+    done = subprocess.run(
+        [sys.executable, "-P", "-m", "crawlsim", "warmup"],
+        capture_output=True,
+        text=True,
+        cwd=decoy,
+        env=environment,
+        timeout=600,
+    )
     assert done.returncode == 0, done.stderr
     assert "the kernel is compiled" in done.stdout
-    assert jit.ready()
+    assert (tmp_path / "cache" / jit.stamp().name).exists()
     commands = [
         ["velocity", "gaits/peristalsis-4.yaml"],
         ["velocity", "gaits/peristalsis-4.yaml", "--integrator", "catch-up"],
@@ -216,7 +235,7 @@ def test_after_warmup_nothing_compiles(tmp_path):
         ["run", "gaits/paper/triangle.yaml", "-o", str(tmp_path / "t.h5")],
     ]
     for args in commands:
-        done = _crawlsim(*args, CRAWLSIM_KERNEL="compiled")
+        done = _crawlsim(*args, cache=tmp_path / "cache", CRAWLSIM_KERNEL="compiled")
         assert done.returncode == 0, (args, done.stderr)
         assert _imported(done.stderr, "numba"), args
         assert "compiling the kernel" not in done.stderr, args

@@ -236,13 +236,14 @@ def ready() -> bool:
 
 def _background() -> None:
     """Start ``crawlsim warmup --background`` once per process; it compiles unless another one
-    holds the cache's lock, and writes the stamp when done."""
+    holds the cache's lock, and writes the stamp when done. ``-P``: it compiles this crawlsim,
+    not a checkout's ``crawlsim/`` in the working directory (numba's cache is per source path)."""
     if _state["background"] is not None or os.environ.get("CRAWLSIM_BACKGROUND_COMPILE", "1") == "0":
         return
     import subprocess
 
     _state["background"] = subprocess.Popen(
-        [sys.executable, "-m", "crawlsim", "warmup", "--background"],
+        [sys.executable, "-P", "-m", "crawlsim", "warmup", "--background"],
         stdin=subprocess.DEVNULL,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,

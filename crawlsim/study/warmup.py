@@ -41,19 +41,22 @@ friction:
   backward: 2.0
 simulation: {steps_per_period: 200, max_periods: 60}
 """
-#: A generic process (the paper's triangle): the Python exact loop's compiled closed forms.
+#: A generic process (the paper's triangle): the Python exact loop's compiled closed forms, whose
+#: zeros are found by kind of offsets (`crawlsim.integrate.exact`): linear pieces alone, one
+#: harmonic beside them, several harmonics (sampled).
 PROCESS = """
 kind: sweeping-process
 name: warmup-process
 period: 1.0
 normals: [[0.0, -1.0], [0.8660254037844386, 0.5], [-0.8660254037844386, 0.5]]
-offsets:
-  - {kind: cosine, mean: 0.3, amplitude: 0.5, phase: 0.0}
-  - {kind: fourier, mean: 0.3, cos: [0.5, 0.1], sin: [0.0, 0.05], phase: 0.3}
-  - {kind: piecewise-linear, times: [0, 0.5, 1], values: [0.3, 0.8, 0.3]}
 initial: [0.0, 0.0]
 simulation: {steps_per_period: 60, max_periods: 20}
+offsets:
 """
+LINEAR = "  - {kind: piecewise-linear, times: [0, 0.5, 1], values: [0.3, 0.8, 0.3]}\n"
+COSINE = "  - {kind: cosine, mean: 0.3, amplitude: 0.5, phase: 0.0}\n"
+FOURIER = "  - {kind: fourier, mean: 0.3, cos: [0.5, 0.1], sin: [0.0, 0.05], phase: 0.3}\n"
+OFFSETS = (3 * LINEAR, COSINE + 2 * LINEAR, COSINE + FOURIER + LINEAR)
 
 
 def _gait() -> Any:
@@ -82,7 +85,8 @@ def _sensitivity() -> None:
 
 def _process() -> None:
     with jit.forced("compiled"):
-        simulate(compile(parse_gait(PROCESS, "warmup-process.yaml")), integrator="exact", max_periods=3)
+        for offsets in OFFSETS:
+            simulate(compile(parse_gait(PROCESS + offsets, "warmup-process.yaml")), integrator="exact", max_periods=3)
 
 
 #: The tasks, longest first (so that the longest starts first).
@@ -111,7 +115,7 @@ def warmup(jobs: int | None = None, *, report: Callable[[str], None] = lambda s:
             while pending and len(running) < jobs:
                 name = pending.pop(0)
                 running[name] = subprocess.Popen(
-                    [sys.executable, "-m", "crawlsim.study.warmup", name],
+                    [sys.executable, "-P", "-m", "crawlsim.study.warmup", name],
                     env=env,
                     stdout=subprocess.PIPE,
                     stderr=subprocess.STDOUT,
