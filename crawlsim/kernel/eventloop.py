@@ -626,7 +626,7 @@ def period(
     LAMC[0] = 0.0
     record_at(0, LAMC, x0, MU, X)
     counts[:] = 0
-    u, j, p, cause = 0.0, 1, 0, EDGE
+    u, j, p, cause, reached = 0.0, 1, 0, EDGE, -1
     carried = 0.0
     while True:
         status = begin_event(
@@ -640,6 +640,10 @@ def period(
             if not built:  # a new piece of c, or the ground under a block changed
                 terrain.effective(COEF[p], MC[p], ground, coefw, muw)
             coef, c_size, mc = coefw, offset_size(coefw), muw
+        held = signs if t_count > 0 else unheld
+        if cause == GROUND and reached >= 0:  # its thresholds jumped: its rows are not held
+            held = held.copy()
+            held[reached] = 0
         if built and kept and N >= LOCAL_BLOCKS and cause != GROUND:  # the piece of ``signs`` is in place
             decided = decide_local(
                 k,
@@ -669,7 +673,7 @@ def period(
                 Rdx,
                 inverse,
                 rate,
-                signs if t_count > 0 else unheld,
+                held,
             )
         else:
             decided = decide(
@@ -696,7 +700,7 @@ def period(
                 l,
                 norms,
                 inner,
-                signs if t_count > 0 else unheld,
+                held,
             )
         if not decided:
             report[R_U], report[R_REASON] = u, H_DECIDE
