@@ -233,6 +233,9 @@ def test_after_warmup_nothing_compiles(tmp_path):
         ["stall", "gaits/inching-2-towing.yaml", "--force", "loads.force.0"],
         ["stall", "gaits/climbing-3.yaml", "--slope"],
         ["run", "gaits/paper/triangle.yaml", "-o", str(tmp_path / "t.h5")],
+        ["velocity", "gaits/terrain/patch-4.yaml"],
+        ["velocity", "gaits/terrain/patch-4.yaml", "--integrator", "catch-up"],
+        ["run", "gaits/terrain/step-up-2.yaml", "-o", str(tmp_path / "s.h5")],
     ]
     for args in commands:
         done = _crawlsim(*args, cache=tmp_path / "cache", CRAWLSIM_KERNEL="compiled")

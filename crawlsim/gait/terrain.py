@@ -164,8 +164,8 @@ def _cells(spans: list[tuple[float, float, float, float]], repeat: float) -> Ter
         cells = [values[i] for i in keep] + [values[-1]]
     if not keep:  # uniform ground
         cells = [values[0]]
-    factors = np.array(cells, dtype=float).reshape(-1, 2)
-    return Terrain(np.array([points[i] for i in keep], dtype=float), factors[:, 0], factors[:, 1], repeat)
+    forward, backward = np.array(cells, dtype=float).T.copy()  # contiguous: the kernel's one signature
+    return Terrain(np.array([points[i] for i in keep], dtype=float), forward, backward, repeat)
 
 
 def boundaries(count: int) -> str:

@@ -41,6 +41,9 @@ friction:
   backward: 2.0
 simulation: {steps_per_period: 200, max_periods: 60}
 """
+#: The wave onto rougher ground (docs/model.md §8): catch-up's steps on terrain, its one entry
+#: point of its own (the exact loop's ground is in its period, compiled on uniform ground too).
+TERRAIN = "terrain: {patches: [{from: 3.5, forward: 1.5, backward: 1.5}]}\n"
 #: A generic process (the paper's triangle): the Python exact loop's compiled closed forms, whose
 #: zeros are found by kind of offsets (`crawlsim.integrate.exact`): linear pieces alone, one
 #: harmonic beside them, several harmonics (sampled).
@@ -71,6 +74,7 @@ def _exact() -> None:
 def _catch_up() -> None:
     with jit.forced("compiled"):
         simulate(compile(_gait()), integrator="catch-up", max_periods=60)
+        simulate(compile(parse_gait(GAIT + TERRAIN, "warmup.yaml")), integrator="catch-up", max_periods=3)
 
 
 def _sensitivity() -> None:
