@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -199,30 +200,28 @@ def test_no_background_compile_when_turned_off(tmp_path):
 @pytest.mark.slow
 def test_after_warmup_nothing_compiles(tmp_path):
     """`crawlsim warmup` compiles every path, once: afterwards each command in the compiled form
-    loads the kernel from the cache and prints no compile line, and the stamp says the cache is
-    ready. The cache starts empty, as a new user's: a cache that earlier tests filled would hide
-    an entry point warmup misses (the triangle's linear closed form was one).
+    loads the kernel from the cache and prints no compile line. The cache starts empty, as a new
+    user's: a cache that earlier tests filled would hide an entry point warmup misses (the
+    triangle's linear closed form was one).
 
-    Warmup runs in a folder with a ``crawlsim/`` of its own (a regular install used inside a
-    checkout): its compile processes import the crawlsim that started them, not that one, whose
-    sources numba would cache apart (before they did, the commands below compiled again)."""
-    decoy = tmp_path / "checkout"
-    (decoy / "crawlsim").mkdir(parents=True)
-    (decoy / "crawlsim" / "__init__.py").write_text("raise SystemExit(5)\n")
+    Warmup's processes compile the crawlsim that started them, whose sources numba caches apart
+    from any other copy's: here a copy that shadows the installed one (as a checkout does for
+    ``python -m pytest``, or a user working inside it), and, afterwards, a folder holding a
+    ``crawlsim/`` that is not the one running (``-m`` would put it first)."""
+    copy = tmp_path / "copy"
+    shutil.copytree(ROOT / "crawlsim", copy / "crawlsim", ignore=shutil.ignore_patterns("__pycache__"))
+    cache = tmp_path / "cache"
     environment = {k: v for k, v in os.environ.items() if k not in ("NUMBA_DISABLE_JIT", "CRAWLSIM_KERNEL")}
-    environment["PYTHONPATH"] = str(Path(crawlsim.__file__).resolve().parents[1])
-    environment["NUMBA_CACHE_DIR"] = str(tmp_path / "cache")
-    done = subprocess.run(
-        [sys.executable, "-P", "-m", "crawlsim", "warmup"],
-        capture_output=True,
-        text=True,
-        cwd=decoy,
-        env=environment,
-        timeout=600,
-    )
+    environment["NUMBA_CACHE_DIR"] = str(cache)
+
+    def crawlsim_in(folder: Path, *args: str, **env: str) -> subprocess.CompletedProcess:
+        argv = [sys.executable, "-X", "importtime", "-m", "crawlsim", *args]
+        return subprocess.run(argv, capture_output=True, text=True, cwd=folder, env={**environment, **env}, timeout=600)
+
+    done = crawlsim_in(copy, "warmup")
     assert done.returncode == 0, done.stderr
     assert "the kernel is compiled" in done.stdout
-    assert (tmp_path / "cache" / jit.stamp().name).exists()
+    assert (cache / jit.stamp().name).exists()
     commands = [
         ["velocity", "gaits/peristalsis-4.yaml"],
         ["velocity", "gaits/peristalsis-4.yaml", "--integrator", "catch-up"],
@@ -238,7 +237,14 @@ def test_after_warmup_nothing_compiles(tmp_path):
         ["run", "gaits/terrain/step-up-2.yaml", "-o", str(tmp_path / "s.h5")],
     ]
     for args in commands:
-        done = _crawlsim(*args, cache=tmp_path / "cache", CRAWLSIM_KERNEL="compiled")
+        absolute = [str(ROOT / a) if a.startswith("gaits/") else a for a in args]
+        done = crawlsim_in(copy, *absolute, CRAWLSIM_KERNEL="compiled")
         assert done.returncode == 0, (args, done.stderr)
         assert _imported(done.stderr, "numba"), args
         assert "compiling the kernel" not in done.stderr, args
+    decoy = tmp_path / "checkout"
+    (decoy / "crawlsim").mkdir(parents=True)
+    (decoy / "crawlsim" / "__init__.py").write_text("raise SystemExit(5)\n")
+    argv = [sys.executable, "-P", "-m", "crawlsim", "warmup"]
+    done = subprocess.run(argv, capture_output=True, text=True, cwd=decoy, env={**environment, "PYTHONPATH": str(copy)})
+    assert done.returncode == 0, done.stderr

@@ -234,16 +234,30 @@ def ready() -> bool:
     return stamp().exists()
 
 
+def this_python(*args: str) -> tuple[list[str], dict[str, str]]:
+    """``python -P ARGS`` and an environment whose ``PYTHONPATH`` starts with the folder this
+    crawlsim was imported from, so that a subprocess (warmup's tasks, the background compile)
+    imports these very sources: neither a checkout's ``crawlsim/`` in its working directory
+    (``-m`` puts that first) nor an installed copy that this one shadows. numba's cache and the
+    stamp are per source path."""
+    root = str(Path(os.path.abspath(__file__)).parents[2])
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (root, env.get("PYTHONPATH")) if p)
+    return [sys.executable, "-P", *args], env
+
+
 def _background() -> None:
-    """Start ``crawlsim warmup --background`` once per process; it compiles unless another one
-    holds the cache's lock, and writes the stamp when done. ``-P``: it compiles this crawlsim,
-    not a checkout's ``crawlsim/`` in the working directory (numba's cache is per source path)."""
+    """Start ``crawlsim warmup --background`` (of this crawlsim, `this_python`) once per
+    process; it compiles unless another one holds the cache's lock, and writes the stamp when
+    done."""
     if _state["background"] is not None or os.environ.get("CRAWLSIM_BACKGROUND_COMPILE", "1") == "0":
         return
     import subprocess
 
+    argv, env = this_python("-m", "crawlsim", "warmup", "--background")
     _state["background"] = subprocess.Popen(
-        [sys.executable, "-P", "-m", "crawlsim", "warmup", "--background"],
+        argv,
+        env=env,
         stdin=subprocess.DEVNULL,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,

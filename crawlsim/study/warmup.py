@@ -113,13 +113,14 @@ def warmup(jobs: int | None = None, *, report: Callable[[str], None] = lambda s:
     jobs = jobs or os.cpu_count() or 1
     start = time.perf_counter()
     pending, running = list(TASKS), dict[str, subprocess.Popen[str]]()
-    env = dict(os.environ, CRAWLSIM_BACKGROUND_COMPILE="0")
+    argv, env = jit.this_python("-m", "crawlsim.study.warmup")
+    env["CRAWLSIM_BACKGROUND_COMPILE"] = "0"
     try:
         while pending or running:
             while pending and len(running) < jobs:
                 name = pending.pop(0)
                 running[name] = subprocess.Popen(
-                    [sys.executable, "-P", "-m", "crawlsim.study.warmup", name],
+                    [*argv, name],
                     env=env,
                     stdout=subprocess.PIPE,
                     stderr=subprocess.STDOUT,
