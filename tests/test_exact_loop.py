@@ -18,6 +18,7 @@ from crawlsim.gait.document import load_gait
 from crawlsim.integrate import catchup
 from crawlsim.integrate.exact import EventStepper
 from crawlsim.kernel import eventloop, sampling
+from crawlsim.kernel.events import hit_together
 from crawlsim.model.process import compile_gait
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -64,7 +65,11 @@ def _every_row(loop, stepper, signs, base, Wc, Ydx, coef, inverse, u0, u1):
     first = float(np.min(times))
     if not first < u1:
         return np.inf, np.zeros(2 * N, dtype=bool)
-    return first, (~active) & (times <= first + eventloop.SIMULTANEOUS)
+    eventloop.basis_values(first, 0, linear, H, phi0)
+    together = [
+        times[r] <= first + eventloop.SIMULTANEOUS and hit_together(Z[r], loop.c_scale, phi0) for r in range(2 * N)
+    ]
+    return first, (~active) & ((times == first) | np.array(together))
 
 
 @pytest.mark.parametrize("name", ["peristalsis-4", "earthworm-100", "inching-2", "smooth-friction-3"])

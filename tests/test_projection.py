@@ -5,6 +5,8 @@ M (z - z_trial) + B^T lambda = 0, B z <= c, lambda >= 0, lambda_i (B z - c)_i = 
 and sufficient, so checking them independently of the projector proves the answer optimal.
 """
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -86,3 +88,43 @@ def test_persistent_and_fresh_solvers_agree():
         z = rng.normal(scale=3, size=3)
         pa, pb = a.project(z, c), b.project(z, c)
         assert np.array_equal(pa.point, pb.point)
+
+
+class _Stale:
+    """A persistent Clarabel solver whose updates leave it stalled: every solve refused
+    (status DualInfeasible), as rough seed 7388's was on a Newton candidate of its limit search
+    (tests/test_breakpoints.py), where a solver set up on the same data solved it."""
+
+    def __init__(self, solver):
+        self.solver = solver
+
+    def update(self, **data):
+        self.solver.update(**data)
+
+    def solve(self):
+        import clarabel
+
+        solution = self.solver.solve()
+        return SimpleNamespace(status=clarabel.SolverStatus.DualInfeasible, z=solution.z, s=solution.s)
+
+
+def test_a_refused_solve_of_an_updated_solver_is_solved_again_from_a_fresh_set_up():
+    """An updated solver keeps the scaling it equilibrated for its first data; a refusal of
+    its solve is no verdict on a projection (its set is not empty, and M > 0 bounds the
+    objective): the projection is solved again by a solver set up on its data, and is the one
+    a fresh solver gives. A set that is empty is still refused after the second solve."""
+    B = np.random.default_rng(3).normal(size=(3, 3))
+    B = np.vstack([B, -B])  # |B_i w| <= c_i: bounded
+    c = np.ones(6)
+    projector = ExactProjector.dense(B, np.eye(3), 1.0)
+    fresh = ExactProjector.dense(B, np.eye(3), 1.0, persistent=False)
+    z = 5.0 * B[0]  # outside: Clarabel proposes
+    assert projector.project(z, c).used_clarabel
+    stale = projector._solver = _Stale(projector._solver)
+    z = -5.0 * B[1]
+    proj = projector.project(z, c)
+    assert proj.used_clarabel and projector._solver is not stale
+    assert np.array_equal(proj.point, fresh.project(z, c).point)
+    projector._solver = _Stale(projector._solver)
+    with pytest.raises(CertificateError, match="Clarabel could not solve"):
+        projector.project(z, -c)  # B_0 w <= -1 and B_0 w >= 1

@@ -70,6 +70,7 @@ from crawlsim.integrate.compiled import EventTrajectory, _CompiledLoop
 from crawlsim.integrate.ground import GroundState
 from crawlsim.integrate.ledger import ExactLedger
 from crawlsim.integrate.stepping import PeriodRecord, PeriodStepper, Transition, TransitionCause
+from crawlsim.kernel.events import SIMULTANEOUS
 from crawlsim.kernel.jit import kernel
 from crawlsim.kernel.policy import REFINE_LIMIT
 from crawlsim.model.offsets import TWO_PI, PiecewiseOffsets
@@ -457,7 +458,11 @@ class EventStepper(PeriodStepper):
         first = float(np.min(crossing))
         if not first < u1:
             return None
-        hit = rows[(~kinds) & (crossing <= first + 1e-13)]
+        # rows within SIMULTANEOUS of it are hit too if at their limit there (`events.hit_together`)
+        phi = basis.values(first)
+        gap, size = (phi @ Z)[0], (np.abs(phi) @ np.abs(Z))[0]
+        together = (crossing <= first + SIMULTANEOUS) & (gap >= -RTOL * np.maximum(poly.c_scale, size))
+        hit = rows[(~kinds) & ((crossing == first) | together)]
         return first, np.sort(hit)
 
     # -- zeros -------------------------------------------------------------------------------

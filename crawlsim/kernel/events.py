@@ -34,7 +34,8 @@ from crawlsim.kernel.piece import basis_values, derivative
 from crawlsim.kernel.policy import RTOL
 
 TWO_PI = 2.0 * math.pi
-#: Two rows hit within this many cycles of the first crossing are hit together.
+#: Two rows hit within this many cycles of the first crossing are hit together, if the later
+#: one's gap is at its limit there to roundoff (`hit_together`).
 SIMULTANEOUS = 1e-13
 
 
@@ -89,6 +90,21 @@ def harmonic_crossings(
     """`harmonic_crossing` of every row into ``out``."""
     for r in range(a.shape[0]):
         out[r] = harmonic_crossing(a[r], alpha[r], beta[r], tol[r], u0, u1)
+
+
+@jit
+def hit_together(z: np.ndarray, c_scale: float, phi: np.ndarray) -> bool:
+    """Whether a row whose gap f = phi @ z crosses within `SIMULTANEOUS` after the first event
+    (phi its basis values) is hit with it: f there is at least -RTOL of c_scale or of the size
+    of its terms, the primal tolerance of a certificate. On a steep piece the gaps move by far
+    more than a friction band in SIMULTANEOUS: a row still below its limit there, taken in,
+    would hold that gap as its equality, a negative slip, and leave the row that did cross
+    violated."""
+    f, size = 0.0, 0.0
+    for b in range(z.shape[0]):
+        f += z[b] * phi[b]
+        size += abs(z[b] * phi[b])
+    return f >= -RTOL * max(c_scale, size)
 
 
 # -- the next event on a piece ------------------------------------------------------------------
@@ -295,10 +311,12 @@ def next_event(
     hit[:] = False
     if not first < u1:
         return np.inf, False
+    basis_values(first, 0, linear, H, phi0)
     for r in range(m):
         s = signs[r % N]
         inactive = not ((r < N and s > 0) or (r >= N and s < 0))
-        hit[r] = inactive and times[r] <= first + SIMULTANEOUS
+        together = times[r] <= first + SIMULTANEOUS and hit_together(Z[r], c_scale, phi0)
+        hit[r] = inactive and (times[r] == first or together)
     return first, False
 
 
@@ -365,8 +383,10 @@ def next_event_kept(
     hit[:] = False
     if not first < u1:
         return np.inf
-    for i in range(N):
-        s = signs[i]
-        hit[i] = s <= 0 and times[i] <= first + SIMULTANEOUS
-        hit[N + i] = s >= 0 and times[N + i] <= first + SIMULTANEOUS
+    basis_values(first, 0, linear, H, phi0)
+    for r in range(2 * N):
+        s = signs[r % N]
+        inactive = s <= 0 if r < N else s >= 0
+        together = times[r] <= first + SIMULTANEOUS and hit_together(Z[r], c_scale, phi0)
+        hit[r] = inactive and (times[r] == first or together)
     return first

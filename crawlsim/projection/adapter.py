@@ -111,16 +111,28 @@ class ExactProjector:
             reach = poly.row_norm * float(np.max(np.abs(w_trial), initial=0.0))
             b[~finite] = 1e6 * (reach + float(np.max(np.abs(b), initial=0.0)) + poly.c_scale)
         q = -poly.metric_times(w_trial)
-        if self._solver is None or not self._persistent:
-            import clarabel
-
-            P, A = poly.clarabel_matrices()
-            self._solver = _solver(P, q, A, b, [clarabel.NonnegativeConeT(self.m)])
+        fresh = self._solver is None or not self._persistent
+        if fresh:
+            self._solver = self._setup(q, b)
         else:
             self._solver.update(q=q, b=b)
-        lam, slack = self._proposal(self._solver.solve(), "the projection")
+        solution = self._solver.solve()
+        if not fresh and _refused(solution):
+            # an updated solver keeps the scaling it equilibrated for its first data, which can
+            # stall it on data far from those (a projection's set is not empty, and M > 0 bounds
+            # the objective): solved again, set up on this data
+            self._solver = self._setup(q, b)
+            solution = self._solver.solve()
+        lam, slack = self._proposal(solution, "the projection")
         lam[~finite] = 0.0
         return lam, slack
+
+    def _setup(self, q: np.ndarray, b: np.ndarray) -> Any:
+        """A Clarabel solver of the projection with every row an inequality."""
+        import clarabel
+
+        P, A = self.polyhedron.clarabel_matrices()
+        return _solver(P, q, A, b, [clarabel.NonnegativeConeT(self.m)])
 
     def _proposal(self, solution: Any, problem: str) -> tuple[np.ndarray, np.ndarray]:
         """The one status rule on Clarabel's answers (`clarabel.SolverStatus`). Clarabel only
@@ -131,7 +143,7 @@ class ExactProjector:
         self.clarabel_calls += 1
         self.clarabel_status = solution.status
         lam, slack = np.asarray(solution.z, dtype=float), np.asarray(solution.s, dtype=float)
-        if solution.status in _infeasible() or not (np.isfinite(lam).all() and np.isfinite(slack).all()):
+        if _refused(solution):
             raise CertificateError(
                 f"Clarabel could not solve {problem} (status {solution.status}); the set may be empty at this time"
             )
@@ -309,6 +321,12 @@ def _infeasible() -> frozenset[Any]:
 
     S = clarabel.SolverStatus
     return frozenset({S.PrimalInfeasible, S.DualInfeasible, S.AlmostPrimalInfeasible, S.AlmostDualInfeasible})
+
+
+def _refused(solution: Any) -> bool:
+    """Whether Clarabel's answer proposes nothing: (almost) infeasible, or not finite."""
+    finite = np.isfinite(solution.z).all() and np.isfinite(solution.s).all()
+    return solution.status in _infeasible() or not finite
 
 
 def _at(time: float | None) -> str:
