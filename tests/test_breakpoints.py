@@ -225,6 +225,7 @@ def test_catch_up_steps_whose_updates_cycle_settle_in_the_kernel(monkeypatch):
     assert 0 < len(handed) <= 150
 
 
+@pytest.mark.slow  # a 62-block period in the Python loop, about 10 s
 def test_a_velocity_problem_of_many_rows_settles_one_row_at_a_time():
     """Rough seed 1133 (62 blocks): at u = 0.314 of the first period a decision's velocity
     problem has 57 candidate rows. The updates of every violated row at once did not settle,

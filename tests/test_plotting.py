@@ -134,7 +134,15 @@ def _check_labels(fig, units=None):
 # Every figure of every gait file
 
 
-@pytest.mark.parametrize("gait_file", GAIT_FILES, ids=lambda p: p.stem)
+#: The default run draws a crawler, a crawler on terrain and a generic process; the other
+#: example gaits are drawn in the slow run.
+FIGURES_BY_DEFAULT = ("peristalsis-4", "patch-4", "triangle")
+
+
+@pytest.mark.parametrize(
+    "gait_file",
+    [pytest.param(p, id=p.stem, marks=() if p.stem in FIGURES_BY_DEFAULT else pytest.mark.slow) for p in GAIT_FILES],
+)
 def test_every_figure_of_every_gait(run_file, gait_file, tmp_path):
     """Every figure a file supports is written for each example gait (all five for crawlers,
     convergence and shape space for the paper's generic sweeping processes), titled with the
@@ -1388,10 +1396,11 @@ def test_a_narrow_figure_keeps_most_of_its_width_for_the_plot(run_file, tmp_path
 
 
 def test_plot_methods_of_results_and_sweeps(run_file, tmp_path):
-    """result.plot(), grid.crawlsim.plot() (the Dataset of crawlsim.sweep) and table.plot() draw
-    what crawlsim plot draws, without importing crawlsim.plotting."""
+    """result.plot(), grid.crawlsim.plot() (the Dataset of crawlsim.sweep; without xarray, the
+    SweepTable it returns then, grid.plot()) and table.plot() draw what crawlsim plot draws,
+    without importing crawlsim.plotting."""
     import crawlsim
-    from crawlsim.study.table import read_table
+    from crawlsim.study.table import SweepTable, read_table
 
     result = crawlsim.open_run(run_file("peristalsis-4"))
     assert result.plot().axes[0].get_title() == "peristalsis-4: block positions"
@@ -1400,7 +1409,8 @@ def test_plot_methods_of_results_and_sweeps(run_file, tmp_path):
         result.plot("motions")
     out = tmp_path / "s.h5"
     grid = crawlsim.sweep(GAITS / "inching-2-towing.yaml", {"loads.force.0": [0.0, -0.4, -0.8, -1.2, -1.6]}, output=out)
-    for fig in (grid.crawlsim.plot(), read_table(out).plot()):
+    first = grid.plot() if isinstance(grid, SweepTable) else grid.crawlsim.plot()
+    for fig in (first, read_table(out).plot()):
         ax = fig.axes[0]
         assert ax.get_xlabel() == "loads.force.0 ($F$)"
         assert "stall force -1 (jump)" in [t.get_text() for t in ax.get_legend().get_texts()]
