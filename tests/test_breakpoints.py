@@ -191,6 +191,7 @@ def test_rough_corpus_gaits_that_failed(seed):
     assert abs(catch_up.v0 - exact.v0) <= catch_up.estimate.error_estimate
 
 
+@pytest.mark.slow  # 18 stiff blocks for 8 periods: about 35 s interpreted, on a cold cache
 def test_a_sample_off_by_roundoff_in_a_newton_period_is_refined(monkeypatch):
     """Rough seed 1023 (18 blocks, stiffness condition 4.7e11, stress scale 3.2e9): in its
     fifth period, from a Newton candidate of the limit search, a sample lay outside K(t) by
